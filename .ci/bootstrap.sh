@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Set up an environment for torchmeshmetric (if needed) and run the given command in it.
+#
+#   bash .ci/bootstrap.sh <command...>
+#
+# - Uses the active virtualenv/conda env when there is one (so a CUDA build of torch a user already has is kept);
+#   otherwise creates ./.venv.
+# - Installs torch only when none is importable, pinned (TORCH_SPEC, default torch==2.13.0) so pip never pulls an
+#   unexpected multi-GB build; then installs this package with its test extra (editable).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+if [[ -z "${VIRTUAL_ENV:-}" && -z "${CONDA_PREFIX:-}" ]]; then
+    if [[ ! -x .venv/bin/python ]]; then
+        python3 -m venv .venv
+    fi
+    # shellcheck disable=SC1091
+    . .venv/bin/activate
+fi
+stamp=".venv-installed-$(python -c 'import sys; print(sys.prefix.replace("/", "_"))')"
+if ! python -c "import torch" >/dev/null 2>&1; then
+    python -m pip install -q "${TORCH_SPEC:-torch==2.13.0}"
+fi
+if [[ ! -f "$stamp" || pyproject.toml -nt "$stamp" ]]; then
+    python -m pip install -q -e ".[test]"
+    touch "$stamp"
+fi
+exec "$@"

@@ -1,0 +1,58 @@
+"""Small helpers shared by the kernels (chunk sizing, safe division and square roots, per-item centring)."""
+
+from __future__ import annotations
+
+import torch
+from torch import Tensor
+
+DEFAULT_MAX_MEMORY = 256 * 2**20
+"""Default memory budget of one kernel intermediate, in bytes (256 MiB)."""
+
+
+def dot(x: Tensor, y: Tensor) -> Tensor:
+    """Row-wise dot product over the last dimension."""
+    return (x * y).sum(-1)
+
+
+def cross(x: Tensor, y: Tensor) -> Tensor:
+    """Cross product over the last dimension, broadcasting leading dimensions of any rank."""
+    x0, x1, x2 = x.unbind(-1)
+    y0, y1, y2 = y.unbind(-1)
+    return torch.stack([x1 * y2 - x2 * y1, x2 * y0 - x0 * y2, x0 * y1 - x1 * y0], dim=-1)
+
+
+def safe_div(num: Tensor, den: Tensor) -> Tensor:
+    """``num / den`` where ``den > 0``, else 0; finite value and gradient everywhere."""
+    ok = den > 0
+    return torch.where(ok, num / torch.where(ok, den, torch.ones_like(den)), torch.zeros_like(num))
+
+
+def safe_sqrt(sq: Tensor) -> Tensor:
+    """``sqrt(sq)`` with gradient 0 (not Inf/NaN) at ``sq == 0``."""
+    pos = sq > 0
+    return torch.where(pos, torch.sqrt(torch.where(pos, sq, torch.ones_like(sq))), torch.zeros_like(sq))
+
+
+def item_centers(x: Tensor, batch: Tensor, num_items: int) -> Tensor:
+    """``(B, 3)`` centre of the bounding box of each item's rows (0 for empty items).
+
+    Kernels subtract it before computing so that float32 accuracy is relative to the mesh size, not to
+    its distance from the origin (coordinates around 1e6 keep full relative precision).
+    """
+    lo = torch.full((num_items, 3), float("inf"), dtype=x.dtype, device=x.device)
+    hi = torch.full((num_items, 3), float("-inf"), dtype=x.dtype, device=x.device)
+    idx = batch[:, None].expand(-1, 3)
+    lo = lo.scatter_reduce(0, idx, x.detach(), reduce="amin")
+    hi = hi.scatter_reduce(0, idx, x.detach(), reduce="amax")
+    center = 0.5 * (lo + hi)
+    return torch.where(torch.isfinite(center), center, torch.zeros_like(center))
+
+
+def pair_chunks(num_rows: int, num_cols: int, bytes_per_pair: int, max_memory: int) -> tuple[int, int]:
+    """Row and column chunk sizes so that ``rows * cols * bytes_per_pair <= max_memory`` (at least 1 x 1)."""
+    if max_memory <= 0:
+        raise ValueError(f"max_memory: expected a positive number of bytes, found {max_memory}")
+    pairs = max(1, max_memory // max(1, bytes_per_pair))
+    cols = max(1, min(num_cols, pairs // max(1, min(num_rows, 256))))
+    rows = max(1, min(num_rows, pairs // cols))
+    return rows, cols

@@ -1,0 +1,131 @@
+"""Exact nearest-vertex (cloud-to-cloud) distance, paper Eq. (5)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import NamedTuple
+
+import torch
+from torch import Tensor
+
+from torchmeshmetric._checks import EmptyInputError, check_same_device
+from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY, dot, item_centers, pair_chunks, safe_sqrt
+from torchmeshmetric.structures import batch_index, lengths_to_offsets, pack_points
+
+__all__ = ["NearestVertexDistance", "nearest_vertex_distance", "register_nearest_backend"]
+
+
+class NearestVertexDistance(NamedTuple):
+    """Result of :func:`nearest_vertex_distance`.
+
+    Attributes:
+        dists: ``(P,)`` Euclidean distance (**not squared**) to the nearest reference point.
+        idx: ``(P,)`` int64 row of that point in the (packed) ``ref_points``.
+    """
+
+    dists: Tensor
+    idx: Tensor
+
+
+# (points, point_batch, ref, ref_batch, ref_offsets, max_memory) -> idx (P,); inputs centred, packed, detached.
+NearestSelector = Callable[[Tensor, Tensor, Tensor, Tensor, Tensor, int], Tensor]
+_NEAREST_BACKENDS: dict[str, NearestSelector] = {}
+_NEAREST_AUTO: list[Callable[[Tensor, Tensor], str | None]] = []
+
+
+def register_nearest_backend(
+    name: str, selector: NearestSelector, auto: Callable[[Tensor, Tensor], str | None] | None = None
+) -> None:
+    """Register a nearest-neighbour selection backend (used by accelerated kernels)."""
+    _NEAREST_BACKENDS[name] = selector
+    if auto is not None:
+        _NEAREST_AUTO.append(auto)
+
+
+def _bruteforce_nearest(
+    points: Tensor, point_batch: Tensor, ref: Tensor, ref_batch: Tensor, ref_offsets: Tensor, max_memory: int
+) -> Tensor:
+    """Chunked brute force with explicit differences (no ``|p|^2 - 2 p.q + |q|^2`` cancellation)."""
+    num_p, num_r = points.shape[0], ref.shape[0]
+    rows, cols = pair_chunks(num_p, num_r, 2 * points.element_size(), max_memory)
+    best = torch.zeros(num_p, dtype=torch.long, device=points.device)
+    single = ref_offsets.numel() == 2
+    for p0 in range(0, num_p, rows):
+        p1 = min(num_p, p0 + rows)
+        pb = point_batch[p0:p1]
+        r_lo, r_hi = (0, num_r) if single else (int(ref_offsets[pb[0]]), int(ref_offsets[pb[-1] + 1]))
+        best_d = torch.full((p1 - p0,), float("inf"), dtype=points.dtype, device=points.device)
+        for r0 in range(r_lo, r_hi, cols):
+            r1 = min(r_hi, r0 + cols)
+            d = torch.cdist(points[p0:p1], ref[r0:r1], compute_mode="donot_use_mm_for_euclid_dist")
+            if not single:
+                d = d.masked_fill(pb[:, None] != ref_batch[None, r0:r1], float("inf"))
+            chunk_d, chunk_i = d.min(-1)
+            better = chunk_d < best_d
+            best_d = torch.where(better, chunk_d, best_d)
+            best[p0:p1] = torch.where(better, chunk_i + r0, best[p0:p1])
+    return best
+
+
+register_nearest_backend("bruteforce", _bruteforce_nearest)
+
+
+def nearest_vertex_distance(
+    points: Tensor | Sequence[Tensor],
+    ref_points: Tensor | Sequence[Tensor],
+    *,
+    points_lengths: Tensor | None = None,
+    ref_lengths: Tensor | None = None,
+    max_memory: int = DEFAULT_MAX_MEMORY,
+    backend: str = "auto",
+) -> NearestVertexDistance:
+    """Exact distance from every point to its nearest reference point (paper Eq. 5, cloud-to-cloud).
+
+    Args:
+        points: ``(P, 3)`` query points, packed ``(sum P_b, 3)`` with ``points_lengths``, or a list.
+        ref_points: ``(R, 3)`` reference points (e.g. a mesh's vertex set), packed with ``ref_lengths``, or a list.
+        points_lengths: ``(B,)`` points per item of a packed batch.
+        ref_lengths: ``(B,)`` reference points per item of a packed batch.
+        max_memory: upper bound in bytes of one intermediate (default 256 MiB).
+        backend: ``"auto"`` or ``"bruteforce"`` (or a registered accelerated backend).
+
+    Returns:
+        :class:`NearestVertexDistance` ``(dists, idx)``; ``dists`` is **not squared** and differentiable
+        w.r.t. both point sets (gradient 0 at zero distance); ties go to the lowest index.
+
+    Example:
+        >>> import torch
+        >>> r = nearest_vertex_distance(torch.tensor([[0.0, 0, 0]]), torch.tensor([[3.0, 4, 0], [0, 0, 6]]))
+        >>> r.dists.item(), r.idx.item()
+        (5.0, 0)
+    """
+    pts = pack_points(points, points_lengths, "points")
+    ref = pack_points(ref_points, ref_lengths, "ref_points")
+    check_same_device({"points": pts.points, "ref_points": ref.points})
+    if pts.lengths.numel() != ref.lengths.numel():
+        raise ValueError(
+            f"ref_points: expected {pts.lengths.numel()} reference sets (one per point set), "
+            f"found {ref.lengths.numel()}"
+        )
+    if pts.points.shape[0] == 0:
+        raise EmptyInputError("points: expected at least one point, found an empty point set")
+    lacking = (pts.lengths > 0) & (ref.lengths == 0)
+    if bool(lacking.any()):
+        b = int(lacking.nonzero()[0, 0])
+        raise EmptyInputError(f"ref_points: reference set {b} is empty but has {int(pts.lengths[b])} query points")
+    if backend == "auto":
+        name = next((n for rule in _NEAREST_AUTO if (n := rule(pts.points, ref.points)) is not None), "bruteforce")
+        select = _NEAREST_BACKENDS[name]
+    elif backend in _NEAREST_BACKENDS:
+        select = _NEAREST_BACKENDS[backend]
+    else:
+        raise ValueError(f"backend: expected one of {['auto', *_NEAREST_BACKENDS]}, found {backend!r}")
+    dtype = torch.promote_types(pts.points.dtype, ref.points.dtype)
+    p, r = pts.points.to(dtype), ref.points.to(dtype)
+    pb, rb = batch_index(pts.lengths), batch_index(ref.lengths)
+    centers = item_centers(r, rb, int(ref.lengths.numel()))
+    p_c, r_c = p - centers[pb], r - centers[rb]
+    with torch.no_grad():
+        idx = select(p_c.detach(), pb, r_c.detach(), rb, lengths_to_offsets(ref.lengths), max_memory)
+    diff = p_c - r_c[idx]
+    return NearestVertexDistance(safe_sqrt(dot(diff, diff)), idx)

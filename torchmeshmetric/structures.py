@@ -1,0 +1,335 @@
+"""Mesh container and ragged-batch packing helpers.
+
+A :class:`Mesh` is an immutable pair ``verts (V, 3)`` float / ``faces (F, 3)`` int64. Every function of the library
+that takes a mesh also takes a ``(verts, faces)`` tuple of tensors or numpy arrays and a ``trimesh.Trimesh``
+(see :func:`as_mesh`). Ragged batches are packed tensors with per-item ``lengths``, as in PyTorch3D: the
+items are concatenated along the first dimension and ``lengths[b]`` rows belong to item ``b``; packed faces
+hold indices *local to their item's vertices*.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, NamedTuple, Union
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from torchmeshmetric._checks import (
+    IndexRangeError,
+    ShapeError,
+    check_faces,
+    check_finite,
+    check_float,
+    check_lengths,
+    check_same_device,
+    check_shape,
+)
+
+if TYPE_CHECKING:
+    import trimesh
+
+__all__ = [
+    "Mesh",
+    "MeshLike",
+    "PackedMeshes",
+    "PackedPoints",
+    "as_mesh",
+    "as_points",
+    "batch_index",
+    "lengths_to_offsets",
+    "pack_meshes",
+    "pack_points",
+]
+
+
+@dataclass(frozen=True, eq=False)
+class Mesh:
+    """An immutable triangle mesh.
+
+    Args:
+        verts: ``(V, 3)`` floating-point vertex positions.
+        faces: ``(F, 3)`` integer vertex indices (converted to ``int64``).
+        validate: check shapes, dtypes, finiteness and index range (default ``True``).
+
+    Raises:
+        ShapeError, DTypeError, NonFiniteError, IndexRangeError, DeviceError: on malformed input.
+
+    Example:
+        >>> import torch
+        >>> from torchmeshmetric import Mesh
+        >>> m = Mesh(torch.tensor([[0., 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]]))
+        >>> m.num_verts, m.num_faces
+        (3, 1)
+    """
+
+    verts: Tensor
+    faces: Tensor
+
+    def __init__(self, verts: Tensor, faces: Tensor, *, validate: bool = True) -> None:
+        if validate:
+            check_shape(verts, ("V", 3), "verts")
+            check_float(verts, "verts")
+            check_finite(verts, "verts")
+            check_faces(faces, verts.shape[0], "faces")
+            check_same_device({"verts": verts, "faces": faces})
+        object.__setattr__(self, "verts", verts)
+        object.__setattr__(self, "faces", faces.long())
+
+    @property
+    def num_verts(self) -> int:
+        """Number of vertices ``V``."""
+        return int(self.verts.shape[0])
+
+    @property
+    def num_faces(self) -> int:
+        """Number of faces ``F``."""
+        return int(self.faces.shape[0])
+
+    @property
+    def device(self) -> torch.device:
+        """Device of the vertex tensor."""
+        return self.verts.device
+
+    @property
+    def dtype(self) -> torch.dtype:
+        """Floating-point dtype of the vertices."""
+        return self.verts.dtype
+
+    def to(self, device: torch.device | str | None = None, dtype: torch.dtype | None = None) -> Mesh:
+        """Return a copy on another device and/or with another vertex dtype."""
+        return Mesh(self.verts.to(device=device, dtype=dtype), self.faces.to(device=device), validate=False)
+
+    def detach(self) -> Mesh:
+        """Return the mesh with vertices detached from the autograd graph."""
+        return Mesh(self.verts.detach(), self.faces, validate=False)
+
+    def bbox_diagonal(self) -> Tensor:
+        """Length of the diagonal of the axis-aligned bounding box of the referenced vertices (0-dim tensor)."""
+        v = self.verts[self.faces.unique()] if self.num_faces else self.verts
+        if v.shape[0] == 0:
+            return self.verts.new_zeros(())
+        return (v.amax(0) - v.amin(0)).norm()
+
+    def face_areas(self) -> Tensor:
+        """``(F,)`` triangle areas."""
+        tri = self.verts[self.faces]
+        return 0.5 * torch.linalg.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], dim=-1).norm(dim=-1)
+
+    def to_trimesh(self) -> trimesh.Trimesh:
+        """Convert to a ``trimesh.Trimesh`` (``process=False`` keeps vertex order)."""
+        import trimesh
+
+        return trimesh.Trimesh(self.verts.detach().cpu().double().numpy(), self.faces.cpu().numpy(), process=False)
+
+    def __repr__(self) -> str:
+        return f"Mesh(num_verts={self.num_verts}, num_faces={self.num_faces}, dtype={self.dtype}, device={self.device})"
+
+
+MeshLike = Union[Mesh, tuple[Any, Any], "trimesh.Trimesh"]
+"""A :class:`Mesh`, a ``(verts, faces)`` tuple of tensors or arrays, or a ``trimesh.Trimesh``."""
+
+
+def _to_tensor(x: Any, name: str, *, device: torch.device | str | None, dtype: torch.dtype | None) -> Tensor:
+    if isinstance(x, Tensor):
+        t = x
+    elif isinstance(x, np.ndarray):
+        t = torch.from_numpy(np.ascontiguousarray(x))
+    else:
+        try:
+            t = torch.as_tensor(np.asarray(x))
+        except Exception as err:
+            raise TypeError(f"{name}: expected a tensor or array, found {type(x).__name__}") from err
+    if dtype is not None or device is not None:
+        t = t.to(device=device, dtype=dtype)
+    return t
+
+
+def as_mesh(
+    mesh: MeshLike,
+    *,
+    name: str = "mesh",
+    device: torch.device | str | None = None,
+    dtype: torch.dtype | None = None,
+) -> Mesh:
+    """Convert any accepted mesh form into a validated :class:`Mesh`.
+
+    Args:
+        mesh: a :class:`Mesh`, a ``(verts, faces)`` tuple of tensors/arrays, or a ``trimesh.Trimesh``.
+        name: argument name used in error messages.
+        device: optional target device.
+        dtype: optional vertex dtype. numpy ``float64`` arrays stay ``float64`` unless given.
+
+    Returns:
+        The validated mesh (the same object when no conversion is needed).
+
+    Raises:
+        TypeError: ``mesh`` has none of the accepted forms.
+
+    Example:
+        >>> import trimesh
+        >>> as_mesh(trimesh.creation.box()).num_faces
+        12
+    """
+    if isinstance(mesh, Mesh):
+        if device is None and dtype is None:
+            return mesh
+        return mesh.to(device=device, dtype=dtype)
+    if isinstance(mesh, tuple) and len(mesh) == 2:
+        verts = _to_tensor(mesh[0], f"{name}.verts", device=device, dtype=dtype)
+        faces = _to_tensor(mesh[1], f"{name}.faces", device=device if device is not None else verts.device, dtype=None)
+        return _named_mesh(verts, faces, name)
+    if type(mesh).__name__ == "Trimesh" and hasattr(mesh, "vertices") and hasattr(mesh, "faces"):
+        verts = torch.from_numpy(np.asarray(mesh.vertices, dtype=np.float64).copy()).to(device=device, dtype=dtype)
+        faces = torch.from_numpy(np.asarray(mesh.faces, dtype=np.int64).copy()).to(device=verts.device)
+        return _named_mesh(verts, faces, name)
+    raise TypeError(
+        f"{name}: expected a Mesh, a (verts, faces) tuple or a trimesh.Trimesh, found {type(mesh).__name__}"
+    )
+
+
+def _named_mesh(verts: Tensor, faces: Tensor, name: str) -> Mesh:
+    check_shape(verts, ("V", 3), f"{name}.verts")
+    check_float(verts, f"{name}.verts")
+    check_finite(verts, f"{name}.verts")
+    check_faces(faces, verts.shape[0], f"{name}.faces")
+    return Mesh(verts, faces, validate=False)
+
+
+def as_points(points: Any, name: str = "points") -> Tensor:
+    """Validate a ``(P, 3)`` floating-point, finite point tensor (numpy arrays are converted)."""
+    t = _to_tensor(points, name, device=None, dtype=None)
+    check_shape(t, ("P", 3), name)
+    check_float(t, name)
+    check_finite(t, name)
+    return t
+
+
+class PackedPoints(NamedTuple):
+    """Ragged batch of point sets: ``points (sum P_b, 3)`` and ``lengths (B,)``."""
+
+    points: Tensor
+    lengths: Tensor
+
+
+class PackedMeshes(NamedTuple):
+    """Ragged batch of meshes: packed ``verts``/``faces`` (faces local to their item) and per-item lengths."""
+
+    verts: Tensor
+    faces: Tensor
+    verts_lengths: Tensor
+    faces_lengths: Tensor
+
+
+def lengths_to_offsets(lengths: Tensor) -> Tensor:
+    """``(B,)`` lengths → ``(B + 1,)`` offsets ``[0, l0, l0 + l1, ...]``."""
+    return torch.cat([lengths.new_zeros(1), lengths.cumsum(0)])
+
+
+def batch_index(lengths: Tensor) -> Tensor:
+    """``(B,)`` lengths → ``(sum lengths,)`` item index of every packed row."""
+    return torch.repeat_interleave(torch.arange(lengths.numel(), device=lengths.device), lengths)
+
+
+def pack_points(points: Sequence[Any] | Tensor, lengths: Tensor | None = None, name: str = "points") -> PackedPoints:
+    """Pack a list of ``(P_b, 3)`` point sets (or validate an already packed tensor with ``lengths``).
+
+    A single ``(P, 3)`` tensor without ``lengths`` is a batch of one.
+    """
+    if isinstance(points, Tensor):
+        pts = as_points(points, name)
+        if lengths is None:
+            lengths = torch.tensor([pts.shape[0]], device=pts.device)
+        lengths = lengths.to(device=pts.device, dtype=torch.long)
+        check_lengths(lengths, pts.shape[0], f"{name}_lengths")
+        return PackedPoints(pts, lengths)
+    if lengths is not None:
+        raise TypeError(
+            f"{name}_lengths: only valid with a packed tensor, found a {type(points).__name__} of point sets"
+        )
+    items = [as_points(p, f"{name}[{i}]") for i, p in enumerate(points)]
+    if not items:
+        raise ValueError(f"{name}: expected at least one point set, found an empty list")
+    check_same_device({f"{name}[{i}]": p for i, p in enumerate(items)})
+    dtype = torch.promote_types(*[p.dtype for p in items]) if len(items) > 1 else items[0].dtype
+    lengths_t = torch.tensor([p.shape[0] for p in items], device=items[0].device)
+    return PackedPoints(torch.cat([p.to(dtype) for p in items]), lengths_t)
+
+
+def pack_meshes(
+    meshes: Sequence[MeshLike] | MeshLike | Tensor,
+    faces: Tensor | None = None,
+    verts_lengths: Tensor | None = None,
+    faces_lengths: Tensor | None = None,
+    name: str = "mesh",
+) -> PackedMeshes:
+    """Pack meshes into one ragged batch.
+
+    Accepts a single mesh-like, a list of mesh-likes, or already packed ``verts``/``faces`` tensors with
+    ``verts_lengths``/``faces_lengths`` (both omitted means a batch of one).
+    """
+    if isinstance(meshes, Tensor):
+        if faces is None:
+            raise TypeError(f"{name}: verts given as a tensor, so faces must be given too")
+        verts = meshes
+        check_shape(verts, ("V", 3), "verts")
+        check_float(verts, "verts")
+        check_finite(verts, "verts")
+        check_shape(faces, ("F", 3), "faces")
+        check_same_device({"verts": verts, "faces": faces})
+        if (verts_lengths is None) != (faces_lengths is None):
+            raise TypeError("verts_lengths and faces_lengths must be given together")
+        if verts_lengths is None or faces_lengths is None:
+            check_faces(faces, verts.shape[0], "faces")
+            dev = verts.device
+            return PackedMeshes(
+                verts,
+                faces.long(),
+                torch.tensor([verts.shape[0]], device=dev),
+                torch.tensor([faces.shape[0]], device=dev),
+            )
+        vl = verts_lengths.to(device=verts.device, dtype=torch.long)
+        fl = faces_lengths.to(device=verts.device, dtype=torch.long)
+        check_lengths(vl, verts.shape[0], "verts_lengths")
+        check_lengths(fl, faces.shape[0], "faces_lengths")
+        if vl.numel() != fl.numel():
+            raise ShapeError(
+                f"verts_lengths/faces_lengths: expected the same batch size, found {vl.numel()} and {fl.numel()}"
+            )
+        faces = faces.long()
+        if faces.numel():
+            per_face_nv = vl[batch_index(fl)]
+            bad = (faces < 0).any(1) | (faces >= per_face_nv[:, None]).any(1)
+            if bool(bad.any()):
+                first = int(bad.nonzero()[0, 0])
+                raise IndexRangeError(
+                    f"faces: expected indices local to each item's vertices, in [0, {int(per_face_nv[first]) - 1}] "
+                    f"for packed face {first}, found {faces[first].tolist()}"
+                )
+        return PackedMeshes(verts, faces, vl, fl)
+    if faces is not None:
+        raise TypeError("faces: only valid when verts is a tensor")
+    if isinstance(meshes, (list, tuple)) and not (isinstance(meshes, tuple) and _looks_like_pair(meshes)):
+        items = [as_mesh(m, name=f"{name}[{i}]") for i, m in enumerate(meshes)]
+        if not items:
+            raise ValueError(f"{name}: expected at least one mesh, found an empty list")
+    else:
+        items = [as_mesh(meshes, name=name)]  # type: ignore[arg-type]
+    check_same_device({f"{name}[{i}]": m.verts for i, m in enumerate(items)})
+    dtype = items[0].dtype
+    for m in items[1:]:
+        dtype = torch.promote_types(dtype, m.dtype)
+    dev = items[0].device
+    return PackedMeshes(
+        torch.cat([m.verts.to(dtype) for m in items]),
+        torch.cat([m.faces for m in items]),
+        torch.tensor([m.num_verts for m in items], device=dev),
+        torch.tensor([m.num_faces for m in items], device=dev),
+    )
+
+
+def _looks_like_pair(t: tuple[Any, ...]) -> bool:
+    """A 2-tuple whose items are arrays/tensors is a ``(verts, faces)`` mesh, not a list of two meshes."""
+    return len(t) == 2 and all(isinstance(x, (Tensor, np.ndarray)) for x in t)
