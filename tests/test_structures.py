@@ -9,7 +9,16 @@ import pytest
 import torch
 import trimesh
 
-from torchmeshmetric import DTypeError, IndexRangeError, Mesh, NonFiniteError, ShapeError, as_mesh, pack_meshes, pack_points
+from torchmeshmetric import (
+    DTypeError,
+    IndexRangeError,
+    Mesh,
+    NonFiniteError,
+    ShapeError,
+    as_mesh,
+    pack_meshes,
+    pack_points,
+)
 
 
 def test_as_mesh_accepts_all_forms() -> None:
@@ -43,7 +52,7 @@ def test_mesh_validation_errors() -> None:
         Mesh(torch.full((3, 3), float("nan")), torch.zeros(1, 3, dtype=torch.long))
     with pytest.raises(IndexRangeError, match="faces"):
         Mesh(torch.zeros(3, 3), torch.tensor([[0, 1, 3]]))
-    with pytest.raises(ShapeError, match="mesh.verts"):
+    with pytest.raises(ShapeError, match=r"mesh\.verts"):
         as_mesh((np.zeros((3, 4)), np.zeros((1, 3), dtype=int)))
     with pytest.raises(TypeError, match="mesh: expected a Mesh"):
         as_mesh([1, 2, 3])  # type: ignore[arg-type]

@@ -14,7 +14,9 @@ from torchmeshmetric import EmptyInputError, NonFiniteError, ShapeError, nearest
 def test_matches_reference_and_kdtree(dtype: torch.dtype, device: str) -> None:
     g = np.random.default_rng(0)
     pts, ref = g.normal(size=(700, 3)), g.normal(size=(1300, 3))
-    r = nearest_vertex_distance(torch.tensor(pts, dtype=dtype, device=device), torch.tensor(ref, dtype=dtype, device=device))
+    r = nearest_vertex_distance(
+        torch.tensor(pts, dtype=dtype, device=device), torch.tensor(ref, dtype=dtype, device=device)
+    )
     d_ref, i_ref = reference.nearest_vertex(pts, ref)
     d_kd, i_kd = cKDTree(ref).query(pts)
     tol = 1e-12 if dtype == torch.float64 else 1e-6

@@ -43,7 +43,9 @@ def test_each_voronoi_region(region: str, dtype: torch.dtype, device: str) -> No
     t = [torch.tensor(x, dtype=dtype, device=device) for x in (p, A, B, C)]
     r = closest_point_on_triangle(*t)
     torch.testing.assert_close(r.closest.cpu(), torch.tensor(expected, dtype=dtype), rtol=0, atol=1e-6)
-    np.testing.assert_allclose(r.closest.cpu().double().numpy(), reference.closest_point_triangle(p, A, B, C), atol=1e-6)
+    np.testing.assert_allclose(
+        r.closest.cpu().double().numpy(), reference.closest_point_triangle(p, A, B, C), atol=1e-6
+    )
     # Barycentrics reproduce the point and sum to one.
     recon = r.bary[0] * t[1] + r.bary[1] * t[2] + r.bary[2] * t[3]
     torch.testing.assert_close(recon, r.closest, rtol=0, atol=1e-6)
@@ -64,9 +66,7 @@ def test_degenerate_triangles_match_reference(name: str, dtype: torch.dtype) -> 
     a, b, c = (np.array(x) for x in DEGENERATE[name])
     g = np.random.default_rng(0)
     pts = g.normal(scale=2.0, size=(200, 3))
-    r = closest_point_on_triangle(
-        torch.tensor(pts, dtype=dtype), *(torch.tensor(x, dtype=dtype) for x in (a, b, c))
-    )
+    r = closest_point_on_triangle(torch.tensor(pts, dtype=dtype), *(torch.tensor(x, dtype=dtype) for x in (a, b, c)))
     assert torch.isfinite(r.closest).all() and torch.isfinite(r.bary).all()
     ref = np.stack([reference.closest_point_triangle(p, a, b, c) for p in pts])
     np.testing.assert_allclose(r.closest.double().numpy(), ref, atol=1e-5 if dtype == torch.float32 else 1e-12)
@@ -175,8 +175,10 @@ def test_degenerate_mesh_matches_reference() -> None:
 
 
 def test_ragged_batch_equals_individual_calls_and_is_memory_independent(dtype: torch.dtype) -> None:
-    meshes = [_icosphere(1, dtype), Mesh(torch.tensor(trimesh.creation.box().vertices, dtype=dtype),
-                                         torch.tensor(trimesh.creation.box().faces))]
+    meshes = [
+        _icosphere(1, dtype),
+        Mesh(torch.tensor(trimesh.creation.box().vertices, dtype=dtype), torch.tensor(trimesh.creation.box().faces)),
+    ]
     meshes[1] = Mesh(meshes[1].verts + 3.0, meshes[1].faces)
     g = torch.Generator().manual_seed(0)
     pts = [torch.randn(37, 3, generator=g, dtype=dtype), torch.randn(11, 3, generator=g, dtype=dtype) + 3.0]
@@ -276,7 +278,9 @@ class TestBadInput:
             point_mesh_distance(self.pts, v, self.faces)
 
     def test_face_index_out_of_range(self) -> None:
-        with pytest.raises(IndexRangeError, match=r"faces: expected vertex indices in \[0, 2\], found values in \[0, 5\]"):
+        with pytest.raises(
+            IndexRangeError, match=r"faces: expected vertex indices in \[0, 2\], found values in \[0, 5\]"
+        ):
             point_mesh_distance(self.pts, self.verts, torch.tensor([[0, 1, 5]]))
 
     def test_negative_face_index(self) -> None:
@@ -302,7 +306,7 @@ class TestBadInput:
             point_mesh_distance(self.pts, self.verts, torch.zeros(0, 3, dtype=torch.long))
 
     def test_wrong_mesh_type(self) -> None:
-        with pytest.raises(TypeError, match="mesh: expected a Mesh, a \\(verts, faces\\) tuple or a trimesh.Trimesh"):
+        with pytest.raises(TypeError, match=r"mesh: expected a Mesh, a \(verts, faces\) tuple or a trimesh\.Trimesh"):
             point_mesh_distance(self.pts, "not a mesh")  # type: ignore[arg-type]
 
     def test_mismatched_batch_sizes(self) -> None:
