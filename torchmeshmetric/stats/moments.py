@@ -1,4 +1,4 @@
-"""Mergeable first and second moments of distance sets (Chan, Golub & LeVeque 1979).
+r"""Mergeable first and second moments of distance sets (Chan, Golub & LeVeque 1979).
 
 A distance set is summarised by ``Moments(count, mean, m2, sumsq, min, max)`` in float64, where ``m2`` is the
 sum of squared deviations from the mean. Partial summaries of disjoint parts combine exactly (up to float64
@@ -6,11 +6,11 @@ rounding) with Chan et al.'s parallel formula
 
 .. math::
 
-    n = n_a + n_b,\\quad \\delta = \\bar x_b - \\bar x_a,\\quad
-    \\bar x = \\bar x_a + \\delta\\, n_b / n,\\quad M_2 = M_{2,a} + M_{2,b} + \\delta^2\\, n_a n_b / n,
+    n = n_a + n_b,\quad \delta = \bar x_b - \bar x_a,\quad
+    \bar x = \bar x_a + \delta\, n_b / n,\quad M_2 = M_{2,a} + M_{2,b} + \delta^2\, n_a n_b / n,
 
-and, for ``K`` parts at once, :math:`\\bar x = \\sum_k n_k \\bar x_k / n`,
-:math:`M_2 = \\sum_k M_{2,k} + \\sum_k n_k (\\bar x_k - \\bar x)^2`. Nothing is computed as
+and, for ``K`` parts at once, :math:`\bar x = \sum_k n_k \bar x_k / n`,
+:math:`M_2 = \sum_k M_{2,k} + \sum_k n_k (\bar x_k - \bar x)^2`. Nothing is computed as
 :math:`E[x^2] - E[x]^2`, so float32 distances with large offsets lose no precision to cancellation.
 """
 
@@ -23,23 +23,23 @@ from torch import Tensor
 
 from torchmeshmetric.structures import batch_index
 
-__all__ = ["Moments", "merge_moments", "moments_of"]
+__all__ = ["Moments", "merge_mean_m2", "merge_moments", "moments_of"]
 
 
 class Moments(NamedTuple):
-    """Sufficient statistics of one or several distance sets (float64; 0-dim for one set, ``(B,)`` per item).
+    r"""Sufficient statistics of one or several distance sets (float64; 0-dim for one set, ``(B,)`` per item).
 
     Attributes:
         count: number of values (float64 so that it merges like the other fields).
         mean: arithmetic mean (``0`` when ``count == 0``).
         m2: sum of squared deviations from ``mean``.
-        sumsq: sum of squared values, :math:`\\sum d^2` (no cancellation: every term is non-negative for
+        sumsq: sum of squared values, :math:`\sum d^2` (no cancellation: every term is non-negative for
             distances).
         min: smallest value (``+inf`` when empty).
         max: largest value (``-inf`` when empty).
     """
 
-    count: Tensor
+    count: Tensor  # type: ignore[assignment]  # shadows tuple.count on purpose (the statistic's name)
     mean: Tensor
     m2: Tensor
     sumsq: Tensor
@@ -102,11 +102,17 @@ def merge_moments(parts: Moments, dim: int = 0) -> Moments:
         (3.0, 2.0, 2.0)
     """
     count, mean, m2, sumsq, lo, hi = (t.to(torch.float64) for t in parts)
-    n = count.sum(dim)
-    safe_n = n.clamp_min(1.0)
-    new_mean = torch.where(n > 0, (count * mean).sum(dim) / safe_n, torch.zeros_like(n))
-    dev = torch.where(count > 0, mean - new_mean.unsqueeze(dim), torch.zeros_like(mean))
-    new_m2 = m2.sum(dim) + (count * dev * dev).sum(dim)
+    n, new_mean, new_m2 = merge_mean_m2(count, mean, m2, dim)
     if lo.shape[dim] == 0:
-        return Moments(n, new_mean, new_m2, sumsq.sum(dim), torch.full_like(n, float("inf")), torch.full_like(n, float("-inf")))
+        inf = torch.full_like(n, float("inf"))
+        return Moments(n, new_mean, new_m2, sumsq.sum(dim), inf, -inf)
     return Moments(n, new_mean, new_m2, sumsq.sum(dim), lo.amin(dim), hi.amax(dim))
+
+
+def merge_mean_m2(count: Tensor, mean: Tensor, m2: Tensor, dim: int = 0) -> tuple[Tensor, Tensor, Tensor]:
+    """Chan et al. merge of ``(count, mean, m2)`` parts along ``dim``; returns the merged ``(count, mean, m2)``."""
+    count, mean, m2 = count.to(torch.float64), mean.to(torch.float64), m2.to(torch.float64)
+    n = count.sum(dim)
+    new_mean = torch.where(n > 0, (count * mean).sum(dim) / n.clamp_min(1.0), torch.zeros_like(n))
+    dev = torch.where(count > 0, mean - new_mean.unsqueeze(dim), torch.zeros_like(mean))
+    return n, new_mean, m2.sum(dim) + (count * dev * dev).sum(dim)

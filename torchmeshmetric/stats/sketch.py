@@ -1,9 +1,9 @@
-"""Fixed-size, mergeable quantile sketch with a relative-error bound (log-bucket histogram, DDSketch).
+r"""Fixed-size, mergeable quantile sketch with a relative-error bound (log-bucket histogram, DDSketch).
 
 Masson, Rim & Lee (2019), *DDSketch: A Fast and Fully-Mergeable Quantile Sketch with Relative-Error
 Guarantees*. A non-negative value ``x`` in ``[min_value, max_value]`` falls in bucket ``i = ceil(log_gamma x)``
-with :math:`\\gamma = (1 + \\alpha) / (1 - \\alpha)`; bucket ``i`` covers :math:`(\\gamma^{i-1}, \\gamma^i]` and is
-represented by :math:`2 \\gamma^i / (\\gamma + 1)`, which is within relative error :math:`\\alpha` of every value of
+with :math:`\gamma = (1 + \alpha) / (1 - \alpha)`; bucket ``i`` covers :math:`(\gamma^{i-1}, \gamma^i]` and is
+represented by :math:`2 \gamma^i / (\gamma + 1)`, which is within relative error :math:`\alpha` of every value of
 the bucket. Counts are a fixed-length vector, so two sketches merge by addition (a ``dist_reduce_fx="sum"`` state).
 
 Guarantee (tested): for a quantile ``q``, the estimate of the order statistic of rank ``r`` (0-based) is within

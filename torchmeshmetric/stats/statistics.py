@@ -1,20 +1,20 @@
-"""The statistics of a distance set: the paper's five (Section II.C) plus Hausdorff, quantiles and PSNR.
+r"""The statistics of a distance set: the paper's five (Section II.C) plus Hausdorff, quantiles and PSNR.
 
-For a distance set :math:`D = \\{d_1, \\dots, d_n\\}` (distances, **not squared**):
-
-.. math::
-
-    \\mathrm{Ave} = \\frac{1}{n}\\sum_i d_i,\\qquad
-    \\mathrm{Var} = \\frac{1}{n - \\mathrm{ddof}}\\sum_i (d_i - \\mathrm{Ave})^2,\\qquad
-    \\mathrm{STD} = \\sqrt{\\mathrm{Var}},
+For a distance set :math:`D = \{d_1, \dots, d_n\}` (distances, **not squared**):
 
 .. math::
 
-    \\mathrm{MSE} = \\frac{1}{n}\\sum_i d_i^2,\\qquad \\mathrm{RMSE} = \\sqrt{\\mathrm{MSE}},\\qquad
-    \\mathrm{PSNR} = 10 \\log_{10} \\frac{\\mathrm{peak}^2}{\\mathrm{MSE}}\\ \\text{dB}.
+    \mathrm{Ave} = \frac{1}{n}\sum_i d_i,\qquad
+    \mathrm{Var} = \frac{1}{n - \mathrm{ddof}}\sum_i (d_i - \mathrm{Ave})^2,\qquad
+    \mathrm{STD} = \sqrt{\mathrm{Var}},
 
-With the default population variance (``ddof=0``), :math:`\\mathrm{MSE} = \\mathrm{Var} + \\mathrm{Ave}^2`, so
-:math:`\\mathrm{MSE} \\ge \\mathrm{Ave}^2` always. ``max`` is the one-sided Hausdorff distance. Quantiles
+.. math::
+
+    \mathrm{MSE} = \frac{1}{n}\sum_i d_i^2,\qquad \mathrm{RMSE} = \sqrt{\mathrm{MSE}},\qquad
+    \mathrm{PSNR} = 10 \log_{10} \frac{\mathrm{peak}^2}{\mathrm{MSE}}\ \text{dB}.
+
+With the default population variance (``ddof=0``), :math:`\mathrm{MSE} = \mathrm{Var} + \mathrm{Ave}^2`, so
+:math:`\mathrm{MSE} \ge \mathrm{Ave}^2` always. ``max`` is the one-sided Hausdorff distance. Quantiles
 (``median``, ``p95``, ``p99``) use linear interpolation between order statistics (``numpy.percentile``'s
 default), exactly or from a :class:`~torchmeshmetric.stats.sketch.QuantileSketch` with a relative-error bound.
 """
@@ -74,7 +74,7 @@ class DistanceStatistics(NamedTuple):
     median: Tensor
     p95: Tensor
     p99: Tensor
-    count: Tensor
+    count: Tensor  # type: ignore[assignment]  # shadows tuple.count on purpose (the statistic's name)
     psnr: Tensor | None
 
     def as_dict(self) -> dict[str, float]:
@@ -86,7 +86,9 @@ class DistanceStatistics(NamedTuple):
             ValueError: the statistics are per item of a batch (use ``[s.as_dict() for s in unbind(stats)]``).
         """
         if self.ave.dim() != 0:
-            raise ValueError(f"as_dict: expected statistics of one set (0-dim fields), found shape {tuple(self.ave.shape)}")
+            raise ValueError(
+                f"as_dict: expected statistics of one set (0-dim fields), found shape {tuple(self.ave.shape)}"
+            )
         out: dict[str, float] = {}
         for name, value in zip(self._fields, self, strict=True):
             if value is None:
@@ -99,10 +101,7 @@ class DistanceStatistics(NamedTuple):
         if self.ave.dim() == 0:
             return [self]
         cols = [None if v is None else v.unbind(0) for v in self]
-        return [
-            DistanceStatistics(*[None if c is None else c[b] for c in cols])  # type: ignore[misc]
-            for b in range(self.ave.shape[0])
-        ]
+        return [DistanceStatistics._make(None if c is None else c[b] for c in cols) for b in range(self.ave.shape[0])]
 
 
 def psnr_from_mse(mse: Tensor, peak: float | Tensor) -> Tensor:
@@ -266,9 +265,6 @@ def distance_statistics(
             qv = sk.quantile(sk.counts(d), q, mom.min, mom.max)
         else:
             b = batch_index(lengths.to(d.device, torch.long))
-            rows = [
-                sk.quantile(sk.counts(d[b == i]), q, mom.min[i], mom.max[i]) for i in range(int(lengths.numel()))
-            ]
+            rows = [sk.quantile(sk.counts(d[b == i]), q, mom.min[i], mom.max[i]) for i in range(int(lengths.numel()))]
             qv = torch.stack(rows) if rows else d.new_zeros((0, 3), dtype=torch.float64)
     return statistics_from_parts(mom, qv, ddof=ddof, peak=peak)
-

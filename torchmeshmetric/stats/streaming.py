@@ -88,8 +88,8 @@ class DistanceAccumulator:
         self._merge_moments(other._moments)
         self._values.extend(other._values)
         if other._counts is not None:
-            self._counts = other._counts.clone() if self._counts is None else self._counts + other._counts.to(
-                self._counts.device
+            self._counts = (
+                other._counts.clone() if self._counts is None else self._counts + other._counts.to(self._counts.device)
             )
         return self
 
