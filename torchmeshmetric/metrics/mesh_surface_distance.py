@@ -22,11 +22,13 @@ def _to_surface(
     points: list[Tensor], meshes: list[Mesh], surface_samples: int | None, seed: int, backend: str
 ) -> Tensor:
     """Packed distances from each item's points to its mesh surface (exact, or to N area-sampled points)."""
+    if sum(p.shape[0] for p in points) == 0:  # an empty update: nothing to measure
+        return torch.cat(points).new_zeros(0)
+    p = torch.cat(points)  # torch.cat promotes mixed float dtypes
     if surface_samples is None:
-        return point_mesh_distance(points, meshes, backend=backend).dists
+        return point_mesh_distance(p, meshes, points_lengths=lengths_of(points), backend=backend).dists
     gen = torch.Generator(device=meshes[0].device).manual_seed(seed)
     s = sample_surface(meshes, n=surface_samples, generator=gen)
-    p = torch.cat(points)
     dtype = torch.promote_types(p.dtype, s.points.dtype)
     return nearest_vertex_distance(
         p.to(dtype), s.points.to(dtype), points_lengths=lengths_of(points), ref_lengths=s.lengths, backend=backend

@@ -17,6 +17,8 @@ __all__ = ["NearestVertexDistance", "nearest_vertex_distances"]
 
 def _cloud_to_cloud(points: list[Tensor], refs: list[Tensor], backend: str) -> Tensor:
     p, r = torch.cat(points), torch.cat(refs)
+    if p.shape[0] == 0:  # an empty update: nothing to measure
+        return p.new_zeros(0)
     dtype = torch.promote_types(p.dtype, r.dtype)
     return nearest_vertex_distance(
         p.to(dtype), r.to(dtype), points_lengths=lengths_of(points), ref_lengths=lengths_of(refs), backend=backend
