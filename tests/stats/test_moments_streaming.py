@@ -14,7 +14,9 @@ values = st.lists(st.floats(0, 1e3, allow_nan=False, allow_infinity=False), min_
 @given(st.lists(values, min_size=1, max_size=6))
 def test_chan_merge_equals_concatenation(parts):
     flat = [x for p in parts for x in p]
-    rows = Moments(*[torch.stack(f) for f in zip(*[moments_of(torch.tensor(p, dtype=torch.float64)) for p in parts])])
+    rows = Moments(
+        *[torch.stack(f) for f in zip(*[moments_of(torch.tensor(p, dtype=torch.float64)) for p in parts], strict=True)]
+    )
     m = merge_moments(rows)
     assert float(m.count) == len(flat)
     if not flat:
