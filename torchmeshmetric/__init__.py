@@ -19,12 +19,31 @@ from torchmeshmetric.kernels import (
     sample_surface,
     vertex_set,
 )
+from torchmeshmetric.metrics import (
+    DistanceStatisticsMetric,
+    MeshSurfaceDistance,
+    MeshSurfaceDistanceLoss,
+    NearestVertexDistanceLoss,
+    mesh_surface_distance_loss,
+    nearest_vertex_distance_loss,
+)
+from torchmeshmetric.stats import DistanceAccumulator, DistanceStatistics, distance_statistics
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh, pack_meshes, pack_points
 
 __version__ = "0.1.0"
 
+# The metric ``NearestVertexDistance`` lives in ``torchmeshmetric.metrics``: the top-level name is the kernel's result.
 __all__ = [
     "ClosestPointOnTriangle",
+    "DistanceAccumulator",
+    "DistanceStatistics",
+    "DistanceStatisticsMetric",
+    "MeshSurfaceDistance",
+    "MeshSurfaceDistanceLoss",
+    "NearestVertexDistanceLoss",
+    "distance_statistics",
+    "mesh_surface_distance_loss",
+    "nearest_vertex_distance_loss",
     "DTypeError",
     "DeviceError",
     "EmptyInputError",
