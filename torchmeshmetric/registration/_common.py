@@ -1,0 +1,54 @@
+"""Helpers shared by the registration modules (input validation, masks, normals, normalisation)."""
+
+from __future__ import annotations
+
+import torch
+from torch import Tensor
+
+from torchmeshmetric._checks import EmptyInputError, check_same_device
+from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
+
+
+def validate_pair(source: MeshLike, target: MeshLike) -> tuple[Mesh, Mesh]:
+    """Validate both meshes (typed errors), require one device and faces with positive total area.
+
+    Vertices are promoted to a common floating dtype (at least float32).
+    """
+    src = as_mesh(source, name="source")
+    tgt = as_mesh(target, name="target")
+    check_same_device({"source": src.verts, "target": tgt.verts})
+    for name, m in (("source", src), ("target", tgt)):
+        if m.num_verts == 0:
+            raise EmptyInputError(f"{name}: expected at least one vertex, found an empty mesh")
+        if m.num_faces == 0:
+            raise EmptyInputError(f"{name}: expected at least one face, found none")
+        if not bool(m.face_areas().sum() > 0):
+            raise EmptyInputError(f"{name}: expected a surface with positive area, found only zero-area faces")
+    dtype = torch.promote_types(torch.promote_types(src.dtype, tgt.dtype), torch.float32)
+    return src.to(dtype=dtype), tgt.to(dtype=dtype)
+
+
+def referenced_mask(mesh: Mesh) -> Tensor:
+    """``(V,)`` bool: vertices referenced by at least one face of positive area (the surface's vertices)."""
+    used = torch.zeros(mesh.num_verts, dtype=torch.bool, device=mesh.device)
+    good = mesh.face_areas() > 0
+    used[mesh.faces[good].reshape(-1)] = True
+    return used
+
+
+def face_unit_normals(verts: Tensor, faces: Tensor) -> Tensor:
+    """``(F, 3)`` unit face normals; exactly zero for zero-area faces (they have no normal)."""
+    tri = verts[faces]
+    n = torch.linalg.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], dim=-1)
+    norm = n.norm(dim=-1, keepdim=True)
+    return torch.where(norm > 0, n / torch.where(norm > 0, norm, torch.ones_like(norm)), torch.zeros_like(n))
+
+
+def vertex_unit_normals(verts: Tensor, faces: Tensor) -> Tensor:
+    """``(V, 3)`` area-weighted vertex normals, unit length; zero where no face of positive area touches."""
+    tri = verts[faces]
+    n = torch.linalg.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], dim=-1)  # 2 * area * unit normal
+    acc = torch.zeros_like(verts).index_add(0, faces[:, 0], n).index_add(0, faces[:, 1], n)
+    acc = acc.index_add(0, faces[:, 2], n)
+    norm = acc.norm(dim=-1, keepdim=True)
+    return torch.where(norm > 0, acc / torch.where(norm > 0, norm, torch.ones_like(norm)), torch.zeros_like(acc))
