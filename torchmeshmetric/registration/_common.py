@@ -61,10 +61,10 @@ def closest_faces(points: Tensor, verts: Tensor, faces: Tensor, *, candidates: i
     gets a bounding sphere (centroid, radius); ``|p - c_f| - r_f`` is a lower bound of the distance from ``p`` to
     face ``f``. The ``candidates`` faces with the smallest bounds are tested exactly (Ericson's closest point); a
     point keeps that answer only when its best exact distance is below the smallest bound of every face left out
-    (with a float safety margin), otherwise it falls back to the brute-force kernel. The answer is therefore the
+    (with a float safety margin), otherwise it is retried with 8 times more candidates (finally all faces). The answer is therefore the
     exact closest face (ties may resolve to another face at the same distance).
     """
-    from torchmeshmetric.kernels.point_triangle import closest_point_on_triangle, point_mesh_distance
+    from torchmeshmetric.kernels.point_triangle import closest_point_on_triangle
 
     with torch.no_grad():
         num_f = faces.shape[0]
@@ -77,22 +77,24 @@ def closest_faces(points: Tensor, verts: Tensor, faces: Tensor, *, candidates: i
         scale = float((verts.amax(0) - verts.amin(0)).norm()) + float(p.abs().max())
         margin = 64 * torch.finfo(points.dtype).eps * max(scale, 1e-30)
         out = torch.empty(points.shape[0], dtype=torch.long, device=points.device)
-        rows = max(1, (1 << 24) // max(1, num_f))
+        rows = max(1, (1 << 22) // max(1, num_f))
         for r0 in range(0, points.shape[0], rows):
             pc = p[r0 : r0 + rows]
             lb = torch.cdist(pc, cen) - rad
-            lb_k, cand = lb.topk(k, dim=1, largest=False)
-            t = tri[cand] - center  # (R, k, 3, 3)
-            sq = closest_point_on_triangle(pc[:, None], t[..., 0, :], t[..., 1, :], t[..., 2, :]).sq_dists
-            best_sq, j = sq.min(1)
-            out[r0 : r0 + rows] = cand.gather(1, j[:, None])[:, 0]
-            if k < num_f:
-                # The k+1-th bound: recompute it as the min over faces outside the candidate set.
-                lb.scatter_(1, cand, float("inf"))
-                rest = lb.amin(1)
-                unsure = best_sq.sqrt() > rest - margin
-                if bool(unsure.any()):
-                    idx = unsure.nonzero()[:, 0]
-                    res = point_mesh_distance(points[r0 : r0 + rows][idx], verts, faces, backend="bruteforce")
-                    out[r0 + idx] = res.face_idx
+            todo = torch.arange(pc.shape[0], device=points.device)
+            kk = k
+            while todo.numel():
+                lb_t = lb[todo]
+                _, cand = lb_t.topk(kk, dim=1, largest=False)
+                t = tri[cand] - center  # (R, k, 3, 3)
+                sq = closest_point_on_triangle(pc[todo, None], t[..., 0, :], t[..., 1, :], t[..., 2, :]).sq_dists
+                best_sq, j = sq.min(1)
+                out[r0 + todo] = cand.gather(1, j[:, None])[:, 0]
+                if kk >= num_f:
+                    break
+                # Smallest bound among the faces left out: the answer is exact when no left-out face can be closer.
+                rest = lb_t.scatter(1, cand, float("inf")).amin(1)
+                unsure = best_sq.clamp_min(0).sqrt() > rest - margin
+                todo = todo[unsure]
+                kk = min(num_f, kk * 8)
         return out

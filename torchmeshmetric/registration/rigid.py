@@ -18,8 +18,8 @@ from kornia.geometry.conversions import axis_angle_to_rotation_matrix
 from torch import Tensor
 
 from torchmeshmetric._checks import EmptyInputError, ShapeError, check_finite, check_float, check_shape
-from torchmeshmetric.kernels.point_triangle import point_mesh_distance
-from torchmeshmetric.registration._common import face_unit_normals, referenced_mask, validate_pair
+from torchmeshmetric.kernels.point_triangle import PointMeshDistance, closest_point_on_triangle
+from torchmeshmetric.registration._common import closest_faces, face_unit_normals, referenced_mask, validate_pair
 from torchmeshmetric.structures import MeshLike
 
 __all__ = ["RigidRegistration", "SimilarityTransform", "kabsch_umeyama", "register_rigid", "transform_matrix"]
@@ -167,13 +167,13 @@ def register_rigid(
     source: MeshLike,
     target: MeshLike,
     *,
-    max_iterations: int = 50,
+    max_iterations: int = 30,
     point_to_plane: bool = False,
     scale: bool = False,
     trim: float = 0.9,
     robust_scale: float = 0.05,
-    tolerance: float = 1e-7,
-    num_samples: int = 3000,
+    tolerance: float = 1e-6,
+    num_samples: int = 1000,
     align_centroids: bool = True,
     init: Tensor | None = None,
     generator: torch.Generator | None = None,
@@ -258,7 +258,7 @@ def register_rigid(
     dists = torch.zeros(pts.shape[0], dtype=dtype, device=device)
     for it in range(1, max_iterations + 1):  # noqa: B007 - the last value is reported
         cur = s * pts @ R.T + t
-        res = point_mesh_distance(cur, tgt.verts, tgt.faces)
+        res = _closest(cur, tgt.verts, tgt.faces)
         dists = res.dists
         w = _robust_trimmed_weights(dists, trim, sigma2)
         if point_to_plane:
@@ -278,7 +278,7 @@ def register_rigid(
             converged = True
             break
     cur = s * pts @ R.T + t
-    res = point_mesh_distance(cur, tgt.verts, tgt.faces)
+    res = _closest(cur, tgt.verts, tgt.faces)
     w = _robust_trimmed_weights(res.dists, trim, float("inf"))
     keep = w > 0
     rmse = (res.dists[keep] ** 2).mean().sqrt()
@@ -309,3 +309,11 @@ def _robust_trimmed_weights(dists: Tensor, trim: float, sigma2: Tensor | float) 
         w = torch.ones_like(dists)
     return torch.where(keep, w, torch.zeros_like(w))
 
+
+
+def _closest(points: Tensor, verts: Tensor, faces: Tensor) -> PointMeshDistance:
+    """Exact closest points on the mesh (pruned exact face search, then Ericson's closest point)."""
+    fi = closest_faces(points, verts, faces)
+    tri = verts[faces[fi]]
+    r = closest_point_on_triangle(points, tri[:, 0], tri[:, 1], tri[:, 2])
+    return PointMeshDistance(r.sq_dists.clamp_min(0).sqrt(), fi, r.bary, r.closest)
