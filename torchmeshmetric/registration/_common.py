@@ -84,16 +84,17 @@ def closest_faces(points: Tensor, verts: Tensor, faces: Tensor, *, candidates: i
             todo = torch.arange(pc.shape[0], device=points.device)
             kk = k
             while todo.numel():
-                lb_t = lb[todo]
-                _, cand = lb_t.topk(kk, dim=1, largest=False)
-                t = tri[cand] - center  # (R, k, 3, 3)
+                lb_t = lb if todo.numel() == pc.shape[0] else lb[todo]
+                # The (kk+1)-th smallest bound is the smallest bound among the faces left out.
+                lb_k, cand = lb_t.topk(min(kk + 1, num_f), dim=1, largest=False)
+                rest, cand = lb_k[:, -1], cand[:, :kk]
+                t = tri[cand] - center  # (R, kk, 3, 3)
                 sq = closest_point_on_triangle(pc[todo, None], t[..., 0, :], t[..., 1, :], t[..., 2, :]).sq_dists
                 best_sq, j = sq.min(1)
                 out[r0 + todo] = cand.gather(1, j[:, None])[:, 0]
                 if kk >= num_f:
                     break
-                # Smallest bound among the faces left out: the answer is exact when no left-out face can be closer.
-                rest = lb_t.scatter(1, cand, float("inf")).amin(1)
+                # Exact when no left-out face can be closer.
                 unsure = best_sq.clamp_min(0).sqrt() > rest - margin
                 todo = todo[unsure]
                 kk = min(num_f, kk * 8)

@@ -168,7 +168,7 @@ def register_nonrigid(
         max_outlier_fraction: the fit is reported as failed when more than this fraction of surface vertices, or
             of target samples, lies farther than ``outlier_distance`` from the other mesh.
         outlier_distance: see ``max_outlier_fraction`` (fraction of the diagonal).
-        rigid_options: keyword arguments for :func:`register_rigid`.
+        rigid_options: keyword arguments for :func:`register_rigid` (default: point-to-plane).
         generator: optional CPU ``torch.Generator`` for sampling (reproducible runs).
         warn: emit a :class:`RegistrationWarning` when the registration fails.
 
@@ -213,7 +213,7 @@ def register_nonrigid(
     # 2. Rigid initialisation.
     t0 = time.perf_counter()
     if rigid_init:
-        rigid = register_rigid(src, tgt, generator=gen, **(rigid_options or {}))
+        rigid = register_rigid(src, tgt, generator=gen, **{"point_to_plane": True, **(rigid_options or {})})
         moved = rigid.verts
     else:
         rigid = _identity_rigid(src.verts)
