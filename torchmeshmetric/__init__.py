@@ -19,6 +19,15 @@ from torchmeshmetric.kernels import (
     sample_surface,
     vertex_set,
 )
+from torchmeshmetric.registration import (
+    DeformationGraph,
+    NonRigidRegistration,
+    RegistrationWarning,
+    RigidRegistration,
+    kabsch_umeyama,
+    register_nonrigid,
+    register_rigid,
+)
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh, pack_meshes, pack_points
 
 __version__ = "0.1.0"
@@ -26,6 +35,7 @@ __version__ = "0.1.0"
 __all__ = [
     "ClosestPointOnTriangle",
     "DTypeError",
+    "DeformationGraph",
     "DeviceError",
     "EmptyInputError",
     "IndexRangeError",
@@ -33,16 +43,22 @@ __all__ = [
     "MeshLike",
     "NearestVertexDistance",
     "NonFiniteError",
+    "NonRigidRegistration",
     "PointMeshDistance",
+    "RegistrationWarning",
+    "RigidRegistration",
     "ShapeError",
     "SurfaceSamples",
     "__version__",
     "as_mesh",
     "closest_point_on_triangle",
+    "kabsch_umeyama",
     "nearest_vertex_distance",
     "pack_meshes",
     "pack_points",
     "point_mesh_distance",
+    "register_nonrigid",
+    "register_rigid",
     "sample_surface",
     "vertex_set",
 ]

@@ -59,8 +59,9 @@ def test_graph_rigid_motion_is_reproduced_exactly():
     with torch.no_grad():
         g.rotations.copy_(0.7 * axis)
         g.translations.copy_(g.nodes @ R.T - g.nodes + torch.tensor([0.1, 0.2, 0.3], dtype=torch.float64))
-    torch.testing.assert_close(g(), g.verts @ R.T + torch.tensor([0.1, 0.2, 0.3], dtype=torch.float64),
-                               atol=1e-12, rtol=0)
+    torch.testing.assert_close(
+        g(), g.verts @ R.T + torch.tensor([0.1, 0.2, 0.3], dtype=torch.float64), atol=1e-12, rtol=0
+    )
     assert float(embedded_deformation_regularizer(g)) < 1e-20
 
 
@@ -121,9 +122,9 @@ def test_nonrigid_bad_inputs():
         register_nonrigid((v[:0], f[:0]), (v, f))
     bad = v.clone()
     bad[1, 2] = math.inf
-    with pytest.raises(NonFiniteError, match="source.verts"):
+    with pytest.raises(NonFiniteError, match=r"source\.verts"):
         register_nonrigid((bad, f), (v, f))
-    with pytest.raises(ShapeError, match="target.faces"):
+    with pytest.raises(ShapeError, match=r"target\.faces"):
         register_nonrigid((v, f), (v, f[:, :2]))
     with pytest.raises(ValueError, match="correspondence_every"):
         register_nonrigid((v, f), (v, f), correspondence_every=0)

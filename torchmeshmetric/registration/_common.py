@@ -61,8 +61,8 @@ def closest_faces(points: Tensor, verts: Tensor, faces: Tensor, *, candidates: i
     gets a bounding sphere (centroid, radius); ``|p - c_f| - r_f`` is a lower bound of the distance from ``p`` to
     face ``f``. The ``candidates`` faces with the smallest bounds are tested exactly (Ericson's closest point); a
     point keeps that answer only when its best exact distance is below the smallest bound of every face left out
-    (with a float safety margin), otherwise it is retried with 8 times more candidates (finally all faces). The answer is therefore the
-    exact closest face (ties may resolve to another face at the same distance).
+    (with a float safety margin), otherwise it is retried with 8 times more candidates (finally all faces). The
+    answer is therefore the exact closest face (ties may resolve to another face at the same distance).
     """
     from torchmeshmetric.kernels.point_triangle import closest_point_on_triangle
 

@@ -1,4 +1,4 @@
-"""Embedded deformation graph (Sumner, Schmid & Pauly 2007, *Embedded Deformation for Shape Manipulation*).
+r"""Embedded deformation graph (Sumner, Schmid & Pauly 2007, *Embedded Deformation for Shape Manipulation*).
 
 Nodes ``g_j`` are sampled on the source surface; node ``j`` carries a rotation ``R_j`` and a translation ``t_j``.
 A vertex ``v_i`` skinned to its ``K`` nearest nodes with weights ``w_ij`` moves to

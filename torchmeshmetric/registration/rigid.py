@@ -73,9 +73,7 @@ def transform_matrix(rotation: Tensor, translation: Tensor, scale: Tensor | floa
     return T
 
 
-def kabsch_umeyama(
-    src: Tensor, dst: Tensor, weights: Tensor | None = None, scale: bool = False
-) -> SimilarityTransform:
+def kabsch_umeyama(src: Tensor, dst: Tensor, weights: Tensor | None = None, scale: bool = False) -> SimilarityTransform:
     """Weighted least-squares similarity (or rigid) transform mapping ``src`` onto ``dst`` (Umeyama 1991).
 
     Minimises ``sum_i w_i || s R src_i + t - dst_i ||^2`` over rotations ``R`` (never a reflection), translations
@@ -308,7 +306,6 @@ def _robust_trimmed_weights(dists: Tensor, trim: float, sigma2: Tensor | float) 
     if not bool(s2 > 0):
         w = torch.ones_like(dists)
     return torch.where(keep, w, torch.zeros_like(w))
-
 
 
 def _closest(points: Tensor, verts: Tensor, faces: Tensor) -> PointMeshDistance:
