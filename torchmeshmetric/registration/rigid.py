@@ -211,7 +211,7 @@ def register_rigid(
         >>> from torchmeshmetric.registration import register_rigid
         >>> src = trimesh.creation.box(extents=(1.0, 2.0, 3.0))
         >>> tgt = src.copy().apply_transform(trimesh.transformations.rotation_matrix(0.3, [0, 0, 1]))
-        >>> r = register_rigid(src, tgt)
+        >>> r = register_rigid(src, tgt, point_to_plane=True)
         >>> r.converged, round(float(r.rmse), 6)
         (True, 0.0)
     """
