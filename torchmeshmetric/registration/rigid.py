@@ -18,7 +18,7 @@ from kornia.geometry.conversions import axis_angle_to_rotation_matrix
 from torch import Tensor
 
 from torchmeshmetric._checks import EmptyInputError, ShapeError, check_finite, check_float, check_shape
-from torchmeshmetric.kernels.point_triangle import PointMeshDistance, closest_point_on_triangle
+from torchmeshmetric.kernels.point_triangle import PointMeshResult, closest_point_on_triangle
 from torchmeshmetric.registration._common import closest_faces, face_unit_normals, referenced_mask, validate_pair
 from torchmeshmetric.structures import MeshLike
 
@@ -308,9 +308,9 @@ def _robust_trimmed_weights(dists: Tensor, trim: float, sigma2: Tensor | float) 
     return torch.where(keep, w, torch.zeros_like(w))
 
 
-def _closest(points: Tensor, verts: Tensor, faces: Tensor) -> PointMeshDistance:
+def _closest(points: Tensor, verts: Tensor, faces: Tensor) -> PointMeshResult:
     """Exact closest points on the mesh (pruned exact face search, then Ericson's closest point)."""
     fi = closest_faces(points, verts, faces)
     tri = verts[faces[fi]]
     r = closest_point_on_triangle(points, tri[:, 0], tri[:, 1], tri[:, 2])
-    return PointMeshDistance(r.sq_dists.clamp_min(0).sqrt(), fi, r.bary, r.closest)
+    return PointMeshResult(r.sq_dists.clamp_min(0).sqrt(), fi, r.bary, r.closest)
