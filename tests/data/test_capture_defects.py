@@ -35,8 +35,14 @@ def _analyse(m):
 def test_each_defect_is_present(clean):
     base = _analyse(clean)
     assert base == dict(duplicates=0, zero_edge=0, collinear=0, repeated=0, unreferenced=0)
-    noisy = add_capture_defects(clean.to(dtype=torch.float64), seed=3, num_zero_length_edges=7, num_collinear_faces=5,
-                                num_repeated_index_faces=4, num_unreferenced=9)
+    noisy = add_capture_defects(
+        clean.to(dtype=torch.float64),
+        seed=3,
+        num_zero_length_edges=7,
+        num_collinear_faces=5,
+        num_repeated_index_faces=4,
+        num_unreferenced=9,
+    )
     got = _analyse(noisy)
     assert got["zero_edge"] == 7
     assert got["collinear"] == 5

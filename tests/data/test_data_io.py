@@ -66,7 +66,7 @@ def test_missing_and_empty_inputs(tmp_path: Path) -> None:
     with pytest.raises(MeshFileError, match=r"empty.obj.*empty"):
         load_mesh(tmp_path / "empty.obj")
     (tmp_path / "points.obj").write_text("v 0 0 0\nv 1 0 0\n")
-    with pytest.raises(MeshFileError, match="points.obj"):
+    with pytest.raises(MeshFileError, match=r"points\.obj"):
         load_mesh(tmp_path / "points.obj")
 
 
@@ -74,11 +74,12 @@ def test_non_triangle_and_corrupt(tmp_path: Path) -> None:
     (tmp_path / "quad.obj").write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n")
     with pytest.raises(MeshFileError, match=r"quad.obj.*4 corners"):
         load_mesh(tmp_path / "quad.obj")
-    (tmp_path / "bad.ply").write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 1000\nend_header\n\x00\x01")
-    with pytest.raises(MeshFileError, match="bad.ply"):
+    header = b"ply\nformat binary_little_endian 1.0\nelement vertex 1000\nend_header\n"
+    (tmp_path / "bad.ply").write_bytes(header + b"\x00\x01")
+    with pytest.raises(MeshFileError, match=r"bad\.ply"):
         load_mesh(tmp_path / "bad.ply")
     (tmp_path / "bad.glb").write_bytes(b"glTF\x02\x00\x00\x00garbage")
-    with pytest.raises(MeshFileError, match="bad.glb"):
+    with pytest.raises(MeshFileError, match=r"bad\.glb"):
         load_mesh(tmp_path / "bad.glb")
     (tmp_path / "x.xyz").write_text(TRI)
     with pytest.raises(MeshFileError, match="unsupported suffix"):

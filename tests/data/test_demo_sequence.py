@@ -30,7 +30,7 @@ def test_deterministic():
     a = demo_sequence(2, resolution=32, seed=5)
     b = demo_sequence(2, resolution=32, seed=5)
     c = demo_sequence(2, resolution=32, seed=6)
-    for fa, fb in zip(a.frames, b.frames):
+    for fa, fb in zip(a.frames, b.frames, strict=True):
         assert torch.equal(fa.verts, fb.verts) and torch.equal(fa.faces, fb.faces)
     assert torch.equal(a.rotations, b.rotations) and torch.equal(a.translations, b.translations)
     assert not torch.equal(a.prim_radius, c.prim_radius)
@@ -40,7 +40,7 @@ def test_deterministic():
 def test_frames_meshed_independently(seq):
     counts = [f.num_verts for f in seq.frames]
     assert len(set(counts)) == len(counts)  # every frame has its own vertex count
-    for a, b in zip(seq.frames[:-1], seq.frames[1:]):
+    for a, b in zip(seq.frames[:-1], seq.frames[1:], strict=True):
         n = min(a.num_faces, b.num_faces)
         assert not torch.equal(a.faces[:n], b.faces[:n])
 
@@ -94,7 +94,8 @@ def test_transfer_is_rigid_on_single_bones(seq):
     x = seq.frames[0].verts[seq.frames[0].verts[:, 1].argmax()][None].double()
     w = seq.skinning_weights(x, 0)
     assert float(w[0, head]) > 1 - 4e-6
-    r0, t0, r1, t1 = seq.rotations[0, head], seq.translations[0, head], seq.rotations[2, head], seq.translations[2, head]
+    r0, t0 = seq.rotations[0, head], seq.translations[0, head]
+    r1, t1 = seq.rotations[2, head], seq.translations[2, head]
     expected = (r1 @ r0.T @ (x[0] - t0) + t1)[None]
     torch.testing.assert_close(seq.transfer(x, 0, 2), expected, atol=8e-6, rtol=0)
     torch.testing.assert_close(seq.transfer(x, 0, 0), x, atol=1e-12, rtol=0)
@@ -106,7 +107,9 @@ def test_motion_contains_punch_kick_turn():
     fist_r = s.prim_a[11]
     bone = int(s.prim_bone[11])
     reach = [(s.rotations[k, bone] @ fist_r + s.translations[k, bone]) for k in range(24)]
-    pelvis_yaw = [math.degrees(math.atan2(float(s.rotations[k, 0, 0, 2]), float(s.rotations[k, 0, 0, 0]))) for k in range(24)]
+    pelvis_yaw = [
+        math.degrees(math.atan2(float(s.rotations[k, 0, 0, 2]), float(s.rotations[k, 0, 0, 0]))) for k in range(24)
+    ]
     foot_l = [float((s.rotations[k, 9] @ s.prim_b[14] + s.translations[k, 9])[1]) for k in range(24)]
     # punch: the right fist travels forward (in the body frame) at frame 3; kick: the left foot rises; turn: yaw spans
     assert max(float(r[2]) for r in reach[:6]) > 0.4

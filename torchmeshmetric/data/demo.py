@@ -1,11 +1,11 @@
-"""Built-in volumetric-video-like demo sequence: a procedural performer doing a martial-arts-like motion.
+r"""Built-in volumetric-video-like demo sequence: a procedural performer doing a martial-arts-like motion.
 
 The performer is a stick-figure skeleton of 14 rigid bones (pelvis, spine, head, upper/lower arms, thighs, shins,
 feet) dressed with capsules and a head sphere. Its surface is the zero level set of the signed distance field
 
 .. math::
 
-    f(x) = -k \\log \\sum_i \\exp(-d_i(x) / k),
+    f(x) = -k \log \sum_i \exp(-d_i(x) / k),
 
 the exponential smooth union (smooth minimum) of the primitives' signed distances :math:`d_i`, with blend radius
 :math:`k`. Each frame poses the skeleton by forward kinematics from key poses (guard, punches, kicks, turns) and is
@@ -13,7 +13,7 @@ meshed **independently** with marching cubes (Lorensen & Cline 1987; scikit-imag
 found coarse-to-fine, so connectivity and vertex count differ per frame, as in captured volumetric video.
 
 Ground truth: every bone's rigid transform per frame is known. A surface point is skinned to the bones with the same
-soft-min weights :math:`w_i = \\exp(-d_i/k) / \\sum_j \\exp(-d_j/k)` that blend the field, and moved by linear
+soft-min weights :math:`w_i = \exp(-d_i/k) / \sum_j \exp(-d_j/k)` that blend the field, and moved by linear
 blend skinning (:meth:`DemoSequence.transfer`). Points on a single primitive move exactly; points in a blend region
 (around joints) move approximately (see docs/data.md for the measured error).
 

@@ -13,7 +13,6 @@ import re
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Union
 
 import numpy as np
 import torch
@@ -35,7 +34,7 @@ __all__ = [
 MESH_SUFFIXES: tuple[str, ...] = (".obj", ".ply", ".off", ".stl", ".glb", ".gltf")
 """File suffixes recognised as mesh frames (case-insensitive)."""
 
-PathsLike = Union[str, os.PathLike, Sequence[Union[str, os.PathLike]]]
+PathsLike = str | os.PathLike | Sequence[str | os.PathLike]
 """A directory, a glob pattern, a single file, or a list of files."""
 
 
@@ -55,7 +54,7 @@ def natural_key(path: str | os.PathLike) -> tuple[object, ...]:
 
 
 def list_frames(paths: PathsLike) -> list[Path]:
-    """Resolve a directory, glob pattern, single file or list of files into frame paths in natural order.
+    r"""Resolve a directory, glob pattern, single file or list of files into frame paths in natural order.
 
     A directory yields its files with a mesh suffix (:data:`MESH_SUFFIXES`); a glob yields its matches; a list is kept
     in the given order (an explicit order is respected).
@@ -67,7 +66,7 @@ def list_frames(paths: PathsLike) -> list[Path]:
         >>> import tempfile, pathlib
         >>> d = pathlib.Path(tempfile.mkdtemp())
         >>> for n in (10, 2, 1):
-        ...     _ = (d / f"frame{n}.obj").write_text("v 0 0 0\\nv 1 0 0\\nv 0 1 0\\nf 1 2 3\\n")
+        ...     _ = (d / f"frame{n}.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
         >>> [p.name for p in list_frames(d)]
         ['frame1.obj', 'frame2.obj', 'frame10.obj']
     """
@@ -96,7 +95,7 @@ def list_frames(paths: PathsLike) -> list[Path]:
 
 
 def load_mesh(path: str | os.PathLike, *, dtype: torch.dtype = torch.float32) -> Mesh:
-    """Load one triangle mesh without any processing (vertex order and duplicates are kept).
+    r"""Load one triangle mesh without any processing (vertex order and duplicates are kept).
 
     Args:
         path: an OBJ, PLY, OFF, STL or GLB/GLTF file. A multi-mesh scene is concatenated.
@@ -111,7 +110,7 @@ def load_mesh(path: str | os.PathLike, *, dtype: torch.dtype = torch.float32) ->
     Example:
         >>> import tempfile, pathlib
         >>> p = pathlib.Path(tempfile.mkdtemp()) / "tri.obj"
-        >>> _ = p.write_text("v 0 0 0\\nv 1 0 0\\nv 0 1 0\\nf 1 2 3\\n")
+        >>> _ = p.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
         >>> load_mesh(p)
         Mesh(num_verts=3, num_faces=1, dtype=torch.float32, device=cpu)
     """
@@ -152,7 +151,7 @@ def load_mesh(path: str | os.PathLike, *, dtype: torch.dtype = torch.float32) ->
 
 
 def _check_obj_triangles(p: Path) -> None:
-    """trimesh silently triangulates OBJ polygons; a frame with non-triangle faces is an error here."""
+    """Refuse OBJ polygons (trimesh would triangulate them silently): a frame must be made of triangles."""
     with p.open("rb") as fh:
         for lineno, raw in enumerate(fh, 1):
             if raw.startswith(b"f ") or raw.startswith(b"f\t"):
@@ -162,7 +161,7 @@ def _check_obj_triangles(p: Path) -> None:
 
 
 def load_sequence(paths: PathsLike, *, dtype: torch.dtype = torch.float32) -> list[Mesh]:
-    """Load the frames of a sequence in natural order (see :func:`list_frames`).
+    r"""Load the frames of a sequence in natural order (see :func:`list_frames`).
 
     Args:
         paths: a directory, a glob pattern, a single file or a list of files.
@@ -175,7 +174,7 @@ def load_sequence(paths: PathsLike, *, dtype: torch.dtype = torch.float32) -> li
         >>> import tempfile, pathlib
         >>> d = pathlib.Path(tempfile.mkdtemp())
         >>> for n in (3, 1):
-        ...     _ = (d / f"f{n}.obj").write_text(f"v 0 0 {n}\\nv 1 0 0\\nv 0 1 0\\nf 1 2 3\\n")
+        ...     _ = (d / f"f{n}.obj").write_text(f"v 0 0 {n}\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
         >>> [float(m.verts[0, 2]) for m in load_sequence(d)]
         [1.0, 3.0]
     """
@@ -223,9 +222,8 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False) -
     if suffix == ".obj":
         data = _obj_bytes(mesh)
     else:
-        data = mesh.to_trimesh().export(file_type=suffix[1:])
-        if isinstance(data, str):
-            data = data.encode()
+        exported = mesh.to_trimesh().export(file_type=suffix[1:])
+        data = exported.encode() if isinstance(exported, str) else bytes(exported)
     fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
     try:
         with os.fdopen(fd, "wb") as fh:

@@ -1,9 +1,9 @@
-"""Registered QEM: quadric error metric edge collapse that also keeps close to the registered previous frame.
+r"""Registered QEM: quadric error metric edge collapse that also keeps close to the registered previous frame.
 
 Garland & Heckbert, "Surface Simplification Using Quadric Error Metrics", SIGGRAPH 1997: every vertex carries the
-quadric :math:`Q_v = \\sum_{f \\ni v} A_f\\, p_f p_f^\\top` of the planes :math:`p_f = (n_f, -n_f \\cdot x_f)` of its
-faces (area-weighted); collapsing an edge :math:`(a, b)` places the new vertex at the minimiser :math:`\\bar v` of
-:math:`\\bar v^\\top (Q_a + Q_b) \\bar v` and costs that value; the cheapest collapses go first.
+quadric :math:`Q_v = \sum_{f \ni v} A_f\, p_f p_f^\top` of the planes :math:`p_f = (n_f, -n_f \cdot x_f)` of its
+faces (area-weighted); collapsing an edge :math:`(a, b)` places the new vertex at the minimiser :math:`\bar v` of
+:math:`\bar v^\top (Q_a + Q_b) \bar v` and costs that value; the cheapest collapses go first.
 
 Registered QEM (the paper's dynamic simplification, Section III, Fig. 5) superimposes the previous frame, registered
 onto the current one: each face of the registered frame :math:`k-1` adds ``weight`` times its plane quadric to the
@@ -192,7 +192,7 @@ def simplify_registered_qem(
 def _collapse_to(
     verts: np.ndarray, faces: np.ndarray, quad: np.ndarray, count: int, fraction: float, min_cos: float
 ) -> np.ndarray:
-    """Batched independent-set edge collapses until ``count`` (or ``count + 1``) faces remain; edits ``verts``/``quad``."""
+    """Independent-set edge collapses until ``count`` (or ``count + 1``) faces remain; edits ``verts``, ``quad``."""
     num_v = verts.shape[0]
     big = np.iinfo(np.int64).max
     cache_key = np.empty(0, np.int64)  # sorted edge keys of the last round with their optimal position and cost
@@ -251,7 +251,7 @@ def _collapse_to(
             ci, ca, cb, pos, cost = ci[sel], ca[sel], cb[sel], pos[sel], cost[sel]
         f1, f2 = order[starts[ci]] % num_f, order[s2[ci]] % num_f
         # --- independent set: rank minimal within the two rings of both ends; invalid minima are dropped and the
-        # selection repeated (an accepted minimum stays a minimum when other candidates are removed) until all minima are valid
+        # selection repeated until all minima are valid (an accepted minimum stays one when others are removed)
         rank = np.empty(ci.size, np.int64)
         rank[np.argsort(cost, kind="stable")] = np.arange(ci.size)
         alive = np.ones(ci.size, bool)
