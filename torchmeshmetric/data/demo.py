@@ -1,7 +1,8 @@
 r"""Built-in volumetric-video-like demo sequence: a procedural performer doing a martial-arts-like motion.
 
 The performer is a stick-figure skeleton of 13 rigid bones (pelvis, spine, head, upper/lower arms, thighs, shins,
-feet) dressed with 18 capsules (spheres for the head and fists). Its surface is the zero level set of the signed distance field
+feet) dressed with 18 capsules (spheres for the head and fists). Its surface is the zero level set of the signed
+distance field
 
 .. math::
 
