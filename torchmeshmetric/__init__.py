@@ -8,6 +8,16 @@ from torchmeshmetric._checks import (
     NonFiniteError,
     ShapeError,
 )
+from torchmeshmetric.data import (
+    DemoSequence,
+    MeshFileError,
+    add_capture_defects,
+    demo_sequence,
+    list_frames,
+    load_mesh,
+    load_sequence,
+    save_mesh,
+)
 from torchmeshmetric.kernels import (
     ClosestPointOnTriangle,
     NearestVertexResult,
@@ -37,6 +47,7 @@ from torchmeshmetric.registration import (
     register_nonrigid,
     register_rigid,
 )
+from torchmeshmetric.simplification import simplify_qem, simplify_registered_qem
 from torchmeshmetric.stats import DistanceAccumulator, DistanceStatistics, distance_statistics
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh, pack_meshes, pack_points
 
@@ -85,4 +96,15 @@ __all__ = [
     "kabsch_umeyama",
     "register_nonrigid",
     "register_rigid",
+    # data and simplification
+    "DemoSequence",
+    "MeshFileError",
+    "add_capture_defects",
+    "demo_sequence",
+    "list_frames",
+    "load_mesh",
+    "load_sequence",
+    "save_mesh",
+    "simplify_qem",
+    "simplify_registered_qem",
 ]

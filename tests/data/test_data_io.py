@@ -1,0 +1,104 @@
+import os
+from pathlib import Path
+
+import pytest
+import torch
+import trimesh
+
+from torchmeshmetric import Mesh, as_mesh
+from torchmeshmetric.data import MeshFileError, list_frames, load_mesh, load_sequence, natural_key, save_mesh
+
+TRI = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
+
+
+def _sphere() -> Mesh:
+    return as_mesh(trimesh.creation.icosphere(subdivisions=2))
+
+
+@pytest.mark.parametrize("suffix", [".obj", ".ply", ".off", ".stl", ".glb"])
+def test_round_trip(tmp_path: Path, suffix: str) -> None:
+    m = _sphere()
+    p = save_mesh(m, tmp_path / f"s{suffix}")
+    back = load_mesh(p, dtype=torch.float64)
+    if suffix == ".stl":  # STL stores triangle soups: 3 vertices per face, same triangles
+        assert back.num_faces == m.num_faces
+        torch.testing.assert_close(back.verts[back.faces], m.verts[m.faces].to(back.verts), atol=1e-6, rtol=0)
+    else:
+        assert torch.equal(back.faces, m.faces)
+        tol = 0 if suffix == ".obj" else 1e-6  # OBJ is written at full precision; others store float32
+        torch.testing.assert_close(back.verts, m.verts, atol=tol, rtol=0)
+
+
+def test_vertex_order_and_duplicates_survive(tmp_path: Path) -> None:
+    verts = torch.tensor([[0.0, 1, 0], [0, 0, 0], [1, 0, 0], [0, 0, 0]], dtype=torch.float64)
+    faces = torch.tensor([[1, 2, 0], [3, 2, 0]])
+    for suffix in (".obj", ".ply", ".off"):
+        back = load_mesh(save_mesh(Mesh(verts, faces), tmp_path / f"d{suffix}"), dtype=torch.float64)
+        assert torch.equal(back.verts, verts) and torch.equal(back.faces, faces)
+
+
+def test_natural_order(tmp_path: Path) -> None:
+    for n in (10, 2, 1, 33):
+        (tmp_path / f"frame{n}.obj").write_text(f"v 0 0 {n}\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    (tmp_path / "notes.txt").write_text("not a mesh")
+    names = [p.name for p in list_frames(tmp_path)]
+    assert names == ["frame1.obj", "frame2.obj", "frame10.obj", "frame33.obj"]
+    assert [p.name for p in list_frames(str(tmp_path / "frame*.obj"))] == names
+    seq = load_sequence(tmp_path)
+    assert [float(m.verts[0, 2]) for m in seq] == [1.0, 2.0, 10.0, 33.0]
+    explicit = [tmp_path / "frame33.obj", tmp_path / "frame1.obj"]
+    assert list_frames(explicit) == explicit  # an explicit list keeps its order
+    assert sorted(["a10b2", "a2b10", "a2b9"], key=natural_key) == ["a2b9", "a2b10", "a10b2"]
+
+
+def test_missing_and_empty_inputs(tmp_path: Path) -> None:
+    with pytest.raises(MeshFileError, match="does not exist"):
+        load_mesh(tmp_path / "nope.obj")
+    with pytest.raises(MeshFileError, match="does not exist"):
+        list_frames(tmp_path / "nope")
+    with pytest.raises(MeshFileError, match="no mesh files"):
+        list_frames(tmp_path)
+    with pytest.raises(MeshFileError, match="matches no files"):
+        list_frames(str(tmp_path / "*.ply"))
+    with pytest.raises(MeshFileError, match="empty"):
+        list_frames([])
+    (tmp_path / "empty.obj").write_text("")
+    with pytest.raises(MeshFileError, match=r"empty.obj.*empty"):
+        load_mesh(tmp_path / "empty.obj")
+    (tmp_path / "points.obj").write_text("v 0 0 0\nv 1 0 0\n")
+    with pytest.raises(MeshFileError, match=r"points\.obj"):
+        load_mesh(tmp_path / "points.obj")
+
+
+def test_non_triangle_and_corrupt(tmp_path: Path) -> None:
+    (tmp_path / "quad.obj").write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n")
+    with pytest.raises(MeshFileError, match=r"quad.obj.*4 corners"):
+        load_mesh(tmp_path / "quad.obj")
+    header = b"ply\nformat binary_little_endian 1.0\nelement vertex 1000\nend_header\n"
+    (tmp_path / "bad.ply").write_bytes(header + b"\x00\x01")
+    with pytest.raises(MeshFileError, match=r"bad\.ply"):
+        load_mesh(tmp_path / "bad.ply")
+    (tmp_path / "bad.glb").write_bytes(b"glTF\x02\x00\x00\x00garbage")
+    with pytest.raises(MeshFileError, match=r"bad\.glb"):
+        load_mesh(tmp_path / "bad.glb")
+    (tmp_path / "x.xyz").write_text(TRI)
+    with pytest.raises(MeshFileError, match="unsupported suffix"):
+        load_mesh(tmp_path / "x.xyz")
+
+
+def test_save_refuses_overwrite_and_is_atomic(tmp_path: Path) -> None:
+    m = _sphere()
+    p = tmp_path / "m.ply"
+    save_mesh(m, p)
+    before = p.read_bytes()
+    with pytest.raises(FileExistsError, match="overwrite=True"):
+        save_mesh(m, p)
+    assert p.read_bytes() == before
+    small = as_mesh(trimesh.creation.box())
+    save_mesh(small, p, overwrite=True)
+    assert load_mesh(p).num_faces == 12
+    assert sorted(os.listdir(tmp_path)) == ["m.ply"]  # no temporary file left behind
+    with pytest.raises(MeshFileError, match="does not exist"):
+        save_mesh(m, tmp_path / "missing_dir" / "m.obj")
+    with pytest.raises(MeshFileError, match="unsupported suffix"):
+        save_mesh(m, tmp_path / "m.txt")
