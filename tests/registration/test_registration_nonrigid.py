@@ -5,9 +5,9 @@ import pytest
 import torch
 import trimesh
 
-from tests.capture_defects import inject_capture_defects
 from tests.registration.gt_pairs import make_pair
 from torchmeshmetric import EmptyInputError, NonFiniteError, ShapeError
+from torchmeshmetric.data import add_capture_defects
 from torchmeshmetric.registration import (
     DEFAULT_SCHEDULE,
     DeformationGraph,
@@ -82,7 +82,8 @@ def test_nonrigid_recovers_known_deformation():
 
 def test_nonrigid_on_capture_defects_without_cleaning():
     m = trimesh.creation.icosphere(subdivisions=3)
-    v, f = inject_capture_defects(m.vertices, m.faces, seed=3)
+    d = add_capture_defects((m.vertices, m.faces), seed=3, normalize=False, shuffle=False)
+    v, f = d.verts, d.faces
     tgt = trimesh.creation.icosphere(subdivisions=3)
     tgt.vertices *= [1.15, 1.0, 0.9]
     r = register_nonrigid((v, f), tgt, schedule=DEFAULT_SCHEDULE[:2], generator=torch.Generator().manual_seed(0))

@@ -5,9 +5,9 @@ import pytest
 import torch
 import trimesh
 
-from tests.capture_defects import inject_capture_defects
 from tests.registration.gt_pairs import figure_sdf, mesh_level_set
 from torchmeshmetric import DeviceError, EmptyInputError, NonFiniteError, ShapeError
+from torchmeshmetric.data import add_capture_defects
 from torchmeshmetric.registration import kabsch_umeyama, register_rigid
 
 
@@ -90,7 +90,8 @@ def test_register_rigid_with_scale_and_outliers():
 
 def test_register_rigid_on_capture_defects():
     m = _asym_mesh()
-    v, f = inject_capture_defects(m.vertices, m.faces, seed=1)
+    d = add_capture_defects((m.vertices, m.faces), seed=1, normalize=False, shuffle=False)
+    v, f = d.verts, d.faces
     R = _rotation(0.2, [0, 0, 1])
     r = register_rigid((v, f), (m.vertices @ R.numpy().T, m.faces), point_to_plane=True)
     assert r.converged
