@@ -14,7 +14,15 @@ from typing import BinaryIO
 __all__ = ["atomic_write", "atomic_write_with"]
 
 
-def atomic_write_with(path: str | os.PathLike[str], write: Callable[[BinaryIO], None], *, overwrite: bool = False) -> Path:
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def atomic_write_with(
+    path: str | os.PathLike[str], write: Callable[[BinaryIO], object], *, overwrite: bool = False
+) -> Path:
     """Create ``path`` atomically from ``write(binary_file)``.
 
     Args:
@@ -39,6 +47,7 @@ def atomic_write_with(path: str | os.PathLike[str], write: Callable[[BinaryIO], 
         raise FileNotFoundError(f"path: folder {str(folder)!r} does not exist")
     fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp", dir=folder)
     try:
+        os.chmod(tmp, dest.stat().st_mode & 0o777 if dest.exists() else 0o666 & ~_umask())
         with os.fdopen(fd, "wb") as fh:
             write(fh)
             fh.flush()

@@ -90,13 +90,15 @@ class TemporalConsistency(Metric):
             getattr(self, name).append(result.distances[name].detach().double())
             if self.two_sided:
                 getattr(self, f"reverse_{name}").append(result.reverse_distances[name].detach().double())
-        self.peak = torch.maximum(self.peak, torch.tensor(result.peak, dtype=torch.float64, device=self.peak.device))
+        peak: Tensor = self.peak
+        self.peak = torch.maximum(peak, torch.tensor(result.peak, dtype=torch.float64, device=peak.device))
 
     def _stats(self, values: Tensor | list[Tensor]) -> dict[str, Tensor]:
         from torchmeshmetric.stats import distance_statistics
 
         d = torch.cat(values) if isinstance(values, list) else values
-        stats = distance_statistics(d, peak=float(self.peak))
+        peak: Tensor = self.peak
+        stats = distance_statistics(d, peak=float(peak))
         return {k: torch.tensor(v, dtype=torch.float64) for k, v in stats.as_dict().items()}
 
     def compute(self) -> dict[str, Any]:

@@ -45,7 +45,14 @@ _TITLES = {
     "III-reverse": "Two-sided check (ours): average over pairs, reference -> simplified, mesh surface distance",
     "IV-reverse": "Two-sided check (ours): average over pairs, reference -> simplified, nearest vertex distance",
 }
-_KIND = {"I": "surface", "II": "vertex", "III": "surface", "IV": "vertex", "III-reverse": "surface", "IV-reverse": "vertex"}
+_KIND = {
+    "I": "surface",
+    "II": "vertex",
+    "III": "surface",
+    "IV": "vertex",
+    "III-reverse": "surface",
+    "IV-reverse": "vertex",
+}
 
 
 def _best_index(methods: Mapping[str, SequenceEvaluation]) -> int:
@@ -127,7 +134,9 @@ def _clean(value: Any) -> Any:
     return value
 
 
-def report_dict(methods: Mapping[str, SequenceEvaluation], *, settings: Mapping[str, Any] | None = None) -> dict[str, Any]:
+def report_dict(
+    methods: Mapping[str, SequenceEvaluation], *, settings: Mapping[str, Any] | None = None
+) -> dict[str, Any]:
     """JSON-ready report: ``{"tool", "version", "settings", "set_names", "methods": {name: sequence}}``.
 
     Each method holds ``pairs`` (per frame pair: the four sets ``surface_k``, ``surface_k_minus_1``, ``vertex_k``,
@@ -160,7 +169,9 @@ def write_markdown(
     return atomic_write(path, "# torchmeshmetric evaluation\n\n" + paper_tables(methods), overwrite=overwrite)
 
 
-def write_csv(path: str | os.PathLike[str], methods: Mapping[str, SequenceEvaluation], *, overwrite: bool = False) -> Path:
+def write_csv(
+    path: str | os.PathLike[str], methods: Mapping[str, SequenceEvaluation], *, overwrite: bool = False
+) -> Path:
     """Write every table and every pair as CSV rows, atomically.
 
     Columns: ``table`` (``I``..``IV``, ``III-reverse``, ``IV-reverse``, or ``pair`` for per-frame rows), ``algorithm``,

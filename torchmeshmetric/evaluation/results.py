@@ -149,7 +149,7 @@ class SequenceEvaluation(NamedTuple):
         return {name: mean_statistics([p.reverse_statistics[name] for p in self.pairs]) for name in SET_NAMES}
 
     def best_pair_index(self) -> int:
-        """Index into :attr:`pairs` of the paper's best (representative) pair (Tables I/II), see :data:`BEST_PAIR_RULE`."""
+        """Index into :attr:`pairs` of the paper's best pair (Tables I/II); see :data:`BEST_PAIR_RULE`."""
         if not self.pairs:
             raise ValueError("pairs: the sequence evaluation holds no frame pair")
         return min(range(len(self.pairs)), key=lambda i: (self.pairs[i].motion, self.pairs[i].frame))
