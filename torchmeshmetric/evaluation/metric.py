@@ -50,6 +50,7 @@ class TemporalConsistency(Metric):
     is_differentiable = False
     higher_is_better = False
     full_state_update = False
+    peak: Tensor
 
     def __init__(
         self,
