@@ -4,10 +4,10 @@ import subprocess
 import sys
 
 import pytest
-
-from tests.cli.conftest import Counting, write_frames
-from torchmeshmetric.cli import build_parser, main
 from torchmeshmetric.data import load_sequence
+
+from tests.cli.cli_helpers import Counting, write_frames
+from torchmeshmetric.cli import build_parser, main
 from torchmeshmetric.evaluation import SET_NAMES, evaluate_sequence
 
 
@@ -20,7 +20,9 @@ def _run(capsys, *argv):
 def test_evaluate_writes_reports_equal_to_the_library(capsys, tmp_path, sequence, known_registration):
     orig, simp = sequence
     out = tmp_path / "report.json"
-    code, stdout, stderr = _run(capsys, "evaluate", "--original", str(orig), "--simplified", str(simp), "--out", str(out))
+    code, stdout, stderr = _run(
+        capsys, "evaluate", "--original", str(orig), "--simplified", str(simp), "--out", str(out)
+    )
     assert code == 0, stderr
     assert "Table I:" in stdout and "Table IV:" in stdout
     assert "frame pair 2/2" in stderr  # progress per frame on stderr
@@ -70,7 +72,7 @@ def test_errors_are_one_line_no_traceback_no_report(capsys, tmp_path, sequence, 
         out = tmp_path / "no" / "such" / "report.json"
     elif case == "exists":
         out.write_text("keep me")
-    code, stdout, stderr = _run(capsys, "evaluate", "--original", str(orig), "--simplified", str(simp), "--out", str(out))
+    code, _, stderr = _run(capsys, "evaluate", "--original", str(orig), "--simplified", str(simp), "--out", str(out))
     assert code == 1
     lines = [line for line in stderr.splitlines() if "frame pair" not in line]
     assert len(lines) == 1 and "error:" in lines[0] and message in lines[0], stderr

@@ -3,7 +3,7 @@ import os
 import pytest
 import torch
 
-from tests.evaluation.conftest import TranslationRegister, sphere
+from tests.evaluation.eval_helpers import TranslationRegister, sphere
 from torchmeshmetric.evaluation import RegistrationCache, evaluate_sequence, registration_key
 
 

@@ -2,11 +2,11 @@ import pickle
 
 import pytest
 import torch
+from torchmeshmetric.stats import distance_statistics
 from torchmetrics import MetricCollection
 
-from tests.evaluation.conftest import TranslationRegister, sphere
+from tests.evaluation.eval_helpers import TranslationRegister
 from torchmeshmetric.evaluation import SET_NAMES, TemporalConsistency, evaluate_pair, flatten_statistics
-from torchmeshmetric.stats import distance_statistics
 
 
 def test_metric_pools_updates_and_caches_registration(moving_spheres):

@@ -3,11 +3,11 @@ import pytest
 import torch
 import trimesh
 from scipy.spatial import cKDTree
+from torchmeshmetric.stats import distance_statistics
 
-from tests.evaluation.conftest import TranslationRegister, sphere
+from tests.evaluation.eval_helpers import TranslationRegister, sphere
 from torchmeshmetric import Mesh, ShapeError
 from torchmeshmetric.evaluation import SET_NAMES, evaluate_pair, evaluate_sequence, mean_statistics
-from torchmeshmetric.stats import distance_statistics
 
 
 def _oracle_surface(points: torch.Tensor, mesh: Mesh) -> np.ndarray:
@@ -30,7 +30,9 @@ def test_four_sets_use_the_right_references():
     assert r.distances["vertex_k"].abs().max() < 1e-12
     pts = original_k.verts
     np.testing.assert_allclose(r.distances["surface_k_minus_1"].numpy(), _oracle_surface(pts, registered), atol=1e-12)
-    np.testing.assert_allclose(r.distances["vertex_k_minus_1"].numpy(), _oracle_vertex(pts, registered.verts), atol=1e-12)
+    np.testing.assert_allclose(
+        r.distances["vertex_k_minus_1"].numpy(), _oracle_vertex(pts, registered.verts), atol=1e-12
+    )
     # vertices of a unit icosphere to the same icosphere scaled by 1.1: exactly 0.1 to the nearest vertex
     np.testing.assert_allclose(r.distances["vertex_k_minus_1"].numpy(), 0.1, atol=1e-12)
     assert 0.05 < float(r.distances["surface_k_minus_1"].min()) <= 0.1 + 1e-12
@@ -41,9 +43,7 @@ def test_four_sets_use_the_right_references():
     np.testing.assert_allclose(
         r.reverse_distances["surface_k_minus_1"].numpy(), _oracle_surface(registered.verts, original_k), atol=1e-12
     )
-    np.testing.assert_allclose(
-        r.reverse_distances["vertex_k"].numpy(), 0.0, atol=1e-12
-    )
+    np.testing.assert_allclose(r.reverse_distances["vertex_k"].numpy(), 0.0, atol=1e-12)
 
 
 def test_register_called_with_k_minus_1_onto_k_and_residual_is_to_frame_k():
@@ -92,8 +92,10 @@ def test_sequence_aggregate_is_mean_of_pairs_and_best_pair_is_least_motion(movin
     original, simplified = moving_spheres
     # make pair (1, 2) move less: registration shifts differ per pair
     shifts = {1: 0.1, 2: 0.02, 3: 0.1}
-    regs = [Mesh(original[k - 1].verts + torch.tensor([shifts[k], 0, 0], dtype=torch.float64), original[k - 1].faces)
-            for k in range(1, 4)]
+    regs = [
+        Mesh(original[k - 1].verts + torch.tensor([shifts[k], 0, 0], dtype=torch.float64), original[k - 1].faces)
+        for k in range(1, 4)
+    ]
     seq = evaluate_sequence(original, simplified, registrations=regs)
     assert [p.frame for p in seq.pairs] == [1, 2, 3]
     agg = seq.aggregate()

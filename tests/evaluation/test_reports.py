@@ -3,7 +3,7 @@ import json
 
 import pytest
 
-from tests.evaluation.conftest import TranslationRegister
+from tests.evaluation.eval_helpers import TranslationRegister
 from torchmeshmetric.evaluation import (
     SET_NAMES,
     evaluate_sequence,

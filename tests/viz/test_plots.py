@@ -6,9 +6,9 @@ pytest.importorskip("matplotlib")
 if importlib.util.find_spec("torchmeshmetric.stats") is None:
     pytest.skip("needs issue 3's torchmeshmetric.stats (not merged into this branch yet)", allow_module_level=True)
 
-from torchmeshmetric.evaluation import evaluate_sequence  # noqa: E402
-from torchmeshmetric.viz import plot_frame_curves, plot_histograms  # noqa: E402
-from tests.evaluation.conftest import TranslationRegister, sphere  # noqa: E402
+from tests.evaluation.eval_helpers import TranslationRegister, sphere
+from torchmeshmetric.evaluation import evaluate_sequence
+from torchmeshmetric.viz import plot_frame_curves, plot_histograms
 
 
 def test_plots_are_png_and_atomic(tmp_path):
