@@ -10,8 +10,8 @@ from torchmeshmetric._checks import (
 )
 from torchmeshmetric.kernels import (
     ClosestPointOnTriangle,
-    NearestVertexDistance,
-    PointMeshDistance,
+    NearestVertexResult,
+    PointMeshResult,
     SurfaceSamples,
     closest_point_on_triangle,
     nearest_vertex_distance,
@@ -19,30 +19,53 @@ from torchmeshmetric.kernels import (
     sample_surface,
     vertex_set,
 )
+from torchmeshmetric.metrics import (
+    DistanceStatisticsMetric,
+    MeshSurfaceDistance,
+    MeshSurfaceDistanceLoss,
+    NearestVertexDistance,
+    NearestVertexDistanceLoss,
+    mesh_surface_distance_loss,
+    nearest_vertex_distance_loss,
+)
+from torchmeshmetric.stats import DistanceAccumulator, DistanceStatistics, distance_statistics
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh, pack_meshes, pack_points
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "ClosestPointOnTriangle",
+    # structures and errors
     "DTypeError",
     "DeviceError",
     "EmptyInputError",
     "IndexRangeError",
     "Mesh",
     "MeshLike",
-    "NearestVertexDistance",
     "NonFiniteError",
-    "PointMeshDistance",
     "ShapeError",
-    "SurfaceSamples",
     "__version__",
     "as_mesh",
-    "closest_point_on_triangle",
-    "nearest_vertex_distance",
     "pack_meshes",
     "pack_points",
+    # kernels
+    "ClosestPointOnTriangle",
+    "NearestVertexResult",
+    "PointMeshResult",
+    "SurfaceSamples",
+    "closest_point_on_triangle",
+    "nearest_vertex_distance",
     "point_mesh_distance",
     "sample_surface",
     "vertex_set",
+    # statistics, metrics, losses
+    "DistanceAccumulator",
+    "DistanceStatistics",
+    "DistanceStatisticsMetric",
+    "MeshSurfaceDistance",
+    "MeshSurfaceDistanceLoss",
+    "NearestVertexDistance",
+    "NearestVertexDistanceLoss",
+    "distance_statistics",
+    "mesh_surface_distance_loss",
+    "nearest_vertex_distance_loss",
 ]

@@ -253,7 +253,9 @@ def pack_points(points: Sequence[Any] | Tensor, lengths: Tensor | None = None, n
     if not items:
         raise ValueError(f"{name}: expected at least one point set, found an empty list")
     check_same_device({f"{name}[{i}]": p for i, p in enumerate(items)})
-    dtype = torch.promote_types(*[p.dtype for p in items]) if len(items) > 1 else items[0].dtype
+    dtype = items[0].dtype
+    for p in items[1:]:
+        dtype = torch.promote_types(dtype, p.dtype)
     lengths_t = torch.tensor([p.shape[0] for p in items], device=items[0].device)
     return PackedPoints(torch.cat([p.to(dtype) for p in items]), lengths_t)
 

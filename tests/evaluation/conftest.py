@@ -1,13 +1,6 @@
-import importlib.util
-
 import pytest
 
 from tests.evaluation.eval_helpers import sphere
-
-# The pipeline summarises every set with issue 3's distance_statistics; until that branch is merged here,
-# every test of this folder is skipped (the module does not exist on this branch yet).
-HAS_STATS = importlib.util.find_spec("torchmeshmetric.stats") is not None
-collect_ignore_glob = [] if HAS_STATS else ["test_*.py"]
 
 
 @pytest.fixture

@@ -28,7 +28,7 @@ def test_metric_pools_updates_and_caches_registration(moving_spheres):
         for field, value in expect.items():
             assert float(out[name][field]) == pytest.approx(value, rel=1e-12, abs=1e-15)
         pooled_rev = torch.cat([p.reverse_distances[name] for p in pairs[-3:]])
-        assert float(out["reverse"][name]["rmse"]) == pytest.approx(distance_statistics(pooled_rev).rmse, rel=1e-12)
+        assert float(out["reverse"][name]["rmse"]) == pytest.approx(float(distance_statistics(pooled_rev).rmse), rel=1e-12)
 
 
 def test_metric_one_sided_collection_and_pickle(moving_spheres):

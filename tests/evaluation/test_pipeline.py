@@ -101,7 +101,7 @@ def test_sequence_aggregate_is_mean_of_pairs_and_best_pair_is_least_motion(movin
     agg = seq.aggregate()
     for name in SET_NAMES:
         for field in ("ave", "var", "std", "mse", "rmse", "psnr"):
-            expect = sum(getattr(p.statistics[name], field) for p in seq.pairs) / 3
+            expect = sum(float(getattr(p.statistics[name], field)) for p in seq.pairs) / 3
             assert agg[name][field] == pytest.approx(expect, rel=1e-12)
     assert seq.best_pair_index() == 1 and seq.pairs[1].frame == 2
     assert mean_statistics([p.statistics["surface_k"] for p in seq.pairs]) == agg["surface_k"]

@@ -1,10 +1,6 @@
-import importlib.util
-
 import pytest
 
 pytest.importorskip("matplotlib")
-if importlib.util.find_spec("torchmeshmetric.stats") is None:
-    pytest.skip("needs issue 3's torchmeshmetric.stats (not merged into this branch yet)", allow_module_level=True)
 
 from tests.evaluation.eval_helpers import TranslationRegister, sphere
 from torchmeshmetric.evaluation import evaluate_sequence

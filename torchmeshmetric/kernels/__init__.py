@@ -1,9 +1,9 @@
 """Exact, chunked, differentiable distance kernels (pure functions)."""
 
-from torchmeshmetric.kernels.nearest import NearestVertexDistance, nearest_vertex_distance, register_nearest_backend
+from torchmeshmetric.kernels.nearest import NearestVertexResult, nearest_vertex_distance, register_nearest_backend
 from torchmeshmetric.kernels.point_triangle import (
     ClosestPointOnTriangle,
-    PointMeshDistance,
+    PointMeshResult,
     closest_point_on_triangle,
     point_mesh_distance,
     register_face_backend,
@@ -12,8 +12,8 @@ from torchmeshmetric.kernels.sampling import SurfaceSamples, sample_surface, ver
 
 __all__ = [
     "ClosestPointOnTriangle",
-    "NearestVertexDistance",
-    "PointMeshDistance",
+    "NearestVertexResult",
+    "PointMeshResult",
     "SurfaceSamples",
     "closest_point_on_triangle",
     "nearest_vertex_distance",

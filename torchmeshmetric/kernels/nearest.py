@@ -12,10 +12,10 @@ from torchmeshmetric._checks import EmptyInputError, check_same_device
 from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY, dot, item_centers, pair_chunks, safe_sqrt
 from torchmeshmetric.structures import batch_index, lengths_to_offsets, pack_points
 
-__all__ = ["NearestVertexDistance", "nearest_vertex_distance", "register_nearest_backend"]
+__all__ = ["NearestVertexResult", "nearest_vertex_distance", "register_nearest_backend"]
 
 
-class NearestVertexDistance(NamedTuple):
+class NearestVertexResult(NamedTuple):
     """Result of :func:`nearest_vertex_distance`.
 
     Attributes:
@@ -78,7 +78,7 @@ def nearest_vertex_distance(
     ref_lengths: Tensor | None = None,
     max_memory: int = DEFAULT_MAX_MEMORY,
     backend: str = "auto",
-) -> NearestVertexDistance:
+) -> NearestVertexResult:
     """Exact distance from every point to its nearest reference point (paper Eq. 5, cloud-to-cloud).
 
     Args:
@@ -90,7 +90,7 @@ def nearest_vertex_distance(
         backend: ``"auto"`` or ``"bruteforce"`` (or a registered accelerated backend).
 
     Returns:
-        :class:`NearestVertexDistance` ``(dists, idx)``; ``dists`` is **not squared** and differentiable
+        :class:`NearestVertexResult` ``(dists, idx)``; ``dists`` is **not squared** and differentiable
         w.r.t. both point sets (gradient 0 at zero distance); ties go to the lowest index.
 
     Example:
@@ -128,4 +128,4 @@ def nearest_vertex_distance(
     with torch.no_grad():
         idx = select(p_c.detach(), pb, r_c.detach(), rb, lengths_to_offsets(ref.lengths), max_memory)
     diff = p_c - r_c[idx]
-    return NearestVertexDistance(safe_sqrt(dot(diff, diff)), idx)
+    return NearestVertexResult(safe_sqrt(dot(diff, diff)), idx)

@@ -35,7 +35,7 @@ from torchmeshmetric.structures import MeshLike, batch_index, lengths_to_offsets
 
 __all__ = [
     "ClosestPointOnTriangle",
-    "PointMeshDistance",
+    "PointMeshResult",
     "closest_point_on_triangle",
     "point_mesh_distance",
     "register_face_backend",
@@ -59,7 +59,7 @@ class ClosestPointOnTriangle(NamedTuple):
     sq_dists: Tensor
 
 
-class PointMeshDistance(NamedTuple):
+class PointMeshResult(NamedTuple):
     """Result of :func:`point_mesh_distance`.
 
     Attributes:
@@ -237,7 +237,7 @@ def point_mesh_distance(
     faces_lengths: Tensor | None = None,
     max_memory: int = DEFAULT_MAX_MEMORY,
     backend: Backend = "auto",
-) -> PointMeshDistance:
+) -> PointMeshResult:
     """Exact Euclidean distance from every point to the surface of a triangle mesh (paper Eq. 4, exact).
 
     The closest face is selected without gradient (chunked; no intermediate exceeds ``max_memory``), then the
@@ -258,7 +258,7 @@ def point_mesh_distance(
         backend: ``"auto"`` (fastest exact path registered for the device and size) or ``"bruteforce"``.
 
     Returns:
-        :class:`PointMeshDistance` ``(dists, face_idx, bary, closest)``. ``dists`` is the plain Euclidean
+        :class:`PointMeshResult` ``(dists, face_idx, bary, closest)``. ``dists`` is the plain Euclidean
         distance, **not squared**. ``face_idx`` indexes the rows of the (packed) ``faces`` tensor; among
         equidistant faces the lowest index wins.
 
@@ -293,7 +293,7 @@ def _point_mesh_distance_packed(
     *,
     max_memory: int,
     backend: str,
-) -> PointMeshDistance:
+) -> PointMeshResult:
     check_same_device({"points": points, "verts": verts})
     num_items = int(verts_lengths.numel())
     if int(points_lengths.numel()) != num_items:
@@ -330,4 +330,4 @@ def _point_mesh_distance_packed(
     tri = verts_c[faces_global[face_idx]]
     res = closest_point_on_triangle(points_c, tri[:, 0], tri[:, 1], tri[:, 2])
     closest = res.closest + centers[point_batch]
-    return PointMeshDistance(safe_sqrt(res.sq_dists), face_idx, res.bary, closest)
+    return PointMeshResult(safe_sqrt(res.sq_dists), face_idx, res.bary, closest)

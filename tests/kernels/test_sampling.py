@@ -1,0 +1,71 @@
+"""sample_surface (area-weighted, reproducible, on the surface) and vertex_set."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+import trimesh
+
+from torchmeshmetric import EmptyInputError, Mesh, point_mesh_distance, sample_surface, vertex_set
+
+
+def _two_triangles() -> Mesh:
+    # Areas 0.5 and 1.5: a uniform sampler puts 25 % of the samples on face 0.
+    v = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [5, 0, 0], [8, 0, 0], [5, 1, 0]], dtype=torch.float64)
+    return Mesh(v, torch.tensor([[0, 1, 2], [3, 4, 5]]))
+
+
+def test_area_weighting() -> None:
+    n = 40_000
+    s = sample_surface(_two_triangles(), n=n, generator=torch.Generator().manual_seed(0))
+    frac = float((s.face_idx == 0).double().mean())
+    sigma = (0.25 * 0.75 / n) ** 0.5
+    assert abs(frac - 0.25) < 5 * sigma
+
+
+def test_uniform_within_a_triangle() -> None:
+    # For the unit right triangle, a uniform sample has E[x] = E[y] = 1/3 and P(x + y < 1/2) = 1/4.
+    v = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=torch.float64)
+    n = 40_000
+    s = sample_surface(v, torch.tensor([[0, 1, 2]]), n, generator=torch.Generator().manual_seed(1))
+    mean = s.points.mean(0)
+    sd = (1 / 18) ** 0.5 / n**0.5
+    assert abs(float(mean[0]) - 1 / 3) < 5 * sd and abs(float(mean[1]) - 1 / 3) < 5 * sd
+    frac = float((s.points[:, :2].sum(1) < 0.5).double().mean())
+    assert abs(frac - 0.25) < 5 * (0.25 * 0.75 / n) ** 0.5
+
+
+def test_reproducible_and_on_surface() -> None:
+    m = trimesh.creation.icosphere(subdivisions=2)
+    a = sample_surface(m, n=500, generator=torch.Generator().manual_seed(7))
+    b = sample_surface(m, n=500, generator=torch.Generator().manual_seed(7))
+    c = sample_surface(m, n=500, generator=torch.Generator().manual_seed(8))
+    assert torch.equal(a.points, b.points) and not torch.equal(a.points, c.points)
+    assert float(point_mesh_distance(a.points, m).dists.max()) < 1e-12
+    torch.testing.assert_close(a.bary.sum(1), torch.ones(500, dtype=a.bary.dtype))
+    assert bool((a.bary >= 0).all())
+
+
+def test_ragged_batch_and_gradient() -> None:
+    m1, m2 = _two_triangles(), Mesh(_two_triangles().verts * 2, _two_triangles().faces)
+    verts = m1.verts.clone().requires_grad_()
+    s = sample_surface([Mesh(verts, m1.faces), m2], n=[10, 30], generator=torch.Generator().manual_seed(0))
+    assert s.lengths.tolist() == [10, 30] and s.points.shape == (40, 3)
+    assert bool((s.face_idx[:10] < 2).all()) and bool((s.face_idx[10:] >= 2).all())
+    s.points.sum().backward()
+    assert verts.grad is not None and float(verts.grad.abs().sum()) > 0
+
+
+def test_zero_area_and_bad_n() -> None:
+    v = torch.tensor([[0.0, 0, 0], [1, 0, 0], [2, 0, 0]])
+    with pytest.raises(EmptyInputError, match="mesh 0 has zero surface area"):
+        sample_surface(v, torch.tensor([[0, 1, 2]]), 5)
+    with pytest.raises(ValueError, match="n: expected a non-negative int"):
+        sample_surface(_two_triangles(), n=-1)
+
+
+def test_vertex_set_drops_unreferenced_only() -> None:
+    v = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [9, 9, 9], [1, 0, 0]])
+    f = torch.tensor([[0, 1, 2], [4, 1, 2]])
+    assert vertex_set((v, f)).tolist() == [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, 0]]
+    assert vertex_set((v, f), referenced_only=False).shape == (5, 3)

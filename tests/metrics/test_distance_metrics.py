@@ -1,0 +1,242 @@
+import math
+import pickle
+
+import numpy as np
+import pytest
+import torch
+import trimesh
+from torchmetrics import MetricCollection
+
+from torchmeshmetric import EmptyInputError, Mesh, nearest_vertex_distance, point_mesh_distance, sample_surface
+from torchmeshmetric.metrics import (
+    DistanceStatisticsMetric,
+    MeshSurfaceDistance,
+    NearestVertexDistance,
+    mesh_surface_distances,
+    nearest_vertex_distances,
+)
+
+KEYS = ["ave", "var", "std", "mse", "rmse", "max", "min", "median", "p95", "p99", "count", "psnr"]
+
+
+def np_stats(d, peak):
+    d = np.asarray(d, dtype=np.float64)
+    return {
+        "ave": d.mean(), "var": d.var(), "std": d.std(), "mse": np.mean(d**2), "rmse": np.sqrt(np.mean(d**2)),
+        "max": d.max(), "min": d.min(), "median": np.percentile(d, 50), "p95": np.percentile(d, 95),
+        "p99": np.percentile(d, 99), "count": d.size, "psnr": 10 * np.log10(peak**2 / np.mean(d**2)),
+    }  # fmt: skip
+
+
+def assert_close(out, ref, rtol=1e-10):
+    for k, v in ref.items():
+        assert float(out[k]) == pytest.approx(v, rel=rtol, abs=1e-300), k
+
+
+def used_verts(m):
+    v, f = m
+    return v[np.unique(f.numpy())].numpy()
+
+
+def oracle_surface(simp, ref):
+    """Outside oracle: trimesh's closest-point query on the reference."""
+    _, dist, _ = trimesh.proximity.closest_point(ref, used_verts(simp))
+    return dist
+
+
+def test_mesh_surface_distance_batch_by_batch_and_accumulated(frames):
+    simps, refs = frames
+    metric = MeshSurfaceDistance()
+    batches = [([simps[0]], [refs[0]]), ([simps[1], simps[2]], [refs[1], refs[2]]), ([simps[3]], [refs[3]])]
+    all_d, peak = [], 0.0
+    for s, r in batches:
+        d = np.concatenate([oracle_surface(a, b) for a, b in zip(s, r, strict=True)])
+        batch_peak = max(float(np.linalg.norm(np.ptp(b.vertices, axis=0))) for b in r)
+        out = metric(s, r)  # forward: this batch's statistics
+        assert_close(out, np_stats(d, batch_peak), rtol=1e-6)  # trimesh's own rounding
+        all_d.append(d)
+        peak = max(peak, batch_peak)
+    out = metric.compute()
+    assert sorted(out) == sorted(KEYS)
+    assert all(v.dim() == 0 and v.dtype == torch.float64 for v in out.values())
+    assert_close(out, np_stats(np.concatenate(all_d), peak), rtol=1e-6)
+
+
+def test_mesh_surface_distance_equals_kernel_exactly(frames):
+    simps, refs = frames
+    metric = MeshSurfaceDistance(peak=1.0)
+    metric.update(simps, refs)
+    d = torch.cat(
+        [point_mesh_distance(torch.from_numpy(used_verts(s)), r).dists for s, r in zip(simps, refs, strict=True)]
+    )
+    assert_close(metric.compute(), np_stats(d.numpy(), 1.0), rtol=1e-12)
+
+
+def test_nearest_vertex_distance_vs_scipy(frames):
+    from scipy.spatial import cKDTree
+
+    simps, refs = frames
+    metric = NearestVertexDistance(peak=2.0)
+    all_d = []
+    for s, r in zip(simps, refs, strict=True):
+        metric.update(s, r)
+        all_d.append(cKDTree(r.vertices[np.unique(r.faces)]).query(used_verts(s))[0])
+    assert_close(metric.compute(), np_stats(np.concatenate(all_d), 2.0), rtol=1e-10)
+
+
+def test_two_sided_keys_and_values(frames):
+    simps, refs = frames
+    m = MeshSurfaceDistance(two_sided=True, peak=1.0)
+    m.update(simps[:2], refs[:2])
+    out = m.compute()
+    r = mesh_surface_distances(simps[:2], refs[:2], two_sided=True)
+    assert_close({k: out["reverse_" + k] for k in KEYS}, np_stats(r.reverse.numpy(), 1.0), rtol=1e-12)
+    assert float(out["symmetric_ave"]) == pytest.approx(0.5 * (r.forward.mean() + r.reverse.mean()).item(), rel=1e-12)
+    assert float(out["hausdorff"]) == pytest.approx(max(r.forward.max(), r.reverse.max()).item(), rel=1e-12)
+    sym_mse = max(float((r.forward.double() ** 2).mean()), float((r.reverse.double() ** 2).mean()))
+    assert float(out["symmetric_mse"]) == pytest.approx(sym_mse, rel=1e-12)
+    assert float(out["symmetric_rmse"]) == pytest.approx(math.sqrt(sym_mse), rel=1e-12)
+    assert float(out["symmetric_psnr"]) == pytest.approx(-10 * math.log10(sym_mse), rel=1e-12)
+
+
+def test_two_sided_catches_a_dropped_half():
+    ref = trimesh.creation.icosphere(subdivisions=2)
+    keep = ref.triangles_center[:, 2] > 0
+    half = (torch.from_numpy(ref.vertices), torch.from_numpy(ref.faces[keep]))
+    m = MeshSurfaceDistance(two_sided=True)
+    m.update(half, ref)
+    out = m.compute()
+    assert float(out["max"]) == pytest.approx(0.0, abs=1e-12)  # one-sided: perfect score
+    assert float(out["reverse_max"]) > 0.5 and float(out["hausdorff"]) > 0.5
+
+
+def test_two_sided_surface_needs_a_mesh():
+    with pytest.raises(TypeError, match="simplified"):
+        MeshSurfaceDistance(two_sided=True).update(torch.zeros(3, 3), trimesh.creation.box())
+
+
+def test_sampled_surface_mode_is_seeded_and_over_estimates(frames):
+    simps, refs = frames
+    m = MeshSurfaceDistance(surface_samples=500, seed=3, peak=1.0)
+    m.update(simps[0], refs[0])
+    gen = torch.Generator().manual_seed(3)
+    samples = sample_surface(refs[0], n=500, generator=gen).points
+    p = torch.from_numpy(used_verts(simps[0]))
+    d = nearest_vertex_distance(p, samples).dists
+    assert_close(m.compute(), np_stats(d.numpy(), 1.0), rtol=1e-12)
+    exact = point_mesh_distance(p, refs[0]).dists
+    assert bool((d >= exact - 1e-12).all())
+    with pytest.raises(ValueError, match="surface_samples"):
+        MeshSurfaceDistance(surface_samples=0)
+
+
+def test_empty_update_is_a_noop_and_empty_compute_raises(frames):
+    simps, refs = frames
+    m = NearestVertexDistance()
+    m.update(torch.zeros(0, 3), refs[0])
+    with pytest.raises(EmptyInputError, match="no simplified"):
+        m.compute()
+    m.update(simps[0], refs[0])
+    m.update(torch.zeros(0, 3), refs[0])
+    ref = NearestVertexDistance()
+    ref.update(simps[0], refs[0])
+    assert_close(m.compute(), {k: float(v) for k, v in ref.compute().items()}, rtol=0)
+
+
+def test_single_point_update():
+    m = MeshSurfaceDistance(peak=10.0)
+    m.update(torch.tensor([[0.0, 0.0, 3.0]], dtype=torch.float64), trimesh.creation.icosphere(subdivisions=3))
+    out = m.compute()
+    assert float(out["count"]) == 1 and float(out["var"]) == 0.0
+    assert float(out["ave"]) == pytest.approx(2.0, rel=1e-12) and float(out["median"]) == float(out["ave"])
+
+
+def test_float32_large_offset_inputs():
+    rng = np.random.default_rng(0)
+    offset = np.array([1e4, -2e4, 5e3])
+    ref_pts = rng.uniform(0, 1, (200, 3)) + offset
+    pts = ref_pts[:50] + rng.normal(0, 1e-3, (50, 3))
+    m = NearestVertexDistance(peak=1.0)
+    m.update(torch.from_numpy(pts).float(), torch.from_numpy(ref_pts).float())
+    from scipy.spatial import cKDTree
+
+    # float32 coordinates hold ~1e-3 absolute precision at 2e4: compare with the float32-rounded inputs.
+    d = cKDTree(ref_pts.astype(np.float32).astype(np.float64)).query(pts.astype(np.float32).astype(np.float64))[0]
+    assert_close(m.compute(), np_stats(d, 1.0), rtol=1e-4)
+
+
+def test_approximate_quantiles_mode(frames):
+    simps, refs = frames
+    exact, approx = NearestVertexDistance(), NearestVertexDistance(exact_quantiles=False, relative_accuracy=0.01)
+    for m in (exact, approx):
+        m.update(simps, refs)
+    e, a = exact.compute(), approx.compute()
+    for k in ("ave", "var", "mse", "max", "min", "count", "psnr"):
+        assert float(a[k]) == pytest.approx(float(e[k]), rel=1e-12)
+    for k in ("median", "p95", "p99"):
+        assert abs(float(a[k]) - float(e[k])) <= 0.01 * float(e[k]) * (1 + 1e-9)
+
+
+def test_metric_collection_state_dict_pickle_reset(frames):
+    simps, refs = frames
+    coll = MetricCollection({"surf": MeshSurfaceDistance(), "vert": NearestVertexDistance(two_sided=True)})
+    coll.update(simps[:2], refs[:2])
+    out = coll.compute()
+    assert "surf_ave" in out and "vert_ave" in out and "vert_hausdorff" in out
+    assert float(out["surf_ave"]) != float(out["vert_ave"])
+    clone = pickle.loads(pickle.dumps(coll))
+    assert {k: float(v) for k, v in clone.compute().items()} == {k: float(v) for k, v in out.items()}
+    m = MeshSurfaceDistance()
+    m.persistent(True)
+    m.update(simps[0], refs[0])
+    sd = m.state_dict()
+    assert any(k.endswith("fwd_mean") for k in sd)
+    m2 = MeshSurfaceDistance()
+    m2.persistent(True)
+    m2.load_state_dict(sd)
+    m2._update_count = 1
+    assert float(m2.compute()["ave"]) == float(m.compute()["ave"])
+    coll.reset()
+    with pytest.raises(EmptyInputError):
+        coll["surf"].compute()
+
+
+def test_to_device_cpu_and_dtype_kept(frames):
+    simps, refs = frames
+    m = NearestVertexDistance().to("cpu")
+    m.half()  # float64 states are not cast by torchmetrics' default dtype handling
+    m.update(simps[0], refs[0])
+    assert m.compute()["ave"].dtype == torch.float64
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA")
+def test_cuda_matches_cpu(frames):
+    simps, refs = frames
+    cpu, gpu = MeshSurfaceDistance(two_sided=True), MeshSurfaceDistance(two_sided=True).to("cuda")
+    cpu.update(simps, refs)
+    gpu.update(
+        [Mesh(*s).to("cuda") for s in simps],
+        [Mesh(*(torch.from_numpy(np.asarray(x)) for x in (r.vertices, r.faces))).to("cuda") for r in refs],
+    )
+    for k, v in cpu.compute().items():
+        assert float(gpu.compute()[k]) == pytest.approx(float(v), rel=1e-9), k
+
+
+def test_distance_statistics_metric_without_peak_has_no_psnr():
+    m = DistanceStatisticsMetric()
+    m.update(torch.tensor([1.0, 2.0]))
+    assert "psnr" not in m.compute()
+    m.update(torch.tensor([3.0]), peak=4.0)
+    assert float(m.compute()["psnr"]) == pytest.approx(10 * math.log10(16 / (14 / 3)), rel=1e-12)
+    with pytest.raises(TypeError, match="reverse_dists"):
+        DistanceStatisticsMetric(two_sided=True).update(torch.ones(2))
+
+
+def test_batch_size_mismatch_and_bad_args(frames):
+    simps, refs = frames
+    with pytest.raises(ValueError, match="reference"):
+        MeshSurfaceDistance().update(simps[:2], refs[:1])
+    with pytest.raises(ValueError, match="reference"):
+        nearest_vertex_distances(simps[:2], refs[:3])
+    with pytest.raises(ValueError, match="ddof"):
+        NearestVertexDistance(ddof=-1)

@@ -1,0 +1,105 @@
+import pytest
+import torch
+import trimesh
+
+from torchmeshmetric import Mesh
+from torchmeshmetric.metrics import (
+    MeshSurfaceDistanceLoss,
+    NearestVertexDistanceLoss,
+    mesh_surface_distance_loss,
+    mesh_surface_distances,
+    nearest_vertex_distance_loss,
+)
+
+
+def mesh64(m):
+    return torch.from_numpy(m.vertices).double(), torch.from_numpy(m.faces)
+
+
+@pytest.fixture
+def pair():
+    ref = trimesh.creation.icosphere(subdivisions=1)
+    coarse = trimesh.creation.icosahedron()
+    g = torch.Generator().manual_seed(0)
+    v, f = mesh64(coarse)
+    v = v * 1.1 + 0.05 * torch.randn(v.shape, generator=g, dtype=torch.float64)
+    return (v, f), ref
+
+
+@pytest.mark.parametrize("two_sided", [False, True])
+@pytest.mark.parametrize("power", [1, 2])
+def test_gradcheck_mesh_surface_wrt_simplified(pair, two_sided, power):
+    (v, f), ref = pair
+    v = v.clone().requires_grad_(True)
+    fn = lambda x: mesh_surface_distance_loss(Mesh(x, f), ref, power=power, two_sided=two_sided)  # noqa: E731
+    assert torch.autograd.gradcheck(fn, (v,), eps=1e-6, atol=1e-6)
+
+
+def test_gradcheck_wrt_reference_when_not_detached(pair):
+    (v, f), ref = pair
+    rv, rf = mesh64(ref)
+    rv = rv.clone().requires_grad_(True)
+    fn = lambda r: mesh_surface_distance_loss(Mesh(v, f), Mesh(r, rf), detach_reference=False, power=2)  # noqa: E731
+    assert torch.autograd.gradcheck(fn, (rv,), eps=1e-6, atol=1e-6)
+    vv = v.clone().requires_grad_(True)
+    loss = mesh_surface_distance_loss(Mesh(vv, f), Mesh(rv, rf))  # reference detached by default
+    grad_v, grad_r = torch.autograd.grad(loss, (vv, rv), allow_unused=True)
+    assert grad_v is not None and grad_r is None
+
+
+def test_gradcheck_nearest_vertex(pair):
+    (v, _f), ref = pair
+    v = v.clone().requires_grad_(True)
+    rv = torch.from_numpy(ref.vertices).clone().requires_grad_(True)
+    fn = lambda x, r: nearest_vertex_distance_loss(x, r, two_sided=True, detach_reference=False)  # noqa: E731
+    assert torch.autograd.gradcheck(fn, (v, rv), eps=1e-6, atol=1e-6)
+
+
+def test_reductions_consistent_and_module_equals_function(pair):
+    (v, f), ref = pair
+    simp = Mesh(v, f)
+    r = mesh_surface_distances(simp, ref, two_sided=True)
+    none = mesh_surface_distance_loss(simp, ref, power=2, reduction="none", two_sided=True)
+    total = mesh_surface_distance_loss(simp, ref, power=2, reduction="sum", two_sided=True)
+    mean = mesh_surface_distance_loss(simp, ref, power=2, reduction="mean", two_sided=True)
+    assert none.shape == (r.forward.numel() + r.reverse.numel(),)
+    torch.testing.assert_close(none.sum(), total)
+    torch.testing.assert_close(mean, (r.forward**2).mean() + (r.reverse**2).mean())
+    mod = MeshSurfaceDistanceLoss(power=2, two_sided=True)
+    torch.testing.assert_close(mod(simp, ref), mean)
+    torch.testing.assert_close(NearestVertexDistanceLoss()(simp, ref), nearest_vertex_distance_loss(simp, ref))
+
+
+def test_squared_loss_equals_metric_mse(pair):
+    from torchmeshmetric.metrics import MeshSurfaceDistance
+
+    (v, f), ref = pair
+    m = MeshSurfaceDistance()
+    m.update((v, f), ref)
+    loss = mesh_surface_distance_loss((v, f), ref, power=2)
+    assert float(loss) == pytest.approx(float(m.compute()["mse"]), rel=1e-12)
+
+
+def test_ragged_batch_loss_is_pooled_mean(pair):
+    (v, f), ref = pair
+    items = [(v, f), (v[:6] * 0.9, torch.tensor([[0, 1, 2], [3, 4, 5]]))]
+    loss = mesh_surface_distance_loss(items, [ref, ref], reduction="none")
+    per = [mesh_surface_distance_loss(it, ref, reduction="none") for it in items]
+    torch.testing.assert_close(loss, torch.cat(per))
+
+
+def test_gradient_finite_at_zero_distance():
+    ref = trimesh.creation.box()
+    v = torch.from_numpy(ref.vertices).double().requires_grad_(True)
+    loss = mesh_surface_distance_loss((v, torch.from_numpy(ref.faces)), ref)
+    loss.backward()
+    assert loss.item() == 0.0 and bool(torch.isfinite(v.grad).all())
+
+
+def test_bad_arguments():
+    with pytest.raises(ValueError, match="reduction"):
+        MeshSurfaceDistanceLoss(reduction="max")
+    with pytest.raises(ValueError, match="power"):
+        NearestVertexDistanceLoss(power=0)
+    with pytest.raises(ValueError, match="surface_samples"):
+        MeshSurfaceDistanceLoss(surface_samples=-3)

@@ -1,0 +1,73 @@
+"""Slow, obviously-correct float64 references for the kernels (pure Python / numpy; no torch)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def _closest_on_segment(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    ab = b - a
+    den = float(ab @ ab)
+    if den == 0.0:
+        return a.copy()
+    t = min(1.0, max(0.0, float((p - a) @ ab) / den))
+    return a + t * ab
+
+
+def closest_point_triangle(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Ericson 2004, *Real-Time Collision Detection*, ClosestPtPointTriangle (§5.1.5), transcribed branch by branch.
+
+    Degenerate (zero-area) triangles are segments or points: their closest point is the nearest of the three edge
+    segments' closest points.
+    """
+    p, a, b, c = (np.asarray(x, dtype=np.float64) for x in (p, a, b, c))
+    ab, ac, ap = b - a, c - a, p - a
+    if float(np.cross(ab, ac) @ np.cross(ab, ac)) == 0.0:
+        cands = [_closest_on_segment(p, a, b), _closest_on_segment(p, a, c), _closest_on_segment(p, b, c)]
+        return min(cands, key=lambda q: float((p - q) @ (p - q)))
+    d1, d2 = ab @ ap, ac @ ap
+    if d1 <= 0 and d2 <= 0:
+        return a  # vertex region A
+    bp = p - b
+    d3, d4 = ab @ bp, ac @ bp
+    if d3 >= 0 and d4 <= d3:
+        return b  # vertex region B
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0 and d1 >= 0 and d3 <= 0:
+        return a + d1 / (d1 - d3) * ab  # edge region AB
+    cp = p - c
+    d5, d6 = ab @ cp, ac @ cp
+    if d6 >= 0 and d5 <= d6:
+        return c  # vertex region C
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0 and d2 >= 0 and d6 <= 0:
+        return a + d2 / (d2 - d6) * ac  # edge region AC
+    va = d3 * d6 - d5 * d4
+    if va <= 0 and (d4 - d3) >= 0 and (d5 - d6) >= 0:
+        return b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b)  # edge region BC
+    denom = 1.0 / (va + vb + vc)
+    return a + ab * (vb * denom) + ac * (vc * denom)  # face region
+
+
+def point_mesh_distance(points: np.ndarray, verts: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distance from each point to the mesh by testing every face; returns (dists, closest)."""
+    points, verts = np.asarray(points, np.float64), np.asarray(verts, np.float64)
+    dists = np.empty(len(points))
+    closest = np.empty((len(points), 3))
+    for i, p in enumerate(points):
+        best, best_q = np.inf, None
+        for f in faces:
+            q = closest_point_triangle(p, verts[f[0]], verts[f[1]], verts[f[2]])
+            d = float(np.sqrt((p - q) @ (p - q)))
+            if d < best:
+                best, best_q = d, q
+        dists[i], closest[i] = best, best_q
+    return dists, closest
+
+
+def nearest_vertex(points: np.ndarray, ref: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Brute-force nearest neighbour in float64; returns (dists, idx) with the lowest index among ties."""
+    points, ref = np.asarray(points, np.float64), np.asarray(ref, np.float64)
+    d = np.sqrt(((points[:, None, :] - ref[None, :, :]) ** 2).sum(-1))
+    idx = d.argmin(1)
+    return d[np.arange(len(points)), idx], idx

@@ -1,0 +1,91 @@
+"""Normalise the ``(simplified, reference)`` arguments of the metrics and losses into per-item lists."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, NamedTuple
+
+import numpy as np
+from torch import Tensor
+
+from torchmeshmetric.kernels.sampling import vertex_set
+from torchmeshmetric.structures import Mesh, _looks_like_pair, as_mesh, as_points
+
+__all__ = ["PointSource", "as_point_sources", "as_reference_meshes"]
+
+
+class PointSource(NamedTuple):
+    """One item: the query points and, when the item was given as a mesh, that mesh."""
+
+    points: Tensor
+    mesh: Mesh | None
+
+
+def _is_mesh_like(x: Any) -> bool:
+    if isinstance(x, Mesh):
+        return True
+    if isinstance(x, tuple) and _looks_like_pair(x):
+        return True
+    return type(x).__name__ == "Trimesh"
+
+
+def _as_items(x: Any) -> list[Any]:
+    """A single item (tensor, array, mesh-like) becomes a batch of one; a list/tuple of items stays a batch."""
+    if isinstance(x, (Tensor, np.ndarray)):
+        if x.ndim == 3:
+            return list(x)
+        return [x]
+    if _is_mesh_like(x):
+        return [x]
+    if isinstance(x, (list, tuple)):
+        return list(x)
+    return [x]
+
+
+def as_point_sources(x: Any, name: str = "simplified") -> list[PointSource]:
+    """Items of ``x``: a ``(P, 3)`` point set, a mesh-like (its vertex set, paper Eq. 3), ``(B, P, 3)``, or a list.
+
+    Mesh items contribute the vertices referenced by at least one face (:func:`~torchmeshmetric.vertex_set`).
+    """
+    items = _as_items(x)
+    if not items:
+        raise ValueError(f"{name}: expected at least one point set or mesh, found an empty list")
+    out = []
+    for i, it in enumerate(items):
+        nm = name if len(items) == 1 else f"{name}[{i}]"
+        if _is_mesh_like(it):
+            m = as_mesh(it, name=nm)
+            out.append(PointSource(vertex_set(m), m))
+        else:
+            out.append(PointSource(as_points(it, nm), None))
+    return out
+
+
+def as_reference_meshes(x: Any, num_items: int, name: str = "reference") -> list[Mesh]:
+    """Reference meshes, one per item (a single mesh-like is used for a batch of one only)."""
+    items = [x] if _is_mesh_like(x) else list(x) if isinstance(x, (list, tuple)) else [x]
+    meshes = [as_mesh(m, name=name if len(items) == 1 else f"{name}[{i}]") for i, m in enumerate(items)]
+    _check_count(len(meshes), num_items, name)
+    return meshes
+
+
+def as_reference_points(x: Any, num_items: int, name: str = "reference") -> list[Tensor]:
+    """Reference point sets (a mesh-like item contributes its vertex set), one per item."""
+    srcs = as_point_sources(x, name)
+    _check_count(len(srcs), num_items, name)
+    return [s.points for s in srcs]
+
+
+def _check_count(found: int, expected: int, name: str) -> None:
+    if found != expected:
+        raise ValueError(f"{name}: expected {expected} reference(s), one per simplified item, found {found}")
+
+
+def require_meshes(sources: Sequence[PointSource], name: str, why: str) -> list[Mesh]:
+    """The meshes of every item, or a ``TypeError`` explaining why a mesh is needed."""
+    meshes = []
+    for i, s in enumerate(sources):
+        if s.mesh is None:
+            raise TypeError(f"{name}[{i}]: expected a mesh ({why}), found a point set")
+        meshes.append(s.mesh)
+    return meshes

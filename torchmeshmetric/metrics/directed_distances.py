@@ -1,0 +1,34 @@
+"""The result of measuring a batch in one or both directions (simplified → reference, reference → simplified)."""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import torch
+from torch import Tensor
+
+__all__ = ["DirectedDistances"]
+
+
+class DirectedDistances(NamedTuple):
+    """Per-point distances of a ragged batch, packed, in one or both directions.
+
+    Attributes:
+        forward: ``(sum P_b,)`` distances from the simplified points to the reference (the paper's direction).
+        forward_lengths: ``(B,)`` points per item.
+        reverse: ``(sum R_b,)`` distances from the reference points to the simplified mesh (two-sided only, else
+            ``None``).
+        reverse_lengths: ``(B,)`` reference points per item (two-sided only, else ``None``).
+        peak: ``(B,)`` bounding-box diagonal of each reference mesh (the default PSNR peak).
+    """
+
+    forward: Tensor
+    forward_lengths: Tensor
+    reverse: Tensor | None
+    reverse_lengths: Tensor | None
+    peak: Tensor
+
+
+def lengths_of(items: list[Tensor]) -> Tensor:
+    """``(B,)`` int64 row counts of a list of tensors."""
+    return torch.tensor([t.shape[0] for t in items], dtype=torch.long, device=items[0].device)

@@ -1,0 +1,118 @@
+r"""Mergeable first and second moments of distance sets (Chan, Golub & LeVeque 1979).
+
+A distance set is summarised by ``Moments(count, mean, m2, sumsq, min, max)`` in float64, where ``m2`` is the
+sum of squared deviations from the mean. Partial summaries of disjoint parts combine exactly (up to float64
+rounding) with Chan et al.'s parallel formula
+
+.. math::
+
+    n = n_a + n_b,\quad \delta = \bar x_b - \bar x_a,\quad
+    \bar x = \bar x_a + \delta\, n_b / n,\quad M_2 = M_{2,a} + M_{2,b} + \delta^2\, n_a n_b / n,
+
+and, for ``K`` parts at once, :math:`\bar x = \sum_k n_k \bar x_k / n`,
+:math:`M_2 = \sum_k M_{2,k} + \sum_k n_k (\bar x_k - \bar x)^2`. Nothing is computed as
+:math:`E[x^2] - E[x]^2`, so float32 distances with large offsets lose no precision to cancellation.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import torch
+from torch import Tensor
+
+from torchmeshmetric.structures import batch_index
+
+__all__ = ["Moments", "merge_mean_m2", "merge_moments", "moments_of"]
+
+
+class Moments(NamedTuple):
+    r"""Sufficient statistics of one or several distance sets (float64; 0-dim for one set, ``(B,)`` per item).
+
+    Attributes:
+        count: number of values (float64 so that it merges like the other fields).
+        mean: arithmetic mean (``0`` when ``count == 0``).
+        m2: sum of squared deviations from ``mean``.
+        sumsq: sum of squared values, :math:`\sum d^2` (no cancellation: every term is non-negative for
+            distances).
+        min: smallest value (``+inf`` when empty).
+        max: largest value (``-inf`` when empty).
+    """
+
+    count: Tensor  # type: ignore[assignment]  # shadows tuple.count on purpose (the statistic's name)
+    mean: Tensor
+    m2: Tensor
+    sumsq: Tensor
+    min: Tensor
+    max: Tensor
+
+
+def moments_of(values: Tensor, lengths: Tensor | None = None) -> Moments:
+    """Two-pass moments of a set (or of every item of a packed ragged batch) in float64.
+
+    Args:
+        values: ``(N,)`` values, or packed ``(sum N_b,)`` with ``lengths``.
+        lengths: optional ``(B,)`` items sizes; gives ``(B,)`` fields, else 0-dim fields.
+
+    Returns:
+        :class:`Moments`; empty sets have ``count = 0``, ``mean = m2 = sumsq = 0``, ``min = +inf``, ``max = -inf``.
+
+    Example:
+        >>> import torch
+        >>> m = moments_of(torch.tensor([1.0, 2.0, 3.0]))
+        >>> m.count.item(), m.mean.item(), m.m2.item(), m.sumsq.item()
+        (3.0, 2.0, 2.0, 14.0)
+    """
+    x = values.detach().reshape(-1).to(torch.float64)
+    if lengths is None:
+        n = x.new_tensor(float(x.numel()))
+        if x.numel() == 0:
+            z = x.new_zeros(())
+            return Moments(n, z, z.clone(), z.clone(), x.new_tensor(float("inf")), x.new_tensor(float("-inf")))
+        mean = x.mean()
+        return Moments(n, mean, ((x - mean) ** 2).sum(), (x * x).sum(), x.min(), x.max())
+    num = int(lengths.numel())
+    b = batch_index(lengths.to(device=x.device, dtype=torch.long))
+    n = lengths.to(device=x.device, dtype=torch.float64)
+    s = x.new_zeros(num).index_add_(0, b, x)
+    mean = torch.where(n > 0, s / n.clamp_min(1.0), torch.zeros_like(s))
+    m2 = x.new_zeros(num).index_add_(0, b, (x - mean[b]) ** 2)
+    sumsq = x.new_zeros(num).index_add_(0, b, x * x)
+    lo = x.new_full((num,), float("inf")).scatter_reduce(0, b, x, reduce="amin")
+    hi = x.new_full((num,), float("-inf")).scatter_reduce(0, b, x, reduce="amax")
+    return Moments(n, mean, m2, sumsq, lo, hi)
+
+
+def merge_moments(parts: Moments, dim: int = 0) -> Moments:
+    """Merge ``K`` partial summaries stacked along ``dim`` into one (Chan et al. 1979, generalised to K parts).
+
+    Args:
+        parts: :class:`Moments` whose fields have a ``K`` dimension at ``dim`` (e.g. ``(K,)`` rows gathered from
+            several batches or processes). Parts with ``count = 0`` are neutral.
+        dim: the dimension to merge over.
+
+    Returns:
+        :class:`Moments` with ``dim`` removed; equal (to float64 rounding) to :func:`moments_of` on the union.
+
+    Example:
+        >>> import torch
+        >>> a, b = moments_of(torch.tensor([1.0, 2.0])), moments_of(torch.tensor([3.0]))
+        >>> m = merge_moments(Moments(*[torch.stack([x, y]) for x, y in zip(a, b)]))
+        >>> m.count.item(), m.mean.item(), m.m2.item()
+        (3.0, 2.0, 2.0)
+    """
+    count, mean, m2, sumsq, lo, hi = (t.to(torch.float64) for t in parts)
+    n, new_mean, new_m2 = merge_mean_m2(count, mean, m2, dim)
+    if lo.shape[dim] == 0:
+        inf = torch.full_like(n, float("inf"))
+        return Moments(n, new_mean, new_m2, sumsq.sum(dim), inf, -inf)
+    return Moments(n, new_mean, new_m2, sumsq.sum(dim), lo.amin(dim), hi.amax(dim))
+
+
+def merge_mean_m2(count: Tensor, mean: Tensor, m2: Tensor, dim: int = 0) -> tuple[Tensor, Tensor, Tensor]:
+    """Chan et al. merge of ``(count, mean, m2)`` parts along ``dim``; returns the merged ``(count, mean, m2)``."""
+    count, mean, m2 = count.to(torch.float64), mean.to(torch.float64), m2.to(torch.float64)
+    n = count.sum(dim)
+    new_mean = torch.where(n > 0, (count * mean).sum(dim) / n.clamp_min(1.0), torch.zeros_like(n))
+    dev = torch.where(count > 0, mean - new_mean.unsqueeze(dim), torch.zeros_like(mean))
+    return n, new_mean, m2.sum(dim) + (count * dev * dev).sum(dim)

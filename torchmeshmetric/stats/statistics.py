@@ -1,0 +1,270 @@
+r"""The statistics of a distance set: the paper's five (Section II.C) plus Hausdorff, quantiles and PSNR.
+
+For a distance set :math:`D = \{d_1, \dots, d_n\}` (distances, **not squared**):
+
+.. math::
+
+    \mathrm{Ave} = \frac{1}{n}\sum_i d_i,\qquad
+    \mathrm{Var} = \frac{1}{n - \mathrm{ddof}}\sum_i (d_i - \mathrm{Ave})^2,\qquad
+    \mathrm{STD} = \sqrt{\mathrm{Var}},
+
+.. math::
+
+    \mathrm{MSE} = \frac{1}{n}\sum_i d_i^2,\qquad \mathrm{RMSE} = \sqrt{\mathrm{MSE}},\qquad
+    \mathrm{PSNR} = 10 \log_{10} \frac{\mathrm{peak}^2}{\mathrm{MSE}}\ \text{dB}.
+
+With the default population variance (``ddof=0``), :math:`\mathrm{MSE} = \mathrm{Var} + \mathrm{Ave}^2`, so
+:math:`\mathrm{MSE} \ge \mathrm{Ave}^2` always. ``max`` is the one-sided Hausdorff distance. Quantiles
+(``median``, ``p95``, ``p99``) use linear interpolation between order statistics (``numpy.percentile``'s
+default), exactly or from a :class:`~torchmeshmetric.stats.sketch.QuantileSketch` with a relative-error bound.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import torch
+from torch import Tensor
+
+from torchmeshmetric._checks import EmptyInputError, NonFiniteError, check_lengths, check_shape
+from torchmeshmetric.stats.moments import Moments, moments_of
+from torchmeshmetric.stats.sketch import QuantileSketch
+from torchmeshmetric.structures import batch_index, lengths_to_offsets
+
+__all__ = [
+    "QUANTILE_LEVELS",
+    "DistanceStatistics",
+    "distance_statistics",
+    "linear_quantiles",
+    "psnr_from_mse",
+    "statistics_from_parts",
+]
+
+QUANTILE_LEVELS = (0.5, 0.95, 0.99)
+"""Quantile levels reported as ``median``, ``p95``, ``p99``."""
+
+
+class DistanceStatistics(NamedTuple):
+    """Statistics of a distance set (0-dim float64 tensors) or of each item of a ragged batch (``(B,)``).
+
+    Attributes:
+        ave: mean distance (the paper's *Average*).
+        var: variance with ``ddof`` (population by default; the paper's *Variance*).
+        std: ``sqrt(var)`` (the paper's *Standard Deviation*).
+        mse: ``mean(d^2)`` (the paper's *Mean Square Error*; equals ``var + ave^2`` when ``ddof=0``).
+        rmse: ``sqrt(mse)`` (the paper's *Root Mean Square Error*).
+        max: largest distance (one-sided Hausdorff distance).
+        min: smallest distance.
+        median: 50 % quantile.
+        p95: 95 % quantile.
+        p99: 99 % quantile.
+        count: number of distances (int64).
+        psnr: ``10 log10(peak^2 / mse)`` in dB (``+inf`` when ``mse == 0``), or ``None`` when no peak was given.
+    """
+
+    ave: Tensor
+    var: Tensor
+    std: Tensor
+    mse: Tensor
+    rmse: Tensor
+    max: Tensor
+    min: Tensor
+    median: Tensor
+    p95: Tensor
+    p99: Tensor
+    count: Tensor  # type: ignore[assignment]  # shadows tuple.count on purpose (the statistic's name)
+    psnr: Tensor | None
+
+    def as_dict(self) -> dict[str, float]:
+        """Plain-Python dict of a single set's statistics, for reports and JSON.
+
+        ``count`` is an ``int`` stored as a float-compatible number; ``psnr`` is omitted when it is ``None``.
+
+        Raises:
+            ValueError: the statistics are per item of a batch (use ``[s.as_dict() for s in unbind(stats)]``).
+        """
+        if self.ave.dim() != 0:
+            raise ValueError(
+                f"as_dict: expected statistics of one set (0-dim fields), found shape {tuple(self.ave.shape)}"
+            )
+        out: dict[str, float] = {}
+        for name, value in zip(self._fields, self, strict=True):
+            if value is None:
+                continue
+            out[name] = int(value.item()) if name == "count" else float(value.item())
+        return out
+
+    def unbind(self) -> list[DistanceStatistics]:
+        """Split ``(B,)`` statistics into ``B`` single-set statistics."""
+        if self.ave.dim() == 0:
+            return [self]
+        cols = [None if v is None else v.unbind(0) for v in self]
+        return [DistanceStatistics._make(None if c is None else c[b] for c in cols) for b in range(self.ave.shape[0])]
+
+
+def psnr_from_mse(mse: Tensor, peak: float | Tensor) -> Tensor:
+    """MPEG-style geometry PSNR, ``10 log10(peak^2 / mse)`` dB; ``+inf`` where ``mse == 0``.
+
+    Example:
+        >>> psnr_from_mse(torch.tensor(0.01, dtype=torch.float64), 1.0).item()
+        20.0
+    """
+    p = torch.as_tensor(peak, dtype=torch.float64, device=mse.device)
+    mse = mse.to(torch.float64)
+    val = 10.0 * torch.log10(p * p / mse.clamp_min(torch.finfo(torch.float64).tiny))
+    return torch.where(mse > 0, val, torch.full_like(val, math.inf))
+
+
+def linear_quantiles(values: Tensor, q: Sequence[float] | Tensor, lengths: Tensor | None = None) -> Tensor:
+    """Exact quantiles with linear interpolation (``numpy.percentile(..., method="linear")``), per item.
+
+    Args:
+        values: ``(N,)`` values, or packed ``(sum N_b,)`` with ``lengths``.
+        q: ``Q`` levels in ``[0, 1]``.
+        lengths: optional ``(B,)`` item sizes.
+
+    Returns:
+        ``(Q,)`` (or ``(B, Q)`` with ``lengths``) float64 quantiles; NaN for empty items.
+
+    Example:
+        >>> linear_quantiles(torch.tensor([1.0, 2.0, 3.0, 4.0]), [0.5]).tolist()
+        [2.5]
+    """
+    x = values.detach().reshape(-1).to(torch.float64)
+    qs = torch.as_tensor(q, dtype=torch.float64, device=x.device).reshape(-1)
+    single = lengths is None
+    lens = x.new_tensor([x.numel()], dtype=torch.long) if lengths is None else lengths.to(x.device, torch.long)
+    b = batch_index(lens)
+    # Sort by value, then stably by item: values sorted within each item.
+    order = torch.argsort(x, stable=True)
+    order = order[torch.argsort(b[order], stable=True)]
+    xs = x[order]
+    off = lengths_to_offsets(lens)[:-1]
+    n = lens.to(torch.float64)
+    pos = qs[None, :] * (n[:, None] - 1).clamp_min(0)
+    lo, hi = torch.floor(pos), torch.ceil(pos)
+    frac = pos - lo
+    last = max(x.numel() - 1, 0)
+    if x.numel() == 0:
+        out = torch.full((lens.numel(), qs.numel()), float("nan"), dtype=torch.float64, device=x.device)
+    else:
+        lo_v = xs[(off[:, None] + lo.long()).clamp(max=last)]
+        hi_v = xs[(off[:, None] + hi.long()).clamp(max=last)]
+        out = lo_v + frac * (hi_v - lo_v)
+        out = torch.where((lens > 0)[:, None], out, torch.full_like(out, float("nan")))
+    return out[0] if single else out
+
+
+def statistics_from_parts(
+    moments: Moments, quantiles: Tensor, *, ddof: int = 0, peak: float | Tensor | None = None
+) -> DistanceStatistics:
+    """Finish :class:`DistanceStatistics` from merged :class:`Moments` and quantiles ``(..., 3)``.
+
+    Empty sets (``count == 0``) get NaN statistics (``count`` 0); ``var``/``std`` are NaN when ``count <= ddof``.
+    """
+    if ddof < 0:
+        raise ValueError(f"ddof: expected a non-negative integer, found {ddof}")
+    n = moments.count.to(torch.float64)
+    nan = torch.full_like(n, float("nan"))
+    has = n > 0
+    ave = torch.where(has, moments.mean, nan)
+    var = torch.where(n > ddof, moments.m2 / (n - ddof).clamp_min(1.0), nan)
+    mse = torch.where(has, moments.sumsq / n.clamp_min(1.0), nan)
+    psnr = None if peak is None else psnr_from_mse(mse, peak)
+    if psnr is not None:
+        psnr = torch.where(has, psnr, nan)
+    return DistanceStatistics(
+        ave=ave,
+        var=var,
+        std=var.sqrt(),
+        mse=mse,
+        rmse=mse.sqrt(),
+        max=torch.where(has, moments.max, nan),
+        min=torch.where(has, moments.min, nan),
+        median=quantiles[..., 0],
+        p95=quantiles[..., 1],
+        p99=quantiles[..., 2],
+        count=n.round().long(),
+        psnr=psnr,
+    )
+
+
+def distance_statistics(
+    dists: Tensor | Sequence[Tensor],
+    *,
+    lengths: Tensor | None = None,
+    ddof: int = 0,
+    peak: float | Tensor | None = None,
+    exact_quantiles: bool = True,
+    relative_accuracy: float = 1e-3,
+) -> DistanceStatistics:
+    """All statistics of a distance set, or of every item of a ragged batch.
+
+    Definitions (``d`` distances, not squared; ``n`` their count):
+    ``ave = mean(d)``, ``var = sum((d - ave)^2) / (n - ddof)``, ``std = sqrt(var)``, ``mse = mean(d^2)``,
+    ``rmse = sqrt(mse)``, ``max``/``min`` (``max`` is the one-sided Hausdorff distance), ``median``/``p95``/``p99``
+    (linear interpolation, as ``numpy.percentile``), ``psnr = 10 log10(peak^2 / mse)`` dB. With ``ddof=0``
+    (default, population variance) ``mse = var + ave^2``. Computed in float64, two-pass (no cancellation).
+
+    Args:
+        dists: ``(N,)`` distances; a packed ``(sum N_b,)`` tensor with ``lengths``; or a list of ``(N_b,)`` tensors.
+        lengths: ``(B,)`` item sizes of a packed batch.
+        ddof: delta degrees of freedom of the variance (0: population, the default; 1: sample).
+        peak: PSNR peak (MPEG convention: e.g. the reference's bounding-box diagonal). ``None``: ``psnr`` is
+            ``None`` (never NaN by omission). A ``(B,)`` tensor gives one peak per item.
+        exact_quantiles: exact quantiles (sorts the values) or the sketch estimate with relative error
+            ``relative_accuracy`` (see :class:`~torchmeshmetric.stats.sketch.QuantileSketch`).
+        relative_accuracy: the sketch's relative-error bound when ``exact_quantiles=False``.
+
+    Returns:
+        :class:`DistanceStatistics`: float64 0-dim fields for a single set, ``(B,)`` for a batch (list or
+        ``lengths``). ``psnr`` is ``+inf`` where ``mse == 0``. Empty items of a batch have ``count = 0`` and NaN
+        statistics; ``var``/``std`` are NaN when ``count <= ddof`` (as ``numpy.var``).
+
+    Raises:
+        EmptyInputError: a single (non-batched) set is empty.
+        NonFiniteError: a distance is NaN or Inf.
+        ShapeError: ``dists`` is not 1-D or ``lengths`` does not match.
+
+    Example:
+        >>> import torch
+        >>> s = distance_statistics(torch.tensor([1.0, 2.0, 3.0, 4.0]), peak=10.0)
+        >>> s.ave.item(), s.var.item(), s.mse.item(), s.median.item(), round(s.psnr.item(), 4)
+        (2.5, 1.25, 7.5, 2.5, 11.2494)
+    """
+    if isinstance(dists, Tensor):
+        d = dists
+        check_shape(d, ("N",), "dists")
+        if lengths is not None:
+            check_lengths(lengths.to(d.device), d.shape[0], "lengths")
+    else:
+        if lengths is not None:
+            raise TypeError("lengths: only valid with a packed dists tensor, found a list of tensors")
+        items = list(dists)
+        if not items:
+            raise EmptyInputError("dists: expected at least one distance set, found an empty list")
+        for i, t in enumerate(items):
+            check_shape(t, ("N",), f"dists[{i}]")
+        lengths = torch.tensor([t.shape[0] for t in items], device=items[0].device)
+        d = torch.cat([t.to(torch.float64) for t in items])
+    if d.is_complex() or not (d.is_floating_point() or d.dtype in (torch.int32, torch.int64)):
+        raise TypeError(f"dists: expected a real tensor, found dtype {d.dtype}")
+    if d.numel() and not bool(torch.isfinite(d).all()):
+        raise NonFiniteError(f"dists: expected finite values, found {int((~torch.isfinite(d)).sum())} NaN/Inf value(s)")
+    if lengths is None and d.numel() == 0:
+        raise EmptyInputError("dists: expected at least one distance, found an empty tensor")
+    mom = moments_of(d, lengths)
+    if exact_quantiles:
+        qv = linear_quantiles(d, QUANTILE_LEVELS, lengths)
+    else:
+        sk = QuantileSketch(relative_accuracy)
+        q = torch.tensor(QUANTILE_LEVELS, dtype=torch.float64, device=d.device)
+        if lengths is None:
+            qv = sk.quantile(sk.counts(d), q, mom.min, mom.max)
+        else:
+            b = batch_index(lengths.to(d.device, torch.long))
+            rows = [sk.quantile(sk.counts(d[b == i]), q, mom.min[i], mom.max[i]) for i in range(int(lengths.numel()))]
+            qv = torch.stack(rows) if rows else d.new_zeros((0, 3), dtype=torch.float64)
+    return statistics_from_parts(mom, qv, ddof=ddof, peak=peak)
