@@ -2,11 +2,11 @@ import pickle
 
 import pytest
 import torch
-from torchmeshmetric.stats import distance_statistics
 from torchmetrics import MetricCollection
 
 from tests.evaluation.eval_helpers import TranslationRegister
 from torchmeshmetric.evaluation import SET_NAMES, TemporalConsistency, evaluate_pair, flatten_statistics
+from torchmeshmetric.stats import distance_statistics
 
 
 def test_metric_pools_updates_and_caches_registration(moving_spheres):
@@ -28,7 +28,9 @@ def test_metric_pools_updates_and_caches_registration(moving_spheres):
         for field, value in expect.items():
             assert float(out[name][field]) == pytest.approx(value, rel=1e-12, abs=1e-15)
         pooled_rev = torch.cat([p.reverse_distances[name] for p in pairs[-3:]])
-        assert float(out["reverse"][name]["rmse"]) == pytest.approx(float(distance_statistics(pooled_rev).rmse), rel=1e-12)
+        assert float(out["reverse"][name]["rmse"]) == pytest.approx(
+            float(distance_statistics(pooled_rev).rmse), rel=1e-12
+        )
 
 
 def test_metric_one_sided_collection_and_pickle(moving_spheres):

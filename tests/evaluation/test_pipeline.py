@@ -3,11 +3,11 @@ import pytest
 import torch
 import trimesh
 from scipy.spatial import cKDTree
-from torchmeshmetric.stats import distance_statistics
 
 from tests.evaluation.eval_helpers import TranslationRegister, sphere
 from torchmeshmetric import Mesh, ShapeError
 from torchmeshmetric.evaluation import SET_NAMES, evaluate_pair, evaluate_sequence, mean_statistics
+from torchmeshmetric.stats import distance_statistics
 
 
 def _oracle_surface(points: torch.Tensor, mesh: Mesh) -> np.ndarray:
