@@ -28,6 +28,15 @@ from torchmeshmetric.metrics import (
     mesh_surface_distance_loss,
     nearest_vertex_distance_loss,
 )
+from torchmeshmetric.registration import (
+    DeformationGraph,
+    NonRigidRegistration,
+    RegistrationWarning,
+    RigidRegistration,
+    kabsch_umeyama,
+    register_nonrigid,
+    register_rigid,
+)
 from torchmeshmetric.stats import DistanceAccumulator, DistanceStatistics, distance_statistics
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh, pack_meshes, pack_points
 
@@ -68,4 +77,12 @@ __all__ = [
     "distance_statistics",
     "mesh_surface_distance_loss",
     "nearest_vertex_distance_loss",
+    # registration
+    "DeformationGraph",
+    "NonRigidRegistration",
+    "RegistrationWarning",
+    "RigidRegistration",
+    "kabsch_umeyama",
+    "register_nonrigid",
+    "register_rigid",
 ]

@@ -1,0 +1,332 @@
+"""Non-rigid registration loop: rigid ICP, then an embedded deformation graph fitted with Adam, coarse to fine.
+
+The model (:class:`~torchmeshmetric.registration.DeformationGraph`) and the energies
+(:mod:`torchmeshmetric.registration.energies`) are separate from this loop, which only schedules them:
+
+1. normalise both meshes to the target's bounding-box centre and unit diagonal (every threshold below is a
+   fraction of the diagonal);
+2. optional rigid ICP (:func:`~torchmeshmetric.registration.register_rigid`);
+3. for each :class:`Stage` (regularisation, robust scale and rejection thresholds decreasing): Adam steps on the
+   graph's rotations and translations; correspondences (source vertices → target faces, target samples → deformed
+   source faces) are refreshed every ``correspondence_every`` steps, not every step; the stage ends after
+   ``max_steps`` or when the loss changes by less than ``tolerance`` (relative) between two refreshes;
+4. divergence (NaN/Inf or a loss that explodes) restores the last good parameters and reports failure; a fit
+   whose residuals stay large is reported as not converged too, with the reason, and a warning.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from collections.abc import Sequence
+from typing import Any, NamedTuple
+
+import torch
+from torch import Tensor
+
+from torchmeshmetric.kernels.point_triangle import closest_point_on_triangle
+from torchmeshmetric.kernels.sampling import sample_surface
+from torchmeshmetric.registration._common import (
+    closest_faces,
+    face_unit_normals,
+    referenced_mask,
+    validate_pair,
+    vertex_unit_normals,
+)
+from torchmeshmetric.registration.deformation_graph import DeformationGraph
+from torchmeshmetric.registration.energies import (
+    Correspondences,
+    embedded_deformation_regularizer,
+    find_correspondences,
+    surface_term,
+)
+from torchmeshmetric.registration.rigid import RigidRegistration, register_rigid
+from torchmeshmetric.structures import Mesh, MeshLike
+
+__all__ = ["DEFAULT_SCHEDULE", "NonRigidRegistration", "RegistrationWarning", "Stage", "register_nonrigid"]
+
+
+class RegistrationWarning(UserWarning):
+    """Emitted when a registration fails (diverged, or the fit is implausible)."""
+
+
+class Stage(NamedTuple):
+    """One stage of the coarse-to-fine schedule (distances are fractions of the bounding-box diagonal).
+
+    Attributes:
+        regularization: weight of the embedded-deformation prior.
+        robust_scale: Geman-McClure scale ``sigma``.
+        max_distance: correspondences farther than this are rejected.
+        max_normal_angle: correspondences whose normals differ by more (degrees) are rejected.
+        lr: Adam learning rate (radians for rotations, diagonals for translations).
+        max_steps: Adam steps at most.
+    """
+
+    regularization: float
+    robust_scale: float
+    max_distance: float
+    max_normal_angle: float
+    lr: float
+    max_steps: int
+
+
+DEFAULT_SCHEDULE: tuple[Stage, ...] = (
+    Stage(regularization=10.0, robust_scale=0.10, max_distance=0.30, max_normal_angle=80.0, lr=1e-2, max_steps=120),
+    Stage(regularization=1.0, robust_scale=0.05, max_distance=0.15, max_normal_angle=60.0, lr=5e-3, max_steps=120),
+    Stage(regularization=0.1, robust_scale=0.02, max_distance=0.08, max_normal_angle=50.0, lr=2e-3, max_steps=120),
+    Stage(regularization=0.02, robust_scale=0.01, max_distance=0.05, max_normal_angle=45.0, lr=1e-3, max_steps=120),
+)
+"""The default coarse-to-fine schedule: regularisation, robust scale, rejection thresholds and step size decrease."""
+
+
+class NonRigidRegistration(NamedTuple):
+    """Result of :func:`register_nonrigid`.
+
+    Attributes:
+        verts: ``(V, 3)`` registered source vertices (source topology and order, in target coordinates).
+        mesh: the registered :class:`~torchmeshmetric.Mesh` (source faces).
+        residual: ``(V,)`` exact distance of each registered vertex to the target surface.
+        loss_history: total loss after every Adam step.
+        converged: ``True`` only when no divergence happened and the fit is plausible (see ``reason``).
+        reason: empty when ``converged``; otherwise why the registration is not trusted.
+        timings: seconds spent in ``rigid``, ``graph``, ``correspondences``, ``optimisation``, ``residual``, ``total``.
+        graph: the fitted :class:`DeformationGraph` (in the normalised frame: centre/diagonal of the target).
+        rigid: the :class:`RigidRegistration` used (identity when ``rigid_init=False``).
+    """
+
+    verts: Tensor
+    mesh: Mesh
+    residual: Tensor
+    loss_history: list[float]
+    converged: bool
+    reason: str
+    timings: dict[str, float]
+    graph: DeformationGraph
+    rigid: RigidRegistration
+
+
+def _identity_rigid(verts: Tensor) -> RigidRegistration:
+    eye = torch.eye(3, dtype=verts.dtype, device=verts.device)
+    zero = verts.new_zeros(3)
+    return RigidRegistration(
+        eye, zero, verts.new_ones(()), torch.eye(4, dtype=verts.dtype, device=verts.device), verts,
+        verts.new_zeros(()), verts.new_ones(()), True, 0,
+    )  # fmt: skip
+
+
+def _residual(points: Tensor, verts: Tensor, faces: Tensor) -> Tensor:
+    fi = closest_faces(points, verts, faces)
+    tri = verts[faces[fi]]
+    return closest_point_on_triangle(points, tri[:, 0], tri[:, 1], tri[:, 2]).sq_dists.clamp_min(0).sqrt()
+
+
+def register_nonrigid(
+    source: MeshLike,
+    target: MeshLike,
+    *,
+    rigid_init: bool = True,
+    device: torch.device | str | None = None,
+    node_spacing: float = 0.03,
+    num_neighbors: int = 4,
+    num_points: int = 2000,
+    num_target_samples: int = 2000,
+    correspondence_every: int = 10,
+    schedule: Sequence[Stage] = DEFAULT_SCHEDULE,
+    plane_weight: float = 1.0,
+    point_weight: float = 0.1,
+    reverse_weight: float = 1.0,
+    tolerance: float = 1e-3,
+    max_outlier_fraction: float = 0.1,
+    outlier_distance: float = 0.02,
+    rigid_options: dict[str, Any] | None = None,
+    generator: torch.Generator | None = None,
+    warn: bool = True,
+) -> NonRigidRegistration:
+    """Register ``source`` (frame k-1) non-rigidly onto ``target`` (frame k), keeping the source's topology.
+
+    Works on frames as they come out of capture — duplicate and unreferenced vertices, zero-length edges,
+    zero-area faces — without cleaning: nodes and data points come from vertices of positive-area faces only,
+    unreferenced vertices still move with the graph's skinning, zero-area faces carry no normal so they skip the
+    point-to-plane term, and the closest-point kernel is exact on degenerate triangles.
+
+    Args:
+        source: mesh to deform (frame k-1).
+        target: mesh to reach (frame k).
+        rigid_init: run rigid ICP first.
+        device: device to compute on (default: the source's device); results live there.
+        node_spacing: deformation-graph node spacing, fraction of the diagonal.
+        num_neighbors: nodes per vertex.
+        num_points: source vertices (random subset of the surface vertices) in the data term.
+        num_target_samples: target surface samples in the reverse term (target → deformed source).
+        correspondence_every: Adam steps between two correspondence refreshes.
+        schedule: coarse-to-fine stages (see :data:`DEFAULT_SCHEDULE`).
+        plane_weight: weight of the point-to-plane part of the data term.
+        point_weight: weight of the point-to-point part of the data term.
+        reverse_weight: weight of the reverse term.
+        tolerance: relative loss change between refreshes below which a stage stops.
+        max_outlier_fraction: the fit is reported as failed when more than this fraction of surface vertices, or
+            of target samples, lies farther than ``outlier_distance`` from the other mesh.
+        outlier_distance: see ``max_outlier_fraction`` (fraction of the diagonal).
+        rigid_options: keyword arguments for :func:`register_rigid` (default: point-to-plane).
+        generator: optional CPU ``torch.Generator`` for sampling (reproducible runs).
+        warn: emit a :class:`RegistrationWarning` when the registration fails.
+
+    Returns:
+        :class:`NonRigidRegistration`.
+
+    Raises:
+        ShapeError, DTypeError, NonFiniteError, IndexRangeError, DeviceError, EmptyInputError: on bad meshes.
+        ValueError: on a bad option.
+
+    Example:
+        >>> import torch, trimesh
+        >>> src = trimesh.creation.icosphere(subdivisions=2)
+        >>> tgt = trimesh.creation.icosphere(subdivisions=3)
+        >>> tgt.vertices *= [1.1, 1.0, 0.9]
+        >>> r = register_nonrigid(src, tgt, schedule=DEFAULT_SCHEDULE[:2], generator=torch.Generator().manual_seed(0))
+        >>> r.converged, bool(r.residual.max() < 0.02)
+        (True, True)
+    """
+    if correspondence_every < 1:
+        raise ValueError(f"correspondence_every: expected a positive int, found {correspondence_every}")
+    if not schedule:
+        raise ValueError("schedule: expected at least one stage, found none")
+    if num_points < 1 or num_target_samples < 0:
+        raise ValueError(f"num_points/num_target_samples: expected positive counts, found {num_points}, "
+                         f"{num_target_samples}")  # fmt: skip
+    t_total = time.perf_counter()
+    timings = {"rigid": 0.0, "graph": 0.0, "correspondences": 0.0, "optimisation": 0.0, "residual": 0.0}
+    src, tgt = validate_pair(source, target)
+    if device is not None:
+        src, tgt = src.to(device=device), tgt.to(device=device)
+    dev, dtype = src.device, src.dtype
+    gen = generator if generator is not None else torch.Generator().manual_seed(0)
+
+    # 1. Normalise to the target's bounding-box centre and unit diagonal.
+    tref = tgt.verts[referenced_mask(tgt)]
+    center = 0.5 * (tref.amin(0) + tref.amax(0))
+    diag = (tref.amax(0) - tref.amin(0)).norm()
+    tv = (tgt.verts - center) / diag
+    tf = tgt.faces
+
+    # 2. Rigid initialisation.
+    t0 = time.perf_counter()
+    if rigid_init:
+        rigid = register_rigid(src, tgt, generator=gen, **{"point_to_plane": True, **(rigid_options or {})})
+        moved = rigid.verts
+    else:
+        rigid = _identity_rigid(src.verts)
+        moved = src.verts
+    timings["rigid"] = time.perf_counter() - t0
+    sv = (moved - center) / diag
+    sf = src.faces
+
+    # 3. Graph and fixed samples.
+    t0 = time.perf_counter()
+    graph = DeformationGraph(sv, sf, node_spacing=node_spacing, num_neighbors=num_neighbors).to(dev)
+    surf = referenced_mask(Mesh(sv, sf, validate=False)).nonzero()[:, 0]
+    if surf.numel() > num_points:
+        surf = surf[torch.randperm(surf.numel(), generator=gen)[:num_points].to(dev)]
+    if num_target_samples > 0:
+        samples = sample_surface(tv.cpu(), tf.cpu(), n=num_target_samples, generator=gen)
+        tsamp = samples.points.to(dev)
+        tsamp_n = face_unit_normals(tv, tf)[samples.face_idx.to(dev)]
+    timings["graph"] = time.perf_counter() - t0
+
+    history: list[float] = []
+    reason = ""
+    best_state = {k: v.detach().clone() for k, v in graph.state_dict().items()}
+    t_opt = time.perf_counter()
+    first_loss: float | None = None
+    for stage in schedule:
+        opt = torch.optim.Adam(graph.parameters(), lr=stage.lr)
+        prev_window: float | None = None
+        corr_f: Correspondences | None = None
+        corr_r: Correspondences | None = None
+        for step in range(stage.max_steps):
+            if step % correspondence_every == 0:
+                t0 = time.perf_counter()
+                with torch.no_grad():
+                    dv = graph()
+                    vn = vertex_unit_normals(dv, sf)
+                    corr_f = find_correspondences(dv[surf], vn[surf], tv, tf, max_distance=stage.max_distance,
+                                                  max_normal_angle=stage.max_normal_angle)  # fmt: skip
+                    if num_target_samples > 0:
+                        corr_r = find_correspondences(tsamp, tsamp_n, dv, sf, max_distance=stage.max_distance,
+                                                      max_normal_angle=stage.max_normal_angle)  # fmt: skip
+                timings["correspondences"] += time.perf_counter() - t0
+            assert corr_f is not None
+            opt.zero_grad(set_to_none=True)
+            dv = graph()
+            loss = surface_term(dv[surf], tv, tf, corr_f, sigma=stage.robust_scale, plane_weight=plane_weight,
+                                point_weight=point_weight)  # fmt: skip
+            if corr_r is not None and reverse_weight:
+                loss = loss + reverse_weight * surface_term(
+                    tsamp, dv, sf, corr_r, sigma=stage.robust_scale, plane_weight=0.0, point_weight=1.0
+                )
+            # Data terms in units of the node spacing, so a regularisation weight of 1 trades an edge residual of
+            # one spacing against a data residual of one spacing.
+            loss = loss / (node_spacing * node_spacing)
+            loss = loss + stage.regularization * embedded_deformation_regularizer(graph)
+            value = float(loss.detach())
+            if first_loss is None:
+                first_loss = max(value, 1e-30)
+            if not math.isfinite(value) or value > 1e6 * first_loss:
+                reason = f"diverged: loss became {value:.3g} (first loss {first_loss:.3g})"
+                graph.load_state_dict(best_state)
+                break
+            history.append(value)
+            loss.backward()
+            grads_ok = all(p.grad is None or bool(torch.isfinite(p.grad).all()) for p in graph.parameters())
+            if not grads_ok:
+                reason = "diverged: non-finite gradient"
+                graph.load_state_dict(best_state)
+                break
+            if step % correspondence_every == 0:
+                best_state = {k: v.detach().clone() for k, v in graph.state_dict().items()}
+            opt.step()
+            if step % correspondence_every == correspondence_every - 1:
+                if prev_window is not None and abs(prev_window - value) <= tolerance * max(abs(prev_window), 1e-30):
+                    break
+                prev_window = value
+        if reason:
+            break
+    timings["optimisation"] = time.perf_counter() - t_opt - timings["correspondences"]
+
+    # 4. Results, residuals and plausibility.
+    t0 = time.perf_counter()
+    with torch.no_grad():
+        dv = graph()
+        verts = dv * diag + center
+        residual_n = _residual(dv, tv, tf)
+        residual = residual_n * diag
+        used = referenced_mask(Mesh(sv, sf, validate=False))
+        frac_src = float((residual_n[used] > outlier_distance).to(dtype).mean())
+        frac_tgt = 0.0
+        if num_target_samples > 0:
+            frac_tgt = float((_residual(tsamp, dv, sf) > outlier_distance).to(dtype).mean())
+    timings["residual"] = time.perf_counter() - t0
+    if not reason and (frac_src > max_outlier_fraction or frac_tgt > max_outlier_fraction):
+        reason = (
+            f"implausible fit: {100 * frac_src:.1f}% of source vertices and {100 * frac_tgt:.1f}% of target samples "
+            f"are farther than {100 * outlier_distance:.1f}% of the diagonal from the other mesh "
+            f"(allowed {100 * max_outlier_fraction:.1f}%)"
+        )
+    if not reason and not all(math.isfinite(h) for h in history):
+        reason = "diverged: non-finite loss"
+    converged = not reason
+    if not converged and warn:
+        warnings.warn(f"register_nonrigid: {reason}", RegistrationWarning, stacklevel=2)
+    timings["total"] = time.perf_counter() - t_total
+    return NonRigidRegistration(
+        verts=verts,
+        mesh=Mesh(verts, sf, validate=False),
+        residual=residual,
+        loss_history=history,
+        converged=converged,
+        reason=reason,
+        timings=timings,
+        graph=graph,
+        rigid=rigid,
+    )
