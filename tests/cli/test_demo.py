@@ -11,7 +11,7 @@ pytestmark = pytest.mark.skipif(
 )
 
 # Small sizes: the exact kernels are brute force until issue 5's accelerated backends land.
-SMALL = ["--frames", "3", "--resolution", "3", "--target", "0.5"]
+SMALL = ["--frames", "3", "--resolution", "24", "--target", "0.5"]  # demo_sequence default resolution is 160
 
 
 def test_demo_writes_tables_report_and_plots(capsys, tmp_path, known_registration):
