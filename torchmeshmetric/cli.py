@@ -1,52 +1,501 @@
-"""Command line interface: ``torchmeshmetric <command>`` (also ``python -m torchmeshmetric``)."""
+"""Command line interface of torchmeshmetric (also ``python -m torchmeshmetric``).
+
+Commands:
+  evaluate  evaluate one simplified sequence against its original frames (the paper's Fig. 2)
+  compare   evaluate several simplification methods on one original sequence (Tables I-IV side by side)
+  simplify  simplify every frame of a sequence with QEM or Registered QEM
+  register  register one mesh (frame k-1) onto another (frame k), rigid then non-rigid
+  demo      the main job: built-in sequence -> QEM and Registered QEM -> evaluation, tables, report and plots
+
+Errors (missing or corrupt files, frame-count mismatch, unwritable output) end with a one-line message on stderr
+and exit code 1; reports are written atomically and never half-written. Set TORCHMESHMETRIC_DEBUG=1 for tracebacks.
+"""
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
-from collections.abc import Sequence
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
 
-__all__ = ["main"]
+__all__ = ["build_parser", "main"]
 
 
-def _cmd_demo(args: argparse.Namespace) -> int:
-    import torch
-    import trimesh
+class CLIError(Exception):
+    """An error reported to the user as one line (exit code 1)."""
 
-    from torchmeshmetric import as_mesh, nearest_vertex_distance, point_mesh_distance, vertex_set
 
-    reference = as_mesh(trimesh.creation.icosphere(subdivisions=args.subdivisions))
-    coarse = as_mesh(trimesh.creation.icosphere(subdivisions=max(0, args.subdivisions - 2)))
-    points = vertex_set(coarse)
-    sets = {
-        "surface": point_mesh_distance(points, reference).dists,
-        "vertex": nearest_vertex_distance(points, vertex_set(reference)).dists,
-    }
-    print(f"simplified: {coarse.num_verts} vertices; reference: {reference.num_faces} faces (unit icosphere)")
-    print(f"{'distance':<10}{'Ave':>12}{'Var':>12}{'STD':>12}{'MSE':>12}{'RMSE':>12}")
-    for name, d in sets.items():
-        d = d.double()
-        mse = (d * d).mean()
-        row = [d.mean(), d.var(unbiased=False), d.std(unbiased=False), mse, mse.sqrt()]
-        print(f"{name:<10}" + "".join(f"{float(x):>12.4e}" for x in row))
-    del torch
+# --------------------------------------------------------------------------------------------- helpers
+def _progress(label: str) -> Callable[[int, int], None]:
+    start = time.perf_counter()
+
+    def report(k: int, total: int) -> None:
+        width = 20
+        done = int(width * k / total)
+        bar = "#" * done + "." * (width - done)
+        print(f"{label} [{bar}] frame pair {k}/{total} ({time.perf_counter() - start:.1f} s)", file=sys.stderr)
+
+    return report
+
+
+def _device(args: argparse.Namespace) -> str:
+    if args.device == "cuda":
+        import torch
+
+        if not torch.cuda.is_available():
+            raise CLIError("--device cuda: no CUDA device is available (use --device cpu)")
+    return str(args.device)
+
+
+def _report_paths(out: str | None) -> dict[str, Path]:
+    if out is None:
+        return {}
+    json_path = Path(out)
+    return {"json": json_path, "md": json_path.with_suffix(".md"), "csv": json_path.with_suffix(".csv")}
+
+
+def _check_writable(paths: Sequence[Path], overwrite: bool) -> None:
+    """Fail before any computation when an output cannot be written."""
+    for path in paths:
+        folder = path.parent if str(path.parent) else Path(".")
+        if not folder.is_dir():
+            raise CLIError(f"output folder {str(folder)!r} does not exist")
+        if not os.access(folder, os.W_OK):
+            raise CLIError(f"output folder {str(folder)!r} is not writable")
+        if path.is_dir():
+            raise CLIError(f"output {str(path)!r} is a directory, expected a file")
+        if path.exists() and not overwrite:
+            raise CLIError(f"output {str(path)!r} already exists (pass --overwrite to replace it)")
+
+
+def _load_frames(directory: str, what: str) -> list[Any]:
+    from torchmeshmetric.data import load_sequence
+
+    if not Path(directory).is_dir():
+        raise CLIError(f"{what} {directory!r}: no such directory")
+    try:
+        frames = load_sequence(directory)
+    except Exception as exc:
+        raise CLIError(f"{what} {directory!r}: {exc}") from exc
+    if len(frames) == 0:
+        raise CLIError(f"{what} {directory!r}: no mesh files found")
+    return list(frames)
+
+
+def _write_reports(paths: dict[str, Path], methods: dict[str, Any], settings: dict[str, Any], overwrite: bool) -> None:
+    from torchmeshmetric.evaluation import report_dict, write_csv, write_json, write_markdown
+
+    if not paths:
+        return
+    write_json(paths["json"], report_dict(methods, settings=settings), overwrite=overwrite)
+    write_markdown(paths["md"], methods, overwrite=overwrite)
+    write_csv(paths["csv"], methods, overwrite=overwrite)
+    print(f"wrote {paths['json']}, {paths['md']}, {paths['csv']}", file=sys.stderr)
+
+
+def _evaluate_methods(
+    original: list[Any], methods: dict[str, list[Any]], args: argparse.Namespace, device: str
+) -> dict[str, Any]:
+    from torchmeshmetric.evaluation import RegistrationCache, evaluate_sequence
+
+    cache = RegistrationCache(args.cache_dir)
+    results = {}
+    for name, frames in methods.items():
+        if len(frames) != len(original):
+            raise CLIError(
+                f"method {name!r}: {len(frames)} simplified frames but {len(original)} original frames (must match)"
+            )
+        if len(original) < 2:
+            raise CLIError(f"the sequence has {len(original)} frame; at least 2 are needed (pairs k-1, k)")
+        results[name] = evaluate_sequence(
+            original, frames, cache=cache, two_sided=not args.one_sided, device=device, progress=_progress(name)
+        )
+    return results
+
+
+# --------------------------------------------------------------------------------------------- commands
+def _cmd_evaluate(args: argparse.Namespace) -> int:
+    from torchmeshmetric.evaluation import paper_tables
+
+    device = _device(args)
+    paths = _report_paths(args.out)
+    _check_writable(list(paths.values()), args.overwrite)
+    original = _load_frames(args.original, "--original")
+    simplified = _load_frames(args.simplified, "--simplified")
+    name = args.name or Path(args.simplified).resolve().name
+    results = _evaluate_methods(original, {name: simplified}, args, device)
+    print(paper_tables(results))
+    settings = {"original": args.original, "methods": {name: args.simplified}, "two_sided": not args.one_sided}
+    _write_reports(paths, results, settings, args.overwrite)
     return 0
 
 
+def _parse_methods(specs: Sequence[str]) -> dict[str, str]:
+    methods: dict[str, str] = {}
+    for spec in specs:
+        name, sep, directory = spec.partition("=")
+        if not sep or not name or not directory:
+            raise CLIError(f"--method {spec!r}: expected NAME=DIR")
+        if name in methods:
+            raise CLIError(f"--method {spec!r}: method name {name!r} given twice")
+        methods[name] = directory
+    return methods
+
+
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from torchmeshmetric.evaluation import paper_tables
+
+    device = _device(args)
+    specs = _parse_methods(args.method)
+    paths = _report_paths(args.out)
+    _check_writable(list(paths.values()), args.overwrite)
+    original = _load_frames(args.original, "--original")
+    frames = {name: _load_frames(d, f"--method {name}") for name, d in specs.items()}
+    results = _evaluate_methods(original, frames, args, device)
+    print(paper_tables(results))
+    settings = {"original": args.original, "methods": specs, "two_sided": not args.one_sided}
+    _write_reports(paths, results, settings, args.overwrite)
+    return 0
+
+
+def _parse_target(text: str) -> float | int:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a face count or a ratio in (0, 1), found {text!r}") from None
+    if value >= 1 and value.is_integer():
+        return int(value)
+    if 0 < value < 1:
+        return value
+    raise argparse.ArgumentTypeError(f"expected a face count (>= 1) or a ratio in (0, 1), found {text!r}")
+
+
+def _register_pairs(frames: list[Any], cache: Any, device: str) -> list[Any]:
+    """Registration of every original frame k-1 onto frame k (cached)."""
+    from torchmeshmetric.evaluation import default_register, registration_settings
+    from torchmeshmetric.structures import as_mesh
+
+    out = []
+    settings = registration_settings(None, {})
+    for k in range(1, len(frames)):
+        src, dst = as_mesh(frames[k - 1]), as_mesh(frames[k])
+        entry, _ = cache.get_or_compute(src, dst, settings, lambda s=src, d=dst: default_register(s, d, device=device))
+        out.append(entry)
+    return out
+
+
+def _simplify_frames(frames: list[Any], method: str, target: float | int, registrations: list[Any] | None) -> list[Any]:
+    from torchmeshmetric.simplification import simplify_qem, simplify_registered_qem
+    from torchmeshmetric.structures import Mesh, as_mesh
+
+    out = []
+    for k, frame in enumerate(frames):
+        if method == "qem" or k == 0:  # frame 0 has no previous frame: Registered QEM reduces to QEM there
+            out.append(simplify_qem(frame, target))
+        else:
+            assert registrations is not None
+            prev = as_mesh(frames[k - 1])
+            registered = Mesh(registrations[k - 1].verts.to(prev.verts), prev.faces, validate=False)
+            out.append(simplify_registered_qem(frame, registered, target))
+    return out
+
+
+def _cmd_simplify(args: argparse.Namespace) -> int:
+    from torchmeshmetric.data import list_frames, save_mesh
+    from torchmeshmetric.evaluation import RegistrationCache
+
+    device = _device(args)
+    frames = _load_frames(args.input, "--input")
+    names = [Path(p).name for p in list_frames(args.input)]
+    out_dir = Path(args.output)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    targets = [out_dir / n for n in names]
+    _check_writable(targets, args.overwrite)
+    registrations = None
+    if args.method == "rqem":
+        registrations = _register_pairs(frames, RegistrationCache(args.cache_dir), device)
+    simplified = _simplify_frames(frames, args.method, args.target, registrations)
+    for path, mesh, frame in zip(targets, simplified, frames, strict=True):
+        save_mesh(mesh, path, overwrite=args.overwrite)
+        print(f"{path}: {frame.num_faces} -> {mesh.num_faces} faces", file=sys.stderr)
+    return 0
+
+
+def _cmd_register(args: argparse.Namespace) -> int:
+    from torchmeshmetric.data import load_mesh, save_mesh
+    from torchmeshmetric.evaluation import default_register
+    from torchmeshmetric.stats import distance_statistics
+    from torchmeshmetric.structures import Mesh
+
+    device = _device(args)
+    _check_writable([Path(args.out)], args.overwrite)
+    meshes = []
+    for flag, path in (("--source", args.source), ("--target", args.target)):
+        if not Path(path).is_file():
+            raise CLIError(f"{flag} {path!r}: no such file")
+        try:
+            meshes.append(load_mesh(path))
+        except Exception as exc:
+            raise CLIError(f"{flag} {path!r}: {exc}") from exc
+    source, target = meshes
+    reg = default_register(source, target, device=device)
+    save_mesh(Mesh(reg.verts.to(source.verts), source.faces.cpu(), validate=False), args.out, overwrite=args.overwrite)
+    stats = distance_statistics(reg.residual, peak=float(target.bbox_diagonal()))
+    print(
+        f"registered {args.source} onto {args.target} in {reg.seconds:.2f} s (converged: {reg.converged}); "
+        f"residual to target surface: ave {stats.ave:.4g}, rmse {stats.rmse:.4g}, max {stats.max:.4g}; wrote {args.out}"
+    )
+    return 0 if reg.converged else 3
+
+
+_DEMO_MARKER = ".torchmeshmetric-demo"
+
+
+def _cmd_demo(args: argparse.Namespace) -> int:
+    from torchmeshmetric.data import demo_sequence, save_mesh
+    from torchmeshmetric.evaluation import (
+        RegistrationCache,
+        evaluate_sequence,
+        paper_tables,
+        report_dict,
+        write_csv,
+        write_json,
+        write_markdown,
+    )
+
+    device = _device(args)
+    out_dir = Path(args.out_dir)
+    if out_dir.exists() and not (out_dir / _DEMO_MARKER).exists() and any(out_dir.iterdir()) and not args.overwrite:
+        raise CLIError(f"--out-dir {str(out_dir)!r} exists and was not written by the demo (pass --overwrite)")
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        (out_dir / _DEMO_MARKER).touch()
+    except OSError as exc:
+        raise CLIError(f"--out-dir {str(out_dir)!r}: cannot write ({exc.strerror})") from exc
+
+    t0 = time.perf_counter()
+    kwargs: dict[str, Any] = {"seed": args.seed}
+    if args.resolution is not None:
+        kwargs["resolution"] = args.resolution
+    seq = demo_sequence(args.frames, **kwargs)
+    frames = list(seq.frames)
+    sizes = ", ".join(f"{f.num_verts}v/{f.num_faces}f" for f in frames)
+    print(f"demo sequence: {len(frames)} frames ({sizes}) in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
+
+    t0 = time.perf_counter()
+    cache = RegistrationCache(args.cache_dir)
+    registrations = _register_pairs(frames, cache, device)
+    print(f"registered {len(registrations)} original frame pairs in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
+
+    t0 = time.perf_counter()
+    simplified = {
+        "Orig QEM": _simplify_frames(frames, "qem", args.target, None),
+        "Reg QEM": _simplify_frames(frames, "rqem", args.target, registrations),
+    }
+    print(f"simplified with QEM and Registered QEM in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
+
+    results = {
+        name: evaluate_sequence(
+            frames,
+            simp,
+            registrations=registrations,
+            two_sided=not args.one_sided,
+            device=device,
+            progress=_progress(name),
+        )
+        for name, simp in simplified.items()
+    }
+    print(paper_tables(results))
+
+    settings = {
+        "demo": {"frames": args.frames, "resolution": args.resolution, "seed": args.seed, "target": args.target},
+        "two_sided": not args.one_sided,
+    }
+    write_json(out_dir / "report.json", report_dict(results, settings=settings), overwrite=True)
+    write_markdown(out_dir / "report.md", results, overwrite=True)
+    write_csv(out_dir / "report.csv", results, overwrite=True)
+    written = ["report.json", "report.md", "report.csv"]
+    if args.save_meshes:
+        for name, simp in simplified.items():
+            slug = name.lower().replace(" ", "_")
+            (out_dir / slug).mkdir(exist_ok=True)
+            for k, mesh in enumerate(simp):
+                save_mesh(mesh, out_dir / slug / f"frame_{k:03d}.ply", overwrite=True)
+        written.append("<method>/frame_*.ply")
+    if not args.no_plots:
+        written += _demo_plots(out_dir, results, simplified)
+    print(f"wrote to {out_dir}: {', '.join(written)}", file=sys.stderr)
+    return 0
+
+
+def _demo_plots(out_dir: Path, results: dict[str, Any], simplified: dict[str, list[Any]]) -> list[str]:
+    """Histograms and curves (PNG), and each method's best frame coloured by its error (PLY, one colour scale).
+
+    The colour is the distance of each simplified vertex to the registered frame k-1 (temporal consistency).
+    """
+    from torchmeshmetric.viz import plot_frame_curves, plot_histograms, write_error_ply
+
+    best = next(iter(results.values())).best_pair_index()
+    plot_histograms({n: r.pairs[best] for n, r in results.items()}, out_dir / "histograms.png", overwrite=True)
+    plot_frame_curves(results, out_dir / "frame_curves.png", overwrite=True)
+    written = ["histograms.png", "frame_curves.png"]
+    vmax = max(float(r.pairs[best].distances["surface_k_minus_1"].max()) for r in results.values())
+    for name, result in results.items():
+        pair = result.pairs[best]
+        path = out_dir / f"error_{name.lower().replace(' ', '_')}_frame{pair.frame:03d}.ply"
+        write_error_ply(
+            path, simplified[name][pair.frame], pair.distances["surface_k_minus_1"], vmax=vmax, overwrite=True
+        )
+        written.append(path.name)
+    return written
+
+
+# --------------------------------------------------------------------------------------------- parser
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the command line."""
-    parser = argparse.ArgumentParser(prog="torchmeshmetric", description=__doc__)
-    sub = parser.add_subparsers(dest="command", required=True)
-    demo = sub.add_parser("demo", help="distance statistics between two built-in meshes")
-    demo.add_argument("--subdivisions", type=int, default=4, help="subdivisions of the reference icosphere (default 4)")
-    demo.set_defaults(func=_cmd_demo)
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument(
+        "--device", choices=("cpu", "cuda"), default="cpu", help="where distances and registration run (default cpu)"
+    )
+    evaluation = argparse.ArgumentParser(add_help=False)
+    evaluation.add_argument(
+        "--one-sided",
+        action="store_true",
+        help="only the paper's simplified -> reference sets; by default the reverse (reference -> simplified) "
+        "sets are reported too, so a simplification that drops part of the surface cannot score well",
+    )
+    evaluation.add_argument(
+        "--cache-dir",
+        default=None,
+        metavar="DIR",
+        help="keep registrations of original frame pairs in DIR (keyed by mesh content and settings) and reuse "
+        "them in later runs (default: in memory for this run only)",
+    )
+    output = argparse.ArgumentParser(add_help=False)
+    output.add_argument(
+        "--out",
+        default=None,
+        metavar="REPORT.json",
+        help="write the JSON report there, and the paper's tables beside it as REPORT.md and REPORT.csv "
+        "(default: print the tables only)",
+    )
+    output.add_argument("--overwrite", action="store_true", help="replace existing output files")
+
+    parser = argparse.ArgumentParser(
+        prog="torchmeshmetric", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    p = sub.add_parser(
+        "evaluate",
+        parents=[common, evaluation, output],
+        help="evaluate a simplified sequence against its original frames",
+        description="For every simplified frame k >= 1: register original frame k-1 onto original frame k, measure "
+        "the four distance sets from the simplified vertices (surface and nearest-vertex distance to frame k and to "
+        "the registered frame k-1), print the paper's Tables I-IV and optionally write a report. Frames are matched "
+        "by natural sort order of the file names in each folder; the counts must be equal.",
+    )
+    p.add_argument(
+        "--original", required=True, metavar="DIR", help="folder of the original frames (OBJ/PLY/OFF/STL/GLB)"
+    )
+    p.add_argument("--simplified", required=True, metavar="DIR", help="folder of the simplified frames, same count")
+    p.add_argument("--name", default=None, help="method name in the tables (default: the simplified folder's name)")
+    p.set_defaults(func=_cmd_evaluate)
+
+    p = sub.add_parser(
+        "compare",
+        parents=[common, evaluation, output],
+        help="compare several simplification methods (Tables I-IV side by side)",
+        description="Evaluate several simplified versions of one original sequence; registrations of the original "
+        "frames are computed once and shared by all methods.",
+    )
+    p.add_argument("--original", required=True, metavar="DIR", help="folder of the original frames")
+    p.add_argument(
+        "--method",
+        required=True,
+        action="append",
+        metavar="NAME=DIR",
+        help="a method's name and the folder of its simplified frames; repeat for every method",
+    )
+    p.set_defaults(func=_cmd_compare)
+
+    p = sub.add_parser(
+        "simplify",
+        parents=[common],
+        help="simplify every frame of a sequence with QEM or Registered QEM",
+        description="Simplify each frame of --input into --output (same file names). 'rqem' (Registered QEM) also "
+        "uses the previous original frame registered onto the current one; frame 0 is simplified with QEM.",
+    )
+    p.add_argument("--input", required=True, metavar="DIR", help="folder of the original frames")
+    p.add_argument("--output", required=True, metavar="DIR", help="folder for the simplified frames (created)")
+    p.add_argument("--method", choices=("qem", "rqem"), default="qem", help="qem (default) or rqem (Registered QEM)")
+    p.add_argument(
+        "--target",
+        type=_parse_target,
+        default=0.5,
+        help="faces to keep: a count (>= 1) or a ratio in (0, 1) of each frame's faces (default 0.5)",
+    )
+    p.add_argument("--cache-dir", default=None, metavar="DIR", help="registration cache folder (rqem only)")
+    p.add_argument("--overwrite", action="store_true", help="replace existing files in --output")
+    p.set_defaults(func=_cmd_simplify)
+
+    p = sub.add_parser(
+        "register",
+        parents=[common],
+        help="register one mesh onto another (rigid, then non-rigid)",
+        description="Align --source (frame k-1) onto --target (frame k), keeping the source's vertices and "
+        "topology, and write the registered mesh. Exit code 3 when the registration did not converge.",
+    )
+    p.add_argument("--source", required=True, metavar="FILE", help="mesh to move (frame k-1)")
+    p.add_argument("--target", required=True, metavar="FILE", help="mesh to align to (frame k)")
+    p.add_argument("--out", required=True, metavar="FILE", help="registered mesh (e.g. registered.ply)")
+    p.add_argument("--overwrite", action="store_true", help="replace --out if it exists")
+    p.set_defaults(func=_cmd_register)
+
+    p = sub.add_parser(
+        "demo",
+        parents=[common, evaluation],
+        help="the paper's experiment on the built-in sequence (QEM vs Registered QEM)",
+        description="Generate the built-in volumetric-video-like sequence, register each original frame k-1 onto "
+        "frame k, simplify every frame with QEM and with Registered QEM (which uses the registered previous frame), "
+        "evaluate both, print the paper's four tables and write report.json/.md/.csv, plots and coloured PLYs.",
+    )
+    p.add_argument("--frames", type=int, default=6, help="number of frames of the built-in sequence (default 6)")
+    p.add_argument(
+        "--resolution", type=int, default=None, help="mesh resolution of the built-in sequence (default: its own)"
+    )
+    p.add_argument("--seed", type=int, default=0, help="seed of the built-in sequence (default 0)")
+    p.add_argument(
+        "--target",
+        type=_parse_target,
+        default=0.5,
+        help="faces to keep per frame: a count or a ratio in (0, 1) (default 0.5)",
+    )
+    p.add_argument("--out-dir", default="torchmeshmetric-demo", metavar="DIR", help="output folder")
+    p.add_argument("--overwrite", action="store_true", help="write into --out-dir even if another tool made it")
+    p.add_argument("--no-plots", action="store_true", help="skip PNG plots and coloured PLY files")
+    p.add_argument("--save-meshes", action="store_true", help="also save the simplified frames as PLY")
+    p.set_defaults(func=_cmd_demo)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; returns the exit code."""
+    """Run the command line; returns the exit code (0 ok, 1 error, 2 usage error, 3 registration not converged)."""
     args = build_parser().parse_args(argv)
-    return int(args.func(args))
+    try:
+        return int(args.func(args))
+    except KeyboardInterrupt:
+        print("torchmeshmetric: interrupted", file=sys.stderr)
+        return 130
+    except Exception as exc:
+        if os.environ.get("TORCHMESHMETRIC_DEBUG"):
+            raise
+        message = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        print(f"torchmeshmetric {args.command}: error: {message}", file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":  # pragma: no cover

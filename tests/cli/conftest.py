@@ -1,0 +1,24 @@
+import importlib.util
+
+import pytest
+
+from tests.cli.cli_helpers import Counting, write_frames
+
+# The CLI reads frames with issue 4's torchmeshmetric.data;
+# until it is merged into this branch the CLI tests are skipped (the modules do not exist here yet).
+_NEEDED = ("torchmeshmetric.data",)
+collect_ignore_glob = [] if all(importlib.util.find_spec(m) for m in _NEEDED) else ["test_*.py"]
+
+
+@pytest.fixture
+def known_registration(monkeypatch):
+    """Replace the default (non-rigid) registration by the exact one so CLI tests test the CLI, fast."""
+    fn = Counting()
+    monkeypatch.setattr("torchmeshmetric.evaluation.pipeline.default_register", fn)
+    monkeypatch.setattr("torchmeshmetric.evaluation.default_register", fn)
+    return fn
+
+
+@pytest.fixture
+def sequence(tmp_path):
+    return write_frames(tmp_path / "orig", 2), write_frames(tmp_path / "simp", 1)

@@ -1,0 +1,109 @@
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+from torchmeshmetric.data import load_sequence
+
+from tests.cli.cli_helpers import Counting, write_frames
+from torchmeshmetric.cli import build_parser, main
+from torchmeshmetric.evaluation import SET_NAMES, evaluate_sequence
+
+
+def _run(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_evaluate_writes_reports_equal_to_the_library(capsys, tmp_path, sequence, known_registration):
+    orig, simp = sequence
+    out = tmp_path / "report.json"
+    code, stdout, stderr = _run(
+        capsys, "evaluate", "--original", str(orig), "--simplified", str(simp), "--out", str(out)
+    )
+    assert code == 0, stderr
+    assert "Table I:" in stdout and "Table IV:" in stdout
+    assert "frame pair 2/2" in stderr  # progress per frame on stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["orig", "report.csv", "report.json", "report.md", "simp"]
+    report = json.loads(out.read_text())
+    expect = evaluate_sequence(load_sequence(str(orig)), load_sequence(str(simp)), register=Counting())
+    got = report["methods"]["simp"]
+    for pair, jpair in zip(expect.pairs, got["pairs"], strict=True):
+        for s in SET_NAMES:
+            for field in ("ave", "var", "std", "mse", "rmse", "max", "p95"):
+                assert jpair[s][field] == getattr(pair.statistics[s], field)
+    assert known_registration.calls == 2
+
+
+def test_compare_registers_each_original_pair_once(capsys, tmp_path, sequence, known_registration):
+    orig, simp = sequence
+    other = write_frames(tmp_path / "other", 0)
+    code, stdout, stderr = _run(
+        capsys, "compare", "--original", str(orig), "--method", f"A={simp}", "--method", f"B={other}"
+    )
+    assert code == 0, stderr
+    assert known_registration.calls == 2
+    table1 = stdout.split("Table II")[0]
+    assert "| A | (k-1)-th |" in table1 and "| B | k-th |" in table1
+
+
+@pytest.mark.parametrize(
+    ("case", "message"),
+    [
+        ("missing", "no such directory"),
+        ("count", "2 simplified frames but 3 original frames"),
+        ("corrupt", "frame_01.ply"),
+        ("unwritable", "does not exist"),
+        ("exists", "already exists"),
+    ],
+)
+def test_errors_are_one_line_no_traceback_no_report(capsys, tmp_path, sequence, known_registration, case, message):
+    orig, simp = sequence
+    out = tmp_path / "report.json"
+    if case == "missing":
+        simp = tmp_path / "nope"
+    elif case == "count":
+        (simp / "frame_02.ply").unlink()
+    elif case == "corrupt":
+        (simp / "frame_01.ply").write_bytes(b"ply\nformat nonsense\n\x00\x01")
+    elif case == "unwritable":
+        out = tmp_path / "no" / "such" / "report.json"
+    elif case == "exists":
+        out.write_text("keep me")
+    code, _, stderr = _run(capsys, "evaluate", "--original", str(orig), "--simplified", str(simp), "--out", str(out))
+    assert code == 1
+    lines = [line for line in stderr.splitlines() if "frame pair" not in line]
+    assert len(lines) == 1 and "error:" in lines[0] and message in lines[0], stderr
+    assert "Traceback" not in stderr
+    if case == "exists":
+        assert out.read_text() == "keep me"
+    else:
+        assert not out.exists() and not out.with_suffix(".md").exists() and not out.with_suffix(".csv").exists()
+    assert not [p for p in os.listdir(tmp_path) if p.endswith(".tmp")]
+
+
+def test_bad_method_spec_and_cuda_without_gpu(capsys, tmp_path, sequence):
+    orig, simp = sequence
+    code, _, err = _run(capsys, "compare", "--original", str(orig), "--method", str(simp))
+    assert code == 1 and "expected NAME=DIR" in err
+    import torch
+
+    if not torch.cuda.is_available():
+        code, _, err = _run(capsys, "evaluate", "--original", str(orig), "--simplified", str(simp), "--device", "cuda")
+        assert code == 1 and "no CUDA device" in err
+
+
+def test_help_explains_every_option():
+    parser = build_parser()
+    subparsers = next(a for a in parser._actions if a.dest == "command").choices
+    assert set(subparsers) == {"evaluate", "compare", "simplify", "register", "demo"}
+    for name, sub in subparsers.items():
+        for action in sub._actions:
+            assert action.help, f"{name} {action.option_strings} has no help"
+
+
+def test_python_dash_m_help():
+    r = subprocess.run([sys.executable, "-m", "torchmeshmetric", "--help"], capture_output=True, text=True, check=False)
+    assert r.returncode == 0 and "evaluate" in r.stdout and "demo" in r.stdout

@@ -1,0 +1,62 @@
+import os
+
+import pytest
+import torch
+
+from tests.evaluation.eval_helpers import TranslationRegister, sphere
+from torchmeshmetric.evaluation import RegistrationCache, evaluate_sequence, registration_key
+
+
+def test_cache_hit_avoids_reregistration_across_methods(moving_spheres):
+    original, simplified = moving_spheres
+    register = TranslationRegister()
+    cache = RegistrationCache()
+    a = evaluate_sequence(original, simplified, register=register, cache=cache)
+    b = evaluate_sequence(original, original, register=register, cache=cache)  # a second "method"
+    assert register.calls == 3
+    assert cache.misses == 3 and cache.hits == 3
+    assert [p.registration_cached for p in a.pairs] == [False] * 3
+    assert [p.registration_cached for p in b.pairs] == [True] * 3
+    assert all(p.timings["registration"] == 0.0 for p in b.pairs)
+
+
+def test_disk_cache_survives_a_new_run_and_is_keyed_by_content_and_settings(moving_spheres, tmp_path):
+    original, simplified = moving_spheres
+    first = TranslationRegister()
+    r1 = evaluate_sequence(original, simplified, register=first, cache_dir=str(tmp_path))
+    assert first.calls == 3 and len(list(tmp_path.glob("*.pt"))) == 3
+    assert not [p for p in os.listdir(tmp_path) if p.endswith(".tmp")]
+    second = TranslationRegister()
+    r2 = evaluate_sequence(original, simplified, register=second, cache_dir=str(tmp_path))
+    assert second.calls == 0
+    for p1, p2 in zip(r1.pairs, r2.pairs, strict=True):
+        assert p1.statistics == p2.statistics
+    # other settings -> other key -> registered again
+    third = TranslationRegister()
+    evaluate_sequence(original, simplified, register=third, cache_dir=str(tmp_path), register_options={"x": 1})
+    assert third.calls == 3
+    # other content -> other key
+    moved = [sphere(2, offset=(0.1 * k, 0.01, 0)) for k in range(4)]
+    fourth = TranslationRegister()
+    evaluate_sequence(moved, simplified, register=fourth, cache_dir=str(tmp_path))
+    assert fourth.calls == 3
+
+
+def test_corrupt_disk_entry_is_recomputed(tmp_path):
+    a, b = sphere(1), sphere(1, offset=(0.1, 0, 0))
+    register = TranslationRegister()
+    evaluate_sequence([a, b], [a, b], register=register, cache_dir=str(tmp_path))
+    (entry,) = tmp_path.glob("*.pt")
+    entry.write_bytes(b"not a torch file")
+    again = TranslationRegister()
+    with pytest.warns(UserWarning, match="unreadable entry"):
+        evaluate_sequence([a, b], [a, b], register=again, cache_dir=str(tmp_path))
+    assert again.calls == 1
+
+
+def test_key_depends_on_dtype_independent_content():
+    a = sphere(1)
+    a32 = a.to(dtype=torch.float32)
+    assert registration_key(a, a, {}) != registration_key(a, sphere(1, radius=2.0), {})
+    # float32 and float64 copies of float32-representable vertices hash alike (content, not storage)
+    assert registration_key(a32, a32, {}) == registration_key(a32.to(dtype=torch.float64), a32, {})

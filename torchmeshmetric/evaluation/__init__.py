@@ -1,0 +1,47 @@
+"""The evaluation system: registration of original frames, the four distance sets, statistics, reports."""
+
+from torchmeshmetric.evaluation.cache import CachedRegistration, RegistrationCache, registration_key
+from torchmeshmetric.evaluation.metric import TemporalConsistency
+from torchmeshmetric.evaluation.pipeline import (
+    default_register,
+    evaluate_pair,
+    evaluate_sequence,
+    registration_settings,
+)
+from torchmeshmetric.evaluation.reports import (
+    paper_tables,
+    report_dict,
+    write_csv,
+    write_json,
+    write_markdown,
+)
+from torchmeshmetric.evaluation.results import (
+    BEST_PAIR_RULE,
+    SET_NAMES,
+    PairEvaluation,
+    SequenceEvaluation,
+    flatten_statistics,
+    mean_statistics,
+)
+
+__all__ = [
+    "BEST_PAIR_RULE",
+    "SET_NAMES",
+    "CachedRegistration",
+    "PairEvaluation",
+    "RegistrationCache",
+    "SequenceEvaluation",
+    "TemporalConsistency",
+    "default_register",
+    "evaluate_pair",
+    "evaluate_sequence",
+    "flatten_statistics",
+    "mean_statistics",
+    "paper_tables",
+    "registration_key",
+    "registration_settings",
+    "report_dict",
+    "write_csv",
+    "write_json",
+    "write_markdown",
+]

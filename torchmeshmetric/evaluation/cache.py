@@ -1,0 +1,176 @@
+"""Cache of registrations of original frame pairs, in memory and optionally on disk.
+
+Registering original frame ``k-1`` onto frame ``k`` is by far the most expensive step of the evaluation and does
+not depend on the simplification method, so comparing several methods on one sequence must not repeat it. Entries
+are keyed by a SHA-256 content hash of both meshes (vertex positions as float64 and faces as int64, with their
+shapes) and of the registration settings; disk entries are written atomically (temporary file in the same folder,
+then :func:`os.replace`), so an interrupted run never leaves a truncated entry behind.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import tempfile
+import warnings
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import NamedTuple
+
+import torch
+from torch import Tensor
+
+from torchmeshmetric.structures import Mesh
+
+__all__ = ["CachedRegistration", "RegistrationCache", "registration_key"]
+
+_FORMAT = "torchmeshmetric-registration-cache-v1"
+
+
+class CachedRegistration(NamedTuple):
+    """What the evaluation keeps of a registration of frame ``k-1`` onto frame ``k``.
+
+    Attributes:
+        verts: ``(V_{k-1}, 3)`` registered vertices (topology of frame ``k-1``), on the CPU.
+        residual: ``(V_{k-1},)`` distance of each registered vertex to the surface of frame ``k``, on the CPU.
+        converged: the registration's convergence flag.
+        seconds: wall time the registration took when it was computed.
+    """
+
+    verts: Tensor
+    residual: Tensor
+    converged: bool
+    seconds: float
+
+
+def _hash_mesh(h: hashlib._Hash, mesh: Mesh) -> None:
+    v = mesh.verts.detach().to("cpu", torch.float64).contiguous()
+    f = mesh.faces.detach().to("cpu", torch.int64).contiguous()
+    h.update(repr((tuple(v.shape), tuple(f.shape))).encode())
+    h.update(v.numpy().tobytes())
+    h.update(f.numpy().tobytes())
+
+
+def registration_key(source: Mesh, target: Mesh, settings: Mapping[str, object]) -> str:
+    """SHA-256 hex digest identifying the registration of ``source`` onto ``target`` with ``settings``.
+
+    Args:
+        source: original frame ``k-1``.
+        target: original frame ``k``.
+        settings: JSON-serialisable registration settings (anything that changes the result).
+
+    Example:
+        >>> import torch
+        >>> m = Mesh(torch.eye(3), torch.tensor([[0, 1, 2]]))
+        >>> registration_key(m, m, {"a": 1}) == registration_key(m, m, {"a": 1})
+        True
+        >>> registration_key(m, m, {"a": 1}) == registration_key(m, m, {"a": 2})
+        False
+    """
+    h = hashlib.sha256(_FORMAT.encode())
+    _hash_mesh(h, source)
+    _hash_mesh(h, target)
+    h.update(json.dumps(dict(settings), sort_keys=True, default=str).encode())
+    return h.hexdigest()
+
+
+class RegistrationCache:
+    """Registrations keyed by content, kept in memory and, when ``directory`` is given, on disk.
+
+    Args:
+        directory: folder for ``<key>.pt`` entries (created when needed); ``None`` keeps entries in memory only.
+
+    Attributes:
+        hits: number of lookups answered from memory or disk.
+        misses: number of lookups that ran the registration.
+
+    Example:
+        >>> import torch
+        >>> cache = RegistrationCache()
+        >>> m = Mesh(torch.eye(3), torch.tensor([[0, 1, 2]]))
+        >>> make = lambda: CachedRegistration(m.verts, torch.zeros(3), True, 0.0)
+        >>> _ = cache.get_or_compute(m, m, {}, make); _ = cache.get_or_compute(m, m, {}, make)
+        >>> cache.hits, cache.misses
+        (1, 1)
+    """
+
+    def __init__(self, directory: str | os.PathLike[str] | None = None) -> None:
+        self.directory = None if directory is None else Path(directory)
+        self._memory: dict[str, CachedRegistration] = {}
+        self.hits = 0
+        self.misses = 0
+
+    def _path(self, key: str) -> Path:
+        assert self.directory is not None
+        return self.directory / f"{key}.pt"
+
+    def _load(self, key: str) -> CachedRegistration | None:
+        if self.directory is None or not self._path(key).is_file():
+            return None
+        try:
+            data = torch.load(self._path(key), map_location="cpu", weights_only=True)
+            return CachedRegistration(data["verts"], data["residual"], bool(data["converged"]), float(data["seconds"]))
+        except Exception as exc:  # a corrupt entry is recomputed and replaced, never trusted
+            warnings.warn(f"registration cache: ignoring unreadable entry {self._path(key)} ({exc})", stacklevel=3)
+            return None
+
+    def _store(self, key: str, entry: CachedRegistration) -> None:
+        if self.directory is None:
+            return
+        self.directory.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{key[:16]}.", suffix=".tmp", dir=self.directory)
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                torch.save(
+                    {
+                        "verts": entry.verts,
+                        "residual": entry.residual,
+                        "converged": entry.converged,
+                        "seconds": entry.seconds,
+                    },
+                    fh,
+                )
+            os.replace(tmp, self._path(key))
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+
+    def get_or_compute(
+        self,
+        source: Mesh,
+        target: Mesh,
+        settings: Mapping[str, object],
+        compute: Callable[[], CachedRegistration],
+    ) -> tuple[CachedRegistration, bool]:
+        """Return the cached registration of ``source`` onto ``target``, computing and storing it on a miss.
+
+        Args:
+            source: original frame ``k-1``.
+            target: original frame ``k``.
+            settings: registration settings that are part of the key.
+            compute: called on a miss; its result is stored (detached, on the CPU).
+
+        Returns:
+            ``(entry, hit)``.
+        """
+        key = registration_key(source, target, settings)
+        entry = self._memory.get(key)
+        if entry is None:
+            entry = self._load(key)
+            if entry is not None:
+                self._memory[key] = entry
+        if entry is not None:
+            self.hits += 1
+            return entry, True
+        self.misses += 1
+        fresh = compute()
+        entry = CachedRegistration(
+            fresh.verts.detach().cpu(), fresh.residual.detach().cpu(), bool(fresh.converged), float(fresh.seconds)
+        )
+        self._memory[key] = entry
+        self._store(key, entry)
+        return entry, False
+
+    def __len__(self) -> int:
+        return len(self._memory)

@@ -1,0 +1,110 @@
+"""``TemporalConsistency``: the paper's evaluation as a ``torchmetrics.Metric`` for validation loops."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import torch
+from torch import Tensor
+from torchmetrics import Metric
+
+from torchmeshmetric.evaluation.cache import RegistrationCache
+from torchmeshmetric.evaluation.pipeline import RegisterFn, evaluate_pair
+from torchmeshmetric.evaluation.results import SET_NAMES
+from torchmeshmetric.structures import MeshLike
+
+__all__ = ["TemporalConsistency"]
+
+
+class TemporalConsistency(Metric):
+    """Temporal consistency of simplified frames (paper Fig. 2) accumulated over validation steps.
+
+    Each :meth:`update` evaluates one simplified frame ``k`` against original frames ``k`` and ``k-1`` with
+    :func:`~torchmeshmetric.evaluation.evaluate_pair` (registration of ``k-1`` onto ``k`` cached in memory per
+    original pair, keyed by content, so validating every epoch on the same frames registers each pair once) and
+    keeps the four distance sets. :meth:`compute` pools the values of all updates (and of all processes under DDP:
+    states are concatenated) and returns ``{set_name: {statistic: tensor}}`` for the four sets, plus ``"reverse"``
+    when two-sided. Pooling differs from the sequence report's aggregate, which averages per-pair statistics as the
+    paper's Tables III/IV do. Use :func:`~torchmeshmetric.evaluation.flatten_statistics` for ``log_dict``.
+
+    Args:
+        two_sided: also accumulate the reverse (reference → simplified) sets (default ``True``).
+        register: registration function (default: the library's non-rigid registration).
+        register_options: options of the default registration.
+        kwargs: passed to :class:`torchmetrics.Metric`.
+
+    Example:
+        >>> import trimesh
+        >>> sphere = trimesh.creation.icosphere(subdivisions=2)
+        >>> coarse = trimesh.creation.icosphere(subdivisions=1)
+        >>> metric = TemporalConsistency(register=lambda src, dst: src)
+        >>> metric.update(coarse, sphere, sphere)
+        >>> out = metric.compute()
+        >>> sorted(out)
+        ['reverse', 'surface_k', 'surface_k_minus_1', 'vertex_k', 'vertex_k_minus_1']
+        >>> float(out["vertex_k"]["max"]) < 1e-12  # coarse icosphere vertices lie on the fine one
+        True
+    """
+
+    is_differentiable = False
+    higher_is_better = False
+    full_state_update = False
+    peak: Tensor
+
+    def __init__(
+        self,
+        *,
+        two_sided: bool = True,
+        register: RegisterFn | Any | None = None,
+        register_options: Mapping[str, Any] | None = None,
+        **kwargs: Any,
+    ) -> None:
+        super().__init__(**kwargs)
+        if not isinstance(two_sided, bool):
+            raise TypeError(f"two_sided: expected a bool, found {type(two_sided).__name__}")
+        if register is not None and not callable(register):
+            raise TypeError(f"register: expected a callable or None, found {type(register).__name__}")
+        self.two_sided = two_sided
+        self.register = register
+        self.register_options = dict(register_options or {})
+        self.cache = RegistrationCache()
+        for name in SET_NAMES:
+            self.add_state(name, default=[], dist_reduce_fx="cat")
+            if two_sided:
+                self.add_state(f"reverse_{name}", default=[], dist_reduce_fx="cat")
+        self.add_state("peak", default=torch.tensor(0.0, dtype=torch.float64), dist_reduce_fx="max")
+
+    def update(self, simplified_k: MeshLike, original_k: MeshLike, original_k_minus_1: MeshLike) -> None:
+        """Evaluate one simplified frame ``k`` against original frames ``k`` and ``k-1``."""
+        result = evaluate_pair(
+            simplified_k,
+            original_k,
+            original_k_minus_1,
+            two_sided=self.two_sided,
+            device=self.device,
+            register=self.register,
+            register_options=self.register_options,
+            cache=self.cache,
+        )
+        for name in SET_NAMES:
+            getattr(self, name).append(result.distances[name].detach().double())
+            if self.two_sided:
+                getattr(self, f"reverse_{name}").append(result.reverse_distances[name].detach().double())
+        peak: Tensor = self.peak
+        self.peak = torch.maximum(peak, torch.tensor(result.peak, dtype=torch.float64, device=peak.device))
+
+    def _stats(self, values: Tensor | list[Tensor]) -> dict[str, Tensor]:
+        from torchmeshmetric.stats import distance_statistics
+
+        d = torch.cat(values) if isinstance(values, list) else values
+        peak: Tensor = self.peak
+        stats = distance_statistics(d, peak=float(peak))
+        return {k: torch.tensor(v, dtype=torch.float64) for k, v in stats.as_dict().items()}
+
+    def compute(self) -> dict[str, Any]:
+        """Pooled statistics: ``{set_name: {statistic: 0-dim tensor}}`` (+ ``"reverse"`` when two-sided)."""
+        out: dict[str, Any] = {name: self._stats(getattr(self, name)) for name in SET_NAMES}
+        if self.two_sided:
+            out["reverse"] = {name: self._stats(getattr(self, f"reverse_{name}")) for name in SET_NAMES}
+        return out

@@ -1,0 +1,200 @@
+"""Report writers: JSON, CSV and Markdown in the paper's layout, all written atomically.
+
+Tables (paper, Section III): rows are algorithm x {(k-1)-th, k-th} mesh; columns the paper's Ave, Var, STD, MSE,
+RMSE plus ours: Max (one-sided Hausdorff), P95 and PSNR (dB, peak = bounding-box diagonal of original frame k).
+
+* Table I / II: the best pair (see :data:`~torchmeshmetric.evaluation.results.BEST_PAIR_RULE`), surface / vertex.
+* Table III / IV: the average over all pairs (mean of the per-pair statistics), surface / vertex.
+* Two-sided check (ours): the same averages for the reverse sets, reference → simplified.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from torchmeshmetric.evaluation.atomic import atomic_write
+from torchmeshmetric.evaluation.results import BEST_PAIR_RULE, SET_NAMES, SequenceEvaluation
+
+__all__ = ["COLUMNS", "paper_tables", "report_dict", "table_rows", "write_csv", "write_json", "write_markdown"]
+
+#: (statistic key, column header) of every table.
+COLUMNS: tuple[tuple[str, str], ...] = (
+    ("ave", "Ave"),
+    ("var", "Var"),
+    ("std", "STD"),
+    ("mse", "MSE"),
+    ("rmse", "RMSE"),
+    ("max", "Max"),
+    ("p95", "P95"),
+    ("psnr", "PSNR (dB)"),
+)
+
+_MESH_LABELS = {"k_minus_1": "(k-1)-th", "k": "k-th"}
+_TITLES = {
+    "I": "Table I: best pair, mesh surface distance",
+    "II": "Table II: best pair, nearest vertex distance",
+    "III": "Table III: average over pairs, mesh surface distance",
+    "IV": "Table IV: average over pairs, nearest vertex distance",
+    "III-reverse": "Two-sided check (ours): average over pairs, reference -> simplified, mesh surface distance",
+    "IV-reverse": "Two-sided check (ours): average over pairs, reference -> simplified, nearest vertex distance",
+}
+_KIND = {
+    "I": "surface",
+    "II": "vertex",
+    "III": "surface",
+    "IV": "vertex",
+    "III-reverse": "surface",
+    "IV-reverse": "vertex",
+}
+
+
+def _best_index(methods: Mapping[str, SequenceEvaluation]) -> int:
+    """One best pair for all methods (the rule depends only on the original frames)."""
+    first = next(iter(methods.values()))
+    return first.best_pair_index()
+
+
+def table_rows(methods: Mapping[str, SequenceEvaluation], table: str) -> list[tuple[str, str, dict[str, float]]]:
+    """Rows ``(algorithm, mesh, statistics)`` of one table.
+
+    Args:
+        methods: method name → its sequence evaluation (same original sequence).
+        table: ``"I"``, ``"II"``, ``"III"``, ``"IV"``, ``"III-reverse"`` or ``"IV-reverse"``.
+    """
+    if table not in _TITLES:
+        raise ValueError(f"table: expected one of {list(_TITLES)}, found {table!r}")
+    kind = _KIND[table]
+    rows = []
+    best = _best_index(methods)
+    for name, seq in methods.items():
+        if table in ("I", "II"):
+            stats = {k: s.as_dict() for k, s in seq.pairs[best].statistics.items()}
+        elif table.endswith("reverse"):
+            stats = seq.aggregate_reverse()
+            if not stats:
+                continue
+        else:
+            stats = seq.aggregate()
+        for mesh in ("k_minus_1", "k"):
+            rows.append((name, _MESH_LABELS[mesh], stats[f"{kind}_{mesh}"]))
+    return rows
+
+
+def _fmt(x: float) -> str:
+    if math.isnan(x):
+        return "nan"
+    if math.isinf(x):
+        return "inf" if x > 0 else "-inf"
+    return f"{x:.4g}"
+
+
+def paper_tables(methods: Mapping[str, SequenceEvaluation], *, reverse: bool = True) -> str:
+    """The paper's Tables I-IV (plus the two-sided check) as Markdown, 4 significant digits.
+
+    Args:
+        methods: method name → sequence evaluation; all on the same original sequence.
+        reverse: add the two reverse tables when the evaluations are two-sided.
+    """
+    if not methods:
+        raise ValueError("methods: expected at least one method, found none")
+    best = _best_index(methods)
+    frame = next(iter(methods.values())).pairs[best].frame
+    header = "| Algorithm | Mesh | " + " | ".join(h for _, h in COLUMNS) + " |"
+    rule = "|" + "---|" * (len(COLUMNS) + 2)
+    out = []
+    tables = ["I", "II", "III", "IV"] + (["III-reverse", "IV-reverse"] if reverse else [])
+    for table in tables:
+        rows = table_rows(methods, table)
+        if not rows:
+            continue
+        title = _TITLES[table] + (f" (frames {frame - 1} -> {frame})" if table in ("I", "II") else "")
+        out += [f"### {title}", "", header, rule]
+        for name, mesh, stats in rows:
+            out.append(f"| {name} | {mesh} | " + " | ".join(_fmt(stats[k]) for k, _ in COLUMNS) + " |")
+        out.append("")
+    out.append(f"Best pair rule: {BEST_PAIR_RULE}. Averages: mean over pairs of each per-pair statistic.")
+    return "\n".join(out) + "\n"
+
+
+def _clean(value: Any) -> Any:
+    """JSON has no NaN/Infinity: write them as strings so the file stays strict JSON."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value)
+    if isinstance(value, dict):
+        return {k: _clean(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_clean(v) for v in value]
+    return value
+
+
+def report_dict(
+    methods: Mapping[str, SequenceEvaluation], *, settings: Mapping[str, Any] | None = None
+) -> dict[str, Any]:
+    """JSON-ready report: ``{"tool", "version", "settings", "set_names", "methods": {name: sequence}}``.
+
+    Each method holds ``pairs`` (per frame pair: the four sets ``surface_k``, ``surface_k_minus_1``, ``vertex_k``,
+    ``vertex_k_minus_1`` with ``ave``, ``var``, ``std``, ``mse``, ``rmse`` and the further statistics, ``reverse``,
+    ``registration``, ``timings``), ``aggregate`` under the same keys and ``best_pair``. Non-finite floats are
+    written as the strings ``"nan"``, ``"inf"``.
+    """
+    from torchmeshmetric import __version__
+
+    return _clean(
+        {
+            "tool": "torchmeshmetric",
+            "version": __version__,
+            "settings": dict(settings or {}),
+            "set_names": list(SET_NAMES),
+            "methods": {name: seq.as_dict() for name, seq in methods.items()},
+        }
+    )
+
+
+def write_json(path: str | os.PathLike[str], report: Mapping[str, Any], *, overwrite: bool = False) -> Path:
+    """Write a :func:`report_dict` as strict JSON, atomically."""
+    return atomic_write(path, json.dumps(report, indent=2, allow_nan=False) + "\n", overwrite=overwrite)
+
+
+def write_markdown(
+    path: str | os.PathLike[str], methods: Mapping[str, SequenceEvaluation], *, overwrite: bool = False
+) -> Path:
+    """Write :func:`paper_tables` to a Markdown file, atomically."""
+    return atomic_write(path, "# torchmeshmetric evaluation\n\n" + paper_tables(methods), overwrite=overwrite)
+
+
+def write_csv(
+    path: str | os.PathLike[str], methods: Mapping[str, SequenceEvaluation], *, overwrite: bool = False
+) -> Path:
+    """Write every table and every pair as CSV rows, atomically.
+
+    Columns: ``table`` (``I``..``IV``, ``III-reverse``, ``IV-reverse``, or ``pair`` for per-frame rows), ``algorithm``,
+    ``set`` (e.g. ``surface_k_minus_1``; ``reverse:...`` for reverse sets), ``frame`` (pair rows and tables I/II),
+    then the statistics ``ave, var, std, mse, rmse, max, p95, psnr``.
+    """
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    keys = [k for k, _ in COLUMNS]
+    writer.writerow(["table", "algorithm", "set", "frame", *keys])
+    best = _best_index(methods)
+    for table in ("I", "II", "III", "IV", "III-reverse", "IV-reverse"):
+        kind = _KIND[table]
+        for name, mesh, stats in table_rows(methods, table):
+            set_name = f"{kind}_{'k_minus_1' if mesh.startswith('(') else 'k'}"
+            set_name = f"reverse:{set_name}" if table.endswith("reverse") else set_name
+            frame = methods[name].pairs[best].frame if table in ("I", "II") else ""
+            writer.writerow([table, name, set_name, frame, *(repr(float(stats[k])) for k in keys)])
+    for name, seq in methods.items():
+        for pair in seq.pairs:
+            sets = [(s, pair.statistics[s]) for s in SET_NAMES]
+            sets += [(f"reverse:{s}", st) for s, st in pair.reverse_statistics.items()]
+            for set_name, st in sets:
+                d = st.as_dict()
+                writer.writerow(["pair", name, set_name, pair.frame, *(repr(float(d[k])) for k in keys)])
+    return atomic_write(path, buf.getvalue(), overwrite=overwrite)

@@ -1,0 +1,188 @@
+"""Result objects of the evaluation system: one frame pair, a whole sequence, and their aggregates.
+
+Vocabulary (paper, Section II.C): for the simplified mesh of frame ``k`` the evaluation builds four distance sets,
+each measured from the simplified vertices (Eq. 3):
+
+* ``surface_k`` — mesh surface distance to the original mesh of frame ``k`` (Eq. 4, :math:`D^{(k)}_{surf(k)}`);
+* ``surface_k_minus_1`` — mesh surface distance to the original frame ``k-1`` registered onto frame ``k``
+  (:math:`D^{(k)}_{surf(k-1)}`);
+* ``vertex_k`` — nearest vertex distance to the vertices of frame ``k`` (Eq. 5, :math:`D^{(k)}_{vertex(k)}`);
+* ``vertex_k_minus_1`` — nearest vertex distance to the vertices of the registered frame ``k-1``.
+
+Beyond the paper, the *reverse* sets measure the same four distances from the reference (the vertices of frame
+``k`` or of the registered frame ``k-1``) to the simplified mesh, so a simplification that drops part of the
+surface cannot score well (the paper's one-sided sets are blind to missing parts).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, NamedTuple
+
+from torch import Tensor
+
+if TYPE_CHECKING:
+    from torchmeshmetric.stats import DistanceStatistics
+
+__all__ = [
+    "BEST_PAIR_RULE",
+    "SET_NAMES",
+    "PairEvaluation",
+    "SequenceEvaluation",
+    "flatten_statistics",
+    "mean_statistics",
+]
+
+#: The four distance sets of the paper, in the order of its Section II.C.
+SET_NAMES: tuple[str, str, str, str] = ("surface_k_minus_1", "surface_k", "vertex_k_minus_1", "vertex_k")
+
+#: How :meth:`SequenceEvaluation.best_pair_index` picks the paper's "best" (representative) frame pair.
+BEST_PAIR_RULE = (
+    "the frame pair whose original frames move the least: smallest mean displacement of the registered "
+    "frame k-1 vertices from their original positions, relative to the bounding-box diagonal of frame k "
+    "(independent of the simplification method, so every method is judged on the same pair; ties: lowest k)"
+)
+
+
+class PairEvaluation(NamedTuple):
+    """Evaluation of the simplified mesh of one frame ``k`` against original frames ``k`` and ``k-1``.
+
+    Attributes:
+        frame: index ``k`` of the simplified frame in its sequence (``k >= 1``).
+        distances: the four distance sets (keys :data:`SET_NAMES`), each ``(V_s,)`` with one value per vertex of
+            the simplified mesh (referenced vertices only), not squared, on the evaluation device.
+        statistics: :class:`~torchmeshmetric.stats.DistanceStatistics` of each set.
+        reverse_distances: reference → simplified sets under the same keys (``surface_*``: reference vertices to
+            the simplified surface; ``vertex_*``: reference vertices to the nearest simplified vertex); ``(V_ref,)``
+            each. Empty dict when evaluated one-sided.
+        reverse_statistics: statistics of the reverse sets (empty dict when one-sided).
+        registration_residual: ``(V_{k-1},)`` distance of every registered frame ``k-1`` vertex to the surface of
+            original frame ``k``: the registration's own quality (0 for a perfect registration).
+        registration_converged: the registration's own convergence flag (``True`` for a given registration).
+        motion: mean displacement of the registered ``k-1`` vertices from their original positions divided by the
+            bounding-box diagonal of frame ``k`` (used to pick the best pair, see :data:`BEST_PAIR_RULE`).
+        peak: the PSNR peak used for every set of this pair (bounding-box diagonal of original frame ``k``).
+        timings: seconds spent in ``"registration"`` (0 on a cache hit), ``"distances"`` and ``"statistics"``.
+        registration_cached: ``True`` when the registration came from a cache or was given by the caller.
+    """
+
+    frame: int
+    distances: dict[str, Tensor]
+    statistics: dict[str, DistanceStatistics]
+    reverse_distances: dict[str, Tensor]
+    reverse_statistics: dict[str, DistanceStatistics]
+    registration_residual: Tensor
+    registration_statistics: DistanceStatistics
+    registration_converged: bool
+    motion: float
+    peak: float
+    timings: dict[str, float]
+    registration_cached: bool
+
+    def as_dict(self) -> dict[str, object]:
+        """JSON-ready summary (statistics only, no per-vertex values).
+
+        Returns:
+            ``{"frame", "surface_k", "surface_k_minus_1", "vertex_k", "vertex_k_minus_1", "reverse",
+            "registration", "timings"}``; each set maps statistic names (``ave``, ``var``, ``std``, ``mse``,
+            ``rmse``, ``max``, ``min``, ``median``, ``p95``, ``p99``, ``count``, ``psnr``) to floats.
+        """
+        out: dict[str, object] = {"frame": self.frame}
+        out.update({name: self.statistics[name].as_dict() for name in SET_NAMES})
+        out["reverse"] = {name: s.as_dict() for name, s in self.reverse_statistics.items()}
+        out["registration"] = {
+            "residual": self.registration_statistics.as_dict(),
+            "converged": self.registration_converged,
+            "motion": self.motion,
+            "cached": self.registration_cached,
+        }
+        out["peak"] = self.peak
+        out["timings"] = dict(self.timings)
+        return out
+
+
+def mean_statistics(stats: list[DistanceStatistics]) -> dict[str, float]:
+    """Mean of per-pair statistics, field by field: the paper's "average performance" (Tables III/IV).
+
+    Every field is the arithmetic mean over pairs of that field (so the aggregate ``std`` is the mean of the
+    per-pair standard deviations, not the standard deviation of the pooled distances; ``count`` is the mean
+    number of values per pair). This is what the paper reports as "the average result in all five mesh pairs".
+
+    Args:
+        stats: one :class:`~torchmeshmetric.stats.DistanceStatistics` per pair (non-empty).
+
+    Returns:
+        Statistic name → mean value.
+
+    Example:
+        >>> from collections import namedtuple
+        >>> S = namedtuple("S", "ave rmse")
+        >>> mean_statistics([S(1.0, 2.0), S(3.0, 4.0)])
+        {'ave': 2.0, 'rmse': 3.0}
+    """
+    if not stats:
+        raise ValueError("stats: expected at least one pair, found none")
+    fields = stats[0]._fields
+    return {f: sum(float(getattr(s, f)) for s in stats) / len(stats) for f in fields}
+
+
+class SequenceEvaluation(NamedTuple):
+    """Evaluation of a simplified sequence: one :class:`PairEvaluation` per frame pair ``(k-1, k)``, ``k >= 1``.
+
+    Attributes:
+        pairs: per-pair evaluations, in frame order.
+    """
+
+    pairs: list[PairEvaluation]
+
+    def aggregate(self) -> dict[str, dict[str, float]]:
+        """The paper's "average performance" (Tables III/IV): per set, the mean over pairs of each statistic.
+
+        Returns:
+            ``{set_name: {statistic: mean}}`` for the four :data:`SET_NAMES` (see :func:`mean_statistics`).
+        """
+        return {name: mean_statistics([p.statistics[name] for p in self.pairs]) for name in SET_NAMES}
+
+    def aggregate_reverse(self) -> dict[str, dict[str, float]]:
+        """Mean over pairs of the reverse (reference → simplified) statistics; empty when evaluated one-sided."""
+        if not self.pairs or not self.pairs[0].reverse_statistics:
+            return {}
+        return {name: mean_statistics([p.reverse_statistics[name] for p in self.pairs]) for name in SET_NAMES}
+
+    def best_pair_index(self) -> int:
+        """Index into :attr:`pairs` of the paper's best pair (Tables I/II); see :data:`BEST_PAIR_RULE`."""
+        if not self.pairs:
+            raise ValueError("pairs: the sequence evaluation holds no frame pair")
+        return min(range(len(self.pairs)), key=lambda i: (self.pairs[i].motion, self.pairs[i].frame))
+
+    def as_dict(self) -> dict[str, object]:
+        """JSON-ready summary: ``{"pairs": [...], "aggregate": {...}, "best_pair": {...}}``.
+
+        ``aggregate`` holds the four sets under the same keys as each pair, plus ``"reverse"`` (two-sided only)
+        and ``"registration"`` (mean of the residual statistics).
+        """
+        best = self.best_pair_index()
+        aggregate: dict[str, object] = dict(self.aggregate())
+        aggregate["reverse"] = self.aggregate_reverse()
+        aggregate["registration"] = {"residual": mean_statistics([p.registration_statistics for p in self.pairs])}
+        return {
+            "pairs": [p.as_dict() for p in self.pairs],
+            "aggregate": aggregate,
+            "best_pair": {"index": best, "frame": self.pairs[best].frame, "rule": BEST_PAIR_RULE},
+        }
+
+
+def flatten_statistics(nested: dict[str, object], sep: str = "/") -> dict[str, object]:
+    """Flatten a nested statistics dict (e.g. :meth:`TemporalConsistency.compute`) for ``log_dict``.
+
+    Example:
+        >>> flatten_statistics({"surface_k": {"ave": 1.0}, "reverse": {"vertex_k": {"max": 2.0}}})
+        {'surface_k/ave': 1.0, 'reverse/vertex_k/max': 2.0}
+    """
+    flat: dict[str, object] = {}
+    for key, value in nested.items():
+        if isinstance(value, dict):
+            for sub, v in flatten_statistics(value, sep).items():
+                flat[f"{key}{sep}{sub}"] = v
+        else:
+            flat[key] = value
+    return flat

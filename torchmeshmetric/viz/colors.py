@@ -1,0 +1,98 @@
+"""Per-vertex error as colours, written to a coloured PLY (the idea of the paper's Fig. 6)."""
+
+from __future__ import annotations
+
+import io
+import os
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from torchmeshmetric._checks import ShapeError
+from torchmeshmetric.evaluation.atomic import atomic_write
+from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
+
+__all__ = ["error_colors", "write_error_ply"]
+
+# Viridis-like anchors (dark blue = no error → yellow = vmax), linear in between.
+_ANCHORS = np.array(
+    [[68, 1, 84], [59, 82, 139], [33, 145, 140], [94, 201, 98], [253, 231, 37]],
+    dtype=np.float64,
+)
+
+
+def error_colors(dists: Tensor, vmax: float | None = None) -> Tensor:
+    """Map distances to RGBA colours (``uint8``) on a viridis-like scale from 0 to ``vmax``.
+
+    Args:
+        dists: ``(N,)`` non-negative distances.
+        vmax: distance mapped to the brightest colour (default: the 95th percentile of ``dists``, so a few
+            outliers do not wash out the map); larger values are clamped.
+
+    Returns:
+        ``(N, 4)`` ``uint8`` RGBA colours.
+
+    Example:
+        >>> import torch
+        >>> error_colors(torch.tensor([0.0, 1.0]), vmax=1.0).tolist()
+        [[68, 1, 84, 255], [253, 231, 37, 255]]
+    """
+    if dists.ndim != 1:
+        raise ShapeError(f"dists: expected shape (N,), found {tuple(dists.shape)}")
+    d = dists.detach().double().cpu().numpy()
+    if vmax is None:
+        vmax = float(np.quantile(d, 0.95)) if d.size else 1.0
+    t = np.clip(d / vmax, 0.0, 1.0) if vmax > 0 else np.zeros_like(d)
+    pos = t * (len(_ANCHORS) - 1)
+    lo = np.minimum(np.floor(pos).astype(np.int64), len(_ANCHORS) - 2)
+    frac = (pos - lo)[:, None]
+    rgb = _ANCHORS[lo] * (1 - frac) + _ANCHORS[lo + 1] * frac
+    rgba = np.concatenate([np.rint(rgb), np.full((d.size, 1), 255.0)], axis=1).astype(np.uint8)
+    return torch.from_numpy(rgba)
+
+
+def write_error_ply(
+    path: str | os.PathLike[str],
+    mesh: MeshLike,
+    dists: Tensor,
+    *,
+    vmax: float | None = None,
+    overwrite: bool = False,
+) -> Path:
+    """Write ``mesh`` as a binary PLY with one colour per vertex showing its error, atomically.
+
+    Args:
+        path: destination ``.ply`` file.
+        mesh: the mesh whose vertices carry the errors (e.g. the simplified frame ``k``).
+        dists: ``(V,)`` one distance per vertex of ``mesh`` in order, or one per *referenced* vertex (the paper's
+            vertex set, as in :class:`~torchmeshmetric.evaluation.PairEvaluation`): unreferenced vertices are then
+            left out of the file.
+        vmax: distance of the brightest colour (see :func:`error_colors`); use the same value for meshes that
+            are compared side by side.
+        overwrite: replace an existing file.
+
+    Raises:
+        ShapeError: when ``dists`` does not have one value per vertex.
+    """
+    import trimesh
+
+    m = as_mesh(mesh)
+    used = torch.zeros(m.num_verts, dtype=torch.bool, device=m.device)
+    used[m.faces.reshape(-1)] = True
+    if dists.ndim == 1 and dists.shape[0] == int(used.sum()) != m.num_verts:
+        # distances of the vertex set (referenced vertices only, paper Eq. 3): drop the unreferenced vertices
+        remap = torch.cumsum(used.long(), 0) - 1
+        m = Mesh(m.verts[used], remap[m.faces], validate=False)
+    if tuple(dists.shape) != (m.num_verts,):
+        raise ShapeError(f"dists: expected shape ({m.num_verts},) (one per vertex of mesh), found {tuple(dists.shape)}")
+    tm = trimesh.Trimesh(
+        m.verts.detach().cpu().double().numpy(),
+        m.faces.cpu().numpy(),
+        vertex_colors=error_colors(dists, vmax).numpy(),
+        process=False,
+    )
+    buf = io.BytesIO()
+    tm.export(buf, file_type="ply")
+    return atomic_write(path, buf.getvalue(), overwrite=overwrite)
