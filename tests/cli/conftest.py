@@ -1,13 +1,6 @@
-import importlib.util
-
 import pytest
 
 from tests.cli.cli_helpers import Counting, write_frames
-
-# The CLI reads frames with issue 4's torchmeshmetric.data;
-# until it is merged into this branch the CLI tests are skipped (the modules do not exist here yet).
-_NEEDED = ("torchmeshmetric.data",)
-collect_ignore_glob = [] if all(importlib.util.find_spec(m) for m in _NEEDED) else ["test_*.py"]
 
 
 @pytest.fixture
