@@ -271,7 +271,9 @@ def register_nonrigid(
             loss = loss + stage.regularization * embedded_deformation_regularizer(graph)
             value = float(loss.detach())
             if first_loss is None:
-                first_loss = max(value, 1e-30)
+                # The loss is in units of (node spacing)^2: a floor of 1 (a residual of one node spacing) keeps an
+                # exact start (loss ~1e-30) from calling rounding noise a divergence.
+                first_loss = max(value, 1.0)
             if not math.isfinite(value) or value > 1e6 * first_loss:
                 reason = f"diverged: loss became {value:.3g} (first loss {first_loss:.3g})"
                 graph.load_state_dict(best_state)
