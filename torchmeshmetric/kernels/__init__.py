@@ -10,6 +10,9 @@ from torchmeshmetric.kernels.point_triangle import (
 )
 from torchmeshmetric.kernels.sampling import SurfaceSamples, sample_surface, vertex_set
 
+# Registers the accelerated backends ("bvh", "pruned") used by backend="auto"; must follow the kernels above.
+from torchmeshmetric.kernels import accel  # noqa: E402, I001
+
 __all__ = [
     "ClosestPointOnTriangle",
     "NearestVertexDistance",
