@@ -1,5 +1,7 @@
 """Exact, chunked, differentiable distance kernels (pure functions)."""
 
+# Importing accel registers the accelerated backends ("bvh", "pruned") that backend="auto" uses.
+from torchmeshmetric.kernels import accel  # noqa: F401
 from torchmeshmetric.kernels.nearest import NearestVertexDistance, nearest_vertex_distance, register_nearest_backend
 from torchmeshmetric.kernels.point_triangle import (
     ClosestPointOnTriangle,
@@ -9,9 +11,6 @@ from torchmeshmetric.kernels.point_triangle import (
     register_face_backend,
 )
 from torchmeshmetric.kernels.sampling import SurfaceSamples, sample_surface, vertex_set
-
-# Registers the accelerated backends ("bvh", "pruned") used by backend="auto"; must follow the kernels above.
-from torchmeshmetric.kernels import accel  # noqa: E402, I001
 
 __all__ = [
     "ClosestPointOnTriangle",

@@ -159,9 +159,7 @@ def pruned_faces(
         sq = _region_candidates(q - a[f], q - b[f], ab[f], ac[f], bc[f])[-1].amin(-1)
         return sq.masked_fill(mem < 0, float("inf"))
 
-    return _select(
-        points, point_batch, tri.amin(1), tri.amax(1), face_batch, face_offsets, pair_sq, False, max_memory
-    )
+    return _select(points, point_batch, tri.amin(1), tri.amax(1), face_batch, face_offsets, pair_sq, False, max_memory)
 
 
 def pruned_nearest(
