@@ -28,6 +28,9 @@ namespace {
 constexpr int LEAF_FACES = 4;
 constexpr int LEAF_POINTS = 8;
 constexpr int64_t PARALLEL_BUILD = 4096;
+// Cheap linear loops run threaded only above this size: on a loaded machine every parallel region costs
+// a barrier, which outweighs the work of a few hundred thousand simple iterations.
+constexpr int64_t GRAIN_LINEAR = int64_t(1) << 18;
 
 template <typename T>
 struct Node {
@@ -164,7 +167,7 @@ void build_forest(const T* box_lo, const T* box_hi, const T* cen, const int64_t*
     for (int k = 0; k < 3; ++k) inv[k] = hi[k] > lo[k] ? T(1023.99) / (hi[k] - lo[k]) : T(0);
     std::vector<uint32_t> code(e - s);
     std::vector<int64_t> idx(e - s);
-    at::parallel_for(s, e, 16384, [&](int64_t a, int64_t z) {
+    at::parallel_for(s, e, GRAIN_LINEAR, [&](int64_t a, int64_t z) {
       for (int64_t i = a; i < z; ++i) {
         code[i - s] = morton(cen + 3 * i, lo, inv);
         idx[i - s] = i;
@@ -173,7 +176,8 @@ void build_forest(const T* box_lo, const T* box_hi, const T* cen, const int64_t*
     radix_sort(code, idx);
     std::copy(idx.begin(), idx.end(), perm.begin() + s);
   }
-#pragma omp parallel num_threads(at::get_num_threads())
+  const int threads = n >= GRAIN_LINEAR ? at::get_num_threads() : 1;
+#pragma omp parallel num_threads(threads)
 #pragma omp single
   for (int64_t b = 0; b < num_items; ++b) {
     if (roots[b] >= 0) {
@@ -199,7 +203,7 @@ std::vector<int64_t> query_order(const T* pts, int64_t n) {
   for (int k = 0; k < 3; ++k) inv[k] = hi[k] > lo[k] ? T(1023.99) / (hi[k] - lo[k]) : T(0);
   std::vector<uint32_t> code(n);
   std::vector<int64_t> idx(n);
-  at::parallel_for(0, n, 16384, [&](int64_t a, int64_t z) {
+  at::parallel_for(0, n, GRAIN_LINEAR, [&](int64_t a, int64_t z) {
     for (int64_t i = a; i < z; ++i) {
       code[i] = morton(pts + 3 * i, lo, inv);
       idx[i] = i;
@@ -353,7 +357,7 @@ torch::Tensor closest_faces_impl(const torch::Tensor& points, const torch::Tenso
   const int64_t* Fi = faces.data_ptr<int64_t>();
   const int64_t* off = face_offsets.data_ptr<int64_t>();
   std::vector<T> lo(3 * F), hi(3 * F), cen(3 * F);
-  at::parallel_for(0, F, 4096, [&](int64_t s, int64_t e) {
+  at::parallel_for(0, F, GRAIN_LINEAR, [&](int64_t s, int64_t e) {
     for (int64_t f = s; f < e; ++f) {
       const T* a = V + 3 * Fi[3 * f];
       const T* b = V + 3 * Fi[3 * f + 1];
@@ -369,7 +373,7 @@ torch::Tensor closest_faces_impl(const torch::Tensor& points, const torch::Tenso
   std::vector<int64_t> roots, perm;
   build_forest<T>(lo.data(), hi.data(), cen.data(), off, B, LEAF_FACES, nodes, roots, perm);
   std::vector<FaceData<T>> fd(F);
-  at::parallel_for(0, F, 4096, [&](int64_t s, int64_t e) {
+  at::parallel_for(0, F, GRAIN_LINEAR, [&](int64_t s, int64_t e) {
     for (int64_t i = s; i < e; ++i) {
       const int64_t f = perm[i];
       const T* a = V + 3 * Fi[3 * f];
@@ -434,7 +438,7 @@ torch::Tensor nearest_points_impl(const torch::Tensor& points, const torch::Tens
   std::vector<int64_t> roots, perm;
   build_forest<T>(Rp, Rp, Rp, off, B, LEAF_POINTS, nodes, roots, perm);
   std::vector<T> rs(3 * R);
-  at::parallel_for(0, R, 4096, [&](int64_t s, int64_t e) {
+  at::parallel_for(0, R, GRAIN_LINEAR, [&](int64_t s, int64_t e) {
     for (int64_t i = s; i < e; ++i)
       for (int k = 0; k < 3; ++k) rs[3 * i + k] = Rp[3 * perm[i] + k];
   });
