@@ -2,10 +2,10 @@
 //
 // Compiled just in time by torchmeshmetric.kernels.accel._extension (torch.utils.cpp_extension.load).
 //
-// Build: primitives sorted along a 30-bit Morton curve of their box centres (radix sort, LBVH ordering as in
-// Karras 2012), then split at the object median of that order into leaves of at most LEAF primitives; nodes are
-// stored depth first (left child follows its parent), bounds computed bottom up, large subtrees in parallel
-// (OpenMP tasks). One hierarchy per item of a ragged batch, all in one node array.
+// Build: primitives sorted along a 30-bit Morton curve of their box centres (radix sort), then split at the highest
+// differing Morton bit (LBVH, Karras 2012; object median when the codes are equal) into leaves of at most LEAF
+// primitives; nodes stored depth first (left child follows its parent), bounds computed bottom up.
+// One hierarchy per item of a ragged batch, all in one node array.
 //
 // Query: points processed in Morton order (cache coherence), stack traversal, nearer child first, pruning a node when its box is farther than the current best
 // (with a certified slack, see `prune_bound`), OpenMP over query points through at::parallel_for.
@@ -27,7 +27,6 @@ namespace {
 
 constexpr int LEAF_FACES = 4;
 constexpr int LEAF_POINTS = 8;
-constexpr int64_t PARALLEL_BUILD = 4096;
 // Cheap linear loops run threaded only above this size: on a loaded machine every parallel region costs
 // a barrier, which outweighs the work of a few hundred thousand simple iterations.
 constexpr int64_t GRAIN_LINEAR = int64_t(1) << 18;
@@ -40,13 +39,6 @@ struct Node {
   int64_t start;  // first primitive (leaf) in the permuted order
   int64_t count;  // number of primitives (leaf)
 };
-
-// Number of nodes of the subtree over n primitives (object-median split, deterministic in n).
-inline int64_t subtree_size(int64_t n, int leaf) {
-  if (n <= leaf) return 1;
-  const int64_t half = n / 2;
-  return 1 + subtree_size(half, leaf) + subtree_size(n - half, leaf);
-}
 
 inline uint32_t spread10(uint32_t x) {  // 10 bits -> every third bit of 30
   x &= 0x3ffu;
@@ -89,15 +81,19 @@ inline void radix_sort(std::vector<uint32_t>& code, std::vector<int64_t>& idx) {
   }
 }
 
-// Node bounds over the primitives [begin, end) of the sorted order, depth first; subtrees built in parallel.
+// Node over the primitives [begin, end) of the Morton-sorted order, depth first (left child = node + 1). Split at
+// the highest bit in which the codes of the range differ (a spatial split, Karras 2012); at the object median when
+// all codes are equal. Bounds are computed bottom up. Returns the node index.
 template <typename T>
-void build_node(Node<T>* nodes, int64_t node, int64_t begin, int64_t end, const T* box_lo, const T* box_hi,
-                const int64_t* perm, int leaf) {
-  Node<T>& nd = nodes[node];
+int64_t build_node(std::vector<Node<T>>& nodes, const uint32_t* code, int64_t base, int64_t begin, int64_t end,
+                   const T* box_lo, const T* box_hi, const int64_t* perm, int leaf) {
+  const int64_t node = static_cast<int64_t>(nodes.size());
+  nodes.emplace_back();
   const int64_t n = end - begin;
-  nd.start = begin;
-  nd.count = n;
   if (n <= leaf) {
+    Node<T>& nd = nodes[node];
+    nd.start = begin;
+    nd.count = n;
     nd.right = -1;
     for (int k = 0; k < 3; ++k) {
       nd.lo[k] = std::numeric_limits<T>::infinity();
@@ -110,26 +106,29 @@ void build_node(Node<T>* nodes, int64_t node, int64_t begin, int64_t end, const 
         nd.hi[k] = std::max(nd.hi[k], box_hi[3 * p + k]);
       }
     }
-    return;
+    return node;
   }
-  const int64_t mid = begin + n / 2;
-  const int64_t left = node + 1;
-  const int64_t right = left + subtree_size(mid - begin, leaf);
+  int64_t mid = begin + n / 2;
+  const uint32_t diff = code[begin - base] ^ code[end - 1 - base];
+  if (diff != 0) {
+    const uint32_t bit = 1u << (31 - __builtin_clz(diff));
+    // First slot in the range whose code has `bit` set (codes are sorted, the prefix above `bit` is shared).
+    const uint32_t* first = code + (begin - base);
+    mid = begin + (std::partition_point(first, first + n, [bit](uint32_t c) { return (c & bit) == 0; }) - first);
+  }
+  build_node(nodes, code, base, begin, mid, box_lo, box_hi, perm, leaf);
+  const int64_t right = build_node(nodes, code, base, mid, end, box_lo, box_hi, perm, leaf);
+  Node<T>& nd = nodes[node];
+  const Node<T>& l = nodes[node + 1];
+  const Node<T>& r = nodes[right];
+  nd.start = begin;
+  nd.count = n;
   nd.right = right;
-  if (n >= PARALLEL_BUILD) {
-#pragma omp task default(shared) firstprivate(left, begin, mid)
-    build_node(nodes, left, begin, mid, box_lo, box_hi, perm, leaf);
-#pragma omp task default(shared) firstprivate(right, mid, end)
-    build_node(nodes, right, mid, end, box_lo, box_hi, perm, leaf);
-#pragma omp taskwait
-  } else {
-    build_node(nodes, left, begin, mid, box_lo, box_hi, perm, leaf);
-    build_node(nodes, right, mid, end, box_lo, box_hi, perm, leaf);
-  }
   for (int k = 0; k < 3; ++k) {
-    nd.lo[k] = std::min(nodes[left].lo[k], nodes[right].lo[k]);
-    nd.hi[k] = std::max(nodes[left].hi[k], nodes[right].hi[k]);
+    nd.lo[k] = std::min(l.lo[k], r.lo[k]);
+    nd.hi[k] = std::max(l.hi[k], r.hi[k]);
   }
+  return node;
 }
 
 // Builds one hierarchy per item (items: contiguous ranges [offsets[b], offsets[b+1]) of the primitives).
@@ -142,15 +141,8 @@ void build_forest(const T* box_lo, const T* box_hi, const T* cen, const int64_t*
   const int64_t n = offsets[num_items];
   perm.resize(n);
   roots.assign(num_items, -1);
-  int64_t total = 0;
-  for (int64_t b = 0; b < num_items; ++b) {
-    const int64_t m = offsets[b + 1] - offsets[b];
-    if (m > 0) {
-      roots[b] = total;
-      total += subtree_size(m, leaf);
-    }
-  }
-  nodes.resize(total);
+  nodes.clear();
+  nodes.reserve(2 * (n / leaf + num_items) + 1);
   for (int64_t b = 0; b < num_items; ++b) {
     const int64_t s = offsets[b], e = offsets[b + 1];
     if (e == s) continue;
@@ -175,19 +167,10 @@ void build_forest(const T* box_lo, const T* box_hi, const T* cen, const int64_t*
     });
     radix_sort(code, idx);
     std::copy(idx.begin(), idx.end(), perm.begin() + s);
-  }
-  const int threads = n >= GRAIN_LINEAR ? at::get_num_threads() : 1;
-#pragma omp parallel num_threads(threads)
-#pragma omp single
-  for (int64_t b = 0; b < num_items; ++b) {
-    if (roots[b] >= 0) {
-#pragma omp task default(shared) firstprivate(b)
-      build_node(nodes.data(), roots[b], offsets[b], offsets[b + 1], box_lo, box_hi, perm.data(), leaf);
-    }
+    roots[b] = build_node(nodes, code.data(), s, s, e, box_lo, box_hi, perm.data(), leaf);  // code[i - s]: slot i
   }
 }
 
-// Query processing order: Morton order of the points in their joint bounding box.
 template <typename T>
 std::vector<int64_t> query_order(const T* pts, int64_t n) {
   T lo[3], hi[3], inv[3];
