@@ -432,6 +432,7 @@ torch::Tensor nearest_points_impl(const torch::Tensor& points, const torch::Tens
   int64_t* o = out.data_ptr<int64_t>();
   const Node<T>* nd = nodes.data();
   const T* rsp = rs.data();
+  const T tie = T(1) + T(4) * std::numeric_limits<T>::epsilon();
   const int64_t* pm = perm.data();
   const std::vector<int64_t> order = query_order<T>(Pp, P);
   const int64_t* ord = order.data();
@@ -442,9 +443,11 @@ torch::Tensor nearest_points_impl(const torch::Tensor& points, const torch::Tens
       T best = std::numeric_limits<T>::infinity();
       int64_t best_idx = off[b];
       traverse<T>(nd, roots[b], Pp + 3 * i, slack[b], best, best_idx,
-                  [rsp, pm](int64_t start, int64_t count, const T* p, T& best_sq, int64_t& bi) {
+                  [rsp, pm, tie](int64_t start, int64_t count, const T* p, T& best_sq, int64_t& bi) {
                     for (int64_t j = start; j < start + count; ++j) {
                       const T sq = point_sq_dist(rsp + 3 * j, p);
+                      // sqrt is monotone: beyond 4 ulps above the best square the rounded distance is larger.
+                      if (sq > best_sq * tie) continue;
                       // Equal rounded distances are ties (as in cdist), even when the squares differ.
                       const T d = std::sqrt(sq), db = std::sqrt(best_sq);
                       const int64_t r = pm[j];
