@@ -28,7 +28,8 @@ __all__ = [
 ]
 
 MIN_PAIRS = 1 << 20
-"""Below this many point-primitive pairs ``backend="auto"`` keeps the brute force (measured crossover, see docs)."""
+"""Below this many point-primitive pairs ``backend="auto"`` keeps the brute force: tiny problems never pay the
+one-time compilation of the C++ extension (see docs/acceleration.md)."""
 
 
 def _auto(points: Tensor, num_prims: int) -> str | None:
