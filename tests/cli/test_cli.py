@@ -4,10 +4,10 @@ import subprocess
 import sys
 
 import pytest
-from torchmeshmetric.data import load_sequence
 
 from tests.cli.cli_helpers import Counting, write_frames
 from torchmeshmetric.cli import build_parser, main
+from torchmeshmetric.data import load_sequence
 from torchmeshmetric.evaluation import SET_NAMES, evaluate_sequence
 
 

@@ -1,5 +1,7 @@
 """Exact, chunked, differentiable distance kernels (pure functions)."""
 
+# Importing accel registers the accelerated backends ("bvh", "pruned") that backend="auto" uses.
+from torchmeshmetric.kernels import accel  # noqa: F401
 from torchmeshmetric.kernels.nearest import NearestVertexResult, nearest_vertex_distance, register_nearest_backend
 from torchmeshmetric.kernels.point_triangle import (
     ClosestPointOnTriangle,

@@ -1,0 +1,33 @@
+"""Without a compiler the "bvh" backend warns once and answers through the exact pure-torch path."""
+
+from __future__ import annotations
+
+import warnings
+
+import pytest
+import torch
+
+from torchmeshmetric.kernels.accel import _extension
+from torchmeshmetric.kernels.point_triangle import point_mesh_distance
+
+
+def test_compile_failure_warns_once_and_falls_back(monkeypatch):
+    import torch.utils.cpp_extension as cpp
+
+    def no_compiler(*args, **kwargs):
+        raise RuntimeError("no C++ compiler")
+
+    monkeypatch.setattr(cpp, "load", no_compiler)
+    monkeypatch.setattr(_extension, "_STATE", {})
+    g = torch.Generator().manual_seed(0)
+    verts = torch.randn(50, 3, generator=g, dtype=torch.float64)
+    faces = torch.randint(0, 50, (80, 3), generator=g)
+    points = torch.randn(100, 3, generator=g, dtype=torch.float64)
+    with pytest.warns(RuntimeWarning, match="could not compile"):
+        got = point_mesh_distance(points, verts, faces, backend="bvh")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the second call must not warn again
+        again = point_mesh_distance(points, verts, faces, backend="bvh")
+    ref = point_mesh_distance(points, verts, faces, backend="bruteforce")
+    assert torch.equal(got.face_idx, ref.face_idx) and torch.equal(again.face_idx, ref.face_idx)
+    assert torch.equal(got.dists, ref.dists)

@@ -1,0 +1,538 @@
+// Bounding volume hierarchies for exact closest-face and nearest-point selection on the CPU.
+//
+// Compiled just in time by torchmeshmetric.kernels.accel._extension (torch.utils.cpp_extension.load).
+//
+// Build: primitives sorted along a 30-bit Morton curve of their box centres (radix sort), then split at the highest
+// differing Morton bit (LBVH, Karras 2012; object median when the codes are equal) into leaves of at most LEAF
+// primitives; nodes stored depth first (left child follows its parent), bounds computed bottom up.
+// One hierarchy per item of a ragged batch, all in one node array.
+//
+// Query: points processed in Morton order (cache coherence), stack traversal, nearer child first, pruning a node when its box is farther than the current best
+// (with a certified slack, see `prune_bound`), OpenMP over query points through at::parallel_for.
+//
+// Exactness: the squared point-triangle distance is computed with the very same floating-point operations, in the
+// same order and the same dtype, as `_region_candidates` in point_triangle.py (edge-segment clamped projections
+// and the face-interior projection, on difference vectors), so the selected face is the brute-force argmin,
+// lowest face index among equal squared distances. Must be compiled with -ffp-contract=off (no FMA contraction).
+#include <torch/extension.h>
+#include <ATen/Parallel.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+namespace {
+
+constexpr int LEAF_FACES = 4;
+constexpr int LEAF_POINTS = 8;
+// Cheap linear loops run threaded only above this size: on a loaded machine every parallel region costs
+// a barrier, which outweighs the work of a few hundred thousand simple iterations.
+constexpr int64_t GRAIN_LINEAR = int64_t(1) << 18;
+
+template <typename T>
+struct Node {
+  T lo[3];
+  T hi[3];
+  int64_t right;  // index of the right child (left child = this + 1); -1 for a leaf
+  int64_t start;  // first primitive (leaf) in the permuted order
+  int64_t count;  // number of primitives (leaf)
+};
+
+inline uint32_t spread10(uint32_t x) {  // 10 bits -> every third bit of 30
+  x &= 0x3ffu;
+  x = (x | (x << 16)) & 0x30000ffu;
+  x = (x | (x << 8)) & 0x300f00fu;
+  x = (x | (x << 4)) & 0x30c30c3u;
+  x = (x | (x << 2)) & 0x9249249u;
+  return x;
+}
+
+template <typename T>
+inline uint32_t morton(const T* c, const T* lo, const T* inv) {
+  uint32_t q[3];
+  for (int k = 0; k < 3; ++k) {
+    T u = (c[k] - lo[k]) * inv[k];
+    u = std::min(std::max(u, T(0)), T(1023));
+    q[k] = static_cast<uint32_t>(u);
+  }
+  return (spread10(q[0]) << 2) | (spread10(q[1]) << 1) | spread10(q[2]);
+}
+
+// Stable LSD radix sort of (30-bit code, index) pairs by code: 3 passes of 10 bits.
+inline void radix_sort(std::vector<uint32_t>& code, std::vector<int64_t>& idx) {
+  const int64_t n = static_cast<int64_t>(code.size());
+  std::vector<uint32_t> code2(n);
+  std::vector<int64_t> idx2(n);
+  std::vector<int64_t> count(1025);
+  for (int shift = 0; shift < 30; shift += 10) {
+    std::fill(count.begin(), count.end(), 0);
+    for (int64_t i = 0; i < n; ++i) ++count[((code[i] >> shift) & 1023u) + 1];
+    if (count[(code[0] >> shift & 1023u) + 1] == n) continue;  // one bucket: nothing to do
+    for (int d = 0; d < 1024; ++d) count[d + 1] += count[d];
+    for (int64_t i = 0; i < n; ++i) {
+      const int64_t dst = count[(code[i] >> shift) & 1023u]++;
+      code2[dst] = code[i];
+      idx2[dst] = idx[i];
+    }
+    code.swap(code2);
+    idx.swap(idx2);
+  }
+}
+
+// Node over the primitives [begin, end) of the Morton-sorted order, depth first (left child = node + 1). Split at
+// the highest bit in which the codes of the range differ (a spatial split, Karras 2012); at the object median when
+// all codes are equal. Bounds are computed bottom up. Returns the node index.
+template <typename T>
+int64_t build_node(std::vector<Node<T>>& nodes, const uint32_t* code, int64_t base, int64_t begin, int64_t end,
+                   const T* box_lo, const T* box_hi, const int64_t* perm, int leaf) {
+  const int64_t node = static_cast<int64_t>(nodes.size());
+  nodes.emplace_back();
+  const int64_t n = end - begin;
+  if (n <= leaf) {
+    Node<T>& nd = nodes[node];
+    nd.start = begin;
+    nd.count = n;
+    nd.right = -1;
+    for (int k = 0; k < 3; ++k) {
+      nd.lo[k] = std::numeric_limits<T>::infinity();
+      nd.hi[k] = -std::numeric_limits<T>::infinity();
+    }
+    for (int64_t i = begin; i < end; ++i) {
+      const int64_t p = perm[i];
+      for (int k = 0; k < 3; ++k) {
+        nd.lo[k] = std::min(nd.lo[k], box_lo[3 * p + k]);
+        nd.hi[k] = std::max(nd.hi[k], box_hi[3 * p + k]);
+      }
+    }
+    return node;
+  }
+  int64_t mid = begin + n / 2;
+  const uint32_t diff = code[begin - base] ^ code[end - 1 - base];
+  if (diff != 0) {
+    const uint32_t bit = 1u << (31 - __builtin_clz(diff));
+    // First slot in the range whose code has `bit` set (codes are sorted, the prefix above `bit` is shared).
+    const uint32_t* first = code + (begin - base);
+    mid = begin + (std::partition_point(first, first + n, [bit](uint32_t c) { return (c & bit) == 0; }) - first);
+  }
+  build_node(nodes, code, base, begin, mid, box_lo, box_hi, perm, leaf);
+  const int64_t right = build_node(nodes, code, base, mid, end, box_lo, box_hi, perm, leaf);
+  Node<T>& nd = nodes[node];
+  const Node<T>& l = nodes[node + 1];
+  const Node<T>& r = nodes[right];
+  nd.start = begin;
+  nd.count = n;
+  nd.right = right;
+  for (int k = 0; k < 3; ++k) {
+    nd.lo[k] = std::min(l.lo[k], r.lo[k]);
+    nd.hi[k] = std::max(l.hi[k], r.hi[k]);
+  }
+  return node;
+}
+
+// Builds one hierarchy per item (items: contiguous ranges [offsets[b], offsets[b+1]) of the primitives).
+// Primitives are ordered along a Morton curve of their centroids within the item (LBVH-style ordering, Karras
+// 2012), then split at the object median of that order. Fills the nodes (all items), the per-item roots (-1 for
+// an empty item) and perm (global primitive index of each sorted slot).
+template <typename T>
+void build_forest(const T* box_lo, const T* box_hi, const T* cen, const int64_t* offsets, int64_t num_items,
+                  int leaf, std::vector<Node<T>>& nodes, std::vector<int64_t>& roots, std::vector<int64_t>& perm) {
+  const int64_t n = offsets[num_items];
+  perm.resize(n);
+  roots.assign(num_items, -1);
+  nodes.clear();
+  nodes.reserve(2 * (n / leaf + num_items) + 1);
+  for (int64_t b = 0; b < num_items; ++b) {
+    const int64_t s = offsets[b], e = offsets[b + 1];
+    if (e == s) continue;
+    T lo[3], hi[3], inv[3];
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = std::numeric_limits<T>::infinity();
+      hi[k] = -std::numeric_limits<T>::infinity();
+    }
+    for (int64_t i = s; i < e; ++i)
+      for (int k = 0; k < 3; ++k) {
+        lo[k] = std::min(lo[k], cen[3 * i + k]);
+        hi[k] = std::max(hi[k], cen[3 * i + k]);
+      }
+    for (int k = 0; k < 3; ++k) inv[k] = hi[k] > lo[k] ? T(1023.99) / (hi[k] - lo[k]) : T(0);
+    std::vector<uint32_t> code(e - s);
+    std::vector<int64_t> idx(e - s);
+    at::parallel_for(s, e, GRAIN_LINEAR, [&](int64_t a, int64_t z) {
+      for (int64_t i = a; i < z; ++i) {
+        code[i - s] = morton(cen + 3 * i, lo, inv);
+        idx[i - s] = i;
+      }
+    });
+    radix_sort(code, idx);
+    std::copy(idx.begin(), idx.end(), perm.begin() + s);
+    roots[b] = build_node(nodes, code.data(), s, s, e, box_lo, box_hi, perm.data(), leaf);  // code[i - s]: slot i
+  }
+}
+
+template <typename T>
+std::vector<int64_t> query_order(const T* pts, int64_t n) {
+  T lo[3], hi[3], inv[3];
+  for (int k = 0; k < 3; ++k) {
+    lo[k] = std::numeric_limits<T>::infinity();
+    hi[k] = -std::numeric_limits<T>::infinity();
+  }
+  for (int64_t i = 0; i < n; ++i)
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = std::min(lo[k], pts[3 * i + k]);
+      hi[k] = std::max(hi[k], pts[3 * i + k]);
+    }
+  for (int k = 0; k < 3; ++k) inv[k] = hi[k] > lo[k] ? T(1023.99) / (hi[k] - lo[k]) : T(0);
+  std::vector<uint32_t> code(n);
+  std::vector<int64_t> idx(n);
+  at::parallel_for(0, n, GRAIN_LINEAR, [&](int64_t a, int64_t z) {
+    for (int64_t i = a; i < z; ++i) {
+      code[i] = morton(pts + 3 * i, lo, inv);
+      idx[i] = i;
+    }
+  });
+  if (n > 1) radix_sort(code, idx);
+  return idx;
+}
+
+template <typename T>
+inline T box_sq_dist(const Node<T>& nd, const T* p) {
+  T s = 0;
+  for (int k = 0; k < 3; ++k) {
+    T d = std::max(std::max(nd.lo[k] - p[k], T(0)), p[k] - nd.hi[k]);
+    s += d * d;
+  }
+  return s;
+}
+
+// A node may hold a primitive whose *computed* squared distance equals the current best only if its box distance
+// is below this bound: the computed distance deviates from the exact one by a few ulps of the coordinate scale
+// (items are centred, |coordinates| <= scale) and of the distance itself. The slack keeps the pruning certified.
+template <typename T>
+inline T prune_bound(T best_sq, T slack_abs) {
+  if (!(best_sq < std::numeric_limits<T>::infinity())) return best_sq;
+  const T rel = T(64) * std::numeric_limits<T>::epsilon();
+  const T d = std::sqrt(best_sq) * (T(1) + rel) + slack_abs;
+  return d * d;
+}
+
+template <typename T>
+inline T dot3(const T* x, const T* y) {
+  return x[0] * y[0] + x[1] * y[1] + x[2] * y[2];
+}
+
+template <typename T>
+inline T safe_div(T num, T den) {
+  return den > 0 ? num / den : T(0);
+}
+
+template <typename T>
+inline T clamp01(T x) {
+  return std::min(std::max(x, T(0)), T(1));
+}
+
+// Per-face data in leaf order: a, b, ab, ac, bc, n = ab x ac, nn = n.n (same operations as the torch kernel).
+template <typename T>
+struct FaceData {
+  T a[3], b[3], ab[3], ac[3], bc[3], n[3];
+  T nn;
+};
+
+// Squared distance from p to a triangle, mirroring point_triangle._region_candidates(...)[-1].amin(-1).
+template <typename T>
+inline T tri_sq_dist(const FaceData<T>& f, const T* p) {
+  T ap[3], bp[3];
+  for (int k = 0; k < 3; ++k) {
+    ap[k] = p[k] - f.a[k];
+    bp[k] = p[k] - f.b[k];
+  }
+  const T t_ab = clamp01(safe_div(dot3(ap, f.ab), dot3(f.ab, f.ab)));
+  const T t_ac = clamp01(safe_div(dot3(ap, f.ac), dot3(f.ac, f.ac)));
+  const T t_bc = clamp01(safe_div(dot3(bp, f.bc), dot3(f.bc, f.bc)));
+  T d_ab[3], d_ac[3], d_bc[3];
+  for (int k = 0; k < 3; ++k) {
+    d_ab[k] = ap[k] - t_ab * f.ab[k];
+    d_ac[k] = ap[k] - t_ac * f.ac[k];
+    d_bc[k] = bp[k] - t_bc * f.bc[k];
+  }
+  T sq = dot3(d_ab, d_ab);
+  sq = std::min(sq, dot3(d_ac, d_ac));
+  sq = std::min(sq, dot3(d_bc, d_bc));
+  if (f.nn > 0) {
+    // cross(ap, ac) . n and cross(ab, ap) . n
+    T c1[3] = {ap[1] * f.ac[2] - ap[2] * f.ac[1], ap[2] * f.ac[0] - ap[0] * f.ac[2], ap[0] * f.ac[1] - ap[1] * f.ac[0]};
+    T c2[3] = {f.ab[1] * ap[2] - f.ab[2] * ap[1], f.ab[2] * ap[0] - f.ab[0] * ap[2], f.ab[0] * ap[1] - f.ab[1] * ap[0]};
+    const T v = dot3(c1, f.n) / f.nn;
+    const T w = dot3(c2, f.n) / f.nn;
+    if (v >= 0 && w >= 0 && v + w <= 1) {
+      T d_f[3];
+      for (int k = 0; k < 3; ++k) d_f[k] = (ap[k] - v * f.ab[k]) - w * f.ac[k];
+      sq = std::min(sq, dot3(d_f, d_f));
+    }
+  }
+  return sq;
+}
+
+template <typename T>
+inline T point_sq_dist(const T* r, const T* p) {
+  T s = 0;
+  for (int k = 0; k < 3; ++k) {
+    const T d = p[k] - r[k];
+    s += d * d;
+  }
+  return s;
+}
+
+// Per-item absolute pruning slack: 64 ulps of the item's largest |coordinate| (items are centred).
+template <typename T>
+std::vector<T> item_slack(const T* box_lo, const T* box_hi, const int64_t* offsets, int64_t num_items) {
+  std::vector<T> scale(num_items, T(0));
+  for (int64_t b = 0; b < num_items; ++b)
+    for (int64_t i = offsets[b]; i < offsets[b + 1]; ++i)
+      for (int k = 0; k < 3; ++k)
+        scale[b] = std::max(scale[b], std::max(std::abs(box_lo[3 * i + k]), std::abs(box_hi[3 * i + k])));
+  for (int64_t b = 0; b < num_items; ++b) scale[b] *= T(64) * std::numeric_limits<T>::epsilon();
+  return scale;
+}
+
+// Generic traversal: `leaf_fn(start, count, p, best_sq, best_idx)` updates the best candidate.
+template <typename T, typename LeafFn>
+inline void traverse(const Node<T>* nodes, int64_t root, const T* p, T slack, T& best_sq, int64_t& best_idx,
+                     LeafFn leaf_fn) {
+  int64_t stack[128];
+  T stack_d[128];
+  int top = 0;
+  stack[top] = root;
+  stack_d[top] = box_sq_dist(nodes[root], p);
+  ++top;
+  T bound = prune_bound(best_sq, slack);
+  while (top > 0) {
+    --top;
+    const int64_t ni = stack[top];
+    if (stack_d[top] > bound) continue;
+    const Node<T>& nd = nodes[ni];
+    if (nd.right < 0) {
+      const T before = best_sq;
+      leaf_fn(nd.start, nd.count, p, best_sq, best_idx);
+      if (best_sq != before) bound = prune_bound(best_sq, slack);
+      continue;
+    }
+    const int64_t l = ni + 1, r = nd.right;
+    const T dl = box_sq_dist(nodes[l], p), dr = box_sq_dist(nodes[r], p);
+    // Push the farther child first so that the nearer one is visited next.
+    if (dl <= dr) {
+      if (dr <= bound) { stack[top] = r; stack_d[top] = dr; ++top; }
+      if (dl <= bound) { stack[top] = l; stack_d[top] = dl; ++top; }
+    } else {
+      if (dl <= bound) { stack[top] = l; stack_d[top] = dl; ++top; }
+      if (dr <= bound) { stack[top] = r; stack_d[top] = dr; ++top; }
+    }
+  }
+}
+
+template <typename T>
+torch::Tensor closest_faces_impl(const torch::Tensor& points, const torch::Tensor& point_batch,
+                                 const torch::Tensor& verts, const torch::Tensor& faces,
+                                 const torch::Tensor& face_offsets) {
+  const int64_t F = faces.size(0), P = points.size(0), B = face_offsets.size(0) - 1;
+  const T* V = verts.data_ptr<T>();
+  const int64_t* Fi = faces.data_ptr<int64_t>();
+  const int64_t* off = face_offsets.data_ptr<int64_t>();
+  std::vector<T> lo(3 * F), hi(3 * F), cen(3 * F);
+  at::parallel_for(0, F, GRAIN_LINEAR, [&](int64_t s, int64_t e) {
+    for (int64_t f = s; f < e; ++f) {
+      const T* a = V + 3 * Fi[3 * f];
+      const T* b = V + 3 * Fi[3 * f + 1];
+      const T* c = V + 3 * Fi[3 * f + 2];
+      for (int k = 0; k < 3; ++k) {
+        lo[3 * f + k] = std::min(a[k], std::min(b[k], c[k]));
+        hi[3 * f + k] = std::max(a[k], std::max(b[k], c[k]));
+        cen[3 * f + k] = (lo[3 * f + k] + hi[3 * f + k]) * T(0.5);
+      }
+    }
+  });
+  std::vector<Node<T>> nodes;
+  std::vector<int64_t> roots, perm;
+  build_forest<T>(lo.data(), hi.data(), cen.data(), off, B, LEAF_FACES, nodes, roots, perm);
+  std::vector<FaceData<T>> fd(F);
+  at::parallel_for(0, F, GRAIN_LINEAR, [&](int64_t s, int64_t e) {
+    for (int64_t i = s; i < e; ++i) {
+      const int64_t f = perm[i];
+      const T* a = V + 3 * Fi[3 * f];
+      const T* b = V + 3 * Fi[3 * f + 1];
+      const T* c = V + 3 * Fi[3 * f + 2];
+      FaceData<T>& d = fd[i];
+      for (int k = 0; k < 3; ++k) {
+        d.a[k] = a[k];
+        d.b[k] = b[k];
+        d.ab[k] = b[k] - a[k];
+        d.ac[k] = c[k] - a[k];
+        d.bc[k] = c[k] - b[k];
+      }
+      d.n[0] = d.ab[1] * d.ac[2] - d.ab[2] * d.ac[1];
+      d.n[1] = d.ab[2] * d.ac[0] - d.ab[0] * d.ac[2];
+      d.n[2] = d.ab[0] * d.ac[1] - d.ab[1] * d.ac[0];
+      d.nn = dot3(d.n, d.n);
+    }
+  });
+  const T* Pp = points.data_ptr<T>();
+  const int64_t* pb = point_batch.data_ptr<int64_t>();
+  std::vector<T> slack = item_slack<T>(lo.data(), hi.data(), off, B);
+  auto out = torch::empty({P}, torch::dtype(torch::kInt64));
+  int64_t* o = out.data_ptr<int64_t>();
+  const Node<T>* nd = nodes.data();
+  const FaceData<T>* fdp = fd.data();
+  const int64_t* pm = perm.data();
+  const std::vector<int64_t> order = query_order<T>(Pp, P);
+  const int64_t* ord = order.data();
+  at::parallel_for(0, P, 256, [&](int64_t s, int64_t e) {
+    for (int64_t q = s; q < e; ++q) {
+      const int64_t i = ord[q];
+      const int64_t b = pb[i];
+      T best = std::numeric_limits<T>::infinity();
+      int64_t best_idx = off[b];
+      traverse<T>(nd, roots[b], Pp + 3 * i, slack[b], best, best_idx,
+                  [fdp, pm](int64_t start, int64_t count, const T* p, T& best_sq, int64_t& bi) {
+                    for (int64_t j = start; j < start + count; ++j) {
+                      const T sq = tri_sq_dist(fdp[j], p);
+                      const int64_t f = pm[j];
+                      if (sq < best_sq || (sq == best_sq && f < bi)) {
+                        best_sq = sq;
+                        bi = f;
+                      }
+                    }
+                  });
+      o[i] = best_idx;
+    }
+  });
+  return out;
+}
+
+// Nearest reference point; ties compared on the rounded Euclidean distance sqrt(sum d_k^2), like torch.cdist
+// with compute_mode="donot_use_mm_for_euclid_dist", lowest index first.
+template <typename T>
+torch::Tensor nearest_points_impl(const torch::Tensor& points, const torch::Tensor& point_batch,
+                                  const torch::Tensor& ref, const torch::Tensor& ref_offsets) {
+  const int64_t R = ref.size(0), P = points.size(0), B = ref_offsets.size(0) - 1;
+  const T* Rp = ref.data_ptr<T>();
+  const int64_t* off = ref_offsets.data_ptr<int64_t>();
+  std::vector<Node<T>> nodes;
+  std::vector<int64_t> roots, perm;
+  build_forest<T>(Rp, Rp, Rp, off, B, LEAF_POINTS, nodes, roots, perm);
+  std::vector<T> rs(3 * R);
+  at::parallel_for(0, R, GRAIN_LINEAR, [&](int64_t s, int64_t e) {
+    for (int64_t i = s; i < e; ++i)
+      for (int k = 0; k < 3; ++k) rs[3 * i + k] = Rp[3 * perm[i] + k];
+  });
+  const T* Pp = points.data_ptr<T>();
+  const int64_t* pb = point_batch.data_ptr<int64_t>();
+  std::vector<T> slack = item_slack<T>(Rp, Rp, off, B);
+  auto out = torch::empty({P}, torch::dtype(torch::kInt64));
+  int64_t* o = out.data_ptr<int64_t>();
+  const Node<T>* nd = nodes.data();
+  const T* rsp = rs.data();
+  const T tie = T(1) + T(4) * std::numeric_limits<T>::epsilon();
+  const int64_t* pm = perm.data();
+  const std::vector<int64_t> order = query_order<T>(Pp, P);
+  const int64_t* ord = order.data();
+  at::parallel_for(0, P, 256, [&](int64_t s, int64_t e) {
+    for (int64_t q = s; q < e; ++q) {
+      const int64_t i = ord[q];
+      const int64_t b = pb[i];
+      T best = std::numeric_limits<T>::infinity();
+      int64_t best_idx = off[b];
+      traverse<T>(nd, roots[b], Pp + 3 * i, slack[b], best, best_idx,
+                  [rsp, pm, tie](int64_t start, int64_t count, const T* p, T& best_sq, int64_t& bi) {
+                    for (int64_t j = start; j < start + count; ++j) {
+                      const T sq = point_sq_dist(rsp + 3 * j, p);
+                      // sqrt is monotone: beyond 4 ulps above the best square the rounded distance is larger.
+                      if (sq > best_sq * tie) continue;
+                      // Equal rounded distances are ties (as in cdist), even when the squares differ.
+                      const T d = std::sqrt(sq), db = std::sqrt(best_sq);
+                      const int64_t r = pm[j];
+                      if (d < db || (d == db && r < bi)) {
+                        best_sq = sq;
+                        bi = r;
+                      }
+                    }
+                  });
+      o[i] = best_idx;
+    }
+  });
+  return out;
+}
+
+// All (point, face) squared distances, (P, F): for tests of bit-equality with the torch formulation only.
+template <typename T>
+torch::Tensor pair_sq_dists_impl(const torch::Tensor& points, const torch::Tensor& verts, const torch::Tensor& faces) {
+  const int64_t F = faces.size(0), P = points.size(0);
+  const T* V = verts.data_ptr<T>();
+  const int64_t* Fi = faces.data_ptr<int64_t>();
+  const T* Pp = points.data_ptr<T>();
+  auto out = torch::empty({P, F}, points.options());
+  T* o = out.data_ptr<T>();
+  for (int64_t f = 0; f < F; ++f) {
+    const T* a = V + 3 * Fi[3 * f];
+    const T* b = V + 3 * Fi[3 * f + 1];
+    const T* c = V + 3 * Fi[3 * f + 2];
+    FaceData<T> d;
+    for (int k = 0; k < 3; ++k) {
+      d.a[k] = a[k];
+      d.b[k] = b[k];
+      d.ab[k] = b[k] - a[k];
+      d.ac[k] = c[k] - a[k];
+      d.bc[k] = c[k] - b[k];
+    }
+    d.n[0] = d.ab[1] * d.ac[2] - d.ab[2] * d.ac[1];
+    d.n[1] = d.ab[2] * d.ac[0] - d.ab[0] * d.ac[2];
+    d.n[2] = d.ab[0] * d.ac[1] - d.ab[1] * d.ac[0];
+    d.nn = dot3(d.n, d.n);
+    for (int64_t i = 0; i < P; ++i) o[i * F + f] = tri_sq_dist(d, Pp + 3 * i);
+  }
+  return out;
+}
+
+void check_inputs(const torch::Tensor& points, const torch::Tensor& point_batch, const torch::Tensor& prims,
+                  const torch::Tensor& offsets) {
+  TORCH_CHECK(points.device().is_cpu() && prims.device().is_cpu(), "bvh: CPU tensors expected");
+  TORCH_CHECK(points.is_contiguous() && prims.is_contiguous(), "bvh: contiguous tensors expected");
+  TORCH_CHECK(point_batch.scalar_type() == torch::kInt64 && offsets.scalar_type() == torch::kInt64,
+              "bvh: int64 batch/offsets expected");
+  TORCH_CHECK(point_batch.is_contiguous() && offsets.is_contiguous(), "bvh: contiguous batch/offsets expected");
+}
+
+}  // namespace
+
+torch::Tensor closest_faces(torch::Tensor points, torch::Tensor point_batch, torch::Tensor verts,
+                            torch::Tensor faces, torch::Tensor face_offsets) {
+  check_inputs(points, point_batch, verts, face_offsets);
+  TORCH_CHECK(faces.scalar_type() == torch::kInt64 && faces.is_contiguous(), "bvh: contiguous int64 faces expected");
+  TORCH_CHECK(points.scalar_type() == verts.scalar_type(), "bvh: points and verts must share a dtype");
+  if (points.scalar_type() == torch::kFloat64)
+    return closest_faces_impl<double>(points, point_batch, verts, faces, face_offsets);
+  TORCH_CHECK(points.scalar_type() == torch::kFloat32, "bvh: float32 or float64 expected");
+  return closest_faces_impl<float>(points, point_batch, verts, faces, face_offsets);
+}
+
+torch::Tensor nearest_points(torch::Tensor points, torch::Tensor point_batch, torch::Tensor ref,
+                             torch::Tensor ref_offsets) {
+  check_inputs(points, point_batch, ref, ref_offsets);
+  TORCH_CHECK(points.scalar_type() == ref.scalar_type(), "bvh: points and ref must share a dtype");
+  if (points.scalar_type() == torch::kFloat64)
+    return nearest_points_impl<double>(points, point_batch, ref, ref_offsets);
+  TORCH_CHECK(points.scalar_type() == torch::kFloat32, "bvh: float32 or float64 expected");
+  return nearest_points_impl<float>(points, point_batch, ref, ref_offsets);
+}
+
+torch::Tensor pair_sq_dists(torch::Tensor points, torch::Tensor verts, torch::Tensor faces) {
+  TORCH_CHECK(points.is_contiguous() && verts.is_contiguous() && faces.is_contiguous(), "contiguous expected");
+  if (points.scalar_type() == torch::kFloat64) return pair_sq_dists_impl<double>(points, verts, faces);
+  return pair_sq_dists_impl<float>(points, verts, faces);
+}
+
+PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
+  m.def("closest_faces", &closest_faces, "Closest face per point (BVH, exact, lowest index on ties)");
+  m.def("pair_sq_dists", &pair_sq_dists, "All point-face squared distances (tests only)");
+  m.def("nearest_points", &nearest_points, "Nearest reference point per point (BVH, exact, lowest index on ties)");
+}

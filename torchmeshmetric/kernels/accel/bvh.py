@@ -1,0 +1,50 @@
+"""CPU selectors backed by the C++ BVH extension (``bvh.cpp``), with the pure-torch pruned path as fallback."""
+
+from __future__ import annotations
+
+from torch import Tensor
+
+from torchmeshmetric.kernels.accel._extension import load_bvh
+from torchmeshmetric.kernels.accel.pruned import pruned_faces, pruned_nearest
+
+__all__ = ["bvh_faces", "bvh_nearest"]
+
+
+def bvh_faces(
+    points: Tensor,
+    point_batch: Tensor,
+    verts: Tensor,
+    faces: Tensor,
+    face_batch: Tensor,
+    face_offsets: Tensor,
+    max_memory: int,
+) -> Tensor:
+    """Closest face per point through one BVH per item (face-selector contract), exact, lowest index on ties.
+
+    Runs on CPU tensors; other devices, or a missing compiler, use :func:`pruned_faces`.
+    """
+    ext = load_bvh() if points.device.type == "cpu" else None
+    if ext is None:
+        return pruned_faces(points, point_batch, verts, faces, face_batch, face_offsets, max_memory)
+    return ext.closest_faces(
+        points.contiguous(),
+        point_batch.contiguous(),
+        verts.contiguous(),
+        faces.long().contiguous(),
+        face_offsets.long().contiguous(),
+    )
+
+
+def bvh_nearest(
+    points: Tensor, point_batch: Tensor, ref: Tensor, ref_batch: Tensor, ref_offsets: Tensor, max_memory: int
+) -> Tensor:
+    """Nearest reference point per point through one BVH per item (nearest-selector contract), exact.
+
+    Runs on CPU tensors; other devices, or a missing compiler, use :func:`pruned_nearest`.
+    """
+    ext = load_bvh() if points.device.type == "cpu" else None
+    if ext is None:
+        return pruned_nearest(points, point_batch, ref, ref_batch, ref_offsets, max_memory)
+    return ext.nearest_points(
+        points.contiguous(), point_batch.contiguous(), ref.contiguous(), ref_offsets.long().contiguous()
+    )

@@ -1,0 +1,177 @@
+"""Exact selection by certified cluster pruning, in plain torch ops (any device; the CUDA and no-compiler path).
+
+Primitives (faces or reference points) of each item are sorted along a Morton curve of their box centres and
+grouped into clusters of ``CLUSTER`` consecutive primitives with a bounding box. For a chunk of query points:
+
+1. lower bound ``lb[p, c]``: squared distance from ``p`` to the box of cluster ``c`` (same item only);
+2. upper bound ``ub[p]``: exact distance to every primitive of the cluster with the smallest ``lb``;
+3. candidate clusters: ``lb <= bound(ub)``, where ``bound`` adds a certified slack for rounding (64 ulps of the
+   distance and of the item's coordinate scale, the same rule as the C++ BVH); every other cluster provably holds
+   no primitive whose computed distance could tie or beat ``ub``;
+4. exact distances to the primitives of the candidate clusters, computed by the very same torch expression as the
+   brute force, then the minimum with the lowest primitive index among ties.
+
+Memory is ``O(points + primitives)`` per chunk bound: ``lb`` is chunked so that it stays under ``max_memory``, and
+the candidate pairs are evaluated in chunks of the same budget.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import torch
+from torch import Tensor
+
+from torchmeshmetric.kernels.point_triangle import _region_candidates
+
+__all__ = ["pruned_faces", "pruned_nearest"]
+
+CLUSTER = 32
+"""Primitives per cluster."""
+
+_SLACK_ULPS = 64.0
+
+# (query points (Q, 3), primitive ids (Q, K) with -1 = none) -> squared distances (Q, K), inf for -1.
+PairSqDist = Callable[[Tensor, Tensor], Tensor]
+
+
+def _morton(x: Tensor, lo: Tensor, hi: Tensor) -> Tensor:
+    """30-bit Morton codes of ``x`` (N, 3) within per-row boxes ``lo``/``hi`` (N, 3)."""
+    ext = (hi - lo).clamp_min(torch.finfo(x.dtype).tiny)
+    q = ((x - lo) / ext * 1023.99).clamp(0, 1023).long()
+    code = torch.zeros(x.shape[0], dtype=torch.long, device=x.device)
+    for bit in range(10):
+        for axis in range(3):
+            code |= ((q[:, axis] >> bit) & 1) << (3 * bit + 2 - axis)
+    return code
+
+
+def _clusters(lo: Tensor, hi: Tensor, batch: Tensor, offsets: Tensor) -> tuple[Tensor, Tensor, Tensor, Tensor, Tensor]:
+    """Sort primitives per item along a Morton curve and group them in clusters.
+
+    Returns ``(members (C, CLUSTER) global ids or -1, box_lo (C, 3), box_hi (C, 3), cluster_batch (C,),
+    cluster_offsets (B+1,))``.
+    """
+    n, device = lo.shape[0], lo.device
+    num_items = offsets.numel() - 1
+    cen = 0.5 * (lo + hi)
+    big = torch.full((num_items, 3), float("inf"), dtype=lo.dtype, device=device)
+    c_lo = big.scatter_reduce(0, batch[:, None].expand(-1, 3), cen, "amin")
+    c_hi = (-big).scatter_reduce(0, batch[:, None].expand(-1, 3), cen, "amax")
+    code = _morton(cen, c_lo[batch], c_hi[batch])
+    order = torch.sort(batch * (1 << 30) + code, stable=True).indices
+    lengths = offsets[1:] - offsets[:-1]
+    per_item = (lengths + CLUSTER - 1) // CLUSTER
+    c_off = torch.cat([per_item.new_zeros(1), per_item.cumsum(0)])
+    rank = torch.arange(n, device=device) - offsets[batch[order]]
+    slot = (c_off[batch[order]] + rank // CLUSTER) * CLUSTER + rank % CLUSTER
+    num_c = int(c_off[-1])
+    members = torch.full((num_c * CLUSTER,), -1, dtype=torch.long, device=device)
+    members[slot] = order
+    members = members.view(num_c, CLUSTER)
+    cl = torch.arange(num_c, device=device).repeat_interleave(CLUSTER)
+    ok = members.view(-1) >= 0
+    cid, mid = cl[ok], members.view(-1)[ok]
+    inf = torch.full((num_c, 3), float("inf"), dtype=lo.dtype, device=device)
+    b_lo = inf.scatter_reduce(0, cid[:, None].expand(-1, 3), lo[mid], "amin")
+    b_hi = (-inf).scatter_reduce(0, cid[:, None].expand(-1, 3), hi[mid], "amax")
+    c_batch = torch.arange(num_items, device=device).repeat_interleave(per_item)
+    return members, b_lo, b_hi, c_batch, c_off
+
+
+def _box_sq(p: Tensor, lo: Tensor, hi: Tensor) -> Tensor:
+    """(Q, C) squared distance from points (Q, 3) to boxes (C, 3)."""
+    d = torch.maximum((lo[None] - p[:, None]).clamp_min(0), (p[:, None] - hi[None]).clamp_min(0))
+    return (d * d).sum(-1)
+
+
+def _select(
+    points: Tensor,
+    point_batch: Tensor,
+    lo: Tensor,
+    hi: Tensor,
+    prim_batch: Tensor,
+    offsets: Tensor,
+    pair_sq: PairSqDist,
+    compare_sqrt: bool,
+    max_memory: int,
+) -> Tensor:
+    device, dtype = points.device, points.dtype
+    num_items = offsets.numel() - 1
+    members, b_lo, b_hi, c_batch, c_off = _clusters(lo, hi, prim_batch, offsets)
+    eps = torch.finfo(dtype).eps
+    scale = torch.zeros(num_items, dtype=dtype, device=device)
+    scale = scale.scatter_reduce(0, prim_batch, torch.maximum(lo.abs(), hi.abs()).amax(-1), "amax")
+    slack = _SLACK_ULPS * eps * scale
+    num_p, num_c = points.shape[0], members.shape[0]
+    out = torch.empty(num_p, dtype=torch.long, device=device)
+    # One (chunk, C) lower-bound matrix of ~6 live values per entry, or pairs x CLUSTER x ~40 values.
+    rows = max(1, min(num_p, max_memory // max(1, 6 * num_c * points.element_size())))
+    pair_rows = max(1, max_memory // (40 * CLUSTER * points.element_size()))
+    big = torch.iinfo(torch.long).max
+    for p0 in range(0, num_p, rows):
+        p1 = min(num_p, p0 + rows)
+        p, pb = points[p0:p1], point_batch[p0:p1]
+        c_lo_i, c_hi_i = int(c_off[pb.min()]), int(c_off[pb.max() + 1])
+        lb = _box_sq(p, b_lo[c_lo_i:c_hi_i], b_hi[c_lo_i:c_hi_i])
+        lb = lb.masked_fill(pb[:, None] != c_batch[None, c_lo_i:c_hi_i], float("inf"))
+        first = lb.argmin(-1) + c_lo_i
+        ub = pair_sq(p, members[first]).amin(-1)
+        bound = (ub.sqrt() * (1 + _SLACK_ULPS * eps) + slack[pb]) ** 2
+        q_idx, c_idx = (lb <= bound[:, None]).nonzero(as_tuple=True)
+        c_idx = c_idx + c_lo_i
+        key = torch.full((p1 - p0,), float("inf"), dtype=dtype, device=device)
+        keys, ids = [], []
+        for s0 in range(0, q_idx.numel(), pair_rows):
+            q, c = q_idx[s0 : s0 + pair_rows], c_idx[s0 : s0 + pair_rows]
+            mem = members[c]
+            sq = pair_sq(p[q], mem)
+            k = sq.sqrt() if compare_sqrt else sq
+            kmin = k.amin(-1)
+            kid = torch.where(k == kmin[:, None], mem, torch.full_like(mem, big)).amin(-1)
+            key = key.scatter_reduce(0, q, kmin, "amin")
+            keys.append(kmin)
+            ids.append(kid)
+        kmin, kid = torch.cat(keys), torch.cat(ids)
+        best = torch.full((p1 - p0,), big, dtype=torch.long, device=device)
+        best = best.scatter_reduce(0, q_idx, torch.where(kmin == key[q_idx], kid, torch.full_like(kid, big)), "amin")
+        out[p0:p1] = best
+    return out
+
+
+def pruned_faces(
+    points: Tensor,
+    point_batch: Tensor,
+    verts: Tensor,
+    faces: Tensor,
+    face_batch: Tensor,
+    face_offsets: Tensor,
+    max_memory: int,
+) -> Tensor:
+    """Closest face per point (face-selector contract of ``register_face_backend``), exact, any device."""
+    tri = verts[faces]
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    ab, ac, bc = b - a, c - a, c - b
+
+    def pair_sq(p: Tensor, mem: Tensor) -> Tensor:
+        f = mem.clamp_min(0)
+        q = p[:, None]
+        sq = _region_candidates(q - a[f], q - b[f], ab[f], ac[f], bc[f])[-1].amin(-1)
+        return sq.masked_fill(mem < 0, float("inf"))
+
+    return _select(points, point_batch, tri.amin(1), tri.amax(1), face_batch, face_offsets, pair_sq, False, max_memory)
+
+
+def pruned_nearest(
+    points: Tensor, point_batch: Tensor, ref: Tensor, ref_batch: Tensor, ref_offsets: Tensor, max_memory: int
+) -> Tensor:
+    """Nearest reference point per point (selector contract of ``register_nearest_backend``), exact, any device.
+
+    Ties are decided on the rounded Euclidean distance, like the brute force's ``torch.cdist``.
+    """
+
+    def pair_sq(p: Tensor, mem: Tensor) -> Tensor:
+        d = p[:, None] - ref[mem.clamp_min(0)]
+        return (d * d).sum(-1).masked_fill(mem < 0, float("inf"))
+
+    return _select(points, point_batch, ref, ref, ref_batch, ref_offsets, pair_sq, True, max_memory)
