@@ -25,6 +25,7 @@ import numpy as np
 import torch
 
 from torchmeshmetric._checks import EmptyInputError
+from torchmeshmetric.kernels.nearest import nearest_vertex_distance
 from torchmeshmetric.simplification._target import resolve_target
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
@@ -100,11 +101,9 @@ def _ragged(ptr: np.ndarray, sel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _nearest_vertices(points: np.ndarray, verts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Exact nearest vertex (index, distance) of each point; a k-d tree, same answer as ``nearest_vertex_distance``."""
-    from scipy.spatial import cKDTree
-
-    dist, idx = cKDTree(verts).query(points, k=1)
-    return idx.astype(np.int64), dist
+    """Exact nearest vertex (index, distance) of each point, with the library's own kernel."""
+    r = nearest_vertex_distance(torch.from_numpy(points), torch.from_numpy(verts))
+    return r.idx.numpy().astype(np.int64), r.dists.numpy()
 
 
 def simplify_registered_qem(
