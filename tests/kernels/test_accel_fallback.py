@@ -18,6 +18,7 @@ def test_compile_failure_warns_once_and_falls_back(monkeypatch):
         raise RuntimeError("no C++ compiler")
 
     monkeypatch.setattr(cpp, "load", no_compiler)
+    monkeypatch.setattr(_extension, "_import_built", lambda name: None)  # and no earlier build on disk
     monkeypatch.setattr(_extension, "_STATE", {})
     g = torch.Generator().manual_seed(0)
     verts = torch.randn(50, 3, generator=g, dtype=torch.float64)
@@ -31,3 +32,20 @@ def test_compile_failure_warns_once_and_falls_back(monkeypatch):
     ref = point_mesh_distance(points, verts, faces, backend="bruteforce")
     assert torch.equal(got.face_idx, ref.face_idx) and torch.equal(again.face_idx, ref.face_idx)
     assert torch.equal(got.dists, ref.dists)
+
+
+def test_finished_build_is_imported_without_running_load(monkeypatch):
+    import torch.utils.cpp_extension as cpp
+
+    if _extension.load_bvh() is None:  # makes sure a build exists (compiles once if needed)
+        pytest.skip("the extension cannot be built here")
+
+    def must_not_run(*args, **kwargs):
+        raise AssertionError("load() ran although a finished build exists")
+
+    monkeypatch.setattr(cpp, "load", must_not_run)
+    monkeypatch.setattr(_extension, "_STATE", {})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        module = _extension.load_bvh()
+    assert module is not None and hasattr(module, "__file__")

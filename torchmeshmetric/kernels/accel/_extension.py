@@ -9,6 +9,7 @@ When compilation is impossible (no C++ compiler, no ``ninja``), :func:`load_bvh`
 from __future__ import annotations
 
 import hashlib
+import importlib.util
 import threading
 import warnings
 from pathlib import Path
@@ -24,6 +25,28 @@ _STATE: dict[str, ModuleType | None] = {}
 _CFLAGS = ["-O3", "-fopenmp", "-ffp-contract=off", "-fno-fast-math", "-std=c++17"]
 
 
+def _import_built(name: str) -> ModuleType | None:
+    """Import an already built extension directly, skipping ``load``'s ninja run and build-directory lock.
+
+    ``load`` re-runs ninja and takes a file lock in every new process (seconds, and much longer when several
+    processes start at once); a finished build of this exact source is simply imported.
+    """
+    try:
+        from torch.utils.cpp_extension import _get_build_directory
+
+        path = Path(_get_build_directory(name, verbose=False)) / f"{name}.so"
+        if not path.is_file():
+            return None
+        spec = importlib.util.spec_from_file_location(name, path)
+        if spec is None or spec.loader is None:
+            return None
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        return module
+    except Exception:  # anything unexpected: fall back to the regular (checked) build-and-load path
+        return None
+
+
 def load_bvh() -> ModuleType | None:
     """The compiled BVH extension, or ``None`` (with one warning) when it cannot be built."""
     with _LOCK:
@@ -35,8 +58,13 @@ def load_bvh() -> ModuleType | None:
 
             # The source hash in the name makes an edited source rebuild instead of reusing a stale cache.
             digest = hashlib.sha1(_SOURCE.read_bytes()).hexdigest()[:10]
+            name = f"torchmeshmetric_bvh_{digest}"
+            module = _import_built(name)
+            if module is not None:
+                _STATE["bvh"] = module
+                return module
             module = load(
-                name=f"torchmeshmetric_bvh_{digest}",
+                name=name,
                 sources=[str(_SOURCE)],
                 extra_cflags=_CFLAGS,
                 extra_ldflags=["-fopenmp"],
