@@ -25,10 +25,9 @@ from typing import Any, NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric.kernels.point_triangle import closest_point_on_triangle
+from torchmeshmetric.kernels.point_triangle import point_mesh_distance
 from torchmeshmetric.kernels.sampling import sample_surface
 from torchmeshmetric.registration._common import (
-    closest_faces,
     face_unit_normals,
     referenced_mask,
     validate_pair,
@@ -116,9 +115,7 @@ def _identity_rigid(verts: Tensor) -> RigidRegistration:
 
 
 def _residual(points: Tensor, verts: Tensor, faces: Tensor) -> Tensor:
-    fi = closest_faces(points, verts, faces)
-    tri = verts[faces[fi]]
-    return closest_point_on_triangle(points, tri[:, 0], tri[:, 1], tri[:, 2]).sq_dists.clamp_min(0).sqrt()
+    return point_mesh_distance(points, verts, faces).dists
 
 
 def register_nonrigid(
