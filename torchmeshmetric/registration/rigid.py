@@ -261,11 +261,15 @@ def register_rigid(
         w = _robust_trimmed_weights(dists, trim, sigma2)
         if point_to_plane:
             n = tgt_normals[res.face_idx]
-            # Zero-area faces have no normal: fall back to the point-to-point direction for those matches.
-            no_n = (n * n).sum(-1) == 0
+            # The face normal is the distance's gradient direction only for a match inside the face. A match on an
+            # edge or a vertex (a zero barycentric) is shared by several faces, which tie, so the face normal would
+            # depend on tie-breaking; there, and on zero-area faces (no normal), use the direction to the closest
+            # point, the distance's gradient. Matches on the surface (distance 0) keep the face normal.
+            no_n = ((n * n).sum(-1) == 0) | (res.bary <= 0).any(-1)
             if bool(no_n.any()):
                 diff = cur - res.closest
-                n = torch.where(no_n[:, None], diff / diff.norm(dim=-1, keepdim=True).clamp_min(1e-30), n)
+                dn = diff.norm(dim=-1, keepdim=True)
+                n = torch.where(no_n[:, None] & (dn > 0), diff / dn.clamp_min(1e-30), n)
             step = _point_to_plane_step(cur, res.closest, n, w, scale)
         else:
             step = kabsch_umeyama(cur, res.closest, w, scale=scale)
