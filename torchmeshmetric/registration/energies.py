@@ -1,6 +1,7 @@
 """Energies of non-rigid registration: robust data terms, correspondence rejection, the embedded-deformation prior.
 
-Correspondences are *face* assignments found with the exact closest-point search and refreshed every few
+Correspondences are *face* assignments found with the exact closest-point kernel
+(:func:`~torchmeshmetric.point_mesh_distance`, accelerated exact backends) and refreshed every few
 optimiser steps; between refreshes each energy recomputes the exact closest point on the assigned face
 (Ericson 2004, :func:`~torchmeshmetric.closest_point_on_triangle`), so the residual stays exact and differentiable
 while the expensive search is amortised. All distances are in the units of the points given; the registration loop
@@ -15,8 +16,8 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric.kernels.point_triangle import closest_point_on_triangle
-from torchmeshmetric.registration._common import closest_faces, face_unit_normals
+from torchmeshmetric.kernels.point_triangle import closest_point_on_triangle, point_mesh_distance
+from torchmeshmetric.registration._common import face_unit_normals
 from torchmeshmetric.registration.deformation_graph import DeformationGraph
 
 __all__ = [
@@ -83,10 +84,8 @@ def find_correspondences(
     with torch.no_grad():
         p = points.detach()
         v = verts.detach()
-        face_idx = closest_faces(p, v, faces)
-        tri = v[faces[face_idx]]
-        sq = closest_point_on_triangle(p, tri[:, 0], tri[:, 1], tri[:, 2]).sq_dists
-        d = sq.clamp_min(0).sqrt()
+        res = point_mesh_distance(p, v, faces)
+        face_idx, d = res.face_idx, res.dists
         ok = d <= max_distance
         if point_normals is not None:
             fn = face_unit_normals(v, faces)[face_idx]

@@ -25,10 +25,9 @@ from typing import Any, NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric.kernels.point_triangle import closest_point_on_triangle
+from torchmeshmetric.kernels.point_triangle import point_mesh_distance
 from torchmeshmetric.kernels.sampling import sample_surface
 from torchmeshmetric.registration._common import (
-    closest_faces,
     face_unit_normals,
     referenced_mask,
     validate_pair,
@@ -116,9 +115,7 @@ def _identity_rigid(verts: Tensor) -> RigidRegistration:
 
 
 def _residual(points: Tensor, verts: Tensor, faces: Tensor) -> Tensor:
-    fi = closest_faces(points, verts, faces)
-    tri = verts[faces[fi]]
-    return closest_point_on_triangle(points, tri[:, 0], tri[:, 1], tri[:, 2]).sq_dists.clamp_min(0).sqrt()
+    return point_mesh_distance(points, verts, faces).dists
 
 
 def register_nonrigid(
@@ -244,6 +241,7 @@ def register_nonrigid(
         prev_window: float | None = None
         corr_f: Correspondences | None = None
         corr_r: Correspondences | None = None
+        corr_r_loc: Correspondences | None = None
         for step in range(stage.max_steps):
             if step % correspondence_every == 0:
                 t0 = time.perf_counter()
@@ -256,14 +254,24 @@ def register_nonrigid(
                         corr_r = find_correspondences(tsamp, tsamp_n, dv, sf, max_distance=stage.max_distance,
                                                       max_normal_angle=stage.max_normal_angle)  # fmt: skip
                 timings["correspondences"] += time.perf_counter() - t0
+                # Only the data points and the vertices of the faces matched by target samples enter the data
+                # terms: deform just those (forward and backward then scale with them, not with all vertices).
+                rev_faces = sf[corr_r.face_idx] if corr_r is not None else sf[:0]
+                need, inv = torch.cat([surf, rev_faces.reshape(-1)]).unique(return_inverse=True)
+                surf_loc, faces_loc = inv[: surf.numel()], inv[surf.numel() :].view(-1, 3)
+                corr_r_loc = (
+                    corr_r._replace(face_idx=torch.arange(rev_faces.shape[0], device=dev))
+                    if corr_r is not None
+                    else None
+                )
             assert corr_f is not None
             opt.zero_grad(set_to_none=True)
-            dv = graph()
-            loss = surface_term(dv[surf], tv, tf, corr_f, sigma=stage.robust_scale, plane_weight=plane_weight,
+            dsub = graph.deform_vertices(need)
+            loss = surface_term(dsub[surf_loc], tv, tf, corr_f, sigma=stage.robust_scale, plane_weight=plane_weight,
                                 point_weight=point_weight)  # fmt: skip
-            if corr_r is not None and reverse_weight:
+            if corr_r_loc is not None and reverse_weight:
                 loss = loss + reverse_weight * surface_term(
-                    tsamp, dv, sf, corr_r, sigma=stage.robust_scale, plane_weight=0.0, point_weight=1.0
+                    tsamp, dsub, faces_loc, corr_r_loc, sigma=stage.robust_scale, plane_weight=0.0, point_weight=1.0
                 )
             # Data terms in units of the node spacing, so a regularisation weight of 1 trades an edge residual of
             # one spacing against a data residual of one spacing.

@@ -18,8 +18,8 @@ from kornia.geometry.conversions import axis_angle_to_rotation_matrix
 from torch import Tensor
 
 from torchmeshmetric._checks import EmptyInputError, ShapeError, check_finite, check_float, check_shape
-from torchmeshmetric.kernels.point_triangle import PointMeshResult, closest_point_on_triangle
-from torchmeshmetric.registration._common import closest_faces, face_unit_normals, referenced_mask, validate_pair
+from torchmeshmetric.kernels.point_triangle import point_mesh_distance
+from torchmeshmetric.registration._common import face_unit_normals, referenced_mask, validate_pair
 from torchmeshmetric.structures import MeshLike
 
 __all__ = ["RigidRegistration", "SimilarityTransform", "kabsch_umeyama", "register_rigid", "transform_matrix"]
@@ -256,16 +256,20 @@ def register_rigid(
     dists = torch.zeros(pts.shape[0], dtype=dtype, device=device)
     for it in range(1, max_iterations + 1):  # noqa: B007 - the last value is reported
         cur = s * pts @ R.T + t
-        res = _closest(cur, tgt.verts, tgt.faces)
+        res = point_mesh_distance(cur, tgt.verts, tgt.faces)
         dists = res.dists
         w = _robust_trimmed_weights(dists, trim, sigma2)
         if point_to_plane:
             n = tgt_normals[res.face_idx]
-            # Zero-area faces have no normal: fall back to the point-to-point direction for those matches.
-            no_n = (n * n).sum(-1) == 0
+            # The face normal is the distance's gradient direction only for a match inside the face. A match on an
+            # edge or a vertex (a zero barycentric) is shared by several faces, which tie, so the face normal would
+            # depend on tie-breaking; there, and on zero-area faces (no normal), use the direction to the closest
+            # point, the distance's gradient. Matches on the surface (distance 0) keep the face normal.
+            no_n = ((n * n).sum(-1) == 0) | (res.bary <= 0).any(-1)
             if bool(no_n.any()):
                 diff = cur - res.closest
-                n = torch.where(no_n[:, None], diff / diff.norm(dim=-1, keepdim=True).clamp_min(1e-30), n)
+                dn = diff.norm(dim=-1, keepdim=True)
+                n = torch.where(no_n[:, None] & (dn > 0), diff / dn.clamp_min(1e-30), n)
             step = _point_to_plane_step(cur, res.closest, n, w, scale)
         else:
             step = kabsch_umeyama(cur, res.closest, w, scale=scale)
@@ -276,7 +280,7 @@ def register_rigid(
             converged = True
             break
     cur = s * pts @ R.T + t
-    res = _closest(cur, tgt.verts, tgt.faces)
+    res = point_mesh_distance(cur, tgt.verts, tgt.faces)
     w = _robust_trimmed_weights(res.dists, trim, float("inf"))
     keep = w > 0
     rmse = (res.dists[keep] ** 2).mean().sqrt()
@@ -306,11 +310,3 @@ def _robust_trimmed_weights(dists: Tensor, trim: float, sigma2: Tensor | float) 
     if not bool(s2 > 0):
         w = torch.ones_like(dists)
     return torch.where(keep, w, torch.zeros_like(w))
-
-
-def _closest(points: Tensor, verts: Tensor, faces: Tensor) -> PointMeshResult:
-    """Exact closest points on the mesh (pruned exact face search, then Ericson's closest point)."""
-    fi = closest_faces(points, verts, faces)
-    tri = verts[faces[fi]]
-    r = closest_point_on_triangle(points, tri[:, 0], tri[:, 1], tri[:, 2])
-    return PointMeshResult(r.sq_dists.clamp_min(0).sqrt(), fi, r.bary, r.closest)
