@@ -37,3 +37,65 @@ def test_demo_writes_tables_report_and_plots(capsys, tmp_path, known_registratio
     capsys.readouterr()
     assert main(["demo", *SMALL, "--out-dir", str(foreign)]) == 1
     assert "--overwrite" in capsys.readouterr().err
+
+
+_TABLES = {  # printed title -> (JSON part, sets of its rows: (k-1)-th then k-th)
+    "Table I:": ("best", ("surface_k_minus_1", "surface_k")),
+    "Table II:": ("best", ("vertex_k_minus_1", "vertex_k")),
+    "Table III:": ("aggregate", ("surface_k_minus_1", "surface_k")),
+    "Table IV:": ("aggregate", ("vertex_k_minus_1", "vertex_k")),
+}
+_COLUMNS = ("ave", "var", "std", "mse", "rmse", "max", "p95", "psnr")
+
+
+def _printed_tables(stdout):
+    """{title: {(algorithm, mesh): [8 numbers]}} parsed from the printed Markdown tables."""
+    tables, title = {}, None
+    for line in stdout.splitlines():
+        if line.startswith("### "):
+            title = next((t for t in _TABLES if t in line), None)
+            if title:
+                tables[title] = {}
+        elif title and line.startswith("| ") and not line.startswith("| Algorithm"):
+            cells = [c.strip() for c in line.strip("|").split("|")]
+            tables[title][(cells[0], cells[1])] = [float(c) for c in cells[2:]]
+    return tables
+
+
+def _check_tables_equal_report(stdout, report):
+    tables = _printed_tables(stdout)
+    assert set(tables) == set(_TABLES)
+    for title, (part, sets) in _TABLES.items():
+        assert len(tables[title]) == 2 * len(report["methods"])
+        for method, body in report["methods"].items():
+            stats = body["aggregate"] if part == "aggregate" else body["pairs"][body["best_pair"]["index"]]
+            for mesh, name in zip(("(k-1)-th", "k-th"), sets, strict=True):
+                printed = tables[title][(method, mesh)]
+                expected = [stats[name][c] for c in _COLUMNS]
+                # printed with 4 significant digits
+                assert printed == pytest.approx(expected, rel=6e-4, abs=0), (title, method, mesh)
+
+
+def test_demo_printed_tables_equal_json_report(capsys, tmp_path, known_registration):
+    out = tmp_path / "demo"
+    assert main(["demo", *SMALL, "--out-dir", str(out), "--no-plots"]) == 0
+    stdout = capsys.readouterr().out
+    _check_tables_equal_report(stdout, json.loads((out / "report.json").read_text()))
+
+
+def test_demo_end_to_end_real_registration(capsys, tmp_path):
+    """The demo as users run it (real fast registration, plots), on a tiny sequence: seconds."""
+    out = tmp_path / "demo"
+    code = main(["demo", "--frames", "3", "--resolution", "24", "--out-dir", str(out)])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    names = {p.name for p in out.iterdir()}
+    assert {"report.json", "report.md", "report.csv", "histograms.png", "frame_curves.png"} <= names
+    for name in ("report.json", "report.md", "report.csv", "histograms.png", "frame_curves.png"):
+        assert (out / name).stat().st_size > 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["settings"]["demo"]["registration"] == "fast"
+    assert report["settings"]["demo"]["target"] == 0.97
+    assert len(report["methods"]["Orig QEM"]["pairs"]) == 2
+    _check_tables_equal_report(captured.out, report)
+    assert (out / "report.md").read_text().count("| Reg QEM | k-th |") >= 4

@@ -67,8 +67,8 @@ def list_frames(paths: PathsLike) -> list[Path]:
         >>> d = pathlib.Path(tempfile.mkdtemp())
         >>> for n in (10, 2, 1):
         ...     _ = (d / f"frame{n}.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
-        >>> [p.name for p in list_frames(d)]
-        ['frame1.obj', 'frame2.obj', 'frame10.obj']
+        >>> " ".join(p.name for p in list_frames(d))
+        'frame1.obj frame2.obj frame10.obj'
     """
     if isinstance(paths, (str, os.PathLike)):
         p = Path(paths)
@@ -175,8 +175,8 @@ def load_sequence(paths: PathsLike, *, dtype: torch.dtype = torch.float32) -> li
         >>> d = pathlib.Path(tempfile.mkdtemp())
         >>> for n in (3, 1):
         ...     _ = (d / f"f{n}.obj").write_text(f"v 0 0 {n}\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
-        >>> [float(m.verts[0, 2]) for m in load_sequence(d)]
-        [1.0, 3.0]
+        >>> tuple(float(m.verts[0, 2]) for m in load_sequence(d))
+        (1.0, 3.0)
     """
     return [load_mesh(p, dtype=dtype) for p in list_frames(paths)]
 

@@ -43,7 +43,8 @@ class TemporalConsistency(Metric):
         >>> out = metric.compute()
         >>> sorted(out)
         ['reverse', 'surface_k', 'surface_k_minus_1', 'vertex_k', 'vertex_k_minus_1']
-        >>> float(out["vertex_k"]["max"]) < 1e-12  # coarse icosphere vertices lie on the fine one
+        >>> vertex_k = out["vertex_k"]
+        >>> float(vertex_k["max"]) < 1e-12  # coarse icosphere vertices lie on the fine one
         True
     """
 

@@ -84,14 +84,17 @@ def plot_frame_curves(
     """
     Figure = _figure()
     fig = Figure(figsize=(10, 7), layout="constrained")
+    from matplotlib.ticker import MaxNLocator
+
     axes = fig.subplots(2, 2, sharex=True)
     for ax, name in zip(axes.ravel(), SET_NAMES, strict=True):
         for m, seq in methods.items():
             frames = [p.frame for p in seq.pairs]
             ax.plot(frames, [float(getattr(p.statistics[name], statistic)) for p in seq.pairs], marker="o", label=m)
         ax.set_title(_LABELS[name], fontsize=10)
-        ax.set_xlabel("frame k")
-        ax.set_ylabel(statistic)
+        ax.set_xlabel("frame k (pair k-1, k)")
+        ax.set_ylabel(statistic.upper() if statistic in ("mse", "rmse") else statistic)
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # frames are integers
         ax.legend(fontsize=8)
-    fig.suptitle(f"{statistic} per frame")
+    fig.suptitle(f"{statistic.upper() if statistic in ('mse', 'rmse') else statistic} per frame pair")
     return _save(fig, path, overwrite)
