@@ -8,7 +8,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import EmptyInputError, check_same_device
+from torchmeshmetric._checks import EmptyInputError, check_finite, check_float, check_same_device, check_shape
 from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY, dot, item_centers, pair_chunks, safe_sqrt
 from torchmeshmetric.structures import batch_index, lengths_to_offsets, pack_points
 
@@ -99,6 +99,8 @@ def nearest_vertex_distance(
         >>> r.dists.item(), r.idx.item()
         (5.0, 0)
     """
+    if points_lengths is None and ref_lengths is None and isinstance(points, Tensor) and isinstance(ref_points, Tensor):
+        return _nearest_single(points, ref_points, max_memory, backend)
     pts = pack_points(points, points_lengths, "points")
     ref = pack_points(ref_points, ref_lengths, "ref_points")
     check_same_device({"points": pts.points, "ref_points": ref.points})
@@ -113,13 +115,7 @@ def nearest_vertex_distance(
     if bool(lacking.any()):
         b = int(lacking.nonzero()[0, 0])
         raise EmptyInputError(f"ref_points: reference set {b} is empty but has {int(pts.lengths[b])} query points")
-    if backend == "auto":
-        name = next((n for rule in _NEAREST_AUTO if (n := rule(pts.points, ref.points)) is not None), "bruteforce")
-        select = _NEAREST_BACKENDS[name]
-    elif backend in _NEAREST_BACKENDS:
-        select = _NEAREST_BACKENDS[backend]
-    else:
-        raise ValueError(f"backend: expected one of {['auto', *_NEAREST_BACKENDS]}, found {backend!r}")
+    select = _resolve_backend(backend, pts.points, ref.points)
     dtype = torch.promote_types(pts.points.dtype, ref.points.dtype)
     p, r = pts.points.to(dtype), ref.points.to(dtype)
     pb, rb = batch_index(pts.lengths), batch_index(ref.lengths)
@@ -129,3 +125,63 @@ def nearest_vertex_distance(
         idx = select(p_c.detach(), pb, r_c.detach(), rb, lengths_to_offsets(ref.lengths), max_memory)
     diff = p_c - r_c[idx]
     return NearestVertexResult(safe_sqrt(dot(diff, diff)), idx)
+
+
+def _resolve_backend(backend: str, points: Tensor, ref: Tensor) -> NearestSelector:
+    if backend == "auto":
+        name = next((n for rule in _NEAREST_AUTO if (n := rule(points, ref)) is not None), "bruteforce")
+        return _NEAREST_BACKENDS[name]
+    if backend in _NEAREST_BACKENDS:
+        return _NEAREST_BACKENDS[backend]
+    raise ValueError(f"backend: expected one of {['auto', *_NEAREST_BACKENDS]}, found {backend!r}")
+
+
+def _finite_bounds(x: Tensor, name: str) -> tuple[Tensor, Tensor]:
+    """Per-column ``(lo, hi)`` of a non-empty ``(N, 3)`` tensor in one pass, raising as ``check_finite`` would.
+
+    ``aminmax`` propagates NaN and keeps +-Inf, so finite bounds mean finite values.
+    """
+    lo, hi = torch.aminmax(x.detach(), dim=0)
+    if not bool(torch.isfinite(torch.cat([lo, hi])).all()):
+        check_finite(x, name)
+    return lo, hi
+
+
+def _nearest_single(points: Tensor, ref_points: Tensor, max_memory: int, backend: str) -> NearestVertexResult:
+    """Batch-of-one path of :func:`nearest_vertex_distance`: same checks, errors and results, less overhead.
+
+    The bounding-box pass of the reference set doubles as its finiteness check and gives the centre directly
+    (no scatter, no batch index, no gathers of per-item centres).
+    """
+    check_shape(points, ("P", 3), "points")
+    check_float(points, "points")
+    if points.shape[0]:
+        _finite_bounds(points, "points")
+    check_shape(ref_points, ("P", 3), "ref_points")
+    check_float(ref_points, "ref_points")
+    num_r = ref_points.shape[0]
+    bounds = _finite_bounds(ref_points, "ref_points") if num_r else None
+    check_same_device({"points": points, "ref_points": ref_points})
+    num_p = points.shape[0]
+    if num_p == 0:
+        raise EmptyInputError("points: expected at least one point, found an empty point set")
+    if bounds is None:
+        raise EmptyInputError(f"ref_points: reference set 0 is empty but has {num_p} query points")
+    select = _resolve_backend(backend, points, ref_points)
+    dtype = torch.promote_types(points.dtype, ref_points.dtype)
+    p, r = points.to(dtype), ref_points.to(dtype)
+    lo, hi = bounds[0].to(dtype), bounds[1].to(dtype)
+    center = 0.5 * (lo + hi)
+    p_c, r_c = p - center, r - center
+    device = points.device
+    with torch.no_grad():
+        pb = torch.zeros(num_p, dtype=torch.long, device=device)
+        rb = torch.zeros(num_r, dtype=torch.long, device=device)
+        offsets = torch.tensor([0, num_r], dtype=torch.long, device=device)
+        idx = select(p_c.detach(), pb, r_c.detach(), rb, offsets, max_memory)
+    if p_c.requires_grad or r_c.requires_grad:
+        diff = p_c - r_c[idx]
+        return NearestVertexResult(safe_sqrt(dot(diff, diff)), idx)
+    # Without autograd, safe_sqrt(sq) is sqrt(sq) bit for bit (sq >= 0, sqrt(0) = 0).
+    diff = p_c - r_c.index_select(0, idx)
+    return NearestVertexResult(torch.sqrt(dot(diff, diff)), idx)
