@@ -72,11 +72,15 @@ class Stage(NamedTuple):
 
 DEFAULT_SCHEDULE: tuple[Stage, ...] = (
     Stage(regularization=10.0, robust_scale=0.10, max_distance=0.30, max_normal_angle=80.0, lr=1e-2, max_steps=120),
-    Stage(regularization=1.0, robust_scale=0.05, max_distance=0.15, max_normal_angle=60.0, lr=5e-3, max_steps=120),
-    Stage(regularization=0.1, robust_scale=0.02, max_distance=0.08, max_normal_angle=50.0, lr=2e-3, max_steps=120),
-    Stage(regularization=0.02, robust_scale=0.01, max_distance=0.05, max_normal_angle=45.0, lr=1e-3, max_steps=120),
+    Stage(regularization=1.0, robust_scale=0.05, max_distance=0.15, max_normal_angle=60.0, lr=5e-3, max_steps=50),
+    Stage(regularization=0.1, robust_scale=0.02, max_distance=0.08, max_normal_angle=50.0, lr=2e-3, max_steps=50),
+    Stage(regularization=0.02, robust_scale=0.01, max_distance=0.05, max_normal_angle=45.0, lr=1e-3, max_steps=40),
 )
-"""The default coarse-to-fine schedule: regularisation, robust scale, rejection thresholds and step size decrease."""
+"""The default coarse-to-fine schedule: regularisation, robust scale, rejection thresholds and step size decrease.
+
+Stage lengths 120/50/50/40 steps (was 120 each): at ~17k vertices the ground-truth error barely moves
+(docs/registration.md) while the Adam steps, the dominant cost, drop by ~40 %. Stage 1 keeps 120 steps: shorter,
+Adam steps on the rounding-noise gradients of an exact start leave a visible drift."""
 
 
 class NonRigidRegistration(NamedTuple):
