@@ -11,7 +11,7 @@ from torch import Tensor
 from torchmeshmetric.kernels.sampling import vertex_set
 from torchmeshmetric.structures import Mesh, _looks_like_pair, as_mesh, as_points
 
-__all__ = ["PointSource", "as_point_sources", "as_reference_meshes"]
+__all__ = ["PointSource", "as_point_sources", "as_reference_meshes", "check_surface_samples"]
 
 
 class PointSource(NamedTuple):
@@ -89,3 +89,9 @@ def require_meshes(sources: Sequence[PointSource], name: str, why: str) -> list[
             raise TypeError(f"{name}[{i}]: expected a mesh ({why}), found a point set")
         meshes.append(s.mesh)
     return meshes
+
+
+def check_surface_samples(surface_samples: object) -> None:
+    """Validate the ``surface_samples`` argument: ``None`` (exact surface) or a positive int."""
+    if surface_samples is not None and (not isinstance(surface_samples, int) or surface_samples <= 0):
+        raise ValueError(f"surface_samples: expected None or a positive int, found {surface_samples!r}")

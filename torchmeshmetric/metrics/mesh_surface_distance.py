@@ -10,7 +10,12 @@ from torch import Tensor
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance
 from torchmeshmetric.kernels.point_triangle import point_mesh_distance
 from torchmeshmetric.kernels.sampling import sample_surface, vertex_set
-from torchmeshmetric.metrics._inputs import as_point_sources, as_reference_meshes, require_meshes
+from torchmeshmetric.metrics._inputs import (
+    as_point_sources,
+    as_reference_meshes,
+    check_surface_samples,
+    require_meshes,
+)
 from torchmeshmetric.metrics.directed_distances import DirectedDistances, lengths_of
 from torchmeshmetric.metrics.distance_statistics_metric import DistanceStatisticsBase
 from torchmeshmetric.structures import Mesh
@@ -75,8 +80,7 @@ def mesh_surface_distances(
         >>> [round(x, 5) for x in r.forward.tolist()]
         [1.0, 2.0]
     """
-    if surface_samples is not None and (not isinstance(surface_samples, int) or surface_samples <= 0):
-        raise ValueError(f"surface_samples: expected None or a positive int, found {surface_samples!r}")
+    check_surface_samples(surface_samples)
     sources = as_point_sources(simplified, "simplified")
     refs = as_reference_meshes(reference, len(sources), "reference")
     if detach_reference:
@@ -136,8 +140,7 @@ class MeshSurfaceDistance(DistanceStatisticsBase):
         relative_accuracy: float = 1e-3,
         **kwargs: Any,
     ) -> None:
-        if surface_samples is not None and (not isinstance(surface_samples, int) or surface_samples <= 0):
-            raise ValueError(f"surface_samples: expected None or a positive int, found {surface_samples!r}")
+        check_surface_samples(surface_samples)
         super().__init__(
             two_sided=two_sided,
             peak=peak,

@@ -6,6 +6,7 @@ from typing import Any
 
 from torch import Tensor, nn
 
+from torchmeshmetric.metrics._inputs import check_surface_samples
 from torchmeshmetric.metrics._reduction import check_loss_args, reduce_directed
 from torchmeshmetric.metrics.mesh_surface_distance import mesh_surface_distances
 
@@ -96,8 +97,7 @@ class MeshSurfaceDistanceLoss(nn.Module):
     ) -> None:
         super().__init__()
         check_loss_args(reduction, power)
-        if surface_samples is not None and (not isinstance(surface_samples, int) or surface_samples <= 0):
-            raise ValueError(f"surface_samples: expected None or a positive int, found {surface_samples!r}")
+        check_surface_samples(surface_samples)
         self.power = power
         self.reduction = reduction
         self.two_sided = two_sided
