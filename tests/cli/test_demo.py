@@ -3,7 +3,7 @@ import json
 
 import pytest
 
-from torchmeshmetric.cli import main
+from torchmeshmetric.cli import build_parser, main
 
 pytestmark = pytest.mark.skipif(
     importlib.util.find_spec("torchmeshmetric.simplification") is None,
@@ -86,7 +86,7 @@ def test_demo_printed_tables_equal_json_report(capsys, tmp_path, known_registrat
 def test_demo_end_to_end_real_registration(capsys, tmp_path):
     """The demo as users run it (real fast registration, plots), on a tiny sequence: seconds."""
     out = tmp_path / "demo"
-    code = main(["demo", "--frames", "3", "--resolution", "24", "--out-dir", str(out)])
+    code = main(["demo", "--frames", "3", "--resolution", "24", "--registration", "fast", "--out-dir", str(out)])
     captured = capsys.readouterr()
     assert code == 0, captured.err
     names = {p.name for p in out.iterdir()}
@@ -99,3 +99,8 @@ def test_demo_end_to_end_real_registration(capsys, tmp_path):
     assert len(report["methods"]["Orig QEM"]["pairs"]) == 2
     _check_tables_equal_report(captured.out, report)
     assert (out / "report.md").read_text().count("| Reg QEM | k-th |") >= 4
+
+
+def test_demo_defaults_are_the_papers_sizes():
+    args = build_parser().parse_args(["demo"])
+    assert (args.frames, args.resolution, args.registration, args.target) == (6, 160, "full", 0.97)
