@@ -18,6 +18,13 @@ from torchmeshmetric.data import (
     load_sequence,
     save_mesh,
 )
+from torchmeshmetric.evaluation import (
+    PairEvaluation,
+    SequenceEvaluation,
+    TemporalConsistency,
+    evaluate_pair,
+    evaluate_sequence,
+)
 from torchmeshmetric.kernels import (
     ClosestPointOnTriangle,
     NearestVertexResult,
@@ -107,4 +114,10 @@ __all__ = [
     "save_mesh",
     "simplify_qem",
     "simplify_registered_qem",
+    # the evaluation system (paper Fig. 2)
+    "PairEvaluation",
+    "SequenceEvaluation",
+    "TemporalConsistency",
+    "evaluate_pair",
+    "evaluate_sequence",
 ]
