@@ -39,6 +39,10 @@ def item_centers(x: Tensor, batch: Tensor, num_items: int) -> Tensor:
     Kernels subtract it before computing so that float32 accuracy is relative to the mesh size, not to
     its distance from the origin (coordinates around 1e6 keep full relative precision).
     """
+    if num_items == 1 and x.shape[0] > 0:
+        # One item: a plain min/max pass, no scatter (min and max are exact, so the centre is identical).
+        lo1, hi1 = x.detach().aminmax(dim=0)
+        return (0.5 * (lo1 + hi1))[None]
     lo = torch.full((num_items, 3), float("inf"), dtype=x.dtype, device=x.device)
     hi = torch.full((num_items, 3), float("-inf"), dtype=x.dtype, device=x.device)
     idx = batch[:, None].expand(-1, 3)
