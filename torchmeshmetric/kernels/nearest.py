@@ -29,15 +29,32 @@ class NearestVertexResult(NamedTuple):
 
 # (points, point_batch, ref, ref_batch, ref_offsets, max_memory) -> idx (P,); inputs centred, packed, detached.
 NearestSelector = Callable[[Tensor, Tensor, Tensor, Tensor, Tensor, int], Tensor]
+# Fused batch-of-one path: (points (P, 3), ref (R, 3)), raw (not centred), same dtype, both non-empty, no autograd
+# -> (dists, idx, center) computed exactly as the general path would, or None when it cannot serve the call
+# (other device, non-finite values, no compiled extension): the general path then runs (and raises).
+NearestSingle = Callable[[Tensor, Tensor], "tuple[Tensor, Tensor, Tensor] | None"]
 _NEAREST_BACKENDS: dict[str, NearestSelector] = {}
+_NEAREST_SINGLE: dict[str, NearestSingle] = {}
 _NEAREST_AUTO: list[Callable[[Tensor, Tensor], str | None]] = []
 
 
 def register_nearest_backend(
-    name: str, selector: NearestSelector, auto: Callable[[Tensor, Tensor], str | None] | None = None
+    name: str,
+    selector: NearestSelector,
+    auto: Callable[[Tensor, Tensor], str | None] | None = None,
+    single: NearestSingle | None = None,
 ) -> None:
-    """Register a nearest-neighbour selection backend (used by accelerated kernels)."""
+    """Register a nearest-neighbour selection backend (used by accelerated kernels).
+
+    Args:
+        name: the name accepted by ``backend=``.
+        selector: index of the nearest reference point per query (centred, packed, detached inputs).
+        auto: a ``backend="auto"`` rule returning a backend name or ``None``.
+        single: optional fused batch-of-one path returning ``(dists, idx, center)`` or ``None``.
+    """
     _NEAREST_BACKENDS[name] = selector
+    if single is not None:
+        _NEAREST_SINGLE[name] = single
     if auto is not None:
         _NEAREST_AUTO.append(auto)
 
@@ -127,13 +144,16 @@ def nearest_vertex_distance(
     return NearestVertexResult(safe_sqrt(dot(diff, diff)), idx)
 
 
-def _resolve_backend(backend: str, points: Tensor, ref: Tensor) -> NearestSelector:
+def _resolve_name(backend: str, points: Tensor, ref: Tensor) -> str:
     if backend == "auto":
-        name = next((n for rule in _NEAREST_AUTO if (n := rule(points, ref)) is not None), "bruteforce")
-        return _NEAREST_BACKENDS[name]
+        return next((n for rule in _NEAREST_AUTO if (n := rule(points, ref)) is not None), "bruteforce")
     if backend in _NEAREST_BACKENDS:
-        return _NEAREST_BACKENDS[backend]
+        return backend
     raise ValueError(f"backend: expected one of {['auto', *_NEAREST_BACKENDS]}, found {backend!r}")
+
+
+def _resolve_backend(backend: str, points: Tensor, ref: Tensor) -> NearestSelector:
+    return _NEAREST_BACKENDS[_resolve_name(backend, points, ref)]
 
 
 def _finite_bounds(x: Tensor, name: str) -> tuple[Tensor, Tensor]:
@@ -150,26 +170,32 @@ def _finite_bounds(x: Tensor, name: str) -> tuple[Tensor, Tensor]:
 def _nearest_single(points: Tensor, ref_points: Tensor, max_memory: int, backend: str) -> NearestVertexResult:
     """Batch-of-one path of :func:`nearest_vertex_distance`: same checks, errors and results, less overhead.
 
-    The bounding-box pass of the reference set doubles as its finiteness check and gives the centre directly
-    (no scatter, no batch index, no gathers of per-item centres).
+    Without autograd a backend's fused path (finiteness, centring, selection and distances in one call) serves
+    the call when it can. Otherwise the bounding-box pass of the reference set doubles as its finiteness check and
+    gives the centre directly (no scatter, no batch index, no gathers of per-item centres).
     """
     check_shape(points, ("P", 3), "points")
     check_float(points, "points")
-    if points.shape[0]:
-        _finite_bounds(points, "points")
     check_shape(ref_points, ("P", 3), "ref_points")
     check_float(ref_points, "ref_points")
-    num_r = ref_points.shape[0]
-    bounds = _finite_bounds(ref_points, "ref_points") if num_r else None
     check_same_device({"points": points, "ref_points": ref_points})
-    num_p = points.shape[0]
+    num_p, num_r = points.shape[0], ref_points.shape[0]
+    name = _resolve_name(backend, points, ref_points)
+    dtype = torch.promote_types(points.dtype, ref_points.dtype)
+    p, r = points.to(dtype), ref_points.to(dtype)
+    fused = _NEAREST_SINGLE.get(name)
+    if fused is not None and num_p and num_r and not (p.requires_grad or r.requires_grad):
+        out = fused(p.detach(), r.detach())
+        if out is not None:
+            return NearestVertexResult(out[0], out[1])
+    if num_p:
+        _finite_bounds(points, "points")
+    bounds = _finite_bounds(ref_points, "ref_points") if num_r else None
     if num_p == 0:
         raise EmptyInputError("points: expected at least one point, found an empty point set")
     if bounds is None:
         raise EmptyInputError(f"ref_points: reference set 0 is empty but has {num_p} query points")
-    select = _resolve_backend(backend, points, ref_points)
-    dtype = torch.promote_types(points.dtype, ref_points.dtype)
-    p, r = points.to(dtype), ref_points.to(dtype)
+    select = _NEAREST_BACKENDS[name]
     lo, hi = bounds[0].to(dtype), bounds[1].to(dtype)
     center = 0.5 * (lo + hi)
     p_c, r_c = p - center, r - center

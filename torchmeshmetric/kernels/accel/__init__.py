@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from torch import Tensor
 
-from torchmeshmetric.kernels.accel.bvh import bvh_faces, bvh_nearest
+from torchmeshmetric.kernels.accel.bvh import bvh_faces, bvh_nearest, bvh_nearest_single
 from torchmeshmetric.kernels.accel.pruned import pruned_faces, pruned_nearest
 from torchmeshmetric.kernels.nearest import register_nearest_backend
 from torchmeshmetric.kernels.point_triangle import register_face_backend
@@ -23,6 +23,7 @@ __all__ = [
     "auto_nearest_backend",
     "bvh_faces",
     "bvh_nearest",
+    "bvh_nearest_single",
     "pruned_faces",
     "pruned_nearest",
 ]
@@ -50,5 +51,5 @@ def auto_nearest_backend(points: Tensor, ref: Tensor) -> str | None:
 
 register_face_backend("bvh", bvh_faces, auto=auto_face_backend)
 register_face_backend("pruned", pruned_faces)
-register_nearest_backend("bvh", bvh_nearest, auto=auto_nearest_backend)
+register_nearest_backend("bvh", bvh_nearest, auto=auto_nearest_backend, single=bvh_nearest_single)
 register_nearest_backend("pruned", pruned_nearest)

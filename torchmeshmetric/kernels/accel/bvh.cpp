@@ -18,6 +18,7 @@
 #include <ATen/Parallel.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -26,10 +27,12 @@
 namespace {
 
 constexpr int LEAF_FACES = 4;
-constexpr int LEAF_POINTS = 8;
+constexpr int LEAF_POINTS = 32;
 // Cheap linear loops run threaded only above this size: on a loaded machine every parallel region costs
 // a barrier, which outweighs the work of a few hundred thousand simple iterations.
 constexpr int64_t GRAIN_LINEAR = int64_t(1) << 18;
+// Queries per scheduling chunk (see parallel_chunks).
+constexpr int64_t QUERY_CHUNK = 256;
 
 template <typename T>
 struct Node {
@@ -83,7 +86,8 @@ inline void radix_sort(std::vector<uint32_t>& code, std::vector<int64_t>& idx) {
 
 // Node over the primitives [begin, end) of the Morton-sorted order, depth first (left child = node + 1). Split at
 // the highest bit in which the codes of the range differ (a spatial split, Karras 2012); at the object median when
-// all codes are equal. Bounds are computed bottom up. Returns the node index.
+// all codes are equal. Bounds are computed bottom up. Returns the node index. Primitive boxes are read at perm[slot],
+// or at the slot itself when perm is null (boxes already stored in sorted order).
 template <typename T>
 int64_t build_node(std::vector<Node<T>>& nodes, const uint32_t* code, int64_t base, int64_t begin, int64_t end,
                    const T* box_lo, const T* box_hi, const int64_t* perm, int leaf) {
@@ -100,7 +104,7 @@ int64_t build_node(std::vector<Node<T>>& nodes, const uint32_t* code, int64_t ba
       nd.hi[k] = -std::numeric_limits<T>::infinity();
     }
     for (int64_t i = begin; i < end; ++i) {
-      const int64_t p = perm[i];
+      const int64_t p = perm != nullptr ? perm[i] : i;
       for (int k = 0; k < 3; ++k) {
         nd.lo[k] = std::min(nd.lo[k], box_lo[3 * p + k]);
         nd.hi[k] = std::max(nd.hi[k], box_hi[3 * p + k]);
@@ -196,6 +200,24 @@ std::vector<int64_t> query_order(const T* pts, int64_t n) {
   return idx;
 }
 
+// Dynamic scheduling on torch's thread pool: the threads take chunks of `chunk` consecutive items from a shared
+// counter, so a thread that the OS preempts (a loaded machine) does not hold the others back as a static split
+// would. Consecutive items stay together (queries are in Morton order: seeding from the previous answer).
+template <typename F>
+void parallel_chunks(int64_t n, int64_t chunk, const F& fn) {
+  const int64_t num_chunks = (n + chunk - 1) / chunk;
+  const int64_t workers = std::min<int64_t>(at::get_num_threads(), num_chunks);
+  if (workers <= 1) {
+    if (n > 0) fn(int64_t(0), n);
+    return;
+  }
+  std::atomic<int64_t> next{0};
+  at::parallel_for(0, workers, 1, [&](int64_t, int64_t) {
+    for (int64_t c = next.fetch_add(1); c < num_chunks; c = next.fetch_add(1))
+      fn(c * chunk, std::min(n, (c + 1) * chunk));
+  });
+}
+
 template <typename T>
 inline T box_sq_dist(const Node<T>& nd, const T* p) {
   T s = 0;
@@ -274,16 +296,6 @@ inline T tri_sq_dist(const FaceData<T>& f, const T* p) {
   return sq;
 }
 
-template <typename T>
-inline T point_sq_dist(const T* r, const T* p) {
-  T s = 0;
-  for (int k = 0; k < 3; ++k) {
-    const T d = p[k] - r[k];
-    s += d * d;
-  }
-  return s;
-}
-
 // Per-item absolute pruning slack: 64 ulps of the item's largest |coordinate| (items are centred).
 template <typename T>
 std::vector<T> item_slack(const T* box_lo, const T* box_hi, const int64_t* offsets, int64_t num_items) {
@@ -329,6 +341,82 @@ inline void traverse(const Node<T>* nodes, int64_t root, const T* p, T slack, T&
       if (dr <= bound) { stack[top] = r; stack_d[top] = dr; ++top; }
     }
   }
+}
+
+// Reference points of the hierarchies in sorted (slot) order, one array per coordinate, padded by LEAF_POINTS so
+// that a leaf's LEAF_POINTS lanes can always be read: the leaf test computes all lanes in SIMD-friendly loops.
+template <typename T>
+struct SoaPoints {
+  std::vector<T> x, y, z;
+};
+
+// `src(slot, k)` gives coordinate k of the point in `slot`.
+template <typename T, typename Src>
+SoaPoints<T> make_soa(int64_t n, Src src) {
+  SoaPoints<T> s{std::vector<T>(n + LEAF_POINTS, T(0)), std::vector<T>(n + LEAF_POINTS, T(0)),
+                 std::vector<T>(n + LEAF_POINTS, T(0))};
+  at::parallel_for(0, n, GRAIN_LINEAR, [&](int64_t a, int64_t z) {
+    for (int64_t i = a; i < z; ++i) {
+      s.x[i] = src(i, 0);
+      s.y[i] = src(i, 1);
+      s.z[i] = src(i, 2);
+    }
+  });
+  return s;
+}
+
+// Squared point distance in the order of the torch kernel's (d * d).sum(-1): ((dx*dx + dy*dy) + dz*dz).
+template <typename T>
+inline T soa_sq_dist(const T* xs, const T* ys, const T* zs, int64_t j, const T* p) {
+  const T dx = p[0] - xs[j], dy = p[1] - ys[j], dz = p[2] - zs[j];
+  T s = dx * dx;
+  s += dy * dy;
+  s += dz * dz;
+  return s;
+}
+
+// Nearest reference point to p among the sorted points of one hierarchy; returns its slot. Ties are compared on
+// the rounded Euclidean distance sqrt(sum d_k^2), like torch.cdist with compute_mode="donot_use_mm_for_euclid_dist",
+// lowest original index (perm[slot]) first. `seed` (a slot or -1) gives a first candidate, e.g. the previous
+// Morton-adjacent query's answer: a tight starting bound, the answer is unchanged. `best_sq_out` receives the
+// squared distance of the answer when not null.
+template <typename T>
+inline int64_t nearest_query(const Node<T>* nd, int64_t root, const T* p, T slack, const SoaPoints<T>& pts,
+                             const int64_t* pm, int64_t seed, T* best_sq_out) {
+  const T tie = T(1) + T(4) * std::numeric_limits<T>::epsilon();
+  const T* xs = pts.x.data();
+  const T* ys = pts.y.data();
+  const T* zs = pts.z.data();
+  T best = std::numeric_limits<T>::infinity();
+  int64_t best_slot = -1;
+  if (seed >= 0) {
+    best = soa_sq_dist(xs, ys, zs, seed, p);
+    best_slot = seed;
+  }
+  traverse<T>(nd, root, p, slack, best, best_slot,
+              [xs, ys, zs, pm, tie](int64_t start, int64_t count, const T* p, T& best_sq, int64_t& bs) {
+                // All LEAF_POINTS lanes in straight-line loops (vectorised); lanes past `count` belong to the next
+                // leaf, so the early exit (no lane within the tie margin) tests a superset: it never skips a candidate.
+                T sq[LEAF_POINTS];
+                for (int l = 0; l < LEAF_POINTS; ++l) sq[l] = soa_sq_dist(xs + start, ys + start, zs + start, l, p);
+                const T limit = bs >= 0 ? best_sq * tie : std::numeric_limits<T>::infinity();
+                int any = 0;
+                for (int l = 0; l < LEAF_POINTS; ++l) any |= static_cast<int>(sq[l] <= limit);
+                if (!any) return;
+                for (int64_t l = 0; l < count; ++l) {
+                  // sqrt is monotone: beyond 4 ulps above the best square the rounded distance is larger.
+                  if (bs >= 0 && sq[l] > best_sq * tie) continue;
+                  // Equal rounded distances are ties (as in cdist), even when the squares differ.
+                  const T d = std::sqrt(sq[l]), db = std::sqrt(best_sq);
+                  const int64_t j = start + l;
+                  if (bs < 0 || d < db || (d == db && pm[j] < pm[bs])) {
+                    best_sq = sq[l];
+                    bs = j;
+                  }
+                }
+              });
+  if (best_sq_out != nullptr) *best_sq_out = best;
+  return best_slot;
 }
 
 template <typename T>
@@ -386,31 +474,37 @@ torch::Tensor closest_faces_impl(const torch::Tensor& points, const torch::Tenso
   const int64_t* pm = perm.data();
   const std::vector<int64_t> order = query_order<T>(Pp, P);
   const int64_t* ord = order.data();
-  at::parallel_for(0, P, 256, [&](int64_t s, int64_t e) {
+  parallel_chunks(P, QUERY_CHUNK, [&](int64_t s, int64_t e) {
+    int64_t prev_item = -1, prev_slot = -1;
     for (int64_t q = s; q < e; ++q) {
       const int64_t i = ord[q];
       const int64_t b = pb[i];
+      const T* p = Pp + 3 * i;
       T best = std::numeric_limits<T>::infinity();
-      int64_t best_idx = off[b];
-      traverse<T>(nd, roots[b], Pp + 3 * i, slack[b], best, best_idx,
-                  [fdp, pm](int64_t start, int64_t count, const T* p, T& best_sq, int64_t& bi) {
+      int64_t best_slot = -1;
+      if (b == prev_item && prev_slot >= 0) {  // seed: the previous (Morton-adjacent) query's face
+        best = tri_sq_dist(fdp[prev_slot], p);
+        best_slot = prev_slot;
+      }
+      traverse<T>(nd, roots[b], p, slack[b], best, best_slot,
+                  [fdp, pm](int64_t start, int64_t count, const T* p, T& best_sq, int64_t& bs) {
                     for (int64_t j = start; j < start + count; ++j) {
                       const T sq = tri_sq_dist(fdp[j], p);
-                      const int64_t f = pm[j];
-                      if (sq < best_sq || (sq == best_sq && f < bi)) {
+                      if (bs < 0 || sq < best_sq || (sq == best_sq && pm[j] < pm[bs])) {
                         best_sq = sq;
-                        bi = f;
+                        bs = j;
                       }
                     }
                   });
-      o[i] = best_idx;
+      o[i] = pm[best_slot];
+      prev_item = b;
+      prev_slot = best_slot;
     }
   });
   return out;
 }
 
-// Nearest reference point; ties compared on the rounded Euclidean distance sqrt(sum d_k^2), like torch.cdist
-// with compute_mode="donot_use_mm_for_euclid_dist", lowest index first.
+// Nearest reference point per query point (ragged batch of centred inputs), see nearest_query.
 template <typename T>
 torch::Tensor nearest_points_impl(const torch::Tensor& points, const torch::Tensor& point_batch,
                                   const torch::Tensor& ref, const torch::Tensor& ref_offsets) {
@@ -420,47 +514,111 @@ torch::Tensor nearest_points_impl(const torch::Tensor& points, const torch::Tens
   std::vector<Node<T>> nodes;
   std::vector<int64_t> roots, perm;
   build_forest<T>(Rp, Rp, Rp, off, B, LEAF_POINTS, nodes, roots, perm);
-  std::vector<T> rs(3 * R);
-  at::parallel_for(0, R, GRAIN_LINEAR, [&](int64_t s, int64_t e) {
-    for (int64_t i = s; i < e; ++i)
-      for (int k = 0; k < 3; ++k) rs[3 * i + k] = Rp[3 * perm[i] + k];
-  });
+  const int64_t* pm = perm.data();
+  const SoaPoints<T> rs = make_soa<T>(R, [Rp, pm](int64_t i, int k) { return Rp[3 * pm[i] + k]; });
   const T* Pp = points.data_ptr<T>();
   const int64_t* pb = point_batch.data_ptr<int64_t>();
   std::vector<T> slack = item_slack<T>(Rp, Rp, off, B);
   auto out = torch::empty({P}, torch::dtype(torch::kInt64));
   int64_t* o = out.data_ptr<int64_t>();
   const Node<T>* nd = nodes.data();
-  const T* rsp = rs.data();
-  const T tie = T(1) + T(4) * std::numeric_limits<T>::epsilon();
-  const int64_t* pm = perm.data();
   const std::vector<int64_t> order = query_order<T>(Pp, P);
   const int64_t* ord = order.data();
-  at::parallel_for(0, P, 256, [&](int64_t s, int64_t e) {
+  parallel_chunks(P, QUERY_CHUNK, [&](int64_t s, int64_t e) {
+    int64_t prev_item = -1, prev_slot = -1;
     for (int64_t q = s; q < e; ++q) {
       const int64_t i = ord[q];
       const int64_t b = pb[i];
-      T best = std::numeric_limits<T>::infinity();
-      int64_t best_idx = off[b];
-      traverse<T>(nd, roots[b], Pp + 3 * i, slack[b], best, best_idx,
-                  [rsp, pm, tie](int64_t start, int64_t count, const T* p, T& best_sq, int64_t& bi) {
-                    for (int64_t j = start; j < start + count; ++j) {
-                      const T sq = point_sq_dist(rsp + 3 * j, p);
-                      // sqrt is monotone: beyond 4 ulps above the best square the rounded distance is larger.
-                      if (sq > best_sq * tie) continue;
-                      // Equal rounded distances are ties (as in cdist), even when the squares differ.
-                      const T d = std::sqrt(sq), db = std::sqrt(best_sq);
-                      const int64_t r = pm[j];
-                      if (d < db || (d == db && r < bi)) {
-                        best_sq = sq;
-                        bi = r;
-                      }
-                    }
-                  });
-      o[i] = best_idx;
+      const int64_t slot = nearest_query<T>(nd, roots[b], Pp + 3 * i, slack[b], rs, pm,
+                                            b == prev_item ? prev_slot : -1, nullptr);
+      o[i] = pm[slot];
+      prev_item = b;
+      prev_slot = slot;
     }
   });
   return out;
+}
+
+// Per-column bounds of an (n, 3) array and whether every value is finite, in one pass.
+template <typename T>
+bool bounds_finite(const T* x, int64_t n, T* lo, T* hi) {
+  for (int k = 0; k < 3; ++k) {
+    lo[k] = std::numeric_limits<T>::infinity();
+    hi[k] = -std::numeric_limits<T>::infinity();
+  }
+  bool finite = true;
+  for (int64_t i = 0; i < n; ++i)
+    for (int k = 0; k < 3; ++k) {
+      const T v = x[3 * i + k];
+      finite &= std::isfinite(v);
+      lo[k] = std::min(lo[k], v);
+      hi[k] = std::max(hi[k], v);
+    }
+  return finite;
+}
+
+// Batch-of-one nearest reference point, fused: finiteness check, bounding-box centring (the same operations as
+// kernels._common.item_centers and `x - center`), Morton sort and build on the centred reference, seeded queries in
+// Morton order, and the distances. Returns {} when a value is not finite (the caller raises the typed error), else
+// {sq_dists (P,) = squared distance computed as (p - c) - (r - c) summed in order x, y, z (bit-identical to the
+// torch recomputation; the caller takes torch.sqrt, whose float32 rounding differs from std::sqrt's on this
+// build), idx (P,) int64, center (3,)}.
+template <typename T>
+std::vector<torch::Tensor> nearest_single_impl(const torch::Tensor& points, const torch::Tensor& ref) {
+  const int64_t R = ref.size(0), P = points.size(0);
+  const T* Rp = ref.data_ptr<T>();
+  const T* Pp = points.data_ptr<T>();
+  T lo[3], hi[3], plo[3], phi[3];
+  if (!bounds_finite(Rp, R, lo, hi) || !bounds_finite(Pp, P, plo, phi)) return {};
+  auto center = torch::empty({3}, ref.options());
+  T* c = center.data_ptr<T>();
+  T scale = 0, inv[3];
+  for (int k = 0; k < 3; ++k) {
+    c[k] = T(0.5) * (lo[k] + hi[k]);
+    // Rounding is monotone, so the extremes of the centred values are the centred extremes.
+    scale = std::max(scale, std::max(std::abs(lo[k] - c[k]), std::abs(hi[k] - c[k])));
+    inv[k] = hi[k] > lo[k] ? T(1023.99) / (hi[k] - lo[k]) : T(0);
+  }
+  const T slack = scale * T(64) * std::numeric_limits<T>::epsilon();
+  std::vector<uint32_t> code(R);
+  std::vector<int64_t> perm(R);
+  at::parallel_for(0, R, GRAIN_LINEAR, [&](int64_t a, int64_t z) {
+    for (int64_t i = a; i < z; ++i) {
+      code[i] = morton(Rp + 3 * i, lo, inv);
+      perm[i] = i;
+    }
+  });
+  if (R > 1) radix_sort(code, perm);
+  const int64_t* pm = perm.data();
+  std::vector<T> rs(3 * R);  // centred reference points in sorted order
+  at::parallel_for(0, R, GRAIN_LINEAR, [&](int64_t a, int64_t z) {
+    for (int64_t i = a; i < z; ++i)
+      for (int k = 0; k < 3; ++k) rs[3 * i + k] = Rp[3 * pm[i] + k] - c[k];
+  });
+  std::vector<Node<T>> nodes;
+  nodes.reserve(2 * (R / LEAF_POINTS + 1) + 1);
+  build_node<T>(nodes, code.data(), 0, 0, R, rs.data(), rs.data(), nullptr, LEAF_POINTS);
+  const SoaPoints<T> soa = make_soa<T>(R, [&rs](int64_t i, int k) { return rs[3 * i + k]; });
+  auto sq_dists = torch::empty({P}, points.options());
+  auto idx = torch::empty({P}, torch::dtype(torch::kInt64));
+  T* dp = sq_dists.data_ptr<T>();
+  int64_t* o = idx.data_ptr<int64_t>();
+  const Node<T>* nd = nodes.data();
+  const std::vector<int64_t> order = query_order<T>(Pp, P);
+  const int64_t* ord = order.data();
+  parallel_chunks(P, QUERY_CHUNK, [&](int64_t s, int64_t e) {
+    int64_t prev_slot = -1;
+    for (int64_t q = s; q < e; ++q) {
+      const int64_t i = ord[q];
+      const T pc[3] = {Pp[3 * i] - c[0], Pp[3 * i + 1] - c[1], Pp[3 * i + 2] - c[2]};
+      T best_sq;
+      const int64_t slot = nearest_query<T>(nd, 0, pc, slack, soa, pm, prev_slot, &best_sq);
+      o[i] = pm[slot];
+      dp[i] = best_sq;
+      prev_slot = slot;
+    }
+  });
+  return {sq_dists, idx, center};
 }
 
 // All (point, face) squared distances, (P, F): for tests of bit-equality with the torch formulation only.
@@ -525,6 +683,16 @@ torch::Tensor nearest_points(torch::Tensor points, torch::Tensor point_batch, to
   return nearest_points_impl<float>(points, point_batch, ref, ref_offsets);
 }
 
+std::vector<torch::Tensor> nearest_single(torch::Tensor points, torch::Tensor ref) {
+  TORCH_CHECK(points.device().is_cpu() && ref.device().is_cpu(), "bvh: CPU tensors expected");
+  TORCH_CHECK(points.is_contiguous() && ref.is_contiguous(), "bvh: contiguous tensors expected");
+  TORCH_CHECK(points.scalar_type() == ref.scalar_type(), "bvh: points and ref must share a dtype");
+  TORCH_CHECK(points.size(0) > 0 && ref.size(0) > 0, "bvh: non-empty points and ref expected");
+  if (points.scalar_type() == torch::kFloat64) return nearest_single_impl<double>(points, ref);
+  TORCH_CHECK(points.scalar_type() == torch::kFloat32, "bvh: float32 or float64 expected");
+  return nearest_single_impl<float>(points, ref);
+}
+
 torch::Tensor pair_sq_dists(torch::Tensor points, torch::Tensor verts, torch::Tensor faces) {
   TORCH_CHECK(points.is_contiguous() && verts.is_contiguous() && faces.is_contiguous(), "contiguous expected");
   if (points.scalar_type() == torch::kFloat64) return pair_sq_dists_impl<double>(points, verts, faces);
@@ -535,4 +703,6 @@ PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
   m.def("closest_faces", &closest_faces, "Closest face per point (BVH, exact, lowest index on ties)");
   m.def("pair_sq_dists", &pair_sq_dists, "All point-face squared distances (tests only)");
   m.def("nearest_points", &nearest_points, "Nearest reference point per point (BVH, exact, lowest index on ties)");
+  m.def("nearest_single", &nearest_single,
+        "Batch-of-one nearest reference point, fused: [sq_dists, idx, center], or [] when a value is not finite");
 }

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import torch
 from torch import Tensor
 
 from torchmeshmetric.kernels.accel._extension import load_bvh
 from torchmeshmetric.kernels.accel.pruned import pruned_faces, pruned_nearest
 
-__all__ = ["bvh_faces", "bvh_nearest"]
+__all__ = ["bvh_faces", "bvh_nearest", "bvh_nearest_single"]
 
 
 def bvh_faces(
@@ -48,3 +49,22 @@ def bvh_nearest(
     return ext.nearest_points(
         points.contiguous(), point_batch.contiguous(), ref.contiguous(), ref_offsets.long().contiguous()
     )
+
+
+def bvh_nearest_single(points: Tensor, ref: Tensor) -> tuple[Tensor, Tensor, Tensor] | None:
+    """Fused batch-of-one nearest reference point (nearest-single contract): ``(dists, idx, center)`` or ``None``.
+
+    Finiteness check, centring, build, query and squared distances in one C++ call; the square root is torch's,
+    so the result is bit-identical to the general path.
+    ``None`` (the general path runs, and raises if a value is not finite) for non-CPU tensors, a missing compiler
+    or non-finite values.
+    """
+    if points.device.type != "cpu" or points.dtype not in (torch.float32, torch.float64):
+        return None
+    ext = load_bvh()
+    if ext is None:
+        return None
+    out = ext.nearest_single(points.contiguous(), ref.contiguous())
+    if not out:
+        return None
+    return torch.sqrt(out[0]), out[1], out[2]
