@@ -475,30 +475,25 @@ torch::Tensor closest_faces_impl(const torch::Tensor& points, const torch::Tenso
   const std::vector<int64_t> order = query_order<T>(Pp, P);
   const int64_t* ord = order.data();
   parallel_chunks(P, QUERY_CHUNK, [&](int64_t s, int64_t e) {
-    int64_t prev_item = -1, prev_slot = -1;
     for (int64_t q = s; q < e; ++q) {
       const int64_t i = ord[q];
       const int64_t b = pb[i];
-      const T* p = Pp + 3 * i;
       T best = std::numeric_limits<T>::infinity();
-      int64_t best_slot = -1;
-      if (b == prev_item && prev_slot >= 0) {  // seed: the previous (Morton-adjacent) query's face
-        best = tri_sq_dist(fdp[prev_slot], p);
-        best_slot = prev_slot;
-      }
-      traverse<T>(nd, roots[b], p, slack[b], best, best_slot,
-                  [fdp, pm](int64_t start, int64_t count, const T* p, T& best_sq, int64_t& bs) {
+      int64_t best_idx = off[b];
+      // No seeding here (unlike nearest points): nearer-child-first descent to a 4-face leaf finds a tight bound
+      // at once, and evaluating the predecessor's face first measured 5-10% slower.
+      traverse<T>(nd, roots[b], Pp + 3 * i, slack[b], best, best_idx,
+                  [fdp, pm](int64_t start, int64_t count, const T* p, T& best_sq, int64_t& bi) {
                     for (int64_t j = start; j < start + count; ++j) {
                       const T sq = tri_sq_dist(fdp[j], p);
-                      if (bs < 0 || sq < best_sq || (sq == best_sq && pm[j] < pm[bs])) {
+                      const int64_t f = pm[j];
+                      if (sq < best_sq || (sq == best_sq && f < bi)) {
                         best_sq = sq;
-                        bs = j;
+                        bi = f;
                       }
                     }
                   });
-      o[i] = pm[best_slot];
-      prev_item = b;
-      prev_slot = best_slot;
+      o[i] = best_idx;
     }
   });
   return out;
