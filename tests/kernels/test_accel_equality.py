@@ -232,9 +232,9 @@ def assert_same_nearest(points, ref_points, backend, **kw):
     rp = ref_points
     diag = float((rp.amax(0) - rp.amin(0)).norm())
     torch.testing.assert_close(got.dists, ref.dists, rtol=0, atol=1e-6 * diag)
-    diff = (got.idx != ref.idx).nonzero()[:, 0]
-    # A different index only for a tie: the same distance within rounding of the last bit.
-    torch.testing.assert_close(got.dists[diff], ref.dists[diff], rtol=4 * torch.finfo(rp.dtype).eps, atol=0)
+    # Every backend selects by the same computed squared distance, lowest index among equal ones.
+    assert torch.equal(got.idx, ref.idx)
+    assert torch.equal(got.dists, ref.dists)
     return ref, got
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import pytest
 import torch
+import trimesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -156,3 +157,22 @@ def test_property_fused_equals_bruteforce(seed: int, num_ref: int, num_points: i
     ref = torch.randint(0, grid, (num_ref, 3), generator=g).float()
     points = torch.randint(0, 2 * grid, (num_points, 3), generator=g).float() / 2
     _assert_bitwise_equal(points, ref)
+
+
+def test_large_inputs_take_the_parallel_radix_sort() -> None:
+    # Above 2^16 codes the Morton sort runs in per-thread blocks (reference points, query points, faces).
+    g = torch.Generator().manual_seed(5)
+    before = torch.get_num_threads()
+    try:
+        torch.set_num_threads(2)
+        _assert_bitwise_equal(torch.randn(3000, 3, generator=g), torch.randn(70000, 3, generator=g))
+        _assert_bitwise_equal(torch.randn(70000, 3, generator=g), torch.randn(1500, 3, generator=g))
+        mesh = trimesh.creation.torus(1.0, 0.3, major_sections=250, minor_sections=140)  # 70k faces
+        verts, faces = torch.tensor(mesh.vertices, dtype=torch.float32), torch.tensor(mesh.faces)
+        points = torch.randn(300, 3, generator=g) * 0.8
+        expected = point_mesh_distance(points, verts, faces, backend="bruteforce")
+        got = point_mesh_distance(points, verts, faces, backend="bvh")
+    finally:
+        torch.set_num_threads(before)
+    assert faces.shape[0] > 2**16
+    assert torch.equal(got.face_idx, expected.face_idx) and torch.equal(got.dists, expected.dists)

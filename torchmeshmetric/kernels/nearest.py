@@ -62,22 +62,34 @@ def register_nearest_backend(
 def _bruteforce_nearest(
     points: Tensor, point_batch: Tensor, ref: Tensor, ref_batch: Tensor, ref_offsets: Tensor, max_memory: int
 ) -> Tensor:
-    """Chunked brute force with explicit differences (no ``|p|^2 - 2 p.q + |q|^2`` cancellation)."""
+    """Chunked brute force on explicit differences (no ``|p|^2 - 2 p.q + |q|^2`` cancellation).
+
+    Selects by the squared distance ``(dx*dx + dy*dy) + dz*dz`` (the order of ``(d * d).sum(-1)`` used for the
+    returned distances), lowest index among equal squares: every backend selects by this same computed value.
+    """
     num_p, num_r = points.shape[0], ref.shape[0]
-    rows, cols = pair_chunks(num_p, num_r, 2 * points.element_size(), max_memory)
+    # Three live (rows, cols) temporaries of the dtype plus the mask.
+    rows, cols = pair_chunks(num_p, num_r, 4 * points.element_size(), max_memory)
     best = torch.zeros(num_p, dtype=torch.long, device=points.device)
     single = ref_offsets.numel() == 2
     for p0 in range(0, num_p, rows):
         p1 = min(num_p, p0 + rows)
         pb = point_batch[p0:p1]
+        p = points[p0:p1]
         r_lo, r_hi = (0, num_r) if single else (int(ref_offsets[pb[0]]), int(ref_offsets[pb[-1] + 1]))
         best_d = torch.full((p1 - p0,), float("inf"), dtype=points.dtype, device=points.device)
         for r0 in range(r_lo, r_hi, cols):
             r1 = min(r_hi, r0 + cols)
-            d = torch.cdist(points[p0:p1], ref[r0:r1], compute_mode="donot_use_mm_for_euclid_dist")
+            r = ref[r0:r1]
+            sq = p[:, 0, None] - r[None, :, 0]
+            sq.mul_(sq)
+            d = p[:, 1, None] - r[None, :, 1]
+            sq.add_(d.mul_(d))
+            d = torch.sub(p[:, 2, None], r[None, :, 2], out=d)
+            sq.add_(d.mul_(d))
             if not single:
-                d = d.masked_fill(pb[:, None] != ref_batch[None, r0:r1], float("inf"))
-            chunk_d, chunk_i = d.min(-1)
+                sq = sq.masked_fill_(pb[:, None] != ref_batch[None, r0:r1], float("inf"))
+            chunk_d, chunk_i = sq.min(-1)
             better = chunk_d < best_d
             best_d = torch.where(better, chunk_d, best_d)
             best[p0:p1] = torch.where(better, chunk_i + r0, best[p0:p1])
@@ -108,7 +120,9 @@ def nearest_vertex_distance(
 
     Returns:
         :class:`NearestVertexResult` ``(dists, idx)``; ``dists`` is **not squared** and differentiable
-        w.r.t. both point sets (gradient 0 at zero distance); ties go to the lowest index.
+        w.r.t. both point sets (gradient 0 at zero distance). The nearest point is the one with the smallest
+        computed squared distance (bounding-box centred coordinates), the lowest index among equal ones; every
+        backend returns the same index.
 
     Example:
         >>> import torch

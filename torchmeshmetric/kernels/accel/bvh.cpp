@@ -63,22 +63,64 @@ inline uint32_t morton(const T* c, const T* lo, const T* inv) {
   return (spread10(q[0]) << 2) | (spread10(q[1]) << 1) | spread10(q[2]);
 }
 
-// Stable LSD radix sort of (30-bit code, index) pairs by code: 3 passes of 10 bits.
+// Stable LSD radix sort of (30-bit code, index) pairs by code: 3 passes of 10 bits. Above RADIX_PARALLEL pairs the
+// passes run on torch's threads: each block of the input counts its digits, the counts are turned into per-block
+// write offsets (digit-major, block order: the sort stays stable), and each block scatters its own pairs.
+constexpr int64_t RADIX_PARALLEL = int64_t(1) << 16;
+
 inline void radix_sort(std::vector<uint32_t>& code, std::vector<int64_t>& idx) {
   const int64_t n = static_cast<int64_t>(code.size());
+  if (n < 2) return;
+  const int64_t blocks =
+      n < RADIX_PARALLEL ? 1 : std::max<int64_t>(1, std::min<int64_t>(at::get_num_threads(), n / (RADIX_PARALLEL / 2)));
   std::vector<uint32_t> code2(n);
   std::vector<int64_t> idx2(n);
-  std::vector<int64_t> count(1025);
+  std::vector<int64_t> count(blocks * 1024);
+  auto block_lo = [n, blocks](int64_t b) { return n * b / blocks; };
+  auto for_blocks = [blocks](const auto& fn) {
+    if (blocks == 1)
+      fn(int64_t(0));
+    else
+      at::parallel_for(0, blocks, 1, [&](int64_t b0, int64_t b1) {
+        for (int64_t b = b0; b < b1; ++b) fn(b);
+      });
+  };
   for (int shift = 0; shift < 30; shift += 10) {
     std::fill(count.begin(), count.end(), 0);
-    for (int64_t i = 0; i < n; ++i) ++count[((code[i] >> shift) & 1023u) + 1];
-    if (count[(code[0] >> shift & 1023u) + 1] == n) continue;  // one bucket: nothing to do
-    for (int d = 0; d < 1024; ++d) count[d + 1] += count[d];
-    for (int64_t i = 0; i < n; ++i) {
-      const int64_t dst = count[(code[i] >> shift) & 1023u]++;
-      code2[dst] = code[i];
-      idx2[dst] = idx[i];
+    const uint32_t* src = code.data();
+    const int64_t* src_idx = idx.data();
+    uint32_t* dst_code = code2.data();
+    int64_t* dst_idx = idx2.data();
+    for_blocks([&](int64_t b) {
+      int64_t* c = count.data() + 1024 * b;
+      const int64_t hi = block_lo(b + 1);
+      for (int64_t i = block_lo(b); i < hi; ++i) ++c[(src[i] >> shift) & 1023u];
+    });
+    // Exclusive offsets, digit-major then block: digit d of block b starts after all smaller digits and after
+    // digit d of the blocks before b.
+    int64_t total = 0;
+    bool one_bucket = false;
+    for (int d = 0; d < 1024; ++d) {
+      int64_t digit_total = 0;
+      for (int64_t b = 0; b < blocks; ++b) {
+        const int64_t c = count[1024 * b + d];
+        count[1024 * b + d] = total;
+        total += c;
+        digit_total += c;
+      }
+      if (digit_total == n) one_bucket = true;
     }
+    if (one_bucket) continue;  // every code has the same digit: the pass would not move anything
+    for_blocks([&](int64_t b) {
+      int64_t* c = count.data() + 1024 * b;
+      const int64_t hi = block_lo(b + 1);
+      for (int64_t i = block_lo(b); i < hi; ++i) {
+        const uint32_t k = src[i];
+        const int64_t dst = c[(k >> shift) & 1023u]++;
+        dst_code[dst] = k;
+        dst_idx[dst] = src_idx[i];
+      }
+    });
     code.swap(code2);
     idx.swap(idx2);
   }
@@ -375,15 +417,14 @@ inline T soa_sq_dist(const T* xs, const T* ys, const T* zs, int64_t j, const T* 
   return s;
 }
 
-// Nearest reference point to p among the sorted points of one hierarchy; returns its slot. Ties are compared on
-// the rounded Euclidean distance sqrt(sum d_k^2), like torch.cdist with compute_mode="donot_use_mm_for_euclid_dist",
-// lowest original index (perm[slot]) first. `seed` (a slot or -1) gives a first candidate, e.g. the previous
+// Nearest reference point to p among the sorted points of one hierarchy; returns its slot. Selects by the computed
+// squared distance ((dx*dx + dy*dy) + dz*dz, the torch kernel's order), lowest original index (perm[slot]) among
+// equal squares, like the brute force. `seed` (a slot or -1) gives a first candidate, e.g. the previous
 // Morton-adjacent query's answer: a tight starting bound, the answer is unchanged. `best_sq_out` receives the
 // squared distance of the answer when not null.
 template <typename T>
 inline int64_t nearest_query(const Node<T>* nd, int64_t root, const T* p, T slack, const SoaPoints<T>& pts,
                              const int64_t* pm, int64_t seed, T* best_sq_out) {
-  const T tie = T(1) + T(4) * std::numeric_limits<T>::epsilon();
   const T* xs = pts.x.data();
   const T* ys = pts.y.data();
   const T* zs = pts.z.data();
@@ -394,22 +435,17 @@ inline int64_t nearest_query(const Node<T>* nd, int64_t root, const T* p, T slac
     best_slot = seed;
   }
   traverse<T>(nd, root, p, slack, best, best_slot,
-              [xs, ys, zs, pm, tie](int64_t start, int64_t count, const T* p, T& best_sq, int64_t& bs) {
+              [xs, ys, zs, pm](int64_t start, int64_t count, const T* p, T& best_sq, int64_t& bs) {
                 // All LEAF_POINTS lanes in straight-line loops (vectorised); lanes past `count` belong to the next
-                // leaf, so the early exit (no lane within the tie margin) tests a superset: it never skips a candidate.
+                // leaf, so the early exit (no lane at or below the best) tests a superset: it never skips a candidate.
                 T sq[LEAF_POINTS];
                 for (int l = 0; l < LEAF_POINTS; ++l) sq[l] = soa_sq_dist(xs + start, ys + start, zs + start, l, p);
-                const T limit = bs >= 0 ? best_sq * tie : std::numeric_limits<T>::infinity();
                 int any = 0;
-                for (int l = 0; l < LEAF_POINTS; ++l) any |= static_cast<int>(sq[l] <= limit);
-                if (!any) return;
+                for (int l = 0; l < LEAF_POINTS; ++l) any |= static_cast<int>(sq[l] <= best_sq);
+                if (bs >= 0 && !any) return;
                 for (int64_t l = 0; l < count; ++l) {
-                  // sqrt is monotone: beyond 4 ulps above the best square the rounded distance is larger.
-                  if (bs >= 0 && sq[l] > best_sq * tie) continue;
-                  // Equal rounded distances are ties (as in cdist), even when the squares differ.
-                  const T d = std::sqrt(sq[l]), db = std::sqrt(best_sq);
                   const int64_t j = start + l;
-                  if (bs < 0 || d < db || (d == db && pm[j] < pm[bs])) {
+                  if (bs < 0 || sq[l] < best_sq || (sq[l] == best_sq && pm[j] < pm[bs])) {
                     best_sq = sq[l];
                     bs = j;
                   }

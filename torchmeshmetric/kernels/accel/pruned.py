@@ -93,7 +93,6 @@ def _select(
     prim_batch: Tensor,
     offsets: Tensor,
     pair_sq: PairSqDist,
-    compare_sqrt: bool,
     max_memory: int,
 ) -> Tensor:
     device, dtype = points.device, points.dtype
@@ -126,9 +125,8 @@ def _select(
             q, c = q_idx[s0 : s0 + pair_rows], c_idx[s0 : s0 + pair_rows]
             mem = members[c]
             sq = pair_sq(p[q], mem)
-            k = sq.sqrt() if compare_sqrt else sq
-            kmin = k.amin(-1)
-            kid = torch.where(k == kmin[:, None], mem, torch.full_like(mem, big)).amin(-1)
+            kmin = sq.amin(-1)
+            kid = torch.where(sq == kmin[:, None], mem, torch.full_like(mem, big)).amin(-1)
             key = key.scatter_reduce(0, q, kmin, "amin")
             keys.append(kmin)
             ids.append(kid)
@@ -159,7 +157,7 @@ def pruned_faces(
         sq = _region_candidates(q - a[f], q - b[f], ab[f], ac[f], bc[f])[-1].amin(-1)
         return sq.masked_fill(mem < 0, float("inf"))
 
-    return _select(points, point_batch, tri.amin(1), tri.amax(1), face_batch, face_offsets, pair_sq, False, max_memory)
+    return _select(points, point_batch, tri.amin(1), tri.amax(1), face_batch, face_offsets, pair_sq, max_memory)
 
 
 def pruned_nearest(
@@ -167,11 +165,11 @@ def pruned_nearest(
 ) -> Tensor:
     """Nearest reference point per point (selector contract of ``register_nearest_backend``), exact, any device.
 
-    Ties are decided on the rounded Euclidean distance, like the brute force's ``torch.cdist``.
+    Selects by the computed squared distance, lowest index among equal ones, like the brute force.
     """
 
     def pair_sq(p: Tensor, mem: Tensor) -> Tensor:
         d = p[:, None] - ref[mem.clamp_min(0)]
         return (d * d).sum(-1).masked_fill(mem < 0, float("inf"))
 
-    return _select(points, point_batch, ref, ref, ref_batch, ref_offsets, pair_sq, True, max_memory)
+    return _select(points, point_batch, ref, ref, ref_batch, ref_offsets, pair_sq, max_memory)
