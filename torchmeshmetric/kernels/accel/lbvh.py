@@ -92,10 +92,7 @@ def morton_codes(x: Tensor, batch: Tensor, num_items: int) -> Tensor:
     ext = hi - lo
     flat = ~(ext > 0)
     inv = torch.where(flat, torch.zeros_like(ext), 1023.99 / torch.where(flat, torch.ones_like(ext), ext))
-    if num_items == 1:
-        q = (x - lo) * inv
-    else:
-        q = (x - lo[batch]) * inv[batch]
+    q = (x - lo) * inv if num_items == 1 else (x - lo[batch]) * inv[batch]
     q = q.clamp(0, 1023).long()
     return (_spread10(q[:, 0]) << 2) | (_spread10(q[:, 1]) << 1) | _spread10(q[:, 2])
 

@@ -66,7 +66,7 @@ _NO_INDEX = tl.constexpr(2**62)  # larger than any primitive index
 # are self-contained so that the interpreter and the compiler see the same code.
 
 
-def _closest_face_kernel(
+def _closest_face_kernel(  # type: ignore[no-untyped-def]
     pts_ptr,
     order_ptr,
     qitem_ptr,
@@ -214,10 +214,7 @@ def _closest_face_kernel(
         best = tl.where(better, leaf_sq, best)
         best_idx = tl.where(better, leaf_id, best_idx)
         # Certified pruning bound (prune_bound in bvh.cpp).
-        if IS_F64:
-            root = tl.sqrt(best)
-        else:
-            root = tl.sqrt_rn(best)
+        root = tl.sqrt(best) if IS_F64 else tl.sqrt_rn(best)
         r = root * factor + slack
         bound = tl.where(best < inf, r * r, best)
 
@@ -281,7 +278,7 @@ def _closest_face_kernel(
     tl.store(out_ptr + q, best_idx, mask=valid)
 
 
-def _nearest_point_kernel(
+def _nearest_point_kernel(  # type: ignore[no-untyped-def]
     pts_ptr,
     order_ptr,
     qitem_ptr,
@@ -347,10 +344,7 @@ def _nearest_point_kernel(
         dy = py[:, None] - tl.load(ref_ptr + 3 * slot + 1, mask=m, other=0.0)
         dz = pz[:, None] - tl.load(ref_ptr + 3 * slot + 2, mask=m, other=0.0)
         sq = dx * dx + dy * dy + dz * dz
-        if IS_F64:
-            d = tl.sqrt(sq)
-        else:
-            d = tl.sqrt_rn(sq)
+        d = tl.sqrt(sq) if IS_F64 else tl.sqrt_rn(sq)
         # Lexicographic minimum of (rounded distance, index) over the leaf, then with the best so far.
         d = tl.where(m, d, float("inf"))
         leaf_d = tl.min(d, axis=1)
