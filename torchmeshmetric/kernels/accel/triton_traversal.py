@@ -25,7 +25,8 @@ state in registers:
 
 Triton is optional: this module imports it at the top and is itself imported only when the ``"triton"`` backend
 runs. Kernels are decorated on first use, for the execution mode of that call: compiled for CUDA tensors, or run
-by Triton's interpreter when ``TRITON_INTERPRET=1`` (the CPU-testable path; slow, for tests).
+by Triton's interpreter when ``TRITON_INTERPRET=1`` (the CPU-testable path; slow, for tests). The variable must be
+set before ``triton`` is first imported (Triton decorates its own library functions at import).
 """
 
 from __future__ import annotations
@@ -423,8 +424,20 @@ _RAW: dict[str, Callable[..., None]] = {
 
 
 def interpreting() -> bool:
-    """Whether Triton runs kernels in its interpreter (``TRITON_INTERPRET=1``, read at every call)."""
-    return bool(triton.knobs.runtime.interpret)
+    """Whether Triton runs kernels in its interpreter (``TRITON_INTERPRET=1``, read at every call).
+
+    Raises:
+        RuntimeError: when the variable was set after ``triton`` was imported: Triton's own library functions
+            (``tl.max``, ``tl.min``) were then decorated for the compiler and cannot run in the interpreter.
+    """
+    if not triton.knobs.runtime.interpret:
+        return False
+    if isinstance(tl.max, triton.runtime.jit.JITFunction):
+        raise RuntimeError(
+            "TRITON_INTERPRET=1 was set after triton was imported; set it before the first `import triton` "
+            "(for instance in the shell) to run the 'triton' backend in Triton's interpreter"
+        )
+    return True
 
 
 def _kernel(name: str, interpret: bool) -> Any:
