@@ -32,7 +32,7 @@ from torchmeshmetric.kernels.point_triangle import point_mesh_distance  # noqa: 
 
 DTYPES = [torch.float32, torch.float64]
 CUDA = pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
-INTERPRETING = bool(triton.knobs.runtime.interpret) and not isinstance(triton.language.max, triton.JITFunction)
+INTERPRETING = triton_traversal.interpreting()
 interpreted = pytest.mark.skipif(
     not INTERPRETING, reason="needs TRITON_INTERPRET=1 before triton's import: run by test_interpreter_suite"
 )
@@ -41,6 +41,13 @@ interpreted = pytest.mark.skipif(
 @pytest.fixture
 def interpret():
     """Marks a test that runs kernels in Triton's interpreter."""
+
+
+@pytest.fixture
+def gpu_config(monkeypatch):
+    """The GPU's launch configuration in the interpreter: 32-lane programs, the faces of a leaf one by one."""
+    monkeypatch.setattr(triton_traversal, "BLOCK_INTERPRETED", triton_traversal.BLOCK_GPU)
+    monkeypatch.setattr(triton_traversal, "LEAF_VECTOR_INTERPRETED", triton_traversal.LEAF_VECTOR_GPU)
 
 
 def same_faces(points, verts, faces, *, exact=True, **kw):
@@ -149,7 +156,7 @@ def test_random_meshes_same_faces_bit_identical(interpret, dtype):
 
 @interpreted
 @pytest.mark.parametrize("dtype", DTYPES)
-def test_degenerate_faces_vertices_edges_and_ties(interpret, dtype):
+def test_degenerate_faces_vertices_edges_and_ties(interpret, dtype, gpu_config):
     verts, faces = _degenerate_mesh(dtype)
     g = torch.Generator().manual_seed(3)
     pts = [verts, 0.5 * (verts[faces[:, 0]] + verts[faces[:, 1]]), verts[faces].mean(1)]
@@ -158,7 +165,10 @@ def test_degenerate_faces_vertices_edges_and_ties(interpret, dtype):
 
 
 @interpreted
-def test_lattice_ties_and_one_face(interpret):
+@pytest.mark.parametrize("config", ["interpreter", "gpu"])
+def test_lattice_ties_and_one_face(interpret, config, request):
+    if config == "gpu":
+        request.getfixturevalue("gpu_config")
     g = torch.Generator().manual_seed(4)
     verts = torch.randn(30, 3, generator=g, dtype=torch.float64).mul(2).round()
     faces = torch.randint(0, 30, (60, 3), generator=g)
@@ -191,7 +201,10 @@ def test_far_from_origin(interpret, dtype):
 
 
 @interpreted
-def test_ragged_batch(interpret):
+@pytest.mark.parametrize("config", ["interpreter", "gpu"])
+def test_ragged_batch(interpret, config, request):
+    if config == "gpu":
+        request.getfixturevalue("gpu_config")
     g = torch.Generator().manual_seed(7)
     meshes, clouds = [], []
     # Items: regular, one face and one point, no query points, tiny random, two faces.
@@ -222,13 +235,16 @@ def test_gradients_equal_bruteforce(interpret):
 
 
 @interpreted
-def test_block_size_does_not_change_the_answer(interpret, monkeypatch):
-    # Several programs and a partial last block (on a GPU a program is one 32-lane warp).
-    monkeypatch.setattr(triton_traversal, "BLOCK_INTERPRETED", 32)
+def test_gpu_launch_configuration_random_and_torus(interpret, gpu_config):
+    # Several 32-lane programs, a partial last block, leaf faces one by one: what a GPU runs.
     g = torch.Generator().manual_seed(9)
     verts, faces = _local_soup(g, 50, torch.float32)
     same_faces(torch.randn(100, 3, generator=g) * 2, verts, faces)
     same_nearest(torch.randn(70, 3, generator=g), torch.randn(90, 3, generator=g))
+    mesh = trimesh.creation.torus(major_radius=1.0, minor_radius=0.3, major_sections=16, minor_sections=8)
+    verts, faces = torch.tensor(mesh.vertices, dtype=torch.float64), torch.tensor(mesh.faces)
+    near = torch.tensor(mesh.sample(100, seed=9)) + 0.01 * torch.randn(100, 3, generator=g, dtype=torch.float64)
+    same_faces(torch.cat([near, verts[:30], 3 * torch.randn(30, 3, generator=g, dtype=torch.float64)]), verts, faces)
 
 
 # ----------------------------------------------------------------------------------------------- nearest point
@@ -246,7 +262,10 @@ def test_nearest_random_and_duplicates(interpret, dtype):
 
 
 @interpreted
-def test_nearest_lattice_ties_far_from_origin_ragged_and_single_points(interpret):
+@pytest.mark.parametrize("config", ["interpreter", "gpu"])
+def test_nearest_lattice_ties_far_from_origin_ragged_and_single_points(interpret, config, request):
+    if config == "gpu":
+        request.getfixturevalue("gpu_config")
     g = torch.Generator().manual_seed(11)
     lattice = torch.stack(torch.meshgrid(*[torch.arange(6.0, dtype=torch.float64)] * 3, indexing="ij"), -1)
     lattice = lattice.reshape(-1, 3) + 1e6
@@ -278,28 +297,64 @@ def test_nearest_gradients_equal_bruteforce(interpret):
 # ----------------------------------------------------------------------------------------------- selection rules
 
 
-@pytest.mark.skipif(torch.cuda.is_available(), reason="checks the CPU-only behaviour")
+@pytest.mark.skipif(INTERPRETING, reason="checks a process where triton was imported without the interpreter")
 def test_cpu_without_interpreter_is_a_device_error(monkeypatch):
-    monkeypatch.delenv("TRITON_INTERPRET", raising=False)
     verts, faces = _degenerate_mesh(torch.float32)
     with pytest.raises(DeviceError, match="TRITON_INTERPRET=1"):
         point_mesh_distance(verts, verts, faces, backend="triton")
     with pytest.raises(DeviceError, match="backend='bvh'"):
         nearest_vertex_distance(verts, verts, backend="triton")
-
-
-@interpreted
-def test_half_precision_is_a_dtype_error(interpret):
-    verts, faces = _degenerate_mesh(torch.float16)
-    with pytest.raises(DTypeError, match="float16"):
+    # Triton fixed its mode at import: setting the variable now changes nothing.
+    monkeypatch.setenv("TRITON_INTERPRET", "1")
+    with pytest.raises(DeviceError, match="before triton is first imported"):
         point_mesh_distance(verts, verts, faces, backend="triton")
 
 
-@pytest.mark.skipif(INTERPRETING, reason="checks a process where triton was imported without the interpreter")
-def test_interpreter_requested_after_import_is_a_clear_error(monkeypatch):
-    monkeypatch.setenv("TRITON_INTERPRET", "1")
-    verts, faces = _degenerate_mesh(torch.float32)
-    with pytest.raises(RuntimeError, match="before the first `import triton`"):
+@pytest.mark.skipif(INTERPRETING, reason="compiles for a GPU target: needs triton's compiler, not the interpreter")
+@pytest.mark.parametrize("kernel", ["_closest_face_kernel", "_nearest_point_kernel"])
+@pytest.mark.parametrize("dtype", ["fp32", "fp64"])
+def test_gpu_code_has_no_fma_and_ieee_division_and_sqrt(kernel, dtype):
+    """Compile for an H100 (sm_90) without a GPU and read the PTX: the exactness promises hold in the machine code."""
+    import inspect
+    import re
+
+    backend = pytest.importorskip("triton.backends.compiler")
+    from triton.compiler import ASTSource
+
+    fn = getattr(triton_traversal, kernel)
+    sig = {}
+    for name in inspect.signature(fn.fn).parameters:
+        if name in ("LEAF", "BLOCK", "IS_F64", "LEAF_VECTOR"):
+            sig[name] = "constexpr"
+        elif name == "num_queries":
+            sig[name] = "i32"
+        elif name in ("pts_ptr", "nodes_ptr", "fdata_ptr", "ref_ptr", "slack_ptr", "factor_ptr"):
+            sig[name] = f"*{dtype}"
+        else:
+            sig[name] = "*i64"
+    leaf = triton_traversal.LEAF_FACES if kernel == "_closest_face_kernel" else triton_traversal.LEAF_POINTS
+    constexprs = {"LEAF": leaf, "BLOCK": triton_traversal.BLOCK_GPU, "IS_F64": dtype == "fp64"}
+    constexprs["LEAF_VECTOR"] = triton_traversal.LEAF_VECTOR_GPU
+    try:
+        compiled = triton.compile(
+            ASTSource(fn=fn, signature=sig, constexprs=constexprs),
+            target=backend.GPUTarget("cuda", 90, 32),
+            options={"num_warps": 1, "enable_fp_fusion": False},
+        )
+    except Exception as e:  # no NVIDIA backend in this triton build
+        pytest.skip(f"cannot compile for sm_90 here: {e!r}")
+    ptx = compiled.asm["ptx"]
+    assert not re.search(r"\bfma\.", ptx), "fused multiply-add in the kernel"
+    assert not re.search(r"(div|sqrt|rcp|rsqrt)\.(approx|full)", ptx), "approximate division or square root"
+    width = "f64" if dtype == "fp64" else "f32"
+    assert f"sqrt.rn.{width}" in ptx
+    if kernel == "_closest_face_kernel":
+        assert f"div.rn.{width}" in ptx
+
+
+def test_half_precision_is_a_dtype_error(interpret):
+    verts, faces = _degenerate_mesh(torch.float16)
+    with pytest.raises(DTypeError, match="float16"):
         point_mesh_distance(verts, verts, faces, backend="triton")
 
 
