@@ -388,6 +388,7 @@ def test_library_works_without_triton():
         "from torchmeshmetric.kernels.accel import triton_available\n"
         "v = torch.tensor([[0., 0, 0], [1, 0, 0], [0, 1, 0]]); f = torch.tensor([[0, 1, 2]])\n"
         "assert not triton_available()\n"
+        "import torchmeshmetric.kernels.accel.triton_traversal  # importable (doctest collection)\n"
         "assert point_mesh_distance(torch.tensor([[0., 0, 2]]), v, f).dists.item() == 2.0\n"
         "try:\n"
         "    point_mesh_distance(torch.tensor([[0., 0, 2]]), v, f, backend='triton')\n"

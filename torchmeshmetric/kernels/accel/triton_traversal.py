@@ -34,13 +34,18 @@ from __future__ import annotations
 from typing import Any
 
 import torch
-import triton
-import triton.language as tl
 from torch import Tensor
 
 from torchmeshmetric._checks import DeviceError, DTypeError
 from torchmeshmetric.kernels._common import cross, dot
 from torchmeshmetric.kernels.accel.lbvh import ImplicitBVH, build_implicit_bvh, morton_codes
+
+try:
+    import triton
+    import triton.language as tl
+except ImportError:  # the library works without triton; this module then only imports (for doctest collection)
+    triton = None
+    tl = None
 
 __all__ = ["LEAF_FACES", "LEAF_POINTS", "triton_faces", "triton_nearest"]
 
@@ -62,9 +67,9 @@ LEAF_VECTOR_GPU = False
 LEAF_VECTOR_INTERPRETED = True
 """In the interpreter, all faces of a leaf at once (a ``(BLOCK, LEAF)`` tile): fewer Python calls. Tests run both."""
 
-_FACE_FIELDS = tl.constexpr(22)  # a(3) b(3) ab(3) ac(3) bc(3) n(3) nn ab.ab ac.ac bc.bc
+_FACE_FIELDS = tl.constexpr(22) if tl else 22  # a(3) b(3) ab(3) ac(3) bc(3) n(3) nn ab.ab ac.ac bc.bc
 _SLACK_ULPS = 64.0
-_NO_INDEX = tl.constexpr(2**62)  # larger than any primitive index
+_NO_INDEX = tl.constexpr(2**62) if tl else 2**62  # larger than any primitive index
 
 
 # ----------------------------------------------------------------------------------------------- kernels
@@ -72,7 +77,11 @@ _NO_INDEX = tl.constexpr(2**62)  # larger than any primitive index
 # own library functions too, so the kernels follow the same mode (see `interpreting`).
 
 
-@triton.jit
+def _jit(fn: Any) -> Any:
+    return triton.jit(fn) if triton else fn
+
+
+@_jit
 def _box_sq(nodes_ptr, row, mask, px, py, pz):  # type: ignore[no-untyped-def]
     """Squared distance from the query to the box of node ``row`` and whether the box is non-empty."""
     r = nodes_ptr + 6 * row
@@ -88,7 +97,7 @@ def _box_sq(nodes_ptr, row, mask, px, py, pz):  # type: ignore[no-untyped-def]
     return ex * ex + ey * ey + ez * ez, lx <= hx
 
 
-@triton.jit
+@_jit
 def _traversal_step(  # type: ignore[no-untyped-def]
     nodes_ptr, nbase, node, dep, trail, check, active, inner, bound, px, py, pz
 ):
@@ -136,7 +145,7 @@ def _traversal_step(  # type: ignore[no-untyped-def]
     return node, dep, trail, check, active
 
 
-@triton.jit
+@_jit
 def _tri_sq_dist(f, m, qx, qy, qz, IS_F64: tl.constexpr):  # type: ignore[no-untyped-def]
     """Squared distance from the query to the face record at ``f``: the operations of ``_region_candidates``."""
     ax = tl.load(f, mask=m, other=0.0)
@@ -214,7 +223,7 @@ def _tri_sq_dist(f, m, qx, qy, qz, IS_F64: tl.constexpr):  # type: ignore[no-unt
     return tl.where(inside, tl.minimum(sq, dx * dx + dy * dy + dz * dz), sq)
 
 
-@triton.jit
+@_jit
 def _closest_face_kernel(  # type: ignore[no-untyped-def]
     pts_ptr,
     order_ptr,
@@ -292,7 +301,7 @@ def _closest_face_kernel(  # type: ignore[no-untyped-def]
     tl.store(out_ptr + q, best_idx, mask=valid)
 
 
-@triton.jit
+@_jit
 def _nearest_point_kernel(  # type: ignore[no-untyped-def]
     pts_ptr,
     order_ptr,
@@ -392,6 +401,8 @@ def interpreting() -> bool:
 
 def _mode(points: Tensor) -> bool:
     """``True`` for the interpreter; raises on a dtype or a device the kernels cannot run on."""
+    if triton is None:
+        raise ImportError("backend='triton' needs the optional triton package (pip install triton)")
     if points.dtype not in (torch.float32, torch.float64):
         raise DTypeError(f"points: backend='triton' expects float32 or float64, found {points.dtype}")
     if interpreting():
