@@ -133,6 +133,24 @@ def test_lbvh_leaves_follow_the_morton_curve():
     assert bool((slot_codes[1:] >= slot_codes[:-1]).all())
 
 
+def test_morton_codes_interleave_the_quantised_axes():
+    from torchmeshmetric.kernels.accel.lbvh import _spread10
+
+    g = torch.Generator().manual_seed(2)
+    x = torch.randn(500, 3, generator=g, dtype=torch.float64)
+    x[:, 2] = 0.5  # a flat axis quantises to 0
+    batch = torch.cat([torch.zeros(200, dtype=torch.long), torch.ones(300, dtype=torch.long)])
+    codes = morton_codes(x, batch, 2)
+    for b, rows in ((0, slice(0, 200)), (1, slice(200, 500))):
+        xb = x[rows]
+        lo, hi = xb.amin(0), xb.amax(0)
+        inv = torch.where(hi > lo, 1023.99 / torch.where(hi > lo, hi - lo, torch.ones_like(hi)), torch.zeros_like(hi))
+        q = ((xb - lo) * inv).clamp(0, 1023).long()
+        expected = (_spread10(q[:, 0]) << 2) | (_spread10(q[:, 1]) << 1) | _spread10(q[:, 2])
+        assert torch.equal(codes[rows], expected), b
+    assert int(codes.max()) < 2**30
+
+
 def test_lbvh_rejects_an_empty_leaf_size():
     x = torch.zeros(3, 3)
     with pytest.raises(ValueError, match="leaf_size"):

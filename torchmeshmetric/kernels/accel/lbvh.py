@@ -58,6 +58,17 @@ def _spread10(x: Tensor) -> Tensor:
     return x
 
 
+_SPREAD_TABLES: dict[torch.device, Tensor] = {}
+
+
+def _spread_table(device: torch.device) -> Tensor:
+    """``(1024, 3)`` int64 table: the spread bits of ``q`` for the x, y and z axes (shifted by 2, 1, 0)."""
+    if device not in _SPREAD_TABLES:
+        spread = _spread10(torch.arange(1024, device=device))
+        _SPREAD_TABLES[device] = torch.stack([spread << 2, spread << 1, spread], 1)
+    return _SPREAD_TABLES[device]
+
+
 def _item_bounds(x: Tensor, batch: Tensor, num_items: int) -> tuple[Tensor, Tensor]:
     """Per-item ``(lo, hi)`` ``(B, 3)`` of the rows of ``x``; ``+inf`` / ``-inf`` for empty items."""
     if num_items == 1 and x.shape[0] > 0:
@@ -94,7 +105,9 @@ def morton_codes(x: Tensor, batch: Tensor, num_items: int) -> Tensor:
     inv = torch.where(flat, torch.zeros_like(ext), 1023.99 / torch.where(flat, torch.ones_like(ext), ext))
     q = (x - lo) * inv if num_items == 1 else (x - lo[batch]) * inv[batch]
     q = q.clamp(0, 1023).long()
-    return (_spread10(q[:, 0]) << 2) | (_spread10(q[:, 1]) << 1) | _spread10(q[:, 2])
+    # One gather from a table instead of ~30 bit operations (each a kernel launch on a GPU); the bits of the three
+    # axes do not overlap, so their sum is their bitwise or.
+    return _spread_table(x.device).gather(0, q).sum(1)
 
 
 def build_implicit_bvh(lo: Tensor, hi: Tensor, batch: Tensor, offsets: Tensor, leaf_size: int) -> ImplicitBVH:
@@ -143,42 +156,34 @@ def build_implicit_bvh(lo: Tensor, hi: Tensor, batch: Tensor, offsets: Tensor, l
     prims = torch.full((total_leaves * leaf_size,), -1, dtype=torch.long, device=device)
     prims[slot_base[sorted_batch] + rank] = order
 
-    # Leaf boxes (padding slots are empty boxes), then one pairwise reduction per level.
+    # Leaf boxes, then one pairwise reduction per level. Boxes are held as [lo, -hi] so that one amin reduces both
+    # halves (padding: +inf, an empty box); the upper corners are negated back at the end (negation is exact).
     real = prims >= 0
-    safe = prims.clamp_min(0)
     inf = torch.tensor(float("inf"), dtype=dtype, device=device)
-    slot_lo = torch.where(real[:, None], lo[safe], inf)
-    slot_hi = torch.where(real[:, None], hi[safe], -inf)
-    level_lo = slot_lo.view(total_leaves, leaf_size, 3).amin(1)
-    level_hi = slot_hi.view(total_leaves, leaf_size, 3).amax(1)
-    nodes = torch.empty((2 * total_leaves, 6), dtype=dtype, device=device)
-    nodes[:, :3] = inf
-    nodes[:, 3:] = -inf
+    slot_box = torch.where(real[:, None], torch.cat([lo, -hi], 1)[prims.clamp_min(0)], inf)
+    level = slot_box.view(total_leaves, leaf_size, 6).amin(1)
+    nodes = torch.full((2 * total_leaves, 6), float("inf"), dtype=dtype, device=device)
     if num_items == 1:
         width = total_leaves
         while True:
-            nodes[width : 2 * width, :3] = level_lo
-            nodes[width : 2 * width, 3:] = level_hi
+            nodes[width : 2 * width] = level
             if width == 1:
                 break
-            level_lo = level_lo.view(-1, 2, 3).amin(1)
-            level_hi = level_hi.view(-1, 2, 3).amax(1)
+            level = level.view(-1, 2, 6).amin(1)
             width //= 2
     else:
         entry_item = torch.repeat_interleave(torch.arange(num_items, device=device), leaves)
         for k in range(max(depth_list) + 1):
             if k > 0:
-                keep = depth[entry_item] >= k
-                if not bool(keep.all()):
-                    level_lo, level_hi, entry_item = level_lo[keep], level_hi[keep], entry_item[keep]
+                if (k - 1) in depth_list:  # items whose root was level k - 1 leave the level arrays
+                    keep = depth[entry_item] >= k
+                    level, entry_item = level[keep], entry_item[keep]
                 # Every kept item has an even number of entries at level k - 1, starting at an even position.
-                level_lo = level_lo.view(-1, 2, 3).amin(1)
-                level_hi = level_hi.view(-1, 2, 3).amax(1)
+                level = level.view(-1, 2, 6).amin(1)
                 entry_item = entry_item[::2]
             counts = torch.where(depth >= k, leaves >> k, torch.zeros_like(leaves))
             start = torch.cumsum(counts, 0) - counts
             local = torch.arange(entry_item.numel(), device=device) - start[entry_item]
-            rows = node_base[entry_item] + (leaves[entry_item] >> k) + local
-            nodes[rows, :3] = level_lo
-            nodes[rows, 3:] = level_hi
+            nodes[node_base[entry_item] + (leaves[entry_item] >> k) + local] = level
+    nodes[:, 3:] = -nodes[:, 3:]
     return ImplicitBVH(nodes, prims, node_base, slot_base, depth, leaf_size)
