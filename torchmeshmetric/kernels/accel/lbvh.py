@@ -159,8 +159,7 @@ def build_implicit_bvh(lo: Tensor, hi: Tensor, batch: Tensor, offsets: Tensor, l
     # Leaf boxes, then one pairwise reduction per level. Boxes are held as [lo, -hi] so that one amin reduces both
     # halves (padding: +inf, an empty box); the upper corners are negated back at the end (negation is exact).
     real = prims >= 0
-    inf = torch.tensor(float("inf"), dtype=dtype, device=device)
-    slot_box = torch.where(real[:, None], torch.cat([lo, -hi], 1)[prims.clamp_min(0)], inf)
+    slot_box = torch.where(real[:, None], torch.cat([lo, -hi], 1)[prims.clamp_min(0)], float("inf"))
     level = slot_box.view(total_leaves, leaf_size, 6).amin(1)
     nodes = torch.full((2 * total_leaves, 6), float("inf"), dtype=dtype, device=device)
     if num_items == 1:

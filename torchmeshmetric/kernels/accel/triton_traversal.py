@@ -449,15 +449,16 @@ def _launch(
     if num_p == 0:
         return out
     order = _query_order(points, point_batch, num_items)
-    factor = torch.tensor([1.0 + _SLACK_ULPS * torch.finfo(points.dtype).eps], dtype=points.dtype)
-    factor = factor.to(points.device)
+    # 1 + 64 eps, exact in the working dtype (a power-of-two ulp count); filled on the device, no host copy.
+    one_plus = 1.0 + _SLACK_ULPS * torch.finfo(points.dtype).eps
+    factor = torch.full((1,), one_plus, dtype=points.dtype, device=points.device)
     block = BLOCK_INTERPRETED if interpret else BLOCK_GPU
     kernel = _KERNELS[name]
     grid = (triton.cdiv(num_p, block),)
     kernel[grid](
         points.contiguous(),
         order,
-        point_batch.contiguous(),
+        point_batch.long().contiguous(),
         tree.nodes,
         prim_data.contiguous(),
         tree.prims,
@@ -465,7 +466,7 @@ def _launch(
         tree.slot_base,
         tree.depth,
         slack,
-        first.contiguous(),
+        first.long().contiguous(),
         factor,
         out,
         num_p,
