@@ -20,6 +20,8 @@ import numpy as np
 import pytest
 import torch
 import trimesh
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 triton = pytest.importorskip("triton")
 
@@ -259,6 +261,25 @@ def test_gpu_launch_configuration_random_and_torus(interpret, gpu_config):
     same_faces(torch.cat([near, verts[:10], 3 * torch.randn(10, 3, generator=g, dtype=torch.float64)]), verts, faces)
     lattice = torch.stack(torch.meshgrid(*[torch.arange(4.0)] * 3, indexing="ij"), -1).reshape(-1, 3)
     same_nearest(torch.randint(0, 8, (40, 3), generator=g).float() / 2, lattice)  # exact ties on midpoints
+
+
+@interpreted
+@settings(max_examples=12, deadline=None, derandomize=True)
+@given(
+    seed=st.integers(0, 2**31 - 1),
+    nv=st.integers(3, 30),
+    nf=st.integers(1, 40),
+    grid=st.booleans(),
+    dtype=st.sampled_from(DTYPES),
+)
+def test_property_matches_bruteforce(seed, nv, nf, grid, dtype):
+    g = torch.Generator().manual_seed(seed)
+    verts = torch.randn(nv, 3, generator=g, dtype=dtype)
+    points = torch.randn(40, 3, generator=g, dtype=dtype)
+    if grid:  # integer lattice: many exact ties and degenerate faces
+        verts, points = verts.mul(2).round(), points.mul(2).round()
+    same_faces(points, verts, torch.randint(0, nv, (nf, 3), generator=g))
+    same_nearest(points, verts)
 
 
 # ----------------------------------------------------------------------------------------------- nearest point
