@@ -15,6 +15,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -33,6 +34,7 @@ from torchmeshmetric.kernels.nearest import nearest_vertex_distance  # noqa: E40
 from torchmeshmetric.kernels.point_triangle import point_mesh_distance  # noqa: E402
 
 DTYPES = [torch.float32, torch.float64]
+ROOT = Path(__file__).resolve().parents[2]
 CUDA = pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
 INTERPRETING = triton_traversal.interpreting()
 interpreted = pytest.mark.skipif(
@@ -393,9 +395,9 @@ def test_half_precision_is_a_dtype_error(interpret):
 @pytest.mark.skipif(INTERPRETING, reason="this is the subprocess")
 def test_interpreter_suite():
     """The interpreter tests of this file, in a fresh process with TRITON_INTERPRET=1 (about a minute)."""
-    env = {**os.environ, "TRITON_INTERPRET": "1", "PYTHONPATH": os.getcwd()}
+    env = {**os.environ, "TRITON_INTERPRET": "1", "PYTHONPATH": str(ROOT)}
     cmd = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", __file__, "-k", "not without_triton"]
-    out = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=900)
+    out = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=900, cwd=ROOT)
     print(out.stdout[-3000:])
     assert out.returncode == 0, out.stdout[-6000:] + out.stderr[-2000:]
     assert " passed" in out.stdout and " failed" not in out.stdout
@@ -434,8 +436,8 @@ def test_library_works_without_triton():
         "except ImportError as e:\n"
         "    print('ImportError:', e)\n"
     )
-    env = {**os.environ, "PYTHONPATH": os.getcwd()}
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120, cwd=ROOT)
     assert out.returncode == 0, out.stderr
     assert "ImportError: backend='triton' needs the optional triton package" in out.stdout
 
