@@ -8,6 +8,11 @@ Meshes are closed tori (``trimesh.creation.torus``) with ~F faces; query sets pe
 simplified copy (fast_simplification, ~F/4 points, "simplified") and F/2 points sampled on the surface with
 Gaussian noise of 1% of the minor radius... ("near"); plus, for nearest vertex, the simplified vertices against
 the full vertex set.
+
+With a CUDA device, "CUDA ..." groups time the same cases on the GPU, inputs already on the device, synchronised:
+ours = the "triton" backend (build + query), against Warp's BVH (``wp.Mesh`` build + ``mesh_query_point_no_sign``)
+and our chunked brute force; nearest vertex against the chunked ``torch.cdist`` + min brute force. They skip
+without a GPU (not measured yet: no GPU was lent to the session that wrote them).
 """
 
 from __future__ import annotations
@@ -213,3 +218,98 @@ def test_nearest_bruteforce(timed, size):
     c = case(size)
     p, r = torch.from_numpy(c["simplified"]), torch.from_numpy(c["verts"])
     timed(_ngroup(size), "ours bruteforce", lambda: nearest_vertex_distance(p, r, backend="bruteforce"), 1)
+
+
+# ----------------------------------------------------------------------------------------------- CUDA (skip without)
+
+CUDA_ONLY = pytest.mark.skipif(not torch.cuda.is_available(), reason="CUDA rows need a CUDA device")
+
+
+def _cgroup(size: str, query: str) -> str:
+    return f"CUDA {_group(size, query)}"
+
+
+def _cuda_case(size: str, query: str) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    c = case(size)
+    return torch.from_numpy(c[query]).cuda(), torch.from_numpy(c["verts"]).cuda(), torch.from_numpy(c["faces"]).cuda()
+
+
+def _synced(fn):
+    def go():
+        out = fn()
+        torch.cuda.synchronize()
+        return out
+
+    return go
+
+
+@CUDA_ONLY
+@pytest.mark.parametrize("query", QUERIES)
+@pytest.mark.parametrize("size", SIZES)
+def test_cuda_ours_triton(timed, size, query):
+    pytest.importorskip("triton")
+    p, v, f = _cuda_case(size, query)
+    timed(_cgroup(size, query), OURS, _synced(lambda: point_mesh_distance(p, v, f, backend="triton")), 10)
+
+
+@CUDA_ONLY
+@pytest.mark.parametrize("query", QUERIES)
+@pytest.mark.parametrize("size", SIZES)
+def test_cuda_ours_pruned_torch(timed, size, query):
+    if size != "40k":
+        pytest.skip("pure-torch pruned path: 40k only")
+    p, v, f = _cuda_case(size, query)
+    timed(_cgroup(size, query), "ours pruned (torch)", _synced(lambda: point_mesh_distance(p, v, f, backend="pruned")))
+
+
+@CUDA_ONLY
+@pytest.mark.parametrize("query", QUERIES)
+@pytest.mark.parametrize("size", SIZES)
+def test_cuda_ours_bruteforce(timed, size, query):
+    if size != "40k":
+        pytest.skip("brute force: 40k only")
+    p, v, f = _cuda_case(size, query)
+    go = _synced(lambda: point_mesh_distance(p, v, f, backend="bruteforce"))
+    timed(_cgroup(size, query), "ours bruteforce", go, 3)
+
+
+@CUDA_ONLY
+@pytest.mark.parametrize("query", QUERIES)
+@pytest.mark.parametrize("size", SIZES)
+def test_cuda_warp(timed, size, query):
+    wp, kernel = _warp_kernel()
+    c = case(size)
+    verts = wp.array(c["verts"], dtype=wp.vec3, device="cuda")
+    indices = wp.array(c["faces"].astype(np.int32).ravel(), dtype=int, device="cuda")
+    pts = wp.array(c[query], dtype=wp.vec3, device="cuda")
+
+    def go():
+        mesh = wp.Mesh(points=verts, indices=indices)
+        out = wp.zeros(len(c[query]), dtype=float, device="cuda")
+        wp.launch(kernel, dim=len(c[query]), inputs=[mesh.id, pts, out], device="cuda")
+        wp.synchronize_device("cuda")
+        return out
+
+    timed(_cgroup(size, query), "warp (cuda)", go, 10)
+
+
+def _cngroup(size: str) -> str:
+    return f"CUDA {_ngroup(size)}"
+
+
+@CUDA_ONLY
+@pytest.mark.parametrize("size", SIZES)
+def test_cuda_nearest_ours_triton(timed, size):
+    pytest.importorskip("triton")
+    c = case(size)
+    p, r = torch.from_numpy(c["simplified"]).cuda(), torch.from_numpy(c["verts"]).cuda()
+    timed(_cngroup(size), OURS, _synced(lambda: nearest_vertex_distance(p, r, backend="triton")), 10)
+
+
+@CUDA_ONLY
+@pytest.mark.parametrize("size", SIZES)
+def test_cuda_nearest_bruteforce_cdist(timed, size):
+    c = case(size)
+    p, r = torch.from_numpy(c["simplified"]).cuda(), torch.from_numpy(c["verts"]).cuda()
+    go = _synced(lambda: nearest_vertex_distance(p, r, backend="bruteforce"))
+    timed(_cngroup(size), "ours bruteforce (chunked cdist)", go, 3)
