@@ -20,8 +20,8 @@ state in registers:
   brute-force argmin, lowest index among equal values.
 - **certified pruning**: a node is skipped only when its box distance exceeds
   ``(sqrt(best) (1 + 64 eps) + 64 eps scale)^2`` (``prune_bound`` / ``item_slack`` in ``bvh.cpp``).
-- **nearest points**: ties are decided on the rounded Euclidean distance ``sqrt(d.d)`` (as ``torch.cdist`` with
-  ``donot_use_mm_for_euclid_dist``), lowest index first.
+- **nearest points**: selection by the computed squared distance ``(dx*dx + dy*dy) + dz*dz`` (the brute force's
+  value), lowest index among equal squares, as every backend.
 
 Triton is optional: this module imports it at the top and is itself imported only when the ``"triton"`` backend
 runs. Kernels are compiled for CUDA tensors, or run by Triton's interpreter when ``TRITON_INTERPRET=1`` was set
@@ -336,7 +336,7 @@ def _nearest_point_kernel(  # type: ignore[no-untyped-def]
     best_idx = tl.load(first_ptr + item, mask=valid, other=0)
     factor = tl.load(factor_ptr)
     inf = px * 0.0 + float("inf")
-    best_d = inf  # rounded Euclidean distance of the best point, the comparison key
+    best_sq = inf  # squared distance of the best point, the comparison key
     bound = inf
     node = tl.full([BLOCK], 1, tl.int64)
     dep = tl.zeros([BLOCK], tl.int32)
@@ -347,7 +347,7 @@ def _nearest_point_kernel(  # type: ignore[no-untyped-def]
         bd, full = _box_sq(nodes_ptr, nbase + node, active & check, px, py, pz)
         alive = active & ((check == 0) | ((bd <= bound) & full))
         is_leaf = alive & (dep == dmax)
-        # Leaf: lexicographic minimum of (rounded distance sqrt(d.d), index), as cdist without matrix products.
+        # Leaf: lexicographic minimum of (squared distance, index), as the brute force.
         first_slot = sbase + (node - (tl.full([BLOCK], 1, tl.int64) << dmax.to(tl.int64))) * LEAF
         if LEAF_VECTOR:
             slot = first_slot[:, None] + tl.arange(0, LEAF)[None, :]
@@ -357,12 +357,11 @@ def _nearest_point_kernel(  # type: ignore[no-untyped-def]
             dy = py[:, None] - tl.load(ref_ptr + 3 * slot + 1, mask=m, other=0.0)
             dz = pz[:, None] - tl.load(ref_ptr + 3 * slot + 2, mask=m, other=0.0)
             sq = dx * dx + dy * dy + dz * dz
-            d = tl.sqrt(sq) if IS_F64 else tl.sqrt_rn(sq)
-            d = tl.where(m, d, float("inf"))
-            leaf_d = tl.min(d, axis=1)
-            leaf_id = tl.min(tl.where(m & (d == leaf_d[:, None]), rid, _NO_INDEX), axis=1)
-            better = (leaf_d < best_d) | ((leaf_d == best_d) & (leaf_id < best_idx))
-            best_d = tl.where(better, leaf_d, best_d)
+            sq = tl.where(m, sq, float("inf"))
+            leaf_sq = tl.min(sq, axis=1)
+            leaf_id = tl.min(tl.where(m & (sq == leaf_sq[:, None]), rid, _NO_INDEX), axis=1)
+            better = (leaf_sq < best_sq) | ((leaf_sq == best_sq) & (leaf_id < best_idx))
+            best_sq = tl.where(better, leaf_sq, best_sq)
             best_idx = tl.where(better, leaf_id, best_idx)
         else:
             for j in range(LEAF):  # a loop, not unrolled: half the registers on a GPU
@@ -373,12 +372,13 @@ def _nearest_point_kernel(  # type: ignore[no-untyped-def]
                 dy = py - tl.load(ref_ptr + 3 * slot + 1, mask=m, other=0.0)
                 dz = pz - tl.load(ref_ptr + 3 * slot + 2, mask=m, other=0.0)
                 sq = dx * dx + dy * dy + dz * dz
-                d = tl.sqrt(sq) if IS_F64 else tl.sqrt_rn(sq)
-                better = m & ((d < best_d) | ((d == best_d) & (rid < best_idx)))
-                best_d = tl.where(better, d, best_d)
+                better = m & ((sq < best_sq) | ((sq == best_sq) & (rid < best_idx)))
+                best_sq = tl.where(better, sq, best_sq)
                 best_idx = tl.where(better, rid, best_idx)
-        r = best_d * factor + slack
-        bound = tl.where(best_d < inf, r * r, best_d)
+        # Certified pruning bound (prune_bound in bvh.cpp).
+        root = tl.sqrt(best_sq) if IS_F64 else tl.sqrt_rn(best_sq)
+        r = root * factor + slack
+        bound = tl.where(best_sq < inf, r * r, best_sq)
         node, dep, trail, check, active = _traversal_step(
             nodes_ptr, nbase, node, dep, trail, check, active, alive & (dep < dmax), bound, px, py, pz
         )
