@@ -176,3 +176,17 @@ def test_large_inputs_take_the_parallel_radix_sort() -> None:
         torch.set_num_threads(before)
     assert faces.shape[0] > 2**16
     assert torch.equal(got.face_idx, expected.face_idx) and torch.equal(got.dists, expected.dists)
+
+
+@pytest.mark.parametrize("which", ["points", "ref_points"])
+def test_non_finite_found_by_the_blocked_bounds_pass(which: str) -> None:
+    # Above 2^18 rows the fused bounds/finiteness pass runs in per-thread blocks: a NaN in the last block counts.
+    p, r = torch.rand(300_000, 3), torch.rand(300_000, 3)
+    (p if which == "points" else r)[-1, 0] = float("nan")
+    before = torch.get_num_threads()
+    try:
+        torch.set_num_threads(2)
+        with pytest.raises(NonFiniteError, match=f"^{which}: expected finite values, found 1 NaN/Inf value"):
+            nearest_vertex_distance(p, r, backend="bvh")
+    finally:
+        torch.set_num_threads(before)

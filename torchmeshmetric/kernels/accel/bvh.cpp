@@ -570,21 +570,51 @@ torch::Tensor nearest_points_impl(const torch::Tensor& points, const torch::Tens
   return out;
 }
 
-// Per-column bounds of an (n, 3) array and whether every value is finite, in one pass.
+// Per-column bounds of an (n, 3) array and whether every value is finite, in one pass (per-thread blocks above
+// GRAIN_LINEAR rows; min and max are exact, so the result does not depend on the split).
 template <typename T>
 bool bounds_finite(const T* x, int64_t n, T* lo, T* hi) {
+  const int64_t blocks = n < GRAIN_LINEAR ? 1 : std::max<int64_t>(1, std::min<int64_t>(at::get_num_threads(), 64));
+  std::vector<T> part(6 * blocks);
+  std::vector<char> ok(blocks, 1);
+  auto run = [&](int64_t b) {
+    T l[3], h[3];
+    for (int k = 0; k < 3; ++k) {
+      l[k] = std::numeric_limits<T>::infinity();
+      h[k] = -std::numeric_limits<T>::infinity();
+    }
+    bool finite = true;
+    for (int64_t i = n * b / blocks; i < n * (b + 1) / blocks; ++i)
+      for (int k = 0; k < 3; ++k) {
+        const T v = x[3 * i + k];
+        finite &= std::isfinite(v);
+        l[k] = std::min(l[k], v);
+        h[k] = std::max(h[k], v);
+      }
+    for (int k = 0; k < 3; ++k) {
+      part[6 * b + k] = l[k];
+      part[6 * b + 3 + k] = h[k];
+    }
+    ok[b] = finite;
+  };
+  if (blocks == 1)
+    run(0);
+  else
+    at::parallel_for(0, blocks, 1, [&](int64_t b0, int64_t b1) {
+      for (int64_t b = b0; b < b1; ++b) run(b);
+    });
+  bool finite = true;
   for (int k = 0; k < 3; ++k) {
     lo[k] = std::numeric_limits<T>::infinity();
     hi[k] = -std::numeric_limits<T>::infinity();
   }
-  bool finite = true;
-  for (int64_t i = 0; i < n; ++i)
+  for (int64_t b = 0; b < blocks; ++b) {
+    finite &= ok[b] != 0;
     for (int k = 0; k < 3; ++k) {
-      const T v = x[3 * i + k];
-      finite &= std::isfinite(v);
-      lo[k] = std::min(lo[k], v);
-      hi[k] = std::max(hi[k], v);
+      lo[k] = std::min(lo[k], part[6 * b + k]);
+      hi[k] = std::max(hi[k], part[6 * b + 3 + k]);
     }
+  }
   return finite;
 }
 
