@@ -284,15 +284,27 @@ def test_nearest_gradients_equal_bruteforce(backend):
     assert torch.equal(grads[0][0], grads[1][0]) and torch.equal(grads[0][1], grads[1][1])
 
 
-def test_auto_picks_bvh_on_cpu_for_large_problems_and_bruteforce_for_small():
-    from torchmeshmetric.kernels.accel import auto_face_backend, auto_nearest_backend
+def test_auto_picks_bvh_on_cpu_for_large_problems_and_bruteforce_for_small(monkeypatch):
+    import torchmeshmetric.kernels.accel as accel
 
     small, large = torch.zeros(10, 3), torch.zeros(5000, 3)
     faces = torch.zeros(1000, 3, dtype=torch.long)
-    assert auto_face_backend(small, small, faces) is None
-    assert auto_face_backend(large, large, faces) == "bvh"
-    assert auto_nearest_backend(large, torch.zeros(1000, 3)) == "bvh"
-    assert auto_nearest_backend(small, small) is None
+    # Before the extension is compiled: small problems stay on the brute force (no compilation for them).
+    monkeypatch.setattr(accel, "bvh_ready", lambda: False)
+    assert accel.auto_face_backend(small, small, faces) is None
+    assert accel.auto_face_backend(large, large, faces) == "bvh"
+    assert accel.auto_nearest_backend(large, torch.zeros(1000, 3)) == "bvh"
+    assert accel.auto_nearest_backend(small, small) is None
+    # Compiled: the BVH at every size.
+    monkeypatch.setattr(accel, "bvh_ready", lambda: True)
+    assert accel.auto_face_backend(small, small, faces) == "bvh"
+    assert accel.auto_nearest_backend(small, small) == "bvh"
+
+
+def test_bvh_ready_reflects_the_compiled_extension():
+    from torchmeshmetric.kernels.accel._extension import bvh_ready
+
+    assert load_bvh() is not None and bvh_ready()
 
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")

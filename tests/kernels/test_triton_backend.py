@@ -412,12 +412,16 @@ def test_missing_triton_is_an_import_error(monkeypatch):
         nearest_vertex_distance(verts, verts, backend="triton")
 
 
-def test_auto_rules():
+def test_auto_rules(monkeypatch):
+    monkeypatch.setattr(accel, "bvh_ready", lambda: False)
     large, faces = torch.zeros(5000, 3), torch.zeros(1000, 3, dtype=torch.long)
     assert accel.auto_face_backend(large, large, faces) == "bvh"  # CPU: unchanged
     meta = torch.zeros(5000, 3, device="meta")
     assert accel.auto_face_backend(meta, meta, faces) == "pruned"  # neither CPU nor CUDA
     assert accel.auto_face_backend(torch.zeros(10, 3), large, faces) is None  # small: brute force
+    monkeypatch.setattr(accel, "bvh_ready", lambda: True)  # a compiled extension changes nothing off the CPU
+    assert accel.auto_face_backend(meta, meta, faces) == "pruned"
+    assert accel.auto_face_backend(torch.zeros(10, 3, device="meta"), meta, faces) is None
 
 
 def test_library_works_without_triton():

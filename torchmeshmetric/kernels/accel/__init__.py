@@ -5,10 +5,11 @@
 - ``"triton"``: implicit BVH built with torch ops, traversed by a Triton kernel (CUDA; on the CPU only in Triton's
   interpreter, ``TRITON_INTERPRET=1``). Triton is optional: it is imported on the first call of this backend.
 
-``backend="auto"`` (see :func:`auto_face_backend` / :func:`auto_nearest_backend`) keeps the brute force for small
-problems, where it is fast and needs no compilation, and above :data:`MIN_PAIRS` point-primitive pairs picks
-``"bvh"`` on the CPU, ``"triton"`` on CUDA when Triton imports (float32 / float64), ``"pruned"`` otherwise. The
-choice is documented in ``docs/acceleration.md``.
+``backend="auto"`` (see :func:`auto_face_backend` / :func:`auto_nearest_backend`) picks ``"bvh"`` for CPU tensors of
+any size once the C++ extension is compiled (it is faster than the brute force from ten points on); until then, and
+on other devices, it keeps the brute force for problems below :data:`MIN_PAIRS` point-primitive pairs (they never
+pay the compilation) and above picks ``"bvh"`` on the CPU, ``"triton"`` on CUDA when Triton imports (float32 /
+float64), ``"pruned"`` otherwise. The choice is documented in ``docs/acceleration.md``.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from types import ModuleType
 import torch
 from torch import Tensor
 
+from torchmeshmetric.kernels.accel._extension import bvh_ready
 from torchmeshmetric.kernels.accel.bvh import bvh_faces, bvh_nearest, bvh_nearest_single
 from torchmeshmetric.kernels.accel.pruned import pruned_faces, pruned_nearest
 from torchmeshmetric.kernels.nearest import register_nearest_backend
@@ -97,6 +99,8 @@ def triton_nearest(
 
 
 def _auto(points: Tensor, num_prims: int, dtype: torch.dtype) -> str | None:
+    if points.device.type == "cpu" and bvh_ready():
+        return "bvh"  # compiled already: faster than the brute force at every size (docs/acceleration.md)
     if points.shape[0] * num_prims < MIN_PAIRS:
         return None
     if points.device.type == "cpu":

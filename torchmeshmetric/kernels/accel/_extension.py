@@ -8,6 +8,7 @@ When compilation is impossible (no C++ compiler, no ``ninja``), :func:`load_bvh`
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib.util
 import threading
@@ -15,7 +16,7 @@ import warnings
 from pathlib import Path
 from types import ModuleType
 
-__all__ = ["load_bvh"]
+__all__ = ["bvh_ready", "load_bvh"]
 
 _SOURCE = Path(__file__).with_name("bvh.cpp")
 _LOCK = threading.Lock()
@@ -47,6 +48,31 @@ def _import_built(name: str) -> ModuleType | None:
         return None
 
 
+@functools.cache
+def _module_name() -> str:
+    # The source hash in the name makes an edited source rebuild instead of reusing a stale cache.
+    digest = hashlib.sha1(_SOURCE.read_bytes()).hexdigest()[:10]
+    return f"torchmeshmetric_bvh_{digest}"
+
+
+def bvh_ready() -> bool:
+    """Whether the extension can be used without compiling: already loaded, or a finished build is cached.
+
+    ``backend="auto"`` then uses it for problems of any size (it beats the brute force from ten points on); before
+    the first build it keeps tiny problems on the brute force, so they never pay the compilation.
+    """
+    state = _STATE.get("bvh", False)
+    if state is not False:
+        return state is not None
+    try:
+        from torch.utils.cpp_extension import _get_build_directory
+
+        name = _module_name()
+        return (Path(_get_build_directory(name, verbose=False)) / f"{name}.so").is_file()
+    except Exception:
+        return False
+
+
 def load_bvh() -> ModuleType | None:
     """The compiled BVH extension, or ``None`` (with one warning) when it cannot be built."""
     with _LOCK:
@@ -56,9 +82,7 @@ def load_bvh() -> ModuleType | None:
         try:
             from torch.utils.cpp_extension import load
 
-            # The source hash in the name makes an edited source rebuild instead of reusing a stale cache.
-            digest = hashlib.sha1(_SOURCE.read_bytes()).hexdigest()[:10]
-            name = f"torchmeshmetric_bvh_{digest}"
+            name = _module_name()
             module = _import_built(name)
             if module is not None:
                 _STATE["bvh"] = module
