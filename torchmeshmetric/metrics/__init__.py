@@ -9,6 +9,7 @@ from torchmeshmetric.metrics.nearest_vertex_distance_loss import (
     NearestVertexDistanceLoss,
     nearest_vertex_distance_loss,
 )
+from torchmeshmetric.metrics.selected_statistic import SelectedStatistic
 
 __all__ = [
     "DirectedDistances",
@@ -18,6 +19,7 @@ __all__ = [
     "MeshSurfaceDistanceLoss",
     "NearestVertexDistance",
     "NearestVertexDistanceLoss",
+    "SelectedStatistic",
     "mesh_surface_distance_loss",
     "mesh_surface_distances",
     "nearest_vertex_distance_loss",

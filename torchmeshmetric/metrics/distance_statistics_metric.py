@@ -16,15 +16,17 @@ All float states are float64 (``Metric.half()``/``.float()`` leave them alone un
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import torch
 from torch import Tensor
-from torchmetrics import Metric
+from torchmetrics import Metric, MetricCollection
 from torchmetrics.utilities.data import dim_zero_cat
 
 from torchmeshmetric._checks import EmptyInputError, NonFiniteError, check_shape
 from torchmeshmetric.metrics.directed_distances import DirectedDistances
+from torchmeshmetric.metrics.selected_statistic import SelectedStatistic
 from torchmeshmetric.stats.moments import Moments, merge_mean_m2, moments_of
 from torchmeshmetric.stats.sketch import QuantileSketch
 from torchmeshmetric.stats.statistics import (
@@ -38,6 +40,7 @@ from torchmeshmetric.stats.statistics import (
 __all__ = ["DistanceStatisticsBase", "DistanceStatisticsMetric"]
 
 _DIRECTIONS = ("fwd", "rev")
+_SYMMETRIC = ("symmetric_ave", "hausdorff", "symmetric_mse", "symmetric_rmse", "symmetric_psnr")
 
 
 class DistanceStatisticsBase(Metric):
@@ -58,6 +61,8 @@ class DistanceStatisticsBase(Metric):
     full_state_update = False
     plot_lower_bound = 0.0
     _state_prefix = "dist"
+    # Whether every update brings a PSNR peak (the reference's bounding-box diagonal), so that psnr is always known.
+    _peak_from_updates = True
 
     def __init__(
         self,
@@ -177,6 +182,62 @@ class DistanceStatisticsBase(Metric):
             out["reverse"] = self._direction_statistics("rev")
         return out
 
+    def statistic_names(self) -> tuple[str, ...]:
+        """The keys of :meth:`compute`, in order, for this metric's configuration.
+
+        ``psnr`` keys are listed when a peak is always known: a constructor ``peak``, or a metric whose updates
+        measure a reference (every metric but :class:`DistanceStatisticsMetric`).
+        """
+        psnr = self.fixed_peak is not None or self._peak_from_updates
+        fields = tuple(f for f in DistanceStatistics._fields if psnr or f != "psnr")
+        if not self.two_sided:
+            return fields
+        return fields + tuple("reverse_" + f for f in fields) + tuple(s for s in _SYMMETRIC if psnr or "psnr" not in s)
+
+    def statistic(self, key: str) -> SelectedStatistic:
+        """A scalar metric reporting ``self.compute()[key]``, for ``self.log(name, metric)`` in Lightning.
+
+        The view shares this metric's accumulation: keep calling ``update`` on this metric; logging the view makes
+        Lightning compute it at the end of the epoch and reset this metric. See
+        :class:`~torchmeshmetric.metrics.SelectedStatistic`.
+
+        Raises:
+            ValueError: ``key`` is not one of :meth:`statistic_names`.
+        """
+        return SelectedStatistic(self, key)
+
+    def statistics(
+        self, keys: Sequence[str] | None = None, *, prefix: str | None = None, postfix: str | None = None
+    ) -> MetricCollection:
+        """A ``MetricCollection`` of :meth:`statistic` views, for ``self.log_dict(collection)`` in Lightning.
+
+        Args:
+            keys: the statistics to report (default: all of :meth:`statistic_names`).
+            prefix: prepended to every key in the collection's names (e.g. ``"val/surface_"``).
+            postfix: appended to every key.
+
+        Returns:
+            A collection whose ``compute()`` is the selected part of ``self.compute()`` (keys with prefix/postfix)
+            and whose members are scalar metrics sharing this metric's single accumulation.
+
+        Raises:
+            ValueError: a key is not one of :meth:`statistic_names`, or ``keys`` is empty or repeats a key.
+
+        Example:
+            >>> import torch
+            >>> metric = DistanceStatisticsMetric()
+            >>> logged = metric.statistics(["ave", "max"], prefix="val/")
+            >>> metric.update(torch.tensor([1.0, 2.0, 6.0]))
+            >>> {k: v.item() for k, v in logged.compute().items()}
+            {'val/ave': 3.0, 'val/max': 6.0}
+        """
+        keys = self.statistic_names() if keys is None else tuple(keys)
+        if len(keys) == 0 or len(set(keys)) != len(keys):
+            raise ValueError(f"keys: expected distinct statistic names, found {keys!r}")
+        return MetricCollection(
+            {k: self.statistic(k) for k in keys}, prefix=prefix, postfix=postfix, compute_groups=False
+        )
+
     def compute(self) -> dict[str, Tensor]:
         """Dict of 0-dim float64 tensors (``count`` included, as float64, so that every value logs as a float).
 
@@ -220,6 +281,8 @@ class DistanceStatisticsMetric(DistanceStatisticsBase):
         >>> out["ave"].item(), out["var"].item(), out["mse"].item(), out["count"].item()
         (2.5, 1.25, 7.5, 4.0)
     """
+
+    _peak_from_updates = False
 
     def update(self, dists: Tensor, reverse_dists: Tensor | None = None, *, peak: float | Tensor | None = None) -> None:
         """Accumulate ``(N,)`` forward distances (and ``(R,)`` reverse ones when ``two_sided``)."""

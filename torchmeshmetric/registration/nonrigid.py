@@ -9,7 +9,12 @@ The model (:class:`~torchmeshmetric.registration.DeformationGraph`) and the ener
 3. for each :class:`Stage` (regularisation, robust scale and rejection thresholds decreasing): Adam steps on the
    graph's rotations and translations; correspondences (source vertices → target faces, target samples → deformed
    source faces) are refreshed every ``correspondence_every`` steps, not every step; the stage ends after
-   ``max_steps`` or when the loss changes by less than ``tolerance`` (relative) between two refreshes;
+   ``max_steps``, when the loss changes by less than ``tolerance`` (relative) between two refreshes, or at a
+   stationary point (every gradient component below ``sqrt(eps)`` of the dtype, ``_stationary``); each
+   stage then keeps its **best iterate**: the parameters of the lowest loss measured right after a correspondence
+   refresh (the stage's last iterate gets one more refresh to compete). Adam moves every parameter by about the
+   learning rate whatever the gradient's size, so without this an exact pair drifted by 1e-3 of the diagonal
+   and a near-exact one ended at Adam's noise floor instead of where it started;
 4. divergence (NaN/Inf or a loss that explodes) restores the last good parameters and reports failure; a fit
    whose residuals stay large is reported as not converged too, with the reason, and a warning.
 """
@@ -79,8 +84,8 @@ DEFAULT_SCHEDULE: tuple[Stage, ...] = (
 """The default coarse-to-fine schedule: regularisation, robust scale, rejection thresholds and step size decrease.
 
 Stage lengths 120/50/50/40 steps (was 120 each): at ~17k vertices the ground-truth error barely moves
-(docs/registration.md) while the Adam steps, the dominant cost, drop by ~40 %. Stage 1 keeps 120 steps: shorter,
-Adam steps on the rounding-noise gradients of an exact start leave a visible drift."""
+(docs/registration.md) while the Adam steps, the dominant cost, drop by ~40 %. Each stage returns its best iterate
+and stops at a stationary point, so an exact or near-exact pair is not moved by Adam's lr-sized steps."""
 
 
 class NonRigidRegistration(NamedTuple):
@@ -116,6 +121,18 @@ def _identity_rigid(verts: Tensor) -> RigidRegistration:
         eye, zero, verts.new_ones(()), torch.eye(4, dtype=verts.dtype, device=verts.device), verts,
         verts.new_zeros(()), verts.new_ones(()), True, 0,
     )  # fmt: skip
+
+
+def _stationary(graph: DeformationGraph, tol: float) -> bool:
+    """Whether every gradient component of the graph's parameters is at most ``tol`` (a stationary point).
+
+    Adam's step is ``lr * m / (sqrt(v) + eps)``: about ``lr`` in every coordinate whatever the gradient's size, so
+    at a stationary point (e.g. an already exact pair, whose gradient is rounding noise) it moves the parameters by
+    ``lr`` instead of not at all. The loop stops a stage there. ``tol = sqrt(eps)`` of the dtype (1.5e-8 in
+    float64): the loss is in units of the node spacing squared, so such a gradient means residuals of ~1e-10 of
+    the diagonal.
+    """
+    return all(p.grad is None or float(p.grad.abs().max()) <= tol for p in graph.parameters())
 
 
 def _residual(points: Tensor, verts: Tensor, faces: Tensor) -> Tensor:
@@ -237,6 +254,7 @@ def register_nonrigid(
 
     history: list[float] = []
     reason = ""
+    stationary_tol = math.sqrt(torch.finfo(dtype).eps)
     best_state = {k: v.detach().clone() for k, v in graph.state_dict().items()}
     t_opt = time.perf_counter()
     first_loss: float | None = None
@@ -246,8 +264,15 @@ def register_nonrigid(
         corr_f: Correspondences | None = None
         corr_r: Correspondences | None = None
         corr_r_loc: Correspondences | None = None
-        for step in range(stage.max_steps):
-            if step % correspondence_every == 0:
+        # Best iterate of the stage, judged on the loss right after a correspondence refresh (a function of the
+        # parameters alone, so comparable across refreshes); the stage's last iterate gets one more refresh.
+        stage_best = math.inf
+        stage_best_state = best_state
+        finishing = False
+        for step in range(stage.max_steps + 1):
+            finishing = finishing or step == stage.max_steps
+            refresh = finishing or step % correspondence_every == 0
+            if refresh:
                 t0 = time.perf_counter()
                 with torch.no_grad():
                     dv = graph()
@@ -270,17 +295,19 @@ def register_nonrigid(
                 )
             assert corr_f is not None
             opt.zero_grad(set_to_none=True)
-            dsub = graph.deform_vertices(need)
-            loss = surface_term(dsub[surf_loc], tv, tf, corr_f, sigma=stage.robust_scale, plane_weight=plane_weight,
-                                point_weight=point_weight)  # fmt: skip
-            if corr_r_loc is not None and reverse_weight:
-                loss = loss + reverse_weight * surface_term(
-                    tsamp, dsub, faces_loc, corr_r_loc, sigma=stage.robust_scale, plane_weight=0.0, point_weight=1.0
-                )
-            # Data terms in units of the node spacing, so a regularisation weight of 1 trades an edge residual of
-            # one spacing against a data residual of one spacing.
-            loss = loss / (node_spacing * node_spacing)
-            loss = loss + stage.regularization * embedded_deformation_regularizer(graph)
+            with torch.set_grad_enabled(not finishing):
+                dsub = graph.deform_vertices(need)
+                loss = surface_term(dsub[surf_loc], tv, tf, corr_f, sigma=stage.robust_scale,
+                                    plane_weight=plane_weight, point_weight=point_weight)  # fmt: skip
+                if corr_r_loc is not None and reverse_weight:
+                    loss = loss + reverse_weight * surface_term(
+                        tsamp, dsub, faces_loc, corr_r_loc, sigma=stage.robust_scale, plane_weight=0.0,
+                        point_weight=1.0,
+                    )  # fmt: skip
+                # Data terms in units of the node spacing, so a regularisation weight of 1 trades an edge residual
+                # of one spacing against a data residual of one spacing.
+                loss = loss / (node_spacing * node_spacing)
+                loss = loss + stage.regularization * embedded_deformation_regularizer(graph)
             value = float(loss.detach())
             if first_loss is None:
                 # The loss is in units of (node spacing)^2: a floor of 1 (a residual of one node spacing) keeps an
@@ -290,6 +317,11 @@ def register_nonrigid(
                 reason = f"diverged: loss became {value:.3g} (first loss {first_loss:.3g})"
                 graph.load_state_dict(best_state)
                 break
+            if refresh and value < stage_best:
+                stage_best = value
+                stage_best_state = {k: v.detach().clone() for k, v in graph.state_dict().items()}
+            if finishing:
+                break
             history.append(value)
             loss.backward()
             grads_ok = all(p.grad is None or bool(torch.isfinite(p.grad).all()) for p in graph.parameters())
@@ -297,15 +329,20 @@ def register_nonrigid(
                 reason = "diverged: non-finite gradient"
                 graph.load_state_dict(best_state)
                 break
-            if step % correspondence_every == 0:
+            if refresh:
                 best_state = {k: v.detach().clone() for k, v in graph.state_dict().items()}
+            if _stationary(graph, stationary_tol):
+                finishing = True  # the gradient is rounding noise: Adam would turn it into lr-sized steps
+                continue
             opt.step()
             if step % correspondence_every == correspondence_every - 1:
                 if prev_window is not None and abs(prev_window - value) <= tolerance * max(abs(prev_window), 1e-30):
-                    break
+                    finishing = True
                 prev_window = value
         if reason:
             break
+        graph.load_state_dict(stage_best_state)
+        best_state = stage_best_state
     timings["optimisation"] = time.perf_counter() - t_opt - timings["correspondences"]
 
     # 4. Results, residuals and plausibility.
