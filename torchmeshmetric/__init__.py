@@ -42,6 +42,7 @@ from torchmeshmetric.metrics import (
     MeshSurfaceDistanceLoss,
     NearestVertexDistance,
     NearestVertexDistanceLoss,
+    SelectedStatistic,
     mesh_surface_distance_loss,
     nearest_vertex_distance_loss,
 )
@@ -92,6 +93,7 @@ __all__ = [
     "MeshSurfaceDistanceLoss",
     "NearestVertexDistance",
     "NearestVertexDistanceLoss",
+    "SelectedStatistic",
     "distance_statistics",
     "mesh_surface_distance_loss",
     "nearest_vertex_distance_loss",
