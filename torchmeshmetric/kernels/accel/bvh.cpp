@@ -350,37 +350,48 @@ std::vector<T> item_slack(const T* box_lo, const T* box_hi, const int64_t* offse
   return scale;
 }
 
-// Generic traversal: `leaf_fn(start, count, p, best_sq, best_idx)` updates the best candidate.
+// Generic traversal: `leaf_fn(start, count, p, best_sq, best_idx)` updates the best candidate. Descends into the
+// nearer child directly and stacks the farther one (if it can still hold a candidate); a stacked node is re-tested
+// against the bound when popped, since the bound shrinks meanwhile.
 template <typename T, typename LeafFn>
 inline void traverse(const Node<T>* nodes, int64_t root, const T* p, T slack, T& best_sq, int64_t& best_idx,
                      LeafFn leaf_fn) {
   int64_t stack[128];
   T stack_d[128];
   int top = 0;
-  stack[top] = root;
-  stack_d[top] = box_sq_dist(nodes[root], p);
-  ++top;
   T bound = prune_bound(best_sq, slack);
-  while (top > 0) {
-    --top;
-    const int64_t ni = stack[top];
-    if (stack_d[top] > bound) continue;
+  if (box_sq_dist(nodes[root], p) > bound) return;
+  int64_t ni = root;
+  for (;;) {
     const Node<T>& nd = nodes[ni];
     if (nd.right < 0) {
       const T before = best_sq;
       leaf_fn(nd.start, nd.count, p, best_sq, best_idx);
       if (best_sq != before) bound = prune_bound(best_sq, slack);
-      continue;
-    }
-    const int64_t l = ni + 1, r = nd.right;
-    const T dl = box_sq_dist(nodes[l], p), dr = box_sq_dist(nodes[r], p);
-    // Push the farther child first so that the nearer one is visited next.
-    if (dl <= dr) {
-      if (dr <= bound) { stack[top] = r; stack_d[top] = dr; ++top; }
-      if (dl <= bound) { stack[top] = l; stack_d[top] = dl; ++top; }
     } else {
-      if (dl <= bound) { stack[top] = l; stack_d[top] = dl; ++top; }
-      if (dr <= bound) { stack[top] = r; stack_d[top] = dr; ++top; }
+      const int64_t l = ni + 1, r = nd.right;
+      const T dl = box_sq_dist(nodes[l], p), dr = box_sq_dist(nodes[r], p);
+      const bool left_first = dl <= dr;
+      const int64_t near = left_first ? l : r, far = left_first ? r : l;
+      const T d_near = left_first ? dl : dr, d_far = left_first ? dr : dl;
+      if (d_near <= bound) {
+        if (d_far <= bound) {
+          stack[top] = far;
+          stack_d[top] = d_far;
+          ++top;
+        }
+        ni = near;
+        continue;
+      }
+    }
+    // Next stacked node that can still hold a candidate, or done.
+    for (;;) {
+      if (top == 0) return;
+      --top;
+      if (stack_d[top] <= bound) {
+        ni = stack[top];
+        break;
+      }
     }
   }
 }
