@@ -177,6 +177,48 @@ int64_t build_node(std::vector<Node<T>>& nodes, const uint32_t* code, int64_t ba
   return node;
 }
 
+// Stable Morton order of n points whose bounds are lo/hi: fills the sorted codes and the point index of each slot.
+template <typename T>
+void morton_sort(const T* pts, int64_t n, const T* lo, const T* hi, std::vector<uint32_t>& code,
+                 std::vector<int64_t>& idx) {
+  T inv[3];
+  for (int k = 0; k < 3; ++k) inv[k] = hi[k] > lo[k] ? T(1023.99) / (hi[k] - lo[k]) : T(0);
+  code.resize(n);
+  idx.resize(n);
+  at::parallel_for(0, n, GRAIN_LINEAR, [&](int64_t a, int64_t z) {
+    for (int64_t i = a; i < z; ++i) {
+      code[i] = morton(pts + 3 * i, lo, inv);
+      idx[i] = i;
+    }
+  });
+  radix_sort(code, idx);
+}
+
+// Per-column bounds of an (n, 3) array.
+template <typename T>
+void bounds3(const T* pts, int64_t n, T* lo, T* hi) {
+  for (int k = 0; k < 3; ++k) {
+    lo[k] = std::numeric_limits<T>::infinity();
+    hi[k] = -std::numeric_limits<T>::infinity();
+  }
+  for (int64_t i = 0; i < n; ++i)
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = std::min(lo[k], pts[3 * i + k]);
+      hi[k] = std::max(hi[k], pts[3 * i + k]);
+    }
+}
+
+// Morton order of query points (cache coherence of the traversal, seeding).
+template <typename T>
+std::vector<int64_t> query_order(const T* pts, int64_t n) {
+  T lo[3], hi[3];
+  bounds3(pts, n, lo, hi);
+  std::vector<uint32_t> code;
+  std::vector<int64_t> idx;
+  morton_sort(pts, n, lo, hi, code, idx);
+  return idx;
+}
+
 // Builds one hierarchy per item (items: contiguous ranges [offsets[b], offsets[b+1]) of the primitives).
 // Primitives are ordered along a Morton curve of their centroids within the item (LBVH-style ordering, Karras
 // 2012), then split at the object median of that order. Fills the nodes (all items), the per-item roots (-1 for
@@ -192,55 +234,16 @@ void build_forest(const T* box_lo, const T* box_hi, const T* cen, const int64_t*
   for (int64_t b = 0; b < num_items; ++b) {
     const int64_t s = offsets[b], e = offsets[b + 1];
     if (e == s) continue;
-    T lo[3], hi[3], inv[3];
-    for (int k = 0; k < 3; ++k) {
-      lo[k] = std::numeric_limits<T>::infinity();
-      hi[k] = -std::numeric_limits<T>::infinity();
-    }
-    for (int64_t i = s; i < e; ++i)
-      for (int k = 0; k < 3; ++k) {
-        lo[k] = std::min(lo[k], cen[3 * i + k]);
-        hi[k] = std::max(hi[k], cen[3 * i + k]);
-      }
-    for (int k = 0; k < 3; ++k) inv[k] = hi[k] > lo[k] ? T(1023.99) / (hi[k] - lo[k]) : T(0);
-    std::vector<uint32_t> code(e - s);
-    std::vector<int64_t> idx(e - s);
-    at::parallel_for(s, e, GRAIN_LINEAR, [&](int64_t a, int64_t z) {
-      for (int64_t i = a; i < z; ++i) {
-        code[i - s] = morton(cen + 3 * i, lo, inv);
-        idx[i - s] = i;
-      }
-    });
-    radix_sort(code, idx);
-    std::copy(idx.begin(), idx.end(), perm.begin() + s);
+    T lo[3], hi[3];
+    bounds3(cen + 3 * s, e - s, lo, hi);
+    std::vector<uint32_t> code;
+    std::vector<int64_t> idx;
+    morton_sort(cen + 3 * s, e - s, lo, hi, code, idx);
+    for (int64_t i = 0; i < e - s; ++i) perm[s + i] = s + idx[i];
     roots[b] = build_node(nodes, code.data(), s, s, e, box_lo, box_hi, perm.data(), leaf);  // code[i - s]: slot i
   }
 }
 
-template <typename T>
-std::vector<int64_t> query_order(const T* pts, int64_t n) {
-  T lo[3], hi[3], inv[3];
-  for (int k = 0; k < 3; ++k) {
-    lo[k] = std::numeric_limits<T>::infinity();
-    hi[k] = -std::numeric_limits<T>::infinity();
-  }
-  for (int64_t i = 0; i < n; ++i)
-    for (int k = 0; k < 3; ++k) {
-      lo[k] = std::min(lo[k], pts[3 * i + k]);
-      hi[k] = std::max(hi[k], pts[3 * i + k]);
-    }
-  for (int k = 0; k < 3; ++k) inv[k] = hi[k] > lo[k] ? T(1023.99) / (hi[k] - lo[k]) : T(0);
-  std::vector<uint32_t> code(n);
-  std::vector<int64_t> idx(n);
-  at::parallel_for(0, n, GRAIN_LINEAR, [&](int64_t a, int64_t z) {
-    for (int64_t i = a; i < z; ++i) {
-      code[i] = morton(pts + 3 * i, lo, inv);
-      idx[i] = i;
-    }
-  });
-  if (n > 1) radix_sort(code, idx);
-  return idx;
-}
 
 // Dynamic scheduling on torch's thread pool: the threads take chunks of `chunk` consecutive items from a shared
 // counter, so a thread that the OS preempts (a loaded machine) does not hold the others back as a static split
@@ -644,23 +647,16 @@ std::vector<torch::Tensor> nearest_single_impl(const torch::Tensor& points, cons
   if (!bounds_finite(Rp, R, lo, hi) || !bounds_finite(Pp, P, plo, phi)) return {};
   auto center = torch::empty({3}, ref.options());
   T* c = center.data_ptr<T>();
-  T scale = 0, inv[3];
+  T scale = 0;
   for (int k = 0; k < 3; ++k) {
     c[k] = T(0.5) * (lo[k] + hi[k]);
     // Rounding is monotone, so the extremes of the centred values are the centred extremes.
     scale = std::max(scale, std::max(std::abs(lo[k] - c[k]), std::abs(hi[k] - c[k])));
-    inv[k] = hi[k] > lo[k] ? T(1023.99) / (hi[k] - lo[k]) : T(0);
   }
   const T slack = scale * T(64) * std::numeric_limits<T>::epsilon();
-  std::vector<uint32_t> code(R);
-  std::vector<int64_t> perm(R);
-  at::parallel_for(0, R, GRAIN_LINEAR, [&](int64_t a, int64_t z) {
-    for (int64_t i = a; i < z; ++i) {
-      code[i] = morton(Rp + 3 * i, lo, inv);
-      perm[i] = i;
-    }
-  });
-  if (R > 1) radix_sort(code, perm);
+  std::vector<uint32_t> code;
+  std::vector<int64_t> perm;
+  morton_sort(Rp, R, lo, hi, code, perm);
   const int64_t* pm = perm.data();
   std::vector<T> rs(3 * R);  // centred reference points in sorted order
   at::parallel_for(0, R, GRAIN_LINEAR, [&](int64_t a, int64_t z) {
