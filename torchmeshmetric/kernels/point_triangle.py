@@ -172,6 +172,18 @@ def register_face_backend(
         _FACE_AUTO.append(auto)
 
 
+# Optional closest-point kernel for calls without autograd: (points_c, verts_c, faces_global, face_idx) ->
+# (sq_dists, bary, closest_c) bit-identical to closest_point_on_triangle on the selected faces, or None when it
+# cannot serve the call (then the torch recomputation runs). Registered by the accelerated backends.
+NoGradClosest = Callable[[Tensor, Tensor, Tensor, Tensor], "tuple[Tensor, Tensor, Tensor] | None"]
+_NOGRAD_CLOSEST: list[NoGradClosest] = []
+
+
+def register_nograd_closest(fn: NoGradClosest) -> None:
+    """Register a closest-point kernel used after selection when nothing requires grad (see ``_NOGRAD_CLOSEST``)."""
+    _NOGRAD_CLOSEST.append(fn)
+
+
 def _bruteforce_faces(
     points: Tensor,
     point_batch: Tensor,
@@ -327,6 +339,12 @@ def _point_mesh_distance_packed(
             lengths_to_offsets(faces_lengths),
             max_memory,
         )
+    if not (points_c.requires_grad or verts_c.requires_grad):
+        for kernel in _NOGRAD_CLOSEST:
+            out = kernel(points_c, verts_c, faces_global, face_idx)
+            if out is not None:
+                # Without autograd safe_sqrt(sq) is sqrt(sq) bit for bit (sq >= 0, sqrt(0) = 0).
+                return PointMeshResult(torch.sqrt(out[0]), face_idx, out[1], out[2] + centers[point_batch])
     tri = verts_c[faces_global[face_idx]]
     res = closest_point_on_triangle(points_c, tri[:, 0], tri[:, 1], tri[:, 2])
     closest = res.closest + centers[point_batch]

@@ -22,15 +22,16 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric.kernels.accel._extension import bvh_ready
-from torchmeshmetric.kernels.accel.bvh import bvh_faces, bvh_nearest, bvh_nearest_single
+from torchmeshmetric.kernels.accel.bvh import bvh_closest_points, bvh_faces, bvh_nearest, bvh_nearest_single
 from torchmeshmetric.kernels.accel.pruned import pruned_faces, pruned_nearest
 from torchmeshmetric.kernels.nearest import register_nearest_backend
-from torchmeshmetric.kernels.point_triangle import register_face_backend
+from torchmeshmetric.kernels.point_triangle import register_face_backend, register_nograd_closest
 
 __all__ = [
     "MIN_PAIRS",
     "auto_face_backend",
     "auto_nearest_backend",
+    "bvh_closest_points",
     "bvh_faces",
     "bvh_nearest",
     "bvh_nearest_single",
@@ -121,6 +122,7 @@ def auto_nearest_backend(points: Tensor, ref: Tensor) -> str | None:
 
 
 register_face_backend("bvh", bvh_faces, auto=auto_face_backend)
+register_nograd_closest(bvh_closest_points)
 register_face_backend("pruned", pruned_faces)
 register_nearest_backend("bvh", bvh_nearest, auto=auto_nearest_backend, single=bvh_nearest_single)
 register_nearest_backend("pruned", pruned_nearest)

@@ -689,6 +689,84 @@ std::vector<torch::Tensor> nearest_single_impl(const torch::Tensor& points, cons
   return {sq_dists, idx, center};
 }
 
+// Closest point on the selected face of every point, without autograd: the operations of the torch functions
+// point_triangle._region_candidates and closest_point_on_triangle, in their order and dtype (no FMA), so that
+// the results are bit-identical to the differentiable recomputation. Inputs are centred; faces index verts.
+// Returns {sq_dists (P,), bary (P, 3), closest (P, 3)} (closest in the centred frame).
+template <typename T>
+std::vector<torch::Tensor> closest_points_impl(const torch::Tensor& points, const torch::Tensor& verts,
+                                               const torch::Tensor& faces, const torch::Tensor& face_idx) {
+  const int64_t P = points.size(0);
+  const T* Pp = points.data_ptr<T>();
+  const T* V = verts.data_ptr<T>();
+  const int64_t* Fi = faces.data_ptr<int64_t>();
+  const int64_t* sel = face_idx.data_ptr<int64_t>();
+  auto sq_out = torch::empty({P}, points.options());
+  auto bary_out = torch::empty({P, 3}, points.options());
+  auto closest_out = torch::empty({P, 3}, points.options());
+  T* sq_p = sq_out.data_ptr<T>();
+  T* bary_p = bary_out.data_ptr<T>();
+  T* cl_p = closest_out.data_ptr<T>();
+  at::parallel_for(0, P, 2048, [&](int64_t s0, int64_t s1) {
+    for (int64_t i = s0; i < s1; ++i) {
+      const int64_t f = sel[i];
+      const T* a = V + 3 * Fi[3 * f];
+      const T* b = V + 3 * Fi[3 * f + 1];
+      const T* c = V + 3 * Fi[3 * f + 2];
+      const T* p = Pp + 3 * i;
+      T ab[3], ac[3], bc[3], ap[3], bp[3];
+      for (int k = 0; k < 3; ++k) {
+        ab[k] = b[k] - a[k];
+        ac[k] = c[k] - a[k];
+        bc[k] = c[k] - b[k];
+        ap[k] = p[k] - a[k];
+        bp[k] = p[k] - b[k];
+      }
+      const T t_ab = clamp01(safe_div(dot3(ap, ab), dot3(ab, ab)));
+      const T t_ac = clamp01(safe_div(dot3(ap, ac), dot3(ac, ac)));
+      const T t_bc = clamp01(safe_div(dot3(bp, bc), dot3(bc, bc)));
+      T d_ab[3], d_ac[3], d_bc[3];
+      for (int k = 0; k < 3; ++k) {
+        d_ab[k] = ap[k] - t_ab * ab[k];
+        d_ac[k] = ap[k] - t_ac * ac[k];
+        d_bc[k] = bp[k] - t_bc * bc[k];
+      }
+      const T n[3] = {ab[1] * ac[2] - ab[2] * ac[1], ab[2] * ac[0] - ab[0] * ac[2], ab[0] * ac[1] - ab[1] * ac[0]};
+      const T nn = dot3(n, n);
+      const T c1[3] = {ap[1] * ac[2] - ap[2] * ac[1], ap[2] * ac[0] - ap[0] * ac[2], ap[0] * ac[1] - ap[1] * ac[0]};
+      const T c2[3] = {ab[1] * ap[2] - ab[2] * ap[1], ab[2] * ap[0] - ab[0] * ap[2], ab[0] * ap[1] - ab[1] * ap[0]};
+      const T v = safe_div(dot3(c1, n), nn);
+      const T w = safe_div(dot3(c2, n), nn);
+      const bool inside = nn > 0 && v >= 0 && w >= 0 && v + w <= 1;
+      T cand[4] = {dot3(d_ab, d_ab), dot3(d_ac, d_ac), dot3(d_bc, d_bc), std::numeric_limits<T>::infinity()};
+      if (inside) {
+        T d_f[3];
+        for (int k = 0; k < 3; ++k) d_f[k] = (ap[k] - v * ab[k]) - w * ac[k];
+        cand[3] = dot3(d_f, d_f);
+      }
+      int region = 0;  // first minimum, as torch.argmin
+      for (int r = 1; r < 4; ++r)
+        if (cand[r] < cand[region]) region = r;
+      T bw[3];
+      switch (region) {
+        case 0: bw[0] = T(1) - t_ab; bw[1] = t_ab; bw[2] = T(0); break;
+        case 1: bw[0] = T(1) - t_ac; bw[1] = T(0); bw[2] = t_ac; break;
+        case 2: bw[0] = T(0); bw[1] = T(1) - t_bc; bw[2] = t_bc; break;
+        default: bw[0] = (T(1) - v) - w; bw[1] = v; bw[2] = w; break;
+      }
+      T diff[3];
+      for (int k = 0; k < 3; ++k) {
+        const T q = (bw[0] * a[k] + bw[1] * b[k]) + bw[2] * c[k];
+        cl_p[3 * i + k] = q;
+        bary_p[3 * i + k] = bw[k];
+        diff[k] = p[k] - q;
+      }
+      sq_p[i] = dot3(diff, diff);
+    }
+  });
+  return {sq_out, bary_out, closest_out};
+}
+
 // All (point, face) squared distances, (P, F): for tests of bit-equality with the torch formulation only.
 template <typename T>
 torch::Tensor pair_sq_dists_impl(const torch::Tensor& points, const torch::Tensor& verts, const torch::Tensor& faces) {
@@ -761,6 +839,19 @@ std::vector<torch::Tensor> nearest_single(torch::Tensor points, torch::Tensor re
   return nearest_single_impl<float>(points, ref);
 }
 
+std::vector<torch::Tensor> closest_points(torch::Tensor points, torch::Tensor verts, torch::Tensor faces,
+                                          torch::Tensor face_idx) {
+  TORCH_CHECK(points.device().is_cpu() && verts.device().is_cpu(), "bvh: CPU tensors expected");
+  TORCH_CHECK(points.is_contiguous() && verts.is_contiguous(), "bvh: contiguous tensors expected");
+  TORCH_CHECK(faces.scalar_type() == torch::kInt64 && faces.is_contiguous(), "bvh: contiguous int64 faces expected");
+  TORCH_CHECK(face_idx.scalar_type() == torch::kInt64 && face_idx.is_contiguous(),
+              "bvh: contiguous int64 face_idx expected");
+  TORCH_CHECK(points.scalar_type() == verts.scalar_type(), "bvh: points and verts must share a dtype");
+  if (points.scalar_type() == torch::kFloat64) return closest_points_impl<double>(points, verts, faces, face_idx);
+  TORCH_CHECK(points.scalar_type() == torch::kFloat32, "bvh: float32 or float64 expected");
+  return closest_points_impl<float>(points, verts, faces, face_idx);
+}
+
 torch::Tensor pair_sq_dists(torch::Tensor points, torch::Tensor verts, torch::Tensor faces) {
   TORCH_CHECK(points.is_contiguous() && verts.is_contiguous() && faces.is_contiguous(), "contiguous expected");
   if (points.scalar_type() == torch::kFloat64) return pair_sq_dists_impl<double>(points, verts, faces);
@@ -770,6 +861,8 @@ torch::Tensor pair_sq_dists(torch::Tensor points, torch::Tensor verts, torch::Te
 PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
   m.def("closest_faces", &closest_faces, "Closest face per point (BVH, exact, lowest index on ties)");
   m.def("pair_sq_dists", &pair_sq_dists, "All point-face squared distances (tests only)");
+  m.def("closest_points", &closest_points,
+        "Closest point on the selected faces without autograd: [sq_dists, bary, closest] (centred frame)");
   m.def("nearest_points", &nearest_points, "Nearest reference point per point (BVH, exact, lowest index on ties)");
   m.def("nearest_single", &nearest_single,
         "Batch-of-one nearest reference point, fused: [sq_dists, idx, center], or [] when a value is not finite");

@@ -5,10 +5,10 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
-from torchmeshmetric.kernels.accel._extension import load_bvh
+from torchmeshmetric.kernels.accel._extension import bvh_ready, load_bvh
 from torchmeshmetric.kernels.accel.pruned import pruned_faces, pruned_nearest
 
-__all__ = ["bvh_faces", "bvh_nearest", "bvh_nearest_single"]
+__all__ = ["bvh_closest_points", "bvh_faces", "bvh_nearest", "bvh_nearest_single"]
 
 
 def bvh_faces(
@@ -68,3 +68,21 @@ def bvh_nearest_single(points: Tensor, ref: Tensor) -> tuple[Tensor, Tensor, Ten
     if not out:
         return None
     return torch.sqrt(out[0]), out[1], out[2]
+
+
+def bvh_closest_points(
+    points: Tensor, verts: Tensor, faces: Tensor, face_idx: Tensor
+) -> tuple[Tensor, Tensor, Tensor] | None:
+    """Closest point on the selected faces without autograd, in C++: ``(sq_dists, bary, closest)`` or ``None``.
+
+    Bit-identical to :func:`~torchmeshmetric.closest_point_on_triangle` on the selected faces (same operations,
+    order and dtype; tested). ``None`` (the torch recomputation runs) off the CPU, for other dtypes, or while the
+    extension is not compiled yet (a small call never triggers the compilation).
+    """
+    if points.device.type != "cpu" or points.dtype not in (torch.float32, torch.float64) or not bvh_ready():
+        return None
+    ext = load_bvh()
+    if ext is None:
+        return None
+    out = ext.closest_points(points.contiguous(), verts.contiguous(), faces.long().contiguous(), face_idx.contiguous())
+    return out[0], out[1], out[2]
