@@ -320,14 +320,23 @@ def _point_mesh_distance_packed(
         raise EmptyInputError(f"faces: mesh {b} has no faces but {int(points_lengths[b])} query points")
     dtype = torch.promote_types(points.dtype, verts.dtype)
     points, verts = points.to(dtype), verts.to(dtype)
-    point_batch = batch_index(points_lengths)
-    vert_batch = batch_index(verts_lengths)
-    face_batch = batch_index(faces_lengths)
-    v_off = lengths_to_offsets(verts_lengths)
-    faces_global = faces + v_off[face_batch][:, None]
-    centers = item_centers(verts, vert_batch, num_items)
-    points_c = points - centers[point_batch]
-    verts_c = verts - centers[vert_batch]
+    if num_items == 1:
+        # One mesh: no batch indices to expand, no per-item gathers (same values: the centre broadcasts).
+        point_batch = torch.zeros(points.shape[0], dtype=torch.long, device=points.device)
+        face_batch = torch.zeros(faces.shape[0], dtype=torch.long, device=points.device)
+        faces_global = faces
+        center = item_centers(verts, torch.zeros(verts.shape[0], dtype=torch.long, device=verts.device), 1)
+        point_center, vert_center = center, center
+    else:
+        point_batch = batch_index(points_lengths)
+        vert_batch = batch_index(verts_lengths)
+        face_batch = batch_index(faces_lengths)
+        v_off = lengths_to_offsets(verts_lengths)
+        faces_global = faces + v_off[face_batch][:, None]
+        centers = item_centers(verts, vert_batch, num_items)
+        point_center, vert_center = centers[point_batch], centers[vert_batch]
+    points_c = points - point_center
+    verts_c = verts - vert_center
     select = _resolve_face_backend(backend, points, verts, faces)
     with torch.no_grad():
         face_idx = select(
@@ -344,8 +353,8 @@ def _point_mesh_distance_packed(
             out = kernel(points_c, verts_c, faces_global, face_idx)
             if out is not None:
                 # Without autograd safe_sqrt(sq) is sqrt(sq) bit for bit (sq >= 0, sqrt(0) = 0).
-                return PointMeshResult(torch.sqrt(out[0]), face_idx, out[1], out[2] + centers[point_batch])
+                return PointMeshResult(torch.sqrt(out[0]), face_idx, out[1], out[2] + point_center)
     tri = verts_c[faces_global[face_idx]]
     res = closest_point_on_triangle(points_c, tri[:, 0], tri[:, 1], tri[:, 2])
-    closest = res.closest + centers[point_batch]
+    closest = res.closest + point_center
     return PointMeshResult(safe_sqrt(res.sq_dists), face_idx, res.bary, closest)
