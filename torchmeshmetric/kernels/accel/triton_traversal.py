@@ -518,7 +518,7 @@ def triton_nearest(
 ) -> Tensor:
     """Nearest reference point per point (selector contract of ``register_nearest_backend``), exact.
 
-    Ties are decided on the rounded Euclidean distance (as the brute force's ``torch.cdist``), lowest index first.
+    Selects by the computed squared distance, lowest index among equal squares, like the brute force.
 
     Raises:
         DeviceError: on non-CUDA tensors unless ``TRITON_INTERPRET=1``.
