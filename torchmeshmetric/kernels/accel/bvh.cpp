@@ -306,39 +306,76 @@ struct FaceData {
   T nn;
 };
 
-// Squared distance from p to a triangle, mirroring point_triangle._region_candidates(...)[-1].amin(-1).
+// FaceData of the triangle (a, b, c), with the operations of the torch kernel.
 template <typename T>
-inline T tri_sq_dist(const FaceData<T>& f, const T* p) {
+inline FaceData<T> face_data(const T* a, const T* b, const T* c) {
+  FaceData<T> d;
+  for (int k = 0; k < 3; ++k) {
+    d.a[k] = a[k];
+    d.b[k] = b[k];
+    d.ab[k] = b[k] - a[k];
+    d.ac[k] = c[k] - a[k];
+    d.bc[k] = c[k] - b[k];
+  }
+  d.n[0] = d.ab[1] * d.ac[2] - d.ab[2] * d.ac[1];
+  d.n[1] = d.ab[2] * d.ac[0] - d.ab[0] * d.ac[2];
+  d.n[2] = d.ab[0] * d.ac[1] - d.ab[1] * d.ac[0];
+  d.nn = dot3(d.n, d.n);
+  return d;
+}
+
+// point_triangle._region_candidates for one point and one face: the clamped edge parameters, the face
+// barycentrics v, w, and the squared distances [edge AB, edge AC, edge BC, face] (face: +inf outside).
+template <typename T>
+struct RegionCandidates {
+  T t_ab, t_ac, t_bc, v, w;
+  T sq[4];
+};
+
+template <typename T>
+inline RegionCandidates<T> region_candidates(const FaceData<T>& f, const T* p) {
+  RegionCandidates<T> r;
   T ap[3], bp[3];
   for (int k = 0; k < 3; ++k) {
     ap[k] = p[k] - f.a[k];
     bp[k] = p[k] - f.b[k];
   }
-  const T t_ab = clamp01(safe_div(dot3(ap, f.ab), dot3(f.ab, f.ab)));
-  const T t_ac = clamp01(safe_div(dot3(ap, f.ac), dot3(f.ac, f.ac)));
-  const T t_bc = clamp01(safe_div(dot3(bp, f.bc), dot3(f.bc, f.bc)));
+  r.t_ab = clamp01(safe_div(dot3(ap, f.ab), dot3(f.ab, f.ab)));
+  r.t_ac = clamp01(safe_div(dot3(ap, f.ac), dot3(f.ac, f.ac)));
+  r.t_bc = clamp01(safe_div(dot3(bp, f.bc), dot3(f.bc, f.bc)));
   T d_ab[3], d_ac[3], d_bc[3];
   for (int k = 0; k < 3; ++k) {
-    d_ab[k] = ap[k] - t_ab * f.ab[k];
-    d_ac[k] = ap[k] - t_ac * f.ac[k];
-    d_bc[k] = bp[k] - t_bc * f.bc[k];
+    d_ab[k] = ap[k] - r.t_ab * f.ab[k];
+    d_ac[k] = ap[k] - r.t_ac * f.ac[k];
+    d_bc[k] = bp[k] - r.t_bc * f.bc[k];
   }
-  T sq = dot3(d_ab, d_ab);
-  sq = std::min(sq, dot3(d_ac, d_ac));
-  sq = std::min(sq, dot3(d_bc, d_bc));
+  r.sq[0] = dot3(d_ab, d_ab);
+  r.sq[1] = dot3(d_ac, d_ac);
+  r.sq[2] = dot3(d_bc, d_bc);
+  r.sq[3] = std::numeric_limits<T>::infinity();
+  r.v = r.w = T(0);  // safe_div's value for a zero-area face (nn = 0), whose face candidate is never inside
   if (f.nn > 0) {
     // cross(ap, ac) . n and cross(ab, ap) . n
-    T c1[3] = {ap[1] * f.ac[2] - ap[2] * f.ac[1], ap[2] * f.ac[0] - ap[0] * f.ac[2], ap[0] * f.ac[1] - ap[1] * f.ac[0]};
-    T c2[3] = {f.ab[1] * ap[2] - f.ab[2] * ap[1], f.ab[2] * ap[0] - f.ab[0] * ap[2], f.ab[0] * ap[1] - f.ab[1] * ap[0]};
-    const T v = dot3(c1, f.n) / f.nn;
-    const T w = dot3(c2, f.n) / f.nn;
-    if (v >= 0 && w >= 0 && v + w <= 1) {
+    const T c1[3] = {ap[1] * f.ac[2] - ap[2] * f.ac[1], ap[2] * f.ac[0] - ap[0] * f.ac[2],
+                     ap[0] * f.ac[1] - ap[1] * f.ac[0]};
+    const T c2[3] = {f.ab[1] * ap[2] - f.ab[2] * ap[1], f.ab[2] * ap[0] - f.ab[0] * ap[2],
+                     f.ab[0] * ap[1] - f.ab[1] * ap[0]};
+    r.v = dot3(c1, f.n) / f.nn;
+    r.w = dot3(c2, f.n) / f.nn;
+    if (r.v >= 0 && r.w >= 0 && r.v + r.w <= 1) {
       T d_f[3];
-      for (int k = 0; k < 3; ++k) d_f[k] = (ap[k] - v * f.ab[k]) - w * f.ac[k];
-      sq = std::min(sq, dot3(d_f, d_f));
+      for (int k = 0; k < 3; ++k) d_f[k] = (ap[k] - r.v * f.ab[k]) - r.w * f.ac[k];
+      r.sq[3] = dot3(d_f, d_f);
     }
   }
-  return sq;
+  return r;
+}
+
+// Squared distance from p to a triangle, mirroring point_triangle._region_candidates(...)[-1].amin(-1).
+template <typename T>
+inline T tri_sq_dist(const FaceData<T>& f, const T* p) {
+  const RegionCandidates<T> r = region_candidates(f, p);
+  return std::min(std::min(std::min(r.sq[0], r.sq[1]), r.sq[2]), r.sq[3]);
 }
 
 // Per-item absolute pruning slack: 64 ulps of the item's largest |coordinate| (items are centred).
@@ -497,21 +534,7 @@ torch::Tensor closest_faces_impl(const torch::Tensor& points, const torch::Tenso
   at::parallel_for(0, F, GRAIN_LINEAR, [&](int64_t s, int64_t e) {
     for (int64_t i = s; i < e; ++i) {
       const int64_t f = perm[i];
-      const T* a = V + 3 * Fi[3 * f];
-      const T* b = V + 3 * Fi[3 * f + 1];
-      const T* c = V + 3 * Fi[3 * f + 2];
-      FaceData<T>& d = fd[i];
-      for (int k = 0; k < 3; ++k) {
-        d.a[k] = a[k];
-        d.b[k] = b[k];
-        d.ab[k] = b[k] - a[k];
-        d.ac[k] = c[k] - a[k];
-        d.bc[k] = c[k] - b[k];
-      }
-      d.n[0] = d.ab[1] * d.ac[2] - d.ab[2] * d.ac[1];
-      d.n[1] = d.ab[2] * d.ac[0] - d.ab[0] * d.ac[2];
-      d.n[2] = d.ab[0] * d.ac[1] - d.ab[1] * d.ac[0];
-      d.nn = dot3(d.n, d.n);
+      fd[i] = face_data(V + 3 * Fi[3 * f], V + 3 * Fi[3 * f + 1], V + 3 * Fi[3 * f + 2]);
     }
   });
   const T* Pp = points.data_ptr<T>();
@@ -714,45 +737,17 @@ std::vector<torch::Tensor> closest_points_impl(const torch::Tensor& points, cons
       const T* b = V + 3 * Fi[3 * f + 1];
       const T* c = V + 3 * Fi[3 * f + 2];
       const T* p = Pp + 3 * i;
-      T ab[3], ac[3], bc[3], ap[3], bp[3];
-      for (int k = 0; k < 3; ++k) {
-        ab[k] = b[k] - a[k];
-        ac[k] = c[k] - a[k];
-        bc[k] = c[k] - b[k];
-        ap[k] = p[k] - a[k];
-        bp[k] = p[k] - b[k];
-      }
-      const T t_ab = clamp01(safe_div(dot3(ap, ab), dot3(ab, ab)));
-      const T t_ac = clamp01(safe_div(dot3(ap, ac), dot3(ac, ac)));
-      const T t_bc = clamp01(safe_div(dot3(bp, bc), dot3(bc, bc)));
-      T d_ab[3], d_ac[3], d_bc[3];
-      for (int k = 0; k < 3; ++k) {
-        d_ab[k] = ap[k] - t_ab * ab[k];
-        d_ac[k] = ap[k] - t_ac * ac[k];
-        d_bc[k] = bp[k] - t_bc * bc[k];
-      }
-      const T n[3] = {ab[1] * ac[2] - ab[2] * ac[1], ab[2] * ac[0] - ab[0] * ac[2], ab[0] * ac[1] - ab[1] * ac[0]};
-      const T nn = dot3(n, n);
-      const T c1[3] = {ap[1] * ac[2] - ap[2] * ac[1], ap[2] * ac[0] - ap[0] * ac[2], ap[0] * ac[1] - ap[1] * ac[0]};
-      const T c2[3] = {ab[1] * ap[2] - ab[2] * ap[1], ab[2] * ap[0] - ab[0] * ap[2], ab[0] * ap[1] - ab[1] * ap[0]};
-      const T v = safe_div(dot3(c1, n), nn);
-      const T w = safe_div(dot3(c2, n), nn);
-      const bool inside = nn > 0 && v >= 0 && w >= 0 && v + w <= 1;
-      T cand[4] = {dot3(d_ab, d_ab), dot3(d_ac, d_ac), dot3(d_bc, d_bc), std::numeric_limits<T>::infinity()};
-      if (inside) {
-        T d_f[3];
-        for (int k = 0; k < 3; ++k) d_f[k] = (ap[k] - v * ab[k]) - w * ac[k];
-        cand[3] = dot3(d_f, d_f);
-      }
+      const RegionCandidates<T> r = region_candidates(face_data(a, b, c), p);
+      const T* cand = r.sq;
       int region = 0;  // first minimum, as torch.argmin
-      for (int r = 1; r < 4; ++r)
-        if (cand[r] < cand[region]) region = r;
+      for (int j = 1; j < 4; ++j)
+        if (cand[j] < cand[region]) region = j;
       T bw[3];
       switch (region) {
-        case 0: bw[0] = T(1) - t_ab; bw[1] = t_ab; bw[2] = T(0); break;
-        case 1: bw[0] = T(1) - t_ac; bw[1] = T(0); bw[2] = t_ac; break;
-        case 2: bw[0] = T(0); bw[1] = T(1) - t_bc; bw[2] = t_bc; break;
-        default: bw[0] = (T(1) - v) - w; bw[1] = v; bw[2] = w; break;
+        case 0: bw[0] = T(1) - r.t_ab; bw[1] = r.t_ab; bw[2] = T(0); break;
+        case 1: bw[0] = T(1) - r.t_ac; bw[1] = T(0); bw[2] = r.t_ac; break;
+        case 2: bw[0] = T(0); bw[1] = T(1) - r.t_bc; bw[2] = r.t_bc; break;
+        default: bw[0] = (T(1) - r.v) - r.w; bw[1] = r.v; bw[2] = r.w; break;
       }
       T diff[3];
       for (int k = 0; k < 3; ++k) {
@@ -777,21 +772,7 @@ torch::Tensor pair_sq_dists_impl(const torch::Tensor& points, const torch::Tenso
   auto out = torch::empty({P, F}, points.options());
   T* o = out.data_ptr<T>();
   for (int64_t f = 0; f < F; ++f) {
-    const T* a = V + 3 * Fi[3 * f];
-    const T* b = V + 3 * Fi[3 * f + 1];
-    const T* c = V + 3 * Fi[3 * f + 2];
-    FaceData<T> d;
-    for (int k = 0; k < 3; ++k) {
-      d.a[k] = a[k];
-      d.b[k] = b[k];
-      d.ab[k] = b[k] - a[k];
-      d.ac[k] = c[k] - a[k];
-      d.bc[k] = c[k] - b[k];
-    }
-    d.n[0] = d.ab[1] * d.ac[2] - d.ab[2] * d.ac[1];
-    d.n[1] = d.ab[2] * d.ac[0] - d.ab[0] * d.ac[2];
-    d.n[2] = d.ab[0] * d.ac[1] - d.ab[1] * d.ac[0];
-    d.nn = dot3(d.n, d.n);
+    const FaceData<T> d = face_data(V + 3 * Fi[3 * f], V + 3 * Fi[3 * f + 1], V + 3 * Fi[3 * f + 2]);
     for (int64_t i = 0; i < P; ++i) o[i * F + f] = tri_sq_dist(d, Pp + 3 * i);
   }
   return out;
