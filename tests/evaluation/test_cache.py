@@ -49,7 +49,7 @@ def test_corrupt_disk_entry_is_recomputed(tmp_path):
     (entry,) = tmp_path.glob("*.pt")
     entry.write_bytes(b"not a torch file")
     again = TranslationRegister()
-    with pytest.warns(UserWarning, match="unreadable entry"):
+    with pytest.warns(UserWarning, match="is unreadable"):
         evaluate_sequence([a, b], [a, b], register=again, cache_dir=str(tmp_path))
     assert again.calls == 1
 

@@ -10,13 +10,13 @@ from __future__ import annotations
 import glob as _glob
 import os
 import re
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 import torch
 
+from torchmeshmetric._atomic import atomic_write, missing_folder_error
 from torchmeshmetric._checks import EmptyInputError, ShapeError
 from torchmeshmetric.structures import Mesh
 
@@ -182,7 +182,9 @@ def load_sequence(paths: PathsLike, *, dtype: torch.dtype = torch.float32) -> li
 
 
 def save_mesh(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False) -> Path:
-    """Write a mesh atomically (temporary file in the same directory, then ``os.replace``).
+    """Write a mesh atomically (temporary file in the same directory, then ``os.replace``), with normal permissions.
+
+    Inside :func:`~torchmeshmetric._atomic.atomic_file_set` the file joins the set (all files or none appear).
 
     The format follows the suffix (OBJ, PLY, OFF, STL, GLB). Vertices are written in their order, unmerged.
 
@@ -210,7 +212,7 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False) -
     if suffix not in MESH_SUFFIXES or suffix == ".gltf":
         raise MeshFileError(f"path: cannot write '{p}': unsupported suffix '{p.suffix}' (use .obj/.ply/.off/.stl/.glb)")
     if not p.parent.is_dir():
-        raise MeshFileError(f"path: directory '{p.parent}' does not exist")
+        raise MeshFileError(str(missing_folder_error(p.parent)))
     if p.exists() and not overwrite:
         raise FileExistsError(f"path: '{p}' exists; pass overwrite=True to replace it")
     if not isinstance(mesh, Mesh):
@@ -224,15 +226,7 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False) -
     else:
         exported = mesh.to_trimesh().export(file_type=suffix[1:])
         data = exported.encode() if isinstance(exported, str) else bytes(exported)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".tmp", dir=p.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, p)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    atomic_write(p, data, overwrite=overwrite)
     return p
 
 

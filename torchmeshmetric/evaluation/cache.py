@@ -12,7 +12,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import tempfile
 import warnings
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -21,6 +20,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
+from torchmeshmetric._atomic import atomic_write_with
 from torchmeshmetric.structures import Mesh
 
 __all__ = ["CachedRegistration", "RegistrationCache", "registration_key"]
@@ -75,6 +75,24 @@ def registration_key(source: Mesh, target: Mesh, settings: Mapping[str, object])
     return h.hexdigest()
 
 
+def _entry_problem(entry: CachedRegistration, num_verts: int) -> str | None:
+    """What is wrong with an entry read from disk for a source of ``num_verts`` vertices, or ``None``."""
+    verts, residual = entry.verts, entry.residual
+    if not isinstance(verts, Tensor) or not verts.is_floating_point() or tuple(verts.shape) != (num_verts, 3):
+        found = tuple(verts.shape) if isinstance(verts, Tensor) else type(verts).__name__
+        return f"invalid: verts expected a float tensor of shape ({num_verts}, 3), found {found}"
+    if not isinstance(residual, Tensor) or not residual.is_floating_point() or tuple(residual.shape) != (num_verts,):
+        found = tuple(residual.shape) if isinstance(residual, Tensor) else type(residual).__name__
+        return f"invalid: residual expected a float tensor of shape ({num_verts},), found {found}"
+    for name, t in (("verts", verts), ("residual", residual)):
+        bad = int((~torch.isfinite(t)).sum())
+        if bad:
+            return f"invalid: {name} holds {bad} NaN/Inf value(s)"
+    if bool((residual < 0).any()):
+        return "invalid: residual holds negative distances"
+    return None
+
+
 class RegistrationCache:
     """Registrations keyed by content, kept in memory and, when ``directory`` is given, on disk.
 
@@ -105,36 +123,27 @@ class RegistrationCache:
         assert self.directory is not None
         return self.directory / f"{key}.pt"
 
-    def _load(self, key: str) -> CachedRegistration | None:
+    def _load(self, key: str, source: Mesh) -> CachedRegistration | None:
         if self.directory is None or not self._path(key).is_file():
             return None
         try:
             data = torch.load(self._path(key), map_location="cpu", weights_only=True)
-            return CachedRegistration(data["verts"], data["residual"], bool(data["converged"]), float(data["seconds"]))
+            entry = CachedRegistration(data["verts"], data["residual"], bool(data["converged"]), float(data["seconds"]))
+            problem = _entry_problem(entry, source.num_verts)
         except Exception as exc:  # a corrupt entry is recomputed and replaced, never trusted
-            warnings.warn(f"registration cache: ignoring unreadable entry {self._path(key)} ({exc})", stacklevel=3)
+            problem = f"unreadable ({type(exc).__name__}: {exc})"
+        if problem is not None:
+            warnings.warn(f"registration cache: entry {self._path(key)} is {problem}; recomputing it", stacklevel=3)
             return None
+        return entry
 
     def _store(self, key: str, entry: CachedRegistration) -> None:
         if self.directory is None:
             return
         self.directory.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{key[:16]}.", suffix=".tmp", dir=self.directory)
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                torch.save(
-                    {
-                        "verts": entry.verts,
-                        "residual": entry.residual,
-                        "converged": entry.converged,
-                        "seconds": entry.seconds,
-                    },
-                    fh,
-                )
-            os.replace(tmp, self._path(key))
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        payload = entry._asdict()
+        # Written at once even inside a report's atomic_file_set: a registration is worth keeping on any outcome.
+        atomic_write_with(self._path(key), lambda fh: torch.save(payload, fh), overwrite=True, join_file_set=False)
 
     def get_or_compute(
         self,
@@ -157,7 +166,7 @@ class RegistrationCache:
         key = registration_key(source, target, settings)
         entry = self._memory.get(key)
         if entry is None:
-            entry = self._load(key)
+            entry = self._load(key, source)
             if entry is not None:
                 self._memory[key] = entry
         if entry is not None:

@@ -1,0 +1,117 @@
+"""Files the CLI writes: report sets all or nothing, normal permissions, a file in the way of a folder is named."""
+
+import os
+import stat
+
+import pytest
+
+from tests.cli.cli_helpers import write_frames
+from tests.test_atomic import DiskFull
+from torchmeshmetric.cli import main
+
+SMALL_DEMO = ["--frames", "3", "--resolution", "24", "--target", "0.5"]
+
+
+def _evaluate(tmp_path, sequence, *extra):
+    orig, simp = sequence
+    return main(["evaluate", "--original", str(orig), "--simplified", str(simp), *extra])
+
+
+@pytest.mark.parametrize("fail_at", [1, 2, 3])
+def test_full_disk_while_writing_a_report_leaves_no_file_and_a_rerun_works(
+    capsys, tmp_path, sequence, known_registration, monkeypatch, fail_at
+):
+    out = tmp_path / "out"
+    out.mkdir()
+    with monkeypatch.context() as m:
+        DiskFull(m, fail_at)
+        assert _evaluate(tmp_path, sequence, "--out", str(out / "report.json")) == 1
+    err = capsys.readouterr().err
+    assert "could not write the report: No space left on device; none of its files was written" in err
+    assert os.listdir(out) == []
+    assert _evaluate(tmp_path, sequence, "--out", str(out / "report.json")) == 0
+    assert sorted(os.listdir(out)) == ["report.csv", "report.json", "report.md"]
+
+
+def test_full_disk_while_overwriting_keeps_the_previous_reports(
+    capsys, tmp_path, sequence, known_registration, monkeypatch
+):
+    out = tmp_path / "report.json"
+    for name in ("report.json", "report.md", "report.csv"):
+        (tmp_path / name).write_text(f"previous {name}")
+    with monkeypatch.context() as m:
+        DiskFull(m, 3)
+        assert _evaluate(tmp_path, sequence, "--out", str(out), "--overwrite") == 1
+    for name in ("report.json", "report.md", "report.csv"):
+        assert (tmp_path / name).read_text() == f"previous {name}"
+    assert not [p for p in os.listdir(tmp_path) if p.startswith(".")]
+
+
+def test_full_disk_in_simplify_writes_no_frame_and_removes_the_folder_it_created(
+    capsys, tmp_path, known_registration, monkeypatch
+):
+    frames = write_frames(tmp_path / "orig", 1)
+    out = tmp_path / "new" / "simplified"
+    with monkeypatch.context() as m:
+        DiskFull(m, 3)
+        assert main(["simplify", "--input", str(frames), "--output", str(out), "--target", "0.5"]) == 1
+    assert "No space left on device" in capsys.readouterr().err
+    assert not (tmp_path / "new").exists()
+    assert main(["simplify", "--input", str(frames), "--output", str(out), "--target", "0.5"]) == 0
+    assert len(os.listdir(out)) == 3
+
+
+def test_full_disk_in_the_demo_keeps_the_previous_run(capsys, tmp_path, known_registration, monkeypatch):
+    out = tmp_path / "demo"
+    assert main(["demo", *SMALL_DEMO, "--out-dir", str(out), "--save-meshes"]) == 0
+    before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    assert len(before) > 8
+    with monkeypatch.context() as m:
+        DiskFull(m, 6)
+        assert main(["demo", *SMALL_DEMO, "--out-dir", str(out), "--save-meshes", "--seed", "1"]) == 1
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+
+
+@pytest.mark.parametrize("umask", [0o022, 0o027])
+def test_every_output_gets_the_permissions_of_a_normal_write(capsys, tmp_path, sequence, known_registration, umask):
+    expected = 0o666 & ~umask
+    old = os.umask(umask)
+    try:
+        assert _evaluate(tmp_path, sequence, "--out", str(tmp_path / "r.json")) == 0
+        simp_dir = tmp_path / "s"
+        assert main(["simplify", "--input", str(sequence[0]), "--output", str(simp_dir), "--target", "0.5"]) == 0
+        a, b = sorted(sequence[0].iterdir())[:2]
+        reg = tmp_path / "registered.obj"
+        assert main(["register", "--source", str(a), "--target", str(b), "--out", str(reg)]) == 0
+    finally:
+        os.umask(old)
+    files = [tmp_path / f"r.{s}" for s in ("json", "md", "csv")] + sorted(simp_dir.iterdir()) + [reg]
+    assert len(files) == 7
+    for f in files:
+        assert stat.S_IMODE(f.stat().st_mode) == expected, f
+
+
+@pytest.mark.parametrize("command", ["evaluate", "simplify", "register", "demo"])
+def test_an_output_below_a_regular_file_says_it_is_a_file(capsys, tmp_path, sequence, known_registration, command):
+    blocker = tmp_path / "notes.txt"
+    blocker.write_text("my notes")
+    below = blocker / "sub"
+    orig = str(sequence[0])
+    a, b = sorted(sequence[0].iterdir())[:2]
+    argv = {
+        "evaluate": ["evaluate", "--original", orig, "--simplified", str(sequence[1]), "--out", str(below / "r.json")],
+        "simplify": ["simplify", "--input", orig, "--output", str(below)],
+        "register": ["register", "--source", str(a), "--target", str(b), "--out", str(below / "r.ply")],
+        "demo": ["demo", *SMALL_DEMO, "--out-dir", str(below)],
+    }[command]
+    assert main(argv) == 1
+    err = capsys.readouterr().err
+    assert f"'{blocker}' is a file, not a folder" in err, err
+    assert "does not exist" not in err
+    assert blocker.read_text() == "my notes"
+    assert known_registration.calls == 0  # refused before any computation
+
+
+def test_a_missing_folder_still_says_it_does_not_exist(capsys, tmp_path, sequence, known_registration):
+    assert _evaluate(tmp_path, sequence, "--out", str(tmp_path / "nope" / "r.json")) == 1
+    assert "does not exist" in capsys.readouterr().err

@@ -1,0 +1,225 @@
+"""Atomic file writes: one file (temporary file in the destination folder, then :func:`os.replace`) or a set of files.
+
+A reader (or a crash) never sees a half-written file: either the old file (or none) or the complete new one.
+:func:`atomic_file_set` extends that to several files: every file written through :func:`atomic_write` /
+:func:`atomic_write_with` inside ``with atomic_file_set():`` is staged, and all of them appear together when the
+block ends without an error; on an error (a full disk while writing the third file, an exception of the caller),
+none appears, files that existed before keep their content, and folders the set created are removed again.
+
+Every file gets the permissions a plain ``open(path, "w")`` would give it (``0o666`` minus the umask), or keeps
+those of the file it replaces.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import contextvars
+import os
+import secrets
+import shutil
+import tempfile
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import BinaryIO
+
+__all__ = ["AtomicFileSet", "atomic_file_set", "atomic_write", "atomic_write_with"]
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+class AtomicFileSet:
+    """Files staged by :func:`atomic_write_with` inside :func:`atomic_file_set`, committed or discarded together."""
+
+    def __init__(self) -> None:
+        self._staged: dict[Path, str] = {}
+        self._created_dirs: list[Path] = []
+
+    @property
+    def paths(self) -> list[Path]:
+        """Destinations staged so far, in the order they were first written."""
+        return list(self._staged)
+
+    def mkdir(self, path: str | os.PathLike[str]) -> Path:
+        """Create a folder (and missing parents) that is removed again, when empty, if the set is discarded."""
+        folder = Path(path)
+        missing = []
+        for p in (folder, *folder.parents):
+            if p.exists():
+                break
+            missing.append(p)
+        folder.mkdir(parents=True, exist_ok=True)
+        self._created_dirs += reversed(missing)
+        return folder
+
+    def _stage(self, dest: Path, tmp: str) -> None:
+        old = self._staged.pop(dest, None)
+        if old is not None:
+            Path(old).unlink(missing_ok=True)
+        self._staged[dest] = tmp
+
+    def _discard(self) -> None:
+        for tmp in self._staged.values():
+            Path(tmp).unlink(missing_ok=True)
+        self._staged.clear()
+        for folder in reversed(self._created_dirs):
+            with contextlib.suppress(OSError):
+                folder.rmdir()  # only when empty: never removes a file of someone else
+
+    def _commit(self) -> None:
+        done: list[tuple[Path, str | None]] = []  # (dest, backup of the file it replaced)
+        try:
+            for dest, tmp in self._staged.items():
+                backup = None
+                if dest.exists():
+                    backup = str(dest.parent / f".{dest.name}.{secrets.token_hex(6)}.bak")
+                    try:
+                        os.link(dest, backup)  # the old file stays visible until the replace
+                    except OSError:
+                        shutil.copy2(dest, backup)
+                try:
+                    os.replace(tmp, dest)
+                except BaseException:
+                    if backup is not None:
+                        Path(backup).unlink(missing_ok=True)  # dest still holds the old file
+                    raise
+                done.append((dest, backup))
+        except BaseException:
+            for dest, backup in reversed(done):
+                if backup is None:
+                    dest.unlink(missing_ok=True)
+                else:
+                    os.replace(backup, dest)
+            self._discard()
+            raise
+        for _, backup in done:
+            if backup is not None:
+                Path(backup).unlink(missing_ok=True)
+        self._staged.clear()
+
+
+_ACTIVE: contextvars.ContextVar[AtomicFileSet | None] = contextvars.ContextVar("atomic_file_set", default=None)
+
+
+@contextlib.contextmanager
+def atomic_file_set() -> Iterator[AtomicFileSet]:
+    """Write several files as a unit: all of them appear when the block succeeds, none when it raises.
+
+    Every :func:`atomic_write` / :func:`atomic_write_with` call inside the block (report writers, plots,
+    :func:`~torchmeshmetric.data.save_mesh`) stages its file; a staged file is not visible until the block ends.
+    Nested blocks join the outermost set.
+
+    Yields:
+        The :class:`AtomicFileSet`; its :meth:`~AtomicFileSet.mkdir` creates folders that are removed on failure.
+
+    Example:
+        >>> import tempfile, os
+        >>> d = tempfile.mkdtemp()
+        >>> try:
+        ...     with atomic_file_set():
+        ...         _ = atomic_write(os.path.join(d, "report.json"), "{}")
+        ...         raise OSError(28, "No space left on device")
+        ... except OSError:
+        ...     pass
+        >>> os.listdir(d)
+        []
+        >>> with atomic_file_set():
+        ...     _ = atomic_write(os.path.join(d, "a.txt"), "a")
+        ...     _ = atomic_write(os.path.join(d, "b.txt"), "b")
+        >>> sorted(os.listdir(d))
+        ['a.txt', 'b.txt']
+    """
+    outer = _ACTIVE.get()
+    if outer is not None:
+        yield outer
+        return
+    files = AtomicFileSet()
+    token = _ACTIVE.set(files)
+    try:
+        yield files
+    except BaseException:
+        _ACTIVE.reset(token)
+        files._discard()
+        raise
+    _ACTIVE.reset(token)
+    files._commit()
+
+
+def atomic_write_with(
+    path: str | os.PathLike[str],
+    write: Callable[[BinaryIO], object],
+    *,
+    overwrite: bool = False,
+    join_file_set: bool = True,
+) -> Path:
+    """Create ``path`` atomically from ``write(binary_file)``.
+
+    Args:
+        path: destination file; its folder must exist.
+        write: writes the content to the open binary temporary file.
+        overwrite: replace an existing file (default ``False``: never overwrite a user's file unasked).
+        join_file_set: inside :func:`atomic_file_set`, stage the file into the set (default); ``False`` writes it
+            at once (e.g. a cache entry that is worth keeping whatever happens to the outputs).
+
+    Returns:
+        The destination path.
+
+    Raises:
+        FileExistsError: ``path`` exists and ``overwrite`` is ``False``.
+        FileNotFoundError, NotADirectoryError, PermissionError, IsADirectoryError: the destination folder is
+            missing, a file, or unwritable, or ``path`` is a folder.
+    """
+    dest = Path(path)
+    if dest.is_dir():
+        raise IsADirectoryError(f"path: {str(dest)!r} is a directory, expected a file path")
+    if dest.exists() and not overwrite:
+        raise FileExistsError(f"path: {str(dest)!r} already exists (pass overwrite=True / --overwrite to replace it)")
+    folder = dest.parent if str(dest.parent) else Path(".")
+    if not folder.is_dir():
+        raise missing_folder_error(folder)
+    fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp", dir=folder)
+    try:
+        os.chmod(tmp, dest.stat().st_mode & 0o777 if dest.exists() else 0o666 & ~_umask())
+        with os.fdopen(fd, "wb") as fh:
+            write(fh)
+            fh.flush()
+            os.fsync(fh.fileno())
+        files = _ACTIVE.get() if join_file_set else None
+        if files is not None:
+            files._stage(dest, tmp)
+        else:
+            os.replace(tmp, dest)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return dest
+
+
+def missing_folder_error(folder: Path) -> OSError:
+    """The error for a destination folder that is not a folder: missing, or (an ancestor) a regular file."""
+    for p in (folder, *folder.parents):
+        if p.exists():
+            if not p.is_dir():
+                where = f" (cannot write into {str(folder)!r})" if p != folder else ""
+                return NotADirectoryError(f"path: {str(p)!r} is a file, not a folder{where}")
+            break
+    return FileNotFoundError(f"path: folder {str(folder)!r} does not exist")
+
+
+def atomic_write(
+    path: str | os.PathLike[str], data: str | bytes, *, overwrite: bool = False, join_file_set: bool = True
+) -> Path:
+    """Write text (UTF-8) or bytes to ``path`` atomically (see :func:`atomic_write_with`).
+
+    Example:
+        >>> import tempfile, os
+        >>> d = tempfile.mkdtemp()
+        >>> p = atomic_write(os.path.join(d, "a.txt"), "hello")
+        >>> p.read_text(), sorted(os.listdir(d))
+        ('hello', ['a.txt'])
+    """
+    payload = data.encode("utf-8") if isinstance(data, str) else data
+    return atomic_write_with(path, lambda fh: fh.write(payload), overwrite=overwrite, join_file_set=join_file_set)
