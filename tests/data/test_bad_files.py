@@ -1,0 +1,219 @@
+"""Mesh files are checked against what they declare and what their format allows; errors name file and line."""
+
+import struct
+
+import numpy as np
+import pytest
+import torch
+import trimesh
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from torchmeshmetric.data import MeshFileError, load_mesh
+
+TRI = "v 0 0 0\nv 1 0 0\nv 0 1 0\n"
+
+
+def _write(tmp_path, name, content):
+    p = tmp_path / name
+    p.write_bytes(content.encode() if isinstance(content, str) else content)
+    return p
+
+
+# ----------------------------------------------------------------------------------------------- OBJ
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        ("v 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", r"line 1: vertex 0 has 2 coordinate\(s\)"),
+        (TRI + "v 1 1\nf 1 2 3\n", r"line 4: vertex 3 has 2 coordinate\(s\)"),
+        ("v 0 0 0 1 2\n" + TRI + "f 1 2 3\n", r"line 1: vertex 0 has 5 coordinate"),
+        (TRI + "f 0 1 2\n", r"line 4: face index 0 is invalid \(OBJ indices start at 1"),
+        (TRI + "f 1 2 4\n", r"face 0: vertex index 4 is out of range \(the file has 3 vertices\)"),
+        (TRI + "f 1 2 3\nf 1 2 30\n", r"face 1: vertex index 30 is out of range"),
+        (TRI + "f -1 -2 -4\n", r"line 4: face index -4 counts back past the first vertex \(3 vertices"),
+        ("v 0 0 0\nf -1 -2 -3\nv 1 0 0\nv 0 1 0\n", r"line 2: face index -2 counts back past the first"),
+        (TRI + "f 1 2 x\n", r"line 4: face corner 'x' is not a vertex index"),
+        ("v 0 0 zero\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", r"line 1: vertex coordinates '0 0 zero' are not numbers"),
+        ("v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", r"vertex 0 \(line 1\) has non-finite coordinates"),
+        (TRI + "v inf 0 0\nf 1 2 3\n", r"vertex 3 \(line 4\) has non-finite coordinates"),
+        (TRI + "f 1 2 3 1\n", r"line 4 has a face with 4 corners; expected triangles"),
+        (TRI, r"has no faces \(3 vertices\)"),
+        ("hello world\n" + TRI + "f 1 2 3\n", r"is not a mesh file \(line 1 starts with 'hello'"),
+        ("# only a comment\n", r"is not a mesh file \(no OBJ statement"),
+        (TRI + "f 1 2 3\n\x00\x01\x02", r"is not a mesh file \(binary data at line 5"),
+        ("v 0 0 1e39\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", r"coordinates up to 1e\+39, beyond the range of torch.float32"),
+    ],
+)
+def test_malformed_obj_names_file_line_and_problem(tmp_path, content, message):
+    p = _write(tmp_path, "frame.obj", content)
+    with pytest.raises(MeshFileError, match=message) as info:
+        load_mesh(p)
+    assert str(p) in str(info.value)
+
+
+def test_float64_holds_what_float32_cannot(tmp_path):
+    p = _write(tmp_path, "big.obj", "v 0 0 1e39\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    assert load_mesh(p, dtype=torch.float64).verts[0, 2].item() == 1e39
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    data=st.data(),
+    num_verts=st.integers(3, 12),
+)
+def test_negative_obj_indices_count_back_from_the_last_vertex_defined(tmp_path_factory, data, num_verts):
+    """A face written with relative (negative) indices loads as the same face written with absolute ones, also
+    when faces and vertices interleave."""
+    rng = np.random.default_rng(num_verts)
+    verts = rng.normal(size=(num_verts, 3))
+    faces = data.draw(st.lists(st.lists(st.integers(0, num_verts - 1), min_size=3, max_size=3), min_size=1))
+    lines_abs, lines_rel, defined = [], [], 0
+    for face in faces:
+        while defined <= max(face):  # define vertices up to the largest index the face uses
+            line = "v " + " ".join(repr(float(x)) for x in verts[defined])
+            lines_abs.append(line)
+            lines_rel.append(line)
+            defined += 1
+        lines_abs.append("f " + " ".join(str(i + 1) for i in face))
+        lines_rel.append("f " + " ".join(f"{i - defined}/1/1" if i % 2 else str(i - defined) for i in face))
+    folder = tmp_path_factory.mktemp("neg")
+    a = load_mesh(_write(folder, "a.obj", "\n".join(lines_abs)), dtype=torch.float64)
+    b = load_mesh(_write(folder, "b.obj", "\n".join(lines_rel)), dtype=torch.float64)
+    assert a.faces.tolist() == faces
+    assert b.faces.tolist() == faces
+    assert torch.equal(a.verts, torch.tensor(verts[:defined]))
+
+
+@pytest.mark.parametrize(
+    "content",
+    [
+        b"# auteur: Fran\xe7ois, mod\xe8le \xe9t\xe9 2024\n" + TRI.encode() + b"f 1 2 3\n",  # Latin-1 comment
+        "# caf\u00e9 \u2014 UTF-8\n".encode() + TRI.encode() + b"f 1 2 3\n",
+        b"\xef\xbb\xbf# BOM\r\n" + TRI.replace("\n", "\r\n").encode() + b"f 1 2 3\r\n",
+        b"mtllib sc\xe8ne.mtl\no Obj\xe9t\nusemtl m\n"
+        + TRI.encode()
+        + b"vt 0 0\nvn 0 0 1\ns off\nf 1/1/1 2/1/1 3/1/1\n",
+        TRI.encode() + b"f 1 2 \\\n 3\n",  # line continuation
+        b"v 0 0 0 1\nv 1 0 0 1\nv 0 1 0 1\nf 1 2 3\n",  # w coordinate
+        b"v 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 0 1 0 0 0 1\nf 1 2 3\n",  # vertex colours
+    ],
+)
+def test_valid_obj_variants_load(tmp_path, content):
+    m = load_mesh(_write(tmp_path, "ok.obj", content), dtype=torch.float64)
+    assert m.faces.tolist() == [[0, 1, 2]]
+    assert m.verts.tolist() == [[0, 0, 0], [1, 0, 0], [0, 1, 0]]
+
+
+def test_obj_keeps_every_vertex_in_file_order(tmp_path):
+    # unreferenced and duplicate vertices survive (a registration refers to vertices by index)
+    content = "v 5 5 5\n" + TRI + "v 0 0 0\no second\nf 2 3 4\nf 5 3 4\n"
+    m = load_mesh(_write(tmp_path, "order.obj", content), dtype=torch.float64)
+    assert m.verts.tolist() == [[5, 5, 5], [0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 0]]
+    assert m.faces.tolist() == [[1, 2, 3], [4, 2, 3]]
+
+
+# ----------------------------------------------------------------------------------------------- OFF
+def _off(sphere):
+    return sphere.export(file_type="off")
+
+
+@settings(max_examples=25, deadline=None)
+@given(cut=st.floats(0.05, 0.995))
+def test_truncated_off_is_refused_naming_the_declared_counts(tmp_path_factory, cut):
+    sphere = trimesh.creation.icosphere(subdivisions=1)
+    text = _off(sphere)
+    lines = text.splitlines()
+    kept = "\n".join(lines[: max(2, int(len(lines) * cut))]) + "\n"
+    p = _write(tmp_path_factory.mktemp("off"), "cut.off", kept)
+    with pytest.raises(MeshFileError, match=r"is truncated: its header \(line 2\) declares 42 vertices and 80 faces"):
+        load_mesh(p)
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", r"line 6: face 0 has vertex indices \[0, 1, 3\] outside"),
+        ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 -1 2\n", r"outside \[0, 2\] \(OFF is 0-based\)"),
+        ("OFF\n3 1 0\n0 0 0\n1 0\n0 1 0\n3 0 1 2\n", r"line 4: vertex 1 has 2 coordinate"),
+        ("OFF\n3 1 0\n0 0 0\n1 0 nan\n0 1 0\n3 0 1 2\n", r"vertex 1 \(line 4\) has non-finite coordinates"),
+        ("OFF\n4 1 0\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n4 0 1 2 3\n", r"line 7 has a face with 4 corners"),
+        ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1\n", r"face 0 declares 3 corners but lists 2"),
+        ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 1 2\n", r"line 7: more lines than the header"),
+        ("OFF\nthree 1 0\n", r"line 2: expected the counts"),
+        ("NOT OFF\n3 1 0\n", r"is not a mesh file \(an OFF file starts with 'OFF', found 'NOT'\)"),
+        ("OFF\n", r"ends after its 'OFF' line"),
+    ],
+)
+def test_malformed_off_names_file_line_and_problem(tmp_path, content, message):
+    p = _write(tmp_path, "frame.off", content)
+    with pytest.raises(MeshFileError, match=message) as info:
+        load_mesh(p)
+    assert str(p) in str(info.value)
+
+
+@pytest.mark.parametrize(
+    "content",
+    [
+        "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
+        "OFF 3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",  # counts on the OFF line
+        "# c\nOFF\n# comment\n\n3 1 0\n0 0 0  # v0\n1 0 0\n0 1 0\n3 0 1 2 255 0 0\n",  # comments, face colour
+        "COFF\n3 1 0\n0 0 0 255 0 0 255\n1 0 0 0 255 0 255\n0 1 0 0 0 255 255\n3 0 1 2\n",
+    ],
+)
+def test_valid_off_variants_load(tmp_path, content):
+    m = load_mesh(_write(tmp_path, "ok.off", content), dtype=torch.float64)
+    assert m.faces.tolist() == [[0, 1, 2]] and m.verts.tolist() == [[0, 0, 0], [1, 0, 0], [0, 1, 0]]
+
+
+def test_latin1_comment_in_off_and_ply_header_loads(tmp_path):
+    off = "OFF\n# mod\xe8le\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n".encode("latin-1")
+    assert load_mesh(_write(tmp_path, "a.off", off)).num_faces == 1
+    ply = trimesh.creation.icosphere(subdivisions=1).export(file_type="ply")
+    ply = ply.replace(b"end_header", b"comment mod\xe8le \xe9t\xe9\nend_header", 1)
+    assert load_mesh(_write(tmp_path, "a.ply", ply)).num_faces == 80
+
+
+# ----------------------------------------------------------------------------------------------- PLY / STL
+@pytest.mark.parametrize("encoding", ["ascii", "binary"])
+@pytest.mark.parametrize("cut", [0.7, 0.9, 0.99])
+def test_truncated_ply_is_refused(tmp_path, encoding, cut):
+    data = trimesh.creation.icosphere(subdivisions=1).export(file_type="ply", encoding=encoding)
+    p = _write(tmp_path, "cut.ply", data[: int(len(data) * cut)])
+    with pytest.raises(MeshFileError, match=r"cut\.ply"):
+        load_mesh(p)
+
+
+def test_ply_with_polygons_is_refused_not_triangulated(tmp_path):
+    header = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+    header += "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+    p = _write(tmp_path, "quad.ply", header + "0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n")
+    with pytest.raises(MeshFileError, match=r"declares 1 face elements but holds 2 triangles"):
+        load_mesh(p)
+
+
+@pytest.mark.parametrize("missing", [1, 20, 50, 3000])
+def test_truncated_binary_stl_is_refused(tmp_path, missing):
+    data = trimesh.creation.icosphere(subdivisions=1).export(file_type="stl")
+    p = _write(tmp_path, "cut.stl", data[:-missing])
+    with pytest.raises(MeshFileError, match=r"or is truncated: .* declares 80 triangles"):
+        load_mesh(p)
+
+
+def test_binary_stl_with_a_wrong_count_is_refused(tmp_path):
+    data = bytearray(trimesh.creation.icosphere(subdivisions=1).export(file_type="stl"))
+    data[80:84] = struct.pack("<I", 81)
+    with pytest.raises(MeshFileError, match="declares 81 triangles"):
+        load_mesh(_write(tmp_path, "count.stl", bytes(data)))
+
+
+# ----------------------------------------------------------------------------------------------- garbage
+@settings(max_examples=20, deadline=None)
+@given(
+    payload=st.binary(min_size=200, max_size=2000).filter(lambda b: any(c < 9 or 13 < c < 32 for c in b)),
+    suffix=st.sampled_from([".obj", ".off", ".ply", ".stl", ".glb"]),
+)
+def test_binary_garbage_is_not_a_mesh_file(tmp_path_factory, payload, suffix):
+    p = _write(tmp_path_factory.mktemp("garbage"), f"noise{suffix}", payload)
+    with pytest.raises(MeshFileError, match="is not a mesh file") as info:
+        load_mesh(p)
+    assert "charset" not in str(info.value) and "module" not in str(info.value)
