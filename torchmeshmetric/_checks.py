@@ -72,7 +72,17 @@ def check_shape(x: Tensor, pattern: Sequence[str | int], name: str) -> None:
 
 
 def check_float(x: Tensor, name: str) -> None:
-    """Require a floating-point tensor (float16/bfloat16/float32/float64)."""
+    """Require float32 or float64 coordinates.
+
+    Half precision (float16, bfloat16) is refused with a typed error on every entry point and every backend: its
+    3 significant digits cannot give exact distances, and float16 overflows at squared distances above 65504. The
+    caller converts (``x.float()``), which keeps the gradient flowing back to the half-precision tensor.
+    """
+    if x.dtype in (torch.float16, torch.bfloat16):
+        raise DTypeError(
+            f"{name}: expected float32 or float64, found dtype {x.dtype}; half precision cannot hold exact distances "
+            "(convert with .float(): the gradient still reaches the half-precision tensor)"
+        )
     if not x.is_floating_point():
         raise DTypeError(
             f"{name}: expected a floating-point tensor (float32 or float64), found dtype {x.dtype}; "

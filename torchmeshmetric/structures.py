@@ -111,7 +111,8 @@ class Mesh:
         v = self.verts[self.faces.unique()] if self.num_faces else self.verts
         if v.shape[0] == 0:
             return self.verts.new_zeros(())
-        return (v.amax(0) - v.amin(0)).norm()
+        # The norm in float64: its squares overflow float32 for meshes beyond ~1e19 units.
+        return (v.amax(0) - v.amin(0)).to(torch.float64).norm().to(v.dtype)
 
     def face_areas(self) -> Tensor:
         """``(F,)`` triangle areas."""

@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import math
+
 import torch
 from torch import Tensor
+
+from torchmeshmetric._checks import NonFiniteError
 
 DEFAULT_MAX_MEMORY = 256 * 2**20
 """Default memory budget of one kernel intermediate, in bytes (256 MiB)."""
@@ -60,3 +64,28 @@ def pair_chunks(num_rows: int, num_cols: int, bytes_per_pair: int, max_memory: i
     cols = max(1, min(num_cols, pairs // max(1, min(num_rows, 256))))
     rows = max(1, min(num_rows, pairs // cols))
     return rows, cols
+
+
+def range_scale(extent: float, dtype: torch.dtype, degree: int) -> float | None:
+    """Power of two that brings ``extent`` into ``[0.5, 1)``, or ``None`` when no scaling is needed.
+
+    A kernel whose intermediates are products of ``degree`` coordinates (squared distances: 2; the squared normal
+    ``|ab x ac|^2`` of a triangle: 4) overflows or underflows ``dtype`` for coordinates of extreme magnitude: float32
+    breaks down for meshes beyond ~1e9 or below ~1e-9 units. Scaling by a power of two is exact (only the exponent
+    changes), so the kernel computes on scaled coordinates and divides its distances back, bit for bit the same
+    result where no scaling was needed. ``None`` while ``extent`` is within ``2**(+-maxexp / (2 * degree))``.
+    """
+    if not (extent > 0 and math.isfinite(extent)):
+        return None
+    exponent = math.frexp(extent)[1]
+    limit = math.frexp(torch.finfo(dtype).max)[1] // (2 * degree)
+    return None if -limit <= exponent <= limit else math.ldexp(1.0, -exponent)
+
+
+def check_representable(dists: Tensor, name: str) -> None:
+    """Raise when finite inputs gave non-finite distances: the dtype cannot hold them (e.g. float32 beyond ~1e19)."""
+    if dists.numel() and not bool(torch.isfinite(dists.detach()).all()):
+        raise NonFiniteError(
+            f"{name}: the distances overflow {dists.dtype} (coordinates too large for its range, "
+            f"max {torch.finfo(dists.dtype).max:.3g}); compute in float64"
+        )

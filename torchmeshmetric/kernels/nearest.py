@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from typing import NamedTuple
 
@@ -9,7 +10,15 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric._checks import EmptyInputError, check_finite, check_float, check_same_device, check_shape
-from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY, dot, item_centers, pair_chunks, safe_sqrt
+from torchmeshmetric.kernels._common import (
+    DEFAULT_MAX_MEMORY,
+    check_representable,
+    dot,
+    item_centers,
+    pair_chunks,
+    range_scale,
+    safe_sqrt,
+)
 from torchmeshmetric.structures import batch_index, lengths_to_offsets, pack_points
 
 __all__ = ["NearestVertexResult", "nearest_vertex_distance", "register_nearest_backend"]
@@ -152,10 +161,14 @@ def nearest_vertex_distance(
     pb, rb = batch_index(pts.lengths), batch_index(ref.lengths)
     centers = item_centers(r, rb, int(ref.lengths.numel()))
     p_c, r_c = p - centers[pb], r - centers[rb]
+    scale = range_scale(float(torch.cat([p_c.detach(), r_c.detach()]).abs().amax()), dtype, 2)
+    if scale is not None:
+        p_c, r_c = p_c * scale, r_c * scale
     with torch.no_grad():
         idx = select(p_c.detach(), pb, r_c.detach(), rb, lengths_to_offsets(ref.lengths), max_memory)
     diff = p_c - r_c[idx]
-    return NearestVertexResult(safe_sqrt(dot(diff, diff)), idx)
+    dists = safe_sqrt(dot(diff, diff))
+    return NearestVertexResult(dists if scale is None else dists / scale, idx)
 
 
 def _resolve_name(backend: str, points: Tensor, ref: Tensor) -> str:
@@ -200,10 +213,11 @@ def _nearest_single(points: Tensor, ref_points: Tensor, max_memory: int, backend
     fused = _NEAREST_SINGLE.get(name)
     if fused is not None and num_p and num_r and not (p.requires_grad or r.requires_grad):
         out = fused(p.detach(), r.detach())
-        if out is not None:
+        # Distances all below 2**-60 or beyond float range: the fused path's magnitudes are extreme, the general
+        # path below scales them (one reduction of the result decides; the fused path itself stays unscaled).
+        if out is not None and _in_range(out[0]):
             return NearestVertexResult(out[0], out[1])
-    if num_p:
-        _finite_bounds(points, "points")
+    p_bounds = _finite_bounds(points, "points") if num_p else None
     bounds = _finite_bounds(ref_points, "ref_points") if num_r else None
     if num_p == 0:
         raise EmptyInputError("points: expected at least one point, found an empty point set")
@@ -213,6 +227,11 @@ def _nearest_single(points: Tensor, ref_points: Tensor, max_memory: int, backend
     lo, hi = bounds[0].to(dtype), bounds[1].to(dtype)
     center = 0.5 * (lo + hi)
     p_c, r_c = p - center, r - center
+    assert p_bounds is not None
+    extent = torch.stack([hi - center, p_bounds[1].to(dtype) - center, center - p_bounds[0].to(dtype)]).abs().amax()
+    scale = range_scale(float(extent), dtype, 2)
+    if scale is not None:
+        p_c, r_c = p_c * scale, r_c * scale
     device = points.device
     with torch.no_grad():
         pb = torch.zeros(num_p, dtype=torch.long, device=device)
@@ -221,7 +240,21 @@ def _nearest_single(points: Tensor, ref_points: Tensor, max_memory: int, backend
         idx = select(p_c.detach(), pb, r_c.detach(), rb, offsets, max_memory)
     if p_c.requires_grad or r_c.requires_grad:
         diff = p_c - r_c[idx]
-        return NearestVertexResult(safe_sqrt(dot(diff, diff)), idx)
-    # Without autograd, safe_sqrt(sq) is sqrt(sq) bit for bit (sq >= 0, sqrt(0) = 0).
-    diff = p_c - r_c.index_select(0, idx)
-    return NearestVertexResult(torch.sqrt(dot(diff, diff)), idx)
+        dists = safe_sqrt(dot(diff, diff))
+    else:
+        # Without autograd, safe_sqrt(sq) is sqrt(sq) bit for bit (sq >= 0, sqrt(0) = 0).
+        diff = p_c - r_c.index_select(0, idx)
+        dists = torch.sqrt(dot(diff, diff))
+    if scale is not None:
+        dists = dists / scale
+    check_representable(dists, "points")
+    return NearestVertexResult(dists, idx)
+
+
+def _in_range(dists: Tensor) -> bool:
+    """Whether unscaled distances are trustworthy: finite, and not all below ``2**-60``.
+
+    Squares near underflow (all zero included: tiny coordinates can underflow to exactly 0) are not.
+    """
+    hi = float(dists.amax())
+    return math.isfinite(hi) and hi > 2.0**-60

@@ -21,13 +21,15 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import EmptyInputError, check_same_device
+from torchmeshmetric._checks import EmptyInputError, check_float, check_same_device
 from torchmeshmetric.kernels._common import (
     DEFAULT_MAX_MEMORY,
+    check_representable,
     cross,
     dot,
     item_centers,
     pair_chunks,
+    range_scale,
     safe_div,
     safe_sqrt,
 )
@@ -123,6 +125,8 @@ def closest_point_on_triangle(points: Tensor, a: Tensor, b: Tensor, c: Tensor) -
         >>> r.closest.tolist(), r.sq_dists.item()
         ([0.25, 0.25, 0.0], 4.0)
     """
+    for name, x in (("points", points), ("a", a), ("b", b), ("c", c)):
+        check_float(x, name)
     ab, ac, bc = b - a, c - a, c - b
     ap, bp = points - a, points - b
     t_ab, t_ac, t_bc, v, w, sq = _region_candidates(ap, bp, ab, ac, bc)
@@ -337,6 +341,10 @@ def _point_mesh_distance_packed(
         point_center, vert_center = centers[point_batch], centers[vert_batch]
     points_c = points - point_center
     verts_c = verts - vert_center
+    # Exact power-of-two scaling where float arithmetic would overflow or underflow (|ab x ac|^2 is of degree 4).
+    scale = range_scale(float(verts_c.detach().abs().amax()) if verts_c.numel() else 0.0, dtype, 4)
+    if scale is not None:
+        points_c, verts_c = points_c * scale, verts_c * scale
     select = _resolve_face_backend(backend, points, verts, faces)
     with torch.no_grad():
         face_idx = select(
@@ -353,8 +361,20 @@ def _point_mesh_distance_packed(
             out = kernel(points_c, verts_c, faces_global, face_idx)
             if out is not None:
                 # Without autograd safe_sqrt(sq) is sqrt(sq) bit for bit (sq >= 0, sqrt(0) = 0).
-                return PointMeshResult(torch.sqrt(out[0]), face_idx, out[1], out[2] + point_center)
+                if scale is None:
+                    result = PointMeshResult(torch.sqrt(out[0]), face_idx, out[1], out[2] + point_center)
+                else:
+                    dists = torch.sqrt(out[0]) / scale
+                    result = PointMeshResult(dists, face_idx, out[1], out[2] / scale + point_center)
+                check_representable(result.dists, "points")
+                return result
     tri = verts_c[faces_global[face_idx]]
     res = closest_point_on_triangle(points_c, tri[:, 0], tri[:, 1], tri[:, 2])
-    closest = res.closest + point_center
-    return PointMeshResult(safe_sqrt(res.sq_dists), face_idx, res.bary, closest)
+    if scale is None:
+        result = PointMeshResult(safe_sqrt(res.sq_dists), face_idx, res.bary, res.closest + point_center)
+    else:
+        result = PointMeshResult(
+            safe_sqrt(res.sq_dists) / scale, face_idx, res.bary, res.closest / scale + point_center
+        )
+    check_representable(result.dists, "points")
+    return result

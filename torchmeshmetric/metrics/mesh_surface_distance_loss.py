@@ -52,6 +52,10 @@ def mesh_surface_distance_loss(
     Returns:
         A 0-dim loss, or ``(P [+ R],)`` per-point terms for ``reduction="none"``.
 
+    Raises:
+        EmptyInputError: ``reduction="mean"`` on a batch without any point (``"sum"`` gives 0, ``"none"`` an
+            empty tensor).
+
     Example:
         >>> import torch, trimesh
         >>> sphere = trimesh.creation.icosphere(subdivisions=2)

@@ -27,7 +27,7 @@ def _cloud_to_cloud(points: list[Tensor], refs: list[Tensor], backend: str) -> T
 
 def _bbox_diagonal(p: Tensor) -> Tensor:
     q = p.detach().to(torch.float64)
-    return (q.amax(0) - q.amin(0)).norm() if q.shape[0] else q.new_zeros(())
+    return (q.amax(0) - q.amin(0)).to(torch.float64).norm().to(q.dtype) if q.shape[0] else q.new_zeros(())
 
 
 def nearest_vertex_distances(

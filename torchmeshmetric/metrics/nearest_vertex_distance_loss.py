@@ -40,6 +40,10 @@ def nearest_vertex_distance_loss(
     Returns:
         A 0-dim loss, or the per-point terms for ``reduction="none"``.
 
+    Raises:
+        EmptyInputError: ``reduction="mean"`` on a batch without any point (``"sum"`` gives 0, ``"none"`` an
+            empty tensor).
+
     Example:
         >>> import torch
         >>> x = torch.tensor([[0.0, 0, 0]], requires_grad=True)

@@ -1,0 +1,173 @@
+"""Numbers at the edges: meshes of extreme magnitude (exact power-of-two scaling), half precision (typed error on
+every entry point and backend), losses on empty point sets."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+import trimesh
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import torchmeshmetric as tmm
+from torchmeshmetric import DTypeError, EmptyInputError, NonFiniteError
+from torchmeshmetric.kernels.accel._extension import load_bvh
+
+SPHERE = trimesh.creation.icosphere(subdivisions=1)
+FACE_BACKENDS = ["bruteforce", "bvh", "pruned", "auto"]
+NEAREST_BACKENDS = ["bruteforce", "bvh", "pruned", "auto"]
+# Query points: outside, inside (face region), on the sphere's vertices, near an edge.
+POINTS = torch.tensor([[0.0, 0.0, 3.0], [0.3, 0.2, 0.1], [2.0, 1.0, 0.0], [0.1, -0.05, 0.02]], dtype=torch.float64)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _compiled() -> None:
+    assert load_bvh() is not None
+
+
+def _scaled(scale: float, dtype: torch.dtype) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    verts = (torch.tensor(SPHERE.vertices) * scale).to(dtype)
+    points = (torch.cat([POINTS, torch.tensor(SPHERE.vertices[:3])]) * scale).to(dtype)
+    return points, verts, torch.tensor(SPHERE.faces)
+
+
+def _reference(points: torch.Tensor, verts: torch.Tensor, faces: torch.Tensor) -> torch.Tensor:
+    """float64 distances of the same (rounded) inputs, computed at unit magnitude (exact power-of-two scaling)."""
+    s = 2.0 ** -int(torch.frexp(verts.abs().amax().double()).exponent)
+    return tmm.point_mesh_distance(points.double() * s, verts.double() * s, faces, backend="bruteforce").dists / s
+
+
+@settings(max_examples=12, deadline=None)
+@given(exponent=st.integers(-120, 120), mantissa=st.floats(1.0, 1.9))
+@pytest.mark.parametrize("backend", FACE_BACKENDS)
+def test_float32_point_mesh_distance_is_exact_at_any_magnitude(backend, exponent, mantissa):
+    scale = mantissa * 2.0**exponent
+    points, verts, faces = _scaled(scale, torch.float32)
+    got = tmm.point_mesh_distance(points, verts, faces, backend=backend)
+    ref = _reference(points, verts, faces)
+    diag = float((verts.double().amax(0) - verts.double().amin(0)).norm())
+    assert torch.isfinite(got.dists).all()
+    torch.testing.assert_close(got.dists.double(), ref, rtol=0, atol=2e-6 * diag)
+    assert (got.closest.double() - verts.double().mean(0)).abs().max() <= 4 * diag
+
+
+@settings(max_examples=8, deadline=None)
+@given(exponent=st.integers(-900, 900))
+def test_float64_point_mesh_distance_is_exact_at_any_magnitude(exponent):
+    points, verts, faces = _scaled(1.37 * 2.0**exponent, torch.float64)
+    got = tmm.point_mesh_distance(points, verts, faces)
+    ref = _reference(points, verts, faces)
+    diag = float((verts.amax(0) - verts.amin(0)).norm())
+    torch.testing.assert_close(got.dists, ref, rtol=0, atol=1e-13 * diag)
+
+
+@settings(max_examples=12, deadline=None)
+@given(exponent=st.integers(-120, 120))
+@pytest.mark.parametrize("backend", NEAREST_BACKENDS)
+@pytest.mark.parametrize("grad", [False, True])
+def test_float32_nearest_vertex_distance_is_exact_at_any_magnitude(backend, grad, exponent):
+    points, verts, _ = _scaled(1.23 * 2.0**exponent, torch.float32)
+    points.requires_grad_(grad)
+    got = tmm.nearest_vertex_distance(points, verts, backend=backend)
+    s = 2.0 ** -int(torch.frexp(verts.abs().amax().double()).exponent)
+    ref = tmm.nearest_vertex_distance(points.detach().double() * s, verts.double() * s).dists / s
+    diag = float((verts.double().amax(0) - verts.double().amin(0)).norm())
+    torch.testing.assert_close(got.dists.detach().double(), ref, rtol=0, atol=2e-6 * diag)
+    packed = tmm.nearest_vertex_distance([points.detach()], [verts], backend=backend)
+    torch.testing.assert_close(packed.dists.double(), ref, rtol=0, atol=2e-6 * diag)
+
+
+@pytest.mark.parametrize("scale", [1e12, 1e20, 1e30, 1e-12, 1e-20])
+def test_statistics_and_psnr_at_extreme_magnitudes(scale):
+    ref = tmm.Mesh((torch.tensor(SPHERE.vertices) * scale).float(), torch.tensor(SPHERE.faces))
+    coarse = trimesh.creation.icosphere(subdivisions=0)
+    simp = tmm.Mesh((torch.tensor(coarse.vertices) * 1.01 * scale).float(), torch.tensor(coarse.faces))
+    unit = tmm.evaluate_pair(
+        tmm.Mesh(simp.verts.double() / scale, simp.faces),
+        tmm.Mesh(ref.verts.double() / scale, ref.faces),
+        tmm.Mesh(ref.verts.double() / scale, ref.faces),
+        registration=tmm.Mesh(ref.verts.double() / scale, ref.faces),
+    ).statistics["surface_k"]
+    got = tmm.evaluate_pair(simp, ref, ref, registration=ref).statistics["surface_k"]
+    assert float(got.ave) / scale == pytest.approx(float(unit.ave), rel=1e-5)
+    assert float(got.max) / scale == pytest.approx(float(unit.max), rel=1e-5)
+    assert float(got.psnr) == pytest.approx(float(unit.psnr), abs=1e-3)
+
+
+def test_distances_beyond_the_dtype_range_are_an_error_not_inf():
+    verts = torch.tensor(SPHERE.vertices, dtype=torch.float32)
+    far = torch.tensor([[0.0, 0.0, 3e30]])
+    with pytest.raises(NonFiniteError, match=r"overflow torch.float32 .* compute in float64"):
+        tmm.point_mesh_distance(far, verts, torch.tensor(SPHERE.faces), backend="bruteforce")
+    # nearest-vertex distances scale with the points too: 3e30 is representable, so it is the answer
+    assert tmm.nearest_vertex_distance(far, verts).dists.item() == pytest.approx(3e30 - 1, rel=1e-6)
+    far64 = torch.tensor([[0.0, 0.0, 3e30]], dtype=torch.float64)
+    got = tmm.point_mesh_distance(far64, verts.double(), torch.tensor(SPHERE.faces)).dists.item()
+    assert got == pytest.approx(3e30 - 1, rel=1e-12)
+
+
+# ------------------------------------------------------------------------------------------------ half precision
+def _half_calls(dtype):
+    v = torch.tensor(SPHERE.vertices).to(dtype)
+    f = torch.tensor(SPHERE.faces)
+    p = POINTS.to(dtype)
+    v32 = v.float()
+    calls = {
+        f"point_mesh_distance[{b}]": (lambda b=b: tmm.point_mesh_distance(p, v, f, backend=b)) for b in FACE_BACKENDS
+    }
+    calls |= {
+        f"point_mesh_distance[{b}, half points only]": (lambda b=b: tmm.point_mesh_distance(p, v32, f, backend=b))
+        for b in FACE_BACKENDS
+    }
+    calls |= {f"nearest[{b}]": (lambda b=b: tmm.nearest_vertex_distance(p, v, backend=b)) for b in NEAREST_BACKENDS}
+    calls |= {
+        "nearest[list]": lambda: tmm.nearest_vertex_distance([p], [v32]),
+        "closest_point_on_triangle": lambda: tmm.closest_point_on_triangle(p, v[:4], v[1:5], v[2:6]),
+        "Mesh": lambda: tmm.Mesh(v, f),
+        "sample_surface": lambda: tmm.sample_surface(v, f, 10),
+        "MeshSurfaceDistance": lambda: tmm.MeshSurfaceDistance()(p, (v32, f)),
+        "NearestVertexDistance": lambda: tmm.NearestVertexDistance()(p, v32),
+        "mesh_surface_distance_loss": lambda: tmm.mesh_surface_distance_loss(p, (v32, f)),
+        "nearest_vertex_distance_loss": lambda: tmm.nearest_vertex_distance_loss(p, v32),
+        "register_rigid": lambda: tmm.register_rigid((v, f), (v32, f)),
+        "register_nonrigid": lambda: tmm.register_nonrigid((v32, f), (v, f)),
+        "evaluate_pair": lambda: tmm.evaluate_pair((v, f), (v32, f), (v32, f)),
+        "simplify_qem": lambda: tmm.simplify_qem((v, f), 0.5),
+    }
+    return calls
+
+
+@pytest.mark.parametrize("dtype", [torch.float16, torch.bfloat16])
+@pytest.mark.parametrize("entry", sorted(_half_calls(torch.float16)))
+def test_half_precision_is_a_typed_error_on_every_entry_point(dtype, entry):
+    with pytest.raises(DTypeError, match=rf"expected float32 or float64, found dtype {dtype}; half precision"):
+        _half_calls(dtype)[entry]()
+
+
+# ------------------------------------------------------------------------------------------------ empty losses
+LOSSES = [tmm.mesh_surface_distance_loss, tmm.nearest_vertex_distance_loss]
+
+
+@pytest.mark.parametrize("loss", LOSSES)
+@pytest.mark.parametrize("simplified", [torch.zeros(0, 3), [torch.zeros(0, 3)], [torch.zeros(0, 3)] * 3])
+def test_loss_mean_over_an_empty_point_set_raises_like_the_metrics(loss, simplified):
+    refs = (torch.tensor(SPHERE.vertices).float(), torch.tensor(SPHERE.faces))
+    reference = [refs] * len(simplified) if isinstance(simplified, list) else refs
+    with pytest.raises(EmptyInputError, match="simplified: the batch holds no point"):
+        loss(simplified, reference)
+    assert loss(simplified, reference, reduction="sum").item() == 0.0
+    assert loss(simplified, reference, reduction="none").shape == (0,)
+
+
+@pytest.mark.parametrize("loss_cls", [tmm.MeshSurfaceDistanceLoss, tmm.NearestVertexDistanceLoss])
+def test_loss_module_on_an_empty_point_set_raises(loss_cls):
+    refs = (torch.tensor(SPHERE.vertices).float(), torch.tensor(SPHERE.faces))
+    with pytest.raises(EmptyInputError):
+        loss_cls()(torch.zeros(0, 3), refs)
+
+
+def test_loss_mean_with_some_empty_items_pools_the_others():
+    refs = (torch.tensor(SPHERE.vertices).float(), torch.tensor(SPHERE.faces))
+    x = torch.tensor([[0.0, 0.0, 3.0]])
+    got = tmm.mesh_surface_distance_loss([torch.zeros(0, 3), x], [refs, refs])
+    assert got.item() == pytest.approx(tmm.mesh_surface_distance_loss(x, refs).item())
