@@ -152,9 +152,18 @@ def _point_to_plane_step(p: Tensor, q: Tensor, n: Tensor, w: Tensor, scale: bool
     b = -(n * (p - q)).sum(-1)
     AtA = A.T @ (w[:, None] * A)
     Atb = A.T @ (w * b)
-    # Tikhonov damping relative to the system's scale keeps flat/planar configurations solvable.
-    damp = 1e-9 * AtA.diagonal().abs().max().clamp_min(torch.finfo(p.dtype).tiny)
-    sol = torch.linalg.solve(AtA + damp * torch.eye(A.shape[1], dtype=p.dtype, device=p.device), Atb)
+    # Tikhonov damping relative to the system's scale keeps flat/planar configurations (a 3-vertex source cannot
+    # fix 6 degrees of freedom) solvable; it must stay above the dtype's rounding of the diagonal (float32: 1e-9
+    # relative vanishes in it), so it is at least 64 eps.
+    finfo = torch.finfo(p.dtype)
+    damp = max(1e-9, 64 * finfo.eps) * AtA.diagonal().abs().max().clamp_min(finfo.tiny)
+    system = AtA + damp * torch.eye(A.shape[1], dtype=p.dtype, device=p.device)
+    sol, info = torch.linalg.solve_ex(system, Atb)
+    if bool(info != 0) or not bool(torch.isfinite(sol).all()):
+        # Still singular (e.g. all weights on one point): the minimum-norm least-squares step, or none at all.
+        sol = torch.linalg.lstsq(system.cpu(), Atb.cpu()[:, None], driver="gelsd").solution[:, 0].to(p.device)
+        if not bool(torch.isfinite(sol).all()):
+            sol = torch.zeros_like(Atb)
     R = axis_angle_to_rotation_matrix(sol[None, :3])[0]
     s = torch.exp(sol[6]) if scale else torch.ones((), dtype=p.dtype, device=p.device)
     t = c + sol[3:6] - s * (R @ c)
