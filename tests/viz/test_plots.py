@@ -18,3 +18,44 @@ def test_plots_are_png_and_atomic(tmp_path):
     with pytest.raises(FileExistsError):
         plot_frame_curves({"a": seq}, c)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["c.png", "h.png"]
+
+
+def test_histograms_show_the_distribution_on_a_log_axis():
+    import numpy as np
+    import torch
+
+    from torchmeshmetric import Mesh
+    from torchmeshmetric.evaluation import evaluate_pair
+    from torchmeshmetric.viz.plots import histogram_figure, log_bins
+
+    ref = sphere(3)
+    verts = ref.verts.clone()
+    n = verts.shape[0]
+    # most vertices on the surface (distance 0), a tail over four decades: the frame-k sets of a simplification
+    moved = torch.arange(0, n, 10)
+    verts[moved] *= 1 + torch.logspace(-5, -1, moved.numel(), dtype=verts.dtype)[:, None]
+    pair = evaluate_pair(Mesh(verts, ref.faces), ref, ref, registration=ref)
+    fig = histogram_figure({"m": pair}, bins=40)
+    values = pair.distances["surface_k"].double().numpy()
+    linear_counts = np.histogram(values, bins=np.linspace(0, values.max(), 41))[0]
+    assert linear_counts[0] >= 0.9 * n  # the linear view: one bar at zero
+    for ax in fig.axes:
+        assert ax.get_xscale() == "log"
+        heights = np.array([patch.get_height() for patch in ax.patches])
+        assert heights.sum() == moved.numel()  # the moved vertices, resolved over the bins
+        assert (heights > 0).sum() >= 25
+        assert heights.max() <= 0.1 * moved.numel()
+    assert f"{(n - moved.numel()) / n:.1%} of vertices below" in fig.axes[0].get_legend().get_texts()[0].get_text()
+    edges = log_bins([values], 40)
+    assert edges[0] == pytest.approx(values[values > 0].min()) and edges[-1] == pytest.approx(values.max())
+
+
+def test_log_bins_of_all_zero_distances_are_a_valid_axis():
+    import numpy as np
+
+    from torchmeshmetric.viz.plots import log_bins
+
+    edges = log_bins([np.zeros(5)], 4)
+    assert len(edges) == 5 and np.all(np.diff(edges) > 0) and edges[0] > 0
+    edges = log_bins([np.array([0.0, 1e-30, 1.0])], 3)  # the axis spans at most 6 decades
+    assert edges[0] == pytest.approx(1e-6) and edges[-1] == 1.0

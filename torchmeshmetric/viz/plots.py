@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import io
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from torchmeshmetric.evaluation.atomic import atomic_write
 from torchmeshmetric.evaluation.results import SET_NAMES, PairEvaluation, SequenceEvaluation
 
-__all__ = ["plot_frame_curves", "plot_histograms"]
+__all__ = ["histogram_figure", "log_bins", "plot_frame_curves", "plot_histograms"]
 
 _LABELS = {
     "surface_k_minus_1": "surface distance to registered k-1",
@@ -36,16 +36,44 @@ def _save(fig: Any, path: str | os.PathLike[str], overwrite: bool) -> Path:
     return atomic_write(path, buf.getvalue(), overwrite=overwrite)
 
 
-def plot_histograms(
-    methods: Mapping[str, PairEvaluation], path: str | os.PathLike[str], *, bins: int = 50, overwrite: bool = False
-) -> Path:
-    """Histograms of the four distance sets of one frame pair, one colour per method, written as PNG.
+def log_bins(values: Sequence[Any], bins: int, *, decades: float = 6.0) -> Any:
+    """Log-spaced bin edges for distance sets whose mass sits at (or near) zero.
+
+    Most vertices of a good simplification lie on the reference surface, so linear bins put nearly everything in the
+    first bar. The edges span ``[lo, hi]`` with ``hi`` the largest distance and ``lo`` the smallest positive one,
+    but at most ``decades`` decades below ``hi``; values below ``lo`` (zeros included) are left to the caller
+    (:func:`histogram_figure` gives their fraction in the legend).
 
     Args:
-        methods: method name → its evaluation of the same frame pair.
-        path: destination ``.png``.
-        bins: number of bins (shared by the methods of a panel).
-        overwrite: replace an existing file.
+        values: the distance arrays sharing the edges (one per method).
+        bins: number of bins.
+        decades: widest span of the axis, in powers of ten.
+
+    Returns:
+        ``(bins + 1,)`` increasing edges (a unit range when every distance is zero).
+
+    Example:
+        >>> import numpy as np
+        >>> log_bins([np.array([0.0, 0.0, 1e-3, 1e-2, 1e-1])], 2).round(6).tolist()
+        [0.001, 0.01, 0.1]
+    """
+    import numpy as np
+
+    hi = max((float(np.max(v)) for v in values if len(v)), default=0.0)
+    positive = [np.min(v[v > 0]) for v in values if np.any(v > 0)]
+    if hi <= 0 or not positive:
+        return np.geomspace(1e-6, 1.0, bins + 1)
+    lo = max(float(min(positive)), hi * 10.0**-decades)
+    if lo >= hi:
+        lo = hi / 10.0
+    return np.geomspace(lo, hi, bins + 1)
+
+
+def histogram_figure(methods: Mapping[str, PairEvaluation], *, bins: int = 50) -> Any:
+    """The figure of :func:`plot_histograms` (a ``matplotlib.figure.Figure``): log-scaled distances, one panel a set.
+
+    Bars count the vertices at or above the axis' lowest edge; the legend gives each method's RMSE and the fraction
+    of its vertices below that edge (on the surface, distance 0, or within ``1e-6`` of the largest distance).
     """
     import numpy as np
 
@@ -54,17 +82,36 @@ def plot_histograms(
     axes = fig.subplots(2, 2)
     for ax, name in zip(axes.ravel(), SET_NAMES, strict=True):
         values = {m: p.distances[name].detach().double().cpu().numpy() for m, p in methods.items()}
-        hi = max(float(v.max()) for v in values.values()) or 1.0
-        edges = np.linspace(0.0, hi, bins + 1)
+        edges = log_bins(list(values.values()), bins)
         for m, v in values.items():
-            ax.hist(v, bins=edges, alpha=0.55, label=f"{m} (RMSE {np.sqrt(np.mean(v * v)):.3g})")
+            below = float(np.mean(v < edges[0])) if len(v) else 0.0
+            label = f"{m} (RMSE {np.sqrt(np.mean(v * v)):.3g}; {below:.1%} of vertices below {edges[0]:.2g})"
+            ax.hist(v[v >= edges[0]], bins=edges, alpha=0.55, label=label)
+        ax.set_xscale("log")
         ax.set_title(_LABELS[name], fontsize=10)
-        ax.set_xlabel("distance")
+        ax.set_xlabel("distance (log scale)")
         ax.set_ylabel("vertices")
         ax.legend(fontsize=8)
     frame = next(iter(methods.values())).frame
     fig.suptitle(f"Distance sets of simplified frame {frame}")
-    return _save(fig, path, overwrite)
+    return fig
+
+
+def plot_histograms(
+    methods: Mapping[str, PairEvaluation], path: str | os.PathLike[str], *, bins: int = 50, overwrite: bool = False
+) -> Path:
+    """Histograms of the four distance sets of one frame pair, one colour per method, written as PNG.
+
+    The distance axis is logarithmic (:func:`log_bins`): most kept vertices lie on the reference surface, and on a
+    linear axis the whole distribution is one bar at zero.
+
+    Args:
+        methods: method name → its evaluation of the same frame pair.
+        path: destination ``.png``.
+        bins: number of bins (shared by the methods of a panel).
+        overwrite: replace an existing file.
+    """
+    return _save(histogram_figure(methods, bins=bins), path, overwrite)
 
 
 def plot_frame_curves(
