@@ -198,14 +198,20 @@ def atomic_write_with(
     return dest
 
 
-def missing_folder_error(folder: Path) -> OSError:
-    """The error for a destination folder that is not a folder: missing, or (an ancestor) a regular file."""
+def blocking_file(folder: Path) -> Path | None:
+    """The regular file that ``folder`` is, or lies below (``notes.txt`` for ``notes.txt/out``), or ``None``."""
     for p in (folder, *folder.parents):
         if p.exists():
-            if not p.is_dir():
-                where = f" (cannot write into {str(folder)!r})" if p != folder else ""
-                return NotADirectoryError(f"path: {str(p)!r} is a file, not a folder{where}")
-            break
+            return None if p.is_dir() else p
+    return None
+
+
+def missing_folder_error(folder: Path) -> OSError:
+    """The error for a destination folder that is not a folder: missing, or (below) a regular file."""
+    blocker = blocking_file(folder)
+    if blocker is not None:
+        where = f" (cannot write into {str(folder)!r})" if blocker != folder else ""
+        return NotADirectoryError(f"path: {str(blocker)!r} is a file, not a folder{where}")
     return FileNotFoundError(f"path: folder {str(folder)!r} does not exist")
 
 

@@ -1,0 +1,66 @@
+"""The command line on bad frames and with --dtype: a broken frame stops the run naming the file; float64 end to end."""
+
+import json
+
+import pytest
+import torch
+
+from tests.cli.cli_helpers import Counting
+from torchmeshmetric.cli import main
+from torchmeshmetric.data import load_sequence
+from torchmeshmetric.evaluation import SET_NAMES, evaluate_sequence
+
+
+@pytest.mark.parametrize(
+    ("name", "content", "message"),
+    [
+        ("frame_01.off", "OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "is truncated: its header"),
+        ("frame_01.obj", "v 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "line 1: vertex 0 has 2 coordinate"),
+        ("frame_01.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n", "line 4: face index 0 is invalid"),
+        ("frame_01.ply", b"\x00\x01garbage" * 40, "is not a mesh file"),
+    ],
+)
+def test_a_broken_frame_stops_the_run_naming_the_file(
+    capsys, tmp_path, sequence, known_registration, name, content, message
+):
+    orig, simp = sequence
+    broken = simp / name
+    (simp / "frame_01.ply").unlink()
+    broken.write_bytes(content.encode() if isinstance(content, str) else content)
+    out = tmp_path / "r.json"
+    assert main(["evaluate", "--original", str(orig), "--simplified", str(simp), "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert str(broken) in err and message in err, err
+    assert len(err.strip().splitlines()) == 1  # one line, no traceback
+    assert not out.exists() and known_registration.calls == 0
+
+
+def test_dtype_float64_runs_end_to_end_and_is_recorded(capsys, tmp_path, sequence, known_registration):
+    orig, simp = sequence
+    out = tmp_path / "r.json"
+    argv = ["evaluate", "--original", str(orig), "--simplified", str(simp), "--out", str(out), "--dtype", "float64"]
+    assert main(argv) == 0
+    report = json.loads(out.read_text())
+    assert report["settings"]["dtype"] == "float64"
+    expect = evaluate_sequence(
+        load_sequence(str(orig), dtype=torch.float64),
+        load_sequence(str(simp), dtype=torch.float64),
+        register=Counting(),
+    )
+    for pair, jpair in zip(expect.pairs, report["methods"]["simp"]["pairs"], strict=True):
+        for s in SET_NAMES:
+            assert jpair[s]["ave"] == float(pair.statistics[s].ave)
+
+
+def test_dtype_default_is_float32(capsys, tmp_path, sequence, known_registration):
+    orig, simp = sequence
+    out = tmp_path / "r.json"
+    assert main(["evaluate", "--original", str(orig), "--simplified", str(simp), "--out", str(out)]) == 0
+    assert json.loads(out.read_text())["settings"]["dtype"] == "float32"
+
+
+def test_dtype_rejects_half(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["evaluate", "--original", "a", "--simplified", "b", "--dtype", "float16"])
+    assert info.value.code == 2
+    assert "invalid choice: 'float16'" in capsys.readouterr().err
