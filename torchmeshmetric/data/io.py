@@ -1,8 +1,9 @@
 """Mesh and sequence I/O: load frames in natural order, save atomically.
 
-Files are read with trimesh and ``process=False``, so vertex order and duplicate vertices survive exactly as stored
-(a registration or evaluation refers to vertices by index). Supported: OBJ, PLY, OFF, STL, GLB/GLTF (a scene is
-concatenated into one mesh).
+OBJ and OFF are parsed here (line-level errors); PLY, STL and GLB/GLTF are read with trimesh and ``process=False``.
+Either way vertex order and duplicate vertices survive exactly as stored (a registration or evaluation refers to
+vertices by index), and what a file holds is checked against what it declares (see :func:`load_mesh`). Supported:
+OBJ, PLY, OFF, STL, GLB/GLTF (a scene is concatenated into one mesh).
 """
 
 from __future__ import annotations
