@@ -179,7 +179,7 @@ def test_latin1_comment_in_off_and_ply_header_loads(tmp_path):
 def test_truncated_ply_is_refused(tmp_path, encoding, cut):
     data = trimesh.creation.icosphere(subdivisions=1).export(file_type="ply", encoding=encoding)
     p = _write(tmp_path, "cut.ply", data[: int(len(data) * cut)])
-    with pytest.raises(MeshFileError, match=r"cut\.ply"):
+    with pytest.raises(MeshFileError, match=r"cut\.ply.*(declares 42 vertex, 80 face elements|declares 80 face)"):
         load_mesh(p)
 
 

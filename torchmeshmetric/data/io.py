@@ -444,7 +444,11 @@ def _load_with_trimesh(p: Path, suffix: str) -> tuple[np.ndarray, np.ndarray]:
     try:
         loaded = trimesh.load(source, file_type=suffix[1:], process=False, maintain_order=True)
     except Exception as err:  # trimesh raises many exception types on malformed input
-        raise MeshFileError(f"path: could not read mesh file '{p}' ({type(err).__name__}: {err})") from err
+        hint = ""
+        if declared:
+            counts = ", ".join(f"{n} {element}" for element, n in declared.items())
+            hint = f"; its header declares {counts} elements: truncated or malformed?"
+        raise MeshFileError(f"path: could not read mesh file '{p}' ({type(err).__name__}: {err}){hint}") from err
     if isinstance(loaded, trimesh.Scene):
         geoms = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)] if loaded.geometry else []
         if not geoms:
