@@ -6,6 +6,7 @@ Commands:
   simplify  simplify every frame of a sequence with QEM or Registered QEM
   register  register one mesh (frame k-1) onto another (frame k), rigid then non-rigid
   demo      the main job: built-in sequence -> QEM and Registered QEM -> evaluation, tables, report and plots
+  mpeg      MPEG D1/D2 (and colour) PSNR of one mesh pair, equal to mmetric's figures
 
 Errors (missing or corrupt files, frame-count mismatch, unwritable output) end with a one-line message on stderr
 and exit code 1; reports are written atomically and never half-written. Set TORCHMESHMETRIC_DEBUG=1 for tracebacks.
@@ -532,6 +533,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-plots", action="store_true", help="skip PNG plots and coloured PLY files")
     p.add_argument("--save-meshes", action="store_true", help="also save the simplified frames as PLY")
     p.set_defaults(func=_cmd_demo)
+
+    from torchmeshmetric.mpeg.command import add_mpeg_command
+
+    add_mpeg_command(sub)
     return parser
 
 
