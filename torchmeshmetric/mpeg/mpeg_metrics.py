@@ -8,6 +8,7 @@ from typing import Literal, Union
 import numpy as np
 from torch import Tensor
 
+from torchmeshmetric._checks import EmptyInputError
 from torchmeshmetric.mpeg.comparison import MpegResult, mpeg_compare
 from torchmeshmetric.mpeg.grid_sampling import check_box, grid_sample, mesh_box
 from torchmeshmetric.mpeg.point_cloud import PointCloud
@@ -22,8 +23,16 @@ Corner = Union[Sequence[float], np.ndarray, Tensor]  # noqa: UP007 (a runtime al
 BoxLike = tuple[Corner, Corner]
 
 
-def _parts(m: MeshLike | TexturedMesh) -> TexturedMesh:
-    return m if isinstance(m, TexturedMesh) else TexturedMesh(as_mesh(m))
+def _parts(m: MeshLike | TexturedMesh, name: str = "mesh") -> TexturedMesh:
+    t = m if isinstance(m, TexturedMesh) else TexturedMesh(as_mesh(m))
+    if t.mesh.verts.shape[0] == 0:
+        raise EmptyInputError(f"{name}: expected a mesh with vertices and faces, found an empty mesh")
+    if t.mesh.faces.shape[0] == 0:
+        raise EmptyInputError(
+            f"{name}: expected triangles, found {t.mesh.verts.shape[0]} vertices and no face (MPEG sampling needs "
+            "a surface)"
+        )
+    return t
 
 
 def mpeg_point_cloud(
@@ -107,7 +116,7 @@ def mpeg_metrics(
         >>> r.symmetric.d1_psnr, r.points_ref == r.points_dis
         (inf, True)
     """
-    r, d = _parts(ref), _parts(dis)
+    r, d = _parts(ref, "ref"), _parts(dis, "dis")
     if peak is not None and not (np.isfinite(peak) and peak > 0):
         raise ValueError(f"peak: expected a positive finite number, found {peak!r}")
     if sampling == "grid":

@@ -74,7 +74,10 @@ def _parse_obj(
             tag = parts[0]
             try:
                 if tag == "v":
-                    verts.append([float(x) for x in parts[1:4]])
+                    xyz = [float(x) for x in parts[1:4]]
+                    if len(xyz) != 3 or not all(np.isfinite(xyz)):
+                        raise ValueError("expected 3 finite coordinates")
+                    verts.append(xyz)
                     if len(parts) >= 7:
                         cols.append([float(x) for x in parts[4:7]])
                 elif tag == "vt":
