@@ -6,7 +6,23 @@ what ``mm compare --mode pcc`` does to a mesh), and :func:`mpeg_compare` measure
 
 from torchmeshmetric.mpeg.colour import rgb_to_ycbcr
 from torchmeshmetric.mpeg.comparison import MpegDirection, MpegResult, bbox_diagonal, mpeg_compare
-from torchmeshmetric.mpeg.grid_sampling import BoxError, check_box, grid_sample, mesh_box
+from torchmeshmetric.mpeg.grid_sampling import (
+    BoxError,
+    GridHits,
+    check_box,
+    grid_hits,
+    grid_sample,
+    mesh_box,
+    unique_vertex_rows,
+)
+from torchmeshmetric.mpeg.losses import (
+    MpegGeometryLoss,
+    differentiable_grid_sample,
+    mpeg_geometry_loss,
+    point_to_plane_mse,
+    point_to_point_mse,
+    psnr_from_mse,
+)
 from torchmeshmetric.mpeg.mpeg_metrics import Sampling, mpeg_metrics, mpeg_point_cloud
 from torchmeshmetric.mpeg.neighbours import NeighbourTies, mpeg_sq_dists, nearest_with_ties
 from torchmeshmetric.mpeg.point_cloud import PointCloud, merge_duplicate_points
@@ -17,6 +33,8 @@ from torchmeshmetric.mpeg.vertex_sampling import vertex_sample
 
 __all__ = [
     "BoxError",
+    "GridHits",
+    "MpegGeometryLoss",
     "MpegDirection",
     "MpegResult",
     "NeighbourTies",
@@ -25,17 +43,24 @@ __all__ = [
     "TexturedMesh",
     "bbox_diagonal",
     "check_box",
+    "differentiable_grid_sample",
+    "grid_hits",
     "grid_sample",
     "load_textured_mesh",
     "merge_duplicate_points",
     "mesh_box",
     "mpeg_compare",
+    "mpeg_geometry_loss",
     "mpeg_metrics",
     "mpeg_point_cloud",
     "mpeg_psnr",
     "mpeg_sq_dists",
     "nearest_with_ties",
+    "point_to_plane_mse",
+    "point_to_point_mse",
+    "psnr_from_mse",
     "rgb_to_ycbcr",
     "sample_texture",
+    "unique_vertex_rows",
     "vertex_sample",
 ]

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import torch
@@ -14,7 +14,7 @@ from torchmeshmetric.mpeg import _float32 as f32
 from torchmeshmetric.mpeg.point_cloud import PointCloud
 from torchmeshmetric.structures import MeshLike, as_mesh
 
-__all__ = ["BoxError", "check_box", "grid_sample", "mesh_box"]
+__all__ = ["BoxError", "GridHits", "check_box", "grid_hits", "grid_sample", "mesh_box", "unique_vertex_rows"]
 
 _DBL_EPSILON = 2.220446049250313e-16
 _ZERO_TOLERANCE = np.float32(1e-6)
@@ -129,6 +129,67 @@ def grid_sample(
     """
     from torchmeshmetric.mpeg.texture import sample_texture
 
+    hits = grid_hits(mesh, grid_size, use_normal=use_normal, box=box)
+    pos, nrm, face, bary = hits.points, hits.normals, hits.face_idx, hits.bary
+    faces = hits.faces
+    col = None
+    if texture is not None and uvs is not None:
+        fuv = np.asarray(uvs.detach().cpu().numpy() if isinstance(uvs, Tensor) else uvs, dtype=np.float32)[face]
+        u, v = bary[:, 0], bary[:, 1]
+        w = (np.float32(1.0) - u) - v
+        uv = (fuv[:, 0] * w[:, None] + fuv[:, 1] * u[:, None]) + fuv[:, 2] * v[:, None]
+        col = sample_texture(texture, uv, bilinear=bilinear)
+    elif colors is not None:
+        c = np.asarray(colors.detach().cpu().numpy() if isinstance(colors, Tensor) else colors, dtype=np.float32)
+        fc = c[faces[face]]
+        u, v = bary[:, 0], bary[:, 1]
+        w = (np.float32(1.0) - u) - v
+        col = (fc[:, 0] * w[:, None] + fc[:, 1] * u[:, None]) + fc[:, 2] * v[:, None]
+    kept = unique_vertex_rows(pos, nrm, col)
+    return PointCloud(
+        torch.from_numpy(np.ascontiguousarray(pos[kept])),
+        torch.from_numpy(np.ascontiguousarray(nrm[kept])),
+        None if col is None else torch.from_numpy(np.ascontiguousarray(col[kept], dtype=np.float32)),
+    )
+
+
+class GridHits(NamedTuple):
+    """Every ray-triangle hit of a grid sampling, in mmetric's push order (before removing repeated points).
+
+    Attributes:
+        points: ``(H, 3)`` float32 hit points.
+        normals: ``(H, 3)`` float32 normals of the hit faces.
+        face_idx: ``(H,)`` hit face (index into the mesh's faces).
+        axis: ``(H,)`` ray axis (0, 1, 2).
+        origin: ``(H, 3)`` float32 ray origins.
+        bary: ``(H, 2)`` float32 barycentric ``(u, v)`` of the hit on its face (weights of corners 1 and 2).
+        faces: ``(F, 3)`` the mesh's faces (numpy).
+    """
+
+    points: np.ndarray
+    normals: np.ndarray
+    face_idx: np.ndarray
+    axis: np.ndarray
+    origin: np.ndarray
+    bary: np.ndarray
+    faces: np.ndarray
+
+
+def grid_hits(
+    mesh: MeshLike,
+    grid_size: int = 1024,
+    *,
+    use_normal: bool = True,
+    box: tuple[Sequence[float] | np.ndarray | Tensor, Sequence[float] | np.ndarray | Tensor] | None = None,
+) -> GridHits:
+    """The rays of :func:`grid_sample` that hit the mesh, with their faces, axes and origins.
+
+    Example:
+        >>> import torch
+        >>> tri = (torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]]))
+        >>> grid_hits(tri, 3, box=([0, 0, 0], [1, 1, 1])).axis.tolist()
+        [2, 2, 2, 2, 2, 2]
+    """
     if isinstance(grid_size, bool) or not isinstance(grid_size, int) or grid_size < 2:
         raise ValueError(f"grid_size: expected an integer >= 2, found {grid_size!r}")
     m = as_mesh(mesh)
@@ -174,8 +235,7 @@ def grid_sample(
     rays = n2 * n3
     starts = np.concatenate([[0], np.cumsum(rays)])
 
-    pos_out, nrm_out, face_out = [], [], []
-    uv_out = []
+    pos_out, nrm_out, face_out, axis_out, origin_out, uv_out = [], [], [], [], [], []
     pair = 0
     total = int(starts[-1])
     while pair < total:
@@ -208,24 +268,18 @@ def grid_sample(
         nrm_out.append(normal[f[hit]])
         face_out.append(fid[f[hit]])
         uv_out.append(np.stack([u[hit], v[hit]], axis=1))
-    pos = np.concatenate(pos_out) if pos_out else np.zeros((0, 3), np.float32)
-    nrm = np.concatenate(nrm_out) if nrm_out else np.zeros((0, 3), np.float32)
-    face = np.concatenate(face_out) if face_out else np.zeros(0, np.int64)
-    bary = np.concatenate(uv_out) if uv_out else np.zeros((0, 2), np.float32)
-    col = None
-    if texture is not None and uvs is not None:
-        fuv = np.asarray(uvs.detach().cpu().numpy() if isinstance(uvs, Tensor) else uvs, dtype=np.float32)[face]
-        u, v = bary[:, 0], bary[:, 1]
-        w = (np.float32(1.0) - u) - v
-        uv = (fuv[:, 0] * w[:, None] + fuv[:, 1] * u[:, None]) + fuv[:, 2] * v[:, None]
-        col = sample_texture(texture, uv, bilinear=bilinear)
-    elif colors is not None:
-        c = np.asarray(colors.detach().cpu().numpy() if isinstance(colors, Tensor) else colors, dtype=np.float32)
-        fc = c[faces[face]]
-        u, v = bary[:, 0], bary[:, 1]
-        w = (np.float32(1.0) - u) - v
-        col = (fc[:, 0] * w[:, None] + fc[:, 1] * u[:, None]) + fc[:, 2] * v[:, None]
-    return _unique_vertices(pos, nrm, col)
+        axis_out.append(ax[hit])
+        origin_out.append(origin[hit])
+    cat = lambda xs, shape, dt: np.concatenate(xs) if xs else np.zeros(shape, dt)  # noqa: E731
+    return GridHits(
+        cat(pos_out, (0, 3), np.float32),
+        cat(nrm_out, (0, 3), np.float32),
+        cat(face_out, (0,), np.int64),
+        cat(axis_out, (0,), np.int64),
+        cat(origin_out, (0, 3), np.float32),
+        cat(uv_out, (0, 2), np.float32),
+        faces,
+    )
 
 
 def _ray_triangle(
@@ -249,8 +303,14 @@ def _ray_triangle(
     return ok, t, u, v
 
 
-def _unique_vertices(pos: np.ndarray, nrm: np.ndarray, col: np.ndarray | None) -> PointCloud:
-    """Points as mmetric's ``ModelBuilder`` keeps them: the first of the points equal in position, normal and colour."""
+def unique_vertex_rows(pos: np.ndarray, nrm: np.ndarray, col: np.ndarray | None) -> np.ndarray:
+    """Rows mmetric's ``ModelBuilder`` keeps: the first of the points equal in position, normal and colour (sorted).
+
+    Example:
+        >>> p = np.array([[0, 0, 0], [0, 0, 0], [1, 0, 0]], np.float32)
+        >>> unique_vertex_rows(p, np.zeros_like(p), None).tolist()
+        [0, 2]
+    """
     keys = [pos[:, 0], pos[:, 1], pos[:, 2], nrm[:, 0], nrm[:, 1], nrm[:, 2]]
     if col is not None:
         keys += [col[:, 0], col[:, 1], col[:, 2]]
@@ -259,9 +319,4 @@ def _unique_vertices(pos: np.ndarray, nrm: np.ndarray, col: np.ndarray | None) -
     stacked = np.stack([k[order] for k in keys], axis=1)
     first = np.ones(order.size, dtype=bool)
     first[1:] = np.any(stacked[1:] != stacked[:-1], axis=1)
-    kept = np.sort(order[first])
-    return PointCloud(
-        torch.from_numpy(np.ascontiguousarray(pos[kept])),
-        torch.from_numpy(np.ascontiguousarray(nrm[kept])),
-        None if col is None else torch.from_numpy(np.ascontiguousarray(col[kept], dtype=np.float32)),
-    )
+    return np.sort(order[first])

@@ -5,11 +5,12 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+import torch
 from torch import Tensor
 
 from torchmeshmetric._checks import EmptyInputError, NonFiniteError
 from torchmeshmetric.mpeg import _float32 as f32
-from torchmeshmetric.mpeg.grid_sampling import _unique_vertices
+from torchmeshmetric.mpeg.grid_sampling import unique_vertex_rows
 from torchmeshmetric.mpeg.point_cloud import PointCloud
 from torchmeshmetric.mpeg.texture import sample_texture
 from torchmeshmetric.structures import MeshLike, as_mesh
@@ -131,5 +132,9 @@ def vertex_sample(
     if attr is not None:
         att = np.concatenate(out_att)
         colours = sample_texture(texture, att, bilinear=True) if uv is not None else att
-    cloud = _unique_vertices(points, normals, colours)
-    return PointCloud(cloud.points, cloud.normals, cloud.colors)
+    kept = unique_vertex_rows(points, normals, colours)
+    return PointCloud(
+        torch.from_numpy(np.ascontiguousarray(points[kept])),
+        torch.from_numpy(np.ascontiguousarray(normals[kept])),
+        None if colours is None else torch.from_numpy(np.ascontiguousarray(colours[kept], dtype=np.float32)),
+    )
