@@ -46,6 +46,19 @@ from torchmeshmetric.metrics import (
     mesh_surface_distance_loss,
     nearest_vertex_distance_loss,
 )
+from torchmeshmetric.mpeg import (
+    MpegGeometryLoss,
+    MpegResult,
+    PointCloud,
+    TexturedMesh,
+    differentiable_grid_sample,
+    grid_sample,
+    load_textured_mesh,
+    mpeg_compare,
+    mpeg_geometry_loss,
+    mpeg_metrics,
+    vertex_sample,
+)
 from torchmeshmetric.registration import (
     DeformationGraph,
     NonRigidRegistration,
@@ -122,4 +135,16 @@ __all__ = [
     "TemporalConsistency",
     "evaluate_pair",
     "evaluate_sequence",
+    # MPEG's metrics (mmetric: D1/D2 and colour PSNR)
+    "MpegGeometryLoss",
+    "MpegResult",
+    "PointCloud",
+    "TexturedMesh",
+    "differentiable_grid_sample",
+    "grid_sample",
+    "load_textured_mesh",
+    "mpeg_compare",
+    "mpeg_geometry_loss",
+    "mpeg_metrics",
+    "vertex_sample",
 ]

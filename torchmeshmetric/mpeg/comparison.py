@@ -22,7 +22,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from torchmeshmetric.mpeg.colour import rgb_to_ycbcr
 from torchmeshmetric.mpeg.neighbours import NeighbourTies, nearest_with_ties
@@ -256,6 +255,8 @@ def mpeg_compare(ref: PointCloud, dis: PointCloud, *, peak: float | None = None)
         >>> round(r.symmetric.d1_mse, 6), round(r.symmetric.d2_mse, 6)
         (0.005, 0.005)
     """
+    from scipy.spatial import cKDTree  # imported on use: keeps `import torchmeshmetric` light
+
     a = merge_duplicate_points(ref)
     b = merge_duplicate_points(dis)
     ap = a.points.numpy()

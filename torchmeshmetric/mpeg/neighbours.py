@@ -11,9 +11,12 @@ far are searched further.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial import cKDTree
+
+if TYPE_CHECKING:
+    from scipy.spatial import cKDTree
 
 __all__ = ["NeighbourTies", "mpeg_sq_dists", "nearest_with_ties"]
 
@@ -91,6 +94,8 @@ def nearest_with_ties(query: np.ndarray, target: np.ndarray, tree: cKDTree | Non
     query = np.ascontiguousarray(query, dtype=np.float32)
     target = np.ascontiguousarray(target, dtype=np.float32)
     if tree is None:
+        from scipy.spatial import cKDTree  # imported on use: keeps `import torchmeshmetric` light
+
         tree = cKDTree(target.astype(np.float64))
     k0 = min(2, target.shape[0])
     _, idx = tree.query(query.astype(np.float64), k=k0, workers=-1)
