@@ -235,49 +235,82 @@ def grid_hits(
     rays = n2 * n3
     starts = np.concatenate([[0], np.cumsum(rays)])
 
-    pos_out, nrm_out, face_out, axis_out, origin_out, uv_out = [], [], [], [], [], []
-    pair = 0
-    total = int(starts[-1])
-    while pair < total:
-        # whole (face, axis) entries per chunk
-        hi_entry = int(np.searchsorted(starts, min(total, pair + _CHUNK), side="right")) - 1
-        lo_entry = int(np.searchsorted(starts, pair, side="right")) - 1
-        hi_entry = max(hi_entry, lo_entry + 1)
-        ent = np.arange(lo_entry, hi_entry)
-        cnt = rays[ent]
-        e = np.repeat(ent, cnt)
-        local = np.arange(e.size) - np.repeat(starts[ent] - starts[lo_entry], cnt)
-        pair = int(starts[hi_entry])
-        f = f_list[e]
-        ax, s_ax, t_ax = a_list[e], second[e], third[e]
-        i = (local // n3[e]).astype(np.float32)
-        j = (local % n3[e]).astype(np.float32)
-        rows = np.arange(e.size)
-        origin = np.empty((e.size, 3), dtype=np.float32)
-        lm = lmin[f]
-        main_origin = min_box[ax] + lm[rows, ax] * step[ax]
-        main_origin = np.where(step[ax] == 0, min_box[ax] - np.float32(0.5), main_origin)
-        origin[rows, ax] = main_origin
-        origin[rows, s_ax] = min_box[s_ax] + (lm[rows, s_ax] + i) * step[s_ax]
-        origin[rows, t_ax] = min_box[t_ax] + (lm[rows, t_ax] + j) * step[t_ax]
-        direction = np.zeros((e.size, 3), dtype=np.float32)
-        direction[rows, ax] = 1.0
-        hit, t, u, v = _ray_triangle(origin, direction, v1[f], v2[f], v3[f])
-        p = origin[hit] + direction[hit] * t[hit, None]
-        pos_out.append(p)
-        nrm_out.append(normal[f[hit]])
-        face_out.append(fid[f[hit]])
-        uv_out.append(np.stack([u[hit], v[hit]], axis=1))
-        axis_out.append(ax[hit])
-        origin_out.append(origin[hit])
-    cat = lambda xs, shape, dt: np.concatenate(xs) if xs else np.zeros(shape, dt)  # noqa: E731
+    # Per (face, axis) entry: the ray-independent part of Moller-Trumbore. For a ray along axis a, pvec = e_a x edge2
+    # has a zero a-component, so glm's dot products reduce exactly to the two remaining float32 terms.
+    e1 = (v2 - v1)[f_list]
+    e2 = (v3 - v1)[f_list]
+    b_ax, c_ax = (a_list + 1) % 3, (a_list + 2) % 3
+    rows_e = np.arange(f_list.size)
+    e1b, e1c = e1[rows_e, b_ax], e1[rows_e, c_ax]
+    e2b, e2c = e2[rows_e, b_ax], e2[rows_e, c_ax]
+    det = e1c * e2b - e1b * e2c
+    live = ~((det > -_ZERO_TOLERANCE) & (det < _ZERO_TOLERANCE))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv_det = np.float32(1.0) / det
+    lm_e = lmin[f_list]
+    main_origin = min_box[a_list] + lm_e[rows_e, a_list] * step[a_list]
+    main_origin = np.where(step[a_list] == 0, min_box[a_list] - np.float32(0.5), main_origin)
+
+    out: list[tuple[np.ndarray, ...]] = []
+    for a in range(3):
+        b, c = (a + 1) % 3, (a + 2) % 3
+        s2, s3 = (1, 2) if a == 0 else ((0, 2) if a == 1 else (0, 1))
+        ents = np.flatnonzero((a_list == a) & live)
+        if ents.size == 0:
+            continue
+        cum = np.concatenate([[0], np.cumsum(rays[ents])])
+        lo = 0
+        while lo < ents.size:
+            hi = max(int(np.searchsorted(cum, cum[lo] + _CHUNK, side="right")) - 1, lo + 1)
+            ent = ents[lo:hi]
+            cnt = rays[ent]
+            e = np.repeat(ent, cnt)
+            local = np.arange(e.size) - np.repeat(cum[lo:hi] - cum[lo], cnt)
+            lo = hi
+            n3e = n3[e]
+            i = (local // n3e).astype(np.float32)
+            j = (local % n3e).astype(np.float32)
+            f = f_list[e]
+            p0 = v1[f]
+            tv = np.empty((e.size, 3), dtype=np.float32)
+            tv[:, a] = main_origin[e] - p0[:, a]
+            o2 = min_box[s2] + (lm_e[e, s2] + i) * step[s2]
+            o3 = min_box[s3] + (lm_e[e, s3] + j) * step[s3]
+            tv[:, s2] = o2 - p0[:, s2]
+            tv[:, s3] = o3 - p0[:, s3]
+            idet = inv_det[e]
+            u = (tv[:, c] * e2b[e] - tv[:, b] * e2c[e]) * idet
+            ok = ~((u < 0) | (u > 1))
+            q = f32.cross(tv, e1[e])
+            v = q[:, a] * idet
+            ok &= ~((v < 0) | (u + v > 1))
+            hit = np.flatnonzero(ok)
+            eh = e[hit]
+            t = f32.dot(e2[eh], q[hit]) * idet[hit]
+            origin = np.empty((hit.size, 3), dtype=np.float32)
+            origin[:, a] = main_origin[eh]
+            origin[:, s2] = o2[hit]
+            origin[:, s3] = o3[hit]
+            pos = origin.copy()
+            pos[:, a] = origin[:, a] + t
+            out.append((starts[eh] + local[hit], pos, origin, eh, u[hit], v[hit]))
+    if out:
+        order = np.argsort(np.concatenate([o[0] for o in out]), kind="stable")  # mmetric's push order
+        pos_all = np.concatenate([o[1] for o in out])[order]
+        origin_all = np.concatenate([o[2] for o in out])[order]
+        ent_all = np.concatenate([o[3] for o in out])[order]
+        uv_all = np.stack([np.concatenate([o[4] for o in out]), np.concatenate([o[5] for o in out])], 1)[order]
+    else:
+        pos_all = origin_all = np.zeros((0, 3), np.float32)
+        ent_all = np.zeros(0, np.int64)
+        uv_all = np.zeros((0, 2), np.float32)
     return GridHits(
-        cat(pos_out, (0, 3), np.float32),
-        cat(nrm_out, (0, 3), np.float32),
-        cat(face_out, (0,), np.int64),
-        cat(axis_out, (0,), np.int64),
-        cat(origin_out, (0, 3), np.float32),
-        cat(uv_out, (0, 2), np.float32),
+        pos_all,
+        normal[f_list[ent_all]],
+        fid[f_list[ent_all]],
+        a_list[ent_all],
+        origin_all,
+        uv_all,
         faces,
     )
 
