@@ -51,11 +51,14 @@ def _device(args: argparse.Namespace) -> str:
     return str(args.device)
 
 
-def _report_paths(out: str | None) -> dict[str, Path]:
+def _report_paths(out: str | None, mpeg: bool = False) -> dict[str, Path]:
     if out is None:
         return {}
     json_path = Path(out)
-    return {"json": json_path, "md": json_path.with_suffix(".md"), "csv": json_path.with_suffix(".csv")}
+    paths = {"json": json_path, "md": json_path.with_suffix(".md"), "csv": json_path.with_suffix(".csv")}
+    if mpeg:
+        paths.update(mpeg_csv=json_path.with_suffix(".mpeg.csv"), mpeg_png=json_path.with_suffix(".mpeg.png"))
+    return paths
 
 
 def _check_writable(paths: Sequence[Path], overwrite: bool) -> None:
@@ -86,15 +89,54 @@ def _load_frames(directory: str, what: str) -> list[Any]:
     return list(frames)
 
 
-def _write_reports(paths: dict[str, Path], methods: dict[str, Any], settings: dict[str, Any], overwrite: bool) -> None:
+def _write_reports(
+    paths: dict[str, Path],
+    methods: dict[str, Any],
+    settings: dict[str, Any],
+    overwrite: bool,
+    mpeg: dict[str, Any] | None = None,
+) -> None:
     from torchmeshmetric.evaluation import report_dict, write_csv, write_json, write_markdown
 
     if not paths:
         return
-    write_json(paths["json"], report_dict(methods, settings=settings), overwrite=overwrite)
-    write_markdown(paths["md"], methods, overwrite=overwrite)
+    report = report_dict(methods, settings=settings)
+    extra = ""
+    if mpeg:
+        from torchmeshmetric.mpeg.command import json_safe
+        from torchmeshmetric.mpeg.sequence import mpeg_markdown
+
+        report["mpeg"] = json_safe({name: seq.as_dict() for name, seq in mpeg.items()})
+        extra = mpeg_markdown(mpeg)
+    write_json(paths["json"], report, overwrite=overwrite)
+    write_markdown(paths["md"], methods, overwrite=overwrite, extra=extra)
     write_csv(paths["csv"], methods, overwrite=overwrite)
-    print(f"wrote {paths['json']}, {paths['md']}, {paths['csv']}", file=sys.stderr)
+    written = [paths["json"], paths["md"], paths["csv"]]
+    if mpeg:
+        from torchmeshmetric.evaluation.atomic import atomic_write
+        from torchmeshmetric.mpeg.sequence import mpeg_csv
+        from torchmeshmetric.viz import plot_mpeg_curves
+
+        written.append(atomic_write(paths["mpeg_csv"], mpeg_csv(mpeg), overwrite=overwrite))
+        written.append(plot_mpeg_curves(mpeg, paths["mpeg_png"], overwrite=overwrite))
+    print("wrote " + ", ".join(str(p) for p in written), file=sys.stderr)
+
+
+def _mpeg_methods(original: list[Any], methods: dict[str, list[Any]], args: argparse.Namespace) -> dict[str, Any]:
+    """Per-frame MPEG figures of every method (``--mpeg``); printed as a Markdown table."""
+    if not getattr(args, "mpeg", False):
+        return {}
+    from torchmeshmetric.mpeg.sequence import mpeg_markdown, mpeg_sequence
+
+    out = {
+        name: mpeg_sequence(
+            original, frames, sampling=args.mpeg_sampling, grid_size=args.mpeg_grid_size,
+            progress=_progress(f"{name} mpeg"),
+        )
+        for name, frames in methods.items()
+    }
+    print(mpeg_markdown(out))
+    return out
 
 
 def _evaluate_methods(
@@ -122,15 +164,16 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     from torchmeshmetric.evaluation import paper_tables
 
     device = _device(args)
-    paths = _report_paths(args.out)
+    paths = _report_paths(args.out, args.mpeg)
     _check_writable(list(paths.values()), args.overwrite)
     original = _load_frames(args.original, "--original")
     simplified = _load_frames(args.simplified, "--simplified")
     name = args.name or Path(args.simplified).resolve().name
     results = _evaluate_methods(original, {name: simplified}, args, device)
     print(paper_tables(results))
+    mpeg = _mpeg_methods(original, {name: simplified}, args)
     settings = {"original": args.original, "methods": {name: args.simplified}, "two_sided": not args.one_sided}
-    _write_reports(paths, results, settings, args.overwrite)
+    _write_reports(paths, results, settings, args.overwrite, mpeg)
     return 0
 
 
@@ -151,14 +194,15 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
     device = _device(args)
     specs = _parse_methods(args.method)
-    paths = _report_paths(args.out)
+    paths = _report_paths(args.out, args.mpeg)
     _check_writable(list(paths.values()), args.overwrite)
     original = _load_frames(args.original, "--original")
     frames = {name: _load_frames(d, f"--method {name}") for name, d in specs.items()}
     results = _evaluate_methods(original, frames, args, device)
     print(paper_tables(results))
+    mpeg = _mpeg_methods(original, frames, args)
     settings = {"original": args.original, "methods": specs, "two_sided": not args.one_sided}
-    _write_reports(paths, results, settings, args.overwrite)
+    _write_reports(paths, results, settings, args.overwrite, mpeg)
     return 0
 
 
@@ -411,6 +455,16 @@ def build_parser() -> argparse.ArgumentParser:
         help="keep registrations of original frame pairs in DIR (keyed by mesh content and settings) and reuse "
         "them in later runs (default: in memory for this run only)",
     )
+    evaluation.add_argument(
+        "--mpeg",
+        action="store_true",
+        help="also report MPEG's per-frame D1/D2 PSNR and Hausdorff (mmetric's figures, frame k vs original frame "
+        "k) in the tables and reports (REPORT.mpeg.csv, REPORT.mpeg.png); averaged as the CTC: mean of per-frame PSNR",
+    )
+    evaluation.add_argument(
+        "--mpeg-sampling", choices=("grid", "mesh"), default="grid", help="MPEG sampling (default grid, the CTC's)"
+    )
+    evaluation.add_argument("--mpeg-grid-size", type=int, default=1024, metavar="N", help="MPEG grid size (1024)")
     output = argparse.ArgumentParser(add_help=False)
     output.add_argument(
         "--out",
