@@ -48,6 +48,7 @@ from torchmeshmetric.metrics import (
 )
 from torchmeshmetric.mpeg import (
     MpegGeometryLoss,
+    MpegPSNR,
     MpegResult,
     PointCloud,
     TexturedMesh,
@@ -57,6 +58,7 @@ from torchmeshmetric.mpeg import (
     mpeg_compare,
     mpeg_geometry_loss,
     mpeg_metrics,
+    mpeg_sequence,
     vertex_sample,
 )
 from torchmeshmetric.registration import (
@@ -137,6 +139,7 @@ __all__ = [
     "evaluate_sequence",
     # MPEG's metrics (mmetric: D1/D2 and colour PSNR)
     "MpegGeometryLoss",
+    "MpegPSNR",
     "MpegResult",
     "PointCloud",
     "TexturedMesh",
@@ -146,5 +149,6 @@ __all__ = [
     "mpeg_compare",
     "mpeg_geometry_loss",
     "mpeg_metrics",
+    "mpeg_sequence",
     "vertex_sample",
 ]

@@ -84,3 +84,23 @@ def test_compare_mpeg_identical_frames_are_inf_strings(
     assert report["mpeg"]["same"]["average"]["d1_psnr"] == "inf"
     assert report["mpeg"]["same"]["average"]["d1_psnr_inf_frames"] == 3.0
     assert all(f["d2_psnr"] == "inf" for f in report["mpeg"]["same"]["frames"])
+
+
+def test_metric_accumulates_ctc_average() -> None:
+    from torchmeshmetric.mpeg import MpegPSNR
+
+    a = trimesh.creation.icosphere(2)
+    b, c = a.copy().apply_scale(1.01), a.copy().apply_scale(0.97)
+    m = MpegPSNR(sampling="mesh")
+    for d in (b, c, a):
+        m.update(d, a)
+    out = m.compute()
+    per = [mpeg_metrics(a, d, sampling="mesh").symmetric for d in (b, c)]
+    assert out["d1_psnr"].item() == pytest.approx(sum(p.d1_psnr for p in per) / 2, rel=1e-12)
+    assert out["d2_psnr"].item() == pytest.approx(sum(p.d2_psnr for p in per) / 2, rel=1e-12)
+    assert out["d1_psnr_inf_frames"].item() == 1.0
+    m.reset()
+    m.update(a, a)
+    assert math.isinf(m.compute()["d2_psnr"].item())
+    with pytest.raises(ValueError, match="grid_size"):
+        MpegPSNR(grid_size=0)

@@ -23,10 +23,12 @@ from torchmeshmetric.mpeg.losses import (
     point_to_point_mse,
     psnr_from_mse,
 )
+from torchmeshmetric.mpeg.metric import MpegPSNR
 from torchmeshmetric.mpeg.mpeg_metrics import Sampling, mpeg_metrics, mpeg_point_cloud
 from torchmeshmetric.mpeg.neighbours import NeighbourTies, mpeg_sq_dists, nearest_with_ties
 from torchmeshmetric.mpeg.point_cloud import PointCloud, merge_duplicate_points
 from torchmeshmetric.mpeg.psnr import mpeg_psnr
+from torchmeshmetric.mpeg.sequence import MpegSequence, mean_psnr, mpeg_sequence
 from torchmeshmetric.mpeg.texture import sample_texture
 from torchmeshmetric.mpeg.textured_mesh import TexturedMesh, load_textured_mesh
 from torchmeshmetric.mpeg.vertex_sampling import vertex_sample
@@ -35,8 +37,10 @@ __all__ = [
     "BoxError",
     "GridHits",
     "MpegGeometryLoss",
+    "MpegPSNR",
     "MpegDirection",
     "MpegResult",
+    "MpegSequence",
     "NeighbourTies",
     "PointCloud",
     "Sampling",
@@ -48,12 +52,14 @@ __all__ = [
     "grid_sample",
     "load_textured_mesh",
     "merge_duplicate_points",
+    "mean_psnr",
     "mesh_box",
     "mpeg_compare",
     "mpeg_geometry_loss",
     "mpeg_metrics",
     "mpeg_point_cloud",
     "mpeg_psnr",
+    "mpeg_sequence",
     "mpeg_sq_dists",
     "nearest_with_ties",
     "point_to_plane_mse",
