@@ -19,9 +19,9 @@ from torchmeshmetric.mpeg.losses import (
     MpegGeometryLoss,
     differentiable_grid_sample,
     mpeg_geometry_loss,
+    mpeg_psnr_from_mse,
     point_to_plane_mse,
     point_to_point_mse,
-    psnr_from_mse,
 )
 from torchmeshmetric.mpeg.metric import MpegPSNR
 from torchmeshmetric.mpeg.mpeg_metrics import Sampling, mpeg_metrics, mpeg_point_cloud
@@ -64,7 +64,7 @@ __all__ = [
     "nearest_with_ties",
     "point_to_plane_mse",
     "point_to_point_mse",
-    "psnr_from_mse",
+    "mpeg_psnr_from_mse",
     "rgb_to_ycbcr",
     "sample_texture",
     "unique_vertex_rows",

@@ -19,6 +19,7 @@ from torch import Tensor, nn
 from torchmeshmetric._checks import check_finite, check_float, check_non_empty, check_same_device, check_shape
 from torchmeshmetric.kernels import nearest_vertex_distance
 from torchmeshmetric.mpeg.grid_sampling import grid_hits, unique_vertex_rows
+from torchmeshmetric.stats.statistics import psnr_from_mse
 from torchmeshmetric.structures import Mesh
 
 __all__ = [
@@ -27,7 +28,7 @@ __all__ = [
     "mpeg_geometry_loss",
     "point_to_plane_mse",
     "point_to_point_mse",
-    "psnr_from_mse",
+    "mpeg_psnr_from_mse",
 ]
 
 Term = Literal["d1", "d2"]
@@ -88,17 +89,20 @@ def point_to_plane_mse(points: Tensor, ref_points: Tensor, ref_normals: Tensor) 
     return (proj * proj).mean()
 
 
-def psnr_from_mse(mse: Tensor, peak: float, factor: float = 3.0) -> Tensor:
-    """``10 log10(factor peak^2 / mse)`` as a differentiable tensor (``inf`` at zero error, as mmetric).
+def mpeg_psnr_from_mse(mse: Tensor, peak: float, factor: float = 3.0) -> Tensor:
+    """MPEG's ``10 log10(factor peak^2 / mse)`` as a differentiable tensor (``inf`` at zero error, as mmetric).
+
+    The library's :func:`torchmeshmetric.stats.psnr_from_mse` (the paper's ``10 log10(peak^2 / mse)``) applied to
+    ``mse / factor``: the two conventions differ by ``10 log10(3)`` = 4.77 dB for geometry.
 
     Example:
         >>> import torch
-        >>> round(psnr_from_mse(torch.tensor(1e-4), 1.0).item(), 4)
+        >>> round(mpeg_psnr_from_mse(torch.tensor(1e-4), 1.0).item(), 4)
         44.7712
     """
     if not (math.isfinite(peak) and peak > 0):
         raise ValueError(f"peak: expected a positive finite number, found {peak!r}")
-    return 10.0 * torch.log10(factor * peak * peak / mse)
+    return psnr_from_mse(mse / factor, peak)
 
 
 def mpeg_geometry_loss(
