@@ -88,7 +88,8 @@ def nearest_with_ties(query: np.ndarray, target: np.ndarray, tree: cKDTree | Non
         >>> import numpy as np
         >>> t = np.array([[1, 0, 0], [-1, 0, 0], [5, 0, 0]], np.float32)
         >>> r = nearest_with_ties(np.zeros((1, 3), np.float32), t)
-        >>> sorted(r.cand[0][r.chain[0]].tolist())
+        >>> mask = r.chain[0]
+        >>> sorted(r.cand[0, mask].tolist())
         [0, 1]
     """
     query = np.ascontiguousarray(query, dtype=np.float32)

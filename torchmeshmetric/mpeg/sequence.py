@@ -192,8 +192,9 @@ def mpeg_csv(methods: Mapping[str, MpegSequence]) -> str:
     Example:
         >>> import trimesh
         >>> a = trimesh.creation.icosphere(1)
-        >>> mpeg_csv({"m": mpeg_sequence([a], [a], sampling="mesh")}).splitlines()[0].split(",")[:4]
-        ['algorithm', 'frame', 'd1_psnr', 'd2_psnr']
+        >>> header = mpeg_csv({"m": mpeg_sequence([a], [a], sampling="mesh")}).splitlines()[0]
+        >>> header.startswith("algorithm,frame,d1_psnr,d2_psnr")
+        True
     """
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
