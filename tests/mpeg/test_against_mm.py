@@ -122,3 +122,49 @@ def test_compare_without_distorted_normals_equals_mm(tmp_path: Path) -> None:
     for ours, label in ((r.ref_to_dis.d2_mse, "mse1      (p2plane)"), (r.dis_to_ref.d2_mse, "mse2      (p2plane)")):
         theirs = _figure(out, label)
         assert abs(ours - theirs) <= 2e-6 * abs(theirs), (label, ours, theirs)
+
+
+def _colour_ply(path: Path, verts: np.ndarray, faces: np.ndarray, colors: np.ndarray) -> Path:
+    head = f"ply\nformat ascii 1.0\nelement vertex {len(verts)}\nproperty float x\nproperty float y\nproperty float z\n"
+    head += "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+    head += f"element face {len(faces)}\nproperty list uchar int vertex_indices\nend_header\n"
+    body = [f"{x:.9g} {y:.9g} {z:.9g} {r} {g} {b}" for (x, y, z), (r, g, b) in zip(verts, colors, strict=True)]
+    body += [f"3 {a} {b} {c}" for a, b, c in faces]
+    path.write_text(head + "\n".join(body) + "\n")
+    return path
+
+
+def test_per_vertex_colours_equal_mm(tmp_path: Path) -> None:
+    from torchmeshmetric.mpeg import load_textured_mesh, mpeg_metrics
+
+    rng = np.random.default_rng(1)
+    m = trimesh.creation.icosphere(2)
+    c = (rng.random((len(m.vertices), 3)) * 255).astype(np.uint8)
+    c2 = np.clip(c.astype(int) + rng.integers(-20, 20, c.shape), 0, 255).astype(np.uint8)
+    ref = _colour_ply(tmp_path / "ref.ply", m.vertices, m.faces, c)
+    dis = _colour_ply(tmp_path / "dis.ply", m.vertices * 1.01, m.faces, c2)
+    out = _mm("compare", "--mode", "pcc", "--hausdorff", "--inputModelA", str(ref), "--inputModelB", str(dis))
+    r = mpeg_metrics(load_textured_mesh(ref), load_textured_mesh(dis), sampling="mesh")
+    assert r.symmetric.color_psnr is not None
+    for k, ours in enumerate(r.symmetric.color_psnr):
+        theirs = float(re.findall(rf"(?<!h\.)c\[{k}\],PSNRF\s*:\s*(\S+)", out)[-1])  # not the Hausdorff line
+        assert abs(ours - theirs) <= 0.01
+    # grid sampling: mmetric interpolates the vertex colours and writes them rounded to 8 bits
+    _mm(
+        "sample",
+        "--mode",
+        "grid",
+        "--gridSize",
+        "64",
+        "--useNormal",
+        "-i",
+        str(ref),
+        "-o",
+        str(tmp_path / "s.ply"),
+        "--hideProgress",
+    )
+    theirs = _read_ply(tmp_path / "s.ply")
+    t = load_textured_mesh(ref)
+    ours_cloud = grid_sample(t.mesh, 64, colors=t.colors)
+    assert ours_cloud.colors is not None and ours_cloud.num_points == theirs.shape[0]
+    np.testing.assert_array_equal(np.floor(ours_cloud.colors.numpy() + 0.5), theirs[:, 6:9])
