@@ -46,17 +46,9 @@ def _fmt(x: Any) -> str:
 
 def _table(d: dict[str, Any]) -> str:
     rows = [("", "symmetric", "ref->dis", "dis->ref")]
-    keys = [
-        "d1_psnr",
-        "d2_psnr",
-        "d1_mse",
-        "d2_mse",
-        "d1_hausdorff",
-        "d2_hausdorff",
-        "d1_hausdorff_psnr",
-        "d2_hausdorff_psnr",
-    ]
-    keys += [k for k in ("y_psnr", "cb_psnr", "cr_psnr", "y_mse", "cb_mse", "cr_mse") if k in d]
+    from torchmeshmetric.mpeg.sequence import FRAME_KEYS
+
+    keys = [k for k in (*FRAME_KEYS, "y_mse", "cb_mse", "cr_mse") if k in d]
     for k in keys:
         rows.append((k, _fmt(d[k]), _fmt(d["ref_to_dis"][k]), _fmt(d["dis_to_ref"][k])))
     w = [max(len(r[i]) for r in rows) for i in range(4)]

@@ -14,7 +14,16 @@ from torchmeshmetric.mpeg import _float32 as f32
 from torchmeshmetric.mpeg.point_cloud import PointCloud
 from torchmeshmetric.structures import MeshLike, as_mesh
 
-__all__ = ["BoxError", "GridHits", "check_box", "grid_hits", "grid_sample", "mesh_box", "unique_vertex_rows"]
+__all__ = [
+    "BoxError",
+    "GridHits",
+    "check_box",
+    "grid_hits",
+    "grid_sample",
+    "mesh_arrays",
+    "mesh_box",
+    "unique_vertex_rows",
+]
 
 _DBL_EPSILON = 2.220446049250313e-16
 _ZERO_TOLERANCE = np.float32(1e-6)
@@ -36,6 +45,28 @@ def mesh_box(verts: np.ndarray | Tensor) -> tuple[np.ndarray, np.ndarray]:
     v = verts.detach().cpu().numpy() if isinstance(verts, Tensor) else np.asarray(verts)
     v = v.astype(np.float32)
     return v.min(axis=0), v.max(axis=0)
+
+
+def mesh_arrays(mesh: MeshLike) -> tuple[np.ndarray, np.ndarray]:
+    """A mesh as mmetric reads it: float32 vertices ``(V, 3)`` and int64 faces ``(F, 3)`` (numpy, CPU).
+
+    Raises:
+        EmptyInputError: the mesh has no face.
+        NonFiniteError: NaN or Inf vertices.
+
+    Example:
+        >>> import torch
+        >>> v, f = mesh_arrays((torch.eye(3, dtype=torch.float64), torch.tensor([[0, 1, 2]])))
+        >>> v.dtype, f.shape
+        (dtype('float32'), (1, 3))
+    """
+    m = as_mesh(mesh)
+    if m.faces.shape[0] == 0:
+        raise EmptyInputError("mesh: expected at least one face, found none")
+    verts = m.verts.detach().cpu().numpy().astype(np.float32)
+    if not np.isfinite(verts).all():
+        raise NonFiniteError("mesh: vertex positions hold NaN or Inf")
+    return verts, m.faces.detach().cpu().numpy()
 
 
 def _main_axes(normal: np.ndarray) -> np.ndarray:
@@ -192,13 +223,7 @@ def grid_hits(
     """
     if isinstance(grid_size, bool) or not isinstance(grid_size, int) or grid_size < 2:
         raise ValueError(f"grid_size: expected an integer >= 2, found {grid_size!r}")
-    m = as_mesh(mesh)
-    if m.faces.shape[0] == 0:
-        raise EmptyInputError("mesh: expected at least one face for grid sampling, found none")
-    verts = m.verts.detach().cpu().numpy().astype(np.float32)
-    if not np.isfinite(verts).all():
-        raise NonFiniteError("mesh: vertex positions hold NaN or Inf")
-    faces = m.faces.detach().cpu().numpy()
+    verts, faces = mesh_arrays(mesh)
     min_box, max_box = mesh_box(verts) if box is None else _parse_box(box)
     diag = max_box - min_box
     rng = max(diag[0], diag[1], diag[2])

@@ -8,12 +8,11 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import EmptyInputError, NonFiniteError
 from torchmeshmetric.mpeg import _float32 as f32
-from torchmeshmetric.mpeg.grid_sampling import unique_vertex_rows
+from torchmeshmetric.mpeg.grid_sampling import mesh_arrays, unique_vertex_rows
 from torchmeshmetric.mpeg.point_cloud import PointCloud
 from torchmeshmetric.mpeg.texture import sample_texture
-from torchmeshmetric.structures import MeshLike, as_mesh
+from torchmeshmetric.structures import MeshLike
 
 __all__ = ["vertex_sample"]
 
@@ -81,13 +80,7 @@ def vertex_sample(
         >>> vertex_sample((tri[0] * 4, tri[1])).num_points  # area 8 >= 2: split twice
         15
     """
-    m = as_mesh(mesh)
-    if m.faces.shape[0] == 0:
-        raise EmptyInputError("mesh: expected at least one face, found none")
-    verts = m.verts.detach().cpu().numpy().astype(np.float32)
-    if not np.isfinite(verts).all():
-        raise NonFiniteError("mesh: vertex positions hold NaN or Inf")
-    faces = m.faces.detach().cpu().numpy()
+    verts, faces = mesh_arrays(mesh)
     nf = faces.shape[0]
     pos = verts[faces].reshape(-1, 3)
     keys = [pos]
