@@ -168,3 +168,27 @@ def test_per_vertex_colours_equal_mm(tmp_path: Path) -> None:
     ours_cloud = grid_sample(t.mesh, 64, colors=t.colors)
     assert ours_cloud.colors is not None and ours_cloud.num_points == theirs.shape[0]
     np.testing.assert_array_equal(np.floor(ours_cloud.colors.numpy() + 0.5), theirs[:, 6:9])
+
+
+def test_obj_vertex_colours_equal_mm(tmp_path: Path) -> None:
+    """OBJ ``v x y z r g b`` colours in [0, 1] are read as mmetric reads them (scaled to 8 bits)."""
+    from torchmeshmetric.mpeg import load_textured_mesh, mpeg_metrics
+
+    rng = np.random.default_rng(2)
+    m = trimesh.creation.icosphere(1)
+    paths = []
+    for name, scale in (("ref.obj", 1.0), ("dis.obj", 1.02)):
+        c = rng.integers(0, 256, (len(m.vertices), 3)) / 255.0
+        lines = [
+            f"v {x:.9g} {y:.9g} {z:.9g} {r:.9g} {g:.9g} {b:.9g}"
+            for (x, y, z), (r, g, b) in zip(m.vertices * scale, c, strict=True)
+        ]
+        lines += [f"f {a + 1} {b + 1} {d + 1}" for a, b, d in m.faces]
+        (tmp_path / name).write_text("\n".join(lines) + "\n")
+        paths.append(tmp_path / name)
+    out = _mm("compare", "--mode", "pcc", "--inputModelA", str(paths[0]), "--inputModelB", str(paths[1]))
+    r = mpeg_metrics(load_textured_mesh(paths[0]), load_textured_mesh(paths[1]), sampling="mesh")
+    assert r.symmetric.color_psnr is not None
+    for k, ours in enumerate(r.symmetric.color_psnr):
+        theirs = float(re.findall(rf"(?<!h\.)c\[{k}\],PSNRF\s*:\s*(\S+)", out)[-1])
+        assert abs(ours - theirs) <= 0.01
