@@ -46,6 +46,21 @@ from torchmeshmetric.metrics import (
     mesh_surface_distance_loss,
     nearest_vertex_distance_loss,
 )
+from torchmeshmetric.mpeg import (
+    MpegGeometryLoss,
+    MpegPSNR,
+    MpegResult,
+    PointCloud,
+    TexturedMesh,
+    differentiable_grid_sample,
+    grid_sample,
+    load_textured_mesh,
+    mpeg_compare,
+    mpeg_geometry_loss,
+    mpeg_metrics,
+    mpeg_sequence,
+    vertex_sample,
+)
 from torchmeshmetric.registration import (
     DeformationGraph,
     NonRigidRegistration,
@@ -122,4 +137,18 @@ __all__ = [
     "TemporalConsistency",
     "evaluate_pair",
     "evaluate_sequence",
+    # MPEG's metrics (mmetric: D1/D2 and colour PSNR)
+    "MpegGeometryLoss",
+    "MpegPSNR",
+    "MpegResult",
+    "PointCloud",
+    "TexturedMesh",
+    "differentiable_grid_sample",
+    "grid_sample",
+    "load_textured_mesh",
+    "mpeg_compare",
+    "mpeg_geometry_loss",
+    "mpeg_metrics",
+    "mpeg_sequence",
+    "vertex_sample",
 ]

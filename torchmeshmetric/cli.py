@@ -6,6 +6,7 @@ Commands:
   simplify  simplify every frame of a sequence with QEM or Registered QEM
   register  register one mesh (frame k-1) onto another (frame k), rigid then non-rigid
   demo      the main job: built-in sequence -> QEM and Registered QEM -> evaluation, tables, report and plots
+  mpeg      MPEG D1/D2 (and colour) PSNR of one mesh pair, equal to mmetric's figures
 
 Errors (missing or corrupt files, frame-count mismatch, unwritable output) end with a one-line message on stderr
 and exit code 1; reports are written atomically and never half-written. Set TORCHMESHMETRIC_DEBUG=1 for tracebacks.
@@ -51,11 +52,14 @@ def _device(args: argparse.Namespace) -> str:
     return str(args.device)
 
 
-def _report_paths(out: str | None) -> dict[str, Path]:
+def _report_paths(out: str | None, mpeg: bool = False) -> dict[str, Path]:
     if out is None:
         return {}
     json_path = Path(out)
-    return {"json": json_path, "md": json_path.with_suffix(".md"), "csv": json_path.with_suffix(".csv")}
+    paths = {"json": json_path, "md": json_path.with_suffix(".md"), "csv": json_path.with_suffix(".csv")}
+    if mpeg:
+        paths.update(mpeg_csv=json_path.with_suffix(".mpeg.csv"), mpeg_png=json_path.with_suffix(".mpeg.png"))
+    return paths
 
 
 def _dtype(args: argparse.Namespace) -> Any:
@@ -128,16 +132,58 @@ def _load_frames(directory: str, what: str, dtype: Any) -> list[Any]:
     return list(frames)
 
 
-def _write_reports(paths: dict[str, Path], methods: dict[str, Any], settings: dict[str, Any], overwrite: bool) -> None:
+def _write_reports(
+    paths: dict[str, Path],
+    methods: dict[str, Any],
+    settings: dict[str, Any],
+    overwrite: bool,
+    mpeg: dict[str, Any] | None = None,
+) -> None:
     from torchmeshmetric.evaluation import report_dict, write_csv, write_json, write_markdown
 
     if not paths:
         return
+    report = report_dict(methods, settings=settings)
+    extra = ""
+    if mpeg:
+        from torchmeshmetric.mpeg.command import json_safe
+        from torchmeshmetric.mpeg.sequence import mpeg_markdown
+
+        report["mpeg"] = json_safe({name: seq.as_dict() for name, seq in mpeg.items()})
+        extra = mpeg_markdown(mpeg)
+    written = [paths["json"], paths["md"], paths["csv"]]
     with _output_set("the report"):
-        write_json(paths["json"], report_dict(methods, settings=settings), overwrite=overwrite)
-        write_markdown(paths["md"], methods, overwrite=overwrite)
+        write_json(paths["json"], report, overwrite=overwrite)
+        write_markdown(paths["md"], methods, overwrite=overwrite, extra=extra)
         write_csv(paths["csv"], methods, overwrite=overwrite)
-    print(f"wrote {paths['json']}, {paths['md']}, {paths['csv']}", file=sys.stderr)
+        if mpeg:
+            from torchmeshmetric.evaluation.atomic import atomic_write
+            from torchmeshmetric.mpeg.sequence import mpeg_csv
+            from torchmeshmetric.viz import plot_mpeg_curves
+
+            written.append(atomic_write(paths["mpeg_csv"], mpeg_csv(mpeg), overwrite=overwrite))
+            written.append(plot_mpeg_curves(mpeg, paths["mpeg_png"], overwrite=overwrite))
+    print("wrote " + ", ".join(str(p) for p in written), file=sys.stderr)
+
+
+def _mpeg_methods(original: list[Any], methods: dict[str, list[Any]], args: argparse.Namespace) -> dict[str, Any]:
+    """Per-frame MPEG figures of every method (``--mpeg``); printed as a Markdown table."""
+    if not getattr(args, "mpeg", False):
+        return {}
+    from torchmeshmetric.mpeg.sequence import mpeg_markdown, mpeg_sequence
+
+    out = {
+        name: mpeg_sequence(
+            original,
+            frames,
+            sampling=args.mpeg_sampling,
+            grid_size=args.mpeg_grid_size,
+            progress=_progress(f"{name} mpeg"),
+        )
+        for name, frames in methods.items()
+    }
+    print(mpeg_markdown(out))
+    return out
 
 
 def _evaluate_methods(
@@ -165,20 +211,21 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     from torchmeshmetric.evaluation import paper_tables
 
     device = _device(args)
-    paths = _report_paths(args.out)
+    paths = _report_paths(args.out, args.mpeg)
     _check_writable(list(paths.values()), args.overwrite)
     original = _load_frames(args.original, "--original", _dtype(args))
     simplified = _load_frames(args.simplified, "--simplified", _dtype(args))
     name = args.name or Path(args.simplified).resolve().name
     results = _evaluate_methods(original, {name: simplified}, args, device)
     print(paper_tables(results))
+    mpeg = _mpeg_methods(original, {name: simplified}, args)
     settings = {
         "original": args.original,
         "methods": {name: args.simplified},
         "two_sided": not args.one_sided,
         "dtype": args.dtype,
     }
-    _write_reports(paths, results, settings, args.overwrite)
+    _write_reports(paths, results, settings, args.overwrite, mpeg)
     return 0
 
 
@@ -199,14 +246,15 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
     device = _device(args)
     specs = _parse_methods(args.method)
-    paths = _report_paths(args.out)
+    paths = _report_paths(args.out, args.mpeg)
     _check_writable(list(paths.values()), args.overwrite)
     original = _load_frames(args.original, "--original", _dtype(args))
     frames = {name: _load_frames(d, f"--method {name}", _dtype(args)) for name, d in specs.items()}
     results = _evaluate_methods(original, frames, args, device)
     print(paper_tables(results))
+    mpeg = _mpeg_methods(original, frames, args)
     settings = {"original": args.original, "methods": specs, "two_sided": not args.one_sided, "dtype": args.dtype}
-    _write_reports(paths, results, settings, args.overwrite)
+    _write_reports(paths, results, settings, args.overwrite, mpeg)
     return 0
 
 
@@ -474,6 +522,16 @@ def build_parser() -> argparse.ArgumentParser:
         help="keep registrations of original frame pairs in DIR (keyed by mesh content and settings) and reuse "
         "them in later runs (default: in memory for this run only)",
     )
+    evaluation.add_argument(
+        "--mpeg",
+        action="store_true",
+        help="also report MPEG's per-frame D1/D2 PSNR and Hausdorff (mmetric's figures, frame k vs original frame "
+        "k) in the tables and reports (REPORT.mpeg.csv, REPORT.mpeg.png); averaged as the CTC: mean of per-frame PSNR",
+    )
+    evaluation.add_argument(
+        "--mpeg-sampling", choices=("grid", "mesh"), default="grid", help="MPEG sampling (default grid, the CTC's)"
+    )
+    evaluation.add_argument("--mpeg-grid-size", type=int, default=1024, metavar="N", help="MPEG grid size (1024)")
     output = argparse.ArgumentParser(add_help=False)
     output.add_argument(
         "--out",
@@ -596,6 +654,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-plots", action="store_true", help="skip PNG plots and coloured PLY files")
     p.add_argument("--save-meshes", action="store_true", help="also save the simplified frames as PLY")
     p.set_defaults(func=_cmd_demo)
+
+    from torchmeshmetric.mpeg.command import add_mpeg_command
+
+    add_mpeg_command(sub)
     return parser
 
 

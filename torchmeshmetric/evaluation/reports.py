@@ -163,10 +163,15 @@ def write_json(path: str | os.PathLike[str], report: Mapping[str, Any], *, overw
 
 
 def write_markdown(
-    path: str | os.PathLike[str], methods: Mapping[str, SequenceEvaluation], *, overwrite: bool = False
+    path: str | os.PathLike[str],
+    methods: Mapping[str, SequenceEvaluation],
+    *,
+    overwrite: bool = False,
+    extra: str = "",
 ) -> Path:
-    """Write :func:`paper_tables` to a Markdown file, atomically."""
-    return atomic_write(path, "# torchmeshmetric evaluation\n\n" + paper_tables(methods), overwrite=overwrite)
+    """Write :func:`paper_tables` (then ``extra`` Markdown, e.g. the MPEG section) to a Markdown file, atomically."""
+    text = "# torchmeshmetric evaluation\n\n" + paper_tables(methods) + ("\n" + extra if extra else "")
+    return atomic_write(path, text, overwrite=overwrite)
 
 
 def write_csv(

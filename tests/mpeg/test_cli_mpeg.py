@@ -1,0 +1,89 @@
+"""``torchmeshmetric mpeg REF DIS``: JSON keys and values (against mmetric's figures), table, typed errors."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+from tests.mpeg.conftest import MPEG_REF
+from torchmeshmetric.cli import main
+
+TRI = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
+
+
+def _write(tmp_path: Path, name: str, text: str) -> str:
+    p = tmp_path / name
+    p.write_text(text)
+    return str(p)
+
+
+@pytest.mark.skipif(not (MPEG_REF / "expected.json").is_file(), reason="../shared/reference/mpeg absent")
+def test_json_mesh_sampling_equals_mmetric(capsys: pytest.CaptureFixture[str]) -> None:
+    exp = json.loads((MPEG_REF / "expected.json").read_text())["torus/simplified10.obj"]["vertex"]
+    ref, dis = MPEG_REF / "torus" / "ref.obj", MPEG_REF / "torus" / "simplified10.obj"
+    assert main(["mpeg", str(ref), str(dis), "--sampling", "mesh", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    for key in ("d1_psnr", "d2_psnr", "d1_mse", "d2_mse", "d1_hausdorff", "d2_hausdorff", "peak"):
+        assert key in d
+    assert set(d["ref_to_dis"]) >= {"d1_mse", "d2_mse", "d1_psnr", "d2_psnr"}
+    assert "y_psnr" not in d  # no colour on either mesh
+    assert abs(d["d1_psnr"] - exp["psnrF_p2point"]) <= 0.01
+    assert abs(d["d2_psnr"] - exp["psnrF_p2plane"]) <= 0.01
+    assert abs(d["d1_mse"] - exp["mseF_p2point"]) <= 1e-6 * exp["mseF_p2point"]
+    assert abs(d["ref_to_dis"]["d2_mse"] - exp["mse1_p2plane"]) <= 1e-6 * exp["mse1_p2plane"]
+    assert abs(d["dis_to_ref"]["d1_mse"] - exp["mse2_p2point"]) <= 1e-6 * exp["mse2_p2point"]
+    assert (d["points_ref"], d["points_dis"]) == (exp["points_ref"], exp["points_dis"])
+
+
+@pytest.mark.skipif(not (MPEG_REF / "textured").is_dir(), reason="../shared/reference/mpeg absent")
+def test_json_colour_keys(capsys: pytest.CaptureFixture[str]) -> None:
+    exp = json.loads((MPEG_REF / "textured" / "expected.json").read_text())["coarse.obj"]["vertex"]
+    ref, dis = MPEG_REF / "textured" / "ref.obj", MPEG_REF / "textured" / "coarse.obj"
+    assert main(["mpeg", str(ref), str(dis), "--sampling", "mesh", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    for ours, theirs in (("y_psnr", "psnrF_y"), ("cb_psnr", "psnrF_cb"), ("cr_psnr", "psnrF_cr")):
+        assert abs(d[ours] - exp[theirs]) <= 0.01
+
+
+def test_identical_meshes_json_inf_and_table(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    tri = _write(tmp_path, "t.obj", TRI)
+    assert main(["mpeg", tri, tri, "--grid-size", "16", "--json"]) == 0
+    d = json.loads(capsys.readouterr().out)  # strict JSON: infinity as a string
+    assert d["d1_psnr"] == "inf" and d["d2_psnr"] == "inf"
+    assert d["d1_mse"] == 0.0 and d["points_ref"] == d["points_dis"] > 0
+    assert math.isclose(d["peak"], math.sqrt(2.0), rel_tol=1e-6)
+    assert main(["mpeg", tri, tri, "--grid-size", "16"]) == 0
+    table = capsys.readouterr().out
+    assert "d1_psnr" in table and "inf" in table and "(grid)" in table
+
+
+@pytest.mark.parametrize(
+    ("ref_text", "dis_text", "extra", "message"),
+    [
+        (TRI, "", [], "dis: expected a mesh with vertices and faces, found an empty mesh"),
+        (TRI, "v 0 0 0\nv 1 0 0\nv 0 1 0\n", [], "dis: expected triangles, found 3 vertices and no face"),
+        (TRI, "v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", [], "dis.obj:1: malformed 'v' line"),
+        (TRI, TRI, ["--grid-size", "0"], "grid_size: expected an integer >= 2, found 0"),
+        (TRI, TRI, ["--box", "0 0 0", "0.5 0.5 0.5"], "does not contain the reference mesh"),
+        (TRI, TRI, ["--box", "0 0", "1 1 1"], "--box: the min corner must be three numbers"),
+        (TRI, TRI, ["--box", "1 1 1", "0 0 0"], "max corner [0.0, 0.0, 0.0] is below min corner"),
+        (TRI, TRI, ["--peak", "0"], "peak: expected a positive finite number, found 0.0"),
+    ],
+)
+def test_bad_input_is_one_clear_line(
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    ref_text: str,
+    dis_text: str,
+    extra: list[str],
+    message: str,
+) -> None:
+    ref = _write(tmp_path, "ref.obj", ref_text)
+    dis = _write(tmp_path, "dis.obj", dis_text)
+    assert main(["mpeg", ref, dis, *extra]) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("torchmeshmetric mpeg: error: ")
+    assert message in err

@@ -1,0 +1,380 @@
+"""mmetric's ``sample --mode grid``: the points where axis-aligned rays on a regular grid cross the surface."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, NamedTuple
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from torchmeshmetric._checks import EmptyInputError, NonFiniteError
+from torchmeshmetric.mpeg import _float32 as f32
+from torchmeshmetric.mpeg.point_cloud import PointCloud
+from torchmeshmetric.structures import MeshLike, as_mesh
+
+__all__ = [
+    "BoxError",
+    "GridHits",
+    "check_box",
+    "grid_hits",
+    "grid_sample",
+    "mesh_arrays",
+    "mesh_box",
+    "unique_vertex_rows",
+]
+
+_DBL_EPSILON = 2.220446049250313e-16
+_ZERO_TOLERANCE = np.float32(1e-6)
+_CHUNK = 1 << 21  # ray-triangle pairs per vectorised step (a few tens of MB of float32 temporaries)
+
+
+class BoxError(ValueError):
+    """A sampling box that is malformed or does not contain the mesh."""
+
+
+def mesh_box(verts: np.ndarray | Tensor) -> tuple[np.ndarray, np.ndarray]:
+    """The float32 bounding box of a mesh's vertices (mmetric's ``computeBBox``).
+
+    Example:
+        >>> lo, hi = mesh_box(np.array([[0, 1, 2], [3, -1, 5]], np.float32))
+        >>> lo.tolist(), hi.tolist()
+        ([0.0, -1.0, 2.0], [3.0, 1.0, 5.0])
+    """
+    v = verts.detach().cpu().numpy() if isinstance(verts, Tensor) else np.asarray(verts)
+    v = v.astype(np.float32)
+    return v.min(axis=0), v.max(axis=0)
+
+
+def mesh_arrays(mesh: MeshLike) -> tuple[np.ndarray, np.ndarray]:
+    """A mesh as mmetric reads it: float32 vertices ``(V, 3)`` and int64 faces ``(F, 3)`` (numpy, CPU).
+
+    Raises:
+        EmptyInputError: the mesh has no face.
+        NonFiniteError: NaN or Inf vertices.
+
+    Example:
+        >>> import torch
+        >>> v, f = mesh_arrays((torch.eye(3, dtype=torch.float64), torch.tensor([[0, 1, 2]])))
+        >>> v.dtype, f.shape
+        (dtype('float32'), (1, 3))
+    """
+    m = as_mesh(mesh)
+    if m.faces.shape[0] == 0:
+        raise EmptyInputError("mesh: expected at least one face, found none")
+    verts = m.verts.detach().cpu().numpy().astype(np.float32)
+    if not np.isfinite(verts).all():
+        raise NonFiniteError("mesh: vertex positions hold NaN or Inf")
+    return verts, m.faces.detach().cpu().numpy()
+
+
+def _main_axes(normal: np.ndarray) -> np.ndarray:
+    """The ``useNormal`` axis of mmetric: the largest ``|n|`` component, with its tie rules (x before y before z)."""
+    a = np.abs(normal)
+    x_main = (a[:, 0] >= a[:, 1]) & (a[:, 0] >= a[:, 2])
+    y_main = (a[:, 1] >= a[:, 0]) & (a[:, 1] >= a[:, 2])
+    return np.where(x_main, 0, np.where(y_main, 1, 2))
+
+
+def check_box(box: tuple[Any, Any], verts: np.ndarray | Tensor, name: str = "box") -> tuple[np.ndarray, np.ndarray]:
+    """Validate a sampling box ``(min, max)`` and require that it contains ``verts``.
+
+    Raises:
+        BoxError: wrong shape, non-finite corners, ``max < min``, or vertices outside the box.
+
+    Example:
+        >>> lo, hi = check_box(([0, 0, 0], [1, 1, 1]), np.zeros((1, 3), np.float32))
+        >>> hi.tolist()
+        [1.0, 1.0, 1.0]
+    """
+    lo, hi = _parse_box(box, name)
+    vlo, vhi = mesh_box(verts)
+    if (vlo < lo).any() or (vhi > hi).any():
+        raise BoxError(
+            f"{name}: [{lo.tolist()}, {hi.tolist()}] does not contain the reference mesh (its box is "
+            f"[{vlo.tolist()}, {vhi.tolist()}])"
+        )
+    return lo, hi
+
+
+def _parse_box(box: tuple[Any, Any], name: str = "box") -> tuple[np.ndarray, np.ndarray]:
+    lo = np.asarray(box[0], dtype=np.float32).reshape(-1)
+    hi = np.asarray(box[1], dtype=np.float32).reshape(-1)
+    if lo.shape != (3,) or hi.shape != (3,):
+        raise BoxError(f"{name}: expected two corners of 3 coordinates, found shapes {lo.shape} and {hi.shape}")
+    if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
+        raise BoxError(f"{name}: corners must be finite, found {lo.tolist()} and {hi.tolist()}")
+    if (hi < lo).any():
+        raise BoxError(f"{name}: max corner {hi.tolist()} is below min corner {lo.tolist()}")
+    if not (hi > lo).any():
+        raise BoxError(f"{name}: the box is a single point {lo.tolist()}")
+    return lo, hi
+
+
+def grid_sample(
+    mesh: MeshLike,
+    grid_size: int = 1024,
+    *,
+    use_normal: bool = True,
+    box: tuple[Sequence[float] | np.ndarray | Tensor, Sequence[float] | np.ndarray | Tensor] | None = None,
+    texture: Any = None,
+    uvs: Tensor | np.ndarray | None = None,
+    colors: Tensor | np.ndarray | None = None,
+    bilinear: bool = True,
+) -> PointCloud:
+    """Sample a mesh on a grid exactly as ``mm sample --mode grid`` does (the V-DMC common test conditions).
+
+    Rays parallel to the axes are cast from a regular grid of ``grid_size`` steps over the longest side of ``box``
+    (step ``range / (grid_size - 1)``); each ray that crosses a triangle (Moller-Trumbore, mmetric's float32
+    arithmetic) gives a point with the triangle's normal. With ``use_normal`` only rays along the axis closest to
+    the triangle's normal are cast (the CTC setting). Degenerate triangles (area below ``DBL_EPSILON``) are skipped,
+    points equal in position, normal and colour are kept once. The result is what mmetric writes, before the
+    comparison merges points with equal positions (:func:`merge_duplicate_points`).
+
+    Args:
+        mesh: the mesh (float vertices are rounded to float32 as mmetric reads them).
+        grid_size: grid steps over the box's longest side (``>= 2``).
+        use_normal: cast only along the axis closest to each triangle's normal (mmetric ``--useNormal``).
+        box: ``(min, max)`` corners of the sampling box (the grid's origin and extent); default the mesh's bounding
+            box. The CTC passes the reference's box for both meshes; a distorted mesh may reach outside it (its
+            points there are still sampled, as mmetric does). :func:`check_box` checks a box against a reference.
+        texture: an ``(H, W, 3)`` uint8 texture image; needs ``uvs``.
+        uvs: ``(F, 3, 2)`` texture coordinates per face corner.
+        colors: ``(V, 3)`` per-vertex colours in ``[0, 255]`` (used without a texture).
+        bilinear: bilinear texture filtering (mmetric ``--bilinear``), nearest otherwise.
+
+    Returns:
+        :class:`PointCloud` with normals (and colours when the mesh has some).
+
+    Raises:
+        ValueError: ``grid_size < 2``.
+        EmptyInputError: the mesh has no face.
+        BoxError: a malformed box (wrong shape, non-finite, max below min, a single point).
+
+    Example:
+        >>> import torch
+        >>> tri = (torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]]))
+        >>> grid_sample(tri, 3, box=([0, 0, 0], [1, 1, 1])).num_points
+        6
+    """
+    from torchmeshmetric.mpeg.texture import sample_texture
+
+    hits = grid_hits(mesh, grid_size, use_normal=use_normal, box=box)
+    pos, nrm, face, bary = hits.points, hits.normals, hits.face_idx, hits.bary
+    faces = hits.faces
+    col = None
+    if texture is not None and uvs is not None:
+        fuv = np.asarray(uvs.detach().cpu().numpy() if isinstance(uvs, Tensor) else uvs, dtype=np.float32)[face]
+        u, v = bary[:, 0], bary[:, 1]
+        w = (np.float32(1.0) - u) - v
+        uv = (fuv[:, 0] * w[:, None] + fuv[:, 1] * u[:, None]) + fuv[:, 2] * v[:, None]
+        col = sample_texture(texture, uv, bilinear=bilinear)
+    elif colors is not None:
+        c = np.asarray(colors.detach().cpu().numpy() if isinstance(colors, Tensor) else colors, dtype=np.float32)
+        fc = c[faces[face]]
+        u, v = bary[:, 0], bary[:, 1]
+        w = (np.float32(1.0) - u) - v
+        col = (fc[:, 0] * w[:, None] + fc[:, 1] * u[:, None]) + fc[:, 2] * v[:, None]
+    kept = unique_vertex_rows(pos, nrm, col)
+    return PointCloud(
+        torch.from_numpy(np.ascontiguousarray(pos[kept])),
+        torch.from_numpy(np.ascontiguousarray(nrm[kept])),
+        None if col is None else torch.from_numpy(np.ascontiguousarray(col[kept], dtype=np.float32)),
+    )
+
+
+class GridHits(NamedTuple):
+    """Every ray-triangle hit of a grid sampling, in mmetric's push order (before removing repeated points).
+
+    Attributes:
+        points: ``(H, 3)`` float32 hit points.
+        normals: ``(H, 3)`` float32 normals of the hit faces.
+        face_idx: ``(H,)`` hit face (index into the mesh's faces).
+        axis: ``(H,)`` ray axis (0, 1, 2).
+        origin: ``(H, 3)`` float32 ray origins.
+        bary: ``(H, 2)`` float32 barycentric ``(u, v)`` of the hit on its face (weights of corners 1 and 2).
+        faces: ``(F, 3)`` the mesh's faces (numpy).
+    """
+
+    points: np.ndarray
+    normals: np.ndarray
+    face_idx: np.ndarray
+    axis: np.ndarray
+    origin: np.ndarray
+    bary: np.ndarray
+    faces: np.ndarray
+
+
+def grid_hits(
+    mesh: MeshLike,
+    grid_size: int = 1024,
+    *,
+    use_normal: bool = True,
+    box: tuple[Sequence[float] | np.ndarray | Tensor, Sequence[float] | np.ndarray | Tensor] | None = None,
+) -> GridHits:
+    """The rays of :func:`grid_sample` that hit the mesh, with their faces, axes and origins.
+
+    Example:
+        >>> import torch
+        >>> tri = (torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]]))
+        >>> grid_hits(tri, 3, box=([0, 0, 0], [1, 1, 1])).axis.tolist()
+        [2, 2, 2, 2, 2, 2]
+    """
+    if isinstance(grid_size, bool) or not isinstance(grid_size, int) or grid_size < 2:
+        raise ValueError(f"grid_size: expected an integer >= 2, found {grid_size!r}")
+    verts, faces = mesh_arrays(mesh)
+    min_box, max_box = mesh_box(verts) if box is None else _parse_box(box)
+    diag = max_box - min_box
+    rng = max(diag[0], diag[1], diag[2])
+    step = np.full(3, rng * (np.float32(1.0) / np.float32(grid_size - 1)), dtype=np.float32)
+
+    v1, v2, v3 = verts[faces[:, 0]], verts[faces[:, 1]], verts[faces[:, 2]]
+    keep = f32.area(v1, v2, v3) >= _DBL_EPSILON
+    fid = np.flatnonzero(keep)
+    v1, v2, v3 = v1[keep], v2[keep], v3[keep]
+    normal = f32.normalize(f32.cross(v2 - v1, v3 - v1))
+    tmin = np.minimum(np.minimum(v1, v2), v3)
+    tmax = np.maximum(np.maximum(v1, v2), v3)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lmin = np.floor((tmin - min_box) / step)
+        lmax = np.ceil((tmax - min_box) / step)
+    lcnt = lmax - lmin
+
+    if use_normal:
+        face_ax = [(np.arange(fid.size), _main_axes(normal))]
+    else:
+        face_ax = [(np.arange(fid.size), np.full(fid.size, a)) for a in range(3)]
+    # Interleave the axes per face (mmetric loops axes inside its face loop), so first occurrences keep its order.
+    f_list = np.concatenate([fa[0] for fa in face_ax])
+    a_list = np.concatenate([fa[1] for fa in face_ax])
+    order = np.argsort(f_list, kind="stable")
+    f_list, a_list = f_list[order], a_list[order]
+    second = np.where(a_list == 0, 1, 0)
+    third = np.where(a_list == 2, 1, 2)
+    flat_box = min_box == max_box
+    ok = ~(flat_box[second] | flat_box[third])
+    f_list, a_list, second, third = f_list[ok], a_list[ok], second[ok], third[ok]
+    n2 = lcnt[f_list, second].astype(np.int64) + 1
+    n3 = lcnt[f_list, third].astype(np.int64) + 1
+    rays = n2 * n3
+    starts = np.concatenate([[0], np.cumsum(rays)])
+
+    # Per (face, axis) entry: the ray-independent part of Moller-Trumbore. For a ray along axis a, pvec = e_a x edge2
+    # has a zero a-component, so glm's dot products reduce exactly to the two remaining float32 terms.
+    e1 = (v2 - v1)[f_list]
+    e2 = (v3 - v1)[f_list]
+    b_ax, c_ax = (a_list + 1) % 3, (a_list + 2) % 3
+    rows_e = np.arange(f_list.size)
+    e1b, e1c = e1[rows_e, b_ax], e1[rows_e, c_ax]
+    e2b, e2c = e2[rows_e, b_ax], e2[rows_e, c_ax]
+    det = e1c * e2b - e1b * e2c
+    live = ~((det > -_ZERO_TOLERANCE) & (det < _ZERO_TOLERANCE))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv_det = np.float32(1.0) / det
+    lm_e = lmin[f_list]
+    main_origin = min_box[a_list] + lm_e[rows_e, a_list] * step[a_list]
+    main_origin = np.where(step[a_list] == 0, min_box[a_list] - np.float32(0.5), main_origin)
+
+    out: list[tuple[np.ndarray, ...]] = []
+    for a in range(3):
+        b, c = (a + 1) % 3, (a + 2) % 3
+        s2, s3 = (1, 2) if a == 0 else ((0, 2) if a == 1 else (0, 1))
+        ents = np.flatnonzero((a_list == a) & live)
+        if ents.size == 0:
+            continue
+        cum = np.concatenate([[0], np.cumsum(rays[ents])])
+        lo = 0
+        while lo < ents.size:
+            hi = max(int(np.searchsorted(cum, cum[lo] + _CHUNK, side="right")) - 1, lo + 1)
+            ent = ents[lo:hi]
+            cnt = rays[ent]
+            e = np.repeat(ent, cnt)
+            local = np.arange(e.size) - np.repeat(cum[lo:hi] - cum[lo], cnt)
+            lo = hi
+            n3e = n3[e]
+            i = (local // n3e).astype(np.float32)
+            j = (local % n3e).astype(np.float32)
+            f = f_list[e]
+            p0 = v1[f]
+            tv = np.empty((e.size, 3), dtype=np.float32)
+            tv[:, a] = main_origin[e] - p0[:, a]
+            o2 = min_box[s2] + (lm_e[e, s2] + i) * step[s2]
+            o3 = min_box[s3] + (lm_e[e, s3] + j) * step[s3]
+            tv[:, s2] = o2 - p0[:, s2]
+            tv[:, s3] = o3 - p0[:, s3]
+            idet = inv_det[e]
+            u = (tv[:, c] * e2b[e] - tv[:, b] * e2c[e]) * idet
+            ok = ~((u < 0) | (u > 1))
+            q = f32.cross(tv, e1[e])
+            v = q[:, a] * idet
+            ok &= ~((v < 0) | (u + v > 1))
+            hit = np.flatnonzero(ok)
+            eh = e[hit]
+            t = f32.dot(e2[eh], q[hit]) * idet[hit]
+            origin = np.empty((hit.size, 3), dtype=np.float32)
+            origin[:, a] = main_origin[eh]
+            origin[:, s2] = o2[hit]
+            origin[:, s3] = o3[hit]
+            pos = origin.copy()
+            pos[:, a] = origin[:, a] + t
+            out.append((starts[eh] + local[hit], pos, origin, eh, u[hit], v[hit]))
+    if out:
+        order = np.argsort(np.concatenate([o[0] for o in out]), kind="stable")  # mmetric's push order
+        pos_all = np.concatenate([o[1] for o in out])[order]
+        origin_all = np.concatenate([o[2] for o in out])[order]
+        ent_all = np.concatenate([o[3] for o in out])[order]
+        uv_all = np.stack([np.concatenate([o[4] for o in out]), np.concatenate([o[5] for o in out])], 1)[order]
+    else:
+        pos_all = origin_all = np.zeros((0, 3), np.float32)
+        ent_all = np.zeros(0, np.int64)
+        uv_all = np.zeros((0, 2), np.float32)
+    return GridHits(
+        pos_all,
+        normal[f_list[ent_all]],
+        fid[f_list[ent_all]],
+        a_list[ent_all],
+        origin_all,
+        uv_all,
+        faces,
+    )
+
+
+def _ray_triangle(
+    origin: np.ndarray, direction: np.ndarray, v0: np.ndarray, v1: np.ndarray, v2: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Moller-Trumbore as mmetric's ``evalRayTriangle`` (non-culling, float32, epsilon 1e-6 on the determinant)."""
+    edge1 = v1 - v0
+    edge2 = v2 - v0
+    pvec = f32.cross(direction, edge2)
+    det = f32.dot(edge1, pvec)
+    ok = ~((det > -_ZERO_TOLERANCE) & (det < _ZERO_TOLERANCE))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv_det = np.float32(1.0) / det
+    tvec = origin - v0
+    u = f32.dot(tvec, pvec) * inv_det
+    ok &= ~((u < 0) | (u > 1))
+    qvec = f32.cross(tvec, edge1)
+    v = f32.dot(direction, qvec) * inv_det
+    ok &= ~((v < 0) | (u + v > 1))
+    t = f32.dot(edge2, qvec) * inv_det
+    return ok, t, u, v
+
+
+def unique_vertex_rows(pos: np.ndarray, nrm: np.ndarray, col: np.ndarray | None) -> np.ndarray:
+    """Rows mmetric's ``ModelBuilder`` keeps: the first of the points equal in position, normal and colour (sorted).
+
+    Example:
+        >>> p = np.array([[0, 0, 0], [0, 0, 0], [1, 0, 0]], np.float32)
+        >>> unique_vertex_rows(p, np.zeros_like(p), None).tolist()
+        [0, 2]
+    """
+    keys = [pos[:, 0], pos[:, 1], pos[:, 2], nrm[:, 0], nrm[:, 1], nrm[:, 2]]
+    if col is not None:
+        keys += [col[:, 0], col[:, 1], col[:, 2]]
+    idx = np.arange(pos.shape[0])
+    order = np.lexsort([idx, *reversed(keys)])
+    stacked = np.stack([k[order] for k in keys], axis=1)
+    first = np.ones(order.size, dtype=bool)
+    first[1:] = np.any(stacked[1:] != stacked[:-1], axis=1)
+    return np.sort(order[first])
