@@ -27,6 +27,7 @@ from torchmeshmetric.evaluation import (
 )
 from torchmeshmetric.kernels import (
     ClosestPointOnTriangle,
+    MeshIndex,
     NearestVertexResult,
     PointMeshResult,
     SurfaceSamples,
@@ -77,6 +78,7 @@ __all__ = [
     "pack_points",
     # kernels
     "ClosestPointOnTriangle",
+    "MeshIndex",
     "NearestVertexResult",
     "PointMeshResult",
     "SurfaceSamples",

@@ -2,17 +2,17 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import torch
 from torch import Tensor
 
 from torchmeshmetric._checks import EmptyInputError, check_finite, check_float, check_same_device, check_shape
-from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY, dot, item_centers, pair_chunks, safe_sqrt
-from torchmeshmetric.structures import batch_index, lengths_to_offsets, pack_points
+from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY, pair_chunks
+from torchmeshmetric.structures import pack_points
 
-__all__ = ["NearestVertexResult", "nearest_vertex_distance", "register_nearest_backend"]
+__all__ = ["NearestVertexResult", "nearest_vertex_distance"]
 
 
 class NearestVertexResult(NamedTuple):
@@ -25,38 +25,6 @@ class NearestVertexResult(NamedTuple):
 
     dists: Tensor
     idx: Tensor
-
-
-# (points, point_batch, ref, ref_batch, ref_offsets, max_memory) -> idx (P,); inputs centred, packed, detached.
-NearestSelector = Callable[[Tensor, Tensor, Tensor, Tensor, Tensor, int], Tensor]
-# Fused batch-of-one path: (points (P, 3), ref (R, 3)), raw (not centred), same dtype, both non-empty, no autograd
-# -> (dists, idx, center) computed exactly as the general path would, or None when it cannot serve the call
-# (other device, non-finite values, no compiled extension): the general path then runs (and raises).
-NearestSingle = Callable[[Tensor, Tensor], "tuple[Tensor, Tensor, Tensor] | None"]
-_NEAREST_BACKENDS: dict[str, NearestSelector] = {}
-_NEAREST_SINGLE: dict[str, NearestSingle] = {}
-_NEAREST_AUTO: list[Callable[[Tensor, Tensor], str | None]] = []
-
-
-def register_nearest_backend(
-    name: str,
-    selector: NearestSelector,
-    auto: Callable[[Tensor, Tensor], str | None] | None = None,
-    single: NearestSingle | None = None,
-) -> None:
-    """Register a nearest-neighbour selection backend (used by accelerated kernels).
-
-    Args:
-        name: the name accepted by ``backend=``.
-        selector: index of the nearest reference point per query (centred, packed, detached inputs).
-        auto: a ``backend="auto"`` rule returning a backend name or ``None``.
-        single: optional fused batch-of-one path returning ``(dists, idx, center)`` or ``None``.
-    """
-    _NEAREST_BACKENDS[name] = selector
-    if single is not None:
-        _NEAREST_SINGLE[name] = single
-    if auto is not None:
-        _NEAREST_AUTO.append(auto)
 
 
 def _bruteforce_nearest(
@@ -96,9 +64,6 @@ def _bruteforce_nearest(
     return best
 
 
-register_nearest_backend("bruteforce", _bruteforce_nearest)
-
-
 def nearest_vertex_distance(
     points: Tensor | Sequence[Tensor],
     ref_points: Tensor | Sequence[Tensor],
@@ -116,7 +81,7 @@ def nearest_vertex_distance(
         points_lengths: ``(B,)`` points per item of a packed batch.
         ref_lengths: ``(B,)`` reference points per item of a packed batch.
         max_memory: upper bound in bytes of one intermediate (default 256 MiB).
-        backend: ``"auto"`` or ``"bruteforce"`` (or a registered accelerated backend).
+        backend: ``"auto"``, ``"bvh"``, ``"triton"``, ``"pruned"`` or ``"bruteforce"``.
 
     Returns:
         :class:`NearestVertexResult` ``(dists, idx)``; ``dists`` is **not squared** and differentiable
@@ -132,6 +97,8 @@ def nearest_vertex_distance(
     """
     if points_lengths is None and ref_lengths is None and isinstance(points, Tensor) and isinstance(ref_points, Tensor):
         return _nearest_single(points, ref_points, max_memory, backend)
+    from torchmeshmetric.kernels.mesh_index import _NearestIndex  # builds on this module
+
     pts = pack_points(points, points_lengths, "points")
     ref = pack_points(ref_points, ref_lengths, "ref_points")
     check_same_device({"points": pts.points, "ref_points": ref.points})
@@ -140,34 +107,10 @@ def nearest_vertex_distance(
             f"ref_points: expected {pts.lengths.numel()} reference sets (one per point set), "
             f"found {ref.lengths.numel()}"
         )
-    if pts.points.shape[0] == 0:
-        raise EmptyInputError("points: expected at least one point, found an empty point set")
-    lacking = (pts.lengths > 0) & (ref.lengths == 0)
-    if bool(lacking.any()):
-        b = int(lacking.nonzero()[0, 0])
-        raise EmptyInputError(f"ref_points: reference set {b} is empty but has {int(pts.lengths[b])} query points")
-    select = _resolve_backend(backend, pts.points, ref.points)
+    _check_backend(backend)
     dtype = torch.promote_types(pts.points.dtype, ref.points.dtype)
-    p, r = pts.points.to(dtype), ref.points.to(dtype)
-    pb, rb = batch_index(pts.lengths), batch_index(ref.lengths)
-    centers = item_centers(r, rb, int(ref.lengths.numel()))
-    p_c, r_c = p - centers[pb], r - centers[rb]
-    with torch.no_grad():
-        idx = select(p_c.detach(), pb, r_c.detach(), rb, lengths_to_offsets(ref.lengths), max_memory)
-    diff = p_c - r_c[idx]
-    return NearestVertexResult(safe_sqrt(dot(diff, diff)), idx)
-
-
-def _resolve_name(backend: str, points: Tensor, ref: Tensor) -> str:
-    if backend == "auto":
-        return next((n for rule in _NEAREST_AUTO if (n := rule(points, ref)) is not None), "bruteforce")
-    if backend in _NEAREST_BACKENDS:
-        return backend
-    raise ValueError(f"backend: expected one of {['auto', *_NEAREST_BACKENDS]}, found {backend!r}")
-
-
-def _resolve_backend(backend: str, points: Tensor, ref: Tensor) -> NearestSelector:
-    return _NEAREST_BACKENDS[_resolve_name(backend, points, ref)]
+    index = _NearestIndex(ref.points.to(dtype), ref.lengths, backend, max_memory)
+    return index.query(pts.points.to(dtype), pts.lengths)
 
 
 def _finite_bounds(x: Tensor, name: str) -> tuple[Tensor, Tensor]:
@@ -193,35 +136,34 @@ def _nearest_single(points: Tensor, ref_points: Tensor, max_memory: int, backend
     check_shape(ref_points, ("P", 3), "ref_points")
     check_float(ref_points, "ref_points")
     check_same_device({"points": points, "ref_points": ref_points})
+    from torchmeshmetric.kernels.accel.bvh import bvh_nearest_single
+    from torchmeshmetric.kernels.mesh_index import _NearestIndex
+    from torchmeshmetric.kernels.select import resolve_backend
+
+    _check_backend(backend)
     num_p, num_r = points.shape[0], ref_points.shape[0]
-    name = _resolve_name(backend, points, ref_points)
     dtype = torch.promote_types(points.dtype, ref_points.dtype)
     p, r = points.to(dtype), ref_points.to(dtype)
-    fused = _NEAREST_SINGLE.get(name)
-    if fused is not None and num_p and num_r and not (p.requires_grad or r.requires_grad):
-        out = fused(p.detach(), r.detach())
+    fused = bool(num_p and num_r) and not (p.requires_grad or r.requires_grad)
+    if fused and resolve_backend(backend, points.device, dtype, num_p * num_r).name == "bvh":
+        out = bvh_nearest_single(p.detach(), r.detach())
         if out is not None:
             return NearestVertexResult(out[0], out[1])
     if num_p:
         _finite_bounds(points, "points")
-    bounds = _finite_bounds(ref_points, "ref_points") if num_r else None
+    if num_r:
+        _finite_bounds(ref_points, "ref_points")
     if num_p == 0:
         raise EmptyInputError("points: expected at least one point, found an empty point set")
-    if bounds is None:
+    if num_r == 0:
         raise EmptyInputError(f"ref_points: reference set 0 is empty but has {num_p} query points")
-    select = _NEAREST_BACKENDS[name]
-    lo, hi = bounds[0].to(dtype), bounds[1].to(dtype)
-    center = 0.5 * (lo + hi)
-    p_c, r_c = p - center, r - center
-    device = points.device
-    with torch.no_grad():
-        pb = torch.zeros(num_p, dtype=torch.long, device=device)
-        rb = torch.zeros(num_r, dtype=torch.long, device=device)
-        offsets = torch.tensor([0, num_r], dtype=torch.long, device=device)
-        idx = select(p_c.detach(), pb, r_c.detach(), rb, offsets, max_memory)
-    if p_c.requires_grad or r_c.requires_grad:
-        diff = p_c - r_c[idx]
-        return NearestVertexResult(safe_sqrt(dot(diff, diff)), idx)
-    # Without autograd, safe_sqrt(sq) is sqrt(sq) bit for bit (sq >= 0, sqrt(0) = 0).
-    diff = p_c - r_c.index_select(0, idx)
-    return NearestVertexResult(torch.sqrt(dot(diff, diff)), idx)
+    lengths = torch.tensor([num_r], device=points.device)
+    index = _NearestIndex(r, lengths, backend, max_memory)
+    return index.query(p, torch.tensor([num_p], device=points.device))
+
+
+def _check_backend(backend: str) -> None:
+    from torchmeshmetric.kernels.select import BACKENDS
+
+    if backend != "auto" and backend not in BACKENDS:
+        raise ValueError(f"backend: expected one of {['auto', *BACKENDS]}, found {backend!r}")
