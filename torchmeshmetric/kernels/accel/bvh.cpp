@@ -901,7 +901,9 @@ torch::Tensor pair_sq_dists(torch::Tensor points, torch::Tensor verts, torch::Te
 }
 
 // deformation_energy.cpp (compiled into the same extension).
-std::vector<torch::Tensor> deformation_energy(torch::Tensor R, torch::Tensor t, torch::Tensor g, torch::Tensor rest,
+torch::Tensor deform_vertices(torch::Tensor R, torch::Tensor t, torch::Tensor g, torch::Tensor rest,
+                              torch::Tensor vidx, torch::Tensor vw);
+std::vector<torch::Tensor> deformation_energy(torch::Tensor axis, torch::Tensor R, torch::Tensor t, torch::Tensor g, torch::Tensor rest,
                                               torch::Tensor vidx, torch::Tensor vw, torch::Tensor data_idx,
                                               torch::Tensor data_tri, torch::Tensor data_n, torch::Tensor data_w,
                                               torch::Tensor samples, torch::Tensor rev_faces, torch::Tensor rev_w,
@@ -909,7 +911,8 @@ std::vector<torch::Tensor> deformation_energy(torch::Tensor R, torch::Tensor t, 
 
 PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
   m.def("deformation_energy", &deformation_energy,
-        "Registration energy of a deformation graph and its gradient to rotation matrices and translations");
+        "Registration energy of a deformation graph and its gradient to axis-angle rotations and translations");
+  m.def("deform_vertices", &deform_vertices, "Embedded deformation of skinned vertices (no gradient)");
   m.def("face_bvh_build", &face_bvh_build, "Kept face hierarchy: [nodes, roots, perm, face data, slack]");
   m.def("face_bvh_refit", &face_bvh_refit, "Refit a kept face hierarchy to moved vertices (in place)");
   m.def("face_bvh_query", &face_bvh_query, "Closest face per point (kept hierarchy, exact, lowest index on ties)");

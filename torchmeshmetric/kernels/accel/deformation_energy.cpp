@@ -20,11 +20,80 @@ inline T gm(T x, T s2, T& d) {
   return s2 * x / den;
 }
 
-// Rows per block of the per-thread accumulation; below two blocks the work runs on the calling thread.
-constexpr int64_t ENERGY_BLOCK = 2048;
+// Vertices per thread chunk of the full-mesh deformation (below this, one thread: a parallel region costs more).
+constexpr int64_t DEFORM_GRAIN = 4096;
+
+// x = sum_k w_k [R_k (v - g_k) + g_k + t_k] for one vertex.
+template <typename T>
+inline void deform_one(const T* R, const T* t, const T* g, const T* v, const int64_t* vidx, const T* vw, int64_t K,
+                       T* x) {
+  T acc[3] = {0, 0, 0};
+  for (int64_t k = 0; k < K; ++k) {
+    const int64_t j = vidx[k];
+    const T w = vw[k];
+    const T d[3] = {v[0] - g[3 * j], v[1] - g[3 * j + 1], v[2] - g[3 * j + 2]};
+    const T* Rj = R + 9 * j;
+    for (int a = 0; a < 3; ++a)
+      acc[a] += w * (Rj[3 * a] * d[0] + Rj[3 * a + 1] * d[1] + Rj[3 * a + 2] * d[2] + g[3 * j + a] + t[3 * j + a]);
+  }
+  for (int a = 0; a < 3; ++a) x[a] = acc[a];
+}
+
+// [u]x, the cross-product matrix, row major.
+inline void skew(const double* u, double* m) {
+  m[0] = 0; m[1] = -u[2]; m[2] = u[1];
+  m[3] = u[2]; m[4] = 0; m[5] = -u[0];
+  m[6] = -u[1]; m[7] = u[0]; m[8] = 0;
+}
+
+// dL/dv for R = exp([v]x) given G = dL/dR (row major), in double whatever T. Gallego & Yezzi 2015:
+// dR/dv_i = (v_i [v]x + [v x ((I - R) e_i)]x) R / |v|^2; near v = 0 (|v|^2 <= 1e-8, where that quotient loses
+// digits) the derivative of the second-order series I + [v]x + [v]x^2 / 2: [e_i]x + ([e_i]x [v]x + [v]x [e_i]x) / 2.
+template <typename T>
+inline void rotation_vjp(const T* v_in, const T* R_in, const T* G_in, T* out) {
+  const double v[3] = {double(v_in[0]), double(v_in[1]), double(v_in[2])};
+  double R[9], G[9];
+  for (int k = 0; k < 9; ++k) {
+    R[k] = double(R_in[k]);
+    G[k] = double(G_in[k]);
+  }
+  const double th2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+  double V[9];
+  skew(v, V);
+  for (int i = 0; i < 3; ++i) {
+    double D[9];
+    double e[3] = {0, 0, 0};
+    e[i] = 1;
+    double E[9];
+    skew(e, E);
+    if (th2 > 1e-8) {
+      double c[3];  // (I - R) e_i
+      for (int a = 0; a < 3; ++a) c[a] = e[a] - R[3 * a + i];
+      const double u[3] = {v[1] * c[2] - v[2] * c[1], v[2] * c[0] - v[0] * c[2], v[0] * c[1] - v[1] * c[0]};
+      double U[9], M[9];
+      skew(u, U);
+      for (int k = 0; k < 9; ++k) M[k] = (v[i] * V[k] + U[k]) / th2;
+      for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) D[3 * a + b] = M[3 * a] * R[b] + M[3 * a + 1] * R[3 + b] + M[3 * a + 2] * R[6 + b];
+    } else {
+      for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) {
+          double ev = 0, ve = 0;
+          for (int k = 0; k < 3; ++k) {
+            ev += E[3 * a + k] * V[3 * k + b];
+            ve += V[3 * a + k] * E[3 * k + b];
+          }
+          D[3 * a + b] = E[3 * a + b] + 0.5 * (ev + ve);
+        }
+    }
+    double s = 0;
+    for (int k = 0; k < 9; ++k) s += G[k] * D[k];
+    out[i] = T(s);
+  }
+}
 
 template <typename T>
-std::vector<torch::Tensor> energy_impl(const torch::Tensor& Rt, const torch::Tensor& tt, const torch::Tensor& gt_,
+std::vector<torch::Tensor> energy_impl(const torch::Tensor& axis_t, const torch::Tensor& Rt, const torch::Tensor& tt, const torch::Tensor& gt_,
                                        const torch::Tensor& rest_t, const torch::Tensor& vidx_t,
                                        const torch::Tensor& vw_t, const torch::Tensor& data_idx_t,
                                        const torch::Tensor& data_tri_t, const torch::Tensor& data_n_t,
@@ -42,21 +111,9 @@ std::vector<torch::Tensor> energy_impl(const torch::Tensor& Rt, const torch::Ten
   const T* rest = rest_t.data_ptr<T>();
   const int64_t* vidx = vidx_t.data_ptr<int64_t>();
   const T* vw = vw_t.data_ptr<T>();
-  // 1. Deformed positions of the needed vertices: x = sum_k w_k [R_k (v - g_k) + g_k + t_k].
+  // 1. Deformed positions of the needed vertices.
   std::vector<T> x(3 * I);
-  for (int64_t i = 0; i < I; ++i) {
-    T acc[3] = {0, 0, 0};
-    const T* v = rest + 3 * i;
-    for (int64_t k = 0; k < K; ++k) {
-      const int64_t j = vidx[i * K + k];
-      const T w = vw[i * K + k];
-      const T d[3] = {v[0] - g[3 * j], v[1] - g[3 * j + 1], v[2] - g[3 * j + 2]};
-      const T* Rj = R + 9 * j;
-      for (int a = 0; a < 3; ++a)
-        acc[a] += w * (Rj[3 * a] * d[0] + Rj[3 * a + 1] * d[1] + Rj[3 * a + 2] * d[2] + g[3 * j + a] + t[3 * j + a]);
-    }
-    for (int a = 0; a < 3; ++a) x[3 * i + a] = acc[a];
-  }
+  for (int64_t i = 0; i < I; ++i) deform_one(R, t, g, rest + 3 * i, vidx + i * K, vw + i * K, K, &x[3 * i]);
   std::vector<T> gx(3 * I, T(0));
   T loss = 0;
   // 2. Data term: deformed data vertices to fixed target faces.
@@ -166,24 +223,56 @@ std::vector<torch::Tensor> energy_impl(const torch::Tensor& Rt, const torch::Ten
     }
     loss += scale * reg;
   }
-  return {torch::full({}, loss, Rt.options()), gR_t, gT_t};
+  // 6. Back through the exponential map: dL/d(axis-angle) per node.
+  auto gV_t = torch::empty({N, 3}, tt.options());
+  const T* V = axis_t.data_ptr<T>();
+  T* gV = gV_t.data_ptr<T>();
+  for (int64_t j = 0; j < N; ++j) rotation_vjp(V + 3 * j, R + 9 * j, gR + 9 * j, gV + 3 * j);
+  return {torch::full({}, loss, Rt.options()), gV_t, gT_t};
+}
+
+template <typename T>
+torch::Tensor deform_impl(const torch::Tensor& Rt, const torch::Tensor& tt, const torch::Tensor& gt_,
+                          const torch::Tensor& rest_t, const torch::Tensor& vidx_t, const torch::Tensor& vw_t) {
+  const int64_t I = rest_t.size(0), K = vidx_t.size(1);
+  const T* R = Rt.data_ptr<T>();
+  const T* t = tt.data_ptr<T>();
+  const T* g = gt_.data_ptr<T>();
+  const T* rest = rest_t.data_ptr<T>();
+  const int64_t* vidx = vidx_t.data_ptr<int64_t>();
+  const T* vw = vw_t.data_ptr<T>();
+  auto out = torch::empty({I, 3}, rest_t.options());
+  T* x = out.data_ptr<T>();
+  at::parallel_for(0, I, DEFORM_GRAIN, [&](int64_t s, int64_t e) {
+    for (int64_t i = s; i < e; ++i) deform_one(R, t, g, rest + 3 * i, vidx + i * K, vw + i * K, K, x + 3 * i);
+  });
+  return out;
 }
 
 }  // namespace
 
-std::vector<torch::Tensor> deformation_energy(torch::Tensor R, torch::Tensor t, torch::Tensor g, torch::Tensor rest,
+torch::Tensor deform_vertices(torch::Tensor R, torch::Tensor t, torch::Tensor g, torch::Tensor rest,
+                              torch::Tensor vidx, torch::Tensor vw) {
+  for (const auto* x : {&R, &t, &g, &rest, &vidx, &vw})
+    TORCH_CHECK(x->is_contiguous() && x->device().is_cpu(), "deform_vertices: contiguous CPU tensors expected");
+  if (R.scalar_type() == torch::kFloat64) return deform_impl<double>(R, t, g, rest, vidx, vw);
+  TORCH_CHECK(R.scalar_type() == torch::kFloat32, "deform_vertices: float32 or float64 expected");
+  return deform_impl<float>(R, t, g, rest, vidx, vw);
+}
+
+std::vector<torch::Tensor> deformation_energy(torch::Tensor axis, torch::Tensor R, torch::Tensor t, torch::Tensor g, torch::Tensor rest,
                                               torch::Tensor vidx, torch::Tensor vw, torch::Tensor data_idx,
                                               torch::Tensor data_tri, torch::Tensor data_n, torch::Tensor data_w,
                                               torch::Tensor samples, torch::Tensor rev_faces, torch::Tensor rev_w,
                                               torch::Tensor edges, std::vector<double> scalars) {
   TORCH_CHECK(scalars.size() == 6, "deformation_energy: 6 scalars expected");
-  for (const auto* x : {&R, &t, &g, &rest, &vidx, &vw, &data_idx, &data_tri, &data_n, &data_w, &samples, &rev_faces,
+  for (const auto* x : {&axis, &R, &t, &g, &rest, &vidx, &vw, &data_idx, &data_tri, &data_n, &data_w, &samples, &rev_faces,
                         &rev_w, &edges})
     TORCH_CHECK(x->is_contiguous() && x->device().is_cpu(), "deformation_energy: contiguous CPU tensors expected");
   if (R.scalar_type() == torch::kFloat64)
-    return energy_impl<double>(R, t, g, rest, vidx, vw, data_idx, data_tri, data_n, data_w, samples, rev_faces, rev_w,
+    return energy_impl<double>(axis, R, t, g, rest, vidx, vw, data_idx, data_tri, data_n, data_w, samples, rev_faces, rev_w,
                                edges, scalars);
   TORCH_CHECK(R.scalar_type() == torch::kFloat32, "deformation_energy: float32 or float64 expected");
-  return energy_impl<float>(R, t, g, rest, vidx, vw, data_idx, data_tri, data_n, data_w, samples, rev_faces, rev_w,
+  return energy_impl<float>(axis, R, t, g, rest, vidx, vw, data_idx, data_tri, data_n, data_w, samples, rev_faces, rev_w,
                             edges, scalars);
 }
