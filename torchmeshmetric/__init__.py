@@ -27,6 +27,7 @@ from torchmeshmetric.evaluation import (
 )
 from torchmeshmetric.kernels import (
     ClosestPointOnTriangle,
+    IndexCache,
     MeshIndex,
     NearestVertexResult,
     PointMeshResult,
@@ -78,6 +79,7 @@ __all__ = [
     "pack_points",
     # kernels
     "ClosestPointOnTriangle",
+    "IndexCache",
     "MeshIndex",
     "NearestVertexResult",
     "PointMeshResult",

@@ -160,3 +160,36 @@ def test_typed_errors() -> None:
         index.point_mesh_distance(bad)
     with pytest.raises(ValueError, match="backend"):
         MeshIndex(verts, faces, backend="nope")
+
+
+def test_index_cache_finds_an_index_by_content_and_keeps_gradients_to_the_given_vertices() -> None:
+    from torchmeshmetric import IndexCache
+
+    verts, faces = _mesh(torch.float64)
+    cache = IndexCache(max_entries=2)
+    a = cache.get((verts, faces))
+    a.point_mesh_distance(verts[:3])
+    assert cache.get((verts.clone(), faces.clone()))._face_structure is a._face_structure  # same content
+    assert len(cache) == 1
+    leaf = verts.clone().requires_grad_()
+    p = _points(verts, 50, 7)
+    cache.get((leaf, faces)).point_mesh_distance(p).dists.sum().backward()
+    expected = verts.clone().requires_grad_()
+    point_mesh_distance(p, expected, faces).dists.sum().backward()
+    assert torch.equal(leaf.grad, expected.grad)
+    cache.get((verts * 2, faces))
+    cache.get((verts * 3, faces))
+    assert len(cache) == 2  # least recently used dropped
+    batch = cache.get([(verts, faces), (verts * 2, faces)])
+    assert batch.num_items == 2
+
+
+def test_pickled_index_answers_the_same() -> None:
+    import pickle
+
+    verts, faces = _mesh(torch.float32)
+    index = MeshIndex(verts, faces)
+    p = _points(verts, 100, 8)
+    expected = index.point_mesh_distance(p)
+    clone = pickle.loads(pickle.dumps(index))
+    _assert_same(clone.point_mesh_distance(p), expected)

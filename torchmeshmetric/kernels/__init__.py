@@ -1,5 +1,6 @@
 """Exact, chunked, differentiable distance kernels (pure functions)."""
 
+from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.kernels.nearest import NearestVertexResult, nearest_vertex_distance
 from torchmeshmetric.kernels.point_triangle import (
@@ -12,6 +13,7 @@ from torchmeshmetric.kernels.sampling import SurfaceSamples, sample_surface, ver
 
 __all__ = [
     "ClosestPointOnTriangle",
+    "IndexCache",
     "MeshIndex",
     "NearestVertexResult",
     "PointMeshResult",

@@ -9,6 +9,7 @@ gradients are those of the functions, bit for bit (the functions are implemented
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Sequence
 from typing import Any
 
@@ -322,6 +323,21 @@ class MeshIndex:
         elif self.verts.requires_grad:
             self._nearest.ref = self._ref_points()[0]  # a fresh graph to the vertices for this call
         return self._nearest.query(points, points_lengths)
+
+    def __getstate__(self) -> dict[str, Any]:
+        # The selection structures are rebuilt on the first query after unpickling (they hold backend functions).
+        state = dict(self.__dict__)
+        state.update(_face_backend=None, _face_structure=None, _nearest=None)
+        return state
+
+    def _with_verts(self, verts: Tensor) -> MeshIndex:
+        """A shallow copy over ``verts`` of equal values (same structures; autograd reaches ``verts``)."""
+        other = MeshIndex.__new__(MeshIndex)
+        other.__dict__.update(self.__dict__)  # not copy.copy: __getstate__ drops the structures
+        other.verts = verts
+        if other._nearest is not None:
+            other._nearest = copy.copy(other._nearest)
+        return other
 
     def refit(self, verts: Tensor) -> None:
         """Move the vertices (same faces, same order): bounds are refitted, not rebuilt; answers stay exact.
