@@ -193,3 +193,30 @@ def test_pickled_index_answers_the_same() -> None:
     expected = index.point_mesh_distance(p)
     clone = pickle.loads(pickle.dumps(index))
     _assert_same(clone.point_mesh_distance(p), expected)
+
+
+@pytest.mark.parametrize("case", ["lattice", "identical", "geometric", "random"])
+def test_kept_sah_tree_selects_the_bruteforce_face(case: str) -> None:
+    """A kept index builds a binned-SAH tree (the functions: Morton splits); the selection must be the same."""
+    g = torch.Generator().manual_seed(9)
+    if case == "lattice":  # integer lattice: exact ties and degenerate faces
+        verts = torch.randn(60, 3, generator=g).mul(2).round()
+        faces = torch.randint(0, 60, (200, 3), generator=g)
+    elif case == "identical":  # every centroid equal: the object-median fallback
+        verts = torch.randn(3, 3, generator=g)
+        faces = torch.tensor([[0, 1, 2]]).repeat(50, 1)
+    elif case == "geometric":  # exponentially spaced faces: lopsided SAH splits, the depth cap
+        x = 2.0 ** torch.arange(-60.0, 60.0, dtype=torch.float64)
+        verts = torch.stack([torch.stack([x, x * 0, x * 0], 1), torch.stack([x, x * 0 + 1, x * 0], 1)], 1)
+        verts = torch.cat([verts.reshape(-1, 3), torch.zeros(1, 3, dtype=torch.float64)])
+        n = x.numel()
+        faces = torch.stack([torch.arange(n) * 2, torch.arange(n) * 2 + 1, torch.full((n,), 2 * n)], 1)
+    else:
+        verts = torch.randn(500, 3, generator=g, dtype=torch.float64)
+        faces = torch.randint(0, 500, (2000, 3), generator=g)
+    points = torch.randn(300, 3, generator=g, dtype=verts.dtype) * verts.abs().amax()
+    index = MeshIndex(verts, faces, backend="bvh")
+    _assert_same(index.point_mesh_distance(points), point_mesh_distance(points, verts, faces, backend="bruteforce"))
+    index.refit(verts * 0.5)
+    expected = point_mesh_distance(points, verts * 0.5, faces, backend="bruteforce")
+    _assert_same(index.point_mesh_distance(points), expected)

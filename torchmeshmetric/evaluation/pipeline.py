@@ -162,9 +162,13 @@ def evaluate_pair(
         # One index per mesh: the references' (shared across methods through `indexes`) and the simplified frame's
         # (queried by both references' vertex sets).
         shared = indexes if indexes is not None else IndexCache()
-        simp_index = MeshIndex(simp.verts, simp.faces, backend=backend)
+        # A reference is queried a few times per sequence: the cheap Morton build pays more than a SAH tree.
+        simp_index = MeshIndex(simp.verts, simp.faces, backend=backend, tree="morton")
         points = simp_index.ref_points.points
-        refs = {"k": shared.get(orig_k, backend=backend), "k_minus_1": shared.get(registered, backend=backend)}
+        refs = {
+            name: shared.get(m, backend=backend, tree="morton")
+            for name, m in (("k", orig_k), ("k_minus_1", registered))
+        }
         distances: dict[str, Tensor] = {}
         reverse: dict[str, Tensor] = {}
         for name, index in refs.items():

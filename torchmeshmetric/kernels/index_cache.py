@@ -53,19 +53,20 @@ class IndexCache:
         self.max_entries = max_entries
         self._entries: OrderedDict[str, MeshIndex] = OrderedDict()
 
-    def get(self, mesh: MeshLike | Sequence[MeshLike], *, backend: str = "auto") -> MeshIndex:
+    def get(self, mesh: MeshLike | Sequence[MeshLike], *, backend: str = "auto", tree: str = "sah") -> MeshIndex:
         """The index of ``mesh`` (a mesh-like or a list: a batch), built on the first request for this content.
 
         When the cached index was built from other tensors of equal content, the returned index shares its
-        structure but recomputes distances from ``mesh``'s own vertices (so gradients reach them).
+        structure but recomputes distances from ``mesh``'s own vertices (so gradients reach them). ``tree`` as in
+        :class:`~torchmeshmetric.MeshIndex` (``"morton"`` for references queried only a few times).
         """
         batch = isinstance(mesh, list) or (isinstance(mesh, tuple) and not _looks_like_pair(mesh))
         meshes = [as_mesh(m) for m in mesh] if batch else [as_mesh(mesh)]  # type: ignore[union-attr,arg-type]
-        key = _fingerprint(meshes, backend)
+        key = _fingerprint(meshes, f"{backend}/{tree}")
         index = self._entries.get(key)
         verts = meshes[0].verts if len(meshes) == 1 else None
         if index is None:
-            index = MeshIndex(meshes if batch else meshes[0], backend=backend)
+            index = MeshIndex(meshes if batch else meshes[0], backend=backend, tree=tree)
             self._entries[key] = index
             if len(self._entries) > self.max_entries:
                 self._entries.popitem(last=False)

@@ -125,6 +125,9 @@ class MeshIndex:
         max_memory: bound in bytes of one intermediate of the ``"bruteforce"`` / ``"pruned"`` backends.
         referenced_only: the reference of :meth:`nearest_vertex_distance` is the vertex set of the paper (Eq. 3,
             vertices referenced by a face: :func:`~torchmeshmetric.vertex_set`); ``False``: every vertex.
+        tree: closest-face hierarchy of the ``"bvh"`` backend: ``"sah"`` (binned surface-area heuristic: queries
+            ~25 % faster, build ~10x the Morton build; for many queries) or ``"morton"`` (the functions' cheap build:
+            for a few queries). Answers are identical.
 
     Raises:
         ShapeError, DTypeError, NonFiniteError, IndexRangeError, DeviceError: on a malformed mesh.
@@ -155,6 +158,7 @@ class MeshIndex:
         backend: str = "auto",
         max_memory: int = DEFAULT_MAX_MEMORY,
         referenced_only: bool = True,
+        tree: str = "sah",
     ) -> None:
         if isinstance(mesh, Tensor):
             packed = pack_meshes(mesh, faces, verts_lengths, faces_lengths)
@@ -162,18 +166,20 @@ class MeshIndex:
             if verts_lengths is not None or faces_lengths is not None:
                 raise TypeError("verts_lengths/faces_lengths: only valid with packed verts/faces tensors")
             packed = pack_meshes(mesh, faces)
-        self._init(packed, backend, max_memory, referenced_only)
+        self._init(packed, backend, max_memory, referenced_only, tree)
 
     @classmethod
-    def _trusted(cls, packed: PackedMeshes, backend: str, max_memory: int) -> MeshIndex:
+    def _trusted(cls, packed: PackedMeshes, backend: str, max_memory: int, tree: str = "morton") -> MeshIndex:
         """An index over already validated packed meshes (the library's own loops; no checks repeated)."""
         index = cls.__new__(cls)
-        index._init(packed, backend, max_memory, True)
+        index._init(packed, backend, max_memory, True, tree)
         return index
 
-    def _init(self, packed: PackedMeshes, backend: str, max_memory: int, referenced_only: bool) -> None:
+    def _init(self, packed: PackedMeshes, backend: str, max_memory: int, referenced_only: bool, tree: str) -> None:
         _check_backend(backend)
-        self.backend, self.max_memory, self.referenced_only = backend, max_memory, referenced_only
+        if tree not in ("sah", "morton"):
+            raise ValueError(f"tree: expected 'sah' or 'morton', found {tree!r}")
+        self.backend, self.max_memory, self.referenced_only, self.tree = backend, max_memory, referenced_only, tree
         self.faces = packed.faces
         self.verts_lengths, self.faces_lengths = packed.verts_lengths, packed.faces_lengths
         num_items = int(packed.verts_lengths.numel())
@@ -281,7 +287,7 @@ class MeshIndex:
             self._face_backend = resolve_backend(
                 self.backend, points.device, points.dtype, points.shape[0] * self.faces.shape[0]
             )
-            self._face_structure = self._face_backend.build_faces(self._faceset)
+            self._face_structure = self._face_backend.build_faces(self._faceset, self.tree)
         with torch.no_grad():
             face_idx = self._face_backend.query_faces(
                 self._face_structure, self._faceset, points_c.detach(), point_batch, self.max_memory

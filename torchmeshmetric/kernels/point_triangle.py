@@ -245,5 +245,5 @@ def point_mesh_distance(
     pts = pack_points(points, points_lengths)
     check_same_device({"points": pts.points, "verts": packed.verts})
     dtype = torch.promote_types(pts.points.dtype, packed.verts.dtype)
-    index = MeshIndex._trusted(packed._replace(verts=packed.verts.to(dtype)), backend, max_memory)
+    index = MeshIndex._trusted(packed._replace(verts=packed.verts.to(dtype)), backend, max_memory, tree="morton")
     return index._point_mesh_distance(pts.points.to(dtype), pts.lengths)

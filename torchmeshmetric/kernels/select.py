@@ -84,7 +84,8 @@ class SelectionBackend(NamedTuple):
 
     Attributes:
         name: the ``backend=`` value.
-        build_faces: ``(faces) -> structure``.
+        build_faces: ``(faces, tree) -> structure``; ``tree``: ``"sah"`` (spend more on the build for faster
+            queries) or ``"morton"`` (cheapest build); a backend may have one kind only.
         refit_faces: ``(structure, moved faces) -> structure``.
         query_faces: ``(structure, faces, points, point_batch, max_memory) -> (P,) int64 face rows``.
         build_points: ``(ref) -> structure``.
@@ -93,7 +94,7 @@ class SelectionBackend(NamedTuple):
     """
 
     name: str
-    build_faces: Callable[[FaceSet], Any]
+    build_faces: Callable[[FaceSet, str], Any]
     refit_faces: Callable[[Any, FaceSet], Any]
     query_faces: Callable[[Any, FaceSet, Tensor, Tensor, int], Tensor]
     build_points: Callable[[PointSet], Any]

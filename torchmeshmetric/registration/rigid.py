@@ -254,7 +254,7 @@ def register_rigid(
     it = 0
     w = torch.ones(pts.shape[0], dtype=dtype, device=device)
     dists = torch.zeros(pts.shape[0], dtype=dtype, device=device)
-    index = MeshIndex(tgt.verts, tgt.faces)  # the target's structure, built once for all iterations
+    index = MeshIndex(tgt.verts, tgt.faces, tree="morton")  # built once for all iterations (~15 queries)
     for it in range(1, max_iterations + 1):  # noqa: B007 - the last value is reported
         cur = s * pts @ R.T + t
         res = index.point_mesh_distance(cur)

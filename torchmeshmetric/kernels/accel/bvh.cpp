@@ -232,6 +232,146 @@ std::vector<int64_t> query_order(const T* pts, int64_t n) {
   return idx;
 }
 
+// Binned surface-area-heuristic build (for hierarchies that are kept and queried many times: a better tree than the
+// Morton split for a few times its build cost). Node over the primitives idx[begin, end): SAH_BINS bins of the
+// centroids along each axis, the split of least (left half-area x count + right half-area x count); object median
+// when all centroids coincide or below SAH_MAX_DEPTH levels (bounds the depth, hence the traversal stack).
+constexpr int SAH_BINS = 16;
+constexpr int SAH_MAX_DEPTH = 48;
+
+template <typename T>
+inline T half_area(const T* lo, const T* hi) {
+  const T dx = hi[0] - lo[0], dy = hi[1] - lo[1], dz = hi[2] - lo[2];
+  return dx * dy + dy * dz + dz * dx;
+}
+
+template <typename T>
+int64_t build_sah_node(std::vector<Node<T>>& nodes, int64_t* idx, int64_t begin, int64_t end, const T* box_lo,
+                       const T* box_hi, const T* cen, int leaf, int depth) {
+  const int64_t node = static_cast<int64_t>(nodes.size());
+  nodes.emplace_back();
+  const int64_t n = end - begin;
+  constexpr T inf = std::numeric_limits<T>::infinity();
+  T lo[3] = {inf, inf, inf}, hi[3] = {-inf, -inf, -inf}, clo[3] = {inf, inf, inf}, chi[3] = {-inf, -inf, -inf};
+  for (int64_t i = begin; i < end; ++i) {
+    const int64_t f = idx[i];
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = std::min(lo[k], box_lo[3 * f + k]);
+      hi[k] = std::max(hi[k], box_hi[3 * f + k]);
+      clo[k] = std::min(clo[k], cen[3 * f + k]);
+      chi[k] = std::max(chi[k], cen[3 * f + k]);
+    }
+  }
+  if (n <= leaf) {
+    Node<T>& nd = nodes[node];
+    nd.start = begin;
+    nd.count = n;
+    nd.right = -1;
+    for (int k = 0; k < 3; ++k) {
+      nd.lo[k] = lo[k];
+      nd.hi[k] = hi[k];
+    }
+    return node;
+  }
+  int best_axis = -1, best_split = 0;
+  T best_cost = inf;
+  if (depth < SAH_MAX_DEPTH) {
+    for (int axis = 0; axis < 3; ++axis) {
+      const T ext = chi[axis] - clo[axis];
+      const T scale = T(SAH_BINS) / ext;
+      if (!(ext > 0) || !std::isfinite(scale)) continue;  // flat axis (or so thin that the bin scale overflows)
+      int64_t count[SAH_BINS] = {0};
+      T blo[SAH_BINS][3], bhi[SAH_BINS][3];
+      for (int b = 0; b < SAH_BINS; ++b)
+        for (int k = 0; k < 3; ++k) {
+          blo[b][k] = inf;
+          bhi[b][k] = -inf;
+        }
+      for (int64_t i = begin; i < end; ++i) {
+        const int64_t f = idx[i];
+        const int b = std::min(SAH_BINS - 1, static_cast<int>((cen[3 * f + axis] - clo[axis]) * scale));
+        ++count[b];
+        for (int k = 0; k < 3; ++k) {
+          blo[b][k] = std::min(blo[b][k], box_lo[3 * f + k]);
+          bhi[b][k] = std::max(bhi[b][k], box_hi[3 * f + k]);
+        }
+      }
+      T right_area[SAH_BINS];
+      int64_t right_count[SAH_BINS];
+      T rlo[3] = {inf, inf, inf}, rhi[3] = {-inf, -inf, -inf};
+      int64_t rc = 0;
+      for (int b = SAH_BINS - 1; b > 0; --b) {
+        rc += count[b];
+        for (int k = 0; k < 3; ++k) {
+          rlo[k] = std::min(rlo[k], blo[b][k]);
+          rhi[k] = std::max(rhi[k], bhi[b][k]);
+        }
+        right_area[b] = rc > 0 ? half_area(rlo, rhi) : T(0);
+        right_count[b] = rc;
+      }
+      T llo[3] = {inf, inf, inf}, lhi[3] = {-inf, -inf, -inf};
+      int64_t lc = 0;
+      for (int b = 0; b < SAH_BINS - 1; ++b) {  // split between bin b and b + 1
+        lc += count[b];
+        for (int k = 0; k < 3; ++k) {
+          llo[k] = std::min(llo[k], blo[b][k]);
+          lhi[k] = std::max(lhi[k], bhi[b][k]);
+        }
+        if (lc == 0 || right_count[b + 1] == 0) continue;
+        const T cost = half_area(llo, lhi) * T(lc) + right_area[b + 1] * T(right_count[b + 1]);
+        if (cost < best_cost) {
+          best_cost = cost;
+          best_axis = axis;
+          best_split = b;
+        }
+      }
+    }
+  }
+  int64_t mid = begin + n / 2;
+  if (best_axis >= 0) {
+    const T scale = T(SAH_BINS) / (chi[best_axis] - clo[best_axis]);
+    const T c0 = clo[best_axis];
+    const int split = best_split;
+    const int axis = best_axis;
+    mid = std::partition(idx + begin, idx + end,
+                         [&](int64_t f) {
+                           return std::min(SAH_BINS - 1, static_cast<int>((cen[3 * f + axis] - c0) * scale)) <= split;
+                         }) -
+          idx;
+    if (mid == begin || mid == end) mid = begin + n / 2;
+  }
+  build_sah_node(nodes, idx, begin, mid, box_lo, box_hi, cen, leaf, depth + 1);
+  const int64_t right = build_sah_node(nodes, idx, mid, end, box_lo, box_hi, cen, leaf, depth + 1);
+  Node<T>& nd = nodes[node];
+  const Node<T>& l = nodes[node + 1];
+  const Node<T>& r = nodes[right];
+  nd.start = begin;
+  nd.count = n;
+  nd.right = right;
+  for (int k = 0; k < 3; ++k) {
+    nd.lo[k] = std::min(l.lo[k], r.lo[k]);
+    nd.hi[k] = std::max(l.hi[k], r.hi[k]);
+  }
+  return node;
+}
+
+// One SAH hierarchy per item; fills nodes, roots and perm like build_forest.
+template <typename T>
+void build_forest_sah(const T* box_lo, const T* box_hi, const T* cen, const int64_t* offsets, int64_t num_items,
+                      int leaf, std::vector<Node<T>>& nodes, std::vector<int64_t>& roots, std::vector<int64_t>& perm) {
+  const int64_t n = offsets[num_items];
+  perm.resize(n);
+  for (int64_t i = 0; i < n; ++i) perm[i] = i;
+  roots.assign(num_items, -1);
+  nodes.clear();
+  nodes.reserve(2 * (n / leaf + num_items) + 1);
+  for (int64_t b = 0; b < num_items; ++b) {
+    const int64_t s = offsets[b], e = offsets[b + 1];
+    if (e == s) continue;
+    roots[b] = build_sah_node(nodes, perm.data(), s, e, box_lo, box_hi, cen, leaf, 0);
+  }
+}
+
 // Builds one hierarchy per item (items: contiguous ranges [offsets[b], offsets[b+1]) of the primitives).
 // Primitives are ordered along a Morton curve of their centroids within the item (LBVH-style ordering, Karras
 // 2012), then split at the object median of that order. Fills the nodes (all items), the per-item roots (-1 for
@@ -496,7 +636,7 @@ void refit_nodes(Node<T>* nd, int64_t num_nodes, const T* slot_lo, const T* slot
 // Face hierarchy of centred verts: {nodes, roots, perm, face data (F, 19) in slot order, slack (B,)}.
 template <typename T>
 std::vector<torch::Tensor> face_bvh_build_impl(const torch::Tensor& verts, const torch::Tensor& faces,
-                                               const torch::Tensor& face_offsets) {
+                                               const torch::Tensor& face_offsets, bool sah) {
   const int64_t F = faces.size(0), B = face_offsets.size(0) - 1;
   const T* V = verts.data_ptr<T>();
   const int64_t* Fi = faces.data_ptr<int64_t>();
@@ -510,7 +650,10 @@ std::vector<torch::Tensor> face_bvh_build_impl(const torch::Tensor& verts, const
   });
   std::vector<Node<T>> nodes;
   std::vector<int64_t> roots, perm;
-  build_forest<T>(lo.data(), hi.data(), cen.data(), off, B, LEAF_FACES, nodes, roots, perm);
+  if (sah)
+    build_forest_sah<T>(lo.data(), hi.data(), cen.data(), off, B, LEAF_FACES, nodes, roots, perm);
+  else
+    build_forest<T>(lo.data(), hi.data(), cen.data(), off, B, LEAF_FACES, nodes, roots, perm);
   auto fd_t = torch::empty({F, static_cast<int64_t>(sizeof(FaceData<T>) / sizeof(T))}, verts.options());
   FaceData<T>* fd = reinterpret_cast<FaceData<T>*>(fd_t.data_ptr<T>());
   at::parallel_for(0, F, GRAIN_LINEAR, [&](int64_t s, int64_t e) {
@@ -834,10 +977,11 @@ void check_inputs(const torch::Tensor& points, const torch::Tensor& point_batch,
     { using T = float; call; }                                        \
   } while (0)
 
-std::vector<torch::Tensor> face_bvh_build(torch::Tensor verts, torch::Tensor faces, torch::Tensor face_offsets) {
+std::vector<torch::Tensor> face_bvh_build(torch::Tensor verts, torch::Tensor faces, torch::Tensor face_offsets,
+                                          bool sah) {
   check_inputs(verts, face_offsets, verts, face_offsets);
   TORCH_CHECK(faces.scalar_type() == torch::kInt64 && faces.is_contiguous(), "bvh: contiguous int64 faces expected");
-  TMM_DISPATCH(verts.scalar_type(), return face_bvh_build_impl<T>(verts, faces, face_offsets));
+  TMM_DISPATCH(verts.scalar_type(), return face_bvh_build_impl<T>(verts, faces, face_offsets, sah));
 }
 
 void face_bvh_refit(std::vector<torch::Tensor> h, torch::Tensor verts, torch::Tensor faces,
@@ -913,7 +1057,8 @@ PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
   m.def("deformation_energy", &deformation_energy,
         "Registration energy of a deformation graph and its gradient to axis-angle rotations and translations");
   m.def("deform_vertices", &deform_vertices, "Embedded deformation of skinned vertices (no gradient)");
-  m.def("face_bvh_build", &face_bvh_build, "Kept face hierarchy: [nodes, roots, perm, face data, slack]");
+  m.def("face_bvh_build", &face_bvh_build,
+        "Kept face hierarchy (Morton split, or binned SAH): [nodes, roots, perm, face data, slack]");
   m.def("face_bvh_refit", &face_bvh_refit, "Refit a kept face hierarchy to moved vertices (in place)");
   m.def("face_bvh_query", &face_bvh_query, "Closest face per point (kept hierarchy, exact, lowest index on ties)");
   m.def("point_bvh_build", &point_bvh_build, "Kept point hierarchy: [nodes, roots, perm, points, slack]");

@@ -37,9 +37,14 @@ def _ext() -> ModuleType:
     return ext
 
 
-def build_faces(faces: FaceSet) -> list[Tensor]:
-    """Face hierarchy (one per item) over centred faces."""
-    return _ext().face_bvh_build(faces.verts.contiguous(), faces.faces.contiguous(), faces.offsets.contiguous())
+def build_faces(faces: FaceSet, tree: str) -> list[Tensor]:
+    """Face hierarchy (one per item) over centred faces: ``tree="sah"`` binned SAH, ``"morton"`` Morton splits.
+
+    The SAH tree answers queries ~25 % faster and costs ~10x the Morton build (docs/acceleration.md).
+    """
+    return _ext().face_bvh_build(
+        faces.verts.contiguous(), faces.faces.contiguous(), faces.offsets.contiguous(), tree == "sah"
+    )
 
 
 def refit_faces(structure: list[Tensor], faces: FaceSet) -> list[Tensor]:

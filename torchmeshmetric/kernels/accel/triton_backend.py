@@ -45,8 +45,8 @@ def _module() -> ModuleType:
     return importlib.import_module("torchmeshmetric.kernels.accel.triton_traversal")
 
 
-def build_faces(faces: FaceSet) -> Any:
-    """Kept implicit BVH over centred faces.
+def build_faces(faces: FaceSet, tree: str = "morton") -> Any:
+    """Kept implicit BVH over centred faces (Morton order whatever ``tree``).
 
     Raises:
         ImportError: when triton is not installed.
