@@ -122,11 +122,12 @@ def test_refit_vs_build(benchmark, record, size):
     _run(benchmark, record, group, "ours", lambda: BVH.refit_faces(structure, faceset))
 
 
+@pytest.mark.parametrize("tree", ["sah", "morton"])
 @pytest.mark.parametrize("size", SIZES)
-def test_build(benchmark, record, size):
+def test_build(benchmark, record, size, tree):
+    """A fresh build of the structure: the kept index's SAH tree, and the Morton tree of the one-off functions."""
     c = case(size)
     index = MeshIndex(torch.from_numpy(c["verts"]), torch.from_numpy(c["faces"]), backend="bvh")
     faceset = index._faceset
-    _run(
-        benchmark, record, f"refit vs build {size} ({len(c['faces'])} faces)", "build", lambda: BVH.build_faces(faceset)
-    )
+    group = f"refit vs build {size} ({len(c['faces'])} faces)"
+    _run(benchmark, record, group, f"build ({tree})", lambda: BVH.build_faces(faceset, tree))

@@ -68,3 +68,15 @@ def test_deformed_vertices_equal_the_graph() -> None:
         graph.rotations.copy_(0.5 * torch.randn(graph.rotations.shape, dtype=torch.float64))
         graph.translations.copy_(torch.randn(graph.translations.shape, dtype=torch.float64))
     torch.testing.assert_close(deformed_vertices(graph), graph().detach(), rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_farthest_point_nodes_in_cpp_equal_the_torch_loop(monkeypatch: pytest.MonkeyPatch, dtype: torch.dtype) -> None:
+    from torchmeshmetric.registration import deformation_graph, farthest_point_nodes
+
+    g = torch.Generator().manual_seed(2)
+    points = torch.rand(3000, 3, generator=g, dtype=dtype).mul(4).round()  # a lattice: many equal distances
+    points = torch.cat([points, torch.rand(2000, 3, generator=g, dtype=dtype)])
+    fast = farthest_point_nodes(points, 0.3)
+    monkeypatch.setattr(deformation_graph, "bvh_ready", lambda: False)
+    assert torch.equal(fast, farthest_point_nodes(points, 0.3))

@@ -168,6 +168,7 @@ def register_nonrigid(
     generator: torch.Generator | None = None,
     warn: bool = True,
     backend: str = "auto",
+    num_threads: int | None = 1,
 ) -> NonRigidRegistration:
     """Register ``source`` (frame k-1) non-rigidly onto ``target`` (frame k), keeping the source's topology.
 
@@ -198,6 +199,11 @@ def register_nonrigid(
         generator: optional CPU ``torch.Generator`` for sampling (reproducible runs).
         warn: emit a :class:`RegistrationWarning` when the registration fails.
         backend: selection backend of the closest-face searches (see :func:`~torchmeshmetric.point_mesh_distance`).
+        num_threads: torch intra-op threads while registering (restored afterwards; process-wide, like
+            ``torch.set_num_threads``). Default 1: the loop is ~1 ms steps of small operations whose parallel regions
+            cost more than they save, and on a loaded machine wait for descheduled threads (docs/registration.md:
+            0.96 s of CPU on one thread; 47 s wall with two threads on an oversubscribed machine). ``None``: keep
+            torch's setting.
 
     Returns:
         :class:`NonRigidRegistration`.
@@ -222,6 +228,48 @@ def register_nonrigid(
     if num_points < 1 or num_target_samples < 0:
         raise ValueError(f"num_points/num_target_samples: expected positive counts, found {num_points}, "
                          f"{num_target_samples}")  # fmt: skip
+    if num_threads is not None and num_threads < 1:
+        raise ValueError(f"num_threads: expected a positive int or None, found {num_threads}")
+    previous_threads = torch.get_num_threads()
+    if num_threads is not None and num_threads != previous_threads:
+        torch.set_num_threads(num_threads)
+    try:
+        return _register_nonrigid(
+            source, target, rigid_init=rigid_init, device=device, node_spacing=node_spacing,
+            num_neighbors=num_neighbors, num_points=num_points, num_target_samples=num_target_samples,
+            correspondence_every=correspondence_every, schedule=schedule, plane_weight=plane_weight,
+            point_weight=point_weight, reverse_weight=reverse_weight, tolerance=tolerance,
+            max_outlier_fraction=max_outlier_fraction, outlier_distance=outlier_distance, rigid_options=rigid_options,
+            generator=generator, warn=warn, backend=backend,
+        )  # fmt: skip
+    finally:
+        if torch.get_num_threads() != previous_threads:
+            torch.set_num_threads(previous_threads)
+
+
+def _register_nonrigid(
+    source: MeshLike,
+    target: MeshLike,
+    *,
+    rigid_init: bool,
+    device: torch.device | str | None,
+    node_spacing: float,
+    num_neighbors: int,
+    num_points: int,
+    num_target_samples: int,
+    correspondence_every: int,
+    schedule: Sequence[Stage],
+    plane_weight: float,
+    point_weight: float,
+    reverse_weight: float,
+    tolerance: float,
+    max_outlier_fraction: float,
+    outlier_distance: float,
+    rigid_options: dict[str, Any] | None,
+    generator: torch.Generator | None,
+    warn: bool,
+    backend: str,
+) -> NonRigidRegistration:
     t_total = time.perf_counter()
     timings = {"rigid": 0.0, "graph": 0.0, "correspondences": 0.0, "optimisation": 0.0, "residual": 0.0}
     src, tgt = validate_pair(source, target)
@@ -409,7 +457,7 @@ def register_nonrigid(
         reason = "diverged: non-finite loss"
     converged = not reason
     if not converged and warn:
-        warnings.warn(f"register_nonrigid: {reason}", RegistrationWarning, stacklevel=2)
+        warnings.warn(f"register_nonrigid: {reason}", RegistrationWarning, stacklevel=3)
     timings["total"] = time.perf_counter() - t_total
     return NonRigidRegistration(
         verts=verts,

@@ -1047,6 +1047,7 @@ torch::Tensor pair_sq_dists(torch::Tensor points, torch::Tensor verts, torch::Te
 // deformation_energy.cpp (compiled into the same extension).
 torch::Tensor deform_vertices(torch::Tensor R, torch::Tensor t, torch::Tensor g, torch::Tensor rest,
                               torch::Tensor vidx, torch::Tensor vw);
+torch::Tensor farthest_point_sampling(torch::Tensor points, int64_t start, double spacing2);
 std::vector<torch::Tensor> deformation_energy(torch::Tensor axis, torch::Tensor R, torch::Tensor t, torch::Tensor g, torch::Tensor rest,
                                               torch::Tensor vidx, torch::Tensor vw, torch::Tensor data_idx,
                                               torch::Tensor data_tri, torch::Tensor data_n, torch::Tensor data_w,
@@ -1057,6 +1058,7 @@ PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
   m.def("deformation_energy", &deformation_energy,
         "Registration energy of a deformation graph and its gradient to axis-angle rotations and translations");
   m.def("deform_vertices", &deform_vertices, "Embedded deformation of skinned vertices (no gradient)");
+  m.def("farthest_point_sampling", &farthest_point_sampling, "Farthest-point sampling to a covering radius");
   m.def("face_bvh_build", &face_bvh_build,
         "Kept face hierarchy (Morton split, or binned SAH): [nodes, roots, perm, face data, slack]");
   m.def("face_bvh_refit", &face_bvh_refit, "Refit a kept face hierarchy to moved vertices (in place)");

@@ -6,6 +6,8 @@
 #include <torch/extension.h>
 #include <ATen/Parallel.h>
 
+#include <algorithm>
+#include <cmath>
 #include <vector>
 
 #include "triangle.h"
@@ -249,7 +251,47 @@ torch::Tensor deform_impl(const torch::Tensor& Rt, const torch::Tensor& tt, cons
   return out;
 }
 
+// Farthest-point sampling from `start` until every point is within sqrt(s2) of a chosen one: the operations of
+// deformation_graph.farthest_point_nodes (squared distances (dx*dx + dy*dy) + dz*dz, running minimum, first
+// maximum), one thread: ~N passes over the points without a parallel region each.
+template <typename T>
+std::vector<int64_t> fps_impl(const T* p, int64_t n, int64_t start, double s2) {
+  std::vector<int64_t> chosen{start};
+  std::vector<T> dmin(n);
+  auto sq = [p](int64_t i, int64_t j) {
+    const T dx = p[3 * i] - p[3 * j], dy = p[3 * i + 1] - p[3 * j + 1], dz = p[3 * i + 2] - p[3 * j + 2];
+    T s = dx * dx;
+    s += dy * dy;
+    s += dz * dz;
+    return s;
+  };
+  for (int64_t i = 0; i < n; ++i) dmin[i] = sq(i, start);
+  for (;;) {
+    int64_t far = 0;
+    for (int64_t i = 1; i < n; ++i)
+      if (dmin[i] > dmin[far] || (std::isnan(dmin[i]) && !std::isnan(dmin[far]))) far = i;
+    if (static_cast<double>(dmin[far]) <= s2) break;  // compared in double, as float(dmin[far]) <= s2
+    chosen.push_back(far);
+    for (int64_t i = 0; i < n; ++i) dmin[i] = std::min(dmin[i], sq(i, far));
+  }
+  return chosen;
+}
+
 }  // namespace
+
+torch::Tensor farthest_point_sampling(torch::Tensor points, int64_t start, double spacing2) {
+  TORCH_CHECK(points.is_contiguous() && points.device().is_cpu(), "farthest_point_sampling: contiguous CPU points");
+  std::vector<int64_t> out;
+  if (points.scalar_type() == torch::kFloat64)
+    out = fps_impl<double>(points.data_ptr<double>(), points.size(0), start, spacing2);
+  else {
+    TORCH_CHECK(points.scalar_type() == torch::kFloat32, "farthest_point_sampling: float32 or float64 expected");
+    out = fps_impl<float>(points.data_ptr<float>(), points.size(0), start, spacing2);
+  }
+  auto t = torch::empty({static_cast<int64_t>(out.size())}, torch::dtype(torch::kInt64));
+  std::copy(out.begin(), out.end(), t.data_ptr<int64_t>());
+  return t;
+}
 
 torch::Tensor deform_vertices(torch::Tensor R, torch::Tensor t, torch::Tensor g, torch::Tensor rest,
                               torch::Tensor vidx, torch::Tensor vw) {
