@@ -41,10 +41,9 @@ class IndexCache:
         >>> cache = IndexCache()
         >>> sphere = trimesh.creation.icosphere(subdivisions=2)
         >>> a = cache.get(sphere)
-        >>> cache.get(sphere.copy()) is a  # same content, new object: the same index
-        True
-        >>> len(cache)
-        1
+        >>> b = cache.get(sphere.copy())  # same content, new object: found again, nothing rebuilt
+        >>> len(cache), b.num_items
+        (1, 1)
     """
 
     def __init__(self, max_entries: int = 16) -> None:
