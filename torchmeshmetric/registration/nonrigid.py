@@ -36,8 +36,8 @@ from torchmeshmetric.kernels.sampling import sample_surface
 from torchmeshmetric.registration._common import (
     face_unit_normals,
     referenced_mask,
+    unit_normals,
     validate_pair,
-    vertex_unit_normals,
 )
 from torchmeshmetric.registration.deformation_graph import DeformationGraph
 from torchmeshmetric.registration.energies import (
@@ -343,7 +343,7 @@ def _register_nonrigid(
                 t0 = time.perf_counter()
                 with torch.no_grad():
                     dv = deformed_vertices(graph)
-                    vn = vertex_unit_normals(dv, sf)
+                    fn, vn = unit_normals(dv, sf)
                     corr_f = find_correspondences(dv[surf], vn[surf], tv, tf, max_distance=stage.max_distance,
                                                   max_normal_angle=stage.max_normal_angle, index=target_index,
                                                   face_normals=target_normals)  # fmt: skip
@@ -355,7 +355,7 @@ def _register_nonrigid(
                             source_index._refit(dv)
                         corr_r = find_correspondences(tsamp, tsamp_n, dv, sf, max_distance=stage.max_distance,
                                                       max_normal_angle=stage.max_normal_angle,
-                                                      index=source_index)  # fmt: skip
+                                                      index=source_index, face_normals=fn)  # fmt: skip
                 timings["correspondences"] += time.perf_counter() - t0
                 # Only the data points and the vertices of the faces matched by target samples enter the data
                 # terms: deform just those (forward and backward then scale with them, not with all vertices).
