@@ -27,6 +27,8 @@ from torchmeshmetric.evaluation import (
 )
 from torchmeshmetric.kernels import (
     ClosestPointOnTriangle,
+    IndexCache,
+    MeshIndex,
     NearestVertexResult,
     PointMeshResult,
     SurfaceSamples,
@@ -92,6 +94,8 @@ __all__ = [
     "pack_points",
     # kernels
     "ClosestPointOnTriangle",
+    "IndexCache",
+    "MeshIndex",
     "NearestVertexResult",
     "PointMeshResult",
     "SurfaceSamples",

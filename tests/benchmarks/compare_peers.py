@@ -116,6 +116,28 @@ def test_open3d(timed, size, query):
 
 
 @cache
+@pytest.mark.parametrize("query", QUERIES)
+@pytest.mark.parametrize("size", SIZES)
+def test_fcpw(timed, size, query):
+    fcpw = pytest.importorskip("fcpw")
+    c = case(size)
+    verts, faces = np.asfortranarray(c["verts"]), np.asfortranarray(c["faces"].astype(np.int32))
+    q = np.asfortranarray(c[query])
+    radii = np.full(len(q), np.inf, dtype=np.float32)
+
+    def go():
+        scene = fcpw.scene_3D()
+        scene.set_object_count(1)
+        scene.set_object_vertices(verts, 0)
+        scene.set_object_triangles(faces, 0)
+        scene.build(fcpw.aggregate_type.bvh_surface_area, True)  # vectorised BVH
+        hits = fcpw.interaction_3D_list()
+        scene.find_closest_points(q, radii, hits)
+        return hits
+
+    timed(_group(size, query), "fcpw (vectorised bvh)", go)
+
+
 def _warp_kernel():
     wp = pytest.importorskip("warp")
     wp.config.quiet = True

@@ -285,20 +285,17 @@ def test_nearest_gradients_equal_bruteforce(backend):
 
 
 def test_auto_picks_bvh_on_cpu_for_large_problems_and_bruteforce_for_small(monkeypatch):
-    import torchmeshmetric.kernels.accel as accel
+    from torchmeshmetric.kernels import select
 
-    small, large = torch.zeros(10, 3), torch.zeros(5000, 3)
-    faces = torch.zeros(1000, 3, dtype=torch.long)
+    cpu = torch.device("cpu")
+    small, large = 10 * 10, 5000 * 1000
     # Before the extension is compiled: small problems stay on the brute force (no compilation for them).
-    monkeypatch.setattr(accel, "bvh_ready", lambda: False)
-    assert accel.auto_face_backend(small, small, faces) is None
-    assert accel.auto_face_backend(large, large, faces) == "bvh"
-    assert accel.auto_nearest_backend(large, torch.zeros(1000, 3)) == "bvh"
-    assert accel.auto_nearest_backend(small, small) is None
+    monkeypatch.setattr(select, "bvh_ready", lambda: False)
+    assert select.auto_backend_name(cpu, torch.float32, small) == "bruteforce"
+    assert select.auto_backend_name(cpu, torch.float32, large) == "bvh"
     # Compiled: the BVH at every size.
-    monkeypatch.setattr(accel, "bvh_ready", lambda: True)
-    assert accel.auto_face_backend(small, small, faces) == "bvh"
-    assert accel.auto_nearest_backend(small, small) == "bvh"
+    monkeypatch.setattr(select, "bvh_ready", lambda: True)
+    assert select.auto_backend_name(cpu, torch.float32, small) == "bvh"
 
 
 def test_bvh_ready_reflects_the_compiled_extension():

@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from torchmeshmetric._checks import NonFiniteError
-from torchmeshmetric.kernels import nearest as nearest_module
+from torchmeshmetric.kernels.accel import bvh as accel_bvh
 from torchmeshmetric.kernels.accel._extension import load_bvh
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance
 from torchmeshmetric.kernels.point_triangle import point_mesh_distance
@@ -34,13 +34,13 @@ def _assert_bitwise_equal(points: torch.Tensor, ref: torch.Tensor, **kw: torch.T
 
 def test_fused_path_serves_calls_without_autograd_only(monkeypatch: pytest.MonkeyPatch) -> None:
     calls: list[int] = []
-    fused = nearest_module._NEAREST_SINGLE["bvh"]
+    fused = accel_bvh.bvh_nearest_single
 
     def spy(p: torch.Tensor, r: torch.Tensor):
         calls.append(p.shape[0])
         return fused(p, r)
 
-    monkeypatch.setitem(nearest_module._NEAREST_SINGLE, "bvh", spy)
+    monkeypatch.setattr(accel_bvh, "bvh_nearest_single", spy)
     g = torch.Generator().manual_seed(0)
     p, r = torch.randn(500, 3, generator=g), torch.randn(700, 3, generator=g)
     plain = nearest_vertex_distance(p, r, backend="bvh")

@@ -27,7 +27,6 @@ from hypothesis import strategies as st
 triton = pytest.importorskip("triton")
 
 from torchmeshmetric import DeviceError, DTypeError  # noqa: E402
-from torchmeshmetric.kernels import accel  # noqa: E402
 from torchmeshmetric.kernels.accel import triton_traversal  # noqa: E402
 from torchmeshmetric.kernels.accel.lbvh import build_implicit_bvh, morton_codes  # noqa: E402
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance  # noqa: E402
@@ -404,7 +403,9 @@ def test_interpreter_suite():
 
 
 def test_missing_triton_is_an_import_error(monkeypatch):
-    monkeypatch.setattr(accel, "triton_available", lambda: False)
+    from torchmeshmetric.kernels.accel import triton_backend
+
+    monkeypatch.setattr(triton_backend, "triton_available", lambda: False)
     verts, faces = _degenerate_mesh(torch.float32)
     with pytest.raises(ImportError, match="pip install triton"):
         point_mesh_distance(verts, verts, faces, backend="triton")
@@ -413,15 +414,16 @@ def test_missing_triton_is_an_import_error(monkeypatch):
 
 
 def test_auto_rules(monkeypatch):
-    monkeypatch.setattr(accel, "bvh_ready", lambda: False)
-    large, faces = torch.zeros(5000, 3), torch.zeros(1000, 3, dtype=torch.long)
-    assert accel.auto_face_backend(large, large, faces) == "bvh"  # CPU: unchanged
-    meta = torch.zeros(5000, 3, device="meta")
-    assert accel.auto_face_backend(meta, meta, faces) == "pruned"  # neither CPU nor CUDA
-    assert accel.auto_face_backend(torch.zeros(10, 3), large, faces) is None  # small: brute force
-    monkeypatch.setattr(accel, "bvh_ready", lambda: True)  # a compiled extension changes nothing off the CPU
-    assert accel.auto_face_backend(meta, meta, faces) == "pruned"
-    assert accel.auto_face_backend(torch.zeros(10, 3, device="meta"), meta, faces) is None
+    from torchmeshmetric.kernels import select
+
+    monkeypatch.setattr(select, "bvh_ready", lambda: False)
+    cpu, meta, large, small = torch.device("cpu"), torch.device("meta"), 5000 * 1000, 10 * 1000
+    assert select.auto_backend_name(cpu, torch.float32, large) == "bvh"  # CPU: unchanged
+    assert select.auto_backend_name(meta, torch.float32, large) == "pruned"  # neither CPU nor CUDA
+    assert select.auto_backend_name(cpu, torch.float32, small) == "bruteforce"  # small: brute force
+    monkeypatch.setattr(select, "bvh_ready", lambda: True)  # a compiled extension changes nothing off the CPU
+    assert select.auto_backend_name(meta, torch.float32, large) == "pruned"
+    assert select.auto_backend_name(meta, torch.float32, small) == "bruteforce"
 
 
 def test_library_works_without_triton():
@@ -452,9 +454,9 @@ def test_library_works_without_triton():
 @CUDA
 @pytest.mark.skipif(INTERPRETING, reason="the compiled kernel only")
 def test_cuda_auto_picks_triton():
-    large = torch.zeros(5000, 3, device="cuda")
-    assert accel.auto_face_backend(large, large, torch.zeros(1000, 3, dtype=torch.long)) == "triton"
-    assert accel.auto_nearest_backend(large, large) == "triton"
+    from torchmeshmetric.kernels import select
+
+    assert select.auto_backend_name(torch.device("cuda"), torch.float32, 5000 * 1000) == "triton"
 
 
 @CUDA

@@ -12,6 +12,7 @@ from torchmetrics import Metric
 from torchmeshmetric.evaluation.cache import RegistrationCache
 from torchmeshmetric.evaluation.pipeline import RegisterFn, evaluate_pair
 from torchmeshmetric.evaluation.results import SET_NAMES
+from torchmeshmetric.kernels import IndexCache
 from torchmeshmetric.structures import MeshLike
 
 __all__ = ["TemporalConsistency"]
@@ -32,6 +33,7 @@ class TemporalConsistency(Metric):
         two_sided: also accumulate the reverse (reference → simplified) sets (default ``True``).
         register: registration function (default: the library's non-rigid registration).
         register_options: options of the default registration.
+        backend: kernel backend of the distances and of the default registration (``"auto"``, ``"bvh"``, ...).
         kwargs: passed to :class:`torchmetrics.Metric`.
 
     Example:
@@ -59,6 +61,7 @@ class TemporalConsistency(Metric):
         two_sided: bool = True,
         register: RegisterFn | Any | None = None,
         register_options: Mapping[str, Any] | None = None,
+        backend: str = "auto",
         **kwargs: Any,
     ) -> None:
         super().__init__(**kwargs)
@@ -70,6 +73,10 @@ class TemporalConsistency(Metric):
         self.register = register
         self.register_options = dict(register_options or {})
         self.cache = RegistrationCache()
+        self.backend = backend
+        # One index per reference mesh, found again by content: validating every epoch on the same frames builds
+        # each reference's structure once.
+        self.indexes = IndexCache(max_entries=64)
         for name in SET_NAMES:
             self.add_state(name, default=[], dist_reduce_fx="cat")
             if two_sided:
@@ -87,6 +94,8 @@ class TemporalConsistency(Metric):
             register=self.register,
             register_options=self.register_options,
             cache=self.cache,
+            backend=self.backend,
+            indexes=self.indexes,
         )
         for name in SET_NAMES:
             getattr(self, name).append(result.distances[name].detach().double())

@@ -18,7 +18,7 @@ from torch import Tensor
 from torchmeshmetric._checks import ShapeError
 from torchmeshmetric.evaluation.cache import CachedRegistration, RegistrationCache
 from torchmeshmetric.evaluation.results import SET_NAMES, PairEvaluation, SequenceEvaluation
-from torchmeshmetric.kernels import nearest_vertex_distance, point_mesh_distance, vertex_set
+from torchmeshmetric.kernels import IndexCache, MeshIndex, point_mesh_distance
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
 __all__ = ["RegisterFn", "default_register", "evaluate_pair", "evaluate_sequence", "registration_settings"]
@@ -86,6 +86,8 @@ def evaluate_pair(
     register_options: Mapping[str, Any] | None = None,
     cache: RegistrationCache | None = None,
     frame: int = 1,
+    backend: str = "auto",
+    indexes: IndexCache | None = None,
 ) -> PairEvaluation:
     """Evaluate the simplified mesh of frame ``k`` against original frames ``k`` and ``k-1`` (paper Fig. 2).
 
@@ -103,6 +105,9 @@ def evaluate_pair(
         register_options: keyword options of the default registration (part of the cache key).
         cache: a :class:`RegistrationCache`; reused registrations cost nothing.
         frame: the index ``k`` recorded in the result.
+        backend: kernel backend of the distances and of the default registration (``"auto"``, ``"bvh"``, ...).
+        indexes: an :class:`~torchmeshmetric.IndexCache` shared across calls: the original frames' indexes are
+            built once for every method and both frame pairs that use them.
 
     Returns:
         :class:`PairEvaluation` with the four distance sets (keys ``surface_k``, ``surface_k_minus_1``,
@@ -138,7 +143,7 @@ def evaluate_pair(
 
         def compute() -> CachedRegistration:
             if register is None:
-                return default_register(orig_km1, orig_k, device=dev, **options)
+                return default_register(orig_km1, orig_k, device=dev, **{"backend": backend, **options})
             t0 = time.perf_counter()
             given = _registration_from(register(orig_km1, orig_k), orig_km1, orig_k)
             return given._replace(seconds=given.seconds or time.perf_counter() - t0)
@@ -154,17 +159,25 @@ def evaluate_pair(
 
     start = time.perf_counter()
     with torch.no_grad():
-        points = vertex_set(simp)
-        refs = {"k": orig_k, "k_minus_1": registered}
-        ref_points = {name: vertex_set(mesh) for name, mesh in refs.items()}
+        # One index per mesh: the references' (shared across methods through `indexes`) and the simplified frame's
+        # (queried by both references' vertex sets).
+        shared = indexes if indexes is not None else IndexCache()
+        # A reference is queried a few times per sequence: the cheap Morton build pays more than a SAH tree.
+        simp_index = MeshIndex(simp.verts, simp.faces, backend=backend, tree="morton")
+        points = simp_index.ref_points.points
+        refs = {
+            name: shared.get(m, backend=backend, tree="morton")
+            for name, m in (("k", orig_k), ("k_minus_1", registered))
+        }
         distances: dict[str, Tensor] = {}
         reverse: dict[str, Tensor] = {}
-        for name, mesh in refs.items():
-            distances[f"surface_{name}"] = point_mesh_distance(points, mesh).dists
-            distances[f"vertex_{name}"] = nearest_vertex_distance(points, ref_points[name]).dists
+        for name, index in refs.items():
+            distances[f"surface_{name}"] = index.point_mesh_distance(points).dists
+            distances[f"vertex_{name}"] = index.nearest_vertex_distance(points).dists
             if two_sided:
-                reverse[f"surface_{name}"] = point_mesh_distance(ref_points[name], simp).dists
-                reverse[f"vertex_{name}"] = nearest_vertex_distance(ref_points[name], points).dists
+                ref_points = index.ref_points.points
+                reverse[f"surface_{name}"] = simp_index.point_mesh_distance(ref_points).dists
+                reverse[f"vertex_{name}"] = simp_index.nearest_vertex_distance(ref_points).dists
         motion = float((registered.verts - orig_km1.verts).norm(dim=-1).mean() / orig_k.bbox_diagonal())
     timings["distances"] = time.perf_counter() - start
 
@@ -205,6 +218,8 @@ def evaluate_sequence(
     register_options: Mapping[str, Any] | None = None,
     registrations: Sequence[Any] | None = None,
     progress: Callable[[int, int], None] | None = None,
+    backend: str = "auto",
+    indexes: IndexCache | None = None,
 ) -> SequenceEvaluation:
     """Evaluate a simplified sequence frame pair by frame pair (pairs ``(k-1, k)`` for ``k = 1 .. N-1``).
 
@@ -222,6 +237,9 @@ def evaluate_sequence(
         registrations: optional precomputed registrations, one per pair (``registrations[k-1]`` is frame ``k-1``
             registered onto frame ``k``); bypasses ``register`` and the cache.
         progress: called as ``progress(k, N - 1)`` after frame pair ``k`` is evaluated.
+        backend: kernel backend of the distances and of the default registration.
+        indexes: an :class:`~torchmeshmetric.IndexCache` (share one across methods: each original frame's index is
+            then built once for all of them; default: one for this sequence).
 
     Returns:
         :class:`SequenceEvaluation` with ``N - 1`` pairs.
@@ -242,6 +260,9 @@ def evaluate_sequence(
         )
     if cache is None:
         cache = RegistrationCache(cache_dir)
+    if indexes is None:
+        # Each original frame is a reference of two pairs (k, and k-1 registered is another mesh): keep them all.
+        indexes = IndexCache(max_entries=2 * len(original_frames))
     pairs = []
     total = len(original_frames) - 1
     for k in range(1, len(original_frames)):
@@ -257,6 +278,8 @@ def evaluate_sequence(
                 register_options=register_options,
                 cache=cache,
                 frame=k,
+                backend=backend,
+                indexes=indexes,
             )
         )
         if progress is not None:

@@ -89,3 +89,20 @@ def check_representable(dists: Tensor, name: str) -> None:
             f"{name}: the distances overflow {dists.dtype} (coordinates too large for its range, "
             f"max {torch.finfo(dists.dtype).max:.3g}); compute in float64"
         )
+
+
+def extreme_range(points: Tensor, ref: Tensor, degree: int) -> tuple[Tensor, float] | None:
+    """``(centre, scale)`` when coordinates need exact power-of-two scaling (:func:`range_scale`), else ``None``.
+
+    The extent is measured about the bounding-box centre of ``ref`` (all items together), so a small mesh far from
+    the origin is not scaled while a mesh of extreme size (or with extremely far query points) is. Callers compute on
+    ``(x - centre) * scale`` and map distances back by ``/ scale`` (closest points by ``/ scale + centre``).
+    """
+    if points.numel() == 0 or ref.numel() == 0:
+        return None
+    with torch.no_grad():
+        lo, hi = ref.detach().aminmax(dim=0)
+        centre = 0.5 * (lo + hi)
+        extent = float(torch.cat([points.detach() - centre, ref.detach() - centre]).abs().amax())
+    scale = range_scale(extent, ref.dtype, degree)
+    return None if scale is None or not all(map(math.isfinite, centre.tolist())) else (centre, scale)

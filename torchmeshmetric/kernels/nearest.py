@@ -3,25 +3,17 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import torch
 from torch import Tensor
 
 from torchmeshmetric._checks import EmptyInputError, check_finite, check_float, check_same_device, check_shape
-from torchmeshmetric.kernels._common import (
-    DEFAULT_MAX_MEMORY,
-    check_representable,
-    dot,
-    item_centers,
-    pair_chunks,
-    range_scale,
-    safe_sqrt,
-)
-from torchmeshmetric.structures import batch_index, lengths_to_offsets, pack_points
+from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY, check_representable, extreme_range, pair_chunks
+from torchmeshmetric.structures import pack_points
 
-__all__ = ["NearestVertexResult", "nearest_vertex_distance", "register_nearest_backend"]
+__all__ = ["NearestVertexResult", "nearest_vertex_distance"]
 
 
 class NearestVertexResult(NamedTuple):
@@ -34,38 +26,6 @@ class NearestVertexResult(NamedTuple):
 
     dists: Tensor
     idx: Tensor
-
-
-# (points, point_batch, ref, ref_batch, ref_offsets, max_memory) -> idx (P,); inputs centred, packed, detached.
-NearestSelector = Callable[[Tensor, Tensor, Tensor, Tensor, Tensor, int], Tensor]
-# Fused batch-of-one path: (points (P, 3), ref (R, 3)), raw (not centred), same dtype, both non-empty, no autograd
-# -> (dists, idx, center) computed exactly as the general path would, or None when it cannot serve the call
-# (other device, non-finite values, no compiled extension): the general path then runs (and raises).
-NearestSingle = Callable[[Tensor, Tensor], "tuple[Tensor, Tensor, Tensor] | None"]
-_NEAREST_BACKENDS: dict[str, NearestSelector] = {}
-_NEAREST_SINGLE: dict[str, NearestSingle] = {}
-_NEAREST_AUTO: list[Callable[[Tensor, Tensor], str | None]] = []
-
-
-def register_nearest_backend(
-    name: str,
-    selector: NearestSelector,
-    auto: Callable[[Tensor, Tensor], str | None] | None = None,
-    single: NearestSingle | None = None,
-) -> None:
-    """Register a nearest-neighbour selection backend (used by accelerated kernels).
-
-    Args:
-        name: the name accepted by ``backend=``.
-        selector: index of the nearest reference point per query (centred, packed, detached inputs).
-        auto: a ``backend="auto"`` rule returning a backend name or ``None``.
-        single: optional fused batch-of-one path returning ``(dists, idx, center)`` or ``None``.
-    """
-    _NEAREST_BACKENDS[name] = selector
-    if single is not None:
-        _NEAREST_SINGLE[name] = single
-    if auto is not None:
-        _NEAREST_AUTO.append(auto)
 
 
 def _bruteforce_nearest(
@@ -105,9 +65,6 @@ def _bruteforce_nearest(
     return best
 
 
-register_nearest_backend("bruteforce", _bruteforce_nearest)
-
-
 def nearest_vertex_distance(
     points: Tensor | Sequence[Tensor],
     ref_points: Tensor | Sequence[Tensor],
@@ -125,7 +82,7 @@ def nearest_vertex_distance(
         points_lengths: ``(B,)`` points per item of a packed batch.
         ref_lengths: ``(B,)`` reference points per item of a packed batch.
         max_memory: upper bound in bytes of one intermediate (default 256 MiB).
-        backend: ``"auto"`` or ``"bruteforce"`` (or a registered accelerated backend).
+        backend: ``"auto"``, ``"bvh"``, ``"triton"``, ``"pruned"`` or ``"bruteforce"``.
 
     Returns:
         :class:`NearestVertexResult` ``(dists, idx)``; ``dists`` is **not squared** and differentiable
@@ -141,6 +98,7 @@ def nearest_vertex_distance(
     """
     if points_lengths is None and ref_lengths is None and isinstance(points, Tensor) and isinstance(ref_points, Tensor):
         return _nearest_single(points, ref_points, max_memory, backend)
+
     pts = pack_points(points, points_lengths, "points")
     ref = pack_points(ref_points, ref_lengths, "ref_points")
     check_same_device({"points": pts.points, "ref_points": ref.points})
@@ -149,38 +107,27 @@ def nearest_vertex_distance(
             f"ref_points: expected {pts.lengths.numel()} reference sets (one per point set), "
             f"found {ref.lengths.numel()}"
         )
-    if pts.points.shape[0] == 0:
-        raise EmptyInputError("points: expected at least one point, found an empty point set")
-    lacking = (pts.lengths > 0) & (ref.lengths == 0)
-    if bool(lacking.any()):
-        b = int(lacking.nonzero()[0, 0])
-        raise EmptyInputError(f"ref_points: reference set {b} is empty but has {int(pts.lengths[b])} query points")
-    select = _resolve_backend(backend, pts.points, ref.points)
+    _check_backend(backend)
     dtype = torch.promote_types(pts.points.dtype, ref.points.dtype)
-    p, r = pts.points.to(dtype), ref.points.to(dtype)
-    pb, rb = batch_index(pts.lengths), batch_index(ref.lengths)
-    centers = item_centers(r, rb, int(ref.lengths.numel()))
-    p_c, r_c = p - centers[pb], r - centers[rb]
-    scale = range_scale(float(torch.cat([p_c.detach(), r_c.detach()]).abs().amax()), dtype, 2)
-    if scale is not None:
-        p_c, r_c = p_c * scale, r_c * scale
-    with torch.no_grad():
-        idx = select(p_c.detach(), pb, r_c.detach(), rb, lengths_to_offsets(ref.lengths), max_memory)
-    diff = p_c - r_c[idx]
-    dists = safe_sqrt(dot(diff, diff))
-    return NearestVertexResult(dists if scale is None else dists / scale, idx)
+    return _scaled_query(pts.points.to(dtype), pts.lengths, ref.points.to(dtype), ref.lengths, backend, max_memory)
 
 
-def _resolve_name(backend: str, points: Tensor, ref: Tensor) -> str:
-    if backend == "auto":
-        return next((n for rule in _NEAREST_AUTO if (n := rule(points, ref)) is not None), "bruteforce")
-    if backend in _NEAREST_BACKENDS:
-        return backend
-    raise ValueError(f"backend: expected one of {['auto', *_NEAREST_BACKENDS]}, found {backend!r}")
+def _scaled_query(
+    points: Tensor, points_lengths: Tensor, ref: Tensor, ref_lengths: Tensor, backend: str, max_memory: int
+) -> NearestVertexResult:
+    """Query a one-off index, scaling coordinates of extreme magnitude exactly (powers of two) when needed."""
+    from torchmeshmetric.kernels.mesh_index import _NearestIndex  # builds on this module
 
-
-def _resolve_backend(backend: str, points: Tensor, ref: Tensor) -> NearestSelector:
-    return _NEAREST_BACKENDS[_resolve_name(backend, points, ref)]
+    extreme = extreme_range(points, ref, 2)
+    if extreme is not None:
+        centre, scale = extreme
+        points, ref = (points - centre) * scale, (ref - centre) * scale
+    # Already scaled for the points too: the index must not rescale by the reference set's extent alone.
+    res = _NearestIndex(ref, ref_lengths, backend, max_memory, rescale=extreme is None).query(points, points_lengths)
+    if extreme is not None:
+        res = res._replace(dists=res.dists / scale)
+    check_representable(res.dists, "points")
+    return res
 
 
 def _finite_bounds(x: Tensor, name: str) -> tuple[Tensor, Tensor]:
@@ -206,55 +153,39 @@ def _nearest_single(points: Tensor, ref_points: Tensor, max_memory: int, backend
     check_shape(ref_points, ("P", 3), "ref_points")
     check_float(ref_points, "ref_points")
     check_same_device({"points": points, "ref_points": ref_points})
+    from torchmeshmetric.kernels.accel.bvh import bvh_nearest_single
+    from torchmeshmetric.kernels.select import resolve_backend
+
+    _check_backend(backend)
     num_p, num_r = points.shape[0], ref_points.shape[0]
-    name = _resolve_name(backend, points, ref_points)
     dtype = torch.promote_types(points.dtype, ref_points.dtype)
     p, r = points.to(dtype), ref_points.to(dtype)
-    fused = _NEAREST_SINGLE.get(name)
-    if fused is not None and num_p and num_r and not (p.requires_grad or r.requires_grad):
-        out = fused(p.detach(), r.detach())
-        # Distances all below 2**-60 or beyond float range: the fused path's magnitudes are extreme, the general
-        # path below scales them (one reduction of the result decides; the fused path itself stays unscaled).
+    fused = bool(num_p and num_r) and not (p.requires_grad or r.requires_grad)
+    if fused and resolve_backend(backend, points.device, dtype, num_p * num_r).name == "bvh":
+        out = bvh_nearest_single(p.detach(), r.detach())
+        # The fused path is unscaled: distances that overflowed or all lie below 2**-60 go to the scaled path.
         if out is not None and _in_range(out[0]):
             return NearestVertexResult(out[0], out[1])
-    p_bounds = _finite_bounds(points, "points") if num_p else None
-    bounds = _finite_bounds(ref_points, "ref_points") if num_r else None
+    if num_p:
+        _finite_bounds(points, "points")
+    if num_r:
+        _finite_bounds(ref_points, "ref_points")
     if num_p == 0:
         raise EmptyInputError("points: expected at least one point, found an empty point set")
-    if bounds is None:
+    if num_r == 0:
         raise EmptyInputError(f"ref_points: reference set 0 is empty but has {num_p} query points")
-    select = _NEAREST_BACKENDS[name]
-    lo, hi = bounds[0].to(dtype), bounds[1].to(dtype)
-    center = 0.5 * (lo + hi)
-    p_c, r_c = p - center, r - center
-    assert p_bounds is not None
-    extent = torch.stack([hi - center, p_bounds[1].to(dtype) - center, center - p_bounds[0].to(dtype)]).abs().amax()
-    scale = range_scale(float(extent), dtype, 2)
-    if scale is not None:
-        p_c, r_c = p_c * scale, r_c * scale
-    device = points.device
-    with torch.no_grad():
-        pb = torch.zeros(num_p, dtype=torch.long, device=device)
-        rb = torch.zeros(num_r, dtype=torch.long, device=device)
-        offsets = torch.tensor([0, num_r], dtype=torch.long, device=device)
-        idx = select(p_c.detach(), pb, r_c.detach(), rb, offsets, max_memory)
-    if p_c.requires_grad or r_c.requires_grad:
-        diff = p_c - r_c[idx]
-        dists = safe_sqrt(dot(diff, diff))
-    else:
-        # Without autograd, safe_sqrt(sq) is sqrt(sq) bit for bit (sq >= 0, sqrt(0) = 0).
-        diff = p_c - r_c.index_select(0, idx)
-        dists = torch.sqrt(dot(diff, diff))
-    if scale is not None:
-        dists = dists / scale
-    check_representable(dists, "points")
-    return NearestVertexResult(dists, idx)
+    lengths = torch.tensor([num_r], device=points.device)
+    return _scaled_query(p, torch.tensor([num_p], device=points.device), r, lengths, backend, max_memory)
+
+
+def _check_backend(backend: str) -> None:
+    from torchmeshmetric.kernels.select import BACKENDS
+
+    if backend != "auto" and backend not in BACKENDS:
+        raise ValueError(f"backend: expected one of {['auto', *BACKENDS]}, found {backend!r}")
 
 
 def _in_range(dists: Tensor) -> bool:
-    """Whether unscaled distances are trustworthy: finite, and not all below ``2**-60``.
-
-    Squares near underflow (all zero included: tiny coordinates can underflow to exactly 0) are not.
-    """
+    """Whether unscaled distances are trustworthy: finite, and not all below ``2**-60`` (squares near underflow)."""
     hi = float(dists.amax())
     return math.isfinite(hi) and hi > 2.0**-60

@@ -15,36 +15,33 @@ item is centred on its bounding box first, so float32 results stay accurate for 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import EmptyInputError, check_float, check_same_device
+from torchmeshmetric._checks import check_float, check_same_device
 from torchmeshmetric.kernels._common import (
     DEFAULT_MAX_MEMORY,
     check_representable,
     cross,
     dot,
-    item_centers,
+    extreme_range,
     pair_chunks,
-    range_scale,
     safe_div,
-    safe_sqrt,
 )
-from torchmeshmetric.structures import MeshLike, batch_index, lengths_to_offsets, pack_meshes, pack_points
+from torchmeshmetric.structures import MeshLike, pack_meshes, pack_points
 
 __all__ = [
     "ClosestPointOnTriangle",
     "PointMeshResult",
     "closest_point_on_triangle",
     "point_mesh_distance",
-    "register_face_backend",
 ]
 
 Backend = str
-"""``"auto"``, ``"bruteforce"`` or the name of a registered accelerated backend."""
+"""``"auto"`` or a name of ``kernels.select.BACKENDS``: ``"bruteforce"``, ``"bvh"``, ``"pruned"``, ``"triton"``."""
 
 
 class ClosestPointOnTriangle(NamedTuple):
@@ -150,42 +147,8 @@ def closest_point_on_triangle(points: Tensor, a: Tensor, b: Tensor, c: Tensor) -
     return ClosestPointOnTriangle(closest, bary, dot(diff, diff))
 
 
-# --------------------------------------------------------------------------------------------------------------
-# Face selection backends: (points, point_batch, verts, faces, face_batch, face_offsets, max_memory) -> face (P,)
-# All inputs are centred, packed, detached; faces index the packed verts. Must return the lowest index among ties
-# of the brute-force squared distance.
-# --------------------------------------------------------------------------------------------------------------
-
-FaceSelector = Callable[[Tensor, Tensor, Tensor, Tensor, Tensor, Tensor, int], Tensor]
-_FACE_BACKENDS: dict[str, FaceSelector] = {}
-_FACE_AUTO: list[Callable[[Tensor, Tensor, Tensor], str | None]] = []
-
-
-def register_face_backend(
-    name: str, selector: FaceSelector, auto: Callable[[Tensor, Tensor, Tensor], str | None] | None = None
-) -> None:
-    """Register a closest-face selection backend (used by accelerated kernels).
-
-    Args:
-        name: the ``backend=`` value that selects it.
-        selector: the selection function (see the module comment for its contract).
-        auto: optional rule ``(points, verts, faces) -> name or None`` consulted by ``backend="auto"``.
-    """
-    _FACE_BACKENDS[name] = selector
-    if auto is not None:
-        _FACE_AUTO.append(auto)
-
-
-# Optional closest-point kernel for calls without autograd: (points_c, verts_c, faces_global, face_idx) ->
-# (sq_dists, bary, closest_c) bit-identical to closest_point_on_triangle on the selected faces, or None when it
-# cannot serve the call (then the torch recomputation runs). Registered by the accelerated backends.
-NoGradClosest = Callable[[Tensor, Tensor, Tensor, Tensor], "tuple[Tensor, Tensor, Tensor] | None"]
-_NOGRAD_CLOSEST: list[NoGradClosest] = []
-
-
-def register_nograd_closest(fn: NoGradClosest) -> None:
-    """Register a closest-point kernel used after selection when nothing requires grad (see ``_NOGRAD_CLOSEST``)."""
-    _NOGRAD_CLOSEST.append(fn)
+# Brute-force face selection (the reference backend, see kernels/select.py for the contract): inputs centred,
+# packed, detached; faces index the packed verts; returns the lowest index among ties of the squared distance.
 
 
 def _bruteforce_faces(
@@ -228,21 +191,6 @@ def _bruteforce_faces(
     return best
 
 
-register_face_backend("bruteforce", _bruteforce_faces)
-
-
-def _resolve_face_backend(backend: str, points: Tensor, verts: Tensor, faces: Tensor) -> FaceSelector:
-    if backend == "auto":
-        for rule in _FACE_AUTO:
-            name = rule(points, verts, faces)
-            if name is not None:
-                return _FACE_BACKENDS[name]
-        return _bruteforce_faces
-    if backend not in _FACE_BACKENDS:
-        raise ValueError(f"backend: expected one of {['auto', *_FACE_BACKENDS]}, found {backend!r}")
-    return _FACE_BACKENDS[backend]
-
-
 def point_mesh_distance(
     points: Tensor | Sequence[Tensor],
     verts: Tensor | MeshLike | Sequence[MeshLike],
@@ -271,7 +219,8 @@ def point_mesh_distance(
         verts_lengths: ``(B,)`` vertices per item of a packed batch.
         faces_lengths: ``(B,)`` faces per item of a packed batch.
         max_memory: upper bound in bytes of one intermediate of the selection pass (default 256 MiB).
-        backend: ``"auto"`` (fastest exact path registered for the device and size) or ``"bruteforce"``.
+        backend: ``"auto"`` (the fastest exact path for the device and size), ``"bvh"``, ``"triton"``, ``"pruned"`` or
+            ``"bruteforce"``. To query the same mesh many times, build a :class:`~torchmeshmetric.MeshIndex` once.
 
     Returns:
         :class:`PointMeshResult` ``(dists, face_idx, bary, closest)``. ``dists`` is the plain Euclidean
@@ -289,6 +238,8 @@ def point_mesh_distance(
         >>> round(r.dists.item(), 6)
         2.0
     """
+    from torchmeshmetric.kernels.mesh_index import MeshIndex  # MeshIndex builds on this module
+
     if isinstance(verts, Tensor):
         packed = pack_meshes(verts, faces, verts_lengths, faces_lengths)
     else:
@@ -296,85 +247,16 @@ def point_mesh_distance(
             raise TypeError("verts_lengths/faces_lengths: only valid with packed verts/faces tensors")
         packed = pack_meshes(verts, faces)
     pts = pack_points(points, points_lengths)
-    return _point_mesh_distance_packed(pts.points, pts.lengths, *packed, max_memory=max_memory, backend=backend)
-
-
-def _point_mesh_distance_packed(
-    points: Tensor,
-    points_lengths: Tensor,
-    verts: Tensor,
-    faces: Tensor,
-    verts_lengths: Tensor,
-    faces_lengths: Tensor,
-    *,
-    max_memory: int,
-    backend: str,
-) -> PointMeshResult:
-    check_same_device({"points": points, "verts": verts})
-    num_items = int(verts_lengths.numel())
-    if int(points_lengths.numel()) != num_items:
-        raise ValueError(
-            f"points_lengths: expected {num_items} point sets (one per mesh), found {int(points_lengths.numel())}"
-        )
-    if points.shape[0] == 0:
-        raise EmptyInputError("points: expected at least one point, found an empty point set")
-    lacking = (points_lengths > 0) & (faces_lengths == 0)
-    if bool(lacking.any()):
-        b = int(lacking.nonzero()[0, 0])
-        raise EmptyInputError(f"faces: mesh {b} has no faces but {int(points_lengths[b])} query points")
-    dtype = torch.promote_types(points.dtype, verts.dtype)
-    points, verts = points.to(dtype), verts.to(dtype)
-    if num_items == 1:
-        # One mesh: no batch indices to expand, no per-item gathers (same values: the centre broadcasts).
-        point_batch = torch.zeros(points.shape[0], dtype=torch.long, device=points.device)
-        face_batch = torch.zeros(faces.shape[0], dtype=torch.long, device=points.device)
-        faces_global = faces
-        center = item_centers(verts, torch.zeros(verts.shape[0], dtype=torch.long, device=verts.device), 1)
-        point_center, vert_center = center, center
-    else:
-        point_batch = batch_index(points_lengths)
-        vert_batch = batch_index(verts_lengths)
-        face_batch = batch_index(faces_lengths)
-        v_off = lengths_to_offsets(verts_lengths)
-        faces_global = faces + v_off[face_batch][:, None]
-        centers = item_centers(verts, vert_batch, num_items)
-        point_center, vert_center = centers[point_batch], centers[vert_batch]
-    points_c = points - point_center
-    verts_c = verts - vert_center
-    # Exact power-of-two scaling where float arithmetic would overflow or underflow (|ab x ac|^2 is of degree 4).
-    scale = range_scale(float(verts_c.detach().abs().amax()) if verts_c.numel() else 0.0, dtype, 4)
-    if scale is not None:
-        points_c, verts_c = points_c * scale, verts_c * scale
-    select = _resolve_face_backend(backend, points, verts, faces)
-    with torch.no_grad():
-        face_idx = select(
-            points_c.detach(),
-            point_batch,
-            verts_c.detach(),
-            faces_global,
-            face_batch,
-            lengths_to_offsets(faces_lengths),
-            max_memory,
-        )
-    if not (points_c.requires_grad or verts_c.requires_grad):
-        for kernel in _NOGRAD_CLOSEST:
-            out = kernel(points_c, verts_c, faces_global, face_idx)
-            if out is not None:
-                # Without autograd safe_sqrt(sq) is sqrt(sq) bit for bit (sq >= 0, sqrt(0) = 0).
-                if scale is None:
-                    result = PointMeshResult(torch.sqrt(out[0]), face_idx, out[1], out[2] + point_center)
-                else:
-                    dists = torch.sqrt(out[0]) / scale
-                    result = PointMeshResult(dists, face_idx, out[1], out[2] / scale + point_center)
-                check_representable(result.dists, "points")
-                return result
-    tri = verts_c[faces_global[face_idx]]
-    res = closest_point_on_triangle(points_c, tri[:, 0], tri[:, 1], tri[:, 2])
-    if scale is None:
-        result = PointMeshResult(safe_sqrt(res.sq_dists), face_idx, res.bary, res.closest + point_center)
-    else:
-        result = PointMeshResult(
-            safe_sqrt(res.sq_dists) / scale, face_idx, res.bary, res.closest / scale + point_center
-        )
-    check_representable(result.dists, "points")
-    return result
+    check_same_device({"points": pts.points, "verts": packed.verts})
+    dtype = torch.promote_types(pts.points.dtype, packed.verts.dtype)
+    points_t, verts_t = pts.points.to(dtype), packed.verts.to(dtype)
+    extreme = extreme_range(points_t, verts_t, 4)  # |ab x ac|^2 is of degree 4 in the coordinates
+    if extreme is not None:
+        centre, scale = extreme
+        points_t, verts_t = (points_t - centre) * scale, (verts_t - centre) * scale
+    index = MeshIndex._trusted(packed._replace(verts=verts_t), backend, max_memory, tree="morton")
+    res = index._point_mesh_distance(points_t, pts.lengths)
+    if extreme is not None:
+        res = res._replace(dists=res.dists / scale, closest=res.closest / scale + centre)
+    check_representable(res.dists, "points")
+    return res

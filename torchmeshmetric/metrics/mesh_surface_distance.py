@@ -7,6 +7,7 @@ from typing import Any
 import torch
 from torch import Tensor
 
+from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance
 from torchmeshmetric.kernels.point_triangle import point_mesh_distance
 from torchmeshmetric.kernels.sampling import sample_surface, vertex_set
@@ -24,12 +25,23 @@ __all__ = ["MeshSurfaceDistance", "mesh_surface_distances"]
 
 
 def _to_surface(
-    points: list[Tensor], meshes: list[Mesh], surface_samples: int | None, seed: int, backend: str
+    points: list[Tensor],
+    meshes: list[Mesh],
+    surface_samples: int | None,
+    seed: int,
+    backend: str,
+    indexes: IndexCache | None = None,
 ) -> Tensor:
     """Packed distances from each item's points to its mesh surface (exact, or to N area-sampled points)."""
     if sum(p.shape[0] for p in points) == 0:  # an empty update: nothing to measure
         return torch.cat(points).new_zeros(0)
     p = torch.cat(points)  # torch.cat promotes mixed float dtypes
+    if surface_samples is None and indexes is not None:
+        dtype = p.dtype
+        for m in meshes:
+            dtype = torch.promote_types(dtype, m.dtype)
+        index = indexes.get([m.to(dtype=dtype) for m in meshes], backend=backend)
+        return index.point_mesh_distance(p.to(dtype), points_lengths=lengths_of(points)).dists
     if surface_samples is None:
         return point_mesh_distance(p, meshes, points_lengths=lengths_of(points), backend=backend).dists
     gen = torch.Generator(device=meshes[0].device).manual_seed(seed)
@@ -49,6 +61,7 @@ def mesh_surface_distances(
     seed: int = 0,
     detach_reference: bool = True,
     backend: str = "auto",
+    indexes: IndexCache | None = None,
 ) -> DirectedDistances:
     """Mesh surface distances of a simplified mesh (or point set) to a reference mesh, single or ragged batch.
 
@@ -68,6 +81,8 @@ def mesh_surface_distances(
         seed: seed of the surface sampling.
         detach_reference: cut the gradient to the reference vertices (default); ``False`` lets it flow.
         backend: kernel backend (``"auto"``, ``"bruteforce"``, ...).
+        indexes: an :class:`~torchmeshmetric.IndexCache`: the references' indexes are found again by content
+            (a validation or training loop over the same references builds each once).
 
     Returns:
         :class:`~torchmeshmetric.metrics.DirectedDistances`; ``forward`` is differentiable w.r.t. the simplified
@@ -86,7 +101,7 @@ def mesh_surface_distances(
     if detach_reference:
         refs = [m.detach() for m in refs]
     points = [s.points for s in sources]
-    forward = _to_surface(points, refs, surface_samples, seed, backend)
+    forward = _to_surface(points, refs, surface_samples, seed, backend, indexes)
     reverse = reverse_lengths = None
     if two_sided:
         simp_meshes = require_meshes(sources, "simplified", "two_sided=True measures reference → simplified surface")

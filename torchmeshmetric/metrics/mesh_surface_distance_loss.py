@@ -6,6 +6,7 @@ from typing import Any
 
 from torch import Tensor, nn
 
+from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.metrics._inputs import check_surface_samples
 from torchmeshmetric.metrics._reduction import check_loss_args, reduce_directed
 from torchmeshmetric.metrics.mesh_surface_distance import mesh_surface_distances
@@ -24,6 +25,7 @@ def mesh_surface_distance_loss(
     surface_samples: int | None = None,
     seed: int = 0,
     backend: str = "auto",
+    indexes: IndexCache | None = None,
 ) -> Tensor:
     r"""Loss on the mesh surface distances ``d`` of :func:`~torchmeshmetric.metrics.mesh_surface_distances`.
 
@@ -48,6 +50,8 @@ def mesh_surface_distance_loss(
         surface_samples: ``None`` (exact surface) or the paper's sampled-surface mode with ``N`` samples.
         seed: seed of the surface sampling.
         backend: kernel backend (``"auto"``, ``"bruteforce"``, ...).
+        indexes: an :class:`~torchmeshmetric.IndexCache` for the references (see :class:`MeshSurfaceDistanceLoss`,
+            which keeps one).
 
     Returns:
         A 0-dim loss, or ``(P [+ R],)`` per-point terms for ``reduction="none"``.
@@ -74,12 +78,16 @@ def mesh_surface_distance_loss(
         seed=seed,
         detach_reference=detach_reference,
         backend=backend,
+        indexes=indexes,
     )
     return reduce_directed(r, power, reduction)
 
 
 class MeshSurfaceDistanceLoss(nn.Module):
     """``nn.Module`` form of :func:`mesh_surface_distance_loss` (arguments checked at construction).
+
+    Keeps an :class:`~torchmeshmetric.IndexCache` of the reference meshes: training or validating every epoch on
+    the same references builds each reference's index once (found again by content, any tensor object).
 
     Example:
         >>> import torch, trimesh
@@ -109,6 +117,7 @@ class MeshSurfaceDistanceLoss(nn.Module):
         self.surface_samples = surface_samples
         self.seed = seed
         self.backend = backend
+        self.indexes = IndexCache()
 
     def forward(self, simplified: Any, reference: Any) -> Tensor:
         """Loss of ``simplified`` against ``reference`` (see :func:`mesh_surface_distance_loss`)."""
@@ -122,4 +131,5 @@ class MeshSurfaceDistanceLoss(nn.Module):
             surface_samples=self.surface_samples,
             seed=self.seed,
             backend=self.backend,
+            indexes=self.indexes,
         )

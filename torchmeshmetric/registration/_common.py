@@ -36,19 +36,32 @@ def referenced_mask(mesh: Mesh) -> Tensor:
     return used
 
 
+def _unit(x: Tensor) -> Tensor:
+    norm = x.norm(dim=-1, keepdim=True)
+    return torch.where(norm > 0, x / torch.where(norm > 0, norm, torch.ones_like(norm)), torch.zeros_like(x))
+
+
+def _face_cross(verts: Tensor, faces: Tensor) -> Tensor:
+    tri = verts[faces]
+    return torch.linalg.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], dim=-1)  # 2 * area * unit normal
+
+
+def _vertex_sum(verts: Tensor, faces: Tensor, n: Tensor) -> Tensor:
+    acc = torch.zeros_like(verts).index_add(0, faces[:, 0], n).index_add(0, faces[:, 1], n)
+    return acc.index_add(0, faces[:, 2], n)
+
+
 def face_unit_normals(verts: Tensor, faces: Tensor) -> Tensor:
     """``(F, 3)`` unit face normals; exactly zero for zero-area faces (they have no normal)."""
-    tri = verts[faces]
-    n = torch.linalg.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], dim=-1)
-    norm = n.norm(dim=-1, keepdim=True)
-    return torch.where(norm > 0, n / torch.where(norm > 0, norm, torch.ones_like(norm)), torch.zeros_like(n))
+    return _unit(_face_cross(verts, faces))
 
 
 def vertex_unit_normals(verts: Tensor, faces: Tensor) -> Tensor:
     """``(V, 3)`` area-weighted vertex normals, unit length; zero where no face of positive area touches."""
-    tri = verts[faces]
-    n = torch.linalg.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], dim=-1)  # 2 * area * unit normal
-    acc = torch.zeros_like(verts).index_add(0, faces[:, 0], n).index_add(0, faces[:, 1], n)
-    acc = acc.index_add(0, faces[:, 2], n)
-    norm = acc.norm(dim=-1, keepdim=True)
-    return torch.where(norm > 0, acc / torch.where(norm > 0, norm, torch.ones_like(norm)), torch.zeros_like(acc))
+    return _unit(_vertex_sum(verts, faces, _face_cross(verts, faces)))
+
+
+def unit_normals(verts: Tensor, faces: Tensor) -> tuple[Tensor, Tensor]:
+    """``(face_unit_normals, vertex_unit_normals)`` from one pass of face cross products (same values)."""
+    n = _face_cross(verts, faces)
+    return _unit(n), _unit(_vertex_sum(verts, faces, n))

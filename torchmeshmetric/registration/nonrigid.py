@@ -10,7 +10,7 @@ The model (:class:`~torchmeshmetric.registration.DeformationGraph`) and the ener
    graph's rotations and translations; correspondences (source vertices → target faces, target samples → deformed
    source faces) are refreshed every ``correspondence_every`` steps, not every step; the stage ends after
    ``max_steps``, when the loss changes by less than ``tolerance`` (relative) between two refreshes, or at a
-   stationary point (every gradient component below ``sqrt(eps)`` of the dtype, ``_stationary``); each
+   stationary point (every gradient component below ``sqrt(eps)`` of the dtype); each
    stage then keeps its **best iterate**: the parameters of the lowest loss measured right after a correspondence
    refresh (the stage's last iterate gets one more refresh to compete). Adam moves every parameter by about the
    learning rate whatever the gradient's size, so without this an exact pair drifted by 1e-3 of the diagonal
@@ -30,23 +30,27 @@ from typing import Any, NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric.kernels.point_triangle import point_mesh_distance
+from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY
+from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.kernels.sampling import sample_surface
 from torchmeshmetric.registration._common import (
     face_unit_normals,
     referenced_mask,
+    unit_normals,
     validate_pair,
-    vertex_unit_normals,
 )
 from torchmeshmetric.registration.deformation_graph import DeformationGraph
 from torchmeshmetric.registration.energies import (
     Correspondences,
+    EnergyTerms,
+    deformed_vertices,
     embedded_deformation_regularizer,
     find_correspondences,
+    fused_energy,
     surface_term,
 )
 from torchmeshmetric.registration.rigid import RigidRegistration, register_rigid
-from torchmeshmetric.structures import Mesh, MeshLike
+from torchmeshmetric.structures import Mesh, MeshLike, PackedMeshes
 
 __all__ = ["DEFAULT_SCHEDULE", "NonRigidRegistration", "RegistrationWarning", "Stage", "register_nonrigid"]
 
@@ -123,20 +127,23 @@ def _identity_rigid(verts: Tensor) -> RigidRegistration:
     )  # fmt: skip
 
 
-def _stationary(graph: DeformationGraph, tol: float) -> bool:
-    """Whether every gradient component of the graph's parameters is at most ``tol`` (a stationary point).
-
-    Adam's step is ``lr * m / (sqrt(v) + eps)``: about ``lr`` in every coordinate whatever the gradient's size, so
-    at a stationary point (e.g. an already exact pair, whose gradient is rounding noise) it moves the parameters by
-    ``lr`` instead of not at all. The loop stops a stage there. ``tol = sqrt(eps)`` of the dtype (1.5e-8 in
-    float64): the loss is in units of the node spacing squared, so such a gradient means residuals of ~1e-10 of
-    the diagonal.
-    """
-    return all(p.grad is None or float(p.grad.abs().max()) <= tol for p in graph.parameters())
+def _parameters(graph: DeformationGraph) -> dict[str, Tensor]:
+    """A copy of the graph's parameters (rotations, translations): the buffers never change."""
+    return {name: p.detach().clone() for name, p in graph.named_parameters()}
 
 
-def _residual(points: Tensor, verts: Tensor, faces: Tensor) -> Tensor:
-    return point_mesh_distance(points, verts, faces).dists
+def _load_parameters(graph: DeformationGraph, state: dict[str, Tensor]) -> None:
+    with torch.no_grad():
+        for name, p in graph.named_parameters():
+            p.copy_(state[name])
+
+
+def _lengths(x: Tensor) -> Tensor:
+    return torch.tensor([x.shape[0]], device=x.device)
+
+
+# Adam's step on the CPU as one fused kernel per parameter list (same update rule; fewer small ops per step).
+_ADAM_OPTIONS: dict[str, Any] = {"foreach": False, "fused": True}
 
 
 def register_nonrigid(
@@ -160,6 +167,8 @@ def register_nonrigid(
     rigid_options: dict[str, Any] | None = None,
     generator: torch.Generator | None = None,
     warn: bool = True,
+    backend: str = "auto",
+    num_threads: int | None = 1,
 ) -> NonRigidRegistration:
     """Register ``source`` (frame k-1) non-rigidly onto ``target`` (frame k), keeping the source's topology.
 
@@ -189,6 +198,12 @@ def register_nonrigid(
         rigid_options: keyword arguments for :func:`register_rigid` (default: point-to-plane).
         generator: optional CPU ``torch.Generator`` for sampling (reproducible runs).
         warn: emit a :class:`RegistrationWarning` when the registration fails.
+        backend: selection backend of the closest-face searches (see :func:`~torchmeshmetric.point_mesh_distance`).
+        num_threads: torch intra-op threads while registering (restored afterwards; process-wide, like
+            ``torch.set_num_threads``). Default 1: the loop is ~1 ms steps of small operations whose parallel regions
+            cost more than they save, and on a loaded machine wait for descheduled threads (docs/registration.md:
+            0.96 s of CPU on one thread; 47 s wall with two threads on an oversubscribed machine). ``None``: keep
+            torch's setting.
 
     Returns:
         :class:`NonRigidRegistration`.
@@ -213,6 +228,48 @@ def register_nonrigid(
     if num_points < 1 or num_target_samples < 0:
         raise ValueError(f"num_points/num_target_samples: expected positive counts, found {num_points}, "
                          f"{num_target_samples}")  # fmt: skip
+    if num_threads is not None and num_threads < 1:
+        raise ValueError(f"num_threads: expected a positive int or None, found {num_threads}")
+    previous_threads = torch.get_num_threads()
+    if num_threads is not None and num_threads != previous_threads:
+        torch.set_num_threads(num_threads)
+    try:
+        return _register_nonrigid(
+            source, target, rigid_init=rigid_init, device=device, node_spacing=node_spacing,
+            num_neighbors=num_neighbors, num_points=num_points, num_target_samples=num_target_samples,
+            correspondence_every=correspondence_every, schedule=schedule, plane_weight=plane_weight,
+            point_weight=point_weight, reverse_weight=reverse_weight, tolerance=tolerance,
+            max_outlier_fraction=max_outlier_fraction, outlier_distance=outlier_distance, rigid_options=rigid_options,
+            generator=generator, warn=warn, backend=backend,
+        )  # fmt: skip
+    finally:
+        if torch.get_num_threads() != previous_threads:
+            torch.set_num_threads(previous_threads)
+
+
+def _register_nonrigid(
+    source: MeshLike,
+    target: MeshLike,
+    *,
+    rigid_init: bool,
+    device: torch.device | str | None,
+    node_spacing: float,
+    num_neighbors: int,
+    num_points: int,
+    num_target_samples: int,
+    correspondence_every: int,
+    schedule: Sequence[Stage],
+    plane_weight: float,
+    point_weight: float,
+    reverse_weight: float,
+    tolerance: float,
+    max_outlier_fraction: float,
+    outlier_distance: float,
+    rigid_options: dict[str, Any] | None,
+    generator: torch.Generator | None,
+    warn: bool,
+    backend: str,
+) -> NonRigidRegistration:
     t_total = time.perf_counter()
     timings = {"rigid": 0.0, "graph": 0.0, "correspondences": 0.0, "optimisation": 0.0, "residual": 0.0}
     src, tgt = validate_pair(source, target)
@@ -254,16 +311,26 @@ def register_nonrigid(
 
     history: list[float] = []
     reason = ""
+    # Adam's step is lr * m / (sqrt(v) + eps): about lr in every coordinate whatever the gradient's size, so at a
+    # stationary point (e.g. an exact pair, whose gradient is rounding noise) it would move the parameters by lr
+    # instead of not at all; the loop stops a stage where every gradient component is below sqrt(eps) of the dtype
+    # (the loss is in units of the node spacing squared: residuals of ~1e-10 of the diagonal).
     stationary_tol = math.sqrt(torch.finfo(dtype).eps)
-    best_state = {k: v.detach().clone() for k, v in graph.state_dict().items()}
+    best_state = _parameters(graph)
+    # Built once: the target's index (queried at every refresh) and face normals; the deformed source's index is
+    # refitted to the deformed vertices at every refresh (same faces), never rebuilt.
+    target_index = MeshIndex._trusted(PackedMeshes(tv, tf, _lengths(tv), _lengths(tf)), backend, DEFAULT_MAX_MEMORY)
+    target_normals = face_unit_normals(tv, tf)
+    source_index: MeshIndex | None = None
     t_opt = time.perf_counter()
     first_loss: float | None = None
     for stage in schedule:
-        opt = torch.optim.Adam(graph.parameters(), lr=stage.lr)
+        opt = torch.optim.Adam(graph.parameters(), lr=stage.lr, **_ADAM_OPTIONS)
         prev_window: float | None = None
         corr_f: Correspondences | None = None
         corr_r: Correspondences | None = None
         corr_r_loc: Correspondences | None = None
+        terms: EnergyTerms | None = None
         # Best iterate of the stage, judged on the loss right after a correspondence refresh (a function of the
         # parameters alone, so comparable across refreshes); the stage's last iterate gets one more refresh.
         stage_best = math.inf
@@ -275,13 +342,20 @@ def register_nonrigid(
             if refresh:
                 t0 = time.perf_counter()
                 with torch.no_grad():
-                    dv = graph()
-                    vn = vertex_unit_normals(dv, sf)
+                    dv = deformed_vertices(graph)
+                    fn, vn = unit_normals(dv, sf)
                     corr_f = find_correspondences(dv[surf], vn[surf], tv, tf, max_distance=stage.max_distance,
-                                                  max_normal_angle=stage.max_normal_angle)  # fmt: skip
+                                                  max_normal_angle=stage.max_normal_angle, index=target_index,
+                                                  face_normals=target_normals)  # fmt: skip
                     if num_target_samples > 0:
+                        if source_index is None:
+                            packed = PackedMeshes(dv, sf, _lengths(dv), _lengths(sf))
+                            source_index = MeshIndex._trusted(packed, backend, DEFAULT_MAX_MEMORY)
+                        else:
+                            source_index._refit(dv)
                         corr_r = find_correspondences(tsamp, tsamp_n, dv, sf, max_distance=stage.max_distance,
-                                                      max_normal_angle=stage.max_normal_angle)  # fmt: skip
+                                                      max_normal_angle=stage.max_normal_angle,
+                                                      index=source_index, face_normals=fn)  # fmt: skip
                 timings["correspondences"] += time.perf_counter() - t0
                 # Only the data points and the vertices of the faces matched by target samples enter the data
                 # terms: deform just those (forward and backward then scale with them, not with all vertices).
@@ -293,21 +367,32 @@ def register_nonrigid(
                     if corr_r is not None
                     else None
                 )
-            assert corr_f is not None
+                terms = EnergyTerms(
+                    graph.verts[need], graph.vert_nodes[need], graph.vert_weights[need], surf_loc,
+                    tv[tf[corr_f.face_idx]], target_normals[corr_f.face_idx], corr_f.weights,
+                    tsamp if corr_r is not None else tv[:0], faces_loc,
+                    corr_r.weights if corr_r is not None else tv.new_zeros(0),
+                )  # fmt: skip
+            assert corr_f is not None and terms is not None
             opt.zero_grad(set_to_none=True)
             with torch.set_grad_enabled(not finishing):
-                dsub = graph.deform_vertices(need)
-                loss = surface_term(dsub[surf_loc], tv, tf, corr_f, sigma=stage.robust_scale,
-                                    plane_weight=plane_weight, point_weight=point_weight)  # fmt: skip
-                if corr_r_loc is not None and reverse_weight:
-                    loss = loss + reverse_weight * surface_term(
-                        tsamp, dsub, faces_loc, corr_r_loc, sigma=stage.robust_scale, plane_weight=0.0,
-                        point_weight=1.0,
-                    )  # fmt: skip
                 # Data terms in units of the node spacing, so a regularisation weight of 1 trades an edge residual
                 # of one spacing against a data residual of one spacing.
-                loss = loss / (node_spacing * node_spacing)
-                loss = loss + stage.regularization * embedded_deformation_regularizer(graph)
+                loss = fused_energy(graph, terms, sigma=stage.robust_scale, plane_weight=plane_weight,
+                                    point_weight=point_weight, reverse_weight=reverse_weight,
+                                    data_scale=1.0 / (node_spacing * node_spacing),
+                                    regularization=stage.regularization)  # fmt: skip
+                if loss is None:  # no C++ extension for this device: the same energy in torch ops
+                    dsub = graph.deform_vertices(need)
+                    loss = surface_term(dsub[surf_loc], tv, tf, corr_f, sigma=stage.robust_scale,
+                                        plane_weight=plane_weight, point_weight=point_weight)  # fmt: skip
+                    if corr_r_loc is not None and reverse_weight:
+                        loss = loss + reverse_weight * surface_term(
+                            tsamp, dsub, faces_loc, corr_r_loc, sigma=stage.robust_scale, plane_weight=0.0,
+                            point_weight=1.0,
+                        )  # fmt: skip
+                    loss = loss / (node_spacing * node_spacing)
+                    loss = loss + stage.regularization * embedded_deformation_regularizer(graph)
             value = float(loss.detach())
             if first_loss is None:
                 # The loss is in units of (node spacing)^2: a floor of 1 (a residual of one node spacing) keeps an
@@ -315,23 +400,24 @@ def register_nonrigid(
                 first_loss = max(value, 1.0)
             if not math.isfinite(value) or value > 1e6 * first_loss:
                 reason = f"diverged: loss became {value:.3g} (first loss {first_loss:.3g})"
-                graph.load_state_dict(best_state)
+                _load_parameters(graph, best_state)
                 break
             if refresh and value < stage_best:
                 stage_best = value
-                stage_best_state = {k: v.detach().clone() for k, v in graph.state_dict().items()}
+                stage_best_state = _parameters(graph)
             if finishing:
                 break
             history.append(value)
             loss.backward()
-            grads_ok = all(p.grad is None or bool(torch.isfinite(p.grad).all()) for p in graph.parameters())
-            if not grads_ok:
+            # One reduction for both checks: NaN propagates through max.
+            grad_max = float(torch.stack([p.grad.abs().max() for p in graph.parameters() if p.grad is not None]).max())
+            if not math.isfinite(grad_max):
                 reason = "diverged: non-finite gradient"
-                graph.load_state_dict(best_state)
+                _load_parameters(graph, best_state)
                 break
             if refresh:
-                best_state = {k: v.detach().clone() for k, v in graph.state_dict().items()}
-            if _stationary(graph, stationary_tol):
+                best_state = _parameters(graph)
+            if grad_max <= stationary_tol:
                 finishing = True  # the gradient is rounding noise: Adam would turn it into lr-sized steps
                 continue
             opt.step()
@@ -341,22 +427,25 @@ def register_nonrigid(
                 prev_window = value
         if reason:
             break
-        graph.load_state_dict(stage_best_state)
+        _load_parameters(graph, stage_best_state)
         best_state = stage_best_state
     timings["optimisation"] = time.perf_counter() - t_opt - timings["correspondences"]
 
     # 4. Results, residuals and plausibility.
     t0 = time.perf_counter()
     with torch.no_grad():
-        dv = graph()
+        dv = deformed_vertices(graph)
         verts = dv * diag + center
-        residual_n = _residual(dv, tv, tf)
+        residual_n = target_index._point_mesh_distance(dv, _lengths(dv)).dists
         residual = residual_n * diag
         used = referenced_mask(Mesh(sv, sf, validate=False))
         frac_src = float((residual_n[used] > outlier_distance).to(dtype).mean())
         frac_tgt = 0.0
-        if num_target_samples > 0:
-            frac_tgt = float((_residual(tsamp, dv, sf) > outlier_distance).to(dtype).mean())
+        if num_target_samples > 0 and source_index is not None:
+            source_index._refit(dv)
+            frac_tgt = float(
+                (source_index._point_mesh_distance(tsamp, _lengths(tsamp)).dists > outlier_distance).to(dtype).mean()
+            )
     timings["residual"] = time.perf_counter() - t0
     if not reason and (frac_src > max_outlier_fraction or frac_tgt > max_outlier_fraction):
         reason = (
@@ -368,7 +457,7 @@ def register_nonrigid(
         reason = "diverged: non-finite loss"
     converged = not reason
     if not converged and warn:
-        warnings.warn(f"register_nonrigid: {reason}", RegistrationWarning, stacklevel=2)
+        warnings.warn(f"register_nonrigid: {reason}", RegistrationWarning, stacklevel=3)
     timings["total"] = time.perf_counter() - t_total
     return NonRigidRegistration(
         verts=verts,

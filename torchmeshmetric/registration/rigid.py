@@ -18,7 +18,7 @@ from kornia.geometry.conversions import axis_angle_to_rotation_matrix
 from torch import Tensor
 
 from torchmeshmetric._checks import EmptyInputError, ShapeError, check_finite, check_float, check_shape
-from torchmeshmetric.kernels.point_triangle import point_mesh_distance
+from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.registration._common import face_unit_normals, referenced_mask, validate_pair
 from torchmeshmetric.structures import MeshLike
 
@@ -263,9 +263,10 @@ def register_rigid(
     it = 0
     w = torch.ones(pts.shape[0], dtype=dtype, device=device)
     dists = torch.zeros(pts.shape[0], dtype=dtype, device=device)
+    index = MeshIndex(tgt.verts, tgt.faces, tree="morton")  # built once for all iterations (~15 queries)
     for it in range(1, max_iterations + 1):  # noqa: B007 - the last value is reported
         cur = s * pts @ R.T + t
-        res = point_mesh_distance(cur, tgt.verts, tgt.faces)
+        res = index.point_mesh_distance(cur)
         dists = res.dists
         w = _robust_trimmed_weights(dists, trim, sigma2)
         if point_to_plane:
@@ -289,7 +290,7 @@ def register_rigid(
             converged = True
             break
     cur = s * pts @ R.T + t
-    res = point_mesh_distance(cur, tgt.verts, tgt.faces)
+    res = index.point_mesh_distance(cur)
     w = _robust_trimmed_weights(res.dists, trim, float("inf"))
     keep = w > 0
     rmse = (res.dists[keep] ** 2).mean().sqrt()

@@ -18,7 +18,8 @@ from types import ModuleType
 
 __all__ = ["bvh_ready", "load_bvh"]
 
-_SOURCE = Path(__file__).with_name("bvh.cpp")
+_SOURCES = [Path(__file__).with_name(n) for n in ("bvh.cpp", "deformation_energy.cpp")]
+_HEADERS = [Path(__file__).with_name("triangle.h")]
 _LOCK = threading.Lock()
 _STATE: dict[str, ModuleType | None] = {}
 
@@ -51,7 +52,7 @@ def _import_built(name: str) -> ModuleType | None:
 @functools.cache
 def _module_name() -> str:
     # The source hash in the name makes an edited source rebuild instead of reusing a stale cache.
-    digest = hashlib.sha1(_SOURCE.read_bytes()).hexdigest()[:10]
+    digest = hashlib.sha1(b"".join(p.read_bytes() for p in _SOURCES + _HEADERS)).hexdigest()[:10]
     return f"torchmeshmetric_bvh_{digest}"
 
 
@@ -89,7 +90,7 @@ def load_bvh() -> ModuleType | None:
                 return module
             module = load(
                 name=name,
-                sources=[str(_SOURCE)],
+                sources=[str(p) for p in _SOURCES],
                 extra_cflags=_CFLAGS,
                 extra_ldflags=["-fopenmp"],
                 verbose=False,

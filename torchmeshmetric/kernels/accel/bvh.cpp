@@ -21,10 +21,23 @@
 #include <atomic>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 #include <vector>
 
+#include "triangle.h"
+
 namespace {
+
+using tmm::clamp01;
+using tmm::closest_on_face;
+using tmm::dot3;
+using tmm::face_data;
+using tmm::FaceData;
+using tmm::region_candidates;
+using tmm::RegionCandidates;
+using tmm::safe_div;
+using tmm::tri_sq_dist;
 
 constexpr int LEAF_FACES = 4;
 constexpr int LEAF_POINTS = 32;
@@ -219,6 +232,146 @@ std::vector<int64_t> query_order(const T* pts, int64_t n) {
   return idx;
 }
 
+// Binned surface-area-heuristic build (for hierarchies that are kept and queried many times: a better tree than the
+// Morton split for a few times its build cost). Node over the primitives idx[begin, end): SAH_BINS bins of the
+// centroids along each axis, the split of least (left half-area x count + right half-area x count); object median
+// when all centroids coincide or below SAH_MAX_DEPTH levels (bounds the depth, hence the traversal stack).
+constexpr int SAH_BINS = 16;
+constexpr int SAH_MAX_DEPTH = 48;
+
+template <typename T>
+inline T half_area(const T* lo, const T* hi) {
+  const T dx = hi[0] - lo[0], dy = hi[1] - lo[1], dz = hi[2] - lo[2];
+  return dx * dy + dy * dz + dz * dx;
+}
+
+template <typename T>
+int64_t build_sah_node(std::vector<Node<T>>& nodes, int64_t* idx, int64_t begin, int64_t end, const T* box_lo,
+                       const T* box_hi, const T* cen, int leaf, int depth) {
+  const int64_t node = static_cast<int64_t>(nodes.size());
+  nodes.emplace_back();
+  const int64_t n = end - begin;
+  constexpr T inf = std::numeric_limits<T>::infinity();
+  T lo[3] = {inf, inf, inf}, hi[3] = {-inf, -inf, -inf}, clo[3] = {inf, inf, inf}, chi[3] = {-inf, -inf, -inf};
+  for (int64_t i = begin; i < end; ++i) {
+    const int64_t f = idx[i];
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = std::min(lo[k], box_lo[3 * f + k]);
+      hi[k] = std::max(hi[k], box_hi[3 * f + k]);
+      clo[k] = std::min(clo[k], cen[3 * f + k]);
+      chi[k] = std::max(chi[k], cen[3 * f + k]);
+    }
+  }
+  if (n <= leaf) {
+    Node<T>& nd = nodes[node];
+    nd.start = begin;
+    nd.count = n;
+    nd.right = -1;
+    for (int k = 0; k < 3; ++k) {
+      nd.lo[k] = lo[k];
+      nd.hi[k] = hi[k];
+    }
+    return node;
+  }
+  int best_axis = -1, best_split = 0;
+  T best_cost = inf;
+  if (depth < SAH_MAX_DEPTH) {
+    for (int axis = 0; axis < 3; ++axis) {
+      const T ext = chi[axis] - clo[axis];
+      const T scale = T(SAH_BINS) / ext;
+      if (!(ext > 0) || !std::isfinite(scale)) continue;  // flat axis (or so thin that the bin scale overflows)
+      int64_t count[SAH_BINS] = {0};
+      T blo[SAH_BINS][3], bhi[SAH_BINS][3];
+      for (int b = 0; b < SAH_BINS; ++b)
+        for (int k = 0; k < 3; ++k) {
+          blo[b][k] = inf;
+          bhi[b][k] = -inf;
+        }
+      for (int64_t i = begin; i < end; ++i) {
+        const int64_t f = idx[i];
+        const int b = std::min(SAH_BINS - 1, static_cast<int>((cen[3 * f + axis] - clo[axis]) * scale));
+        ++count[b];
+        for (int k = 0; k < 3; ++k) {
+          blo[b][k] = std::min(blo[b][k], box_lo[3 * f + k]);
+          bhi[b][k] = std::max(bhi[b][k], box_hi[3 * f + k]);
+        }
+      }
+      T right_area[SAH_BINS];
+      int64_t right_count[SAH_BINS];
+      T rlo[3] = {inf, inf, inf}, rhi[3] = {-inf, -inf, -inf};
+      int64_t rc = 0;
+      for (int b = SAH_BINS - 1; b > 0; --b) {
+        rc += count[b];
+        for (int k = 0; k < 3; ++k) {
+          rlo[k] = std::min(rlo[k], blo[b][k]);
+          rhi[k] = std::max(rhi[k], bhi[b][k]);
+        }
+        right_area[b] = rc > 0 ? half_area(rlo, rhi) : T(0);
+        right_count[b] = rc;
+      }
+      T llo[3] = {inf, inf, inf}, lhi[3] = {-inf, -inf, -inf};
+      int64_t lc = 0;
+      for (int b = 0; b < SAH_BINS - 1; ++b) {  // split between bin b and b + 1
+        lc += count[b];
+        for (int k = 0; k < 3; ++k) {
+          llo[k] = std::min(llo[k], blo[b][k]);
+          lhi[k] = std::max(lhi[k], bhi[b][k]);
+        }
+        if (lc == 0 || right_count[b + 1] == 0) continue;
+        const T cost = half_area(llo, lhi) * T(lc) + right_area[b + 1] * T(right_count[b + 1]);
+        if (cost < best_cost) {
+          best_cost = cost;
+          best_axis = axis;
+          best_split = b;
+        }
+      }
+    }
+  }
+  int64_t mid = begin + n / 2;
+  if (best_axis >= 0) {
+    const T scale = T(SAH_BINS) / (chi[best_axis] - clo[best_axis]);
+    const T c0 = clo[best_axis];
+    const int split = best_split;
+    const int axis = best_axis;
+    mid = std::partition(idx + begin, idx + end,
+                         [&](int64_t f) {
+                           return std::min(SAH_BINS - 1, static_cast<int>((cen[3 * f + axis] - c0) * scale)) <= split;
+                         }) -
+          idx;
+    if (mid == begin || mid == end) mid = begin + n / 2;
+  }
+  build_sah_node(nodes, idx, begin, mid, box_lo, box_hi, cen, leaf, depth + 1);
+  const int64_t right = build_sah_node(nodes, idx, mid, end, box_lo, box_hi, cen, leaf, depth + 1);
+  Node<T>& nd = nodes[node];
+  const Node<T>& l = nodes[node + 1];
+  const Node<T>& r = nodes[right];
+  nd.start = begin;
+  nd.count = n;
+  nd.right = right;
+  for (int k = 0; k < 3; ++k) {
+    nd.lo[k] = std::min(l.lo[k], r.lo[k]);
+    nd.hi[k] = std::max(l.hi[k], r.hi[k]);
+  }
+  return node;
+}
+
+// One SAH hierarchy per item; fills nodes, roots and perm like build_forest.
+template <typename T>
+void build_forest_sah(const T* box_lo, const T* box_hi, const T* cen, const int64_t* offsets, int64_t num_items,
+                      int leaf, std::vector<Node<T>>& nodes, std::vector<int64_t>& roots, std::vector<int64_t>& perm) {
+  const int64_t n = offsets[num_items];
+  perm.resize(n);
+  for (int64_t i = 0; i < n; ++i) perm[i] = i;
+  roots.assign(num_items, -1);
+  nodes.clear();
+  nodes.reserve(2 * (n / leaf + num_items) + 1);
+  for (int64_t b = 0; b < num_items; ++b) {
+    const int64_t s = offsets[b], e = offsets[b + 1];
+    if (e == s) continue;
+    roots[b] = build_sah_node(nodes, perm.data(), s, e, box_lo, box_hi, cen, leaf, 0);
+  }
+}
+
 // Builds one hierarchy per item (items: contiguous ranges [offsets[b], offsets[b+1]) of the primitives).
 // Primitives are ordered along a Morton curve of their centroids within the item (LBVH-style ordering, Karras
 // 2012), then split at the object median of that order. Fills the nodes (all items), the per-item roots (-1 for
@@ -282,100 +435,6 @@ inline T prune_bound(T best_sq, T slack_abs) {
   const T rel = T(64) * std::numeric_limits<T>::epsilon();
   const T d = std::sqrt(best_sq) * (T(1) + rel) + slack_abs;
   return d * d;
-}
-
-template <typename T>
-inline T dot3(const T* x, const T* y) {
-  return x[0] * y[0] + x[1] * y[1] + x[2] * y[2];
-}
-
-template <typename T>
-inline T safe_div(T num, T den) {
-  return den > 0 ? num / den : T(0);
-}
-
-template <typename T>
-inline T clamp01(T x) {
-  return std::min(std::max(x, T(0)), T(1));
-}
-
-// Per-face data in leaf order: a, b, ab, ac, bc, n = ab x ac, nn = n.n (same operations as the torch kernel).
-template <typename T>
-struct FaceData {
-  T a[3], b[3], ab[3], ac[3], bc[3], n[3];
-  T nn;
-};
-
-// FaceData of the triangle (a, b, c), with the operations of the torch kernel.
-template <typename T>
-inline FaceData<T> face_data(const T* a, const T* b, const T* c) {
-  FaceData<T> d;
-  for (int k = 0; k < 3; ++k) {
-    d.a[k] = a[k];
-    d.b[k] = b[k];
-    d.ab[k] = b[k] - a[k];
-    d.ac[k] = c[k] - a[k];
-    d.bc[k] = c[k] - b[k];
-  }
-  d.n[0] = d.ab[1] * d.ac[2] - d.ab[2] * d.ac[1];
-  d.n[1] = d.ab[2] * d.ac[0] - d.ab[0] * d.ac[2];
-  d.n[2] = d.ab[0] * d.ac[1] - d.ab[1] * d.ac[0];
-  d.nn = dot3(d.n, d.n);
-  return d;
-}
-
-// point_triangle._region_candidates for one point and one face: the clamped edge parameters, the face
-// barycentrics v, w, and the squared distances [edge AB, edge AC, edge BC, face] (face: +inf outside).
-template <typename T>
-struct RegionCandidates {
-  T t_ab, t_ac, t_bc, v, w;
-  T sq[4];
-};
-
-template <typename T>
-inline RegionCandidates<T> region_candidates(const FaceData<T>& f, const T* p) {
-  RegionCandidates<T> r;
-  T ap[3], bp[3];
-  for (int k = 0; k < 3; ++k) {
-    ap[k] = p[k] - f.a[k];
-    bp[k] = p[k] - f.b[k];
-  }
-  r.t_ab = clamp01(safe_div(dot3(ap, f.ab), dot3(f.ab, f.ab)));
-  r.t_ac = clamp01(safe_div(dot3(ap, f.ac), dot3(f.ac, f.ac)));
-  r.t_bc = clamp01(safe_div(dot3(bp, f.bc), dot3(f.bc, f.bc)));
-  T d_ab[3], d_ac[3], d_bc[3];
-  for (int k = 0; k < 3; ++k) {
-    d_ab[k] = ap[k] - r.t_ab * f.ab[k];
-    d_ac[k] = ap[k] - r.t_ac * f.ac[k];
-    d_bc[k] = bp[k] - r.t_bc * f.bc[k];
-  }
-  r.sq[0] = dot3(d_ab, d_ab);
-  r.sq[1] = dot3(d_ac, d_ac);
-  r.sq[2] = dot3(d_bc, d_bc);
-  r.sq[3] = std::numeric_limits<T>::infinity();
-  r.v = r.w = T(0);  // safe_div's value for a zero-area face (nn = 0), whose face candidate is never inside
-  if (f.nn > 0) {
-    // cross(ap, ac) . n and cross(ab, ap) . n
-    const T c1[3] = {ap[1] * f.ac[2] - ap[2] * f.ac[1], ap[2] * f.ac[0] - ap[0] * f.ac[2],
-                     ap[0] * f.ac[1] - ap[1] * f.ac[0]};
-    const T c2[3] = {f.ab[1] * ap[2] - f.ab[2] * ap[1], f.ab[2] * ap[0] - f.ab[0] * ap[2],
-                     f.ab[0] * ap[1] - f.ab[1] * ap[0]};
-    r.v = dot3(c1, f.n) / f.nn;
-    r.w = dot3(c2, f.n) / f.nn;
-    if (r.v >= 0 && r.w >= 0 && r.v + r.w <= 1) {
-      T d_f[3];
-      for (int k = 0; k < 3; ++k) d_f[k] = (ap[k] - r.v * f.ab[k]) - r.w * f.ac[k];
-      r.sq[3] = dot3(d_f, d_f);
-    }
-  }
-  return r;
-}
-
-// Squared distance from p to a triangle, mirroring point_triangle._region_candidates(...)[-1].amin(-1).
-template <typename T>
-inline T tri_sq_dist(const FaceData<T>& f, const T* p) {
-  const RegionCandidates<T> r = region_candidates(f, p);
-  return std::min(std::min(std::min(r.sq[0], r.sq[1]), r.sq[2]), r.sq[3]);
 }
 
 // Per-item absolute pruning slack: 64 ulps of the item's largest |coordinate| (items are centred).
@@ -474,11 +533,18 @@ inline T soa_sq_dist(const T* xs, const T* ys, const T* zs, int64_t j, const T* 
 // Morton-adjacent query's answer: a tight starting bound, the answer is unchanged. `best_sq_out` receives the
 // squared distance of the answer when not null.
 template <typename T>
-inline int64_t nearest_query(const Node<T>* nd, int64_t root, const T* p, T slack, const SoaPoints<T>& pts,
+struct SoaView {
+  const T* x;
+  const T* y;
+  const T* z;
+};
+
+template <typename T>
+inline int64_t nearest_query(const Node<T>* nd, int64_t root, const T* p, T slack, const SoaView<T>& pts,
                              const int64_t* pm, int64_t seed, T* best_sq_out) {
-  const T* xs = pts.x.data();
-  const T* ys = pts.y.data();
-  const T* zs = pts.z.data();
+  const T* xs = pts.x;
+  const T* ys = pts.y;
+  const T* zs = pts.z;
   T best = std::numeric_limits<T>::infinity();
   int64_t best_slot = -1;
   if (seed >= 0) {
@@ -506,45 +572,139 @@ inline int64_t nearest_query(const Node<T>* nd, int64_t root, const T* p, T slac
   return best_slot;
 }
 
+// Kept hierarchies. A hierarchy lives in tensors so that Python owns it (MeshIndex): the nodes as the raw bytes of
+// a Node<T> array (torch allocations are 64-byte aligned), the per-item roots, the primitive of every sorted slot
+// (perm), the per-slot primitive data (FaceData<T> records, or the points one array per coordinate) and the
+// per-item pruning slack. `refit` rewrites bounds, slot data and slack for moved vertices: same tree, same order.
 template <typename T>
-torch::Tensor closest_faces_impl(const torch::Tensor& points, const torch::Tensor& point_batch,
-                                 const torch::Tensor& verts, const torch::Tensor& faces,
-                                 const torch::Tensor& face_offsets) {
-  const int64_t F = faces.size(0), P = points.size(0), B = face_offsets.size(0) - 1;
+torch::Tensor nodes_tensor(const std::vector<Node<T>>& nodes) {
+  auto t = torch::empty({static_cast<int64_t>(nodes.size() * sizeof(Node<T>))}, torch::dtype(torch::kUInt8));
+  std::memcpy(t.data_ptr<uint8_t>(), nodes.data(), nodes.size() * sizeof(Node<T>));
+  return t;
+}
+
+template <typename T>
+Node<T>* nodes_of(const torch::Tensor& t) {
+  return reinterpret_cast<Node<T>*>(t.data_ptr<uint8_t>());
+}
+
+template <typename T>
+torch::Tensor vec_tensor(const std::vector<T>& v, torch::ScalarType st) {
+  auto t = torch::empty({static_cast<int64_t>(v.size())}, torch::dtype(st));
+  std::memcpy(t.data_ptr(), v.data(), v.size() * sizeof(T));
+  return t;
+}
+
+// Face boxes (lo, hi) of face f.
+template <typename T>
+inline void face_box(const T* V, const int64_t* Fi, int64_t f, T* lo, T* hi) {
+  const T* a = V + 3 * Fi[3 * f];
+  const T* b = V + 3 * Fi[3 * f + 1];
+  const T* c = V + 3 * Fi[3 * f + 2];
+  for (int k = 0; k < 3; ++k) {
+    lo[k] = std::min(a[k], std::min(b[k], c[k]));
+    hi[k] = std::max(a[k], std::max(b[k], c[k]));
+  }
+}
+
+// Bottom-up bounds of a depth-first node array from per-slot boxes (children have larger indices than parents).
+template <typename T>
+void refit_nodes(Node<T>* nd, int64_t num_nodes, const T* slot_lo, const T* slot_hi) {
+  for (int64_t i = num_nodes - 1; i >= 0; --i) {
+    Node<T>& n = nd[i];
+    if (n.right < 0) {
+      for (int k = 0; k < 3; ++k) {
+        n.lo[k] = std::numeric_limits<T>::infinity();
+        n.hi[k] = -std::numeric_limits<T>::infinity();
+      }
+      for (int64_t s = n.start; s < n.start + n.count; ++s)
+        for (int k = 0; k < 3; ++k) {
+          n.lo[k] = std::min(n.lo[k], slot_lo[3 * s + k]);
+          n.hi[k] = std::max(n.hi[k], slot_hi[3 * s + k]);
+        }
+    } else {
+      const Node<T>& l = nd[i + 1];
+      const Node<T>& r = nd[n.right];
+      for (int k = 0; k < 3; ++k) {
+        n.lo[k] = std::min(l.lo[k], r.lo[k]);
+        n.hi[k] = std::max(l.hi[k], r.hi[k]);
+      }
+    }
+  }
+}
+
+// Face hierarchy of centred verts: {nodes, roots, perm, face data (F, 19) in slot order, slack (B,)}.
+template <typename T>
+std::vector<torch::Tensor> face_bvh_build_impl(const torch::Tensor& verts, const torch::Tensor& faces,
+                                               const torch::Tensor& face_offsets, bool sah) {
+  const int64_t F = faces.size(0), B = face_offsets.size(0) - 1;
   const T* V = verts.data_ptr<T>();
   const int64_t* Fi = faces.data_ptr<int64_t>();
   const int64_t* off = face_offsets.data_ptr<int64_t>();
   std::vector<T> lo(3 * F), hi(3 * F), cen(3 * F);
   at::parallel_for(0, F, GRAIN_LINEAR, [&](int64_t s, int64_t e) {
     for (int64_t f = s; f < e; ++f) {
-      const T* a = V + 3 * Fi[3 * f];
-      const T* b = V + 3 * Fi[3 * f + 1];
-      const T* c = V + 3 * Fi[3 * f + 2];
-      for (int k = 0; k < 3; ++k) {
-        lo[3 * f + k] = std::min(a[k], std::min(b[k], c[k]));
-        hi[3 * f + k] = std::max(a[k], std::max(b[k], c[k]));
-        cen[3 * f + k] = (lo[3 * f + k] + hi[3 * f + k]) * T(0.5);
-      }
+      face_box(V, Fi, f, &lo[3 * f], &hi[3 * f]);
+      for (int k = 0; k < 3; ++k) cen[3 * f + k] = (lo[3 * f + k] + hi[3 * f + k]) * T(0.5);
     }
   });
   std::vector<Node<T>> nodes;
   std::vector<int64_t> roots, perm;
-  build_forest<T>(lo.data(), hi.data(), cen.data(), off, B, LEAF_FACES, nodes, roots, perm);
-  std::vector<FaceData<T>> fd(F);
+  if (sah)
+    build_forest_sah<T>(lo.data(), hi.data(), cen.data(), off, B, LEAF_FACES, nodes, roots, perm);
+  else
+    build_forest<T>(lo.data(), hi.data(), cen.data(), off, B, LEAF_FACES, nodes, roots, perm);
+  auto fd_t = torch::empty({F, static_cast<int64_t>(sizeof(FaceData<T>) / sizeof(T))}, verts.options());
+  FaceData<T>* fd = reinterpret_cast<FaceData<T>*>(fd_t.data_ptr<T>());
   at::parallel_for(0, F, GRAIN_LINEAR, [&](int64_t s, int64_t e) {
     for (int64_t i = s; i < e; ++i) {
       const int64_t f = perm[i];
       fd[i] = face_data(V + 3 * Fi[3 * f], V + 3 * Fi[3 * f + 1], V + 3 * Fi[3 * f + 2]);
     }
   });
+  const std::vector<T> slack = item_slack<T>(lo.data(), hi.data(), off, B);
+  return {nodes_tensor(nodes), vec_tensor(roots, torch::kInt64), vec_tensor(perm, torch::kInt64), fd_t,
+          vec_tensor(slack, verts.scalar_type())};
+}
+
+// Moved vertices, same faces: rewrites the nodes' bounds, the face data and the slack in place.
+template <typename T>
+void face_bvh_refit_impl(const std::vector<torch::Tensor>& h, const torch::Tensor& verts, const torch::Tensor& faces,
+                         const torch::Tensor& face_offsets) {
+  const int64_t F = faces.size(0), B = face_offsets.size(0) - 1;
+  const T* V = verts.data_ptr<T>();
+  const int64_t* Fi = faces.data_ptr<int64_t>();
+  const int64_t* off = face_offsets.data_ptr<int64_t>();
+  const int64_t* perm = h[2].data_ptr<int64_t>();
+  FaceData<T>* fd = reinterpret_cast<FaceData<T>*>(h[3].data_ptr<T>());
+  std::vector<T> lo(3 * F), hi(3 * F);  // slot order
+  at::parallel_for(0, F, GRAIN_LINEAR, [&](int64_t s, int64_t e) {
+    for (int64_t i = s; i < e; ++i) {
+      const int64_t f = perm[i];
+      face_box(V, Fi, f, &lo[3 * i], &hi[3 * i]);
+      fd[i] = face_data(V + 3 * Fi[3 * f], V + 3 * Fi[3 * f + 1], V + 3 * Fi[3 * f + 2]);
+    }
+  });
+  refit_nodes(nodes_of<T>(h[0]), h[0].numel() / static_cast<int64_t>(sizeof(Node<T>)), lo.data(), hi.data());
+  const std::vector<T> slack = item_slack<T>(lo.data(), hi.data(), off, B);
+  std::memcpy(h[4].data_ptr<T>(), slack.data(), B * sizeof(T));
+}
+
+// Closest face per centred query point through a kept face hierarchy (lowest face index among equal squares).
+template <typename T>
+torch::Tensor face_bvh_query_impl(const std::vector<torch::Tensor>& h, const torch::Tensor& points,
+                                  const torch::Tensor& point_batch, const torch::Tensor& face_offsets) {
+  const int64_t P = points.size(0);
+  const Node<T>* nd = nodes_of<T>(h[0]);
+  const int64_t* roots = h[1].data_ptr<int64_t>();
+  const int64_t* pm = h[2].data_ptr<int64_t>();
+  const FaceData<T>* fdp = reinterpret_cast<const FaceData<T>*>(h[3].data_ptr<T>());
+  const T* slack = h[4].data_ptr<T>();
+  const int64_t* off = face_offsets.data_ptr<int64_t>();
   const T* Pp = points.data_ptr<T>();
   const int64_t* pb = point_batch.data_ptr<int64_t>();
-  std::vector<T> slack = item_slack<T>(lo.data(), hi.data(), off, B);
   auto out = torch::empty({P}, torch::dtype(torch::kInt64));
   int64_t* o = out.data_ptr<int64_t>();
-  const Node<T>* nd = nodes.data();
-  const FaceData<T>* fdp = fd.data();
-  const int64_t* pm = perm.data();
   const std::vector<int64_t> order = query_order<T>(Pp, P);
   const int64_t* ord = order.data();
   parallel_chunks(P, QUERY_CHUNK, [&](int64_t s, int64_t e) {
@@ -572,29 +732,68 @@ torch::Tensor closest_faces_impl(const torch::Tensor& points, const torch::Tenso
   return out;
 }
 
-// Nearest reference point per query point (ragged batch of centred inputs), see nearest_query.
+// Point hierarchy of centred reference points: {nodes, roots, perm, points (3, R + LEAF_POINTS) by coordinate in
+// slot order, slack (B,)}.
 template <typename T>
-torch::Tensor nearest_points_impl(const torch::Tensor& points, const torch::Tensor& point_batch,
-                                  const torch::Tensor& ref, const torch::Tensor& ref_offsets) {
-  const int64_t R = ref.size(0), P = points.size(0), B = ref_offsets.size(0) - 1;
+std::vector<torch::Tensor> point_bvh_build_impl(const torch::Tensor& ref, const torch::Tensor& ref_offsets) {
+  const int64_t R = ref.size(0), B = ref_offsets.size(0) - 1;
   const T* Rp = ref.data_ptr<T>();
   const int64_t* off = ref_offsets.data_ptr<int64_t>();
   std::vector<Node<T>> nodes;
   std::vector<int64_t> roots, perm;
   build_forest<T>(Rp, Rp, Rp, off, B, LEAF_POINTS, nodes, roots, perm);
-  const int64_t* pm = perm.data();
-  const SoaPoints<T> rs = make_soa<T>(R, [Rp, pm](int64_t i, int k) { return Rp[3 * pm[i] + k]; });
+  auto soa = torch::zeros({3, R + LEAF_POINTS}, ref.options());
+  T* s = soa.data_ptr<T>();
+  const int64_t stride = R + LEAF_POINTS;
+  for (int64_t i = 0; i < R; ++i)
+    for (int k = 0; k < 3; ++k) s[k * stride + i] = Rp[3 * perm[i] + k];
+  const std::vector<T> slack = item_slack<T>(Rp, Rp, off, B);
+  return {nodes_tensor(nodes), vec_tensor(roots, torch::kInt64), vec_tensor(perm, torch::kInt64), soa,
+          vec_tensor(slack, ref.scalar_type())};
+}
+
+template <typename T>
+void point_bvh_refit_impl(const std::vector<torch::Tensor>& h, const torch::Tensor& ref,
+                          const torch::Tensor& ref_offsets) {
+  const int64_t R = ref.size(0), B = ref_offsets.size(0) - 1;
+  const T* Rp = ref.data_ptr<T>();
+  const int64_t* perm = h[2].data_ptr<int64_t>();
+  T* s = h[3].data_ptr<T>();
+  const int64_t stride = R + LEAF_POINTS;
+  std::vector<T> sorted(3 * R);
+  for (int64_t i = 0; i < R; ++i)
+    for (int k = 0; k < 3; ++k) {
+      const T v = Rp[3 * perm[i] + k];
+      s[k * stride + i] = v;
+      sorted[3 * i + k] = v;
+    }
+  refit_nodes(nodes_of<T>(h[0]), h[0].numel() / static_cast<int64_t>(sizeof(Node<T>)), sorted.data(),
+              sorted.data());
+  const std::vector<T> slack = item_slack<T>(Rp, Rp, ref_offsets.data_ptr<int64_t>(), B);
+  std::memcpy(h[4].data_ptr<T>(), slack.data(), B * sizeof(T));
+}
+
+// Nearest reference point per centred query point through a kept point hierarchy, see nearest_query.
+template <typename T>
+torch::Tensor point_bvh_query_impl(const std::vector<torch::Tensor>& h, const torch::Tensor& points,
+                                   const torch::Tensor& point_batch) {
+  const int64_t P = points.size(0);
+  const Node<T>* nd = nodes_of<T>(h[0]);
+  const int64_t* roots = h[1].data_ptr<int64_t>();
+  const int64_t* pm = h[2].data_ptr<int64_t>();
+  const int64_t stride = h[3].size(1);
+  const T* s = h[3].data_ptr<T>();
+  const SoaView<T> rs{s, s + stride, s + 2 * stride};
+  const T* slack = h[4].data_ptr<T>();
   const T* Pp = points.data_ptr<T>();
   const int64_t* pb = point_batch.data_ptr<int64_t>();
-  std::vector<T> slack = item_slack<T>(Rp, Rp, off, B);
   auto out = torch::empty({P}, torch::dtype(torch::kInt64));
   int64_t* o = out.data_ptr<int64_t>();
-  const Node<T>* nd = nodes.data();
   const std::vector<int64_t> order = query_order<T>(Pp, P);
   const int64_t* ord = order.data();
-  parallel_chunks(P, QUERY_CHUNK, [&](int64_t s, int64_t e) {
+  parallel_chunks(P, QUERY_CHUNK, [&](int64_t s0, int64_t e) {
     int64_t prev_item = -1, prev_slot = -1;
-    for (int64_t q = s; q < e; ++q) {
+    for (int64_t q = s0; q < e; ++q) {
       const int64_t i = ord[q];
       const int64_t b = pb[i];
       const int64_t slot = nearest_query<T>(nd, roots[b], Pp + 3 * i, slack[b], rs, pm,
@@ -690,6 +889,7 @@ std::vector<torch::Tensor> nearest_single_impl(const torch::Tensor& points, cons
   nodes.reserve(2 * (R / LEAF_POINTS + 1) + 1);
   build_node<T>(nodes, code.data(), 0, 0, R, rs.data(), rs.data(), nullptr, LEAF_POINTS);
   const SoaPoints<T> soa = make_soa<T>(R, [&rs](int64_t i, int k) { return rs[3 * i + k]; });
+  const SoaView<T> sv{soa.x.data(), soa.y.data(), soa.z.data()};
   auto sq_dists = torch::empty({P}, points.options());
   auto idx = torch::empty({P}, torch::dtype(torch::kInt64));
   T* dp = sq_dists.data_ptr<T>();
@@ -703,7 +903,7 @@ std::vector<torch::Tensor> nearest_single_impl(const torch::Tensor& points, cons
       const int64_t i = ord[q];
       const T pc[3] = {Pp[3 * i] - c[0], Pp[3 * i + 1] - c[1], Pp[3 * i + 2] - c[2]};
       T best_sq;
-      const int64_t slot = nearest_query<T>(nd, 0, pc, slack, soa, pm, prev_slot, &best_sq);
+      const int64_t slot = nearest_query<T>(nd, 0, pc, slack, sv, pm, prev_slot, &best_sq);
       o[i] = pm[slot];
       dp[i] = best_sq;
       prev_slot = slot;
@@ -737,26 +937,7 @@ std::vector<torch::Tensor> closest_points_impl(const torch::Tensor& points, cons
       const T* b = V + 3 * Fi[3 * f + 1];
       const T* c = V + 3 * Fi[3 * f + 2];
       const T* p = Pp + 3 * i;
-      const RegionCandidates<T> r = region_candidates(face_data(a, b, c), p);
-      const T* cand = r.sq;
-      int region = 0;  // first minimum, as torch.argmin
-      for (int j = 1; j < 4; ++j)
-        if (cand[j] < cand[region]) region = j;
-      T bw[3];
-      switch (region) {
-        case 0: bw[0] = T(1) - r.t_ab; bw[1] = r.t_ab; bw[2] = T(0); break;
-        case 1: bw[0] = T(1) - r.t_ac; bw[1] = T(0); bw[2] = r.t_ac; break;
-        case 2: bw[0] = T(0); bw[1] = T(1) - r.t_bc; bw[2] = r.t_bc; break;
-        default: bw[0] = (T(1) - r.v) - r.w; bw[1] = r.v; bw[2] = r.w; break;
-      }
-      T diff[3];
-      for (int k = 0; k < 3; ++k) {
-        const T q = (bw[0] * a[k] + bw[1] * b[k]) + bw[2] * c[k];
-        cl_p[3 * i + k] = q;
-        bary_p[3 * i + k] = bw[k];
-        diff[k] = p[k] - q;
-      }
-      sq_p[i] = dot3(diff, diff);
+      sq_p[i] = closest_on_face(a, b, c, p, bary_p + 3 * i, cl_p + 3 * i);
     }
   });
   return {sq_out, bary_out, closest_out};
@@ -789,25 +970,49 @@ void check_inputs(const torch::Tensor& points, const torch::Tensor& point_batch,
 
 }  // namespace
 
-torch::Tensor closest_faces(torch::Tensor points, torch::Tensor point_batch, torch::Tensor verts,
-                            torch::Tensor faces, torch::Tensor face_offsets) {
-  check_inputs(points, point_batch, verts, face_offsets);
+#define TMM_DISPATCH(dtype, call)                                     \
+  do {                                                                \
+    if ((dtype) == torch::kFloat64) { using T = double; call; }       \
+    TORCH_CHECK((dtype) == torch::kFloat32, "bvh: float32 or float64 expected"); \
+    { using T = float; call; }                                        \
+  } while (0)
+
+std::vector<torch::Tensor> face_bvh_build(torch::Tensor verts, torch::Tensor faces, torch::Tensor face_offsets,
+                                          bool sah) {
+  check_inputs(verts, face_offsets, verts, face_offsets);
   TORCH_CHECK(faces.scalar_type() == torch::kInt64 && faces.is_contiguous(), "bvh: contiguous int64 faces expected");
-  TORCH_CHECK(points.scalar_type() == verts.scalar_type(), "bvh: points and verts must share a dtype");
-  if (points.scalar_type() == torch::kFloat64)
-    return closest_faces_impl<double>(points, point_batch, verts, faces, face_offsets);
-  TORCH_CHECK(points.scalar_type() == torch::kFloat32, "bvh: float32 or float64 expected");
-  return closest_faces_impl<float>(points, point_batch, verts, faces, face_offsets);
+  TMM_DISPATCH(verts.scalar_type(), return face_bvh_build_impl<T>(verts, faces, face_offsets, sah));
 }
 
-torch::Tensor nearest_points(torch::Tensor points, torch::Tensor point_batch, torch::Tensor ref,
-                             torch::Tensor ref_offsets) {
-  check_inputs(points, point_batch, ref, ref_offsets);
-  TORCH_CHECK(points.scalar_type() == ref.scalar_type(), "bvh: points and ref must share a dtype");
-  if (points.scalar_type() == torch::kFloat64)
-    return nearest_points_impl<double>(points, point_batch, ref, ref_offsets);
-  TORCH_CHECK(points.scalar_type() == torch::kFloat32, "bvh: float32 or float64 expected");
-  return nearest_points_impl<float>(points, point_batch, ref, ref_offsets);
+void face_bvh_refit(std::vector<torch::Tensor> h, torch::Tensor verts, torch::Tensor faces,
+                    torch::Tensor face_offsets) {
+  check_inputs(verts, face_offsets, verts, face_offsets);
+  TORCH_CHECK(h.size() == 5 && h[3].scalar_type() == verts.scalar_type(), "bvh: hierarchy of another dtype");
+  TMM_DISPATCH(verts.scalar_type(), return face_bvh_refit_impl<T>(h, verts, faces, face_offsets));
+}
+
+torch::Tensor face_bvh_query(std::vector<torch::Tensor> h, torch::Tensor points, torch::Tensor point_batch,
+                             torch::Tensor face_offsets) {
+  check_inputs(points, point_batch, h[3], face_offsets);
+  TORCH_CHECK(h.size() == 5 && h[3].scalar_type() == points.scalar_type(), "bvh: points and hierarchy dtypes differ");
+  TMM_DISPATCH(points.scalar_type(), return face_bvh_query_impl<T>(h, points, point_batch, face_offsets));
+}
+
+std::vector<torch::Tensor> point_bvh_build(torch::Tensor ref, torch::Tensor ref_offsets) {
+  check_inputs(ref, ref_offsets, ref, ref_offsets);
+  TMM_DISPATCH(ref.scalar_type(), return point_bvh_build_impl<T>(ref, ref_offsets));
+}
+
+void point_bvh_refit(std::vector<torch::Tensor> h, torch::Tensor ref, torch::Tensor ref_offsets) {
+  check_inputs(ref, ref_offsets, ref, ref_offsets);
+  TORCH_CHECK(h.size() == 5 && h[3].scalar_type() == ref.scalar_type(), "bvh: hierarchy of another dtype");
+  TMM_DISPATCH(ref.scalar_type(), return point_bvh_refit_impl<T>(h, ref, ref_offsets));
+}
+
+torch::Tensor point_bvh_query(std::vector<torch::Tensor> h, torch::Tensor points, torch::Tensor point_batch) {
+  check_inputs(points, point_batch, h[3], h[1]);
+  TORCH_CHECK(h.size() == 5 && h[3].scalar_type() == points.scalar_type(), "bvh: points and hierarchy dtypes differ");
+  TMM_DISPATCH(points.scalar_type(), return point_bvh_query_impl<T>(h, points, point_batch));
 }
 
 std::vector<torch::Tensor> nearest_single(torch::Tensor points, torch::Tensor ref) {
@@ -839,12 +1044,31 @@ torch::Tensor pair_sq_dists(torch::Tensor points, torch::Tensor verts, torch::Te
   return pair_sq_dists_impl<float>(points, verts, faces);
 }
 
+// deformation_energy.cpp (compiled into the same extension).
+torch::Tensor deform_vertices(torch::Tensor R, torch::Tensor t, torch::Tensor g, torch::Tensor rest,
+                              torch::Tensor vidx, torch::Tensor vw);
+torch::Tensor farthest_point_sampling(torch::Tensor points, int64_t start, double spacing2);
+std::vector<torch::Tensor> deformation_energy(torch::Tensor axis, torch::Tensor R, torch::Tensor t, torch::Tensor g, torch::Tensor rest,
+                                              torch::Tensor vidx, torch::Tensor vw, torch::Tensor data_idx,
+                                              torch::Tensor data_tri, torch::Tensor data_n, torch::Tensor data_w,
+                                              torch::Tensor samples, torch::Tensor rev_faces, torch::Tensor rev_w,
+                                              torch::Tensor edges, std::vector<double> scalars);
+
 PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
-  m.def("closest_faces", &closest_faces, "Closest face per point (BVH, exact, lowest index on ties)");
+  m.def("deformation_energy", &deformation_energy,
+        "Registration energy of a deformation graph and its gradient to axis-angle rotations and translations");
+  m.def("deform_vertices", &deform_vertices, "Embedded deformation of skinned vertices (no gradient)");
+  m.def("farthest_point_sampling", &farthest_point_sampling, "Farthest-point sampling to a covering radius");
+  m.def("face_bvh_build", &face_bvh_build,
+        "Kept face hierarchy (Morton split, or binned SAH): [nodes, roots, perm, face data, slack]");
+  m.def("face_bvh_refit", &face_bvh_refit, "Refit a kept face hierarchy to moved vertices (in place)");
+  m.def("face_bvh_query", &face_bvh_query, "Closest face per point (kept hierarchy, exact, lowest index on ties)");
+  m.def("point_bvh_build", &point_bvh_build, "Kept point hierarchy: [nodes, roots, perm, points, slack]");
+  m.def("point_bvh_refit", &point_bvh_refit, "Refit a kept point hierarchy to moved points (in place)");
+  m.def("point_bvh_query", &point_bvh_query, "Nearest reference point per point (kept hierarchy, exact)");
   m.def("pair_sq_dists", &pair_sq_dists, "All point-face squared distances (tests only)");
   m.def("closest_points", &closest_points,
         "Closest point on the selected faces without autograd: [sq_dists, bary, closest] (centred frame)");
-  m.def("nearest_points", &nearest_points, "Nearest reference point per point (BVH, exact, lowest index on ties)");
   m.def("nearest_single", &nearest_single,
         "Batch-of-one nearest reference point, fused: [sq_dists, idx, center], or [] when a value is not finite");
 }

@@ -1,58 +1,81 @@
-"""CPU selectors backed by the C++ BVH extension (``bvh.cpp``), with the pure-torch pruned path as fallback."""
+"""CPU selection structures backed by the C++ BVH extension (``bvh.cpp``): build once, refit, query.
+
+A structure is the list of tensors the extension returns (nodes, roots, slot order, slot data, pruning slack); see
+:mod:`torchmeshmetric.kernels.select` for the contract. Callers resolve ``"bvh"`` to ``"pruned"`` when the extension
+cannot be compiled, so these functions assume it loads.
+"""
 
 from __future__ import annotations
+
+from types import ModuleType
+from typing import TYPE_CHECKING
 
 import torch
 from torch import Tensor
 
 from torchmeshmetric.kernels.accel._extension import bvh_ready, load_bvh
-from torchmeshmetric.kernels.accel.pruned import pruned_faces, pruned_nearest
 
-__all__ = ["bvh_closest_points", "bvh_faces", "bvh_nearest", "bvh_nearest_single"]
+if TYPE_CHECKING:
+    from torchmeshmetric.kernels.select import FaceSet, PointSet
+
+__all__ = [
+    "build_faces",
+    "build_points",
+    "bvh_closest_points",
+    "bvh_nearest_single",
+    "query_faces",
+    "query_points",
+    "refit_faces",
+    "refit_points",
+]
 
 
-def bvh_faces(
-    points: Tensor,
-    point_batch: Tensor,
-    verts: Tensor,
-    faces: Tensor,
-    face_batch: Tensor,
-    face_offsets: Tensor,
-    max_memory: int,
-) -> Tensor:
-    """Closest face per point through one BVH per item (face-selector contract), exact, lowest index on ties.
+def _ext() -> ModuleType:
+    ext = load_bvh()
+    if ext is None:  # resolve_backend never hands out "bvh" then
+        raise RuntimeError("bvh: the C++ extension is not available")
+    return ext
 
-    Runs on CPU tensors; other devices, or a missing compiler, use :func:`pruned_faces`.
+
+def build_faces(faces: FaceSet, tree: str) -> list[Tensor]:
+    """Face hierarchy (one per item) over centred faces: ``tree="sah"`` binned SAH, ``"morton"`` Morton splits.
+
+    The SAH tree answers queries ~25 % faster and costs ~10x the Morton build (docs/acceleration.md).
     """
-    ext = load_bvh() if points.device.type == "cpu" else None
-    if ext is None:
-        return pruned_faces(points, point_batch, verts, faces, face_batch, face_offsets, max_memory)
-    return ext.closest_faces(
-        points.contiguous(),
-        point_batch.contiguous(),
-        verts.contiguous(),
-        faces.long().contiguous(),
-        face_offsets.long().contiguous(),
+    return _ext().face_bvh_build(
+        faces.verts.contiguous(), faces.faces.contiguous(), faces.offsets.contiguous(), tree == "sah"
     )
 
 
-def bvh_nearest(
-    points: Tensor, point_batch: Tensor, ref: Tensor, ref_batch: Tensor, ref_offsets: Tensor, max_memory: int
-) -> Tensor:
-    """Nearest reference point per point through one BVH per item (nearest-selector contract), exact.
+def refit_faces(structure: list[Tensor], faces: FaceSet) -> list[Tensor]:
+    """Bounds, face records and slack of ``structure`` rewritten in place for moved vertices (same tree)."""
+    _ext().face_bvh_refit(structure, faces.verts.contiguous(), faces.faces.contiguous(), faces.offsets.contiguous())
+    return structure
 
-    Runs on CPU tensors; other devices, or a missing compiler, use :func:`pruned_nearest`.
-    """
-    ext = load_bvh() if points.device.type == "cpu" else None
-    if ext is None:
-        return pruned_nearest(points, point_batch, ref, ref_batch, ref_offsets, max_memory)
-    return ext.nearest_points(
-        points.contiguous(), point_batch.contiguous(), ref.contiguous(), ref_offsets.long().contiguous()
-    )
+
+def query_faces(structure: list[Tensor], faces: FaceSet, points: Tensor, point_batch: Tensor) -> Tensor:
+    """Closest face per centred point, exact, lowest index among equal squared distances."""
+    return _ext().face_bvh_query(structure, points.contiguous(), point_batch.contiguous(), faces.offsets.contiguous())
+
+
+def build_points(ref: PointSet) -> list[Tensor]:
+    """Point hierarchy (one per item) over centred reference points."""
+    return _ext().point_bvh_build(ref.points.contiguous(), ref.offsets.contiguous())
+
+
+def refit_points(structure: list[Tensor], ref: PointSet) -> list[Tensor]:
+    """Bounds, sorted points and slack of ``structure`` rewritten in place for moved points (same tree)."""
+    _ext().point_bvh_refit(structure, ref.points.contiguous(), ref.offsets.contiguous())
+    return structure
+
+
+def query_points(structure: list[Tensor], ref: PointSet, points: Tensor, point_batch: Tensor) -> Tensor:
+    """Nearest reference row per centred point, exact, lowest index among equal squared distances."""
+    return _ext().point_bvh_query(structure, points.contiguous(), point_batch.contiguous())
 
 
 def bvh_nearest_single(points: Tensor, ref: Tensor) -> tuple[Tensor, Tensor, Tensor] | None:
-    """Fused batch-of-one nearest reference point (nearest-single contract): ``(dists, idx, center)`` or ``None``.
+    """Fused batch-of-one nearest reference point (one-off calls): ``(dists, idx, center)`` or ``None``.
 
     Finiteness check, centring, build, query and squared distances in one C++ call; the square root is torch's,
     so the result is bit-identical to the general path.

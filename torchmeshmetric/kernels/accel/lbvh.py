@@ -22,7 +22,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-__all__ = ["ImplicitBVH", "build_implicit_bvh", "morton_codes"]
+__all__ = ["ImplicitBVH", "build_implicit_bvh", "morton_codes", "refit_implicit_bvh"]
 
 
 class ImplicitBVH(NamedTuple):
@@ -132,7 +132,7 @@ def build_implicit_bvh(lo: Tensor, hi: Tensor, batch: Tensor, offsets: Tensor, l
     """
     if leaf_size < 1:
         raise ValueError(f"leaf_size: expected a positive number of primitives per leaf, found {leaf_size}")
-    device, dtype = lo.device, lo.dtype
+    device = lo.device
     num_items = offsets.numel() - 1
     lengths = offsets[1:] - offsets[:-1]
     # Host copy of the per-item sizes: the number of levels and of nodes decide tensor shapes.
@@ -156,6 +156,33 @@ def build_implicit_bvh(lo: Tensor, hi: Tensor, batch: Tensor, offsets: Tensor, l
     prims = torch.full((total_leaves * leaf_size,), -1, dtype=torch.long, device=device)
     prims[slot_base[sorted_batch] + rank] = order
 
+    nodes = _node_bounds(prims, lo, hi, leaf_size, depth_list, node_base, num_items)
+    return ImplicitBVH(nodes, prims, node_base, slot_base, depth, leaf_size)
+
+
+def refit_implicit_bvh(tree: ImplicitBVH, lo: Tensor, hi: Tensor) -> ImplicitBVH:
+    """The same tree (slots, layout) with node boxes recomputed for moved primitive boxes ``lo`` / ``hi``.
+
+    Example:
+        >>> import torch
+        >>> pts = torch.tensor([[0.0, 0, 0], [1.0, 0, 0], [5.0, 0, 0]])
+        >>> t = build_implicit_bvh(pts, pts, torch.zeros(3, dtype=torch.long), torch.tensor([0, 3]), 2)
+        >>> refit_implicit_bvh(t, 2 * pts, 2 * pts).nodes[1].tolist()
+        [0.0, 0.0, 0.0, 10.0, 0.0, 0.0]
+    """
+    depth_list = [int(d) for d in tree.depth.tolist()]
+    nodes = _node_bounds(tree.prims, lo, hi, tree.leaf_size, depth_list, tree.node_base, tree.depth.numel())
+    return tree._replace(nodes=nodes)
+
+
+def _node_bounds(
+    prims: Tensor, lo: Tensor, hi: Tensor, leaf_size: int, depth_list: list[int], node_base: Tensor, num_items: int
+) -> Tensor:
+    """``(N, 6)`` node boxes of the implicit trees whose slots hold ``prims`` (boxes ``lo`` / ``hi``)."""
+    device, dtype = lo.device, lo.dtype
+    depth = torch.tensor(depth_list, dtype=torch.long, device=device)
+    leaves = 1 << depth
+    total_leaves = sum(1 << d for d in depth_list)
     # Leaf boxes, then one pairwise reduction per level. Boxes are held as [lo, -hi] so that one amin reduces both
     # halves (padding: +inf, an empty box); the upper corners are negated back at the end (negation is exact).
     real = prims >= 0
@@ -185,4 +212,4 @@ def build_implicit_bvh(lo: Tensor, hi: Tensor, batch: Tensor, offsets: Tensor, l
             local = torch.arange(entry_item.numel(), device=device) - start[entry_item]
             nodes[node_base[entry_item] + (leaves[entry_item] >> k) + local] = level
     nodes[:, 3:] = -nodes[:, 3:]
-    return ImplicitBVH(nodes, prims, node_base, slot_base, depth, leaf_size)
+    return nodes

@@ -146,7 +146,7 @@ def pruned_faces(
     face_offsets: Tensor,
     max_memory: int,
 ) -> Tensor:
-    """Closest face per point (face-selector contract of ``register_face_backend``), exact, any device."""
+    """Closest face per point (brute-force face-selector contract, see ``kernels.select``), exact, any device."""
     tri = verts[faces]
     a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
     ab, ac, bc = b - a, c - a, c - b
@@ -163,7 +163,7 @@ def pruned_faces(
 def pruned_nearest(
     points: Tensor, point_batch: Tensor, ref: Tensor, ref_batch: Tensor, ref_offsets: Tensor, max_memory: int
 ) -> Tensor:
-    """Nearest reference point per point (selector contract of ``register_nearest_backend``), exact, any device.
+    """Nearest reference point per point (nearest-selector contract, see ``kernels.select``), exact, any device.
 
     Selects by the computed squared distance, lowest index among equal ones, like the brute force.
     """

@@ -31,14 +31,14 @@ for its own library functions too.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, NamedTuple
 
 import torch
 from torch import Tensor
 
 from torchmeshmetric._checks import DeviceError, DTypeError
 from torchmeshmetric.kernels._common import cross, dot
-from torchmeshmetric.kernels.accel.lbvh import ImplicitBVH, build_implicit_bvh, morton_codes
+from torchmeshmetric.kernels.accel.lbvh import ImplicitBVH, build_implicit_bvh, morton_codes, refit_implicit_bvh
 
 try:
     import triton
@@ -47,7 +47,19 @@ except ImportError:  # the library works without triton; this module then only i
     triton = None
     tl = None
 
-__all__ = ["LEAF_FACES", "LEAF_POINTS", "triton_faces", "triton_nearest"]
+__all__ = [
+    "LEAF_FACES",
+    "LEAF_POINTS",
+    "TritonStructure",
+    "build_faces",
+    "build_points",
+    "query_faces",
+    "query_points",
+    "refit_faces",
+    "refit_points",
+    "triton_faces",
+    "triton_nearest",
+]
 
 LEAF_FACES = 4
 """Faces per leaf (as ``bvh.cpp``; not tuned on a GPU)."""
@@ -480,6 +492,84 @@ def _launch(
     return out
 
 
+class TritonStructure(NamedTuple):
+    """A kept implicit BVH with its per-slot primitive records and per-item slack (see :func:`build_faces`)."""
+
+    tree: ImplicitBVH
+    data: Tensor
+    slack: Tensor
+
+
+def _face_records(verts: Tensor, faces: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+    """Face boxes ``(lo, hi)`` and per-face records, computed by the brute force's own expressions."""
+    tri = verts[faces]
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    ab, ac, bc = b - a, c - a, c - b
+    n = cross(ab, ac)
+    data = torch.cat([a, b, ab, ac, bc, n, torch.stack([dot(n, n), dot(ab, ab), dot(ac, ac), dot(bc, bc)], -1)], -1)
+    return tri.amin(1), tri.amax(1), data
+
+
+def _slot_records(tree: ImplicitBVH, data: Tensor) -> Tensor:
+    real = tree.prims >= 0
+    return torch.where(real[:, None], data[tree.prims.clamp_min(0)], torch.zeros_like(data[:1]))
+
+
+def build_faces(verts: Tensor, faces: Tensor, face_batch: Tensor, face_offsets: Tensor) -> TritonStructure:
+    """Kept face structure of centred faces (global indices into ``verts``).
+
+    Raises:
+        DeviceError: on non-CUDA tensors unless ``TRITON_INTERPRET=1``.
+        DTypeError: for dtypes other than float32 / float64.
+    """
+    _mode(verts)
+    lo, hi, data = _face_records(verts, faces)
+    tree = build_implicit_bvh(lo, hi, face_batch, face_offsets, LEAF_FACES)
+    slack = _item_slack(lo, hi, face_batch, face_offsets.numel() - 1)
+    return TritonStructure(tree, _slot_records(tree, data), slack)
+
+
+def refit_faces(
+    structure: TritonStructure, verts: Tensor, faces: Tensor, face_batch: Tensor, face_offsets: Tensor
+) -> TritonStructure:
+    """The same tree with boxes, records and slack of moved vertices (no new Morton order)."""
+    lo, hi, data = _face_records(verts, faces)
+    tree = refit_implicit_bvh(structure.tree, lo, hi)
+    slack = _item_slack(lo, hi, face_batch, face_offsets.numel() - 1)
+    return TritonStructure(tree, _slot_records(tree, data), slack)
+
+
+def query_faces(structure: TritonStructure, points: Tensor, point_batch: Tensor, face_offsets: Tensor) -> Tensor:
+    """Closest face per centred point through a kept structure, exact, lowest index on ties."""
+    interpret = _mode(points)
+    return _launch(
+        "face", points, point_batch, structure.tree, structure.data, structure.slack, face_offsets[:-1], interpret
+    )
+
+
+def build_points(ref: Tensor, ref_batch: Tensor, ref_offsets: Tensor) -> TritonStructure:
+    """Kept point structure of centred reference points."""
+    _mode(ref)
+    tree = build_implicit_bvh(ref, ref, ref_batch, ref_offsets, LEAF_POINTS)
+    slack = _item_slack(ref, ref, ref_batch, ref_offsets.numel() - 1)
+    return TritonStructure(tree, _slot_records(tree, ref), slack)
+
+
+def refit_points(structure: TritonStructure, ref: Tensor, ref_batch: Tensor, ref_offsets: Tensor) -> TritonStructure:
+    """The same tree with boxes, slot points and slack of moved reference points."""
+    tree = refit_implicit_bvh(structure.tree, ref, ref)
+    slack = _item_slack(ref, ref, ref_batch, ref_offsets.numel() - 1)
+    return TritonStructure(tree, _slot_records(tree, ref), slack)
+
+
+def query_points(structure: TritonStructure, points: Tensor, point_batch: Tensor, ref_offsets: Tensor) -> Tensor:
+    """Nearest reference row per centred point through a kept structure, exact, lowest index on ties."""
+    interpret = _mode(points)
+    return _launch(
+        "nearest", points, point_batch, structure.tree, structure.data, structure.slack, ref_offsets[:-1], interpret
+    )
+
+
 def triton_faces(
     points: Tensor,
     point_batch: Tensor,
@@ -489,7 +579,7 @@ def triton_faces(
     face_offsets: Tensor,
     max_memory: int,
 ) -> Tensor:
-    """Closest face per point (face-selector contract of ``register_face_backend``), exact, lowest index on ties.
+    """Closest face per point (one-off: build, then query), exact, lowest index on ties.
 
     Memory is ``O(points + faces)`` whatever ``max_memory`` (no pairwise intermediate exists).
 
@@ -497,26 +587,14 @@ def triton_faces(
         DeviceError: on non-CUDA tensors unless ``TRITON_INTERPRET=1``.
         DTypeError: for dtypes other than float32 / float64.
     """
-    interpret = _mode(points)
-    num_items = face_offsets.numel() - 1
-    tri = verts[faces]
-    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
-    lo, hi = tri.amin(1), tri.amax(1)
-    tree = build_implicit_bvh(lo, hi, face_batch, face_offsets, LEAF_FACES)
-    # Per-face terms, computed by the brute force's own expressions (bit-identical values).
-    ab, ac, bc = b - a, c - a, c - b
-    n = cross(ab, ac)
-    data = torch.cat([a, b, ab, ac, bc, n, torch.stack([dot(n, n), dot(ab, ab), dot(ac, ac), dot(bc, bc)], -1)], -1)
-    real = tree.prims >= 0
-    slot_data = torch.where(real[:, None], data[tree.prims.clamp_min(0)], torch.zeros_like(data[:1]))
-    slack = _item_slack(lo, hi, face_batch, num_items)
-    return _launch("face", points, point_batch, tree, slot_data, slack, face_offsets[:-1], interpret)
+    _mode(points)
+    return query_faces(build_faces(verts, faces, face_batch, face_offsets), points, point_batch, face_offsets)
 
 
 def triton_nearest(
     points: Tensor, point_batch: Tensor, ref: Tensor, ref_batch: Tensor, ref_offsets: Tensor, max_memory: int
 ) -> Tensor:
-    """Nearest reference point per point (selector contract of ``register_nearest_backend``), exact.
+    """Nearest reference point per point (one-off: build, then query), exact.
 
     Selects by the computed squared distance, lowest index among equal squares, like the brute force.
 
@@ -524,10 +602,5 @@ def triton_nearest(
         DeviceError: on non-CUDA tensors unless ``TRITON_INTERPRET=1``.
         DTypeError: for dtypes other than float32 / float64.
     """
-    interpret = _mode(points)
-    num_items = ref_offsets.numel() - 1
-    tree = build_implicit_bvh(ref, ref, ref_batch, ref_offsets, LEAF_POINTS)
-    real = tree.prims >= 0
-    slot_ref = torch.where(real[:, None], ref[tree.prims.clamp_min(0)], torch.zeros_like(ref[:1]))
-    slack = _item_slack(ref, ref, ref_batch, num_items)
-    return _launch("nearest", points, point_batch, tree, slot_ref, slack, ref_offsets[:-1], interpret)
+    _mode(points)
+    return query_points(build_points(ref, ref_batch, ref_offsets), points, point_batch, ref_offsets)

@@ -1,0 +1,85 @@
+"""``IndexCache``: one :class:`~torchmeshmetric.MeshIndex` per reference mesh, found again by content.
+
+Loops that measure against the same references again and again (the frames of ``compare``, the validation set of a
+training loop, every epoch) ask the cache instead of building: an index is keyed by a hash of the mesh's vertices
+and faces (plus dtype, device, backend), so equal content finds the built structure even through new tensors.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections import OrderedDict
+from collections.abc import Sequence
+
+import torch
+
+from torchmeshmetric.kernels.mesh_index import MeshIndex
+from torchmeshmetric.structures import Mesh, MeshLike, _looks_like_pair, as_mesh
+
+__all__ = ["IndexCache"]
+
+
+def _fingerprint(meshes: list[Mesh], backend: str) -> str:
+    h = hashlib.blake2b(digest_size=20)
+    h.update(backend.encode())
+    for m in meshes:
+        v, f = m.verts, m.faces
+        h.update(repr((tuple(v.shape), tuple(f.shape), str(v.dtype), str(v.device))).encode())
+        h.update(v.detach().cpu().contiguous().numpy().tobytes())
+        h.update(f.detach().to("cpu", torch.int64).contiguous().numpy().tobytes())
+    return h.hexdigest()
+
+
+class IndexCache:
+    """Least-recently-used cache of :class:`~torchmeshmetric.MeshIndex` keyed by mesh content.
+
+    Args:
+        max_entries: indexes kept (the least recently used is dropped beyond).
+
+    Example:
+        >>> import torch, trimesh
+        >>> cache = IndexCache()
+        >>> sphere = trimesh.creation.icosphere(subdivisions=2)
+        >>> a = cache.get(sphere)
+        >>> b = cache.get(sphere.copy())  # same content, new object: found again, nothing rebuilt
+        >>> len(cache), b.num_items
+        (1, 1)
+    """
+
+    def __init__(self, max_entries: int = 16) -> None:
+        if max_entries < 1:
+            raise ValueError(f"max_entries: expected a positive int, found {max_entries}")
+        self.max_entries = max_entries
+        self._entries: OrderedDict[str, MeshIndex] = OrderedDict()
+
+    def get(self, mesh: MeshLike | Sequence[MeshLike], *, backend: str = "auto", tree: str = "sah") -> MeshIndex:
+        """The index of ``mesh`` (a mesh-like or a list: a batch), built on the first request for this content.
+
+        When the cached index was built from other tensors of equal content, the returned index shares its
+        structure but recomputes distances from ``mesh``'s own vertices (so gradients reach them). ``tree`` as in
+        :class:`~torchmeshmetric.MeshIndex` (``"morton"`` for references queried only a few times).
+        """
+        batch = isinstance(mesh, list) or (isinstance(mesh, tuple) and not _looks_like_pair(mesh))
+        meshes = [as_mesh(m) for m in mesh] if batch else [as_mesh(mesh)]  # type: ignore[union-attr,arg-type]
+        key = _fingerprint(meshes, f"{backend}/{tree}")
+        index = self._entries.get(key)
+        verts = meshes[0].verts if len(meshes) == 1 else None
+        if index is None:
+            index = MeshIndex(meshes if batch else meshes[0], backend=backend, tree=tree)
+            self._entries[key] = index
+            if len(self._entries) > self.max_entries:
+                self._entries.popitem(last=False)
+        else:
+            self._entries.move_to_end(key)
+            if verts is not None and index.verts is not verts:
+                index = index._with_verts(verts)
+            elif verts is None and any(m.verts.requires_grad for m in meshes):
+                index = index._with_verts(torch.cat([m.verts for m in meshes]))
+        return index
+
+    def __len__(self) -> int:
+        return len(self._entries)
+
+    def __getstate__(self) -> dict[str, object]:
+        # A cache: pickled empty (a metric holding one is pickled, deep-copied and synced across processes).
+        return {"max_entries": self.max_entries, "_entries": OrderedDict()}

@@ -1,0 +1,408 @@
+"""``MeshIndex``: a mesh (or a batch of meshes) prepared once for many exact distance queries.
+
+:func:`~torchmeshmetric.point_mesh_distance` and :func:`~torchmeshmetric.nearest_vertex_distance` build a selection
+structure (a BVH on the CPU) for every call. Registration, ``compare`` and training loops query the *same* mesh
+many times: an index validates and centres the mesh once, builds each structure on its first query and keeps it;
+:meth:`MeshIndex.refit` moves the vertices (same faces) by refitting the bounds instead of rebuilding. Answers and
+gradients are those of the functions, bit for bit (the functions are implemented on this class).
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Sequence
+from typing import Any
+
+import torch
+from torch import Tensor
+
+from torchmeshmetric._checks import DeviceError, DTypeError, EmptyInputError, check_finite, check_float, check_shape
+from torchmeshmetric.kernels._common import (
+    DEFAULT_MAX_MEMORY,
+    check_representable,
+    dot,
+    item_centers,
+    range_scale,
+    safe_sqrt,
+)
+from torchmeshmetric.kernels.accel.bvh import bvh_closest_points
+from torchmeshmetric.kernels.nearest import NearestVertexResult, _check_backend
+from torchmeshmetric.kernels.point_triangle import PointMeshResult, closest_point_on_triangle
+from torchmeshmetric.kernels.select import FaceSet, PointSet, SelectionBackend, resolve_backend
+from torchmeshmetric.structures import (
+    MeshLike,
+    PackedMeshes,
+    PackedPoints,
+    batch_index,
+    lengths_to_offsets,
+    pack_meshes,
+    pack_points,
+)
+
+__all__ = ["MeshIndex"]
+
+
+def _centred(x: Tensor, lengths: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+    """``(centres (B, 3), row centre (1 or N, 3), batch (N,))``: per-item bounding-box centring of packed rows."""
+    num_items = int(lengths.numel())
+    if num_items == 1:
+        # One item: no batch indices to expand, no per-item gathers (same values: the centre broadcasts).
+        batch = torch.zeros(x.shape[0], dtype=torch.long, device=x.device)
+        centers = item_centers(x, batch, 1)
+        return centers, centers, batch
+    batch = batch_index(lengths)
+    centers = item_centers(x, batch, num_items)
+    return centers, centers[batch], batch
+
+
+class _NearestIndex:
+    """Reference point sets prepared for nearest-point queries (centred once, structure kept). Trusted input."""
+
+    def __init__(self, ref: Tensor, lengths: Tensor, backend: str, max_memory: int, *, rescale: bool = True) -> None:
+        self.backend_name, self.max_memory, self._rescale = backend, max_memory, rescale
+        self.lengths = lengths
+        self._backend: SelectionBackend | None = None
+        self._structure: Any = None
+        self._set(ref)
+
+    def _set(self, ref: Tensor) -> None:
+        self.ref = ref
+        self.centers, row_center, batch = _centred(ref, self.lengths)
+        self._row_center = row_center
+        ref_c = (ref - row_center).detach()
+        # Exact power-of-two scaling where squared distances would overflow or underflow the dtype.
+        extent = float(ref_c.abs().amax()) if ref_c.numel() and self._rescale else 0.0
+        self._scale = range_scale(extent, ref.dtype, 2)
+        if self._scale is not None:
+            ref_c = ref_c * self._scale
+        self.set = PointSet(ref_c, batch, lengths_to_offsets(self.lengths))
+
+    def refit(self, ref: Tensor) -> None:
+        self._set(ref)
+        if self._backend is not None:
+            self._structure = self._backend.refit_points(self._structure, self.set)
+
+    def query(self, points: Tensor, points_lengths: Tensor) -> NearestVertexResult:
+        num_items = int(self.lengths.numel())
+        if int(points_lengths.numel()) != num_items:
+            raise ValueError(
+                f"ref_points: expected {int(points_lengths.numel())} reference sets (one per point set), "
+                f"found {num_items}"
+            )
+        if points.shape[0] == 0:
+            raise EmptyInputError("points: expected at least one point, found an empty point set")
+        lacking = (points_lengths > 0) & (self.lengths == 0)
+        if bool(lacking.any()):
+            b = int(lacking.nonzero()[0, 0])
+            raise EmptyInputError(
+                f"ref_points: reference set {b} is empty but has {int(points_lengths[b])} query points"
+            )
+        if num_items == 1:
+            pb = torch.zeros(points.shape[0], dtype=torch.long, device=points.device)
+            p_c = points - self.centers
+        else:
+            pb = batch_index(points_lengths)
+            p_c = points - self.centers[pb]
+        scale = self._scale
+        if scale is not None:
+            p_c = p_c * scale
+        if self._backend is None:
+            self._backend = resolve_backend(
+                self.backend_name, points.device, points.dtype, points.shape[0] * self.ref.shape[0]
+            )
+            self._structure = self._backend.build_points(self.set)
+        with torch.no_grad():
+            idx = self._backend.query_points(self._structure, self.set, p_c.detach(), pb, self.max_memory)
+        if p_c.requires_grad or self.ref.requires_grad:
+            r_c = self.ref - self._row_center
+            diff = p_c - (r_c if scale is None else r_c * scale)[idx]
+            dists = safe_sqrt(dot(diff, diff))
+        else:
+            # Without autograd, safe_sqrt(sq) is sqrt(sq) bit for bit (sq >= 0, sqrt(0) = 0).
+            diff = p_c - self.set.points.index_select(0, idx)
+            dists = torch.sqrt(dot(diff, diff))
+        if scale is not None:
+            dists = dists / scale
+        return NearestVertexResult(dists, idx)
+
+
+class MeshIndex:
+    """A triangle mesh (or a ragged batch of meshes) prepared once for many exact distance queries.
+
+    Validates and centres the mesh once; the selection structure of each query kind (closest face, nearest vertex)
+    is built on its first query and kept (CPU: the C++ BVH; CUDA: the Triton implicit BVH, or the pruned scan
+    without Triton; see ``docs/acceleration.md``). :meth:`point_mesh_distance` and :meth:`nearest_vertex_distance`
+    return what the functions of the same names return for this mesh, bit for bit, with the same gradients
+    (to the points, and to the mesh vertices through the same recomputation on the selected face).
+    :meth:`refit` moves the vertices (same faces): bounds are refitted, not rebuilt, and answers stay exact.
+
+    Args:
+        mesh: a mesh-like, a list of mesh-likes (a ragged batch), or packed ``(V, 3)`` vertices with ``faces``.
+        faces: ``(F, 3)`` faces when ``mesh`` is a vertex tensor.
+        verts_lengths: ``(B,)`` vertices per item of packed vertices.
+        faces_lengths: ``(B,)`` faces per item of packed faces (local indices).
+        backend: ``"auto"``, ``"bvh"``, ``"triton"``, ``"pruned"`` or ``"bruteforce"``.
+        max_memory: bound in bytes of one intermediate of the ``"bruteforce"`` / ``"pruned"`` backends.
+        referenced_only: the reference of :meth:`nearest_vertex_distance` is the vertex set of the paper (Eq. 3,
+            vertices referenced by a face: :func:`~torchmeshmetric.vertex_set`); ``False``: every vertex.
+        tree: closest-face hierarchy of the ``"bvh"`` backend: ``"sah"`` (binned surface-area heuristic: queries
+            ~25 % faster, build ~10x the Morton build; for many queries) or ``"morton"`` (the functions' cheap build:
+            for a few queries). Answers are identical.
+
+    Raises:
+        ShapeError, DTypeError, NonFiniteError, IndexRangeError, DeviceError: on a malformed mesh.
+        ValueError: on an unknown backend.
+
+    Example:
+        >>> import torch, trimesh
+        >>> from torchmeshmetric import point_mesh_distance
+        >>> sphere = trimesh.creation.icosphere(subdivisions=2)
+        >>> index = MeshIndex(sphere)
+        >>> p = torch.tensor([[0.0, 0.0, 3.0]], dtype=torch.float64)
+        >>> round(index.point_mesh_distance(p).dists.item(), 6)
+        2.0
+        >>> bool(index.point_mesh_distance(p).dists == point_mesh_distance(p, sphere).dists)
+        True
+        >>> index.refit(index.verts * 2)  # same faces, moved vertices
+        >>> round(index.point_mesh_distance(p).dists.item(), 6)
+        1.0
+    """
+
+    def __init__(
+        self,
+        mesh: MeshLike | Sequence[MeshLike] | Tensor,
+        faces: Tensor | None = None,
+        *,
+        verts_lengths: Tensor | None = None,
+        faces_lengths: Tensor | None = None,
+        backend: str = "auto",
+        max_memory: int = DEFAULT_MAX_MEMORY,
+        referenced_only: bool = True,
+        tree: str = "sah",
+    ) -> None:
+        if isinstance(mesh, Tensor):
+            packed = pack_meshes(mesh, faces, verts_lengths, faces_lengths)
+        else:
+            if verts_lengths is not None or faces_lengths is not None:
+                raise TypeError("verts_lengths/faces_lengths: only valid with packed verts/faces tensors")
+            packed = pack_meshes(mesh, faces)
+        self._init(packed, backend, max_memory, referenced_only, tree)
+
+    @classmethod
+    def _trusted(cls, packed: PackedMeshes, backend: str, max_memory: int, tree: str = "morton") -> MeshIndex:
+        """An index over already validated packed meshes (the library's own loops; no checks repeated)."""
+        index = cls.__new__(cls)
+        index._init(packed, backend, max_memory, True, tree)
+        return index
+
+    def _init(self, packed: PackedMeshes, backend: str, max_memory: int, referenced_only: bool, tree: str) -> None:
+        _check_backend(backend)
+        if tree not in ("sah", "morton"):
+            raise ValueError(f"tree: expected 'sah' or 'morton', found {tree!r}")
+        self.backend, self.max_memory, self.referenced_only, self.tree = backend, max_memory, referenced_only, tree
+        self.faces = packed.faces
+        self.verts_lengths, self.faces_lengths = packed.verts_lengths, packed.faces_lengths
+        num_items = int(packed.verts_lengths.numel())
+        if num_items == 1:
+            self._faces_global = packed.faces
+            self._face_batch = torch.zeros(packed.faces.shape[0], dtype=torch.long, device=packed.faces.device)
+        else:
+            self._face_batch = batch_index(packed.faces_lengths)
+            v_off = lengths_to_offsets(packed.verts_lengths)
+            self._faces_global = packed.faces + v_off[self._face_batch][:, None]
+        self._face_offsets = lengths_to_offsets(packed.faces_lengths)
+        self._face_backend: SelectionBackend | None = None
+        self._face_structure: Any = None
+        self._nearest: _NearestIndex | None = None
+        self._set_verts(packed.verts)
+
+    def _set_verts(self, verts: Tensor) -> None:
+        self.verts = verts
+        self._centers, self._vert_center, _ = _centred(verts, self.verts_lengths)
+        verts_c = (verts - self._vert_center).detach()
+        # Exact power-of-two scaling where float arithmetic would overflow or underflow (|ab x ac|^2: degree 4).
+        self._scale = range_scale(float(verts_c.abs().amax()) if verts_c.numel() else 0.0, verts.dtype, 4)
+        if self._scale is not None:
+            verts_c = verts_c * self._scale
+        self._faceset = FaceSet(verts_c, self._faces_global, self._face_batch, self._face_offsets)
+
+    @property
+    def dtype(self) -> torch.dtype:
+        """Floating dtype of the index; queries must use it."""
+        return self.verts.dtype
+
+    @property
+    def device(self) -> torch.device:
+        """Device of the index; queries must use it."""
+        return self.verts.device
+
+    @property
+    def num_items(self) -> int:
+        """Number of meshes ``B`` in the index."""
+        return int(self.verts_lengths.numel())
+
+    def _ref_points(self) -> tuple[Tensor, Tensor]:
+        if not self.referenced_only:
+            return self.verts, self.verts_lengths
+        used = torch.zeros(self.verts.shape[0], dtype=torch.bool, device=self.device)
+        used[self._faces_global.reshape(-1)] = True
+        if self.num_items == 1:
+            return self.verts[used], used.sum().reshape(1)
+        counts = torch.zeros(self.num_items, dtype=torch.long, device=self.device)
+        counts.index_add_(0, batch_index(self.verts_lengths), used.long())
+        return self.verts[used], counts
+
+    @property
+    def ref_points(self) -> PackedPoints:
+        """The reference of :meth:`nearest_vertex_distance`: packed vertex sets and their lengths (``idx`` rows)."""
+        ref, lengths = self._ref_points()
+        return PackedPoints(ref, lengths)
+
+    def _check_points(self, points: Tensor | Sequence[Tensor], points_lengths: Tensor | None) -> PackedPoints:
+        for i, p in enumerate([points] if isinstance(points, Tensor) else points):
+            name = "points" if isinstance(points, Tensor) else f"points[{i}]"
+            if isinstance(p, Tensor) and p.device != self.device:
+                raise DeviceError(f"{name}: expected a tensor on the index's device {self.device}, found {p.device}")
+            if isinstance(p, Tensor) and p.dtype != self.dtype:
+                raise DTypeError(f"{name}: expected the index's dtype {self.dtype}, found {p.dtype}")
+        return pack_points(points, points_lengths)
+
+    def point_mesh_distance(
+        self, points: Tensor | Sequence[Tensor], *, points_lengths: Tensor | None = None
+    ) -> PointMeshResult:
+        """Exact distance from every point to the surface: :func:`~torchmeshmetric.point_mesh_distance` on this mesh.
+
+        Args:
+            points: ``(P, 3)`` points, packed ``(sum P_b, 3)`` with ``points_lengths``, or a list (one per mesh).
+            points_lengths: ``(B,)`` points per mesh of a packed batch.
+
+        Returns:
+            :class:`~torchmeshmetric.PointMeshResult` ``(dists, face_idx, bary, closest)``.
+
+        Raises:
+            DeviceError, DTypeError: when the points are not on the index's device or of its dtype.
+            ShapeError, NonFiniteError, EmptyInputError, ValueError: on bad points.
+        """
+        pts = self._check_points(points, points_lengths)
+        return self._point_mesh_distance(pts.points, pts.lengths)
+
+    def _point_mesh_distance(self, points: Tensor, points_lengths: Tensor) -> PointMeshResult:
+        """Trusted entry (validated points of the index's dtype and device)."""
+        num_items = self.num_items
+        if int(points_lengths.numel()) != num_items:
+            raise ValueError(
+                f"points_lengths: expected {num_items} point sets (one per mesh), found {int(points_lengths.numel())}"
+            )
+        if points.shape[0] == 0:
+            raise EmptyInputError("points: expected at least one point, found an empty point set")
+        lacking = (points_lengths > 0) & (self.faces_lengths == 0)
+        if bool(lacking.any()):
+            b = int(lacking.nonzero()[0, 0])
+            raise EmptyInputError(f"faces: mesh {b} has no faces but {int(points_lengths[b])} query points")
+        if num_items == 1:
+            point_batch = torch.zeros(points.shape[0], dtype=torch.long, device=points.device)
+            point_center = self._centers
+        else:
+            point_batch = batch_index(points_lengths)
+            point_center = self._centers[point_batch]
+        points_c = points - point_center
+        scale = self._scale
+        if scale is not None:
+            points_c = points_c * scale
+        if self._face_backend is None:
+            self._face_backend = resolve_backend(
+                self.backend, points.device, points.dtype, points.shape[0] * self.faces.shape[0]
+            )
+            self._face_structure = self._face_backend.build_faces(self._faceset, self.tree)
+        with torch.no_grad():
+            face_idx = self._face_backend.query_faces(
+                self._face_structure, self._faceset, points_c.detach(), point_batch, self.max_memory
+            )
+        if self.verts.requires_grad:
+            verts_c = self.verts - self._vert_center
+            verts_c = verts_c if scale is None else verts_c * scale
+        else:
+            verts_c = self._faceset.verts
+        result: PointMeshResult | None = None
+        if not (points_c.requires_grad or verts_c.requires_grad):
+            out = bvh_closest_points(points_c, verts_c, self._faces_global, face_idx)
+            if out is not None:
+                # Without autograd safe_sqrt(sq) is sqrt(sq) bit for bit (sq >= 0, sqrt(0) = 0).
+                result = PointMeshResult(torch.sqrt(out[0]), face_idx, out[1], out[2])
+        if result is None:
+            tri = verts_c[self._faces_global[face_idx]]
+            res = closest_point_on_triangle(points_c, tri[:, 0], tri[:, 1], tri[:, 2])
+            result = PointMeshResult(safe_sqrt(res.sq_dists), face_idx, res.bary, res.closest)
+        if scale is not None:
+            result = result._replace(dists=result.dists / scale, closest=result.closest / scale)
+        check_representable(result.dists, "points")
+        return result._replace(closest=result.closest + point_center)
+
+    def nearest_vertex_distance(
+        self, points: Tensor | Sequence[Tensor], *, points_lengths: Tensor | None = None
+    ) -> NearestVertexResult:
+        """Exact distance to the nearest vertex: :func:`~torchmeshmetric.nearest_vertex_distance` to :attr:`ref_points`.
+
+        Args:
+            points: ``(P, 3)`` points, packed ``(sum P_b, 3)`` with ``points_lengths``, or a list (one per mesh).
+            points_lengths: ``(B,)`` points per mesh of a packed batch.
+
+        Returns:
+            :class:`~torchmeshmetric.NearestVertexResult` ``(dists, idx)``, ``idx`` a row of :attr:`ref_points`.
+
+        Raises:
+            DeviceError, DTypeError: when the points are not on the index's device or of its dtype.
+            ShapeError, NonFiniteError, EmptyInputError, ValueError: on bad points.
+        """
+        pts = self._check_points(points, points_lengths)
+        return self._nearest_vertex_distance(pts.points, pts.lengths)
+
+    def _nearest_vertex_distance(self, points: Tensor, points_lengths: Tensor) -> NearestVertexResult:
+        """Trusted entry (validated points of the index's dtype and device)."""
+        if self._nearest is None:
+            ref, lengths = self._ref_points()
+            self._nearest = _NearestIndex(ref, lengths, self.backend, self.max_memory)
+        elif self.verts.requires_grad:
+            self._nearest.ref = self._ref_points()[0]  # a fresh graph to the vertices for this call
+        return self._nearest.query(points, points_lengths)
+
+    def __getstate__(self) -> dict[str, Any]:
+        # The selection structures are rebuilt on the first query after unpickling (they hold backend functions).
+        state = dict(self.__dict__)
+        state.update(_face_backend=None, _face_structure=None, _nearest=None)
+        return state
+
+    def _with_verts(self, verts: Tensor) -> MeshIndex:
+        """A shallow copy over ``verts`` of equal values (same structures; autograd reaches ``verts``)."""
+        other = MeshIndex.__new__(MeshIndex)
+        other.__dict__.update(self.__dict__)  # not copy.copy: __getstate__ drops the structures
+        other.verts = verts
+        if other._nearest is not None:
+            other._nearest = copy.copy(other._nearest)
+        return other
+
+    def refit(self, verts: Tensor) -> None:
+        """Move the vertices (same faces, same order): bounds are refitted, not rebuilt; answers stay exact.
+
+        Args:
+            verts: ``(V, 3)`` new packed vertices, of the index's dtype and device.
+
+        Raises:
+            ShapeError, DTypeError, DeviceError, NonFiniteError: when ``verts`` does not fit the index.
+        """
+        check_shape(verts, (int(self.verts.shape[0]), 3), "verts")
+        check_float(verts, "verts")
+        if verts.device != self.device:
+            raise DeviceError(f"verts: expected a tensor on the index's device {self.device}, found {verts.device}")
+        if verts.dtype != self.dtype:
+            raise DTypeError(f"verts: expected the index's dtype {self.dtype}, found {verts.dtype}")
+        check_finite(verts, "verts")
+        self._refit(verts)
+
+    def _refit(self, verts: Tensor) -> None:
+        """Trusted entry of :meth:`refit`."""
+        self._set_verts(verts)
+        if self._face_backend is not None:
+            self._face_structure = self._face_backend.refit_faces(self._face_structure, self._faceset)
+        if self._nearest is not None:
+            self._nearest.refit(self._ref_points()[0])
