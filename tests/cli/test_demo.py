@@ -39,10 +39,10 @@ def test_demo_writes_tables_report_and_plots(capsys, tmp_path, known_registratio
     assert "--overwrite" in capsys.readouterr().err
 
 
-_TABLES = {  # printed title -> (JSON part, sets of its rows: (k-1)-th then k-th)
-    "Table I:": ("best", ("surface_k_minus_1", "surface_k")),
+_TABLES = {  # printed title -> (JSON part, sets of its rows: (k-1)-th, k-th, [flicker])
+    "Table I:": ("best", ("surface_k_minus_1", "surface_k", "flicker")),
     "Table II:": ("best", ("vertex_k_minus_1", "vertex_k")),
-    "Table III:": ("aggregate", ("surface_k_minus_1", "surface_k")),
+    "Table III:": ("aggregate", ("surface_k_minus_1", "surface_k", "flicker")),
     "Table IV:": ("aggregate", ("vertex_k_minus_1", "vertex_k")),
 }
 _COLUMNS = ("ave", "var", "std", "mse", "rmse", "max", "p95", "psnr")
@@ -66,14 +66,16 @@ def _check_tables_equal_report(stdout, report):
     tables = _printed_tables(stdout)
     assert set(tables) == set(_TABLES)
     for title, (part, sets) in _TABLES.items():
-        assert len(tables[title]) == 2 * len(report["methods"])
+        assert len(tables[title]) == len(sets) * len(report["methods"]) + 1  # + the registration's residual row
         for method, body in report["methods"].items():
             stats = body["aggregate"] if part == "aggregate" else body["pairs"][body["best_pair"]["index"]]
-            for mesh, name in zip(("(k-1)-th", "k-th"), sets, strict=True):
+            for mesh, name in zip(("(k-1)-th", "k-th", "flicker"), sets, strict=False):
                 printed = tables[title][(method, mesh)]
                 expected = [stats[name][c] for c in _COLUMNS]
                 # printed with 4 significant digits
                 assert printed == pytest.approx(expected, rel=6e-4, abs=0), (title, method, mesh)
+            residual = [float(stats["registration"]["residual"][c]) for c in _COLUMNS]  # "inf" -> inf
+            assert tables[title][("Registration", "residual to k")] == pytest.approx(residual, rel=6e-4, abs=0)
 
 
 def test_demo_printed_tables_equal_json_report(capsys, tmp_path, known_registration):

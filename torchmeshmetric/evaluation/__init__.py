@@ -1,6 +1,7 @@
 """The evaluation system: registration of original frames, the four distance sets, statistics, reports."""
 
 from torchmeshmetric.evaluation.cache import CachedRegistration, RegistrationCache, registration_key
+from torchmeshmetric.evaluation.flicker import FLICKER, FlickerDistances, flicker_distances
 from torchmeshmetric.evaluation.metric import TemporalConsistency
 from torchmeshmetric.evaluation.pipeline import (
     default_register,
@@ -17,6 +18,7 @@ from torchmeshmetric.evaluation.reports import (
 )
 from torchmeshmetric.evaluation.results import (
     BEST_PAIR_RULE,
+    FLOOR_SET_NAMES,
     SET_NAMES,
     PairEvaluation,
     SequenceEvaluation,
@@ -26,8 +28,11 @@ from torchmeshmetric.evaluation.results import (
 
 __all__ = [
     "BEST_PAIR_RULE",
+    "FLICKER",
+    "FLOOR_SET_NAMES",
     "SET_NAMES",
     "CachedRegistration",
+    "FlickerDistances",
     "PairEvaluation",
     "RegistrationCache",
     "SequenceEvaluation",
@@ -36,6 +41,7 @@ __all__ = [
     "evaluate_pair",
     "evaluate_sequence",
     "flatten_statistics",
+    "flicker_distances",
     "mean_statistics",
     "paper_tables",
     "registration_key",

@@ -34,6 +34,7 @@ from torchmeshmetric.kernels.point_triangle import point_mesh_distance
 from torchmeshmetric.kernels.sampling import sample_surface
 from torchmeshmetric.registration._common import (
     face_unit_normals,
+    normalisation,
     referenced_mask,
     validate_pair,
     vertex_unit_normals,
@@ -222,9 +223,7 @@ def register_nonrigid(
     gen = generator if generator is not None else torch.Generator().manual_seed(0)
 
     # 1. Normalise to the target's bounding-box centre and unit diagonal.
-    tref = tgt.verts[referenced_mask(tgt)]
-    center = 0.5 * (tref.amin(0) + tref.amax(0))
-    diag = (tref.amax(0) - tref.amin(0)).norm()
+    center, diag = normalisation(tgt)
     tv = (tgt.verts - center) / diag
     tf = tgt.faces
 
