@@ -57,7 +57,8 @@ class TemporalConsistency(Metric):
         True
         >>> stable = TemporalConsistency(flicker=True, register=lambda src, dst: src)
         >>> stable.update(coarse, sphere, sphere, simplified_k_minus_1=coarse)
-        >>> float(stable.compute()["flicker"]["max"]) < 1e-12  # the same simplification twice: no flicker
+        >>> flicker = stable.compute()["flicker"]
+        >>> float(flicker["max"]) < 1e-12  # the same simplification twice: no flicker
         True
     """
 
