@@ -85,13 +85,19 @@ def _load_frames(directory: str, what: str) -> list[Any]:
     return list(frames)
 
 
-def _write_reports(paths: dict[str, Path], methods: dict[str, Any], settings: dict[str, Any], overwrite: bool) -> None:
+def _write_reports(
+    paths: dict[str, Path],
+    methods: dict[str, Any],
+    settings: dict[str, Any],
+    overwrite: bool,
+    comparisons: dict[str, Any] | None = None,
+) -> None:
     from torchmeshmetric.evaluation import report_dict, write_csv, write_json, write_markdown
 
     if not paths:
         return
-    write_json(paths["json"], report_dict(methods, settings=settings), overwrite=overwrite)
-    write_markdown(paths["md"], methods, overwrite=overwrite)
+    write_json(paths["json"], report_dict(methods, settings=settings, comparisons=comparisons), overwrite=overwrite)
+    write_markdown(paths["md"], methods, overwrite=overwrite, comparisons=comparisons)
     write_csv(paths["csv"], methods, overwrite=overwrite)
     print(f"wrote {paths['json']}, {paths['md']}, {paths['csv']}", file=sys.stderr)
 
@@ -146,7 +152,7 @@ def _parse_methods(specs: Sequence[str]) -> dict[str, str]:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from torchmeshmetric.evaluation import paper_tables
+    from torchmeshmetric.evaluation import compare_methods, comparison_markdown, paper_tables
 
     device = _device(args)
     specs = _parse_methods(args.method)
@@ -156,8 +162,17 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     frames = {name: _load_frames(d, f"--method {name}") for name, d in specs.items()}
     results = _evaluate_methods(original, frames, args, device)
     print(paper_tables(results))
-    settings = {"original": args.original, "methods": specs, "two_sided": not args.one_sided}
-    _write_reports(paths, results, settings, args.overwrite)
+    comparisons = None
+    if len(results) >= 2:
+        comparisons = compare_methods(results, relative_margin=args.relative_margin)
+        print("## Comparisons with confidence\n\n" + comparison_markdown(comparisons))
+    settings = {
+        "original": args.original,
+        "methods": specs,
+        "two_sided": not args.one_sided,
+        "relative_margin": args.relative_margin,
+    }
+    _write_reports(paths, results, settings, args.overwrite, comparisons)
     return 0
 
 
@@ -446,7 +461,11 @@ def build_parser() -> argparse.ArgumentParser:
         parents=[common, evaluation, output],
         help="compare several simplification methods (Tables I-IV side by side)",
         description="Evaluate several simplified versions of one original sequence; registrations of the original "
-        "frames are computed once and shared by all methods.",
+        "frames are computed once and shared by all methods. With two or more methods, every pair of methods is "
+        "compared set by set: the mean difference over frame pairs, its 95%% paired t interval and a verdict "
+        "('<A> better', '<B> better' or 'inconclusive': the interval contains 0, or the difference is below the "
+        "registration's noise floor (k-1 and flicker sets) or the relative margin), in the report's "
+        "'comparisons' and as verdict tables.",
     )
     p.add_argument("--original", required=True, metavar="DIR", help="folder of the original frames")
     p.add_argument(
@@ -455,6 +474,14 @@ def build_parser() -> argparse.ArgumentParser:
         action="append",
         metavar="NAME=DIR",
         help="a method's name and the folder of its simplified frames; repeat for every method",
+    )
+    p.add_argument(
+        "--relative-margin",
+        type=float,
+        default=0.02,
+        metavar="FRACTION",
+        help="differences below this fraction of the better method's value are 'inconclusive' (default 0.02; "
+        "0 relies on the interval and the registration's noise floor alone)",
     )
     p.set_defaults(func=_cmd_compare)
 

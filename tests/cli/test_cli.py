@@ -49,6 +49,26 @@ def test_compare_registers_each_original_pair_once(capsys, tmp_path, sequence, k
     assert "| A | (k-1)-th |" in table1 and "| B | k-th |" in table1
 
 
+def test_compare_two_identical_method_folders_every_verdict_inconclusive(
+    capsys, tmp_path, sequence, known_registration
+):
+    orig, simp = sequence
+    out = tmp_path / "cmp.json"
+    code, stdout, stderr = _run(
+        capsys, "compare", "--original", str(orig), "--method", f"A={simp}", "--method", f"B={simp}", "--out", str(out)
+    )
+    assert code == 0, stderr
+    comparisons = json.loads(out.read_text())["comparisons"]
+    assert list(comparisons) == ["A vs B"]
+    entries = [e for stats in comparisons["A vs B"].values() for e in stats.values()]
+    assert len(entries) >= 10 * 4  # 5 sets + 5 reverse sets, ave/rmse/max/p95 (and psnr)
+    assert all(e["verdict"] == "inconclusive" and e["difference"] == 0.0 for e in entries)
+    assert "Comparisons with confidence" in stdout and "| flicker * |" in stdout
+    assert "Comparisons with confidence" in out.with_suffix(".md").read_text()
+    assert _run(capsys, "compare", "--original", str(orig), "--method", f"A={simp}", "--method", f"B={simp}",
+                "--relative-margin", "-1")[0] == 1  # fmt: skip
+
+
 @pytest.mark.parametrize(
     ("case", "message"),
     [

@@ -1,6 +1,12 @@
 """The evaluation system: registration of original frames, the four distance sets, statistics, reports."""
 
 from torchmeshmetric.evaluation.cache import CachedRegistration, RegistrationCache, registration_key
+from torchmeshmetric.evaluation.comparison import (
+    DEFAULT_COMPARISON_STATISTICS,
+    compare_methods,
+    comparison_markdown,
+    paired_t_interval,
+)
 from torchmeshmetric.evaluation.flicker import FLICKER, FlickerDistances, flicker_distances
 from torchmeshmetric.evaluation.metric import TemporalConsistency
 from torchmeshmetric.evaluation.pipeline import (
@@ -28,6 +34,7 @@ from torchmeshmetric.evaluation.results import (
 
 __all__ = [
     "BEST_PAIR_RULE",
+    "DEFAULT_COMPARISON_STATISTICS",
     "FLICKER",
     "FLOOR_SET_NAMES",
     "SET_NAMES",
@@ -37,12 +44,15 @@ __all__ = [
     "RegistrationCache",
     "SequenceEvaluation",
     "TemporalConsistency",
+    "compare_methods",
+    "comparison_markdown",
     "default_register",
     "evaluate_pair",
     "evaluate_sequence",
     "flatten_statistics",
     "flicker_distances",
     "mean_statistics",
+    "paired_t_interval",
     "paper_tables",
     "registration_key",
     "registration_settings",

@@ -182,14 +182,18 @@ def _clean(value: Any) -> Any:
 
 
 def report_dict(
-    methods: Mapping[str, SequenceEvaluation], *, settings: Mapping[str, Any] | None = None
+    methods: Mapping[str, SequenceEvaluation],
+    *,
+    settings: Mapping[str, Any] | None = None,
+    comparisons: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """JSON-ready report: ``{"tool", "version", "settings", "set_names", "methods": {name: sequence}}``.
 
     Each method holds ``pairs`` (per frame pair: the four sets ``surface_k``, ``surface_k_minus_1``, ``vertex_k``,
     ``vertex_k_minus_1`` with ``ave``, ``var``, ``std``, ``mse``, ``rmse`` and the further statistics, ``reverse``,
     ``registration``, ``timings``), ``aggregate`` under the same keys and ``best_pair``. Non-finite floats are
-    written as the strings ``"nan"``, ``"inf"``.
+    written as the strings ``"nan"``, ``"inf"``. With ``comparisons`` (from
+    :func:`~torchmeshmetric.evaluation.compare_methods`) the report also holds ``"comparisons"``.
     """
     from torchmeshmetric import __version__
 
@@ -200,6 +204,7 @@ def report_dict(
             "settings": dict(settings or {}),
             "set_names": list(SET_NAMES),
             "methods": {name: seq.as_dict() for name, seq in methods.items()},
+            **({"comparisons": dict(comparisons)} if comparisons is not None else {}),
         }
     )
 
@@ -210,10 +215,19 @@ def write_json(path: str | os.PathLike[str], report: Mapping[str, Any], *, overw
 
 
 def write_markdown(
-    path: str | os.PathLike[str], methods: Mapping[str, SequenceEvaluation], *, overwrite: bool = False
+    path: str | os.PathLike[str],
+    methods: Mapping[str, SequenceEvaluation],
+    *,
+    overwrite: bool = False,
+    comparisons: Mapping[str, Any] | None = None,
 ) -> Path:
-    """Write :func:`paper_tables` to a Markdown file, atomically."""
-    return atomic_write(path, "# torchmeshmetric evaluation\n\n" + paper_tables(methods), overwrite=overwrite)
+    """Write :func:`paper_tables` to a Markdown file, atomically, with the verdict tables of ``comparisons``."""
+    from torchmeshmetric.evaluation.comparison import comparison_markdown
+
+    text = "# torchmeshmetric evaluation\n\n" + paper_tables(methods)
+    if comparisons:
+        text += "\n## Comparisons with confidence\n\n" + comparison_markdown(comparisons)
+    return atomic_write(path, text, overwrite=overwrite)
 
 
 def write_csv(
