@@ -247,7 +247,8 @@ def compare_methods(
         ...     "A": evaluate_sequence(frames, coarse, register=same),
         ...     "B": evaluate_sequence(frames, coarse, register=same),
         ... })
-        >>> entry = out["A vs B"]["surface_k"]["ave"]
+        >>> surface_k = out["A vs B"]["surface_k"]
+        >>> entry = surface_k["ave"]
         >>> entry["difference"], entry["verdict"]
         (0.0, 'inconclusive')
     """
