@@ -247,7 +247,8 @@ def compare_methods(
         ...     "A": evaluate_sequence(frames, coarse, register=same),
         ...     "B": evaluate_sequence(frames, coarse, register=same),
         ... })
-        >>> surface_k = out["A vs B"]["surface_k"]
+        >>> a_vs_b = out["A vs B"]
+        >>> surface_k = a_vs_b["surface_k"]
         >>> entry = surface_k["ave"]
         >>> entry["difference"], entry["verdict"]
         (0.0, 'inconclusive')
