@@ -188,6 +188,25 @@ def _parse_target(text: str) -> float | int:
     raise argparse.ArgumentTypeError(f"expected a face count (>= 1) or a ratio in (0, 1), found {text!r}")
 
 
+def _parse_weight(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a weight >= 0, found {text!r}") from None
+    if not (value >= 0 and value != float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a finite weight >= 0, found {text!r}")
+    return value
+
+
+def _parse_weights(text: str) -> tuple[float, ...]:
+    if text.strip().lower() == "none":
+        return ()
+    weights = tuple(_parse_weight(w) for w in text.split(",") if w.strip())
+    if not weights:
+        raise argparse.ArgumentTypeError(f"expected a comma-separated list of weights or 'none', found {text!r}")
+    return weights
+
+
 def _fast_registration_options() -> dict[str, Any]:
     """The demo's quick registration: 30 Adam steps per stage (instead of up to 120) and 1000 points per term.
 
@@ -221,20 +240,21 @@ def _register_pairs(frames: list[Any], cache: Any, device: str, options: dict[st
     return out
 
 
-def _simplify_frames(frames: list[Any], method: str, target: float | int, registrations: list[Any] | None) -> list[Any]:
-    from torchmeshmetric.simplification import simplify_qem, simplify_registered_qem
-    from torchmeshmetric.structures import Mesh, as_mesh
+def _simplify_frames(
+    frames: list[Any],
+    method: str,
+    target: float | int,
+    registrations: list[Any] | None,
+    weight: float | None = None,
+) -> list[Any]:
+    from torchmeshmetric.simplification import DEFAULT_WEIGHT, simplify_sequence
 
-    out = []
-    for k, frame in enumerate(frames):
-        if method == "qem" or k == 0:  # frame 0 has no previous frame: Registered QEM reduces to QEM there
-            out.append(simplify_qem(frame, target))
-        else:
-            assert registrations is not None
-            prev = as_mesh(frames[k - 1])
-            registered = Mesh(registrations[k - 1].verts.to(prev.verts), prev.faces, validate=False)
-            out.append(simplify_registered_qem(frame, registered, target))
-    return out
+    if method == "qem":
+        return simplify_sequence(frames, target)
+    assert registrations is not None
+    return simplify_sequence(
+        frames, target, registrations=registrations, weight=DEFAULT_WEIGHT if weight is None else weight
+    )
 
 
 def _cmd_simplify(args: argparse.Namespace) -> int:
@@ -251,7 +271,7 @@ def _cmd_simplify(args: argparse.Namespace) -> int:
     registrations = None
     if args.method == "rqem":
         registrations = _register_pairs(frames, RegistrationCache(args.cache_dir), device)
-    simplified = _simplify_frames(frames, args.method, args.target, registrations)
+    simplified = _simplify_frames(frames, args.method, args.target, registrations, args.weight)
     for path, mesh, frame in zip(targets, simplified, frames, strict=True):
         save_mesh(mesh, path, overwrite=args.overwrite)
         print(f"{path}: {frame.num_faces} -> {mesh.num_faces} faces", file=sys.stderr)
@@ -291,6 +311,7 @@ _DEMO_MARKER = ".torchmeshmetric-demo"
 DEMO_FRAMES = 6
 DEMO_RESOLUTION = 160
 DEMO_TARGET = 0.97
+DEMO_WEIGHTS = (0.0, 0.5, 1.0, 2.0, 4.0, 8.0)
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
@@ -338,7 +359,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     simplified = {
         "Orig QEM": _simplify_frames(frames, "qem", args.target, None),
-        "Reg QEM": _simplify_frames(frames, "rqem", args.target, registrations),
+        "Reg QEM": _simplify_frames(frames, "rqem", args.target, registrations, args.weight),
     }
     print(f"simplified with QEM and Registered QEM in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
 
@@ -362,6 +383,8 @@ def _cmd_demo(args: argparse.Namespace) -> int:
             "seed": args.seed,
             "target": args.target,
             "registration": args.registration,
+            "weight": args.weight,
+            "weights": list(args.weights),
         },
         "two_sided": not args.one_sided,
     }
@@ -378,8 +401,35 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         written.append("<method>/frame_*.ply")
     if not args.no_plots:
         written += _demo_plots(out_dir, results, simplified)
+    if args.weights:
+        written += _demo_sweep(out_dir, frames, registrations, args, device, plots=not args.no_plots)
     print(f"wrote to {out_dir}: {', '.join(written)}", file=sys.stderr)
     return 0
+
+
+def _demo_sweep(
+    out_dir: Path, frames: list[Any], registrations: list[Any], args: argparse.Namespace, device: str, plots: bool
+) -> list[str]:
+    """Registered QEM at every weight of --weights beside plain QEM: table, JSON and Pareto plot."""
+    import json
+
+    from torchmeshmetric.evaluation import registered_qem_sweep
+    from torchmeshmetric.evaluation.atomic import atomic_write
+
+    t0 = time.perf_counter()
+    sweep = registered_qem_sweep(frames, registrations, args.target, args.weights, device=device)
+    print(f"weight sweep ({len(args.weights)} weights + QEM) in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
+    table = sweep.markdown()
+    print("### Registered QEM weight sweep (mean over pairs of the per-pair Ave)\n\n" + table)
+    atomic_write(out_dir / "weight_sweep.md", "# Registered QEM weight sweep\n\n" + table, overwrite=True)
+    atomic_write(out_dir / "weight_sweep.json", json.dumps(sweep.as_dict(), indent=2) + "\n", overwrite=True)
+    written = ["weight_sweep.md", "weight_sweep.json"]
+    if plots:
+        from torchmeshmetric.viz import plot_weight_sweep
+
+        plot_weight_sweep(sweep, out_dir / "weight_sweep.png", overwrite=True)
+        written.append("weight_sweep.png")
+    return written
 
 
 def _demo_plots(out_dir: Path, results: dict[str, Any], simplified: dict[str, list[Any]]) -> list[str]:
@@ -501,6 +551,13 @@ def build_parser() -> argparse.ArgumentParser:
         default=0.5,
         help="faces to keep: a count (>= 1) or a ratio in (0, 1) of each frame's faces (default 0.5)",
     )
+    p.add_argument(
+        "--weight",
+        type=_parse_weight,
+        default=None,
+        help="rqem: weight of the registered previous frame's quadrics (default: the library's DEFAULT_WEIGHT, "
+        "chosen from the sweep in docs/simplification.md)",
+    )
     p.add_argument("--cache-dir", default=None, metavar="DIR", help="registration cache folder (rqem only)")
     p.add_argument("--overwrite", action="store_true", help="replace existing files in --output")
     p.set_defaults(func=_cmd_simplify)
@@ -553,6 +610,20 @@ def build_parser() -> argparse.ArgumentParser:
         default="full",
         help="full (default): the library's default registration (about 6 s per 20k-vertex frame pair on 2 cores); "
         "fast: 30 optimisation steps per stage and 1000 points per term, quicker with a ~1.4x larger residual",
+    )
+    p.add_argument(
+        "--weight",
+        type=_parse_weight,
+        default=None,
+        help="Registered QEM's weight of the registered previous frame (default: the library's DEFAULT_WEIGHT)",
+    )
+    p.add_argument(
+        "--weights",
+        type=_parse_weights,
+        default=DEMO_WEIGHTS,
+        metavar="W1,W2,...",
+        help="also run Registered QEM at each of these weights beside plain QEM and write weight_sweep.md/.json "
+        f"and the Pareto plot weight_sweep.png (default {','.join(f'{w:g}' for w in DEMO_WEIGHTS)}; 'none' skips)",
     )
     p.add_argument("--out-dir", default="torchmeshmetric-demo", metavar="DIR", help="output folder")
     p.add_argument("--overwrite", action="store_true", help="write into --out-dir even if another tool made it")

@@ -31,10 +31,12 @@ from torchmeshmetric.evaluation.results import (
     flatten_statistics,
     mean_statistics,
 )
+from torchmeshmetric.evaluation.sweep import DEFAULT_SWEEP_WEIGHTS, WeightSweep, registered_qem_sweep
 
 __all__ = [
     "BEST_PAIR_RULE",
     "DEFAULT_COMPARISON_STATISTICS",
+    "DEFAULT_SWEEP_WEIGHTS",
     "FLICKER",
     "FLOOR_SET_NAMES",
     "SET_NAMES",
@@ -44,6 +46,7 @@ __all__ = [
     "RegistrationCache",
     "SequenceEvaluation",
     "TemporalConsistency",
+    "WeightSweep",
     "compare_methods",
     "comparison_markdown",
     "default_register",
@@ -54,6 +57,7 @@ __all__ = [
     "mean_statistics",
     "paired_t_interval",
     "paper_tables",
+    "registered_qem_sweep",
     "registration_key",
     "registration_settings",
     "report_dict",

@@ -2,5 +2,6 @@
 
 from torchmeshmetric.viz.colors import error_colors, write_error_ply
 from torchmeshmetric.viz.plots import plot_frame_curves, plot_histograms
+from torchmeshmetric.viz.sweep import plot_weight_sweep
 
-__all__ = ["error_colors", "plot_frame_curves", "plot_histograms", "write_error_ply"]
+__all__ = ["error_colors", "plot_frame_curves", "plot_histograms", "plot_weight_sweep", "write_error_ply"]
