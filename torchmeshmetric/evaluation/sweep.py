@@ -111,8 +111,8 @@ def registered_qem_sweep(
         >>> import trimesh
         >>> frames = [trimesh.creation.icosphere(subdivisions=2)] * 3
         >>> sweep = registered_qem_sweep(frames, [frames[0]] * 2, 0.5, [0.0, 1.0], baseline=False)
-        >>> [row["weight"] for row in sweep.rows()]
-        [0.0, 1.0]
+        >>> tuple(row["weight"] for row in sweep.rows())
+        (0.0, 1.0)
     """
     from torchmeshmetric.simplification import simplify_sequence
     from torchmeshmetric.structures import as_mesh

@@ -36,8 +36,8 @@ def simplify_sequence(
     Example:
         >>> import trimesh
         >>> frames = [trimesh.creation.icosphere(subdivisions=2)] * 2
-        >>> [m.num_faces for m in simplify_sequence(frames, 0.5)]
-        [160, 160]
+        >>> tuple(m.num_faces for m in simplify_sequence(frames, 0.5))
+        (160, 160)
     """
     if registrations is not None and len(registrations) != len(frames) - 1:
         raise ValueError(f"registrations: expected {len(frames) - 1} (one per frame pair), found {len(registrations)}")
