@@ -3,5 +3,13 @@
 from torchmeshmetric.viz.colors import error_colors, write_error_ply
 from torchmeshmetric.viz.plots import plot_frame_curves, plot_histograms
 from torchmeshmetric.viz.sweep import plot_weight_sweep
+from torchmeshmetric.viz.validation import plot_validation
 
-__all__ = ["error_colors", "plot_frame_curves", "plot_histograms", "plot_weight_sweep", "write_error_ply"]
+__all__ = [
+    "error_colors",
+    "plot_frame_curves",
+    "plot_histograms",
+    "plot_validation",
+    "plot_weight_sweep",
+    "write_error_ply",
+]
