@@ -31,7 +31,8 @@ from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
 __all__ = ["DEFAULT_WEIGHT", "face_quadrics", "simplify_registered_qem", "vertex_quadrics"]
 
-#: Default weight of the registered previous frame's quadrics (chosen from the sweep in docs/simplification.md).
+#: Default weight of the registered previous frame's quadrics: 1, the knee of the sweep in docs/simplification.md
+#: (the largest weight that does not raise the frame-k error over weight 0 at 50 % on the built-in sequence).
 DEFAULT_WEIGHT = 1.0
 
 _A = [0, 1, 2, 4, 5, 6, 8, 9, 10]  # 3x3 block of a flattened 4x4 quadric

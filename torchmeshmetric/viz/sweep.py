@@ -47,7 +47,10 @@ def plot_weight_sweep(
         ax.plot([], [], "o", color="tab:blue", label="Registered QEM (filled: Pareto front)")
         xs_all = xs + [r["surface_k"] for r in base]
         if min(xs_all) > 0 and max(xs_all) / min(xs_all) > 10:
+            from matplotlib.ticker import NullFormatter
+
             ax.set_xscale("log")
+            ax.xaxis.set_minor_formatter(NullFormatter())  # minor labels overlap on a short log range
         ax.set_xlabel(f"frame k error: surface distance to k ({statistic}, mean over pairs)")
         ax.set_ylabel(f"{label} ({statistic})")
         ax.legend(fontsize=8)
