@@ -372,6 +372,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
             two_sided=not args.one_sided,
             device=device,
             progress=_progress(name),
+            ground_truth=seq.transfer,  # the built-in sequence's true motion: the registration's error is reported
         )
         for name, simp in simplified.items()
     }
@@ -403,13 +404,19 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     if not args.no_plots:
         written += _demo_plots(out_dir, results, simplified)
     if args.weights:
-        written += _demo_sweep(out_dir, frames, registrations, args, device, plots=not args.no_plots)
+        written += _demo_sweep(out_dir, frames, registrations, args, device, seq.transfer, not args.no_plots)
     print(f"wrote to {out_dir}: {', '.join(written)}", file=sys.stderr)
     return 0
 
 
 def _demo_sweep(
-    out_dir: Path, frames: list[Any], registrations: list[Any], args: argparse.Namespace, device: str, plots: bool
+    out_dir: Path,
+    frames: list[Any],
+    registrations: list[Any],
+    args: argparse.Namespace,
+    device: str,
+    ground_truth: Any,
+    plots: bool,
 ) -> list[str]:
     """Registered QEM at every weight of --weights beside plain QEM: table, JSON and Pareto plot."""
     import json
@@ -418,7 +425,9 @@ def _demo_sweep(
     from torchmeshmetric.evaluation.atomic import atomic_write
 
     t0 = time.perf_counter()
-    sweep = registered_qem_sweep(frames, registrations, args.target, args.weights, device=device)
+    sweep = registered_qem_sweep(
+        frames, registrations, args.target, args.weights, device=device, ground_truth=ground_truth
+    )
     print(f"weight sweep ({len(args.weights)} weights + QEM) in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
     table = sweep.markdown()
     print("### Registered QEM weight sweep (mean over pairs of the per-pair Ave)\n\n" + table)

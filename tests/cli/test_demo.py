@@ -70,7 +70,8 @@ def _check_tables_equal_report(stdout, report):
     tables = _printed_tables(stdout)
     assert set(tables) == set(_TABLES)
     for title, (part, sets) in _TABLES.items():
-        assert len(tables[title]) == len(sets) * len(report["methods"]) + 1  # + the registration's residual row
+        # + the registration's rows: its residual, and its error to the built-in sequence's true motion
+        assert len(tables[title]) == len(sets) * len(report["methods"]) + 2
         for method, body in report["methods"].items():
             stats = body["aggregate"] if part == "aggregate" else body["pairs"][body["best_pair"]["index"]]
             for mesh, name in zip(("(k-1)-th", "k-th", "flicker"), sets, strict=False):
@@ -78,8 +79,9 @@ def _check_tables_equal_report(stdout, report):
                 expected = [stats[name][c] for c in _COLUMNS]
                 # printed with 4 significant digits
                 assert printed == pytest.approx(expected, rel=6e-4, abs=0), (title, method, mesh)
-            residual = [float(stats["registration"]["residual"][c]) for c in _COLUMNS]  # "inf" -> inf
-            assert tables[title][("Registration", "residual to k")] == pytest.approx(residual, rel=6e-4, abs=0)
+            for what, label in (("residual", "residual to k"), ("error", "error to truth")):
+                expected = [float(stats["registration"][what][c]) for c in _COLUMNS]  # "inf" -> inf
+                assert tables[title][("Registration", label)] == pytest.approx(expected, rel=6e-4, abs=0)
 
 
 def test_demo_printed_tables_equal_json_report(capsys, tmp_path, known_registration):
