@@ -49,6 +49,26 @@ def test_compare_registers_each_original_pair_once(capsys, tmp_path, sequence, k
     assert "| A | (k-1)-th |" in table1 and "| B | k-th |" in table1
 
 
+def test_compare_two_identical_method_folders_every_verdict_inconclusive(
+    capsys, tmp_path, sequence, known_registration
+):
+    orig, simp = sequence
+    out = tmp_path / "cmp.json"
+    code, stdout, stderr = _run(
+        capsys, "compare", "--original", str(orig), "--method", f"A={simp}", "--method", f"B={simp}", "--out", str(out)
+    )
+    assert code == 0, stderr
+    comparisons = json.loads(out.read_text())["comparisons"]
+    assert list(comparisons) == ["A vs B"]
+    entries = [e for stats in comparisons["A vs B"].values() for e in stats.values()]
+    assert len(entries) >= 10 * 4  # 5 sets + 5 reverse sets, ave/rmse/max/p95 (and psnr)
+    assert all(e["verdict"] == "inconclusive" and e["difference"] == 0.0 for e in entries)
+    assert "Comparisons with confidence" in stdout and "| flicker * |" in stdout
+    assert "Comparisons with confidence" in out.with_suffix(".md").read_text()
+    assert _run(capsys, "compare", "--original", str(orig), "--method", f"A={simp}", "--method", f"B={simp}",
+                "--relative-margin", "-1")[0] == 1  # fmt: skip
+
+
 @pytest.mark.parametrize(
     ("case", "message"),
     [
@@ -98,7 +118,7 @@ def test_bad_method_spec_and_cuda_without_gpu(capsys, tmp_path, sequence):
 def test_help_explains_every_option():
     parser = build_parser()
     subparsers = next(a for a in parser._actions if a.dest == "command").choices
-    assert set(subparsers) == {"evaluate", "compare", "simplify", "register", "demo", "mpeg"}
+    assert set(subparsers) == {"evaluate", "compare", "simplify", "register", "demo", "mpeg", "validate"}
     for name, sub in subparsers.items():
         for action in sub._actions:
             assert action.help, f"{name} {action.option_strings} has no help"

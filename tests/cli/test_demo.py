@@ -24,13 +24,17 @@ def test_demo_writes_tables_report_and_plots(capsys, tmp_path, known_registratio
     assert "| Orig QEM | (k-1)-th |" in stdout and "| Reg QEM | k-th |" in stdout
     names = {p.name for p in out.iterdir()}
     assert {"report.json", "report.md", "report.csv", "histograms.png", "frame_curves.png"} <= names
+    assert {"weight_sweep.md", "weight_sweep.json", "weight_sweep.png"} <= names  # the default sweep
+    sweep = json.loads((out / "weight_sweep.json").read_text())
+    assert [r["weight"] for r in sweep["ave"]] == [0.0, 0.5, 1.0, 2.0, 4.0, 8.0, None]  # None: plain QEM
+    assert "| Registered QEM | 8 |" in stdout
     assert any(n.startswith("error_reg_qem_frame") and n.endswith(".ply") for n in names)
     report = json.loads((out / "report.json").read_text())
     assert set(report["methods"]) == {"Orig QEM", "Reg QEM"}
     assert len(report["methods"]["Reg QEM"]["pairs"]) == 2
     assert known_registration.calls == 2  # each original pair registered once, shared by both methods
     # running again into its own folder is allowed; a foreign non-empty folder is not
-    assert main(["demo", *SMALL, "--out-dir", str(out), "--no-plots"]) == 0
+    assert main(["demo", *SMALL, "--out-dir", str(out), "--no-plots", "--weights", "none"]) == 0
     foreign = tmp_path / "foreign"
     foreign.mkdir()
     (foreign / "thesis.tex").write_text("x")
@@ -39,10 +43,10 @@ def test_demo_writes_tables_report_and_plots(capsys, tmp_path, known_registratio
     assert "--overwrite" in capsys.readouterr().err
 
 
-_TABLES = {  # printed title -> (JSON part, sets of its rows: (k-1)-th then k-th)
-    "Table I:": ("best", ("surface_k_minus_1", "surface_k")),
+_TABLES = {  # printed title -> (JSON part, sets of its rows: (k-1)-th, k-th, [flicker])
+    "Table I:": ("best", ("surface_k_minus_1", "surface_k", "flicker")),
     "Table II:": ("best", ("vertex_k_minus_1", "vertex_k")),
-    "Table III:": ("aggregate", ("surface_k_minus_1", "surface_k")),
+    "Table III:": ("aggregate", ("surface_k_minus_1", "surface_k", "flicker")),
     "Table IV:": ("aggregate", ("vertex_k_minus_1", "vertex_k")),
 }
 _COLUMNS = ("ave", "var", "std", "mse", "rmse", "max", "p95", "psnr")
@@ -66,19 +70,23 @@ def _check_tables_equal_report(stdout, report):
     tables = _printed_tables(stdout)
     assert set(tables) == set(_TABLES)
     for title, (part, sets) in _TABLES.items():
-        assert len(tables[title]) == 2 * len(report["methods"])
+        # + the registration's rows: its residual, and its error to the built-in sequence's true motion
+        assert len(tables[title]) == len(sets) * len(report["methods"]) + 2
         for method, body in report["methods"].items():
             stats = body["aggregate"] if part == "aggregate" else body["pairs"][body["best_pair"]["index"]]
-            for mesh, name in zip(("(k-1)-th", "k-th"), sets, strict=True):
+            for mesh, name in zip(("(k-1)-th", "k-th", "flicker"), sets, strict=False):
                 printed = tables[title][(method, mesh)]
                 expected = [stats[name][c] for c in _COLUMNS]
                 # printed with 4 significant digits
                 assert printed == pytest.approx(expected, rel=6e-4, abs=0), (title, method, mesh)
+            for what, label in (("residual", "residual to k"), ("error", "error to truth")):
+                expected = [float(stats["registration"][what][c]) for c in _COLUMNS]  # "inf" -> inf
+                assert tables[title][("Registration", label)] == pytest.approx(expected, rel=6e-4, abs=0)
 
 
 def test_demo_printed_tables_equal_json_report(capsys, tmp_path, known_registration):
     out = tmp_path / "demo"
-    assert main(["demo", *SMALL, "--out-dir", str(out), "--no-plots"]) == 0
+    assert main(["demo", *SMALL, "--out-dir", str(out), "--no-plots", "--weights", "none"]) == 0
     stdout = capsys.readouterr().out
     _check_tables_equal_report(stdout, json.loads((out / "report.json").read_text()))
 
@@ -99,6 +107,20 @@ def test_demo_end_to_end_real_registration(capsys, tmp_path):
     assert len(report["methods"]["Orig QEM"]["pairs"]) == 2
     _check_tables_equal_report(captured.out, report)
     assert (out / "report.md").read_text().count("| Reg QEM | k-th |") >= 4
+
+
+def test_demo_weights_option(capsys, tmp_path, known_registration):
+    out = tmp_path / "demo"
+    assert main(["demo", *SMALL, "--out-dir", str(out), "--no-plots", "--weights", "0,3", "--weight", "3"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["settings"]["demo"]["weights"] == [0.0, 3.0] and report["settings"]["demo"]["weight"] == 3.0
+    sweep = json.loads((out / "weight_sweep.json").read_text())
+    # the sweep at weight 3 is the demo's Reg QEM at --weight 3: the same frame-k error
+    reg_qem = report["methods"]["Reg QEM"]["aggregate"]["surface_k"]["ave"]
+    assert sweep["ave"][1]["surface_k"] == pytest.approx(reg_qem, rel=1e-12)
+    assert not (out / "weight_sweep.png").exists()  # --no-plots
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(["demo", "--weights", "1,-2"])
 
 
 def test_demo_defaults_are_the_papers_sizes():

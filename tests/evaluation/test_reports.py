@@ -64,10 +64,12 @@ def test_csv_rows(methods, tmp_path):
     path = write_csv(tmp_path / "r.csv", methods)
     rows = list(csv.DictReader(path.open()))
     table3 = [r for r in rows if r["table"] == "III" and r["algorithm"] == "coarse"]
-    assert [r["set"] for r in table3] == ["surface_k_minus_1", "surface_k"]
+    assert [r["set"] for r in table3] == ["surface_k_minus_1", "surface_k", "flicker"]
+    registration = [r["set"] for r in rows if r["table"] == "III" and r["algorithm"] == "Registration"]
+    assert registration == ["registration:residual"]  # once per table, not per algorithm
     assert float(table3[0]["rmse"]) == methods["coarse"].aggregate()["surface_k_minus_1"]["rmse"]
     pairs = [r for r in rows if r["table"] == "pair" and r["algorithm"] == "same"]
-    assert len(pairs) == 3 * 8  # 3 pairs x (4 sets + 4 reverse)
+    assert len(pairs) == 3 * 10  # 3 pairs x (5 sets + 5 reverse)
 
 
 def test_writers_never_overwrite_unasked_and_leave_no_partial_file(methods, tmp_path):

@@ -59,3 +59,22 @@ def test_log_bins_of_all_zero_distances_are_a_valid_axis():
     assert len(edges) == 5 and np.all(np.diff(edges) > 0) and edges[0] > 0
     edges = log_bins([np.array([0.0, 1e-30, 1.0])], 3)  # the axis spans at most 6 decades
     assert edges[0] == pytest.approx(1e-6) and edges[-1] == 1.0
+
+
+def test_plots_have_a_flicker_and_a_registration_panel_when_flicker_was_measured(tmp_path):
+    import struct
+
+    from torchmeshmetric.evaluation import evaluate_pair
+
+    original = [sphere(1, offset=(0.1 * k, 0, 0)) for k in range(3)]
+    simplified = [sphere(0, offset=(0.1 * k, 0, 0)) for k in range(3)]
+    seq = evaluate_sequence(original, simplified, register=TranslationRegister())
+    alone = evaluate_pair(simplified[1], original[1], original[0], registration=original[0])  # no flicker set
+
+    def width(path):
+        return struct.unpack(">I", path.read_bytes()[16:20])[0]  # PNG IHDR
+
+    six = plot_histograms({"a": seq.pairs[0]}, tmp_path / "six.png")
+    four = plot_histograms({"a": alone}, tmp_path / "four.png")
+    assert (width(six), width(four)) == (1650, 1100)  # 3 x 5 in and 2 x 5 in at 110 dpi
+    assert width(plot_frame_curves({"a": seq}, tmp_path / "curves.png")) == 1650

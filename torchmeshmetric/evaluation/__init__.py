@@ -1,6 +1,13 @@
 """The evaluation system: registration of original frames, the four distance sets, statistics, reports."""
 
 from torchmeshmetric.evaluation.cache import CachedRegistration, RegistrationCache, registration_key
+from torchmeshmetric.evaluation.comparison import (
+    DEFAULT_COMPARISON_STATISTICS,
+    compare_methods,
+    comparison_markdown,
+    paired_t_interval,
+)
+from torchmeshmetric.evaluation.flicker import FLICKER, FlickerDistances, flicker_distances
 from torchmeshmetric.evaluation.metric import TemporalConsistency
 from torchmeshmetric.evaluation.pipeline import (
     default_register,
@@ -17,27 +24,40 @@ from torchmeshmetric.evaluation.reports import (
 )
 from torchmeshmetric.evaluation.results import (
     BEST_PAIR_RULE,
+    FLOOR_SET_NAMES,
     SET_NAMES,
     PairEvaluation,
     SequenceEvaluation,
     flatten_statistics,
     mean_statistics,
 )
+from torchmeshmetric.evaluation.sweep import DEFAULT_SWEEP_WEIGHTS, WeightSweep, registered_qem_sweep
 
 __all__ = [
     "BEST_PAIR_RULE",
+    "DEFAULT_COMPARISON_STATISTICS",
+    "DEFAULT_SWEEP_WEIGHTS",
+    "FLICKER",
+    "FLOOR_SET_NAMES",
     "SET_NAMES",
     "CachedRegistration",
+    "FlickerDistances",
     "PairEvaluation",
     "RegistrationCache",
     "SequenceEvaluation",
     "TemporalConsistency",
+    "WeightSweep",
+    "compare_methods",
+    "comparison_markdown",
     "default_register",
     "evaluate_pair",
     "evaluate_sequence",
     "flatten_statistics",
+    "flicker_distances",
     "mean_statistics",
+    "paired_t_interval",
     "paper_tables",
+    "registered_qem_sweep",
     "registration_key",
     "registration_settings",
     "report_dict",

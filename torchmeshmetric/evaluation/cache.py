@@ -5,6 +5,10 @@ not depend on the simplification method, so comparing several methods on one seq
 are keyed by a SHA-256 content hash of both meshes (vertex positions as float64 and faces as int64, with their
 shapes) and of the registration settings; disk entries are written atomically (temporary file in the same folder,
 then :func:`os.replace`), so an interrupted run never leaves a truncated entry behind.
+
+Entries keep the registration's deformation (:class:`~torchmeshmetric.registration.RegistrationWarp`) when it has
+one, because the ``flicker`` set moves points other than the registered vertices. Entries written before the
+deformation was stored (no ``"warp"`` field) are treated as missing: recomputed and replaced, never half-used.
 """
 
 from __future__ import annotations
@@ -15,12 +19,13 @@ import os
 import warnings
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import torch
 from torch import Tensor
 
 from torchmeshmetric._atomic import atomic_write_with
+from torchmeshmetric.registration.warp import RegistrationWarp, Warp
 from torchmeshmetric.structures import Mesh
 
 __all__ = ["CachedRegistration", "RegistrationCache", "registration_key"]
@@ -36,12 +41,18 @@ class CachedRegistration(NamedTuple):
         residual: ``(V_{k-1},)`` distance of each registered vertex to the surface of frame ``k``, on the CPU.
         converged: the registration's convergence flag.
         seconds: wall time the registration took when it was computed.
+        warp: the registration's deformation as a map of arbitrary points of frame ``k-1`` to frame ``k``
+            (:data:`~torchmeshmetric.registration.Warp`), or ``None`` when only the registered vertices are known
+            (then the evaluation interpolates them: :class:`~torchmeshmetric.registration.SurfaceWarp`). The cache
+            keeps a :class:`~torchmeshmetric.registration.RegistrationWarp` and drops any other callable (it cannot
+            be stored), so an entry is the same from memory and from disk.
     """
 
     verts: Tensor
     residual: Tensor
     converged: bool
     seconds: float
+    warp: Warp | None = None
 
 
 def _hash_mesh(h: hashlib._Hash, mesh: Mesh) -> None:
@@ -93,6 +104,10 @@ def _entry_problem(entry: CachedRegistration, num_verts: int) -> str | None:
     return None
 
 
+def _storable(warp: Warp | None) -> dict[str, Any] | None:
+    return warp.state() if isinstance(warp, RegistrationWarp) else None
+
+
 class RegistrationCache:
     """Registrations keyed by content, kept in memory and, when ``directory`` is given, on disk.
 
@@ -128,7 +143,12 @@ class RegistrationCache:
             return None
         try:
             data = torch.load(self._path(key), map_location="cpu", weights_only=True)
-            entry = CachedRegistration(data["verts"], data["residual"], bool(data["converged"]), float(data["seconds"]))
+            if "warp" not in data:  # written before the deformation was stored: recompute and replace
+                return None
+            warp = None if data["warp"] is None else RegistrationWarp.from_state(data["warp"])
+            entry = CachedRegistration(
+                data["verts"], data["residual"], bool(data["converged"]), float(data["seconds"]), warp
+            )
             problem = _entry_problem(entry, source.num_verts)
         except Exception as exc:  # a corrupt entry is recomputed and replaced, never trusted
             problem = f"unreadable ({type(exc).__name__}: {exc})"
@@ -141,7 +161,7 @@ class RegistrationCache:
         if self.directory is None:
             return
         self.directory.mkdir(parents=True, exist_ok=True)
-        payload = entry._asdict()
+        payload = {**entry._asdict(), "warp": _storable(entry.warp)}
         # Written at once even inside a report's atomic_file_set: a registration is worth keeping on any outcome.
         atomic_write_with(self._path(key), lambda fh: torch.save(payload, fh), overwrite=True, join_file_set=False)
 
@@ -174,8 +194,9 @@ class RegistrationCache:
             return entry, True
         self.misses += 1
         fresh = compute()
+        warp = fresh.warp.to("cpu") if isinstance(fresh.warp, RegistrationWarp) else None
         entry = CachedRegistration(
-            fresh.verts.detach().cpu(), fresh.residual.detach().cpu(), bool(fresh.converged), float(fresh.seconds)
+            fresh.verts.detach().cpu(), fresh.residual.detach().cpu(), bool(fresh.converged), float(fresh.seconds), warp
         )
         self._memory[key] = entry
         self._store(key, entry)

@@ -10,6 +10,7 @@ from torch import Tensor
 from torchmetrics import Metric
 
 from torchmeshmetric.evaluation.cache import RegistrationCache
+from torchmeshmetric.evaluation.flicker import FLICKER
 from torchmeshmetric.evaluation.pipeline import RegisterFn, evaluate_pair
 from torchmeshmetric.evaluation.results import SET_NAMES
 from torchmeshmetric.kernels import IndexCache
@@ -29,8 +30,16 @@ class TemporalConsistency(Metric):
     when two-sided. Pooling differs from the sequence report's aggregate, which averages per-pair statistics as the
     paper's Tables III/IV do. Use :func:`~torchmeshmetric.evaluation.flatten_statistics` for ``log_dict``.
 
+    With ``flicker=True`` the metric also accumulates the ``flicker`` set (the simplified frame ``k`` against the
+    simplified frame ``k-1`` moved onto frame ``k`` by the registration, see
+    :mod:`~torchmeshmetric.evaluation.flicker`): every :meth:`update` then takes ``simplified_k_minus_1`` too (the
+    model's output for the previous frame), and :meth:`compute` returns a ``"flicker"`` entry. The choice is made
+    once, at construction, so that every process of a DDP run holds the same states.
+
     Args:
         two_sided: also accumulate the reverse (reference → simplified) sets (default ``True``).
+        flicker: also accumulate the ``flicker`` set (default ``False``; each update then needs
+            ``simplified_k_minus_1``).
         register: registration function (default: the library's non-rigid registration).
         register_options: options of the default registration.
         backend: kernel backend of the distances and of the default registration (``"auto"``, ``"bvh"``, ...).
@@ -48,6 +57,11 @@ class TemporalConsistency(Metric):
         >>> vertex_k = out["vertex_k"]
         >>> float(vertex_k["max"]) < 1e-12  # coarse icosphere vertices lie on the fine one
         True
+        >>> stable = TemporalConsistency(flicker=True, register=lambda src, dst: src)
+        >>> stable.update(coarse, sphere, sphere, simplified_k_minus_1=coarse)
+        >>> flicker = stable.compute()["flicker"]
+        >>> float(flicker["max"]) < 1e-12  # the same simplification twice: no flicker
+        True
     """
 
     is_differentiable = False
@@ -62,11 +76,14 @@ class TemporalConsistency(Metric):
         register: RegisterFn | Any | None = None,
         register_options: Mapping[str, Any] | None = None,
         backend: str = "auto",
+        flicker: bool = False,
         **kwargs: Any,
     ) -> None:
         super().__init__(**kwargs)
         if not isinstance(two_sided, bool):
             raise TypeError(f"two_sided: expected a bool, found {type(two_sided).__name__}")
+        if not isinstance(flicker, bool):
+            raise TypeError(f"flicker: expected a bool, found {type(flicker).__name__}")
         if register is not None and not callable(register):
             raise TypeError(f"register: expected a callable or None, found {type(register).__name__}")
         self.two_sided = two_sided
@@ -77,14 +94,43 @@ class TemporalConsistency(Metric):
         # One index per reference mesh, found again by content: validating every epoch on the same frames builds
         # each reference's structure once.
         self.indexes = IndexCache(max_entries=64)
-        for name in SET_NAMES:
+        self.measure_flicker = flicker
+        self._set_names = SET_NAMES + ((FLICKER,) if flicker else ())
+        for name in self._set_names:
             self.add_state(name, default=[], dist_reduce_fx="cat")
             if two_sided:
                 self.add_state(f"reverse_{name}", default=[], dist_reduce_fx="cat")
         self.add_state("peak", default=torch.tensor(0.0, dtype=torch.float64), dist_reduce_fx="max")
 
-    def update(self, simplified_k: MeshLike, original_k: MeshLike, original_k_minus_1: MeshLike) -> None:
-        """Evaluate one simplified frame ``k`` against original frames ``k`` and ``k-1``."""
+    def update(
+        self,
+        simplified_k: MeshLike,
+        original_k: MeshLike,
+        original_k_minus_1: MeshLike,
+        simplified_k_minus_1: MeshLike | None = None,
+        *,
+        registration: Any = None,
+    ) -> None:
+        """Evaluate one simplified frame ``k`` against original frames ``k`` and ``k-1``.
+
+        Args:
+            simplified_k: the simplified frame ``k``.
+            original_k: the original frame ``k``.
+            original_k_minus_1: the original frame ``k-1``.
+            simplified_k_minus_1: the simplified frame ``k-1``: required with ``flicker=True``, refused otherwise.
+            registration: frame ``k-1`` already registered onto frame ``k`` (as in
+                :func:`~torchmeshmetric.evaluation.evaluate_pair`); default: registered here (cached).
+
+        Raises:
+            ValueError: ``simplified_k_minus_1`` missing with ``flicker=True``, or given with ``flicker=False``.
+        """
+        if self.measure_flicker and simplified_k_minus_1 is None:
+            raise ValueError("simplified_k_minus_1: required by TemporalConsistency(flicker=True), found None")
+        if not self.measure_flicker and simplified_k_minus_1 is not None:
+            raise ValueError(
+                "simplified_k_minus_1: given, but this metric was built with flicker=False "
+                "(build it with TemporalConsistency(flicker=True) to measure the flicker set)"
+            )
         result = evaluate_pair(
             simplified_k,
             original_k,
@@ -96,8 +142,10 @@ class TemporalConsistency(Metric):
             cache=self.cache,
             backend=self.backend,
             indexes=self.indexes,
+            registration=registration,
+            simplified_k_minus_1=simplified_k_minus_1,
         )
-        for name in SET_NAMES:
+        for name in self._set_names:
             getattr(self, name).append(result.distances[name].detach().double())
             if self.two_sided:
                 getattr(self, f"reverse_{name}").append(result.reverse_distances[name].detach().double())
@@ -113,8 +161,11 @@ class TemporalConsistency(Metric):
         return {k: torch.tensor(v, dtype=torch.float64) for k, v in stats.as_dict().items()}
 
     def compute(self) -> dict[str, Any]:
-        """Pooled statistics: ``{set_name: {statistic: 0-dim tensor}}`` (+ ``"reverse"`` when two-sided)."""
-        out: dict[str, Any] = {name: self._stats(getattr(self, name)) for name in SET_NAMES}
+        """Pooled statistics: ``{set_name: {statistic: 0-dim tensor}}`` (+ ``"reverse"`` when two-sided).
+
+        The sets are the four of the paper, plus ``"flicker"`` with ``flicker=True``.
+        """
+        out: dict[str, Any] = {name: self._stats(getattr(self, name)) for name in self._set_names}
         if self.two_sided:
-            out["reverse"] = {name: self._stats(getattr(self, f"reverse_{name}")) for name in SET_NAMES}
+            out["reverse"] = {name: self._stats(getattr(self, f"reverse_{name}")) for name in self._set_names}
         return out

@@ -3,7 +3,10 @@
 For the simplified mesh of frame ``k``: register original frame ``k-1`` onto original frame ``k`` (rigid, then
 non-rigid: :func:`torchmeshmetric.registration.register_nonrigid`), then measure from the simplified vertices
 the mesh surface distance (Eq. 4, exact closest point on the surface) and the nearest vertex distance (Eq. 5) to
-both references, and summarise each set with :func:`torchmeshmetric.stats.distance_statistics`.
+both references, and summarise each set with :func:`torchmeshmetric.stats.distance_statistics`. Given the
+simplified frame ``k-1`` too (always in :func:`evaluate_sequence`), the ``flicker`` set compares it, moved onto
+frame ``k`` by the registration's deformation, with the simplified frame ``k``
+(:mod:`torchmeshmetric.evaluation.flicker`).
 """
 
 from __future__ import annotations
@@ -17,8 +20,10 @@ from torch import Tensor
 
 from torchmeshmetric._checks import ShapeError
 from torchmeshmetric.evaluation.cache import CachedRegistration, RegistrationCache
+from torchmeshmetric.evaluation.flicker import FLICKER, flicker_distances
 from torchmeshmetric.evaluation.results import SET_NAMES, PairEvaluation, SequenceEvaluation
 from torchmeshmetric.kernels import IndexCache, MeshIndex, point_mesh_distance
+from torchmeshmetric.registration.warp import RegistrationWarp, SurfaceWarp, Warp
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
 __all__ = ["RegisterFn", "default_register", "evaluate_pair", "evaluate_sequence", "registration_settings"]
@@ -35,14 +40,16 @@ def default_register(
     """Register ``source`` (frame ``k-1``) onto ``target`` (frame ``k``) with the library's non-rigid registration.
 
     Calls :func:`torchmeshmetric.registration.register_nonrigid` (rigid initialisation, then the deformation
-    graph) and keeps its registered vertices, residual and convergence flag.
+    graph) and keeps its registered vertices, residual, convergence flag and deformation
+    (:class:`~torchmeshmetric.registration.RegistrationWarp`, which moves any point: the ``flicker`` set needs it).
     """
     from torchmeshmetric.registration import register_nonrigid
 
     start = time.perf_counter()
     result = register_nonrigid(source, target, device=device, **options)
     seconds = time.perf_counter() - start
-    return CachedRegistration(result.verts.detach(), result.residual.detach(), bool(result.converged), seconds)
+    warp = RegistrationWarp.from_registration(result, target)
+    return CachedRegistration(result.verts.detach(), result.residual.detach(), bool(result.converged), seconds, warp)
 
 
 def registration_settings(register: RegisterFn | None, options: Mapping[str, Any] | None) -> dict[str, Any]:
@@ -65,7 +72,11 @@ def _registration_from(registration: Any, original_k_minus_1: Mesh, original_k: 
         if residual is None:
             with torch.no_grad():
                 residual = point_mesh_distance(verts.to(original_k.verts), original_k).dists
-        reg = CachedRegistration(verts, torch.as_tensor(residual), bool(getattr(registration, "converged", True)), 0.0)
+        warp = getattr(registration, "warp", None)
+        if warp is None and getattr(registration, "graph", None) is not None and hasattr(registration, "rigid"):
+            warp = RegistrationWarp.from_registration(registration, original_k)  # a NonRigidRegistration
+        converged = bool(getattr(registration, "converged", True))
+        reg = CachedRegistration(verts, torch.as_tensor(residual), converged, 0.0, warp)
     if tuple(reg.verts.shape) != tuple(original_k_minus_1.verts.shape):
         raise ShapeError(
             f"registration: expected registered vertices of shape {tuple(original_k_minus_1.verts.shape)} "
@@ -88,6 +99,8 @@ def evaluate_pair(
     frame: int = 1,
     backend: str = "auto",
     indexes: IndexCache | None = None,
+    simplified_k_minus_1: MeshLike | None = None,
+    true_registration: Tensor | None = None,
 ) -> PairEvaluation:
     """Evaluate the simplified mesh of frame ``k`` against original frames ``k`` and ``k-1`` (paper Fig. 2).
 
@@ -108,11 +121,18 @@ def evaluate_pair(
         backend: kernel backend of the distances and of the default registration (``"auto"``, ``"bvh"``, ...).
         indexes: an :class:`~torchmeshmetric.IndexCache` shared across calls: the original frames' indexes are
             built once for every method and both frame pairs that use them.
+        simplified_k_minus_1: the simplified frame ``k-1``; when given, the ``flicker`` set is measured: the
+            simplified frame ``k`` against it, moved onto frame ``k`` by the registration's deformation (its
+            ``warp`` when it has one, e.g. the default registration or a ``NonRigidRegistration``; otherwise the
+            piecewise-linear map of the registered vertices, :class:`~torchmeshmetric.registration.SurfaceWarp`).
+        true_registration: ``(V_{k-1}, 3)`` true positions in frame ``k`` of the vertices of ``original_k_minus_1``
+            (known motion, e.g. :meth:`~torchmeshmetric.data.DemoSequence.transfer`): the registration's error is
+            then reported beside its residual.
 
     Returns:
         :class:`PairEvaluation` with the four distance sets (keys ``surface_k``, ``surface_k_minus_1``,
-        ``vertex_k``, ``vertex_k_minus_1``), their statistics (PSNR peak: bounding-box diagonal of
-        ``original_k``), the reverse sets, the registration residual and timings.
+        ``vertex_k``, ``vertex_k_minus_1``; and ``flicker`` when ``simplified_k_minus_1`` is given), their statistics
+        (PSNR peak: bounding-box diagonal of ``original_k``), the reverse sets, the registration residual and timings.
 
     Raises:
         ShapeError: when ``registration`` does not have the vertices of ``original_k_minus_1``.
@@ -179,16 +199,34 @@ def evaluate_pair(
                 reverse[f"surface_{name}"] = simp_index.point_mesh_distance(ref_points).dists
                 reverse[f"vertex_{name}"] = simp_index.nearest_vertex_distance(ref_points).dists
         motion = float((registered.verts - orig_km1.verts).norm(dim=-1).mean() / orig_k.bbox_diagonal())
+        flicker = None
+        if simplified_k_minus_1 is not None:
+            warp: Warp = reg.warp if reg.warp is not None else SurfaceWarp(orig_km1, registered.verts)
+            flicker = flicker_distances(simp, simplified_k_minus_1, warp, two_sided=two_sided)
     timings["distances"] = time.perf_counter() - start
 
     start = time.perf_counter()
     peak = float(orig_k.bbox_diagonal())
     distances = {name: distances[name] for name in SET_NAMES}
     reverse = {name: reverse[name] for name in SET_NAMES if name in reverse}
+    if flicker is not None:
+        distances[FLICKER] = flicker.dists
+        if flicker.reverse is not None:
+            reverse[FLICKER] = flicker.reverse
     statistics = {name: distance_statistics(d, peak=peak) for name, d in distances.items()}
     reverse_statistics = {name: distance_statistics(d, peak=peak) for name, d in reverse.items()}
     residual = reg.residual.to(dev)
     registration_statistics = distance_statistics(residual, peak=peak)
+    error = error_statistics = None
+    if true_registration is not None:
+        truth = torch.as_tensor(true_registration).to(dev, registered.verts.dtype)
+        if tuple(truth.shape) != tuple(registered.verts.shape):
+            raise ShapeError(
+                f"true_registration: expected the shape of the vertices of original_k_minus_1 "
+                f"{tuple(registered.verts.shape)}, found {tuple(truth.shape)}"
+            )
+        error = (registered.verts - truth).norm(dim=-1)
+        error_statistics = distance_statistics(error, peak=peak)
     timings["statistics"] = time.perf_counter() - start
     return PairEvaluation(
         frame=frame,
@@ -203,6 +241,8 @@ def evaluate_pair(
         peak=peak,
         timings=timings,
         registration_cached=cached,
+        registration_error=error,
+        registration_error_statistics=error_statistics,
     )
 
 
@@ -220,6 +260,7 @@ def evaluate_sequence(
     progress: Callable[[int, int], None] | None = None,
     backend: str = "auto",
     indexes: IndexCache | None = None,
+    ground_truth: Callable[[Tensor, int, int], Tensor] | None = None,
 ) -> SequenceEvaluation:
     """Evaluate a simplified sequence frame pair by frame pair (pairs ``(k-1, k)`` for ``k = 1 .. N-1``).
 
@@ -240,6 +281,12 @@ def evaluate_sequence(
         backend: kernel backend of the distances and of the default registration.
         indexes: an :class:`~torchmeshmetric.IndexCache` (share one across methods: each original frame's index is
             then built once for all of them; default: one for this sequence).
+        ground_truth: the true motion, ``ground_truth(points, k - 1, k)`` → positions in frame ``k`` of points of
+            frame ``k - 1`` (e.g. :meth:`~torchmeshmetric.data.DemoSequence.transfer`); when given, every pair also
+            reports the registration's error to it.
+
+    Every pair ``k`` also holds the ``flicker`` set (simplified frame ``k`` against the simplified frame ``k-1``
+    moved onto frame ``k``).
 
     Returns:
         :class:`SequenceEvaluation` with ``N - 1`` pairs.
@@ -266,6 +313,9 @@ def evaluate_sequence(
     pairs = []
     total = len(original_frames) - 1
     for k in range(1, len(original_frames)):
+        truth = None
+        if ground_truth is not None:
+            truth = ground_truth(as_mesh(original_frames[k - 1]).verts, k - 1, k)
         pairs.append(
             evaluate_pair(
                 simplified_frames[k],
@@ -280,6 +330,8 @@ def evaluate_sequence(
                 frame=k,
                 backend=backend,
                 indexes=indexes,
+                simplified_k_minus_1=simplified_frames[k - 1],
+                true_registration=truth,
             )
         )
         if progress is not None:

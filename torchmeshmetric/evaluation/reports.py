@@ -6,6 +6,11 @@ RMSE plus ours: Max (one-sided Hausdorff), P95 and PSNR (dB, peak = bounding-box
 * Table I / II: the best pair (see :data:`~torchmeshmetric.evaluation.results.BEST_PAIR_RULE`), surface / vertex.
 * Table III / IV: the average over all pairs (mean of the per-pair statistics), surface / vertex.
 * Two-sided check (ours): the same averages for the reverse sets, reference → simplified.
+
+Beyond the paper, the surface tables have a ``flicker`` row per algorithm (simplified frame ``k`` against the
+simplified frame ``k-1`` moved onto frame ``k``), and every table ends with the registration's rows (method
+independent): its ``residual`` to frame ``k`` and, when the true motion is known, its ``error``. They are the noise
+floor of the ``(k-1)-th`` and ``flicker`` rows.
 """
 
 from __future__ import annotations
@@ -20,9 +25,19 @@ from pathlib import Path
 from typing import Any
 
 from torchmeshmetric.evaluation.atomic import atomic_write
+from torchmeshmetric.evaluation.flicker import FLICKER
 from torchmeshmetric.evaluation.results import BEST_PAIR_RULE, SET_NAMES, SequenceEvaluation
 
-__all__ = ["COLUMNS", "paper_tables", "report_dict", "table_rows", "write_csv", "write_json", "write_markdown"]
+__all__ = [
+    "COLUMNS",
+    "REGISTRATION_ROW",
+    "paper_tables",
+    "report_dict",
+    "table_rows",
+    "write_csv",
+    "write_json",
+    "write_markdown",
+]
 
 #: (statistic key, column header) of every table.
 COLUMNS: tuple[tuple[str, str], ...] = (
@@ -37,6 +52,9 @@ COLUMNS: tuple[tuple[str, str], ...] = (
 )
 
 _MESH_LABELS = {"k_minus_1": "(k-1)-th", "k": "k-th"}
+#: Algorithm cell of the registration's rows, and their mesh cells.
+REGISTRATION_ROW = "Registration"
+_REGISTRATION_LABELS = {"residual": "residual to k", "error": "error to truth"}
 _TITLES = {
     "I": "Table I: best pair, mesh surface distance",
     "II": "Table II: best pair, nearest vertex distance",
@@ -64,14 +82,23 @@ def _best_index(methods: Mapping[str, SequenceEvaluation]) -> int:
 def table_rows(methods: Mapping[str, SequenceEvaluation], table: str) -> list[tuple[str, str, dict[str, float]]]:
     """Rows ``(algorithm, mesh, statistics)`` of one table.
 
+    Per algorithm the ``(k-1)-th`` and ``k-th`` rows (and ``flicker`` in the surface tables when measured), then
+    the registration's rows (algorithm :data:`REGISTRATION_ROW`): ``residual to k`` and, when the true motion is
+    known, ``error to truth``.
+
     Args:
         methods: method name → its sequence evaluation (same original sequence).
         table: ``"I"``, ``"II"``, ``"III"``, ``"IV"``, ``"III-reverse"`` or ``"IV-reverse"``.
     """
+    return [row[:3] for row in _rows(methods, table)]
+
+
+def _rows(methods: Mapping[str, SequenceEvaluation], table: str) -> list[tuple[str, str, dict[str, float], str]]:
+    """:func:`table_rows` with the set key of each row (``registration:residual`` for a registration row)."""
     if table not in _TITLES:
         raise ValueError(f"table: expected one of {list(_TITLES)}, found {table!r}")
     kind = _KIND[table]
-    rows = []
+    rows: list[tuple[str, str, dict[str, float], str]] = []
     best = _best_index(methods)
     for name, seq in methods.items():
         if table in ("I", "II"):
@@ -83,7 +110,20 @@ def table_rows(methods: Mapping[str, SequenceEvaluation], table: str) -> list[tu
         else:
             stats = seq.aggregate()
         for mesh in ("k_minus_1", "k"):
-            rows.append((name, _MESH_LABELS[mesh], stats[f"{kind}_{mesh}"]))
+            rows.append((name, _MESH_LABELS[mesh], stats[f"{kind}_{mesh}"], f"{kind}_{mesh}"))
+        if kind == "surface" and FLICKER in stats:
+            rows.append((name, FLICKER, stats[FLICKER], FLICKER))
+    if rows:
+        first = next(iter(methods.values()))
+        if table in ("I", "II"):
+            pair = first.pairs[best]
+            registration: dict[str, dict[str, float]] = {"residual": pair.registration_statistics.as_dict()}
+            if pair.registration_error_statistics is not None:
+                registration["error"] = pair.registration_error_statistics.as_dict()
+        else:
+            registration = first.aggregate_registration()
+        for what, reg_stats in registration.items():
+            rows.append((REGISTRATION_ROW, _REGISTRATION_LABELS[what], reg_stats, f"registration:{what}"))
     return rows
 
 
@@ -120,6 +160,13 @@ def paper_tables(methods: Mapping[str, SequenceEvaluation], *, reverse: bool = T
             out.append(f"| {name} | {mesh} | " + " | ".join(_fmt(stats[k]) for k, _ in COLUMNS) + " |")
         out.append("")
     out.append(f"Best pair rule: {BEST_PAIR_RULE}. Averages: mean over pairs of each per-pair statistic.")
+    out.append("")
+    out.append(
+        "flicker: simplified frame k against the simplified frame k-1 moved onto frame k by the registration. "
+        f"{REGISTRATION_ROW} rows (the same for every algorithm): the registration of original k-1 onto k, its "
+        "residual (registered vertices to the surface of frame k) and, when the true motion is known, its error; "
+        "differences between algorithms on the (k-1)-th and flicker rows smaller than these are not meaningful."
+    )
     return "\n".join(out) + "\n"
 
 
@@ -135,14 +182,18 @@ def _clean(value: Any) -> Any:
 
 
 def report_dict(
-    methods: Mapping[str, SequenceEvaluation], *, settings: Mapping[str, Any] | None = None
+    methods: Mapping[str, SequenceEvaluation],
+    *,
+    settings: Mapping[str, Any] | None = None,
+    comparisons: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
     """JSON-ready report: ``{"tool", "version", "settings", "set_names", "methods": {name: sequence}}``.
 
     Each method holds ``pairs`` (per frame pair: the four sets ``surface_k``, ``surface_k_minus_1``, ``vertex_k``,
     ``vertex_k_minus_1`` with ``ave``, ``var``, ``std``, ``mse``, ``rmse`` and the further statistics, ``reverse``,
     ``registration``, ``timings``), ``aggregate`` under the same keys and ``best_pair``. Non-finite floats are
-    written as the strings ``"nan"``, ``"inf"``.
+    written as the strings ``"nan"``, ``"inf"``. With ``comparisons`` (from
+    :func:`~torchmeshmetric.evaluation.compare_methods`) the report also holds ``"comparisons"``.
     """
     from torchmeshmetric import __version__
 
@@ -153,6 +204,7 @@ def report_dict(
             "settings": dict(settings or {}),
             "set_names": list(SET_NAMES),
             "methods": {name: seq.as_dict() for name, seq in methods.items()},
+            **({"comparisons": dict(comparisons)} if comparisons is not None else {}),
         }
     )
 
@@ -168,9 +220,19 @@ def write_markdown(
     *,
     overwrite: bool = False,
     extra: str = "",
+    comparisons: Mapping[str, Any] | None = None,
 ) -> Path:
-    """Write :func:`paper_tables` (then ``extra`` Markdown, e.g. the MPEG section) to a Markdown file, atomically."""
-    text = "# torchmeshmetric evaluation\n\n" + paper_tables(methods) + ("\n" + extra if extra else "")
+    """Write :func:`paper_tables`, ``comparisons``' verdict tables and ``extra`` Markdown to a file, atomically.
+
+    ``extra`` is e.g. the MPEG section of ``--mpeg``.
+    """
+    from torchmeshmetric.evaluation.comparison import comparison_markdown
+
+    text = "# torchmeshmetric evaluation\n\n" + paper_tables(methods)
+    if comparisons:
+        text += "\n## Comparisons with confidence\n\n" + comparison_markdown(comparisons)
+    if extra:
+        text += "\n" + extra
     return atomic_write(path, text, overwrite=overwrite)
 
 
@@ -180,8 +242,9 @@ def write_csv(
     """Write every table and every pair as CSV rows, atomically.
 
     Columns: ``table`` (``I``..``IV``, ``III-reverse``, ``IV-reverse``, or ``pair`` for per-frame rows), ``algorithm``,
-    ``set`` (e.g. ``surface_k_minus_1``; ``reverse:...`` for reverse sets), ``frame`` (pair rows and tables I/II),
-    then the statistics ``ave, var, std, mse, rmse, max, p95, psnr``.
+    ``set`` (e.g. ``surface_k_minus_1``, ``flicker``; ``reverse:...`` for reverse sets; ``registration:residual``
+    and ``registration:error`` for the registration's rows), ``frame`` (pair rows and tables I/II), then the
+    statistics ``ave, var, std, mse, rmse, max, p95, psnr``.
     """
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
@@ -189,15 +252,14 @@ def write_csv(
     writer.writerow(["table", "algorithm", "set", "frame", *keys])
     best = _best_index(methods)
     for table in ("I", "II", "III", "IV", "III-reverse", "IV-reverse"):
-        kind = _KIND[table]
-        for name, mesh, stats in table_rows(methods, table):
-            set_name = f"{kind}_{'k_minus_1' if mesh.startswith('(') else 'k'}"
-            set_name = f"reverse:{set_name}" if table.endswith("reverse") else set_name
-            frame = methods[name].pairs[best].frame if table in ("I", "II") else ""
+        for name, _, stats, set_name in _rows(methods, table):
+            if table.endswith("reverse") and name != REGISTRATION_ROW:
+                set_name = f"reverse:{set_name}"
+            frame = next(iter(methods.values())).pairs[best].frame if table in ("I", "II") else ""
             writer.writerow([table, name, set_name, frame, *(repr(float(stats[k])) for k in keys)])
     for name, seq in methods.items():
         for pair in seq.pairs:
-            sets = [(s, pair.statistics[s]) for s in SET_NAMES]
+            sets = [(s, pair.statistics[s]) for s in pair.set_names]
             sets += [(f"reverse:{s}", st) for s, st in pair.reverse_statistics.items()]
             for set_name, st in sets:
                 d = st.as_dict()

@@ -9,6 +9,11 @@ each measured from the simplified vertices (Eq. 3):
 * ``vertex_k`` — nearest vertex distance to the vertices of frame ``k`` (Eq. 5, :math:`D^{(k)}_{vertex(k)}`);
 * ``vertex_k_minus_1`` — nearest vertex distance to the vertices of the registered frame ``k-1``.
 
+Beyond the paper, the ``flicker`` set (:mod:`torchmeshmetric.evaluation.flicker`) measures from the simplified
+vertices of frame ``k`` to the simplified frame ``k-1`` moved onto frame ``k`` by the registration: consecutive
+simplified frames against each other, which the paper's ``k-1`` sets (against the *original* frame ``k-1``) cannot
+see. It is present when the simplified frame ``k-1`` was given (always in a sequence evaluation).
+
 Beyond the paper, the *reverse* sets measure the same four distances from the reference (the vertices of frame
 ``k`` or of the registered frame ``k-1``) to the simplified mesh, so a simplification that drops part of the
 surface cannot score well (the paper's one-sided sets are blind to missing parts).
@@ -20,11 +25,14 @@ from typing import TYPE_CHECKING, NamedTuple
 
 from torch import Tensor
 
+from torchmeshmetric.evaluation.flicker import FLICKER
+
 if TYPE_CHECKING:
     from torchmeshmetric.stats import DistanceStatistics
 
 __all__ = [
     "BEST_PAIR_RULE",
+    "FLOOR_SET_NAMES",
     "SET_NAMES",
     "PairEvaluation",
     "SequenceEvaluation",
@@ -34,6 +42,10 @@ __all__ = [
 
 #: The four distance sets of the paper, in the order of its Section II.C.
 SET_NAMES: tuple[str, str, str, str] = ("surface_k_minus_1", "surface_k", "vertex_k_minus_1", "vertex_k")
+
+#: Sets measured against the registered frame ``k-1``: their differences between methods are only meaningful above
+#: the registration's error (its noise floor, see :func:`~torchmeshmetric.evaluation.compare_methods`).
+FLOOR_SET_NAMES: tuple[str, ...] = ("surface_k_minus_1", "vertex_k_minus_1", FLICKER)
 
 #: How :meth:`SequenceEvaluation.best_pair_index` picks the paper's "best" (representative) frame pair.
 BEST_PAIR_RULE = (
@@ -49,7 +61,8 @@ class PairEvaluation(NamedTuple):
     Attributes:
         frame: index ``k`` of the simplified frame in its sequence (``k >= 1``).
         distances: the four distance sets (keys :data:`SET_NAMES`), each ``(V_s,)`` with one value per vertex of
-            the simplified mesh (referenced vertices only), not squared, on the evaluation device.
+            the simplified mesh (referenced vertices only), not squared, on the evaluation device; plus
+            ``"flicker"`` when the simplified frame ``k-1`` was given (see :attr:`set_names`).
         statistics: :class:`~torchmeshmetric.stats.DistanceStatistics` of each set.
         reverse_distances: reference → simplified sets under the same keys (``surface_*``: reference vertices to
             the simplified surface; ``vertex_*``: reference vertices to the nearest simplified vertex); ``(V_ref,)``
@@ -63,6 +76,9 @@ class PairEvaluation(NamedTuple):
         peak: the PSNR peak used for every set of this pair (bounding-box diagonal of original frame ``k``).
         timings: seconds spent in ``"registration"`` (0 on a cache hit), ``"distances"`` and ``"statistics"``.
         registration_cached: ``True`` when the registration came from a cache or was given by the caller.
+        registration_error: ``(V_{k-1},)`` distance of every registered vertex to its true position in frame ``k``
+            when the true motion was given (e.g. the built-in sequence), else ``None``.
+        registration_error_statistics: statistics of :attr:`registration_error`, or ``None``.
     """
 
     frame: int
@@ -77,17 +93,24 @@ class PairEvaluation(NamedTuple):
     peak: float
     timings: dict[str, float]
     registration_cached: bool
+    registration_error: Tensor | None = None
+    registration_error_statistics: DistanceStatistics | None = None
+
+    @property
+    def set_names(self) -> tuple[str, ...]:
+        """The sets this pair holds: :data:`SET_NAMES`, then ``"flicker"`` when it was measured."""
+        return SET_NAMES + ((FLICKER,) if FLICKER in self.statistics else ())
 
     def as_dict(self) -> dict[str, object]:
         """JSON-ready summary (statistics only, no per-vertex values).
 
         Returns:
-            ``{"frame", "surface_k", "surface_k_minus_1", "vertex_k", "vertex_k_minus_1", "reverse",
+            ``{"frame", "surface_k", "surface_k_minus_1", "vertex_k", "vertex_k_minus_1", ["flicker",] "reverse",
             "registration", "timings"}``; each set maps statistic names (``ave``, ``var``, ``std``, ``mse``,
             ``rmse``, ``max``, ``min``, ``median``, ``p95``, ``p99``, ``count``, ``psnr``) to floats.
         """
         out: dict[str, object] = {"frame": self.frame}
-        out.update({name: self.statistics[name].as_dict() for name in SET_NAMES})
+        out.update({name: self.statistics[name].as_dict() for name in self.set_names})
         out["reverse"] = {name: s.as_dict() for name, s in self.reverse_statistics.items()}
         out["registration"] = {
             "residual": self.registration_statistics.as_dict(),
@@ -95,6 +118,8 @@ class PairEvaluation(NamedTuple):
             "motion": self.motion,
             "cached": self.registration_cached,
         }
+        if self.registration_error_statistics is not None:
+            out["registration"]["error"] = self.registration_error_statistics.as_dict()  # type: ignore[index]
         out["peak"] = self.peak
         out["timings"] = dict(self.timings)
         return out
@@ -134,19 +159,34 @@ class SequenceEvaluation(NamedTuple):
 
     pairs: list[PairEvaluation]
 
+    @property
+    def set_names(self) -> tuple[str, ...]:
+        """The sets every pair holds: :data:`SET_NAMES`, then ``"flicker"`` when every pair has it."""
+        has_flicker = bool(self.pairs) and all(FLICKER in p.statistics for p in self.pairs)
+        return SET_NAMES + ((FLICKER,) if has_flicker else ())
+
     def aggregate(self) -> dict[str, dict[str, float]]:
         """The paper's "average performance" (Tables III/IV): per set, the mean over pairs of each statistic.
 
         Returns:
-            ``{set_name: {statistic: mean}}`` for the four :data:`SET_NAMES` (see :func:`mean_statistics`).
+            ``{set_name: {statistic: mean}}`` for the four :data:`SET_NAMES` and ``"flicker"`` when measured (see
+            :func:`mean_statistics`).
         """
-        return {name: mean_statistics([p.statistics[name] for p in self.pairs]) for name in SET_NAMES}
+        return {name: mean_statistics([p.statistics[name] for p in self.pairs]) for name in self.set_names}
 
     def aggregate_reverse(self) -> dict[str, dict[str, float]]:
         """Mean over pairs of the reverse (reference → simplified) statistics; empty when evaluated one-sided."""
         if not self.pairs or not self.pairs[0].reverse_statistics:
             return {}
-        return {name: mean_statistics([p.reverse_statistics[name] for p in self.pairs]) for name in SET_NAMES}
+        return {name: mean_statistics([p.reverse_statistics[name] for p in self.pairs]) for name in self.set_names}
+
+    def aggregate_registration(self) -> dict[str, dict[str, float]]:
+        """Mean over pairs of the registration's ``residual`` statistics, and of its ``error`` when known."""
+        out = {"residual": mean_statistics([p.registration_statistics for p in self.pairs])}
+        errors = [p.registration_error_statistics for p in self.pairs]
+        if errors and all(e is not None for e in errors):
+            out["error"] = mean_statistics(errors)  # type: ignore[arg-type]
+        return out
 
     def best_pair_index(self) -> int:
         """Index into :attr:`pairs` of the paper's best pair (Tables I/II); see :data:`BEST_PAIR_RULE`."""
@@ -157,13 +197,13 @@ class SequenceEvaluation(NamedTuple):
     def as_dict(self) -> dict[str, object]:
         """JSON-ready summary: ``{"pairs": [...], "aggregate": {...}, "best_pair": {...}}``.
 
-        ``aggregate`` holds the four sets under the same keys as each pair, plus ``"reverse"`` (two-sided only)
-        and ``"registration"`` (mean of the residual statistics).
+        ``aggregate`` holds the sets under the same keys as each pair, plus ``"reverse"`` (two-sided only)
+        and ``"registration"`` (mean of the residual statistics, and of the error to the true motion when known).
         """
         best = self.best_pair_index()
         aggregate: dict[str, object] = dict(self.aggregate())
         aggregate["reverse"] = self.aggregate_reverse()
-        aggregate["registration"] = {"residual": mean_statistics([p.registration_statistics for p in self.pairs])}
+        aggregate["registration"] = self.aggregate_registration()
         return {
             "pairs": [p.as_dict() for p in self.pairs],
             "aggregate": aggregate,

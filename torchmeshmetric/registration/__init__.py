@@ -27,6 +27,7 @@ from torchmeshmetric.registration.rigid import (
     register_rigid,
     transform_matrix,
 )
+from torchmeshmetric.registration.warp import RegistrationWarp, SurfaceWarp, Warp
 
 __all__ = [
     "DEFAULT_SCHEDULE",
@@ -34,9 +35,12 @@ __all__ = [
     "DeformationGraph",
     "NonRigidRegistration",
     "RegistrationWarning",
+    "RegistrationWarp",
     "RigidRegistration",
     "SimilarityTransform",
     "Stage",
+    "SurfaceWarp",
+    "Warp",
     "embedded_deformation",
     "embedded_deformation_regularizer",
     "farthest_point_nodes",

@@ -28,6 +28,16 @@ def validate_pair(source: MeshLike, target: MeshLike) -> tuple[Mesh, Mesh]:
     return src.to(dtype=dtype), tgt.to(dtype=dtype)
 
 
+def normalisation(mesh: Mesh) -> tuple[Tensor, Tensor]:
+    """``(center (3,), diagonal (0-dim))`` of the bounding box of the surface vertices: the registration's frame.
+
+    The non-rigid registration works on ``(x - center) / diagonal`` so that its thresholds are fractions of the
+    target's diagonal.
+    """
+    ref = mesh.verts[referenced_mask(mesh)]
+    return 0.5 * (ref.amin(0) + ref.amax(0)), (ref.amax(0) - ref.amin(0)).norm()
+
+
 def referenced_mask(mesh: Mesh) -> Tensor:
     """``(V,)`` bool: vertices referenced by at least one face of positive area (the surface's vertices)."""
     used = torch.zeros(mesh.num_verts, dtype=torch.bool, device=mesh.device)

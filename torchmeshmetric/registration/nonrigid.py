@@ -35,6 +35,7 @@ from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.kernels.sampling import sample_surface
 from torchmeshmetric.registration._common import (
     face_unit_normals,
+    normalisation,
     referenced_mask,
     unit_normals,
     validate_pair,
@@ -279,9 +280,7 @@ def _register_nonrigid(
     gen = generator if generator is not None else torch.Generator().manual_seed(0)
 
     # 1. Normalise to the target's bounding-box centre and unit diagonal.
-    tref = tgt.verts[referenced_mask(tgt)]
-    center = 0.5 * (tref.amin(0) + tref.amax(0))
-    diag = (tref.amax(0) - tref.amin(0)).norm()
+    center, diag = normalisation(tgt)
     tv = (tgt.verts - center) / diag
     tf = tgt.faces
 

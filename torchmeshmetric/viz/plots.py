@@ -18,7 +18,16 @@ _LABELS = {
     "surface_k": "surface distance to k",
     "vertex_k_minus_1": "nearest vertex distance to registered k-1",
     "vertex_k": "nearest vertex distance to k",
+    "flicker": "flicker: surface distance to simplified k-1 moved to k",
+    "registration": "registration residual (noise floor of k-1 sets)",
 }
+
+
+def _panels(names: tuple[str, ...]) -> tuple[tuple[str, ...], tuple[int, int]]:
+    """Panel keys and grid: the four sets (2 x 2), or with flicker also the registration residual (2 x 3)."""
+    if len(names) > len(SET_NAMES):
+        return (*names, "registration"), (2, 3)
+    return names, (2, 2)
 
 
 def _figure() -> Any:
@@ -78,10 +87,12 @@ def histogram_figure(methods: Mapping[str, PairEvaluation], *, bins: int = 50) -
     import numpy as np
 
     Figure = _figure()
-    fig = Figure(figsize=(10, 7), layout="constrained")
-    axes = fig.subplots(2, 2)
-    for ax, name in zip(axes.ravel(), SET_NAMES, strict=True):
-        values = {m: p.distances[name].detach().double().cpu().numpy() for m, p in methods.items()}
+    names, grid = _panels(min((p.set_names for p in methods.values()), key=len))
+    fig = Figure(figsize=(5 * grid[1], 7), layout="constrained")
+    axes = fig.subplots(*grid)
+    for ax, name in zip(axes.ravel(), names, strict=True):
+        sets = {m: p.registration_residual if name == "registration" else p.distances[name] for m, p in methods.items()}
+        values = {m: d.detach().double().cpu().numpy() for m, d in sets.items()}
         edges = log_bins(list(values.values()), bins)
         for m, v in values.items():
             below = float(np.mean(v < edges[0])) if len(v) else 0.0
@@ -100,7 +111,7 @@ def histogram_figure(methods: Mapping[str, PairEvaluation], *, bins: int = 50) -
 def plot_histograms(
     methods: Mapping[str, PairEvaluation], path: str | os.PathLike[str], *, bins: int = 50, overwrite: bool = False
 ) -> Path:
-    """Histograms of the four distance sets of one frame pair, one colour per method, written as PNG.
+    """Histograms of the distance sets of one frame pair, one colour per method, written as PNG.
 
     The distance axis is logarithmic (:func:`log_bins`): most kept vertices lie on the reference surface, and on a
     linear axis the whole distribution is one bar at zero.
@@ -121,7 +132,7 @@ def plot_frame_curves(
     statistic: str = "rmse",
     overwrite: bool = False,
 ) -> Path:
-    """Per-frame curves of one statistic of the four sets over the sequence, one line per method, as PNG.
+    """Per-frame curves of one statistic of the distance sets over the sequence, one line per method, as PNG.
 
     Args:
         methods: method name → its sequence evaluation.
@@ -133,11 +144,14 @@ def plot_frame_curves(
     fig = Figure(figsize=(10, 7), layout="constrained")
     from matplotlib.ticker import MaxNLocator
 
-    axes = fig.subplots(2, 2, sharex=True)
-    for ax, name in zip(axes.ravel(), SET_NAMES, strict=True):
+    names, grid = _panels(min((seq.set_names for seq in methods.values()), key=len))
+    fig.set_size_inches(5 * grid[1], 7)
+    axes = fig.subplots(*grid, sharex=True)
+    for ax, name in zip(axes.ravel(), names, strict=True):
         for m, seq in methods.items():
             frames = [p.frame for p in seq.pairs]
-            ax.plot(frames, [float(getattr(p.statistics[name], statistic)) for p in seq.pairs], marker="o", label=m)
+            stats = [p.registration_statistics if name == "registration" else p.statistics[name] for p in seq.pairs]
+            ax.plot(frames, [float(getattr(st, statistic)) for st in stats], marker="o", label=m)
         ax.set_title(_LABELS[name], fontsize=10)
         ax.set_xlabel("frame k (pair k-1, k)")
         ax.set_ylabel(statistic.upper() if statistic in ("mse", "rmse") else statistic)

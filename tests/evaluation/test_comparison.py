@@ -1,0 +1,129 @@
+"""Comparisons with confidence: paired t intervals over frame pairs, verdicts, noise floors, generic statistics."""
+
+import math
+
+import pytest
+import torch
+
+from torchmeshmetric.data import demo_sequence
+from torchmeshmetric.evaluation import compare_methods, comparison_markdown, evaluate_sequence, paired_t_interval
+from torchmeshmetric.evaluation.comparison import t_quantile
+from torchmeshmetric.evaluation.distortions import (
+    ground_truth_registrations,
+    normal_offset,
+    tracked_simplification,
+)
+from torchmeshmetric.simplification import simplify_qem
+
+# Student t quantiles from a printed table (NIST/SEMATECH e-Handbook, Table of t critical values): an outside oracle.
+T_TABLE = {(0.975, 1): 12.706, (0.975, 4): 2.776, (0.975, 9): 2.262, (0.975, 30): 2.042, (0.995, 10): 3.169}
+
+
+@pytest.mark.parametrize(("p", "df"), list(T_TABLE))
+def test_t_quantile_matches_the_printed_table(p, df):
+    assert t_quantile(p, df) == pytest.approx(T_TABLE[(p, df)], abs=5e-4)
+
+
+def test_t_quantile_matches_scipy():
+    stats = pytest.importorskip("scipy.stats")  # a benchmark peer, optional
+    for df in (1, 2, 3, 5, 17, 100, 1000):
+        for p in (0.6, 0.9, 0.975, 0.999):
+            assert t_quantile(p, df) == pytest.approx(float(stats.t.ppf(p, df)), rel=1e-10)
+
+
+def test_paired_t_interval_known_answer():
+    mean, lo, hi = paired_t_interval([1.0, 2.0, 3.0])  # sd 1, n 3: half-width t(0.975, 2) / sqrt(3)
+    assert mean == 2.0 and hi - mean == pytest.approx(4.302653 / math.sqrt(3), rel=1e-6)
+    assert mean - lo == pytest.approx(hi - mean, rel=1e-12)
+    assert paired_t_interval([5.0])[1:] == (-math.inf, math.inf)  # one unit: no interval
+    with pytest.raises(ValueError, match="differences"):
+        paired_t_interval([])
+
+
+def _method(values, residual=0.0, extra=None):
+    """A method as its JSON report part: one pair per value, sets surface_k and surface_k_minus_1 equal to it."""
+    pairs = []
+    for k, v in enumerate(values, start=1):
+        stats = {"ave": v, "rmse": v, "max": v, "p95": v, "count": 10}
+        pair = {"frame": k, "surface_k": dict(stats), "surface_k_minus_1": dict(stats)}
+        pair["registration"] = {"residual": {"ave": residual, "rmse": residual, "max": residual, "p95": residual}}
+        pair.update(extra(k) if extra else {})
+        pairs.append(pair)
+    return {"pairs": pairs}
+
+
+def test_verdicts_floor_and_direction():
+    a = _method([1.0, 1.1, 0.9, 1.05, 0.95], residual=0.5)
+    b = _method([1.2, 1.31, 1.1, 1.24, 1.16], residual=0.5)  # b is 0.2 worse on every pair
+    out = compare_methods({"A": a, "B": b})["A vs B"]
+    k = out["surface_k"]["ave"]
+    assert k["difference"] == pytest.approx(-0.202) and k["ci95"][1] < 0 and k["verdict"] == "A better"
+    assert "noise_floor" not in k
+    km1 = out["surface_k_minus_1"]["ave"]  # the same difference, below the registration's residual of 0.5
+    assert km1["ci95"] == k["ci95"] and km1["verdict"] == "inconclusive" and km1["noise_floor"] == 0.5
+    assert set(out["surface_k"]) == {"ave", "rmse", "max", "p95"}  # count is not a quality statistic
+    swapped = compare_methods({"B": b, "A": a})["B vs A"]["surface_k"]["ave"]
+    assert swapped["verdict"] == "A better" and swapped["difference"] == pytest.approx(0.202)
+    # below the relative margin: a consistent 1 % difference is not called by default, is without the margin
+    c = _method([1.01 * v for v in [1.0, 1.1, 0.9, 1.05, 0.95]])
+    assert compare_methods({"A": a, "C": c})["A vs C"]["surface_k"]["ave"]["verdict"] == "inconclusive"
+    assert compare_methods({"A": a, "C": c}, relative_margin=0)["A vs C"]["surface_k"]["ave"]["verdict"] == "A better"
+
+
+def test_generic_over_the_statistics_a_pair_carries_psnr_is_higher_better():
+    def mpeg(k, base):
+        return {"mpeg": {"d1": {"d1_psnr": base + 0.1 * k, "d1_mse": 1.0}}}
+
+    a = _method([1.0] * 4, extra=lambda k: mpeg(k, 60.0))
+    b = _method([1.0] * 4, extra=lambda k: mpeg(k, 50.0 + 0.01 * k))
+    out = compare_methods({"A": a, "B": b})["A vs B"]
+    assert set(out["mpeg:d1"]) == {"d1_psnr"}  # every *psnr* statistic, d1_mse is not in the default list
+    assert out["mpeg:d1"]["d1_psnr"]["verdict"] == "A better"  # higher PSNR wins
+    text = comparison_markdown({"A vs B": out})
+    assert "| mpeg:d1 |" in text and "A: " in text
+
+
+def test_methods_must_share_frame_pairs():
+    with pytest.raises(ValueError, match="frame pairs"):
+        compare_methods({"A": _method([1.0, 2.0]), "B": _method([1.0, 2.0, 3.0])})
+    with pytest.raises(ValueError, match="two methods"):
+        compare_methods({"A": _method([1.0])})
+
+
+@pytest.fixture(scope="module")
+def tracked():
+    """The built-in sequence at a reduced size, its true registrations and a tracked QEM simplification."""
+    seq = demo_sequence(5, resolution=48)
+    frames = [f.to(dtype=torch.float64) for f in seq.frames]
+    base = tracked_simplification(frames, simplify_qem(frames[0], 0.5), seq.transfer)
+    return frames, base, ground_truth_registrations(frames, seq.transfer)
+
+
+def test_constant_offset_sign_declares_no_winner_but_twice_the_offset_loses(tracked):
+    """Goal: two methods that differ only by the sign of a constant normal offset (here 1e-3, about 0.05 % of the
+    diagonal) get no winner on the paper's sets and flicker; an offset twice as large is caught on frame k."""
+    frames, base, regs = tracked
+    n = len(frames)
+
+    def method(amount):
+        return evaluate_sequence(frames, normal_offset(base, frames, [amount] * n), registrations=regs, two_sided=False)
+
+    plus, minus, double = method(1e-3), method(-1e-3), method(2e-3)
+    out = compare_methods({"plus": plus, "minus": minus})["plus vs minus"]
+    assert set(out) == {"surface_k", "surface_k_minus_1", "vertex_k", "vertex_k_minus_1", "flicker"}
+    verdicts = {(s, st): e["verdict"] for s, entries in out.items() for st, e in entries.items()}
+    assert set(verdicts.values()) == {"inconclusive"}, verdicts
+    caught = compare_methods({"plus": plus, "double": double})["plus vs double"]
+    assert caught["surface_k"]["ave"]["verdict"] == "plus better"
+    assert caught["surface_k"]["ave"]["difference"] == pytest.approx(-1e-3, rel=0.02)
+
+
+def test_identical_methods_every_verdict_inconclusive_every_difference_zero(tracked):
+    frames, base, regs = tracked
+    a = evaluate_sequence(frames, base, registrations=regs)
+    b = evaluate_sequence(frames, [m.to(dtype=torch.float64) for m in base], registrations=regs)
+    out = compare_methods({"A": a, "B": b}, relative_margin=0.0)["A vs B"]
+    entries = [e for s in out.values() for e in s.values()]
+    assert len(entries) >= 10 * 4 and any(k.startswith("reverse:") for k in out)
+    assert all(e["verdict"] == "inconclusive" and e["difference"] == 0.0 for e in entries)
+    assert all(e["ci95"] == [0.0, 0.0] for e in entries)

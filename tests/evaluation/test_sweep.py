@@ -1,0 +1,55 @@
+"""The Registered QEM weight sweep (API, Pareto front, plot) on a tiny sequence."""
+
+import pytest
+import torch
+
+from tests.evaluation.eval_helpers import TranslationRegister, sphere
+from torchmeshmetric.evaluation import evaluate_sequence, registered_qem_sweep
+from torchmeshmetric.evaluation.sweep import pareto_front
+from torchmeshmetric.simplification import simplify_sequence
+
+
+@pytest.fixture(scope="module")
+def spheres():
+    frames = [sphere(3, offset=(0.1 * k, 0, 0)) for k in range(3)]
+    register = TranslationRegister()
+    regs = [register(frames[k - 1], frames[k]) for k in (1, 2)]
+    return frames, regs
+
+
+def test_sweep_rows_are_the_evaluations_of_each_weight_and_of_plain_qem(spheres, tmp_path):
+    frames, regs = spheres
+    done = []
+    sweep = registered_qem_sweep(frames, regs, 0.3, [0.0, 3.0], progress=done.append)
+    assert done == [0.0, 3.0] and sweep.weights == [0.0, 3.0] and sweep.baseline is not None
+    rows = sweep.rows()
+    assert [r["weight"] for r in rows] == [0.0, 3.0, None]
+    for weight, row in zip((0.0, 3.0), rows, strict=False):
+        simplified = simplify_sequence(frames, 0.3, registrations=regs, weight=weight)
+        expect = evaluate_sequence(frames, simplified, registrations=regs, two_sided=False).aggregate()
+        assert row == {"weight": weight, **{s: expect[s]["ave"] for s in ("surface_k", "surface_k_minus_1", "flicker")}}
+    qem = evaluate_sequence(frames, simplify_sequence(frames, 0.3), registrations=regs, two_sided=False).aggregate()
+    assert rows[-1]["surface_k"] == qem["surface_k"]["ave"]
+    table = sweep.markdown()
+    assert table.count("| Registered QEM |") == 2 and "| QEM (fast-simplification) |" in table
+    assert set(sweep.as_dict()) == {"weights", "ave", "rmse", "registration"}
+    pytest.importorskip("matplotlib")
+    from torchmeshmetric.viz import plot_weight_sweep
+
+    assert plot_weight_sweep(sweep, tmp_path / "s.png").read_bytes()[:4] == b"\x89PNG"
+    with pytest.raises(ValueError, match="weights"):
+        registered_qem_sweep(frames, regs, 0.3, [])
+
+
+def test_pareto_front():
+    points = {0.0: (1.0, 5.0), 1.0: (2.0, 3.0), 2.0: (3.0, 4.0), 4.0: (4.0, 1.0), 8.0: (0.5, 9.0)}
+    assert pareto_front(points) == [8.0, 0.0, 1.0, 4.0]  # 2.0 is dominated by 1.0
+
+
+def test_sequence_simplifier_checks_registrations(spheres):
+    frames, regs = spheres
+    with pytest.raises(ValueError, match="registrations"):
+        simplify_sequence(frames, 0.3, registrations=regs[:1])
+    assert torch.equal(
+        simplify_sequence(frames, 0.3)[0].faces, simplify_sequence(frames, 0.3, registrations=regs)[0].faces
+    )

@@ -1,0 +1,53 @@
+"""The validation study: rank correlation, and the issue's goals on the flicker set at the reduced size."""
+
+import json
+
+import pytest
+
+from torchmeshmetric.cli import main
+from torchmeshmetric.evaluation.validation import DISTORTIONS, run_validation, spearman
+
+
+def test_spearman_known_answers_and_ties():
+    assert spearman([1, 2, 3, 4], [10.0, 20.0, 25.0, 100.0]) == 1.0
+    assert spearman([1, 2, 3, 4], [4.0, 3.0, 2.0, 1.0]) == -1.0
+    # ties share their mean rank: ranks of y are (0.5, 0.5, 2, 3) -> rho = 0.9486832980505138
+    assert spearman([1, 2, 3, 4], [1.0, 1.0, 2.0, 3.0]) == pytest.approx(0.9486832980505138, rel=1e-12)
+    assert spearman([1, 2, 3], [5.0, 5.0, 5.0]) != spearman([1, 2, 3], [5.0, 5.0, 5.0])  # NaN: nothing to rank
+    stats = pytest.importorskip("scipy.stats")
+    x, y = [0, 1, 2, 3, 4, 5], [0.3, 0.1, 0.9, 0.9, 2.0, 1.5]
+    assert spearman(x, y) == pytest.approx(float(stats.spearmanr(x, y).statistic), rel=1e-12)
+
+
+def test_flicker_rises_with_alternating_offsets_and_ignores_a_constant_offset():
+    """Goals: on the built-in sequence the flicker Ave is monotone in the injected flicker strength (Spearman >= 0.95
+    over 6 strengths) and changes by < 10 % under a constant offset of the same sizes."""
+    r = run_validation(distortions=["alternating_offset", "constant_offset"], two_sided=False)
+    alternating = r.distortions["alternating_offset"]
+    constant = r.distortions["constant_offset"]
+    assert len(alternating["strengths"]) >= 5 and alternating["strengths"] == constant["strengths"]
+    assert alternating["spearman"]["flicker"]["ave"] >= 0.95
+    flicker = alternating["values"]["flicker"]["ave"]
+    assert flicker[-1] > 3 * flicker[0]  # ~2 s of flicker at s = 0.2 % of the diagonal, over a ~0.1 % floor
+    steady = constant["values"]["flicker"]["ave"]
+    assert max(abs(v / steady[0] - 1) for v in steady) < 0.10
+    # the constant offset is a frame-k error: surface_k sees it, exactly its size
+    assert constant["values"]["surface_k"]["ave"][-1] == pytest.approx(constant["strengths"][-1], rel=0.02)
+    with pytest.raises(ValueError, match="unknown"):
+        run_validation(distortions=["wobble"])
+
+
+def test_validate_command_reduced_size(capsys, tmp_path):
+    """The command as documented, at its reduced default size (seconds of CPU; a minute or two under load)."""
+    out = tmp_path / "v"
+    assert main(["validate", "--out-dir", str(out)]) == 0
+    stdout = capsys.readouterr().out
+    assert "Spearman rank correlation" in stdout and "| alternating_offset |" in stdout
+    data = json.loads((out / "validation.json").read_text())
+    assert list(data["distortions"]) == list(DISTORTIONS) and data["settings"]["two_sided"]
+    registration = data["distortions"]["registration"]["values"]
+    assert registration["registration:error"]["ave"][0] == 0.0  # the true registration has no error to the truth
+    assert spearman(data["distortions"]["registration"]["strengths"], registration["registration:error"]["ave"]) == 1
+    assert (out / "validation.png").read_bytes()[:4] == b"\x89PNG"
+    assert main(["validate", "--out-dir", str(out), "--distortions", "noise"]) == 1  # exists: never overwritten
+    assert "--overwrite" in capsys.readouterr().err

@@ -1,0 +1,359 @@
+r"""Comparisons of simplification methods with confidence: paired differences over frame pairs.
+
+For two methods ``A`` and ``B`` evaluated on the same original sequence, every set and every statistic gives one
+number per frame pair ``k`` for each method. The **experimental unit is the frame pair**: the per-vertex distances
+inside a pair are not independent samples of the sequence (neighbouring vertices share the same simplification
+decisions and the same registration error), so a test over vertices would call a difference of a few parts per
+million "significant" on any mesh of 20k vertices. We therefore work with the paired differences
+
+.. math::
+
+    d_k = s_A(k) - s_B(k), \qquad k = 1, \dots, n,
+
+(``s`` a per-pair statistic such as ``ave``), report their mean :math:`\bar d` (which equals the difference of the
+methods' aggregates, the means over pairs of Tables III/IV) and the paired Student *t* interval
+
+.. math::
+
+    \bar d \pm t_{0.975,\, n-1}\, \frac{s_d}{\sqrt n},
+
+with :math:`s_d` the sample standard deviation of the :math:`d_k`. Why *t* and not a bootstrap or a sign-flip test:
+sequences are often short (the paper and our demo have 5 pairs); with 5 units a percentile bootstrap has only 126
+distinct resamples and its intervals are too narrow, and an exact sign-flip test cannot reach a two-sided
+``p < 0.05`` at all (its smallest ``p`` is 2/32). The *t* interval is exact when the differences are normal and
+independent, and robust to moderate non-normality; its limits are in ``docs/statistics.md``.
+
+**Verdict.** ``"<A> better"`` or ``"<B> better"`` only when the interval excludes 0 *and* the difference is above
+the set's **noise floor**; otherwise ``"inconclusive"``. Lower is better for distances, higher for PSNR (any
+statistic whose name contains ``psnr``). Noise floors:
+
+* the sets measured against the registered frame ``k-1`` (``surface_k_minus_1``, ``vertex_k_minus_1``,
+  ``flicker`` and their reverse sets) carry the registration's error: the floor of a distance statistic is the
+  same statistic of the registration's residual (mean over pairs), or of its error to the true motion when that is
+  known and larger; for a PSNR it is the PSNR change that moving the RMSE by the floor's RMSE would cause,
+  :math:`20 \log_{10}((r + f) / r)` dB with ``r`` the smaller of the two methods' RMSE;
+* every set also has a **relative margin** (``relative_margin``, default 2 %): differences smaller than that
+  fraction of the better method's value are not called (the evaluation's own resolution: two simplifications that
+  differ only by the sign of a constant normal offset of a fraction of the triangle size measure a few parts per
+  thousand apart on a tessellated reference, consistently enough for a *t* interval to exclude 0; see
+  ``docs/statistics.md``).
+
+The comparison reads per-pair statistics from :meth:`SequenceEvaluation.as_dict` (or a report's JSON), so it is
+generic over whatever sets and statistics a pair carries, including statistics other modules add (e.g. MPEG
+PSNRs): every set-like entry (a mapping of statistic names to numbers) is compared.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from torchmeshmetric.evaluation.results import FLOOR_SET_NAMES, SequenceEvaluation
+
+__all__ = [
+    "DEFAULT_COMPARISON_STATISTICS",
+    "comparison_markdown",
+    "compare_methods",
+    "paired_t_interval",
+    "t_quantile",
+]
+
+#: Statistics compared by default (plus every statistic whose name contains ``psnr``).
+DEFAULT_COMPARISON_STATISTICS: tuple[str, ...] = ("ave", "rmse", "max", "p95")
+
+_NOT_SETS = ("frame", "registration", "timings", "peak")
+_REVERSE = "reverse"
+
+
+def t_quantile(p: float, df: int) -> float:
+    """Quantile ``p`` in ``(0.5, 1)`` of Student's *t* distribution with ``df >= 1`` degrees of freedom.
+
+    The density, written in ``theta = atan(x / sqrt(df))`` (a bounded, smooth integrand ``cos(theta)^(df-1)``), is
+    integrated with 128-point Gauss-Legendre quadrature and the CDF inverted by bisection (relative error below
+    1e-10 against ``scipy.stats.t.ppf`` for ``df`` 1 to 1000 and ``p`` up to 0.999, tested).
+
+    Example:
+        >>> round(t_quantile(0.975, 4), 4), round(t_quantile(0.975, 1), 3)
+        (2.7764, 12.706)
+    """
+    if not 0.5 < p < 1.0:
+        raise ValueError(f"p: expected a probability in (0.5, 1), found {p!r}")
+    if df < 1:
+        raise ValueError(f"df: expected at least 1 degree of freedom, found {df!r}")
+    nodes, weights = np.polynomial.legendre.leggauss(128)
+    u, w = 0.5 * (nodes + 1.0), 0.5 * weights
+    log_c = math.lgamma((df + 1) / 2) - math.lgamma(df / 2) - 0.5 * math.log(df * math.pi)
+
+    def mass(t: float) -> float:  # P(0 <= T <= t), with x = sqrt(df) tan(theta): a bounded, smooth integrand
+        top = math.atan(t / math.sqrt(df))
+        theta = top * u
+        return float(top * math.sqrt(df) * np.sum(w * np.exp(log_c + (df - 1) * np.log(np.cos(theta)))))
+
+    lo, hi = 0.0, 1.0
+    while mass(hi) < p - 0.5:
+        hi *= 2.0
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if mass(mid) < p - 0.5 else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+def paired_t_interval(differences: Sequence[float], confidence: float = 0.95) -> tuple[float, float, float]:
+    """Mean of paired differences and its two-sided Student *t* confidence interval.
+
+    Args:
+        differences: one difference per experimental unit (frame pair).
+        confidence: coverage of the interval.
+
+    Returns:
+        ``(mean, low, high)``; with fewer than 2 differences the interval is ``(-inf, inf)``.
+
+    Example:
+        >>> mean, lo, hi = paired_t_interval([1.0, 2.0, 3.0])
+        >>> mean, round(lo, 4), round(hi, 4)
+        (2.0, -0.4841, 4.4841)
+    """
+    d = np.asarray(differences, dtype=np.float64)
+    if d.size == 0:
+        raise ValueError("differences: expected at least one difference, found none")
+    mean = float(d.mean())
+    if d.size < 2:
+        return mean, -math.inf, math.inf
+    half = t_quantile(0.5 + confidence / 2, d.size - 1) * float(d.std(ddof=1)) / math.sqrt(d.size)
+    return mean, mean - half, mean + half
+
+
+def _pair_sets(pair: Mapping[str, Any], prefix: str = "") -> dict[str, dict[str, float]]:
+    """Every set-like entry of a pair's dict: ``{set name: {statistic: value}}`` (reverse sets as ``reverse:...``)."""
+    out: dict[str, dict[str, float]] = {}
+    for key, value in pair.items():
+        if (not prefix and key in _NOT_SETS) or not isinstance(value, Mapping) or not value:
+            continue
+        name = f"{prefix}{key}"
+        if all(isinstance(v, Mapping) for v in value.values()):
+            out.update(_pair_sets(value, f"{name}:"))
+        else:
+            out[name] = {k: _number(v) for k, v in value.items() if _number(v) is not None}  # type: ignore[misc]
+    return out
+
+
+def _number(value: Any) -> float | None:
+    """A statistic's value as a float (JSON writes non-finite values as strings); ``None`` if not a number."""
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, (int, float)):
+        return float(value)
+    if isinstance(value, str) and value in ("inf", "-inf", "nan"):
+        return float(value)
+    return None
+
+
+def _pairs(method: SequenceEvaluation | Mapping[str, Any]) -> list[Mapping[str, Any]]:
+    if isinstance(method, SequenceEvaluation):
+        return [p.as_dict() for p in method.pairs]
+    return list(method["pairs"])
+
+
+def _higher_is_better(statistic: str) -> bool:
+    return "psnr" in statistic
+
+
+def _is_floor_set(name: str) -> bool:
+    base = name.split(":", 1)[1] if name.startswith(f"{_REVERSE}:") else name
+    return base in FLOOR_SET_NAMES
+
+
+def _registration_floor(pairs_a: list[Mapping[str, Any]], pairs_b: list[Mapping[str, Any]]) -> dict[str, float]:
+    """Per statistic: mean over pairs of the larger of the registration's residual and its error (both methods)."""
+    floors: dict[str, list[float]] = {}
+    for pa, pb in zip(pairs_a, pairs_b, strict=True):
+        per_pair: dict[str, float] = {}
+        for pair in (pa, pb):
+            registration = pair.get("registration", {})
+            for what in ("residual", "error"):
+                for stat, value in registration.get(what, {}).items():
+                    v = _number(value)
+                    if v is not None and math.isfinite(v):
+                        per_pair[stat] = max(per_pair.get(stat, 0.0), v)
+        for stat, v in per_pair.items():
+            floors.setdefault(stat, []).append(v)
+    return {stat: float(np.mean(v)) for stat, v in floors.items() if len(v) == len(pairs_a)}
+
+
+def _compare_values(
+    a: list[float],
+    b: list[float],
+    statistic: str,
+    floor: float,
+    relative_margin: float,
+    confidence: float,
+    names: tuple[str, str],
+) -> dict[str, Any]:
+    if all(x == y for x, y in zip(a, b, strict=True)):  # identical (infinities included): no difference at all
+        return {"difference": 0.0, "ci95": [0.0, 0.0], "verdict": "inconclusive"}
+    diffs = [x - y for x, y in zip(a, b, strict=True)]
+    if not all(math.isfinite(d) for d in diffs):
+        return {"difference": math.nan, "ci95": [-math.inf, math.inf], "verdict": "inconclusive"}
+    mean, lo, hi = paired_t_interval(diffs, confidence)
+    mean_a, mean_b = float(np.mean(a)), float(np.mean(b))
+    higher = _higher_is_better(statistic)
+    better = max(mean_a, mean_b) if higher else min(mean_a, mean_b)
+    threshold = max(floor, relative_margin * abs(better))
+    verdict = "inconclusive"
+    if (lo > 0 or hi < 0) and abs(mean) > threshold:
+        a_wins = (mean > 0) == higher
+        verdict = f"{names[0] if a_wins else names[1]} better"
+    return {"difference": mean, "ci95": [lo, hi], "verdict": verdict}
+
+
+def compare_methods(
+    methods: Mapping[str, SequenceEvaluation | Mapping[str, Any]],
+    *,
+    statistics: Sequence[str] = DEFAULT_COMPARISON_STATISTICS,
+    confidence: float = 0.95,
+    relative_margin: float = 0.02,
+) -> dict[str, dict[str, dict[str, dict[str, Any]]]]:
+    """Every pair of methods, every set, the main statistics: difference, confidence interval and verdict.
+
+    See the module docstring for the method (paired *t* interval over frame pairs) and the verdict's noise floors.
+
+    Args:
+        methods: method name → its :class:`SequenceEvaluation`, or its part of a JSON report (``{"pairs": [...]}``);
+            all on the same original sequence (same frame pairs).
+        statistics: statistics to compare when a set has them; every statistic whose name contains ``psnr`` is
+            compared too.
+        confidence: coverage of the interval (the JSON key stays ``ci95``; default 0.95).
+        relative_margin: differences below this fraction of the better method's value are ``"inconclusive"``
+            (``0`` to rely on the interval and the registration floor alone).
+
+    Returns:
+        ``{"<A> vs <B>": {set: {statistic: {"difference": A - B, "ci95": [lo, hi], "verdict": ...}}}}``; entries
+        of the sets measured against the registered frame ``k-1`` (and ``flicker``) also hold ``"noise_floor"``.
+
+    Raises:
+        ValueError: fewer than two methods, or methods evaluated on different frame pairs.
+
+    Example:
+        >>> import trimesh
+        >>> from torchmeshmetric.evaluation import evaluate_sequence
+        >>> frames = [trimesh.creation.icosphere(subdivisions=2) for _ in range(3)]
+        >>> coarse = [trimesh.creation.icosphere(subdivisions=1) for _ in range(3)]
+        >>> same = lambda src, dst: src
+        >>> out = compare_methods({
+        ...     "A": evaluate_sequence(frames, coarse, register=same),
+        ...     "B": evaluate_sequence(frames, coarse, register=same),
+        ... })
+        >>> a_vs_b = out["A vs B"]
+        >>> surface_k = a_vs_b["surface_k"]
+        >>> entry = surface_k["ave"]
+        >>> entry["difference"], entry["verdict"]
+        (0.0, 'inconclusive')
+    """
+    if len(methods) < 2:
+        raise ValueError(f"methods: expected at least two methods to compare, found {len(methods)}")
+    if not 0.0 < confidence < 1.0:
+        raise ValueError(f"confidence: expected a probability in (0, 1), found {confidence!r}")
+    if not (math.isfinite(relative_margin) and relative_margin >= 0):
+        raise ValueError(f"relative_margin: expected a fraction >= 0, found {relative_margin!r}")
+    pairs = {name: _pairs(m) for name, m in methods.items()}
+    frames = {name: [p.get("frame") for p in ps] for name, ps in pairs.items()}
+    first = next(iter(frames))
+    for name, f in frames.items():
+        if f != frames[first] or not f:
+            raise ValueError(
+                f"methods: {name!r} was evaluated on frame pairs {f}, {first!r} on {frames[first]} (must match)"
+            )
+    sets = {name: [_pair_sets(p) for p in ps] for name, ps in pairs.items()}
+    out: dict[str, dict[str, dict[str, dict[str, Any]]]] = {}
+    for name_a, name_b in itertools.combinations(methods, 2):
+        floors = _registration_floor(pairs[name_a], pairs[name_b])
+        result: dict[str, dict[str, dict[str, Any]]] = {}
+        common = [s for s in sets[name_a][0] if all(s in p for p in sets[name_a] + sets[name_b])]
+        for set_name in common:
+            floor_set = _is_floor_set(set_name)
+            stats = [
+                st
+                for st in sets[name_a][0][set_name]
+                if (st in statistics or "psnr" in st) and all(st in p[set_name] for p in sets[name_a] + sets[name_b])
+            ]
+            entries = {}
+            for stat in stats:
+                a = [p[set_name][stat] for p in sets[name_a]]
+                b = [p[set_name][stat] for p in sets[name_b]]
+                floor = _floor(stat, set_name, floors, a, b, sets[name_a], sets[name_b]) if floor_set else 0.0
+                entry = _compare_values(a, b, stat, floor, relative_margin, confidence, (name_a, name_b))
+                if floor_set:
+                    entry["noise_floor"] = floor
+                entries[stat] = entry
+            if entries:
+                result[set_name] = entries
+        out[f"{name_a} vs {name_b}"] = result
+    return out
+
+
+def _floor(
+    stat: str,
+    set_name: str,
+    floors: Mapping[str, float],
+    a: list[float],
+    b: list[float],
+    sets_a: list[dict[str, dict[str, float]]],
+    sets_b: list[dict[str, dict[str, float]]],
+) -> float:
+    """The registration floor of one statistic of a ``k-1``/flicker set (see the module docstring)."""
+    if not _higher_is_better(stat):
+        return floors.get(stat, floors.get("rmse", 0.0))
+    f = floors.get("rmse", 0.0)
+    rmse = [p[set_name].get("rmse", math.nan) for p in sets_a + sets_b]
+    r = min(float(np.mean(rmse[: len(sets_a)])), float(np.mean(rmse[len(sets_a) :])))
+    if not (math.isfinite(r) and r > 0):
+        return math.inf if f > 0 else 0.0
+    return 20.0 * math.log10((r + f) / r)
+
+
+def _fmt(x: float) -> str:
+    return "nan" if math.isnan(x) else f"{x:.3g}"
+
+
+def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapping[str, Any]]]]) -> str:
+    """Compact verdict tables (one per pair of methods) as Markdown.
+
+    Rows are sets, columns statistics; a cell reads ``<winner>: difference ± half-width`` or
+    ``≈ difference ± half-width`` when inconclusive (the difference is ``A - B``). Sets with a registration noise
+    floor are marked ``*`` and their floor is listed under the table.
+    """
+    out = []
+    for title, sets in comparisons.items():
+        stats: list[str] = []
+        for entries in sets.values():
+            stats += [s for s in entries if s not in stats]
+        out += [f"### {title} (difference A - B, 95 % interval over frame pairs)", ""]
+        out += ["| set | " + " | ".join(stats) + " |", "|---|" + "---|" * len(stats)]
+        floors = []
+        for set_name, entries in sets.items():
+            cells = []
+            for stat in stats:
+                e = entries.get(stat)
+                if e is None:
+                    cells.append("")
+                    continue
+                lo, hi = e["ci95"]
+                half = (hi - lo) / 2 if math.isfinite(hi - lo) else math.inf
+                winner = e["verdict"].removesuffix(" better") if e["verdict"] != "inconclusive" else "≈"
+                cells.append(f"{winner}: {_fmt(e['difference'])} ± {_fmt(half)}")
+            marked = f"{set_name} *" if any("noise_floor" in e for e in entries.values()) else set_name
+            out.append(f"| {marked} | " + " | ".join(cells) + " |")
+            if any("noise_floor" in e for e in entries.values()):
+                floors.append(f"{set_name}: " + ", ".join(f"{s} {_fmt(e['noise_floor'])}" for s, e in entries.items()))
+        out.append("")
+        if floors:
+            out += ["\\* noise floor (registration residual, or its error when known): " + "; ".join(floors), ""]
+    out.append(
+        "≈: inconclusive (the interval contains 0, or the difference is below the noise floor or the relative "
+        "margin). Units: frame pairs; see docs/statistics.md."
+    )
+    return "\n".join(out) + "\n"

@@ -1,0 +1,174 @@
+r"""A registration as a map of arbitrary points: frame ``k-1`` space → frame ``k`` space.
+
+A registration of original frame ``k-1`` onto frame ``k`` moves that frame's vertices; the evaluation's ``flicker``
+set also needs to move *other* points of frame ``k-1`` (the vertices of the simplified frame ``k-1``). Two maps:
+
+* :class:`RegistrationWarp` — the deformation that :func:`~torchmeshmetric.registration.register_nonrigid` found,
+  defined in all of space: the rigid (similarity) transform, the normalisation to the target's bounding-box centre
+  and unit diagonal, then the embedded deformation graph (Sumner, Schmid & Pauly 2007), each point skinned to its
+  ``K`` nearest nodes exactly as the registered vertices were:
+
+  .. math::
+
+      x \mapsto d\, G\!\left(\frac{s R x + t - c}{d}\right) + c.
+
+  On the source vertices it reproduces the registered vertices (to rounding).
+* :class:`SurfaceWarp` — for a registration known only by its registered vertices (a mesh, a user's function, a
+  cached entry without the deformation): the piecewise-linear map of the source surface, extended off the surface
+  by the closest point. A point ``x`` with closest point ``p = \sum_j b_j v_j`` on face ``(v_0, v_1, v_2)`` of the
+  source moves by the barycentric blend of its vertices' displacements: ``x + \sum_j b_j (v'_j - v_j)``. It is a
+  translation locally, so an offset from the surface keeps its direction while the surface rotates (an error of
+  about the offset times the rotation angle between the frames).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, NamedTuple, Protocol
+
+import torch
+from torch import Tensor
+
+from torchmeshmetric._checks import ShapeError, check_finite, check_float, check_shape
+from torchmeshmetric.registration._common import normalisation
+from torchmeshmetric.registration.deformation_graph import embedded_deformation, skinning_weights
+from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
+
+if TYPE_CHECKING:
+    from torchmeshmetric.registration.nonrigid import NonRigidRegistration
+
+__all__ = ["RegistrationWarp", "SurfaceWarp", "Warp"]
+
+
+class Warp(Protocol):
+    """A map of ``(P, 3)`` points of frame ``k-1`` to their ``(P, 3)`` positions in frame ``k`` (any callable)."""
+
+    def __call__(self, points: Tensor, /) -> Tensor:
+        """Positions in frame ``k`` of ``points``."""
+        ...
+
+
+def _check_points(points: Tensor) -> None:
+    check_shape(points, ("P", 3), "points")
+    check_float(points, "points")
+    check_finite(points, "points")
+
+
+class RegistrationWarp(NamedTuple):
+    """The deformation of a non-rigid registration, applicable to any points (see the module docstring).
+
+    Attributes:
+        rigid: ``(4, 4)`` similarity transform ``[[s R, t], [0, 1]]`` applied first (identity without one).
+        center: ``(3,)`` centre of the normalised frame (target's bounding-box centre).
+        diagonal: 0-dim scale of the normalised frame (target's bounding-box diagonal).
+        nodes: ``(N, 3)`` graph nodes, in the normalised frame.
+        rotations: ``(N, 3, 3)`` node rotation matrices.
+        translations: ``(N, 3)`` node translations, in the normalised frame.
+        num_neighbors: nodes per point ``K`` of the skinning.
+
+    Example:
+        >>> import torch, trimesh
+        >>> from torchmeshmetric.registration import register_nonrigid, DEFAULT_SCHEDULE
+        >>> src = trimesh.creation.icosphere(subdivisions=1)
+        >>> tgt = trimesh.creation.icosphere(subdivisions=2)
+        >>> tgt.vertices *= [1.1, 1.0, 0.9]
+        >>> r = register_nonrigid(src, tgt, schedule=[DEFAULT_SCHEDULE[0]._replace(max_steps=10)])
+        >>> warp = RegistrationWarp.from_registration(r, tgt)
+        >>> bool(torch.allclose(warp(torch.tensor(src.vertices)), r.verts, atol=1e-12))
+        True
+    """
+
+    rigid: Tensor
+    center: Tensor
+    diagonal: Tensor
+    nodes: Tensor
+    rotations: Tensor
+    translations: Tensor
+    num_neighbors: int
+
+    @classmethod
+    def from_registration(cls, result: NonRigidRegistration, target: MeshLike) -> RegistrationWarp:
+        """The warp of a :class:`~torchmeshmetric.registration.NonRigidRegistration` of a source onto ``target``.
+
+        Args:
+            result: the registration's result (its ``graph`` and ``rigid``).
+            target: the mesh it was registered onto (defines the normalised frame).
+        """
+        graph = result.graph
+        dtype, dev = graph.nodes.dtype, graph.nodes.device
+        center, diagonal = normalisation(as_mesh(target, name="target").to(dev, dtype))
+        with torch.no_grad():
+            return cls(
+                rigid=result.rigid.transform.detach().to(dev, dtype),
+                center=center.detach(),
+                diagonal=diagonal.detach(),
+                nodes=graph.nodes.detach(),
+                rotations=graph.rotation_matrices().detach(),
+                translations=graph.translations.detach(),
+                num_neighbors=int(graph.vert_nodes.shape[1]),
+            )
+
+    def __call__(self, points: Tensor) -> Tensor:
+        """``(P, 3)`` positions in frame ``k`` of ``points (P, 3)`` given in frame ``k-1`` (dtype/device kept)."""
+        _check_points(points)
+        w = self.to(points.device, torch.promote_types(points.dtype, self.nodes.dtype))
+        x = points.to(w.nodes.dtype)
+        x = x @ w.rigid[:3, :3].T + w.rigid[:3, 3]
+        x = (x - w.center) / w.diagonal
+        idx, weights = skinning_weights(x, w.nodes, w.num_neighbors)
+        x = embedded_deformation(x, w.nodes, w.rotations, w.translations, idx, weights)
+        return (x * w.diagonal + w.center).to(points.dtype)
+
+    def to(self, device: torch.device | str, dtype: torch.dtype | None = None) -> RegistrationWarp:
+        """A copy with every tensor on ``device`` (and in ``dtype`` when given)."""
+        return self._replace(
+            **{
+                name: getattr(self, name).to(device=device, dtype=dtype or getattr(self, name).dtype)
+                for name in ("rigid", "center", "diagonal", "nodes", "rotations", "translations")
+            }
+        )
+
+    def state(self) -> dict[str, object]:
+        """Plain dict of tensors and ints (for ``torch.save(weights_only=True)``); :meth:`from_state` reverses it."""
+        return {name: getattr(self, name) for name in self._fields}
+
+    @classmethod
+    def from_state(cls, state: dict[str, object]) -> RegistrationWarp:
+        """Rebuild a warp from :meth:`state`."""
+        return cls(**{name: state[name] for name in cls._fields})  # type: ignore[arg-type]
+
+
+class SurfaceWarp(NamedTuple):
+    """The piecewise-linear map of a registration known by its registered vertices (see the module docstring).
+
+    Attributes:
+        source: the source mesh (original frame ``k-1``).
+        registered_verts: ``(V, 3)`` its registered vertices (same order), in frame ``k``.
+
+    Example:
+        >>> import torch, trimesh
+        >>> sphere = as_mesh(trimesh.creation.icosphere(subdivisions=1))
+        >>> warp = SurfaceWarp(sphere, sphere.verts + torch.tensor([0.5, 0.0, 0.0]))
+        >>> warp(torch.tensor([[0.0, 0.0, 2.0]], dtype=sphere.dtype)).tolist()  # a translation moves every point
+        [[0.5, 0.0, 2.0]]
+    """
+
+    source: Mesh
+    registered_verts: Tensor
+
+    def __call__(self, points: Tensor) -> Tensor:
+        """``(P, 3)`` positions in frame ``k`` of ``points (P, 3)`` given in frame ``k-1`` (dtype/device kept)."""
+        from torchmeshmetric.kernels.point_triangle import point_mesh_distance
+
+        _check_points(points)
+        if tuple(self.registered_verts.shape) != tuple(self.source.verts.shape):
+            raise ShapeError(
+                f"registered_verts: expected the shape of the source's vertices {tuple(self.source.verts.shape)}, "
+                f"found {tuple(self.registered_verts.shape)}"
+            )
+        dtype = torch.promote_types(points.dtype, self.source.dtype)
+        src = self.source.to(points.device, dtype)
+        disp = self.registered_verts.to(points.device, dtype) - src.verts
+        with torch.no_grad():
+            hit = point_mesh_distance(points.to(dtype), src)
+        moved = points.to(dtype) + (hit.bary[..., None] * disp[src.faces[hit.face_idx]]).sum(1)
+        return moved.to(points.dtype)
