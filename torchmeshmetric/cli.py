@@ -3,12 +3,16 @@
 Commands:
   evaluate  evaluate one simplified sequence against its original frames (the paper's Fig. 2)
   compare   evaluate several simplification methods on one original sequence (Tables I-IV side by side)
+  campaign  evaluate several sequences, each with several methods, listed in a TOML manifest
   simplify  simplify every frame of a sequence with QEM or Registered QEM
   register  register one mesh (frame k-1) onto another (frame k), rigid then non-rigid
   demo      the main job: built-in sequence -> QEM and Registered QEM -> evaluation, tables, report and plots
 
 Errors (missing or corrupt files, frame-count mismatch, unwritable output) end with a one-line message on stderr
 and exit code 1; reports are written atomically and never half-written. Set TORCHMESHMETRIC_DEBUG=1 for tracebacks.
+
+evaluate, compare and campaign also run under torchrun (torchrun --nproc-per-node N -m torchmeshmetric ...): the
+processes share the work and rank 0 prints and writes the same report as one process (docs/scaling.md).
 """
 
 from __future__ import annotations
@@ -98,8 +102,9 @@ def _write_reports(paths: dict[str, Path], methods: dict[str, Any], settings: di
 
 def _evaluate_methods(
     original: list[Any], methods: dict[str, list[Any]], args: argparse.Namespace, device: str
-) -> dict[str, Any]:
+) -> dict[str, Any] | None:
     from torchmeshmetric.evaluation import RegistrationCache, evaluate_sequence
+    from torchmeshmetric.evaluation.distributed import is_distributed
 
     cache = RegistrationCache(args.cache_dir)
     results = {}
@@ -110,10 +115,32 @@ def _evaluate_methods(
             )
         if len(original) < 2:
             raise CLIError(f"the sequence has {len(original)} frame; at least 2 are needed (pairs k-1, k)")
+        if is_distributed():
+            continue  # evaluated below, shared by the ranks of the torchrun job
         results[name] = evaluate_sequence(
             original, frames, cache=cache, two_sided=not args.one_sided, device=device, progress=_progress(name)
         )
+    if is_distributed():
+        return _evaluate_across_ranks([("", original, methods)], cache, args, device)[0]
     return results
+
+
+def _evaluate_across_ranks(
+    sequences: list[tuple[str, list[Any], dict[str, list[Any]]]], cache: Any, args: argparse.Namespace, device: str
+) -> list[Any]:
+    """Every method of every sequence, sharded over the ranks; results on rank 0, ``[None, ...]`` elsewhere."""
+    from torchmeshmetric.evaluation.distributed import SequenceWork, evaluate_sequences, rank_and_world_size
+
+    _, world_size = rank_and_world_size()
+    results = evaluate_sequences(
+        [SequenceWork(*s) for s in sequences],
+        cache=cache,
+        two_sided=not args.one_sided,
+        device=device,
+        register_options=getattr(args, "register_options", None),
+        progress=_progress(f"all methods on {world_size} processes"),
+    )
+    return [None] * len(sequences) if results is None else list(results)
 
 
 # --------------------------------------------------------------------------------------------- commands
@@ -127,10 +154,22 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     simplified = _load_frames(args.simplified, "--simplified")
     name = args.name or Path(args.simplified).resolve().name
     results = _evaluate_methods(original, {name: simplified}, args, device)
+    if results is None:  # a torchrun rank other than 0: rank 0 reports
+        return 0
     print(paper_tables(results))
     settings = {"original": args.original, "methods": {name: args.simplified}, "two_sided": not args.one_sided}
     _write_reports(paths, results, settings, args.overwrite)
     return 0
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, found {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, found {text!r}")
+    return value
 
 
 def _parse_methods(specs: Sequence[str]) -> dict[str, str]:
@@ -155,9 +194,70 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     original = _load_frames(args.original, "--original")
     frames = {name: _load_frames(d, f"--method {name}") for name, d in specs.items()}
     results = _evaluate_methods(original, frames, args, device)
+    if results is None:  # a torchrun rank other than 0: rank 0 reports
+        return 0
     print(paper_tables(results))
     settings = {"original": args.original, "methods": specs, "two_sided": not args.one_sided}
     _write_reports(paths, results, settings, args.overwrite)
+    return 0
+
+
+def _cmd_campaign(args: argparse.Namespace) -> int:
+    from torchmeshmetric.evaluation import RegistrationCache, write_json
+    from torchmeshmetric.evaluation.campaign import (
+        COMBINED,
+        campaign_report_dict,
+        campaign_tables,
+        load_campaign,
+        report_name,
+        write_campaign_csv,
+        write_campaign_markdown,
+    )
+
+    device = _device(args)
+    campaign = load_campaign(args.manifest)
+    out = None if args.out_dir is None else Path(args.out_dir)
+    stems = [COMBINED] + [report_name(s.name) for s in campaign.sequences]
+    if out is not None:
+        targets = [out / f"{stem}.{ext}" for stem in stems for ext in ("json", "md", "csv")]
+        _check_writable(targets if out.is_dir() else [out], args.overwrite)
+    sequences = []
+    for seq in campaign.sequences:
+        original = _load_frames(str(seq.original), f"sequence {seq.name!r}: original")
+        methods = {m: _load_frames(str(d), f"sequence {seq.name!r}: method {m!r}") for m, d in seq.methods.items()}
+        for method, frames in methods.items():
+            if len(frames) != len(original):
+                raise CLIError(
+                    f"sequence {seq.name!r}: method {method!r}: {len(frames)} simplified frames but {len(original)} "
+                    "original frames (must match)"
+                )
+        if len(original) < 2:
+            raise CLIError(f"sequence {seq.name!r}: {len(original)} frame; at least 2 are needed (pairs k-1, k)")
+        sequences.append((seq.name, original, methods))
+    args.one_sided = not campaign.two_sided
+    args.register_options = _fast_registration_options() if campaign.registration == "fast" else None
+    cache = RegistrationCache(args.cache_dir or campaign.cache_dir)
+    evaluated = _evaluate_across_ranks(sequences, cache, args, device)
+    if evaluated[0] is None:  # a torchrun rank other than 0: rank 0 reports
+        return 0
+    results = {seq.name: methods for seq, methods in zip(campaign.sequences, evaluated, strict=True)}
+    print(campaign_tables(results))
+    if out is None:
+        return 0
+    out.mkdir(exist_ok=True)
+    settings: dict[str, Any] = {
+        "campaign": str(campaign.path),
+        "two_sided": campaign.two_sided,
+        "registration": campaign.registration,
+    }
+    for seq, stem in zip(campaign.sequences, stems[1:], strict=True):
+        folders = {m: str(d) for m, d in seq.methods.items()}
+        sequence_settings = {**settings, "sequence": seq.name, "original": str(seq.original), "methods": folders}
+        _write_reports(_report_paths(str(out / f"{stem}.json")), results[seq.name], sequence_settings, args.overwrite)
+    write_json(out / f"{COMBINED}.json", campaign_report_dict(results, settings=settings), overwrite=args.overwrite)
+    write_campaign_markdown(out / f"{COMBINED}.md", results, overwrite=args.overwrite)
+    write_campaign_csv(out / f"{COMBINED}.csv", results, overwrite=args.overwrite)
+    print(f"wrote {out / COMBINED}.json/.md/.csv and one report per sequence", file=sys.stderr)
     return 0
 
 
@@ -396,6 +496,14 @@ def build_parser() -> argparse.ArgumentParser:
     common.add_argument(
         "--device", choices=("cpu", "cuda"), default="cpu", help="where distances and registration run (default cpu)"
     )
+    common.add_argument(
+        "--threads",
+        type=_positive_int,
+        default=None,
+        metavar="N",
+        help="torch CPU threads of this process (default: torch's choice; under torchrun: the cores divided by the "
+        "processes on this machine unless OMP_NUM_THREADS is set to more than 1)",
+    )
     evaluation = argparse.ArgumentParser(add_help=False)
     evaluation.add_argument(
         "--one-sided",
@@ -457,6 +565,32 @@ def build_parser() -> argparse.ArgumentParser:
         help="a method's name and the folder of its simplified frames; repeat for every method",
     )
     p.set_defaults(func=_cmd_compare)
+
+    p = sub.add_parser(
+        "campaign",
+        parents=[common],
+        help="evaluate a test campaign: several sequences, each with several methods (TOML manifest)",
+        description="Evaluate every method of every sequence listed in a TOML manifest (see examples/campaign.toml "
+        "and docs/scaling.md); registrations of each sequence's original pairs are computed once and shared by its "
+        "methods. Prints the combined tables (per sequence and overall: mean over sequences); with --out-dir writes "
+        "campaign.json/.md/.csv and one report per sequence (<sequence>.json/.md/.csv). Under torchrun the work is "
+        "shared by all processes.",
+    )
+    p.add_argument("manifest", metavar="MANIFEST", help="the campaign manifest (TOML); folders relative to it")
+    p.add_argument(
+        "--out-dir",
+        default=None,
+        metavar="DIR",
+        help="write the combined report and the per-sequence reports there (created; its parent must exist)",
+    )
+    p.add_argument(
+        "--cache-dir",
+        default=None,
+        metavar="DIR",
+        help="registration cache folder (overrides the manifest's cache_dir); a rerun resumes from it",
+    )
+    p.add_argument("--overwrite", action="store_true", help="replace existing reports in --out-dir")
+    p.set_defaults(func=_cmd_campaign)
 
     p = sub.add_parser(
         "simplify",
@@ -537,9 +671,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code (0 ok, 1 error, 2 usage error, 3 registration not converged)."""
+    from torchmeshmetric.launch import run_command
+
     args = build_parser().parse_args(argv)
     try:
-        return int(args.func(args))
+        return int(run_command(args.func, args))
     except KeyboardInterrupt:
         print("torchmeshmetric: interrupted", file=sys.stderr)
         return 130
