@@ -105,6 +105,17 @@ def _cuda_device(launch: Launch) -> str:
     return f"cuda:{launch.local_rank}"
 
 
+def _stopped_message(busy: list[tuple[int, str]]) -> str:
+    """Why torchrun stopped this rank: another rank exited (died or failed outside the shared work)."""
+    if len(busy) == 1:
+        rank, task = busy[0]
+        return f"rank {rank} failed on {task}: the process died (killed or crashed); torchrun stopped the others"
+    if busy:
+        names = "; ".join(f"rank {rank} on {task}" for rank, task in busy)
+        return f"a rank died (killed or crashed); torchrun stopped the others; in flight: {names}"
+    return "stopped by torchrun: another rank exited"
+
+
 def run_command(command: Callable[[Any], int], args: Any) -> int:
     """Run a CLI command, inside a process group when torchrun started this process.
 
@@ -113,7 +124,7 @@ def run_command(command: Callable[[Any], int], args: Any) -> int:
     """
     import torch.distributed as dist
 
-    from torchmeshmetric.evaluation.distributed import RankFailedError
+    from torchmeshmetric.evaluation.distributed import RankFailedError, in_flight
 
     launch = launch_from_environment()
     threads = thread_count(getattr(args, "threads", None), launch)
@@ -137,8 +148,9 @@ def run_command(command: Callable[[Any], int], args: Any) -> int:
             return 1
         raise
     except Stopped:
-        if launch.rank == 0:
-            print(f"torchmeshmetric {args.command}: error: stopped by torchrun (another rank failed)", file=sys.stderr)
+        busy = in_flight()
+        if launch.rank == min(set(range(launch.world_size)) - {r for r, _ in busy}):  # one line, from one survivor
+            print(f"torchmeshmetric {args.command}: error: {_stopped_message(busy)}", file=sys.stderr)
         return 1
     finally:
         signal.signal(signal.SIGTERM, previous)

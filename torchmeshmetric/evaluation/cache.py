@@ -12,7 +12,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import tempfile
 import warnings
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -21,6 +20,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
+from torchmeshmetric.evaluation.atomic import atomic_write_with
 from torchmeshmetric.structures import Mesh
 
 __all__ = ["CachedRegistration", "RegistrationCache", "registration_key"]
@@ -42,6 +42,15 @@ class CachedRegistration(NamedTuple):
     residual: Tensor
     converged: bool
     seconds: float
+
+
+def _check_entry(entry: CachedRegistration) -> None:
+    """Raise ValueError unless a loaded entry is consistent and finite (a damaged file is never trusted)."""
+    verts, residual = entry.verts, entry.residual
+    if verts.ndim != 2 or verts.shape[-1] != 3 or tuple(residual.shape) != (verts.shape[0],):
+        raise ValueError(f"inconsistent shapes: verts {tuple(verts.shape)}, residual {tuple(residual.shape)}")
+    if not (bool(torch.isfinite(verts).all()) and bool(torch.isfinite(residual).all())):
+        raise ValueError("non-finite registered vertices or residuals")
 
 
 def _hash_mesh(h: hashlib._Hash, mesh: Mesh) -> None:
@@ -110,7 +119,9 @@ class RegistrationCache:
             return None
         try:
             data = torch.load(self._path(key), map_location="cpu", weights_only=True)
-            return CachedRegistration(data["verts"], data["residual"], bool(data["converged"]), float(data["seconds"]))
+            entry = CachedRegistration(data["verts"], data["residual"], bool(data["converged"]), float(data["seconds"]))
+            _check_entry(entry)
+            return entry
         except Exception as exc:  # a corrupt entry is recomputed and replaced, never trusted
             warnings.warn(f"registration cache: ignoring unreadable entry {self._path(key)} ({exc})", stacklevel=3)
             return None
@@ -119,22 +130,15 @@ class RegistrationCache:
         if self.directory is None:
             return
         self.directory.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{key[:16]}.", suffix=".tmp", dir=self.directory)
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                torch.save(
-                    {
-                        "verts": entry.verts,
-                        "residual": entry.residual,
-                        "converged": entry.converged,
-                        "seconds": entry.seconds,
-                    },
-                    fh,
-                )
-            os.replace(tmp, self._path(key))
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+        # Unique temporary name, fsync, then rename: ranks and concurrent runs sharing the folder may store the same
+        # key at once; a reader sees a complete entry (one of theirs) or none, never a mix or a truncated file.
+        payload = {
+            "verts": entry.verts,
+            "residual": entry.residual,
+            "converged": entry.converged,
+            "seconds": entry.seconds,
+        }
+        atomic_write_with(self._path(key), lambda fh: torch.save(payload, fh), overwrite=True)
 
     def get_or_compute(
         self,

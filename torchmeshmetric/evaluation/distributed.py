@@ -33,6 +33,7 @@ __all__ = [
     "RankFailedError",
     "SequenceWork",
     "evaluate_sequences",
+    "in_flight",
     "is_distributed",
     "rank_and_world_size",
     "run_tasks",
@@ -44,6 +45,7 @@ R = TypeVar("R")
 
 _IDLE = "idle"
 _call_counter = itertools.count()
+_current: _Board | None = None
 
 
 class RankFailedError(RuntimeError):
@@ -214,8 +216,9 @@ def run_tasks(
         >>> run_tasks(lambda x: x * x, [1, 2, 3], describe=str)
         [1, 4, 9]
     """
+    global _current
     rank, world_size = rank_and_world_size()
-    board = _Board(rank, world_size)
+    board = _current = _Board(rank, world_size)
     display = _Progress(board, len(tasks), progress)
     mine: list[tuple[int, Any]] = []
     failure: tuple[int, str, str] | None = None
@@ -259,6 +262,24 @@ def run_tasks(
         return [result for _, result in ordered]
     finally:
         display.finish(ok)
+        if ok:  # after a failure the board stays readable for in_flight()
+            _current = None
+
+
+def in_flight() -> list[tuple[int, str]]:
+    """``(rank, task)`` of the other ranks that were busy when this one was stopped (the suspects of a failure).
+
+    Read from the process group's store while :func:`run_tasks` runs; empty outside it or without a store.
+    """
+    board = _current
+    if board is None:
+        return []
+    busy = []
+    for rank in range(board.world_size):
+        status = board.status(rank) if rank != board.rank else None
+        if status is not None and status != _IDLE:
+            busy.append((rank, status))
+    return busy
 
 
 class SequenceWork(NamedTuple):
@@ -309,7 +330,8 @@ def _at_frame(pair: Any, k: int) -> Any:
 
 def _describe(work: Sequence[SequenceWork], w: int, method: str, k: int) -> str:
     seq = f"sequence {work[w].name!r} " if work[w].name else ""
-    return f"{seq}method {method!r} frame pair {k - 1} -> {k}"
+    named = f"method {method!r} " if method else ""
+    return f"{seq}{named}frame pair {k - 1} -> {k}"
 
 
 def evaluate_sequences(

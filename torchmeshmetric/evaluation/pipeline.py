@@ -205,6 +205,7 @@ def evaluate_sequence(
     register_options: Mapping[str, Any] | None = None,
     registrations: Sequence[Any] | None = None,
     progress: Callable[[int, int], None] | None = None,
+    distributed: bool = False,
 ) -> SequenceEvaluation:
     """Evaluate a simplified sequence frame pair by frame pair (pairs ``(k-1, k)`` for ``k = 1 .. N-1``).
 
@@ -221,13 +222,19 @@ def evaluate_sequence(
         register_options: options of the default registration.
         registrations: optional precomputed registrations, one per pair (``registrations[k-1]`` is frame ``k-1``
             registered onto frame ``k``); bypasses ``register`` and the cache.
-        progress: called as ``progress(k, N - 1)`` after frame pair ``k`` is evaluated.
+        progress: called as ``progress(k, N - 1)`` after frame pair ``k`` is evaluated (distributed: on rank 0,
+            from a helper thread, with the number of pairs done by all ranks).
+        distributed: share the frame pairs among the ranks of the initialised ``torch.distributed`` process group
+            (every rank calls with the same arguments; every rank returns the whole result, equal to one process's;
+            see :mod:`torchmeshmetric.evaluation.distributed`). Explicit, not automatic: inside a DDP job each rank
+            may be evaluating its own data. Without a process group the sequence is evaluated here.
 
     Returns:
         :class:`SequenceEvaluation` with ``N - 1`` pairs.
 
     Raises:
         ValueError: when the frame counts differ or fewer than two frames are given.
+        RankFailedError: distributed only: a rank raised or died (names the rank and the frame pair).
     """
     if len(original_frames) != len(simplified_frames):
         raise ValueError(
@@ -242,6 +249,16 @@ def evaluate_sequence(
         )
     if cache is None:
         cache = RegistrationCache(cache_dir)
+    if distributed:
+        from torchmeshmetric.evaluation.distributed import SequenceWork, evaluate_sequences
+
+        options = {"two_sided": two_sided, "device": device, "register": register, "register_options": register_options}
+        work = [SequenceWork("", original_frames, {"": simplified_frames})]
+        shared = evaluate_sequences(
+            work, cache=cache, registrations=[registrations], to=None, progress=progress, **options
+        )
+        assert shared is not None  # every rank receives the result (to=None)
+        return shared[0][""]
     pairs = []
     total = len(original_frames) - 1
     for k in range(1, len(original_frames)):
