@@ -132,13 +132,14 @@ def _evaluate_across_ranks(
     from torchmeshmetric.evaluation.distributed import SequenceWork, evaluate_sequences, rank_and_world_size
 
     _, world_size = rank_and_world_size()
+    label = f"all methods on {world_size} processes" if world_size > 1 else "all methods"
     results = evaluate_sequences(
         [SequenceWork(*s) for s in sequences],
         cache=cache,
         two_sided=not args.one_sided,
         device=device,
         register_options=getattr(args, "register_options", None),
-        progress=_progress(f"all methods on {world_size} processes"),
+        progress=_progress(label),
     )
     return [None] * len(sequences) if results is None else list(results)
 
