@@ -15,8 +15,7 @@ import torchmeshmetric.evaluation.pipeline
 from tests.distributed.helpers import register
 from torchmeshmetric.cli import main
 
-torchmeshmetric.evaluation.pipeline.default_register = register
-torchmeshmetric.evaluation.default_register = register
-
-if __name__ == "__main__":
+if __name__ == "__main__":  # only then: pytest imports this module too (doctests) and must not be patched
+    torchmeshmetric.evaluation.pipeline.default_register = register
+    torchmeshmetric.evaluation.default_register = register
     sys.exit(main(sys.argv[1:]))
