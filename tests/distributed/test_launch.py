@@ -33,15 +33,9 @@ def test_single_process_commands_refuse_torchrun(monkeypatch, capsys, command):
 
 
 def test_threads_option(capsys, tmp_path):
-    threads = torch.get_num_threads()
-    try:
-        assert (
-            main(["register", "--source", str(tmp_path / "a.ply"), "--target", "b", "--out", "c", "--threads", "1"])
-            == 1
-        )
-        assert torch.get_num_threads() == 1
-    finally:
-        torch.set_num_threads(threads)
+    argv = ["register", "--source", str(tmp_path / "a.ply"), "--target", "b", "--out", "c", "--threads", "1"]
+    assert main(argv) == 1
+    assert torch.get_num_threads() == 1  # restored after the test (conftest)
     with pytest.raises(SystemExit):
         main(["register", "--source", "a", "--target", "b", "--out", "c", "--threads", "0"])
     assert "expected a positive integer, found '0'" in capsys.readouterr().err
