@@ -3,6 +3,7 @@
 Commands:
   evaluate  evaluate one simplified sequence against its original frames (the paper's Fig. 2)
   compare   evaluate several simplification methods on one original sequence (Tables I-IV side by side)
+  campaign  evaluate several sequences, each with several methods, listed in a TOML manifest
   simplify  simplify every frame of a sequence with QEM or Registered QEM
   register  register one mesh (frame k-1) onto another (frame k), rigid then non-rigid
   demo      the main job: built-in sequence -> QEM and Registered QEM -> evaluation, tables, report and plots
@@ -11,6 +12,9 @@ Commands:
 
 Errors (missing or corrupt files, frame-count mismatch, unwritable output) end with a one-line message on stderr
 and exit code 1; reports are written atomically and never half-written. Set TORCHMESHMETRIC_DEBUG=1 for tracebacks.
+
+evaluate, compare and campaign also run under torchrun (torchrun --nproc-per-node N -m torchmeshmetric ...): the
+processes share the work and rank 0 prints and writes the same report as one process (docs/scaling.md).
 """
 
 from __future__ import annotations
@@ -190,8 +194,9 @@ def _mpeg_methods(original: list[Any], methods: dict[str, list[Any]], args: argp
 
 def _evaluate_methods(
     original: list[Any], methods: dict[str, list[Any]], args: argparse.Namespace, device: str
-) -> dict[str, Any]:
+) -> dict[str, Any] | None:
     from torchmeshmetric.evaluation import RegistrationCache, evaluate_sequence
+    from torchmeshmetric.evaluation.distributed import is_distributed
     from torchmeshmetric.kernels import IndexCache
 
     cache = RegistrationCache(args.cache_dir)
@@ -204,6 +209,8 @@ def _evaluate_methods(
             )
         if len(original) < 2:
             raise CLIError(f"the sequence has {len(original)} frame; at least 2 are needed (pairs k-1, k)")
+        if is_distributed():
+            continue  # evaluated below, shared by the ranks of the torchrun job
         results[name] = evaluate_sequence(
             original,
             frames,
@@ -214,7 +221,29 @@ def _evaluate_methods(
             backend=args.backend,
             indexes=indexes,
         )
+    if is_distributed():
+        return _evaluate_across_ranks([("", original, methods)], cache, args, device)[0]
     return results
+
+
+def _evaluate_across_ranks(
+    sequences: list[tuple[str, list[Any], dict[str, list[Any]]]], cache: Any, args: argparse.Namespace, device: str
+) -> list[Any]:
+    """Every method of every sequence, sharded over the ranks; results on rank 0, ``[None, ...]`` elsewhere."""
+    from torchmeshmetric.evaluation.distributed import SequenceWork, evaluate_sequences, rank_and_world_size
+
+    _, world_size = rank_and_world_size()
+    label = f"all methods on {world_size} processes" if world_size > 1 else "all methods"
+    results = evaluate_sequences(
+        [SequenceWork(*s) for s in sequences],
+        cache=cache,
+        two_sided=not args.one_sided,
+        device=device,
+        register_options=getattr(args, "register_options", None),
+        progress=_progress(label),
+        backend=args.backend,
+    )
+    return [None] * len(sequences) if results is None else list(results)
 
 
 # --------------------------------------------------------------------------------------------- commands
@@ -228,6 +257,8 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     simplified = _load_frames(args.simplified, "--simplified", _dtype(args))
     name = args.name or Path(args.simplified).resolve().name
     results = _evaluate_methods(original, {name: simplified}, args, device)
+    if results is None:  # a torchrun rank other than 0: rank 0 reports
+        return 0
     print(paper_tables(results))
     mpeg = _mpeg_methods(original, {name: simplified}, args)
     settings = {
@@ -238,6 +269,16 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     }
     _write_reports(paths, results, settings, args.overwrite, mpeg)
     return 0
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, found {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, found {text!r}")
+    return value
 
 
 def _parse_methods(specs: Sequence[str]) -> dict[str, str]:
@@ -262,6 +303,8 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     original = _load_frames(args.original, "--original", _dtype(args))
     frames = {name: _load_frames(d, f"--method {name}", _dtype(args)) for name, d in specs.items()}
     results = _evaluate_methods(original, frames, args, device)
+    if results is None:  # a torchrun rank other than 0: rank 0 reports
+        return 0
     print(paper_tables(results))
     mpeg = _mpeg_methods(original, frames, args)
     comparisons = None
@@ -276,6 +319,73 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         "dtype": args.dtype,
     }
     _write_reports(paths, results, settings, args.overwrite, mpeg, comparisons)
+    return 0
+
+
+def _cmd_campaign(args: argparse.Namespace) -> int:
+    from torchmeshmetric.evaluation import RegistrationCache, write_json
+    from torchmeshmetric.evaluation.campaign import (
+        COMBINED,
+        campaign_report_dict,
+        campaign_tables,
+        load_campaign,
+        report_name,
+        write_campaign_csv,
+        write_campaign_markdown,
+    )
+
+    device = _device(args)
+    campaign = load_campaign(args.manifest)
+    out = None if args.out_dir is None else Path(args.out_dir)
+    stems = [COMBINED] + [report_name(s.name) for s in campaign.sequences]
+    if out is not None:
+        targets = [out / f"{stem}.{ext}" for stem in stems for ext in ("json", "md", "csv")]
+        _check_writable(targets if out.is_dir() else [out], args.overwrite)
+    sequences = []
+    for seq in campaign.sequences:
+        original = _load_frames(str(seq.original), f"sequence {seq.name!r}: original", _dtype(args))
+        methods = {
+            m: _load_frames(str(d), f"sequence {seq.name!r}: method {m!r}", _dtype(args))
+            for m, d in seq.methods.items()
+        }
+        for method, frames in methods.items():
+            if len(frames) != len(original):
+                raise CLIError(
+                    f"sequence {seq.name!r}: method {method!r}: {len(frames)} simplified frames but {len(original)} "
+                    "original frames (must match)"
+                )
+        if len(original) < 2:
+            raise CLIError(f"sequence {seq.name!r}: {len(original)} frame; at least 2 are needed (pairs k-1, k)")
+        sequences.append((seq.name, original, methods))
+    args.one_sided = not campaign.two_sided
+    args.register_options = _fast_registration_options() if campaign.registration == "fast" else None
+    cache = RegistrationCache(args.cache_dir or campaign.cache_dir)
+    evaluated = _evaluate_across_ranks(sequences, cache, args, device)
+    if evaluated[0] is None:  # a torchrun rank other than 0: rank 0 reports
+        return 0
+    results = {seq.name: methods for seq, methods in zip(campaign.sequences, evaluated, strict=True)}
+    print(campaign_tables(results))
+    if out is None:
+        return 0
+    settings: dict[str, Any] = {
+        "campaign": str(campaign.path),
+        "two_sided": campaign.two_sided,
+        "registration": campaign.registration,
+        "dtype": args.dtype,
+    }
+    with _output_set("the campaign's reports") as files:
+        if not out.is_dir():
+            _make_folder(out, "--out-dir", files)
+        for seq, stem in zip(campaign.sequences, stems[1:], strict=True):
+            folders = {m: str(d) for m, d in seq.methods.items()}
+            sequence_settings = {**settings, "sequence": seq.name, "original": str(seq.original), "methods": folders}
+            paths = _report_paths(str(out / f"{stem}.json"))
+            _write_reports(paths, results[seq.name], sequence_settings, args.overwrite)
+        combined = campaign_report_dict(results, settings=settings)
+        write_json(out / f"{COMBINED}.json", combined, overwrite=args.overwrite)
+        write_campaign_markdown(out / f"{COMBINED}.md", results, overwrite=args.overwrite)
+        write_campaign_csv(out / f"{COMBINED}.csv", results, overwrite=args.overwrite)
+    print(f"wrote {out / COMBINED}.json/.md/.csv and one report per sequence", file=sys.stderr)
     return 0
 
 
@@ -655,6 +765,14 @@ def build_parser() -> argparse.ArgumentParser:
         default="auto",
         help="exact distance kernel (default auto: the C++ BVH on the CPU, Triton on CUDA); all give the same values",
     )
+    common.add_argument(
+        "--threads",
+        type=_positive_int,
+        default=None,
+        metavar="N",
+        help="torch CPU threads of this process (default: torch's choice; under torchrun: the cores divided by the "
+        "processes on this machine unless OMP_NUM_THREADS is set to more than 1)",
+    )
     evaluation = argparse.ArgumentParser(add_help=False)
     evaluation.add_argument(
         "--one-sided",
@@ -738,6 +856,32 @@ def build_parser() -> argparse.ArgumentParser:
         "0 relies on the interval and the registration's noise floor alone)",
     )
     p.set_defaults(func=_cmd_compare)
+
+    p = sub.add_parser(
+        "campaign",
+        parents=[common],
+        help="evaluate a test campaign: several sequences, each with several methods (TOML manifest)",
+        description="Evaluate every method of every sequence listed in a TOML manifest (see examples/campaign.toml "
+        "and docs/scaling.md); registrations of each sequence's original pairs are computed once and shared by its "
+        "methods. Prints the combined tables (per sequence and overall: mean over sequences); with --out-dir writes "
+        "campaign.json/.md/.csv and one report per sequence (<sequence>.json/.md/.csv). Under torchrun the work is "
+        "shared by all processes.",
+    )
+    p.add_argument("manifest", metavar="MANIFEST", help="the campaign manifest (TOML); folders relative to it")
+    p.add_argument(
+        "--out-dir",
+        default=None,
+        metavar="DIR",
+        help="write the combined report and the per-sequence reports there (created; its parent must exist)",
+    )
+    p.add_argument(
+        "--cache-dir",
+        default=None,
+        metavar="DIR",
+        help="registration cache folder (overrides the manifest's cache_dir); a rerun resumes from it",
+    )
+    p.add_argument("--overwrite", action="store_true", help="replace existing reports in --out-dir")
+    p.set_defaults(func=_cmd_campaign)
 
     p = sub.add_parser(
         "simplify",
@@ -865,9 +1009,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code (0 ok, 1 error, 2 usage error, 3 registration not converged)."""
+    from torchmeshmetric.launch import run_command
+
     args = build_parser().parse_args(argv)
     try:
-        return int(args.func(args))
+        return int(run_command(args.func, args))
     except KeyboardInterrupt:
         print("torchmeshmetric: interrupted", file=sys.stderr)
         return 130

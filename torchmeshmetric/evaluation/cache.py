@@ -161,6 +161,8 @@ class RegistrationCache:
         if self.directory is None:
             return
         self.directory.mkdir(parents=True, exist_ok=True)
+        # Unique temporary name, fsync, then rename: ranks and concurrent runs sharing the folder may store the same
+        # key at once; a reader sees a complete entry (one of theirs) or none, never a mix or a truncated file.
         payload = {**entry._asdict(), "warp": _storable(entry.warp)}
         # Written at once even inside a report's atomic_file_set: a registration is worth keeping on any outcome.
         atomic_write_with(self._path(key), lambda fh: torch.save(payload, fh), overwrite=True, join_file_set=False)

@@ -261,6 +261,7 @@ def evaluate_sequence(
     backend: str = "auto",
     indexes: IndexCache | None = None,
     ground_truth: Callable[[Tensor, int, int], Tensor] | None = None,
+    distributed: bool = False,
 ) -> SequenceEvaluation:
     """Evaluate a simplified sequence frame pair by frame pair (pairs ``(k-1, k)`` for ``k = 1 .. N-1``).
 
@@ -285,6 +286,13 @@ def evaluate_sequence(
             frame ``k - 1`` (e.g. :meth:`~torchmeshmetric.data.DemoSequence.transfer`); when given, every pair also
             reports the registration's error to it.
 
+        progress: called as ``progress(k, N - 1)`` after frame pair ``k`` is evaluated (distributed: on rank 0,
+            from a helper thread, with the number of pairs done by all ranks).
+        distributed: share the frame pairs among the ranks of the initialised ``torch.distributed`` process group
+            (every rank calls with the same arguments; every rank returns the whole result, equal to one process's;
+            see :mod:`torchmeshmetric.evaluation.distributed`). Explicit, not automatic: inside a DDP job each rank
+            may be evaluating its own data. Without a process group the sequence is evaluated here.
+
     Every pair ``k`` also holds the ``flicker`` set (simplified frame ``k`` against the simplified frame ``k-1``
     moved onto frame ``k``).
 
@@ -293,6 +301,7 @@ def evaluate_sequence(
 
     Raises:
         ValueError: when the frame counts differ or fewer than two frames are given.
+        RankFailedError: distributed only: a rank raised or died (names the rank and the frame pair).
     """
     if len(original_frames) != len(simplified_frames):
         raise ValueError(
@@ -307,6 +316,24 @@ def evaluate_sequence(
         )
     if cache is None:
         cache = RegistrationCache(cache_dir)
+    if distributed:
+        from torchmeshmetric.evaluation.distributed import SequenceWork, evaluate_sequences
+
+        if ground_truth is not None:
+            raise ValueError("ground_truth: not supported with distributed=True (each rank sees frame pairs alone)")
+        options = {
+            "two_sided": two_sided,
+            "device": device,
+            "register": register,
+            "register_options": register_options,
+            "backend": backend,
+        }
+        work = [SequenceWork("", original_frames, {"": simplified_frames})]
+        shared = evaluate_sequences(
+            work, cache=cache, registrations=[registrations], to=None, progress=progress, **options
+        )
+        assert shared is not None  # every rank receives the result (to=None)
+        return shared[0][""]
     if indexes is None:
         # Each original frame is a reference of two pairs (k, and k-1 registered is another mesh): keep them all.
         indexes = IndexCache(max_entries=2 * len(original_frames))

@@ -1,0 +1,121 @@
+"""``torchmeshmetric campaign MANIFEST`` in one process: combined and per-sequence reports, manifest errors."""
+
+import json
+import math
+
+import pytest
+
+import tests.distributed.helpers as known
+from tests.cli.cli_helpers import write_frames
+from tests.distributed.helpers import without_timings
+from torchmeshmetric.cli import main
+from torchmeshmetric.evaluation.campaign import ManifestError, load_campaign
+
+MANIFEST = """
+[options]
+two_sided = true
+
+[[sequences]]
+name = "walk"
+original = "walk/orig"
+methods = {{ fine = "walk/fine", coarse = "walk/coarse" }}
+
+[[sequences]]
+name = "run fast"
+original = "run/orig"
+methods = {{ fine = "run/fine" }}
+{extra}
+"""
+
+
+@pytest.fixture(autouse=True)
+def exact_registration(monkeypatch):
+    monkeypatch.delenv("TMM_TEST_CALLS", raising=False)
+    monkeypatch.setattr("torchmeshmetric.evaluation.pipeline.default_register", known.register)
+
+
+@pytest.fixture
+def campaign(tmp_path):
+    for seq, n in (("walk", 4), ("run", 3)):
+        (tmp_path / seq).mkdir()
+        write_frames(tmp_path / seq / "orig", 2, n=n)
+        write_frames(tmp_path / seq / "fine", 1, n=n)
+        if seq == "walk":
+            write_frames(tmp_path / seq / "coarse", 0, n=n)
+    path = tmp_path / "campaign.toml"
+    path.write_text(MANIFEST.format(extra=""))
+    return path
+
+
+def test_campaign_writes_combined_and_per_sequence_reports_equal_to_compare(tmp_path, campaign, capsys):
+    out = tmp_path / "report"
+    assert main(["campaign", str(campaign), "--out-dir", str(out)]) == 0
+    stdout, _ = capsys.readouterr()
+    assert "| overall | coarse | k-th |" in stdout and "| run fast | fine | (k-1)-th |" in stdout
+    names = sorted(p.name for p in out.iterdir())
+    assert names == sorted(f"{s}.{e}" for s in ("campaign", "walk", "run_fast") for e in ("json", "md", "csv"))
+    # each sequence's report is the compare command's report for it
+    walk = tmp_path / "walk"
+    assert main(["compare", "--original", str(walk / "orig"), "--method", f"fine={walk / 'fine'}", "--method",
+                 f"coarse={walk / 'coarse'}", "--out", str(tmp_path / "compare.json")]) == 0  # fmt: skip
+    got, want = (json.loads(p.read_text()) for p in (out / "walk.json", tmp_path / "compare.json"))
+    assert without_timings(got["methods"]) == without_timings(want["methods"])
+    for ext in ("md", "csv"):
+        assert (out / f"walk.{ext}").read_text() == (tmp_path / f"compare.{ext}").read_text()
+    # overall: per method, the mean over the sequences it ran on of each sequence's average
+    combined = json.loads((out / "campaign.json").read_text())
+    seq = {
+        name: json.loads((out / f"{stem}.json").read_text())
+        for name, stem in (("walk", "walk"), ("run fast", "run_fast"))
+    }
+    assert combined["overall"]["coarse"]["sequences"] == ["walk"]
+    assert combined["overall"]["fine"]["sequences"] == ["walk", "run fast"]
+    for field in ("ave", "rmse", "max", "p95"):
+        parts = [seq[s]["methods"]["fine"]["aggregate"]["surface_k_minus_1"][field] for s in ("walk", "run fast")]
+        assert combined["overall"]["fine"]["surface_k_minus_1"][field] == math.fsum(parts) / 2
+        assert combined["sequences"]["run fast"]["methods"]["fine"]["aggregate"]["surface_k_minus_1"][field] == parts[1]
+    rows = (out / "campaign.csv").read_text().splitlines()
+    assert rows[0] == "table,sequence,algorithm,set,ave,var,std,mse,rmse,max,p95,psnr"
+    overall_rows = [r for r in rows if r.startswith("III,overall,fine,surface_k_minus_1,")]
+    assert len(overall_rows) == 1
+    ave = combined["overall"]["fine"]["surface_k_minus_1"]["ave"]
+    assert float(overall_rows[0].split(",")[4]) == ave
+    # a second run without --overwrite refuses before computing; with it, replaces
+    capsys.readouterr()
+    assert main(["campaign", str(campaign), "--out-dir", str(out)]) == 1
+    assert "already exists" in capsys.readouterr().err
+    assert main(["campaign", str(campaign), "--out-dir", str(out), "--overwrite"]) == 0
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        ("[options.more]\nx = 1", "unknown option 'more'"),
+        ('[[sequences]]\nname = "walk"\noriginal = "x"\nmethods = { a = "y" }', "same report file name 'walk'"),
+        ('[[sequences]]\nname = "campaign"\noriginal = "x"\nmethods = { a = "y" }', "reserved"),
+        ('[[sequences]]\nname = "z"\noriginal = "x"\nmethods = {}', "'methods' must be a table"),
+        ('[[sequences]]\nname = "z"\noriginal = "x"\nmethods = { a = 3 }', "method 'a' must be a folder"),
+        ("[[sequences]]\noriginal = 'x'", "'name' must be a non-empty string"),
+        ("colour = 'red'", "unknown key 'colour'"),
+        ("x = = 1", "(at line 16"),
+    ],
+)
+def test_manifest_errors_name_the_file_and_the_key(tmp_path, campaign, extra, message):
+    campaign.write_text(MANIFEST.format(extra="") + "\n" + extra + "\n")
+    with pytest.raises(ManifestError, match="campaign manifest") as info:
+        load_campaign(campaign)
+    assert message in str(info.value)
+
+
+def test_campaign_errors_are_one_line_before_any_work(tmp_path, campaign, capsys):
+    (tmp_path / "run" / "fine" / "frame_02.ply").unlink()
+    assert main(["campaign", str(campaign), "--out-dir", str(tmp_path / "out")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["torchmeshmetric campaign: error: sequence 'run fast': method 'fine': 2 simplified frames but 3 "
+                   "original frames (must match)"]  # fmt: skip
+    assert not (tmp_path / "out").exists()
+    assert main(["campaign", str(tmp_path / "nope.toml")]) == 1
+    assert "no such file" in capsys.readouterr().err
+    campaign.write_text(MANIFEST.format(extra="").replace('"run/orig"', '"run/missing"'))
+    assert main(["campaign", str(campaign)]) == 1
+    assert "sequence 'run fast': original" in capsys.readouterr().err

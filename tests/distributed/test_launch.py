@@ -1,0 +1,47 @@
+"""The CLI's torchrun glue: the environment, threads, refusals (no process group is started here)."""
+
+import pytest
+import torch
+
+from torchmeshmetric.cli import main
+from torchmeshmetric.launch import Launch, _cuda_device, launch_from_environment, thread_count
+
+
+def test_environment_and_threads():
+    env = {"RANK": "3", "WORLD_SIZE": "4", "LOCAL_RANK": "1", "LOCAL_WORLD_SIZE": "2"}
+    job = launch_from_environment(env)
+    assert job == Launch(rank=3, world_size=4, local_rank=1, local_world_size=2)
+    assert launch_from_environment({"WORLD_SIZE": "1", "RANK": "0"}) is None
+    assert thread_count(None, job, {}, cores=7) == 3  # unset: cores // local processes
+    assert thread_count(None, job, {"OMP_NUM_THREADS": "1"}, cores=7) == 3  # torchrun's default
+    assert thread_count(None, job, {"OMP_NUM_THREADS": "2"}, cores=7) is None  # the user's: torch honours it
+    assert thread_count(None, Launch(0, 8, 0, 8), {}, cores=2) == 1
+    assert thread_count(5, job, {"OMP_NUM_THREADS": "2"}, cores=7) == 5
+    assert thread_count(None, None, {}, cores=7) is None  # one process: torch's own choice
+
+
+@pytest.mark.parametrize(
+    "command", [["demo", "--frames", "2"], ["register", "--source", "a", "--target", "b", "--out", "c"]]
+)
+def test_single_process_commands_refuse_torchrun(monkeypatch, capsys, command):
+    monkeypatch.setenv("WORLD_SIZE", "2")
+    monkeypatch.setenv("RANK", "0")
+    assert main(command) == 1
+    err = capsys.readouterr().err.strip()
+    assert err == (f"torchmeshmetric {command[0]}: error: {command[0]} runs in one process; under torchrun use "
+                   "evaluate, compare, campaign (WORLD_SIZE is 2)")  # fmt: skip
+
+
+def test_threads_option(capsys, tmp_path):
+    argv = ["register", "--source", str(tmp_path / "a.ply"), "--target", "b", "--out", "c", "--threads", "1"]
+    assert main(argv) == 1
+    assert torch.get_num_threads() == 1  # restored after the test (conftest)
+    with pytest.raises(SystemExit):
+        main(["register", "--source", "a", "--target", "b", "--out", "c", "--threads", "0"])
+    assert "expected a positive integer, found '0'" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(torch.cuda.is_available(), reason="checks the message without a GPU")
+def test_cuda_without_a_gpu_is_a_clear_error():
+    with pytest.raises(RuntimeError, match="--device cuda: no CUDA device is available"):
+        _cuda_device(Launch(0, 2, 0, 2))

@@ -1,0 +1,313 @@
+"""Test campaigns: several sequences, each with its original frames and any number of methods, in one manifest.
+
+A campaign manifest is a TOML file (example: ``examples/campaign.toml``)::
+
+    [options]                 # optional; these are the defaults
+    two_sided = true          # also the reverse (reference -> simplified) sets
+    registration = "full"     # or "fast" (the demo's quick preset)
+    cache_dir = ""            # registration cache folder ("" = in memory); relative to the manifest
+
+    [[sequences]]
+    name = "dancer"
+    original = "dancer/original"              # folders relative to the manifest
+    methods = { "QEM" = "dancer/qem", "Registered QEM" = "dancer/rqem" }
+
+The combined report holds, per sequence and method, the paper's averages over pairs (Tables III/IV and the
+two-sided check), and ``overall``: per method, the mean over the sequences it was evaluated on of each sequence's
+average (every sequence weighs the same, whatever its frame count).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import re
+import sys
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any, NamedTuple
+
+from torchmeshmetric.evaluation.atomic import atomic_write
+from torchmeshmetric.evaluation.reports import COLUMNS, _clean, _fmt, report_dict
+from torchmeshmetric.evaluation.results import SequenceEvaluation
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10 installs tomli (pyproject's dependencies)
+    import tomli as tomllib
+
+__all__ = [
+    "COMBINED",
+    "Campaign",
+    "CampaignSequence",
+    "ManifestError",
+    "campaign_report_dict",
+    "campaign_tables",
+    "load_campaign",
+    "overall",
+    "report_name",
+    "write_campaign_csv",
+    "write_campaign_markdown",
+]
+
+#: File name stem of the combined report (``campaign.json/.md/.csv``); sequences' reports are ``<name>.json/...``.
+COMBINED = "campaign"
+
+_OPTIONS = {"two_sided": bool, "registration": str, "cache_dir": str}
+_REGISTRATIONS = ("full", "fast")
+#: (kind of table, title) of the combined tables; kinds follow the set names ``surface_*`` / ``vertex_*``.
+_TABLES = (
+    ("surface", "", "Average over pairs, mesh surface distance (Table III)"),
+    ("vertex", "", "Average over pairs, nearest vertex distance (Table IV)"),
+    ("surface", "reverse", "Two-sided check: average over pairs, reference -> simplified, mesh surface distance"),
+    ("vertex", "reverse", "Two-sided check: average over pairs, reference -> simplified, nearest vertex distance"),
+)
+_MESHES = (("k_minus_1", "(k-1)-th"), ("k", "k-th"))
+
+
+class ManifestError(ValueError):
+    """A campaign manifest that cannot be read or used; names the file and the key."""
+
+
+class CampaignSequence(NamedTuple):
+    """One sequence of a campaign.
+
+    Attributes:
+        name: the sequence's name (unique in the campaign).
+        original: folder of its original frames.
+        methods: method name -> folder of its simplified frames (in manifest order).
+    """
+
+    name: str
+    original: Path
+    methods: dict[str, Path]
+
+
+class Campaign(NamedTuple):
+    """A parsed campaign manifest.
+
+    Attributes:
+        sequences: the sequences, in manifest order.
+        two_sided: also compute the reverse sets.
+        registration: ``"full"`` (the library's default registration) or ``"fast"``.
+        cache_dir: registration cache folder, or ``None`` for an in-memory cache.
+        path: the manifest file.
+    """
+
+    sequences: list[CampaignSequence]
+    two_sided: bool
+    registration: str
+    cache_dir: Path | None
+    path: Path
+
+
+def _slug(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._") or "sequence"
+
+
+def load_campaign(path: str | os.PathLike[str]) -> Campaign:
+    r"""Read and check a campaign manifest (TOML); folders are resolved relative to the manifest's folder.
+
+    Args:
+        path: the manifest file.
+
+    Returns:
+        The :class:`Campaign`.
+
+    Raises:
+        ManifestError: the file is missing or not TOML, a key is missing, unknown or of the wrong type, a name is
+            repeated, or two sequence names map to the same report file name.
+
+    Example:
+        >>> import os, tempfile
+        >>> d = tempfile.mkdtemp()
+        >>> with open(os.path.join(d, "c.toml"), "w") as f:
+        ...     _ = f.write('[[sequences]]\nname = "a"\noriginal = "a/orig"\nmethods = { QEM = "a/qem" }\n')
+        >>> c = load_campaign(os.path.join(d, "c.toml"))
+        >>> c.sequences[0].name, c.sequences[0].methods["QEM"].relative_to(d).as_posix(), c.registration
+        ('a', 'a/qem', 'full')
+    """
+    file = Path(path)
+    try:
+        data = tomllib.loads(file.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ManifestError(f"campaign manifest {str(file)!r}: no such file") from None
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise ManifestError(f"campaign manifest {str(file)!r}: {exc}") from None
+    where = f"campaign manifest {str(file)!r}"
+    unknown = sorted(set(data) - {"options", "sequences"})
+    if unknown:
+        raise ManifestError(f"{where}: unknown top-level key {unknown[0]!r} (expected 'options' and 'sequences')")
+    options = data.get("options", {})
+    if not isinstance(options, dict):
+        raise ManifestError(f"{where}: 'options' must be a table, found {type(options).__name__}")
+    for key, value in options.items():
+        if key not in _OPTIONS:
+            raise ManifestError(f"{where}: unknown option {key!r} (expected one of {sorted(_OPTIONS)})")
+        if not isinstance(value, _OPTIONS[key]):
+            raise ManifestError(f"{where}: option {key!r} must be a {_OPTIONS[key].__name__}, found {value!r}")
+    registration = options.get("registration", "full")
+    if registration not in _REGISTRATIONS:
+        raise ManifestError(f"{where}: option 'registration' must be 'full' or 'fast', found {registration!r}")
+    base = file.parent
+    raw = data.get("sequences")
+    if not isinstance(raw, list) or not raw:
+        raise ManifestError(f"{where}: expected at least one [[sequences]] entry")
+    sequences: list[CampaignSequence] = []
+    slugs: dict[str, str] = {}
+    for i, entry in enumerate(raw):
+        at = f"{where}: sequences[{i}]"
+        if not isinstance(entry, dict):
+            raise ManifestError(f"{at}: expected a table, found {type(entry).__name__}")
+        extra = sorted(set(entry) - {"name", "original", "methods"})
+        if extra:
+            raise ManifestError(f"{at}: unknown key {extra[0]!r} (expected 'name', 'original', 'methods')")
+        name, original, methods = entry.get("name"), entry.get("original"), entry.get("methods")
+        if not isinstance(name, str) or not name:
+            raise ManifestError(f"{at}: 'name' must be a non-empty string, found {name!r}")
+        at = f"{where}: sequence {name!r}"
+        if not isinstance(original, str) or not original:
+            raise ManifestError(f"{at}: 'original' must be a folder (string), found {original!r}")
+        if not isinstance(methods, dict) or not methods:
+            raise ManifestError(f"{at}: 'methods' must be a table of at least one NAME = FOLDER, found {methods!r}")
+        for method, folder in methods.items():
+            if not isinstance(folder, str) or not folder:
+                raise ManifestError(f"{at}: method {method!r} must be a folder (string), found {folder!r}")
+        slug = _slug(name)
+        if slug == COMBINED:
+            raise ManifestError(f"{at}: the name {name!r} is reserved for the combined report (rename the sequence)")
+        if slug in slugs:
+            raise ManifestError(f"{at}: same report file name {slug!r} as sequence {slugs[slug]!r} (rename one)")
+        slugs[slug] = name
+        sequences.append(CampaignSequence(name, base / original, {m: base / f for m, f in methods.items()}))
+    cache_dir = options.get("cache_dir", "")
+    return Campaign(
+        sequences, options.get("two_sided", True), registration, base / cache_dir if cache_dir else None, file
+    )
+
+
+def report_name(sequence: str) -> str:
+    """File name stem of a sequence's own report (``<stem>.json/.md/.csv``)."""
+    return _slug(sequence)
+
+
+def _mean(values: Sequence[Any]) -> Any:
+    """Field-by-field mean of nested dicts of numbers (the aggregates of several sequences)."""
+    first = values[0]
+    if isinstance(first, dict):
+        return {key: _mean([v[key] for v in values]) for key in first if all(key in v for v in values)}
+    if isinstance(first, bool) or not isinstance(first, (int, float)):
+        return first
+    return math.fsum(float(v) for v in values) / len(values)
+
+
+def _aggregate(seq: SequenceEvaluation) -> dict[str, Any]:
+    aggregate = seq.as_dict()["aggregate"]
+    assert isinstance(aggregate, dict)
+    return aggregate
+
+
+def overall(results: Mapping[str, Mapping[str, SequenceEvaluation]]) -> dict[str, dict[str, Any]]:
+    """Per method: ``{"sequences": [...], <set>: {statistic: mean over sequences}, "reverse": {...}, ...}``.
+
+    Args:
+        results: sequence name -> method name -> its evaluation.
+    """
+    methods: dict[str, list[str]] = {}
+    for name, by_method in results.items():
+        for method in by_method:
+            methods.setdefault(method, []).append(name)
+    out: dict[str, dict[str, Any]] = {}
+    for method, names in methods.items():
+        out[method] = {"sequences": names, **_mean([_aggregate(results[n][method]) for n in names])}
+    return out
+
+
+def campaign_report_dict(
+    results: Mapping[str, Mapping[str, SequenceEvaluation]], *, settings: Mapping[str, Any] | None = None
+) -> dict[str, Any]:
+    """JSON-ready combined report: per sequence and method the averages, and ``overall`` per method.
+
+    ``{"tool", "version", "settings", "sequences": {name: {"report": stem, "methods": {method: {"aggregate",
+    "best_pair"}}}}, "overall": {method: ...}}``; each sequence's own report (``<stem>.json``) has every pair.
+    """
+    per_sequence = {}
+    for name, by_method in results.items():
+        full = report_dict(by_method)
+        per_sequence[name] = {
+            "report": report_name(name),
+            "methods": {
+                m: {"aggregate": r["aggregate"], "best_pair": r["best_pair"]} for m, r in full["methods"].items()
+            },
+        }
+    report = report_dict({}, settings=settings)
+    report.pop("methods")
+    report["sequences"] = per_sequence
+    report["overall"] = _clean(overall(results))
+    return report
+
+
+def _rows(results: Mapping[str, Mapping[str, SequenceEvaluation]], kind: str, part: str) -> list[list[Any]]:
+    """Rows ``[sequence, method, mesh label, set name, stats]`` of one combined table (sequences, then overall)."""
+    scopes: list[tuple[str, dict[str, dict[str, Any]]]] = [
+        (name, {m: _aggregate(seq) for m, seq in by_method.items()}) for name, by_method in results.items()
+    ]
+    scopes.append(("overall", overall(results)))
+    rows = []
+    for scope, by_method in scopes:
+        for method, aggregate in by_method.items():
+            sets = aggregate.get(part, {}) if part else aggregate
+            for mesh, label in _MESHES:
+                stats = sets.get(f"{kind}_{mesh}")
+                if stats:
+                    rows.append([scope, method, label, f"{kind}_{mesh}", stats])
+    return rows
+
+
+def campaign_tables(results: Mapping[str, Mapping[str, SequenceEvaluation]]) -> str:
+    """The combined tables as Markdown: per sequence and overall (mean over sequences), 4 significant digits."""
+    header = "| Sequence | Algorithm | Mesh | " + " | ".join(h for _, h in COLUMNS) + " |"
+    rule = "|" + "---|" * (len(COLUMNS) + 3)
+    out = []
+    for kind, part, title in _TABLES:
+        rows = _rows(results, kind, part)
+        if not rows:
+            continue
+        out += [f"### {title}", "", header, rule]
+        for scope, method, label, _, stats in rows:
+            out.append(f"| {scope} | {method} | {label} | " + " | ".join(_fmt(stats[k]) for k, _ in COLUMNS) + " |")
+        out.append("")
+    out.append(
+        "Per sequence: mean over its pairs of each per-pair statistic. Overall: mean over the sequences of those "
+        "means (each sequence weighs the same)."
+    )
+    return "\n".join(out) + "\n"
+
+
+def write_campaign_csv(
+    path: str | os.PathLike[str], results: Mapping[str, Mapping[str, SequenceEvaluation]], *, overwrite: bool = False
+) -> Path:
+    """Write the combined tables as CSV rows, atomically.
+
+    Columns: ``table`` (``III``, ``IV``, ``III-reverse``, ``IV-reverse``), ``sequence`` (a name or ``overall``),
+    ``algorithm``, ``set``, then ``ave, var, std, mse, rmse, max, p95, psnr`` (full precision).
+    """
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    keys = [k for k, _ in COLUMNS]
+    writer.writerow(["table", "sequence", "algorithm", "set", *keys])
+    for kind, part, _ in _TABLES:
+        table = ("III" if kind == "surface" else "IV") + ("-reverse" if part else "")
+        for scope, method, _, set_name, stats in _rows(results, kind, part):
+            set_name = f"reverse:{set_name}" if part else set_name
+            writer.writerow([table, scope, method, set_name, *(repr(float(stats[k])) for k in keys)])
+    return atomic_write(path, buf.getvalue(), overwrite=overwrite)
+
+
+def write_campaign_markdown(
+    path: str | os.PathLike[str], results: Mapping[str, Mapping[str, SequenceEvaluation]], *, overwrite: bool = False
+) -> Path:
+    """Write :func:`campaign_tables` to a Markdown file, atomically."""
+    return atomic_write(path, "# torchmeshmetric campaign\n\n" + campaign_tables(results), overwrite=overwrite)
