@@ -323,7 +323,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
 
 def _cmd_campaign(args: argparse.Namespace) -> int:
-    from torchmeshmetric.evaluation import RegistrationCache, write_json
+    from torchmeshmetric.evaluation import RegistrationCache, compare_methods, write_json
     from torchmeshmetric.evaluation.campaign import (
         COMBINED,
         campaign_report_dict,
@@ -380,7 +380,9 @@ def _cmd_campaign(args: argparse.Namespace) -> int:
             folders = {m: str(d) for m, d in seq.methods.items()}
             sequence_settings = {**settings, "sequence": seq.name, "original": str(seq.original), "methods": folders}
             paths = _report_paths(str(out / f"{stem}.json"))
-            _write_reports(paths, results[seq.name], sequence_settings, args.overwrite)
+            # The same comparisons `compare` writes for these methods (default margin; none for a single method).
+            comparisons = compare_methods(results[seq.name]) if len(results[seq.name]) >= 2 else None
+            _write_reports(paths, results[seq.name], sequence_settings, args.overwrite, None, comparisons)
         combined = campaign_report_dict(results, settings=settings)
         write_json(out / f"{COMBINED}.json", combined, overwrite=args.overwrite)
         write_campaign_markdown(out / f"{COMBINED}.md", results, overwrite=args.overwrite)
