@@ -24,10 +24,8 @@ from torch import Tensor
 from torchmeshmetric._checks import check_float, check_same_device
 from torchmeshmetric.kernels._common import (
     DEFAULT_MAX_MEMORY,
-    check_representable,
     cross,
     dot,
-    extreme_range,
     pair_chunks,
     safe_div,
 )
@@ -249,14 +247,6 @@ def point_mesh_distance(
     pts = pack_points(points, points_lengths)
     check_same_device({"points": pts.points, "verts": packed.verts})
     dtype = torch.promote_types(pts.points.dtype, packed.verts.dtype)
-    points_t, verts_t = pts.points.to(dtype), packed.verts.to(dtype)
-    extreme = extreme_range(points_t, verts_t, 4)  # |ab x ac|^2 is of degree 4 in the coordinates
-    if extreme is not None:
-        centre, scale = extreme
-        points_t, verts_t = (points_t - centre) * scale, (verts_t - centre) * scale
-    index = MeshIndex._trusted(packed._replace(verts=verts_t), backend, max_memory, tree="morton")
-    res = index._point_mesh_distance(points_t, pts.lengths)
-    if extreme is not None:
-        res = res._replace(dists=res.dists / scale, closest=res.closest / scale + centre)
-    check_representable(res.dists, "points")
-    return res
+    # MeshIndex scales extreme coordinates exactly itself and raises when distances overflow the dtype.
+    index = MeshIndex._trusted(packed._replace(verts=packed.verts.to(dtype)), backend, max_memory, tree="morton")
+    return index._point_mesh_distance(pts.points.to(dtype), pts.lengths)
