@@ -56,6 +56,19 @@ struct Node {
   int64_t count;  // number of primitives (leaf)
 };
 
+// Bounds of an inner node: the union of its children's boxes (left child = node + 1). Shared by both builders and
+// the refit, so a built and a refitted hierarchy hold the same boxes.
+template <typename T>
+inline void union_children(Node<T>* nodes, int64_t node) {
+  Node<T>& nd = nodes[node];
+  const Node<T>& l = nodes[node + 1];
+  const Node<T>& r = nodes[nd.right];
+  for (int k = 0; k < 3; ++k) {
+    nd.lo[k] = std::min(l.lo[k], r.lo[k]);
+    nd.hi[k] = std::max(l.hi[k], r.hi[k]);
+  }
+}
+
 inline uint32_t spread10(uint32_t x) {  // 10 bits -> every third bit of 30
   x &= 0x3ffu;
   x = (x | (x << 16)) & 0x30000ffu;
@@ -178,15 +191,10 @@ int64_t build_node(std::vector<Node<T>>& nodes, const uint32_t* code, int64_t ba
   build_node(nodes, code, base, begin, mid, box_lo, box_hi, perm, leaf);
   const int64_t right = build_node(nodes, code, base, mid, end, box_lo, box_hi, perm, leaf);
   Node<T>& nd = nodes[node];
-  const Node<T>& l = nodes[node + 1];
-  const Node<T>& r = nodes[right];
   nd.start = begin;
   nd.count = n;
   nd.right = right;
-  for (int k = 0; k < 3; ++k) {
-    nd.lo[k] = std::min(l.lo[k], r.lo[k]);
-    nd.hi[k] = std::max(l.hi[k], r.hi[k]);
-  }
+  union_children(nodes.data(), node);
   return node;
 }
 
@@ -343,15 +351,10 @@ int64_t build_sah_node(std::vector<Node<T>>& nodes, int64_t* idx, int64_t begin,
   build_sah_node(nodes, idx, begin, mid, box_lo, box_hi, cen, leaf, depth + 1);
   const int64_t right = build_sah_node(nodes, idx, mid, end, box_lo, box_hi, cen, leaf, depth + 1);
   Node<T>& nd = nodes[node];
-  const Node<T>& l = nodes[node + 1];
-  const Node<T>& r = nodes[right];
   nd.start = begin;
   nd.count = n;
   nd.right = right;
-  for (int k = 0; k < 3; ++k) {
-    nd.lo[k] = std::min(l.lo[k], r.lo[k]);
-    nd.hi[k] = std::max(l.hi[k], r.hi[k]);
-  }
+  union_children(nodes.data(), node);
   return node;
 }
 
@@ -623,12 +626,7 @@ void refit_nodes(Node<T>* nd, int64_t num_nodes, const T* slot_lo, const T* slot
           n.hi[k] = std::max(n.hi[k], slot_hi[3 * s + k]);
         }
     } else {
-      const Node<T>& l = nd[i + 1];
-      const Node<T>& r = nd[n.right];
-      for (int k = 0; k < 3; ++k) {
-        n.lo[k] = std::min(l.lo[k], r.lo[k]);
-        n.hi[k] = std::max(l.hi[k], r.hi[k]);
-      }
+      union_children(nd, i);
     }
   }
 }
