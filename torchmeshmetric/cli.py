@@ -163,7 +163,7 @@ def _write_reports(
         write_markdown(paths["md"], methods, overwrite=overwrite, extra=extra, comparisons=comparisons)
         write_csv(paths["csv"], methods, overwrite=overwrite)
         if mpeg:
-            from torchmeshmetric.evaluation.atomic import atomic_write
+            from torchmeshmetric._atomic import atomic_write
             from torchmeshmetric.mpeg.sequence import mpeg_csv
             from torchmeshmetric.viz import plot_mpeg_curves
 
@@ -382,7 +382,7 @@ def _cmd_campaign(args: argparse.Namespace) -> int:
             paths = _report_paths(str(out / f"{stem}.json"))
             # The same comparisons `compare` writes for these methods (default margin; none for a single method).
             comparisons = compare_methods(results[seq.name]) if len(results[seq.name]) >= 2 else None
-            _write_reports(paths, results[seq.name], sequence_settings, args.overwrite, None, comparisons)
+            _write_reports(paths, results[seq.name], sequence_settings, args.overwrite, comparisons=comparisons)
         combined = campaign_report_dict(results, settings=settings)
         write_json(out / f"{COMBINED}.json", combined, overwrite=args.overwrite)
         write_campaign_markdown(out / f"{COMBINED}.md", results, overwrite=args.overwrite)
@@ -649,8 +649,8 @@ def _demo_sweep(
     """Registered QEM at every weight of --weights beside plain QEM: table, JSON and Pareto plot."""
     import json
 
+    from torchmeshmetric._atomic import atomic_write
     from torchmeshmetric.evaluation import registered_qem_sweep
-    from torchmeshmetric.evaluation.atomic import atomic_write
 
     t0 = time.perf_counter()
     sweep = registered_qem_sweep(
@@ -695,7 +695,7 @@ def _demo_plots(out_dir: Path, results: dict[str, Any], simplified: dict[str, li
 def _cmd_validate(args: argparse.Namespace) -> int:
     import json
 
-    from torchmeshmetric.evaluation.atomic import atomic_write
+    from torchmeshmetric._atomic import atomic_write
     from torchmeshmetric.evaluation.reports import _clean
     from torchmeshmetric.evaluation.validation import DISTORTIONS, FULL, REDUCED, run_validation
 

@@ -29,7 +29,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
 
-from torchmeshmetric.evaluation.atomic import atomic_write
+from torchmeshmetric._atomic import atomic_write
 from torchmeshmetric.evaluation.reports import COLUMNS, _clean, _fmt, report_dict
 from torchmeshmetric.evaluation.results import SequenceEvaluation
 

@@ -24,7 +24,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from torchmeshmetric.evaluation.atomic import atomic_write
+from torchmeshmetric._atomic import atomic_write
 from torchmeshmetric.evaluation.flicker import FLICKER
 from torchmeshmetric.evaluation.results import BEST_PAIR_RULE, SET_NAMES, SequenceEvaluation
 

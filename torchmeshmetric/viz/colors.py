@@ -10,8 +10,8 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from torchmeshmetric._atomic import atomic_write
 from torchmeshmetric._checks import ShapeError
-from torchmeshmetric.evaluation.atomic import atomic_write
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
 __all__ = ["error_colors", "write_error_ply"]

@@ -8,7 +8,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from torchmeshmetric.evaluation.atomic import atomic_write
+from torchmeshmetric._atomic import atomic_write
 from torchmeshmetric.evaluation.results import SET_NAMES, PairEvaluation, SequenceEvaluation
 
 __all__ = ["histogram_figure", "log_bins", "plot_frame_curves", "plot_histograms", "plot_mpeg_curves"]
