@@ -25,7 +25,7 @@ from torchmeshmetric.mpeg.losses import (
 )
 from torchmeshmetric.mpeg.metric import MpegPSNR
 from torchmeshmetric.mpeg.mpeg_metrics import Sampling, mpeg_metrics, mpeg_point_cloud
-from torchmeshmetric.mpeg.neighbours import NeighbourTies, mpeg_sq_dists, nearest_with_ties
+from torchmeshmetric.mpeg.neighbours import NeighbourTies, k_nearest, mpeg_sq_dists, nearest_with_ties
 from torchmeshmetric.mpeg.point_cloud import PointCloud, merge_duplicate_points
 from torchmeshmetric.mpeg.psnr import mpeg_psnr
 from torchmeshmetric.mpeg.sequence import MpegSequence, mean_psnr, mpeg_sequence
@@ -61,6 +61,7 @@ __all__ = [
     "mpeg_psnr",
     "mpeg_sequence",
     "mpeg_sq_dists",
+    "k_nearest",
     "nearest_with_ties",
     "point_to_plane_mse",
     "point_to_point_mse",

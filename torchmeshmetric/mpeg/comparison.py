@@ -255,8 +255,6 @@ def mpeg_compare(ref: PointCloud, dis: PointCloud, *, peak: float | None = None)
         >>> round(r.symmetric.d1_mse, 6), round(r.symmetric.d2_mse, 6)
         (0.005, 0.005)
     """
-    from scipy.spatial import cKDTree  # imported on use: keeps `import torchmeshmetric` light
-
     a = merge_duplicate_points(ref)
     b = merge_duplicate_points(dis)
     ap = a.points.numpy()
@@ -264,11 +262,8 @@ def mpeg_compare(ref: PointCloud, dis: PointCloud, *, peak: float | None = None)
     if peak is None:
         peak = bbox_diagonal(ref.points.detach().cpu().numpy().astype(np.float32))
     peak = float(np.float32(peak))
-    # sliding-midpoint trees without node compaction: same neighbours, cheaper to build on sampled surfaces
-    tree_a = cKDTree(ap.astype(np.float64), balanced_tree=False, compact_nodes=False)
-    tree_b = cKDTree(bp.astype(np.float64), balanced_tree=False, compact_nodes=False)
-    ab = nearest_with_ties(ap, bp, tree_b)
-    ba = nearest_with_ties(bp, ap, tree_a)
+    ab = nearest_with_ties(ap, bp)
+    ba = nearest_with_ties(bp, ap)
     na = a.normals.numpy() if a.normals is not None else None
     nb: np.ndarray | None = None
     if na is not None:

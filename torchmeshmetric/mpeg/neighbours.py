@@ -3,26 +3,27 @@
 mpeg-pcc-dmetric finds neighbours with a k-d tree whose squared distance subtracts the float32 coordinates in float32
 and accumulates the squares in double; neighbours at the same squared distance as the nearest one (consecutive
 differences below ``1e-20``, up to 30 of them) are averaged for the point-to-plane and colour terms. Exact ties are
-common on grid-sampled clouds, so they are found here exactly: a double-precision k-d tree proposes candidates, their
-distances are recomputed with dmetric's arithmetic, and only queries whose two nearest candidates are (nearly) equally
-far are searched further.
+common on grid-sampled clouds, so they are found exactly: the k nearest points are searched with that very
+arithmetic (the C++ hierarchy's ``mpeg_knn``, or a chunked brute force where the extension cannot be built), ranked
+by (squared distance, index), and only queries whose two nearest are within ``1e-20`` are searched further, widening
+by 5 while all neighbours found are equally far, as dmetric does.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
+import torch
 
-if TYPE_CHECKING:
-    from scipy.spatial import cKDTree
+from torchmeshmetric.kernels.accel._extension import load_bvh
 
-__all__ = ["NeighbourTies", "mpeg_sq_dists", "nearest_with_ties"]
+__all__ = ["NeighbourTies", "k_nearest", "mpeg_sq_dists", "nearest_with_ties"]
 
 _SIMILAR = 1e-20  # dmetric's similarPointThreshold (mmetric passes 1e-20)
 _MAX_K = 30  # dmetric's num_results_max
 _STEP_K = 5  # dmetric's num_results_incr
+_BRUTE_CHUNK = 1 << 24  # (query, target) pairs per block of the brute-force fallback
 
 
 def mpeg_sq_dists(query: np.ndarray, target: np.ndarray) -> np.ndarray:
@@ -65,21 +66,65 @@ class NeighbourTies:
     equal: np.ndarray
 
 
-def _sorted_candidates(query: np.ndarray, target: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    valid = idx < target.shape[0]
-    safe = np.where(valid, idx, 0)
-    sq = np.where(valid, mpeg_sq_dists(query[:, None, :], target[safe]), np.inf)
-    order = np.argsort(sq, axis=1, kind="stable")
-    return np.take_along_axis(np.where(valid, idx, -1), order, axis=1), np.take_along_axis(sq, order, axis=1)
+def _k_nearest_brute(query: np.ndarray, target: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    q_n, t_n = query.shape[0], target.shape[0]
+    idx = np.full((q_n, k), -1, np.int64)
+    sq = np.full((q_n, k), np.inf)
+    kk = min(k, t_n)
+    step = max(1, _BRUTE_CHUNK // t_n)
+    for s in range(0, q_n, step):
+        d = mpeg_sq_dists(query[s : s + step, None, :], target[None, :, :])
+        kth = np.partition(d, kk - 1, axis=1)[:, kk - 1]
+        # every point at or below the k-th distance, by (distance, index): ties at rank k keep the lowest indices
+        rows, cols = np.nonzero(d <= kth[:, None])
+        order = np.lexsort((cols, d[rows, cols], rows))
+        rows, cols = rows[order], cols[order]
+        rank = np.arange(rows.shape[0]) - np.searchsorted(rows, rows)
+        keep = rank < kk
+        idx[s + rows[keep], rank[keep]] = cols[keep]
+        sq[s + rows[keep], rank[keep]] = d[rows[keep], cols[keep]]
+    return idx, sq
 
 
-def nearest_with_ties(query: np.ndarray, target: np.ndarray, tree: cKDTree | None = None) -> NeighbourTies:
+def k_nearest(query: np.ndarray, target: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The ``k`` nearest target points of every query point with dmetric's arithmetic, exactly.
+
+    Ranked by (squared distance as :func:`mpeg_sq_dists` computes it, target index): of equidistant points the
+    lowest indices come first, and none is lost to a rounding of another arithmetic.
+
+    Args:
+        query: ``(Q, 3)`` float32 points.
+        target: ``(T, 3)`` float32 points, ``T >= 1``.
+        k: neighbours per query, ``1 <= k <= 64``.
+
+    Returns:
+        ``(idx, sq)``: ``(Q, k)`` int64 indices and float64 squared distances, padded with ``-1`` / ``inf`` where
+        ``k > T``.
+
+    Example:
+        >>> import numpy as np
+        >>> t = np.array([[2, 0, 0], [1, 0, 0], [-1, 0, 0]], np.float32)
+        >>> idx, sq = k_nearest(np.zeros((1, 3), np.float32), t, 2)
+        >>> idx.tolist(), sq.tolist()
+        ([[1, 2]], [[1.0, 1.0]])
+    """
+    query = np.ascontiguousarray(query, dtype=np.float32)
+    target = np.ascontiguousarray(target, dtype=np.float32)
+    if query.shape[0] == 0:
+        return np.zeros((0, k), np.int64), np.zeros((0, k))
+    ext = load_bvh()
+    if ext is None:
+        return _k_nearest_brute(query, target, k)
+    idx, sq = ext.mpeg_knn(torch.from_numpy(query), torch.from_numpy(target), k)
+    return idx.numpy(), sq.numpy()
+
+
+def nearest_with_ties(query: np.ndarray, target: np.ndarray) -> NeighbourTies:
     """Nearest target point of every query point, with dmetric's equidistant neighbours.
 
     Args:
         query: ``(Q, 3)`` float32 points.
         target: ``(T, 3)`` float32 points.
-        tree: a ``cKDTree`` over ``target`` in float64 (built when omitted).
 
     Returns:
         :class:`NeighbourTies`.
@@ -94,39 +139,27 @@ def nearest_with_ties(query: np.ndarray, target: np.ndarray, tree: cKDTree | Non
     """
     query = np.ascontiguousarray(query, dtype=np.float32)
     target = np.ascontiguousarray(target, dtype=np.float32)
-    if tree is None:
-        from scipy.spatial import cKDTree  # imported on use: keeps `import torchmeshmetric` light
-
-        tree = cKDTree(target.astype(np.float64))
     k0 = min(2, target.shape[0])
-    _, idx = tree.query(query.astype(np.float64), k=k0, workers=-1)
-    idx = np.asarray(idx).reshape(query.shape[0], k0)
-    cand, sq = _sorted_candidates(query, target, idx)
+    cand, sq = k_nearest(query, target, k0)
     nearest, sq0 = cand[:, 0].copy(), sq[:, 0].copy()
     if k0 < 2:
         empty = np.zeros((0, 1), dtype=bool)
         return NeighbourTies(nearest, sq0, np.zeros(0, np.int64), np.zeros((0, 1), np.int64), empty, empty)
-    # The double-precision tree and dmetric's float32 differences may order near-ties differently: search further
-    # wherever the two nearest are within a relative 1e-5 (far above the float32 rounding of a squared distance).
-    suspect = np.flatnonzero(sq[:, 1] <= sq[:, 0] * (1.0 + 1e-5) + 1e-18)
-    rows = suspect
+    rows = np.flatnonzero(sq[:, 1] - sq[:, 0] < _SIMILAR)
     k = min(2 * _STEP_K, target.shape[0])
     qs = query[rows]
-    _, idx = tree.query(qs.astype(np.float64), k=k, workers=-1)
-    cand, sq = _sorted_candidates(qs, target, np.asarray(idx).reshape(rows.shape[0], k))
+    cand, sq = k_nearest(qs, target, k)
     # dmetric widens its search by 5 while all neighbours found are equally far (up to 30).
     while k + _STEP_K <= min(_MAX_K, target.shape[0]):
         wide = np.flatnonzero(sq[:, 0] == sq[:, -1])
         if wide.size == 0:
             break
         k += _STEP_K
-        _, idx = tree.query(qs[wide].astype(np.float64), k=k, workers=-1)
-        c2, s2 = _sorted_candidates(qs[wide], target, np.asarray(idx).reshape(wide.shape[0], k))
+        c2, s2 = k_nearest(qs[wide], target, k)
         pad = k - cand.shape[1]
         cand = np.pad(cand, ((0, 0), (0, pad)), constant_values=-1)
         sq = np.pad(sq, ((0, 0), (0, pad)), constant_values=np.inf)
         cand[wide], sq[wide] = c2, s2
-    nearest[rows], sq0[rows] = cand[:, 0], sq[:, 0]
     step = np.abs(np.diff(sq, axis=1)) < _SIMILAR
     chain = np.concatenate([np.ones((rows.shape[0], 1), bool), np.cumprod(step, axis=1).astype(bool)], axis=1)
     equal = (sq == sq[:, :1]) & (cand >= 0)

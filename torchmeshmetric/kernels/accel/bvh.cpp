@@ -957,6 +957,137 @@ torch::Tensor pair_sq_dists_impl(const torch::Tensor& points, const torch::Tenso
   return out;
 }
 
+// k nearest reference points with MPEG mmetric's arithmetic (mpeg-pcc-dmetric's k-d tree distance): float32
+// coordinate differences, their squares summed in double as (dx*dx + dy*dy) + dz*dz. Candidates are ranked by
+// (squared distance, reference index), so exact ties are kept in index order and never dropped below rank k.
+constexpr int LEAF_KNN = 8;
+constexpr int MAX_KNN = 64;
+
+inline double mpeg_sq(const float* q, const float* r) {
+  const double dx = static_cast<double>(q[0] - r[0]);
+  const double dy = static_cast<double>(q[1] - r[1]);
+  const double dz = static_cast<double>(q[2] - r[2]);
+  double s = dx * dx + dy * dy;
+  s += dz * dz;
+  return s;
+}
+
+// Lower bound of mpeg_sq over a box: per axis the gap to the box in double. The float32 difference of a point in the
+// box can round below the exact gap by a relative 2^-24, so the caller widens its bound by a relative 1e-6.
+inline double box_gap_sq(const Node<float>& nd, const float* q) {
+  double s = 0;
+  for (int k = 0; k < 3; ++k) {
+    const double d = std::max({static_cast<double>(nd.lo[k]) - q[k], static_cast<double>(q[k]) - nd.hi[k], 0.0});
+    s += d * d;
+  }
+  return s;
+}
+
+struct KnnList {
+  int k;
+  int n = 0;
+  double sq[MAX_KNN];
+  int64_t idx[MAX_KNN];
+  // Pruning bound: a box whose gap exceeds it cannot hold a candidate that ranks in the list.
+  double bound() const { return n < k ? std::numeric_limits<double>::infinity() : sq[k - 1] * (1.0 + 1e-6); }
+  void offer(double s, int64_t i) {
+    if (n == k && (s > sq[k - 1] || (s == sq[k - 1] && i >= idx[k - 1]))) return;
+    for (int j = 0; j < n; ++j)
+      if (idx[j] == i) return;  // a seed met again in the traversal
+    int j = n < k ? n++ : k - 1;
+    while (j > 0 && (sq[j - 1] > s || (sq[j - 1] == s && idx[j - 1] > i))) {
+      sq[j] = sq[j - 1];
+      idx[j] = idx[j - 1];
+      --j;
+    }
+    sq[j] = s;
+    idx[j] = i;
+  }
+};
+
+std::vector<torch::Tensor> mpeg_knn_impl(const torch::Tensor& query, const torch::Tensor& ref, int k) {
+  const int64_t Q = query.size(0), R = ref.size(0);
+  const float* Qp = query.data_ptr<float>();
+  const float* Rp = ref.data_ptr<float>();
+  const int64_t off[2] = {0, R};
+  std::vector<Node<float>> nodes;
+  std::vector<int64_t> roots, perm;
+  build_forest<float>(Rp, Rp, Rp, off, 1, LEAF_KNN, nodes, roots, perm);
+  std::vector<float> soa(3 * (R + LEAF_KNN), 0.0f);  // slot order, one array per coordinate, padded for whole leaves
+  float* xs = soa.data();
+  float* ys = xs + R + LEAF_KNN;
+  float* zs = ys + R + LEAF_KNN;
+  for (int64_t i = 0; i < R; ++i) {
+    xs[i] = Rp[3 * perm[i]];
+    ys[i] = Rp[3 * perm[i] + 1];
+    zs[i] = Rp[3 * perm[i] + 2];
+  }
+  auto idx_out = torch::full({Q, k}, -1, torch::dtype(torch::kInt64));
+  auto sq_out = torch::full({Q, k}, std::numeric_limits<double>::infinity(), torch::dtype(torch::kFloat64));
+  int64_t* io = idx_out.data_ptr<int64_t>();
+  double* so = sq_out.data_ptr<double>();
+  const std::vector<int64_t> order = query_order<float>(Qp, Q);
+  const Node<float>* nd = nodes.data();
+  const int64_t* pm = perm.data();
+  parallel_chunks(Q, QUERY_CHUNK, [&](int64_t s0, int64_t e) {
+    KnnList prev{k};  // the previous (Morton-adjacent) query's answers: a tight first bound
+    for (int64_t q = s0; q < e; ++q) {
+      const int64_t i = order[q];
+      const float* p = Qp + 3 * i;
+      KnnList best{k};
+      for (int a = 0; a < prev.n; ++a) best.offer(mpeg_sq(p, Rp + 3 * prev.idx[a]), prev.idx[a]);
+      double bound = best.bound();
+      int64_t stack[128];
+      double stack_d[128];
+      int top = 0;
+      int64_t ni = roots[0];
+      double dn = box_gap_sq(nd[ni], p);
+      for (;;) {
+        if (dn <= bound) {
+          const Node<float>& node = nd[ni];
+          if (node.right < 0) {
+            // every lane of the leaf in a straight-line loop (vectorised); lanes past `count` are not offered
+            double sq[LEAF_KNN];
+            for (int l = 0; l < LEAF_KNN; ++l) {
+              const int64_t j = node.start + l;
+              const double dx = static_cast<double>(p[0] - xs[j]);
+              const double dy = static_cast<double>(p[1] - ys[j]);
+              const double dz = static_cast<double>(p[2] - zs[j]);
+              double d = dx * dx + dy * dy;
+              d += dz * dz;
+              sq[l] = d;
+            }
+            const double keep = best.n < k ? std::numeric_limits<double>::infinity() : best.sq[k - 1];
+            for (int64_t l = 0; l < node.count; ++l)
+              if (sq[l] <= keep) best.offer(sq[l], pm[node.start + l]);
+            bound = best.bound();
+          } else {
+            const int64_t l = ni + 1, r = node.right;
+            const double dl = box_gap_sq(nd[l], p), dr = box_gap_sq(nd[r], p);
+            const bool left_first = dl <= dr;
+            stack[top] = left_first ? r : l;
+            stack_d[top] = left_first ? dr : dl;
+            ++top;
+            ni = left_first ? l : r;
+            dn = left_first ? dl : dr;
+            continue;
+          }
+        }
+        if (top == 0) break;
+        --top;
+        ni = stack[top];
+        dn = stack_d[top];
+      }
+      for (int a = 0; a < best.n; ++a) {
+        io[i * k + a] = best.idx[a];
+        so[i * k + a] = best.sq[a];
+      }
+      prev = best;
+    }
+  });
+  return {idx_out, sq_out};
+}
+
 void check_inputs(const torch::Tensor& points, const torch::Tensor& point_batch, const torch::Tensor& prims,
                   const torch::Tensor& offsets) {
   TORCH_CHECK(points.device().is_cpu() && prims.device().is_cpu(), "bvh: CPU tensors expected");
@@ -1042,6 +1173,16 @@ torch::Tensor pair_sq_dists(torch::Tensor points, torch::Tensor verts, torch::Te
   return pair_sq_dists_impl<float>(points, verts, faces);
 }
 
+std::vector<torch::Tensor> mpeg_knn(torch::Tensor query, torch::Tensor ref, int64_t k) {
+  TORCH_CHECK(query.device().is_cpu() && ref.device().is_cpu(), "mpeg_knn: CPU tensors expected");
+  TORCH_CHECK(query.is_contiguous() && ref.is_contiguous(), "mpeg_knn: contiguous tensors expected");
+  TORCH_CHECK(query.scalar_type() == torch::kFloat32 && ref.scalar_type() == torch::kFloat32,
+              "mpeg_knn: float32 points expected");
+  TORCH_CHECK(ref.size(0) > 0, "mpeg_knn: non-empty reference expected");
+  TORCH_CHECK(k >= 1 && k <= MAX_KNN, "mpeg_knn: k out of range");
+  return mpeg_knn_impl(query, ref, static_cast<int>(k));
+}
+
 // deformation_energy.cpp (compiled into the same extension).
 torch::Tensor deform_vertices(torch::Tensor R, torch::Tensor t, torch::Tensor g, torch::Tensor rest,
                               torch::Tensor vidx, torch::Tensor vw);
@@ -1067,6 +1208,8 @@ PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
   m.def("pair_sq_dists", &pair_sq_dists, "All point-face squared distances (tests only)");
   m.def("closest_points", &closest_points,
         "Closest point on the selected faces without autograd: [sq_dists, bary, closest] (centred frame)");
+  m.def("mpeg_knn", &mpeg_knn,
+        "k nearest reference points with mmetric's float32-difference, double-sum distance: [idx (Q, k), sq (Q, k)]");
   m.def("nearest_single", &nearest_single,
         "Batch-of-one nearest reference point, fused: [sq_dists, idx, center], or [] when a value is not finite");
 }

@@ -1,0 +1,73 @@
+"""k nearest neighbours with dmetric's arithmetic: the C++ search and the brute-force fallback against a float64
+lexicographic reference, ties included."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from torchmeshmetric.mpeg import k_nearest, mpeg_sq_dists, nearest_with_ties
+from torchmeshmetric.mpeg import neighbours as nb
+
+
+def _reference(query: np.ndarray, target: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    d = mpeg_sq_dists(query[:, None, :], target[None, :, :])
+    order = np.lexsort((np.broadcast_to(np.arange(target.shape[0]), d.shape), d), axis=1)[:, :k]
+    return order, np.take_along_axis(d, order, axis=1)
+
+
+def _clouds(seed: int, grid: bool, n_ref: int, n_query: int) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    ref = rng.random((n_ref, 3)).astype(np.float32) * 10 - 3
+    query = rng.random((n_query, 3)).astype(np.float32) * 10 - 3
+    if grid:  # lattice points: many exactly equidistant neighbours
+        ref, query = np.round(ref * 2) / 2, np.round(query * 4) / 4
+    return query.astype(np.float32), ref.astype(np.float32)
+
+
+@pytest.fixture(params=["cpp", "brute"])
+def path(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> str:
+    if request.param == "brute":
+        monkeypatch.setattr(nb, "load_bvh", lambda: None)
+        monkeypatch.setattr(nb, "_BRUTE_CHUNK", 5000)  # several blocks
+    elif nb.load_bvh() is None:
+        pytest.skip("C++ extension unavailable")
+    return str(request.param)
+
+
+@pytest.mark.parametrize(("grid", "k"), [(False, 1), (False, 2), (True, 2), (True, 10), (True, 30)])
+def test_k_nearest_matches_reference(path: str, grid: bool, k: int) -> None:
+    query, ref = _clouds(k, grid, 700, 400)
+    idx, sq = k_nearest(query, ref, k)
+    want_idx, want_sq = _reference(query, ref, k)
+    np.testing.assert_array_equal(idx, want_idx)
+    np.testing.assert_array_equal(sq, want_sq)
+    if grid:
+        assert (sq[:, 1:] == sq[:, :1]).any(), "the lattice must produce ties"
+
+
+def test_k_nearest_pads_when_k_exceeds_target(path: str) -> None:
+    idx, sq = k_nearest(np.zeros((2, 3), np.float32), np.array([[1, 0, 0], [0, 2, 0]], np.float32), 4)
+    assert idx.tolist() == [[0, 1, -1, -1]] * 2
+    assert sq[0].tolist() == [1.0, 4.0, np.inf, np.inf]
+
+
+def test_k_nearest_empty_query(path: str) -> None:
+    idx, sq = k_nearest(np.zeros((0, 3), np.float32), np.ones((3, 3), np.float32), 2)
+    assert idx.shape == (0, 2) and sq.shape == (0, 2)
+
+
+def test_nearest_with_ties_chains(path: str) -> None:
+    query, ref = _clouds(3, True, 500, 300)
+    ties = nearest_with_ties(query, ref)
+    want_idx, want_sq = _reference(query, ref, 30)
+    np.testing.assert_array_equal(ties.nearest, want_idx[:, 0])
+    np.testing.assert_array_equal(ties.sq_dist, want_sq[:, 0])
+    tied = np.flatnonzero(want_sq[:, 1] - want_sq[:, 0] < 1e-20)
+    np.testing.assert_array_equal(ties.rows, tied)
+    for r, q in enumerate(ties.rows):
+        n_equal = int((want_sq[q] == want_sq[q, 0]).sum())
+        got = set(ties.cand[r, ties.equal[r]].tolist())
+        # dmetric stops widening at 30 neighbours: up to 30 equidistant ones, lowest indices first
+        assert got == set(want_idx[q, : min(n_equal, 30)].tolist())
+        np.testing.assert_array_equal(ties.chain[r], ties.equal[r])  # lattice distances: chain == exact ties
