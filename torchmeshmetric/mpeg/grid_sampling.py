@@ -361,20 +361,53 @@ def _ray_triangle(
     return ok, t, u, v
 
 
+_HASH_MIX = np.uint64(0x9E3779B97F4A7C15)
+
+
+def _row_hashes(keys: list[np.ndarray]) -> np.ndarray:
+    # 64-bit mix of every value's bits (-0.0 first made 0.0: equal values, equal bits)
+    h = np.zeros(keys[0].shape[0], np.uint64)
+    for k in keys:
+        k = np.ascontiguousarray(k)
+        if k.dtype.kind == "f":
+            k = k + k.dtype.type(0)
+        bits = k.view(np.dtype(f"u{k.dtype.itemsize}")).astype(np.uint64)
+        for j in range(bits.shape[1]):
+            h = (h ^ bits[:, j]) * _HASH_MIX
+            h ^= h >> np.uint64(29)
+    return h
+
+
 def unique_vertex_rows(pos: np.ndarray, nrm: np.ndarray, col: np.ndarray | None) -> np.ndarray:
     """Rows mmetric's ``ModelBuilder`` keeps: the first of the points equal in position, normal and colour (sorted).
+
+    Equal rows are found through a 64-bit hash of their values (one integer sort instead of a lexicographic sort of
+    six to nine keys); every pair of equal hashes is compared value by value, and a collision falls back to the
+    lexicographic sort, so the result is exact either way.
 
     Example:
         >>> p = np.array([[0, 0, 0], [0, 0, 0], [1, 0, 0]], np.float32)
         >>> unique_vertex_rows(p, np.zeros_like(p), None).tolist()
         [0, 2]
     """
-    keys = [pos[:, 0], pos[:, 1], pos[:, 2], nrm[:, 0], nrm[:, 1], nrm[:, 2]]
-    if col is not None:
-        keys += [col[:, 0], col[:, 1], col[:, 2]]
-    idx = np.arange(pos.shape[0])
-    order = np.lexsort([idx, *reversed(keys)])
-    stacked = np.stack([k[order] for k in keys], axis=1)
+    keys = [pos, nrm] if col is None else [pos, nrm, col]
+    h = _row_hashes(keys)
+    order = np.argsort(h, kind="stable")  # equal hashes stay in index order: the first of a run is the one kept
+    i = np.flatnonzero(h[order[1:]] == h[order[:-1]])
+    same = np.ones(i.size, dtype=bool)
+    for k in keys:
+        same &= np.all(k[order[i]] == k[order[i + 1]], axis=1)
+    if not same.all():  # a hash collision between different rows
+        return _unique_rows_lexsort(keys)
+    later = np.zeros(pos.shape[0], dtype=bool)
+    later[order[i + 1]] = True
+    return np.flatnonzero(~later)
+
+
+def _unique_rows_lexsort(keys: list[np.ndarray]) -> np.ndarray:
+    cols = [k[:, j] for k in keys for j in range(k.shape[1])]
+    order = np.lexsort([np.arange(keys[0].shape[0]), *reversed(cols)])
+    stacked = np.stack([c[order] for c in cols], axis=1)
     first = np.ones(order.size, dtype=bool)
     first[1:] = np.any(stacked[1:] != stacked[:-1], axis=1)
     return np.sort(order[first])

@@ -1,0 +1,25 @@
+"""unique_vertex_rows: the hashed duplicate search against the exact lexicographic one, collisions included."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from torchmeshmetric.mpeg import grid_sampling as gs
+
+
+@pytest.mark.parametrize("with_colour", [False, True])
+def test_unique_vertex_rows_hash_matches_lexsort(with_colour: bool, monkeypatch: pytest.MonkeyPatch) -> None:
+    rng = np.random.default_rng(5)
+    pos = (np.round(rng.random((3000, 3)) * 6) / 6).astype(np.float32)
+    pos[::5] = -pos[::5] * 0  # -0.0 rows must merge with 0.0 rows
+    pos[1::5] = 0.0
+    nrm = np.round(rng.random((3000, 3))).astype(np.float32)
+    col = rng.integers(0, 2, (3000, 3)).astype(np.float32) if with_colour else None
+    keys = [pos, nrm] if col is None else [pos, nrm, col]
+    want = gs._unique_rows_lexsort(keys)
+    assert 0 < want.size < 3000
+    np.testing.assert_array_equal(gs.unique_vertex_rows(pos, nrm, col), want)
+    # every hash equal: the collision check must fall back to the exact lexicographic path
+    monkeypatch.setattr(gs, "_row_hashes", lambda k: np.zeros(k[0].shape[0], np.uint64))
+    np.testing.assert_array_equal(gs.unique_vertex_rows(pos, nrm, col), want)
