@@ -206,29 +206,29 @@ class GridHits(NamedTuple):
     faces: np.ndarray
 
 
-def grid_hits(
-    mesh: MeshLike,
-    grid_size: int = 1024,
-    *,
-    use_normal: bool = True,
-    box: tuple[Sequence[float] | np.ndarray | Tensor, Sequence[float] | np.ndarray | Tensor] | None = None,
-) -> GridHits:
-    """The rays of :func:`grid_sample` that hit the mesh, with their faces, axes and origins.
+class _Entries(NamedTuple):
+    """Per (face, axis) entry of the grid: the face, its rays and the ray-independent part of Moller-Trumbore."""
 
-    Example:
-        >>> import torch
-        >>> tri = (torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]]))
-        >>> grid_hits(tri, 3, box=([0, 0, 0], [1, 1, 1])).axis.tolist()
-        [2, 2, 2, 2, 2, 2]
-    """
-    if isinstance(grid_size, bool) or not isinstance(grid_size, int) or grid_size < 2:
-        raise ValueError(f"grid_size: expected an integer >= 2, found {grid_size!r}")
-    verts, faces = mesh_arrays(mesh)
-    min_box, max_box = mesh_box(verts) if box is None else _parse_box(box)
-    diag = max_box - min_box
-    rng = max(diag[0], diag[1], diag[2])
-    step = np.full(3, rng * (np.float32(1.0) / np.float32(grid_size - 1)), dtype=np.float32)
+    fid: np.ndarray  # (F',) original index of every kept (non-degenerate) face
+    v1: np.ndarray  # (F', 3) first vertex of every kept face
+    normal: np.ndarray  # (F', 3) unit normals (float32, mmetric's arithmetic)
+    face: np.ndarray  # (E,) kept face of every entry
+    axis: np.ndarray  # (E,) ray axis of every entry
+    n3: np.ndarray  # (E,) rays along the third axis
+    rays: np.ndarray  # (E,) rays of the entry
+    starts: np.ndarray  # (E + 1,) first ray of every entry in mmetric's push order
+    e1: np.ndarray  # (E, 3) edges v2 - v1 and v3 - v1
+    e2: np.ndarray
+    e2b: np.ndarray  # (E,) the two components of e2 across the ray axis
+    e2c: np.ndarray
+    inv_det: np.ndarray  # (E,) 1 / determinant
+    live: np.ndarray  # (E,) determinant outside mmetric's zero tolerance
+    lmin: np.ndarray  # (E, 3) first grid line of the face's box
+    main_origin: np.ndarray  # (E,) origin of the entry's rays along their axis
 
+
+def _entries(verts: np.ndarray, faces: np.ndarray, min_box: np.ndarray, max_box: np.ndarray, step: np.ndarray,
+             use_normal: bool) -> _Entries:  # fmt: skip
     v1, v2, v3 = verts[faces[:, 0]], verts[faces[:, 1]], verts[faces[:, 2]]
     keep = f32.area(v1, v2, v3) >= _DBL_EPSILON
     fid = np.flatnonzero(keep)
@@ -258,10 +258,9 @@ def grid_hits(
     n2 = lcnt[f_list, second].astype(np.int64) + 1
     n3 = lcnt[f_list, third].astype(np.int64) + 1
     rays = n2 * n3
-    starts = np.concatenate([[0], np.cumsum(rays)])
 
-    # Per (face, axis) entry: the ray-independent part of Moller-Trumbore. For a ray along axis a, pvec = e_a x edge2
-    # has a zero a-component, so glm's dot products reduce exactly to the two remaining float32 terms.
+    # For a ray along axis a, pvec = e_a x edge2 has a zero a-component, so glm's dot products reduce exactly to the
+    # two remaining float32 terms.
     e1 = (v2 - v1)[f_list]
     e2 = (v3 - v1)[f_list]
     b_ax, c_ax = (a_list + 1) % 3, (a_list + 2) % 3
@@ -275,50 +274,83 @@ def grid_hits(
     lm_e = lmin[f_list]
     main_origin = min_box[a_list] + lm_e[rows_e, a_list] * step[a_list]
     main_origin = np.where(step[a_list] == 0, min_box[a_list] - np.float32(0.5), main_origin)
+    starts = np.concatenate([[0], np.cumsum(rays)])
+    return _Entries(fid, v1, normal, f_list, a_list, n3, rays, starts, e1, e2, e2b, e2c, inv_det, live, lm_e,
+                    main_origin)  # fmt: skip
+
+
+def _cast_rays(en: _Entries, ent: np.ndarray, cum: np.ndarray, a: int, min_box: np.ndarray,
+               step: np.ndarray) -> tuple[np.ndarray, ...]:  # fmt: skip
+    """The hits of every ray of the entries ``ent`` (all along axis ``a``; ``cum``: their first rays, relative).
+
+    Returns (push-order key, position, origin, entry, u, v) of each hit.
+    """
+    b, c = (a + 1) % 3, (a + 2) % 3
+    s2, s3 = (1, 2) if a == 0 else ((0, 2) if a == 1 else (0, 1))
+    cnt = en.rays[ent]
+    e = np.repeat(ent, cnt)
+    local = np.arange(e.size) - np.repeat(cum, cnt)
+    n3e = en.n3[e]
+    i = (local // n3e).astype(np.float32)
+    j = (local % n3e).astype(np.float32)
+    p0 = en.v1[en.face[e]]
+    tv = np.empty((e.size, 3), dtype=np.float32)
+    tv[:, a] = en.main_origin[e] - p0[:, a]
+    o2 = min_box[s2] + (en.lmin[e, s2] + i) * step[s2]
+    o3 = min_box[s3] + (en.lmin[e, s3] + j) * step[s3]
+    tv[:, s2] = o2 - p0[:, s2]
+    tv[:, s3] = o3 - p0[:, s3]
+    idet = en.inv_det[e]
+    u = (tv[:, c] * en.e2b[e] - tv[:, b] * en.e2c[e]) * idet
+    ok = ~((u < 0) | (u > 1))
+    q = f32.cross(tv, en.e1[e])
+    v = q[:, a] * idet
+    ok &= ~((v < 0) | (u + v > 1))
+    hit = np.flatnonzero(ok)
+    eh = e[hit]
+    t = f32.dot(en.e2[eh], q[hit]) * idet[hit]
+    origin = np.empty((hit.size, 3), dtype=np.float32)
+    origin[:, a] = en.main_origin[eh]
+    origin[:, s2] = o2[hit]
+    origin[:, s3] = o3[hit]
+    pos = origin.copy()
+    pos[:, a] = origin[:, a] + t
+    return en.starts[eh] + local[hit], pos, origin, eh, u[hit], v[hit]
+
+
+def grid_hits(
+    mesh: MeshLike,
+    grid_size: int = 1024,
+    *,
+    use_normal: bool = True,
+    box: tuple[Sequence[float] | np.ndarray | Tensor, Sequence[float] | np.ndarray | Tensor] | None = None,
+) -> GridHits:
+    """The rays of :func:`grid_sample` that hit the mesh, with their faces, axes and origins.
+
+    Example:
+        >>> import torch
+        >>> tri = (torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]]))
+        >>> grid_hits(tri, 3, box=([0, 0, 0], [1, 1, 1])).axis.tolist()
+        [2, 2, 2, 2, 2, 2]
+    """
+    if isinstance(grid_size, bool) or not isinstance(grid_size, int) or grid_size < 2:
+        raise ValueError(f"grid_size: expected an integer >= 2, found {grid_size!r}")
+    verts, faces = mesh_arrays(mesh)
+    min_box, max_box = mesh_box(verts) if box is None else _parse_box(box)
+    diag = max_box - min_box
+    rng = max(diag[0], diag[1], diag[2])
+    step = np.full(3, rng * (np.float32(1.0) / np.float32(grid_size - 1)), dtype=np.float32)
+    en = _entries(verts, faces, min_box, max_box, step, use_normal)
 
     out: list[tuple[np.ndarray, ...]] = []
     for a in range(3):
-        b, c = (a + 1) % 3, (a + 2) % 3
-        s2, s3 = (1, 2) if a == 0 else ((0, 2) if a == 1 else (0, 1))
-        ents = np.flatnonzero((a_list == a) & live)
-        if ents.size == 0:
-            continue
-        cum = np.concatenate([[0], np.cumsum(rays[ents])])
+        ents = np.flatnonzero((en.axis == a) & en.live)
+        cum = np.concatenate([[0], np.cumsum(en.rays[ents])])
         lo = 0
-        while lo < ents.size:
+        while lo < ents.size:  # chunks of about _CHUNK rays
             hi = max(int(np.searchsorted(cum, cum[lo] + _CHUNK, side="right")) - 1, lo + 1)
-            ent = ents[lo:hi]
-            cnt = rays[ent]
-            e = np.repeat(ent, cnt)
-            local = np.arange(e.size) - np.repeat(cum[lo:hi] - cum[lo], cnt)
+            out.append(_cast_rays(en, ents[lo:hi], cum[lo:hi] - cum[lo], a, min_box, step))
             lo = hi
-            n3e = n3[e]
-            i = (local // n3e).astype(np.float32)
-            j = (local % n3e).astype(np.float32)
-            f = f_list[e]
-            p0 = v1[f]
-            tv = np.empty((e.size, 3), dtype=np.float32)
-            tv[:, a] = main_origin[e] - p0[:, a]
-            o2 = min_box[s2] + (lm_e[e, s2] + i) * step[s2]
-            o3 = min_box[s3] + (lm_e[e, s3] + j) * step[s3]
-            tv[:, s2] = o2 - p0[:, s2]
-            tv[:, s3] = o3 - p0[:, s3]
-            idet = inv_det[e]
-            u = (tv[:, c] * e2b[e] - tv[:, b] * e2c[e]) * idet
-            ok = ~((u < 0) | (u > 1))
-            q = f32.cross(tv, e1[e])
-            v = q[:, a] * idet
-            ok &= ~((v < 0) | (u + v > 1))
-            hit = np.flatnonzero(ok)
-            eh = e[hit]
-            t = f32.dot(e2[eh], q[hit]) * idet[hit]
-            origin = np.empty((hit.size, 3), dtype=np.float32)
-            origin[:, a] = main_origin[eh]
-            origin[:, s2] = o2[hit]
-            origin[:, s3] = o3[hit]
-            pos = origin.copy()
-            pos[:, a] = origin[:, a] + t
-            out.append((starts[eh] + local[hit], pos, origin, eh, u[hit], v[hit]))
     if out:
         order = np.argsort(np.concatenate([o[0] for o in out]), kind="stable")  # mmetric's push order
         pos_all = np.concatenate([o[1] for o in out])[order]
@@ -331,9 +363,9 @@ def grid_hits(
         uv_all = np.zeros((0, 2), np.float32)
     return GridHits(
         pos_all,
-        normal[f_list[ent_all]],
-        fid[f_list[ent_all]],
-        a_list[ent_all],
+        en.normal[en.face[ent_all]],
+        en.fid[en.face[ent_all]],
+        en.axis[ent_all],
         origin_all,
         uv_all,
         faces,
