@@ -69,6 +69,17 @@ inline void union_children(Node<T>* nodes, int64_t node) {
   }
 }
 
+// An inner node over [begin, begin + n) whose children are built (left = node + 1, right): its range and bounds.
+template <typename T>
+inline int64_t finish_inner(std::vector<Node<T>>& nodes, int64_t node, int64_t begin, int64_t n, int64_t right) {
+  Node<T>& nd = nodes[node];
+  nd.start = begin;
+  nd.count = n;
+  nd.right = right;
+  union_children(nodes.data(), node);
+  return node;
+}
+
 inline uint32_t spread10(uint32_t x) {  // 10 bits -> every third bit of 30
   x &= 0x3ffu;
   x = (x | (x << 16)) & 0x30000ffu;
@@ -190,12 +201,7 @@ int64_t build_node(std::vector<Node<T>>& nodes, const uint32_t* code, int64_t ba
   }
   build_node(nodes, code, base, begin, mid, box_lo, box_hi, perm, leaf);
   const int64_t right = build_node(nodes, code, base, mid, end, box_lo, box_hi, perm, leaf);
-  Node<T>& nd = nodes[node];
-  nd.start = begin;
-  nd.count = n;
-  nd.right = right;
-  union_children(nodes.data(), node);
-  return node;
+  return finish_inner(nodes, node, begin, n, right);
 }
 
 // Stable Morton order of n points whose bounds are lo/hi: fills the sorted codes and the point index of each slot.
@@ -350,12 +356,7 @@ int64_t build_sah_node(std::vector<Node<T>>& nodes, int64_t* idx, int64_t begin,
   }
   build_sah_node(nodes, idx, begin, mid, box_lo, box_hi, cen, leaf, depth + 1);
   const int64_t right = build_sah_node(nodes, idx, mid, end, box_lo, box_hi, cen, leaf, depth + 1);
-  Node<T>& nd = nodes[node];
-  nd.start = begin;
-  nd.count = n;
-  nd.right = right;
-  union_children(nodes.data(), node);
-  return node;
+  return finish_inner(nodes, node, begin, n, right);
 }
 
 // One SAH hierarchy per item; fills nodes, roots and perm like build_forest.
@@ -941,22 +942,6 @@ std::vector<torch::Tensor> closest_points_impl(const torch::Tensor& points, cons
   return {sq_out, bary_out, closest_out};
 }
 
-// All (point, face) squared distances, (P, F): for tests of bit-equality with the torch formulation only.
-template <typename T>
-torch::Tensor pair_sq_dists_impl(const torch::Tensor& points, const torch::Tensor& verts, const torch::Tensor& faces) {
-  const int64_t F = faces.size(0), P = points.size(0);
-  const T* V = verts.data_ptr<T>();
-  const int64_t* Fi = faces.data_ptr<int64_t>();
-  const T* Pp = points.data_ptr<T>();
-  auto out = torch::empty({P, F}, points.options());
-  T* o = out.data_ptr<T>();
-  for (int64_t f = 0; f < F; ++f) {
-    const FaceData<T> d = face_data(V + 3 * Fi[3 * f], V + 3 * Fi[3 * f + 1], V + 3 * Fi[3 * f + 2]);
-    for (int64_t i = 0; i < P; ++i) o[i * F + f] = tri_sq_dist(d, Pp + 3 * i);
-  }
-  return out;
-}
-
 // k nearest reference points with MPEG mmetric's arithmetic (mpeg-pcc-dmetric's k-d tree distance): float32
 // coordinate differences, their squares summed in double as (dx*dx + dy*dy) + dz*dz. Candidates are ranked by
 // (squared distance, reference index), so exact ties are kept in index order and never dropped below rank k.
@@ -1167,12 +1152,6 @@ std::vector<torch::Tensor> closest_points(torch::Tensor points, torch::Tensor ve
   return closest_points_impl<float>(points, verts, faces, face_idx);
 }
 
-torch::Tensor pair_sq_dists(torch::Tensor points, torch::Tensor verts, torch::Tensor faces) {
-  TORCH_CHECK(points.is_contiguous() && verts.is_contiguous() && faces.is_contiguous(), "contiguous expected");
-  if (points.scalar_type() == torch::kFloat64) return pair_sq_dists_impl<double>(points, verts, faces);
-  return pair_sq_dists_impl<float>(points, verts, faces);
-}
-
 std::vector<torch::Tensor> mpeg_knn(torch::Tensor query, torch::Tensor ref, int64_t k) {
   TORCH_CHECK(query.device().is_cpu() && ref.device().is_cpu(), "mpeg_knn: CPU tensors expected");
   TORCH_CHECK(query.is_contiguous() && ref.is_contiguous(), "mpeg_knn: contiguous tensors expected");
@@ -1205,7 +1184,6 @@ PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
   m.def("point_bvh_build", &point_bvh_build, "Kept point hierarchy: [nodes, roots, perm, points, slack]");
   m.def("point_bvh_refit", &point_bvh_refit, "Refit a kept point hierarchy to moved points (in place)");
   m.def("point_bvh_query", &point_bvh_query, "Nearest reference point per point (kept hierarchy, exact)");
-  m.def("pair_sq_dists", &pair_sq_dists, "All point-face squared distances (tests only)");
   m.def("closest_points", &closest_points,
         "Closest point on the selected faces without autograd: [sq_dists, bary, closest] (centred frame)");
   m.def("mpeg_knn", &mpeg_knn,
