@@ -190,7 +190,7 @@ def test_metric_collection_state_dict_pickle_reset(frames):
     m.persistent(True)
     m.update(simps[0], refs[0])
     sd = m.state_dict()
-    assert any(k.endswith("fwd_mean") for k in sd)
+    assert any(k.endswith("surface_moments") for k in sd)
     m2 = MeshSurfaceDistance()
     m2.persistent(True)
     m2.load_state_dict(sd)

@@ -18,6 +18,7 @@ from torchmeshmetric.metrics._inputs import (
     require_meshes,
 )
 from torchmeshmetric.metrics.directed_distances import DirectedDistances, lengths_of
+from torchmeshmetric.metrics.distance_states import DistanceStates
 from torchmeshmetric.metrics.distance_statistics_metric import DistanceStatisticsBase
 from torchmeshmetric.structures import Mesh
 
@@ -140,7 +141,8 @@ class MeshSurfaceDistance(DistanceStatisticsBase):
         (1.5, 2.5)
     """
 
-    _state_prefix = "surf"
+    _forward_states = DistanceStates("surface_moments", "surface_values", "surface_sketch")
+    _reverse_states = DistanceStates("reverse_surface_moments", "reverse_surface_values", "reverse_surface_sketch")
 
     def __init__(
         self,

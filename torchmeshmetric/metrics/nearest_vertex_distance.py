@@ -10,6 +10,7 @@ from torch import Tensor
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance
 from torchmeshmetric.metrics._inputs import as_point_sources
 from torchmeshmetric.metrics.directed_distances import DirectedDistances, lengths_of
+from torchmeshmetric.metrics.distance_states import DistanceStates
 from torchmeshmetric.metrics.distance_statistics_metric import DistanceStatisticsBase
 
 __all__ = ["NearestVertexDistance", "nearest_vertex_distances"]
@@ -101,7 +102,8 @@ class NearestVertexDistance(DistanceStatisticsBase):
         (5.0, 5.5, 6.0)
     """
 
-    _state_prefix = "vert"
+    _forward_states = DistanceStates("vertex_moments", "vertex_values", "vertex_sketch")
+    _reverse_states = DistanceStates("reverse_vertex_moments", "reverse_vertex_values", "reverse_vertex_sketch")
 
     def __init__(
         self,
