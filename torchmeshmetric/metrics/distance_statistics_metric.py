@@ -179,11 +179,8 @@ class DistanceStatisticsBase(Metric):
         stats = self.compute_statistics()
         out: dict[str, Tensor] = {}
         for key, prefix in (("forward", ""), ("reverse", "reverse_")):
-            if key not in stats:
-                continue
-            for name, value in zip(DistanceStatistics._fields, stats[key], strict=True):
-                if value is not None:
-                    out[prefix + name] = value.to(torch.float64)
+            if key in stats:
+                out.update({prefix + name: value for name, value in stats[key].as_tensors().items()})
         if self.two_sided:
             f, r = stats["forward"], stats["reverse"]
             out["symmetric_ave"] = 0.5 * (f.ave + r.ave)

@@ -96,6 +96,18 @@ class DistanceStatistics(NamedTuple):
             out[name] = int(value.item()) if name == "count" else float(value.item())
         return out
 
+    def as_tensors(self) -> dict[str, Tensor]:
+        """The statistics as a dict of float64 tensors (``count`` too), for ``torchmetrics`` and ``log_dict``.
+
+        ``psnr`` is omitted when it is ``None``.
+
+        Example:
+            >>> s = distance_statistics(torch.tensor([3.0, 4.0]))
+            >>> s.as_tensors()["count"]
+            tensor(2., dtype=torch.float64)
+        """
+        return {name: v.to(torch.float64) for name, v in zip(self._fields, self, strict=True) if v is not None}
+
     def unbind(self) -> list[DistanceStatistics]:
         """Split ``(B,)`` statistics into ``B`` single-set statistics."""
         if self.ave.dim() == 0:
