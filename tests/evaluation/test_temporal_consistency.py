@@ -74,7 +74,7 @@ def test_empty_compute_raises_and_old_module_name_warns():
         TemporalConsistency(register=TranslationRegister()).compute()
     from torchmeshmetric.evaluation import metric
 
-    with pytest.warns(DeprecationWarning, match="torchmeshmetric.evaluation.metric is deprecated"):
+    with pytest.warns(DeprecationWarning, match="evaluation.metric.TemporalConsistency is deprecated"):
         assert metric.TemporalConsistency is TemporalConsistency
     with pytest.raises(AttributeError):
         _ = metric.NotThere

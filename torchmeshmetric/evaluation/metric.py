@@ -1,25 +1,14 @@
 """Deprecated module: :class:`~torchmeshmetric.evaluation.TemporalConsistency` lives in ``temporal_consistency``.
 
 Its name read like the :mod:`torchmeshmetric.metrics` package; import ``TemporalConsistency`` from
-:mod:`torchmeshmetric.evaluation` (or :mod:`torchmeshmetric.evaluation.temporal_consistency`) instead.
+:mod:`torchmeshmetric.evaluation` instead.
 """
 
-from __future__ import annotations
-
-import warnings
-from typing import Any
-
-from torchmeshmetric.evaluation import temporal_consistency
+from torchmeshmetric._deprecation import deprecated_names
+from torchmeshmetric.evaluation.temporal_consistency import TemporalConsistency as _TemporalConsistency
 
 __all__: list[str] = []
 
-
-def __getattr__(name: str) -> Any:
-    if name != "TemporalConsistency":
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    warnings.warn(
-        "torchmeshmetric.evaluation.metric is deprecated: import TemporalConsistency from torchmeshmetric.evaluation",
-        DeprecationWarning,
-        stacklevel=2,
-    )
-    return temporal_consistency.TemporalConsistency
+__getattr__ = deprecated_names(
+    __name__, {"TemporalConsistency": ("torchmeshmetric.evaluation.TemporalConsistency", _TemporalConsistency)}
+)

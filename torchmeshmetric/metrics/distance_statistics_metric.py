@@ -10,7 +10,7 @@ default PSNR peak.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import torch
@@ -24,7 +24,7 @@ from torchmeshmetric.metrics.selected_statistic import SelectedStatistic
 from torchmeshmetric.stats.sketch import QuantileSketch
 from torchmeshmetric.stats.statistics import DistanceStatistics, psnr_from_mse
 
-__all__ = ["DistanceStatisticsBase", "DistanceStatisticsMetric"]
+__all__ = ["DistanceStatisticsBase", "DistanceStatisticsMetric", "MeasuredDistanceBase"]
 
 _SYMMETRIC = ("symmetric_ave", "hausdorff", "symmetric_mse", "symmetric_rmse", "symmetric_psnr")
 
@@ -225,3 +225,21 @@ class DistanceStatisticsMetric(DistanceStatisticsBase):
             raise TypeError("reverse_dists: only valid with two_sided=True")
         if peak is not None:
             self._update_peak(torch.as_tensor(peak, dtype=torch.float64).max())
+
+
+class MeasuredDistanceBase(DistanceStatisticsBase):
+    """Base of the metrics that measure their own distances: ``update(simplified, reference)``.
+
+    A subclass names its distance-sets function (``_distance_sets``, e.g.
+    :func:`~torchmeshmetric.metrics.mesh_surface_distance_sets`) and sets ``_options``, the function's keyword
+    arguments besides ``two_sided``, in its ``__init__``.
+    """
+
+    _distance_sets: Callable[..., DirectedDistances]
+    _options: dict[str, Any]
+
+    def update(self, simplified: Any, reference: Any) -> None:
+        """Measure a simplified mesh (or point set), or a list of them, against the reference(s)."""
+        with torch.no_grad():
+            r = self._distance_sets(simplified, reference, two_sided=self.two_sided, **self._options)
+        self._accumulate_directed(r)
