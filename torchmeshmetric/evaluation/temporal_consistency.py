@@ -100,10 +100,9 @@ class TemporalConsistency(Metric):
         **kwargs: Any,
     ) -> None:
         super().__init__(**kwargs)
-        if not isinstance(two_sided, bool):
-            raise TypeError(f"two_sided: expected a bool, found {type(two_sided).__name__}")
-        if not isinstance(flicker, bool):
-            raise TypeError(f"flicker: expected a bool, found {type(flicker).__name__}")
+        for name, flag in (("two_sided", two_sided), ("flicker", flicker)):
+            if not isinstance(flag, bool):
+                raise TypeError(f"{name}: expected a bool, found {type(flag).__name__}")
         if register is not None and not callable(register):
             raise TypeError(f"register: expected a callable or None, found {type(register).__name__}")
         self.two_sided = two_sided
@@ -166,14 +165,14 @@ class TemporalConsistency(Metric):
             simplified_k_minus_1=simplified_k_minus_1,
         )
         for name in self._set_names:
-            _FORWARD_STATES[name].update(self, result.distances[name], None, name)
+            _FORWARD_STATES[name].update(self, result.distances[name], sketch=None, name=name)
             if self.two_sided:
-                _REVERSE_STATES[name].update(self, result.reverse_distances[name], None, f"reverse {name}")
+                _REVERSE_STATES[name].update(self, result.reverse_distances[name], sketch=None, name=f"reverse {name}")
         peak: Tensor = self.peak
         self.peak = torch.maximum(peak, torch.tensor(result.peak, dtype=torch.float64, device=peak.device))
 
     def _statistics(self, states: DistanceStates, what: str) -> dict[str, Tensor]:
-        return states.compute(self, None, what=what, peak=float(self.peak)).as_tensors()
+        return states.compute(self, sketch=None, what=what, peak=float(self.peak)).as_tensors()
 
     def compute(self) -> dict[str, Any]:
         """Pooled statistics: ``{set_name: {statistic: 0-dim tensor}}`` (+ ``"reverse"`` when two-sided).

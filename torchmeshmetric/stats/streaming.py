@@ -25,7 +25,9 @@ class DistanceAccumulator:
     ``8 N`` bytes), otherwise estimated by a fixed-size :class:`~torchmeshmetric.stats.sketch.QuantileSketch` whose
     estimates are within relative error ``relative_accuracy`` of the exact order statistics.
     ``compute()`` equals :func:`~torchmeshmetric.stats.distance_statistics` on the concatenated data (to float64
-    rounding), whatever the batching or merge order.
+    rounding), whatever the batching or merge order: every batch passes through the same checks and sufficient
+    statistics (``_distance_statistics_update``) and the result is finished by the same ``_distance_statistics_compute``
+    as that function and the ``torchmetrics`` metrics.
 
     Args:
         exact_quantiles: keep the values for exact quantiles (default) or use the sketch.
