@@ -69,6 +69,7 @@ def test_states_declared_for_every_set_and_merged_like_a_ddp_gather(moving_spher
             assert float(merged[name][field]) == pytest.approx(float(value), rel=1e-12, abs=1e-15), (name, field)
 
 
+@pytest.mark.filterwarnings("ignore:The ``compute`` method of metric TemporalConsistency was called before:UserWarning")
 def test_empty_compute_raises_and_old_module_name_warns():
     with pytest.raises(EmptyInputError, match="no surface_k_minus_1 distances"):
         TemporalConsistency(register=TranslationRegister()).compute()

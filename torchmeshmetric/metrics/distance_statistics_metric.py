@@ -32,6 +32,9 @@ _SYMMETRIC = ("symmetric_ave", "hausdorff", "symmetric_mse", "symmetric_rmse", "
 class DistanceStatisticsBase(Metric):
     """Base class: accumulates distances of one or two directions and computes :class:`DistanceStatistics`.
 
+    A subclass declares the names of its states as class constants ``_forward_states`` and ``_reverse_states``
+    (:class:`~torchmeshmetric.metrics.distance_states.DistanceStates`), names no other metric class uses.
+
     Args:
         two_sided: accumulate and report the reverse direction and symmetric combinations too.
         peak: fixed PSNR peak; ``None`` uses the largest peak passed to updates (reference bbox diagonals).
