@@ -12,8 +12,8 @@ from torchmeshmetric.metrics import (
     DistanceStatisticsMetric,
     MeshSurfaceDistance,
     NearestVertexDistance,
-    mesh_surface_distances,
-    nearest_vertex_distances,
+    mesh_surface_distance_sets,
+    nearest_vertex_distance_sets,
 )
 
 KEYS = ["ave", "var", "std", "mse", "rmse", "max", "min", "median", "p95", "p99", "count", "psnr"]
@@ -89,7 +89,7 @@ def test_two_sided_keys_and_values(frames):
     m = MeshSurfaceDistance(two_sided=True, peak=1.0)
     m.update(simps[:2], refs[:2])
     out = m.compute()
-    r = mesh_surface_distances(simps[:2], refs[:2], two_sided=True)
+    r = mesh_surface_distance_sets(simps[:2], refs[:2], two_sided=True)
     assert_close({k: out["reverse_" + k] for k in KEYS}, np_stats(r.reverse.numpy(), 1.0), rtol=1e-12)
     assert float(out["symmetric_ave"]) == pytest.approx(0.5 * (r.forward.mean() + r.reverse.mean()).item(), rel=1e-12)
     assert float(out["hausdorff"]) == pytest.approx(max(r.forward.max(), r.reverse.max()).item(), rel=1e-12)
@@ -190,7 +190,7 @@ def test_metric_collection_state_dict_pickle_reset(frames):
     m.persistent(True)
     m.update(simps[0], refs[0])
     sd = m.state_dict()
-    assert any(k.endswith("fwd_mean") for k in sd)
+    assert any(k.endswith("surface_moments") for k in sd)
     m2 = MeshSurfaceDistance()
     m2.persistent(True)
     m2.load_state_dict(sd)
@@ -237,6 +237,6 @@ def test_batch_size_mismatch_and_bad_args(frames):
     with pytest.raises(ValueError, match="reference"):
         MeshSurfaceDistance().update(simps[:2], refs[:1])
     with pytest.raises(ValueError, match="reference"):
-        nearest_vertex_distances(simps[:2], refs[:3])
+        nearest_vertex_distance_sets(simps[:2], refs[:3])
     with pytest.raises(ValueError, match="ddof"):
         NearestVertexDistance(ddof=-1)

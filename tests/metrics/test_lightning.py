@@ -211,7 +211,7 @@ class DDPModule(Module):
 
     def on_validation_epoch_end(self):
         # Each rank records how many simplified vertices it measured itself (before the metric's sync).
-        n = int(self.surface.surf_fwd_count.sum())
+        n = int(MeshSurfaceDistance._forward_states.num_distances(self.surface))
         (self.out_dir / f"rank{self.global_rank}.txt").write_text(str(n))
 
 

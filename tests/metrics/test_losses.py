@@ -7,7 +7,7 @@ from torchmeshmetric.metrics import (
     MeshSurfaceDistanceLoss,
     NearestVertexDistanceLoss,
     mesh_surface_distance_loss,
-    mesh_surface_distances,
+    mesh_surface_distance_sets,
     nearest_vertex_distance_loss,
 )
 
@@ -58,7 +58,7 @@ def test_gradcheck_nearest_vertex(pair):
 def test_reductions_consistent_and_module_equals_function(pair):
     (v, f), ref = pair
     simp = Mesh(v, f)
-    r = mesh_surface_distances(simp, ref, two_sided=True)
+    r = mesh_surface_distance_sets(simp, ref, two_sided=True)
     none = mesh_surface_distance_loss(simp, ref, power=2, reduction="none", two_sided=True)
     total = mesh_surface_distance_loss(simp, ref, power=2, reduction="sum", two_sided=True)
     mean = mesh_surface_distance_loss(simp, ref, power=2, reduction="mean", two_sided=True)
@@ -103,3 +103,45 @@ def test_bad_arguments():
         NearestVertexDistanceLoss(power=0)
     with pytest.raises(ValueError, match="surface_samples"):
         MeshSurfaceDistanceLoss(surface_samples=-3)
+
+
+def test_loss_options_are_those_of_the_distance_sets_and_checked(pair):
+    import inspect
+
+    from torchmeshmetric.metrics import (
+        NearestVertexOptions,
+        SurfaceDistanceOptions,
+        mesh_surface_distance_sets,
+        nearest_vertex_distance_sets,
+    )
+
+    for options, fn in (
+        (SurfaceDistanceOptions, mesh_surface_distance_sets),
+        (NearestVertexOptions, nearest_vertex_distance_sets),
+    ):
+        keywords = [p.name for p in inspect.signature(fn).parameters.values() if p.kind is p.KEYWORD_ONLY]
+        assert list(options.__annotations__) == keywords
+    with pytest.raises(TypeError, match="surface_sample"):
+        MeshSurfaceDistanceLoss(surface_sample=10)  # a typo is refused at construction, not at the first forward
+    with pytest.raises(TypeError, match="seed"):
+        nearest_vertex_distance_loss(*pair, seed=1)
+    assert repr(MeshSurfaceDistanceLoss(power=2, two_sided=True)) == (
+        "MeshSurfaceDistanceLoss(power=2, reduction='mean', two_sided=True)"
+    )
+
+
+def test_renamed_functions_keep_their_old_names_with_a_warning():
+    import torchmeshmetric.metrics as tmm_metrics
+    from torchmeshmetric.metrics import mesh_surface_distance as msd_module
+    from torchmeshmetric.metrics import nearest_vertex_distance as nvd_module
+
+    for module, old, new in (
+        (tmm_metrics, "mesh_surface_distances", tmm_metrics.mesh_surface_distance_sets),
+        (tmm_metrics, "nearest_vertex_distances", tmm_metrics.nearest_vertex_distance_sets),
+        (msd_module, "mesh_surface_distances", tmm_metrics.mesh_surface_distance_sets),
+        (nvd_module, "nearest_vertex_distances", tmm_metrics.nearest_vertex_distance_sets),
+    ):
+        with pytest.warns(DeprecationWarning, match=f"{old} is deprecated: use torchmeshmetric.metrics.{new.__name__}"):
+            assert getattr(module, old) is new
+    with pytest.raises(AttributeError, match="no attribute"):
+        _ = tmm_metrics.mesh_surface_distancez

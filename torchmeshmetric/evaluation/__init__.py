@@ -8,7 +8,6 @@ from torchmeshmetric.evaluation.comparison import (
     paired_t_interval,
 )
 from torchmeshmetric.evaluation.flicker import FLICKER, FlickerDistances, flicker_distances
-from torchmeshmetric.evaluation.metric import TemporalConsistency
 from torchmeshmetric.evaluation.pipeline import (
     default_register,
     evaluate_pair,
@@ -32,6 +31,7 @@ from torchmeshmetric.evaluation.results import (
     mean_statistics,
 )
 from torchmeshmetric.evaluation.sweep import DEFAULT_SWEEP_WEIGHTS, WeightSweep, registered_qem_sweep
+from torchmeshmetric.evaluation.temporal_consistency import TemporalConsistency
 
 __all__ = [
     "BEST_PAIR_RULE",

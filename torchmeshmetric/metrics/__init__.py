@@ -1,10 +1,26 @@
-"""``torchmetrics`` metrics and ``nn.Module`` losses on the paper's two distances (thin wrappers on the kernels)."""
+"""``torchmetrics`` metrics and ``nn.Module`` losses on the paper's two distances (thin wrappers on the kernels).
 
+Names, per distance: ``*_distance_sets`` (the forward and reverse distance sets of a batch, a
+``DirectedDistances``), ``*_distance_loss`` and ``*DistanceLoss`` (a differentiable reduction of them), and the
+``torchmetrics.Metric`` ``MeshSurfaceDistance`` / ``NearestVertexDistance`` (their statistics, accumulated). The
+kernels they call (``torchmeshmetric.point_mesh_distance``, ``torchmeshmetric.nearest_vertex_distance``)
+measure one query set against one reference and return indices too.
+"""
+
+from torchmeshmetric._deprecation import deprecated_names
 from torchmeshmetric.metrics.directed_distances import DirectedDistances
 from torchmeshmetric.metrics.distance_statistics_metric import DistanceStatisticsBase, DistanceStatisticsMetric
-from torchmeshmetric.metrics.mesh_surface_distance import MeshSurfaceDistance, mesh_surface_distances
+from torchmeshmetric.metrics.mesh_surface_distance import (
+    MeshSurfaceDistance,
+    SurfaceDistanceOptions,
+    mesh_surface_distance_sets,
+)
 from torchmeshmetric.metrics.mesh_surface_distance_loss import MeshSurfaceDistanceLoss, mesh_surface_distance_loss
-from torchmeshmetric.metrics.nearest_vertex_distance import NearestVertexDistance, nearest_vertex_distances
+from torchmeshmetric.metrics.nearest_vertex_distance import (
+    NearestVertexDistance,
+    NearestVertexOptions,
+    nearest_vertex_distance_sets,
+)
 from torchmeshmetric.metrics.nearest_vertex_distance_loss import (
     NearestVertexDistanceLoss,
     nearest_vertex_distance_loss,
@@ -19,9 +35,22 @@ __all__ = [
     "MeshSurfaceDistanceLoss",
     "NearestVertexDistance",
     "NearestVertexDistanceLoss",
+    "NearestVertexOptions",
     "SelectedStatistic",
+    "SurfaceDistanceOptions",
     "mesh_surface_distance_loss",
-    "mesh_surface_distances",
+    "mesh_surface_distance_sets",
     "nearest_vertex_distance_loss",
-    "nearest_vertex_distances",
+    "nearest_vertex_distance_sets",
 ]
+
+__getattr__ = deprecated_names(
+    __name__,
+    {
+        "mesh_surface_distances": ("torchmeshmetric.metrics.mesh_surface_distance_sets", mesh_surface_distance_sets),
+        "nearest_vertex_distances": (
+            "torchmeshmetric.metrics.nearest_vertex_distance_sets",
+            nearest_vertex_distance_sets,
+        ),
+    },
+)

@@ -69,13 +69,6 @@ def as_reference_meshes(x: Any, num_items: int, name: str = "reference") -> list
     return meshes
 
 
-def as_reference_points(x: Any, num_items: int, name: str = "reference") -> list[Tensor]:
-    """Reference point sets (a mesh-like item contributes its vertex set), one per item."""
-    srcs = as_point_sources(x, name)
-    _check_count(len(srcs), num_items, name)
-    return [s.points for s in srcs]
-
-
 def _check_count(found: int, expected: int, name: str) -> None:
     if found != expected:
         raise ValueError(f"{name}: expected {expected} reference(s), one per simplified item, found {found}")

@@ -1,50 +1,39 @@
-"""``torchmetrics`` state handling shared by the distance metrics: exact, mergeable, DDP-synchronised statistics.
+"""``torchmetrics`` base of the distance metrics: statistics of one or two directions, exact and DDP-synchronised.
 
-States (per direction ``fwd`` / ``rev``, prefixed by the metric's ``_state_prefix`` so that two different metrics
-never share states in a ``MetricCollection`` compute group):
-
-- ``count``, ``mean``, ``m2``: partial moments as rows, ``dist_reduce_fx="cat"``. Every ``update`` merges its
-  batch into one row (Chan et al. 1979); DDP sync gathers one row per process and ``compute`` merges the rows
-  with the same formula. This is exact: no state is averaged, and no ``E[d^2] - E[d]^2`` appears.
-- ``sumsq``: sum of ``d^2`` (``"sum"``); ``min`` / ``max`` (``"min"`` / ``"max"``).
-- quantiles: the values themselves (a list state, ``"cat"``) when ``exact_quantiles=True``, else the counts of a
-  :class:`~torchmeshmetric.stats.sketch.QuantileSketch` (``"sum"``).
-- ``peak``: the largest reference bounding-box diagonal seen (``"max"``), the default PSNR peak.
-
-All float states are float64 (``Metric.half()``/``.float()`` leave them alone unless ``set_dtype`` is used).
+Each direction (forward: simplified → reference; reverse: reference → simplified) is one distance set held in the
+states a :class:`~torchmeshmetric.metrics.distance_states.DistanceStates` names (moments rows, values or sketch
+counts; see there for their DDP semantics). Each metric class declares its own state names, so that two different
+metrics never share states in a ``MetricCollection`` compute group (torchmetrics groups metrics whose states have the
+same names and values). ``reference_peak`` is the largest reference bounding-box diagonal seen (``"max"``), the
+default PSNR peak.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import torch
 from torch import Tensor
 from torchmetrics import Metric, MetricCollection
-from torchmetrics.utilities.data import dim_zero_cat
 
-from torchmeshmetric._checks import EmptyInputError, NonFiniteError, check_shape
+from torchmeshmetric._checks import check_shape
 from torchmeshmetric.metrics.directed_distances import DirectedDistances
+from torchmeshmetric.metrics.distance_states import DistanceStates
 from torchmeshmetric.metrics.selected_statistic import SelectedStatistic
-from torchmeshmetric.stats.moments import Moments, merge_mean_m2, moments_of
 from torchmeshmetric.stats.sketch import QuantileSketch
-from torchmeshmetric.stats.statistics import (
-    QUANTILE_LEVELS,
-    DistanceStatistics,
-    linear_quantiles,
-    psnr_from_mse,
-    statistics_from_parts,
-)
+from torchmeshmetric.stats.statistics import DistanceStatistics, psnr_from_mse
 
-__all__ = ["DistanceStatisticsBase", "DistanceStatisticsMetric"]
+__all__ = ["DistanceStatisticsBase", "DistanceStatisticsMetric", "MeasuredDistanceBase"]
 
-_DIRECTIONS = ("fwd", "rev")
 _SYMMETRIC = ("symmetric_ave", "hausdorff", "symmetric_mse", "symmetric_rmse", "symmetric_psnr")
 
 
 class DistanceStatisticsBase(Metric):
     """Base class: accumulates distances of one or two directions and computes :class:`DistanceStatistics`.
+
+    A subclass declares the names of its states as class constants ``_forward_states`` and ``_reverse_states``
+    (:class:`~torchmeshmetric.metrics.distance_states.DistanceStates`), names no other metric class uses.
 
     Args:
         two_sided: accumulate and report the reverse direction and symmetric combinations too.
@@ -60,7 +49,10 @@ class DistanceStatisticsBase(Metric):
     higher_is_better = False
     full_state_update = False
     plot_lower_bound = 0.0
-    _state_prefix = "dist"
+    # Declared per class (see the module docstring); subclasses declare their own names.
+    _forward_states = DistanceStates("forward_moments", "forward_values", "forward_sketch")
+    _reverse_states = DistanceStates("reverse_moments", "reverse_values", "reverse_sketch")
+    reference_peak: Tensor
     # Whether every update brings a PSNR peak (the reference's bounding-box diagonal), so that psnr is always known.
     _peak_from_updates = True
 
@@ -84,102 +76,45 @@ class DistanceStatisticsBase(Metric):
         self.ddof = ddof
         self.exact_quantiles = bool(exact_quantiles)
         self.sketch = QuantileSketch(relative_accuracy)
-        f64 = torch.float64
-        for d in _DIRECTIONS if self.two_sided else _DIRECTIONS[:1]:
-            for field in ("count", "mean", "m2"):
-                self.add_state(self._name(d, field), default=torch.zeros(0, dtype=f64), dist_reduce_fx="cat")
-            self.add_state(self._name(d, "sumsq"), default=torch.zeros((), dtype=f64), dist_reduce_fx="sum")
-            self.add_state(self._name(d, "min"), default=torch.tensor(float("inf"), dtype=f64), dist_reduce_fx="min")
-            self.add_state(self._name(d, "max"), default=torch.tensor(float("-inf"), dtype=f64), dist_reduce_fx="max")
-            if self.exact_quantiles:
-                self.add_state(self._name(d, "values"), default=[], dist_reduce_fx="cat")
-            else:
-                self.add_state(
-                    self._name(d, "sketch"), default=torch.zeros(self.sketch.num_bins, dtype=f64), dist_reduce_fx="sum"
-                )
-        self.add_state(self._name("all", "peak"), default=torch.tensor(float("-inf"), dtype=f64), dist_reduce_fx="max")
+        self._forward_states.add_to(self, self._sketch)
+        if self.two_sided:
+            self._reverse_states.add_to(self, self._sketch)
+        self.add_state("reference_peak", default=torch.tensor(float("-inf"), dtype=torch.float64), dist_reduce_fx="max")
 
-    def _name(self, direction: str, field: str) -> str:
-        return f"{self._state_prefix}_{direction}_{field}"
-
-    def _get(self, direction: str, field: str) -> Any:
-        return getattr(self, self._name(direction, field))
-
-    def _set(self, direction: str, field: str, value: Any) -> None:
-        setattr(self, self._name(direction, field), value)
-
-    def _accumulate(self, direction: str, dists: Tensor) -> None:
-        """Add a ``(N,)`` tensor of distances to one direction (``N = 0`` is a no-op)."""
-        d = dists.detach().reshape(-1).to(torch.float64)
-        if d.numel() == 0:
-            return
-        if not bool(torch.isfinite(d).all()):
-            raise NonFiniteError(f"dists: expected finite values, found {int((~torch.isfinite(d)).sum())} NaN/Inf")
-        new = moments_of(d)
-        dev = self._get(direction, "count").device
-        parts: list[Tensor] = [
-            torch.cat([self._get(direction, f), getattr(new, f).reshape(1).to(dev)]) for f in ("count", "mean", "m2")
-        ]
-        n, mean, m2 = merge_mean_m2(parts[0], parts[1], parts[2])
-        self._set(direction, "count", n.reshape(1))
-        self._set(direction, "mean", mean.reshape(1))
-        self._set(direction, "m2", m2.reshape(1))
-        self._set(direction, "sumsq", self._get(direction, "sumsq") + new.sumsq.to(dev))
-        self._set(direction, "min", torch.minimum(self._get(direction, "min"), new.min.to(dev)))
-        self._set(direction, "max", torch.maximum(self._get(direction, "max"), new.max.to(dev)))
-        if self.exact_quantiles:
-            self._get(direction, "values").append(d.to(dev))
-        else:
-            self._set(direction, "sketch", self._get(direction, "sketch") + self.sketch.counts(d).to(dev))
+    @property
+    def _sketch(self) -> QuantileSketch | None:
+        """The quantile sketch, or ``None`` for exact quantiles."""
+        return None if self.exact_quantiles else self.sketch
 
     def _accumulate_directed(self, r: DirectedDistances) -> None:
-        self._accumulate("fwd", r.forward)
+        self._forward_states.update(self, r.forward, self._sketch)
         if self.two_sided and r.reverse is not None:
-            self._accumulate("rev", r.reverse)
+            self._reverse_states.update(self, r.reverse, self._sketch)
         if r.peak.numel():
             self._update_peak(r.peak.max())
 
     def _update_peak(self, peak: Tensor | float) -> None:
-        p = torch.as_tensor(peak, dtype=torch.float64).to(self._get("all", "peak").device)
-        self._set("all", "peak", torch.maximum(self._get("all", "peak"), p))
+        p = torch.as_tensor(peak, dtype=torch.float64).to(self.reference_peak.device)
+        self.reference_peak = torch.maximum(self.reference_peak, p)
 
     def _peak(self) -> float | None:
         if self.fixed_peak is not None:
             return self.fixed_peak
-        p = float(self._get("all", "peak"))
+        p = float(self.reference_peak)
         return p if p >= 0 else None
-
-    def _direction_statistics(self, direction: str) -> DistanceStatistics:
-        count = self._get(direction, "count")
-        n = float(count.sum()) if count.numel() else 0.0
-        if n == 0:
-            which = "simplified → reference" if direction == "fwd" else "reference → simplified"
-            raise EmptyInputError(
-                f"{type(self).__name__}.compute: no {which} distances were accumulated; call update() with "
-                "non-empty inputs first"
-            )
-        # Rows of (count, mean, m2) come from updates, forward() calls and processes: merge them all.
-        n_all, mean, m2 = merge_mean_m2(count, self._get(direction, "mean"), self._get(direction, "m2"))
-        mom = Moments(
-            n_all,
-            mean,
-            m2,
-            self._get(direction, "sumsq").reshape(()),
-            self._get(direction, "min").reshape(()),
-            self._get(direction, "max").reshape(()),
-        )
-        q = torch.tensor(QUANTILE_LEVELS, dtype=torch.float64, device=mom.count.device)
-        if self.exact_quantiles:
-            qv = linear_quantiles(dim_zero_cat(self._get(direction, "values")), q)
-        else:
-            qv = self.sketch.quantile(self._get(direction, "sketch"), q, mom.min, mom.max)
-        return statistics_from_parts(mom, qv, ddof=self.ddof, peak=self._peak())
 
     def compute_statistics(self) -> dict[str, DistanceStatistics]:
         """The accumulated :class:`DistanceStatistics` per direction: ``{"forward": ..., "reverse": ...}``."""
-        out = {"forward": self._direction_statistics("fwd")}
+        sketch, peak = self._sketch, self._peak()
+        out = {
+            "forward": self._forward_states.compute(
+                self, sketch, what="simplified → reference", ddof=self.ddof, peak=peak
+            )
+        }
         if self.two_sided:
-            out["reverse"] = self._direction_statistics("rev")
+            out["reverse"] = self._reverse_states.compute(
+                self, sketch, what="reference → simplified", ddof=self.ddof, peak=peak
+            )
         return out
 
     def statistic_names(self) -> tuple[str, ...]:
@@ -247,11 +182,8 @@ class DistanceStatisticsBase(Metric):
         stats = self.compute_statistics()
         out: dict[str, Tensor] = {}
         for key, prefix in (("forward", ""), ("reverse", "reverse_")):
-            if key not in stats:
-                continue
-            for name, value in zip(DistanceStatistics._fields, stats[key], strict=True):
-                if value is not None:
-                    out[prefix + name] = value.to(torch.float64)
+            if key in stats:
+                out.update({prefix + name: value for name, value in stats[key].as_tensors().items()})
         if self.two_sided:
             f, r = stats["forward"], stats["reverse"]
             out["symmetric_ave"] = 0.5 * (f.ave + r.ave)
@@ -286,14 +218,31 @@ class DistanceStatisticsMetric(DistanceStatisticsBase):
 
     def update(self, dists: Tensor, reverse_dists: Tensor | None = None, *, peak: float | Tensor | None = None) -> None:
         """Accumulate ``(N,)`` forward distances (and ``(R,)`` reverse ones when ``two_sided``)."""
-        check_shape(dists, ("N",), "dists")
-        self._accumulate("fwd", dists)
+        self._forward_states.update(self, dists, self._sketch)
         if self.two_sided:
             if reverse_dists is None:
                 raise TypeError("reverse_dists: expected a (R,) tensor because two_sided=True, found None")
             check_shape(reverse_dists, ("R",), "reverse_dists")
-            self._accumulate("rev", reverse_dists)
+            self._reverse_states.update(self, reverse_dists, self._sketch, "reverse_dists")
         elif reverse_dists is not None:
             raise TypeError("reverse_dists: only valid with two_sided=True")
         if peak is not None:
             self._update_peak(torch.as_tensor(peak, dtype=torch.float64).max())
+
+
+class MeasuredDistanceBase(DistanceStatisticsBase):
+    """Base of the metrics that measure their own distances: ``update(simplified, reference)``.
+
+    A subclass names its distance-sets function (``_distance_sets``, e.g.
+    :func:`~torchmeshmetric.metrics.mesh_surface_distance_sets`) and sets ``_options``, the function's keyword
+    arguments besides ``two_sided``, in its ``__init__``.
+    """
+
+    _distance_sets: Callable[..., DirectedDistances]
+    _options: dict[str, Any]
+
+    def update(self, simplified: Any, reference: Any) -> None:
+        """Measure a simplified mesh (or point set), or a list of them, against the reference(s)."""
+        with torch.no_grad():
+            r = self._distance_sets(simplified, reference, two_sided=self.two_sided, **self._options)
+        self._accumulate_directed(r)

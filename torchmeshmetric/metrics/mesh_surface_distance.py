@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, TypedDict
 
 import torch
 from torch import Tensor
 
+from torchmeshmetric._deprecation import deprecated_names
 from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance
 from torchmeshmetric.kernels.point_triangle import point_mesh_distance
@@ -18,10 +19,25 @@ from torchmeshmetric.metrics._inputs import (
     require_meshes,
 )
 from torchmeshmetric.metrics.directed_distances import DirectedDistances, lengths_of
-from torchmeshmetric.metrics.distance_statistics_metric import DistanceStatisticsBase
+from torchmeshmetric.metrics.distance_states import DistanceStates
+from torchmeshmetric.metrics.distance_statistics_metric import MeasuredDistanceBase
 from torchmeshmetric.structures import Mesh
 
-__all__ = ["MeshSurfaceDistance", "mesh_surface_distances"]
+__all__ = ["MeshSurfaceDistance", "SurfaceDistanceOptions", "mesh_surface_distance_sets"]
+
+
+class SurfaceDistanceOptions(TypedDict, total=False):
+    """The keyword options of :func:`mesh_surface_distance_sets`, which its loss function and module take too.
+
+    The defaults and meanings are those of :func:`mesh_surface_distance_sets`.
+    """
+
+    two_sided: bool
+    surface_samples: int | None
+    seed: int
+    detach_reference: bool
+    backend: str
+    indexes: IndexCache | None
 
 
 def _to_surface(
@@ -52,7 +68,7 @@ def _to_surface(
     ).dists
 
 
-def mesh_surface_distances(
+def mesh_surface_distance_sets(
     simplified: Any,
     reference: Any,
     *,
@@ -63,7 +79,9 @@ def mesh_surface_distances(
     backend: str = "auto",
     indexes: IndexCache | None = None,
 ) -> DirectedDistances:
-    """Mesh surface distances of a simplified mesh (or point set) to a reference mesh, single or ragged batch.
+    """The mesh surface distance sets (forward, and reverse when two-sided) of a simplified mesh to a reference mesh.
+
+    Works on one item or a ragged batch; the per-point distances come back packed, one set per direction.
 
     Forward (paper Eq. 4): from every vertex of the simplified mesh (the vertices referenced by a face, paper
     Eq. 3) or every given point, the distance to the reference surface, exact by default. With
@@ -91,7 +109,7 @@ def mesh_surface_distances(
     Example:
         >>> import torch, trimesh
         >>> sphere = trimesh.creation.icosphere(subdivisions=2)
-        >>> r = mesh_surface_distances(torch.tensor([[0.0, 0.0, 2.0], [0.0, 3.0, 0.0]]), sphere)
+        >>> r = mesh_surface_distance_sets(torch.tensor([[0.0, 0.0, 2.0], [0.0, 3.0, 0.0]]), sphere)
         >>> [round(x, 5) for x in r.forward.tolist()]
         [1.0, 2.0]
     """
@@ -112,24 +130,26 @@ def mesh_surface_distances(
     return DirectedDistances(forward, lengths_of(points), reverse, reverse_lengths, peak)
 
 
-class MeshSurfaceDistance(DistanceStatisticsBase):
+class MeshSurfaceDistance(MeasuredDistanceBase):
     """Statistics of the mesh surface distance (paper Eq. 4), accumulated over batches and processes.
 
     ``update(simplified, reference)`` measures every simplified vertex against the reference surface (see
-    :func:`mesh_surface_distances`) and accumulates the distances of all items of all batches into one pool;
+    :func:`mesh_surface_distance_sets`) and accumulates the distances of all items of all batches into one pool;
     ``compute()`` returns a dict of 0-dim float64 tensors: ``ave, var, std, mse, rmse, max, min, median, p95, p99,
     count, psnr`` for the forward (paper) direction; with ``two_sided=True`` also ``reverse_*`` for reference →
     simplified, and the symmetric combinations ``symmetric_ave`` (mean of both directions' ``ave``, the
     Chamfer distance), ``hausdorff`` (max of both ``max``), ``symmetric_mse`` (max of both ``mse``, the MPEG
     convention), ``symmetric_rmse`` and ``symmetric_psnr``. The PSNR peak is ``peak`` if given, else the largest
-    reference bounding-box diagonal seen. See :class:`DistanceStatisticsBase` for states and DDP exactness.
+    reference bounding-box diagonal seen. See :class:`~torchmeshmetric.metrics.DistanceStatisticsBase` for states and
+    DDP exactness.
 
     Args:
         two_sided: also measure reference → simplified (needs simplified meshes, not bare points).
         surface_samples: ``None`` (exact, default) or the paper's sampled-surface mode with ``N`` samples.
         seed: seed of the surface sampling.
         backend: kernel backend.
-        peak, ddof, exact_quantiles, relative_accuracy, kwargs: see :class:`DistanceStatisticsBase`.
+        peak, ddof, exact_quantiles, relative_accuracy, kwargs: see
+            :class:`~torchmeshmetric.metrics.DistanceStatisticsBase`.
 
     Example:
         >>> import torch, trimesh
@@ -140,43 +160,23 @@ class MeshSurfaceDistance(DistanceStatisticsBase):
         (1.5, 2.5)
     """
 
-    _state_prefix = "surf"
+    _forward_states = DistanceStates("surface_moments", "surface_values", "surface_sketch")
+    _reverse_states = DistanceStates("reverse_surface_moments", "reverse_surface_values", "reverse_surface_sketch")
+
+    _distance_sets = staticmethod(mesh_surface_distance_sets)
 
     def __init__(
-        self,
-        *,
-        two_sided: bool = False,
-        surface_samples: int | None = None,
-        seed: int = 0,
-        backend: str = "auto",
-        peak: float | None = None,
-        ddof: int = 0,
-        exact_quantiles: bool = True,
-        relative_accuracy: float = 1e-3,
-        **kwargs: Any,
+        self, *, surface_samples: int | None = None, seed: int = 0, backend: str = "auto", **kwargs: Any
     ) -> None:
         check_surface_samples(surface_samples)
-        super().__init__(
-            two_sided=two_sided,
-            peak=peak,
-            ddof=ddof,
-            exact_quantiles=exact_quantiles,
-            relative_accuracy=relative_accuracy,
-            **kwargs,
-        )
+        super().__init__(**kwargs)
         self.surface_samples = surface_samples
         self.seed = int(seed)
         self.backend = backend
+        self._options = {"surface_samples": surface_samples, "seed": self.seed, "backend": backend}
 
-    def update(self, simplified: Any, reference: Any) -> None:
-        """Measure a simplified mesh (or point set), or a list of them, against the reference mesh(es)."""
-        with torch.no_grad():
-            r = mesh_surface_distances(
-                simplified,
-                reference,
-                two_sided=self.two_sided,
-                surface_samples=self.surface_samples,
-                seed=self.seed,
-                backend=self.backend,
-            )
-        self._accumulate_directed(r)
+
+__getattr__ = deprecated_names(
+    __name__,
+    {"mesh_surface_distances": ("torchmeshmetric.metrics.mesh_surface_distance_sets", mesh_surface_distance_sets)},
+)

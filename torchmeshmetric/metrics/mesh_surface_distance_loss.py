@@ -2,14 +2,17 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from torch import Tensor, nn
+from torch import Tensor
 
 from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.metrics._inputs import check_surface_samples
-from torchmeshmetric.metrics._reduction import check_loss_args, reduce_directed
-from torchmeshmetric.metrics.mesh_surface_distance import mesh_surface_distances
+from torchmeshmetric.metrics._loss import DistanceLossModule, check_loss_args, check_options, reduce_directed
+from torchmeshmetric.metrics.mesh_surface_distance import SurfaceDistanceOptions, mesh_surface_distance_sets
+
+if TYPE_CHECKING:  # typing.Unpack needs Python 3.11; annotations are not evaluated at run time
+    from typing_extensions import Unpack
 
 __all__ = ["MeshSurfaceDistanceLoss", "mesh_surface_distance_loss"]
 
@@ -20,14 +23,9 @@ def mesh_surface_distance_loss(
     *,
     power: float = 1.0,
     reduction: str = "mean",
-    two_sided: bool = False,
-    detach_reference: bool = True,
-    surface_samples: int | None = None,
-    seed: int = 0,
-    backend: str = "auto",
-    indexes: IndexCache | None = None,
+    **options: Unpack[SurfaceDistanceOptions],
 ) -> Tensor:
-    r"""Loss on the mesh surface distances ``d`` of :func:`~torchmeshmetric.metrics.mesh_surface_distances`.
+    r"""Loss on the mesh surface distances ``d`` of :func:`~torchmeshmetric.metrics.mesh_surface_distance_sets`.
 
     .. math::
 
@@ -40,18 +38,16 @@ def mesh_surface_distance_loss(
     gradient is finite (zero) for points lying exactly on the surface.
 
     Args:
-        simplified: mesh-like, ``(P, 3)`` points, or a list (ragged batch); see :func:`mesh_surface_distances`.
+        simplified: mesh-like, ``(P, 3)`` points, or a list (ragged batch); see :func:`mesh_surface_distance_sets`.
         reference: reference mesh-like or list.
         power: exponent ``p`` applied to each distance (> 0).
         reduction: ``"mean"`` (pooled mean per direction, directions added), ``"sum"`` or ``"none"`` (packed
             per-point terms, forward then reverse; ``none.sum() == sum``).
-        two_sided: add the reverse direction (reference vertices → simplified surface).
-        detach_reference: cut the gradient to the reference vertices (default ``True``).
-        surface_samples: ``None`` (exact surface) or the paper's sampled-surface mode with ``N`` samples.
-        seed: seed of the surface sampling.
-        backend: kernel backend (``"auto"``, ``"bruteforce"``, ...).
-        indexes: an :class:`~torchmeshmetric.IndexCache` for the references (see :class:`MeshSurfaceDistanceLoss`,
-            which keeps one).
+        options: the options of :func:`mesh_surface_distance_sets` (:class:`SurfaceDistanceOptions`):
+            ``two_sided`` (add the reverse direction, reference vertices → simplified surface), ``detach_reference``
+            (cut the gradient to the reference vertices, default ``True``), ``surface_samples`` (``None``: exact
+            surface; or the paper's sampled-surface mode with ``N`` samples), ``seed``, ``backend``, ``indexes``
+            (an :class:`~torchmeshmetric.IndexCache` for the references; :class:`MeshSurfaceDistanceLoss` keeps one).
 
     Returns:
         A 0-dim loss, or ``(P [+ R],)`` per-point terms for ``reduction="none"``.
@@ -59,6 +55,7 @@ def mesh_surface_distance_loss(
     Raises:
         EmptyInputError: ``reduction="mean"`` on a batch without any point (``"sum"`` gives 0, ``"none"`` an
             empty tensor).
+        TypeError: an option that :func:`mesh_surface_distance_sets` does not take.
 
     Example:
         >>> import torch, trimesh
@@ -70,24 +67,16 @@ def mesh_surface_distance_loss(
         (4.0, [0.0, 0.0, 4.0])
     """
     check_loss_args(reduction, power)
-    r = mesh_surface_distances(
-        simplified,
-        reference,
-        two_sided=two_sided,
-        surface_samples=surface_samples,
-        seed=seed,
-        detach_reference=detach_reference,
-        backend=backend,
-        indexes=indexes,
-    )
-    return reduce_directed(r, power, reduction)
+    check_options(options, SurfaceDistanceOptions, "mesh_surface_distance_loss")
+    return reduce_directed(mesh_surface_distance_sets(simplified, reference, **options), power, reduction)
 
 
-class MeshSurfaceDistanceLoss(nn.Module):
-    """``nn.Module`` form of :func:`mesh_surface_distance_loss` (arguments checked at construction).
+class MeshSurfaceDistanceLoss(DistanceLossModule):
+    """``nn.Module`` form of :func:`mesh_surface_distance_loss` (same arguments, checked at construction).
 
-    Keeps an :class:`~torchmeshmetric.IndexCache` of the reference meshes: training or validating every epoch on
-    the same references builds each reference's index once (found again by content, any tensor object).
+    Keeps an :class:`~torchmeshmetric.IndexCache` of the reference meshes (unless ``indexes`` is given): training or
+    validating every epoch on the same references builds each reference's index once (found again by content, any
+    tensor object).
 
     Example:
         >>> import torch, trimesh
@@ -97,39 +86,8 @@ class MeshSurfaceDistanceLoss(nn.Module):
     """
 
     def __init__(
-        self,
-        *,
-        power: float = 1.0,
-        reduction: str = "mean",
-        two_sided: bool = False,
-        detach_reference: bool = True,
-        surface_samples: int | None = None,
-        seed: int = 0,
-        backend: str = "auto",
+        self, *, power: float = 1.0, reduction: str = "mean", **options: Unpack[SurfaceDistanceOptions]
     ) -> None:
-        super().__init__()
-        check_loss_args(reduction, power)
-        check_surface_samples(surface_samples)
-        self.power = power
-        self.reduction = reduction
-        self.two_sided = two_sided
-        self.detach_reference = detach_reference
-        self.surface_samples = surface_samples
-        self.seed = seed
-        self.backend = backend
-        self.indexes = IndexCache()
-
-    def forward(self, simplified: Any, reference: Any) -> Tensor:
-        """Loss of ``simplified`` against ``reference`` (see :func:`mesh_surface_distance_loss`)."""
-        return mesh_surface_distance_loss(
-            simplified,
-            reference,
-            power=self.power,
-            reduction=self.reduction,
-            two_sided=self.two_sided,
-            detach_reference=self.detach_reference,
-            surface_samples=self.surface_samples,
-            seed=self.seed,
-            backend=self.backend,
-            indexes=self.indexes,
-        )
+        check_options(options, SurfaceDistanceOptions, type(self).__name__)
+        check_surface_samples(options.get("surface_samples"))
+        super().__init__(mesh_surface_distance_loss, power, reduction, {"indexes": IndexCache(), **options})

@@ -2,17 +2,30 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, TypedDict
 
 import torch
 from torch import Tensor
 
+from torchmeshmetric._deprecation import deprecated_names
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance
 from torchmeshmetric.metrics._inputs import as_point_sources
 from torchmeshmetric.metrics.directed_distances import DirectedDistances, lengths_of
-from torchmeshmetric.metrics.distance_statistics_metric import DistanceStatisticsBase
+from torchmeshmetric.metrics.distance_states import DistanceStates
+from torchmeshmetric.metrics.distance_statistics_metric import MeasuredDistanceBase
 
-__all__ = ["NearestVertexDistance", "nearest_vertex_distances"]
+__all__ = ["NearestVertexDistance", "NearestVertexOptions", "nearest_vertex_distance_sets"]
+
+
+class NearestVertexOptions(TypedDict, total=False):
+    """The keyword options of :func:`nearest_vertex_distance_sets`, which its loss function and module take too.
+
+    The defaults and meanings are those of :func:`nearest_vertex_distance_sets`.
+    """
+
+    two_sided: bool
+    detach_reference: bool
+    backend: str
 
 
 def _cloud_to_cloud(points: list[Tensor], refs: list[Tensor], backend: str) -> Tensor:
@@ -30,7 +43,7 @@ def _bbox_diagonal(p: Tensor) -> Tensor:
     return (q.amax(0) - q.amin(0)).to(torch.float64).norm().to(q.dtype) if q.shape[0] else q.new_zeros(())
 
 
-def nearest_vertex_distances(
+def nearest_vertex_distance_sets(
     simplified: Any,
     reference: Any,
     *,
@@ -38,7 +51,9 @@ def nearest_vertex_distances(
     detach_reference: bool = True,
     backend: str = "auto",
 ) -> DirectedDistances:
-    """Nearest vertex distances of a simplified mesh (or point set) to a reference vertex set, single or batched.
+    """The nearest vertex distance sets (forward, and reverse when two-sided) of a simplified mesh to a reference.
+
+    Works on one item or a ragged batch; the per-point distances come back packed, one set per direction.
 
     Forward (paper Eq. 5): from every simplified vertex (those referenced by a face, paper Eq. 3) or given point,
     the distance to the nearest reference vertex. Reverse (``two_sided=True``): from every reference vertex to
@@ -57,7 +72,7 @@ def nearest_vertex_distances(
 
     Example:
         >>> import torch
-        >>> r = nearest_vertex_distances(torch.tensor([[0.0, 0, 0]]), torch.tensor([[3.0, 4, 0], [0, 0, 6]]))
+        >>> r = nearest_vertex_distance_sets(torch.tensor([[0.0, 0, 0]]), torch.tensor([[3.0, 4, 0], [0, 0, 6]]))
         >>> r.forward.tolist()
         [5.0]
     """
@@ -78,11 +93,11 @@ def nearest_vertex_distances(
     return DirectedDistances(forward, lengths_of(points), reverse, reverse_lengths, peak)
 
 
-class NearestVertexDistance(DistanceStatisticsBase):
+class NearestVertexDistance(MeasuredDistanceBase):
     """Statistics of the nearest vertex distance (paper Eq. 5), accumulated over batches and processes.
 
     ``update(simplified, reference)`` measures every simplified vertex against the nearest reference vertex (see
-    :func:`nearest_vertex_distances`); ``compute()`` returns the same dict of 0-dim float64 tensors as
+    :func:`nearest_vertex_distance_sets`); ``compute()`` returns the same dict of 0-dim float64 tensors as
     :class:`~torchmeshmetric.metrics.MeshSurfaceDistance` (``reverse_*`` and ``symmetric_*``/``hausdorff`` with
     ``two_sided=True``). The default PSNR peak is the largest reference bounding-box diagonal seen.
 
@@ -101,31 +116,23 @@ class NearestVertexDistance(DistanceStatisticsBase):
         (5.0, 5.5, 6.0)
     """
 
-    _state_prefix = "vert"
+    _forward_states = DistanceStates("vertex_moments", "vertex_values", "vertex_sketch")
+    _reverse_states = DistanceStates("reverse_vertex_moments", "reverse_vertex_values", "reverse_vertex_sketch")
 
-    def __init__(
-        self,
-        *,
-        two_sided: bool = False,
-        backend: str = "auto",
-        peak: float | None = None,
-        ddof: int = 0,
-        exact_quantiles: bool = True,
-        relative_accuracy: float = 1e-3,
-        **kwargs: Any,
-    ) -> None:
-        super().__init__(
-            two_sided=two_sided,
-            peak=peak,
-            ddof=ddof,
-            exact_quantiles=exact_quantiles,
-            relative_accuracy=relative_accuracy,
-            **kwargs,
-        )
+    _distance_sets = staticmethod(nearest_vertex_distance_sets)
+
+    def __init__(self, *, backend: str = "auto", **kwargs: Any) -> None:
+        super().__init__(**kwargs)
         self.backend = backend
+        self._options = {"backend": backend}
 
-    def update(self, simplified: Any, reference: Any) -> None:
-        """Measure a simplified mesh (or point set), or a list of them, against the reference(s)."""
-        with torch.no_grad():
-            r = nearest_vertex_distances(simplified, reference, two_sided=self.two_sided, backend=self.backend)
-        self._accumulate_directed(r)
+
+__getattr__ = deprecated_names(
+    __name__,
+    {
+        "nearest_vertex_distances": (
+            "torchmeshmetric.metrics.nearest_vertex_distance_sets",
+            nearest_vertex_distance_sets,
+        )
+    },
+)

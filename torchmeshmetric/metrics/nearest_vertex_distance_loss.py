@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from torch import Tensor, nn
+from torch import Tensor
 
-from torchmeshmetric.metrics._reduction import check_loss_args, reduce_directed
-from torchmeshmetric.metrics.nearest_vertex_distance import nearest_vertex_distances
+from torchmeshmetric.metrics._loss import DistanceLossModule, check_loss_args, check_options, reduce_directed
+from torchmeshmetric.metrics.nearest_vertex_distance import NearestVertexOptions, nearest_vertex_distance_sets
+
+if TYPE_CHECKING:  # typing.Unpack needs Python 3.11; annotations are not evaluated at run time
+    from typing_extensions import Unpack
 
 __all__ = ["NearestVertexDistanceLoss", "nearest_vertex_distance_loss"]
 
@@ -18,11 +21,9 @@ def nearest_vertex_distance_loss(
     *,
     power: float = 1.0,
     reduction: str = "mean",
-    two_sided: bool = False,
-    detach_reference: bool = True,
-    backend: str = "auto",
+    **options: Unpack[NearestVertexOptions],
 ) -> Tensor:
-    """Loss on the nearest vertex distances ``d`` of :func:`~torchmeshmetric.metrics.nearest_vertex_distances`.
+    """Loss on the nearest vertex distances ``d`` of :func:`~torchmeshmetric.metrics.nearest_vertex_distance_sets`.
 
     ``mean``: pooled mean of ``d ** power`` over all simplified points (plus, two-sided, the pooled mean over all
     reference points: the Chamfer distance for ``power=2``); ``sum``; ``none``: packed per-point terms, forward then
@@ -33,9 +34,9 @@ def nearest_vertex_distance_loss(
         reference: mesh-like (its vertex set) or ``(R, 3)`` points, or a list.
         power: exponent applied to each distance (> 0).
         reduction: ``"mean"``, ``"sum"`` or ``"none"``.
-        two_sided: add the reverse direction (reference points → nearest simplified point).
-        detach_reference: cut the gradient to the reference points (default ``True``).
-        backend: kernel backend (``"auto"``, ``"bruteforce"``, ...).
+        options: the options of :func:`nearest_vertex_distance_sets` (:class:`NearestVertexOptions`):
+            ``two_sided`` (add the reverse direction, reference points → nearest simplified point),
+            ``detach_reference`` (cut the gradient to the reference points, default ``True``), ``backend``.
 
     Returns:
         A 0-dim loss, or the per-point terms for ``reduction="none"``.
@@ -43,6 +44,7 @@ def nearest_vertex_distance_loss(
     Raises:
         EmptyInputError: ``reduction="mean"`` on a batch without any point (``"sum"`` gives 0, ``"none"`` an
             empty tensor).
+        TypeError: an option that :func:`nearest_vertex_distance_sets` does not take.
 
     Example:
         >>> import torch
@@ -53,14 +55,12 @@ def nearest_vertex_distance_loss(
         (5.0, [-0.6000000238418579, -0.800000011920929, 0.0])
     """
     check_loss_args(reduction, power)
-    r = nearest_vertex_distances(
-        simplified, reference, two_sided=two_sided, detach_reference=detach_reference, backend=backend
-    )
-    return reduce_directed(r, power, reduction)
+    check_options(options, NearestVertexOptions, "nearest_vertex_distance_loss")
+    return reduce_directed(nearest_vertex_distance_sets(simplified, reference, **options), power, reduction)
 
 
-class NearestVertexDistanceLoss(nn.Module):
-    """``nn.Module`` form of :func:`nearest_vertex_distance_loss`.
+class NearestVertexDistanceLoss(DistanceLossModule):
+    """``nn.Module`` form of :func:`nearest_vertex_distance_loss` (same arguments, checked at construction).
 
     Example:
         >>> import torch
@@ -68,31 +68,6 @@ class NearestVertexDistanceLoss(nn.Module):
         25.0
     """
 
-    def __init__(
-        self,
-        *,
-        power: float = 1.0,
-        reduction: str = "mean",
-        two_sided: bool = False,
-        detach_reference: bool = True,
-        backend: str = "auto",
-    ) -> None:
-        super().__init__()
-        check_loss_args(reduction, power)
-        self.power = power
-        self.reduction = reduction
-        self.two_sided = two_sided
-        self.detach_reference = detach_reference
-        self.backend = backend
-
-    def forward(self, simplified: Any, reference: Any) -> Tensor:
-        """Loss of ``simplified`` against ``reference`` (see :func:`nearest_vertex_distance_loss`)."""
-        return nearest_vertex_distance_loss(
-            simplified,
-            reference,
-            power=self.power,
-            reduction=self.reduction,
-            two_sided=self.two_sided,
-            detach_reference=self.detach_reference,
-            backend=self.backend,
-        )
+    def __init__(self, *, power: float = 1.0, reduction: str = "mean", **options: Unpack[NearestVertexOptions]) -> None:
+        check_options(options, NearestVertexOptions, type(self).__name__)
+        super().__init__(nearest_vertex_distance_loss, power, reduction, options)

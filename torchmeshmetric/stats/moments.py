@@ -23,7 +23,7 @@ from torch import Tensor
 
 from torchmeshmetric.structures import batch_index
 
-__all__ = ["Moments", "merge_mean_m2", "merge_moments", "moments_of"]
+__all__ = ["Moments", "merge_into_row", "merge_mean_m2", "merge_moments", "merge_rows", "moments_of", "moments_rows"]
 
 
 class Moments(NamedTuple):
@@ -116,3 +116,47 @@ def merge_mean_m2(count: Tensor, mean: Tensor, m2: Tensor, dim: int = 0) -> tupl
     new_mean = torch.where(n > 0, (count * mean).sum(dim) / n.clamp_min(1.0), torch.zeros_like(n))
     dev = torch.where(count > 0, mean - new_mean.unsqueeze(dim), torch.zeros_like(mean))
     return n, new_mean, m2.sum(dim) + (count * dev * dev).sum(dim)
+
+
+def moments_rows(moments: Moments) -> Tensor:
+    """``(R, 6)`` float64 rows of :class:`Moments` with ``(R,)`` fields (``(1, 6)`` for 0-dim fields).
+
+    Columns follow the field order ``count, mean, m2, sumsq, min, max``: the form in which a ``torchmetrics`` state
+    (``dist_reduce_fx="cat"``) holds partial moments, one row per update, ``forward()`` call or process.
+
+    Example:
+        >>> import torch
+        >>> moments_rows(moments_of(torch.tensor([1.0, 3.0]))).tolist()
+        [[2.0, 2.0, 2.0, 10.0, 1.0, 3.0]]
+    """
+    return torch.stack([t.to(torch.float64) for t in moments], dim=-1).reshape(-1, len(Moments._fields))
+
+
+def merge_rows(rows: Tensor) -> Moments:
+    """Merge ``(R, 6)`` rows of partial moments (see :func:`moments_rows`) into 0-dim :class:`Moments`.
+
+    ``R = 0`` gives the empty summary (``count = 0``, ``min = +inf``, ``max = -inf``).
+
+    Example:
+        >>> import torch
+        >>> rows = torch.cat([moments_rows(moments_of(torch.tensor(x))) for x in ([1.0, 2.0], [3.0])])
+        >>> m = merge_rows(rows)
+        >>> m.count.item(), m.mean.item(), m.m2.item()
+        (3.0, 2.0, 2.0)
+    """
+    return merge_moments(Moments(*rows.unbind(-1)))
+
+
+def merge_into_row(rows: Tensor, part: Moments) -> Tensor:
+    """Merge the 0-dim moments ``part`` into ``(R, 6)`` rows: one ``(1, 6)`` row, on the device of ``rows``.
+
+    One update of a streaming summary: the rows (none, one, or several after a DDP gather or a ``forward()``) and the
+    new part are merged with Chan et al.'s formula, so the state stays one row however many updates it sees.
+
+    Example:
+        >>> import torch
+        >>> row = merge_into_row(torch.zeros(0, 6, dtype=torch.float64), moments_of(torch.tensor([1.0, 2.0])))
+        >>> merge_into_row(row, moments_of(torch.tensor([3.0])))[0, :3].tolist()
+        [3.0, 2.0, 2.0]
+    """
+    return moments_rows(merge_rows(torch.cat([rows, moments_rows(part).to(rows.device)])))

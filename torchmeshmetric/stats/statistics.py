@@ -28,7 +28,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import EmptyInputError, NonFiniteError, check_lengths, check_shape
+from torchmeshmetric._checks import EmptyInputError, check_finite, check_lengths, check_shape
 from torchmeshmetric.stats.moments import Moments, moments_of
 from torchmeshmetric.stats.sketch import QuantileSketch
 from torchmeshmetric.structures import batch_index, lengths_to_offsets
@@ -95,6 +95,18 @@ class DistanceStatistics(NamedTuple):
                 continue
             out[name] = int(value.item()) if name == "count" else float(value.item())
         return out
+
+    def as_tensors(self) -> dict[str, Tensor]:
+        """The statistics as a dict of float64 tensors (``count`` too), for ``torchmetrics`` and ``log_dict``.
+
+        ``psnr`` is omitted when it is ``None``.
+
+        Example:
+            >>> s = distance_statistics(torch.tensor([3.0, 4.0]))
+            >>> s.as_tensors()["count"]
+            tensor(2., dtype=torch.float64)
+        """
+        return {name: v.to(torch.float64) for name, v in zip(self._fields, self, strict=True) if v is not None}
 
     def unbind(self) -> list[DistanceStatistics]:
         """Split ``(B,)`` statistics into ``B`` single-set statistics."""
@@ -249,22 +261,94 @@ def distance_statistics(
             check_shape(t, ("N",), f"dists[{i}]")
         lengths = torch.tensor([t.shape[0] for t in items], device=items[0].device)
         d = torch.cat([t.to(torch.float64) for t in items])
-    if d.is_complex() or not (d.is_floating_point() or d.dtype in (torch.int32, torch.int64)):
-        raise TypeError(f"dists: expected a real tensor, found dtype {d.dtype}")
-    if d.numel() and not bool(torch.isfinite(d).all()):
-        raise NonFiniteError(f"dists: expected finite values, found {int((~torch.isfinite(d)).sum())} NaN/Inf value(s)")
-    if lengths is None and d.numel() == 0:
-        raise EmptyInputError("dists: expected at least one distance, found an empty tensor")
+    sketch = None if exact_quantiles else QuantileSketch(relative_accuracy)
+    if lengths is None:
+        moments, quantile_data = _distance_statistics_update(d, sketch)
+        if d.numel() == 0:
+            raise EmptyInputError("dists: expected at least one distance, found an empty tensor")
+        return _distance_statistics_compute(moments, quantile_data, sketch=sketch, ddof=ddof, peak=peak)
+    _check_distances(d, "dists")
     mom = moments_of(d, lengths)
-    if exact_quantiles:
+    if sketch is None:
         qv = linear_quantiles(d, QUANTILE_LEVELS, lengths)
     else:
-        sk = QuantileSketch(relative_accuracy)
         q = torch.tensor(QUANTILE_LEVELS, dtype=torch.float64, device=d.device)
-        if lengths is None:
-            qv = sk.quantile(sk.counts(d), q, mom.min, mom.max)
-        else:
-            b = batch_index(lengths.to(d.device, torch.long))
-            rows = [sk.quantile(sk.counts(d[b == i]), q, mom.min[i], mom.max[i]) for i in range(int(lengths.numel()))]
-            qv = torch.stack(rows) if rows else d.new_zeros((0, 3), dtype=torch.float64)
+        b = batch_index(lengths.to(d.device, torch.long))
+        rows = [
+            sketch.quantile(sketch.counts(d[b == i]), q, mom.min[i], mom.max[i]) for i in range(int(lengths.numel()))
+        ]
+        qv = torch.stack(rows) if rows else d.new_zeros((0, 3), dtype=torch.float64)
     return statistics_from_parts(mom, qv, ddof=ddof, peak=peak)
+
+
+def _check_distances(dists: Tensor, name: str) -> None:
+    """Require real (float or int) and finite distances."""
+    if dists.is_complex() or not (dists.is_floating_point() or dists.dtype in (torch.int32, torch.int64)):
+        raise TypeError(f"{name}: expected a real tensor, found dtype {dists.dtype}")
+    check_finite(dists, name)
+
+
+def _distance_statistics_update(
+    dists: Tensor, sketch: QuantileSketch | None = None, name: str = "dists"
+) -> tuple[Moments, Tensor]:
+    """Check one ``(N,)`` distance set and return its sufficient statistics (``N`` may be 0).
+
+    The ``_update`` half of :func:`distance_statistics` (torchmetrics' functional shape): every accumulator of
+    distances (:class:`~torchmeshmetric.stats.DistanceAccumulator`, the metrics of :mod:`torchmeshmetric.metrics`,
+    :class:`~torchmeshmetric.evaluation.TemporalConsistency`) passes each batch through it and keeps what it returns.
+
+    Args:
+        dists: ``(N,)`` distances (float or int).
+        sketch: ``None`` for exact quantiles, else the sketch whose counts estimate them.
+        name: the argument's name in error messages.
+
+    Returns:
+        ``(moments, quantile_data)``: the set's 0-dim float64 :class:`~torchmeshmetric.stats.moments.Moments`, and
+        what its quantiles are computed from: the ``(N,)`` float64 distances (``sketch=None``) or the sketch's
+        ``(num_bins,)`` counts. Both merge across batches: moments by :func:`~torchmeshmetric.stats.merge_moments`,
+        distances by concatenation, counts by addition.
+
+    Raises:
+        ShapeError: ``dists`` is not 1-D.
+        TypeError: ``dists`` is not real.
+        NonFiniteError: a distance is NaN or Inf.
+    """
+    check_shape(dists, ("N",), name)
+    _check_distances(dists, name)
+    d = dists.detach().to(torch.float64)
+    return moments_of(d), d if sketch is None else sketch.counts(d)
+
+
+def _distance_statistics_compute(
+    moments: Moments,
+    quantile_data: Tensor,
+    *,
+    sketch: QuantileSketch | None = None,
+    ddof: int = 0,
+    peak: float | Tensor | None = None,
+) -> DistanceStatistics:
+    """Finish the statistics of one set from merged moments and its quantile data (the ``_compute`` half).
+
+    Args:
+        moments: 0-dim :class:`~torchmeshmetric.stats.moments.Moments` of the whole set (merged).
+        quantile_data: the set's float64 distances (``sketch=None``) or its ``(num_bins,)`` sketch counts, as
+            :func:`_distance_statistics_update` returns them (concatenated or added over batches).
+        sketch: the sketch that made the counts, ``None`` for exact quantiles.
+        ddof: delta degrees of freedom of ``var``/``std``.
+        peak: PSNR peak, or ``None`` (no PSNR).
+
+    Returns:
+        0-dim :class:`DistanceStatistics`.
+
+    Example:
+        >>> import torch
+        >>> s = _distance_statistics_compute(*_distance_statistics_update(torch.tensor([1.0, 2.0, 3.0, 4.0])))
+        >>> s.ave.item(), s.var.item(), s.median.item()
+        (2.5, 1.25, 2.5)
+    """
+    if sketch is None:
+        quantiles = linear_quantiles(quantile_data, QUANTILE_LEVELS)
+    else:
+        q = torch.tensor(QUANTILE_LEVELS, dtype=torch.float64, device=quantile_data.device)
+        quantiles = sketch.quantile(quantile_data, q, moments.min, moments.max)
+    return statistics_from_parts(moments, quantiles, ddof=ddof, peak=peak)

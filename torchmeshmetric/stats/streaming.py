@@ -5,14 +5,13 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import EmptyInputError, NonFiniteError, check_shape
-from torchmeshmetric.stats.moments import Moments, merge_moments, moments_of
+from torchmeshmetric._checks import EmptyInputError
+from torchmeshmetric.stats.moments import Moments, merge_into_row, moments_of, moments_rows
 from torchmeshmetric.stats.sketch import QuantileSketch
 from torchmeshmetric.stats.statistics import (
-    QUANTILE_LEVELS,
     DistanceStatistics,
-    linear_quantiles,
-    statistics_from_parts,
+    _distance_statistics_compute,
+    _distance_statistics_update,
 )
 
 __all__ = ["DistanceAccumulator"]
@@ -26,7 +25,9 @@ class DistanceAccumulator:
     ``8 N`` bytes), otherwise estimated by a fixed-size :class:`~torchmeshmetric.stats.sketch.QuantileSketch` whose
     estimates are within relative error ``relative_accuracy`` of the exact order statistics.
     ``compute()`` equals :func:`~torchmeshmetric.stats.distance_statistics` on the concatenated data (to float64
-    rounding), whatever the batching or merge order.
+    rounding), whatever the batching or merge order: every batch passes through the same checks and sufficient
+    statistics (``_distance_statistics_update``) and the result is finished by the same ``_distance_statistics_compute``
+    as that function and the ``torchmetrics`` metrics.
 
     Args:
         exact_quantiles: keep the values for exact quantiles (default) or use the sketch.
@@ -48,35 +49,34 @@ class DistanceAccumulator:
 
     def reset(self) -> None:
         """Forget everything accumulated."""
-        empty = torch.zeros(0, dtype=torch.float64)
-        self._moments: Moments = moments_of(empty)
+        # One (1, 6) row of merged moments, starting from the empty (neutral) summary.
+        self._row: Tensor = moments_rows(moments_of(torch.zeros(0, dtype=torch.float64)))
         self._values: list[Tensor] = []
         self._counts: Tensor | None = None
 
     @property
+    def _sketch(self) -> QuantileSketch | None:
+        return None if self.exact_quantiles else self.sketch
+
+    @property
     def count(self) -> int:
         """Number of distances accumulated."""
-        return int(self._moments.count.item())
+        return int(self._row[0, 0].item())
 
     @property
     def moments(self) -> Moments:
         """The merged :class:`~torchmeshmetric.stats.moments.Moments` (0-dim float64 fields)."""
-        return self._moments
+        return Moments(*self._row[0])
 
     def update(self, dists: Tensor) -> DistanceAccumulator:
         """Add a ``(N,)`` tensor of distances (``N`` may be 0). Returns ``self``."""
-        check_shape(dists, ("N",), "dists")
-        d = dists.detach().to(torch.float64)
-        if d.numel() == 0:
+        moments, quantile_data = _distance_statistics_update(dists, self._sketch)
+        if dists.numel() == 0:
             return self
-        if not bool(torch.isfinite(d).all()):
-            raise NonFiniteError(f"dists: expected finite values, found {int((~torch.isfinite(d)).sum())} NaN/Inf")
-        self._merge_moments(moments_of(d))
-        if self.exact_quantiles:
-            self._values.append(d)
+        if self._sketch is None:
+            self._add(moments, [quantile_data], None)
         else:
-            c = self.sketch.counts(d)
-            self._counts = c if self._counts is None else self._counts.to(c.device) + c
+            self._add(moments, [], quantile_data)
         return self
 
     def merge(self, other: DistanceAccumulator) -> DistanceAccumulator:
@@ -85,18 +85,14 @@ class DistanceAccumulator:
             not self.exact_quantiles and other.sketch.num_bins != self.sketch.num_bins
         ):
             raise ValueError("other: expected an accumulator with the same quantile mode and sketch accuracy")
-        self._merge_moments(other._moments)
-        self._values.extend(other._values)
-        if other._counts is not None:
-            self._counts = (
-                other._counts.clone() if self._counts is None else self._counts + other._counts.to(self._counts.device)
-            )
+        self._add(other.moments, other._values, other._counts)
         return self
 
-    def _merge_moments(self, m: Moments) -> None:
-        dev = m.count.device
-        rows = Moments(*[torch.stack([a.to(dev), b]) for a, b in zip(self._moments, m, strict=True)])
-        self._moments = merge_moments(rows)
+    def _add(self, moments: Moments, values: list[Tensor], counts: Tensor | None) -> None:
+        self._row = merge_into_row(self._row.to(moments.count.device), moments)
+        self._values.extend(values)
+        if counts is not None:
+            self._counts = counts.clone() if self._counts is None else self._counts + counts.to(self._counts.device)
 
     def compute(self, *, ddof: int = 0, peak: float | Tensor | None = None) -> DistanceStatistics:
         """Statistics of everything accumulated (see :func:`~torchmeshmetric.stats.distance_statistics`).
@@ -106,12 +102,10 @@ class DistanceAccumulator:
         """
         if self.count == 0:
             raise EmptyInputError("DistanceAccumulator.compute: no distances were accumulated")
-        m = self._moments
-        if self.exact_quantiles:
-            dev = m.count.device
-            qv = linear_quantiles(torch.cat([v.to(dev) for v in self._values]), QUANTILE_LEVELS)
+        m = self.moments
+        if self._sketch is None:
+            quantile_data = torch.cat([v.to(m.count.device) for v in self._values])
         else:
             assert self._counts is not None
-            q = torch.tensor(QUANTILE_LEVELS, dtype=torch.float64, device=self._counts.device)
-            qv = self.sketch.quantile(self._counts, q, m.min, m.max)
-        return statistics_from_parts(m, qv, ddof=ddof, peak=peak)
+            quantile_data = self._counts
+        return _distance_statistics_compute(m, quantile_data, sketch=self._sketch, ddof=ddof, peak=peak)

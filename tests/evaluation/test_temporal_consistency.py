@@ -5,7 +5,9 @@ import torch
 from torchmetrics import MetricCollection
 
 from tests.evaluation.eval_helpers import TranslationRegister
-from torchmeshmetric.evaluation import SET_NAMES, TemporalConsistency, evaluate_pair, flatten_statistics
+from torchmeshmetric import EmptyInputError
+from torchmeshmetric.evaluation import FLICKER, SET_NAMES, TemporalConsistency, evaluate_pair, flatten_statistics
+from torchmeshmetric.evaluation.temporal_consistency import _FORWARD_STATES, _REVERSE_STATES
 from torchmeshmetric.stats import distance_statistics
 
 
@@ -51,3 +53,29 @@ def test_metric_rejects_bad_arguments():
         TemporalConsistency(two_sided="yes")
     with pytest.raises(TypeError, match="register"):
         TemporalConsistency(register=3)
+
+
+def test_states_declared_for_every_set_and_merged_like_a_ddp_gather(moving_spheres):
+    original, simplified = moving_spheres
+    assert set(_FORWARD_STATES) == set(_REVERSE_STATES) == {*SET_NAMES, FLICKER}
+    whole, part_a, part_b = (TemporalConsistency(register=TranslationRegister()) for _ in range(3))
+    for k in range(1, 4):
+        whole.update(simplified[k], original[k], original[k - 1])
+        (part_a if k < 3 else part_b).update(simplified[k], original[k], original[k - 1])
+    part_a.merge_state(part_b)  # the reductions a DDP sync applies: moments rows and values concatenated
+    expected, merged = whole.compute(), part_a.compute()
+    for name in SET_NAMES:
+        for field, value in expected[name].items():
+            assert float(merged[name][field]) == pytest.approx(float(value), rel=1e-12, abs=1e-15), (name, field)
+
+
+@pytest.mark.filterwarnings("ignore:The ``compute`` method of metric TemporalConsistency was called before:UserWarning")
+def test_empty_compute_raises_and_old_module_name_warns():
+    with pytest.raises(EmptyInputError, match="no surface_k_minus_1 distances"):
+        TemporalConsistency(register=TranslationRegister()).compute()
+    from torchmeshmetric.evaluation import metric
+
+    with pytest.warns(DeprecationWarning, match="evaluation.metric.TemporalConsistency is deprecated"):
+        assert metric.TemporalConsistency is TemporalConsistency
+    with pytest.raises(AttributeError):
+        _ = metric.NotThere

@@ -1,9 +1,12 @@
-"""Loss reductions shared by the distance losses."""
+"""What the distance losses share: argument checks, the reduction, and the ``nn.Module`` that calls a loss."""
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
+from typing import Any
+
 import torch
-from torch import Tensor
+from torch import Tensor, nn
 
 from torchmeshmetric._checks import EmptyInputError
 from torchmeshmetric.metrics.directed_distances import DirectedDistances
@@ -17,6 +20,13 @@ def check_loss_args(reduction: str, power: float) -> None:
         raise ValueError(f"reduction: expected one of {REDUCTIONS}, found {reduction!r}")
     if not isinstance(power, (int, float)) or not power > 0:
         raise ValueError(f"power: expected a positive number (1: distance, 2: squared distance), found {power!r}")
+
+
+def check_options(options: Mapping[str, Any], allowed: type, owner: str) -> None:
+    """Refuse keyword options that are not keys of the ``TypedDict`` ``allowed`` (checked at construction)."""
+    unknown = sorted(set(options) - set(allowed.__annotations__))
+    if unknown:
+        raise TypeError(f"{owner}: unexpected option(s) {unknown}, expected some of {sorted(allowed.__annotations__)}")
 
 
 def reduce_directed(r: DirectedDistances, power: float, reduction: str) -> Tensor:
@@ -43,3 +53,33 @@ def reduce_directed(r: DirectedDistances, power: float, reduction: str) -> Tenso
     if reduction == "sum":
         return sum((t.sum() for t in powered), start=powered[0].new_zeros(()))
     return sum((t.mean() for t in powered), start=powered[0].new_zeros(()))
+
+
+class DistanceLossModule(nn.Module):
+    """``nn.Module`` form of a distance loss function: ``forward`` calls it with the options given at construction.
+
+    Args:
+        loss: the loss function, ``loss(simplified, reference, *, power, reduction, **options)``.
+        power: exponent of each distance.
+        reduction: ``"mean"``, ``"sum"`` or ``"none"``.
+        options: the loss function's other keyword arguments.
+    """
+
+    def __init__(self, loss: Callable[..., Tensor], power: float, reduction: str, options: Mapping[str, Any]) -> None:
+        super().__init__()
+        check_loss_args(reduction, power)
+        self._loss = loss
+        self.power = power
+        self.reduction = reduction
+        self.options = dict(options)
+
+    def forward(self, simplified: Any, reference: Any) -> Tensor:
+        """The loss of ``simplified`` against ``reference`` (see the loss function)."""
+        return self._loss(simplified, reference, power=self.power, reduction=self.reduction, **self.options)
+
+    def extra_repr(self) -> str:
+        """The loss's arguments (shown in ``repr``)."""
+        shown = {"power": self.power, "reduction": self.reduction} | {
+            k: v for k, v in self.options.items() if k != "indexes"
+        }
+        return ", ".join(f"{k}={v!r}" for k, v in shown.items())

@@ -1,0 +1,190 @@
+"""``TemporalConsistency``: the paper's evaluation as a ``torchmetrics.Metric`` for validation loops."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import torch
+from torch import Tensor
+from torchmetrics import Metric
+
+from torchmeshmetric.evaluation.cache import RegistrationCache
+from torchmeshmetric.evaluation.flicker import FLICKER
+from torchmeshmetric.evaluation.pipeline import RegisterFn, evaluate_pair
+from torchmeshmetric.evaluation.results import SET_NAMES
+from torchmeshmetric.kernels import IndexCache
+from torchmeshmetric.metrics.distance_states import DistanceStates
+from torchmeshmetric.structures import MeshLike
+
+__all__ = ["TemporalConsistency"]
+
+# The states of each set (paper Fig. 2, plus flicker), per direction, written out so that each can be found by name;
+# each is a distance set accumulated like the metrics' (see DistanceStates). Adding a set to SET_NAMES needs a row here.
+_FORWARD_STATES: dict[str, DistanceStates] = {
+    "surface_k_minus_1": DistanceStates("surface_k_minus_1_moments", "surface_k_minus_1_values"),
+    "surface_k": DistanceStates("surface_k_moments", "surface_k_values"),
+    "vertex_k_minus_1": DistanceStates("vertex_k_minus_1_moments", "vertex_k_minus_1_values"),
+    "vertex_k": DistanceStates("vertex_k_moments", "vertex_k_values"),
+    FLICKER: DistanceStates("flicker_moments", "flicker_values"),
+}
+_REVERSE_STATES: dict[str, DistanceStates] = {
+    "surface_k_minus_1": DistanceStates("reverse_surface_k_minus_1_moments", "reverse_surface_k_minus_1_values"),
+    "surface_k": DistanceStates("reverse_surface_k_moments", "reverse_surface_k_values"),
+    "vertex_k_minus_1": DistanceStates("reverse_vertex_k_minus_1_moments", "reverse_vertex_k_minus_1_values"),
+    "vertex_k": DistanceStates("reverse_vertex_k_moments", "reverse_vertex_k_values"),
+    FLICKER: DistanceStates("reverse_flicker_moments", "reverse_flicker_values"),
+}
+
+
+class TemporalConsistency(Metric):
+    """Temporal consistency of simplified frames (paper Fig. 2) accumulated over validation steps.
+
+    Each :meth:`update` evaluates one simplified frame ``k`` against original frames ``k`` and ``k-1`` with
+    :func:`~torchmeshmetric.evaluation.evaluate_pair` (registration of ``k-1`` onto ``k`` cached in memory per
+    original pair, keyed by content, so validating every epoch on the same frames registers each pair once) and
+    accumulates the four distance sets, each in the states of one distance set as the metrics of
+    :mod:`torchmeshmetric.metrics` keep them (merged moments and the values, see
+    :class:`~torchmeshmetric.metrics.distance_states.DistanceStates`). :meth:`compute` pools all updates (and all
+    processes under DDP) and returns ``{set_name: {statistic: tensor}}`` for the four sets, plus ``"reverse"``
+    when two-sided. Pooling differs from the sequence report's aggregate, which averages per-pair statistics as the
+    paper's Tables III/IV do. Use :func:`~torchmeshmetric.evaluation.flatten_statistics` for ``log_dict``.
+
+    With ``flicker=True`` the metric also accumulates the ``flicker`` set (the simplified frame ``k`` against the
+    simplified frame ``k-1`` moved onto frame ``k`` by the registration, see
+    :mod:`~torchmeshmetric.evaluation.flicker`): every :meth:`update` then takes ``simplified_k_minus_1`` too (the
+    model's output for the previous frame), and :meth:`compute` returns a ``"flicker"`` entry. The choice is made
+    once, at construction, so that every process of a DDP run holds the same states.
+
+    Args:
+        two_sided: also accumulate the reverse (reference → simplified) sets (default ``True``).
+        flicker: also accumulate the ``flicker`` set (default ``False``; each update then needs
+            ``simplified_k_minus_1``).
+        register: registration function (default: the library's non-rigid registration).
+        register_options: options of the default registration.
+        backend: kernel backend of the distances and of the default registration (``"auto"``, ``"bvh"``, ...).
+        kwargs: passed to :class:`torchmetrics.Metric`.
+
+    Example:
+        >>> import trimesh
+        >>> sphere = trimesh.creation.icosphere(subdivisions=2)
+        >>> coarse = trimesh.creation.icosphere(subdivisions=1)
+        >>> metric = TemporalConsistency(register=lambda src, dst: src)
+        >>> metric.update(coarse, sphere, sphere)
+        >>> out = metric.compute()
+        >>> sorted(out)
+        ['reverse', 'surface_k', 'surface_k_minus_1', 'vertex_k', 'vertex_k_minus_1']
+        >>> vertex_k = out["vertex_k"]
+        >>> float(vertex_k["max"]) < 1e-12  # coarse icosphere vertices lie on the fine one
+        True
+        >>> stable = TemporalConsistency(flicker=True, register=lambda src, dst: src)
+        >>> stable.update(coarse, sphere, sphere, simplified_k_minus_1=coarse)
+        >>> flicker = stable.compute()["flicker"]
+        >>> float(flicker["max"]) < 1e-12  # the same simplification twice: no flicker
+        True
+    """
+
+    is_differentiable = False
+    higher_is_better = False
+    full_state_update = False
+    peak: Tensor
+
+    def __init__(
+        self,
+        *,
+        two_sided: bool = True,
+        register: RegisterFn | Any | None = None,
+        register_options: Mapping[str, Any] | None = None,
+        backend: str = "auto",
+        flicker: bool = False,
+        **kwargs: Any,
+    ) -> None:
+        super().__init__(**kwargs)
+        for name, flag in (("two_sided", two_sided), ("flicker", flicker)):
+            if not isinstance(flag, bool):
+                raise TypeError(f"{name}: expected a bool, found {type(flag).__name__}")
+        if register is not None and not callable(register):
+            raise TypeError(f"register: expected a callable or None, found {type(register).__name__}")
+        self.two_sided = two_sided
+        self.register = register
+        self.register_options = dict(register_options or {})
+        self.cache = RegistrationCache()
+        self.backend = backend
+        # One index per reference mesh, found again by content: validating every epoch on the same frames builds
+        # each reference's structure once.
+        self.indexes = IndexCache(max_entries=64)
+        self.measure_flicker = flicker
+        self._set_names = SET_NAMES + ((FLICKER,) if flicker else ())
+        for name in self._set_names:
+            _FORWARD_STATES[name].add_to(self, sketch=None)
+            if two_sided:
+                _REVERSE_STATES[name].add_to(self, sketch=None)
+        self.add_state("peak", default=torch.tensor(0.0, dtype=torch.float64), dist_reduce_fx="max")
+
+    def update(
+        self,
+        simplified_k: MeshLike,
+        original_k: MeshLike,
+        original_k_minus_1: MeshLike,
+        simplified_k_minus_1: MeshLike | None = None,
+        *,
+        registration: Any = None,
+    ) -> None:
+        """Evaluate one simplified frame ``k`` against original frames ``k`` and ``k-1``.
+
+        Args:
+            simplified_k: the simplified frame ``k``.
+            original_k: the original frame ``k``.
+            original_k_minus_1: the original frame ``k-1``.
+            simplified_k_minus_1: the simplified frame ``k-1``: required with ``flicker=True``, refused otherwise.
+            registration: frame ``k-1`` already registered onto frame ``k`` (as in
+                :func:`~torchmeshmetric.evaluation.evaluate_pair`); default: registered here (cached).
+
+        Raises:
+            ValueError: ``simplified_k_minus_1`` missing with ``flicker=True``, or given with ``flicker=False``.
+        """
+        if self.measure_flicker and simplified_k_minus_1 is None:
+            raise ValueError("simplified_k_minus_1: required by TemporalConsistency(flicker=True), found None")
+        if not self.measure_flicker and simplified_k_minus_1 is not None:
+            raise ValueError(
+                "simplified_k_minus_1: given, but this metric was built with flicker=False "
+                "(build it with TemporalConsistency(flicker=True) to measure the flicker set)"
+            )
+        result = evaluate_pair(
+            simplified_k,
+            original_k,
+            original_k_minus_1,
+            two_sided=self.two_sided,
+            device=self.device,
+            register=self.register,
+            register_options=self.register_options,
+            cache=self.cache,
+            backend=self.backend,
+            indexes=self.indexes,
+            registration=registration,
+            simplified_k_minus_1=simplified_k_minus_1,
+        )
+        for name in self._set_names:
+            _FORWARD_STATES[name].update(self, result.distances[name], sketch=None, name=name)
+            if self.two_sided:
+                _REVERSE_STATES[name].update(self, result.reverse_distances[name], sketch=None, name=f"reverse {name}")
+        peak: Tensor = self.peak
+        self.peak = torch.maximum(peak, torch.tensor(result.peak, dtype=torch.float64, device=peak.device))
+
+    def _statistics(self, states: DistanceStates, what: str) -> dict[str, Tensor]:
+        return states.compute(self, sketch=None, what=what, peak=float(self.peak)).as_tensors()
+
+    def compute(self) -> dict[str, Any]:
+        """Pooled statistics: ``{set_name: {statistic: 0-dim tensor}}`` (+ ``"reverse"`` when two-sided).
+
+        The sets are the four of the paper, plus ``"flicker"`` with ``flicker=True``.
+
+        Raises:
+            EmptyInputError: nothing was accumulated (no :meth:`update` since the last reset).
+        """
+        out: dict[str, Any] = {name: self._statistics(_FORWARD_STATES[name], name) for name in self._set_names}
+        if self.two_sided:
+            out["reverse"] = {
+                name: self._statistics(_REVERSE_STATES[name], f"reverse {name}") for name in self._set_names
+            }
+        return out

@@ -1,0 +1,138 @@
+"""The ``torchmetrics`` states that accumulate one distance set: exact, mergeable and DDP-synchronised.
+
+A metric declares, per distance set it accumulates, a :class:`DistanceStates` naming its states; the states hold
+what :func:`~torchmeshmetric.stats.statistics._distance_statistics_update` returns for every batch:
+
+- ``moments``: ``(R, 6)`` float64 rows of partial :class:`~torchmeshmetric.stats.moments.Moments`
+  (``dist_reduce_fx="cat"``). Every update merges its batch into one row (Chan et al. 1979); a DDP sync gathers one
+  row per process and a ``forward()`` one row per call, and ``compute`` merges the rows with the same formula. This
+  is exact: no state is averaged, and no ``E[d^2] - E[d]^2`` appears.
+- ``values``: the distances themselves (a list state, ``"cat"``), for exact quantiles; or
+- ``sketch``: the ``(num_bins,)`` counts of a :class:`~torchmeshmetric.stats.sketch.QuantileSketch` (``"sum"``),
+  for quantiles within a relative error in constant memory.
+
+All states are float64 (``Metric.half()``/``.float()`` leave them alone unless ``set_dtype`` is used).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import torch
+from torch import Tensor
+from torchmetrics import Metric
+from torchmetrics.utilities.data import dim_zero_cat
+
+from torchmeshmetric._checks import EmptyInputError
+from torchmeshmetric.stats.moments import Moments, merge_into_row, merge_rows
+from torchmeshmetric.stats.sketch import QuantileSketch
+from torchmeshmetric.stats.statistics import (
+    DistanceStatistics,
+    _distance_statistics_compute,
+    _distance_statistics_update,
+)
+
+__all__ = ["DistanceStates"]
+
+
+class DistanceStates(NamedTuple):
+    """The names of the states of one distance set in a ``torchmetrics.Metric``, and the operations on them.
+
+    Declared as class constants by each metric, so that every state name is written out once in the source.
+
+    Attributes:
+        moments: the ``(R, 6)`` moments rows state.
+        values: the list-of-distances state (exact quantiles).
+        sketch: the sketch-counts state (sketched quantiles); ``None`` where the metric has no sketch mode.
+
+    Example:
+        >>> import torch
+        >>> from torchmetrics import Metric
+        >>> class Pool(Metric):
+        ...     STATES = DistanceStates("pool_moments", "pool_values")
+        ...     def __init__(self):
+        ...         super().__init__()
+        ...         self.STATES.add_to(self, sketch=None)
+        ...     def update(self, dists):
+        ...         self.STATES.update(self, dists, sketch=None)
+        ...     def compute(self):
+        ...         return self.STATES.compute(self, sketch=None, what="pooled").ave
+        >>> pool = Pool()
+        >>> pool.update(torch.tensor([1.0, 2.0]))
+        >>> pool.update(torch.tensor([6.0]))
+        >>> pool.compute()
+        tensor(3., dtype=torch.float64)
+    """
+
+    moments: str
+    values: str
+    sketch: str | None = None
+
+    def add_to(self, metric: Metric, sketch: QuantileSketch | None) -> None:
+        """Declare the states on ``metric`` (in its ``__init__``): values for ``sketch=None``, else sketch counts."""
+        f64 = torch.float64
+        metric.add_state(self.moments, default=torch.zeros(0, len(Moments._fields), dtype=f64), dist_reduce_fx="cat")
+        if sketch is None:
+            metric.add_state(self.values, default=[], dist_reduce_fx="cat")
+        else:
+            metric.add_state(self._sketch_name(), default=torch.zeros(sketch.num_bins, dtype=f64), dist_reduce_fx="sum")
+
+    def update(self, metric: Metric, dists: Tensor, sketch: QuantileSketch | None, name: str = "dists") -> None:
+        """Add a ``(N,)`` tensor of distances (``N = 0`` changes nothing); ``name`` is the argument's, for errors.
+
+        Raises:
+            ShapeError, TypeError, NonFiniteError: see
+                :func:`~torchmeshmetric.stats.statistics._distance_statistics_update`.
+        """
+        moments, quantile_data = _distance_statistics_update(dists, sketch, name)
+        if dists.numel() == 0:
+            return
+        rows: Tensor = getattr(metric, self.moments)
+        setattr(metric, self.moments, merge_into_row(rows, moments))
+        if sketch is None:
+            getattr(metric, self.values).append(quantile_data.to(rows.device))
+        else:
+            name = self._sketch_name()
+            setattr(metric, name, getattr(metric, name) + quantile_data.to(rows.device))
+
+    def num_distances(self, metric: Metric) -> Tensor:
+        """Number of distances accumulated (0-dim float64; this process's only, unless synchronised)."""
+        rows: Tensor = getattr(metric, self.moments)
+        return rows[:, 0].sum()
+
+    def compute(
+        self,
+        metric: Metric,
+        sketch: QuantileSketch | None,
+        *,
+        what: str,
+        ddof: int = 0,
+        peak: float | Tensor | None = None,
+    ) -> DistanceStatistics:
+        """The statistics of everything accumulated (all rows merged).
+
+        Args:
+            metric: the metric holding the states.
+            sketch: the sketch given to :meth:`add_to`.
+            what: the set's name in the error message (e.g. ``"simplified → reference"``).
+            ddof: delta degrees of freedom of ``var``/``std``.
+            peak: PSNR peak, or ``None``.
+
+        Raises:
+            EmptyInputError: no distance was accumulated.
+        """
+        if float(self.num_distances(metric)) == 0:
+            raise EmptyInputError(
+                f"{type(metric).__name__}.compute: no {what} distances were accumulated; call update() with "
+                "non-empty inputs first"
+            )
+        moments = merge_rows(getattr(metric, self.moments))
+        quantile_data = (
+            dim_zero_cat(getattr(metric, self.values)) if sketch is None else getattr(metric, self._sketch_name())
+        )
+        return _distance_statistics_compute(moments, quantile_data, sketch=sketch, ddof=ddof, peak=peak)
+
+    def _sketch_name(self) -> str:
+        if self.sketch is None:
+            raise TypeError(f"{self.moments}: this metric declares no sketch state (exact quantiles only)")
+        return self.sketch
