@@ -689,24 +689,45 @@ void face_bvh_refit_impl(const std::vector<torch::Tensor>& h, const torch::Tenso
   std::memcpy(h[4].data_ptr<T>(), slack.data(), B * sizeof(T));
 }
 
+// The parts of a kept hierarchy that every query reads (see the layout above).
+template <typename T>
+struct Kept {
+  const Node<T>* nodes;
+  const int64_t* roots;
+  const int64_t* perm;
+  const T* slack;
+  explicit Kept(const std::vector<torch::Tensor>& h)
+      : nodes(nodes_of<T>(h[0])),
+        roots(h[1].data_ptr<int64_t>()),
+        perm(h[2].data_ptr<int64_t>()),
+        slack(h[4].data_ptr<T>()) {}
+};
+
+// One int64 answer per query point: `fn(begin, end, order, out)` answers the queries order[begin, end) (Morton
+// order, chunks scheduled by parallel_chunks) into out.
+template <typename T, typename F>
+torch::Tensor query_in_morton_order(const torch::Tensor& points, const F& fn) {
+  const int64_t P = points.size(0);
+  auto out = torch::empty({P}, torch::dtype(torch::kInt64));
+  int64_t* o = out.data_ptr<int64_t>();
+  const std::vector<int64_t> order = query_order<T>(points.data_ptr<T>(), P);
+  const int64_t* ord = order.data();
+  parallel_chunks(P, QUERY_CHUNK, [&](int64_t s, int64_t e) { fn(s, e, ord, o); });
+  return out;
+}
+
 // Closest face per centred query point through a kept face hierarchy (lowest face index among equal squares).
 template <typename T>
 torch::Tensor face_bvh_query_impl(const std::vector<torch::Tensor>& h, const torch::Tensor& points,
                                   const torch::Tensor& point_batch, const torch::Tensor& face_offsets) {
-  const int64_t P = points.size(0);
-  const Node<T>* nd = nodes_of<T>(h[0]);
-  const int64_t* roots = h[1].data_ptr<int64_t>();
-  const int64_t* pm = h[2].data_ptr<int64_t>();
+  const Kept<T> kh(h);
   const FaceData<T>* fdp = reinterpret_cast<const FaceData<T>*>(h[3].data_ptr<T>());
-  const T* slack = h[4].data_ptr<T>();
   const int64_t* off = face_offsets.data_ptr<int64_t>();
   const T* Pp = points.data_ptr<T>();
   const int64_t* pb = point_batch.data_ptr<int64_t>();
-  auto out = torch::empty({P}, torch::dtype(torch::kInt64));
-  int64_t* o = out.data_ptr<int64_t>();
-  const std::vector<int64_t> order = query_order<T>(Pp, P);
-  const int64_t* ord = order.data();
-  parallel_chunks(P, QUERY_CHUNK, [&](int64_t s, int64_t e) {
+  const Node<T>* nd = kh.nodes;
+  const int64_t* pm = kh.perm;
+  return query_in_morton_order<T>(points, [&](int64_t s, int64_t e, const int64_t* ord, int64_t* o) {
     for (int64_t q = s; q < e; ++q) {
       const int64_t i = ord[q];
       const int64_t b = pb[i];
@@ -714,7 +735,7 @@ torch::Tensor face_bvh_query_impl(const std::vector<torch::Tensor>& h, const tor
       int64_t best_idx = off[b];
       // No seeding here (unlike nearest points): nearer-child-first descent to a 4-face leaf finds a tight bound
       // at once, and evaluating the predecessor's face first measured 5-10% slower.
-      traverse<T>(nd, roots[b], Pp + 3 * i, slack[b], best, best_idx,
+      traverse<T>(nd, kh.roots[b], Pp + 3 * i, kh.slack[b], best, best_idx,
                   [fdp, pm](int64_t start, int64_t count, const T* p, T& best_sq, int64_t& bi) {
                     for (int64_t j = start; j < start + count; ++j) {
                       const T sq = tri_sq_dist(fdp[j], p);
@@ -728,7 +749,6 @@ torch::Tensor face_bvh_query_impl(const std::vector<torch::Tensor>& h, const tor
       o[i] = best_idx;
     }
   });
-  return out;
 }
 
 // Point hierarchy of centred reference points: {nodes, roots, perm, points (3, R + LEAF_POINTS) by coordinate in
@@ -776,33 +796,25 @@ void point_bvh_refit_impl(const std::vector<torch::Tensor>& h, const torch::Tens
 template <typename T>
 torch::Tensor point_bvh_query_impl(const std::vector<torch::Tensor>& h, const torch::Tensor& points,
                                    const torch::Tensor& point_batch) {
-  const int64_t P = points.size(0);
-  const Node<T>* nd = nodes_of<T>(h[0]);
-  const int64_t* roots = h[1].data_ptr<int64_t>();
-  const int64_t* pm = h[2].data_ptr<int64_t>();
+  const Kept<T> kh(h);
   const int64_t stride = h[3].size(1);
   const T* s = h[3].data_ptr<T>();
   const SoaView<T> rs{s, s + stride, s + 2 * stride};
-  const T* slack = h[4].data_ptr<T>();
   const T* Pp = points.data_ptr<T>();
   const int64_t* pb = point_batch.data_ptr<int64_t>();
-  auto out = torch::empty({P}, torch::dtype(torch::kInt64));
-  int64_t* o = out.data_ptr<int64_t>();
-  const std::vector<int64_t> order = query_order<T>(Pp, P);
-  const int64_t* ord = order.data();
-  parallel_chunks(P, QUERY_CHUNK, [&](int64_t s0, int64_t e) {
+  const int64_t* pm = kh.perm;
+  return query_in_morton_order<T>(points, [&](int64_t s0, int64_t e, const int64_t* ord, int64_t* o) {
     int64_t prev_item = -1, prev_slot = -1;
     for (int64_t q = s0; q < e; ++q) {
       const int64_t i = ord[q];
       const int64_t b = pb[i];
-      const int64_t slot = nearest_query<T>(nd, roots[b], Pp + 3 * i, slack[b], rs, pm,
+      const int64_t slot = nearest_query<T>(kh.nodes, kh.roots[b], Pp + 3 * i, kh.slack[b], rs, pm,
                                             b == prev_item ? prev_slot : -1, nullptr);
       o[i] = pm[slot];
       prev_item = b;
       prev_slot = slot;
     }
   });
-  return out;
 }
 
 // Per-column bounds of an (n, 3) array and whether every value is finite, in one pass (per-thread blocks above
