@@ -25,7 +25,10 @@ import torch
 
 from torchmeshmetric.registration.rigid import register_rigid
 
-__all__ = ["DEFAULT_SCHEDULE", "NonRigidOptions", "Stage"]
+__all__ = ["DEFAULT_SCHEDULE", "RUN_ARGUMENTS", "NonRigidOptions", "Stage"]
+
+#: Keywords of :func:`~torchmeshmetric.registration.register_nonrigid` that say how it runs, not what it computes.
+RUN_ARGUMENTS = frozenset({"device", "generator", "warn", "backend", "num_threads"})
 
 
 class Stage(NamedTuple):
@@ -248,6 +251,24 @@ class NonRigidOptions:
         if not keywords:
             return base
         return cls(**{**{n: getattr(base, n) for n in names}, **keywords})
+
+    @classmethod
+    def from_call(cls, keywords: Mapping[str, Any]) -> NonRigidOptions:
+        """The options of a call ``register_nonrigid(source, target, **keywords)``.
+
+        ``keywords["options"]`` (if any) updated by the option fields among ``keywords``; the arguments that say how
+        the registration runs (``device``, ``generator``, ``warn``, ``backend``, ``num_threads``) are left out, as
+        they are not options. This is what a cache keys a registration called with ``keywords`` by.
+
+        Raises:
+            TypeError: a keyword that is neither an option nor a run argument, or a bad value.
+
+        Example:
+            >>> NonRigidOptions.from_call({"num_points": 500, "num_threads": 2}) == NonRigidOptions(num_points=500)
+            True
+        """
+        given = {k: v for k, v in keywords.items() if k not in RUN_ARGUMENTS}
+        return cls.from_keywords(given.pop("options", None), **given)
 
     def canonical(self) -> dict[str, Any]:
         """JSON-ready form of every field (stages as dicts, defaults filled): the registration cache's key.
