@@ -8,8 +8,8 @@ import trimesh
 
 from torchmeshmetric.kernels.accel._extension import load_bvh
 from torchmeshmetric.registration import DeformationGraph, embedded_deformation_regularizer, surface_term
-from torchmeshmetric.structures import Mesh
 from torchmeshmetric.registration.energies import Correspondences, EnergyTerms, deformed_vertices, fused_energy
+from torchmeshmetric.structures import Mesh
 
 
 @pytest.mark.parametrize("plane_weight", [0.0, 1.0])

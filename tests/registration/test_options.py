@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import inspect
 import json
 import math
+import pickle
 
 import pytest
 import torch
@@ -89,6 +91,13 @@ def test_different_settings_never_share_a_key():
     assert len({o for o in variants}) == len(variants)
     # Options are never mistaken for plain settings that print alike.
     assert registration_key(m, m, NonRigidOptions()) != registration_key(m, m, NonRigidOptions().canonical())
+
+
+def test_options_pickle_and_copy():
+    o = NonRigidOptions(num_points=77, schedule=SHORT, rigid_options={"init": torch.eye(4), "trim": 0.8})
+    for back in (pickle.loads(pickle.dumps(o)), copy.deepcopy(o), copy.copy(o), dataclasses.replace(o)):
+        assert back == o and back.num_points == 77 and back.schedule == SHORT
+        assert torch.equal(back.rigid_options["init"], torch.eye(4))
 
 
 def test_canonical_form_is_json_and_exact():

@@ -286,6 +286,12 @@ class NonRigidOptions:
     def _key(self) -> str:
         return json.dumps(self.canonical(), sort_keys=True)
 
+    def __reduce__(self) -> tuple[Any, ...]:
+        # A read-only mapping view cannot be pickled or deep-copied: rebuild from the plain values instead.
+        values = {f.name: getattr(self, f.name) for f in fields(self)}
+        values["rigid_options"] = dict(values["rigid_options"])
+        return (_rebuild, (values,))
+
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, NonRigidOptions):
             return NotImplemented
@@ -293,3 +299,7 @@ class NonRigidOptions:
 
     def __hash__(self) -> int:
         return hash(self._key())
+
+
+def _rebuild(values: dict[str, Any]) -> NonRigidOptions:
+    return NonRigidOptions(**values)
