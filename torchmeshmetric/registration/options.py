@@ -274,8 +274,9 @@ class NonRigidOptions:
         """JSON-ready form of every field (stages as dicts, defaults filled): the registration cache's key.
 
         Example:
-            >>> NonRigidOptions().canonical()["schedule"][0]["max_steps"]
-            120
+            >>> first, *_ = NonRigidOptions().canonical()["schedule"]
+            >>> first["max_steps"], first["lr"]
+            (120, 0.01)
         """
         out: dict[str, Any] = {f.name: getattr(self, f.name) for f in fields(self)}
         out["schedule"] = [s._asdict() for s in self.schedule]
