@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import pickle
 
 import numpy as np
 import pytest
@@ -69,3 +70,64 @@ def test_pack_meshes_and_points() -> None:
         pack_points(q.points, torch.tensor([2, 4]))
     with pytest.raises(IndexRangeError, match="packed face 12"):
         pack_meshes(p.verts, p.faces + torch.tensor([0] * 12 + [8] * 20)[:, None], p.verts_lengths, p.faces_lengths)
+
+
+def _with_degenerate_face() -> Mesh:
+    """An icosphere plus a zero-area face on three new collinear vertices and one unreferenced vertex."""
+    tm = trimesh.creation.icosphere(subdivisions=1)
+    v = np.vstack([tm.vertices, [[2.0, 0, 0], [3.0, 0, 0], [4.0, 0, 0], [9.0, 9, 9]]])
+    n = len(tm.vertices)
+    f = np.vstack([tm.faces, [[n, n + 1, n + 2]]])
+    return Mesh(torch.tensor(v), torch.tensor(f))
+
+
+def test_mesh_normals_areas_and_masks_match_trimesh() -> None:
+    m = _with_degenerate_face()
+    tm = trimesh.Trimesh(m.verts.numpy(), m.faces.numpy(), process=False)
+    np.testing.assert_allclose(m.face_areas().numpy(), tm.area_faces, rtol=0, atol=1e-15)
+    fn = m.face_normals()
+    np.testing.assert_allclose(fn[:-1].numpy(), tm.face_normals[:-1], rtol=0, atol=1e-15)
+    assert torch.equal(fn[-1], torch.zeros(3, dtype=torch.float64))  # zero-area face: no normal
+    # Area-weighted vertex normals: the normalised sum of the faces' cross products around each vertex.
+    cross = np.cross(*(tm.triangles[:, i] - tm.triangles[:, 0] for i in (1, 2)))
+    summed = np.zeros_like(tm.vertices)
+    np.add.at(summed, tm.faces.reshape(-1), np.repeat(cross, 3, axis=0))
+    norm = np.linalg.norm(summed, axis=1, keepdims=True)
+    expected = np.divide(summed, norm, out=np.zeros_like(summed), where=norm > 0)
+    np.testing.assert_allclose(m.vertex_normals().numpy(), expected, rtol=0, atol=1e-15)
+    nv = m.num_verts
+    assert m.surface_vertex_mask().tolist() == [True] * (nv - 4) + [False] * 4
+    assert m.referenced_vertex_mask().tolist() == [True] * (nv - 1) + [False]
+
+
+def test_mesh_derived_values_are_cached_and_never_stale() -> None:
+    m = _with_degenerate_face()
+    normals = m.face_normals()
+    assert m.face_normals() is normals and m.face_areas() is m.face_areas()
+    areas = m.face_areas().clone()
+    m.verts.mul_(2.0)  # in place: the version counter moves, the cache is not trusted
+    assert torch.equal(m.face_areas(), 4 * areas)
+    assert m.face_normals() is not normals
+    # A caller that edits a returned tensor in place does not poison the cache either.
+    m.face_normals().zero_()
+    assert torch.equal(m.face_normals(), normals)
+    # Pickles carry the mesh, not its derived values; the copy recomputes them.
+    copy = pickle.loads(pickle.dumps(m))
+    assert copy._derived == {} and torch.equal(copy.face_areas(), m.face_areas())
+
+
+def test_mesh_derived_values_keep_autograd_fresh() -> None:
+    tm = trimesh.creation.icosphere(subdivisions=1)
+    v = torch.tensor(tm.vertices, requires_grad=True)
+    m = Mesh(v, torch.tensor(tm.faces))
+    # Two losses, two backward passes: a cached value would share (and free) one graph.
+    m.face_areas().sum().backward()
+    first = v.grad.clone()
+    v.grad = None
+    m.face_areas().sum().backward()
+    torch.testing.assert_close(v.grad, first, rtol=0, atol=0)
+    assert m._derived == {}  # nothing that holds a graph is kept
+    assert bool((m.face_normals() * m.face_normals()).sum(-1).sub(1).abs().max() < 1e-12)
+    with torch.inference_mode():
+        frozen = Mesh(torch.tensor(tm.vertices), torch.tensor(tm.faces))
+        torch.testing.assert_close(frozen.face_areas(), m.face_areas().detach(), rtol=0, atol=0)

@@ -4,7 +4,9 @@ import pytest
 import torch
 
 from tests.evaluation.eval_helpers import TranslationRegister, sphere
-from torchmeshmetric.evaluation import RegistrationCache, evaluate_sequence, registration_key
+from torchmeshmetric import Mesh
+from torchmeshmetric.evaluation import RegistrationCache, evaluate_sequence, registration_key, registration_settings
+from torchmeshmetric.registration import DEFAULT_SCHEDULE
 
 
 def test_cache_hit_avoids_reregistration_across_methods(moving_spheres):
@@ -60,3 +62,11 @@ def test_key_depends_on_dtype_independent_content():
     assert registration_key(a, a, {}) != registration_key(a, sphere(1, radius=2.0), {})
     # float32 and float64 copies of float32-representable vertices hash alike (content, not storage)
     assert registration_key(a32, a32, {}) == registration_key(a32.to(dtype=torch.float64), a32, {})
+
+
+def test_key_of_plain_settings_is_stable():
+    # Entries on disk are found by these digests: keying NonRigidOptions must not move the keys of plain settings.
+    m = Mesh(torch.eye(3, dtype=torch.float64), torch.tensor([[0, 1, 2]]))
+    assert registration_key(m, m, {}) == "1e600010b14e221ccdd238819573c89fce4f4658f7fa0e3203355ce34ee5338e"
+    settings = registration_settings(None, {"schedule": DEFAULT_SCHEDULE[:1], "num_points": 10})
+    assert registration_key(m, m, settings) == "e03bddd7f8f39d64032bae73d1014fe0030e43163e6aa886dcbe2c7907541fde"

@@ -81,77 +81,85 @@ def add_capture_defects(
     rng = np.random.default_rng(seed)
     verts = m.verts.detach().cpu().double().numpy().copy()
     faces = m.faces.cpu().numpy().copy()
-    num_v, num_f = verts.shape[0], faces.shape[0]
-    if normalize and num_v:
-        lo, hi = verts.min(0), verts.max(0)
-        verts = verts - 0.5 * (lo + hi)
-        scale = np.abs(verts).max()
-        if scale > 0:
-            verts = verts / scale
-    new_verts = [verts]
-    new_faces = [faces]
-    nv = num_v
-    # duplicate vertices: re-point every other face corner that uses a chosen vertex
-    num_dup = round(duplicate_fraction * num_v)
-    if num_dup and num_f:
-        dup = rng.choice(num_v, size=num_dup, replace=False)
-        copy_of = np.full(num_v, -1, dtype=np.int64)
-        copy_of[dup] = nv + np.arange(num_dup)
-        new_verts.append(verts[dup])
-        nv += num_dup
-        flat = faces.reshape(-1)
-        hit = np.nonzero(copy_of[flat] >= 0)[0]
-        # alternate occurrences of each duplicated vertex: every second one goes to the copy
-        order = np.argsort(flat[hit], kind="stable")
-        hit_sorted = hit[order]
-        vals = flat[hit_sorted]
-        first = np.r_[True, vals[1:] != vals[:-1]]
-        group_start = np.maximum.accumulate(np.where(first, np.arange(vals.size), 0))
-        odd = ((np.arange(vals.size) - group_start) % 2) == 1
-        flat = flat.copy()
-        flat[hit_sorted[odd]] = copy_of[vals[odd]]
-        faces = flat.reshape(-1, 3)
-        new_faces[0] = faces
-    if num_f:
-        # zero-length edges
-        if num_zero_length_edges:
-            fi = rng.integers(0, num_f, size=num_zero_length_edges)
-            a, b = faces[fi, 0], faces[fi, 1]
-            new_verts.append(_verts_of(new_verts, a))
-            copies = nv + np.arange(num_zero_length_edges)
-            nv += num_zero_length_edges
-            new_faces.append(np.stack([a, copies, b], 1))
-        if num_collinear_faces:
-            fi = rng.integers(0, num_f, size=num_collinear_faces)
-            a, b = faces[fi, 0], faces[fi, 1]
-            all_v = np.concatenate(new_verts)
-            new_verts.append(0.5 * (all_v[a] + all_v[b]))
-            mids = nv + np.arange(num_collinear_faces)
-            nv += num_collinear_faces
-            new_faces.append(np.stack([a, mids, b], 1))
-        if num_repeated_index_faces:
-            fi = rng.integers(0, num_f, size=num_repeated_index_faces)
-            new_faces.append(np.stack([faces[fi, 0], faces[fi, 0], faces[fi, 1]], 1))
+    if normalize and verts.shape[0]:
+        verts = _normalised(verts)
+    # The random choices are drawn in this order for a given seed: duplicates, zero-area faces, unreferenced points,
+    # then the shuffles.
+    verts, faces = _with_duplicates(verts, faces, round(duplicate_fraction * verts.shape[0]), rng)
+    verts, faces = _with_zero_area_faces(
+        verts, faces, num_zero_length_edges, num_collinear_faces, num_repeated_index_faces, rng
+    )
     if num_unreferenced:
-        all_v = np.concatenate(new_verts)
-        lo, hi = all_v.min(0), all_v.max(0)
-        new_verts.append(lo + rng.random((num_unreferenced, 3)) * (hi - lo))
-        nv += num_unreferenced
-    out_v = np.concatenate(new_verts)
-    out_f = np.concatenate(new_faces)
+        lo, hi = verts.min(0), verts.max(0)
+        verts = np.concatenate([verts, lo + rng.random((num_unreferenced, 3)) * (hi - lo)])
     if shuffle:
-        perm = rng.permutation(out_v.shape[0])
+        perm = rng.permutation(verts.shape[0])
         inv = np.empty_like(perm)
         inv[perm] = np.arange(perm.size)
-        out_v = out_v[perm]
-        out_f = inv[out_f][rng.permutation(out_f.shape[0])]
+        verts = verts[perm]
+        faces = inv[faces][rng.permutation(faces.shape[0])]
     return Mesh(
-        torch.from_numpy(out_v).to(device=m.device, dtype=m.dtype),
-        torch.from_numpy(out_f).to(m.device),
+        torch.from_numpy(verts).to(device=m.device, dtype=m.dtype),
+        torch.from_numpy(faces).to(m.device),
         validate=False,
     )
 
 
-def _verts_of(chunks: list[np.ndarray], idx: np.ndarray) -> np.ndarray:
-    """Rows ``idx`` of the concatenation of ``chunks`` (vertex arrays built so far)."""
-    return np.concatenate(chunks)[idx]
+def _normalised(verts: np.ndarray) -> np.ndarray:
+    """Centred on the bounding-box centre, scaled so that the largest coordinate is 1 (unless all are 0)."""
+    lo, hi = verts.min(0), verts.max(0)
+    verts = verts - 0.5 * (lo + hi)
+    scale = np.abs(verts).max()
+    return verts / scale if scale > 0 else verts
+
+
+def _with_duplicates(
+    verts: np.ndarray, faces: np.ndarray, num_dup: int, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
+    """``num_dup`` random vertices copied; every second face corner using one of them re-pointed to its copy."""
+    num_v = verts.shape[0]
+    if not (num_dup and faces.shape[0]):
+        return verts, faces
+    dup = rng.choice(num_v, size=num_dup, replace=False)
+    copy_of = np.full(num_v, -1, dtype=np.int64)
+    copy_of[dup] = num_v + np.arange(num_dup)
+    flat = faces.reshape(-1)
+    hit = np.nonzero(copy_of[flat] >= 0)[0]
+    # Alternate occurrences of each duplicated vertex: every second one goes to the copy.
+    order = np.argsort(flat[hit], kind="stable")
+    hit_sorted = hit[order]
+    vals = flat[hit_sorted]
+    first = np.r_[True, vals[1:] != vals[:-1]]
+    group_start = np.maximum.accumulate(np.where(first, np.arange(vals.size), 0))
+    odd = ((np.arange(vals.size) - group_start) % 2) == 1
+    flat = flat.copy()
+    flat[hit_sorted[odd]] = copy_of[vals[odd]]
+    return np.concatenate([verts, verts[dup]]), flat.reshape(-1, 3)
+
+
+def _with_zero_area_faces(
+    verts: np.ndarray, faces: np.ndarray, num_zero_length: int, num_collinear: int, num_repeated: int,
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """Zero-area faces on the first edge ``ab`` of random faces, appended after ``faces``.
+
+    ``(a, a', b)`` with ``a'`` a new copy of ``a``, ``(a, m, b)`` with ``m`` a new midpoint, and ``(a, a, b)``.
+    """
+    num_f = faces.shape[0]
+    if not num_f:
+        return verts, faces
+    added = [faces]
+    if num_zero_length:
+        fi = rng.integers(0, num_f, size=num_zero_length)
+        a, b = faces[fi, 0], faces[fi, 1]
+        added.append(np.stack([a, verts.shape[0] + np.arange(num_zero_length), b], 1))
+        verts = np.concatenate([verts, verts[a]])
+    if num_collinear:
+        fi = rng.integers(0, num_f, size=num_collinear)
+        a, b = faces[fi, 0], faces[fi, 1]
+        added.append(np.stack([a, verts.shape[0] + np.arange(num_collinear), b], 1))
+        verts = np.concatenate([verts, 0.5 * (verts[a] + verts[b])])
+    if num_repeated:
+        fi = rng.integers(0, num_f, size=num_repeated)
+        added.append(np.stack([faces[fi, 0], faces[fi, 0], faces[fi, 1]], 1))
+    return verts, np.concatenate(added)

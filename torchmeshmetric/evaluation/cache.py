@@ -25,6 +25,7 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric._atomic import atomic_write_with
+from torchmeshmetric.registration.options import NonRigidOptions
 from torchmeshmetric.registration.warp import RegistrationWarp, Warp
 from torchmeshmetric.structures import Mesh
 
@@ -63,26 +64,53 @@ def _hash_mesh(h: hashlib._Hash, mesh: Mesh) -> None:
     h.update(f.numpy().tobytes())
 
 
-def registration_key(source: Mesh, target: Mesh, settings: Mapping[str, object]) -> str:
+# Tags a NonRigidOptions in the hashed JSON, so that no plain mapping of settings can spell the same text.
+_OPTIONS_TAG = "__torchmeshmetric.NonRigidOptions__"
+
+
+def _settings_json(value: object) -> object:
+    """``json.dumps`` fallback: :class:`NonRigidOptions` by their canonical form, anything else by ``str``."""
+    if isinstance(value, NonRigidOptions):
+        return {_OPTIONS_TAG: value.canonical()}
+    return str(value)
+
+
+def registration_key(source: Mesh, target: Mesh, settings: Mapping[str, object] | NonRigidOptions) -> str:
     """SHA-256 hex digest identifying the registration of ``source`` onto ``target`` with ``settings``.
+
+    The meshes count by content: vertices as float64 and faces as int64 with their shapes, so a float32 frame and its
+    float64 copy share a key (the dtype, like the device and the thread count, changes a registration only by
+    rounding, far below its error; the cache serves one registration per problem). A
+    :class:`~torchmeshmetric.registration.NonRigidOptions`, given as ``settings`` or as a value inside them, counts
+    by its :meth:`~torchmeshmetric.registration.NonRigidOptions.canonical` form: every field, defaults filled, so
+    equal options spelled differently give one key and different options never share one.
 
     Args:
         source: original frame ``k-1``.
         target: original frame ``k``.
-        settings: JSON-serialisable registration settings (anything that changes the result).
+        settings: registration settings (anything that changes the result): JSON-serialisable values or
+            :class:`~torchmeshmetric.registration.NonRigidOptions`, or the options themselves.
 
     Example:
         >>> import torch
+        >>> from torchmeshmetric.registration import DEFAULT_SCHEDULE, NonRigidOptions
         >>> m = Mesh(torch.eye(3), torch.tensor([[0, 1, 2]]))
         >>> registration_key(m, m, {"a": 1}) == registration_key(m, m, {"a": 1})
         True
         >>> registration_key(m, m, {"a": 1}) == registration_key(m, m, {"a": 2})
         False
+        >>> quick = NonRigidOptions(schedule=DEFAULT_SCHEDULE[:2])
+        >>> registration_key(m, m, quick) == registration_key(m, m, NonRigidOptions(schedule=list(quick.schedule)))
+        True
     """
     h = hashlib.sha256(_FORMAT.encode())
     _hash_mesh(h, source)
     _hash_mesh(h, target)
-    h.update(json.dumps(dict(settings), sort_keys=True, default=str).encode())
+    if isinstance(settings, NonRigidOptions):
+        text = json.dumps(_settings_json(settings), sort_keys=True)
+    else:  # the text of plain settings is unchanged, so existing disk entries keep their keys
+        text = json.dumps(dict(settings), sort_keys=True, default=_settings_json)
+    h.update(text.encode())
     return h.hexdigest()
 
 

@@ -13,13 +13,8 @@ from torchmeshmetric.registration.energies import (
     geman_mcclure,
     surface_term,
 )
-from torchmeshmetric.registration.nonrigid import (
-    DEFAULT_SCHEDULE,
-    NonRigidRegistration,
-    RegistrationWarning,
-    Stage,
-    register_nonrigid,
-)
+from torchmeshmetric.registration.nonrigid import NonRigidRegistration, RegistrationWarning, register_nonrigid
+from torchmeshmetric.registration.options import DEFAULT_SCHEDULE, NonRigidOptions, Stage
 from torchmeshmetric.registration.rigid import (
     RigidRegistration,
     SimilarityTransform,
@@ -33,6 +28,7 @@ __all__ = [
     "DEFAULT_SCHEDULE",
     "Correspondences",
     "DeformationGraph",
+    "NonRigidOptions",
     "NonRigidRegistration",
     "RegistrationWarning",
     "RegistrationWarp",

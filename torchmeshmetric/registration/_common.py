@@ -1,4 +1,4 @@
-"""Helpers shared by the registration modules (input validation, masks, normals, normalisation)."""
+"""Helpers shared by the registration modules: input validation and the normalised frame."""
 
 from __future__ import annotations
 
@@ -34,44 +34,5 @@ def normalisation(mesh: Mesh) -> tuple[Tensor, Tensor]:
     The non-rigid registration works on ``(x - center) / diagonal`` so that its thresholds are fractions of the
     target's diagonal.
     """
-    ref = mesh.verts[referenced_mask(mesh)]
+    ref = mesh.verts[mesh.surface_vertex_mask()]
     return 0.5 * (ref.amin(0) + ref.amax(0)), (ref.amax(0) - ref.amin(0)).norm()
-
-
-def referenced_mask(mesh: Mesh) -> Tensor:
-    """``(V,)`` bool: vertices referenced by at least one face of positive area (the surface's vertices)."""
-    used = torch.zeros(mesh.num_verts, dtype=torch.bool, device=mesh.device)
-    good = mesh.face_areas() > 0
-    used[mesh.faces[good].reshape(-1)] = True
-    return used
-
-
-def _unit(x: Tensor) -> Tensor:
-    norm = x.norm(dim=-1, keepdim=True)
-    return torch.where(norm > 0, x / torch.where(norm > 0, norm, torch.ones_like(norm)), torch.zeros_like(x))
-
-
-def _face_cross(verts: Tensor, faces: Tensor) -> Tensor:
-    tri = verts[faces]
-    return torch.linalg.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], dim=-1)  # 2 * area * unit normal
-
-
-def _vertex_sum(verts: Tensor, faces: Tensor, n: Tensor) -> Tensor:
-    acc = torch.zeros_like(verts).index_add(0, faces[:, 0], n).index_add(0, faces[:, 1], n)
-    return acc.index_add(0, faces[:, 2], n)
-
-
-def face_unit_normals(verts: Tensor, faces: Tensor) -> Tensor:
-    """``(F, 3)`` unit face normals; exactly zero for zero-area faces (they have no normal)."""
-    return _unit(_face_cross(verts, faces))
-
-
-def vertex_unit_normals(verts: Tensor, faces: Tensor) -> Tensor:
-    """``(V, 3)`` area-weighted vertex normals, unit length; zero where no face of positive area touches."""
-    return _unit(_vertex_sum(verts, faces, _face_cross(verts, faces)))
-
-
-def unit_normals(verts: Tensor, faces: Tensor) -> tuple[Tensor, Tensor]:
-    """``(face_unit_normals, vertex_unit_normals)`` from one pass of face cross products (same values)."""
-    n = _face_cross(verts, faces)
-    return _unit(n), _unit(_vertex_sum(verts, faces, n))

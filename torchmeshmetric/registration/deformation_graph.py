@@ -27,6 +27,7 @@ from torch import Tensor, nn
 
 from torchmeshmetric._checks import EmptyInputError, check_finite, check_float, check_shape
 from torchmeshmetric.kernels.accel._extension import bvh_ready, load_bvh
+from torchmeshmetric.structures import Mesh
 
 __all__ = ["DeformationGraph", "embedded_deformation", "farthest_point_nodes", "skinning_weights"]
 
@@ -156,10 +157,7 @@ class DeformationGraph(nn.Module):
         if num_neighbors < 1:
             raise ValueError(f"num_neighbors: expected at least 1, found {num_neighbors}")
         verts = verts.detach()
-        tri = verts[faces]
-        area2 = torch.linalg.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], dim=-1).norm(dim=-1)
-        used = torch.zeros(verts.shape[0], dtype=torch.bool, device=verts.device)
-        used[faces[area2 > 0].reshape(-1)] = True
+        used = Mesh(verts, faces, validate=False).surface_vertex_mask()
         if not bool(used.any()):
             raise EmptyInputError("faces: expected at least one face of positive area, found none")
         cand = verts[used]
@@ -174,11 +172,6 @@ class DeformationGraph(nn.Module):
         self.node_spacing = node_spacing
         self.rotations = nn.Parameter(torch.zeros_like(nodes))
         self.translations = nn.Parameter(torch.zeros_like(nodes))
-
-    @property
-    def num_nodes(self) -> int:
-        """Number of nodes ``N``."""
-        return int(self.nodes.shape[0])
 
     def rotation_matrices(self) -> Tensor:
         """``(N, 3, 3)`` node rotations from the axis-angle parameters (kornia's SO(3) exponential map)."""
@@ -200,11 +193,6 @@ class DeformationGraph(nn.Module):
             self.verts[index], self.nodes, self.rotation_matrices(), self.translations, self.vert_nodes[index],
             self.vert_weights[index],
         )  # fmt: skip
-
-    def deform_points(self, points: Tensor) -> Tensor:
-        """Deform arbitrary ``(P, 3)`` rest-pose points, skinned on the fly to the same nodes."""
-        idx, w = skinning_weights(points, self.nodes, self.vert_nodes.shape[1])
-        return embedded_deformation(points, self.nodes, self.rotation_matrices(), self.translations, idx, w)
 
 
 def _node_edges(idx: Tensor, w: Tensor, nodes: Tensor) -> Tensor:

@@ -20,8 +20,8 @@ from torch import Tensor
 from torchmeshmetric.kernels.accel._extension import bvh_ready, load_bvh
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.kernels.point_triangle import closest_point_on_triangle, point_mesh_distance
-from torchmeshmetric.registration._common import face_unit_normals
 from torchmeshmetric.registration.deformation_graph import DeformationGraph
+from torchmeshmetric.structures import Mesh
 
 __all__ = [
     "Correspondences",
@@ -87,7 +87,7 @@ def find_correspondences(
         max_normal_angle: rejection angle in degrees.
         index: a :class:`~torchmeshmetric.MeshIndex` of ``(verts, faces)`` of the points' dtype, to query instead of
             building a structure for this call (the registration loop keeps one per mesh).
-        face_normals: ``(F, 3)`` :func:`face_unit_normals` of the mesh, when already known.
+        face_normals: ``(F, 3)`` :meth:`~torchmeshmetric.Mesh.face_normals` of the mesh, when already known.
 
     Returns:
         :class:`Correspondences`.
@@ -102,7 +102,7 @@ def find_correspondences(
         face_idx, d = res.face_idx, res.dists
         ok = d <= max_distance
         if point_normals is not None:
-            fn = (face_unit_normals(v, faces) if face_normals is None else face_normals)[face_idx]
+            fn = (Mesh(v, faces, validate=False).face_normals() if face_normals is None else face_normals)[face_idx]
             cos = (fn * point_normals.detach()).sum(-1)
             has = ((fn * fn).sum(-1) > 0) & ((point_normals * point_normals).sum(-1) > 0)
             ok &= ~has | (cos >= math.cos(math.radians(max_normal_angle)))
@@ -253,23 +253,9 @@ def fused_energy(
     if graph.nodes.device.type != "cpu" or not bvh_ready():
         return None
     scalars = [sigma, plane_weight, point_weight, reverse_weight, data_scale, regularization]
-    out: Tensor = _FusedEnergy.apply(
-        graph.rotations,
-        graph.translations,
-        graph.nodes.contiguous(),
-        terms.rest.contiguous(),
-        terms.vert_nodes.contiguous(),
-        terms.vert_weights.contiguous(),
-        terms.data_idx.contiguous(),
-        terms.data_tri.contiguous(),
-        terms.data_normals.contiguous(),
-        terms.data_weights.contiguous(),
-        terms.samples.contiguous(),
-        terms.rev_faces.contiguous(),
-        terms.rev_weights.contiguous(),
-        graph.edges.contiguous(),
-        scalars,
-    )
+    # The extension reads raw memory: every tensor after the parameters is passed contiguous.
+    buffers = (graph.nodes, *terms, graph.edges)
+    out: Tensor = _FusedEnergy.apply(graph.rotations, graph.translations, *(t.contiguous() for t in buffers), scalars)
     return out
 
 

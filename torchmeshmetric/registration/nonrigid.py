@@ -1,22 +1,24 @@
 """Non-rigid registration loop: rigid ICP, then an embedded deformation graph fitted with Adam, coarse to fine.
 
-The model (:class:`~torchmeshmetric.registration.DeformationGraph`) and the energies
-(:mod:`torchmeshmetric.registration.energies`) are separate from this loop, which only schedules them:
+The model (:class:`~torchmeshmetric.registration.DeformationGraph`), the energies
+(:mod:`torchmeshmetric.registration.energies`) and the settings (:class:`NonRigidOptions`, the :class:`Stage`
+schedule) live elsewhere; this loop only schedules them:
 
-1. normalise both meshes to the target's bounding-box centre and unit diagonal (every threshold below is a
-   fraction of the diagonal);
-2. optional rigid ICP (:func:`~torchmeshmetric.registration.register_rigid`);
-3. for each :class:`Stage` (regularisation, robust scale and rejection thresholds decreasing): Adam steps on the
-   graph's rotations and translations; correspondences (source vertices → target faces, target samples → deformed
-   source faces) are refreshed every ``correspondence_every`` steps, not every step; the stage ends after
-   ``max_steps``, when the loss changes by less than ``tolerance`` (relative) between two refreshes, or at a
-   stationary point (every gradient component below ``sqrt(eps)`` of the dtype); each
-   stage then keeps its **best iterate**: the parameters of the lowest loss measured right after a correspondence
-   refresh (the stage's last iterate gets one more refresh to compete). Adam moves every parameter by about the
-   learning rate whatever the gradient's size, so without this an exact pair drifted by 1e-3 of the diagonal
-   and a near-exact one ended at Adam's noise floor instead of where it started;
-4. divergence (NaN/Inf or a loss that explodes) restores the last good parameters and reports failure; a fit
-   whose residuals stay large is reported as not converged too, with the reason, and a warning.
+1. :func:`_normalise`: both meshes to the target's bounding-box centre and unit diagonal (every threshold is a
+   fraction of the diagonal), after an optional rigid ICP (:func:`~torchmeshmetric.registration.register_rigid`);
+2. :class:`_Fit`: the graph, the fixed data points and target samples, both meshes' indexes;
+3. :meth:`_Fit.run_stage` for each :class:`Stage` (regularisation, robust scale and rejection thresholds
+   decreasing): Adam steps on the graph's rotations and translations; correspondences (source vertices → target
+   faces, target samples → deformed source faces) are refreshed every ``correspondence_every`` steps, not every
+   step; the stage ends after ``max_steps``, when the loss changes by less than ``tolerance`` (relative) between two
+   refreshes, or at a stationary point (every gradient component below ``sqrt(eps)`` of the dtype); each stage then
+   keeps its **best iterate**: the parameters of the lowest loss measured right after a correspondence refresh (the
+   stage's last iterate gets one more refresh to compete). Adam moves every parameter by about the learning rate
+   whatever the gradient's size, so without this an exact pair drifted by 1e-3 of the diagonal and a near-exact one
+   ended at Adam's noise floor instead of where it started;
+4. divergence (NaN/Inf or a loss that explodes) restores the last good parameters and reports failure;
+   :meth:`_Fit.plausibility` reports a fit whose residuals stay large as not converged too, with the reason, and a
+   warning.
 """
 
 from __future__ import annotations
@@ -24,7 +26,6 @@ from __future__ import annotations
 import math
 import time
 import warnings
-from collections.abc import Sequence
 from typing import Any, NamedTuple
 
 import torch
@@ -33,13 +34,7 @@ from torch import Tensor
 from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.kernels.sampling import sample_surface
-from torchmeshmetric.registration._common import (
-    face_unit_normals,
-    normalisation,
-    referenced_mask,
-    unit_normals,
-    validate_pair,
-)
+from torchmeshmetric.registration._common import normalisation, validate_pair
 from torchmeshmetric.registration.deformation_graph import DeformationGraph
 from torchmeshmetric.registration.energies import (
     Correspondences,
@@ -50,47 +45,22 @@ from torchmeshmetric.registration.energies import (
     fused_energy,
     surface_term,
 )
+from torchmeshmetric.registration.options import DEFAULT_SCHEDULE, NonRigidOptions, Stage
 from torchmeshmetric.registration.rigid import RigidRegistration, register_rigid
 from torchmeshmetric.structures import Mesh, MeshLike, PackedMeshes
 
-__all__ = ["DEFAULT_SCHEDULE", "NonRigidRegistration", "RegistrationWarning", "Stage", "register_nonrigid"]
+__all__ = [
+    "DEFAULT_SCHEDULE",
+    "NonRigidOptions",
+    "NonRigidRegistration",
+    "RegistrationWarning",
+    "Stage",
+    "register_nonrigid",
+]
 
 
 class RegistrationWarning(UserWarning):
     """Emitted when a registration fails (diverged, or the fit is implausible)."""
-
-
-class Stage(NamedTuple):
-    """One stage of the coarse-to-fine schedule (distances are fractions of the bounding-box diagonal).
-
-    Attributes:
-        regularization: weight of the embedded-deformation prior.
-        robust_scale: Geman-McClure scale ``sigma``.
-        max_distance: correspondences farther than this are rejected.
-        max_normal_angle: correspondences whose normals differ by more (degrees) are rejected.
-        lr: Adam learning rate (radians for rotations, diagonals for translations).
-        max_steps: Adam steps at most.
-    """
-
-    regularization: float
-    robust_scale: float
-    max_distance: float
-    max_normal_angle: float
-    lr: float
-    max_steps: int
-
-
-DEFAULT_SCHEDULE: tuple[Stage, ...] = (
-    Stage(regularization=10.0, robust_scale=0.10, max_distance=0.30, max_normal_angle=80.0, lr=1e-2, max_steps=120),
-    Stage(regularization=1.0, robust_scale=0.05, max_distance=0.15, max_normal_angle=60.0, lr=5e-3, max_steps=50),
-    Stage(regularization=0.1, robust_scale=0.02, max_distance=0.08, max_normal_angle=50.0, lr=2e-3, max_steps=50),
-    Stage(regularization=0.02, robust_scale=0.01, max_distance=0.05, max_normal_angle=45.0, lr=1e-3, max_steps=40),
-)
-"""The default coarse-to-fine schedule: regularisation, robust scale, rejection thresholds and step size decrease.
-
-Stage lengths 120/50/50/40 steps (was 120 each): at ~17k vertices the ground-truth error barely moves
-(docs/registration.md) while the Adam steps, the dominant cost, drop by ~40 %. Each stage returns its best iterate
-and stops at a stationary point, so an exact or near-exact pair is not moved by Adam's lr-sized steps."""
 
 
 class NonRigidRegistration(NamedTuple):
@@ -150,26 +120,14 @@ _ADAM_OPTIONS: dict[str, Any] = {"foreach": False, "fused": True}
 def register_nonrigid(
     source: MeshLike,
     target: MeshLike,
+    options: NonRigidOptions | None = None,
     *,
-    rigid_init: bool = True,
     device: torch.device | str | None = None,
-    node_spacing: float = 0.03,
-    num_neighbors: int = 4,
-    num_points: int = 2000,
-    num_target_samples: int = 2000,
-    correspondence_every: int = 10,
-    schedule: Sequence[Stage] = DEFAULT_SCHEDULE,
-    plane_weight: float = 1.0,
-    point_weight: float = 0.1,
-    reverse_weight: float = 1.0,
-    tolerance: float = 1e-3,
-    max_outlier_fraction: float = 0.1,
-    outlier_distance: float = 0.02,
-    rigid_options: dict[str, Any] | None = None,
     generator: torch.Generator | None = None,
     warn: bool = True,
     backend: str = "auto",
     num_threads: int | None = 1,
+    **keywords: Any,
 ) -> NonRigidRegistration:
     """Register ``source`` (frame k-1) non-rigidly onto ``target`` (frame k), keeping the source's topology.
 
@@ -178,40 +136,38 @@ def register_nonrigid(
     unreferenced vertices still move with the graph's skinning, zero-area faces carry no normal so they skip the
     point-to-plane term, and the closest-point kernel is exact on degenerate triangles.
 
+    What is computed is set by ``options`` and ``keywords`` (any field of :class:`NonRigidOptions`, e.g.
+    ``num_points=1000``, ``schedule=DEFAULT_SCHEDULE[:2]``; a keyword overrides the same field of ``options``).
+    Both spellings are supported and give the same :class:`NonRigidOptions`: keywords for a one-off call, the
+    dataclass to keep, compare or cache a setting. The other arguments say how it runs; they do not change what is
+    computed, except through floating-point rounding (another device, or another thread count, sums in another
+    order, and the optimisation can amplify that).
+
     Args:
         source: mesh to deform (frame k-1).
         target: mesh to reach (frame k).
-        rigid_init: run rigid ICP first.
+        options: the registration's settings (default: ``NonRigidOptions()``).
         device: device to compute on (default: the source's device); results live there.
-        node_spacing: deformation-graph node spacing, fraction of the diagonal.
-        num_neighbors: nodes per vertex.
-        num_points: source vertices (random subset of the surface vertices) in the data term.
-        num_target_samples: target surface samples in the reverse term (target → deformed source).
-        correspondence_every: Adam steps between two correspondence refreshes.
-        schedule: coarse-to-fine stages (see :data:`DEFAULT_SCHEDULE`).
-        plane_weight: weight of the point-to-plane part of the data term.
-        point_weight: weight of the point-to-point part of the data term.
-        reverse_weight: weight of the reverse term.
-        tolerance: relative loss change between refreshes below which a stage stops.
-        max_outlier_fraction: the fit is reported as failed when more than this fraction of surface vertices, or
-            of target samples, lies farther than ``outlier_distance`` from the other mesh.
-        outlier_distance: see ``max_outlier_fraction`` (fraction of the diagonal).
-        rigid_options: keyword arguments for :func:`register_rigid` (default: point-to-plane).
-        generator: optional CPU ``torch.Generator`` for sampling (reproducible runs).
+        generator: CPU ``torch.Generator`` for sampling (default: a fresh one seeded with 0, so runs repeat).
         warn: emit a :class:`RegistrationWarning` when the registration fails.
-        backend: selection backend of the closest-face searches (see :func:`~torchmeshmetric.point_mesh_distance`).
+        backend: selection backend of the closest-face searches (see :func:`~torchmeshmetric.point_mesh_distance`);
+            the exact backends return the same faces, so the result does not depend on it.
         num_threads: torch intra-op threads while registering (restored afterwards; process-wide, like
             ``torch.set_num_threads``). Default 1: the loop is ~1 ms steps of small operations whose parallel regions
             cost more than they save, and on a loaded machine wait for descheduled threads (docs/registration.md:
             0.96 s of CPU on one thread; 47 s wall with two threads on an oversubscribed machine). ``None``: keep
             torch's setting.
+        **keywords: fields of :class:`NonRigidOptions` (``rigid_init``, ``node_spacing``, ``num_neighbors``,
+            ``num_points``, ``num_target_samples``, ``correspondence_every``, ``schedule``, ``plane_weight``,
+            ``point_weight``, ``reverse_weight``, ``tolerance``, ``max_outlier_fraction``, ``outlier_distance``,
+            ``rigid_options``).
 
     Returns:
         :class:`NonRigidRegistration`.
 
     Raises:
         ShapeError, DTypeError, NonFiniteError, IndexRangeError, DeviceError, EmptyInputError: on bad meshes.
-        ValueError: on a bad option.
+        TypeError, ValueError: on a bad option (the message names it), or an unknown keyword.
 
     Example:
         >>> import torch, trimesh
@@ -221,251 +177,317 @@ def register_nonrigid(
         >>> r = register_nonrigid(src, tgt, schedule=DEFAULT_SCHEDULE[:2], generator=torch.Generator().manual_seed(0))
         >>> r.converged, bool(r.residual.max() < 0.02)
         (True, True)
+        >>> quick = NonRigidOptions(schedule=DEFAULT_SCHEDULE[:2])
+        >>> bool((register_nonrigid(src, tgt, quick).verts == r.verts).all())  # same settings, same result
+        True
     """
-    if correspondence_every < 1:
-        raise ValueError(f"correspondence_every: expected a positive int, found {correspondence_every}")
-    if not schedule:
-        raise ValueError("schedule: expected at least one stage, found none")
-    if num_points < 1 or num_target_samples < 0:
-        raise ValueError(f"num_points/num_target_samples: expected positive counts, found {num_points}, "
-                         f"{num_target_samples}")  # fmt: skip
+    opts = NonRigidOptions.from_keywords(options, **keywords)
+    if num_threads is not None and (isinstance(num_threads, bool) or not isinstance(num_threads, int)):
+        raise TypeError(f"num_threads: expected an int or None, found {type(num_threads).__name__}")
     if num_threads is not None and num_threads < 1:
         raise ValueError(f"num_threads: expected a positive int or None, found {num_threads}")
     previous_threads = torch.get_num_threads()
     if num_threads is not None and num_threads != previous_threads:
         torch.set_num_threads(num_threads)
     try:
-        return _register_nonrigid(
-            source, target, rigid_init=rigid_init, device=device, node_spacing=node_spacing,
-            num_neighbors=num_neighbors, num_points=num_points, num_target_samples=num_target_samples,
-            correspondence_every=correspondence_every, schedule=schedule, plane_weight=plane_weight,
-            point_weight=point_weight, reverse_weight=reverse_weight, tolerance=tolerance,
-            max_outlier_fraction=max_outlier_fraction, outlier_distance=outlier_distance, rigid_options=rigid_options,
-            generator=generator, warn=warn, backend=backend,
-        )  # fmt: skip
+        return _register(source, target, opts, device=device, generator=generator, warn=warn, backend=backend)
     finally:
         if torch.get_num_threads() != previous_threads:
             torch.set_num_threads(previous_threads)
 
 
-def _register_nonrigid(
+def _register(
     source: MeshLike,
     target: MeshLike,
+    opts: NonRigidOptions,
     *,
-    rigid_init: bool,
     device: torch.device | str | None,
-    node_spacing: float,
-    num_neighbors: int,
-    num_points: int,
-    num_target_samples: int,
-    correspondence_every: int,
-    schedule: Sequence[Stage],
-    plane_weight: float,
-    point_weight: float,
-    reverse_weight: float,
-    tolerance: float,
-    max_outlier_fraction: float,
-    outlier_distance: float,
-    rigid_options: dict[str, Any] | None,
     generator: torch.Generator | None,
     warn: bool,
     backend: str,
 ) -> NonRigidRegistration:
     t_total = time.perf_counter()
     timings = {"rigid": 0.0, "graph": 0.0, "correspondences": 0.0, "optimisation": 0.0, "residual": 0.0}
+    gen = generator if generator is not None else torch.Generator().manual_seed(0)
+    frame = _normalise(source, target, opts, device, gen, timings)
+    fit = _Fit(frame, opts, gen, backend, timings)
+    t_opt = time.perf_counter()
+    for stage in opts.schedule:
+        fit.run_stage(stage)
+        if fit.reason:
+            break
+    timings["optimisation"] = time.perf_counter() - t_opt - timings["correspondences"]
+    t0 = time.perf_counter()
+    verts, residual, implausible = fit.plausibility()
+    timings["residual"] = time.perf_counter() - t0
+    reason = fit.reason or implausible
+    if not reason and not all(math.isfinite(h) for h in fit.history):
+        reason = "diverged: non-finite loss"
+    if reason and warn:
+        warnings.warn(f"register_nonrigid: {reason}", RegistrationWarning, stacklevel=3)
+    timings["total"] = time.perf_counter() - t_total
+    return NonRigidRegistration(
+        verts=verts,
+        mesh=Mesh(verts, frame.source.faces, validate=False),
+        residual=residual,
+        loss_history=fit.history,
+        converged=not reason,
+        reason=reason,
+        timings=timings,
+        graph=fit.graph,
+        rigid=frame.rigid,
+    )
+
+
+class _Frame(NamedTuple):
+    """Both meshes in the registration's frame (the target's bounding-box centre at 0, its diagonal 1)."""
+
+    center: Tensor
+    diag: Tensor
+    source: Mesh  # after the rigid stage
+    target: Mesh
+    rigid: RigidRegistration
+
+
+def _normalise(
+    source: MeshLike,
+    target: MeshLike,
+    opts: NonRigidOptions,
+    device: torch.device | str | None,
+    gen: torch.Generator,
+    timings: dict[str, float],
+) -> _Frame:
+    """Validate both meshes, run the rigid stage (or not) and move both into the normalised frame."""
     src, tgt = validate_pair(source, target)
     if device is not None:
         src, tgt = src.to(device=device), tgt.to(device=device)
-    dev, dtype = src.device, src.dtype
-    gen = generator if generator is not None else torch.Generator().manual_seed(0)
-
-    # 1. Normalise to the target's bounding-box centre and unit diagonal.
     center, diag = normalisation(tgt)
-    tv = (tgt.verts - center) / diag
-    tf = tgt.faces
-
-    # 2. Rigid initialisation.
     t0 = time.perf_counter()
-    if rigid_init:
-        rigid = register_rigid(src, tgt, generator=gen, **{"point_to_plane": True, **(rigid_options or {})})
+    if opts.rigid_init:
+        rigid = register_rigid(src, tgt, generator=gen, **(opts.rigid_options or {}))
         moved = rigid.verts
     else:
         rigid = _identity_rigid(src.verts)
         moved = src.verts
     timings["rigid"] = time.perf_counter() - t0
-    sv = (moved - center) / diag
-    sf = src.faces
+    source_n = Mesh((moved - center) / diag, src.faces, validate=False)
+    return _Frame(center, diag, source_n, Mesh((tgt.verts - center) / diag, tgt.faces, validate=False), rigid)
 
-    # 3. Graph and fixed samples.
-    t0 = time.perf_counter()
-    graph = DeformationGraph(sv, sf, node_spacing=node_spacing, num_neighbors=num_neighbors).to(dev)
-    surf = referenced_mask(Mesh(sv, sf, validate=False)).nonzero()[:, 0]
-    if surf.numel() > num_points:
-        surf = surf[torch.randperm(surf.numel(), generator=gen)[:num_points].to(dev)]
-    if num_target_samples > 0:
-        samples = sample_surface(tv.cpu(), tf.cpu(), n=num_target_samples, generator=gen)
-        tsamp = samples.points.to(dev)
-        tsamp_n = face_unit_normals(tv, tf)[samples.face_idx.to(dev)]
-    timings["graph"] = time.perf_counter() - t0
 
-    history: list[float] = []
-    reason = ""
-    # Adam's step is lr * m / (sqrt(v) + eps): about lr in every coordinate whatever the gradient's size, so at a
-    # stationary point (e.g. an exact pair, whose gradient is rounding noise) it would move the parameters by lr
-    # instead of not at all; the loop stops a stage where every gradient component is below sqrt(eps) of the dtype
-    # (the loss is in units of the node spacing squared: residuals of ~1e-10 of the diagonal).
-    stationary_tol = math.sqrt(torch.finfo(dtype).eps)
-    best_state = _parameters(graph)
-    # Built once: the target's index (queried at every refresh) and face normals; the deformed source's index is
-    # refitted to the deformed vertices at every refresh (same faces), never rebuilt.
-    target_index = MeshIndex._trusted(PackedMeshes(tv, tf, _lengths(tv), _lengths(tf)), backend, DEFAULT_MAX_MEMORY)
-    target_normals = face_unit_normals(tv, tf)
-    source_index: MeshIndex | None = None
-    t_opt = time.perf_counter()
-    first_loss: float | None = None
-    for stage in schedule:
-        opt = torch.optim.Adam(graph.parameters(), lr=stage.lr, **_ADAM_OPTIONS)
+class _Terms(NamedTuple):
+    """The correspondences of one refresh: for the fused energy, and for its torch formulation."""
+
+    energy: EnergyTerms
+    need: Tensor  # (I,) source vertices the energies touch
+    surf_loc: Tensor  # (S,) rows of `need` of the data points
+    faces_loc: Tensor  # (Q, 3) rows of `need` of the corners of the faces matched by the target samples
+    forward: Correspondences  # data points -> target faces
+    reverse: Correspondences | None  # target samples -> rows of `faces_loc`
+
+
+class _Fit:
+    """The deformation graph being fitted, and what every stage reuses.
+
+    Built once: the graph, the data points (a random subset of the source's surface vertices), the target samples
+    of the reverse term with their normals, the target's index (queried at every refresh) and face normals. The
+    deformed source's index is built at the first refresh and refitted to the deformed vertices afterwards (same
+    faces), never rebuilt.
+    """
+
+    def __init__(
+        self, frame: _Frame, opts: NonRigidOptions, gen: torch.Generator, backend: str, timings: dict[str, float]
+    ) -> None:
+        t0 = time.perf_counter()
+        src, tgt = frame.source, frame.target
+        dev = src.device
+        self.frame, self.opts, self.backend, self.timings = frame, opts, backend, timings
+        self.graph = DeformationGraph(
+            src.verts, src.faces, node_spacing=opts.node_spacing, num_neighbors=opts.num_neighbors
+        ).to(dev)
+        surf = src.surface_vertex_mask().nonzero()[:, 0]
+        if surf.numel() > opts.num_points:
+            surf = surf[torch.randperm(surf.numel(), generator=gen)[: opts.num_points].to(dev)]
+        self.surf = surf
+        self.samples: Tensor | None = None
+        self.sample_normals = tgt.verts[:0]
+        if opts.num_target_samples > 0:
+            samples = sample_surface(tgt.verts.cpu(), tgt.faces.cpu(), n=opts.num_target_samples, generator=gen)
+            self.samples = samples.points.to(dev)
+            self.sample_normals = tgt.face_normals()[samples.face_idx.to(dev)]
+        timings["graph"] = time.perf_counter() - t0
+        packed = PackedMeshes(tgt.verts, tgt.faces, _lengths(tgt.verts), _lengths(tgt.faces))
+        self.target_index = MeshIndex._trusted(packed, backend, DEFAULT_MAX_MEMORY)
+        self.source_index: MeshIndex | None = None
+        # Adam's step is lr * m / (sqrt(v) + eps): about lr in every coordinate whatever the gradient's size, so at
+        # a stationary point (e.g. an exact pair, whose gradient is rounding noise) it would move the parameters by
+        # lr instead of not at all; a stage stops where every gradient component is below sqrt(eps) of the dtype
+        # (the loss is in units of the node spacing squared: residuals of ~1e-10 of the diagonal).
+        self.stationary_tol = math.sqrt(torch.finfo(src.dtype).eps)
+        self.best_state = _parameters(self.graph)
+        self.history: list[float] = []
+        self.first_loss: float | None = None
+        self.reason = ""
+
+    def run_stage(self, stage: Stage) -> None:
+        """Adam steps of one stage; ends on the stage's best iterate, or sets ``reason`` when it diverges."""
+        every = self.opts.correspondence_every
+        opt = torch.optim.Adam(self.graph.parameters(), lr=stage.lr, **_ADAM_OPTIONS)
         prev_window: float | None = None
-        corr_f: Correspondences | None = None
-        corr_r: Correspondences | None = None
-        corr_r_loc: Correspondences | None = None
-        terms: EnergyTerms | None = None
+        terms: _Terms | None = None
         # Best iterate of the stage, judged on the loss right after a correspondence refresh (a function of the
         # parameters alone, so comparable across refreshes); the stage's last iterate gets one more refresh.
         stage_best = math.inf
-        stage_best_state = best_state
+        stage_best_state = self.best_state
         finishing = False
         for step in range(stage.max_steps + 1):
             finishing = finishing or step == stage.max_steps
-            refresh = finishing or step % correspondence_every == 0
+            refresh = finishing or step % every == 0
             if refresh:
-                t0 = time.perf_counter()
-                with torch.no_grad():
-                    dv = deformed_vertices(graph)
-                    fn, vn = unit_normals(dv, sf)
-                    corr_f = find_correspondences(dv[surf], vn[surf], tv, tf, max_distance=stage.max_distance,
-                                                  max_normal_angle=stage.max_normal_angle, index=target_index,
-                                                  face_normals=target_normals)  # fmt: skip
-                    if num_target_samples > 0:
-                        if source_index is None:
-                            packed = PackedMeshes(dv, sf, _lengths(dv), _lengths(sf))
-                            source_index = MeshIndex._trusted(packed, backend, DEFAULT_MAX_MEMORY)
-                        else:
-                            source_index._refit(dv)
-                        corr_r = find_correspondences(tsamp, tsamp_n, dv, sf, max_distance=stage.max_distance,
-                                                      max_normal_angle=stage.max_normal_angle,
-                                                      index=source_index, face_normals=fn)  # fmt: skip
-                timings["correspondences"] += time.perf_counter() - t0
-                # Only the data points and the vertices of the faces matched by target samples enter the data
-                # terms: deform just those (forward and backward then scale with them, not with all vertices).
-                rev_faces = sf[corr_r.face_idx] if corr_r is not None else sf[:0]
-                need, inv = torch.cat([surf, rev_faces.reshape(-1)]).unique(return_inverse=True)
-                surf_loc, faces_loc = inv[: surf.numel()], inv[surf.numel() :].view(-1, 3)
-                corr_r_loc = (
-                    corr_r._replace(face_idx=torch.arange(rev_faces.shape[0], device=dev))
-                    if corr_r is not None
-                    else None
-                )
-                terms = EnergyTerms(
-                    graph.verts[need], graph.vert_nodes[need], graph.vert_weights[need], surf_loc,
-                    tv[tf[corr_f.face_idx]], target_normals[corr_f.face_idx], corr_f.weights,
-                    tsamp if corr_r is not None else tv[:0], faces_loc,
-                    corr_r.weights if corr_r is not None else tv.new_zeros(0),
-                )  # fmt: skip
-            assert corr_f is not None and terms is not None
+                terms = self._refresh(stage)
+            assert terms is not None
             opt.zero_grad(set_to_none=True)
             with torch.set_grad_enabled(not finishing):
-                # Data terms in units of the node spacing, so a regularisation weight of 1 trades an edge residual
-                # of one spacing against a data residual of one spacing.
-                loss = fused_energy(graph, terms, sigma=stage.robust_scale, plane_weight=plane_weight,
-                                    point_weight=point_weight, reverse_weight=reverse_weight,
-                                    data_scale=1.0 / (node_spacing * node_spacing),
-                                    regularization=stage.regularization)  # fmt: skip
-                if loss is None:  # no C++ extension for this device: the same energy in torch ops
-                    dsub = graph.deform_vertices(need)
-                    loss = surface_term(dsub[surf_loc], tv, tf, corr_f, sigma=stage.robust_scale,
-                                        plane_weight=plane_weight, point_weight=point_weight)  # fmt: skip
-                    if corr_r_loc is not None and reverse_weight:
-                        loss = loss + reverse_weight * surface_term(
-                            tsamp, dsub, faces_loc, corr_r_loc, sigma=stage.robust_scale, plane_weight=0.0,
-                            point_weight=1.0,
-                        )  # fmt: skip
-                    loss = loss / (node_spacing * node_spacing)
-                    loss = loss + stage.regularization * embedded_deformation_regularizer(graph)
+                loss = self._loss(stage, terms)
             value = float(loss.detach())
-            if first_loss is None:
+            if self.first_loss is None:
                 # The loss is in units of (node spacing)^2: a floor of 1 (a residual of one node spacing) keeps an
                 # exact start (loss ~1e-30) from calling rounding noise a divergence.
-                first_loss = max(value, 1.0)
-            if not math.isfinite(value) or value > 1e6 * first_loss:
-                reason = f"diverged: loss became {value:.3g} (first loss {first_loss:.3g})"
-                _load_parameters(graph, best_state)
-                break
+                self.first_loss = max(value, 1.0)
+            if not math.isfinite(value) or value > 1e6 * self.first_loss:
+                self._diverged(f"diverged: loss became {value:.3g} (first loss {self.first_loss:.3g})")
+                return
             if refresh and value < stage_best:
                 stage_best = value
-                stage_best_state = _parameters(graph)
+                stage_best_state = _parameters(self.graph)
             if finishing:
                 break
-            history.append(value)
+            self.history.append(value)
             loss.backward()
             # One reduction for both checks: NaN propagates through max.
-            grad_max = float(torch.stack([p.grad.abs().max() for p in graph.parameters() if p.grad is not None]).max())
+            grads = [p.grad.abs().max() for p in self.graph.parameters() if p.grad is not None]
+            grad_max = float(torch.stack(grads).max())
             if not math.isfinite(grad_max):
-                reason = "diverged: non-finite gradient"
-                _load_parameters(graph, best_state)
-                break
+                self._diverged("diverged: non-finite gradient")
+                return
             if refresh:
-                best_state = _parameters(graph)
-            if grad_max <= stationary_tol:
+                self.best_state = _parameters(self.graph)
+            if grad_max <= self.stationary_tol:
                 finishing = True  # the gradient is rounding noise: Adam would turn it into lr-sized steps
                 continue
             opt.step()
-            if step % correspondence_every == correspondence_every - 1:
-                if prev_window is not None and abs(prev_window - value) <= tolerance * max(abs(prev_window), 1e-30):
+            if step % every == every - 1:
+                if prev_window is not None and abs(prev_window - value) <= self.opts.tolerance * max(
+                    abs(prev_window), 1e-30
+                ):
                     finishing = True
                 prev_window = value
-        if reason:
-            break
-        _load_parameters(graph, stage_best_state)
-        best_state = stage_best_state
-    timings["optimisation"] = time.perf_counter() - t_opt - timings["correspondences"]
+        _load_parameters(self.graph, stage_best_state)
+        self.best_state = stage_best_state
 
-    # 4. Results, residuals and plausibility.
-    t0 = time.perf_counter()
-    with torch.no_grad():
-        dv = deformed_vertices(graph)
-        verts = dv * diag + center
-        residual_n = target_index._point_mesh_distance(dv, _lengths(dv)).dists
-        residual = residual_n * diag
-        used = referenced_mask(Mesh(sv, sf, validate=False))
-        frac_src = float((residual_n[used] > outlier_distance).to(dtype).mean())
-        frac_tgt = 0.0
-        if num_target_samples > 0 and source_index is not None:
-            source_index._refit(dv)
-            frac_tgt = float(
-                (source_index._point_mesh_distance(tsamp, _lengths(tsamp)).dists > outlier_distance).to(dtype).mean()
-            )
-    timings["residual"] = time.perf_counter() - t0
-    if not reason and (frac_src > max_outlier_fraction or frac_tgt > max_outlier_fraction):
-        reason = (
-            f"implausible fit: {100 * frac_src:.1f}% of source vertices and {100 * frac_tgt:.1f}% of target samples "
-            f"are farther than {100 * outlier_distance:.1f}% of the diagonal from the other mesh "
-            f"(allowed {100 * max_outlier_fraction:.1f}%)"
+    def _diverged(self, reason: str) -> None:
+        self.reason = reason
+        _load_parameters(self.graph, self.best_state)
+
+    def _source_index(self, deformed: Tensor) -> MeshIndex:
+        faces = self.frame.source.faces
+        if self.source_index is None:
+            packed = PackedMeshes(deformed, faces, _lengths(deformed), _lengths(faces))
+            self.source_index = MeshIndex._trusted(packed, self.backend, DEFAULT_MAX_MEMORY)
+        else:
+            self.source_index._refit(deformed)
+        return self.source_index
+
+    def _refresh(self, stage: Stage) -> _Terms:
+        """New correspondences at the current deformation (forward, and reverse when there are target samples)."""
+        t0 = time.perf_counter()
+        tgt, sf, surf = self.frame.target, self.frame.source.faces, self.surf
+        limits = {"max_distance": stage.max_distance, "max_normal_angle": stage.max_normal_angle}
+        with torch.no_grad():
+            deformed = Mesh(deformed_vertices(self.graph), sf, validate=False)
+            dv, vn = deformed.verts, deformed.vertex_normals()
+            forward = find_correspondences(
+                dv[surf], vn[surf], tgt.verts, tgt.faces, index=self.target_index, face_normals=tgt.face_normals(),
+                **limits,
+            )  # fmt: skip
+            reverse = None
+            if self.samples is not None:
+                reverse = find_correspondences(
+                    self.samples, self.sample_normals, dv, sf, index=self._source_index(dv),
+                    face_normals=deformed.face_normals(), **limits,
+                )  # fmt: skip
+        self.timings["correspondences"] += time.perf_counter() - t0
+        return self._terms(forward, reverse)
+
+    def _terms(self, forward: Correspondences, reverse: Correspondences | None) -> _Terms:
+        """Lay out one refresh's correspondences for the energies, indexed by the vertices they touch."""
+        graph, tgt, sf, surf = self.graph, self.frame.target, self.frame.source.faces, self.surf
+        # Only the data points and the vertices of the faces matched by target samples enter the data terms: deform
+        # just those (forward and backward then scale with them, not with all vertices).
+        rev_faces = sf[reverse.face_idx] if reverse is not None else sf[:0]
+        need, inv = torch.cat([surf, rev_faces.reshape(-1)]).unique(return_inverse=True)
+        surf_loc, faces_loc = inv[: surf.numel()], inv[surf.numel() :].view(-1, 3)
+        tv, tf = tgt.verts, tgt.faces
+        energy = EnergyTerms(
+            graph.verts[need], graph.vert_nodes[need], graph.vert_weights[need], surf_loc,
+            tv[tf[forward.face_idx]], tgt.face_normals()[forward.face_idx], forward.weights,
+            self.samples if reverse is not None and self.samples is not None else tv[:0], faces_loc,
+            reverse.weights if reverse is not None else tv.new_zeros(0),
+        )  # fmt: skip
+        if reverse is not None:
+            reverse = reverse._replace(face_idx=torch.arange(rev_faces.shape[0], device=sf.device))
+        return _Terms(energy, need, surf_loc, faces_loc, forward, reverse)
+
+    def _loss(self, stage: Stage, terms: _Terms) -> Tensor:
+        """The stage's energy at the current deformation.
+
+        Data terms are in units of the node spacing, so a regularisation weight of 1 trades an edge residual of one
+        spacing against a data residual of one spacing.
+        """
+        opts, tgt = self.opts, self.frame.target
+        weights = {"plane_weight": opts.plane_weight, "point_weight": opts.point_weight}
+        loss = fused_energy(
+            self.graph, terms.energy, sigma=stage.robust_scale, reverse_weight=opts.reverse_weight,
+            data_scale=1.0 / (opts.node_spacing * opts.node_spacing), regularization=stage.regularization, **weights,
+        )  # fmt: skip
+        if loss is not None:
+            return loss
+        # No C++ extension for this device: the same energy in torch ops.
+        dsub = self.graph.deform_vertices(terms.need)
+        loss = surface_term(
+            dsub[terms.surf_loc], tgt.verts, tgt.faces, terms.forward, sigma=stage.robust_scale, **weights
         )
-    if not reason and not all(math.isfinite(h) for h in history):
-        reason = "diverged: non-finite loss"
-    converged = not reason
-    if not converged and warn:
-        warnings.warn(f"register_nonrigid: {reason}", RegistrationWarning, stacklevel=3)
-    timings["total"] = time.perf_counter() - t_total
-    return NonRigidRegistration(
-        verts=verts,
-        mesh=Mesh(verts, sf, validate=False),
-        residual=residual,
-        loss_history=history,
-        converged=converged,
-        reason=reason,
-        timings=timings,
-        graph=graph,
-        rigid=rigid,
-    )
+        if terms.reverse is not None and self.samples is not None and opts.reverse_weight:
+            loss = loss + opts.reverse_weight * surface_term(
+                self.samples, dsub, terms.faces_loc, terms.reverse, sigma=stage.robust_scale, plane_weight=0.0,
+                point_weight=1.0,
+            )  # fmt: skip
+        loss = loss / (opts.node_spacing * opts.node_spacing)
+        return loss + stage.regularization * embedded_deformation_regularizer(self.graph)
+
+    def plausibility(self) -> tuple[Tensor, Tensor, str]:
+        """``(verts (V, 3), residual (V,), reason)`` of the fit as it stands.
+
+        The registered source in the target's coordinates, each vertex's exact distance to the target, and why the
+        fit is implausible (empty when it is not).
+        """
+        opts, frame = self.opts, self.frame
+        dtype = frame.source.dtype
+        with torch.no_grad():
+            dv = deformed_vertices(self.graph)
+            verts = dv * frame.diag + frame.center
+            residual_n = self.target_index._point_mesh_distance(dv, _lengths(dv)).dists
+            used = frame.source.surface_vertex_mask()
+            frac_src = float((residual_n[used] > opts.outlier_distance).to(dtype).mean())
+            frac_tgt = 0.0
+            if self.samples is not None and self.source_index is not None:
+                self.source_index._refit(dv)
+                far = self.source_index._point_mesh_distance(self.samples, _lengths(self.samples)).dists
+                frac_tgt = float((far > opts.outlier_distance).to(dtype).mean())
+        reason = ""
+        if frac_src > opts.max_outlier_fraction or frac_tgt > opts.max_outlier_fraction:
+            reason = (
+                f"implausible fit: {100 * frac_src:.1f}% of source vertices and {100 * frac_tgt:.1f}% of target "
+                f"samples are farther than {100 * opts.outlier_distance:.1f}% of the diagonal from the other mesh "
+                f"(allowed {100 * opts.max_outlier_fraction:.1f}%)"
+            )
+        return verts, residual_n * frame.diag, reason

@@ -19,8 +19,9 @@ from torch import Tensor
 
 from torchmeshmetric._checks import EmptyInputError, ShapeError, check_finite, check_float, check_shape
 from torchmeshmetric.kernels.mesh_index import MeshIndex
-from torchmeshmetric.registration._common import face_unit_normals, referenced_mask, validate_pair
-from torchmeshmetric.structures import MeshLike
+from torchmeshmetric.kernels.point_triangle import PointMeshResult
+from torchmeshmetric.registration._common import validate_pair
+from torchmeshmetric.structures import Mesh, MeshLike
 
 __all__ = ["RigidRegistration", "SimilarityTransform", "kabsch_umeyama", "register_rigid", "transform_matrix"]
 
@@ -232,7 +233,7 @@ def register_rigid(
         raise ValueError(f"num_samples: expected at least 3, found {num_samples}")
     src, tgt = validate_pair(source, target)
     dtype, device = src.verts.dtype, src.verts.device
-    used = referenced_mask(src)
+    used = src.surface_vertex_mask()
     pts_all = src.verts[used]
     if pts_all.shape[0] > num_samples:
         perm = torch.randperm(pts_all.shape[0], generator=generator, device="cpu")[:num_samples].to(device)
@@ -240,47 +241,17 @@ def register_rigid(
     else:
         pts = pts_all
     diag = tgt.bbox_diagonal()
-    tgt_normals = face_unit_normals(tgt.verts, tgt.faces)
-
-    if init is not None:
-        check_shape(init, (4, 4), "init")
-        check_finite(init, "init")
-        A = init.to(device=device, dtype=dtype)[:3, :3]
-        s0 = torch.linalg.det(A).abs().pow(1.0 / 3.0)
-        R = A / s0
-        s, t = s0 if scale else torch.ones((), dtype=dtype, device=device), init.to(device=device, dtype=dtype)[:3, 3]
-        if not scale:
-            R = kabsch_umeyama(torch.eye(3, dtype=dtype, device=device), R.T).rotation  # nearest rotation
-    else:
-        R = torch.eye(3, dtype=dtype, device=device)
-        s = torch.ones((), dtype=dtype, device=device)
-        t = torch.zeros(3, dtype=dtype, device=device)
-        if align_centroids:
-            t = tgt.verts[referenced_mask(tgt)].mean(0) - pts_all.mean(0)
-
+    R, t, s = _initial_transform(src, tgt, pts_all, init, scale, align_centroids)
     sigma2 = (robust_scale * diag) ** 2
     converged = False
     it = 0
-    w = torch.ones(pts.shape[0], dtype=dtype, device=device)
-    dists = torch.zeros(pts.shape[0], dtype=dtype, device=device)
     index = MeshIndex(tgt.verts, tgt.faces, tree="morton")  # built once for all iterations (~15 queries)
     for it in range(1, max_iterations + 1):  # noqa: B007 - the last value is reported
         cur = s * pts @ R.T + t
         res = index.point_mesh_distance(cur)
-        dists = res.dists
-        w = _robust_trimmed_weights(dists, trim, sigma2)
+        w = _robust_trimmed_weights(res.dists, trim, sigma2)
         if point_to_plane:
-            n = tgt_normals[res.face_idx]
-            # The face normal is the distance's gradient direction only for a match inside the face. A match on an
-            # edge or a vertex (a zero barycentric) is shared by several faces, which tie, so the face normal would
-            # depend on tie-breaking; there, and on zero-area faces (no normal), use the direction to the closest
-            # point, the distance's gradient. Matches on the surface (distance 0) keep the face normal.
-            no_n = ((n * n).sum(-1) == 0) | (res.bary <= 0).any(-1)
-            if bool(no_n.any()):
-                diff = cur - res.closest
-                dn = diff.norm(dim=-1, keepdim=True)
-                n = torch.where(no_n[:, None] & (dn > 0), diff / dn.clamp_min(1e-30), n)
-            step = _point_to_plane_step(cur, res.closest, n, w, scale)
+            step = _point_to_plane_step(cur, res.closest, _match_normals(cur, res, tgt), w, scale)
         else:
             step = kabsch_umeyama(cur, res.closest, w, scale=scale)
         R, t, s = step.rotation @ R, step.scale * (step.rotation @ t) + step.translation, step.scale * s
@@ -305,6 +276,50 @@ def register_rigid(
         converged=converged or max_iterations == 0,
         iterations=it,
     )
+
+
+def _initial_transform(
+    src: Mesh, tgt: Mesh, pts_all: Tensor, init: Tensor | None, scale: bool, align_centroids: bool
+) -> tuple[Tensor, Tensor, Tensor]:
+    """``(R, t, s)`` ICP starts from.
+
+    ``init`` (projected onto a rotation unless ``scale``), else the identity, translated so that the centroids of the
+    surface vertices meet when ``align_centroids``.
+    """
+    dtype, device = src.dtype, src.device
+    if init is not None:
+        check_shape(init, (4, 4), "init")
+        check_finite(init, "init")
+        A = init.to(device=device, dtype=dtype)[:3, :3]
+        s0 = torch.linalg.det(A).abs().pow(1.0 / 3.0)
+        R = A / s0
+        s, t = s0 if scale else torch.ones((), dtype=dtype, device=device), init.to(device=device, dtype=dtype)[:3, 3]
+        if not scale:
+            R = kabsch_umeyama(torch.eye(3, dtype=dtype, device=device), R.T).rotation  # nearest rotation
+        return R, t, s
+    R = torch.eye(3, dtype=dtype, device=device)
+    s = torch.ones((), dtype=dtype, device=device)
+    t = torch.zeros(3, dtype=dtype, device=device)
+    if align_centroids:
+        t = tgt.verts[tgt.surface_vertex_mask()].mean(0) - pts_all.mean(0)
+    return R, t, s
+
+
+def _match_normals(cur: Tensor, res: PointMeshResult, tgt: Mesh) -> Tensor:
+    """``(P, 3)`` normal of each match for the point-to-plane step.
+
+    The face normal is the distance's gradient direction only for a match inside the face. A match on an edge or a
+    vertex (a zero barycentric) is shared by several faces, which tie, so the face normal would depend on
+    tie-breaking; there, and on zero-area faces (no normal), use the direction to the closest point, the distance's
+    gradient. Matches on the surface (distance 0) keep the face normal.
+    """
+    n = tgt.face_normals()[res.face_idx]
+    no_n = ((n * n).sum(-1) == 0) | (res.bary <= 0).any(-1)
+    if bool(no_n.any()):
+        diff = cur - res.closest
+        dn = diff.norm(dim=-1, keepdim=True)
+        n = torch.where(no_n[:, None] & (dn > 0), diff / dn.clamp_min(1e-30), n)
+    return n
 
 
 def _robust_trimmed_weights(dists: Tensor, trim: float, sigma2: Tensor | float) -> Tensor:

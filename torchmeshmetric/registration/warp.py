@@ -29,6 +29,7 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric._checks import ShapeError, check_finite, check_float, check_shape
+from torchmeshmetric.kernels.point_triangle import point_mesh_distance
 from torchmeshmetric.registration._common import normalisation
 from torchmeshmetric.registration.deformation_graph import embedded_deformation, skinning_weights
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
@@ -157,8 +158,6 @@ class SurfaceWarp(NamedTuple):
 
     def __call__(self, points: Tensor) -> Tensor:
         """``(P, 3)`` positions in frame ``k`` of ``points (P, 3)`` given in frame ``k-1`` (dtype/device kept)."""
-        from torchmeshmetric.kernels.point_triangle import point_mesh_distance
-
         _check_points(points)
         if tuple(self.registered_verts.shape) != tuple(self.source.verts.shape):
             raise ShapeError(

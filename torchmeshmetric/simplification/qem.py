@@ -7,6 +7,7 @@ SIGGRAPH 1997. We keep it as the baseline rather than rewriting it.
 
 from __future__ import annotations
 
+import fast_simplification
 import numpy as np
 import torch
 
@@ -40,8 +41,6 @@ def simplify_qem(mesh: MeshLike, target: int | float, *, preserve_border: bool =
         >>> simplify_qem(sphere, 0.25).num_faces
         320
     """
-    import fast_simplification
-
     m = as_mesh(mesh)
     if m.num_faces == 0:
         raise EmptyInputError("mesh: expected at least one face, found 0")

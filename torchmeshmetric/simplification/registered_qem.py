@@ -20,6 +20,7 @@ valid together). Boundary and non-manifold edges and their vertices are kept fix
 from __future__ import annotations
 
 import warnings
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -197,89 +198,27 @@ def _collapse_to(
 ) -> np.ndarray:
     """Independent-set edge collapses until ``count`` (or ``count + 1``) faces remain; edits ``verts``, ``quad``."""
     num_v = verts.shape[0]
-    big = np.iinfo(np.int64).max
-    cache_key = np.empty(0, np.int64)  # sorted edge keys of the last round with their optimal position and cost
-    cache_pos = np.empty((0, 3))
-    cache_cost = np.empty(0)
+    costs = _Costs(np.empty(0, np.int64), np.empty((0, 3)), np.empty(0))  # the last round's, by sorted edge key
     dirty = np.zeros(num_v, bool)  # vertices whose quadric or position changed in the last round
     frac = fraction
     while faces.shape[0] - count >= 2:
         needed = (faces.shape[0] - count) // 2
-        num_f = faces.shape[0]
-        # --- unique edges, their two faces and opposite vertices
-        e_lo = np.concatenate([faces[:, 0], faces[:, 1], faces[:, 2]])
-        e_hi = np.concatenate([faces[:, 1], faces[:, 2], faces[:, 0]])
-        e_opp = np.concatenate([faces[:, 2], faces[:, 0], faces[:, 1]])
-        lo, hi = np.minimum(e_lo, e_hi), np.maximum(e_lo, e_hi)
-        key = lo * num_v + hi
-        order = np.argsort(key)
-        skey = key[order]
-        first = np.r_[True, skey[1:] != skey[:-1]]
-        starts = np.nonzero(first)[0]
-        cnt = np.diff(np.r_[starts, skey.size])
-        ea, eb = lo[order[starts]], hi[order[starts]]
-        # vertices on boundary / non-manifold edges are locked
-        locked = np.zeros(num_v, bool)
-        bad_e = cnt != 2
-        locked[ea[bad_e]] = True
-        locked[eb[bad_e]] = True
-        deg = np.bincount(ea, minlength=num_v) + np.bincount(eb, minlength=num_v)
-        ok2 = cnt == 2
-        s2 = np.where(ok2, starts + 1, starts)
-        opp1, opp2 = e_opp[order[starts]], e_opp[order[s2]]
-        cand = ok2 & ~locked[ea] & ~locked[eb] & (deg[ea] + deg[eb] >= 7)
-        cand &= (deg[opp1] >= 4) & (deg[opp2] >= 4)
-        ci = np.nonzero(cand)[0]
+        edges = _unique_edges(faces, num_v)
+        ci = _collapsible(edges, num_v)
         if ci.size == 0:
             break
-        ca, cb = ea[ci], eb[ci]
-        # --- optimal positions and costs, reused from the last round where both ends are unchanged
-        ckey = skey[starts[ci]]
-        hit = np.searchsorted(cache_key, ckey)
-        hit_ok = hit < cache_key.size
-        hit_ok[hit_ok] = cache_key[hit[hit_ok]] == ckey[hit_ok]
-        hit_ok &= ~dirty[ca] & ~dirty[cb]
-        pos = np.empty((ci.size, 3))
-        cost = np.empty(ci.size)
-        pos[hit_ok] = cache_pos[hit[hit_ok]]
-        cost[hit_ok] = cache_cost[hit[hit_ok]]
-        miss = ~hit_ok
-        pos[miss], cost[miss] = _optimal_positions(quad[ca[miss]] + quad[cb[miss]], verts[ca[miss]], verts[cb[miss]])
-        cache_key, cache_pos, cache_cost = ckey, pos, cost
-        # --- keep the cheapest fraction (at least what is still needed, when available)
+        ca, cb = edges.ea[ci], edges.eb[ci]
+        costs = _collapse_costs(quad, verts, edges.key[ci], ca, cb, costs, dirty)
+        pos, cost = costs.pos, costs.cost
+        # Keep the cheapest fraction (at least what is still needed, when available).
         n_keep = min(ci.size, max(int(np.ceil(frac * ci.size)), min(needed, ci.size), 1))
         if n_keep < ci.size:
             sel = np.argpartition(cost, n_keep - 1)[:n_keep]
             sel.sort()
             ci, ca, cb, pos, cost = ci[sel], ca[sel], cb[sel], pos[sel], cost[sel]
-        f1, f2 = order[starts[ci]] % num_f, order[s2[ci]] % num_f
-        # --- independent set: rank minimal within the two rings of both ends; invalid minima are dropped and the
-        # selection repeated until all minima are valid (an accepted minimum stays one when others are removed)
         rank = np.empty(ci.size, np.int64)
         rank[np.argsort(cost, kind="stable")] = np.arange(ci.size)
-        alive = np.ones(ci.size, bool)
-        checked = np.zeros(ci.size, bool)
-        adj = _adjacency(ea, eb, num_v)
-        vf_order = np.argsort(faces.reshape(-1))
-        vf = (np.searchsorted(faces.reshape(-1)[vf_order], np.arange(num_v + 1)), vf_order // 3)
-        while True:
-            m1 = np.full(num_v, big, np.int64)
-            r = np.where(alive, rank, big)
-            np.minimum.at(m1, ca, r)
-            np.minimum.at(m1, cb, r)
-            m2 = m1.copy()
-            np.minimum.at(m2, ea, m1[eb])
-            np.minimum.at(m2, eb, m1[ea])
-            minima = alive & (m2[ca] == rank) & (m2[cb] == rank)
-            todo = np.nonzero(minima & ~checked)[0]
-            if todo.size == 0:
-                break
-            checked[todo] = True
-            ok = _link_ok(adj, num_v, ca[todo], cb[todo]) & _no_flip(
-                verts, faces, vf, ca[todo], cb[todo], f1[todo], f2[todo], pos[todo], min_cos
-            )
-            alive[todo[~ok]] = False
-        chosen = np.nonzero(minima)[0]
+        chosen = _independent_collapses(verts, faces, edges, ci, rank, pos, min_cos)
         if chosen.size == 0:  # every collapse among the cheapest is invalid: widen the search, or give up
             if frac >= 1.0:
                 break
@@ -288,16 +227,7 @@ def _collapse_to(
         frac = fraction
         if chosen.size > needed:
             chosen = chosen[np.argsort(rank[chosen], kind="stable")[:needed]]
-        ca, cb, pos = ca[chosen], cb[chosen], pos[chosen]
-        # --- apply: b merges into a at the optimal position
-        verts[ca] = pos
-        quad[ca] += quad[cb]
-        dirty[:] = False
-        dirty[ca] = True
-        remap = np.arange(num_v)
-        remap[cb] = ca
-        faces = remap[faces]
-        faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])]
+        faces = _apply_collapses(verts, faces, quad, dirty, ca[chosen], cb[chosen], pos[chosen])
     if faces.shape[0] > count + 1:
         warnings.warn(
             f"simplify_registered_qem: no valid collapse left at {faces.shape[0]} faces (target {count})",
@@ -305,6 +235,132 @@ def _collapse_to(
             stacklevel=3,
         )
     return faces
+
+
+class _Edges(NamedTuple):
+    """The unique edges of a face list, sorted by key ``lo * V + hi``, with their faces and opposite vertices."""
+
+    ea: np.ndarray  # (E,) lower vertex
+    eb: np.ndarray  # (E,) higher vertex
+    key: np.ndarray  # (E,) int64 sorted keys
+    faces_on: np.ndarray  # (E,) faces on the edge (2 for an interior manifold edge)
+    f1: np.ndarray  # (E,) a face on the edge
+    f2: np.ndarray  # (E,) the other face (``f1`` again unless ``faces_on == 2``)
+    opp1: np.ndarray  # (E,) vertex of ``f1`` opposite the edge
+    opp2: np.ndarray  # (E,) vertex of ``f2`` opposite the edge
+
+
+def _unique_edges(faces: np.ndarray, num_v: int) -> _Edges:
+    num_f = faces.shape[0]
+    e_lo = np.concatenate([faces[:, 0], faces[:, 1], faces[:, 2]])
+    e_hi = np.concatenate([faces[:, 1], faces[:, 2], faces[:, 0]])
+    e_opp = np.concatenate([faces[:, 2], faces[:, 0], faces[:, 1]])
+    lo, hi = np.minimum(e_lo, e_hi), np.maximum(e_lo, e_hi)
+    key = lo * num_v + hi
+    order = np.argsort(key)
+    skey = key[order]
+    first = np.r_[True, skey[1:] != skey[:-1]]
+    starts = np.nonzero(first)[0]
+    cnt = np.diff(np.r_[starts, skey.size])
+    s2 = np.where(cnt == 2, starts + 1, starts)
+    e1, e2 = order[starts], order[s2]
+    return _Edges(lo[e1], hi[e1], skey[starts], cnt, e1 % num_f, e2 % num_f, e_opp[e1], e_opp[e2])
+
+
+def _collapsible(edges: _Edges, num_v: int) -> np.ndarray:
+    """Indices of the edges that may collapse.
+
+    Interior manifold edges whose ends are not on a boundary or non-manifold edge (those vertices are locked) and
+    that leave every vertex around with 3 neighbours or more.
+    """
+    ea, eb = edges.ea, edges.eb
+    locked = np.zeros(num_v, bool)
+    bad_e = edges.faces_on != 2
+    locked[ea[bad_e]] = True
+    locked[eb[bad_e]] = True
+    deg = np.bincount(ea, minlength=num_v) + np.bincount(eb, minlength=num_v)
+    cand = (edges.faces_on == 2) & ~locked[ea] & ~locked[eb] & (deg[ea] + deg[eb] >= 7)
+    cand &= (deg[edges.opp1] >= 4) & (deg[edges.opp2] >= 4)
+    return np.nonzero(cand)[0]
+
+
+class _Costs(NamedTuple):
+    """Optimal positions and costs of collapsing the edges ``key`` (sorted)."""
+
+    key: np.ndarray
+    pos: np.ndarray
+    cost: np.ndarray
+
+
+def _collapse_costs(
+    quad: np.ndarray, verts: np.ndarray, key: np.ndarray, ca: np.ndarray, cb: np.ndarray, last: _Costs,
+    dirty: np.ndarray,
+) -> _Costs:  # fmt: skip
+    """Costs of the edges ``key``, reused from the ``last`` round where both ends are unchanged."""
+    hit = np.searchsorted(last.key, key)
+    hit_ok = hit < last.key.size
+    hit_ok[hit_ok] = last.key[hit[hit_ok]] == key[hit_ok]
+    hit_ok &= ~dirty[ca] & ~dirty[cb]
+    pos = np.empty((key.size, 3))
+    cost = np.empty(key.size)
+    pos[hit_ok] = last.pos[hit[hit_ok]]
+    cost[hit_ok] = last.cost[hit[hit_ok]]
+    miss = ~hit_ok
+    pos[miss], cost[miss] = _optimal_positions(quad[ca[miss]] + quad[cb[miss]], verts[ca[miss]], verts[cb[miss]])
+    return _Costs(key, pos, cost)
+
+
+def _independent_collapses(
+    verts: np.ndarray, faces: np.ndarray, edges: _Edges, ci: np.ndarray, rank: np.ndarray, pos: np.ndarray,
+    min_cos: float,
+) -> np.ndarray:  # fmt: skip
+    """Candidates (rows of ``ci``) whose ``rank`` is minimal within the two rings of both ends and that are valid.
+
+    Invalid minima (link condition, flipped or degenerate faces) are dropped and the selection repeated until every
+    minimum is valid (an accepted minimum stays one when others are removed); the chosen collapses then touch
+    disjoint faces, so their checks stay valid together.
+    """
+    num_v = verts.shape[0]
+    big = np.iinfo(np.int64).max
+    ea, eb = edges.ea, edges.eb
+    ca, cb, f1, f2 = ea[ci], eb[ci], edges.f1[ci], edges.f2[ci]
+    alive = np.ones(ci.size, bool)
+    checked = np.zeros(ci.size, bool)
+    adj = _adjacency(ea, eb, num_v)
+    vf_order = np.argsort(faces.reshape(-1))
+    vf = (np.searchsorted(faces.reshape(-1)[vf_order], np.arange(num_v + 1)), vf_order // 3)
+    while True:
+        m1 = np.full(num_v, big, np.int64)
+        r = np.where(alive, rank, big)
+        np.minimum.at(m1, ca, r)
+        np.minimum.at(m1, cb, r)
+        m2 = m1.copy()
+        np.minimum.at(m2, ea, m1[eb])
+        np.minimum.at(m2, eb, m1[ea])
+        minima = alive & (m2[ca] == rank) & (m2[cb] == rank)
+        todo = np.nonzero(minima & ~checked)[0]
+        if todo.size == 0:
+            return np.nonzero(minima)[0]
+        checked[todo] = True
+        ok = _link_ok(adj, num_v, ca[todo], cb[todo]) & _no_flip(
+            verts, faces, vf, ca[todo], cb[todo], f1[todo], f2[todo], pos[todo], min_cos
+        )
+        alive[todo[~ok]] = False
+
+
+def _apply_collapses(
+    verts: np.ndarray, faces: np.ndarray, quad: np.ndarray, dirty: np.ndarray, ca: np.ndarray, cb: np.ndarray,
+    pos: np.ndarray,
+) -> np.ndarray:  # fmt: skip
+    """Merge each ``b`` into ``a`` at the optimal position (edits ``verts``, ``quad``, ``dirty``); the new faces."""
+    verts[ca] = pos
+    quad[ca] += quad[cb]
+    dirty[:] = False
+    dirty[ca] = True
+    remap = np.arange(verts.shape[0])
+    remap[cb] = ca
+    faces = remap[faces]
+    return faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])]
 
 
 def _adjacency(ea: np.ndarray, eb: np.ndarray, num_v: int) -> tuple[np.ndarray, np.ndarray]:

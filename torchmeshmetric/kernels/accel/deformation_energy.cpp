@@ -41,6 +41,27 @@ inline void deform_one(const T* R, const T* t, const T* g, const T* v, const int
   for (int a = 0; a < 3; ++a) x[a] = acc[a];
 }
 
+// The skinned vertices of a deformation graph (node rotations R (N, 3, 3), translations t and positions g (N, 3);
+// rest positions (I, 3), K node indices and weights per vertex), read from contiguous tensors.
+template <typename T>
+struct Skinning {
+  const T* R;
+  const T* t;
+  const T* g;
+  const T* rest;
+  const int64_t* vidx;
+  const T* vw;
+  int64_t I, K;
+
+  Skinning(const torch::Tensor& Rt, const torch::Tensor& tt, const torch::Tensor& gt_, const torch::Tensor& rest_t,
+           const torch::Tensor& vidx_t, const torch::Tensor& vw_t)
+      : R(Rt.data_ptr<T>()), t(tt.data_ptr<T>()), g(gt_.data_ptr<T>()), rest(rest_t.data_ptr<T>()),
+        vidx(vidx_t.data_ptr<int64_t>()), vw(vw_t.data_ptr<T>()), I(rest_t.size(0)), K(vidx_t.size(1)) {}
+
+  // Deformed position of vertex i into x[0..2].
+  void deform(int64_t i, T* x) const { deform_one(R, t, g, rest + 3 * i, vidx + i * K, vw + i * K, K, x); }
+};
+
 // [u]x, the cross-product matrix, row major.
 inline void skew(const double* u, double* m) {
   m[0] = 0; m[1] = -u[2]; m[2] = u[1];
@@ -105,17 +126,14 @@ std::vector<torch::Tensor> energy_impl(const torch::Tensor& axis_t, const torch:
   const T sigma = T(s[0]), plane_w = T(s[1]), point_w = T(s[2]), rev_w = T(s[3]), data_scale = T(s[4]),
           reg_w = T(s[5]);
   const T s2 = sigma * sigma;
-  const int64_t N = Rt.size(0), I = rest_t.size(0), K = vidx_t.size(1), S = data_idx_t.size(0),
-                Q = samples_t.size(0), E = edges_t.size(0);
-  const T* R = Rt.data_ptr<T>();
-  const T* t = tt.data_ptr<T>();
-  const T* g = gt_.data_ptr<T>();
-  const T* rest = rest_t.data_ptr<T>();
-  const int64_t* vidx = vidx_t.data_ptr<int64_t>();
-  const T* vw = vw_t.data_ptr<T>();
+  const Skinning<T> skin(Rt, tt, gt_, rest_t, vidx_t, vw_t);
+  const int64_t N = Rt.size(0), I = skin.I, K = skin.K, S = data_idx_t.size(0), Q = samples_t.size(0),
+                E = edges_t.size(0);
+  const T *R = skin.R, *t = skin.t, *g = skin.g, *rest = skin.rest, *vw = skin.vw;
+  const int64_t* vidx = skin.vidx;
   // 1. Deformed positions of the needed vertices.
   std::vector<T> x(3 * I);
-  for (int64_t i = 0; i < I; ++i) deform_one(R, t, g, rest + 3 * i, vidx + i * K, vw + i * K, K, &x[3 * i]);
+  for (int64_t i = 0; i < I; ++i) skin.deform(i, &x[3 * i]);
   std::vector<T> gx(3 * I, T(0));
   T loss = 0;
   // 2. Data term: deformed data vertices to fixed target faces.
@@ -236,17 +254,11 @@ std::vector<torch::Tensor> energy_impl(const torch::Tensor& axis_t, const torch:
 template <typename T>
 torch::Tensor deform_impl(const torch::Tensor& Rt, const torch::Tensor& tt, const torch::Tensor& gt_,
                           const torch::Tensor& rest_t, const torch::Tensor& vidx_t, const torch::Tensor& vw_t) {
-  const int64_t I = rest_t.size(0), K = vidx_t.size(1);
-  const T* R = Rt.data_ptr<T>();
-  const T* t = tt.data_ptr<T>();
-  const T* g = gt_.data_ptr<T>();
-  const T* rest = rest_t.data_ptr<T>();
-  const int64_t* vidx = vidx_t.data_ptr<int64_t>();
-  const T* vw = vw_t.data_ptr<T>();
-  auto out = torch::empty({I, 3}, rest_t.options());
+  const Skinning<T> skin(Rt, tt, gt_, rest_t, vidx_t, vw_t);
+  torch::Tensor out = torch::empty({skin.I, 3}, rest_t.options());
   T* x = out.data_ptr<T>();
-  at::parallel_for(0, I, DEFORM_GRAIN, [&](int64_t s, int64_t e) {
-    for (int64_t i = s; i < e; ++i) deform_one(R, t, g, rest + 3 * i, vidx + i * K, vw + i * K, K, x + 3 * i);
+  at::parallel_for(0, skin.I, DEFORM_GRAIN, [&](int64_t s, int64_t e) {
+    for (int64_t i = s; i < e; ++i) skin.deform(i, x + 3 * i);
   });
   return out;
 }
