@@ -8,6 +8,7 @@ from torchmeshmetric._checks import (
     NonFiniteError,
     ShapeError,
 )
+from torchmeshmetric._version import __version__
 from torchmeshmetric.data import (
     DemoSequence,
     MeshFileError,
@@ -75,8 +76,6 @@ from torchmeshmetric.registration import (
 from torchmeshmetric.simplification import simplify_qem, simplify_registered_qem
 from torchmeshmetric.stats import DistanceAccumulator, DistanceStatistics, distance_statistics
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh, pack_meshes, pack_points
-
-__version__ = "0.1.0"
 
 __all__ = [
     # structures and errors

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from torchmeshmetric._atomic import atomic_write
+from torchmeshmetric._version import __version__
 from torchmeshmetric.evaluation.flicker import FLICKER
 from torchmeshmetric.evaluation.results import BEST_PAIR_RULE, SET_NAMES, SequenceEvaluation
 
@@ -195,8 +196,6 @@ def report_dict(
     written as the strings ``"nan"``, ``"inf"``. With ``comparisons`` (from
     :func:`~torchmeshmetric.evaluation.compare_methods`) the report also holds ``"comparisons"``.
     """
-    from torchmeshmetric import __version__
-
     return _clean(
         {
             "tool": "torchmeshmetric",
