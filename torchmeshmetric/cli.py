@@ -21,12 +21,63 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import json
 import os
 import sys
 import time
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
+
+import torch
+
+from torchmeshmetric._atomic import atomic_file_set, atomic_write, blocking_file
+from torchmeshmetric.data import demo_sequence, list_frames, load_mesh, load_sequence, save_mesh
+from torchmeshmetric.evaluation import (
+    RegistrationCache,
+    compare_methods,
+    comparison_markdown,
+    evaluate_sequence,
+    paper_tables,
+    register_pairs,
+    registered_qem_sweep,
+    report_dict,
+    write_csv,
+    write_json,
+    write_markdown,
+)
+from torchmeshmetric.evaluation.campaign import (
+    COMBINED,
+    campaign_report_dict,
+    campaign_tables,
+    load_campaign,
+    report_name,
+    write_campaign_csv,
+    write_campaign_markdown,
+)
+from torchmeshmetric.evaluation.distributed import (
+    SequenceWork,
+    evaluate_sequences,
+    is_distributed,
+    rank_and_world_size,
+)
+from torchmeshmetric.evaluation.reports import _clean
+from torchmeshmetric.evaluation.validation import DISTORTIONS, FULL, REDUCED, run_validation
+from torchmeshmetric.kernels import IndexCache
+from torchmeshmetric.launch import run_command
+from torchmeshmetric.mpeg.command import add_mpeg_command, json_safe
+from torchmeshmetric.mpeg.sequence import mpeg_csv, mpeg_markdown, mpeg_sequence
+from torchmeshmetric.registration import DEFAULT_SCHEDULE
+from torchmeshmetric.simplification import DEFAULT_WEIGHT, simplify_sequence
+from torchmeshmetric.stats import distance_statistics
+from torchmeshmetric.viz import (
+    plot_frame_curves,
+    plot_histograms,
+    plot_mpeg_curves,
+    plot_validation,
+    plot_weight_sweep,
+    write_error_ply,
+)
 
 __all__ = ["build_parser", "main"]
 
@@ -49,11 +100,8 @@ def _progress(label: str) -> Callable[[int, int], None]:
 
 
 def _device(args: argparse.Namespace) -> str:
-    if args.device == "cuda":
-        import torch
-
-        if not torch.cuda.is_available():
-            raise CLIError("--device cuda: no CUDA device is available (use --device cpu)")
+    if args.device == "cuda" and not torch.cuda.is_available():
+        raise CLIError("--device cuda: no CUDA device is available (use --device cpu)")
     return str(args.device)
 
 
@@ -68,15 +116,11 @@ def _report_paths(out: str | None, mpeg: bool = False) -> dict[str, Path]:
 
 
 def _dtype(args: argparse.Namespace) -> Any:
-    import torch
-
     return {"float32": torch.float32, "float64": torch.float64}[args.dtype]
 
 
 def _check_folder(folder: Path, what: str, *, may_create: bool = False) -> None:
     """An output folder: existing (or, with ``may_create``, missing), never a file nor below a file."""
-    from torchmeshmetric._atomic import blocking_file
-
     if not folder.is_dir():
         blocker = blocking_file(folder)
         if blocker is not None:
@@ -99,8 +143,6 @@ def _make_folder(folder: Path, what: str, files: Any) -> None:
 @contextlib.contextmanager
 def _output_set(what: str) -> Iterator[Any]:
     """Write this run's outputs as one set (all or none); a write error becomes one line saying nothing was kept."""
-    from torchmeshmetric._atomic import atomic_file_set
-
     try:
         with atomic_file_set() as files:
             yield files
@@ -124,8 +166,6 @@ def _check_writable(paths: Sequence[Path], overwrite: bool) -> None:
 
 
 def _load_frames(directory: str, what: str, dtype: Any) -> list[Any]:
-    from torchmeshmetric.data import load_sequence
-
     if not Path(directory).is_dir():
         raise CLIError(f"{what} {directory!r}: no such directory")
     try:
@@ -145,16 +185,12 @@ def _write_reports(
     mpeg: dict[str, Any] | None = None,
     comparisons: dict[str, Any] | None = None,
 ) -> None:
-    from torchmeshmetric.evaluation import report_dict, write_csv, write_json, write_markdown
 
     if not paths:
         return
     report = report_dict(methods, settings=settings, comparisons=comparisons)
     extra = ""
     if mpeg:
-        from torchmeshmetric.mpeg.command import json_safe
-        from torchmeshmetric.mpeg.sequence import mpeg_markdown
-
         report["mpeg"] = json_safe({name: seq.as_dict() for name, seq in mpeg.items()})
         extra = mpeg_markdown(mpeg)
     written = [paths["json"], paths["md"], paths["csv"]]
@@ -163,10 +199,6 @@ def _write_reports(
         write_markdown(paths["md"], methods, overwrite=overwrite, extra=extra, comparisons=comparisons)
         write_csv(paths["csv"], methods, overwrite=overwrite)
         if mpeg:
-            from torchmeshmetric._atomic import atomic_write
-            from torchmeshmetric.mpeg.sequence import mpeg_csv
-            from torchmeshmetric.viz import plot_mpeg_curves
-
             written.append(atomic_write(paths["mpeg_csv"], mpeg_csv(mpeg), overwrite=overwrite))
             written.append(plot_mpeg_curves(mpeg, paths["mpeg_png"], overwrite=overwrite))
     print("wrote " + ", ".join(str(p) for p in written), file=sys.stderr)
@@ -176,7 +208,6 @@ def _mpeg_methods(original: list[Any], methods: dict[str, list[Any]], args: argp
     """Per-frame MPEG figures of every method (``--mpeg``); printed as a Markdown table."""
     if not getattr(args, "mpeg", False):
         return {}
-    from torchmeshmetric.mpeg.sequence import mpeg_markdown, mpeg_sequence
 
     out = {
         name: mpeg_sequence(
@@ -195,9 +226,6 @@ def _mpeg_methods(original: list[Any], methods: dict[str, list[Any]], args: argp
 def _evaluate_methods(
     original: list[Any], methods: dict[str, list[Any]], args: argparse.Namespace, device: str
 ) -> dict[str, Any] | None:
-    from torchmeshmetric.evaluation import RegistrationCache, evaluate_sequence
-    from torchmeshmetric.evaluation.distributed import is_distributed
-    from torchmeshmetric.kernels import IndexCache
 
     cache = RegistrationCache(args.cache_dir)
     indexes = IndexCache(max_entries=2 * len(original))  # each original frame's index built once for all methods
@@ -214,7 +242,7 @@ def _evaluate_methods(
         results[name] = evaluate_sequence(
             original,
             frames,
-            cache=cache,
+            registration_cache=cache,
             two_sided=not args.one_sided,
             device=device,
             progress=_progress(name),
@@ -230,16 +258,14 @@ def _evaluate_across_ranks(
     sequences: list[tuple[str, list[Any], dict[str, list[Any]]]], cache: Any, args: argparse.Namespace, device: str
 ) -> list[Any]:
     """Every method of every sequence, sharded over the ranks; results on rank 0, ``[None, ...]`` elsewhere."""
-    from torchmeshmetric.evaluation.distributed import SequenceWork, evaluate_sequences, rank_and_world_size
-
     _, world_size = rank_and_world_size()
     label = f"all methods on {world_size} processes" if world_size > 1 else "all methods"
     results = evaluate_sequences(
         [SequenceWork(*s) for s in sequences],
-        cache=cache,
+        registration_cache=cache,
         two_sided=not args.one_sided,
         device=device,
-        register_options=getattr(args, "register_options", None),
+        registration_options=getattr(args, "register_options", None),
         progress=_progress(label),
         backend=args.backend,
     )
@@ -248,8 +274,6 @@ def _evaluate_across_ranks(
 
 # --------------------------------------------------------------------------------------------- commands
 def _cmd_evaluate(args: argparse.Namespace) -> int:
-    from torchmeshmetric.evaluation import paper_tables
-
     device = _device(args)
     paths = _report_paths(args.out, args.mpeg)
     _check_writable(list(paths.values()), args.overwrite)
@@ -294,8 +318,6 @@ def _parse_methods(specs: Sequence[str]) -> dict[str, str]:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from torchmeshmetric.evaluation import compare_methods, comparison_markdown, paper_tables
-
     device = _device(args)
     specs = _parse_methods(args.method)
     paths = _report_paths(args.out, args.mpeg)
@@ -323,17 +345,6 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
 
 def _cmd_campaign(args: argparse.Namespace) -> int:
-    from torchmeshmetric.evaluation import RegistrationCache, compare_methods, write_json
-    from torchmeshmetric.evaluation.campaign import (
-        COMBINED,
-        campaign_report_dict,
-        campaign_tables,
-        load_campaign,
-        report_name,
-        write_campaign_csv,
-        write_campaign_markdown,
-    )
-
     device = _device(args)
     campaign = load_campaign(args.manifest)
     out = None if args.out_dir is None else Path(args.out_dir)
@@ -429,8 +440,6 @@ def _fast_registration_options() -> dict[str, Any]:
     6.1 s, mean residual to frame k 5.7-6.0e-4 (units of the ~1.9-unit-tall performer); the full registration at the
     paper's resolution 160 took 29 s for 5 pairs with residuals 1.9-2.2e-4.
     """
-    from torchmeshmetric.registration import DEFAULT_SCHEDULE
-
     return {
         "schedule": tuple(stage._replace(max_steps=30) for stage in DEFAULT_SCHEDULE),
         "num_points": 1000,
@@ -441,20 +450,10 @@ def _fast_registration_options() -> dict[str, Any]:
 def _register_pairs(
     frames: list[Any], cache: Any, device: str, options: dict[str, Any] | None = None, backend: str = "auto"
 ) -> list[Any]:
-    """Registration of every original frame k-1 onto frame k (cached)."""
-    from torchmeshmetric.evaluation import default_register, registration_settings
-    from torchmeshmetric.structures import as_mesh
-
-    out = []
-    options = dict(options or {})
-    settings = registration_settings(None, options)
-    for k in range(1, len(frames)):
-        src, dst = as_mesh(frames[k - 1]), as_mesh(frames[k])
-        entry, _ = cache.get_or_compute(
-            src, dst, settings, lambda s=src, d=dst: default_register(s, d, device=device, backend=backend, **options)
-        )
-        out.append(entry)
-    return out
+    """Registration of every original frame k-1 onto frame k (cached): the pipeline's, same cache entries."""
+    return register_pairs(
+        frames, registration_options=options, registration_cache=cache, device=device, backend=backend
+    )
 
 
 def _simplify_frames(
@@ -464,7 +463,6 @@ def _simplify_frames(
     registrations: list[Any] | None,
     weight: float | None = None,
 ) -> list[Any]:
-    from torchmeshmetric.simplification import DEFAULT_WEIGHT, simplify_sequence
 
     if method == "qem":
         return simplify_sequence(frames, target)
@@ -475,9 +473,6 @@ def _simplify_frames(
 
 
 def _cmd_simplify(args: argparse.Namespace) -> int:
-    from torchmeshmetric.data import list_frames, save_mesh
-    from torchmeshmetric.evaluation import RegistrationCache
-
     device = _device(args)
     frames = _load_frames(args.input, "--input", _dtype(args))
     names = [Path(p).name for p in list_frames(args.input)]
@@ -500,11 +495,6 @@ def _cmd_simplify(args: argparse.Namespace) -> int:
 
 
 def _cmd_register(args: argparse.Namespace) -> int:
-    from torchmeshmetric.data import load_mesh, save_mesh
-    from torchmeshmetric.evaluation import default_register
-    from torchmeshmetric.stats import distance_statistics
-    from torchmeshmetric.structures import Mesh
-
     device = _device(args)
     _check_writable([Path(args.out)], args.overwrite)
     dtype = _dtype(args)
@@ -517,8 +507,8 @@ def _cmd_register(args: argparse.Namespace) -> int:
         except Exception as exc:
             raise CLIError(f"{flag} {path!r}: {exc}") from exc
     source, target = meshes
-    reg = default_register(source, target, device=device, backend=args.backend)
-    save_mesh(Mesh(reg.verts.to(source.verts), source.faces.cpu(), validate=False), args.out, overwrite=args.overwrite)
+    (reg,) = register_pairs([source, target], device=device, backend=args.backend)
+    save_mesh(reg.registered_mesh(source), args.out, overwrite=args.overwrite)
     stats = distance_statistics(reg.residual, peak=float(target.bbox_diagonal()))
     print(
         f"registered {args.source} onto {args.target} in {reg.seconds:.2f} s (converged: {reg.converged}); "
@@ -537,18 +527,6 @@ DEMO_WEIGHTS = (0.0, 0.5, 1.0, 2.0, 4.0, 8.0)
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from torchmeshmetric.data import demo_sequence, save_mesh
-    from torchmeshmetric.evaluation import (
-        RegistrationCache,
-        evaluate_sequence,
-        paper_tables,
-        report_dict,
-        write_csv,
-        write_json,
-        write_markdown,
-    )
-    from torchmeshmetric.kernels import IndexCache
-
     device = _device(args)
     out_dir = Path(args.out_dir)
     _check_folder(out_dir, "--out-dir", may_create=True)
@@ -592,7 +570,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         name: evaluate_sequence(
             frames,
             simp,
-            registrations=registrations,
+            precomputed_registrations=registrations,
             two_sided=not args.one_sided,
             device=device,
             progress=_progress(name),
@@ -647,11 +625,6 @@ def _demo_sweep(
     plots: bool,
 ) -> list[str]:
     """Registered QEM at every weight of --weights beside plain QEM: table, JSON and Pareto plot."""
-    import json
-
-    from torchmeshmetric._atomic import atomic_write
-    from torchmeshmetric.evaluation import registered_qem_sweep
-
     t0 = time.perf_counter()
     sweep = registered_qem_sweep(
         frames, registrations, args.target, args.weights, device=device, ground_truth=ground_truth
@@ -663,8 +636,6 @@ def _demo_sweep(
     atomic_write(out_dir / "weight_sweep.json", json.dumps(sweep.as_dict(), indent=2) + "\n", overwrite=True)
     written = ["weight_sweep.md", "weight_sweep.json"]
     if plots:
-        from torchmeshmetric.viz import plot_weight_sweep
-
         plot_weight_sweep(sweep, out_dir / "weight_sweep.png", overwrite=True)
         written.append("weight_sweep.png")
     return written
@@ -675,8 +646,6 @@ def _demo_plots(out_dir: Path, results: dict[str, Any], simplified: dict[str, li
 
     The colour is the distance of each simplified vertex to the registered frame k-1 (temporal consistency).
     """
-    from torchmeshmetric.viz import plot_frame_curves, plot_histograms, write_error_ply
-
     best = next(iter(results.values())).best_pair_index()
     plot_histograms({n: r.pairs[best] for n, r in results.items()}, out_dir / "histograms.png", overwrite=True)
     plot_frame_curves(results, out_dir / "frame_curves.png", overwrite=True)
@@ -693,12 +662,6 @@ def _demo_plots(out_dir: Path, results: dict[str, Any], simplified: dict[str, li
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
-    import json
-
-    from torchmeshmetric._atomic import atomic_write
-    from torchmeshmetric.evaluation.reports import _clean
-    from torchmeshmetric.evaluation.validation import DISTORTIONS, FULL, REDUCED, run_validation
-
     preset = dict(FULL if args.full else REDUCED)
     for key in ("frames", "resolution", "keep"):
         if getattr(args, key) is not None:
@@ -740,8 +703,6 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     )
     atomic_write(paths[1], title + text, overwrite=args.overwrite)
     if not args.no_plots:
-        from torchmeshmetric.viz import plot_validation
-
         plot_validation(result, paths[2], overwrite=args.overwrite)
     print(f"wrote {', '.join(str(p) for p in paths)}", file=sys.stderr)
     return 0
@@ -981,8 +942,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--save-meshes", action="store_true", help="also save the simplified frames as PLY")
     p.set_defaults(func=_cmd_demo)
 
-    from torchmeshmetric.mpeg.command import add_mpeg_command
-
     add_mpeg_command(sub)
     p = sub.add_parser(
         "validate",
@@ -1011,8 +970,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code (0 ok, 1 error, 2 usage error, 3 registration not converged)."""
-    from torchmeshmetric.launch import run_command
-
     args = build_parser().parse_args(argv)
     try:
         return int(run_command(args.func, args))

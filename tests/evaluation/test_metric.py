@@ -18,7 +18,9 @@ def test_metric_pools_updates_and_caches_registration(moving_spheres):
         metric.reset()
         for k in range(1, 4):
             metric.update(simplified[k], original[k], original[k - 1])
-            pairs.append(evaluate_pair(simplified[k], original[k], original[k - 1], register=TranslationRegister()))
+            pairs.append(
+                evaluate_pair(simplified[k], original[k], original[k - 1], registration_fn=TranslationRegister())
+            )
     assert register.calls == 3  # second epoch: all registrations from the in-memory cache
     out = metric.compute()
     peak = max(p.peak for p in pairs[-3:])
