@@ -62,6 +62,7 @@ from torchmeshmetric.evaluation.distributed import (
     rank_and_world_size,
 )
 from torchmeshmetric.evaluation.reports import _clean
+from torchmeshmetric.evaluation.results import SequenceEvaluation
 from torchmeshmetric.evaluation.validation import DISTORTIONS, FULL, REDUCED, run_validation
 from torchmeshmetric.kernels import IndexCache
 from torchmeshmetric.launch import run_command
@@ -223,6 +224,28 @@ def _mpeg_methods(original: list[Any], methods: dict[str, list[Any]], args: argp
     return out
 
 
+def _evaluate_method(
+    name: str,
+    original: list[Any],
+    simplified: list[Any],
+    args: argparse.Namespace,
+    device: str,
+    indexes: IndexCache,
+    **options: Any,
+) -> SequenceEvaluation:
+    """One method's sequence evaluated with the command line's sides, device and backend, showing progress."""
+    return evaluate_sequence(
+        original,
+        simplified,
+        two_sided=not args.one_sided,
+        device=device,
+        progress=_progress(name),
+        backend=args.backend,
+        indexes=indexes,
+        **options,
+    )
+
+
 def _evaluate_methods(
     original: list[Any], methods: dict[str, list[Any]], args: argparse.Namespace, device: str
 ) -> dict[str, Any] | None:
@@ -239,16 +262,7 @@ def _evaluate_methods(
             raise CLIError(f"the sequence has {len(original)} frame; at least 2 are needed (pairs k-1, k)")
         if is_distributed():
             continue  # evaluated below, shared by the ranks of the torchrun job
-        results[name] = evaluate_sequence(
-            original,
-            frames,
-            registration_cache=cache,
-            two_sided=not args.one_sided,
-            device=device,
-            progress=_progress(name),
-            backend=args.backend,
-            indexes=indexes,
-        )
+        results[name] = _evaluate_method(name, original, frames, args, device, indexes, registration_cache=cache)
     if is_distributed():
         return _evaluate_across_ranks([("", original, methods)], cache, args, device)[0]
     return results
@@ -274,6 +288,13 @@ def _evaluate_across_ranks(
 
 # --------------------------------------------------------------------------------------------- commands
 def _cmd_evaluate(args: argparse.Namespace) -> int:
+    """Evaluate a simplified sequence against its original frames.
+
+    For every simplified frame k >= 1: register original frame k-1 onto original frame k, measure the four distance
+    sets from the simplified vertices (surface and nearest-vertex distance to frame k and to the registered frame
+    k-1), print the paper's Tables I-IV and optionally write a report. Frames are matched by natural sort order of
+    the file names in each folder; the counts must be equal.
+    """
     device = _device(args)
     paths = _report_paths(args.out, args.mpeg)
     _check_writable(list(paths.values()), args.overwrite)
@@ -318,6 +339,14 @@ def _parse_methods(specs: Sequence[str]) -> dict[str, str]:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
+    """Compare several simplification methods (Tables I-IV side by side).
+
+    Evaluate several simplified versions of one original sequence; registrations of the original frames are computed
+    once and shared by all methods. With two or more methods, every pair of methods is compared set by set: the mean
+    difference over frame pairs, its 95% paired t interval and a verdict ('<A> better', '<B> better' or
+    'inconclusive': the interval contains 0, or the difference is below the registration's noise floor (k-1 and
+    flicker sets) or the relative margin), in the report's 'comparisons' and as verdict tables.
+    """
     device = _device(args)
     specs = _parse_methods(args.method)
     paths = _report_paths(args.out, args.mpeg)
@@ -345,6 +374,14 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 
 
 def _cmd_campaign(args: argparse.Namespace) -> int:
+    """Evaluate a test campaign: several sequences, each with several methods (TOML manifest).
+
+    Evaluate every method of every sequence listed in a TOML manifest (see examples/campaign.toml and
+    docs/scaling.md); registrations of each sequence's original pairs are computed once and shared by its methods.
+    Prints the combined tables (per sequence and overall: mean over sequences); with --out-dir writes
+    campaign.json/.md/.csv and one report per sequence (<sequence>.json/.md/.csv). Under torchrun the work is shared
+    by all processes.
+    """
     device = _device(args)
     campaign = load_campaign(args.manifest)
     out = None if args.out_dir is None else Path(args.out_dir)
@@ -447,15 +484,6 @@ def _fast_registration_options() -> dict[str, Any]:
     }
 
 
-def _register_pairs(
-    frames: list[Any], cache: Any, device: str, options: dict[str, Any] | None = None, backend: str = "auto"
-) -> list[Any]:
-    """Registration of every original frame k-1 onto frame k (cached): the pipeline's, same cache entries."""
-    return register_pairs(
-        frames, registration_options=options, registration_cache=cache, device=device, backend=backend
-    )
-
-
 def _simplify_frames(
     frames: list[Any],
     method: str,
@@ -473,6 +501,11 @@ def _simplify_frames(
 
 
 def _cmd_simplify(args: argparse.Namespace) -> int:
+    """Simplify every frame of a sequence with QEM or Registered QEM.
+
+    Simplify each frame of --input into --output (same file names). 'rqem' (Registered QEM) also uses the previous
+    original frame registered onto the current one; frame 0 is simplified with QEM.
+    """
     device = _device(args)
     frames = _load_frames(args.input, "--input", _dtype(args))
     names = [Path(p).name for p in list_frames(args.input)]
@@ -483,7 +516,8 @@ def _cmd_simplify(args: argparse.Namespace) -> int:
         _check_writable(targets, args.overwrite)
     registrations = None
     if args.method == "rqem":
-        registrations = _register_pairs(frames, RegistrationCache(args.cache_dir), device, backend=args.backend)
+        cache = RegistrationCache(args.cache_dir)
+        registrations = register_pairs(frames, registration_cache=cache, device=device, backend=args.backend)
     simplified = _simplify_frames(frames, args.method, args.target, registrations, args.weight)
     with _output_set("the simplified frames") as files:
         _make_folder(out_dir, "--output", files)
@@ -495,6 +529,11 @@ def _cmd_simplify(args: argparse.Namespace) -> int:
 
 
 def _cmd_register(args: argparse.Namespace) -> int:
+    """Register one mesh onto another (rigid, then non-rigid).
+
+    Align --source (frame k-1) onto --target (frame k), keeping the source's vertices and topology, and write the
+    registered mesh. Exit code 3 when the registration did not converge.
+    """
     device = _device(args)
     _check_writable([Path(args.out)], args.overwrite)
     dtype = _dtype(args)
@@ -527,17 +566,17 @@ DEMO_WEIGHTS = (0.0, 0.5, 1.0, 2.0, 4.0, 8.0)
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    device = _device(args)
-    out_dir = Path(args.out_dir)
-    _check_folder(out_dir, "--out-dir", may_create=True)
-    if out_dir.exists() and not (out_dir / _DEMO_MARKER).exists() and any(out_dir.iterdir()) and not args.overwrite:
-        raise CLIError(f"--out-dir {str(out_dir)!r} exists and was not written by the demo (pass --overwrite)")
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        (out_dir / _DEMO_MARKER).touch()
-    except OSError as exc:
-        raise CLIError(f"--out-dir {str(out_dir)!r}: cannot write ({exc.strerror})") from exc
+    """The paper's experiment on the built-in sequence (QEM vs Registered QEM).
 
+    Generate the built-in volumetric-video-like sequence, register each original frame k-1 onto frame k, simplify
+    every frame with QEM and with Registered QEM (which uses the registered previous frame), evaluate both, print
+    the paper's four tables and write report.json/.md/.csv, plots and coloured PLYs. The defaults are the paper's
+    sizes (6 frames of ~20k vertices / 40k faces, keep 97% of the faces, full registration): about 40 s on 2 CPU
+    cores; the first run on a machine also compiles the C++ distance extension once (~30 s). --resolution 80
+    --registration fast is a ~15 s preview.
+    """
+    device = _device(args)
+    out_dir = _demo_out_dir(args)
     t0 = time.perf_counter()
     kwargs: dict[str, Any] = {"seed": args.seed}
     if args.resolution is not None:
@@ -548,9 +587,13 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     print(f"demo sequence: {len(frames)} frames ({sizes}) in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
 
     t0 = time.perf_counter()
-    cache = RegistrationCache(args.cache_dir)
-    options = _fast_registration_options() if args.registration == "fast" else {}
-    registrations = _register_pairs(frames, cache, device, options, backend=args.backend)
+    registrations = register_pairs(
+        frames,
+        registration_options=_fast_registration_options() if args.registration == "fast" else {},
+        registration_cache=RegistrationCache(args.cache_dir),
+        device=device,
+        backend=args.backend,
+    )
     residual = ", ".join(f"{float(r.residual.mean()):.2e}" for r in registrations)
     print(
         f"registered {len(registrations)} original frame pairs ({args.registration}) in "
@@ -567,21 +610,50 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
     indexes = IndexCache(max_entries=2 * len(frames))  # each original frame's index built once for both methods
     results = {
-        name: evaluate_sequence(
+        # ground_truth: the built-in sequence's true motion, so the registration's error is reported
+        name: _evaluate_method(
+            name,
             frames,
             simp,
+            args,
+            device,
+            indexes,
             precomputed_registrations=registrations,
-            two_sided=not args.one_sided,
-            device=device,
-            progress=_progress(name),
-            backend=args.backend,
-            indexes=indexes,
-            ground_truth=seq.transfer,  # the built-in sequence's true motion: the registration's error is reported
+            ground_truth=seq.transfer,
         )
         for name, simp in simplified.items()
     }
     print(paper_tables(results))
+    written = _write_demo(out_dir, frames, results, simplified, registrations, args, device, seq.transfer)
+    print(f"wrote to {out_dir}: {', '.join(written)}", file=sys.stderr)
+    return 0
 
+
+def _demo_out_dir(args: argparse.Namespace) -> Path:
+    """The demo's output folder, created and marked as the demo's (another tool's non-empty one: --overwrite)."""
+    out_dir = Path(args.out_dir)
+    _check_folder(out_dir, "--out-dir", may_create=True)
+    if out_dir.exists() and not (out_dir / _DEMO_MARKER).exists() and any(out_dir.iterdir()) and not args.overwrite:
+        raise CLIError(f"--out-dir {str(out_dir)!r} exists and was not written by the demo (pass --overwrite)")
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        (out_dir / _DEMO_MARKER).touch()
+    except OSError as exc:
+        raise CLIError(f"--out-dir {str(out_dir)!r}: cannot write ({exc.strerror})") from exc
+    return out_dir
+
+
+def _write_demo(
+    out_dir: Path,
+    frames: list[Any],
+    results: dict[str, SequenceEvaluation],
+    simplified: dict[str, list[Any]],
+    registrations: list[Any],
+    args: argparse.Namespace,
+    device: str,
+    ground_truth: Any,
+) -> list[str]:
+    """The demo's report, meshes, plots and weight sweep, written as one set; the names written."""
     settings = {
         "demo": {
             "frames": args.frames,
@@ -610,9 +682,8 @@ def _cmd_demo(args: argparse.Namespace) -> int:
         if not args.no_plots:
             written += _demo_plots(out_dir, results, simplified)
         if args.weights:
-            written += _demo_sweep(out_dir, frames, registrations, args, device, seq.transfer, not args.no_plots)
-    print(f"wrote to {out_dir}: {', '.join(written)}", file=sys.stderr)
-    return 0
+            written += _demo_sweep(out_dir, frames, registrations, args, device, ground_truth, not args.no_plots)
+    return written
 
 
 def _demo_sweep(
@@ -662,6 +733,15 @@ def _demo_plots(out_dir: Path, results: dict[str, Any], simplified: dict[str, li
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
+    """Validation study: which distance sets respond to which controlled distortion.
+
+    On the built-in sequence (true motion known): a tracked simplification, evaluated with the true registration,
+    distorted at 6 strengths by frame-k noise, simplification level, constant and alternating normal offsets,
+    sliding along the surface, per-frame re-simplification and registration error. Prints and writes the Spearman
+    rank correlation between strength and each set's statistics and the relative change (validation.md/.json,
+    validation.png). The default (reduced) size takes well under 2 minutes on 2 CPU cores; --full is the paper's
+    frame size (docs/validation.md).
+    """
     preset = dict(FULL if args.full else REDUCED)
     for key in ("frames", "resolution", "keep"):
         if getattr(args, key) is not None:
@@ -709,8 +789,8 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 
 
 # --------------------------------------------------------------------------------------------- parser
-def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of the command line."""
+def _common_options() -> argparse.ArgumentParser:
+    """Options of every command that computes: device, precision, kernel backend, threads."""
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument(
         "--device", choices=("cpu", "cuda"), default="cpu", help="where distances and registration run (default cpu)"
@@ -736,6 +816,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="torch CPU threads of this process (default: torch's choice; under torchrun: the cores divided by the "
         "processes on this machine unless OMP_NUM_THREADS is set to more than 1)",
     )
+    return common
+
+
+def _evaluation_options() -> argparse.ArgumentParser:
+    """Options of the commands that evaluate sequences: sides, registration cache, MPEG figures."""
     evaluation = argparse.ArgumentParser(add_help=False)
     evaluation.add_argument(
         "--one-sided",
@@ -743,11 +828,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="only the paper's simplified -> reference sets; by default the reverse (reference -> simplified) "
         "sets are reported too, so a simplification that drops part of the surface cannot score well",
     )
-    evaluation.add_argument(
-        "--cache-dir",
-        default=None,
-        metavar="DIR",
-        help="keep registrations of original frame pairs in DIR (keyed by mesh content and settings) and reuse "
+    _add_cache_dir(
+        evaluation,
+        "keep registrations of original frame pairs in DIR (keyed by mesh content and settings) and reuse "
         "them in later runs (default: in memory for this run only)",
     )
     evaluation.add_argument(
@@ -760,6 +843,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--mpeg-sampling", choices=("grid", "mesh"), default="grid", help="MPEG sampling (default grid, the CTC's)"
     )
     evaluation.add_argument("--mpeg-grid-size", type=int, default=1024, metavar="N", help="MPEG grid size (1024)")
+    return evaluation
+
+
+def _report_options() -> argparse.ArgumentParser:
+    """Options of the commands that write one report (evaluate, compare)."""
     output = argparse.ArgumentParser(add_help=False)
     output.add_argument(
         "--out",
@@ -769,39 +857,47 @@ def build_parser() -> argparse.ArgumentParser:
         "(default: print the tables only)",
     )
     output.add_argument("--overwrite", action="store_true", help="replace existing output files")
+    return output
 
-    parser = argparse.ArgumentParser(
-        prog="torchmeshmetric", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    p = sub.add_parser(
-        "evaluate",
-        parents=[common, evaluation, output],
-        help="evaluate a simplified sequence against its original frames",
-        description="For every simplified frame k >= 1: register original frame k-1 onto original frame k, measure "
-        "the four distance sets from the simplified vertices (surface and nearest-vertex distance to frame k and to "
-        "the registered frame k-1), print the paper's Tables I-IV and optionally write a report. Frames are matched "
-        "by natural sort order of the file names in each folder; the counts must be equal.",
+def _add_cache_dir(p: argparse.ArgumentParser, help_text: str) -> None:
+    p.add_argument("--cache-dir", default=None, metavar="DIR", help=help_text)
+
+
+def _add_target(p: argparse.ArgumentParser, default: float | int, help_text: str) -> None:
+    p.add_argument("--target", type=_parse_target, default=default, help=help_text)
+
+
+def _add_weight(p: argparse.ArgumentParser, help_text: str) -> None:
+    p.add_argument("--weight", type=_parse_weight, default=None, help=help_text)
+
+
+def _command(
+    sub: Any, name: str, func: Callable[[argparse.Namespace], int], parents: Sequence[argparse.ArgumentParser]
+) -> argparse.ArgumentParser:
+    """A subcommand that runs ``func``; its help is the first line of ``func``'s docstring, its description the rest."""
+    summary, _, description = (func.__doc__ or "").partition("\n\n")
+    p: argparse.ArgumentParser = sub.add_parser(
+        name,
+        parents=list(parents),
+        help=summary[:1].lower() + summary[1:].rstrip("."),  # docstrings are gone under python -OO
+        description=" ".join(description.split()).replace("%", "%%"),
     )
+    p.set_defaults(func=func)
+    return p
+
+
+def _add_evaluate(sub: Any, parents: Sequence[argparse.ArgumentParser]) -> None:
+    p = _command(sub, "evaluate", _cmd_evaluate, parents)
     p.add_argument(
         "--original", required=True, metavar="DIR", help="folder of the original frames (OBJ/PLY/OFF/STL/GLB)"
     )
     p.add_argument("--simplified", required=True, metavar="DIR", help="folder of the simplified frames, same count")
     p.add_argument("--name", default=None, help="method name in the tables (default: the simplified folder's name)")
-    p.set_defaults(func=_cmd_evaluate)
 
-    p = sub.add_parser(
-        "compare",
-        parents=[common, evaluation, output],
-        help="compare several simplification methods (Tables I-IV side by side)",
-        description="Evaluate several simplified versions of one original sequence; registrations of the original "
-        "frames are computed once and shared by all methods. With two or more methods, every pair of methods is "
-        "compared set by set: the mean difference over frame pairs, its 95%% paired t interval and a verdict "
-        "('<A> better', '<B> better' or 'inconclusive': the interval contains 0, or the difference is below the "
-        "registration's noise floor (k-1 and flicker sets) or the relative margin), in the report's "
-        "'comparisons' and as verdict tables.",
-    )
+
+def _add_compare(sub: Any, parents: Sequence[argparse.ArgumentParser]) -> None:
+    p = _command(sub, "compare", _cmd_compare, parents)
     p.add_argument("--original", required=True, metavar="DIR", help="folder of the original frames")
     p.add_argument(
         "--method",
@@ -818,18 +914,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="differences below this fraction of the better method's value are 'inconclusive' (default 0.02; "
         "0 relies on the interval and the registration's noise floor alone)",
     )
-    p.set_defaults(func=_cmd_compare)
 
-    p = sub.add_parser(
-        "campaign",
-        parents=[common],
-        help="evaluate a test campaign: several sequences, each with several methods (TOML manifest)",
-        description="Evaluate every method of every sequence listed in a TOML manifest (see examples/campaign.toml "
-        "and docs/scaling.md); registrations of each sequence's original pairs are computed once and shared by its "
-        "methods. Prints the combined tables (per sequence and overall: mean over sequences); with --out-dir writes "
-        "campaign.json/.md/.csv and one report per sequence (<sequence>.json/.md/.csv). Under torchrun the work is "
-        "shared by all processes.",
-    )
+
+def _add_campaign(sub: Any, parents: Sequence[argparse.ArgumentParser]) -> None:
+    p = _command(sub, "campaign", _cmd_campaign, parents)
     p.add_argument("manifest", metavar="MANIFEST", help="the campaign manifest (TOML); folders relative to it")
     p.add_argument(
         "--out-dir",
@@ -837,66 +925,35 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="DIR",
         help="write the combined report and the per-sequence reports there (created; its parent must exist)",
     )
-    p.add_argument(
-        "--cache-dir",
-        default=None,
-        metavar="DIR",
-        help="registration cache folder (overrides the manifest's cache_dir); a rerun resumes from it",
-    )
+    _add_cache_dir(p, "registration cache folder (overrides the manifest's cache_dir); a rerun resumes from it")
     p.add_argument("--overwrite", action="store_true", help="replace existing reports in --out-dir")
-    p.set_defaults(func=_cmd_campaign)
 
-    p = sub.add_parser(
-        "simplify",
-        parents=[common],
-        help="simplify every frame of a sequence with QEM or Registered QEM",
-        description="Simplify each frame of --input into --output (same file names). 'rqem' (Registered QEM) also "
-        "uses the previous original frame registered onto the current one; frame 0 is simplified with QEM.",
-    )
+
+def _add_simplify(sub: Any, parents: Sequence[argparse.ArgumentParser]) -> None:
+    p = _command(sub, "simplify", _cmd_simplify, parents)
     p.add_argument("--input", required=True, metavar="DIR", help="folder of the original frames")
     p.add_argument("--output", required=True, metavar="DIR", help="folder for the simplified frames (created)")
     p.add_argument("--method", choices=("qem", "rqem"), default="qem", help="qem (default) or rqem (Registered QEM)")
-    p.add_argument(
-        "--target",
-        type=_parse_target,
-        default=0.5,
-        help="faces to keep: a count (>= 1) or a ratio in (0, 1) of each frame's faces (default 0.5)",
-    )
-    p.add_argument(
-        "--weight",
-        type=_parse_weight,
-        default=None,
-        help="rqem: weight of the registered previous frame's quadrics (default: the library's DEFAULT_WEIGHT, "
+    _add_target(p, 0.5, "faces to keep: a count (>= 1) or a ratio in (0, 1) of each frame's faces (default 0.5)")
+    _add_weight(
+        p,
+        "rqem: weight of the registered previous frame's quadrics (default: the library's DEFAULT_WEIGHT, "
         "chosen from the sweep in docs/simplification.md)",
     )
-    p.add_argument("--cache-dir", default=None, metavar="DIR", help="registration cache folder (rqem only)")
+    _add_cache_dir(p, "registration cache folder (rqem only)")
     p.add_argument("--overwrite", action="store_true", help="replace existing files in --output")
-    p.set_defaults(func=_cmd_simplify)
 
-    p = sub.add_parser(
-        "register",
-        parents=[common],
-        help="register one mesh onto another (rigid, then non-rigid)",
-        description="Align --source (frame k-1) onto --target (frame k), keeping the source's vertices and "
-        "topology, and write the registered mesh. Exit code 3 when the registration did not converge.",
-    )
+
+def _add_register(sub: Any, parents: Sequence[argparse.ArgumentParser]) -> None:
+    p = _command(sub, "register", _cmd_register, parents)
     p.add_argument("--source", required=True, metavar="FILE", help="mesh to move (frame k-1)")
     p.add_argument("--target", required=True, metavar="FILE", help="mesh to align to (frame k)")
     p.add_argument("--out", required=True, metavar="FILE", help="registered mesh (e.g. registered.ply)")
     p.add_argument("--overwrite", action="store_true", help="replace --out if it exists")
-    p.set_defaults(func=_cmd_register)
 
-    p = sub.add_parser(
-        "demo",
-        parents=[common, evaluation],
-        help="the paper's experiment on the built-in sequence (QEM vs Registered QEM)",
-        description="Generate the built-in volumetric-video-like sequence, register each original frame k-1 onto "
-        "frame k, simplify every frame with QEM and with Registered QEM (which uses the registered previous frame), "
-        "evaluate both, print the paper's four tables and write report.json/.md/.csv, plots and coloured PLYs. "
-        "The defaults are the paper's sizes (6 frames of ~20k vertices / 40k faces, keep 97%% of the faces, full "
-        "registration): about 40 s on 2 CPU cores; the first run on a machine also compiles the C++ distance "
-        "extension once (~30 s). --resolution 80 --registration fast is a ~15 s preview.",
-    )
+
+def _add_demo(sub: Any, parents: Sequence[argparse.ArgumentParser]) -> None:
+    p = _command(sub, "demo", _cmd_demo, parents)
     p.add_argument(
         "--frames", type=int, default=DEMO_FRAMES, help=f"frames of the built-in sequence (default {DEMO_FRAMES})"
     )
@@ -908,11 +965,10 @@ def build_parser() -> argparse.ArgumentParser:
         "40k faces per frame; 80 gives about 5k vertices / 10k faces)",
     )
     p.add_argument("--seed", type=int, default=0, help="seed of the built-in sequence (default 0)")
-    p.add_argument(
-        "--target",
-        type=_parse_target,
-        default=DEMO_TARGET,
-        help=f"faces to keep per frame: a count or a ratio in (0, 1) (default {DEMO_TARGET}: the paper removes 3%% "
+    _add_target(
+        p,
+        DEMO_TARGET,
+        f"faces to keep per frame: a count or a ratio in (0, 1) (default {DEMO_TARGET}: the paper removes 3%% "
         "of the triangles)",
     )
     p.add_argument(
@@ -922,12 +978,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="full (default): the library's default registration (about 6 s per 20k-vertex frame pair on 2 cores); "
         "fast: 30 optimisation steps per stage and 1000 points per term, quicker with a ~1.4x larger residual",
     )
-    p.add_argument(
-        "--weight",
-        type=_parse_weight,
-        default=None,
-        help="Registered QEM's weight of the registered previous frame (default: the library's DEFAULT_WEIGHT)",
-    )
+    _add_weight(p, "Registered QEM's weight of the registered previous frame (default: the library's DEFAULT_WEIGHT)")
     p.add_argument(
         "--weights",
         type=_parse_weights,
@@ -940,19 +991,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true", help="write into --out-dir even if another tool made it")
     p.add_argument("--no-plots", action="store_true", help="skip PNG plots and coloured PLY files")
     p.add_argument("--save-meshes", action="store_true", help="also save the simplified frames as PLY")
-    p.set_defaults(func=_cmd_demo)
 
-    add_mpeg_command(sub)
-    p = sub.add_parser(
-        "validate",
-        help="validation study: which distance sets respond to which controlled distortion",
-        description="On the built-in sequence (true motion known): a tracked simplification, evaluated with the "
-        "true registration, distorted at 6 strengths by frame-k noise, simplification level, constant and "
-        "alternating normal offsets, sliding along the surface, per-frame re-simplification and registration "
-        "error. Prints and writes the Spearman rank correlation between strength and each set's statistics and "
-        "the relative change (validation.md/.json, validation.png). The default (reduced) size takes well under "
-        "2 minutes on 2 CPU cores; --full is the paper's frame size (docs/validation.md).",
-    )
+
+def _add_validate(sub: Any) -> None:
+    p = _command(sub, "validate", _cmd_validate, ())
     p.add_argument("--full", action="store_true", help="6 frames at resolution 160 (~40k faces), two-sided")
     p.add_argument("--frames", type=int, default=None, help="frames of the built-in sequence (reduced default 4)")
     p.add_argument("--resolution", type=int, default=None, help="mesh resolution (reduced default 48)")
@@ -964,7 +1006,23 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out-dir", default="torchmeshmetric-validation", metavar="DIR", help="output folder")
     p.add_argument("--overwrite", action="store_true", help="replace existing output files")
     p.add_argument("--no-plots", action="store_true", help="skip validation.png")
-    p.set_defaults(func=_cmd_validate)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the command line."""
+    common, evaluation, report = _common_options(), _evaluation_options(), _report_options()
+    parser = argparse.ArgumentParser(
+        prog="torchmeshmetric", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    _add_evaluate(sub, [common, evaluation, report])
+    _add_compare(sub, [common, evaluation, report])
+    _add_campaign(sub, [common])
+    _add_simplify(sub, [common])
+    _add_register(sub, [common])
+    _add_demo(sub, [common, evaluation])
+    add_mpeg_command(sub)
+    _add_validate(sub)
     return parser
 
 
