@@ -26,7 +26,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric.metrics import mesh_surface_distances
+from torchmeshmetric.kernels import point_mesh_distance, vertex_set
 from torchmeshmetric.registration.warp import Warp
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
@@ -81,6 +81,6 @@ def flicker_distances(
     with torch.no_grad():
         moved_verts = warp(s_km1.verts.detach())
         moved = Mesh(moved_verts.to(s_k.device, s_k.dtype), s_km1.faces, validate=False)
-        # The mesh surface distance (Eq. 4) from S_k to the moved S_{k-1}; two-sided: also back.
-        sets = mesh_surface_distances(s_k.detach(), moved, two_sided=two_sided)
-    return FlickerDistances(sets.forward, sets.reverse, moved)
+        dists = point_mesh_distance(vertex_set(s_k).detach(), moved).dists
+        reverse = point_mesh_distance(vertex_set(moved), s_k.detach()).dists if two_sided else None
+    return FlickerDistances(dists, reverse, moved)
