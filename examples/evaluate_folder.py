@@ -29,7 +29,7 @@ def main() -> int:
     result = evaluate_sequence(
         original,
         simplified,
-        cache_dir=str(cache_dir),
+        registration_cache_dir=str(cache_dir),
         progress=lambda k, n: print(f"pair {k}/{n}", file=sys.stderr),
     )
     name = Path(args.simplified).name

@@ -24,7 +24,7 @@ def frame(k: int, subdivisions: int) -> Mesh:
 
 
 def shift_register(source: Mesh, target: Mesh) -> Mesh:
-    """The exact registration of this toy sequence (a translation); drop `register=` to use the library's."""
+    """The exact registration of this toy sequence (a translation); drop `registration_fn=` to use the library's."""
     return Mesh(source.verts + torch.tensor([0.05, 0.0, 0.0]), source.faces)
 
 
@@ -33,7 +33,7 @@ def main() -> None:
     templates = [frame(k, 1) for k in range(4)]
     offsets = torch.nn.Parameter(torch.zeros(len(templates), templates[0].num_verts, 3))
     optimizer = torch.optim.Adam([offsets], lr=1e-2)
-    metric = TemporalConsistency(register=shift_register)
+    metric = TemporalConsistency(registration_fn=shift_register)
 
     for epoch in range(3):
         for k, (template, original) in enumerate(zip(templates, originals, strict=True)):  # training

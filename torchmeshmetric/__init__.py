@@ -1,5 +1,7 @@
 """torchmeshmetric: exact, differentiable metrics for dynamic (volumetric-video) mesh simplification."""
 
+# The data, kernel and metric packages are public as a whole: their __all__ is the root's, not restated here.
+from torchmeshmetric import data, kernels, metrics
 from torchmeshmetric._checks import (
     DeviceError,
     DTypeError,
@@ -8,46 +10,18 @@ from torchmeshmetric._checks import (
     NonFiniteError,
     ShapeError,
 )
-from torchmeshmetric.data import (
-    DemoSequence,
-    MeshFileError,
-    add_capture_defects,
-    demo_sequence,
-    list_frames,
-    load_mesh,
-    load_sequence,
-    save_mesh,
-)
+from torchmeshmetric._version import __version__
+from torchmeshmetric.data import *  # noqa: F403
 from torchmeshmetric.evaluation import (
     PairEvaluation,
     SequenceEvaluation,
     TemporalConsistency,
     evaluate_pair,
     evaluate_sequence,
+    register_pairs,
 )
-from torchmeshmetric.kernels import (
-    ClosestPointOnTriangle,
-    IndexCache,
-    MeshIndex,
-    NearestVertexResult,
-    PointMeshResult,
-    SurfaceSamples,
-    closest_point_on_triangle,
-    nearest_vertex_distance,
-    point_mesh_distance,
-    sample_surface,
-    vertex_set,
-)
-from torchmeshmetric.metrics import (
-    DistanceStatisticsMetric,
-    MeshSurfaceDistance,
-    MeshSurfaceDistanceLoss,
-    NearestVertexDistance,
-    NearestVertexDistanceLoss,
-    SelectedStatistic,
-    mesh_surface_distance_loss,
-    nearest_vertex_distance_loss,
-)
+from torchmeshmetric.kernels import *  # noqa: F403
+from torchmeshmetric.metrics import *  # noqa: F403
 from torchmeshmetric.mpeg import (
     MpegGeometryLoss,
     MpegPSNR,
@@ -65,6 +39,7 @@ from torchmeshmetric.mpeg import (
 )
 from torchmeshmetric.registration import (
     DeformationGraph,
+    NonRigidOptions,
     NonRigidRegistration,
     RegistrationWarning,
     RigidRegistration,
@@ -75,8 +50,6 @@ from torchmeshmetric.registration import (
 from torchmeshmetric.simplification import simplify_qem, simplify_registered_qem
 from torchmeshmetric.stats import DistanceAccumulator, DistanceStatistics, distance_statistics
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh, pack_meshes, pack_points
-
-__version__ = "0.1.0"
 
 __all__ = [
     # structures and errors
@@ -93,31 +66,15 @@ __all__ = [
     "pack_meshes",
     "pack_points",
     # kernels
-    "ClosestPointOnTriangle",
-    "IndexCache",
-    "MeshIndex",
-    "NearestVertexResult",
-    "PointMeshResult",
-    "SurfaceSamples",
-    "closest_point_on_triangle",
-    "nearest_vertex_distance",
-    "point_mesh_distance",
-    "sample_surface",
-    "vertex_set",
+    *kernels.__all__,
     # statistics, metrics, losses
     "DistanceAccumulator",
     "DistanceStatistics",
-    "DistanceStatisticsMetric",
-    "MeshSurfaceDistance",
-    "MeshSurfaceDistanceLoss",
-    "NearestVertexDistance",
-    "NearestVertexDistanceLoss",
-    "SelectedStatistic",
     "distance_statistics",
-    "mesh_surface_distance_loss",
-    "nearest_vertex_distance_loss",
+    *metrics.__all__,
     # registration
     "DeformationGraph",
+    "NonRigidOptions",
     "NonRigidRegistration",
     "RegistrationWarning",
     "RigidRegistration",
@@ -125,14 +82,7 @@ __all__ = [
     "register_nonrigid",
     "register_rigid",
     # data and simplification
-    "DemoSequence",
-    "MeshFileError",
-    "add_capture_defects",
-    "demo_sequence",
-    "list_frames",
-    "load_mesh",
-    "load_sequence",
-    "save_mesh",
+    *data.__all__,
     "simplify_qem",
     "simplify_registered_qem",
     # the evaluation system (paper Fig. 2)
@@ -141,6 +91,7 @@ __all__ = [
     "TemporalConsistency",
     "evaluate_pair",
     "evaluate_sequence",
+    "register_pairs",
     # MPEG's metrics (mmetric: D1/D2 and colour PSNR)
     "MpegGeometryLoss",
     "MpegPSNR",

@@ -21,6 +21,9 @@ from types import FrameType
 from typing import Any, NamedTuple
 
 import torch
+import torch.distributed as dist
+
+from torchmeshmetric.evaluation.distributed import RankFailedError, in_flight
 
 __all__ = ["COLLECTIVE_TIMEOUT", "SHARDED_COMMANDS", "Launch", "launch_from_environment", "run_command", "thread_count"]
 
@@ -122,10 +125,6 @@ def run_command(command: Callable[[Any], int], args: Any) -> int:
     Ranks other than 0 stay silent about failures of the shared work: rank 0 prints the one line that names the
     failing rank and frame pair, and every rank exits with code 1.
     """
-    import torch.distributed as dist
-
-    from torchmeshmetric.evaluation.distributed import RankFailedError, in_flight
-
     launch = launch_from_environment()
     threads = thread_count(getattr(args, "threads", None), launch)
     if threads is not None:

@@ -45,7 +45,7 @@ def test_dtype_float64_runs_end_to_end_and_is_recorded(capsys, tmp_path, sequenc
     expect = evaluate_sequence(
         load_sequence(str(orig), dtype=torch.float64),
         load_sequence(str(simp), dtype=torch.float64),
-        register=Counting(),
+        registration_fn=Counting(),
     )
     for pair, jpair in zip(expect.pairs, report["methods"]["simp"]["pairs"], strict=True):
         for s in SET_NAMES:

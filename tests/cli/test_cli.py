@@ -28,7 +28,7 @@ def test_evaluate_writes_reports_equal_to_the_library(capsys, tmp_path, sequence
     assert "frame pair 2/2" in stderr  # progress per frame on stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["orig", "report.csv", "report.json", "report.md", "simp"]
     report = json.loads(out.read_text())
-    expect = evaluate_sequence(load_sequence(str(orig)), load_sequence(str(simp)), register=Counting())
+    expect = evaluate_sequence(load_sequence(str(orig)), load_sequence(str(simp)), registration_fn=Counting())
     got = report["methods"]["simp"]
     for pair, jpair in zip(expect.pairs, got["pairs"], strict=True):
         for s in SET_NAMES:

@@ -41,8 +41,8 @@ def _worker(rank, port, out_dir):
         result = evaluate_sequence(
             original,
             simplified,
-            register=register,
-            cache=RegistrationCache(),
+            registration_fn=register,
+            registration_cache=RegistrationCache(),
             distributed=True,
             progress=lambda done, total: seen.append((done, total)),
         )
@@ -63,7 +63,7 @@ def test_distributed_evaluate_sequence_equals_one_process_on_every_rank(tmp_path
     torch.set_num_threads(1)
     original, simplified = _frames()
     register = TranslationRegister()
-    expected = evaluate_sequence(original, simplified, register=register)
+    expected = evaluate_sequence(original, simplified, registration_fn=register)
     ranks = [torch.load(tmp_path / f"{r}.pt", weights_only=False) for r in (0, 1)]
     # the 4 registrations were shared: 2 per rank, none repeated
     assert [r["calls"] for r in ranks] == [2, 2]
@@ -86,7 +86,7 @@ def test_distributed_evaluate_sequence_equals_one_process_on_every_rank(tmp_path
 
 def test_distributed_without_a_process_group_runs_here():
     original, simplified = _frames()
-    a = evaluate_sequence(original, simplified, register=TranslationRegister(), distributed=True)
-    b = evaluate_sequence(original, simplified, register=TranslationRegister())
+    a = evaluate_sequence(original, simplified, registration_fn=TranslationRegister(), distributed=True)
+    b = evaluate_sequence(original, simplified, registration_fn=TranslationRegister())
     assert [p.statistics for p in a.pairs] == [p.statistics for p in b.pairs]
     assert [p.frame for p in a.pairs] == [1, 2, 3, 4]

@@ -20,7 +20,9 @@ def _entry(tmp_path):
 @pytest.mark.parametrize("damage", ["nan", "inf", "truncated", "shape"])
 def test_damaged_entries_are_recomputed_with_a_warning(moving_spheres, tmp_path, damage):
     original, simplified = moving_spheres
-    first = evaluate_sequence(original, simplified, register=TranslationRegister(), cache_dir=str(tmp_path))
+    first = evaluate_sequence(
+        original, simplified, registration_fn=TranslationRegister(), registration_cache_dir=str(tmp_path)
+    )
     path = _entry(tmp_path)
     if damage == "truncated":
         path.write_bytes(path.read_bytes()[:100])
@@ -33,19 +35,23 @@ def test_damaged_entries_are_recomputed_with_a_warning(moving_spheres, tmp_path,
         torch.save(data, path)
     register = TranslationRegister()
     with pytest.warns(UserWarning, match=r"registration cache: entry .* is (invalid|unreadable).*recomputing it"):
-        second = evaluate_sequence(original, simplified, register=register, cache_dir=str(tmp_path))
+        second = evaluate_sequence(original, simplified, registration_fn=register, registration_cache_dir=str(tmp_path))
     assert register.calls == 1  # only the damaged entry
     assert [p.statistics for p in second.pairs] == [p.statistics for p in first.pairs]
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # the recomputed entry replaced the damaged one
-        evaluate_sequence(original, simplified, register=TranslationRegister(), cache_dir=str(tmp_path))
+        evaluate_sequence(
+            original, simplified, registration_fn=TranslationRegister(), registration_cache_dir=str(tmp_path)
+        )
 
 
 def test_entries_have_normal_permissions_and_no_temporary_files(moving_spheres, tmp_path):
     original, simplified = moving_spheres
     mask = os.umask(0o022)
     try:
-        evaluate_sequence(original, simplified, register=TranslationRegister(), cache=RegistrationCache(tmp_path))
+        evaluate_sequence(
+            original, simplified, registration_fn=TranslationRegister(), registration_cache=RegistrationCache(tmp_path)
+        )
     finally:
         os.umask(mask)
     assert all(stat.S_IMODE(p.stat().st_mode) == 0o644 for p in tmp_path.glob("*.pt"))

@@ -13,8 +13,8 @@ def test_cache_hit_avoids_reregistration_across_methods(moving_spheres):
     original, simplified = moving_spheres
     register = TranslationRegister()
     cache = RegistrationCache()
-    a = evaluate_sequence(original, simplified, register=register, cache=cache)
-    b = evaluate_sequence(original, original, register=register, cache=cache)  # a second "method"
+    a = evaluate_sequence(original, simplified, registration_fn=register, registration_cache=cache)
+    b = evaluate_sequence(original, original, registration_fn=register, registration_cache=cache)  # a second "method"
     assert register.calls == 3
     assert cache.misses == 3 and cache.hits == 3
     assert [p.registration_cached for p in a.pairs] == [False] * 3
@@ -25,34 +25,36 @@ def test_cache_hit_avoids_reregistration_across_methods(moving_spheres):
 def test_disk_cache_survives_a_new_run_and_is_keyed_by_content_and_settings(moving_spheres, tmp_path):
     original, simplified = moving_spheres
     first = TranslationRegister()
-    r1 = evaluate_sequence(original, simplified, register=first, cache_dir=str(tmp_path))
+    r1 = evaluate_sequence(original, simplified, registration_fn=first, registration_cache_dir=str(tmp_path))
     assert first.calls == 3 and len(list(tmp_path.glob("*.pt"))) == 3
     assert not [p for p in os.listdir(tmp_path) if p.endswith(".tmp")]
     second = TranslationRegister()
-    r2 = evaluate_sequence(original, simplified, register=second, cache_dir=str(tmp_path))
+    r2 = evaluate_sequence(original, simplified, registration_fn=second, registration_cache_dir=str(tmp_path))
     assert second.calls == 0
     for p1, p2 in zip(r1.pairs, r2.pairs, strict=True):
         assert p1.statistics == p2.statistics
     # other settings -> other key -> registered again
     third = TranslationRegister()
-    evaluate_sequence(original, simplified, register=third, cache_dir=str(tmp_path), register_options={"x": 1})
+    evaluate_sequence(
+        original, simplified, registration_fn=third, registration_cache_dir=str(tmp_path), registration_options={"x": 1}
+    )
     assert third.calls == 3
     # other content -> other key
     moved = [sphere(2, offset=(0.1 * k, 0.01, 0)) for k in range(4)]
     fourth = TranslationRegister()
-    evaluate_sequence(moved, simplified, register=fourth, cache_dir=str(tmp_path))
+    evaluate_sequence(moved, simplified, registration_fn=fourth, registration_cache_dir=str(tmp_path))
     assert fourth.calls == 3
 
 
 def test_corrupt_disk_entry_is_recomputed(tmp_path):
     a, b = sphere(1), sphere(1, offset=(0.1, 0, 0))
     register = TranslationRegister()
-    evaluate_sequence([a, b], [a, b], register=register, cache_dir=str(tmp_path))
+    evaluate_sequence([a, b], [a, b], registration_fn=register, registration_cache_dir=str(tmp_path))
     (entry,) = tmp_path.glob("*.pt")
     entry.write_bytes(b"not a torch file")
     again = TranslationRegister()
     with pytest.warns(UserWarning, match="is unreadable"):
-        evaluate_sequence([a, b], [a, b], register=again, cache_dir=str(tmp_path))
+        evaluate_sequence([a, b], [a, b], registration_fn=again, registration_cache_dir=str(tmp_path))
     assert again.calls == 1
 
 
@@ -68,5 +70,18 @@ def test_key_of_plain_settings_is_stable():
     # Entries on disk are found by these digests: keying NonRigidOptions must not move the keys of plain settings.
     m = Mesh(torch.eye(3, dtype=torch.float64), torch.tensor([[0, 1, 2]]))
     assert registration_key(m, m, {}) == "1e600010b14e221ccdd238819573c89fce4f4658f7fa0e3203355ce34ee5338e"
-    settings = registration_settings(None, {"schedule": DEFAULT_SCHEDULE[:1], "num_points": 10})
-    assert registration_key(m, m, settings) == "e03bddd7f8f39d64032bae73d1014fe0030e43163e6aa886dcbe2c7907541fde"
+    plain = {"register": "torchmeshmetric.evaluation.pipeline.default_register",
+             "options": {"schedule": DEFAULT_SCHEDULE[:1], "num_points": 10}}  # fmt: skip
+    assert registration_key(m, m, plain) == "e03bddd7f8f39d64032bae73d1014fe0030e43163e6aa886dcbe2c7907541fde"
+
+
+def test_default_registration_is_keyed_by_its_complete_options():
+    # The library's registration is keyed by NonRigidOptions (defaults filled): equal settings spelled differently
+    # share an entry, run arguments (threads, backend) do not enter, different settings never share.
+    m = Mesh(torch.eye(3, dtype=torch.float64), torch.tensor([[0, 1, 2]]))
+    key = lambda options: registration_key(m, m, registration_settings(None, options))  # noqa: E731
+    assert key({}) == key({"schedule": DEFAULT_SCHEDULE}) == key({"num_threads": 2, "backend": "bvh"})
+    assert key({"num_points": 10}) != key({})
+    assert key({"schedule": DEFAULT_SCHEDULE[:1]}) != key({})
+    with pytest.raises(TypeError):
+        registration_settings(None, {"num_pointz": 10})

@@ -63,20 +63,22 @@ def _missing_residual(d):
 )
 def test_invalid_entry_is_recomputed_with_a_warning_naming_the_file(tmp_path, corrupt, message):
     a, b = sphere(1), sphere(1, offset=(0.1, 0, 0))
-    first = evaluate_sequence([a, b], [a, b], register=TranslationRegister(), cache_dir=str(tmp_path))
+    first = evaluate_sequence(
+        [a, b], [a, b], registration_fn=TranslationRegister(), registration_cache_dir=str(tmp_path)
+    )
     (entry,) = tmp_path.glob("*.pt")
     data = torch.load(entry, weights_only=True)
     corrupt(data)
     torch.save(data, entry)
     again = TranslationRegister()
     with pytest.warns(UserWarning, match=message) as record:
-        second = evaluate_sequence([a, b], [a, b], register=again, cache_dir=str(tmp_path))
+        second = evaluate_sequence([a, b], [a, b], registration_fn=again, registration_cache_dir=str(tmp_path))
     assert str(entry) in str(record[0].message)
     assert again.calls == 1
     assert second.pairs[0].statistics == first.pairs[0].statistics
     # the entry was replaced by a valid one: a third run trusts it silently
     third = TranslationRegister()
-    evaluate_sequence([a, b], [a, b], register=third, cache_dir=str(tmp_path))
+    evaluate_sequence([a, b], [a, b], registration_fn=third, registration_cache_dir=str(tmp_path))
     assert third.calls == 0
 
 
@@ -84,7 +86,7 @@ def test_entries_get_the_permissions_of_a_normal_write(tmp_path):
     old = os.umask(0o027)
     try:
         a, b = sphere(1), sphere(1, offset=(0.1, 0, 0))
-        evaluate_sequence([a, b], [a, b], register=TranslationRegister(), cache_dir=str(tmp_path))
+        evaluate_sequence([a, b], [a, b], registration_fn=TranslationRegister(), registration_cache_dir=str(tmp_path))
     finally:
         os.umask(old)
     (entry,) = tmp_path.glob("*.pt")

@@ -106,7 +106,9 @@ def test_constant_offset_sign_declares_no_winner_but_twice_the_offset_loses(trac
     n = len(frames)
 
     def method(amount):
-        return evaluate_sequence(frames, normal_offset(base, frames, [amount] * n), registrations=regs, two_sided=False)
+        return evaluate_sequence(
+            frames, normal_offset(base, frames, [amount] * n), precomputed_registrations=regs, two_sided=False
+        )
 
     plus, minus, double = method(1e-3), method(-1e-3), method(2e-3)
     out = compare_methods({"plus": plus, "minus": minus})["plus vs minus"]
@@ -120,8 +122,8 @@ def test_constant_offset_sign_declares_no_winner_but_twice_the_offset_loses(trac
 
 def test_identical_methods_every_verdict_inconclusive_every_difference_zero(tracked):
     frames, base, regs = tracked
-    a = evaluate_sequence(frames, base, registrations=regs)
-    b = evaluate_sequence(frames, [m.to(dtype=torch.float64) for m in base], registrations=regs)
+    a = evaluate_sequence(frames, base, precomputed_registrations=regs)
+    b = evaluate_sequence(frames, [m.to(dtype=torch.float64) for m in base], precomputed_registrations=regs)
     out = compare_methods({"A": a, "B": b}, relative_margin=0.0)["A vs B"]
     entries = [e for s in out.values() for e in s.values()]
     assert len(entries) >= 10 * 4 and any(k.startswith("reverse:") for k in out)

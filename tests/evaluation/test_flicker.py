@@ -68,7 +68,7 @@ def test_flicker_of_the_original_frame_k_minus_1_is_the_papers_k_minus_1_surface
     dst = Mesh(dst.verts * torch.tensor([1.05, 1.0, 0.95], dtype=dst.dtype), dst.faces)
     reg = register_nonrigid(src, dst, **_fast())
     for given in (reg, reg.mesh):
-        r = evaluate_pair(simp, dst, src, registration=given, simplified_k_minus_1=src)
+        r = evaluate_pair(simp, dst, src, precomputed_registration=given, simplified_k_minus_1=src)
         assert torch.allclose(r.distances["flicker"], r.distances["surface_k_minus_1"], rtol=0, atol=1e-12)
         assert torch.allclose(
             r.reverse_distances["flicker"], r.reverse_distances["surface_k_minus_1"], rtol=0, atol=1e-12
@@ -104,14 +104,14 @@ def test_sequence_has_flicker_from_frame_1_in_aggregate_and_json(moving_spheres)
     original, simplified = moving_spheres
     # frame k's simplification alternates between the coarse sphere scaled up and down by 1e-3
     flick = [_scaled(sphere(1), 1 + (1e-3 if k % 2 else -1e-3), 0.1 * k) for k in range(4)]
-    seq = evaluate_sequence(original, flick, register=TranslationRegister())
+    seq = evaluate_sequence(original, flick, registration_fn=TranslationRegister())
     assert [p.frame for p in seq.pairs] == [1, 2, 3] and all("flicker" in p.statistics for p in seq.pairs)
     assert seq.set_names[-1] == "flicker" and "flicker" in seq.aggregate() and "flicker" in seq.aggregate_reverse()
     aves = [p.statistics["flicker"].ave for p in seq.pairs]
     # k odd: k grown, k-1 shrunk -> exactly 2 eps; k even: k's vertices inside k-1's polytope -> at most 2 eps
     assert aves[0] == pytest.approx(2e-3, abs=1e-12) and aves[2] == pytest.approx(2e-3, abs=1e-12)
     assert 1e-3 < aves[1] <= 2e-3 + 1e-12
-    stable = evaluate_sequence(original, simplified, register=TranslationRegister())
+    stable = evaluate_sequence(original, simplified, registration_fn=TranslationRegister())
     assert stable.aggregate()["flicker"]["max"] < 1e-12
     data = json.loads(json.dumps(report_dict({"a": seq})))
     body = data["methods"]["a"]
@@ -119,21 +119,21 @@ def test_sequence_has_flicker_from_frame_1_in_aggregate_and_json(moving_spheres)
     assert body["aggregate"]["flicker"]["ave"] == seq.aggregate()["flicker"]["ave"]
     assert "flicker" in body["aggregate"]["reverse"]
     # evaluate_pair without the simplified k-1 has no flicker set (as frame 0 has none)
-    alone = evaluate_pair(simplified[1], original[1], original[0], registration=original[0])
+    alone = evaluate_pair(simplified[1], original[1], original[0], precomputed_registration=original[0])
     assert "flicker" not in alone.statistics and alone.set_names[-1] == "vertex_k"
 
 
 def test_registration_error_to_the_true_motion():
     a, b = sphere(1), sphere(1, offset=(0.1, 0, 0))
     truth = a.verts + torch.tensor([0.1, 0.0, 0.0], dtype=a.dtype)
-    exact = evaluate_pair(a, b, a, register=TranslationRegister(), true_registration=truth)
+    exact = evaluate_pair(a, b, a, registration_fn=TranslationRegister(), true_registration=truth)
     assert exact.registration_error_statistics.max == pytest.approx(0.0, abs=1e-12)
-    off = evaluate_pair(a, b, a, register=TranslationRegister(0.13), true_registration=truth)
+    off = evaluate_pair(a, b, a, registration_fn=TranslationRegister(0.13), true_registration=truth)
     assert off.registration_error_statistics.ave == pytest.approx(0.03, rel=1e-9)
     assert off.as_dict()["registration"]["error"]["max"] == pytest.approx(0.03, rel=1e-9)
     x = torch.tensor([1.0, 0.0, 0.0], dtype=a.dtype)
     seq = evaluate_sequence(
-        [a, b], [a, b], register=TranslationRegister(0.13), ground_truth=lambda p, s, d: p + 0.1 * (d - s) * x
+        [a, b], [a, b], registration_fn=TranslationRegister(0.13), ground_truth=lambda p, s, d: p + 0.1 * (d - s) * x
     )
     assert seq.aggregate_registration()["error"]["ave"] == pytest.approx(0.03, rel=1e-9)
 
@@ -142,11 +142,11 @@ def test_default_registration_is_cached_with_its_warp_and_old_entries_are_recomp
     src, dst = sphere(2), sphere(2, offset=(0.02, 0, 0))
     options = {"schedule": SHORT, "num_points": 300, "num_target_samples": 300}  # the default generator: seed 0
     cache = RegistrationCache(tmp_path)
-    r1 = evaluate_pair(src, dst, src, cache=cache, register_options=options, simplified_k_minus_1=src)
+    r1 = evaluate_pair(src, dst, src, registration_cache=cache, registration_options=options, simplified_k_minus_1=src)
     assert isinstance(cache._memory[registration_key(src, dst, registration_settings(None, options))].warp,
                       RegistrationWarp)  # fmt: skip
     fresh = RegistrationCache(tmp_path)  # a new run reads the disk entry, warp included
-    r2 = evaluate_pair(src, dst, src, cache=fresh, register_options=options, simplified_k_minus_1=src)
+    r2 = evaluate_pair(src, dst, src, registration_cache=fresh, registration_options=options, simplified_k_minus_1=src)
     assert fresh.hits == 1 and torch.equal(r1.distances["flicker"], r2.distances["flicker"])
     # an entry written before the warp was stored is stale: recomputed and replaced, not half-used
     (path,) = tmp_path.glob("*.pt")
@@ -154,7 +154,7 @@ def test_default_registration_is_cached_with_its_warp_and_old_entries_are_recomp
     del old["warp"]
     torch.save(old, path)
     again = RegistrationCache(tmp_path)
-    evaluate_pair(src, dst, src, cache=again, register_options=options, simplified_k_minus_1=src)
+    evaluate_pair(src, dst, src, registration_cache=again, registration_options=options, simplified_k_minus_1=src)
     assert again.misses == 1 and "warp" in torch.load(path, weights_only=True)
     # a caller's callable warp is used directly but never cached (it cannot be stored)
     given = CachedRegistration(src.verts, torch.zeros(src.num_verts), True, 0.0, lambda p: p)
@@ -165,14 +165,14 @@ def test_default_registration_is_cached_with_its_warp_and_old_entries_are_recomp
 
 def test_temporal_consistency_flicker_api(moving_spheres):
     original, simplified = moving_spheres
-    metric = TemporalConsistency(flicker=True, register=TranslationRegister())
+    metric = TemporalConsistency(flicker=True, registration_fn=TranslationRegister())
     with pytest.raises(ValueError, match="simplified_k_minus_1: required"):
         metric.update(simplified[1], original[1], original[0])
     for k in (1, 2, 3):
         metric.update(simplified[k], original[k], original[k - 1], simplified[k - 1])
     out = metric.compute()
     assert float(out["flicker"]["max"]) < 1e-12 and "flicker" in out["reverse"]
-    plain = TemporalConsistency(register=TranslationRegister())
+    plain = TemporalConsistency(registration_fn=TranslationRegister())
     with pytest.raises(ValueError, match="flicker=True"):
         plain.update(simplified[1], original[1], original[0], simplified[0])
     with pytest.raises(TypeError, match="flicker"):

@@ -25,7 +25,7 @@ def test_four_sets_use_the_right_references():
     original_k = sphere(2)
     original_km1 = sphere(2, offset=(5.0, 0, 0))  # far away: using it unregistered would give distances ~4-6
     registered = sphere(2, radius=1.1)
-    r = evaluate_pair(original_k, original_k, original_km1, registration=registered)
+    r = evaluate_pair(original_k, original_k, original_km1, precomputed_registration=registered)
     assert r.distances["surface_k"].abs().max() < 1e-12
     assert r.distances["vertex_k"].abs().max() < 1e-12
     pts = original_k.verts
@@ -54,7 +54,7 @@ def test_register_called_with_k_minus_1_onto_k_and_residual_is_to_frame_k():
         return Mesh(source.verts + torch.tensor([0.1, 0.0, 0.0], dtype=torch.float64), source.faces)
 
     km1, k = sphere(2), sphere(2, offset=(0.1, 0, 0))
-    r = evaluate_pair(sphere(1, offset=(0.1, 0, 0)), k, km1, register=register)
+    r = evaluate_pair(sphere(1, offset=(0.1, 0, 0)), k, km1, registration_fn=register)
     assert len(seen) == 1
     assert torch.equal(seen[0][0], km1.verts) and torch.equal(seen[0][1], k.verts)
     assert r.registration_residual.abs().max() < 1e-12  # perfect registration
@@ -67,8 +67,8 @@ def test_dropping_half_of_the_mesh_is_caught_by_the_two_sided_report():
     full = sphere(2)
     centroids = full.verts[full.faces].mean(1)
     half = Mesh(full.verts, full.faces[centroids[:, 2] > 0])
-    good = evaluate_pair(full, full, full, registration=full)
-    bad = evaluate_pair(half, full, full, registration=full)
+    good = evaluate_pair(full, full, full, precomputed_registration=full)
+    bad = evaluate_pair(half, full, full, precomputed_registration=full)
     # one-sided (the paper's sets): the half mesh looks perfect
     assert bad.statistics["surface_k"].max < 1e-12 and bad.statistics["vertex_k"].max < 1e-12
     # two-sided: the missing half is up to ~a radius away from the remaining surface
@@ -78,14 +78,14 @@ def test_dropping_half_of_the_mesh_is_caught_by_the_two_sided_report():
 
 
 def test_one_sided_has_no_reverse_sets():
-    r = evaluate_pair(sphere(1), sphere(2), sphere(2), registration=sphere(2), two_sided=False)
+    r = evaluate_pair(sphere(1), sphere(2), sphere(2), precomputed_registration=sphere(2), two_sided=False)
     assert r.reverse_distances == {} and r.reverse_statistics == {}
     assert set(r.distances) == set(SET_NAMES)
 
 
 def test_registration_of_wrong_shape_is_rejected():
     with pytest.raises(ShapeError, match="registration"):
-        evaluate_pair(sphere(1), sphere(2), sphere(2), registration=sphere(1))
+        evaluate_pair(sphere(1), sphere(2), sphere(2), precomputed_registration=sphere(1))
 
 
 def test_sequence_aggregate_is_mean_of_pairs_and_best_pair_is_least_motion(moving_spheres):
@@ -96,7 +96,7 @@ def test_sequence_aggregate_is_mean_of_pairs_and_best_pair_is_least_motion(movin
         Mesh(original[k - 1].verts + torch.tensor([shifts[k], 0, 0], dtype=torch.float64), original[k - 1].faces)
         for k in range(1, 4)
     ]
-    seq = evaluate_sequence(original, simplified, registrations=regs)
+    seq = evaluate_sequence(original, simplified, precomputed_registrations=regs)
     assert [p.frame for p in seq.pairs] == [1, 2, 3]
     agg = seq.aggregate()
     for name in SET_NAMES:
@@ -110,11 +110,13 @@ def test_sequence_aggregate_is_mean_of_pairs_and_best_pair_is_least_motion(movin
 def test_frame_count_mismatch(moving_spheres):
     original, simplified = moving_spheres
     with pytest.raises(ValueError, match="simplified_frames"):
-        evaluate_sequence(original, simplified[:-1], register=TranslationRegister())
+        evaluate_sequence(original, simplified[:-1], registration_fn=TranslationRegister())
 
 
 def test_progress_reports_every_pair(moving_spheres):
     original, simplified = moving_spheres
     calls = []
-    evaluate_sequence(original, simplified, register=TranslationRegister(), progress=lambda k, n: calls.append((k, n)))
+    evaluate_sequence(
+        original, simplified, registration_fn=TranslationRegister(), progress=lambda k, n: calls.append((k, n))
+    )
     assert calls == [(1, 3), (2, 3), (3, 3)]

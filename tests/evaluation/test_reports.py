@@ -20,8 +20,8 @@ def methods(moving_spheres):
     original, simplified = moving_spheres
     register = TranslationRegister()
     return {
-        "coarse": evaluate_sequence(original, simplified, register=register),
-        "same": evaluate_sequence(original, original, register=register),
+        "coarse": evaluate_sequence(original, simplified, registration_fn=register),
+        "same": evaluate_sequence(original, original, registration_fn=register),
     }
 
 

@@ -26,9 +26,11 @@ def test_sweep_rows_are_the_evaluations_of_each_weight_and_of_plain_qem(spheres,
     assert [r["weight"] for r in rows] == [0.0, 3.0, None]
     for weight, row in zip((0.0, 3.0), rows, strict=False):
         simplified = simplify_sequence(frames, 0.3, registrations=regs, weight=weight)
-        expect = evaluate_sequence(frames, simplified, registrations=regs, two_sided=False).aggregate()
+        expect = evaluate_sequence(frames, simplified, precomputed_registrations=regs, two_sided=False).aggregate()
         assert row == {"weight": weight, **{s: expect[s]["ave"] for s in ("surface_k", "surface_k_minus_1", "flicker")}}
-    qem = evaluate_sequence(frames, simplify_sequence(frames, 0.3), registrations=regs, two_sided=False).aggregate()
+    qem = evaluate_sequence(
+        frames, simplify_sequence(frames, 0.3), precomputed_registrations=regs, two_sided=False
+    ).aggregate()
     assert rows[-1]["surface_k"] == qem["surface_k"]["ave"]
     table = sweep.markdown()
     assert table.count("| Registered QEM |") == 2 and "| QEM (fast-simplification) |" in table

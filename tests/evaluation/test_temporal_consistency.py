@@ -14,13 +14,15 @@ from torchmeshmetric.stats import distance_statistics
 def test_metric_pools_updates_and_caches_registration(moving_spheres):
     original, simplified = moving_spheres
     register = TranslationRegister()
-    metric = TemporalConsistency(register=register)
+    metric = TemporalConsistency(registration_fn=register)
     pairs = []
     for _epoch in range(2):
         metric.reset()
         for k in range(1, 4):
             metric.update(simplified[k], original[k], original[k - 1])
-            pairs.append(evaluate_pair(simplified[k], original[k], original[k - 1], register=TranslationRegister()))
+            pairs.append(
+                evaluate_pair(simplified[k], original[k], original[k - 1], registration_fn=TranslationRegister())
+            )
     assert register.calls == 3  # second epoch: all registrations from the in-memory cache
     out = metric.compute()
     peak = max(p.peak for p in pairs[-3:])
@@ -37,7 +39,7 @@ def test_metric_pools_updates_and_caches_registration(moving_spheres):
 
 def test_metric_one_sided_collection_and_pickle(moving_spheres):
     original, simplified = moving_spheres
-    metric = TemporalConsistency(two_sided=False, register=TranslationRegister())
+    metric = TemporalConsistency(two_sided=False, registration_fn=TranslationRegister())
     coll = MetricCollection({"tc": metric})
     coll.update(simplified[1], original[1], original[0])
     out = coll.compute()  # a collection merges a metric's dict output into its own dict
@@ -51,14 +53,14 @@ def test_metric_one_sided_collection_and_pickle(moving_spheres):
 def test_metric_rejects_bad_arguments():
     with pytest.raises(TypeError, match="two_sided"):
         TemporalConsistency(two_sided="yes")
-    with pytest.raises(TypeError, match="register"):
-        TemporalConsistency(register=3)
+    with pytest.raises(TypeError, match="registration_fn"):
+        TemporalConsistency(registration_fn=3)
 
 
 def test_states_declared_for_every_set_and_merged_like_a_ddp_gather(moving_spheres):
     original, simplified = moving_spheres
     assert set(_FORWARD_STATES) == set(_REVERSE_STATES) == {*SET_NAMES, FLICKER}
-    whole, part_a, part_b = (TemporalConsistency(register=TranslationRegister()) for _ in range(3))
+    whole, part_a, part_b = (TemporalConsistency(registration_fn=TranslationRegister()) for _ in range(3))
     for k in range(1, 4):
         whole.update(simplified[k], original[k], original[k - 1])
         (part_a if k < 3 else part_b).update(simplified[k], original[k], original[k - 1])
@@ -72,10 +74,23 @@ def test_states_declared_for_every_set_and_merged_like_a_ddp_gather(moving_spher
 @pytest.mark.filterwarnings("ignore:The ``compute`` method of metric TemporalConsistency was called before:UserWarning")
 def test_empty_compute_raises_and_old_module_name_warns():
     with pytest.raises(EmptyInputError, match="no surface_k_minus_1 distances"):
-        TemporalConsistency(register=TranslationRegister()).compute()
+        TemporalConsistency(registration_fn=TranslationRegister()).compute()
     from torchmeshmetric.evaluation import metric
 
     with pytest.warns(DeprecationWarning, match="evaluation.metric.TemporalConsistency is deprecated"):
         assert metric.TemporalConsistency is TemporalConsistency
     with pytest.raises(AttributeError):
         _ = metric.NotThere
+
+
+def test_old_keywords_warn_and_still_work(moving_spheres):
+    with pytest.warns(DeprecationWarning, match="registration_fn"):
+        old = TemporalConsistency(register=TranslationRegister())
+    new = TemporalConsistency(registration_fn=TranslationRegister())
+    assert isinstance(old.registration_fn, TranslationRegister)
+    original, simplified = moving_spheres
+    moved = original[1]  # frame 0 "registered" onto frame 1
+    with pytest.warns(DeprecationWarning, match="precomputed_registration"):
+        old.update(simplified[1], original[1], original[0], registration=moved)
+    new.update(simplified[1], original[1], original[0], precomputed_registration=moved)
+    assert float(old.compute()["vertex_k"]["ave"]) == float(new.compute()["vertex_k"]["ave"])

@@ -86,9 +86,9 @@ def test_statistics_and_psnr_at_extreme_magnitudes(scale):
         tmm.Mesh(simp.verts.double() / scale, simp.faces),
         tmm.Mesh(ref.verts.double() / scale, ref.faces),
         tmm.Mesh(ref.verts.double() / scale, ref.faces),
-        registration=tmm.Mesh(ref.verts.double() / scale, ref.faces),
+        precomputed_registration=tmm.Mesh(ref.verts.double() / scale, ref.faces),
     ).statistics["surface_k"]
-    got = tmm.evaluate_pair(simp, ref, ref, registration=ref).statistics["surface_k"]
+    got = tmm.evaluate_pair(simp, ref, ref, precomputed_registration=ref).statistics["surface_k"]
     assert float(got.ave) / scale == pytest.approx(float(unit.ave), rel=1e-5)
     assert float(got.max) / scale == pytest.approx(float(unit.max), rel=1e-5)
     assert float(got.psnr) == pytest.approx(float(unit.psnr), abs=1e-3)

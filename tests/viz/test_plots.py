@@ -10,7 +10,7 @@ from torchmeshmetric.viz import plot_frame_curves, plot_histograms
 def test_plots_are_png_and_atomic(tmp_path):
     original = [sphere(1, offset=(0.1 * k, 0, 0)) for k in range(3)]
     simplified = [sphere(0, offset=(0.1 * k, 0, 0)) for k in range(3)]
-    seq = evaluate_sequence(original, simplified, register=TranslationRegister())
+    seq = evaluate_sequence(original, simplified, registration_fn=TranslationRegister())
     h = plot_histograms({"a": seq.pairs[0], "b": seq.pairs[0]}, tmp_path / "h.png")
     c = plot_frame_curves({"a": seq}, tmp_path / "c.png", statistic="rmse")
     for p in (h, c):
@@ -34,7 +34,7 @@ def test_histograms_show_the_distribution_on_a_log_axis():
     # most vertices on the surface (distance 0), a tail over four decades: the frame-k sets of a simplification
     moved = torch.arange(0, n, 10)
     verts[moved] *= 1 + torch.logspace(-5, -1, moved.numel(), dtype=verts.dtype)[:, None]
-    pair = evaluate_pair(Mesh(verts, ref.faces), ref, ref, registration=ref)
+    pair = evaluate_pair(Mesh(verts, ref.faces), ref, ref, precomputed_registration=ref)
     fig = histogram_figure({"m": pair}, bins=40)
     values = pair.distances["surface_k"].double().numpy()
     linear_counts = np.histogram(values, bins=np.linspace(0, values.max(), 41))[0]
@@ -68,8 +68,9 @@ def test_plots_have_a_flicker_and_a_registration_panel_when_flicker_was_measured
 
     original = [sphere(1, offset=(0.1 * k, 0, 0)) for k in range(3)]
     simplified = [sphere(0, offset=(0.1 * k, 0, 0)) for k in range(3)]
-    seq = evaluate_sequence(original, simplified, register=TranslationRegister())
-    alone = evaluate_pair(simplified[1], original[1], original[0], registration=original[0])  # no flicker set
+    seq = evaluate_sequence(original, simplified, registration_fn=TranslationRegister())
+    # a pair alone: no flicker set
+    alone = evaluate_pair(simplified[1], original[1], original[0], precomputed_registration=original[0])
 
     def width(path):
         return struct.unpack(">I", path.read_bytes()[16:20])[0]  # PNG IHDR

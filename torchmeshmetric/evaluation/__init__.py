@@ -12,6 +12,7 @@ from torchmeshmetric.evaluation.pipeline import (
     default_register,
     evaluate_pair,
     evaluate_sequence,
+    register_pairs,
     registration_settings,
 )
 from torchmeshmetric.evaluation.reports import (
@@ -57,6 +58,7 @@ __all__ = [
     "mean_statistics",
     "paired_t_interval",
     "paper_tables",
+    "register_pairs",
     "registered_qem_sweep",
     "registration_key",
     "registration_settings",

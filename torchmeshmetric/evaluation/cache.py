@@ -25,6 +25,7 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric._atomic import atomic_write_with
+from torchmeshmetric._checks import ShapeError
 from torchmeshmetric.registration.options import NonRigidOptions
 from torchmeshmetric.registration.warp import RegistrationWarp, Warp
 from torchmeshmetric.structures import Mesh
@@ -54,6 +55,29 @@ class CachedRegistration(NamedTuple):
     converged: bool
     seconds: float
     warp: Warp | None = None
+
+    def registered_mesh(self, source: Mesh) -> Mesh:
+        """Frame ``k-1`` registered onto frame ``k``: the registered vertices on ``source``'s faces.
+
+        Args:
+            source: original frame ``k-1`` (the registration's source); the mesh gets its device and dtype.
+
+        Raises:
+            ShapeError: when the registered vertices are not ``(V, 3)`` with ``V`` the vertices of ``source``.
+
+        Example:
+            >>> import torch
+            >>> m = Mesh(torch.eye(3), torch.tensor([[0, 1, 2]]))
+            >>> reg = CachedRegistration(m.verts + 1, torch.zeros(3), True, 0.0)
+            >>> reg.registered_mesh(m).verts[0].tolist()
+            [2.0, 1.0, 1.0]
+        """
+        if tuple(self.verts.shape) != tuple(source.verts.shape):
+            raise ShapeError(
+                f"source: expected vertices of shape {tuple(self.verts.shape)} (those registered), found "
+                f"{tuple(source.verts.shape)}"
+            )
+        return Mesh(self.verts.to(source.verts), source.faces, validate=False)
 
 
 def _hash_mesh(h: hashlib._Hash, mesh: Mesh) -> None:
@@ -161,6 +185,13 @@ class RegistrationCache:
         self._memory: dict[str, CachedRegistration] = {}
         self.hits = 0
         self.misses = 0
+        #: When a dict: every entry :meth:`get_or_compute` returns is also recorded there by key (the ranks of a
+        #: distributed evaluation send each other the entries they computed or loaded).
+        self.journal: dict[str, CachedRegistration] | None = None
+
+    def adopt(self, entries: Mapping[str, CachedRegistration]) -> None:
+        """Answer later lookups of these entries (by key, e.g. another rank's :attr:`journal`) from memory."""
+        self._memory.update(entries)
 
     def _path(self, key: str) -> Path:
         assert self.directory is not None
@@ -181,7 +212,7 @@ class RegistrationCache:
         except Exception as exc:  # a corrupt entry is recomputed and replaced, never trusted
             problem = f"unreadable ({type(exc).__name__}: {exc})"
         if problem is not None:
-            warnings.warn(f"registration cache: entry {self._path(key)} is {problem}; recomputing it", stacklevel=3)
+            warnings.warn(f"registration cache: entry {self._path(key)} is {problem}; recomputing it", stacklevel=4)
             return None
         return entry
 
@@ -214,6 +245,14 @@ class RegistrationCache:
             ``(entry, hit)``.
         """
         key = registration_key(source, target, settings)
+        entry, hit = self._lookup_or_compute(key, source, compute)
+        if self.journal is not None:
+            self.journal[key] = entry
+        return entry, hit
+
+    def _lookup_or_compute(
+        self, key: str, source: Mesh, compute: Callable[[], CachedRegistration]
+    ) -> tuple[CachedRegistration, bool]:
         entry = self._memory.get(key)
         if entry is None:
             entry = self._load(key, source)

@@ -244,8 +244,8 @@ def compare_methods(
         >>> coarse = [trimesh.creation.icosphere(subdivisions=1) for _ in range(3)]
         >>> same = lambda src, dst: src
         >>> out = compare_methods({
-        ...     "A": evaluate_sequence(frames, coarse, register=same),
-        ...     "B": evaluate_sequence(frames, coarse, register=same),
+        ...     "A": evaluate_sequence(frames, coarse, registration_fn=same),
+        ...     "B": evaluate_sequence(frames, coarse, registration_fn=same),
         ... })
         >>> a_vs_b = out["A vs B"]
         >>> surface_k = a_vs_b["surface_k"]

@@ -100,21 +100,23 @@ class _StepWarp:
         return self.motion(points, self.k - 1, self.k)
 
 
+def _along_normal(mesh: Mesh, frame: MeshLike, amount: float | Tensor) -> Mesh:
+    """``mesh``, every vertex moved by ``amount`` (a number or ``(V, 1)``) along the normal of ``frame`` under it."""
+    return Mesh(mesh.verts + amount * surface_normals(mesh.verts, frame), mesh.faces, validate=False)
+
+
 def normal_offset(meshes: Sequence[Mesh], frames: Sequence[MeshLike], amounts: Sequence[float]) -> list[Mesh]:
     """Every vertex of ``meshes[k]`` moved by ``amounts[k]`` along the surface normal of ``frames[k]`` under it."""
-    out = []
-    for mesh, frame, amount in zip(meshes, frames, amounts, strict=True):
-        out.append(Mesh(mesh.verts + amount * surface_normals(mesh.verts, frame), mesh.faces, validate=False))
-    return out
+    return [_along_normal(m, f, a) for m, f, a in zip(meshes, frames, amounts, strict=True)]
 
 
 def surface_noise(meshes: Sequence[Mesh], frames: Sequence[MeshLike], sigma: float, *, seed: int = 0) -> list[Mesh]:
     """Independent Gaussian noise of standard deviation ``sigma`` along the normal, a new draw every frame."""
     gen = torch.Generator().manual_seed(seed)
     out = []
-    for mesh, frame in zip(meshes, frames, strict=True):
+    for mesh, frame in zip(meshes, frames, strict=True):  # frame by frame: the draws follow the frame order
         amount = sigma * torch.randn(mesh.num_verts, 1, generator=gen, dtype=torch.float64).to(mesh.verts)
-        out.append(Mesh(mesh.verts + amount * surface_normals(mesh.verts, frame), mesh.faces, validate=False))
+        out.append(_along_normal(mesh, frame, amount))
     return out
 
 

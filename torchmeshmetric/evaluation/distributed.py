@@ -25,9 +25,11 @@ from typing import Any, NamedTuple, TypeVar
 import torch
 import torch.distributed as dist
 
-from torchmeshmetric.evaluation.cache import CachedRegistration, RegistrationCache, registration_key
+from torchmeshmetric._deprecation import renamed_keywords
+from torchmeshmetric.evaluation.cache import CachedRegistration, RegistrationCache
+from torchmeshmetric.evaluation.pipeline import evaluate_sequence
 from torchmeshmetric.evaluation.results import SequenceEvaluation
-from torchmeshmetric.structures import Mesh, MeshLike
+from torchmeshmetric.structures import MeshLike
 
 __all__ = [
     "RankFailedError",
@@ -296,33 +298,6 @@ class SequenceWork(NamedTuple):
     methods: Mapping[str, Sequence[MeshLike]]
 
 
-class _SharingCache(RegistrationCache):
-    """A view of a cache that records the entries it returns, so a rank can send them to the others."""
-
-    def __init__(self, inner: RegistrationCache) -> None:
-        super().__init__(inner.directory)
-        self.inner = inner
-        self.recorded: dict[str, CachedRegistration] = {}
-
-    def get_or_compute(
-        self,
-        source: Mesh,
-        target: Mesh,
-        settings: Mapping[str, object],
-        compute: Callable[[], CachedRegistration],
-    ) -> tuple[CachedRegistration, bool]:
-        entry, hit = self.inner.get_or_compute(source, target, settings, compute)
-        self.recorded[registration_key(source, target, settings)] = entry
-        return entry, hit
-
-    def adopt(self, entries: Mapping[str, CachedRegistration]) -> None:
-        """Make entries computed on other ranks answer this rank's lookups from memory."""
-        self.inner._memory.update(entries)
-
-    def __len__(self) -> int:
-        return len(self.inner)
-
-
 def _at_frame(pair: Any, k: int) -> Any:
     """The pair evaluated on the two-frame slice ``(k-1, k)`` carries frame 1; give it its index in the sequence."""
     return pair._replace(frame=k)
@@ -334,11 +309,12 @@ def _describe(work: Sequence[SequenceWork], w: int, method: str, k: int) -> str:
     return f"{seq}{named}frame pair {k - 1} -> {k}"
 
 
+@renamed_keywords(cache="registration_cache", registrations="precomputed_registrations")
 def evaluate_sequences(
     work: Sequence[SequenceWork],
     *,
-    cache: RegistrationCache | None = None,
-    registrations: Sequence[Sequence[Any] | None] | None = None,
+    registration_cache: RegistrationCache | None = None,
+    precomputed_registrations: Sequence[Sequence[Any] | None] | None = None,
     to: int | None = 0,
     progress: Callable[[int, int], None] | None = None,
     **options: Any,
@@ -352,12 +328,15 @@ def evaluate_sequences(
 
     Args:
         work: the sequences and their methods (identical on every rank).
-        cache: the registration cache (default: a new in-memory cache); a shared folder lets ranks and later runs
-            reuse registrations.
-        registrations: per sequence, optional precomputed registrations (see ``evaluate_sequence``).
+        registration_cache: the registration cache (default: a new in-memory cache); a shared folder lets ranks
+            and later runs reuse registrations.
+        precomputed_registrations: per sequence, optional precomputed registrations (see ``evaluate_sequence``).
         to: the rank that receives the results (``None``: every rank).
         progress: called on rank 0 as ``progress(pairs_done, pairs_total)`` across all ranks.
-        **options: passed to ``evaluate_sequence`` (``two_sided``, ``device``, ``register``, ...).
+        **options: passed to ``evaluate_sequence`` (``two_sided``, ``device``, ``registration_fn``, ...).
+
+    The keywords ``cache`` and ``registrations`` are the deprecated names of ``registration_cache`` and
+    ``precomputed_registrations``.
 
     Returns:
         Per sequence, method name -> :class:`SequenceEvaluation` (on the receiving rank(s)); ``None`` elsewhere.
@@ -365,10 +344,8 @@ def evaluate_sequences(
     Raises:
         RankFailedError: a rank raised or died; names the rank and its frame pair.
     """
-    from torchmeshmetric.evaluation.pipeline import evaluate_sequence
-
-    shared = _SharingCache(cache if cache is not None else RegistrationCache())
-    regs = list(registrations) if registrations is not None else [None] * len(work)
+    cache = registration_cache if registration_cache is not None else RegistrationCache()
+    regs = list(precomputed_registrations) if precomputed_registrations is not None else [None] * len(work)
     first: list[tuple[int, str, int]] = []
     rest: list[tuple[int, str, int]] = []
     for w, item in enumerate(work):
@@ -383,8 +360,8 @@ def evaluate_sequences(
         sub = evaluate_sequence(
             work[w].original[k - 1 : k + 1],
             work[w].methods[method][k - 1 : k + 1],
-            cache=shared,
-            registrations=None if given is None else given[k - 1 : k],
+            registration_cache=cache,
+            precomputed_registrations=None if given is None else given[k - 1 : k],
             **options,
         )
         return _at_frame(sub.pairs[0], k)
@@ -397,8 +374,15 @@ def evaluate_sequences(
             return None
         return lambda done, _: progress(offset + done, total)
 
-    first_pairs = run_tasks(one_pair, first, describe=describe, to=to, progress=counted(0))
-    _share_registrations(shared)
+    journal: dict[str, CachedRegistration] = {}
+    outer, cache.journal = cache.journal, journal  # the entries this call's first phase returns, by key
+    try:
+        first_pairs = run_tasks(one_pair, first, describe=describe, to=to, progress=counted(0))
+    finally:
+        cache.journal = outer
+    if outer is not None:
+        outer.update(journal)
+    _share_registrations(cache, journal)
     rest_pairs = run_tasks(one_pair, rest, describe=describe, to=to, progress=counted(len(first)))
     if first_pairs is None or rest_pairs is None:
         return None
@@ -412,13 +396,13 @@ def evaluate_sequences(
     ]
 
 
-def _share_registrations(cache: _SharingCache) -> None:
-    """Every rank receives the registrations the others computed or loaded (a collective)."""
+def _share_registrations(cache: RegistrationCache, journal: dict[str, CachedRegistration]) -> None:
+    """Every rank receives the registrations the others computed or loaded (``journal``: this rank's; a collective)."""
     if not is_distributed():
         return
     gathered: list[Any] = [None] * dist.get_world_size()
     try:
-        dist.all_gather_object(gathered, cache.recorded)
+        dist.all_gather_object(gathered, journal)
     except Exception as exc:  # a rank died between the two phases
         raise RankFailedError(-1, "the exchange of registrations", f"lost contact ({_one_line(exc)})") from exc
     for entries in gathered:

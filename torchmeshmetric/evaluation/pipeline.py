@@ -19,14 +19,25 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric._checks import ShapeError
+from torchmeshmetric._deprecation import renamed_keywords
 from torchmeshmetric.evaluation.cache import CachedRegistration, RegistrationCache
 from torchmeshmetric.evaluation.flicker import FLICKER, flicker_distances
 from torchmeshmetric.evaluation.results import SET_NAMES, PairEvaluation, SequenceEvaluation
 from torchmeshmetric.kernels import IndexCache, MeshIndex, point_mesh_distance
+from torchmeshmetric.registration import NonRigidOptions, register_nonrigid
 from torchmeshmetric.registration.warp import RegistrationWarp, SurfaceWarp, Warp
+from torchmeshmetric.stats import DistanceStatistics, distance_statistics
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
-__all__ = ["RegisterFn", "default_register", "evaluate_pair", "evaluate_sequence", "registration_settings"]
+__all__ = [
+    "RegisterFn",
+    "default_register",
+    "evaluate_pair",
+    "evaluate_sequence",
+    "register_pairs",
+    "registration_settings",
+]
+
 
 #: A registration function ``register(source_k_minus_1, target_k)`` returning the registered frame ``k-1``: a
 #: :class:`CachedRegistration`, a result object with ``verts`` (and optionally ``residual``, ``converged``), or a
@@ -43,8 +54,6 @@ def default_register(
     graph) and keeps its registered vertices, residual, convergence flag and deformation
     (:class:`~torchmeshmetric.registration.RegistrationWarp`, which moves any point: the ``flicker`` set needs it).
     """
-    from torchmeshmetric.registration import register_nonrigid
-
     start = time.perf_counter()
     result = register_nonrigid(source, target, device=device, **options)
     seconds = time.perf_counter() - start
@@ -56,6 +65,10 @@ def registration_settings(register: RegisterFn | None, options: Mapping[str, Any
     """The settings that identify a registration in the cache: the function's qualified name and its options."""
     fn: Any = default_register if register is None else register
     name = f"{getattr(fn, '__module__', '?')}.{getattr(fn, '__qualname__', type(fn).__name__)}"
+    if register is None:
+        # The library's registration: its complete, validated options (defaults filled), so equal settings spelled
+        # differently share one cache entry and a misspelled option fails here, before any work.
+        return {"register": name, "options": NonRigidOptions.from_call(options or {})}
     return {"register": name, "options": dict(options or {})}
 
 
@@ -85,17 +98,141 @@ def _registration_from(registration: Any, original_k_minus_1: Mesh, original_k: 
     return reg
 
 
+def _register_pair(
+    original_k_minus_1: Mesh,
+    original_k: Mesh,
+    *,
+    registration_fn: RegisterFn | None,
+    registration_options: Mapping[str, Any] | None,
+    registration_cache: RegistrationCache | None,
+    device: torch.device | str | None,
+    backend: str,
+) -> tuple[CachedRegistration, bool, float]:
+    """Frame ``k-1`` registered onto frame ``k``, through the cache: ``(registration, cache hit, seconds spent)``."""
+    options = dict(registration_options or {})
+
+    def compute() -> CachedRegistration:
+        if registration_fn is None:
+            return default_register(original_k_minus_1, original_k, device=device, **{"backend": backend, **options})
+        t0 = time.perf_counter()
+        given = _registration_from(registration_fn(original_k_minus_1, original_k), original_k_minus_1, original_k)
+        return given._replace(seconds=given.seconds or time.perf_counter() - t0)
+
+    start = time.perf_counter()
+    if registration_cache is None:
+        reg, cached = compute(), False
+    else:
+        settings = registration_settings(registration_fn, options)
+        reg, cached = registration_cache.get_or_compute(original_k_minus_1, original_k, settings, compute)
+    reg = _registration_from(reg, original_k_minus_1, original_k)
+    return reg, cached, 0.0 if cached else time.perf_counter() - start
+
+
+def register_pairs(
+    original_frames: Sequence[MeshLike],
+    *,
+    registration_fn: RegisterFn | None = None,
+    registration_options: Mapping[str, Any] | None = None,
+    registration_cache: RegistrationCache | None = None,
+    device: torch.device | str | None = None,
+    backend: str = "auto",
+) -> list[CachedRegistration]:
+    """Every original frame ``k-1`` registered onto frame ``k`` (``N - 1`` registrations), through the cache.
+
+    The registrations :func:`evaluate_sequence` computes for the same frames and settings (the same cache
+    entries), ready to be passed as its ``precomputed_registrations`` or to Registered QEM.
+
+    Args:
+        original_frames: the ``N`` original frames, in order.
+        registration_fn: registration function (default :func:`default_register`).
+        registration_options: keyword options of the default registration (part of the cache key).
+        registration_cache: a :class:`RegistrationCache`; ``None`` computes every registration.
+        device: where the default registration runs.
+        backend: kernel backend of the default registration.
+
+    Returns:
+        ``N - 1`` :class:`CachedRegistration`; entry ``k-1`` is frame ``k-1`` registered onto frame ``k`` (its
+        :meth:`~CachedRegistration.registered_mesh` is that mesh).
+
+    Example:
+        >>> import torch, trimesh
+        >>> frames = [trimesh.creation.icosphere(subdivisions=1)] * 3
+        >>> same = lambda source, target: source  # the frames do not move
+        >>> regs = register_pairs(frames, registration_fn=same)
+        >>> len(regs), float(regs[0].residual.max()) < 1e-12
+        (2, True)
+    """
+    frames = [as_mesh(f) for f in original_frames]
+    return [
+        _register_pair(
+            frames[k - 1],
+            frames[k],
+            registration_fn=registration_fn,
+            registration_options=registration_options,
+            registration_cache=registration_cache,
+            device=device,
+            backend=backend,
+        )[0]
+        for k in range(1, len(frames))
+    ]
+
+
+def _distance_sets(
+    simplified: Mesh, references: Mapping[str, Mesh], two_sided: bool, backend: str, indexes: IndexCache | None
+) -> tuple[dict[str, Tensor], dict[str, Tensor]]:
+    """The paper's sets ``surface_<ref>`` (Eq. 4) and ``vertex_<ref>`` (Eq. 5) for each named reference.
+
+    Returns ``(forward, reverse)``: from the simplified vertices (Eq. 3) to each reference, and (two-sided) from
+    each reference's vertices to the simplified mesh (``reverse`` is empty when one-sided).
+    """
+    # One index per mesh: the references' (shared across methods and frame pairs through `indexes`) and the
+    # simplified frame's (queried by every reference's vertex set). A reference is queried a few times per
+    # sequence: the cheap Morton build pays more than a SAH tree.
+    shared = indexes if indexes is not None else IndexCache()
+    simp_index = MeshIndex(simplified.verts, simplified.faces, backend=backend, tree="morton")
+    points = simp_index.ref_points.points
+    forward: dict[str, Tensor] = {}
+    reverse: dict[str, Tensor] = {}
+    for name, mesh in references.items():
+        index = shared.get(mesh, backend=backend, tree="morton")
+        forward[f"surface_{name}"] = index.point_mesh_distance(points).dists
+        forward[f"vertex_{name}"] = index.nearest_vertex_distance(points).dists
+        if two_sided:
+            ref_points = index.ref_points.points
+            reverse[f"surface_{name}"] = simp_index.point_mesh_distance(ref_points).dists
+            reverse[f"vertex_{name}"] = simp_index.nearest_vertex_distance(ref_points).dists
+    return forward, reverse
+
+
+def _registration_error(registered: Mesh, true_registration: Tensor, peak: float) -> tuple[Tensor, DistanceStatistics]:
+    """Distances of the registered vertices to their true positions, and their statistics."""
+    truth = torch.as_tensor(true_registration).to(registered.verts.device, registered.verts.dtype)
+    if tuple(truth.shape) != tuple(registered.verts.shape):
+        raise ShapeError(
+            f"true_registration: expected the shape of the vertices of original_k_minus_1 "
+            f"{tuple(registered.verts.shape)}, found {tuple(truth.shape)}"
+        )
+    error = (registered.verts - truth).norm(dim=-1)
+    return error, distance_statistics(error, peak=peak)
+
+
+@renamed_keywords(
+    registration="precomputed_registration",
+    register="registration_fn",
+    register_options="registration_options",
+    cache="registration_cache",
+)
 def evaluate_pair(
     simplified_k: MeshLike,
     original_k: MeshLike,
     original_k_minus_1: MeshLike,
     *,
-    registration: Any = None,
+    precomputed_registration: Any = None,
     two_sided: bool = True,
     device: torch.device | str | None = None,
-    register: RegisterFn | None = None,
-    register_options: Mapping[str, Any] | None = None,
-    cache: RegistrationCache | None = None,
+    registration_fn: RegisterFn | None = None,
+    registration_options: Mapping[str, Any] | None = None,
+    registration_cache: RegistrationCache | None = None,
     frame: int = 1,
     backend: str = "auto",
     indexes: IndexCache | None = None,
@@ -108,15 +245,15 @@ def evaluate_pair(
         simplified_k: the simplified mesh of frame ``k`` (any mesh-like).
         original_k: the original mesh of frame ``k``.
         original_k_minus_1: the original mesh of frame ``k-1``.
-        registration: frame ``k-1`` already registered onto frame ``k``: a mesh-like with the vertices (and
-            topology) of ``original_k_minus_1``, a :class:`~torchmeshmetric.registration.NonRigidRegistration`,
-            or a :class:`CachedRegistration`. ``None`` (default) registers with ``register``.
+        precomputed_registration: frame ``k-1`` already registered onto frame ``k``: a mesh-like with the vertices
+            (and topology) of ``original_k_minus_1``, a :class:`~torchmeshmetric.registration.NonRigidRegistration`,
+            or a :class:`CachedRegistration`. ``None`` (default) registers with ``registration_fn``.
         two_sided: also compute the reverse (reference → simplified) sets (default ``True``).
         device: where distances are computed (default: the device of ``simplified_k``).
-        register: registration function ``(source, target) -> registered source`` (see :data:`RegisterFn`); default
-            :func:`default_register` (with ``register_options`` and ``device``).
-        register_options: keyword options of the default registration (part of the cache key).
-        cache: a :class:`RegistrationCache`; reused registrations cost nothing.
+        registration_fn: registration function ``(source, target) -> registered source`` (see :data:`RegisterFn`);
+            default :func:`default_register` (with ``registration_options`` and ``device``).
+        registration_options: keyword options of the default registration (part of the cache key).
+        registration_cache: a :class:`RegistrationCache`; reused registrations cost nothing.
         frame: the index ``k`` recorded in the result.
         backend: kernel backend of the distances and of the default registration (``"auto"``, ``"bvh"``, ...).
         indexes: an :class:`~torchmeshmetric.IndexCache` shared across calls: the original frames' indexes are
@@ -129,75 +266,50 @@ def evaluate_pair(
             (known motion, e.g. :meth:`~torchmeshmetric.data.DemoSequence.transfer`): the registration's error is
             then reported beside its residual.
 
+    The keywords ``registration``, ``register``, ``register_options`` and ``cache`` are the deprecated names of
+    ``precomputed_registration``, ``registration_fn``, ``registration_options`` and ``registration_cache``.
+
     Returns:
         :class:`PairEvaluation` with the four distance sets (keys ``surface_k``, ``surface_k_minus_1``,
         ``vertex_k``, ``vertex_k_minus_1``; and ``flicker`` when ``simplified_k_minus_1`` is given), their statistics
         (PSNR peak: bounding-box diagonal of ``original_k``), the reverse sets, the registration residual and timings.
 
     Raises:
-        ShapeError: when ``registration`` does not have the vertices of ``original_k_minus_1``.
+        ShapeError: when ``precomputed_registration`` does not have the vertices of ``original_k_minus_1``.
 
     Example:
         >>> import trimesh
         >>> sphere = trimesh.creation.icosphere(subdivisions=2)
         >>> coarse = trimesh.creation.icosphere(subdivisions=1)
-        >>> r = evaluate_pair(coarse, sphere, sphere, registration=sphere)
+        >>> r = evaluate_pair(coarse, sphere, sphere, precomputed_registration=sphere)
         >>> float(r.statistics["vertex_k"].max) < 1e-12, float(r.statistics["surface_k"].max) < 1e-12
         (True, True)
         >>> round(float(r.reverse_statistics["surface_k"].max), 3)  # fine vertices off the coarse surface
         0.049
     """
-    from torchmeshmetric.stats import distance_statistics
-
     simp = as_mesh(simplified_k)
     dev = torch.device(device) if device is not None else simp.device
     simp = simp.to(dev)
     orig_k = as_mesh(original_k).to(dev, simp.dtype)
     orig_km1 = as_mesh(original_k_minus_1).to(dev, simp.dtype)
-    timings = {"registration": 0.0}
-
-    if registration is not None:
-        reg, cached = _registration_from(registration, orig_km1, orig_k), True
+    if precomputed_registration is not None:
+        reg, cached, seconds = _registration_from(precomputed_registration, orig_km1, orig_k), True, 0.0
     else:
-        options = dict(register_options or {})
-
-        def compute() -> CachedRegistration:
-            if register is None:
-                return default_register(orig_km1, orig_k, device=dev, **{"backend": backend, **options})
-            t0 = time.perf_counter()
-            given = _registration_from(register(orig_km1, orig_k), orig_km1, orig_k)
-            return given._replace(seconds=given.seconds or time.perf_counter() - t0)
-
-        start = time.perf_counter()
-        if cache is None:
-            reg, cached = compute(), False
-        else:
-            reg, cached = cache.get_or_compute(orig_km1, orig_k, registration_settings(register, options), compute)
-        reg = _registration_from(reg, orig_km1, orig_k)
-        timings["registration"] = 0.0 if cached else time.perf_counter() - start
-    registered = Mesh(reg.verts.to(dev, simp.dtype), orig_km1.faces, validate=False)
+        reg, cached, seconds = _register_pair(
+            orig_km1,
+            orig_k,
+            registration_fn=registration_fn,
+            registration_options=registration_options,
+            registration_cache=registration_cache,
+            device=dev,
+            backend=backend,
+        )
+    timings = {"registration": seconds}
+    registered = reg.registered_mesh(orig_km1)
 
     start = time.perf_counter()
     with torch.no_grad():
-        # One index per mesh: the references' (shared across methods through `indexes`) and the simplified frame's
-        # (queried by both references' vertex sets).
-        shared = indexes if indexes is not None else IndexCache()
-        # A reference is queried a few times per sequence: the cheap Morton build pays more than a SAH tree.
-        simp_index = MeshIndex(simp.verts, simp.faces, backend=backend, tree="morton")
-        points = simp_index.ref_points.points
-        refs = {
-            name: shared.get(m, backend=backend, tree="morton")
-            for name, m in (("k", orig_k), ("k_minus_1", registered))
-        }
-        distances: dict[str, Tensor] = {}
-        reverse: dict[str, Tensor] = {}
-        for name, index in refs.items():
-            distances[f"surface_{name}"] = index.point_mesh_distance(points).dists
-            distances[f"vertex_{name}"] = index.nearest_vertex_distance(points).dists
-            if two_sided:
-                ref_points = index.ref_points.points
-                reverse[f"surface_{name}"] = simp_index.point_mesh_distance(ref_points).dists
-                reverse[f"vertex_{name}"] = simp_index.nearest_vertex_distance(ref_points).dists
+        distances, reverse = _distance_sets(simp, {"k": orig_k, "k_minus_1": registered}, two_sided, backend, indexes)
         motion = float((registered.verts - orig_km1.verts).norm(dim=-1).mean() / orig_k.bbox_diagonal())
         flicker = None
         if simplified_k_minus_1 is not None:
@@ -219,14 +331,7 @@ def evaluate_pair(
     registration_statistics = distance_statistics(residual, peak=peak)
     error = error_statistics = None
     if true_registration is not None:
-        truth = torch.as_tensor(true_registration).to(dev, registered.verts.dtype)
-        if tuple(truth.shape) != tuple(registered.verts.shape):
-            raise ShapeError(
-                f"true_registration: expected the shape of the vertices of original_k_minus_1 "
-                f"{tuple(registered.verts.shape)}, found {tuple(truth.shape)}"
-            )
-        error = (registered.verts - truth).norm(dim=-1)
-        error_statistics = distance_statistics(error, peak=peak)
+        error, error_statistics = _registration_error(registered, true_registration, peak)
     timings["statistics"] = time.perf_counter() - start
     return PairEvaluation(
         frame=frame,
@@ -246,17 +351,24 @@ def evaluate_pair(
     )
 
 
+@renamed_keywords(
+    registrations="precomputed_registrations",
+    register="registration_fn",
+    register_options="registration_options",
+    cache="registration_cache",
+    cache_dir="registration_cache_dir",
+)
 def evaluate_sequence(
     original_frames: Sequence[MeshLike],
     simplified_frames: Sequence[MeshLike],
     *,
-    cache_dir: str | None = None,
-    cache: RegistrationCache | None = None,
+    registration_cache_dir: str | None = None,
+    registration_cache: RegistrationCache | None = None,
     two_sided: bool = True,
     device: torch.device | str | None = None,
-    register: RegisterFn | None = None,
-    register_options: Mapping[str, Any] | None = None,
-    registrations: Sequence[Any] | None = None,
+    registration_fn: RegisterFn | None = None,
+    registration_options: Mapping[str, Any] | None = None,
+    precomputed_registrations: Sequence[Any] | None = None,
     progress: Callable[[int, int], None] | None = None,
     backend: str = "auto",
     indexes: IndexCache | None = None,
@@ -265,36 +377,40 @@ def evaluate_sequence(
 ) -> SequenceEvaluation:
     """Evaluate a simplified sequence frame pair by frame pair (pairs ``(k-1, k)`` for ``k = 1 .. N-1``).
 
-    Frame 0 has no previous frame and is not evaluated (as in the paper, whose sets need frame ``k-1``).
+    Frame 0 has no previous frame and is not evaluated (as in the paper, whose sets need frame ``k-1``). Every
+    pair ``k`` also holds the ``flicker`` set (simplified frame ``k`` against the simplified frame ``k-1`` moved
+    onto frame ``k``).
 
     Args:
         original_frames: the ``N`` original frames, in order.
         simplified_frames: the ``N`` simplified frames (frame ``k`` simplifies ``original_frames[k]``).
-        cache_dir: folder of an on-disk :class:`RegistrationCache` (ignored when ``cache`` is given).
-        cache: a registration cache to use (share one across methods: registrations depend only on the originals).
+        registration_cache_dir: folder of an on-disk :class:`RegistrationCache` (ignored when
+            ``registration_cache`` is given).
+        registration_cache: a registration cache to use (share one across methods: registrations depend only on
+            the originals).
         two_sided: also compute the reverse sets (default ``True``).
         device: where distances (and the default registration) are computed.
-        register: registration function (default :func:`default_register`).
-        register_options: options of the default registration.
-        registrations: optional precomputed registrations, one per pair (``registrations[k-1]`` is frame ``k-1``
-            registered onto frame ``k``); bypasses ``register`` and the cache.
-        progress: called as ``progress(k, N - 1)`` after frame pair ``k`` is evaluated.
+        registration_fn: registration function (default :func:`default_register`).
+        registration_options: options of the default registration.
+        precomputed_registrations: optional registrations, one per pair (``precomputed_registrations[k-1]`` is frame
+            ``k-1`` registered onto frame ``k``, e.g. from :func:`register_pairs`); bypasses ``registration_fn`` and
+            the cache.
+        progress: called as ``progress(k, N - 1)`` after frame pair ``k`` is evaluated (distributed: on rank 0,
+            from a helper thread, with the number of pairs done by all ranks).
         backend: kernel backend of the distances and of the default registration.
         indexes: an :class:`~torchmeshmetric.IndexCache` (share one across methods: each original frame's index is
             then built once for all of them; default: one for this sequence).
         ground_truth: the true motion, ``ground_truth(points, k - 1, k)`` → positions in frame ``k`` of points of
             frame ``k - 1`` (e.g. :meth:`~torchmeshmetric.data.DemoSequence.transfer`); when given, every pair also
             reports the registration's error to it.
-
-        progress: called as ``progress(k, N - 1)`` after frame pair ``k`` is evaluated (distributed: on rank 0,
-            from a helper thread, with the number of pairs done by all ranks).
         distributed: share the frame pairs among the ranks of the initialised ``torch.distributed`` process group
             (every rank calls with the same arguments; every rank returns the whole result, equal to one process's;
             see :mod:`torchmeshmetric.evaluation.distributed`). Explicit, not automatic: inside a DDP job each rank
             may be evaluating its own data. Without a process group the sequence is evaluated here.
 
-    Every pair ``k`` also holds the ``flicker`` set (simplified frame ``k`` against the simplified frame ``k-1``
-    moved onto frame ``k``).
+    The keywords ``cache_dir``, ``cache``, ``register``, ``register_options`` and ``registrations`` are the
+    deprecated names of ``registration_cache_dir``, ``registration_cache``, ``registration_fn``,
+    ``registration_options`` and ``precomputed_registrations``.
 
     Returns:
         :class:`SequenceEvaluation` with ``N - 1`` pairs.
@@ -302,35 +418,36 @@ def evaluate_sequence(
     Raises:
         ValueError: when the frame counts differ or fewer than two frames are given.
         RankFailedError: distributed only: a rank raised or died (names the rank and the frame pair).
+
+    Example:
+        >>> import trimesh
+        >>> frames = [trimesh.creation.icosphere(subdivisions=2)] * 3
+        >>> coarse = [trimesh.creation.icosphere(subdivisions=1)] * 3
+        >>> result = evaluate_sequence(frames, coarse, registration_fn=lambda source, target: source)
+        >>> len(result.pairs), float(result.pairs[0].statistics["surface_k"].max) < 1e-12
+        (2, True)
     """
-    if len(original_frames) != len(simplified_frames):
-        raise ValueError(
-            f"simplified_frames: expected as many frames as original_frames ({len(original_frames)}), "
-            f"found {len(simplified_frames)}"
-        )
-    if len(original_frames) < 2:
-        raise ValueError(f"original_frames: expected at least 2 frames, found {len(original_frames)}")
-    if registrations is not None and len(registrations) != len(original_frames) - 1:
-        raise ValueError(
-            f"registrations: expected {len(original_frames) - 1} (one per frame pair), found {len(registrations)}"
-        )
-    if cache is None:
-        cache = RegistrationCache(cache_dir)
+    _check_sequence(original_frames, simplified_frames, precomputed_registrations)
+    if registration_cache is None:
+        registration_cache = RegistrationCache(registration_cache_dir)
     if distributed:
+        # Imported here: the distributed module evaluates each frame pair with this function (a genuine cycle).
         from torchmeshmetric.evaluation.distributed import SequenceWork, evaluate_sequences
 
         if ground_truth is not None:
             raise ValueError("ground_truth: not supported with distributed=True (each rank sees frame pairs alone)")
-        options = {
-            "two_sided": two_sided,
-            "device": device,
-            "register": register,
-            "register_options": register_options,
-            "backend": backend,
-        }
         work = [SequenceWork("", original_frames, {"": simplified_frames})]
         shared = evaluate_sequences(
-            work, cache=cache, registrations=[registrations], to=None, progress=progress, **options
+            work,
+            registration_cache=registration_cache,
+            precomputed_registrations=[precomputed_registrations],
+            to=None,
+            progress=progress,
+            two_sided=two_sided,
+            device=device,
+            registration_fn=registration_fn,
+            registration_options=registration_options,
+            backend=backend,
         )
         assert shared is not None  # every rank receives the result (to=None)
         return shared[0][""]
@@ -339,6 +456,7 @@ def evaluate_sequence(
         indexes = IndexCache(max_entries=2 * len(original_frames))
     pairs = []
     total = len(original_frames) - 1
+    given: Sequence[Any] = [None] * total if precomputed_registrations is None else precomputed_registrations
     for k in range(1, len(original_frames)):
         truth = None
         if ground_truth is not None:
@@ -348,12 +466,12 @@ def evaluate_sequence(
                 simplified_frames[k],
                 original_frames[k],
                 original_frames[k - 1],
-                registration=None if registrations is None else registrations[k - 1],
+                precomputed_registration=given[k - 1],
                 two_sided=two_sided,
                 device=device,
-                register=register,
-                register_options=register_options,
-                cache=cache,
+                registration_fn=registration_fn,
+                registration_options=registration_options,
+                registration_cache=registration_cache,
                 frame=k,
                 backend=backend,
                 indexes=indexes,
@@ -364,3 +482,20 @@ def evaluate_sequence(
         if progress is not None:
             progress(k, total)
     return SequenceEvaluation(pairs)
+
+
+def _check_sequence(
+    original_frames: Sequence[MeshLike], simplified_frames: Sequence[MeshLike], registrations: Sequence[Any] | None
+) -> None:
+    if len(original_frames) != len(simplified_frames):
+        raise ValueError(
+            f"simplified_frames: expected as many frames as original_frames ({len(original_frames)}), "
+            f"found {len(simplified_frames)}"
+        )
+    if len(original_frames) < 2:
+        raise ValueError(f"original_frames: expected at least 2 frames, found {len(original_frames)}")
+    if registrations is not None and len(registrations) != len(original_frames) - 1:
+        raise ValueError(
+            f"precomputed_registrations: expected {len(original_frames) - 1} (one per frame pair), "
+            f"found {len(registrations)}"
+        )

@@ -25,6 +25,8 @@ from pathlib import Path
 from typing import Any
 
 from torchmeshmetric._atomic import atomic_write
+from torchmeshmetric._version import __version__
+from torchmeshmetric.evaluation.comparison import comparison_markdown
 from torchmeshmetric.evaluation.flicker import FLICKER
 from torchmeshmetric.evaluation.results import BEST_PAIR_RULE, SET_NAMES, SequenceEvaluation
 
@@ -195,8 +197,6 @@ def report_dict(
     written as the strings ``"nan"``, ``"inf"``. With ``comparisons`` (from
     :func:`~torchmeshmetric.evaluation.compare_methods`) the report also holds ``"comparisons"``.
     """
-    from torchmeshmetric import __version__
-
     return _clean(
         {
             "tool": "torchmeshmetric",
@@ -226,8 +226,6 @@ def write_markdown(
 
     ``extra`` is e.g. the MPEG section of ``--mpeg``.
     """
-    from torchmeshmetric.evaluation.comparison import comparison_markdown
-
     text = "# torchmeshmetric evaluation\n\n" + paper_tables(methods)
     if comparisons:
         text += "\n## Comparisons with confidence\n\n" + comparison_markdown(comparisons)

@@ -21,14 +21,12 @@ surface cannot score well (the paper's one-sided sets are blind to missing parts
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, NamedTuple
+from typing import NamedTuple
 
 from torch import Tensor
 
 from torchmeshmetric.evaluation.flicker import FLICKER
-
-if TYPE_CHECKING:
-    from torchmeshmetric.stats import DistanceStatistics
+from torchmeshmetric.stats import DistanceStatistics
 
 __all__ = [
     "BEST_PAIR_RULE",

@@ -18,7 +18,8 @@ from torch import Tensor
 
 from torchmeshmetric.evaluation.pipeline import evaluate_sequence
 from torchmeshmetric.evaluation.results import SequenceEvaluation
-from torchmeshmetric.structures import MeshLike
+from torchmeshmetric.simplification import simplify_sequence
+from torchmeshmetric.structures import MeshLike, as_mesh
 
 __all__ = ["DEFAULT_SWEEP_WEIGHTS", "WeightSweep", "pareto_front", "registered_qem_sweep"]
 
@@ -114,9 +115,6 @@ def registered_qem_sweep(
         >>> tuple(row["weight"] for row in sweep.rows())
         (0.0, 1.0)
     """
-    from torchmeshmetric.simplification import simplify_sequence
-    from torchmeshmetric.structures import as_mesh
-
     if not weights:
         raise ValueError("weights: expected at least one weight, found none")
     regs = [r if hasattr(r, "verts") else as_mesh(r) for r in registrations]
@@ -124,7 +122,12 @@ def registered_qem_sweep(
 
     def evaluate(simplified: list[Any]) -> SequenceEvaluation:
         return evaluate_sequence(
-            frames, simplified, registrations=regs, two_sided=False, device=device, ground_truth=ground_truth
+            frames,
+            simplified,
+            precomputed_registrations=regs,
+            two_sided=False,
+            device=device,
+            ground_truth=ground_truth,
         )
 
     for weight in weights:

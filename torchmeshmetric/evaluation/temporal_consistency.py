@@ -9,6 +9,7 @@ import torch
 from torch import Tensor
 from torchmetrics import Metric
 
+from torchmeshmetric._deprecation import renamed_keywords
 from torchmeshmetric.evaluation.cache import RegistrationCache
 from torchmeshmetric.evaluation.flicker import FLICKER
 from torchmeshmetric.evaluation.pipeline import RegisterFn, evaluate_pair
@@ -60,8 +61,9 @@ class TemporalConsistency(Metric):
         two_sided: also accumulate the reverse (reference → simplified) sets (default ``True``).
         flicker: also accumulate the ``flicker`` set (default ``False``; each update then needs
             ``simplified_k_minus_1``).
-        register: registration function (default: the library's non-rigid registration).
-        register_options: options of the default registration.
+        registration_fn: registration function (default: the library's non-rigid registration); the old
+            keyword ``register`` still works, with a ``DeprecationWarning``.
+        registration_options: options of the default registration (old keyword: ``register_options``).
         backend: kernel backend of the distances and of the default registration (``"auto"``, ``"bvh"``, ...).
         kwargs: passed to :class:`torchmetrics.Metric`.
 
@@ -69,7 +71,7 @@ class TemporalConsistency(Metric):
         >>> import trimesh
         >>> sphere = trimesh.creation.icosphere(subdivisions=2)
         >>> coarse = trimesh.creation.icosphere(subdivisions=1)
-        >>> metric = TemporalConsistency(register=lambda src, dst: src)
+        >>> metric = TemporalConsistency(registration_fn=lambda src, dst: src)
         >>> metric.update(coarse, sphere, sphere)
         >>> out = metric.compute()
         >>> sorted(out)
@@ -77,7 +79,7 @@ class TemporalConsistency(Metric):
         >>> vertex_k = out["vertex_k"]
         >>> float(vertex_k["max"]) < 1e-12  # coarse icosphere vertices lie on the fine one
         True
-        >>> stable = TemporalConsistency(flicker=True, register=lambda src, dst: src)
+        >>> stable = TemporalConsistency(flicker=True, registration_fn=lambda src, dst: src)
         >>> stable.update(coarse, sphere, sphere, simplified_k_minus_1=coarse)
         >>> flicker = stable.compute()["flicker"]
         >>> float(flicker["max"]) < 1e-12  # the same simplification twice: no flicker
@@ -89,12 +91,13 @@ class TemporalConsistency(Metric):
     full_state_update = False
     peak: Tensor
 
+    @renamed_keywords(register="registration_fn", register_options="registration_options")
     def __init__(
         self,
         *,
         two_sided: bool = True,
-        register: RegisterFn | Any | None = None,
-        register_options: Mapping[str, Any] | None = None,
+        registration_fn: RegisterFn | Any | None = None,
+        registration_options: Mapping[str, Any] | None = None,
         backend: str = "auto",
         flicker: bool = False,
         **kwargs: Any,
@@ -103,12 +106,12 @@ class TemporalConsistency(Metric):
         for name, flag in (("two_sided", two_sided), ("flicker", flicker)):
             if not isinstance(flag, bool):
                 raise TypeError(f"{name}: expected a bool, found {type(flag).__name__}")
-        if register is not None and not callable(register):
-            raise TypeError(f"register: expected a callable or None, found {type(register).__name__}")
+        if registration_fn is not None and not callable(registration_fn):
+            raise TypeError(f"registration_fn: expected a callable or None, found {type(registration_fn).__name__}")
         self.two_sided = two_sided
-        self.register = register
-        self.register_options = dict(register_options or {})
-        self.cache = RegistrationCache()
+        self.registration_fn = registration_fn
+        self.registration_options = dict(registration_options or {})
+        self.registration_cache = RegistrationCache()
         self.backend = backend
         # One index per reference mesh, found again by content: validating every epoch on the same frames builds
         # each reference's structure once.
@@ -121,6 +124,7 @@ class TemporalConsistency(Metric):
                 _REVERSE_STATES[name].add_to(self, sketch=None)
         self.add_state("peak", default=torch.tensor(0.0, dtype=torch.float64), dist_reduce_fx="max")
 
+    @renamed_keywords(registration="precomputed_registration")
     def update(
         self,
         simplified_k: MeshLike,
@@ -128,7 +132,7 @@ class TemporalConsistency(Metric):
         original_k_minus_1: MeshLike,
         simplified_k_minus_1: MeshLike | None = None,
         *,
-        registration: Any = None,
+        precomputed_registration: Any = None,
     ) -> None:
         """Evaluate one simplified frame ``k`` against original frames ``k`` and ``k-1``.
 
@@ -137,8 +141,9 @@ class TemporalConsistency(Metric):
             original_k: the original frame ``k``.
             original_k_minus_1: the original frame ``k-1``.
             simplified_k_minus_1: the simplified frame ``k-1``: required with ``flicker=True``, refused otherwise.
-            registration: frame ``k-1`` already registered onto frame ``k`` (as in
-                :func:`~torchmeshmetric.evaluation.evaluate_pair`); default: registered here (cached).
+            precomputed_registration: frame ``k-1`` already registered onto frame ``k`` (as in
+                :func:`~torchmeshmetric.evaluation.evaluate_pair`); default: registered here (cached). The old
+                keyword ``registration`` still works, with a ``DeprecationWarning``.
 
         Raises:
             ValueError: ``simplified_k_minus_1`` missing with ``flicker=True``, or given with ``flicker=False``.
@@ -156,12 +161,12 @@ class TemporalConsistency(Metric):
             original_k_minus_1,
             two_sided=self.two_sided,
             device=self.device,
-            register=self.register,
-            register_options=self.register_options,
-            cache=self.cache,
+            registration_fn=self.registration_fn,
+            registration_options=self.registration_options,
+            registration_cache=self.registration_cache,
             backend=self.backend,
             indexes=self.indexes,
-            registration=registration,
+            precomputed_registration=precomputed_registration,
             simplified_k_minus_1=simplified_k_minus_1,
         )
         for name in self._set_names:

@@ -32,6 +32,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from torchmeshmetric.data import demo_sequence
 from torchmeshmetric.evaluation.cache import CachedRegistration
 from torchmeshmetric.evaluation.distortions import (
     ground_truth_registrations,
@@ -43,6 +44,7 @@ from torchmeshmetric.evaluation.distortions import (
 from torchmeshmetric.evaluation.pipeline import evaluate_sequence
 from torchmeshmetric.evaluation.results import SequenceEvaluation
 from torchmeshmetric.kernels import point_mesh_distance
+from torchmeshmetric.simplification import simplify_qem
 from torchmeshmetric.structures import Mesh
 
 __all__ = [
@@ -224,9 +226,6 @@ def run_validation(
         >>> round(flicker["ave"], 2), len(d["strengths"])
         (1.0, 6)
     """
-    from torchmeshmetric.data import demo_sequence
-    from torchmeshmetric.simplification import simplify_qem
-
     names = list(DISTORTIONS) if distortions is None else list(distortions)
     unknown = [n for n in names if n not in DISTORTIONS]
     if unknown:
@@ -245,7 +244,7 @@ def run_validation(
         return evaluate_sequence(
             originals,
             simplified,
-            registrations=regs if registrations is None else registrations,
+            precomputed_registrations=regs if registrations is None else registrations,
             two_sided=two_sided,
             ground_truth=seq.transfer,
         )
