@@ -24,15 +24,14 @@ Contract of every backend (the brute force is the reference in tests):
 from __future__ import annotations
 
 from collections.abc import Callable
+from types import ModuleType
 from typing import Any, NamedTuple
 
 import torch
 from torch import Tensor
 
-from torchmeshmetric.kernels.accel import bvh, pruned, triton_backend
+from torchmeshmetric.kernels.accel import bruteforce, bvh, pruned, triton_backend
 from torchmeshmetric.kernels.accel._extension import bvh_ready, load_bvh
-from torchmeshmetric.kernels.nearest import _bruteforce_nearest as bruteforce_nearest
-from torchmeshmetric.kernels.point_triangle import _bruteforce_faces as bruteforce_faces
 
 __all__ = [
     "BACKENDS",
@@ -41,6 +40,7 @@ __all__ = [
     "PointSet",
     "SelectionBackend",
     "auto_backend_name",
+    "check_backend",
     "resolve_backend",
 ]
 
@@ -106,42 +106,28 @@ def _none(*_: Any) -> None:
     return None
 
 
-BRUTEFORCE = SelectionBackend(
-    "bruteforce",
-    _none,
-    _none,
-    lambda _s, f, p, pb, mem: bruteforce_faces(p, pb, f.verts, f.faces, f.batch, f.offsets, mem),
-    _none,
-    _none,
-    lambda _s, r, p, pb, mem: bruteforce_nearest(p, pb, r.points, r.batch, r.offsets, mem),
-)
-PRUNED = SelectionBackend(
-    "pruned",
-    _none,
-    _none,
-    lambda _s, f, p, pb, mem: pruned.pruned_faces(p, pb, f.verts, f.faces, f.batch, f.offsets, mem),
-    _none,
-    _none,
-    lambda _s, r, p, pb, mem: pruned.pruned_nearest(p, pb, r.points, r.batch, r.offsets, mem),
-)
-BVH = SelectionBackend(
-    "bvh",
-    bvh.build_faces,
-    bvh.refit_faces,
-    lambda s, f, p, pb, _mem: bvh.query_faces(s, f, p, pb),
-    bvh.build_points,
-    bvh.refit_points,
-    lambda s, r, p, pb, _mem: bvh.query_points(s, r, p, pb),
-)
-TRITON = SelectionBackend(
-    "triton",
-    triton_backend.build_faces,
-    triton_backend.refit_faces,
-    lambda s, f, p, pb, _mem: triton_backend.query_faces(s, f, p, pb),
-    triton_backend.build_points,
-    triton_backend.refit_points,
-    lambda s, r, p, pb, _mem: triton_backend.query_points(s, r, p, pb),
-)
+def _scanning(name: str, module: ModuleType) -> SelectionBackend:
+    """A backend that keeps no structure: every query scans the primitives (its ``query_*`` receive ``None``)."""
+    return SelectionBackend(name, _none, _none, module.query_faces, _none, _none, module.query_points)
+
+
+def _kept(name: str, module: ModuleType) -> SelectionBackend:
+    """A backend whose module builds, refits and queries a kept structure."""
+    return SelectionBackend(
+        name,
+        module.build_faces,
+        module.refit_faces,
+        module.query_faces,
+        module.build_points,
+        module.refit_points,
+        module.query_points,
+    )
+
+
+BRUTEFORCE = _scanning("bruteforce", bruteforce)
+PRUNED = _scanning("pruned", pruned)
+BVH = _kept("bvh", bvh)
+TRITON = _kept("triton", triton_backend)
 
 BACKENDS: dict[str, SelectionBackend] = {b.name: b for b in (BRUTEFORCE, PRUNED, BVH, TRITON)}
 """Every selection backend by its ``backend=`` name."""
@@ -165,6 +151,12 @@ def auto_backend_name(device: torch.device, dtype: torch.dtype, num_pairs: int) 
     return "pruned"
 
 
+def check_backend(name: str) -> None:
+    """Raise ``ValueError`` unless ``name`` is ``"auto"`` or a name of :data:`BACKENDS`."""
+    if name != "auto" and name not in BACKENDS:
+        raise ValueError(f"backend: expected one of {['auto', *BACKENDS]}, found {name!r}")
+
+
 def resolve_backend(name: str, device: torch.device, dtype: torch.dtype, num_pairs: int) -> SelectionBackend:
     """The table entry for ``backend=name`` (``"auto"`` decided by :func:`auto_backend_name`).
 
@@ -173,10 +165,9 @@ def resolve_backend(name: str, device: torch.device, dtype: torch.dtype, num_pai
     Raises:
         ValueError: for an unknown name.
     """
+    check_backend(name)
     if name == "auto":
         name = auto_backend_name(device, dtype, num_pairs)
-    if name not in BACKENDS:
-        raise ValueError(f"backend: expected one of {['auto', *BACKENDS]}, found {name!r}")
     if name == "bvh" and (device.type != "cpu" or load_bvh() is None):
         return PRUNED
     return BACKENDS[name]
