@@ -92,15 +92,21 @@ def _jit(fn: Any) -> Any:
 
 
 @_jit
+def _load3(ptr, mask):  # type: ignore[no-untyped-def]
+    """The three values at ``ptr``, ``ptr + 1``, ``ptr + 2`` (0 where masked off)."""
+    return (
+        tl.load(ptr, mask=mask, other=0.0),
+        tl.load(ptr + 1, mask=mask, other=0.0),
+        tl.load(ptr + 2, mask=mask, other=0.0),
+    )
+
+
+@_jit
 def _box_sq(nodes_ptr, row, mask, px, py, pz):  # type: ignore[no-untyped-def]
     """Squared distance from the query to the box of node ``row`` and whether the box is non-empty."""
     r = nodes_ptr + 6 * row
-    lx = tl.load(r, mask=mask, other=0.0)
-    ly = tl.load(r + 1, mask=mask, other=0.0)
-    lz = tl.load(r + 2, mask=mask, other=0.0)
-    hx = tl.load(r + 3, mask=mask, other=0.0)
-    hy = tl.load(r + 4, mask=mask, other=0.0)
-    hz = tl.load(r + 5, mask=mask, other=0.0)
+    lx, ly, lz = _load3(r, mask)
+    hx, hy, hz = _load3(r + 3, mask)
     ex = tl.maximum(tl.maximum(lx - px, 0.0), px - hx)
     ey = tl.maximum(tl.maximum(ly - py, 0.0), py - hy)
     ez = tl.maximum(tl.maximum(lz - pz, 0.0), pz - hz)
@@ -158,27 +164,13 @@ def _traversal_step(  # type: ignore[no-untyped-def]
 @_jit
 def _tri_sq_dist(f, m, qx, qy, qz, IS_F64: tl.constexpr):  # type: ignore[no-untyped-def]
     """Squared distance from the query to the face record at ``f``: the operations of ``_region_candidates``."""
-    ax = tl.load(f, mask=m, other=0.0)
-    ay = tl.load(f + 1, mask=m, other=0.0)
-    az = tl.load(f + 2, mask=m, other=0.0)
-    bx = tl.load(f + 3, mask=m, other=0.0)
-    by = tl.load(f + 4, mask=m, other=0.0)
-    bz = tl.load(f + 5, mask=m, other=0.0)
-    abx = tl.load(f + 6, mask=m, other=0.0)
-    aby = tl.load(f + 7, mask=m, other=0.0)
-    abz = tl.load(f + 8, mask=m, other=0.0)
-    acx = tl.load(f + 9, mask=m, other=0.0)
-    acy = tl.load(f + 10, mask=m, other=0.0)
-    acz = tl.load(f + 11, mask=m, other=0.0)
-    bcx = tl.load(f + 12, mask=m, other=0.0)
-    bcy = tl.load(f + 13, mask=m, other=0.0)
-    bcz = tl.load(f + 14, mask=m, other=0.0)
-    nx = tl.load(f + 15, mask=m, other=0.0)
-    ny = tl.load(f + 16, mask=m, other=0.0)
-    nz = tl.load(f + 17, mask=m, other=0.0)
-    nn = tl.load(f + 18, mask=m, other=0.0)
-    abab = tl.load(f + 19, mask=m, other=0.0)
-    acac = tl.load(f + 20, mask=m, other=0.0)
+    ax, ay, az = _load3(f, m)
+    bx, by, bz = _load3(f + 3, m)
+    abx, aby, abz = _load3(f + 6, m)
+    acx, acy, acz = _load3(f + 9, m)
+    bcx, bcy, bcz = _load3(f + 12, m)
+    nx, ny, nz = _load3(f + 15, m)
+    nn, abab, acac = _load3(f + 18, m)
     bcbc = tl.load(f + 21, mask=m, other=0.0)
     apx = qx - ax
     apy = qy - ay
@@ -236,9 +228,10 @@ def _tri_sq_dist(f, m, qx, qy, qz, IS_F64: tl.constexpr):  # type: ignore[no-unt
 @_jit
 def _point_sq_dist(r, m, qx, qy, qz):  # type: ignore[no-untyped-def]
     """Squared distance from the query to the reference point at ``r``: ``(dx*dx + dy*dy) + dz*dz``."""
-    dx = qx - tl.load(r, mask=m, other=0.0)
-    dy = qy - tl.load(r + 1, mask=m, other=0.0)
-    dz = qz - tl.load(r + 2, mask=m, other=0.0)
+    rx, ry, rz = _load3(r, m)
+    dx = qx - rx
+    dy = qy - ry
+    dz = qz - rz
     return dx * dx + dy * dy + dz * dz
 
 
@@ -449,9 +442,16 @@ def _face_records(verts: Tensor, faces: Tensor) -> tuple[Tensor, Tensor, Tensor]
     return tri.amin(1), tri.amax(1), data
 
 
-def _slot_records(tree: ImplicitBVH, data: Tensor) -> Tensor:
+def _kept(tree: ImplicitBVH, lo: Tensor, hi: Tensor, batch: Tensor, offsets: Tensor, data: Tensor) -> TritonStructure:
+    """The structure of ``tree`` over primitives with boxes ``lo``/``hi`` and per-primitive records ``data``."""
     real = tree.prims >= 0
-    return torch.where(real[:, None], data[tree.prims.clamp_min(0)], torch.zeros_like(data[:1]))
+    slots = torch.where(real[:, None], data[tree.prims.clamp_min(0)], torch.zeros_like(data[:1]))
+    return TritonStructure(tree, slots, _item_slack(lo, hi, batch, offsets.numel() - 1))
+
+
+def _query(kind: str, structure: TritonStructure, points: Tensor, point_batch: Tensor, offsets: Tensor) -> Tensor:
+    interpret = _mode(points)
+    return _launch(kind, points, point_batch, structure.tree, structure.data, structure.slack, offsets[:-1], interpret)
 
 
 def build_faces(verts: Tensor, faces: Tensor, face_batch: Tensor, face_offsets: Tensor) -> TritonStructure:
@@ -464,8 +464,7 @@ def build_faces(verts: Tensor, faces: Tensor, face_batch: Tensor, face_offsets: 
     _mode(verts)
     lo, hi, data = _face_records(verts, faces)
     tree = build_implicit_bvh(lo, hi, face_batch, face_offsets, LEAF_FACES)
-    slack = _item_slack(lo, hi, face_batch, face_offsets.numel() - 1)
-    return TritonStructure(tree, _slot_records(tree, data), slack)
+    return _kept(tree, lo, hi, face_batch, face_offsets, data)
 
 
 def refit_faces(
@@ -473,37 +472,26 @@ def refit_faces(
 ) -> TritonStructure:
     """The same tree with boxes, records and slack of moved vertices (no new Morton order)."""
     lo, hi, data = _face_records(verts, faces)
-    tree = refit_implicit_bvh(structure.tree, lo, hi)
-    slack = _item_slack(lo, hi, face_batch, face_offsets.numel() - 1)
-    return TritonStructure(tree, _slot_records(tree, data), slack)
+    return _kept(refit_implicit_bvh(structure.tree, lo, hi), lo, hi, face_batch, face_offsets, data)
 
 
 def query_faces(structure: TritonStructure, points: Tensor, point_batch: Tensor, face_offsets: Tensor) -> Tensor:
     """Closest face per centred point through a kept structure, exact, lowest index on ties."""
-    interpret = _mode(points)
-    return _launch(
-        "face", points, point_batch, structure.tree, structure.data, structure.slack, face_offsets[:-1], interpret
-    )
+    return _query("face", structure, points, point_batch, face_offsets)
 
 
 def build_points(ref: Tensor, ref_batch: Tensor, ref_offsets: Tensor) -> TritonStructure:
     """Kept point structure of centred reference points."""
     _mode(ref)
     tree = build_implicit_bvh(ref, ref, ref_batch, ref_offsets, LEAF_POINTS)
-    slack = _item_slack(ref, ref, ref_batch, ref_offsets.numel() - 1)
-    return TritonStructure(tree, _slot_records(tree, ref), slack)
+    return _kept(tree, ref, ref, ref_batch, ref_offsets, ref)
 
 
 def refit_points(structure: TritonStructure, ref: Tensor, ref_batch: Tensor, ref_offsets: Tensor) -> TritonStructure:
     """The same tree with boxes, slot points and slack of moved reference points."""
-    tree = refit_implicit_bvh(structure.tree, ref, ref)
-    slack = _item_slack(ref, ref, ref_batch, ref_offsets.numel() - 1)
-    return TritonStructure(tree, _slot_records(tree, ref), slack)
+    return _kept(refit_implicit_bvh(structure.tree, ref, ref), ref, ref, ref_batch, ref_offsets, ref)
 
 
 def query_points(structure: TritonStructure, points: Tensor, point_batch: Tensor, ref_offsets: Tensor) -> Tensor:
     """Nearest reference row per centred point through a kept structure, exact, lowest index on ties."""
-    interpret = _mode(points)
-    return _launch(
-        "nearest", points, point_batch, structure.tree, structure.data, structure.slack, ref_offsets[:-1], interpret
-    )
+    return _query("nearest", structure, points, point_batch, ref_offsets)
