@@ -29,7 +29,7 @@ from torchmeshmetric.kernels._common import (
 from torchmeshmetric.kernels.accel.bvh import bvh_closest_points
 from torchmeshmetric.kernels.nearest import NearestVertexResult, _NearestIndex
 from torchmeshmetric.kernels.point_triangle import PointMeshResult, closest_point_on_triangle
-from torchmeshmetric.kernels.select import FaceSet, SelectionBackend, check_backend, resolve_backend
+from torchmeshmetric.kernels.select import FaceSet, Selector, check_backend
 from torchmeshmetric.structures import (
     MeshLike,
     PackedMeshes,
@@ -141,8 +141,7 @@ class MeshIndex:
             v_off = lengths_to_offsets(packed.verts_lengths)
             self._faces_global = packed.faces + v_off[self._face_batch][:, None]
         self._face_offsets = lengths_to_offsets(packed.faces_lengths)
-        self._face_backend: SelectionBackend | None = None
-        self._face_structure: Any = None
+        self._faces: Selector | None = None
         self._nearest: _NearestIndex | None = None
         self._set_verts(packed.verts)
 
@@ -230,15 +229,9 @@ class MeshIndex:
         scale = self._scale
         if scale is not None:
             points_c = points_c * scale
-        if self._face_backend is None:
-            self._face_backend = resolve_backend(
-                self.backend, points.device, points.dtype, points.shape[0] * self.faces.shape[0]
-            )
-            self._face_structure = self._face_backend.build_faces(self._faceset, self.tree)
-        with torch.no_grad():
-            face_idx = self._face_backend.query_faces(
-                self._face_structure, self._faceset, points_c.detach(), point_batch, self.max_memory
-            )
+        if self._faces is None:
+            self._faces = Selector(self.backend, self._faceset, self.max_memory, self.tree)
+        face_idx = self._faces.select(points_c, point_batch)
         if self.verts.requires_grad:
             verts_c = self.verts - self._vert_center
             verts_c = verts_c if scale is None else verts_c * scale
@@ -290,7 +283,7 @@ class MeshIndex:
     def __getstate__(self) -> dict[str, Any]:
         # The selection structures are rebuilt on the first query after unpickling (they hold backend functions).
         state = dict(self.__dict__)
-        state.update(_face_backend=None, _face_structure=None, _nearest=None)
+        state.update(_faces=None, _nearest=None)
         return state
 
     def _with_verts(self, verts: Tensor) -> MeshIndex:
@@ -323,7 +316,7 @@ class MeshIndex:
     def _refit(self, verts: Tensor) -> None:
         """Trusted entry of :meth:`refit`."""
         self._set_verts(verts)
-        if self._face_backend is not None:
-            self._face_structure = self._face_backend.refit_faces(self._face_structure, self._faceset)
+        if self._faces is not None:
+            self._faces.refit(self._faceset)
         if self._nearest is not None:
             self._nearest.refit(self._ref_points()[0])

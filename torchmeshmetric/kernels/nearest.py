@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import torch
 from torch import Tensor
@@ -21,7 +21,7 @@ from torchmeshmetric.kernels._common import (
     safe_sqrt,
 )
 from torchmeshmetric.kernels.accel import bvh
-from torchmeshmetric.kernels.select import PointSet, SelectionBackend, check_backend, resolve_backend
+from torchmeshmetric.kernels.select import PointSet, Selector, check_backend, resolve_backend
 from torchmeshmetric.structures import PackedPoints, lengths_to_offsets, pack_points
 
 __all__ = ["NearestVertexResult", "nearest_vertex_distance"]
@@ -51,13 +51,11 @@ class _NearestIndex:
     def __init__(
         self, ref: Tensor, lengths: Tensor, backend: str, max_memory: int, *, queries: PackedPoints | None = None
     ) -> None:
-        self.backend_name, self.max_memory = backend, max_memory
         self.lengths = lengths
-        self._backend: SelectionBackend | None = None
-        self._structure: Any = None
-        self._set(ref, queries)
+        self.selector = Selector(backend, self._set(ref, queries), max_memory)
 
-    def _set(self, ref: Tensor, queries: PackedPoints | None = None) -> None:
+    def _set(self, ref: Tensor, queries: PackedPoints | None = None) -> PointSet:
+        """Centre and scale ``ref`` (and keep it for the differentiable distances): the set the backend selects from."""
         self.ref = ref
         self.centers, self._row_center, batch = centred(ref, self.lengths)
         ref_c = (ref - self._row_center).detach()
@@ -67,7 +65,8 @@ class _NearestIndex:
         self._scale = range_scale(extent, ref.dtype, 2)
         if self._scale is not None:
             ref_c = ref_c * self._scale
-        self.set = PointSet(ref_c, batch, lengths_to_offsets(self.lengths))
+        self._ref_c = ref_c
+        return PointSet(ref_c, batch, lengths_to_offsets(self.lengths))
 
     def _centred_queries(self, points: Tensor, points_lengths: Tensor) -> tuple[Tensor, Tensor]:
         """``(batch, points - centre of their item)``, unscaled."""
@@ -75,9 +74,7 @@ class _NearestIndex:
         return batch, points - center
 
     def refit(self, ref: Tensor) -> None:
-        self._set(ref)
-        if self._backend is not None:
-            self._structure = self._backend.refit_points(self._structure, self.set)
+        self.selector.refit(self._set(ref))
 
     def query(self, points: Tensor, points_lengths: Tensor) -> NearestVertexResult:
         check_queries(
@@ -91,20 +88,14 @@ class _NearestIndex:
         scale = self._scale
         if scale is not None:
             p_c = p_c * scale
-        if self._backend is None:
-            self._backend = resolve_backend(
-                self.backend_name, points.device, points.dtype, points.shape[0] * self.ref.shape[0]
-            )
-            self._structure = self._backend.build_points(self.set)
-        with torch.no_grad():
-            idx = self._backend.query_points(self._structure, self.set, p_c.detach(), pb, self.max_memory)
+        idx = self.selector.select(p_c, pb)
         if p_c.requires_grad or self.ref.requires_grad:
             r_c = self.ref - self._row_center
             diff = p_c - (r_c if scale is None else r_c * scale)[idx]
             dists = safe_sqrt(dot(diff, diff))
         else:
             # Without autograd, safe_sqrt(sq) is sqrt(sq) bit for bit (sq >= 0, sqrt(0) = 0).
-            diff = p_c - self.set.points.index_select(0, idx)
+            diff = p_c - self._ref_c.index_select(0, idx)
             dists = torch.sqrt(dot(diff, diff))
         if scale is not None:
             dists = dists / scale

@@ -3,9 +3,11 @@
 Every distance call splits its work in two: a **selection** without gradient (closest face, or nearest reference
 point, per query) and a differentiable recomputation on the selected primitive. Only the selection differs between
 backends. A backend is a :class:`SelectionBackend`: six functions that build, refit and query a structure over
-*centred, packed, detached* primitives (:class:`FaceSet` / :class:`PointSet`). A structure is whatever the backend
-keeps (``None`` for the brute force: it scans the set each time), so a :class:`~torchmeshmetric.MeshIndex` builds it
-once and queries it many times.
+*centred, packed, detached* primitives (:class:`FaceSet` / :class:`PointSet`), taken from one module of
+``kernels/accel/`` (``bruteforce``, ``pruned``, ``bvh``, ``triton_backend``) that names them as the contract does.
+A structure is whatever the backend keeps (``None`` for the scanning backends: they read the set at each query); a
+:class:`Selector` builds it on the first query, keeps it and refits it, so a :class:`~torchmeshmetric.MeshIndex`
+builds once and queries many times. A new backend is a module with the six functions and one line in the table.
 
 Contract of every backend (the brute force is the reference in tests):
 
@@ -18,7 +20,7 @@ Contract of every backend (the brute force is the reference in tests):
   whose intermediates are bounded by ``max_memory`` (the only backends that use it: ``"bruteforce"``, ``"pruned"``).
 
 :func:`resolve_backend` turns a ``backend=`` name into a table entry (``"auto"``: the rule of
-``docs/acceleration.md``).
+``docs/acceleration.md``); :func:`check_backend` is the one check of a ``backend=`` name.
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ __all__ = [
     "FaceSet",
     "PointSet",
     "SelectionBackend",
+    "Selector",
     "auto_backend_name",
     "check_backend",
     "resolve_backend",
@@ -171,3 +174,47 @@ def resolve_backend(name: str, device: torch.device, dtype: torch.dtype, num_pai
     if name == "bvh" and (device.type != "cpu" or load_bvh() is None):
         return PRUNED
     return BACKENDS[name]
+
+
+class Selector:
+    """A primitive set (faces or reference points) with its backend's structure, built on the first query and kept.
+
+    The one place where a structure is built, queried and refitted: :class:`~torchmeshmetric.MeshIndex` keeps one
+    for its faces and one for its vertex set.
+
+    Args:
+        backend: a ``backend=`` name (``"auto"`` resolved on the first query, for its device, dtype and size).
+        prims: the centred, packed, detached primitives.
+        max_memory: bound in bytes of one intermediate (``"bruteforce"`` and ``"pruned"`` only).
+        tree: the face hierarchy of ``"bvh"`` (``"sah"`` or ``"morton"``); unused for points.
+    """
+
+    def __init__(self, backend: str, prims: FaceSet | PointSet, max_memory: int, tree: str = "morton") -> None:
+        self.backend_name, self.prims, self.max_memory, self.tree = backend, prims, max_memory, tree
+        self.backend: SelectionBackend | None = None
+        self.structure: Any = None
+
+    def select(self, points: Tensor, point_batch: Tensor) -> Tensor:
+        """``(P,)`` int64 row of the selected primitive of each centred point's item (the contract's choice)."""
+        prims = self.prims
+        if self.backend is None:
+            num_prims = prims.faces.shape[0] if isinstance(prims, FaceSet) else prims.points.shape[0]
+            self.backend = resolve_backend(self.backend_name, points.device, points.dtype, points.shape[0] * num_prims)
+            if isinstance(prims, FaceSet):
+                self.structure = self.backend.build_faces(prims, self.tree)
+            else:
+                self.structure = self.backend.build_points(prims)
+        with torch.no_grad():
+            if isinstance(prims, FaceSet):
+                return self.backend.query_faces(self.structure, prims, points.detach(), point_batch, self.max_memory)
+            return self.backend.query_points(self.structure, prims, points.detach(), point_batch, self.max_memory)
+
+    def refit(self, prims: FaceSet | PointSet) -> None:
+        """Moved coordinates of the same primitives: the kept structure is refitted (exact for them), not rebuilt."""
+        self.prims = prims
+        if self.backend is None:
+            return
+        if isinstance(prims, FaceSet):
+            self.structure = self.backend.refit_faces(self.structure, prims)
+        else:
+            self.structure = self.backend.refit_points(self.structure, prims)
