@@ -138,18 +138,10 @@ def _traversal_step(  # type: ignore[no-untyped-def]
     # Deepest pending depth h = floor(log2(trail)), by binary search (integer only).
     h = tl.zeros_like(dep)
     t = trail
-    s = (t >= 65536).to(tl.int32) * 16
-    h += s
-    t = t >> s
-    s = (t >= 256).to(tl.int32) * 8
-    h += s
-    t = t >> s
-    s = (t >= 16).to(tl.int32) * 4
-    h += s
-    t = t >> s
-    s = (t >= 4).to(tl.int32) * 2
-    h += s
-    t = t >> s
+    for k in tl.static_range(4):  # unrolled at compile time: halves of 16, 8, 4 and 2 bits
+        s = (t >= (1 << (16 >> k))).to(tl.int32) * (16 >> k)
+        h += s
+        t = t >> s
     h += (t >= 2).to(tl.int32)
     jump = active & (descend == 0) & (trail != 0)
     sibling = (node >> (dep - h).to(tl.int64)) ^ 1
