@@ -29,6 +29,7 @@ from torchmeshmetric.kernels._common import (
 from torchmeshmetric.kernels.accel.bvh import bvh_closest_points
 from torchmeshmetric.kernels.nearest import NearestVertexResult, _NearestIndex
 from torchmeshmetric.kernels.point_triangle import PointMeshResult, closest_point_on_triangle
+from torchmeshmetric.kernels.sampling import vertex_set_mask
 from torchmeshmetric.kernels.select import FaceSet, Selector, check_backend
 from torchmeshmetric.structures import (
     MeshLike,
@@ -173,8 +174,7 @@ class MeshIndex:
     def _ref_points(self) -> tuple[Tensor, Tensor]:
         if not self.referenced_only:
             return self.verts, self.verts_lengths
-        used = torch.zeros(self.verts.shape[0], dtype=torch.bool, device=self.device)
-        used[self._faces_global.reshape(-1)] = True
+        used = vertex_set_mask(self._faces_global, self.verts.shape[0])
         if self.num_items == 1:
             return self.verts[used], used.sum().reshape(1)
         counts = torch.zeros(self.num_items, dtype=torch.long, device=self.device)
