@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from fractions import Fraction
+
 import numpy as np
 
 
@@ -47,6 +49,54 @@ def closest_point_triangle(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.nd
         return b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b)  # edge region BC
     denom = 1.0 / (va + vb + vc)
     return a + ab * (vb * denom) + ac * (vc * denom)  # face region
+
+
+def closest_point_triangle_exact(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """:func:`closest_point_triangle` in exact rational arithmetic (``Fraction``), rounded once at the end.
+
+    Ericson's ``vc = d1 d4 - d3 d2`` cancels catastrophically on slivers in float64 (a point on the long edge of a
+    1e-7-wide triangle comes out ~5e-9 away); with exact arithmetic every branch and division is exact, so this is
+    the oracle for property tests over arbitrary triangles. Slow: for a few points only.
+    """
+    pf, af, bf, cf = ([Fraction(float(v)) for v in x] for x in (p, a, b, c))
+
+    def sub(x: list[Fraction], y: list[Fraction]) -> list[Fraction]:
+        return [xi - yi for xi, yi in zip(x, y, strict=True)]
+
+    def dot(x: list[Fraction], y: list[Fraction]) -> Fraction:
+        return sum((xi * yi for xi, yi in zip(x, y, strict=True)), Fraction(0))
+
+    def along(x: list[Fraction], t: Fraction, d: list[Fraction]) -> list[Fraction]:
+        return [xi + t * di for xi, di in zip(x, d, strict=True)]
+
+    def on_segment(x: list[Fraction], y: list[Fraction]) -> list[Fraction]:
+        d = sub(y, x)
+        den = dot(d, d)
+        return x if den == 0 else along(x, min(Fraction(1), max(Fraction(0), dot(sub(pf, x), d) / den)), d)
+
+    ab, ac, ap, bp, cp = sub(bf, af), sub(cf, af), sub(pf, af), sub(pf, bf), sub(pf, cf)
+    n = [ab[1] * ac[2] - ab[2] * ac[1], ab[2] * ac[0] - ab[0] * ac[2], ab[0] * ac[1] - ab[1] * ac[0]]
+    if dot(n, n) == 0:
+        cands = [on_segment(af, bf), on_segment(af, cf), on_segment(bf, cf)]
+        q = min(cands, key=lambda x: dot(sub(pf, x), sub(pf, x)))
+    else:
+        d1, d2, d3, d4, d5, d6 = dot(ab, ap), dot(ac, ap), dot(ab, bp), dot(ac, bp), dot(ab, cp), dot(ac, cp)
+        va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+        if d1 <= 0 and d2 <= 0:
+            q = af
+        elif d3 >= 0 and d4 <= d3:
+            q = bf
+        elif vc <= 0 and d1 >= 0 and d3 <= 0:
+            q = along(af, d1 / (d1 - d3), ab)
+        elif d6 >= 0 and d5 <= d6:
+            q = cf
+        elif vb <= 0 and d2 >= 0 and d6 <= 0:
+            q = along(af, d2 / (d2 - d6), ac)
+        elif va <= 0 and (d4 - d3) >= 0 and (d5 - d6) >= 0:
+            q = along(bf, (d4 - d3) / ((d4 - d3) + (d5 - d6)), sub(cf, bf))
+        else:
+            q = along(along(af, vb / (va + vb + vc), ab), vc / (va + vb + vc), ac)
+    return np.array([float(v) for v in q])
 
 
 def point_mesh_distance(points: np.ndarray, verts: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -117,7 +117,7 @@ def test_refit_vs_build(benchmark, record, size):
     index.point_mesh_distance(verts[:1])
     moved = verts + 0.01 * torch.sin(7 * verts[:, [1, 2, 0]])
     index.refit(moved)
-    faceset, structure = index._faceset, index._face_structure
+    faceset, structure = index._faceset, index._faces.structure
     group = f"refit vs build {size} ({len(c['faces'])} faces)"
     _run(benchmark, record, group, "ours", lambda: BVH.refit_faces(structure, faceset))
 

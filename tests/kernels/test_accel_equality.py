@@ -9,10 +9,11 @@ import trimesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from torchmeshmetric.kernels.accel import pruned_faces
+from torchmeshmetric.kernels.accel import bruteforce, pruned_faces
 from torchmeshmetric.kernels.accel._extension import load_bvh
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance
-from torchmeshmetric.kernels.point_triangle import _bruteforce_faces, _region_candidates, point_mesh_distance
+from torchmeshmetric.kernels.point_triangle import _region_candidates, point_mesh_distance
+from torchmeshmetric.kernels.select import FaceSet
 
 BACKENDS = ["bvh", "pruned"]
 DTYPES = [torch.float32, torch.float64]
@@ -186,7 +187,7 @@ def test_pruned_respects_small_memory_budget():
     off = torch.tensor([0, 400])
     fb = torch.zeros(400, dtype=torch.long)
     small = pruned_faces(points, zeros, verts, faces, fb, off, 1 << 14)
-    assert torch.equal(small, _bruteforce_faces(points, zeros, verts, faces, fb, off, 1 << 24))
+    assert torch.equal(small, bruteforce.query_faces(None, FaceSet(verts, faces, fb, off), points, zeros, 1 << 24))
 
 
 @settings(max_examples=25, deadline=None)

@@ -86,13 +86,13 @@ def test_refit_is_exact_and_keeps_the_tree(backend: str) -> None:
     points = _points(verts, 400, 2)
     index.point_mesh_distance(points)
     index.nearest_vertex_distance(points)
-    structure = index._face_structure
+    structure = index._faces.structure
     g = torch.Generator().manual_seed(3)
     for step in range(3):
         # A large non-rigid motion: the Morton order of the build is stale, the answers must not be.
         moved = verts * (1 + 0.5 * step) + 0.2 * torch.sin(3 * verts[:, [1, 2, 0]]) + torch.randn(3, generator=g)
         index.refit(moved)
-        assert index._face_structure is structure  # refitted in place, not rebuilt
+        assert index._faces.structure is structure  # refitted in place, not rebuilt
         q = _points(moved, 400, 10 + step)
         _assert_same(index.point_mesh_distance(q), point_mesh_distance(q, moved, faces, backend="bruteforce"))
         _assert_same(
@@ -107,11 +107,11 @@ def test_refit_to_the_same_vertices_reproduces_the_built_tree() -> None:
     index = MeshIndex(verts, faces, backend="bvh")
     index.point_mesh_distance(verts[:5])
     index.nearest_vertex_distance(verts[:5])
-    built = [t.clone() for t in index._face_structure]
-    built_points = [t.clone() for t in index._nearest._structure]
+    built = [t.clone() for t in index._faces.structure]
+    built_points = [t.clone() for t in index._nearest.selector.structure]
     index.refit(verts * 3)
     index.refit(verts.clone())
-    for a, b in zip(built + built_points, index._face_structure + index._nearest._structure, strict=True):
+    for a, b in zip(built + built_points, index._faces.structure + index._nearest.selector.structure, strict=True):
         assert torch.equal(a, b)
 
 
@@ -169,7 +169,7 @@ def test_index_cache_finds_an_index_by_content_and_keeps_gradients_to_the_given_
     cache = IndexCache(max_entries=2)
     a = cache.get((verts, faces))
     a.point_mesh_distance(verts[:3])
-    assert cache.get((verts.clone(), faces.clone()))._face_structure is a._face_structure  # same content
+    assert cache.get((verts.clone(), faces.clone()))._faces.structure is a._faces.structure  # same content
     assert len(cache) == 1
     leaf = verts.clone().requires_grad_()
     p = _points(verts, 50, 7)

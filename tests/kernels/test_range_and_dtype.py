@@ -106,6 +106,25 @@ def test_distances_beyond_the_dtype_range_are_an_error_not_inf():
     assert got == pytest.approx(3e30 - 1, rel=1e-12)
 
 
+@pytest.mark.parametrize("backend", NEAREST_BACKENDS)
+def test_nearest_vertex_distance_to_a_tiny_reference_set_is_scaled_for_the_points_too(backend):
+    # The squares of the points' distances fit float32; scaling by the 1e-20 reference extent alone would not.
+    ref = torch.tensor([[0.0, 0, 0], [1e-20, 0, 0], [0, 1e-20, 0]])
+    points = torch.tensor([[1.0, 0, 0], [0, 0, 2.0]])
+    for got in (
+        tmm.nearest_vertex_distance(points, ref, backend=backend),
+        tmm.nearest_vertex_distance([points], [ref], backend=backend),
+    ):
+        assert got.dists.tolist() == [1.0, 2.0]
+        assert got.idx.tolist() == [0, 0]  # equal computed squares: the lowest index
+
+
+def test_index_nearest_distances_beyond_the_dtype_range_are_an_error_not_inf():
+    index = tmm.MeshIndex(torch.tensor(SPHERE.vertices, dtype=torch.float32), torch.tensor(SPHERE.faces))
+    with pytest.raises(NonFiniteError, match=r"overflow torch.float32 .* compute in float64"):
+        index.nearest_vertex_distance(torch.tensor([[0.0, 0.0, 3e30]]))
+
+
 # ------------------------------------------------------------------------------------------------ half precision
 def _half_calls(dtype):
     v = torch.tensor(SPHERE.vertices).to(dtype)

@@ -344,9 +344,9 @@ def test_cpu_without_interpreter_is_a_device_error(monkeypatch):
 
 
 @pytest.mark.skipif(INTERPRETING, reason="compiles for a GPU target: needs triton's compiler, not the interpreter")
-@pytest.mark.parametrize("kernel", ["_closest_face_kernel", "_nearest_point_kernel"])
+@pytest.mark.parametrize("is_face", [True, False], ids=["faces", "points"])
 @pytest.mark.parametrize("dtype", ["fp32", "fp64"])
-def test_gpu_code_has_no_fma_and_ieee_division_and_sqrt(kernel, dtype):
+def test_gpu_code_has_no_fma_and_ieee_division_and_sqrt(is_face, dtype):
     """Compile for an H100 (sm_90) without a GPU and read the PTX: the exactness promises hold in the machine code."""
     import inspect
     import re
@@ -354,19 +354,19 @@ def test_gpu_code_has_no_fma_and_ieee_division_and_sqrt(kernel, dtype):
     backend = pytest.importorskip("triton.backends.compiler")
     from triton.compiler import ASTSource
 
-    fn = getattr(triton_traversal, kernel)
+    fn = triton_traversal._selection_kernel
     sig = {}
     for name in inspect.signature(fn.fn).parameters:
-        if name in ("LEAF", "BLOCK", "IS_F64", "LEAF_VECTOR"):
+        if name in ("LEAF", "BLOCK", "IS_F64", "LEAF_VECTOR", "IS_FACE"):
             sig[name] = "constexpr"
         elif name == "num_queries":
             sig[name] = "i32"
-        elif name in ("pts_ptr", "nodes_ptr", "fdata_ptr", "ref_ptr", "slack_ptr", "factor_ptr"):
+        elif name in ("pts_ptr", "nodes_ptr", "data_ptr", "slack_ptr", "factor_ptr"):
             sig[name] = f"*{dtype}"
         else:
             sig[name] = "*i64"
-    leaf = triton_traversal.LEAF_FACES if kernel == "_closest_face_kernel" else triton_traversal.LEAF_POINTS
-    constexprs = {"LEAF": leaf, "BLOCK": triton_traversal.BLOCK_GPU, "IS_F64": dtype == "fp64"}
+    leaf = triton_traversal.LEAF_FACES if is_face else triton_traversal.LEAF_POINTS
+    constexprs = {"LEAF": leaf, "BLOCK": triton_traversal.BLOCK_GPU, "IS_F64": dtype == "fp64", "IS_FACE": is_face}
     constexprs["LEAF_VECTOR"] = triton_traversal.LEAF_VECTOR_GPU
     try:
         compiled = triton.compile(
@@ -381,7 +381,7 @@ def test_gpu_code_has_no_fma_and_ieee_division_and_sqrt(kernel, dtype):
     assert not re.search(r"(div|sqrt|rcp|rsqrt)\.(approx|full)", ptx), "approximate division or square root"
     width = "f64" if dtype == "fp64" else "f32"
     assert f"sqrt.rn.{width}" in ptx
-    if kernel == "_closest_face_kernel":
+    if is_face:
         assert f"div.rn.{width}" in ptx
 
 

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
+from skimage.measure import marching_cubes
 from torch import Tensor
 
 from torchmeshmetric._checks import IndexRangeError, check_finite, check_float, check_shape
@@ -340,8 +341,6 @@ def _mesh_frame(
     crosses has a corner in it. Only the voxels of the finest active blocks are evaluated exactly; the rest of the
     grid takes the (correctly signed) value of its smallest evaluated enclosing block.
     """
-    from skimage.measure import marching_cubes
-
     bone, pa, pb, rad = prims
     a = (np.einsum("mij,mj->mi", rot[bone], pa) + trans[bone]).astype(np.float32)
     b = (np.einsum("mij,mj->mi", rot[bone], pb) + trans[bone]).astype(np.float32)

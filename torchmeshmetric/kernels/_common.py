@@ -1,4 +1,8 @@
-"""Small helpers shared by the kernels (chunk sizing, safe division and square roots, per-item centring)."""
+"""Small helpers shared by the kernels.
+
+Chunk sizing, safe division and square roots, per-item centring, exact range scaling, and the checks every query
+makes.
+"""
 
 from __future__ import annotations
 
@@ -7,7 +11,8 @@ import math
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import NonFiniteError
+from torchmeshmetric._checks import EmptyInputError, NonFiniteError
+from torchmeshmetric.structures import batch_index
 
 DEFAULT_MAX_MEMORY = 256 * 2**20
 """Default memory budget of one kernel intermediate, in bytes (256 MiB)."""
@@ -56,6 +61,53 @@ def item_centers(x: Tensor, batch: Tensor, num_items: int) -> Tensor:
     return torch.where(torch.isfinite(center), center, torch.zeros_like(center))
 
 
+def item_rows(lengths: Tensor, num_rows: int, centers: Tensor) -> tuple[Tensor, Tensor]:
+    """``(batch (N,), centre of each row)`` of ``N`` packed rows of items whose ``(B, 3)`` centres are known.
+
+    One item: the batch is zeros and the centre ``(1, 3)`` broadcasts (no batch expansion, no gather: same values).
+    """
+    if centers.shape[0] == 1:
+        return torch.zeros(num_rows, dtype=torch.long, device=centers.device), centers
+    batch = batch_index(lengths)
+    return batch, centers[batch]
+
+
+def centred(x: Tensor, lengths: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+    """Per-item bounding-box centring of packed rows: ``(centres (B, 3), row centres (1 or N, 3), batch (N,))``."""
+    num_items = int(lengths.numel())
+    batch = torch.zeros(x.shape[0], dtype=torch.long, device=x.device) if num_items == 1 else batch_index(lengths)
+    centers = item_centers(x, batch, num_items)
+    return centers, (centers if num_items == 1 else centers[batch]), batch
+
+
+def check_queries(
+    points: Tensor, points_lengths: Tensor, prim_lengths: Tensor, *, count_error: str, lacking_error: str
+) -> None:
+    """Raise unless the query points fit the items they are measured against.
+
+    Args:
+        points: ``(P, 3)`` packed query points.
+        points_lengths: ``(B',)`` points per item.
+        prim_lengths: ``(B,)`` primitives (faces, reference points) per item.
+        count_error: ``ValueError`` message when ``B' != B``, formatted with ``items`` (``B``) and ``sets`` (``B'``).
+        lacking_error: ``EmptyInputError`` message for an item with points but no primitive, formatted with
+            ``item`` and ``points``.
+
+    Raises:
+        ValueError: when there is not one point set per item.
+        EmptyInputError: when there is no point at all, or an item has points but no primitive.
+    """
+    num_items, num_sets = int(prim_lengths.numel()), int(points_lengths.numel())
+    if num_sets != num_items:
+        raise ValueError(count_error.format(items=num_items, sets=num_sets))
+    if points.shape[0] == 0:
+        raise EmptyInputError("points: expected at least one point, found an empty point set")
+    lacking = (points_lengths > 0) & (prim_lengths == 0)
+    if bool(lacking.any()):
+        b = int(lacking.nonzero()[0, 0])
+        raise EmptyInputError(lacking_error.format(item=b, points=int(points_lengths[b])))
+
+
 def pair_chunks(num_rows: int, num_cols: int, bytes_per_pair: int, max_memory: int) -> tuple[int, int]:
     """Row and column chunk sizes so that ``rows * cols * bytes_per_pair <= max_memory`` (at least 1 x 1)."""
     if max_memory <= 0:
@@ -89,20 +141,3 @@ def check_representable(dists: Tensor, name: str) -> None:
             f"{name}: the distances overflow {dists.dtype} (coordinates too large for its range, "
             f"max {torch.finfo(dists.dtype).max:.3g}); compute in float64"
         )
-
-
-def extreme_range(points: Tensor, ref: Tensor, degree: int) -> tuple[Tensor, float] | None:
-    """``(centre, scale)`` when coordinates need exact power-of-two scaling (:func:`range_scale`), else ``None``.
-
-    The extent is measured about the bounding-box centre of ``ref`` (all items together), so a small mesh far from
-    the origin is not scaled while a mesh of extreme size (or with extremely far query points) is. Callers compute on
-    ``(x - centre) * scale`` and map distances back by ``/ scale`` (closest points by ``/ scale + centre``).
-    """
-    if points.numel() == 0 or ref.numel() == 0:
-        return None
-    with torch.no_grad():
-        lo, hi = ref.detach().aminmax(dim=0)
-        centre = 0.5 * (lo + hi)
-        extent = float(torch.cat([points.detach() - centre, ref.detach() - centre]).abs().amax())
-    scale = range_scale(extent, ref.dtype, degree)
-    return None if scale is None or not all(map(math.isfinite, centre.tolist())) else (centre, scale)

@@ -16,19 +16,21 @@ from typing import Any
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import DeviceError, DTypeError, EmptyInputError, check_finite, check_float, check_shape
+from torchmeshmetric._checks import DeviceError, DTypeError, check_finite, check_float, check_shape
 from torchmeshmetric.kernels._common import (
     DEFAULT_MAX_MEMORY,
+    centred,
+    check_queries,
     check_representable,
-    dot,
-    item_centers,
+    item_rows,
     range_scale,
     safe_sqrt,
 )
 from torchmeshmetric.kernels.accel.bvh import bvh_closest_points
-from torchmeshmetric.kernels.nearest import NearestVertexResult, _check_backend
+from torchmeshmetric.kernels.nearest import NearestVertexResult, _NearestIndex
 from torchmeshmetric.kernels.point_triangle import PointMeshResult, closest_point_on_triangle
-from torchmeshmetric.kernels.select import FaceSet, PointSet, SelectionBackend, resolve_backend
+from torchmeshmetric.kernels.sampling import vertex_set_mask
+from torchmeshmetric.kernels.select import FaceSet, Selector, check_backend
 from torchmeshmetric.structures import (
     MeshLike,
     PackedMeshes,
@@ -42,88 +44,22 @@ from torchmeshmetric.structures import (
 __all__ = ["MeshIndex"]
 
 
-def _centred(x: Tensor, lengths: Tensor) -> tuple[Tensor, Tensor, Tensor]:
-    """``(centres (B, 3), row centre (1 or N, 3), batch (N,))``: per-item bounding-box centring of packed rows."""
-    num_items = int(lengths.numel())
-    if num_items == 1:
-        # One item: no batch indices to expand, no per-item gathers (same values: the centre broadcasts).
-        batch = torch.zeros(x.shape[0], dtype=torch.long, device=x.device)
-        centers = item_centers(x, batch, 1)
-        return centers, centers, batch
-    batch = batch_index(lengths)
-    centers = item_centers(x, batch, num_items)
-    return centers, centers[batch], batch
+def pack_mesh_args(
+    mesh: MeshLike | Sequence[MeshLike] | Tensor,
+    faces: Tensor | None,
+    verts_lengths: Tensor | None,
+    faces_lengths: Tensor | None,
+) -> PackedMeshes:
+    """The mesh arguments of :class:`MeshIndex` and :func:`~torchmeshmetric.point_mesh_distance`, packed and checked.
 
-
-class _NearestIndex:
-    """Reference point sets prepared for nearest-point queries (centred once, structure kept). Trusted input."""
-
-    def __init__(self, ref: Tensor, lengths: Tensor, backend: str, max_memory: int, *, rescale: bool = True) -> None:
-        self.backend_name, self.max_memory, self._rescale = backend, max_memory, rescale
-        self.lengths = lengths
-        self._backend: SelectionBackend | None = None
-        self._structure: Any = None
-        self._set(ref)
-
-    def _set(self, ref: Tensor) -> None:
-        self.ref = ref
-        self.centers, row_center, batch = _centred(ref, self.lengths)
-        self._row_center = row_center
-        ref_c = (ref - row_center).detach()
-        # Exact power-of-two scaling where squared distances would overflow or underflow the dtype.
-        extent = float(ref_c.abs().amax()) if ref_c.numel() and self._rescale else 0.0
-        self._scale = range_scale(extent, ref.dtype, 2)
-        if self._scale is not None:
-            ref_c = ref_c * self._scale
-        self.set = PointSet(ref_c, batch, lengths_to_offsets(self.lengths))
-
-    def refit(self, ref: Tensor) -> None:
-        self._set(ref)
-        if self._backend is not None:
-            self._structure = self._backend.refit_points(self._structure, self.set)
-
-    def query(self, points: Tensor, points_lengths: Tensor) -> NearestVertexResult:
-        num_items = int(self.lengths.numel())
-        if int(points_lengths.numel()) != num_items:
-            raise ValueError(
-                f"ref_points: expected {int(points_lengths.numel())} reference sets (one per point set), "
-                f"found {num_items}"
-            )
-        if points.shape[0] == 0:
-            raise EmptyInputError("points: expected at least one point, found an empty point set")
-        lacking = (points_lengths > 0) & (self.lengths == 0)
-        if bool(lacking.any()):
-            b = int(lacking.nonzero()[0, 0])
-            raise EmptyInputError(
-                f"ref_points: reference set {b} is empty but has {int(points_lengths[b])} query points"
-            )
-        if num_items == 1:
-            pb = torch.zeros(points.shape[0], dtype=torch.long, device=points.device)
-            p_c = points - self.centers
-        else:
-            pb = batch_index(points_lengths)
-            p_c = points - self.centers[pb]
-        scale = self._scale
-        if scale is not None:
-            p_c = p_c * scale
-        if self._backend is None:
-            self._backend = resolve_backend(
-                self.backend_name, points.device, points.dtype, points.shape[0] * self.ref.shape[0]
-            )
-            self._structure = self._backend.build_points(self.set)
-        with torch.no_grad():
-            idx = self._backend.query_points(self._structure, self.set, p_c.detach(), pb, self.max_memory)
-        if p_c.requires_grad or self.ref.requires_grad:
-            r_c = self.ref - self._row_center
-            diff = p_c - (r_c if scale is None else r_c * scale)[idx]
-            dists = safe_sqrt(dot(diff, diff))
-        else:
-            # Without autograd, safe_sqrt(sq) is sqrt(sq) bit for bit (sq >= 0, sqrt(0) = 0).
-            diff = p_c - self.set.points.index_select(0, idx)
-            dists = torch.sqrt(dot(diff, diff))
-        if scale is not None:
-            dists = dists / scale
-        return NearestVertexResult(dists, idx)
+    Raises:
+        TypeError: for lengths given with mesh-likes (they carry their own sizes).
+    """
+    if isinstance(mesh, Tensor):
+        return pack_meshes(mesh, faces, verts_lengths, faces_lengths)
+    if verts_lengths is not None or faces_lengths is not None:
+        raise TypeError("verts_lengths/faces_lengths: only valid with packed verts/faces tensors")
+    return pack_meshes(mesh, faces)
 
 
 class MeshIndex:
@@ -180,12 +116,7 @@ class MeshIndex:
         referenced_only: bool = True,
         tree: str = "sah",
     ) -> None:
-        if isinstance(mesh, Tensor):
-            packed = pack_meshes(mesh, faces, verts_lengths, faces_lengths)
-        else:
-            if verts_lengths is not None or faces_lengths is not None:
-                raise TypeError("verts_lengths/faces_lengths: only valid with packed verts/faces tensors")
-            packed = pack_meshes(mesh, faces)
+        packed = pack_mesh_args(mesh, faces, verts_lengths, faces_lengths)
         self._init(packed, backend, max_memory, referenced_only, tree)
 
     @classmethod
@@ -196,7 +127,7 @@ class MeshIndex:
         return index
 
     def _init(self, packed: PackedMeshes, backend: str, max_memory: int, referenced_only: bool, tree: str) -> None:
-        _check_backend(backend)
+        check_backend(backend)
         if tree not in ("sah", "morton"):
             raise ValueError(f"tree: expected 'sah' or 'morton', found {tree!r}")
         self.backend, self.max_memory, self.referenced_only, self.tree = backend, max_memory, referenced_only, tree
@@ -211,14 +142,13 @@ class MeshIndex:
             v_off = lengths_to_offsets(packed.verts_lengths)
             self._faces_global = packed.faces + v_off[self._face_batch][:, None]
         self._face_offsets = lengths_to_offsets(packed.faces_lengths)
-        self._face_backend: SelectionBackend | None = None
-        self._face_structure: Any = None
+        self._faces: Selector | None = None
         self._nearest: _NearestIndex | None = None
         self._set_verts(packed.verts)
 
     def _set_verts(self, verts: Tensor) -> None:
         self.verts = verts
-        self._centers, self._vert_center, _ = _centred(verts, self.verts_lengths)
+        self._centers, self._vert_center, _ = centred(verts, self.verts_lengths)
         verts_c = (verts - self._vert_center).detach()
         # Exact power-of-two scaling where float arithmetic would overflow or underflow (|ab x ac|^2: degree 4).
         self._scale = range_scale(float(verts_c.abs().amax()) if verts_c.numel() else 0.0, verts.dtype, 4)
@@ -244,8 +174,7 @@ class MeshIndex:
     def _ref_points(self) -> tuple[Tensor, Tensor]:
         if not self.referenced_only:
             return self.verts, self.verts_lengths
-        used = torch.zeros(self.verts.shape[0], dtype=torch.bool, device=self.device)
-        used[self._faces_global.reshape(-1)] = True
+        used = vertex_set_mask(self._faces_global, self.verts.shape[0])
         if self.num_items == 1:
             return self.verts[used], used.sum().reshape(1)
         counts = torch.zeros(self.num_items, dtype=torch.long, device=self.device)
@@ -288,36 +217,21 @@ class MeshIndex:
 
     def _point_mesh_distance(self, points: Tensor, points_lengths: Tensor) -> PointMeshResult:
         """Trusted entry (validated points of the index's dtype and device)."""
-        num_items = self.num_items
-        if int(points_lengths.numel()) != num_items:
-            raise ValueError(
-                f"points_lengths: expected {num_items} point sets (one per mesh), found {int(points_lengths.numel())}"
-            )
-        if points.shape[0] == 0:
-            raise EmptyInputError("points: expected at least one point, found an empty point set")
-        lacking = (points_lengths > 0) & (self.faces_lengths == 0)
-        if bool(lacking.any()):
-            b = int(lacking.nonzero()[0, 0])
-            raise EmptyInputError(f"faces: mesh {b} has no faces but {int(points_lengths[b])} query points")
-        if num_items == 1:
-            point_batch = torch.zeros(points.shape[0], dtype=torch.long, device=points.device)
-            point_center = self._centers
-        else:
-            point_batch = batch_index(points_lengths)
-            point_center = self._centers[point_batch]
+        check_queries(
+            points,
+            points_lengths,
+            self.faces_lengths,
+            count_error="points_lengths: expected {items} point sets (one per mesh), found {sets}",
+            lacking_error="faces: mesh {item} has no faces but {points} query points",
+        )
+        point_batch, point_center = item_rows(points_lengths, points.shape[0], self._centers)
         points_c = points - point_center
         scale = self._scale
         if scale is not None:
             points_c = points_c * scale
-        if self._face_backend is None:
-            self._face_backend = resolve_backend(
-                self.backend, points.device, points.dtype, points.shape[0] * self.faces.shape[0]
-            )
-            self._face_structure = self._face_backend.build_faces(self._faceset, self.tree)
-        with torch.no_grad():
-            face_idx = self._face_backend.query_faces(
-                self._face_structure, self._faceset, points_c.detach(), point_batch, self.max_memory
-            )
+        if self._faces is None:
+            self._faces = Selector(self.backend, self._faceset, self.max_memory, self.tree)
+        face_idx = self._faces.select(points_c, point_batch)
         if self.verts.requires_grad:
             verts_c = self.verts - self._vert_center
             verts_c = verts_c if scale is None else verts_c * scale
@@ -369,7 +283,7 @@ class MeshIndex:
     def __getstate__(self) -> dict[str, Any]:
         # The selection structures are rebuilt on the first query after unpickling (they hold backend functions).
         state = dict(self.__dict__)
-        state.update(_face_backend=None, _face_structure=None, _nearest=None)
+        state.update(_faces=None, _nearest=None)
         return state
 
     def _with_verts(self, verts: Tensor) -> MeshIndex:
@@ -402,7 +316,7 @@ class MeshIndex:
     def _refit(self, verts: Tensor) -> None:
         """Trusted entry of :meth:`refit`."""
         self._set_verts(verts)
-        if self._face_backend is not None:
-            self._face_structure = self._face_backend.refit_faces(self._face_structure, self._faceset)
+        if self._faces is not None:
+            self._faces.refit(self._faceset)
         if self._nearest is not None:
             self._nearest.refit(self._ref_points()[0])

@@ -10,8 +10,19 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric._checks import EmptyInputError, check_finite, check_float, check_same_device, check_shape
-from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY, check_representable, extreme_range, pair_chunks
-from torchmeshmetric.structures import pack_points
+from torchmeshmetric.kernels._common import (
+    DEFAULT_MAX_MEMORY,
+    centred,
+    check_queries,
+    check_representable,
+    dot,
+    item_rows,
+    range_scale,
+    safe_sqrt,
+)
+from torchmeshmetric.kernels.accel import bvh
+from torchmeshmetric.kernels.select import PointSet, Selector, check_backend, resolve_backend
+from torchmeshmetric.structures import PackedPoints, lengths_to_offsets, pack_points
 
 __all__ = ["NearestVertexResult", "nearest_vertex_distance"]
 
@@ -28,41 +39,68 @@ class NearestVertexResult(NamedTuple):
     idx: Tensor
 
 
-def _bruteforce_nearest(
-    points: Tensor, point_batch: Tensor, ref: Tensor, ref_batch: Tensor, ref_offsets: Tensor, max_memory: int
-) -> Tensor:
-    """Chunked brute force on explicit differences (no ``|p|^2 - 2 p.q + |q|^2`` cancellation).
+class _NearestIndex:
+    """Reference point sets prepared for nearest-point queries (centred once, structure kept). Trusted input.
 
-    Selects by the squared distance ``(dx*dx + dy*dy) + dz*dz`` (the order of ``(d * d).sum(-1)`` used for the
-    returned distances), lowest index among equal squares: every backend selects by this same computed value.
+    Coordinates whose squares would overflow or underflow the dtype are scaled by an exact power of two
+    (:func:`~torchmeshmetric.kernels._common.range_scale`) before selection, and distances divided back. The scale
+    covers the reference sets; a one-off index also passes its one query (``queries``) so that the scale covers
+    points far from a small reference set too (their distances are representable, their squares may not be).
     """
-    num_p, num_r = points.shape[0], ref.shape[0]
-    # Three live (rows, cols) temporaries of the dtype plus the mask.
-    rows, cols = pair_chunks(num_p, num_r, 4 * points.element_size(), max_memory)
-    best = torch.zeros(num_p, dtype=torch.long, device=points.device)
-    single = ref_offsets.numel() == 2
-    for p0 in range(0, num_p, rows):
-        p1 = min(num_p, p0 + rows)
-        pb = point_batch[p0:p1]
-        p = points[p0:p1]
-        r_lo, r_hi = (0, num_r) if single else (int(ref_offsets[pb[0]]), int(ref_offsets[pb[-1] + 1]))
-        best_d = torch.full((p1 - p0,), float("inf"), dtype=points.dtype, device=points.device)
-        for r0 in range(r_lo, r_hi, cols):
-            r1 = min(r_hi, r0 + cols)
-            r = ref[r0:r1]
-            sq = p[:, 0, None] - r[None, :, 0]
-            sq.mul_(sq)
-            d = p[:, 1, None] - r[None, :, 1]
-            sq.add_(d.mul_(d))
-            d = torch.sub(p[:, 2, None], r[None, :, 2], out=d)
-            sq.add_(d.mul_(d))
-            if not single:
-                sq = sq.masked_fill_(pb[:, None] != ref_batch[None, r0:r1], float("inf"))
-            chunk_d, chunk_i = sq.min(-1)
-            better = chunk_d < best_d
-            best_d = torch.where(better, chunk_d, best_d)
-            best[p0:p1] = torch.where(better, chunk_i + r0, best[p0:p1])
-    return best
+
+    def __init__(
+        self, ref: Tensor, lengths: Tensor, backend: str, max_memory: int, *, queries: PackedPoints | None = None
+    ) -> None:
+        self.lengths = lengths
+        self.selector = Selector(backend, self._set(ref, queries), max_memory)
+
+    def _set(self, ref: Tensor, queries: PackedPoints | None = None) -> PointSet:
+        """Centre and scale ``ref`` (and keep it for the differentiable distances): the set the backend selects from."""
+        self.ref = ref
+        self.centers, self._row_center, batch = centred(ref, self.lengths)
+        ref_c = (ref - self._row_center).detach()
+        extent = float(ref_c.abs().amax()) if ref_c.numel() else 0.0
+        if queries is not None and queries.points.numel():
+            extent = max(extent, float(self._centred_queries(*queries)[1].detach().abs().amax()))
+        self._scale = range_scale(extent, ref.dtype, 2)
+        if self._scale is not None:
+            ref_c = ref_c * self._scale
+        self._ref_c = ref_c
+        return PointSet(ref_c, batch, lengths_to_offsets(self.lengths))
+
+    def _centred_queries(self, points: Tensor, points_lengths: Tensor) -> tuple[Tensor, Tensor]:
+        """``(batch, points - centre of their item)``, unscaled."""
+        batch, center = item_rows(points_lengths, points.shape[0], self.centers)
+        return batch, points - center
+
+    def refit(self, ref: Tensor) -> None:
+        self.selector.refit(self._set(ref))
+
+    def query(self, points: Tensor, points_lengths: Tensor) -> NearestVertexResult:
+        check_queries(
+            points,
+            points_lengths,
+            self.lengths,
+            count_error="ref_points: expected {sets} reference sets (one per point set), found {items}",
+            lacking_error="ref_points: reference set {item} is empty but has {points} query points",
+        )
+        pb, p_c = self._centred_queries(points, points_lengths)
+        scale = self._scale
+        if scale is not None:
+            p_c = p_c * scale
+        idx = self.selector.select(p_c, pb)
+        if p_c.requires_grad or self.ref.requires_grad:
+            r_c = self.ref - self._row_center
+            diff = p_c - (r_c if scale is None else r_c * scale)[idx]
+            dists = safe_sqrt(dot(diff, diff))
+        else:
+            # Without autograd, safe_sqrt(sq) is sqrt(sq) bit for bit (sq >= 0, sqrt(0) = 0).
+            diff = p_c - self._ref_c.index_select(0, idx)
+            dists = torch.sqrt(dot(diff, diff))
+        if scale is not None:
+            dists = dists / scale
+        check_representable(dists, "points")
+        return NearestVertexResult(dists, idx)
 
 
 def nearest_vertex_distance(
@@ -107,27 +145,17 @@ def nearest_vertex_distance(
             f"ref_points: expected {pts.lengths.numel()} reference sets (one per point set), "
             f"found {ref.lengths.numel()}"
         )
-    _check_backend(backend)
+    check_backend(backend)
     dtype = torch.promote_types(pts.points.dtype, ref.points.dtype)
-    return _scaled_query(pts.points.to(dtype), pts.lengths, ref.points.to(dtype), ref.lengths, backend, max_memory)
+    return _query_once(pts.points.to(dtype), pts.lengths, ref.points.to(dtype), ref.lengths, backend, max_memory)
 
 
-def _scaled_query(
+def _query_once(
     points: Tensor, points_lengths: Tensor, ref: Tensor, ref_lengths: Tensor, backend: str, max_memory: int
 ) -> NearestVertexResult:
-    """Query a one-off index, scaling coordinates of extreme magnitude exactly (powers of two) when needed."""
-    from torchmeshmetric.kernels.mesh_index import _NearestIndex  # builds on this module
-
-    extreme = extreme_range(points, ref, 2)
-    if extreme is not None:
-        centre, scale = extreme
-        points, ref = (points - centre) * scale, (ref - centre) * scale
-    # Already scaled for the points too: the index must not rescale by the reference set's extent alone.
-    res = _NearestIndex(ref, ref_lengths, backend, max_memory, rescale=extreme is None).query(points, points_lengths)
-    if extreme is not None:
-        res = res._replace(dists=res.dists / scale)
-    check_representable(res.dists, "points")
-    return res
+    """A one-off index over ``ref``, scaled for these very points, queried once."""
+    queries = PackedPoints(points, points_lengths)
+    return _NearestIndex(ref, ref_lengths, backend, max_memory, queries=queries).query(points, points_lengths)
 
 
 def _finite_bounds(x: Tensor, name: str) -> tuple[Tensor, Tensor]:
@@ -153,16 +181,13 @@ def _nearest_single(points: Tensor, ref_points: Tensor, max_memory: int, backend
     check_shape(ref_points, ("P", 3), "ref_points")
     check_float(ref_points, "ref_points")
     check_same_device({"points": points, "ref_points": ref_points})
-    from torchmeshmetric.kernels.accel.bvh import bvh_nearest_single
-    from torchmeshmetric.kernels.select import resolve_backend
-
-    _check_backend(backend)
+    check_backend(backend)
     num_p, num_r = points.shape[0], ref_points.shape[0]
     dtype = torch.promote_types(points.dtype, ref_points.dtype)
     p, r = points.to(dtype), ref_points.to(dtype)
     fused = bool(num_p and num_r) and not (p.requires_grad or r.requires_grad)
     if fused and resolve_backend(backend, points.device, dtype, num_p * num_r).name == "bvh":
-        out = bvh_nearest_single(p.detach(), r.detach())
+        out = bvh.bvh_nearest_single(p.detach(), r.detach())
         # The fused path is unscaled: distances that overflowed or all lie below 2**-60 go to the scaled path.
         if out is not None and _in_range(out[0]):
             return NearestVertexResult(out[0], out[1])
@@ -175,14 +200,7 @@ def _nearest_single(points: Tensor, ref_points: Tensor, max_memory: int, backend
     if num_r == 0:
         raise EmptyInputError(f"ref_points: reference set 0 is empty but has {num_p} query points")
     lengths = torch.tensor([num_r], device=points.device)
-    return _scaled_query(p, torch.tensor([num_p], device=points.device), r, lengths, backend, max_memory)
-
-
-def _check_backend(backend: str) -> None:
-    from torchmeshmetric.kernels.select import BACKENDS
-
-    if backend != "auto" and backend not in BACKENDS:
-        raise ValueError(f"backend: expected one of {['auto', *BACKENDS]}, found {backend!r}")
+    return _query_once(p, torch.tensor([num_p], device=points.device), r, lengths, backend, max_memory)
 
 
 def _in_range(dists: Tensor) -> bool:

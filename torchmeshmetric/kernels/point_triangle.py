@@ -22,14 +22,8 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric._checks import check_float, check_same_device
-from torchmeshmetric.kernels._common import (
-    DEFAULT_MAX_MEMORY,
-    cross,
-    dot,
-    pair_chunks,
-    safe_div,
-)
-from torchmeshmetric.structures import MeshLike, pack_meshes, pack_points
+from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY, cross, dot, safe_div
+from torchmeshmetric.structures import MeshLike, pack_points
 
 __all__ = [
     "ClosestPointOnTriangle",
@@ -145,50 +139,6 @@ def closest_point_on_triangle(points: Tensor, a: Tensor, b: Tensor, c: Tensor) -
     return ClosestPointOnTriangle(closest, bary, dot(diff, diff))
 
 
-# Brute-force face selection (the reference backend, see kernels/select.py for the contract): inputs centred,
-# packed, detached; faces index the packed verts; returns the lowest index among ties of the squared distance.
-
-
-def _bruteforce_faces(
-    points: Tensor,
-    point_batch: Tensor,
-    verts: Tensor,
-    faces: Tensor,
-    face_batch: Tensor,
-    face_offsets: Tensor,
-    max_memory: int,
-) -> Tensor:
-    """Chunked brute force over all (point, face) pairs of the same item; memory bounded by ``max_memory``."""
-    num_p, num_f = points.shape[0], faces.shape[0]
-    # ~40 live scalars per pair (three (..,3) edge differences, cross products, candidates).
-    bytes_per_pair = 40 * points.element_size()
-    tri = verts[faces]
-    a, ab, ac = tri[:, 0], tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
-    b, bc = tri[:, 1], tri[:, 2] - tri[:, 1]
-    best = torch.zeros(num_p, dtype=torch.long, device=points.device)
-    rows, cols = pair_chunks(num_p, num_f, bytes_per_pair, max_memory)
-    single = face_offsets.numel() == 2
-    for p0 in range(0, num_p, rows):
-        p1 = min(num_p, p0 + rows)
-        p = points[p0:p1, None]
-        pb = point_batch[p0:p1]
-        if single:
-            f_lo, f_hi = 0, num_f
-        else:
-            f_lo, f_hi = int(face_offsets[pb[0]]), int(face_offsets[pb[-1] + 1])
-        best_sq = torch.full((p1 - p0,), float("inf"), dtype=points.dtype, device=points.device)
-        for f0 in range(f_lo, f_hi, cols):
-            f1 = min(f_hi, f0 + cols)
-            sq = _region_candidates(p - a[f0:f1], p - b[f0:f1], ab[f0:f1], ac[f0:f1], bc[f0:f1])[-1].amin(-1)
-            if not single:
-                sq = sq.masked_fill(pb[:, None] != face_batch[None, f0:f1], float("inf"))
-            chunk_sq, chunk_idx = sq.min(-1)
-            better = chunk_sq < best_sq
-            best_sq = torch.where(better, chunk_sq, best_sq)
-            best[p0:p1] = torch.where(better, chunk_idx + f0, best[p0:p1])
-    return best
-
-
 def point_mesh_distance(
     points: Tensor | Sequence[Tensor],
     verts: Tensor | MeshLike | Sequence[MeshLike],
@@ -236,14 +186,10 @@ def point_mesh_distance(
         >>> round(r.dists.item(), 6)
         2.0
     """
-    from torchmeshmetric.kernels.mesh_index import MeshIndex  # MeshIndex builds on this module
+    # A cycle: MeshIndex implements this function and builds on this module's closest_point_on_triangle.
+    from torchmeshmetric.kernels.mesh_index import MeshIndex, pack_mesh_args
 
-    if isinstance(verts, Tensor):
-        packed = pack_meshes(verts, faces, verts_lengths, faces_lengths)
-    else:
-        if verts_lengths is not None or faces_lengths is not None:
-            raise TypeError("verts_lengths/faces_lengths: only valid with packed verts/faces tensors")
-        packed = pack_meshes(verts, faces)
+    packed = pack_mesh_args(verts, faces, verts_lengths, faces_lengths)
     pts = pack_points(points, points_lengths)
     check_same_device({"points": pts.points, "verts": packed.verts})
     dtype = torch.promote_types(pts.points.dtype, packed.verts.dtype)

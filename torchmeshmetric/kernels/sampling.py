@@ -11,7 +11,7 @@ from torch import Tensor
 from torchmeshmetric._checks import EmptyInputError
 from torchmeshmetric.structures import MeshLike, as_mesh, batch_index, lengths_to_offsets, pack_meshes
 
-__all__ = ["SurfaceSamples", "sample_surface", "vertex_set"]
+__all__ = ["SurfaceSamples", "sample_surface", "vertex_set", "vertex_set_mask"]
 
 
 class SurfaceSamples(NamedTuple):
@@ -100,6 +100,19 @@ def sample_surface(
     return SurfaceSamples(points, face_idx, bary, counts)
 
 
+def vertex_set_mask(faces: Tensor, num_verts: int) -> Tensor:
+    """``(V,)`` bool: the vertices some face references, the paper's vertex set (Eq. 3) of :func:`vertex_set`.
+
+    Example:
+        >>> import torch
+        >>> vertex_set_mask(torch.tensor([[0, 1, 2]]), 4).tolist()
+        [True, True, True, False]
+    """
+    used = torch.zeros(num_verts, dtype=torch.bool, device=faces.device)
+    used[faces.reshape(-1)] = True
+    return used
+
+
 def vertex_set(mesh: MeshLike, *, referenced_only: bool = True) -> Tensor:
     """The vertex set of a mesh (paper Eq. 3), the points from which the paper measures distances.
 
@@ -120,8 +133,7 @@ def vertex_set(mesh: MeshLike, *, referenced_only: bool = True) -> Tensor:
     m = as_mesh(mesh)
     if not referenced_only:
         return m.verts
-    used = torch.zeros(m.num_verts, dtype=torch.bool, device=m.device)
-    used[m.faces.reshape(-1)] = True
+    used = vertex_set_mask(m.faces, m.num_verts)
     if not bool(used.any()):
         raise EmptyInputError("mesh: no vertex is referenced by a face")
     return m.verts[used]

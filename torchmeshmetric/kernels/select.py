@@ -3,9 +3,11 @@
 Every distance call splits its work in two: a **selection** without gradient (closest face, or nearest reference
 point, per query) and a differentiable recomputation on the selected primitive. Only the selection differs between
 backends. A backend is a :class:`SelectionBackend`: six functions that build, refit and query a structure over
-*centred, packed, detached* primitives (:class:`FaceSet` / :class:`PointSet`). A structure is whatever the backend
-keeps (``None`` for the brute force: it scans the set each time), so a :class:`~torchmeshmetric.MeshIndex` builds it
-once and queries it many times.
+*centred, packed, detached* primitives (:class:`FaceSet` / :class:`PointSet`), taken from one module of
+``kernels/accel/`` (``bruteforce``, ``pruned``, ``bvh``, ``triton_backend``) that names them as the contract does.
+A structure is whatever the backend keeps (``None`` for the scanning backends: they read the set at each query); a
+:class:`Selector` builds it on the first query, keeps it and refits it, so a :class:`~torchmeshmetric.MeshIndex`
+builds once and queries many times. A new backend is a module with the six functions and one line in the table.
 
 Contract of every backend (the brute force is the reference in tests):
 
@@ -18,21 +20,20 @@ Contract of every backend (the brute force is the reference in tests):
   whose intermediates are bounded by ``max_memory`` (the only backends that use it: ``"bruteforce"``, ``"pruned"``).
 
 :func:`resolve_backend` turns a ``backend=`` name into a table entry (``"auto"``: the rule of
-``docs/acceleration.md``).
+``docs/acceleration.md``); :func:`check_backend` is the one check of a ``backend=`` name.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from types import ModuleType
 from typing import Any, NamedTuple
 
 import torch
 from torch import Tensor
 
-from torchmeshmetric.kernels.accel import bvh, pruned, triton_backend
+from torchmeshmetric.kernels.accel import bruteforce, bvh, pruned, triton_backend
 from torchmeshmetric.kernels.accel._extension import bvh_ready, load_bvh
-from torchmeshmetric.kernels.nearest import _bruteforce_nearest as bruteforce_nearest
-from torchmeshmetric.kernels.point_triangle import _bruteforce_faces as bruteforce_faces
 
 __all__ = [
     "BACKENDS",
@@ -40,7 +41,9 @@ __all__ = [
     "FaceSet",
     "PointSet",
     "SelectionBackend",
+    "Selector",
     "auto_backend_name",
+    "check_backend",
     "resolve_backend",
 ]
 
@@ -106,42 +109,28 @@ def _none(*_: Any) -> None:
     return None
 
 
-BRUTEFORCE = SelectionBackend(
-    "bruteforce",
-    _none,
-    _none,
-    lambda _s, f, p, pb, mem: bruteforce_faces(p, pb, f.verts, f.faces, f.batch, f.offsets, mem),
-    _none,
-    _none,
-    lambda _s, r, p, pb, mem: bruteforce_nearest(p, pb, r.points, r.batch, r.offsets, mem),
-)
-PRUNED = SelectionBackend(
-    "pruned",
-    _none,
-    _none,
-    lambda _s, f, p, pb, mem: pruned.pruned_faces(p, pb, f.verts, f.faces, f.batch, f.offsets, mem),
-    _none,
-    _none,
-    lambda _s, r, p, pb, mem: pruned.pruned_nearest(p, pb, r.points, r.batch, r.offsets, mem),
-)
-BVH = SelectionBackend(
-    "bvh",
-    bvh.build_faces,
-    bvh.refit_faces,
-    lambda s, f, p, pb, _mem: bvh.query_faces(s, f, p, pb),
-    bvh.build_points,
-    bvh.refit_points,
-    lambda s, r, p, pb, _mem: bvh.query_points(s, r, p, pb),
-)
-TRITON = SelectionBackend(
-    "triton",
-    triton_backend.build_faces,
-    triton_backend.refit_faces,
-    lambda s, f, p, pb, _mem: triton_backend.query_faces(s, f, p, pb),
-    triton_backend.build_points,
-    triton_backend.refit_points,
-    lambda s, r, p, pb, _mem: triton_backend.query_points(s, r, p, pb),
-)
+def _scanning(name: str, module: ModuleType) -> SelectionBackend:
+    """A backend that keeps no structure: every query scans the primitives (its ``query_*`` receive ``None``)."""
+    return SelectionBackend(name, _none, _none, module.query_faces, _none, _none, module.query_points)
+
+
+def _kept(name: str, module: ModuleType) -> SelectionBackend:
+    """A backend whose module builds, refits and queries a kept structure."""
+    return SelectionBackend(
+        name,
+        module.build_faces,
+        module.refit_faces,
+        module.query_faces,
+        module.build_points,
+        module.refit_points,
+        module.query_points,
+    )
+
+
+BRUTEFORCE = _scanning("bruteforce", bruteforce)
+PRUNED = _scanning("pruned", pruned)
+BVH = _kept("bvh", bvh)
+TRITON = _kept("triton", triton_backend)
 
 BACKENDS: dict[str, SelectionBackend] = {b.name: b for b in (BRUTEFORCE, PRUNED, BVH, TRITON)}
 """Every selection backend by its ``backend=`` name."""
@@ -165,6 +154,12 @@ def auto_backend_name(device: torch.device, dtype: torch.dtype, num_pairs: int) 
     return "pruned"
 
 
+def check_backend(name: str) -> None:
+    """Raise ``ValueError`` unless ``name`` is ``"auto"`` or a name of :data:`BACKENDS`."""
+    if name != "auto" and name not in BACKENDS:
+        raise ValueError(f"backend: expected one of {['auto', *BACKENDS]}, found {name!r}")
+
+
 def resolve_backend(name: str, device: torch.device, dtype: torch.dtype, num_pairs: int) -> SelectionBackend:
     """The table entry for ``backend=name`` (``"auto"`` decided by :func:`auto_backend_name`).
 
@@ -173,10 +168,53 @@ def resolve_backend(name: str, device: torch.device, dtype: torch.dtype, num_pai
     Raises:
         ValueError: for an unknown name.
     """
+    check_backend(name)
     if name == "auto":
         name = auto_backend_name(device, dtype, num_pairs)
-    if name not in BACKENDS:
-        raise ValueError(f"backend: expected one of {['auto', *BACKENDS]}, found {name!r}")
     if name == "bvh" and (device.type != "cpu" or load_bvh() is None):
         return PRUNED
     return BACKENDS[name]
+
+
+class Selector:
+    """A primitive set (faces or reference points) with its backend's structure, built on the first query and kept.
+
+    The one place where a structure is built, queried and refitted: :class:`~torchmeshmetric.MeshIndex` keeps one
+    for its faces and one for its vertex set.
+
+    Args:
+        backend: a ``backend=`` name (``"auto"`` resolved on the first query, for its device, dtype and size).
+        prims: the centred, packed, detached primitives.
+        max_memory: bound in bytes of one intermediate (``"bruteforce"`` and ``"pruned"`` only).
+        tree: the face hierarchy of ``"bvh"`` (``"sah"`` or ``"morton"``); unused for points.
+    """
+
+    def __init__(self, backend: str, prims: FaceSet | PointSet, max_memory: int, tree: str = "morton") -> None:
+        self.backend_name, self.prims, self.max_memory, self.tree = backend, prims, max_memory, tree
+        self.backend: SelectionBackend | None = None
+        self.structure: Any = None
+
+    def select(self, points: Tensor, point_batch: Tensor) -> Tensor:
+        """``(P,)`` int64 row of the selected primitive of each centred point's item (the contract's choice)."""
+        prims = self.prims
+        if self.backend is None:
+            num_prims = prims.faces.shape[0] if isinstance(prims, FaceSet) else prims.points.shape[0]
+            self.backend = resolve_backend(self.backend_name, points.device, points.dtype, points.shape[0] * num_prims)
+            if isinstance(prims, FaceSet):
+                self.structure = self.backend.build_faces(prims, self.tree)
+            else:
+                self.structure = self.backend.build_points(prims)
+        with torch.no_grad():
+            if isinstance(prims, FaceSet):
+                return self.backend.query_faces(self.structure, prims, points.detach(), point_batch, self.max_memory)
+            return self.backend.query_points(self.structure, prims, points.detach(), point_batch, self.max_memory)
+
+    def refit(self, prims: FaceSet | PointSet) -> None:
+        """Moved coordinates of the same primitives: the kept structure is refitted (exact for them), not rebuilt."""
+        self.prims = prims
+        if self.backend is None:
+            return
+        if isinstance(prims, FaceSet):
+            self.structure = self.backend.refit_faces(self.structure, prims)
+        else:
+            self.structure = self.backend.refit_points(self.structure, prims)

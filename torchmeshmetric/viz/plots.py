@@ -8,6 +8,8 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from torchmeshmetric._atomic import atomic_write
 from torchmeshmetric.evaluation.results import SET_NAMES, PairEvaluation, SequenceEvaluation
 
@@ -31,6 +33,7 @@ def _panels(names: tuple[str, ...]) -> tuple[tuple[str, ...], tuple[int, int]]:
 
 
 def _figure() -> Any:
+    """The ``Figure`` class on the Agg backend; imported on first use: no module of the package imports matplotlib."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -66,8 +69,6 @@ def log_bins(values: Sequence[Any], bins: int, *, decades: float = 6.0) -> Any:
         >>> log_bins([np.array([0.0, 0.0, 1e-3, 1e-2, 1e-1])], 2).round(6).tolist()
         [0.001, 0.01, 0.1]
     """
-    import numpy as np
-
     hi = max((float(np.max(v)) for v in values if len(v)), default=0.0)
     positive = [np.min(v[v > 0]) for v in values if np.any(v > 0)]
     if hi <= 0 or not positive:
@@ -84,8 +85,6 @@ def histogram_figure(methods: Mapping[str, PairEvaluation], *, bins: int = 50) -
     Bars count the vertices at or above the axis' lowest edge; the legend gives each method's RMSE and the fraction
     of its vertices below that edge (on the surface, distance 0, or within ``1e-6`` of the largest distance).
     """
-    import numpy as np
-
     Figure = _figure()
     names, grid = _panels(min((p.set_names for p in methods.values()), key=len))
     fig = Figure(figsize=(5 * grid[1], 7), layout="constrained")
@@ -142,7 +141,7 @@ def plot_frame_curves(
     """
     Figure = _figure()
     fig = Figure(figsize=(10, 7), layout="constrained")
-    from matplotlib.ticker import MaxNLocator
+    from matplotlib.ticker import MaxNLocator  # matplotlib on use only (see _figure)
 
     names, grid = _panels(min((seq.set_names for seq in methods.values()), key=len))
     fig.set_size_inches(5 * grid[1], 7)
@@ -170,7 +169,7 @@ def plot_mpeg_curves(methods: Mapping[str, Any], path: str | os.PathLike[str], *
         overwrite: replace an existing file.
     """
     Figure = _figure()
-    from matplotlib.ticker import MaxNLocator
+    from matplotlib.ticker import MaxNLocator  # matplotlib on use only (see _figure)
 
     rows = {m: seq.frame_rows() for m, seq in methods.items()}
     keys = ["d1_psnr", "d2_psnr"] + (["y_psnr"] if all("y_psnr" in r for rs in rows.values() for r in rs) else [])

@@ -47,7 +47,7 @@ def plot_weight_sweep(
         ax.plot([], [], "o", color="tab:blue", label="Registered QEM (filled: Pareto front)")
         xs_all = xs + [r["surface_k"] for r in base]
         if min(xs_all) > 0 and max(xs_all) / min(xs_all) > 10:
-            from matplotlib.ticker import NullFormatter
+            from matplotlib.ticker import NullFormatter  # matplotlib on use only (see plots._figure)
 
             ax.set_xscale("log")
             ax.xaxis.set_minor_formatter(NullFormatter())  # minor labels overlap on a short log range

@@ -53,8 +53,11 @@ def refit_faces(structure: list[Tensor], faces: FaceSet) -> list[Tensor]:
     return structure
 
 
-def query_faces(structure: list[Tensor], faces: FaceSet, points: Tensor, point_batch: Tensor) -> Tensor:
+def query_faces(
+    structure: list[Tensor], faces: FaceSet, points: Tensor, point_batch: Tensor, _max_memory: int = 0
+) -> Tensor:
     """Closest face per centred point, exact, lowest index among equal squared distances."""
+    # max_memory is unused: a tree query has no pairwise intermediate.
     return _ext().face_bvh_query(structure, points.contiguous(), point_batch.contiguous(), faces.offsets.contiguous())
 
 
@@ -69,8 +72,11 @@ def refit_points(structure: list[Tensor], ref: PointSet) -> list[Tensor]:
     return structure
 
 
-def query_points(structure: list[Tensor], ref: PointSet, points: Tensor, point_batch: Tensor) -> Tensor:
+def query_points(
+    structure: list[Tensor], ref: PointSet, points: Tensor, point_batch: Tensor, _max_memory: int = 0
+) -> Tensor:
     """Nearest reference row per centred point, exact, lowest index among equal squared distances."""
+    # max_memory is unused: a tree query has no pairwise intermediate.
     return _ext().point_bvh_query(structure, points.contiguous(), point_batch.contiguous())
 
 

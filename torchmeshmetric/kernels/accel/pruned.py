@@ -18,13 +18,17 @@ the candidate pairs are evaluated in chunks of the same budget.
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import torch
 from torch import Tensor
 
 from torchmeshmetric.kernels.point_triangle import _region_candidates
 
-__all__ = ["pruned_faces", "pruned_nearest"]
+if TYPE_CHECKING:
+    from torchmeshmetric.kernels.select import FaceSet, PointSet
+
+__all__ = ["pruned_faces", "pruned_nearest", "query_faces", "query_points"]
 
 CLUSTER = 32
 """Primitives per cluster."""
@@ -173,3 +177,13 @@ def pruned_nearest(
         return (d * d).sum(-1).masked_fill(mem < 0, float("inf"))
 
     return _select(points, point_batch, ref, ref, ref_batch, ref_offsets, pair_sq, max_memory)
+
+
+def query_faces(_structure: None, faces: FaceSet, points: Tensor, point_batch: Tensor, max_memory: int) -> Tensor:
+    """:func:`pruned_faces` in the backend contract (no structure is kept: clusters are rebuilt per query)."""
+    return pruned_faces(points, point_batch, faces.verts, faces.faces, faces.batch, faces.offsets, max_memory)
+
+
+def query_points(_structure: None, ref: PointSet, points: Tensor, point_batch: Tensor, max_memory: int) -> Tensor:
+    """:func:`pruned_nearest` in the backend contract (no structure is kept)."""
+    return pruned_nearest(points, point_batch, ref.points, ref.batch, ref.offsets, max_memory)

@@ -61,8 +61,9 @@ def refit_faces(structure: Any, faces: FaceSet) -> Any:
     return _module().refit_faces(structure, faces.verts, faces.faces, faces.batch, faces.offsets)
 
 
-def query_faces(structure: Any, faces: FaceSet, points: Tensor, point_batch: Tensor) -> Tensor:
+def query_faces(structure: Any, faces: FaceSet, points: Tensor, point_batch: Tensor, _max_memory: int = 0) -> Tensor:
     """Closest face per centred point (Triton traversal), exact, lowest index on ties."""
+    # max_memory is unused: a tree query has no pairwise intermediate.
     return _module().query_faces(structure, points, point_batch, faces.offsets)
 
 
@@ -76,6 +77,7 @@ def refit_points(structure: Any, ref: PointSet) -> Any:
     return _module().refit_points(structure, ref.points, ref.batch, ref.offsets)
 
 
-def query_points(structure: Any, ref: PointSet, points: Tensor, point_batch: Tensor) -> Tensor:
+def query_points(structure: Any, ref: PointSet, points: Tensor, point_batch: Tensor, _max_memory: int = 0) -> Tensor:
     """Nearest reference row per centred point (Triton traversal), exact, lowest index on ties."""
+    # max_memory is unused: a tree query has no pairwise intermediate.
     return _module().query_points(structure, points, point_batch, ref.offsets)

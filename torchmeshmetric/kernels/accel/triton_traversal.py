@@ -57,8 +57,6 @@ __all__ = [
     "query_points",
     "refit_faces",
     "refit_points",
-    "triton_faces",
-    "triton_nearest",
 ]
 
 LEAF_FACES = 4
@@ -94,15 +92,21 @@ def _jit(fn: Any) -> Any:
 
 
 @_jit
+def _load3(ptr, mask):  # type: ignore[no-untyped-def]
+    """The three values at ``ptr``, ``ptr + 1``, ``ptr + 2`` (0 where masked off)."""
+    return (
+        tl.load(ptr, mask=mask, other=0.0),
+        tl.load(ptr + 1, mask=mask, other=0.0),
+        tl.load(ptr + 2, mask=mask, other=0.0),
+    )
+
+
+@_jit
 def _box_sq(nodes_ptr, row, mask, px, py, pz):  # type: ignore[no-untyped-def]
     """Squared distance from the query to the box of node ``row`` and whether the box is non-empty."""
     r = nodes_ptr + 6 * row
-    lx = tl.load(r, mask=mask, other=0.0)
-    ly = tl.load(r + 1, mask=mask, other=0.0)
-    lz = tl.load(r + 2, mask=mask, other=0.0)
-    hx = tl.load(r + 3, mask=mask, other=0.0)
-    hy = tl.load(r + 4, mask=mask, other=0.0)
-    hz = tl.load(r + 5, mask=mask, other=0.0)
+    lx, ly, lz = _load3(r, mask)
+    hx, hy, hz = _load3(r + 3, mask)
     ex = tl.maximum(tl.maximum(lx - px, 0.0), px - hx)
     ey = tl.maximum(tl.maximum(ly - py, 0.0), py - hy)
     ez = tl.maximum(tl.maximum(lz - pz, 0.0), pz - hz)
@@ -134,18 +138,10 @@ def _traversal_step(  # type: ignore[no-untyped-def]
     # Deepest pending depth h = floor(log2(trail)), by binary search (integer only).
     h = tl.zeros_like(dep)
     t = trail
-    s = (t >= 65536).to(tl.int32) * 16
-    h += s
-    t = t >> s
-    s = (t >= 256).to(tl.int32) * 8
-    h += s
-    t = t >> s
-    s = (t >= 16).to(tl.int32) * 4
-    h += s
-    t = t >> s
-    s = (t >= 4).to(tl.int32) * 2
-    h += s
-    t = t >> s
+    for k in tl.static_range(4):  # unrolled at compile time: halves of 16, 8, 4 and 2 bits
+        s = (t >= (1 << (16 >> k))).to(tl.int32) * (16 >> k)
+        h += s
+        t = t >> s
     h += (t >= 2).to(tl.int32)
     jump = active & (descend == 0) & (trail != 0)
     sibling = (node >> (dep - h).to(tl.int64)) ^ 1
@@ -160,27 +156,13 @@ def _traversal_step(  # type: ignore[no-untyped-def]
 @_jit
 def _tri_sq_dist(f, m, qx, qy, qz, IS_F64: tl.constexpr):  # type: ignore[no-untyped-def]
     """Squared distance from the query to the face record at ``f``: the operations of ``_region_candidates``."""
-    ax = tl.load(f, mask=m, other=0.0)
-    ay = tl.load(f + 1, mask=m, other=0.0)
-    az = tl.load(f + 2, mask=m, other=0.0)
-    bx = tl.load(f + 3, mask=m, other=0.0)
-    by = tl.load(f + 4, mask=m, other=0.0)
-    bz = tl.load(f + 5, mask=m, other=0.0)
-    abx = tl.load(f + 6, mask=m, other=0.0)
-    aby = tl.load(f + 7, mask=m, other=0.0)
-    abz = tl.load(f + 8, mask=m, other=0.0)
-    acx = tl.load(f + 9, mask=m, other=0.0)
-    acy = tl.load(f + 10, mask=m, other=0.0)
-    acz = tl.load(f + 11, mask=m, other=0.0)
-    bcx = tl.load(f + 12, mask=m, other=0.0)
-    bcy = tl.load(f + 13, mask=m, other=0.0)
-    bcz = tl.load(f + 14, mask=m, other=0.0)
-    nx = tl.load(f + 15, mask=m, other=0.0)
-    ny = tl.load(f + 16, mask=m, other=0.0)
-    nz = tl.load(f + 17, mask=m, other=0.0)
-    nn = tl.load(f + 18, mask=m, other=0.0)
-    abab = tl.load(f + 19, mask=m, other=0.0)
-    acac = tl.load(f + 20, mask=m, other=0.0)
+    ax, ay, az = _load3(f, m)
+    bx, by, bz = _load3(f + 3, m)
+    abx, aby, abz = _load3(f + 6, m)
+    acx, acy, acz = _load3(f + 9, m)
+    bcx, bcy, bcz = _load3(f + 12, m)
+    nx, ny, nz = _load3(f + 15, m)
+    nn, abab, acac = _load3(f + 18, m)
     bcbc = tl.load(f + 21, mask=m, other=0.0)
     apx = qx - ax
     apy = qy - ay
@@ -236,12 +218,34 @@ def _tri_sq_dist(f, m, qx, qy, qz, IS_F64: tl.constexpr):  # type: ignore[no-unt
 
 
 @_jit
-def _closest_face_kernel(  # type: ignore[no-untyped-def]
+def _point_sq_dist(r, m, qx, qy, qz):  # type: ignore[no-untyped-def]
+    """Squared distance from the query to the reference point at ``r``: ``(dx*dx + dy*dy) + dz*dz``."""
+    rx, ry, rz = _load3(r, m)
+    dx = qx - rx
+    dy = qy - ry
+    dz = qz - rz
+    return dx * dx + dy * dy + dz * dz
+
+
+@_jit
+def _slot_sq_dist(  # type: ignore[no-untyped-def]
+    data_ptr, slot, m, qx, qy, qz, IS_FACE: tl.constexpr, IS_F64: tl.constexpr
+):
+    """Squared distance from the query to the primitive record of ``slot`` (a face or a reference point)."""
+    if IS_FACE:
+        sq = _tri_sq_dist(data_ptr + _FACE_FIELDS * slot, m, qx, qy, qz, IS_F64)
+    else:
+        sq = _point_sq_dist(data_ptr + 3 * slot, m, qx, qy, qz)
+    return sq
+
+
+@_jit
+def _selection_kernel(  # type: ignore[no-untyped-def]
     pts_ptr,
     order_ptr,
     qitem_ptr,
     nodes_ptr,
-    fdata_ptr,
+    data_ptr,
     prims_ptr,
     node_base_ptr,
     slot_base_ptr,
@@ -255,7 +259,12 @@ def _closest_face_kernel(  # type: ignore[no-untyped-def]
     BLOCK: tl.constexpr,
     IS_F64: tl.constexpr,
     LEAF_VECTOR: tl.constexpr,
+    IS_FACE: tl.constexpr,
 ):
+    """Per query, the primitive (``IS_FACE``: face, else reference point) of least computed squared distance.
+
+    ``data_ptr`` holds one record per leaf slot: the face fields of :func:`_face_records` or the point.
+    """
     lane = tl.program_id(0).to(tl.int64) * BLOCK + tl.arange(0, BLOCK)
     valid = lane < num_queries
     q = tl.load(order_ptr + lane, mask=valid, other=0)
@@ -270,7 +279,7 @@ def _closest_face_kernel(  # type: ignore[no-untyped-def]
     best_idx = tl.load(first_ptr + item, mask=valid, other=0)
     factor = tl.load(factor_ptr)  # 1 + 64 eps in the working dtype
     inf = px * 0.0 + float("inf")
-    best = inf
+    best = inf  # squared distance of the best primitive, the comparison key
     bound = inf
     node = tl.full([BLOCK], 1, tl.int64)
     dep = tl.zeros([BLOCK], tl.int32)
@@ -282,27 +291,28 @@ def _closest_face_kernel(  # type: ignore[no-untyped-def]
         bd, full = _box_sq(nodes_ptr, nbase + node, active & check, px, py, pz)
         alive = active & ((check == 0) | ((bd <= bound) & full))
         is_leaf = alive & (dep == dmax)
-        # Leaf: exact squared distance to each face; lexicographic minimum of (squared distance, face index).
+        # Leaf: exact squared distance to each primitive; lexicographic minimum of (squared distance, index).
         first_slot = sbase + (node - (tl.full([BLOCK], 1, tl.int64) << dmax.to(tl.int64))) * LEAF
-        if LEAF_VECTOR:  # all faces of the leaf at once, (BLOCK, LEAF): fewer operations in the interpreter
+        if LEAF_VECTOR:  # all primitives of the leaf at once, (BLOCK, LEAF): fewer operations in the interpreter
             slot = first_slot[:, None] + tl.arange(0, LEAF)[None, :]
-            fid = tl.load(prims_ptr + slot, mask=is_leaf[:, None], other=-1)
-            m = is_leaf[:, None] & (fid >= 0)
-            sq = _tri_sq_dist(fdata_ptr + _FACE_FIELDS * slot, m, px[:, None], py[:, None], pz[:, None], IS_F64)
+            pid = tl.load(prims_ptr + slot, mask=is_leaf[:, None], other=-1)
+            m = is_leaf[:, None] & (pid >= 0)
+            sq = _slot_sq_dist(data_ptr, slot, m, px[:, None], py[:, None], pz[:, None], IS_FACE, IS_F64)
             sq = tl.where(m, sq, float("inf"))
             leaf_sq = tl.min(sq, axis=1)
-            leaf_id = tl.min(tl.where(m & (sq == leaf_sq[:, None]), fid, _NO_INDEX), axis=1)
+            leaf_id = tl.min(tl.where(m & (sq == leaf_sq[:, None]), pid, _NO_INDEX), axis=1)
             better = (leaf_sq < best) | ((leaf_sq == best) & (leaf_id < best_idx))
             best = tl.where(better, leaf_sq, best)
             best_idx = tl.where(better, leaf_id, best_idx)
-        else:  # one face after the other, (BLOCK,): no layout conversion, fewer registers on a GPU
+        else:  # one primitive after the other, (BLOCK,): no layout conversion, fewer registers on a GPU
             for j in range(LEAF):  # a loop, not unrolled: half the registers on a GPU
-                fid = tl.load(prims_ptr + first_slot + j, mask=is_leaf, other=-1)
-                m = is_leaf & (fid >= 0)
-                sq = _tri_sq_dist(fdata_ptr + _FACE_FIELDS * (first_slot + j), m, px, py, pz, IS_F64)
-                better = m & ((sq < best) | ((sq == best) & (fid < best_idx)))
+                slot = first_slot + j
+                pid = tl.load(prims_ptr + slot, mask=is_leaf, other=-1)
+                m = is_leaf & (pid >= 0)
+                sq = _slot_sq_dist(data_ptr, slot, m, px, py, pz, IS_FACE, IS_F64)
+                better = m & ((sq < best) | ((sq == best) & (pid < best_idx)))
                 best = tl.where(better, sq, best)
-                best_idx = tl.where(better, fid, best_idx)
+                best_idx = tl.where(better, pid, best_idx)
         # Certified pruning bound (prune_bound in bvh.cpp).
         root = tl.sqrt(best) if IS_F64 else tl.sqrt_rn(best)
         r = root * factor + slack
@@ -313,93 +323,7 @@ def _closest_face_kernel(  # type: ignore[no-untyped-def]
     tl.store(out_ptr + q, best_idx, mask=valid)
 
 
-@_jit
-def _nearest_point_kernel(  # type: ignore[no-untyped-def]
-    pts_ptr,
-    order_ptr,
-    qitem_ptr,
-    nodes_ptr,
-    ref_ptr,
-    prims_ptr,
-    node_base_ptr,
-    slot_base_ptr,
-    depth_ptr,
-    slack_ptr,
-    first_ptr,
-    factor_ptr,
-    out_ptr,
-    num_queries,
-    LEAF: tl.constexpr,
-    BLOCK: tl.constexpr,
-    IS_F64: tl.constexpr,
-    LEAF_VECTOR: tl.constexpr,
-):
-    lane = tl.program_id(0).to(tl.int64) * BLOCK + tl.arange(0, BLOCK)
-    valid = lane < num_queries
-    q = tl.load(order_ptr + lane, mask=valid, other=0)
-    px = tl.load(pts_ptr + 3 * q, mask=valid, other=0.0)
-    py = tl.load(pts_ptr + 3 * q + 1, mask=valid, other=0.0)
-    pz = tl.load(pts_ptr + 3 * q + 2, mask=valid, other=0.0)
-    item = tl.load(qitem_ptr + q, mask=valid, other=0)
-    nbase = tl.load(node_base_ptr + item, mask=valid, other=0)
-    sbase = tl.load(slot_base_ptr + item, mask=valid, other=0)
-    dmax = tl.load(depth_ptr + item, mask=valid, other=0).to(tl.int32)
-    slack = tl.load(slack_ptr + item, mask=valid, other=0.0)
-    best_idx = tl.load(first_ptr + item, mask=valid, other=0)
-    factor = tl.load(factor_ptr)
-    inf = px * 0.0 + float("inf")
-    best_sq = inf  # squared distance of the best point, the comparison key
-    bound = inf
-    node = tl.full([BLOCK], 1, tl.int64)
-    dep = tl.zeros([BLOCK], tl.int32)
-    trail = tl.zeros([BLOCK], tl.int32)
-    check = valid
-    active = valid
-    while tl.max(active.to(tl.int32), axis=0) > 0:
-        bd, full = _box_sq(nodes_ptr, nbase + node, active & check, px, py, pz)
-        alive = active & ((check == 0) | ((bd <= bound) & full))
-        is_leaf = alive & (dep == dmax)
-        # Leaf: lexicographic minimum of (squared distance, index), as the brute force.
-        first_slot = sbase + (node - (tl.full([BLOCK], 1, tl.int64) << dmax.to(tl.int64))) * LEAF
-        if LEAF_VECTOR:
-            slot = first_slot[:, None] + tl.arange(0, LEAF)[None, :]
-            rid = tl.load(prims_ptr + slot, mask=is_leaf[:, None], other=-1)
-            m = is_leaf[:, None] & (rid >= 0)
-            dx = px[:, None] - tl.load(ref_ptr + 3 * slot, mask=m, other=0.0)
-            dy = py[:, None] - tl.load(ref_ptr + 3 * slot + 1, mask=m, other=0.0)
-            dz = pz[:, None] - tl.load(ref_ptr + 3 * slot + 2, mask=m, other=0.0)
-            sq = dx * dx + dy * dy + dz * dz
-            sq = tl.where(m, sq, float("inf"))
-            leaf_sq = tl.min(sq, axis=1)
-            leaf_id = tl.min(tl.where(m & (sq == leaf_sq[:, None]), rid, _NO_INDEX), axis=1)
-            better = (leaf_sq < best_sq) | ((leaf_sq == best_sq) & (leaf_id < best_idx))
-            best_sq = tl.where(better, leaf_sq, best_sq)
-            best_idx = tl.where(better, leaf_id, best_idx)
-        else:
-            for j in range(LEAF):  # a loop, not unrolled: half the registers on a GPU
-                slot = first_slot + j
-                rid = tl.load(prims_ptr + slot, mask=is_leaf, other=-1)
-                m = is_leaf & (rid >= 0)
-                dx = px - tl.load(ref_ptr + 3 * slot, mask=m, other=0.0)
-                dy = py - tl.load(ref_ptr + 3 * slot + 1, mask=m, other=0.0)
-                dz = pz - tl.load(ref_ptr + 3 * slot + 2, mask=m, other=0.0)
-                sq = dx * dx + dy * dy + dz * dz
-                better = m & ((sq < best_sq) | ((sq == best_sq) & (rid < best_idx)))
-                best_sq = tl.where(better, sq, best_sq)
-                best_idx = tl.where(better, rid, best_idx)
-        # Certified pruning bound (prune_bound in bvh.cpp).
-        root = tl.sqrt(best_sq) if IS_F64 else tl.sqrt_rn(best_sq)
-        r = root * factor + slack
-        bound = tl.where(best_sq < inf, r * r, best_sq)
-        node, dep, trail, check, active = _traversal_step(
-            nodes_ptr, nbase, node, dep, trail, check, active, alive & (dep < dmax), bound, px, py, pz
-        )
-    tl.store(out_ptr + q, best_idx, mask=valid)
-
-
 # ----------------------------------------------------------------------------------------------- launching
-
-_KERNELS: dict[str, Any] = {"face": _closest_face_kernel, "nearest": _nearest_point_kernel}
 
 
 def interpreting() -> bool:
@@ -465,9 +389,8 @@ def _launch(
     one_plus = 1.0 + _SLACK_ULPS * torch.finfo(points.dtype).eps
     factor = torch.full((1,), one_plus, dtype=points.dtype, device=points.device)
     block = BLOCK_INTERPRETED if interpret else BLOCK_GPU
-    kernel = _KERNELS[name]
     grid = (triton.cdiv(num_p, block),)
-    kernel[grid](
+    _selection_kernel[grid](
         points.contiguous(),
         order,
         point_batch.long().contiguous(),
@@ -486,6 +409,7 @@ def _launch(
         BLOCK=block,
         IS_F64=points.dtype == torch.float64,
         LEAF_VECTOR=LEAF_VECTOR_INTERPRETED if interpret else LEAF_VECTOR_GPU,
+        IS_FACE=name == "face",
         num_warps=1,
         enable_fp_fusion=False,
     )
@@ -510,9 +434,16 @@ def _face_records(verts: Tensor, faces: Tensor) -> tuple[Tensor, Tensor, Tensor]
     return tri.amin(1), tri.amax(1), data
 
 
-def _slot_records(tree: ImplicitBVH, data: Tensor) -> Tensor:
+def _kept(tree: ImplicitBVH, lo: Tensor, hi: Tensor, batch: Tensor, offsets: Tensor, data: Tensor) -> TritonStructure:
+    """The structure of ``tree`` over primitives with boxes ``lo``/``hi`` and per-primitive records ``data``."""
     real = tree.prims >= 0
-    return torch.where(real[:, None], data[tree.prims.clamp_min(0)], torch.zeros_like(data[:1]))
+    slots = torch.where(real[:, None], data[tree.prims.clamp_min(0)], torch.zeros_like(data[:1]))
+    return TritonStructure(tree, slots, _item_slack(lo, hi, batch, offsets.numel() - 1))
+
+
+def _query(kind: str, structure: TritonStructure, points: Tensor, point_batch: Tensor, offsets: Tensor) -> Tensor:
+    interpret = _mode(points)
+    return _launch(kind, points, point_batch, structure.tree, structure.data, structure.slack, offsets[:-1], interpret)
 
 
 def build_faces(verts: Tensor, faces: Tensor, face_batch: Tensor, face_offsets: Tensor) -> TritonStructure:
@@ -525,8 +456,7 @@ def build_faces(verts: Tensor, faces: Tensor, face_batch: Tensor, face_offsets: 
     _mode(verts)
     lo, hi, data = _face_records(verts, faces)
     tree = build_implicit_bvh(lo, hi, face_batch, face_offsets, LEAF_FACES)
-    slack = _item_slack(lo, hi, face_batch, face_offsets.numel() - 1)
-    return TritonStructure(tree, _slot_records(tree, data), slack)
+    return _kept(tree, lo, hi, face_batch, face_offsets, data)
 
 
 def refit_faces(
@@ -534,73 +464,26 @@ def refit_faces(
 ) -> TritonStructure:
     """The same tree with boxes, records and slack of moved vertices (no new Morton order)."""
     lo, hi, data = _face_records(verts, faces)
-    tree = refit_implicit_bvh(structure.tree, lo, hi)
-    slack = _item_slack(lo, hi, face_batch, face_offsets.numel() - 1)
-    return TritonStructure(tree, _slot_records(tree, data), slack)
+    return _kept(refit_implicit_bvh(structure.tree, lo, hi), lo, hi, face_batch, face_offsets, data)
 
 
 def query_faces(structure: TritonStructure, points: Tensor, point_batch: Tensor, face_offsets: Tensor) -> Tensor:
     """Closest face per centred point through a kept structure, exact, lowest index on ties."""
-    interpret = _mode(points)
-    return _launch(
-        "face", points, point_batch, structure.tree, structure.data, structure.slack, face_offsets[:-1], interpret
-    )
+    return _query("face", structure, points, point_batch, face_offsets)
 
 
 def build_points(ref: Tensor, ref_batch: Tensor, ref_offsets: Tensor) -> TritonStructure:
     """Kept point structure of centred reference points."""
     _mode(ref)
     tree = build_implicit_bvh(ref, ref, ref_batch, ref_offsets, LEAF_POINTS)
-    slack = _item_slack(ref, ref, ref_batch, ref_offsets.numel() - 1)
-    return TritonStructure(tree, _slot_records(tree, ref), slack)
+    return _kept(tree, ref, ref, ref_batch, ref_offsets, ref)
 
 
 def refit_points(structure: TritonStructure, ref: Tensor, ref_batch: Tensor, ref_offsets: Tensor) -> TritonStructure:
     """The same tree with boxes, slot points and slack of moved reference points."""
-    tree = refit_implicit_bvh(structure.tree, ref, ref)
-    slack = _item_slack(ref, ref, ref_batch, ref_offsets.numel() - 1)
-    return TritonStructure(tree, _slot_records(tree, ref), slack)
+    return _kept(refit_implicit_bvh(structure.tree, ref, ref), ref, ref, ref_batch, ref_offsets, ref)
 
 
 def query_points(structure: TritonStructure, points: Tensor, point_batch: Tensor, ref_offsets: Tensor) -> Tensor:
     """Nearest reference row per centred point through a kept structure, exact, lowest index on ties."""
-    interpret = _mode(points)
-    return _launch(
-        "nearest", points, point_batch, structure.tree, structure.data, structure.slack, ref_offsets[:-1], interpret
-    )
-
-
-def triton_faces(
-    points: Tensor,
-    point_batch: Tensor,
-    verts: Tensor,
-    faces: Tensor,
-    face_batch: Tensor,
-    face_offsets: Tensor,
-    max_memory: int,
-) -> Tensor:
-    """Closest face per point (one-off: build, then query), exact, lowest index on ties.
-
-    Memory is ``O(points + faces)`` whatever ``max_memory`` (no pairwise intermediate exists).
-
-    Raises:
-        DeviceError: on non-CUDA tensors unless ``TRITON_INTERPRET=1``.
-        DTypeError: for dtypes other than float32 / float64.
-    """
-    _mode(points)
-    return query_faces(build_faces(verts, faces, face_batch, face_offsets), points, point_batch, face_offsets)
-
-
-def triton_nearest(
-    points: Tensor, point_batch: Tensor, ref: Tensor, ref_batch: Tensor, ref_offsets: Tensor, max_memory: int
-) -> Tensor:
-    """Nearest reference point per point (one-off: build, then query), exact.
-
-    Selects by the computed squared distance, lowest index among equal squares, like the brute force.
-
-    Raises:
-        DeviceError: on non-CUDA tensors unless ``TRITON_INTERPRET=1``.
-        DTypeError: for dtypes other than float32 / float64.
-    """
-    _mode(points)
-    return query_points(build_points(ref, ref_batch, ref_offsets), points, point_batch, ref_offsets)
+    return _query("nearest", structure, points, point_batch, ref_offsets)
