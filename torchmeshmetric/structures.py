@@ -42,7 +42,25 @@ __all__ = [
     "lengths_to_offsets",
     "pack_meshes",
     "pack_points",
+    "vertex_set_mask",
 ]
+
+
+def vertex_set_mask(faces: Tensor, num_verts: int) -> Tensor:
+    """``(V,)`` bool: the vertices some face references, the paper's vertex set (Eq. 3).
+
+    Args:
+        faces: ``(F, 3)`` int64 vertex indices (possibly of a packed batch).
+        num_verts: ``V``, the number of vertices the indices refer to.
+
+    Example:
+        >>> import torch
+        >>> vertex_set_mask(torch.tensor([[0, 1, 2]]), 4).tolist()
+        [True, True, True, False]
+    """
+    used = torch.zeros(num_verts, dtype=torch.bool, device=faces.device)
+    used[faces.reshape(-1)] = True
+    return used
 
 
 @dataclass(frozen=True, eq=False)
@@ -194,13 +212,7 @@ class Mesh:
 
     def referenced_vertex_mask(self) -> Tensor:
         """``(V,)`` bool: the vertices referenced by at least one face (the paper's vertex set, Eq. 3)."""
-
-        def compute() -> Tensor:
-            used = torch.zeros(self.num_verts, dtype=torch.bool, device=self.device)
-            used[self.faces.reshape(-1)] = True
-            return used
-
-        return self._cached("referenced_vertex_mask", compute)
+        return self._cached("referenced_vertex_mask", lambda: vertex_set_mask(self.faces, self.num_verts))
 
     def to_trimesh(self) -> trimesh.Trimesh:
         """Convert to a ``trimesh.Trimesh`` (``process=False`` keeps vertex order)."""

@@ -9,7 +9,7 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric._checks import EmptyInputError
-from torchmeshmetric.structures import MeshLike, as_mesh, batch_index, lengths_to_offsets, pack_meshes
+from torchmeshmetric.structures import MeshLike, as_mesh, batch_index, lengths_to_offsets, pack_meshes, vertex_set_mask
 
 __all__ = ["SurfaceSamples", "sample_surface", "vertex_set", "vertex_set_mask"]
 
@@ -98,19 +98,6 @@ def sample_surface(
     t = tri[face_idx]
     points = (bary[:, :, None] * t).sum(1)
     return SurfaceSamples(points, face_idx, bary, counts)
-
-
-def vertex_set_mask(faces: Tensor, num_verts: int) -> Tensor:
-    """``(V,)`` bool: the vertices some face references, the paper's vertex set (Eq. 3) of :func:`vertex_set`.
-
-    Example:
-        >>> import torch
-        >>> vertex_set_mask(torch.tensor([[0, 1, 2]]), 4).tolist()
-        [True, True, True, False]
-    """
-    used = torch.zeros(num_verts, dtype=torch.bool, device=faces.device)
-    used[faces.reshape(-1)] = True
-    return used
 
 
 def vertex_set(mesh: MeshLike, *, referenced_only: bool = True) -> Tensor:
