@@ -69,6 +69,20 @@ inline void union_children(Node<T>* nodes, int64_t node) {
   }
 }
 
+// A leaf over the primitives [begin, begin + n) with the given bounds.
+template <typename T>
+inline int64_t set_leaf(std::vector<Node<T>>& nodes, int64_t node, int64_t begin, int64_t n, const T* lo, const T* hi) {
+  Node<T>& nd = nodes[node];
+  nd.start = begin;
+  nd.count = n;
+  nd.right = -1;
+  for (int k = 0; k < 3; ++k) {
+    nd.lo[k] = lo[k];
+    nd.hi[k] = hi[k];
+  }
+  return node;
+}
+
 // An inner node over [begin, begin + n) whose children are built (left = node + 1, right): its range and bounds.
 template <typename T>
 inline int64_t finish_inner(std::vector<Node<T>>& nodes, int64_t node, int64_t begin, int64_t n, int64_t right) {
@@ -174,22 +188,16 @@ int64_t build_node(std::vector<Node<T>>& nodes, const uint32_t* code, int64_t ba
   nodes.emplace_back();
   const int64_t n = end - begin;
   if (n <= leaf) {
-    Node<T>& nd = nodes[node];
-    nd.start = begin;
-    nd.count = n;
-    nd.right = -1;
-    for (int k = 0; k < 3; ++k) {
-      nd.lo[k] = std::numeric_limits<T>::infinity();
-      nd.hi[k] = -std::numeric_limits<T>::infinity();
-    }
+    constexpr T inf = std::numeric_limits<T>::infinity();
+    T lo[3] = {inf, inf, inf}, hi[3] = {-inf, -inf, -inf};
     for (int64_t i = begin; i < end; ++i) {
       const int64_t p = perm != nullptr ? perm[i] : i;
       for (int k = 0; k < 3; ++k) {
-        nd.lo[k] = std::min(nd.lo[k], box_lo[3 * p + k]);
-        nd.hi[k] = std::max(nd.hi[k], box_hi[3 * p + k]);
+        lo[k] = std::min(lo[k], box_lo[3 * p + k]);
+        hi[k] = std::max(hi[k], box_hi[3 * p + k]);
       }
     }
-    return node;
+    return set_leaf(nodes, node, begin, n, lo, hi);
   }
   int64_t mid = begin + n / 2;
   const uint32_t diff = code[begin - base] ^ code[end - 1 - base];
@@ -276,17 +284,7 @@ int64_t build_sah_node(std::vector<Node<T>>& nodes, int64_t* idx, int64_t begin,
       chi[k] = std::max(chi[k], cen[3 * f + k]);
     }
   }
-  if (n <= leaf) {
-    Node<T>& nd = nodes[node];
-    nd.start = begin;
-    nd.count = n;
-    nd.right = -1;
-    for (int k = 0; k < 3; ++k) {
-      nd.lo[k] = lo[k];
-      nd.hi[k] = hi[k];
-    }
-    return node;
-  }
+  if (n <= leaf) return set_leaf(nodes, node, begin, n, lo, hi);
   int best_axis = -1, best_split = 0;
   T best_cost = inf;
   if (depth < SAH_MAX_DEPTH) {
