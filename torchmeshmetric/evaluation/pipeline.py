@@ -200,22 +200,9 @@ def _distance_sets(
         ref_points = [ref_index.ref_points.points]
         # The metrics' trusted entries: the meshes are validated and their vertex sets taken once, here.
         surface = _surface_distance_sets(
-            points,
-            [mesh],
-            ref_points if two_sided else None,
-            [simplified],
-            backend=backend,
-            reference_index=ref_index,
-            simplified_index=simp_index,
+            points, [mesh], ref_points if two_sided else None, [simplified], ref_index, simp_index, backend
         )
-        vertex = _vertex_distance_sets(
-            points,
-            ref_points,
-            two_sided=two_sided,
-            backend=backend,
-            reference_index=ref_index,
-            simplified_index=simp_index,
-        )
+        vertex = _vertex_distance_sets(points, ref_points, two_sided, ref_index, simp_index, backend)
         for kind, (to_reference, from_reference) in (("surface", surface), ("vertex", vertex)):
             forward[f"{kind}_{name}"] = to_reference
             if from_reference is not None:
@@ -449,6 +436,14 @@ def evaluate_sequence(
     _check_sequence(original_frames, simplified_frames, precomputed_registrations)
     if registration_cache is None:
         registration_cache = RegistrationCache(registration_cache_dir)
+    # What every frame pair is evaluated with, here or on the ranks.
+    pair_options: dict[str, Any] = {
+        "two_sided": two_sided,
+        "device": device,
+        "registration_fn": registration_fn,
+        "registration_options": registration_options,
+        "backend": backend,
+    }
     if distributed:
         # Imported here: the distributed module evaluates each frame pair with this function (a genuine cycle).
         from torchmeshmetric.evaluation.distributed import SequenceWork, evaluate_sequences
@@ -462,11 +457,7 @@ def evaluate_sequence(
             precomputed_registrations=[precomputed_registrations],
             to=None,
             progress=progress,
-            two_sided=two_sided,
-            device=device,
-            registration_fn=registration_fn,
-            registration_options=registration_options,
-            backend=backend,
+            **pair_options,
         )
         assert shared is not None  # every rank receives the result (to=None)
         return shared[0][""]
@@ -486,14 +477,10 @@ def evaluate_sequence(
                 original_frames[k],
                 original_frames[k - 1],
                 precomputed_registration=given[k - 1],
-                two_sided=two_sided,
-                device=device,
-                registration_fn=registration_fn,
-                registration_options=registration_options,
                 registration_cache=registration_cache,
                 frame=k,
-                backend=backend,
                 indexes=indexes,
+                **pair_options,
                 simplified_k_minus_1=simplified_frames[k - 1],
                 true_registration=truth,
             )

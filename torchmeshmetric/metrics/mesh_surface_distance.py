@@ -81,19 +81,18 @@ def _surface_distance_sets(
     references: list[Mesh],
     reference_points: list[Tensor] | None,
     simplified_meshes: list[Mesh] | None,
-    *,
+    reference_index: MeshIndex | None,
+    simplified_index: MeshIndex | None,
+    backend: str,
     surface_samples: int | None = None,
     seed: int = 0,
-    backend: str = "auto",
     indexes: IndexCache | None = None,
-    reference_index: MeshIndex | None = None,
-    simplified_index: MeshIndex | None = None,
 ) -> tuple[Tensor, Tensor | None]:
     """The packed ``(forward, reverse)`` sets of :func:`mesh_surface_distance_sets` (trusted: nothing re-checked).
 
     ``points``: each item's query points (its vertex set); ``reference_points``: each reference's vertex set, and
-    ``simplified_meshes``: the items' meshes, both ``None`` for one-sided sets; indexes, if given, are those of
-    ``references`` and ``simplified_meshes``.
+    ``simplified_meshes``: the items' meshes, both ``None`` for one-sided sets; the indexes (``None``: none at
+    hand), if given, are those of ``references`` and ``simplified_meshes``.
     """
     forward = _to_surface(points, references, surface_samples, seed, backend, reference_index, indexes)
     if reference_points is None or simplified_meshes is None:
@@ -197,12 +196,12 @@ def mesh_surface_distance_sets(
         refs,
         ref_points,
         simp_meshes,
-        surface_samples=surface_samples,
-        seed=seed,
-        backend=backend,
-        indexes=indexes,
-        reference_index=reference_index,
-        simplified_index=simplified_index,
+        reference_index,
+        simplified_index,
+        backend,
+        surface_samples,
+        seed,
+        indexes,
     )
     peak = torch.stack([m.bbox_diagonal().detach().to(torch.float64) for m in refs])
     reverse_lengths = None if ref_points is None else lengths_of(ref_points)

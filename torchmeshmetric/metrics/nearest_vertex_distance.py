@@ -28,8 +28,8 @@ class NearestVertexOptions(TypedDict, total=False):
     """
 
     two_sided: bool
-    detach_reference: bool
     backend: str
+    detach_reference: bool
     indexes: IndexCache | None
     reference_index: MeshIndex | None
     simplified_index: MeshIndex | None
@@ -72,18 +72,18 @@ def _bbox_diagonal(p: Tensor) -> Tensor:
 def _vertex_distance_sets(
     points: list[Tensor],
     refs: list[Tensor],
-    *,
-    two_sided: bool = False,
-    backend: str = "auto",
+    two_sided: bool,
+    reference_index: MeshIndex | None,
+    simplified_index: MeshIndex | None,
+    backend: str,
     ref_meshes: list[Mesh] | None = None,
     indexes: IndexCache | None = None,
-    reference_index: MeshIndex | None = None,
-    simplified_index: MeshIndex | None = None,
 ) -> tuple[Tensor, Tensor | None]:
     """The packed ``(forward, reverse)`` sets of :func:`nearest_vertex_distance_sets` (trusted: nothing re-checked).
 
-    ``points`` and ``refs``: each item's simplified and reference point sets; ``ref_meshes``: the references'
-    meshes (``None`` when some reference is a point set); indexes, if given, are those of the meshes of the points.
+    ``points`` and ``refs``: each item's simplified and reference point sets; the indexes (``None``: none at
+    hand), if given, are those of the meshes of ``refs`` and ``points``; ``ref_meshes``: the references' meshes
+    (``None`` when some reference is a point set), looked up in ``indexes`` when ``reference_index`` is ``None``.
     """
     forward = _cloud_to_cloud(points, refs, backend, reference_index, indexes, ref_meshes)
     if not two_sided:
@@ -98,8 +98,8 @@ def nearest_vertex_distance_sets(
     reference: Any,
     *,
     two_sided: bool = False,
-    detach_reference: bool = True,
     backend: str = "auto",
+    detach_reference: bool = True,
     indexes: IndexCache | None = None,
     reference_index: MeshIndex | None = None,
     simplified_index: MeshIndex | None = None,
@@ -122,9 +122,9 @@ def nearest_vertex_distance_sets(
         simplified: a mesh-like, a ``(P, 3)`` point set, or a list of them (ragged batch).
         reference: a mesh-like (its vertex set is used) or a ``(R, 3)`` point set, or a list, one per item.
         two_sided: also measure reference → simplified.
+        backend: kernel backend of the distances computed without an index.
         detach_reference: cut the gradient to the reference points (default); ``False`` lets it flow (to the
             vertices ``reference_index`` was built from, when given).
-        backend: kernel backend of the distances computed without an index.
         indexes: an :class:`~torchmeshmetric.IndexCache`: the reference meshes' indexes are found again by content
             (the same entries as :func:`~torchmeshmetric.metrics.mesh_surface_distance_sets`').
         reference_index: the :class:`~torchmeshmetric.MeshIndex` of the reference meshes (the ``B`` items in order,
@@ -168,15 +168,9 @@ def nearest_vertex_distance_sets(
         reference_index = detached(reference_index)
     points = [s.points for s in sources]
     refs = [s.points.detach() if detach_reference else s.points for s in ref_sources]
+    all_meshes = len(ref_meshes) == len(ref_sources)
     forward, reverse = _vertex_distance_sets(
-        points,
-        refs,
-        two_sided=two_sided,
-        backend=backend,
-        ref_meshes=ref_meshes if len(ref_meshes) == len(ref_sources) else None,
-        indexes=indexes,
-        reference_index=reference_index,
-        simplified_index=simplified_index,
+        points, refs, two_sided, reference_index, simplified_index, backend, ref_meshes if all_meshes else None, indexes
     )
     peak = torch.stack([_bbox_diagonal(r) for r in refs])
     reverse_lengths = lengths_of(refs) if two_sided else None
