@@ -58,7 +58,12 @@ def index_of(
 
 
 def query_points(index: MeshIndex, points: Tensor, name: str) -> Tensor:
-    """``points`` in the index's dtype; an index of a narrower dtype than the points is refused, not rounded to."""
+    """``points`` ready for the index's trusted queries: on its device, in its dtype (never rounded to a narrower one).
+
+    The points themselves are the callers' validated vertex sets or point sets: they are not checked again.
+    """
+    if points.device != index.device:
+        raise DeviceError(f"{name}: expected an index on the points' device {points.device}, found {index.device}")
     if torch.promote_types(points.dtype, index.dtype) != index.dtype:
         raise DTypeError(f"{name}: expected an index of dtype {points.dtype} (that of the points), found {index.dtype}")
     return points.to(index.dtype)

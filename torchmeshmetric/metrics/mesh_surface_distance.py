@@ -20,7 +20,7 @@ from torchmeshmetric.metrics._inputs import (
     require_meshes,
 )
 from torchmeshmetric.metrics._prebuilt_index import check_index, detached, index_of, query_points
-from torchmeshmetric.metrics.directed_distances import DirectedDistances, lengths_of
+from torchmeshmetric.metrics.directed_distances import DirectedDistances, lengths_of, packed
 from torchmeshmetric.metrics.distance_states import DistanceStates
 from torchmeshmetric.metrics.distance_statistics_metric import MeasuredDistanceBase
 from torchmeshmetric.structures import Mesh
@@ -59,14 +59,13 @@ def _to_surface(
     The exact distances are queried on ``index`` (the index of ``meshes``) when given, else on the index
     ``indexes`` holds for ``meshes``, else computed by :func:`~torchmeshmetric.point_mesh_distance`.
     """
-    if sum(p.shape[0] for p in points) == 0:  # an empty update: nothing to measure
-        return torch.cat(points).new_zeros(0)
-    p = torch.cat(points)  # torch.cat promotes mixed float dtypes
+    p = packed(points)
+    if p.shape[0] == 0:  # an empty update: nothing to measure
+        return p.new_zeros(0)
     if surface_samples is None:
         index = index_of(meshes, index, indexes, p.dtype, backend)
         if index is not None:
-            p = query_points(index, p, index_name)
-            return index.point_mesh_distance(p, points_lengths=lengths_of(points)).dists
+            return index._point_mesh_distance(query_points(index, p, index_name), lengths_of(points)).dists
         return point_mesh_distance(p, meshes, points_lengths=lengths_of(points), backend=backend).dists
     gen = torch.Generator(device=meshes[0].device).manual_seed(seed)
     s = sample_surface(meshes, n=surface_samples, generator=gen)

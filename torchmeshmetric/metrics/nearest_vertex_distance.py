@@ -13,7 +13,7 @@ from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance
 from torchmeshmetric.metrics._inputs import as_point_sources
 from torchmeshmetric.metrics._prebuilt_index import check_index, detached, index_of, query_points
-from torchmeshmetric.metrics.directed_distances import DirectedDistances, lengths_of
+from torchmeshmetric.metrics.directed_distances import DirectedDistances, lengths_of, packed
 from torchmeshmetric.metrics.distance_states import DistanceStates
 from torchmeshmetric.metrics.distance_statistics_metric import MeasuredDistanceBase
 from torchmeshmetric.structures import Mesh
@@ -50,14 +50,14 @@ def _cloud_to_cloud(
     ``indexes`` holds for ``ref_meshes`` (when the references are meshes), else computed by
     :func:`~torchmeshmetric.nearest_vertex_distance`.
     """
-    p, r = torch.cat(points), torch.cat(refs)
+    p = packed(points)
     if p.shape[0] == 0:  # an empty update: nothing to measure
         return p.new_zeros(0)
     if ref_meshes is not None:
         index = index_of(ref_meshes, index, indexes, p.dtype, backend)
     if index is not None:
-        p = query_points(index, p, index_name)
-        return index.nearest_vertex_distance(p, points_lengths=lengths_of(points)).dists
+        return index._nearest_vertex_distance(query_points(index, p, index_name), lengths_of(points)).dists
+    r = packed(refs)
     dtype = torch.promote_types(p.dtype, r.dtype)
     return nearest_vertex_distance(
         p.to(dtype), r.to(dtype), points_lengths=lengths_of(points), ref_lengths=lengths_of(refs), backend=backend
