@@ -143,3 +143,24 @@ def test_a_wider_index_measures_narrower_points():
         sets = distance_sets(points, sphere, reference_index=index)
         assert sets.forward.dtype == torch.float64
         assert torch.equal(sets.forward, distance_sets(points, sphere).forward)
+
+
+@pytest.mark.parametrize("distance_sets", SETS)
+def test_gradients_reach_the_given_meshes_not_the_tensors_an_index_was_built_from(frames, distance_sets):
+    simps, refs = frames
+    simp_verts, faces = simps[1]
+    ref = as_mesh(refs[1])
+
+    def grads(indexed):
+        x = simp_verts.clone().requires_grad_(True)
+        rv = ref.verts.clone().requires_grad_(True)
+        options = {}
+        if indexed:  # indexes built from other tensors of equal values, without autograd
+            options = {"reference_index": MeshIndex(ref), "simplified_index": MeshIndex((simp_verts.clone(), faces))}
+        sets = distance_sets((x, faces), Mesh(rv, ref.faces), two_sided=True, detach_reference=False, **options)
+        (sets.forward.square().sum() + sets.reverse.square().sum()).backward()
+        return x.grad, rv.grad
+
+    for got, expected in zip(grads(indexed=True), grads(indexed=False), strict=True):
+        assert torch.equal(got, expected)
+        assert float(got.abs().sum()) > 0

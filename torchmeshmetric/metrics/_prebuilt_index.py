@@ -12,7 +12,7 @@ from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.structures import Mesh
 
-__all__ = ["check_index", "detached", "index_of", "query_points"]
+__all__ = ["bound_to", "check_index", "index_of", "query_points"]
 
 
 def check_index(index: MeshIndex | None, items: Sequence[Mesh | None], name: str) -> None:
@@ -39,11 +39,18 @@ def check_index(index: MeshIndex | None, items: Sequence[Mesh | None], name: str
         raise ValueError(f"{name}: expected an index built with referenced_only=True, found referenced_only=False")
 
 
-def detached(index: MeshIndex | None) -> MeshIndex | None:
-    """The index with its vertices cut from the autograd graph (structures shared), for ``detach_reference``."""
-    if index is None or not index.verts.requires_grad:
-        return index
-    return index._with_verts(index.verts.detach())
+def bound_to(index: MeshIndex | None, meshes: Sequence[Mesh]) -> MeshIndex | None:
+    """The index measuring with the vertices of ``meshes`` (structures shared), so gradients reach those vertices.
+
+    As without an index: the gradient flows to the vertices of the meshes given (unless they are detached), not
+    to the tensors the index happened to be built from.
+    """
+    if index is None:
+        return None
+    verts = meshes[0].verts if len(meshes) == 1 else torch.cat([m.verts for m in meshes])
+    if verts is index.verts or not (verts.requires_grad or index.verts.requires_grad):
+        return index  # equal values and no autograd graph to connect: nothing to rebind
+    return index._with_verts(verts.to(index.dtype))
 
 
 def index_of(

@@ -19,7 +19,7 @@ from torchmeshmetric.metrics._inputs import (
     check_surface_samples,
     require_meshes,
 )
-from torchmeshmetric.metrics._prebuilt_index import check_index, detached, index_of, query_points
+from torchmeshmetric.metrics._prebuilt_index import bound_to, check_index, index_of, query_points
 from torchmeshmetric.metrics.directed_distances import DirectedDistances, lengths_of, packed
 from torchmeshmetric.metrics.distance_states import DistanceStates
 from torchmeshmetric.metrics.distance_statistics_metric import MeasuredDistanceBase
@@ -141,14 +141,15 @@ def mesh_surface_distance_sets(
         two_sided: also measure reference → simplified.
         surface_samples: ``None`` (exact surface) or the number of surface samples per mesh.
         seed: seed of the surface sampling.
-        detach_reference: cut the gradient to the reference vertices (default); ``False`` lets it flow (to the
-            vertices ``reference_index`` was built from, when given).
+        detach_reference: cut the gradient to the reference vertices (default); ``False`` lets it flow.
         backend: kernel backend (``"auto"``, ``"bruteforce"``, ...) of the distances computed without an index.
         indexes: an :class:`~torchmeshmetric.IndexCache`: the references' indexes are found again by content
             (a validation or training loop over the same references builds each once).
         reference_index: the :class:`~torchmeshmetric.MeshIndex` of ``reference`` (the ``B`` items in order, their
             ``(V_b, 3)`` vertices packed), used instead of ``indexes``. Its content is not compared with
-            ``reference``: it must be built from the same meshes (or equal vertices and faces).
+            ``reference``: it must be built from the same meshes (or equal vertices and faces). Gradients
+            flow as without an index: to the vertices of ``reference`` and ``simplified``, not to the tensors an
+            index was built from.
         simplified_index: the :class:`~torchmeshmetric.MeshIndex` of the simplified meshes, for the reverse set.
 
     Returns:
@@ -187,7 +188,8 @@ def mesh_surface_distance_sets(
         simp_meshes = require_meshes(sources, "simplified", "two_sided=True measures reference → simplified surface")
     if detach_reference:
         refs = [m.detach() for m in refs]
-        reference_index = detached(reference_index)
+    reference_index = bound_to(reference_index, refs)
+    simplified_index = bound_to(simplified_index, [s.mesh for s in sources if s.mesh is not None])
     points = [s.points for s in sources]
     ref_points = [vertex_set(m) for m in refs] if two_sided else None
     forward, reverse = _surface_distance_sets(

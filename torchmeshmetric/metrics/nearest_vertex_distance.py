@@ -12,7 +12,7 @@ from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance
 from torchmeshmetric.metrics._inputs import as_point_sources
-from torchmeshmetric.metrics._prebuilt_index import check_index, detached, index_of, query_points
+from torchmeshmetric.metrics._prebuilt_index import bound_to, check_index, index_of, query_points
 from torchmeshmetric.metrics.directed_distances import DirectedDistances, lengths_of, packed
 from torchmeshmetric.metrics.distance_states import DistanceStates
 from torchmeshmetric.metrics.distance_statistics_metric import MeasuredDistanceBase
@@ -123,13 +123,14 @@ def nearest_vertex_distance_sets(
         reference: a mesh-like (its vertex set is used) or a ``(R, 3)`` point set, or a list, one per item.
         two_sided: also measure reference → simplified.
         backend: kernel backend of the distances computed without an index.
-        detach_reference: cut the gradient to the reference points (default); ``False`` lets it flow (to the
-            vertices ``reference_index`` was built from, when given).
+        detach_reference: cut the gradient to the reference points (default); ``False`` lets it flow.
         indexes: an :class:`~torchmeshmetric.IndexCache`: the reference meshes' indexes are found again by content
             (the same entries as :func:`~torchmeshmetric.metrics.mesh_surface_distance_sets`').
         reference_index: the :class:`~torchmeshmetric.MeshIndex` of the reference meshes (the ``B`` items in order,
             their ``(V_b, 3)`` vertices packed), used instead of ``indexes``. Its content is not compared with
-            ``reference``: it must be built from the same meshes (or equal vertices and faces).
+            ``reference``: it must be built from the same meshes (or equal vertices and faces). Gradients
+            flow as without an index: to the vertices of ``reference`` and ``simplified``, not to the tensors an
+            index was built from.
         simplified_index: the :class:`~torchmeshmetric.MeshIndex` of the simplified meshes, for the reverse set.
 
     Returns:
@@ -165,7 +166,8 @@ def nearest_vertex_distance_sets(
     ref_meshes = [s.mesh for s in ref_sources if s.mesh is not None]
     if detach_reference:
         ref_meshes = [m.detach() for m in ref_meshes]
-        reference_index = detached(reference_index)
+    reference_index = bound_to(reference_index, ref_meshes)
+    simplified_index = bound_to(simplified_index, [s.mesh for s in sources if s.mesh is not None])
     points = [s.points for s in sources]
     refs = [s.points.detach() if detach_reference else s.points for s in ref_sources]
     all_meshes = len(ref_meshes) == len(ref_sources)
