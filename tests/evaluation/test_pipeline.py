@@ -5,8 +5,9 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from tests.evaluation.eval_helpers import TranslationRegister, sphere
-from torchmeshmetric import Mesh, ShapeError
+from torchmeshmetric import IndexCache, Mesh, ShapeError
 from torchmeshmetric.evaluation import SET_NAMES, evaluate_pair, evaluate_sequence, mean_statistics
+from torchmeshmetric.metrics import mesh_surface_distance_sets, nearest_vertex_distance_sets
 from torchmeshmetric.stats import distance_statistics
 
 
@@ -120,3 +121,29 @@ def test_progress_reports_every_pair(moving_spheres):
         original, simplified, registration_fn=TranslationRegister(), progress=lambda k, n: calls.append((k, n))
     )
     assert calls == [(1, 3), (2, 3), (3, 3)]
+
+
+def test_sets_are_the_metrics_sets_and_each_reference_index_is_built_once(moving_spheres):
+    original, simplified = moving_spheres
+    register = TranslationRegister()
+    indexes = IndexCache(max_entries=64)
+    first = evaluate_sequence(original, simplified, registration_fn=register, indexes=indexes)
+    built = len(indexes)
+    assert 0 < built <= 2 * (len(original) - 1)  # frame k and registered frame k-1 of each pair, at most
+    assert all(index.tree == "morton" for index in indexes._entries.values())  # cheap builds: few queries each
+    other = [sphere(1, radius=0.98, offset=(0.1 * k, 0, 0)) for k in range(len(original))]  # a second method
+    evaluate_sequence(original, other, registration_fn=register, indexes=indexes)
+    assert len(indexes) == built  # the references' indexes were found again, none rebuilt
+    # The pipeline's sets are those of the metrics' functions (computed here without any index), bit for bit.
+    for k, pair in enumerate(first.pairs, start=1):
+        registered = Mesh(
+            original[k - 1].verts + torch.tensor([0.1, 0.0, 0.0], dtype=torch.float64), original[k - 1].faces
+        )
+        for name, reference in (("k", original[k]), ("k_minus_1", registered)):
+            for kind, distance_sets in (
+                ("surface", mesh_surface_distance_sets),
+                ("vertex", nearest_vertex_distance_sets),
+            ):
+                sets = distance_sets(simplified[k], reference, two_sided=True)
+                assert torch.equal(pair.distances[f"{kind}_{name}"], sets.forward)
+                assert torch.equal(pair.reverse_distances[f"{kind}_{name}"], sets.reverse)

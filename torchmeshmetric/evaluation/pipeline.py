@@ -24,6 +24,8 @@ from torchmeshmetric.evaluation.cache import CachedRegistration, RegistrationCac
 from torchmeshmetric.evaluation.flicker import FLICKER, flicker_distances
 from torchmeshmetric.evaluation.results import SET_NAMES, PairEvaluation, SequenceEvaluation
 from torchmeshmetric.kernels import IndexCache, MeshIndex, point_mesh_distance
+from torchmeshmetric.metrics.mesh_surface_distance import _surface_distance_sets
+from torchmeshmetric.metrics.nearest_vertex_distance import _vertex_distance_sets
 from torchmeshmetric.registration import NonRigidOptions, register_nonrigid
 from torchmeshmetric.registration.warp import RegistrationWarp, SurfaceWarp, Warp
 from torchmeshmetric.stats import DistanceStatistics, distance_statistics
@@ -190,17 +192,21 @@ def _distance_sets(
     # sequence: the cheap Morton build pays more than a SAH tree.
     shared = indexes if indexes is not None else IndexCache()
     simp_index = MeshIndex(simplified.verts, simplified.faces, backend=backend, tree="morton")
-    points = simp_index.ref_points.points
+    points = [simp_index.ref_points.points]
     forward: dict[str, Tensor] = {}
     reverse: dict[str, Tensor] = {}
     for name, mesh in references.items():
-        index = shared.get(mesh, backend=backend, tree="morton")
-        forward[f"surface_{name}"] = index.point_mesh_distance(points).dists
-        forward[f"vertex_{name}"] = index.nearest_vertex_distance(points).dists
-        if two_sided:
-            ref_points = index.ref_points.points
-            reverse[f"surface_{name}"] = simp_index.point_mesh_distance(ref_points).dists
-            reverse[f"vertex_{name}"] = simp_index.nearest_vertex_distance(ref_points).dists
+        ref_index = shared.get(mesh, backend=backend, tree="morton")
+        ref_points = [ref_index.ref_points.points]
+        # The metrics' trusted entries: the meshes are validated and their vertex sets taken once, here.
+        surface = _surface_distance_sets(
+            points, [mesh], ref_points if two_sided else None, [simplified], ref_index, simp_index, backend
+        )
+        vertex = _vertex_distance_sets(points, ref_points, two_sided, ref_index, simp_index, backend)
+        for kind, (to_reference, from_reference) in (("surface", surface), ("vertex", vertex)):
+            forward[f"{kind}_{name}"] = to_reference
+            if from_reference is not None:
+                reverse[f"{kind}_{name}"] = from_reference
     return forward, reverse
 
 
@@ -430,6 +436,14 @@ def evaluate_sequence(
     _check_sequence(original_frames, simplified_frames, precomputed_registrations)
     if registration_cache is None:
         registration_cache = RegistrationCache(registration_cache_dir)
+    # What every frame pair is evaluated with, here or on the ranks.
+    pair_options: dict[str, Any] = {
+        "two_sided": two_sided,
+        "device": device,
+        "registration_fn": registration_fn,
+        "registration_options": registration_options,
+        "backend": backend,
+    }
     if distributed:
         # Imported here: the distributed module evaluates each frame pair with this function (a genuine cycle).
         from torchmeshmetric.evaluation.distributed import SequenceWork, evaluate_sequences
@@ -443,11 +457,7 @@ def evaluate_sequence(
             precomputed_registrations=[precomputed_registrations],
             to=None,
             progress=progress,
-            two_sided=two_sided,
-            device=device,
-            registration_fn=registration_fn,
-            registration_options=registration_options,
-            backend=backend,
+            **pair_options,
         )
         assert shared is not None  # every rank receives the result (to=None)
         return shared[0][""]
@@ -467,14 +477,10 @@ def evaluate_sequence(
                 original_frames[k],
                 original_frames[k - 1],
                 precomputed_registration=given[k - 1],
-                two_sided=two_sided,
-                device=device,
-                registration_fn=registration_fn,
-                registration_options=registration_options,
                 registration_cache=registration_cache,
                 frame=k,
-                backend=backend,
                 indexes=indexes,
+                **pair_options,
                 simplified_k_minus_1=simplified_frames[k - 1],
                 true_registration=truth,
             )

@@ -32,3 +32,8 @@ class DirectedDistances(NamedTuple):
 def lengths_of(items: list[Tensor]) -> Tensor:
     """``(B,)`` int64 row counts of a list of tensors."""
     return torch.tensor([t.shape[0] for t in items], dtype=torch.long, device=items[0].device)
+
+
+def packed(items: list[Tensor]) -> Tensor:
+    """The rows of ``items`` in one tensor (a single item as it is: no copy; ``torch.cat`` promotes mixed dtypes)."""
+    return items[0] if len(items) == 1 else torch.cat(items)
