@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from torchmeshmetric.kernels.accel import bruteforce, pruned_faces
 from torchmeshmetric.kernels.accel._extension import load_bvh
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance
-from torchmeshmetric.kernels.point_triangle import _region_candidates, point_mesh_distance
+from torchmeshmetric.kernels.point_triangle import point_mesh_distance
 from torchmeshmetric.kernels.select import FaceSet
 
 BACKENDS = ["bvh", "pruned"]
@@ -23,14 +23,6 @@ DTYPES = [torch.float32, torch.float64]
 def _compiled() -> None:
     # Compile (or load from the cache) once for the module; a missing compiler would warn and fail here.
     assert load_bvh() is not None
-
-
-def _sq_to_faces(points: torch.Tensor, verts: torch.Tensor, faces: torch.Tensor) -> torch.Tensor:
-    tri = verts[faces]
-    p = points[:, None]
-    return _region_candidates(
-        p - tri[:, 0], p - tri[:, 1], tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], tri[:, 2] - tri[:, 1]
-    )[-1].amin(-1)
 
 
 def assert_same_faces(points, verts, faces, backend, **kw):
