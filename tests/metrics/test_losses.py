@@ -145,3 +145,20 @@ def test_renamed_functions_keep_their_old_names_with_a_warning():
             assert getattr(module, old) is new
     with pytest.raises(AttributeError, match="no attribute"):
         _ = tmm_metrics.mesh_surface_distancez
+
+
+@pytest.mark.parametrize("two_sided", [False, True])
+def test_nearest_vertex_module_keeps_one_index_per_reference(pair, two_sided):
+    (sv, sf), ref_tm = pair
+    ref = Mesh(*mesh64(ref_tm))
+    mod = NearestVertexDistanceLoss(power=2, two_sided=two_sided)
+    cache = mod.options["indexes"]
+    want = nearest_vertex_distance_loss((sv, sf), ref, power=2, two_sided=two_sided)
+    for _ in range(3):  # three "epochs" on the same reference, a new tensor object each time
+        simp_v = sv.clone().requires_grad_(True)
+        got = mod((simp_v, sf), Mesh(ref.verts.clone(), ref.faces.clone()))
+        assert torch.equal(got.detach(), want)
+        got.backward()
+        assert simp_v.grad is not None and bool(torch.isfinite(simp_v.grad).all())
+    assert len(cache) == 1
+    assert repr(mod) == f"NearestVertexDistanceLoss(power=2, reduction='mean', two_sided={two_sided})"

@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING, Any
 
 from torch import Tensor
 
+from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.metrics._loss import DistanceLossModule, check_loss_args, check_options, reduce_directed
 from torchmeshmetric.metrics.nearest_vertex_distance import NearestVertexOptions, nearest_vertex_distance_sets
 
@@ -62,6 +63,10 @@ def nearest_vertex_distance_loss(
 class NearestVertexDistanceLoss(DistanceLossModule):
     """``nn.Module`` form of :func:`nearest_vertex_distance_loss` (same arguments, checked at construction).
 
+    Keeps an :class:`~torchmeshmetric.IndexCache` of the reference meshes (unless ``indexes`` is given): training or
+    validating every epoch on the same reference meshes builds each one's nearest-vertex index once (found again by
+    content, any tensor object). References given as point sets are searched afresh at each call.
+
     Example:
         >>> import torch
         >>> NearestVertexDistanceLoss(power=2)(torch.tensor([[0.0, 0, 0]]), torch.tensor([[3.0, 4, 0]])).item()
@@ -70,4 +75,4 @@ class NearestVertexDistanceLoss(DistanceLossModule):
 
     def __init__(self, *, power: float = 1.0, reduction: str = "mean", **options: Unpack[NearestVertexOptions]) -> None:
         check_options(options, NearestVertexOptions, type(self).__name__)
-        super().__init__(nearest_vertex_distance_loss, power, reduction, options)
+        super().__init__(nearest_vertex_distance_loss, power, reduction, {"indexes": IndexCache(), **options})
