@@ -20,6 +20,12 @@ def _write(tmp_path, name, content):
     return p
 
 
+def _assert_load_error_names_file(path, message):
+    with pytest.raises(MeshFileError, match=message) as info:
+        load_mesh(path)
+    assert str(path) in str(info.value)
+
+
 # ----------------------------------------------------------------------------------------------- OBJ
 @pytest.mark.parametrize(
     ("content", "message"),
@@ -45,10 +51,7 @@ def _write(tmp_path, name, content):
     ],
 )
 def test_malformed_obj_names_file_line_and_problem(tmp_path, content, message):
-    p = _write(tmp_path, "frame.obj", content)
-    with pytest.raises(MeshFileError, match=message) as info:
-        load_mesh(p)
-    assert str(p) in str(info.value)
+    _assert_load_error_names_file(_write(tmp_path, "frame.obj", content), message)
 
 
 def test_float64_holds_what_float32_cannot(tmp_path):
@@ -145,10 +148,7 @@ def test_truncated_off_is_refused_naming_the_declared_counts(tmp_path_factory, c
     ],
 )
 def test_malformed_off_names_file_line_and_problem(tmp_path, content, message):
-    p = _write(tmp_path, "frame.off", content)
-    with pytest.raises(MeshFileError, match=message) as info:
-        load_mesh(p)
-    assert str(p) in str(info.value)
+    _assert_load_error_names_file(_write(tmp_path, "frame.off", content), message)
 
 
 @pytest.mark.parametrize(

@@ -958,10 +958,10 @@ std::vector<torch::Tensor> closest_points_impl(const torch::Tensor& points, cons
 constexpr int LEAF_KNN = 8;
 constexpr int MAX_KNN = 64;
 
-inline double mpeg_sq(const float* q, const float* r) {
-  const double dx = static_cast<double>(q[0] - r[0]);
-  const double dy = static_cast<double>(q[1] - r[1]);
-  const double dz = static_cast<double>(q[2] - r[2]);
+inline double mpeg_sq(const float* q, float rx, float ry, float rz) {
+  const double dx = static_cast<double>(q[0] - rx);
+  const double dy = static_cast<double>(q[1] - ry);
+  const double dz = static_cast<double>(q[2] - rz);
   double s = dx * dx + dy * dy;
   s += dz * dz;
   return s;
@@ -1030,7 +1030,10 @@ std::vector<torch::Tensor> mpeg_knn_impl(const torch::Tensor& query, const torch
       const int64_t i = order[q];
       const float* p = Qp + 3 * i;
       KnnList best{k};
-      for (int a = 0; a < prev.n; ++a) best.offer(mpeg_sq(p, Rp + 3 * prev.idx[a]), prev.idx[a]);
+      for (int a = 0; a < prev.n; ++a) {
+        const float* r = Rp + 3 * prev.idx[a];
+        best.offer(mpeg_sq(p, r[0], r[1], r[2]), prev.idx[a]);
+      }
       double bound = best.bound();
       int64_t stack[128];
       double stack_d[128];
@@ -1045,12 +1048,7 @@ std::vector<torch::Tensor> mpeg_knn_impl(const torch::Tensor& query, const torch
             double sq[LEAF_KNN];
             for (int l = 0; l < LEAF_KNN; ++l) {
               const int64_t j = node.start + l;
-              const double dx = static_cast<double>(p[0] - xs[j]);
-              const double dy = static_cast<double>(p[1] - ys[j]);
-              const double dz = static_cast<double>(p[2] - zs[j]);
-              double d = dx * dx + dy * dy;
-              d += dz * dz;
-              sq[l] = d;
+              sq[l] = mpeg_sq(p, xs[j], ys[j], zs[j]);
             }
             const double keep = best.n < k ? std::numeric_limits<double>::infinity() : best.sq[k - 1];
             for (int64_t l = 0; l < node.count; ++l)
