@@ -220,3 +220,25 @@ def test_kept_sah_tree_selects_the_bruteforce_face(case: str) -> None:
     index.refit(verts * 0.5)
     expected = point_mesh_distance(points, verts * 0.5, faces, backend="bruteforce")
     _assert_same(index.point_mesh_distance(points), expected)
+
+
+@pytest.mark.parametrize("tree", ["sah", "morton"])
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_small_items_on_a_lattice_after_refit(dtype: torch.dtype, tree: str) -> None:
+    """Items of 1, 2, 3, 5 and 9 faces (leaves that fill a block partly) with exact ties, before and after a refit."""
+    g = torch.Generator().manual_seed(11)
+    sizes = [1, 2, 3, 5, 9]
+    verts = [torch.randint(-3, 4, (3 * n, 3), generator=g).to(dtype) for n in sizes]
+    faces = [torch.randint(0, 3 * n, (n, 3), generator=g) for n in sizes]
+    points = [torch.randint(-4, 5, (40, 3), generator=g).to(dtype) / 2 for _ in sizes]
+    index = MeshIndex(list(zip(verts, faces, strict=True)), backend="bvh", tree=tree)
+    for step in range(2):
+        got = index.point_mesh_distance(points)
+        for b in range(len(sizes)):
+            ref = point_mesh_distance(points[b], verts[b], faces[b], backend="bruteforce")
+            rows = slice(40 * b, 40 * (b + 1))
+            assert torch.equal(got.face_idx[rows], ref.face_idx + sum(sizes[:b]))
+            assert torch.equal(got.dists[rows], ref.dists)
+        if step == 0:
+            verts = [v.flip(0) * 2 for v in verts]  # every face moves: the tree is stale, the answers must not be
+            index.refit(torch.cat(verts))

@@ -630,63 +630,6 @@ void refit_nodes(Node<T>* nd, int64_t num_nodes, const T* slot_lo, const T* slot
   }
 }
 
-// Face hierarchy of centred verts: {nodes, roots, perm, face data (F, 19) in slot order, slack (B,)}.
-template <typename T>
-std::vector<torch::Tensor> face_bvh_build_impl(const torch::Tensor& verts, const torch::Tensor& faces,
-                                               const torch::Tensor& face_offsets, bool sah) {
-  const int64_t F = faces.size(0), B = face_offsets.size(0) - 1;
-  const T* V = verts.data_ptr<T>();
-  const int64_t* Fi = faces.data_ptr<int64_t>();
-  const int64_t* off = face_offsets.data_ptr<int64_t>();
-  std::vector<T> lo(3 * F), hi(3 * F), cen(3 * F);
-  at::parallel_for(0, F, GRAIN_LINEAR, [&](int64_t s, int64_t e) {
-    for (int64_t f = s; f < e; ++f) {
-      face_box(V, Fi, f, &lo[3 * f], &hi[3 * f]);
-      for (int k = 0; k < 3; ++k) cen[3 * f + k] = (lo[3 * f + k] + hi[3 * f + k]) * T(0.5);
-    }
-  });
-  std::vector<Node<T>> nodes;
-  std::vector<int64_t> roots, perm;
-  if (sah)
-    build_forest_sah<T>(lo.data(), hi.data(), cen.data(), off, B, LEAF_FACES, nodes, roots, perm);
-  else
-    build_forest<T>(lo.data(), hi.data(), cen.data(), off, B, LEAF_FACES, nodes, roots, perm);
-  auto fd_t = torch::empty({F, static_cast<int64_t>(sizeof(FaceData<T>) / sizeof(T))}, verts.options());
-  FaceData<T>* fd = reinterpret_cast<FaceData<T>*>(fd_t.data_ptr<T>());
-  at::parallel_for(0, F, GRAIN_LINEAR, [&](int64_t s, int64_t e) {
-    for (int64_t i = s; i < e; ++i) {
-      const int64_t f = perm[i];
-      fd[i] = face_data(V + 3 * Fi[3 * f], V + 3 * Fi[3 * f + 1], V + 3 * Fi[3 * f + 2]);
-    }
-  });
-  const std::vector<T> slack = item_slack<T>(lo.data(), hi.data(), off, B);
-  return {nodes_tensor(nodes), vec_tensor(roots, torch::kInt64), vec_tensor(perm, torch::kInt64), fd_t,
-          vec_tensor(slack, verts.scalar_type())};
-}
-
-// Moved vertices, same faces: rewrites the nodes' bounds, the face data and the slack in place.
-template <typename T>
-void face_bvh_refit_impl(const std::vector<torch::Tensor>& h, const torch::Tensor& verts, const torch::Tensor& faces,
-                         const torch::Tensor& face_offsets) {
-  const int64_t F = faces.size(0), B = face_offsets.size(0) - 1;
-  const T* V = verts.data_ptr<T>();
-  const int64_t* Fi = faces.data_ptr<int64_t>();
-  const int64_t* off = face_offsets.data_ptr<int64_t>();
-  const int64_t* perm = h[2].data_ptr<int64_t>();
-  FaceData<T>* fd = reinterpret_cast<FaceData<T>*>(h[3].data_ptr<T>());
-  std::vector<T> lo(3 * F), hi(3 * F);  // slot order
-  at::parallel_for(0, F, GRAIN_LINEAR, [&](int64_t s, int64_t e) {
-    for (int64_t i = s; i < e; ++i) {
-      const int64_t f = perm[i];
-      face_box(V, Fi, f, &lo[3 * i], &hi[3 * i]);
-      fd[i] = face_data(V + 3 * Fi[3 * f], V + 3 * Fi[3 * f + 1], V + 3 * Fi[3 * f + 2]);
-    }
-  });
-  refit_nodes(nodes_of<T>(h[0]), h[0].numel() / static_cast<int64_t>(sizeof(Node<T>)), lo.data(), hi.data());
-  const std::vector<T> slack = item_slack<T>(lo.data(), hi.data(), off, B);
-  std::memcpy(h[4].data_ptr<T>(), slack.data(), B * sizeof(T));
-}
-
 // The parts of a kept hierarchy that every query reads (see the layout above).
 template <typename T>
 struct Kept {
@@ -700,6 +643,354 @@ struct Kept {
         perm(h[2].data_ptr<int64_t>()),
         slack(h[4].data_ptr<T>()) {}
 };
+
+// Kept face hierarchy, 4-wide. The binary hierarchy (SAH or Morton) is collapsed into one whose nodes hold the boxes
+// of up to WIDTH children, one array per axis and bound (the WIDTH box distances of a node are one vectorised pass;
+// half the depth), and the faces of each leaf are stored as a block of WIDTH lanes, FaceData by field then lane (the
+// WIDTH exact point-triangle distances are computed side by side). A leaf of fewer faces repeats its first face in
+// the spare lanes: same distance, same face index, so the selection (lowest index among equal squares) is unchanged.
+// Layout (tensors, so that Python owns the hierarchy): {nodes (WideNode bytes), roots (B,), block faces
+// (blocks * WIDTH,), block data (blocks, sizeof(FaceBlock) / sizeof(T)), slack (B,)}.
+constexpr int WIDTH = 4;
+static_assert(WIDTH == LEAF_FACES, "the faces of a leaf fill one block");
+// Traversal stack: a node pushes at most WIDTH entries and the stack holds at most WIDTH - 1 siblings per level of
+// the current path; the binary depth (hence the wide depth) is below 128 (Morton: 30 code bits + object medians of
+// equal codes, < 64 levels; SAH: SAH_MAX_DEPTH + object medians).
+constexpr int WIDE_STACK = (WIDTH - 1) * 128 + WIDTH;
+
+// Both records are cache-line aligned (torch allocations are 64-byte aligned): a node is two lines, a block five.
+template <typename T>
+struct alignas(64) WideNode {
+  T lo[3][WIDTH];
+  T hi[3][WIDTH];
+  int32_t child[WIDTH];  // >= 0: a wide node; < 0: the face block ~child
+  int32_t lanes;         // children in use: lanes [0, lanes)
+};
+
+template <typename T>
+struct alignas(64) FaceBlock {
+  T a[3][WIDTH], b[3][WIDTH], ab[3][WIDTH], ac[3][WIDTH], bc[3][WIDTH], n[3][WIDTH], nn[WIDTH];
+};
+
+template <typename T>
+inline void set_lane(FaceBlock<T>& blk, int l, const FaceData<T>& d) {
+  for (int k = 0; k < 3; ++k) {
+    blk.a[k][l] = d.a[k];
+    blk.b[k][l] = d.b[k];
+    blk.ab[k][l] = d.ab[k];
+    blk.ac[k][l] = d.ac[k];
+    blk.bc[k][l] = d.bc[k];
+    blk.n[k][l] = d.n[k];
+  }
+  blk.nn[l] = d.nn;
+}
+
+#if defined(__GNUC__)
+// WIDTH lanes of T as one vector (GCC/Clang vector extensions): the block's faces and the node's boxes are measured
+// side by side with tri_sq_dist / box_sq_dist's own operations (triangle.h).
+template <typename T>
+struct LaneVec;
+template <>
+struct LaneVec<float> {
+  typedef float type __attribute__((vector_size(WIDTH * sizeof(float))));
+};
+template <>
+struct LaneVec<double> {
+  typedef double type __attribute__((vector_size(WIDTH * sizeof(double))));
+};
+
+template <typename T, typename V = typename LaneVec<T>::type>
+inline V load_lanes(const T* x) {
+  V v;
+  std::memcpy(&v, x, sizeof(V));
+  return v;
+}
+
+// Squared distances from p to the WIDTH faces of a block (tri_sq_dist, lane-wise).
+template <typename T>
+inline void block_sq_dists(const FaceBlock<T>& blk, const T* p, T* sq) {
+  using V = typename LaneVec<T>::type;
+  FaceData<V> f;
+  for (int k = 0; k < 3; ++k) {
+    f.a[k] = load_lanes(blk.a[k]);
+    f.b[k] = load_lanes(blk.b[k]);
+    f.ab[k] = load_lanes(blk.ab[k]);
+    f.ac[k] = load_lanes(blk.ac[k]);
+    f.bc[k] = load_lanes(blk.bc[k]);
+    f.n[k] = load_lanes(blk.n[k]);
+  }
+  f.nn = load_lanes(blk.nn);
+  const V pv[3] = {tmm::splat<V>(p[0]), tmm::splat<V>(p[1]), tmm::splat<V>(p[2])};
+  const V d = tri_sq_dist(f, pv);
+  std::memcpy(sq, &d, sizeof(V));
+}
+
+// Squared distances from p to the WIDTH child boxes of a node (box_sq_dist, lane-wise).
+template <typename T>
+inline void wide_box_dists(const WideNode<T>& nd, const T* p, T* d) {
+  using V = typename LaneVec<T>::type;
+  const V zero = tmm::splat<V>(0);
+  V s = zero;
+  for (int k = 0; k < 3; ++k) {
+    const V pk = tmm::splat<V>(p[k]);
+    const V g = tmm::vmax(tmm::vmax(load_lanes(nd.lo[k]) - pk, zero), pk - load_lanes(nd.hi[k]));
+    s += g * g;
+  }
+  std::memcpy(d, &s, sizeof(V));
+}
+#else
+template <typename T>
+inline void block_sq_dists(const FaceBlock<T>& blk, const T* p, T* sq) {
+  for (int l = 0; l < WIDTH; ++l) {
+    FaceData<T> f;
+    for (int k = 0; k < 3; ++k) {
+      f.a[k] = blk.a[k][l];
+      f.b[k] = blk.b[k][l];
+      f.ab[k] = blk.ab[k][l];
+      f.ac[k] = blk.ac[k][l];
+      f.bc[k] = blk.bc[k][l];
+      f.n[k] = blk.n[k][l];
+    }
+    f.nn = blk.nn[l];
+    sq[l] = tri_sq_dist(f, p);
+  }
+}
+
+template <typename T>
+inline void wide_box_dists(const WideNode<T>& nd, const T* p, T* d) {
+  for (int l = 0; l < WIDTH; ++l) {
+    T s = 0;
+    for (int k = 0; k < 3; ++k) {
+      const T g = std::max(std::max(nd.lo[k][l] - p[k], T(0)), p[k] - nd.hi[k][l]);
+      s += g * g;
+    }
+    d[l] = s;
+  }
+}
+#endif
+
+// Wide node over the binary subtree at `n`: its children are the binary descendants obtained by opening the inner
+// child of largest surface area until WIDTH are reached (the usual collapse). Nodes are allocated before their
+// children (children have larger indices: the refit runs backwards). Returns the node index.
+template <typename T>
+int32_t collapse(const std::vector<Node<T>>& bin, int64_t n, const int64_t* perm, std::vector<WideNode<T>>& out,
+                 std::vector<int64_t>& block_faces) {
+  const int32_t me = static_cast<int32_t>(out.size());
+  out.emplace_back();
+  int64_t lane[WIDTH];
+  int m = 0;
+  if (bin[n].right < 0) {
+    lane[m++] = n;
+  } else {
+    lane[m++] = n + 1;
+    lane[m++] = bin[n].right;
+    while (m < WIDTH) {
+      int pick = -1;
+      T most = -1;
+      for (int l = 0; l < m; ++l) {
+        const Node<T>& c = bin[lane[l]];
+        if (c.right >= 0 && half_area(c.lo, c.hi) > most) {
+          most = half_area(c.lo, c.hi);
+          pick = l;
+        }
+      }
+      if (pick < 0) break;
+      const int64_t c = lane[pick];
+      lane[pick] = c + 1;
+      lane[m++] = bin[c].right;
+    }
+  }
+  WideNode<T> w{};
+  for (int l = 0; l < WIDTH; ++l) {
+    for (int k = 0; k < 3; ++k) {  // an unused lane: an empty box (its distance is never read)
+      w.lo[k][l] = std::numeric_limits<T>::infinity();
+      w.hi[k][l] = -std::numeric_limits<T>::infinity();
+    }
+    w.child[l] = 0;
+  }
+  w.lanes = m;
+  for (int l = 0; l < m; ++l) {
+    const Node<T>& c = bin[lane[l]];
+    if (c.right < 0) {
+      const int64_t blk = static_cast<int64_t>(block_faces.size()) / WIDTH;
+      for (int j = 0; j < WIDTH; ++j) block_faces.push_back(perm[c.start + (j < c.count ? j : 0)]);
+      w.child[l] = ~static_cast<int32_t>(blk);
+    } else {
+      w.child[l] = collapse(bin, lane[l], perm, out, block_faces);
+    }
+  }
+  out[me] = w;
+  return me;
+}
+
+template <typename T>
+WideNode<T>* wide_nodes_of(const torch::Tensor& t) {
+  return reinterpret_cast<WideNode<T>*>(t.data_ptr<uint8_t>());
+}
+
+template <typename T>
+FaceBlock<T>* blocks_of(const torch::Tensor& t) {
+  return reinterpret_cast<FaceBlock<T>*>(t.data_ptr<T>());
+}
+
+// Face records and bounds of a kept face hierarchy from (moved) vertices, in place: every block's lanes (face data
+// of its faces), every node's child boxes bottom up (a leaf lane: the union of its block's face boxes), and the
+// per-item slack (64 ulps of the largest |coordinate| of the item, read from its root's boxes). Min and max are
+// exact, so the boxes equal those of the binary build over the same faces.
+template <typename T>
+void fill_face_hierarchy(const std::vector<torch::Tensor>& h, const T* V, const int64_t* Fi) {
+  WideNode<T>* nd = wide_nodes_of<T>(h[0]);
+  const int64_t num_nodes = h[0].numel() / static_cast<int64_t>(sizeof(WideNode<T>));
+  const int64_t* roots = h[1].data_ptr<int64_t>();
+  const int64_t num_items = h[1].numel();
+  const int64_t* bf = h[2].data_ptr<int64_t>();
+  FaceBlock<T>* blk = blocks_of<T>(h[3]);
+  const int64_t num_blocks = h[3].size(0);
+  std::vector<T> blo(3 * num_blocks), bhi(3 * num_blocks);
+  // ~1 us of work per block: a few thousand blocks pay for a parallel region.
+  at::parallel_for(0, num_blocks, 2048, [&](int64_t s, int64_t e) {
+    for (int64_t i = s; i < e; ++i) {
+      T* lo = &blo[3 * i];
+      T* hi = &bhi[3 * i];
+      for (int l = 0; l < WIDTH; ++l) {
+        const int64_t f = bf[WIDTH * i + l];
+        set_lane(blk[i], l, face_data(V + 3 * Fi[3 * f], V + 3 * Fi[3 * f + 1], V + 3 * Fi[3 * f + 2]));
+        T flo[3], fhi[3];
+        face_box(V, Fi, f, flo, fhi);
+        for (int k = 0; k < 3; ++k) {
+          lo[k] = l == 0 ? flo[k] : std::min(lo[k], flo[k]);
+          hi[k] = l == 0 ? fhi[k] : std::max(hi[k], fhi[k]);
+        }
+      }
+    }
+  });
+  for (int64_t i = num_nodes - 1; i >= 0; --i) {
+    WideNode<T>& w = nd[i];
+    for (int l = 0; l < w.lanes; ++l) {
+      const int32_t c = w.child[l];
+      if (c < 0) {
+        for (int k = 0; k < 3; ++k) {
+          w.lo[k][l] = blo[3 * int64_t(~c) + k];
+          w.hi[k][l] = bhi[3 * int64_t(~c) + k];
+        }
+      } else {
+        const WideNode<T>& cw = nd[c];
+        for (int k = 0; k < 3; ++k) {
+          T lo = cw.lo[k][0], hi = cw.hi[k][0];
+          for (int j = 1; j < cw.lanes; ++j) {
+            lo = std::min(lo, cw.lo[k][j]);
+            hi = std::max(hi, cw.hi[k][j]);
+          }
+          w.lo[k][l] = lo;
+          w.hi[k][l] = hi;
+        }
+      }
+    }
+  }
+  T* slack = h[4].data_ptr<T>();
+  for (int64_t b = 0; b < num_items; ++b) {
+    T scale = 0;
+    if (roots[b] >= 0) {
+      const WideNode<T>& w = nd[roots[b]];
+      for (int l = 0; l < w.lanes; ++l)
+        for (int k = 0; k < 3; ++k) scale = std::max(scale, std::max(std::abs(w.lo[k][l]), std::abs(w.hi[k][l])));
+    }
+    slack[b] = scale * T(64) * std::numeric_limits<T>::epsilon();
+  }
+}
+
+// Face hierarchy of centred verts (layout above).
+template <typename T>
+std::vector<torch::Tensor> face_bvh_build_impl(const torch::Tensor& verts, const torch::Tensor& faces,
+                                               const torch::Tensor& face_offsets, bool sah) {
+  const int64_t F = faces.size(0), B = face_offsets.size(0) - 1;
+  TORCH_CHECK(F < (int64_t(1) << 30), "bvh: at most 2^30 faces per call, got ", F);
+  const T* V = verts.data_ptr<T>();
+  const int64_t* Fi = faces.data_ptr<int64_t>();
+  const int64_t* off = face_offsets.data_ptr<int64_t>();
+  std::vector<T> lo(3 * F), hi(3 * F), cen(3 * F);
+  at::parallel_for(0, F, GRAIN_LINEAR, [&](int64_t s, int64_t e) {
+    for (int64_t f = s; f < e; ++f) {
+      face_box(V, Fi, f, &lo[3 * f], &hi[3 * f]);
+      for (int k = 0; k < 3; ++k) cen[3 * f + k] = (lo[3 * f + k] + hi[3 * f + k]) * T(0.5);
+    }
+  });
+  std::vector<Node<T>> bin;
+  std::vector<int64_t> bin_roots, perm;
+  if (sah)
+    build_forest_sah<T>(lo.data(), hi.data(), cen.data(), off, B, LEAF_FACES, bin, bin_roots, perm);
+  else
+    build_forest<T>(lo.data(), hi.data(), cen.data(), off, B, LEAF_FACES, bin, bin_roots, perm);
+  std::vector<WideNode<T>> wide;
+  std::vector<int64_t> roots(B, -1), block_faces;
+  wide.reserve(bin.size() / 2 + B + 1);
+  block_faces.reserve(F + WIDTH * B);
+  for (int64_t b = 0; b < B; ++b)
+    if (bin_roots[b] >= 0) roots[b] = collapse(bin, bin_roots[b], perm.data(), wide, block_faces);
+  auto nodes_t = torch::empty({static_cast<int64_t>(wide.size() * sizeof(WideNode<T>))}, torch::dtype(torch::kUInt8));
+  std::memcpy(nodes_t.data_ptr<uint8_t>(), wide.data(), wide.size() * sizeof(WideNode<T>));
+  const int64_t num_blocks = static_cast<int64_t>(block_faces.size()) / WIDTH;
+  std::vector<torch::Tensor> h = {
+      nodes_t, vec_tensor(roots, torch::kInt64), vec_tensor(block_faces, torch::kInt64),
+      torch::zeros({num_blocks, static_cast<int64_t>(sizeof(FaceBlock<T>) / sizeof(T))}, verts.options()),
+      torch::empty({B}, verts.options())};
+  fill_face_hierarchy<T>(h, V, Fi);
+  return h;
+}
+
+// Moved vertices, same faces: rewrites the face records, the bounds and the slack in place (same tree).
+template <typename T>
+void face_bvh_refit_impl(const std::vector<torch::Tensor>& h, const torch::Tensor& verts, const torch::Tensor& faces) {
+  fill_face_hierarchy<T>(h, verts.data_ptr<T>(), faces.data_ptr<int64_t>());
+}
+
+// Closest face to p in one item's wide hierarchy: nearest child first (the children within the bound are stacked
+// farthest first), a stacked entry re-tested against the bound when popped since the bound shrinks meanwhile.
+template <typename T>
+inline void wide_face_nearest(const WideNode<T>* nodes, const FaceBlock<T>* blocks, const int64_t* block_faces,
+                              int32_t root, const T* p, T slack, T& best_sq, int64_t& best_idx) {
+  int32_t stack[WIDE_STACK];
+  T stack_d[WIDE_STACK];
+  int top = 0;
+  T bound = prune_bound(best_sq, slack);
+  stack[top] = root;
+  stack_d[top] = 0;
+  ++top;
+  while (top > 0) {
+    --top;
+    if (stack_d[top] > bound) continue;
+    const int32_t c = stack[top];
+    if (c < 0) {
+      T sq[WIDTH];
+      block_sq_dists(blocks[~c], p, sq);
+      const int64_t* fs = block_faces + WIDTH * int64_t(~c);
+      const T before = best_sq;
+      for (int l = 0; l < WIDTH; ++l)
+        if (sq[l] < best_sq || (sq[l] == best_sq && fs[l] < best_idx)) {
+          best_sq = sq[l];
+          best_idx = fs[l];
+        }
+      if (best_sq != before) bound = prune_bound(best_sq, slack);
+      continue;
+    }
+    const WideNode<T>& nd = nodes[c];
+    T d[WIDTH];
+    wide_box_dists(nd, p, d);
+    int order[WIDTH];
+    int m = 0;
+    for (int l = 0; l < nd.lanes; ++l) {
+      if (!(d[l] <= bound)) continue;
+      int j = m++;
+      for (; j > 0 && d[order[j - 1]] < d[l]; --j) order[j] = order[j - 1];  // farthest first
+      order[j] = l;
+    }
+    for (int j = 0; j < m; ++j) {
+      stack[top] = nd.child[order[j]];
+      stack_d[top] = d[order[j]];
+      ++top;
+    }
+  }
+}
 
 // One int64 answer per query point: `fn(begin, end, order, out)` answers the queries order[begin, end) (Morton
 // order, chunks scheduled by parallel_chunks) into out.
@@ -718,32 +1009,24 @@ torch::Tensor query_in_morton_order(const torch::Tensor& points, const F& fn) {
 template <typename T>
 torch::Tensor face_bvh_query_impl(const std::vector<torch::Tensor>& h, const torch::Tensor& points,
                                   const torch::Tensor& point_batch, const torch::Tensor& face_offsets) {
-  const Kept<T> kh(h);
-  const FaceData<T>* fdp = reinterpret_cast<const FaceData<T>*>(h[3].data_ptr<T>());
+  const WideNode<T>* nd = wide_nodes_of<T>(h[0]);
+  const int64_t* roots = h[1].data_ptr<int64_t>();
+  const int64_t* bf = h[2].data_ptr<int64_t>();
+  const FaceBlock<T>* blk = blocks_of<T>(h[3]);
+  const T* slack = h[4].data_ptr<T>();
   const int64_t* off = face_offsets.data_ptr<int64_t>();
   const T* Pp = points.data_ptr<T>();
   const int64_t* pb = point_batch.data_ptr<int64_t>();
-  const Node<T>* nd = kh.nodes;
-  const int64_t* pm = kh.perm;
   return query_in_morton_order<T>(points, [&](int64_t s, int64_t e, const int64_t* ord, int64_t* o) {
     for (int64_t q = s; q < e; ++q) {
       const int64_t i = ord[q];
       const int64_t b = pb[i];
       T best = std::numeric_limits<T>::infinity();
       int64_t best_idx = off[b];
-      // No seeding here (unlike nearest points): nearer-child-first descent to a 4-face leaf finds a tight bound
-      // at once, and evaluating the predecessor's face first measured 5-10% slower.
-      traverse<T>(nd, kh.roots[b], Pp + 3 * i, kh.slack[b], best, best_idx,
-                  [fdp, pm](int64_t start, int64_t count, const T* p, T& best_sq, int64_t& bi) {
-                    for (int64_t j = start; j < start + count; ++j) {
-                      const T sq = tri_sq_dist(fdp[j], p);
-                      const int64_t f = pm[j];
-                      if (sq < best_sq || (sq == best_sq && f < bi)) {
-                        best_sq = sq;
-                        bi = f;
-                      }
-                    }
-                  });
+      // No seeding here (unlike nearest points): nearest-child-first descent to a 4-face leaf finds a tight bound at
+      // once, and evaluating the predecessor's face first measured 5-10% slower.
+      if (roots[b] >= 0)
+        wide_face_nearest<T>(nd, blk, bf, static_cast<int32_t>(roots[b]), Pp + 3 * i, slack[b], best, best_idx);
       o[i] = best_idx;
     }
   });
@@ -1110,7 +1393,7 @@ void face_bvh_refit(std::vector<torch::Tensor> h, torch::Tensor verts, torch::Te
                     torch::Tensor face_offsets) {
   check_inputs(verts, face_offsets, verts, face_offsets);
   TORCH_CHECK(h.size() == 5 && h[3].scalar_type() == verts.scalar_type(), "bvh: hierarchy of another dtype");
-  TMM_DISPATCH(verts.scalar_type(), return face_bvh_refit_impl<T>(h, verts, faces, face_offsets));
+  TMM_DISPATCH(verts.scalar_type(), return face_bvh_refit_impl<T>(h, verts, faces));
 }
 
 torch::Tensor face_bvh_query(std::vector<torch::Tensor> h, torch::Tensor points, torch::Tensor point_batch,

@@ -1,27 +1,71 @@
 // Point-triangle closest point and squared distance, shared by the BVH (bvh.cpp) and the registration energy
 // (deformation_energy.cpp). The operations mirror point_triangle._region_candidates / closest_point_on_triangle
 // in their order and dtype; compile with -ffp-contract=off (no FMA contraction) to keep them bit-identical.
+//
+// The distance is written once for a value type S that is either a scalar T or a vector of lanes of T (GCC/Clang
+// vector extensions): lane operations are the same IEEE operations as the scalar ones, so the BVH computes the
+// distances of several faces side by side with the very same results. Hence branch-free code: selections, not ifs.
 #pragma once
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <type_traits>
+#include <utility>
 
 namespace tmm {
+
+// The scalar type of S (S itself, or the element of a lane vector).
+template <typename S, bool = std::is_arithmetic_v<S>>
+struct Lane {
+  using type = S;
+};
+template <typename S>
+struct Lane<S, false> {
+  using type = std::decay_t<decltype(std::declval<S>()[0])>;
+};
+template <typename S>
+using lane_t = typename Lane<S>::type;
+
+// x in every lane of S.
+template <typename S>
+inline S splat(lane_t<S> x) {
+  if constexpr (std::is_arithmetic_v<S>) {
+    return x;
+  } else {
+    S v;
+    for (int l = 0; l < static_cast<int>(sizeof(S) / sizeof(lane_t<S>)); ++l) v[l] = x;
+    return v;
+  }
+}
+
+// std::min and std::max, lane-wise: (b < a) ? b : a and (a < b) ? b : a.
+template <typename S>
+inline S vmin(S a, S b) {
+  return b < a ? b : a;
+}
+
+template <typename S>
+inline S vmax(S a, S b) {
+  return a < b ? b : a;
+}
 
 template <typename T>
 inline T dot3(const T* x, const T* y) {
   return x[0] * y[0] + x[1] * y[1] + x[2] * y[2];
 }
 
-template <typename T>
-inline T safe_div(T num, T den) {
-  return den > 0 ? num / den : T(0);
+// num / den where den > 0, else 0 (the division runs on a harmless divisor where den <= 0).
+template <typename S>
+inline S safe_div(S num, S den) {
+  const auto ok = den > splat<S>(0);
+  const S q = num / (ok ? den : splat<S>(1));
+  return ok ? q : splat<S>(0);
 }
 
-template <typename T>
-inline T clamp01(T x) {
-  return std::min(std::max(x, T(0)), T(1));
+template <typename S>
+inline S clamp01(S x) {
+  return vmin(vmax(x, splat<S>(0)), splat<S>(1));
 }
 
 // Per-face data in leaf order: a, b, ab, ac, bc, n = ab x ac, nn = n.n (same operations as the torch kernel).
@@ -51,16 +95,17 @@ inline FaceData<T> face_data(const T* a, const T* b, const T* c) {
 
 // point_triangle._region_candidates for one point and one face: the clamped edge parameters, the face
 // barycentrics v, w, and the squared distances [edge AB, edge AC, edge BC, face] (face: +inf outside).
-template <typename T>
+template <typename S>
 struct RegionCandidates {
-  T t_ab, t_ac, t_bc, v, w;
-  T sq[4];
+  S t_ab, t_ac, t_bc, v, w;
+  S sq[4];
 };
 
-template <typename T>
-inline RegionCandidates<T> region_candidates(const FaceData<T>& f, const T* p) {
-  RegionCandidates<T> r;
-  T ap[3], bp[3];
+template <typename S>
+inline RegionCandidates<S> region_candidates(const FaceData<S>& f, const S* p) {
+  const S zero = splat<S>(0), one = splat<S>(1);
+  RegionCandidates<S> r;
+  S ap[3], bp[3];
   for (int k = 0; k < 3; ++k) {
     ap[k] = p[k] - f.a[k];
     bp[k] = p[k] - f.b[k];
@@ -68,7 +113,7 @@ inline RegionCandidates<T> region_candidates(const FaceData<T>& f, const T* p) {
   r.t_ab = clamp01(safe_div(dot3(ap, f.ab), dot3(f.ab, f.ab)));
   r.t_ac = clamp01(safe_div(dot3(ap, f.ac), dot3(f.ac, f.ac)));
   r.t_bc = clamp01(safe_div(dot3(bp, f.bc), dot3(f.bc, f.bc)));
-  T d_ab[3], d_ac[3], d_bc[3];
+  S d_ab[3], d_ac[3], d_bc[3];
   for (int k = 0; k < 3; ++k) {
     d_ab[k] = ap[k] - r.t_ab * f.ab[k];
     d_ac[k] = ap[k] - r.t_ac * f.ac[k];
@@ -77,30 +122,30 @@ inline RegionCandidates<T> region_candidates(const FaceData<T>& f, const T* p) {
   r.sq[0] = dot3(d_ab, d_ab);
   r.sq[1] = dot3(d_ac, d_ac);
   r.sq[2] = dot3(d_bc, d_bc);
-  r.sq[3] = std::numeric_limits<T>::infinity();
-  r.v = r.w = T(0);  // safe_div's value for a zero-area face (nn = 0), whose face candidate is never inside
-  if (f.nn > 0) {
-    // cross(ap, ac) . n and cross(ab, ap) . n
-    const T c1[3] = {ap[1] * f.ac[2] - ap[2] * f.ac[1], ap[2] * f.ac[0] - ap[0] * f.ac[2],
-                     ap[0] * f.ac[1] - ap[1] * f.ac[0]};
-    const T c2[3] = {f.ab[1] * ap[2] - f.ab[2] * ap[1], f.ab[2] * ap[0] - f.ab[0] * ap[2],
-                     f.ab[0] * ap[1] - f.ab[1] * ap[0]};
-    r.v = dot3(c1, f.n) / f.nn;
-    r.w = dot3(c2, f.n) / f.nn;
-    if (r.v >= 0 && r.w >= 0 && r.v + r.w <= 1) {
-      T d_f[3];
-      for (int k = 0; k < 3; ++k) d_f[k] = (ap[k] - r.v * f.ab[k]) - r.w * f.ac[k];
-      r.sq[3] = dot3(d_f, d_f);
-    }
-  }
+  // Face candidate: v = cross(ap, ac) . n / nn, w = cross(ab, ap) . n / nn, the projection's squared distance when
+  // inside, +inf outside. v = w = 0 for a zero-area face (nn = 0, as safe_div), whose candidate is never inside.
+  const auto area = f.nn > zero;
+  const S nn = area ? f.nn : one;
+  const S c1[3] = {ap[1] * f.ac[2] - ap[2] * f.ac[1], ap[2] * f.ac[0] - ap[0] * f.ac[2],
+                   ap[0] * f.ac[1] - ap[1] * f.ac[0]};
+  const S c2[3] = {f.ab[1] * ap[2] - f.ab[2] * ap[1], f.ab[2] * ap[0] - f.ab[0] * ap[2],
+                   f.ab[0] * ap[1] - f.ab[1] * ap[0]};
+  const S v = dot3(c1, f.n) / nn;
+  const S w = dot3(c2, f.n) / nn;
+  r.v = area ? v : zero;
+  r.w = area ? w : zero;
+  S d_f[3];
+  for (int k = 0; k < 3; ++k) d_f[k] = (ap[k] - r.v * f.ab[k]) - r.w * f.ac[k];
+  const auto inside = area & (r.v >= zero) & (r.w >= zero) & (r.v + r.w <= one);
+  r.sq[3] = inside ? dot3(d_f, d_f) : splat<S>(std::numeric_limits<lane_t<S>>::infinity());
   return r;
 }
 
 // Squared distance from p to a triangle, mirroring point_triangle._region_candidates(...)[-1].amin(-1).
-template <typename T>
-inline T tri_sq_dist(const FaceData<T>& f, const T* p) {
-  const RegionCandidates<T> r = region_candidates(f, p);
-  return std::min(std::min(std::min(r.sq[0], r.sq[1]), r.sq[2]), r.sq[3]);
+template <typename S>
+inline S tri_sq_dist(const FaceData<S>& f, const S* p) {
+  const RegionCandidates<S> r = region_candidates(f, p);
+  return vmin(vmin(vmin(r.sq[0], r.sq[1]), r.sq[2]), r.sq[3]);
 }
 
 // Closest point on the triangle (a, b, c) to p, as closest_point_on_triangle: four candidates, the first minimum
