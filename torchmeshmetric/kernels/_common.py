@@ -11,7 +11,7 @@ import math
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import EmptyInputError, NonFiniteError
+from torchmeshmetric._checks import EmptyInputError, NonFiniteError, all_finite
 from torchmeshmetric.structures import batch_index
 
 DEFAULT_MAX_MEMORY = 256 * 2**20
@@ -136,7 +136,7 @@ def range_scale(extent: float, dtype: torch.dtype, degree: int) -> float | None:
 
 def check_representable(dists: Tensor, name: str) -> None:
     """Raise when finite inputs gave non-finite distances: the dtype cannot hold them (e.g. float32 beyond ~1e19)."""
-    if dists.numel() and not bool(torch.isfinite(dists.detach()).all()):
+    if dists.numel() and not all_finite(dists):
         raise NonFiniteError(
             f"{name}: the distances overflow {dists.dtype} (coordinates too large for its range, "
             f"max {torch.finfo(dists.dtype).max:.3g}); compute in float64"
