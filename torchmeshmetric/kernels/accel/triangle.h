@@ -102,7 +102,7 @@ struct RegionCandidates {
 };
 
 template <typename S>
-inline RegionCandidates<S> region_candidates(const FaceData<S>& f, const S* p) {
+__attribute__((always_inline)) inline RegionCandidates<S> region_candidates(const FaceData<S>& f, const S* p) {
   const S zero = splat<S>(0), one = splat<S>(1);
   RegionCandidates<S> r;
   S ap[3], bp[3];
