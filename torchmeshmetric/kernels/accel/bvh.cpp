@@ -7,8 +7,12 @@
 // primitives; nodes stored depth first (left child follows its parent), bounds computed bottom up.
 // One hierarchy per item of a ragged batch, all in one node array.
 //
-// Query: points processed in Morton order (cache coherence), stack traversal, nearer child first, pruning a node when its box is farther than the current best
-// (with a certified slack, see `prune_bound`), OpenMP over query points through at::parallel_for.
+// Face hierarchies are then collapsed into 4-wide nodes whose leaves are blocks of 4 faces measured side by side
+// (see "Kept face hierarchy, 4-wide" below).
+//
+// Query: points processed in Morton order (cache coherence), stack traversal, nearer child first, pruning a node
+// when its box is farther than the current best (with a certified slack, see `prune_bound`), dynamic chunks of
+// queries on torch's threads (parallel_chunks).
 //
 // Exactness: the squared point-triangle distance is computed with the very same floating-point operations, in the
 // same order and the same dtype, as `_region_candidates` in point_triangle.py (edge-segment clamped projections
@@ -574,10 +578,10 @@ inline int64_t nearest_query(const Node<T>* nd, int64_t root, const T* p, T slac
   return best_slot;
 }
 
-// Kept hierarchies. A hierarchy lives in tensors so that Python owns it (MeshIndex): the nodes as the raw bytes of
-// a Node<T> array (torch allocations are 64-byte aligned), the per-item roots, the primitive of every sorted slot
-// (perm), the per-slot primitive data (FaceData<T> records, or the points one array per coordinate) and the
-// per-item pruning slack. `refit` rewrites bounds, slot data and slack for moved vertices: same tree, same order.
+// Kept hierarchies. A hierarchy lives in tensors so that Python owns it (MeshIndex). Points: the nodes as the raw
+// bytes of a Node<T> array (torch allocations are 64-byte aligned), the per-item roots, the point of every sorted
+// slot (perm), the points one array per coordinate in slot order and the per-item pruning slack. Faces: see the
+// 4-wide layout below. `refit` rewrites bounds, primitive data and slack for moved vertices: same tree, same order.
 template <typename T>
 torch::Tensor nodes_tensor(const std::vector<Node<T>>& nodes) {
   auto t = torch::empty({static_cast<int64_t>(nodes.size() * sizeof(Node<T>))}, torch::dtype(torch::kUInt8));
@@ -646,8 +650,8 @@ struct Kept {
 
 // Kept face hierarchy, 4-wide. The binary hierarchy (SAH or Morton) is collapsed into one whose nodes hold the boxes
 // of up to WIDTH children, one array per axis and bound (the WIDTH box distances of a node are one vectorised pass;
-// half the depth), and the faces of each leaf are stored as a block of WIDTH lanes, FaceData by field then lane (the
-// WIDTH exact point-triangle distances are computed side by side). A leaf of fewer faces repeats its first face in
+// half the depth), and the faces of each leaf are stored as a block of WIDTH lanes, vertices by coordinate then lane
+// (the WIDTH exact point-triangle distances are computed side by side). A leaf of fewer faces repeats its first face in
 // the spare lanes: same distance, same face index, so the selection (lowest index among equal squares) is unchanged.
 // Layout (tensors, so that Python owns the hierarchy): {nodes (WideNode bytes), roots (B,), block faces
 // (blocks * WIDTH,), block data (blocks, sizeof(FaceBlock) / sizeof(T)), slack (B,)}.
@@ -658,7 +662,7 @@ static_assert(WIDTH == LEAF_FACES, "the faces of a leaf fill one block");
 // equal codes, < 64 levels; SAH: SAH_MAX_DEPTH + object medians).
 constexpr int WIDE_STACK = (WIDTH - 1) * 128 + WIDTH;
 
-// Both records are cache-line aligned (torch allocations are 64-byte aligned): a node is two lines, a block five.
+// Both records are cache-line aligned (torch allocations are 64-byte aligned): a node is two lines, a block three.
 template <typename T>
 struct alignas(64) WideNode {
   T lo[3][WIDTH];
