@@ -341,8 +341,8 @@ def pack_points(points: Sequence[Any] | Tensor, lengths: Tensor | None = None, n
     """
     if isinstance(points, Tensor):
         pts = as_points(points, name)
-        if lengths is None:
-            lengths = torch.tensor([pts.shape[0]], device=pts.device)
+        if lengths is None:  # a batch of one: its lengths are right by construction
+            return PackedPoints(pts, torch.tensor([pts.shape[0]], device=pts.device))
         lengths = lengths.to(device=pts.device, dtype=torch.long)
         check_lengths(lengths, pts.shape[0], f"{name}_lengths")
         return PackedPoints(pts, lengths)

@@ -15,6 +15,7 @@ from torchmeshmetric.kernels import mesh_index
 from torchmeshmetric.kernels.accel import bvh_closest_points
 from torchmeshmetric.kernels.accel._extension import load_bvh
 from torchmeshmetric.kernels.point_triangle import closest_point_on_triangle, point_mesh_distance
+from torchmeshmetric.kernels.select import Selector
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -36,21 +37,43 @@ def _assert_identical(points: torch.Tensor, verts: torch.Tensor, faces: torch.Te
         assert a.dtype == b.dtype and torch.equal(a, b), name
 
 
-def test_the_kernel_serves_calls_without_autograd(monkeypatch: pytest.MonkeyPatch) -> None:
-    calls: list[int] = []
+def test_the_kernels_serve_calls_without_autograd(monkeypatch: pytest.MonkeyPatch) -> None:
+    fused_calls: list[int | None] = []
+    closest_calls: list[int] = []
+    select_closest = Selector.select_closest
 
-    def spy(*args: torch.Tensor):
-        calls.append(args[0].shape[0])
+    def fused_spy(self: Selector, points: torch.Tensor, point_batch: torch.Tensor):
+        out = select_closest(self, points, point_batch)
+        fused_calls.append(None if out is None else out[0].shape[0])
+        return out
+
+    def closest_spy(*args: torch.Tensor):
+        closest_calls.append(args[0].shape[0])
         return bvh_closest_points(*args)
 
-    monkeypatch.setattr(mesh_index, "bvh_closest_points", spy)
+    monkeypatch.setattr(Selector, "select_closest", fused_spy)
+    monkeypatch.setattr(mesh_index, "bvh_closest_points", closest_spy)
     mesh = trimesh.creation.icosphere(subdivisions=2)
     verts, faces = torch.tensor(mesh.vertices, dtype=torch.float32), torch.tensor(mesh.faces)
     points = torch.randn(50, 3, generator=torch.Generator().manual_seed(0))
     point_mesh_distance(points, verts, faces, backend="bvh")
-    assert calls == [50]
+    assert (fused_calls, closest_calls) == ([50], [])  # the BVH's selection and closest point in one pass
+    point_mesh_distance(points, verts, faces, backend="pruned")
+    assert (fused_calls, closest_calls) == ([50, None], [50])  # no fused query: the C++ closest-point pass
     point_mesh_distance(points.requires_grad_(), verts, faces, backend="bvh")
-    assert calls == [50]  # autograd: the differentiable torch recomputation
+    assert (fused_calls, closest_calls) == ([50, None], [50])  # autograd: the differentiable torch recomputation
+
+
+@pytest.mark.parametrize("backend", ["bvh", "pruned"])
+def test_fused_and_two_pass_answers_are_identical(backend: str) -> None:
+    g = torch.Generator().manual_seed(4)
+    verts = torch.randn(200, 3, generator=g)
+    faces = torch.randint(0, 200, (400, 3), generator=g)
+    points = torch.cat([torch.randn(500, 3, generator=g), verts[:50]])
+    got = point_mesh_distance(points, verts, faces, backend=backend)
+    ref = point_mesh_distance(points, verts, faces, backend="bruteforce")
+    for a, b in zip(got, ref, strict=True):
+        assert torch.equal(a, b)
 
 
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])

@@ -231,26 +231,33 @@ class MeshIndex:
             points_c = points_c * scale
         if self._faces is None:
             self._faces = Selector(self.backend, self._faceset, self.max_memory, self.tree)
-        face_idx = self._faces.select(points_c, point_batch)
+        result: PointMeshResult | None = None
+        if not (points_c.requires_grad or self.verts.requires_grad):
+            fused = self._faces.select_closest(points_c, point_batch)
+            if fused is not None:
+                # Without autograd safe_sqrt(sq) is sqrt(sq) bit for bit (sq >= 0, sqrt(0) = 0).
+                result = PointMeshResult(torch.sqrt(fused[1]), fused[0], fused[2], fused[3])
+        if result is None:
+            result = self._recompute(points_c, self._faces.select(points_c, point_batch), scale)
+        if scale is not None:
+            result = result._replace(dists=result.dists / scale, closest=result.closest / scale)
+        check_representable(result.dists, "points")
+        return result._replace(closest=result.closest + point_center)
+
+    def _recompute(self, points_c: Tensor, face_idx: Tensor, scale: float | None) -> PointMeshResult:
+        """Distances, barycentrics and closest points (centred frame) on the selected faces, with autograd."""
         if self.verts.requires_grad:
             verts_c = self.verts - self._vert_center
             verts_c = verts_c if scale is None else verts_c * scale
         else:
             verts_c = self._faceset.verts
-        result: PointMeshResult | None = None
         if not (points_c.requires_grad or verts_c.requires_grad):
             out = bvh_closest_points(points_c, verts_c, self._faces_global, face_idx)
             if out is not None:
-                # Without autograd safe_sqrt(sq) is sqrt(sq) bit for bit (sq >= 0, sqrt(0) = 0).
-                result = PointMeshResult(torch.sqrt(out[0]), face_idx, out[1], out[2])
-        if result is None:
-            tri = verts_c[self._faces_global[face_idx]]
-            res = closest_point_on_triangle(points_c, tri[:, 0], tri[:, 1], tri[:, 2])
-            result = PointMeshResult(safe_sqrt(res.sq_dists), face_idx, res.bary, res.closest)
-        if scale is not None:
-            result = result._replace(dists=result.dists / scale, closest=result.closest / scale)
-        check_representable(result.dists, "points")
-        return result._replace(closest=result.closest + point_center)
+                return PointMeshResult(torch.sqrt(out[0]), face_idx, out[1], out[2])
+        tri = verts_c[self._faces_global[face_idx]]
+        res = closest_point_on_triangle(points_c, tri[:, 0], tri[:, 1], tri[:, 2])
+        return PointMeshResult(safe_sqrt(res.sq_dists), face_idx, res.bary, res.closest)
 
     def nearest_vertex_distance(
         self, points: Tensor | Sequence[Tensor], *, points_lengths: Tensor | None = None

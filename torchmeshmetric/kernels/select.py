@@ -94,6 +94,9 @@ class SelectionBackend(NamedTuple):
         build_points: ``(ref) -> structure``.
         refit_points: ``(structure, moved ref) -> structure``.
         query_points: ``(structure, ref, points, point_batch, max_memory) -> (P,) int64 reference rows``.
+        query_faces_closest: optional, ``(structure, faces, points, point_batch) -> (face_idx, sq_dists, bary,
+            closest)``: the selection and the closest point on the selected face in one pass, bit-identical to
+            ``query_faces`` followed by :func:`~torchmeshmetric.closest_point_on_triangle` without autograd.
     """
 
     name: str
@@ -103,6 +106,7 @@ class SelectionBackend(NamedTuple):
     build_points: Callable[[PointSet], Any]
     refit_points: Callable[[Any, PointSet], Any]
     query_points: Callable[[Any, PointSet, Tensor, Tensor, int], Tensor]
+    query_faces_closest: Callable[[Any, FaceSet, Tensor, Tensor], tuple[Tensor, Tensor, Tensor, Tensor]] | None = None
 
 
 def _none(*_: Any) -> None:
@@ -124,6 +128,7 @@ def _kept(name: str, module: ModuleType) -> SelectionBackend:
         module.build_points,
         module.refit_points,
         module.query_points,
+        getattr(module, "query_faces_closest", None),
     )
 
 
@@ -194,20 +199,36 @@ class Selector:
         self.backend: SelectionBackend | None = None
         self.structure: Any = None
 
-    def select(self, points: Tensor, point_batch: Tensor) -> Tensor:
-        """``(P,)`` int64 row of the selected primitive of each centred point's item (the contract's choice)."""
-        prims = self.prims
+    def _backend(self, points: Tensor) -> SelectionBackend:
+        """The resolved backend, its structure built on the first query."""
         if self.backend is None:
+            prims = self.prims
             num_prims = prims.faces.shape[0] if isinstance(prims, FaceSet) else prims.points.shape[0]
             self.backend = resolve_backend(self.backend_name, points.device, points.dtype, points.shape[0] * num_prims)
             if isinstance(prims, FaceSet):
                 self.structure = self.backend.build_faces(prims, self.tree)
             else:
                 self.structure = self.backend.build_points(prims)
+        return self.backend
+
+    def select(self, points: Tensor, point_batch: Tensor) -> Tensor:
+        """``(P,)`` int64 row of the selected primitive of each centred point's item (the contract's choice)."""
+        backend, prims = self._backend(points), self.prims
         with torch.no_grad():
             if isinstance(prims, FaceSet):
-                return self.backend.query_faces(self.structure, prims, points.detach(), point_batch, self.max_memory)
-            return self.backend.query_points(self.structure, prims, points.detach(), point_batch, self.max_memory)
+                return backend.query_faces(self.structure, prims, points.detach(), point_batch, self.max_memory)
+            return backend.query_points(self.structure, prims, points.detach(), point_batch, self.max_memory)
+
+    def select_closest(self, points: Tensor, point_batch: Tensor) -> tuple[Tensor, Tensor, Tensor, Tensor] | None:
+        """Faces only: ``(face_idx, sq_dists, bary, closest)`` on the centred faces in one pass, without autograd.
+
+        ``None`` when the backend has no fused query (the caller selects, then computes on the selected faces).
+        """
+        backend, prims = self._backend(points), self.prims
+        if backend.query_faces_closest is None or not isinstance(prims, FaceSet):
+            return None
+        with torch.no_grad():
+            return backend.query_faces_closest(self.structure, prims, points.detach(), point_batch)
 
     def refit(self, prims: FaceSet | PointSet) -> None:
         """Moved coordinates of the same primitives: the kept structure is refitted (exact for them), not rebuilt."""

@@ -945,47 +945,59 @@ void face_bvh_refit_impl(const std::vector<torch::Tensor>& h, const torch::Tenso
 // farthest first), a stacked entry re-tested against the bound when popped since the bound shrinks meanwhile.
 template <typename T>
 inline void wide_face_nearest(const WideNode<T>* nodes, const FaceBlock<T>* blocks, int32_t root, const T* p, T slack,
-                              T& best_sq, int64_t& best_idx) {
+                              T& best_sq, int64_t& best_idx, int32_t& best_block, int& best_lane) {
   int32_t stack[WIDE_STACK];
   T stack_d[WIDE_STACK];
   int top = 0;
   T bound = prune_bound(best_sq, slack);
-  stack[top] = root;
-  stack_d[top] = 0;
-  ++top;
-  while (top > 0) {
-    --top;
-    if (stack_d[top] > bound) continue;
-    const int32_t c = stack[top];
-    if (c < 0) {
-      T sq[WIDTH];
-      block_sq_dists(blocks[~c], p, sq);
-      const int32_t* fs = blocks[~c].face;
-      const T before = best_sq;
-      for (int l = 0; l < WIDTH; ++l)
-        if (sq[l] < best_sq || (sq[l] == best_sq && fs[l] < best_idx)) {
-          best_sq = sq[l];
-          best_idx = fs[l];
+  int32_t c = root;  // the entry at hand and its box distance; the nearest child is taken directly, not stacked
+  T dc = 0;
+  for (;;) {
+    if (dc <= bound) {
+      if (c < 0) {
+        T sq[WIDTH];
+        block_sq_dists(blocks[~c], p, sq);
+        T least = sq[0];
+        for (int l = 1; l < WIDTH; ++l) least = std::min(least, sq[l]);
+        if (least <= best_sq) {
+          const int32_t* fs = blocks[~c].face;
+          for (int l = 0; l < WIDTH; ++l)
+            if (sq[l] < best_sq || (sq[l] == best_sq && fs[l] < best_idx)) {
+              best_sq = sq[l];
+              best_idx = fs[l];
+              best_block = ~c;
+              best_lane = l;
+            }
+          bound = prune_bound(best_sq, slack);
         }
-      if (best_sq != before) bound = prune_bound(best_sq, slack);
-      continue;
+      } else {
+        const WideNode<T>& nd = nodes[c];
+        T d[WIDTH];
+        wide_box_dists(nd, p, d);
+        int order[WIDTH];
+        int m = 0;
+        for (int l = 0; l < nd.lanes; ++l) {
+          if (!(d[l] <= bound)) continue;
+          int j = m++;
+          for (; j > 0 && d[order[j - 1]] < d[l]; --j) order[j] = order[j - 1];  // farthest first
+          order[j] = l;
+        }
+        if (m > 0) {
+          for (int j = 0; j < m - 1; ++j) {
+            stack[top] = nd.child[order[j]];
+            stack_d[top] = d[order[j]];
+            ++top;
+          }
+          c = nd.child[order[m - 1]];
+          dc = d[order[m - 1]];
+          continue;
+        }
+      }
     }
-    const WideNode<T>& nd = nodes[c];
-    T d[WIDTH];
-    wide_box_dists(nd, p, d);
-    int order[WIDTH];
-    int m = 0;
-    for (int l = 0; l < nd.lanes; ++l) {
-      if (!(d[l] <= bound)) continue;
-      int j = m++;
-      for (; j > 0 && d[order[j - 1]] < d[l]; --j) order[j] = order[j - 1];  // farthest first
-      order[j] = l;
-    }
-    for (int j = 0; j < m; ++j) {
-      stack[top] = nd.child[order[j]];
-      stack_d[top] = d[order[j]];
-      ++top;
-    }
+    if (top == 0) return;
+    --top;
+    c = stack[top];
+    dc = stack_d[top];
   }
 }
 
@@ -1003,9 +1015,12 @@ torch::Tensor query_in_morton_order(const torch::Tensor& points, const F& fn) {
 }
 
 // Closest face per centred query point through a kept face hierarchy (lowest face index among equal squares).
+// With `closest`, also the closest point on that face as closest_points computes it ({face_idx, sq_dists, bary,
+// closest}), from the vertices in the winning block, which the traversal has just read; without, {face_idx}.
 template <typename T>
-torch::Tensor face_bvh_query_impl(const std::vector<torch::Tensor>& h, const torch::Tensor& points,
-                                  const torch::Tensor& point_batch, const torch::Tensor& face_offsets) {
+std::vector<torch::Tensor> face_bvh_query_impl(const std::vector<torch::Tensor>& h, const torch::Tensor& points,
+                                               const torch::Tensor& point_batch, const torch::Tensor& face_offsets,
+                                               bool closest) {
   const WideNode<T>* nd = wide_nodes_of<T>(h[0]);
   const int64_t* roots = h[1].data_ptr<int64_t>();
   const FaceBlock<T>* blk = blocks_of<T>(h[3]);
@@ -1013,19 +1028,45 @@ torch::Tensor face_bvh_query_impl(const std::vector<torch::Tensor>& h, const tor
   const int64_t* off = face_offsets.data_ptr<int64_t>();
   const T* Pp = points.data_ptr<T>();
   const int64_t* pb = point_batch.data_ptr<int64_t>();
-  return query_in_morton_order<T>(points, [&](int64_t s, int64_t e, const int64_t* ord, int64_t* o) {
+  const int64_t P = points.size(0);
+  std::vector<torch::Tensor> out(1);
+  T *sq = nullptr, *bary = nullptr, *cl = nullptr;
+  if (closest) {
+    out.push_back(torch::empty({P}, points.options()));
+    out.push_back(torch::empty({P, 3}, points.options()));
+    out.push_back(torch::empty({P, 3}, points.options()));
+    sq = out[1].data_ptr<T>();
+    bary = out[2].data_ptr<T>();
+    cl = out[3].data_ptr<T>();
+  }
+  out[0] = query_in_morton_order<T>(points, [&](int64_t s, int64_t e, const int64_t* ord, int64_t* o) {
     for (int64_t q = s; q < e; ++q) {
       const int64_t i = ord[q];
       const int64_t b = pb[i];
+      const T* p = Pp + 3 * i;
       T best = std::numeric_limits<T>::infinity();
       int64_t best_idx = off[b];
+      int32_t best_block = -1;
+      int best_lane = 0;
       // No seeding here (unlike nearest points): nearest-child-first descent to a 4-face leaf finds a tight bound at
       // once, and evaluating the predecessor's face first measured 5-10% slower.
       if (roots[b] >= 0)
-        wide_face_nearest<T>(nd, blk, static_cast<int32_t>(roots[b]), Pp + 3 * i, slack[b], best, best_idx);
+        wide_face_nearest<T>(nd, blk, static_cast<int32_t>(roots[b]), p, slack[b], best, best_idx, best_block,
+                             best_lane);
       o[i] = best_idx;
+      if (closest && best_block < 0) {  // an item without faces (callers reject its points before)
+        sq[i] = std::numeric_limits<T>::infinity();
+        for (int k = 0; k < 3; ++k) bary[3 * i + k] = cl[3 * i + k] = T(0);
+      } else if (closest) {
+        const FaceBlock<T>& w = blk[best_block];
+        const T a[3] = {w.a[0][best_lane], w.a[1][best_lane], w.a[2][best_lane]};
+        const T bb[3] = {w.b[0][best_lane], w.b[1][best_lane], w.b[2][best_lane]};
+        const T c[3] = {w.c[0][best_lane], w.c[1][best_lane], w.c[2][best_lane]};
+        sq[i] = closest_on_face(a, bb, c, p, bary + 3 * i, cl + 3 * i);
+      }
     }
   });
+  return out;
 }
 
 // Point hierarchy of centred reference points: {nodes, roots, perm, points (3, R + LEAF_POINTS) by coordinate in
@@ -1392,11 +1433,11 @@ void face_bvh_refit(std::vector<torch::Tensor> h, torch::Tensor verts, torch::Te
   TMM_DISPATCH(verts.scalar_type(), return face_bvh_refit_impl<T>(h, verts, faces));
 }
 
-torch::Tensor face_bvh_query(std::vector<torch::Tensor> h, torch::Tensor points, torch::Tensor point_batch,
-                             torch::Tensor face_offsets) {
+std::vector<torch::Tensor> face_bvh_query(std::vector<torch::Tensor> h, torch::Tensor points, torch::Tensor point_batch,
+                                          torch::Tensor face_offsets, bool closest) {
   check_inputs(points, point_batch, h[3], face_offsets);
   TORCH_CHECK(h.size() == 5 && h[3].scalar_type() == points.scalar_type(), "bvh: points and hierarchy dtypes differ");
-  TMM_DISPATCH(points.scalar_type(), return face_bvh_query_impl<T>(h, points, point_batch, face_offsets));
+  TMM_DISPATCH(points.scalar_type(), return face_bvh_query_impl<T>(h, points, point_batch, face_offsets, closest));
 }
 
 std::vector<torch::Tensor> point_bvh_build(torch::Tensor ref, torch::Tensor ref_offsets) {
@@ -1467,7 +1508,9 @@ PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
   m.def("face_bvh_build", &face_bvh_build,
         "Kept face hierarchy (Morton split, or binned SAH): [nodes, roots, perm, face data, slack]");
   m.def("face_bvh_refit", &face_bvh_refit, "Refit a kept face hierarchy to moved vertices (in place)");
-  m.def("face_bvh_query", &face_bvh_query, "Closest face per point (kept hierarchy, exact, lowest index on ties)");
+  m.def("face_bvh_query", &face_bvh_query,
+        "Closest face per point (kept hierarchy, exact, lowest index on ties): {face_idx}, or with closest=True "
+        "{face_idx, sq_dists, bary, closest} as closest_points, in the same pass");
   m.def("point_bvh_build", &point_bvh_build, "Kept point hierarchy: [nodes, roots, perm, points, slack]");
   m.def("point_bvh_refit", &point_bvh_refit, "Refit a kept point hierarchy to moved points (in place)");
   m.def("point_bvh_query", &point_bvh_query, "Nearest reference point per point (kept hierarchy, exact)");

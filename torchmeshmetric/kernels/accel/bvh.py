@@ -24,6 +24,7 @@ __all__ = [
     "bvh_closest_points",
     "bvh_nearest_single",
     "query_faces",
+    "query_faces_closest",
     "query_points",
     "refit_faces",
     "refit_points",
@@ -58,7 +59,21 @@ def query_faces(
 ) -> Tensor:
     """Closest face per centred point, exact, lowest index among equal squared distances."""
     # max_memory is unused: a tree query has no pairwise intermediate.
-    return _ext().face_bvh_query(structure, points.contiguous(), point_batch.contiguous(), faces.offsets.contiguous())
+    points, point_batch, offsets = points.contiguous(), point_batch.contiguous(), faces.offsets.contiguous()
+    return _ext().face_bvh_query(structure, points, point_batch, offsets, False)[0]
+
+
+def query_faces_closest(
+    structure: list[Tensor], faces: FaceSet, points: Tensor, point_batch: Tensor
+) -> tuple[Tensor, Tensor, Tensor, Tensor]:
+    """:func:`query_faces` and the closest points on the selected faces in one pass: ``(face_idx, sq, bary, closest)``.
+
+    Bit-identical to :func:`query_faces` followed by :func:`bvh_closest_points` (the closest point is computed from
+    the vertices in the face block the traversal has just read: no second pass over the faces).
+    """
+    points, point_batch, offsets = points.contiguous(), point_batch.contiguous(), faces.offsets.contiguous()
+    face_idx, sq, bary, closest = _ext().face_bvh_query(structure, points, point_batch, offsets, True)
+    return face_idx, sq, bary, closest
 
 
 def build_points(ref: PointSet) -> list[Tensor]:
