@@ -26,6 +26,7 @@ from __future__ import annotations
 import math
 import time
 import warnings
+from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import torch
@@ -39,10 +40,11 @@ from torchmeshmetric.registration.deformation_graph import DeformationGraph
 from torchmeshmetric.registration.energies import (
     Correspondences,
     EnergyTerms,
+    FusedStep,
     deformed_vertices,
     embedded_deformation_regularizer,
-    find_correspondences,
-    fused_energy,
+    registration_ops,
+    reject_correspondences,
     surface_term,
 )
 from torchmeshmetric.registration.options import DEFAULT_SCHEDULE, NonRigidOptions, Stage
@@ -283,6 +285,7 @@ class _Terms(NamedTuple):
     faces_loc: Tensor  # (Q, 3) rows of `need` of the corners of the faces matched by the target samples
     forward: Correspondences  # data points -> target faces
     reverse: Correspondences | None  # target samples -> rows of `faces_loc`
+    fused: FusedStep | None  # the energy laid out for the C++ pass (CPU), else None (torch formulation)
 
 
 class _Fit:
@@ -318,6 +321,14 @@ class _Fit:
         packed = PackedMeshes(tgt.verts, tgt.faces, _lengths(tgt.verts), _lengths(tgt.faces))
         self.target_index = MeshIndex._trusted(packed, backend, DEFAULT_MAX_MEMORY)
         self.source_index: MeshIndex | None = None
+        # On the CPU, the C++ passes: each refresh's deformed source with the vertex normals of the data points, and
+        # each step's fused energy (the same values as the torch formulation's kernels, tested).
+        self.ops = registration_ops() if dev.type == "cpu" else None
+        if self.ops is not None:
+            g = self.graph
+            self._skinning = [t.contiguous() for t in (g.nodes, g.verts, g.vert_nodes, g.vert_weights)]
+            self._faces = src.faces.contiguous()
+            self._incident = self.ops.incident_faces(self._faces, src.num_verts)
         # Adam's step is lr * m / (sqrt(v) + eps): about lr in every coordinate whatever the gradient's size, so at
         # a stationary point (e.g. an exact pair, whose gradient is rounding noise) it would move the parameters by
         # lr instead of not at all; a stage stops where every gradient component is below sqrt(eps) of the dtype
@@ -345,10 +356,7 @@ class _Fit:
             if refresh:
                 terms = self._refresh(stage)
             assert terms is not None
-            opt.zero_grad(set_to_none=True)
-            with torch.set_grad_enabled(not finishing):
-                loss = self._loss(stage, terms)
-            value = float(loss.detach())
+            value, grad_max = self._evaluate(stage, terms, gradient=not finishing)
             if self.first_loss is None:
                 # The loss is in units of (node spacing)^2: a floor of 1 (a residual of one node spacing) keeps an
                 # exact start (loss ~1e-30) from calling rounding noise a divergence.
@@ -362,10 +370,6 @@ class _Fit:
             if finishing:
                 break
             self.history.append(value)
-            loss.backward()
-            # One reduction for both checks: NaN propagates through max.
-            grads = [p.grad.abs().max() for p in self.graph.parameters() if p.grad is not None]
-            grad_max = float(torch.stack(grads).max())
             if not math.isfinite(grad_max):
                 self._diverged("diverged: non-finite gradient")
                 return
@@ -401,22 +405,37 @@ class _Fit:
         """New correspondences at the current deformation (forward, and reverse when there are target samples)."""
         t0 = time.perf_counter()
         tgt, sf, surf = self.frame.target, self.frame.source.faces, self.surf
-        limits = {"max_distance": stage.max_distance, "max_normal_angle": stage.max_normal_angle}
         with torch.no_grad():
-            deformed = Mesh(deformed_vertices(self.graph), sf, validate=False)
-            dv, vn = deformed.verts, deformed.vertex_normals()
-            forward = find_correspondences(
-                dv[surf], vn[surf], tgt.verts, tgt.faces, index=self.target_index, face_normals=tgt.face_normals(),
-                **limits,
-            )  # fmt: skip
+            if self.ops is not None:
+                g = self.graph
+                dv, surf_normals = self.ops.deform_normals(
+                    g.rotations.detach(), g.translations.detach(), *self._skinning, self._faces, *self._incident, surf
+                )  # fmt: skip
+            else:
+                deformed = Mesh(deformed_vertices(self.graph), sf, validate=False)
+                dv, surf_normals = deformed.verts, deformed.vertex_normals()[surf]
+            target_normals = tgt.face_normals()
+            forward = self._match(stage, dv[surf], surf_normals, self.target_index, lambda f: target_normals[f])
             reverse = None
             if self.samples is not None:
-                reverse = find_correspondences(
-                    self.samples, self.sample_normals, dv, sf, index=self._source_index(dv),
-                    face_normals=deformed.face_normals(), **limits,
-                )  # fmt: skip
+                if self.ops is not None:
+                    ops = self.ops
+                    source_normals = lambda f: ops.face_normals(dv, self._faces, f)  # noqa: E731
+                else:
+                    source_normals = lambda f: Mesh(dv, sf, validate=False).face_normals()[f]  # noqa: E731
+                reverse = self._match(stage, self.samples, self.sample_normals, self._source_index(dv), source_normals)
         self.timings["correspondences"] += time.perf_counter() - t0
         return self._terms(forward, reverse)
+
+    @staticmethod
+    def _match(
+        stage: Stage, points: Tensor, normals: Tensor, index: MeshIndex, face_normals: Callable[[Tensor], Tensor]
+    ) -> Correspondences:
+        """:func:`find_correspondences` with a kept index and the normals of the matched faces only."""
+        res = index._point_mesh_distance(points, _lengths(points))
+        return reject_correspondences(
+            res.face_idx, res.dists, normals, face_normals(res.face_idx), stage.max_distance, stage.max_normal_angle
+        )
 
     def _terms(self, forward: Correspondences, reverse: Correspondences | None) -> _Terms:
         """Lay out one refresh's correspondences for the energies, indexed by the vertices they touch."""
@@ -435,34 +454,47 @@ class _Fit:
         )  # fmt: skip
         if reverse is not None:
             reverse = reverse._replace(face_idx=torch.arange(rev_faces.shape[0], device=sf.device))
-        return _Terms(energy, need, surf_loc, faces_loc, forward, reverse)
+        fused = FusedStep(graph, energy, self.ops) if self.ops is not None else None
+        return _Terms(energy, need, surf_loc, faces_loc, forward, reverse, fused)
 
-    def _loss(self, stage: Stage, terms: _Terms) -> Tensor:
-        """The stage's energy at the current deformation.
+    def _evaluate(self, stage: Stage, terms: _Terms, *, gradient: bool) -> tuple[float, float]:
+        """``(loss, max |gradient component|)`` of the stage's energy at the current deformation.
 
-        Data terms are in units of the node spacing, so a regularisation weight of 1 trades an edge residual of one
-        spacing against a data residual of one spacing.
+        With ``gradient``, the parameters' ``.grad`` hold the gradient (for Adam); without, the second value is NaN
+        off the CPU. Data terms are in units of the node spacing, so a regularisation weight of 1 trades an edge
+        residual of one spacing against a data residual of one spacing.
         """
-        opts, tgt = self.opts, self.frame.target
+        opts, tgt, graph = self.opts, self.frame.target, self.graph
         weights = {"plane_weight": opts.plane_weight, "point_weight": opts.point_weight}
-        loss = fused_energy(
-            self.graph, terms.energy, sigma=stage.robust_scale, reverse_weight=opts.reverse_weight,
-            data_scale=1.0 / (opts.node_spacing * opts.node_spacing), regularization=stage.regularization, **weights,
-        )  # fmt: skip
-        if loss is not None:
-            return loss
-        # No C++ extension for this device: the same energy in torch ops.
-        dsub = self.graph.deform_vertices(terms.need)
-        loss = surface_term(
-            dsub[terms.surf_loc], tgt.verts, tgt.faces, terms.forward, sigma=stage.robust_scale, **weights
-        )
-        if terms.reverse is not None and self.samples is not None and opts.reverse_weight:
-            loss = loss + opts.reverse_weight * surface_term(
-                self.samples, dsub, terms.faces_loc, terms.reverse, sigma=stage.robust_scale, plane_weight=0.0,
-                point_weight=1.0,
-            )  # fmt: skip
-        loss = loss / (opts.node_spacing * opts.node_spacing)
-        return loss + stage.regularization * embedded_deformation_regularizer(self.graph)
+        data_scale = 1.0 / (opts.node_spacing * opts.node_spacing)
+        if terms.fused is not None:
+            scalars = [stage.robust_scale, opts.plane_weight, opts.point_weight, opts.reverse_weight, data_scale,
+                       stage.regularization]  # fmt: skip
+            loss_t, g_rot, g_tr, grad_max = terms.fused(graph.rotations, graph.translations, scalars)
+            if gradient:
+                graph.rotations.grad, graph.translations.grad = g_rot, g_tr
+            return float(loss_t), float(grad_max)
+        # No C++ extension for this device: the same energy in torch ops, differentiated by autograd.
+        graph.zero_grad(set_to_none=True)
+        with torch.set_grad_enabled(gradient):
+            dsub = graph.deform_vertices(terms.need)
+            loss = surface_term(
+                dsub[terms.surf_loc], tgt.verts, tgt.faces, terms.forward, sigma=stage.robust_scale, **weights
+            )
+            if terms.reverse is not None and self.samples is not None and opts.reverse_weight:
+                loss = loss + opts.reverse_weight * surface_term(
+                    self.samples, dsub, terms.faces_loc, terms.reverse, sigma=stage.robust_scale, plane_weight=0.0,
+                    point_weight=1.0,
+                )  # fmt: skip
+            loss = loss / (opts.node_spacing * opts.node_spacing)
+            loss = loss + stage.regularization * embedded_deformation_regularizer(graph)
+        value = float(loss.detach())
+        if not gradient:
+            return value, math.nan
+        loss.backward()
+        # One reduction for both checks: NaN propagates through max.
+        grads = [p.grad.abs().max() for p in graph.parameters() if p.grad is not None]
+        return value, float(torch.stack(grads).max())
 
     def plausibility(self) -> tuple[Tensor, Tensor, str]:
         """``(verts (V, 3), residual (V,), reason)`` of the fit as it stands.
