@@ -179,3 +179,36 @@ def test_farthest_point_nodes_in_cpp_equal_the_torch_loop(monkeypatch: pytest.Mo
     fast = farthest_point_nodes(points, 0.3)
     monkeypatch.setattr(deformation_graph, "bvh_ready", lambda: False)
     assert torch.equal(fast, farthest_point_nodes(points, 0.3))
+
+
+def test_energy_terms_equal_the_torch_layout() -> None:
+    """The C++ layout of one refresh's terms: the rows unique(return_inverse=True) and plain gathers give."""
+    ops = _ops()
+    g = torch.Generator().manual_seed(4)
+    src = trimesh.creation.icosphere(subdivisions=3)
+    tgt = trimesh.creation.icosphere(subdivisions=2)
+    sv, sf = torch.tensor(src.vertices), torch.tensor(src.faces)
+    tv, tf = torch.tensor(tgt.vertices), torch.tensor(tgt.faces)
+    graph = DeformationGraph(sv, sf, node_spacing=0.3)
+    surf = torch.randperm(sv.shape[0], generator=g)[:200]
+    rev_idx = torch.randint(0, sf.shape[0], (150,), generator=g)
+    data_faces = torch.randint(0, tf.shape[0], (200,), generator=g)
+    data_w, rev_w = torch.rand(200, generator=g, dtype=torch.float64), torch.rand(150, generator=g, dtype=torch.float64)
+    normals = Mesh(tv, tf, validate=False).face_normals()
+    skin = [t.contiguous() for t in (graph.verts, graph.vert_nodes, graph.vert_weights)]
+    out = ops.energy_terms(
+        surf, rev_idx, sf, *skin, tv, tf, normals, data_faces, data_w, rev_w, graph.nodes, graph.edges
+    )
+    need, inv = torch.cat([surf, sf[rev_idx].reshape(-1)]).unique(return_inverse=True)
+    expected = [
+        need, graph.verts[need], graph.vert_nodes[need], graph.vert_weights[need], inv[:200], tv[tf[data_faces]],
+        normals[data_faces], inv[200:].view(-1, 3),
+    ]  # fmt: skip
+    expected += ops.energy_layout(expected[4], data_w, expected[7], rev_w, expected[2], graph.nodes, graph.edges)
+    assert len(out) == len(expected) == 13
+    for got, want in zip(out, expected, strict=True):
+        assert torch.equal(got, want)
+    with pytest.raises(RuntimeError, match="face index out of range"):
+        ops.energy_terms(
+            surf, rev_idx + sf.shape[0], sf, *skin, tv, tf, normals, data_faces, data_w, rev_w, graph.nodes, graph.edges
+        )

@@ -243,13 +243,18 @@ class FusedStep:
         graph: the deformation graph (its buffers are read once; its parameters at every call).
         terms: the correspondences of one refresh.
         ops: :func:`registration_ops`.
+        layout: the layout of ``terms``, when already built (``energy_terms`` returns it).
     """
 
-    def __init__(self, graph: DeformationGraph, terms: EnergyTerms, ops: Any) -> None:
+    def __init__(
+        self, graph: DeformationGraph, terms: EnergyTerms, ops: Any, layout: list[Tensor] | None = None
+    ) -> None:
         self._ops = ops
         self._buffers = [t.contiguous() for t in (graph.nodes, *terms, graph.edges)]
         nodes, _, vidx, _, data_idx, _, _, data_w, _, rev_faces, rev_w, edges = self._buffers
-        self._layout = ops.energy_layout(data_idx, data_w, rev_faces, rev_w, vidx, nodes, edges)
+        if layout is None:
+            layout = ops.energy_layout(data_idx, data_w, rev_faces, rev_w, vidx, nodes, edges)
+        self._layout = layout
 
     def __call__(self, rotations: Tensor, translations: Tensor, scalars: list[float]) -> list[Tensor]:
         """``[loss, dL/drotations (N, 3), dL/dtranslations (N, 3), max |gradient| (float64)]`` at these parameters.

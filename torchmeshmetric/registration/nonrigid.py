@@ -329,6 +329,7 @@ class _Fit:
             self._skinning = [t.contiguous() for t in (g.nodes, g.verts, g.vert_nodes, g.vert_weights)]
             self._faces = src.faces.contiguous()
             self._incident = self.ops.incident_faces(self._faces, src.num_verts)
+            self._target = [t.contiguous() for t in (tgt.verts, tgt.faces, tgt.face_normals())]
         # Adam's step is lr * m / (sqrt(v) + eps): about lr in every coordinate whatever the gradient's size, so at
         # a stationary point (e.g. an exact pair, whose gradient is rounding noise) it would move the parameters by
         # lr instead of not at all; a stage stops where every gradient component is below sqrt(eps) of the dtype
@@ -415,7 +416,13 @@ class _Fit:
                 deformed = Mesh(deformed_vertices(self.graph), sf, validate=False)
                 dv, surf_normals = deformed.verts, deformed.vertex_normals()[surf]
             target_normals = tgt.face_normals()
-            forward = self._match(stage, dv[surf], surf_normals, self.target_index, lambda f: target_normals[f])
+            forward = self._match(
+                stage,
+                dv.index_select(0, surf),
+                surf_normals,
+                self.target_index,
+                lambda f: target_normals.index_select(0, f),
+            )
             reverse = None
             if self.samples is not None:
                 if self.ops is not None:
@@ -438,23 +445,38 @@ class _Fit:
         )
 
     def _terms(self, forward: Correspondences, reverse: Correspondences | None) -> _Terms:
-        """Lay out one refresh's correspondences for the energies, indexed by the vertices they touch."""
+        """Lay out one refresh's correspondences for the energies, indexed by the vertices they touch.
+
+        Only the data points and the vertices of the faces matched by target samples enter the data terms: just those
+        are deformed (forward and backward then scale with them, not with all vertices).
+        """
         graph, tgt, sf, surf = self.graph, self.frame.target, self.frame.source.faces, self.surf
-        # Only the data points and the vertices of the faces matched by target samples enter the data terms: deform
-        # just those (forward and backward then scale with them, not with all vertices).
-        rev_faces = sf[reverse.face_idx] if reverse is not None else sf[:0]
-        need, inv = torch.cat([surf, rev_faces.reshape(-1)]).unique(return_inverse=True)
-        surf_loc, faces_loc = inv[: surf.numel()], inv[surf.numel() :].view(-1, 3)
-        tv, tf = tgt.verts, tgt.faces
-        energy = EnergyTerms(
-            graph.verts[need], graph.vert_nodes[need], graph.vert_weights[need], surf_loc,
-            tv[tf[forward.face_idx]], tgt.face_normals()[forward.face_idx], forward.weights,
-            self.samples if reverse is not None and self.samples is not None else tv[:0], faces_loc,
-            reverse.weights if reverse is not None else tv.new_zeros(0),
-        )  # fmt: skip
+        samples = self.samples if reverse is not None and self.samples is not None else tgt.verts[:0]
+        rev_weights = reverse.weights if reverse is not None else tgt.verts.new_zeros(0)
+        rev_faces_idx = reverse.face_idx if reverse is not None else sf.new_zeros(0)
+        if self.ops is not None:
+            nodes, verts, vert_nodes, vert_weights = self._skinning
+            out = self.ops.energy_terms(
+                surf, rev_faces_idx, self._faces, verts, vert_nodes, vert_weights, *self._target, forward.face_idx,
+                forward.weights, rev_weights, nodes, graph.edges,
+            )  # fmt: skip
+            need, rest, vidx, vw, surf_loc, data_tri, data_normals, faces_loc = out[:8]
+            energy = EnergyTerms(
+                rest, vidx, vw, surf_loc, data_tri, data_normals, forward.weights, samples, faces_loc, rev_weights
+            )
+            fused: FusedStep | None = FusedStep(graph, energy, self.ops, out[8:])
+        else:
+            rev_faces = sf[rev_faces_idx]
+            need, inv = torch.cat([surf, rev_faces.reshape(-1)]).unique(return_inverse=True)
+            surf_loc, faces_loc = inv[: surf.numel()], inv[surf.numel() :].view(-1, 3)
+            tv, tf, fidx = tgt.verts, tgt.faces, forward.face_idx
+            energy = EnergyTerms(
+                graph.verts[need], graph.vert_nodes[need], graph.vert_weights[need], surf_loc, tv[tf[fidx]],
+                tgt.face_normals()[fidx], forward.weights, samples, faces_loc, rev_weights,
+            )  # fmt: skip
+            fused = None
         if reverse is not None:
-            reverse = reverse._replace(face_idx=torch.arange(rev_faces.shape[0], device=sf.device))
-        fused = FusedStep(graph, energy, self.ops) if self.ops is not None else None
+            reverse = reverse._replace(face_idx=torch.arange(faces_loc.shape[0], device=sf.device))
         return _Terms(energy, need, surf_loc, faces_loc, forward, reverse, fused)
 
     def _evaluate(self, stage: Stage, terms: _Terms, *, gradient: bool) -> tuple[float, float]:

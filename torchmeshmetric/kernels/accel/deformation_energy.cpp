@@ -272,6 +272,82 @@ std::vector<torch::Tensor> layout_impl(const torch::Tensor& data_idx_t, const to
   return {verts.ptr, verts.items, nodes.ptr, nodes.items, sums};
 }
 
+// One refresh's terms laid out for the energy: the touched source vertices (data points and the corners of the faces
+// matched by target samples), sorted and distinct, with their rest positions and skinning; the data points' rows
+// among them, their assigned target triangles and normals; the corners' rows; then energy_layout's five tensors.
+template <typename T>
+std::vector<torch::Tensor> terms_impl(const torch::Tensor& surf_t, const torch::Tensor& rev_face_t,
+                                      const torch::Tensor& faces_t, const torch::Tensor& verts_t,
+                                      const torch::Tensor& vert_nodes_t, const torch::Tensor& vert_weights_t,
+                                      const torch::Tensor& tverts_t, const torch::Tensor& tfaces_t,
+                                      const torch::Tensor& tnormals_t, const torch::Tensor& data_face_t,
+                                      const torch::Tensor& data_w_t, const torch::Tensor& rev_w_t,
+                                      const torch::Tensor& nodes_t, const torch::Tensor& edges_t) {
+  const int64_t V = verts_t.size(0), K = vert_nodes_t.size(1), S = surf_t.size(0), Q = rev_face_t.size(0),
+                F = faces_t.size(0), TV = tverts_t.size(0), TF = tfaces_t.size(0);
+  TORCH_CHECK(data_face_t.size(0) == S && data_w_t.size(0) == S && rev_w_t.size(0) == Q,
+              "energy_terms: one face and one weight per data point and per target sample expected");
+  const int64_t* surf = surf_t.data_ptr<int64_t>();
+  const int64_t* rfi = rev_face_t.data_ptr<int64_t>();
+  const int64_t* faces = faces_t.data_ptr<int64_t>();
+  const int64_t* dfi = data_face_t.data_ptr<int64_t>();
+  const int64_t* tf = tfaces_t.data_ptr<int64_t>();
+  // Every index read below is checked where it is used (the faces themselves only where matched).
+  for (int64_t k = 0; k < S; ++k) {
+    TORCH_CHECK(surf[k] >= 0 && surf[k] < V && dfi[k] >= 0 && dfi[k] < TF, "energy_terms: data index out of range");
+    for (int c = 0; c < 3; ++c)
+      TORCH_CHECK(tf[3 * dfi[k] + c] >= 0 && tf[3 * dfi[k] + c] < TV, "energy_terms: target corner out of range");
+  }
+  for (int64_t k = 0; k < Q; ++k) {
+    TORCH_CHECK(rfi[k] >= 0 && rfi[k] < F, "energy_terms: face index out of range");
+    for (int c = 0; c < 3; ++c)
+      TORCH_CHECK(faces[3 * rfi[k] + c] >= 0 && faces[3 * rfi[k] + c] < V, "energy_terms: corner out of range");
+  }
+  // Rows of the touched vertices: marked, then numbered in vertex order (unique's sorted order).
+  std::vector<int64_t> row(V, -1);
+  for (int64_t k = 0; k < S; ++k) row[surf[k]] = 0;
+  for (int64_t k = 0; k < Q; ++k)
+    for (int c = 0; c < 3; ++c) row[faces[3 * rfi[k] + c]] = 0;
+  int64_t I = 0;
+  for (int64_t v = 0; v < V; ++v)
+    if (row[v] == 0) row[v] = I++;
+  const auto i64 = torch::dtype(torch::kInt64);
+  torch::Tensor need = torch::empty({I}, i64), rest = torch::empty({I, 3}, verts_t.options()),
+                vidx = torch::empty({I, K}, i64), vw = torch::empty({I, K}, verts_t.options());
+  int64_t* nd = need.data_ptr<int64_t>();
+  for (int64_t v = 0; v < V; ++v)
+    if (row[v] >= 0) nd[row[v]] = v;
+  const T* verts = verts_t.data_ptr<T>();
+  const int64_t* vn = vert_nodes_t.data_ptr<int64_t>();
+  const T* vwt = vert_weights_t.data_ptr<T>();
+  T* rp = rest.data_ptr<T>();
+  int64_t* ip = vidx.data_ptr<int64_t>();
+  T* wp = vw.data_ptr<T>();
+  for (int64_t i = 0; i < I; ++i) {
+    std::copy(verts + 3 * nd[i], verts + 3 * nd[i] + 3, rp + 3 * i);
+    std::copy(vn + K * nd[i], vn + K * nd[i] + K, ip + K * i);
+    std::copy(vwt + K * nd[i], vwt + K * nd[i] + K, wp + K * i);
+  }
+  torch::Tensor data_idx = torch::empty({S}, i64), data_tri = torch::empty({S, 3, 3}, tverts_t.options()),
+                data_n = torch::empty({S, 3}, tverts_t.options()), rev_loc = torch::empty({Q, 3}, i64);
+  int64_t* di = data_idx.data_ptr<int64_t>();
+  T* dt = data_tri.data_ptr<T>();
+  T* dn = data_n.data_ptr<T>();
+  const T* tv = tverts_t.data_ptr<T>();
+  const T* tn = tnormals_t.data_ptr<T>();
+  for (int64_t k = 0; k < S; ++k) {
+    di[k] = row[surf[k]];
+    for (int c = 0; c < 3; ++c) std::copy(tv + 3 * tf[3 * dfi[k] + c], tv + 3 * tf[3 * dfi[k] + c] + 3, dt + 9 * k + 3 * c);
+    std::copy(tn + 3 * dfi[k], tn + 3 * dfi[k] + 3, dn + 3 * k);
+  }
+  int64_t* rl = rev_loc.data_ptr<int64_t>();
+  for (int64_t k = 0; k < Q; ++k)
+    for (int c = 0; c < 3; ++c) rl[3 * k + c] = row[faces[3 * rfi[k] + c]];
+  std::vector<torch::Tensor> out{need, rest, vidx, vw, data_idx, data_tri, data_n, rev_loc};
+  for (auto& t : layout_impl<T>(data_idx, data_w_t, rev_loc, rev_w_t, vidx, nodes_t, edges_t)) out.push_back(t);
+  return out;
+}
+
 // The energy's inputs: the graph (axis-angle rotations, their matrices, translations, node positions), the touched
 // vertices (rest positions, skinning), the data terms, the reverse terms, the edges, and their layout.
 template <typename T>
@@ -587,6 +663,22 @@ std::vector<torch::Tensor> energy_layout(const torch::Tensor& data_idx, const to
   return layout_impl<float>(data_idx, data_w, rev_faces, rev_w, vert_nodes, nodes, edges);
 }
 
+std::vector<torch::Tensor> energy_terms(const torch::Tensor& surf, const torch::Tensor& rev_face_idx,
+                                        const torch::Tensor& faces, const torch::Tensor& verts,
+                                        const torch::Tensor& vert_nodes, const torch::Tensor& vert_weights,
+                                        const torch::Tensor& target_verts, const torch::Tensor& target_faces,
+                                        const torch::Tensor& target_normals, const torch::Tensor& data_face_idx,
+                                        const torch::Tensor& data_w, const torch::Tensor& rev_w,
+                                        const torch::Tensor& nodes, const torch::Tensor& edges) {
+  check_cpu({&surf, &rev_face_idx, &faces, &verts, &vert_nodes, &vert_weights, &target_verts, &target_faces,
+             &target_normals, &data_face_idx, &data_w, &rev_w, &nodes, &edges}, "energy_terms");
+  if (is_double(verts, "energy_terms"))
+    return terms_impl<double>(surf, rev_face_idx, faces, verts, vert_nodes, vert_weights, target_verts, target_faces,
+                              target_normals, data_face_idx, data_w, rev_w, nodes, edges);
+  return terms_impl<float>(surf, rev_face_idx, faces, verts, vert_nodes, vert_weights, target_verts, target_faces,
+                           target_normals, data_face_idx, data_w, rev_w, nodes, edges);
+}
+
 template <typename T>
 std::vector<torch::Tensor> energy_step_impl(const torch::Tensor& axis, const torch::Tensor& t, const torch::Tensor& g,
                                             const torch::Tensor& rest, const torch::Tensor& vidx,
@@ -681,6 +773,9 @@ torch::Tensor axis_angle_rotations(const torch::Tensor& axis) {
 TORCH_LIBRARY(torchmeshmetric_registration, m) {
   m.def("energy_layout(Tensor data_idx, Tensor data_w, Tensor rev_faces, Tensor rev_w, Tensor vert_nodes, "
         "Tensor nodes, Tensor edges) -> Tensor[]", &energy_layout);
+  m.def("energy_terms(Tensor surf, Tensor rev_face_idx, Tensor faces, Tensor verts, Tensor vert_nodes, "
+        "Tensor vert_weights, Tensor target_verts, Tensor target_faces, Tensor target_normals, Tensor data_face_idx, "
+        "Tensor data_w, Tensor rev_w, Tensor nodes, Tensor edges) -> Tensor[]", &energy_terms);
   m.def("energy_step(Tensor axis, Tensor t, Tensor g, Tensor rest, Tensor vidx, Tensor vw, Tensor data_idx, "
         "Tensor data_tri, Tensor data_n, Tensor data_w, Tensor samples, Tensor rev_faces, Tensor rev_w, "
         "Tensor edges, Tensor[] layout, float[] scalars) -> Tensor[]", &energy_step);
