@@ -205,7 +205,7 @@ def test_energy_terms_equal_the_torch_layout() -> None:
         normals[data_faces], inv[200:].view(-1, 3),
     ]  # fmt: skip
     expected += ops.energy_layout(expected[4], data_w, expected[7], rev_w, expected[2], graph.nodes, graph.edges)
-    assert len(out) == len(expected) == 13
+    assert len(out) == len(expected) == 15
     for got, want in zip(out, expected, strict=True):
         assert torch.equal(got, want)
     with pytest.raises(RuntimeError, match="face index out of range"):

@@ -22,13 +22,18 @@
 #include <atomic>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <vector>
 
 #include "triangle.h"
 
 namespace {
 
-// fn(begin, end) over [0, n) in chunks of `chunk` items, handed out dynamically to torch's threads (inline on one).
+// fn(begin, end) over [0, n) in chunks of `chunk` items on torch's threads (inline on one). Thread w owns the w-th
+// contiguous segment of chunks and takes them front to back; once its own segment is done it takes the chunks left in
+// the others', so a preempted thread does not hold the rest. Owning a segment keeps each thread on the same part of
+// the data from phase to phase (items are ordered by vertex, see energy_layout): a step's phases are ~100 us of
+// short items, and reading what the other core has just written costs more than the items themselves.
 template <typename F>
 void chunked_for(int64_t n, int64_t chunk, const F& fn) {
   const int64_t num_chunks = (n + chunk - 1) / chunk;
@@ -37,10 +42,15 @@ void chunked_for(int64_t n, int64_t chunk, const F& fn) {
     if (n > 0) fn(int64_t(0), n);
     return;
   }
-  std::atomic<int64_t> next{0};
-  at::parallel_for(0, workers, 1, [&](int64_t, int64_t) {
-    for (int64_t c = next.fetch_add(1); c < num_chunks; c = next.fetch_add(1))
-      fn(c * chunk, std::min(n, (c + 1) * chunk));
+  std::unique_ptr<std::atomic<int64_t>[]> next(new std::atomic<int64_t>[workers]);
+  for (int64_t w = 0; w < workers; ++w) next[w] = w * num_chunks / workers;
+  at::parallel_for(0, workers, 1, [&](int64_t begin, int64_t end) {
+    for (int64_t own = begin; own < end; ++own)
+      for (int64_t k = 0; k < workers; ++k) {
+        const int64_t w = (own + k) % workers, last = (w + 1) * num_chunks / workers;
+        for (int64_t c = next[w].fetch_add(1); c < last; c = next[w].fetch_add(1))
+          fn(c * chunk, std::min(n, (c + 1) * chunk));
+      }
   });
 }
 
@@ -227,6 +237,9 @@ Rows build_rows(int64_t rows, int64_t total, const Emit& emit) {
 //   of its face (code S + 3 k + c), in increasing code order;
 // - per node j, its gradient contributions: vertex i through skinning slot s (code i K + s), then edge e as its
 //   first (code I K + 2 e) or second (code I K + 2 e + 1) node, in increasing code order;
+// - the order in which a step visits the data points and target samples (codes k and S + k, by the row of their
+//   vertex, their face's first corner) and the nodes (by the first row among their vertices): with the vertices in
+//   row order, each thread then reads mostly what it wrote itself (see chunked_for);
 // - the sums of the data weights, the reverse weights and the squared edge lengths [wsum, rsum, den].
 template <typename T>
 std::vector<torch::Tensor> layout_impl(const torch::Tensor& data_idx_t, const torch::Tensor& data_w_t,
@@ -251,6 +264,18 @@ std::vector<torch::Tensor> layout_impl(const torch::Tensor& data_idx_t, const to
     for (int64_t k = 0; k < I * K; ++k) put(vidx[k], k);
     for (int64_t k = 0; k < 2 * E; ++k) put(ed[k], I * K + k);
   });
+  const Rows items_by_row = build_rows(I, S + Q, [&](const auto& put) {
+    for (int64_t k = 0; k < S; ++k) put(di[k], k);
+    for (int64_t k = 0; k < Q; ++k) put(rf[3 * k], S + k);
+  });
+  const int64_t* nptr = nodes.ptr.data_ptr<int64_t>();
+  const int64_t* nitems = nodes.items.data_ptr<int64_t>();
+  const Rows nodes_by_row = build_rows(I + 1, N, [&](const auto& put) {
+    for (int64_t j = 0; j < N; ++j) {
+      const bool has_vertex = nptr[j] < nptr[j + 1] && nitems[nptr[j]] < I * K;
+      put(has_vertex ? nitems[nptr[j]] / K : I, j);
+    }
+  });
   const T* dw = data_w_t.data_ptr<T>();
   const T* rw = rev_w_t.data_ptr<T>();
   const T* g = g_t.data_ptr<T>();
@@ -269,12 +294,12 @@ std::vector<torch::Tensor> layout_impl(const torch::Tensor& data_idx_t, const to
   sp[0] = wsum;
   sp[1] = rsum;
   sp[2] = den;
-  return {verts.ptr, verts.items, nodes.ptr, nodes.items, sums};
+  return {verts.ptr, verts.items, nodes.ptr, nodes.items, items_by_row.items, nodes_by_row.items, sums};
 }
 
 // One refresh's terms laid out for the energy: the touched source vertices (data points and the corners of the faces
 // matched by target samples), sorted and distinct, with their rest positions and skinning; the data points' rows
-// among them, their assigned target triangles and normals; the corners' rows; then energy_layout's five tensors.
+// among them, their assigned target triangles and normals; the corners' rows; then energy_layout's seven tensors.
 template <typename T>
 std::vector<torch::Tensor> terms_impl(const torch::Tensor& surf_t, const torch::Tensor& rev_face_t,
                                       const torch::Tensor& faces_t, const torch::Tensor& verts_t,
@@ -353,7 +378,7 @@ std::vector<torch::Tensor> terms_impl(const torch::Tensor& surf_t, const torch::
 template <typename T>
 struct EnergyInputs {
   const T *axis, *R, *t, *g, *rest, *vw, *dtri, *dn, *dw, *smp, *rw, *sums;
-  const int64_t *vidx, *di, *rf, *ed, *vptr, *vitems, *nptr, *nitems;
+  const int64_t *vidx, *di, *rf, *ed, *vptr, *vitems, *nptr, *nitems, *item_order, *node_order;
   int64_t N, I, K, S, Q, E;
 };
 
@@ -368,30 +393,18 @@ std::vector<torch::Tensor> energy_core(const EnergyInputs<T>& in, const std::vec
   const T *R = in.R, *t = in.t, *g = in.g, *rest = in.rest, *vw = in.vw;
   const bool reverse_on = rev_w != 0 && Q > 0, reg_on = E > 0 && reg_w != 0;
   const int64_t ER = reg_on ? E : 0;
-  // 1. Deformed positions of the touched vertices; the regulariser's edge residuals.
-  std::vector<T> x(3 * I), res(3 * ER), res_sq(ER);
-  chunked_for(I + ER, CHUNK_VERTS, [&](int64_t b, int64_t e_) {
-    for (int64_t it = b; it < e_; ++it) {
-      if (it < I) {
-        deform_one(R, t, g, rest + 3 * it, in.vidx + it * K, vw + it * K, K, &x[3 * it]);
-        continue;
-      }
-      const int64_t e = it - I, j = in.ed[2 * e], k = in.ed[2 * e + 1];
-      const T dg[3] = {g[3 * k] - g[3 * j], g[3 * k + 1] - g[3 * j + 1], g[3 * k + 2] - g[3 * j + 2]};
-      const T* Rj = R + 9 * j;
-      T* r = &res[3 * e];
-      for (int a = 0; a < 3; ++a)
-        r[a] = Rj[3 * a] * dg[0] + Rj[3 * a + 1] * dg[1] + Rj[3 * a + 2] * dg[2] + g[3 * j + a] + t[3 * j + a] -
-               (g[3 * k + a] + t[3 * k + a]);
-      res_sq[e] = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
-    }
+  // 1. Deformed positions of the touched vertices.
+  std::vector<T> x(3 * I);
+  chunked_for(I, CHUNK_VERTS, [&](int64_t b, int64_t e_) {
+    for (int64_t i = b; i < e_; ++i) deform_one(R, t, g, rest + 3 * i, in.vidx + i * K, vw + i * K, K, &x[3 * i]);
   });
   // 2. Per data point and per target sample: its loss term and its gradient to the deformed positions.
   const T dnorm = data_scale / std::max(in.sums[0], T(1));
   const T rnorm = rev_w * data_scale / std::max(in.sums[1], T(1));
   std::vector<T> term(S + Q, T(0)), grad_data(3 * S), bary(3 * Q), grad_rev(3 * Q);
-  chunked_for(S + (reverse_on ? Q : 0), CHUNK_TERMS, [&](int64_t b, int64_t e_) {
-    for (int64_t it = b; it < e_; ++it) {
+  chunked_for(S + Q, CHUNK_TERMS, [&](int64_t b, int64_t e_) {
+    for (int64_t o = b; o < e_; ++o) {
+      const int64_t it = in.item_order[o];
       if (it < S) {
         const int64_t k = it;
         if (in.dw[k] == 0) continue;
@@ -415,7 +428,7 @@ std::vector<torch::Tensor> energy_core(const EnergyInputs<T>& in, const std::vec
         for (int c = 0; c < 3; ++c) grad_data[3 * k + c] = f * gp[c];
       } else {
         const int64_t k = it - S;
-        if (in.rw[k] == 0) continue;
+        if (!reverse_on || in.rw[k] == 0) continue;
         const T* p = in.smp + 3 * k;
         const int64_t* fc = in.rf + 3 * k;
         T q[3];
@@ -458,18 +471,18 @@ std::vector<torch::Tensor> energy_core(const EnergyInputs<T>& in, const std::vec
   if (reg_on) {
     const T den = std::max(in.sums[2] / T(E), std::numeric_limits<T>::min());
     scale = reg_w / (T(E) * den);
-    T reg = 0;
-    for (int64_t e = 0; e < E; ++e) reg += res_sq[e];
-    loss += scale * reg;
   }
   // 4. Per node: the gradient to its rotation matrix and translation (dx/dR_j = w (v - g_j)^T, dx/dt_j = w; then
-  //    its edges), then back through the exponential map to its axis-angle vector.
+  //    its edges, whose residuals R_j (g_k - g_j) + g_j + t_j - (g_k + t_k) each endpoint computes itself), then back
+  //    through the exponential map to its axis-angle vector.
   torch::Tensor gV_t = torch::empty({N, 3}, opts), gT_t = torch::empty({N, 3}, opts);
   T* gV = gV_t.data_ptr<T>();
   T* gT = gT_t.data_ptr<T>();
   const int64_t IK = I * K;
+  std::vector<T> res_sq(reg_on ? E : 0);
   chunked_for(N, CHUNK_NODES, [&](int64_t b, int64_t e_) {
-    for (int64_t j = b; j < e_; ++j) {
+    for (int64_t o = b; o < e_; ++o) {
+      const int64_t j = in.node_order[o];
       T gR[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0}, gt[3] = {0, 0, 0};
       for (int64_t m = in.nptr[j]; m < in.nptr[j + 1]; ++m) {
         const int64_t code = in.nitems[m];
@@ -486,11 +499,16 @@ std::vector<torch::Tensor> energy_core(const EnergyInputs<T>& in, const std::vec
             for (int c = 0; c < 3; ++c) gR[3 * a + c] += wg * d[c];
           }
         } else if (reg_on) {
-          const int64_t e = (code - IK) / 2;
-          const T* r = &res[3 * e];
+          const int64_t e = (code - IK) / 2, first = in.ed[2 * e], second = in.ed[2 * e + 1];
+          const T dg[3] = {g[3 * second] - g[3 * first], g[3 * second + 1] - g[3 * first + 1],
+                           g[3 * second + 2] - g[3 * first + 2]};
+          const T* Rj = R + 9 * first;
+          T r[3];
+          for (int a = 0; a < 3; ++a)
+            r[a] = Rj[3 * a] * dg[0] + Rj[3 * a + 1] * dg[1] + Rj[3 * a + 2] * dg[2] + g[3 * first + a] +
+                   t[3 * first + a] - (g[3 * second + a] + t[3 * second + a]);
           if ((code - IK) % 2 == 0) {
-            const int64_t k = in.ed[2 * e + 1];
-            const T dg[3] = {g[3 * k] - g[3 * j], g[3 * k + 1] - g[3 * j + 1], g[3 * k + 2] - g[3 * j + 2]};
+            res_sq[e] = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
             for (int a = 0; a < 3; ++a) {
               const T gr = T(2) * scale * r[a];
               gt[a] += gr;
@@ -505,6 +523,11 @@ std::vector<torch::Tensor> energy_core(const EnergyInputs<T>& in, const std::vec
       rotation_vjp(in.axis + 3 * j, R + 9 * j, gR, gV + 3 * j);
     }
   });
+  if (reg_on) {
+    T reg = 0;
+    for (int64_t e = 0; e < E; ++e) reg += res_sq[e];
+    loss += scale * reg;
+  }
   double gmax = 0;  // NaN wins, as torch's max
   for (int64_t m = 0; m < 3 * N; ++m) {
     const double a = std::abs(double(gV[m])), b = std::abs(double(gT[m]));
@@ -524,7 +547,7 @@ EnergyInputs<T> energy_inputs(const torch::Tensor& axis, const T* R, const torch
                               const torch::Tensor& data_n, const torch::Tensor& data_w, const torch::Tensor& samples,
                               const torch::Tensor& rev_faces, const torch::Tensor& rev_w, const torch::Tensor& edges,
                               const std::vector<torch::Tensor>& layout) {
-  TORCH_CHECK(layout.size() == 5, "deformation energy: 5 layout tensors expected");
+  TORCH_CHECK(layout.size() == 7, "deformation energy: 7 layout tensors expected");
   EnergyInputs<T> in;
   in.axis = axis.data_ptr<T>();
   in.R = R;
@@ -537,7 +560,7 @@ EnergyInputs<T> energy_inputs(const torch::Tensor& axis, const T* R, const torch
   in.dw = data_w.data_ptr<T>();
   in.smp = samples.data_ptr<T>();
   in.rw = rev_w.data_ptr<T>();
-  in.sums = layout[4].data_ptr<T>();
+  in.sums = layout[6].data_ptr<T>();
   in.vidx = vidx.data_ptr<int64_t>();
   in.di = data_idx.data_ptr<int64_t>();
   in.rf = rev_faces.data_ptr<int64_t>();
@@ -546,13 +569,16 @@ EnergyInputs<T> energy_inputs(const torch::Tensor& axis, const T* R, const torch
   in.vitems = layout[1].data_ptr<int64_t>();
   in.nptr = layout[2].data_ptr<int64_t>();
   in.nitems = layout[3].data_ptr<int64_t>();
+  in.item_order = layout[4].data_ptr<int64_t>();
+  in.node_order = layout[5].data_ptr<int64_t>();
   in.N = g.size(0);
   in.I = rest.size(0);
   in.K = vidx.size(1);
   in.S = data_idx.size(0);
   in.Q = samples.size(0);
   in.E = edges.size(0);
-  TORCH_CHECK(layout[0].numel() == in.I + 1 && layout[2].numel() == in.N + 1,
+  TORCH_CHECK(layout[0].numel() == in.I + 1 && layout[2].numel() == in.N + 1 &&
+                  layout[4].numel() == in.S + in.Q && layout[5].numel() == in.N,
               "deformation energy: the layout belongs to other terms");
   return in;
 }
