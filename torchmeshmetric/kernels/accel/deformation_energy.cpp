@@ -840,8 +840,8 @@ torch::Tensor deform_vertices(torch::Tensor R, torch::Tensor t, torch::Tensor g,
   return out;
 }
 
-// The energy and its gradients with given rotation matrices R (the autograd function of energies.fused_energy):
-// [loss, dL/d(axis-angle), dL/dt].
+// The energy and its gradients with given rotation matrices R: [loss, dL/d(axis-angle), dL/dt]. Kept for bvh.cpp's
+// binding only: the package calls the operators above (energy_terms / energy_step); drop it with that binding.
 std::vector<torch::Tensor> deformation_energy(torch::Tensor axis, torch::Tensor R, torch::Tensor t, torch::Tensor g,
                                               torch::Tensor rest, torch::Tensor vidx, torch::Tensor vw,
                                               torch::Tensor data_idx, torch::Tensor data_tri, torch::Tensor data_n,
