@@ -142,8 +142,8 @@ def register_nonrigid(
     ``num_points=1000``, ``schedule=DEFAULT_SCHEDULE[:2]``; a keyword overrides the same field of ``options``).
     Both spellings are supported and give the same :class:`NonRigidOptions`: keywords for a one-off call, the
     dataclass to keep, compare or cache a setting. The other arguments say how it runs; they do not change what is
-    computed, except through floating-point rounding (another device, or another thread count, sums in another
-    order, and the optimisation can amplify that).
+    computed: the backends and, on the CPU, the thread counts give the same result bit for bit; another device sums
+    in another order, and the optimisation can amplify that rounding.
 
     Args:
         source: mesh to deform (frame k-1).
@@ -155,10 +155,10 @@ def register_nonrigid(
         backend: selection backend of the closest-face searches (see :func:`~torchmeshmetric.point_mesh_distance`);
             the exact backends return the same faces, so the result does not depend on it.
         num_threads: torch intra-op threads while registering (restored afterwards; process-wide, like
-            ``torch.set_num_threads``). Default 1: the loop is ~1 ms steps of small operations whose parallel regions
-            cost more than they save, and on a loaded machine wait for descheduled threads (docs/registration.md:
-            0.96 s of CPU on one thread; 47 s wall with two threads on an oversubscribed machine). ``None``: keep
-            torch's setting.
+            ``torch.set_num_threads``). Default 1: the loop is ~0.5 ms steps, each a few parallel regions that end at
+            a barrier, so next to other busy processes every region waits for a descheduled thread
+            (docs/registration.md, "Threads": 0.8 s on one thread, 4-14 s on two, measured on a loaded 2-core
+            machine). More threads pay on an otherwise idle machine. ``None``: keep torch's setting.
         **keywords: fields of :class:`NonRigidOptions` (``rigid_init``, ``node_spacing``, ``num_neighbors``,
             ``num_points``, ``num_target_samples``, ``correspondence_every``, ``schedule``, ``plane_weight``,
             ``point_weight``, ``reverse_weight``, ``tolerance``, ``max_outlier_fraction``, ``outlier_distance``,
