@@ -214,3 +214,15 @@ def test_cpp_loop_equals_the_torch_formulation(monkeypatch: pytest.MonkeyPatch):
     assert len(rel) == 10
     assert rel[0] <= 1e-12
     assert max(rel) <= 1e-8
+
+
+def test_graph_edges_by_marking_equal_the_sorted_unique(monkeypatch: pytest.MonkeyPatch):
+    from torchmeshmetric.registration import deformation_graph
+
+    m = trimesh.creation.icosphere(subdivisions=4)
+    verts, faces = torch.tensor(m.vertices), torch.tensor(m.faces)
+    marked = DeformationGraph(verts, faces, node_spacing=0.08).edges
+    monkeypatch.setattr(deformation_graph, "_MARK_MAX_NODES", 0)
+    sorted_unique = DeformationGraph(verts, faces, node_spacing=0.08).edges
+    assert marked.shape[0] > 1000
+    assert torch.equal(marked, sorted_unique)
