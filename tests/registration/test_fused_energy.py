@@ -1,46 +1,77 @@
-"""The registration loop's fused C++ energy equals its torch formulation (value and gradients) within rounding."""
+"""The registration loop's fused C++ passes equal their torch formulation (value and gradients) within rounding, and
+are bit-identical for any number of threads."""
 
 from __future__ import annotations
+
+from typing import Any
 
 import pytest
 import torch
 import trimesh
+from kornia.geometry.conversions import axis_angle_to_rotation_matrix
 
+from tests.registration.gt_pairs import torch_threads
 from torchmeshmetric.kernels.accel._extension import load_bvh
 from torchmeshmetric.registration import DeformationGraph, embedded_deformation_regularizer, surface_term
-from torchmeshmetric.registration.energies import Correspondences, EnergyTerms, deformed_vertices, fused_energy
+from torchmeshmetric.registration.energies import (
+    Correspondences,
+    EnergyTerms,
+    FusedStep,
+    _FusedEnergy,
+    deformed_vertices,
+    fused_energy,
+    registration_ops,
+)
 from torchmeshmetric.structures import Mesh
 
 
-@pytest.mark.parametrize("plane_weight", [0.0, 1.0])
-def test_fused_energy_equals_the_torch_energy(plane_weight: float) -> None:
+def _ops() -> Any:
     assert load_bvh() is not None
+    ops = registration_ops()
+    assert ops is not None
+    return ops
+
+
+def _problem(dtype: torch.dtype = torch.float64, subdivisions: int = 2, spacing: float = 0.3, samples: int = 60):
+    """A deformed graph over an icosphere, data points on assigned target faces, target samples on source faces."""
     g = torch.Generator().manual_seed(0)
-    src = trimesh.creation.icosphere(subdivisions=2)
-    tgt = trimesh.creation.icosphere(subdivisions=3)
-    sv, sf = torch.tensor(src.vertices), torch.tensor(src.faces)
-    tv, tf = torch.tensor(tgt.vertices) * 1.1, torch.tensor(tgt.faces)
+    src = trimesh.creation.icosphere(subdivisions=subdivisions)
+    tgt = trimesh.creation.icosphere(subdivisions=subdivisions + 1)
+    sv, sf = torch.tensor(src.vertices, dtype=dtype), torch.tensor(src.faces)
+    tv, tf = torch.tensor(tgt.vertices, dtype=dtype) * 1.1, torch.tensor(tgt.faces)
     tf = torch.cat([tf, tf[:1, [0, 0, 1]]])  # a zero-area face: no normal, no point-to-plane part
-    graph = DeformationGraph(sv, sf, node_spacing=0.3)
+    graph = DeformationGraph(sv, sf, node_spacing=spacing)
     with torch.no_grad():  # a non-trivial deformation
-        graph.rotations.copy_(0.3 * torch.randn(graph.rotations.shape, generator=g, dtype=torch.float64))
-        graph.translations.copy_(0.05 * torch.randn(graph.translations.shape, generator=g, dtype=torch.float64))
+        graph.rotations.copy_(0.3 * torch.randn(graph.rotations.shape, generator=g, dtype=dtype))
+        graph.translations.copy_(0.05 * torch.randn(graph.translations.shape, generator=g, dtype=dtype))
         graph.rotations[0] = 0.0  # the identity and a tiny angle: the series branch of the exponential map's Jacobian
         graph.rotations[1] = torch.tensor([1e-5, -2e-5, 3e-6])
     surf = torch.arange(0, sv.shape[0], 2)
     data_faces = torch.randint(0, tf.shape[0], (surf.numel(),), generator=g)
     data_faces[0] = tf.shape[0] - 1
-    data_w = (torch.rand(surf.numel(), generator=g, dtype=torch.float64) > 0.2).double()
-    samples = tv[torch.randint(0, tv.shape[0], (60,), generator=g)] * 1.02
-    rev_faces = sf[torch.randint(0, sf.shape[0], (60,), generator=g)]
-    rev_w = (torch.rand(60, generator=g, dtype=torch.float64) > 0.2).double()
+    data_w = (torch.rand(surf.numel(), generator=g, dtype=dtype) > 0.2).to(dtype)
+    points = tv[torch.randint(0, tv.shape[0], (samples,), generator=g)] * 1.02
+    rev_faces = sf[torch.randint(0, sf.shape[0], (samples,), generator=g)]
+    rev_w = (torch.rand(samples, generator=g, dtype=dtype) > 0.2).to(dtype)
     need, inv = torch.cat([surf, rev_faces.reshape(-1)]).unique(return_inverse=True)
     surf_loc, faces_loc = inv[: surf.numel()], inv[surf.numel() :].view(-1, 3)
+    terms = EnergyTerms(
+        graph.verts[need], graph.vert_nodes[need], graph.vert_weights[need], surf_loc, tv[tf[data_faces]],
+        Mesh(tv, tf, validate=False).face_normals()[data_faces], data_w, points, faces_loc, rev_w,
+    )  # fmt: skip
+    reference = (tv, tf, need, surf_loc, faces_loc, data_faces, data_w, points, rev_w)
+    return graph, terms, reference
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+@pytest.mark.parametrize("plane_weight", [0.0, 1.0])
+def test_fused_energy_equals_the_torch_energy(plane_weight: float, threads: int) -> None:
+    graph, terms, (tv, tf, need, surf_loc, faces_loc, data_faces, data_w, samples, rev_w) = _problem()
     options = {"sigma": 0.05, "plane_weight": plane_weight, "point_weight": 0.1, "reverse_weight": 1.0}
 
     dsub = graph.deform_vertices(need)
     corr_f = Correspondences(data_faces, data_w, torch.zeros_like(data_w))
-    corr_r = Correspondences(torch.arange(60), rev_w, torch.zeros_like(rev_w))
+    corr_r = Correspondences(torch.arange(samples.shape[0]), rev_w, torch.zeros_like(rev_w))
     sigma, pw, qw = options["sigma"], options["plane_weight"], options["point_weight"]
     expected = surface_term(dsub[surf_loc], tv, tf, corr_f, sigma=sigma, plane_weight=pw, point_weight=qw)
     expected = expected + surface_term(samples, dsub, faces_loc, corr_r, sigma=sigma, plane_weight=0, point_weight=1)
@@ -49,16 +80,84 @@ def test_fused_energy_equals_the_torch_energy(plane_weight: float) -> None:
     grads = [graph.rotations.grad.clone(), graph.translations.grad.clone()]
     graph.zero_grad()
 
-    terms = EnergyTerms(
-        graph.verts[need], graph.vert_nodes[need], graph.vert_weights[need], surf_loc, tv[tf[data_faces]],
-        Mesh(tv, tf, validate=False).face_normals()[data_faces], data_w, samples, faces_loc, rev_w,
-    )  # fmt: skip
-    got = fused_energy(graph, terms, **options, data_scale=4.0, regularization=0.7)
-    assert got is not None
-    got.backward()
+    with torch_threads(threads):
+        got = fused_energy(graph, terms, **options, data_scale=4.0, regularization=0.7)
+        assert got is not None
+        got.backward()
     torch.testing.assert_close(got, expected.detach(), rtol=1e-12, atol=0)
     torch.testing.assert_close(graph.rotations.grad, grads[0], rtol=1e-9, atol=1e-12)
     torch.testing.assert_close(graph.translations.grad, grads[1], rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_fused_energy_gradient_matches_finite_differences(threads: int) -> None:
+    graph, terms, _ = _problem()
+    step = FusedStep(graph, terms, _ops())
+    scalars = [0.05, 1.0, 0.1, 1.0, 4.0, 0.7]
+    rot = graph.rotations.detach().clone().requires_grad_(True)
+    tr = graph.translations.detach().clone().requires_grad_(True)
+    with torch_threads(threads):
+        assert torch.autograd.gradcheck(
+            lambda r, t: _FusedEnergy.apply(r, t, step, scalars), (rot, tr), eps=1e-6, atol=1e-6, rtol=1e-5
+        )
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_fused_step_is_bit_identical_across_thread_counts(dtype: torch.dtype) -> None:
+    # Large enough for many chunks per phase: every sum must keep its order whatever thread runs a chunk.
+    graph, terms, _ = _problem(dtype, subdivisions=4, spacing=0.1, samples=3000)
+    step = FusedStep(graph, terms, _ops())
+    scalars = [0.05, 1.0, 0.1, 1.0, 4.0, 0.7]
+    with torch_threads(1):
+        one = step(graph.rotations, graph.translations, scalars)
+    with torch_threads(2):
+        two = step(graph.rotations, graph.translations, scalars)
+    for a, b in zip(one, two, strict=True):
+        assert torch.equal(a, b)
+    grad_max = max(float(one[1].abs().max()), float(one[2].abs().max()))
+    assert float(one[3]) == grad_max > 0
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_rotations_are_kornias_bit_for_bit(dtype: torch.dtype, threads: int) -> None:
+    g = torch.Generator().manual_seed(1)
+    axis = torch.randn(3000, 3, generator=g, dtype=dtype) * torch.logspace(-5, 0.5, 3000, dtype=dtype)[:, None]
+    axis[0] = 0.0
+    axis[1] = torch.tensor([1e-3, 0.0, 0.0])  # theta^2 = 1e-6: the series branch's edge
+    with torch_threads(threads):
+        got = _ops().axis_angle_rotations(axis)
+    assert (axis * axis).sum(-1).le(1e-6).sum() > 100  # both branches are exercised
+    assert torch.equal(got, axis_angle_to_rotation_matrix(axis))
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_deformed_normals_equal_the_mesh_normals(dtype: torch.dtype, threads: int) -> None:
+    ops = _ops()
+    m = trimesh.creation.icosphere(subdivisions=4)
+    verts, faces = torch.tensor(m.vertices, dtype=dtype), torch.tensor(m.faces)
+    faces = torch.cat([faces, faces[:2, [0, 0, 1]]])  # zero-area faces
+    verts = torch.cat([verts, verts[:1] * 2])  # an unreferenced vertex: no normal
+    graph = DeformationGraph(verts, faces, node_spacing=0.2)
+    g = torch.Generator().manual_seed(3)
+    with torch.no_grad():
+        graph.rotations.copy_(0.5 * torch.randn(graph.rotations.shape, generator=g, dtype=dtype))
+        graph.translations.copy_(0.1 * torch.randn(graph.translations.shape, generator=g, dtype=dtype))
+    at = torch.cat([torch.randperm(verts.shape[0], generator=g)[:1000], torch.tensor([verts.shape[0] - 1])])
+    buffers = [t.contiguous() for t in (graph.nodes, graph.verts, graph.vert_nodes, graph.vert_weights)]
+    incident = ops.incident_faces(faces, verts.shape[0])
+    with torch_threads(threads):
+        dv, normals = ops.deform_normals(
+            graph.rotations.detach(), graph.translations.detach(), *buffers, faces, *incident, at
+        )
+        picked = torch.randint(0, faces.shape[0], (2000,), generator=g)
+        face_normals = ops.face_normals(dv, faces, picked)
+    mesh = Mesh(deformed_vertices(graph), faces, validate=False)
+    assert torch.equal(dv, mesh.verts)
+    assert torch.equal(normals, mesh.vertex_normals()[at])
+    assert torch.equal(normals[-1], torch.zeros(3, dtype=dtype))
+    assert torch.equal(face_normals, mesh.face_normals()[picked])
 
 
 def test_deformed_vertices_equal_the_graph() -> None:
@@ -80,3 +179,36 @@ def test_farthest_point_nodes_in_cpp_equal_the_torch_loop(monkeypatch: pytest.Mo
     fast = farthest_point_nodes(points, 0.3)
     monkeypatch.setattr(deformation_graph, "bvh_ready", lambda: False)
     assert torch.equal(fast, farthest_point_nodes(points, 0.3))
+
+
+def test_energy_terms_equal_the_torch_layout() -> None:
+    """The C++ layout of one refresh's terms: the rows unique(return_inverse=True) and plain gathers give."""
+    ops = _ops()
+    g = torch.Generator().manual_seed(4)
+    src = trimesh.creation.icosphere(subdivisions=3)
+    tgt = trimesh.creation.icosphere(subdivisions=2)
+    sv, sf = torch.tensor(src.vertices), torch.tensor(src.faces)
+    tv, tf = torch.tensor(tgt.vertices), torch.tensor(tgt.faces)
+    graph = DeformationGraph(sv, sf, node_spacing=0.3)
+    surf = torch.randperm(sv.shape[0], generator=g)[:200]
+    rev_idx = torch.randint(0, sf.shape[0], (150,), generator=g)
+    data_faces = torch.randint(0, tf.shape[0], (200,), generator=g)
+    data_w, rev_w = torch.rand(200, generator=g, dtype=torch.float64), torch.rand(150, generator=g, dtype=torch.float64)
+    normals = Mesh(tv, tf, validate=False).face_normals()
+    skin = [t.contiguous() for t in (graph.verts, graph.vert_nodes, graph.vert_weights)]
+    out = ops.energy_terms(
+        surf, rev_idx, sf, *skin, tv, tf, normals, data_faces, data_w, rev_w, graph.nodes, graph.edges
+    )
+    need, inv = torch.cat([surf, sf[rev_idx].reshape(-1)]).unique(return_inverse=True)
+    expected = [
+        need, graph.verts[need], graph.vert_nodes[need], graph.vert_weights[need], inv[:200], tv[tf[data_faces]],
+        normals[data_faces], inv[200:].view(-1, 3),
+    ]  # fmt: skip
+    expected += ops.energy_layout(expected[4], data_w, expected[7], rev_w, expected[2], graph.nodes, graph.edges)
+    assert len(out) == len(expected) == 15
+    for got, want in zip(out, expected, strict=True):
+        assert torch.equal(got, want)
+    with pytest.raises(RuntimeError, match="face index out of range"):
+        ops.energy_terms(
+            surf, rev_idx + sf.shape[0], sf, *skin, tv, tf, normals, data_faces, data_w, rev_w, graph.nodes, graph.edges
+        )

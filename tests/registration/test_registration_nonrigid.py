@@ -178,3 +178,51 @@ def test_nonrigid_cpu_cuda_agree():
     b = register_nonrigid(m, tgt, device="cuda", **kw)
     assert b.verts.is_cuda
     torch.testing.assert_close(b.verts.cpu(), a.verts, atol=1e-3 * 2.2, rtol=0)
+
+
+def _short_pair() -> tuple:
+    src = trimesh.creation.icosphere(subdivisions=3)
+    tgt = trimesh.creation.icosphere(subdivisions=4)
+    tgt.vertices *= [1.1, 1.0, 0.9]
+    return src, tgt
+
+
+def test_thread_count_does_not_change_the_registration():
+    # Every sum keeps one order whatever the thread count (the fused passes gather in a fixed order, ICP's small
+    # algebra runs on one thread), so two threads give the one-thread registration bit for bit.
+    src, tgt = _short_pair()
+    kw = {"schedule": [DEFAULT_SCHEDULE[0]._replace(max_steps=30)], "num_points": 500}
+    one = register_nonrigid(src, tgt, generator=torch.Generator().manual_seed(0), num_threads=1, **kw)
+    two = register_nonrigid(src, tgt, generator=torch.Generator().manual_seed(0), num_threads=2, **kw)
+    assert torch.get_num_threads() == 1  # restored
+    assert torch.equal(one.verts, two.verts)
+    assert one.loss_history == two.loss_history
+
+
+def test_cpp_loop_equals_the_torch_formulation(monkeypatch: pytest.MonkeyPatch):
+    # The CPU loop's C++ passes (refresh geometry, terms, fused energy) against the torch formulation used off the CPU:
+    # the same correspondences and energy (first loss equal to rounding); Adam then amplifies the gradients' last
+    # bits (measured: 1e-10 relative after 10 steps), so only the first window between refreshes is compared.
+    from torchmeshmetric.registration import nonrigid
+
+    src, tgt = _short_pair()
+    kw = {"schedule": [DEFAULT_SCHEDULE[0]._replace(max_steps=10)], "num_points": 500}
+    fast = register_nonrigid(src, tgt, generator=torch.Generator().manual_seed(0), **kw)
+    monkeypatch.setattr(nonrigid, "registration_ops", lambda: None)
+    slow = register_nonrigid(src, tgt, generator=torch.Generator().manual_seed(0), **kw)
+    rel = [abs(a - b) / b for a, b in zip(fast.loss_history, slow.loss_history, strict=True)]
+    assert len(rel) == 10
+    assert rel[0] <= 1e-12
+    assert max(rel) <= 1e-8
+
+
+def test_graph_edges_by_marking_equal_the_sorted_unique(monkeypatch: pytest.MonkeyPatch):
+    from torchmeshmetric.registration import deformation_graph
+
+    m = trimesh.creation.icosphere(subdivisions=4)
+    verts, faces = torch.tensor(m.vertices), torch.tensor(m.faces)
+    marked = DeformationGraph(verts, faces, node_spacing=0.08).edges
+    monkeypatch.setattr(deformation_graph, "_MARK_MAX_NODES", 0)
+    sorted_unique = DeformationGraph(verts, faces, node_spacing=0.08).edges
+    assert marked.shape[0] > 1000
+    assert torch.equal(marked, sorted_unique)

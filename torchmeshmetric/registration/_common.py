@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator
+
 import torch
 from torch import Tensor
 
@@ -36,3 +39,21 @@ def normalisation(mesh: Mesh) -> tuple[Tensor, Tensor]:
     """
     ref = mesh.verts[mesh.surface_vertex_mask()]
     return 0.5 * (ref.amin(0) + ref.amax(0)), (ref.amax(0) - ref.amin(0)).norm()
+
+
+@contextlib.contextmanager
+def one_thread() -> Iterator[None]:
+    """Torch on one intra-op thread inside the block, restored after (process-wide, as ``torch.set_num_threads``).
+
+    For small dense algebra whose BLAS calls split their sums by thread (ICP's 1000 x 6 normal equations): on one
+    thread they sum in one order, so the result does not depend on the caller's thread count.
+    """
+    previous = torch.get_num_threads()
+    if previous == 1:
+        yield
+        return
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(previous)

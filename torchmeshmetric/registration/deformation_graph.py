@@ -195,6 +195,9 @@ class DeformationGraph(nn.Module):
         )  # fmt: skip
 
 
+_MARK_MAX_NODES = 4096  # n^2 booleans: 16 MB at most
+
+
 def _node_edges(idx: Tensor, w: Tensor, nodes: Tensor) -> Tensor:
     """Directed node pairs ``(E, 2)`` sharing a vertex with positive weights; isolated nodes get their nearest."""
     n = nodes.shape[0]
@@ -211,6 +214,13 @@ def _node_edges(idx: Tensor, w: Tensor, nodes: Tensor) -> Tensor:
     nn_idx = d.argmin(1)
     ar = torch.arange(n, device=nodes.device)
     extra = torch.cat([torch.stack([ar, nn_idx], 1), torch.stack([nn_idx, ar], 1)])
-    # Unique rows in lexicographic order through one integer key per pair (unique(dim=0) sorts rows: ~50x slower).
-    key = torch.unique(torch.cat([pairs, extra]) @ torch.tensor([n, 1], device=nodes.device))
+    # Unique rows in lexicographic order through one integer key per pair (unique(dim=0) sorts rows: ~50x slower);
+    # on small graphs by marking the keys among all n^2 (a tenth of the sort's time on ~200k pairs).
+    keys = torch.cat([pairs, extra]) @ torch.tensor([n, 1], device=nodes.device)
+    if n <= _MARK_MAX_NODES:
+        seen = torch.zeros(n * n, dtype=torch.bool, device=nodes.device)
+        seen[keys] = True
+        key = seen.nonzero()[:, 0]
+    else:
+        key = torch.unique(keys)
     return torch.stack([key // n, key % n], 1)

@@ -14,7 +14,6 @@ import math
 from typing import Any, NamedTuple
 
 import torch
-from kornia.geometry.conversions import axis_angle_to_rotation_matrix
 from torch import Tensor
 
 from torchmeshmetric.kernels.accel._extension import bvh_ready, load_bvh
@@ -29,8 +28,11 @@ __all__ = [
     "deformed_vertices",
     "embedded_deformation_regularizer",
     "find_correspondences",
+    "FusedStep",
     "fused_energy",
     "geman_mcclure",
+    "registration_ops",
+    "reject_correspondences",
     "surface_term",
 ]
 
@@ -99,14 +101,28 @@ def find_correspondences(
             res = point_mesh_distance(p, v, faces)
         else:
             res = index._point_mesh_distance(p, torch.tensor([p.shape[0]], device=p.device))
-        face_idx, d = res.face_idx, res.dists
-        ok = d <= max_distance
+        fn = None
         if point_normals is not None:
-            fn = (Mesh(v, faces, validate=False).face_normals() if face_normals is None else face_normals)[face_idx]
-            cos = (fn * point_normals.detach()).sum(-1)
-            has = ((fn * fn).sum(-1) > 0) & ((point_normals * point_normals).sum(-1) > 0)
-            ok &= ~has | (cos >= math.cos(math.radians(max_normal_angle)))
-        return Correspondences(face_idx, ok.to(p.dtype), d)
+            fn = (Mesh(v, faces, validate=False).face_normals() if face_normals is None else face_normals)[res.face_idx]
+        return reject_correspondences(res.face_idx, res.dists, point_normals, fn, max_distance, max_normal_angle)
+
+
+def reject_correspondences(
+    face_idx: Tensor,
+    dists: Tensor,
+    point_normals: Tensor | None,
+    matched_normals: Tensor | None,
+    max_distance: float,
+    max_normal_angle: float,
+) -> Correspondences:
+    """:func:`find_correspondences`' rejection of assignments, given the unit normals of the matched faces."""
+    ok = dists <= max_distance
+    if point_normals is not None and matched_normals is not None:
+        fn = matched_normals
+        cos = (fn * point_normals.detach()).sum(-1)
+        has = ((fn * fn).sum(-1) > 0) & ((point_normals * point_normals).sum(-1) > 0)
+        ok &= ~has | (cos >= math.cos(math.radians(max_normal_angle)))
+    return Correspondences(face_idx, ok.to(dists.dtype), dists)
 
 
 def surface_term(
@@ -207,27 +223,67 @@ class EnergyTerms(NamedTuple):
     rev_weights: Tensor
 
 
-class _FusedEnergy(torch.autograd.Function):
-    """Energy and its gradient to the axis-angle rotations and translations from one C++ pass.
+def registration_ops() -> Any | None:
+    """The C++ registration operators (``torch.ops.torchmeshmetric_registration``), or ``None`` without the extension.
 
-    The rotation matrices are kornia's exponential map (as :meth:`DeformationGraph.rotation_matrices`); the C++
-    pass back-propagates through it with Gallego & Yezzi's closed form. Backward scales the stored gradients.
+    Only where the extension is ready (built, or cached), as ``backend="auto"``: never compiles on first use.
+    """
+    if not bvh_ready() or load_bvh() is None:
+        return None
+    return torch.ops.torchmeshmetric_registration
+
+
+class FusedStep:
+    """:func:`fused_energy` for one refresh's terms, laid out once and evaluated at every Adam step (CPU, C++).
+
+    The layout (:func:`energy_layout` in ``deformation_energy.cpp``) lists, per touched vertex and per node, its
+    gradient contributions in a fixed order, so one evaluation's sums do not depend on the thread count.
+
+    Args:
+        graph: the deformation graph (its buffers are read once; its parameters at every call).
+        terms: the correspondences of one refresh.
+        ops: :func:`registration_ops`.
+        layout: the layout of ``terms``, when already built (``energy_terms`` returns it).
+    """
+
+    def __init__(
+        self, graph: DeformationGraph, terms: EnergyTerms, ops: Any, layout: list[Tensor] | None = None
+    ) -> None:
+        self._ops = ops
+        self._buffers = [t.contiguous() for t in (graph.nodes, *terms, graph.edges)]
+        nodes, _, vidx, _, data_idx, _, _, data_w, _, rev_faces, rev_w, edges = self._buffers
+        if layout is None:
+            layout = ops.energy_layout(data_idx, data_w, rev_faces, rev_w, vidx, nodes, edges)
+        self._layout = layout
+
+    def __call__(self, rotations: Tensor, translations: Tensor, scalars: list[float]) -> list[Tensor]:
+        """``[loss, dL/drotations (N, 3), dL/dtranslations (N, 3), max |gradient| (float64)]`` at these parameters.
+
+        ``scalars``: ``[sigma, plane_weight, point_weight, reverse_weight, data_scale, regularization]``.
+        """
+        out: list[Tensor] = self._ops.energy_step(
+            rotations.detach(), translations.detach(), *self._buffers, self._layout, scalars
+        )
+        return out
+
+
+class _FusedEnergy(torch.autograd.Function):
+    """Energy and its gradient to the axis-angle rotations and translations from one C++ pass (:class:`FusedStep`).
+
+    The rotation matrices are kornia's exponential map (the same operations in C++, bit for bit); the pass
+    back-propagates through it with Gallego & Yezzi's closed form. Backward scales the stored gradients.
     """
 
     @staticmethod
-    def forward(ctx: Any, rotations: Tensor, translations: Tensor, *args: Any) -> Tensor:
-        ext = load_bvh()
-        assert ext is not None
-        axis = rotations.detach().contiguous()
-        matrices = axis_angle_to_rotation_matrix(axis).contiguous()
-        loss, g_rot, g_tr = ext.deformation_energy(axis, matrices, translations.detach().contiguous(), *args)
+    def forward(ctx: Any, rotations: Tensor, translations: Tensor, step: FusedStep, scalars: list[float]) -> Tensor:
+        loss, g_rot, g_tr, _ = step(rotations, translations, scalars)
         ctx.save_for_backward(g_rot, g_tr)
         return loss
 
     @staticmethod
     def backward(ctx: Any, grad: Tensor) -> tuple[Tensor | None, ...]:
         g_rot, g_tr = ctx.saved_tensors
-        return (grad * g_rot, grad * g_tr) + (None,) * 13
+        return grad * g_rot, grad * g_tr, None, None
 
 
 def fused_energy(
@@ -248,14 +304,14 @@ def fused_energy(
     :func:`embedded_deformation_regularizer`), differentiable w.r.t. the graph's rotations and translations. The
     gradient to the deformed points is ``2 (p - q)`` through the Geman-McClure weights (the closest point ``q``
     moves along the surface, orthogonally to ``p - q``), so it is the torch formulation's within rounding
-    (tested); forward and backward cost one pass over the terms instead of ~100 small torch ops.
+    (tested); forward and backward cost one pass over the terms instead of ~100 small torch ops. Threaded over
+    torch's intra-op threads, with the same result for any thread count.
     """
-    if graph.nodes.device.type != "cpu" or not bvh_ready():
+    ops = registration_ops() if graph.nodes.device.type == "cpu" else None
+    if ops is None:
         return None
     scalars = [sigma, plane_weight, point_weight, reverse_weight, data_scale, regularization]
-    # The extension reads raw memory: every tensor after the parameters is passed contiguous.
-    buffers = (graph.nodes, *terms, graph.edges)
-    out: Tensor = _FusedEnergy.apply(graph.rotations, graph.translations, *(t.contiguous() for t in buffers), scalars)
+    out: Tensor = _FusedEnergy.apply(graph.rotations, graph.translations, FusedStep(graph, terms, ops), scalars)
     return out
 
 

@@ -26,6 +26,7 @@ from __future__ import annotations
 import math
 import time
 import warnings
+from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import torch
@@ -39,10 +40,11 @@ from torchmeshmetric.registration.deformation_graph import DeformationGraph
 from torchmeshmetric.registration.energies import (
     Correspondences,
     EnergyTerms,
+    FusedStep,
     deformed_vertices,
     embedded_deformation_regularizer,
-    find_correspondences,
-    fused_energy,
+    registration_ops,
+    reject_correspondences,
     surface_term,
 )
 from torchmeshmetric.registration.options import DEFAULT_SCHEDULE, NonRigidOptions, Stage
@@ -140,8 +142,8 @@ def register_nonrigid(
     ``num_points=1000``, ``schedule=DEFAULT_SCHEDULE[:2]``; a keyword overrides the same field of ``options``).
     Both spellings are supported and give the same :class:`NonRigidOptions`: keywords for a one-off call, the
     dataclass to keep, compare or cache a setting. The other arguments say how it runs; they do not change what is
-    computed, except through floating-point rounding (another device, or another thread count, sums in another
-    order, and the optimisation can amplify that).
+    computed: the backends and, on the CPU, the thread counts give the same result bit for bit; another device sums
+    in another order, and the optimisation can amplify that rounding.
 
     Args:
         source: mesh to deform (frame k-1).
@@ -153,10 +155,10 @@ def register_nonrigid(
         backend: selection backend of the closest-face searches (see :func:`~torchmeshmetric.point_mesh_distance`);
             the exact backends return the same faces, so the result does not depend on it.
         num_threads: torch intra-op threads while registering (restored afterwards; process-wide, like
-            ``torch.set_num_threads``). Default 1: the loop is ~1 ms steps of small operations whose parallel regions
-            cost more than they save, and on a loaded machine wait for descheduled threads (docs/registration.md:
-            0.96 s of CPU on one thread; 47 s wall with two threads on an oversubscribed machine). ``None``: keep
-            torch's setting.
+            ``torch.set_num_threads``). Default 1: the loop is ~0.5 ms steps, each a few parallel regions that end at
+            a barrier, so next to other busy processes every region waits for a descheduled thread
+            (docs/registration.md, "Threads": 0.8 s on one thread, 4-14 s on two, measured on a loaded 2-core
+            machine). More threads pay on an otherwise idle machine. ``None``: keep torch's setting.
         **keywords: fields of :class:`NonRigidOptions` (``rigid_init``, ``node_spacing``, ``num_neighbors``,
             ``num_points``, ``num_target_samples``, ``correspondence_every``, ``schedule``, ``plane_weight``,
             ``point_weight``, ``reverse_weight``, ``tolerance``, ``max_outlier_fraction``, ``outlier_distance``,
@@ -283,6 +285,7 @@ class _Terms(NamedTuple):
     faces_loc: Tensor  # (Q, 3) rows of `need` of the corners of the faces matched by the target samples
     forward: Correspondences  # data points -> target faces
     reverse: Correspondences | None  # target samples -> rows of `faces_loc`
+    fused: FusedStep | None  # the energy laid out for the C++ pass (CPU), else None (torch formulation)
 
 
 class _Fit:
@@ -318,6 +321,15 @@ class _Fit:
         packed = PackedMeshes(tgt.verts, tgt.faces, _lengths(tgt.verts), _lengths(tgt.faces))
         self.target_index = MeshIndex._trusted(packed, backend, DEFAULT_MAX_MEMORY)
         self.source_index: MeshIndex | None = None
+        # On the CPU, the C++ passes: each refresh's deformed source with the vertex normals of the data points, and
+        # each step's fused energy (the same values as the torch formulation's kernels, tested).
+        self.ops = registration_ops() if dev.type == "cpu" else None
+        if self.ops is not None:
+            g = self.graph
+            self._skinning = [t.contiguous() for t in (g.nodes, g.verts, g.vert_nodes, g.vert_weights)]
+            self._faces = src.faces.contiguous()
+            self._incident = self.ops.incident_faces(self._faces, src.num_verts)
+            self._target = [t.contiguous() for t in (tgt.verts, tgt.faces, tgt.face_normals())]
         # Adam's step is lr * m / (sqrt(v) + eps): about lr in every coordinate whatever the gradient's size, so at
         # a stationary point (e.g. an exact pair, whose gradient is rounding noise) it would move the parameters by
         # lr instead of not at all; a stage stops where every gradient component is below sqrt(eps) of the dtype
@@ -345,10 +357,7 @@ class _Fit:
             if refresh:
                 terms = self._refresh(stage)
             assert terms is not None
-            opt.zero_grad(set_to_none=True)
-            with torch.set_grad_enabled(not finishing):
-                loss = self._loss(stage, terms)
-            value = float(loss.detach())
+            value, grad_max = self._evaluate(stage, terms, gradient=not finishing)
             if self.first_loss is None:
                 # The loss is in units of (node spacing)^2: a floor of 1 (a residual of one node spacing) keeps an
                 # exact start (loss ~1e-30) from calling rounding noise a divergence.
@@ -362,10 +371,6 @@ class _Fit:
             if finishing:
                 break
             self.history.append(value)
-            loss.backward()
-            # One reduction for both checks: NaN propagates through max.
-            grads = [p.grad.abs().max() for p in self.graph.parameters() if p.grad is not None]
-            grad_max = float(torch.stack(grads).max())
             if not math.isfinite(grad_max):
                 self._diverged("diverged: non-finite gradient")
                 return
@@ -401,68 +406,117 @@ class _Fit:
         """New correspondences at the current deformation (forward, and reverse when there are target samples)."""
         t0 = time.perf_counter()
         tgt, sf, surf = self.frame.target, self.frame.source.faces, self.surf
-        limits = {"max_distance": stage.max_distance, "max_normal_angle": stage.max_normal_angle}
         with torch.no_grad():
-            deformed = Mesh(deformed_vertices(self.graph), sf, validate=False)
-            dv, vn = deformed.verts, deformed.vertex_normals()
-            forward = find_correspondences(
-                dv[surf], vn[surf], tgt.verts, tgt.faces, index=self.target_index, face_normals=tgt.face_normals(),
-                **limits,
-            )  # fmt: skip
+            if self.ops is not None:
+                g = self.graph
+                dv, surf_normals = self.ops.deform_normals(
+                    g.rotations.detach(), g.translations.detach(), *self._skinning, self._faces, *self._incident, surf
+                )  # fmt: skip
+            else:
+                deformed = Mesh(deformed_vertices(self.graph), sf, validate=False)
+                dv, surf_normals = deformed.verts, deformed.vertex_normals()[surf]
+            target_normals = tgt.face_normals()
+            forward = self._match(
+                stage,
+                dv.index_select(0, surf),
+                surf_normals,
+                self.target_index,
+                lambda f: target_normals.index_select(0, f),
+            )
             reverse = None
             if self.samples is not None:
-                reverse = find_correspondences(
-                    self.samples, self.sample_normals, dv, sf, index=self._source_index(dv),
-                    face_normals=deformed.face_normals(), **limits,
-                )  # fmt: skip
+                if self.ops is not None:
+                    ops = self.ops
+                    source_normals = lambda f: ops.face_normals(dv, self._faces, f)  # noqa: E731
+                else:
+                    source_normals = lambda f: Mesh(dv, sf, validate=False).face_normals()[f]  # noqa: E731
+                reverse = self._match(stage, self.samples, self.sample_normals, self._source_index(dv), source_normals)
         self.timings["correspondences"] += time.perf_counter() - t0
         return self._terms(forward, reverse)
 
-    def _terms(self, forward: Correspondences, reverse: Correspondences | None) -> _Terms:
-        """Lay out one refresh's correspondences for the energies, indexed by the vertices they touch."""
-        graph, tgt, sf, surf = self.graph, self.frame.target, self.frame.source.faces, self.surf
-        # Only the data points and the vertices of the faces matched by target samples enter the data terms: deform
-        # just those (forward and backward then scale with them, not with all vertices).
-        rev_faces = sf[reverse.face_idx] if reverse is not None else sf[:0]
-        need, inv = torch.cat([surf, rev_faces.reshape(-1)]).unique(return_inverse=True)
-        surf_loc, faces_loc = inv[: surf.numel()], inv[surf.numel() :].view(-1, 3)
-        tv, tf = tgt.verts, tgt.faces
-        energy = EnergyTerms(
-            graph.verts[need], graph.vert_nodes[need], graph.vert_weights[need], surf_loc,
-            tv[tf[forward.face_idx]], tgt.face_normals()[forward.face_idx], forward.weights,
-            self.samples if reverse is not None and self.samples is not None else tv[:0], faces_loc,
-            reverse.weights if reverse is not None else tv.new_zeros(0),
-        )  # fmt: skip
-        if reverse is not None:
-            reverse = reverse._replace(face_idx=torch.arange(rev_faces.shape[0], device=sf.device))
-        return _Terms(energy, need, surf_loc, faces_loc, forward, reverse)
-
-    def _loss(self, stage: Stage, terms: _Terms) -> Tensor:
-        """The stage's energy at the current deformation.
-
-        Data terms are in units of the node spacing, so a regularisation weight of 1 trades an edge residual of one
-        spacing against a data residual of one spacing.
-        """
-        opts, tgt = self.opts, self.frame.target
-        weights = {"plane_weight": opts.plane_weight, "point_weight": opts.point_weight}
-        loss = fused_energy(
-            self.graph, terms.energy, sigma=stage.robust_scale, reverse_weight=opts.reverse_weight,
-            data_scale=1.0 / (opts.node_spacing * opts.node_spacing), regularization=stage.regularization, **weights,
-        )  # fmt: skip
-        if loss is not None:
-            return loss
-        # No C++ extension for this device: the same energy in torch ops.
-        dsub = self.graph.deform_vertices(terms.need)
-        loss = surface_term(
-            dsub[terms.surf_loc], tgt.verts, tgt.faces, terms.forward, sigma=stage.robust_scale, **weights
+    @staticmethod
+    def _match(
+        stage: Stage, points: Tensor, normals: Tensor, index: MeshIndex, face_normals: Callable[[Tensor], Tensor]
+    ) -> Correspondences:
+        """:func:`find_correspondences` with a kept index and the normals of the matched faces only."""
+        res = index._point_mesh_distance(points, _lengths(points))
+        return reject_correspondences(
+            res.face_idx, res.dists, normals, face_normals(res.face_idx), stage.max_distance, stage.max_normal_angle
         )
-        if terms.reverse is not None and self.samples is not None and opts.reverse_weight:
-            loss = loss + opts.reverse_weight * surface_term(
-                self.samples, dsub, terms.faces_loc, terms.reverse, sigma=stage.robust_scale, plane_weight=0.0,
-                point_weight=1.0,
+
+    def _terms(self, forward: Correspondences, reverse: Correspondences | None) -> _Terms:
+        """Lay out one refresh's correspondences for the energies, indexed by the vertices they touch.
+
+        Only the data points and the vertices of the faces matched by target samples enter the data terms: just those
+        are deformed (forward and backward then scale with them, not with all vertices).
+        """
+        graph, tgt, sf, surf = self.graph, self.frame.target, self.frame.source.faces, self.surf
+        samples = self.samples if reverse is not None and self.samples is not None else tgt.verts[:0]
+        rev_weights = reverse.weights if reverse is not None else tgt.verts.new_zeros(0)
+        rev_faces_idx = reverse.face_idx if reverse is not None else sf.new_zeros(0)
+        if self.ops is not None:
+            nodes, verts, vert_nodes, vert_weights = self._skinning
+            out = self.ops.energy_terms(
+                surf, rev_faces_idx, self._faces, verts, vert_nodes, vert_weights, *self._target, forward.face_idx,
+                forward.weights, rev_weights, nodes, graph.edges,
             )  # fmt: skip
-        loss = loss / (opts.node_spacing * opts.node_spacing)
-        return loss + stage.regularization * embedded_deformation_regularizer(self.graph)
+            need, rest, vidx, vw, surf_loc, data_tri, data_normals, faces_loc = out[:8]
+            energy = EnergyTerms(
+                rest, vidx, vw, surf_loc, data_tri, data_normals, forward.weights, samples, faces_loc, rev_weights
+            )
+            fused: FusedStep | None = FusedStep(graph, energy, self.ops, out[8:])
+        else:
+            rev_faces = sf[rev_faces_idx]
+            need, inv = torch.cat([surf, rev_faces.reshape(-1)]).unique(return_inverse=True)
+            surf_loc, faces_loc = inv[: surf.numel()], inv[surf.numel() :].view(-1, 3)
+            tv, tf, fidx = tgt.verts, tgt.faces, forward.face_idx
+            energy = EnergyTerms(
+                graph.verts[need], graph.vert_nodes[need], graph.vert_weights[need], surf_loc, tv[tf[fidx]],
+                tgt.face_normals()[fidx], forward.weights, samples, faces_loc, rev_weights,
+            )  # fmt: skip
+            fused = None
+        if reverse is not None:
+            reverse = reverse._replace(face_idx=torch.arange(faces_loc.shape[0], device=sf.device))
+        return _Terms(energy, need, surf_loc, faces_loc, forward, reverse, fused)
+
+    def _evaluate(self, stage: Stage, terms: _Terms, *, gradient: bool) -> tuple[float, float]:
+        """``(loss, max |gradient component|)`` of the stage's energy at the current deformation.
+
+        With ``gradient``, the parameters' ``.grad`` hold the gradient (for Adam); without, the second value is NaN
+        off the CPU. Data terms are in units of the node spacing, so a regularisation weight of 1 trades an edge
+        residual of one spacing against a data residual of one spacing.
+        """
+        opts, tgt, graph = self.opts, self.frame.target, self.graph
+        weights = {"plane_weight": opts.plane_weight, "point_weight": opts.point_weight}
+        data_scale = 1.0 / (opts.node_spacing * opts.node_spacing)
+        if terms.fused is not None:
+            scalars = [stage.robust_scale, opts.plane_weight, opts.point_weight, opts.reverse_weight, data_scale,
+                       stage.regularization]  # fmt: skip
+            loss_t, g_rot, g_tr, grad_max = terms.fused(graph.rotations, graph.translations, scalars)
+            if gradient:
+                graph.rotations.grad, graph.translations.grad = g_rot, g_tr
+            return float(loss_t), float(grad_max)
+        # No C++ extension for this device: the same energy in torch ops, differentiated by autograd.
+        graph.zero_grad(set_to_none=True)
+        with torch.set_grad_enabled(gradient):
+            dsub = graph.deform_vertices(terms.need)
+            loss = surface_term(
+                dsub[terms.surf_loc], tgt.verts, tgt.faces, terms.forward, sigma=stage.robust_scale, **weights
+            )
+            if terms.reverse is not None and self.samples is not None and opts.reverse_weight:
+                loss = loss + opts.reverse_weight * surface_term(
+                    self.samples, dsub, terms.faces_loc, terms.reverse, sigma=stage.robust_scale, plane_weight=0.0,
+                    point_weight=1.0,
+                )  # fmt: skip
+            loss = loss / (opts.node_spacing * opts.node_spacing)
+            loss = loss + stage.regularization * embedded_deformation_regularizer(graph)
+        value = float(loss.detach())
+        if not gradient:
+            return value, math.nan
+        loss.backward()
+        # One reduction for both checks: NaN propagates through max.
+        grads = [p.grad.abs().max() for p in graph.parameters() if p.grad is not None]
+        return value, float(torch.stack(grads).max())
 
     def plausibility(self) -> tuple[Tensor, Tensor, str]:
         """``(verts (V, 3), residual (V,), reason)`` of the fit as it stands.

@@ -20,7 +20,7 @@ from torch import Tensor
 from torchmeshmetric._checks import EmptyInputError, ShapeError, check_finite, check_float, check_shape
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.kernels.point_triangle import PointMeshResult
-from torchmeshmetric.registration._common import validate_pair
+from torchmeshmetric.registration._common import one_thread, validate_pair
 from torchmeshmetric.structures import Mesh, MeshLike
 
 __all__ = ["RigidRegistration", "SimilarityTransform", "kabsch_umeyama", "register_rigid", "transform_matrix"]
@@ -250,10 +250,11 @@ def register_rigid(
         cur = s * pts @ R.T + t
         res = index.point_mesh_distance(cur)
         w = _robust_trimmed_weights(res.dists, trim, sigma2)
-        if point_to_plane:
-            step = _point_to_plane_step(cur, res.closest, _match_normals(cur, res, tgt), w, scale)
-        else:
-            step = kabsch_umeyama(cur, res.closest, w, scale=scale)
+        with one_thread():  # the same step whatever the thread count (only the query above is threaded)
+            if point_to_plane:
+                step = _point_to_plane_step(cur, res.closest, _match_normals(cur, res, tgt), w, scale)
+            else:
+                step = kabsch_umeyama(cur, res.closest, w, scale=scale)
         R, t, s = step.rotation @ R, step.scale * (step.rotation @ t) + step.translation, step.scale * s
         new = s * pts @ R.T + t
         motion = ((new - cur) ** 2).sum(-1).mean().sqrt()

@@ -1,18 +1,64 @@
 // Registration energy of an embedded deformation graph and its gradient to the node rotations and translations, in
-// one pass (torchmeshmetric.registration.energies.fused_energy): the deformed data vertices, the robust data terms
-// to fixed target faces (point-to-point + point-to-plane), the reverse term of fixed target samples to deformed
-// source faces, Sumner's E_reg, and their gradients by the chain rule (the closest point's own motion does not
-// contribute: the gradient of the squared distance to a closest point is 2 (p - q), the envelope theorem).
+// one pass (torchmeshmetric.registration.energies): the node rotations (kornia's SO(3) exponential map), the deformed
+// data vertices, the robust data terms to fixed target faces (point-to-point + point-to-plane), the reverse term of
+// fixed target samples to deformed source faces, Sumner's E_reg, and their gradients by the chain rule (the closest
+// point's own motion does not contribute: the gradient of the squared distance to a closest point is 2 (p - q), the
+// envelope theorem). Also the per-refresh geometry of the deformed source (every vertex, vertex normals, face
+// normals) and the graph's farthest-point node sampling.
+//
+// Threads: each pass is a few phases over independent items (vertices, data points, target samples, edges, nodes),
+// run in dynamic chunks on torch's pool (a preempted thread does not hold the others). Every sum keeps one fixed
+// order whatever the thread count: per-item values are computed in parallel, then each vertex and each node gathers
+// its contributions in the order of the serial loop (`energy_layout`), and the loss adds its per-item terms in item
+// order. So the results are bit-identical for any number of threads, and to the single loop they replace.
+//
+// Functions bound by bvh.cpp's module: deformation_energy, deform_vertices, farthest_point_sampling. The registration
+// loop's per-step entry points are torch operators (torch.ops.torchmeshmetric_registration.*), registered below.
 #include <torch/extension.h>
+#include <torch/library.h>
 #include <ATen/Parallel.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <limits>
+#include <memory>
 #include <vector>
 
 #include "triangle.h"
 
 namespace {
+
+// fn(begin, end) over [0, n) in chunks of `chunk` items on torch's threads (inline on one). Thread w owns the w-th
+// contiguous segment of chunks and takes them front to back; once its own segment is done it takes the chunks left in
+// the others', so a preempted thread does not hold the rest. Owning a segment keeps each thread on the same part of
+// the data from phase to phase (items are ordered by vertex, see energy_layout): a step's phases are ~100 us of
+// short items, and reading what the other core has just written costs more than the items themselves.
+template <typename F>
+void chunked_for(int64_t n, int64_t chunk, const F& fn) {
+  const int64_t num_chunks = (n + chunk - 1) / chunk;
+  const int64_t workers = std::min<int64_t>(at::get_num_threads(), num_chunks);
+  if (workers <= 1) {
+    if (n > 0) fn(int64_t(0), n);
+    return;
+  }
+  std::unique_ptr<std::atomic<int64_t>[]> next(new std::atomic<int64_t>[workers]);
+  for (int64_t w = 0; w < workers; ++w) next[w] = w * num_chunks / workers;
+  at::parallel_for(0, workers, 1, [&](int64_t begin, int64_t end) {
+    for (int64_t own = begin; own < end; ++own)
+      for (int64_t k = 0; k < workers; ++k) {
+        const int64_t w = (own + k) % workers, last = (w + 1) * num_chunks / workers;
+        for (int64_t c = next[w].fetch_add(1); c < last; c = next[w].fetch_add(1))
+          fn(c * chunk, std::min(n, (c + 1) * chunk));
+      }
+  });
+}
+
+// Chunk sizes of the phases, ~10-20 us of work each: a step is ~0.5 ms, so a few dozen chunks balance two threads.
+constexpr int64_t CHUNK_VERTS = 256;  // skinning (K rotations per vertex)
+constexpr int64_t CHUNK_TERMS = 128;  // closest point on a triangle and robust kernel
+constexpr int64_t CHUNK_GATHER = 512;  // per-vertex gradient gather
+constexpr int64_t CHUNK_NODES = 16;  // per-node gradient gather and exponential map Jacobian
 
 // Geman-McClure rho(x) = s2 x / (s2 + x) and its derivative s2^2 / (s2 + x)^2 on a squared residual x.
 template <typename T>
@@ -21,9 +67,6 @@ inline T gm(T x, T s2, T& d) {
   d = (s2 * s2) / (den * den);
   return s2 * x / den;
 }
-
-// Vertices per thread chunk of the full-mesh deformation (below this, one thread: a parallel region costs more).
-constexpr int64_t DEFORM_GRAIN = 4096;
 
 // x = sum_k w_k [R_k (v - g_k) + g_k + t_k] for one vertex.
 template <typename T>
@@ -53,14 +96,70 @@ struct Skinning {
   const T* vw;
   int64_t I, K;
 
-  Skinning(const torch::Tensor& Rt, const torch::Tensor& tt, const torch::Tensor& gt_, const torch::Tensor& rest_t,
+  Skinning(const T* R_, const torch::Tensor& tt, const torch::Tensor& gt_, const torch::Tensor& rest_t,
            const torch::Tensor& vidx_t, const torch::Tensor& vw_t)
-      : R(Rt.data_ptr<T>()), t(tt.data_ptr<T>()), g(gt_.data_ptr<T>()), rest(rest_t.data_ptr<T>()),
+      : R(R_), t(tt.data_ptr<T>()), g(gt_.data_ptr<T>()), rest(rest_t.data_ptr<T>()),
         vidx(vidx_t.data_ptr<int64_t>()), vw(vw_t.data_ptr<T>()), I(rest_t.size(0)), K(vidx_t.size(1)) {}
 
   // Deformed position of vertex i into x[0..2].
   void deform(int64_t i, T* x) const { deform_one(R, t, g, rest + 3 * i, vidx + i * K, vw + i * K, K, x); }
 };
+
+// (N, 3, 3) rotations of axis-angle vectors (N, 3): kornia's axis_angle_to_rotation_matrix, the same operations in
+// the same order (Rodrigues for theta^2 > 1e-6, its second-order series below), with torch's own cos and sin
+// kernels, so the matrices are kornia's bit for bit (tested).
+template <typename T>
+torch::Tensor rotation_matrices(const torch::Tensor& axis_t) {
+  const int64_t N = axis_t.size(0);
+  const T* v = axis_t.data_ptr<T>();
+  std::vector<T> th2(N);
+  torch::Tensor safe_t = torch::empty({N}, axis_t.options());
+  T* safe = safe_t.data_ptr<T>();
+  for (int64_t j = 0; j < N; ++j) {
+    const T* a = v + 3 * j;
+    th2[j] = (a[0] * a[0] + a[1] * a[1]) + a[2] * a[2];
+    safe[j] = th2[j] > T(1e-6) ? th2[j] : T(1);  // kornia's stand-in 1 on the series' rows
+  }
+  // torch's sqrt is not std::sqrt (not always correctly rounded, measured): its kernels, as kornia.
+  const torch::Tensor theta_t = at::sqrt(safe_t), cos_t = at::cos(theta_t), sin_t = at::sin(theta_t);
+  const T* theta = theta_t.data_ptr<T>();
+  const T* cs = cos_t.data_ptr<T>();
+  const T* sn = sin_t.data_ptr<T>();
+  torch::Tensor out = torch::empty({N, 3, 3}, axis_t.options());
+  T* R = out.data_ptr<T>();
+  for (int64_t j = 0; j < N; ++j) {
+    const T* a = v + 3 * j;
+    T* m = R + 9 * j;
+    if (th2[j] > T(1e-6)) {
+      const T wx = a[0] / theta[j], wy = a[1] / theta[j], wz = a[2] / theta[j];
+      const T c = cs[j], s = sn[j], omc = T(1) - c;
+      const T wxwy = wx * wy, wxwz = wx * wz, wywz = wy * wz;
+      m[0] = c + wx * wx * omc;
+      m[1] = wxwy * omc - wz * s;
+      m[2] = wy * s + wxwz * omc;
+      m[3] = wz * s + wxwy * omc;
+      m[4] = c + wy * wy * omc;
+      m[5] = -wx * s + wywz * omc;
+      m[6] = -wy * s + wxwz * omc;
+      m[7] = wx * s + wywz * omc;
+      m[8] = c + wz * wz * omc;
+    } else {
+      const T ca = T(1) - th2[j] / T(6), cb = T(0.5) - th2[j] / T(24);
+      const T rx = a[0], ry = a[1], rz = a[2];
+      const T rx2 = rx * rx, ry2 = ry * ry, rz2 = rz * rz, rxry = rx * ry, rxrz = rx * rz, ryrz = ry * rz;
+      m[0] = T(1) - cb * (ry2 + rz2);
+      m[1] = -ca * rz + cb * rxry;
+      m[2] = ca * ry + cb * rxrz;
+      m[3] = ca * rz + cb * rxry;
+      m[4] = T(1) - cb * (rx2 + rz2);
+      m[5] = -ca * rx + cb * ryrz;
+      m[6] = -ca * ry + cb * rxrz;
+      m[7] = ca * rx + cb * ryrz;
+      m[8] = T(1) - cb * (rx2 + ry2);
+    }
+  }
+  return out;
+}
 
 // [u]x, the cross-product matrix, row major.
 inline void skew(const double* u, double* m) {
@@ -115,152 +214,383 @@ inline void rotation_vjp(const T* v_in, const T* R_in, const T* G_in, T* out) {
   }
 }
 
+// Compressed rows: ptr (rows + 1) and the items of each row, listed in increasing code order (a stable counting sort
+// of (row, code) pairs produced in increasing code order).
+struct Rows {
+  torch::Tensor ptr, items;
+};
+
+template <typename Emit>
+Rows build_rows(int64_t rows, int64_t total, const Emit& emit) {
+  Rows out{torch::zeros({rows + 1}, torch::kInt64), torch::empty({total}, torch::kInt64)};
+  int64_t* ptr = out.ptr.data_ptr<int64_t>();
+  int64_t* items = out.items.data_ptr<int64_t>();
+  emit([&](int64_t row, int64_t) { ++ptr[row + 1]; });
+  for (int64_t r = 0; r < rows; ++r) ptr[r + 1] += ptr[r];
+  std::vector<int64_t> fill(ptr, ptr + rows);
+  emit([&](int64_t row, int64_t code) { items[fill[row]++] = code; });
+  return out;
+}
+
+// The fixed part of the energy between correspondence refreshes, in the order of the serial loop:
+// - per touched vertex i, its gradient contributions: data point k (code k), then target sample k through corner c
+//   of its face (code S + 3 k + c), in increasing code order;
+// - per node j, its gradient contributions: vertex i through skinning slot s (code i K + s), then edge e as its
+//   first (code I K + 2 e) or second (code I K + 2 e + 1) node, in increasing code order;
+// - the order in which a step visits the data points and target samples (codes k and S + k, by the row of their
+//   vertex, their face's first corner) and the nodes (by the first row among their vertices): with the vertices in
+//   row order, each thread then reads mostly what it wrote itself (see chunked_for);
+// - the sums of the data weights, the reverse weights and the squared edge lengths [wsum, rsum, den].
 template <typename T>
-std::vector<torch::Tensor> energy_impl(const torch::Tensor& axis_t, const torch::Tensor& Rt, const torch::Tensor& tt, const torch::Tensor& gt_,
-                                       const torch::Tensor& rest_t, const torch::Tensor& vidx_t,
-                                       const torch::Tensor& vw_t, const torch::Tensor& data_idx_t,
-                                       const torch::Tensor& data_tri_t, const torch::Tensor& data_n_t,
-                                       const torch::Tensor& data_w_t, const torch::Tensor& samples_t,
+std::vector<torch::Tensor> layout_impl(const torch::Tensor& data_idx_t, const torch::Tensor& data_w_t,
                                        const torch::Tensor& rev_faces_t, const torch::Tensor& rev_w_t,
-                                       const torch::Tensor& edges_t, std::vector<double> s) {
+                                       const torch::Tensor& vidx_t, const torch::Tensor& g_t,
+                                       const torch::Tensor& edges_t) {
+  const int64_t I = vidx_t.size(0), K = vidx_t.size(1), N = g_t.size(0), S = data_idx_t.size(0),
+                Q = rev_faces_t.size(0), E = edges_t.size(0);
+  const int64_t* di = data_idx_t.data_ptr<int64_t>();
+  const int64_t* rf = rev_faces_t.data_ptr<int64_t>();
+  const int64_t* vidx = vidx_t.data_ptr<int64_t>();
+  const int64_t* ed = edges_t.data_ptr<int64_t>();
+  for (int64_t k = 0; k < S; ++k) TORCH_CHECK(di[k] >= 0 && di[k] < I, "energy_layout: data index out of range");
+  for (int64_t k = 0; k < 3 * Q; ++k) TORCH_CHECK(rf[k] >= 0 && rf[k] < I, "energy_layout: face corner out of range");
+  for (int64_t k = 0; k < I * K; ++k) TORCH_CHECK(vidx[k] >= 0 && vidx[k] < N, "energy_layout: node out of range");
+  for (int64_t k = 0; k < 2 * E; ++k) TORCH_CHECK(ed[k] >= 0 && ed[k] < N, "energy_layout: edge node out of range");
+  const Rows verts = build_rows(I, S + 3 * Q, [&](const auto& put) {
+    for (int64_t k = 0; k < S; ++k) put(di[k], k);
+    for (int64_t k = 0; k < 3 * Q; ++k) put(rf[k], S + k);
+  });
+  const Rows nodes = build_rows(N, I * K + 2 * E, [&](const auto& put) {
+    for (int64_t k = 0; k < I * K; ++k) put(vidx[k], k);
+    for (int64_t k = 0; k < 2 * E; ++k) put(ed[k], I * K + k);
+  });
+  const Rows items_by_row = build_rows(I, S + Q, [&](const auto& put) {
+    for (int64_t k = 0; k < S; ++k) put(di[k], k);
+    for (int64_t k = 0; k < Q; ++k) put(rf[3 * k], S + k);
+  });
+  const int64_t* nptr = nodes.ptr.data_ptr<int64_t>();
+  const int64_t* nitems = nodes.items.data_ptr<int64_t>();
+  const Rows nodes_by_row = build_rows(I + 1, N, [&](const auto& put) {
+    for (int64_t j = 0; j < N; ++j) {
+      const bool has_vertex = nptr[j] < nptr[j + 1] && nitems[nptr[j]] < I * K;
+      put(has_vertex ? nitems[nptr[j]] / K : I, j);
+    }
+  });
+  const T* dw = data_w_t.data_ptr<T>();
+  const T* rw = rev_w_t.data_ptr<T>();
+  const T* g = g_t.data_ptr<T>();
+  T wsum = 0, rsum = 0, den = 0;
+  for (int64_t k = 0; k < S; ++k) wsum += dw[k];
+  for (int64_t k = 0; k < Q; ++k) rsum += rw[k];
+  for (int64_t e = 0; e < E; ++e) {
+    const int64_t j = ed[2 * e], k = ed[2 * e + 1];
+    for (int c = 0; c < 3; ++c) {
+      const T dg = g[3 * k + c] - g[3 * j + c];
+      den += dg * dg;
+    }
+  }
+  torch::Tensor sums = torch::empty({3}, g_t.options());
+  T* sp = sums.data_ptr<T>();
+  sp[0] = wsum;
+  sp[1] = rsum;
+  sp[2] = den;
+  return {verts.ptr, verts.items, nodes.ptr, nodes.items, items_by_row.items, nodes_by_row.items, sums};
+}
+
+// One refresh's terms laid out for the energy: the touched source vertices (data points and the corners of the faces
+// matched by target samples), sorted and distinct, with their rest positions and skinning; the data points' rows
+// among them, their assigned target triangles and normals; the corners' rows; then energy_layout's seven tensors.
+template <typename T>
+std::vector<torch::Tensor> terms_impl(const torch::Tensor& surf_t, const torch::Tensor& rev_face_t,
+                                      const torch::Tensor& faces_t, const torch::Tensor& verts_t,
+                                      const torch::Tensor& vert_nodes_t, const torch::Tensor& vert_weights_t,
+                                      const torch::Tensor& tverts_t, const torch::Tensor& tfaces_t,
+                                      const torch::Tensor& tnormals_t, const torch::Tensor& data_face_t,
+                                      const torch::Tensor& data_w_t, const torch::Tensor& rev_w_t,
+                                      const torch::Tensor& nodes_t, const torch::Tensor& edges_t) {
+  const int64_t V = verts_t.size(0), K = vert_nodes_t.size(1), S = surf_t.size(0), Q = rev_face_t.size(0),
+                F = faces_t.size(0), TV = tverts_t.size(0), TF = tfaces_t.size(0);
+  TORCH_CHECK(data_face_t.size(0) == S && data_w_t.size(0) == S && rev_w_t.size(0) == Q,
+              "energy_terms: one face and one weight per data point and per target sample expected");
+  const int64_t* surf = surf_t.data_ptr<int64_t>();
+  const int64_t* rfi = rev_face_t.data_ptr<int64_t>();
+  const int64_t* faces = faces_t.data_ptr<int64_t>();
+  const int64_t* dfi = data_face_t.data_ptr<int64_t>();
+  const int64_t* tf = tfaces_t.data_ptr<int64_t>();
+  // Every index read below is checked where it is used (the faces themselves only where matched).
+  for (int64_t k = 0; k < S; ++k) {
+    TORCH_CHECK(surf[k] >= 0 && surf[k] < V && dfi[k] >= 0 && dfi[k] < TF, "energy_terms: data index out of range");
+    for (int c = 0; c < 3; ++c)
+      TORCH_CHECK(tf[3 * dfi[k] + c] >= 0 && tf[3 * dfi[k] + c] < TV, "energy_terms: target corner out of range");
+  }
+  for (int64_t k = 0; k < Q; ++k) {
+    TORCH_CHECK(rfi[k] >= 0 && rfi[k] < F, "energy_terms: face index out of range");
+    for (int c = 0; c < 3; ++c)
+      TORCH_CHECK(faces[3 * rfi[k] + c] >= 0 && faces[3 * rfi[k] + c] < V, "energy_terms: corner out of range");
+  }
+  // Rows of the touched vertices: marked, then numbered in vertex order (unique's sorted order).
+  std::vector<int64_t> row(V, -1);
+  for (int64_t k = 0; k < S; ++k) row[surf[k]] = 0;
+  for (int64_t k = 0; k < Q; ++k)
+    for (int c = 0; c < 3; ++c) row[faces[3 * rfi[k] + c]] = 0;
+  int64_t I = 0;
+  for (int64_t v = 0; v < V; ++v)
+    if (row[v] == 0) row[v] = I++;
+  const auto i64 = torch::dtype(torch::kInt64);
+  torch::Tensor need = torch::empty({I}, i64), rest = torch::empty({I, 3}, verts_t.options()),
+                vidx = torch::empty({I, K}, i64), vw = torch::empty({I, K}, verts_t.options());
+  int64_t* nd = need.data_ptr<int64_t>();
+  for (int64_t v = 0; v < V; ++v)
+    if (row[v] >= 0) nd[row[v]] = v;
+  const T* verts = verts_t.data_ptr<T>();
+  const int64_t* vn = vert_nodes_t.data_ptr<int64_t>();
+  const T* vwt = vert_weights_t.data_ptr<T>();
+  T* rp = rest.data_ptr<T>();
+  int64_t* ip = vidx.data_ptr<int64_t>();
+  T* wp = vw.data_ptr<T>();
+  for (int64_t i = 0; i < I; ++i) {
+    std::copy(verts + 3 * nd[i], verts + 3 * nd[i] + 3, rp + 3 * i);
+    std::copy(vn + K * nd[i], vn + K * nd[i] + K, ip + K * i);
+    std::copy(vwt + K * nd[i], vwt + K * nd[i] + K, wp + K * i);
+  }
+  torch::Tensor data_idx = torch::empty({S}, i64), data_tri = torch::empty({S, 3, 3}, tverts_t.options()),
+                data_n = torch::empty({S, 3}, tverts_t.options()), rev_loc = torch::empty({Q, 3}, i64);
+  int64_t* di = data_idx.data_ptr<int64_t>();
+  T* dt = data_tri.data_ptr<T>();
+  T* dn = data_n.data_ptr<T>();
+  const T* tv = tverts_t.data_ptr<T>();
+  const T* tn = tnormals_t.data_ptr<T>();
+  for (int64_t k = 0; k < S; ++k) {
+    di[k] = row[surf[k]];
+    for (int c = 0; c < 3; ++c) std::copy(tv + 3 * tf[3 * dfi[k] + c], tv + 3 * tf[3 * dfi[k] + c] + 3, dt + 9 * k + 3 * c);
+    std::copy(tn + 3 * dfi[k], tn + 3 * dfi[k] + 3, dn + 3 * k);
+  }
+  int64_t* rl = rev_loc.data_ptr<int64_t>();
+  for (int64_t k = 0; k < Q; ++k)
+    for (int c = 0; c < 3; ++c) rl[3 * k + c] = row[faces[3 * rfi[k] + c]];
+  std::vector<torch::Tensor> out{need, rest, vidx, vw, data_idx, data_tri, data_n, rev_loc};
+  for (auto& t : layout_impl<T>(data_idx, data_w_t, rev_loc, rev_w_t, vidx, nodes_t, edges_t)) out.push_back(t);
+  return out;
+}
+
+// The energy's inputs: the graph (axis-angle rotations, their matrices, translations, node positions), the touched
+// vertices (rest positions, skinning), the data terms, the reverse terms, the edges, and their layout.
+template <typename T>
+struct EnergyInputs {
+  const T *axis, *R, *t, *g, *rest, *vw, *dtri, *dn, *dw, *smp, *rw, *sums;
+  const int64_t *vidx, *di, *rf, *ed, *vptr, *vitems, *nptr, *nitems, *item_order, *node_order;
+  int64_t N, I, K, S, Q, E;
+};
+
+// Loss and gradients [loss, dL/d(axis-angle) (N, 3), dL/dt (N, 3), max |gradient| (double)].
+template <typename T>
+std::vector<torch::Tensor> energy_core(const EnergyInputs<T>& in, const std::vector<double>& s,
+                                       const torch::TensorOptions& opts) {
   const T sigma = T(s[0]), plane_w = T(s[1]), point_w = T(s[2]), rev_w = T(s[3]), data_scale = T(s[4]),
           reg_w = T(s[5]);
   const T s2 = sigma * sigma;
-  const Skinning<T> skin(Rt, tt, gt_, rest_t, vidx_t, vw_t);
-  const int64_t N = Rt.size(0), I = skin.I, K = skin.K, S = data_idx_t.size(0), Q = samples_t.size(0),
-                E = edges_t.size(0);
-  const T *R = skin.R, *t = skin.t, *g = skin.g, *rest = skin.rest, *vw = skin.vw;
-  const int64_t* vidx = skin.vidx;
-  // 1. Deformed positions of the needed vertices.
+  const int64_t N = in.N, I = in.I, K = in.K, S = in.S, Q = in.Q, E = in.E;
+  const T *R = in.R, *t = in.t, *g = in.g, *rest = in.rest, *vw = in.vw;
+  const bool reverse_on = rev_w != 0 && Q > 0, reg_on = E > 0 && reg_w != 0;
+  const int64_t ER = reg_on ? E : 0;
+  // 1. Deformed positions of the touched vertices.
   std::vector<T> x(3 * I);
-  for (int64_t i = 0; i < I; ++i) skin.deform(i, &x[3 * i]);
-  std::vector<T> gx(3 * I, T(0));
+  chunked_for(I, CHUNK_VERTS, [&](int64_t b, int64_t e_) {
+    for (int64_t i = b; i < e_; ++i) deform_one(R, t, g, rest + 3 * i, in.vidx + i * K, vw + i * K, K, &x[3 * i]);
+  });
+  // 2. Per data point and per target sample: its loss term and its gradient to the deformed positions.
+  const T dnorm = data_scale / std::max(in.sums[0], T(1));
+  const T rnorm = rev_w * data_scale / std::max(in.sums[1], T(1));
+  std::vector<T> term(S + Q, T(0)), grad_data(3 * S), bary(3 * Q), grad_rev(3 * Q);
+  chunked_for(S + Q, CHUNK_TERMS, [&](int64_t b, int64_t e_) {
+    for (int64_t o = b; o < e_; ++o) {
+      const int64_t it = in.item_order[o];
+      if (it < S) {
+        const int64_t k = it;
+        if (in.dw[k] == 0) continue;
+        const T* p = &x[3 * in.di[k]];
+        const T* a = in.dtri + 9 * k;
+        T bw[3], q[3];
+        const T sq = tmm::closest_on_face(a, a + 3, a + 6, p, bw, q);
+        T d1;
+        T e = point_w * gm(sq, s2, d1);
+        T gp[3];
+        for (int c = 0; c < 3; ++c) gp[c] = point_w * d1 * T(2) * (p[c] - q[c]);
+        if (plane_w != 0) {
+          const T* n = in.dn + 3 * k;
+          const T dist = (p[0] - a[0]) * n[0] + (p[1] - a[1]) * n[1] + (p[2] - a[2]) * n[2];
+          T d2;
+          e += plane_w * gm(dist * dist, s2, d2);
+          for (int c = 0; c < 3; ++c) gp[c] += plane_w * d2 * T(2) * dist * n[c];
+        }
+        const T f = in.dw[k] * dnorm;
+        term[k] = f * e;
+        for (int c = 0; c < 3; ++c) grad_data[3 * k + c] = f * gp[c];
+      } else {
+        const int64_t k = it - S;
+        if (!reverse_on || in.rw[k] == 0) continue;
+        const T* p = in.smp + 3 * k;
+        const int64_t* fc = in.rf + 3 * k;
+        T q[3];
+        const T sq = tmm::closest_on_face(&x[3 * fc[0]], &x[3 * fc[1]], &x[3 * fc[2]], p, &bary[3 * k], q);
+        T d1;
+        const T e = gm(sq, s2, d1);
+        const T f = in.rw[k] * rnorm;
+        term[S + k] = f * e;
+        for (int c = 0; c < 3; ++c) grad_rev[3 * k + c] = -f * d1 * T(2) * (p[c] - q[c]);  // d/dq, q = sum b_i x_i
+      }
+    }
+  });
+  // 3. Per touched vertex: the gradient to its deformed position, its contributions in the serial loop's order.
+  std::vector<T> gx(3 * I);
+  chunked_for(I, CHUNK_GATHER, [&](int64_t b, int64_t e_) {
+    for (int64_t i = b; i < e_; ++i) {
+      T acc[3] = {0, 0, 0};
+      for (int64_t m = in.vptr[i]; m < in.vptr[i + 1]; ++m) {
+        const int64_t code = in.vitems[m];
+        if (code < S) {
+          if (in.dw[code] == 0) continue;
+          for (int c = 0; c < 3; ++c) acc[c] += grad_data[3 * code + c];
+        } else {
+          const int64_t k = (code - S) / 3, corner = (code - S) % 3;
+          if (!reverse_on || in.rw[k] == 0) continue;
+          for (int c = 0; c < 3; ++c) acc[c] += bary[3 * k + corner] * grad_rev[3 * k + c];
+        }
+      }
+      for (int c = 0; c < 3; ++c) gx[3 * i + c] = acc[c];
+    }
+  });
+  // The loss: data terms, reverse terms, regulariser, each summed in item order.
   T loss = 0;
-  // 2. Data term: deformed data vertices to fixed target faces.
-  const int64_t* di = data_idx_t.data_ptr<int64_t>();
-  const T* dtri = data_tri_t.data_ptr<T>();
-  const T* dn = data_n_t.data_ptr<T>();
-  const T* dw = data_w_t.data_ptr<T>();
-  T wsum = 0;
-  for (int64_t k = 0; k < S; ++k) wsum += dw[k];
-  const T dnorm = data_scale / std::max(wsum, T(1));
-  for (int64_t k = 0; k < S; ++k) {
-    if (dw[k] == 0) continue;
-    const T* p = &x[3 * di[k]];
-    const T* a = dtri + 9 * k;
-    T bary[3], q[3];
-    const T sq = tmm::closest_on_face(a, a + 3, a + 6, p, bary, q);
-    T d1;
-    T e = point_w * gm(sq, s2, d1);
-    T gp[3];
-    for (int c = 0; c < 3; ++c) gp[c] = point_w * d1 * T(2) * (p[c] - q[c]);
-    if (plane_w != 0) {
-      const T* n = dn + 3 * k;
-      const T dist = (p[0] - a[0]) * n[0] + (p[1] - a[1]) * n[1] + (p[2] - a[2]) * n[2];
-      T d2;
-      e += plane_w * gm(dist * dist, s2, d2);
-      for (int c = 0; c < 3; ++c) gp[c] += plane_w * d2 * T(2) * dist * n[c];
-    }
-    const T f = dw[k] * dnorm;
-    loss += f * e;
-    for (int c = 0; c < 3; ++c) gx[3 * di[k] + c] += f * gp[c];
+  for (int64_t k = 0; k < S; ++k)
+    if (in.dw[k] != 0) loss += term[k];
+  if (reverse_on)
+    for (int64_t k = 0; k < Q; ++k)
+      if (in.rw[k] != 0) loss += term[S + k];
+  T scale = 0;
+  if (reg_on) {
+    const T den = std::max(in.sums[2] / T(E), std::numeric_limits<T>::min());
+    scale = reg_w / (T(E) * den);
   }
-  // 3. Reverse term: fixed target samples to deformed source faces (point-to-point).
-  const T* smp = samples_t.data_ptr<T>();
-  const int64_t* rf = rev_faces_t.data_ptr<int64_t>();
-  const T* rw = rev_w_t.data_ptr<T>();
-  if (rev_w != 0 && Q > 0) {
-    T rsum = 0;
-    for (int64_t k = 0; k < Q; ++k) rsum += rw[k];
-    const T rnorm = rev_w * data_scale / std::max(rsum, T(1));
-    for (int64_t k = 0; k < Q; ++k) {
-      if (rw[k] == 0) continue;
-      const T* p = smp + 3 * k;
-      const int64_t ia = rf[3 * k], ib = rf[3 * k + 1], ic = rf[3 * k + 2];
-      T bary[3], q[3];
-      const T sq = tmm::closest_on_face(&x[3 * ia], &x[3 * ib], &x[3 * ic], p, bary, q);
-      T d1;
-      const T e = gm(sq, s2, d1);
-      const T f = rw[k] * rnorm;
-      loss += f * e;
-      for (int c = 0; c < 3; ++c) {
-        const T gq = -f * d1 * T(2) * (p[c] - q[c]);  // d/dq; q = b0 a + b1 b + b2 c
-        gx[3 * ia + c] += bary[0] * gq;
-        gx[3 * ib + c] += bary[1] * gq;
-        gx[3 * ic + c] += bary[2] * gq;
-      }
-    }
-  }
-  auto gR_t = torch::zeros({N, 3, 3}, Rt.options());
-  auto gT_t = torch::zeros({N, 3}, tt.options());
-  T* gR = gR_t.data_ptr<T>();
+  // 4. Per node: the gradient to its rotation matrix and translation (dx/dR_j = w (v - g_j)^T, dx/dt_j = w; then
+  //    its edges, whose residuals R_j (g_k - g_j) + g_j + t_j - (g_k + t_k) each endpoint computes itself), then back
+  //    through the exponential map to its axis-angle vector.
+  torch::Tensor gV_t = torch::empty({N, 3}, opts), gT_t = torch::empty({N, 3}, opts);
+  T* gV = gV_t.data_ptr<T>();
   T* gT = gT_t.data_ptr<T>();
-  // 4. Back through the deformation: dx/dR_k = w_k (v - g_k)^T, dx/dt_k = w_k.
-  for (int64_t i = 0; i < I; ++i) {
-    const T* gi = &gx[3 * i];
-    if (gi[0] == 0 && gi[1] == 0 && gi[2] == 0) continue;
-    const T* v = rest + 3 * i;
-    for (int64_t k = 0; k < K; ++k) {
-      const int64_t j = vidx[i * K + k];
-      const T w = vw[i * K + k];
-      const T d[3] = {v[0] - g[3 * j], v[1] - g[3 * j + 1], v[2] - g[3 * j + 2]};
-      for (int a = 0; a < 3; ++a) {
-        const T wg = w * gi[a];
-        gT[3 * j + a] += wg;
-        for (int b = 0; b < 3; ++b) gR[9 * j + 3 * a + b] += wg * d[b];
+  const int64_t IK = I * K;
+  std::vector<T> res_sq(reg_on ? E : 0);
+  chunked_for(N, CHUNK_NODES, [&](int64_t b, int64_t e_) {
+    for (int64_t o = b; o < e_; ++o) {
+      const int64_t j = in.node_order[o];
+      T gR[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0}, gt[3] = {0, 0, 0};
+      for (int64_t m = in.nptr[j]; m < in.nptr[j + 1]; ++m) {
+        const int64_t code = in.nitems[m];
+        if (code < IK) {
+          const int64_t i = code / K;
+          const T* gi = &gx[3 * i];
+          if (gi[0] == 0 && gi[1] == 0 && gi[2] == 0) continue;
+          const T* v = rest + 3 * i;
+          const T w = vw[code];
+          const T d[3] = {v[0] - g[3 * j], v[1] - g[3 * j + 1], v[2] - g[3 * j + 2]};
+          for (int a = 0; a < 3; ++a) {
+            const T wg = w * gi[a];
+            gt[a] += wg;
+            for (int c = 0; c < 3; ++c) gR[3 * a + c] += wg * d[c];
+          }
+        } else if (reg_on) {
+          const int64_t e = (code - IK) / 2, first = in.ed[2 * e], second = in.ed[2 * e + 1];
+          const T dg[3] = {g[3 * second] - g[3 * first], g[3 * second + 1] - g[3 * first + 1],
+                           g[3 * second + 2] - g[3 * first + 2]};
+          const T* Rj = R + 9 * first;
+          T r[3];
+          for (int a = 0; a < 3; ++a)
+            r[a] = Rj[3 * a] * dg[0] + Rj[3 * a + 1] * dg[1] + Rj[3 * a + 2] * dg[2] + g[3 * first + a] +
+                   t[3 * first + a] - (g[3 * second + a] + t[3 * second + a]);
+          if ((code - IK) % 2 == 0) {
+            res_sq[e] = r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+            for (int a = 0; a < 3; ++a) {
+              const T gr = T(2) * scale * r[a];
+              gt[a] += gr;
+              for (int c = 0; c < 3; ++c) gR[3 * a + c] += gr * dg[c];
+            }
+          } else {
+            for (int a = 0; a < 3; ++a) gt[a] -= T(2) * scale * r[a];
+          }
+        }
       }
+      for (int a = 0; a < 3; ++a) gT[3 * j + a] = gt[a];
+      rotation_vjp(in.axis + 3 * j, R + 9 * j, gR, gV + 3 * j);
     }
-  }
-  // 5. Sumner's E_reg: mean |R_j (g_k - g_j) + g_j + t_j - (g_k + t_k)|^2 / mean |g_k - g_j|^2.
-  if (E > 0 && reg_w != 0) {
-    const int64_t* ed = edges_t.data_ptr<int64_t>();
-    T den = 0;
-    for (int64_t e = 0; e < E; ++e) {
-      const int64_t j = ed[2 * e], k = ed[2 * e + 1];
-      for (int c = 0; c < 3; ++c) {
-        const T dg = g[3 * k + c] - g[3 * j + c];
-        den += dg * dg;
-      }
-    }
-    den = std::max(den / T(E), std::numeric_limits<T>::min());
-    const T scale = reg_w / (T(E) * den);
+  });
+  if (reg_on) {
     T reg = 0;
-    for (int64_t e = 0; e < E; ++e) {
-      const int64_t j = ed[2 * e], k = ed[2 * e + 1];
-      const T dg[3] = {g[3 * k] - g[3 * j], g[3 * k + 1] - g[3 * j + 1], g[3 * k + 2] - g[3 * j + 2]};
-      const T* Rj = R + 9 * j;
-      T r[3];
-      for (int a = 0; a < 3; ++a)
-        r[a] = Rj[3 * a] * dg[0] + Rj[3 * a + 1] * dg[1] + Rj[3 * a + 2] * dg[2] + g[3 * j + a] + t[3 * j + a] -
-               (g[3 * k + a] + t[3 * k + a]);
-      reg += r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
-      for (int a = 0; a < 3; ++a) {
-        const T gr = T(2) * scale * r[a];
-        gT[3 * j + a] += gr;
-        gT[3 * k + a] -= gr;
-        for (int b = 0; b < 3; ++b) gR[9 * j + 3 * a + b] += gr * dg[b];
-      }
-    }
+    for (int64_t e = 0; e < E; ++e) reg += res_sq[e];
     loss += scale * reg;
   }
-  // 6. Back through the exponential map: dL/d(axis-angle) per node.
-  auto gV_t = torch::empty({N, 3}, tt.options());
-  const T* V = axis_t.data_ptr<T>();
-  T* gV = gV_t.data_ptr<T>();
-  for (int64_t j = 0; j < N; ++j) rotation_vjp(V + 3 * j, R + 9 * j, gR + 9 * j, gV + 3 * j);
-  return {torch::full({}, loss, Rt.options()), gV_t, gT_t};
+  double gmax = 0;  // NaN wins, as torch's max
+  for (int64_t m = 0; m < 3 * N; ++m) {
+    const double a = std::abs(double(gV[m])), b = std::abs(double(gT[m]));
+    if (std::isnan(a) || std::isnan(b)) {
+      gmax = std::numeric_limits<double>::quiet_NaN();
+      break;
+    }
+    gmax = std::max(gmax, std::max(a, b));
+  }
+  return {torch::full({}, loss, opts), gV_t, gT_t, torch::full({}, gmax, torch::dtype(torch::kFloat64))};
 }
 
 template <typename T>
-torch::Tensor deform_impl(const torch::Tensor& Rt, const torch::Tensor& tt, const torch::Tensor& gt_,
-                          const torch::Tensor& rest_t, const torch::Tensor& vidx_t, const torch::Tensor& vw_t) {
-  const Skinning<T> skin(Rt, tt, gt_, rest_t, vidx_t, vw_t);
-  torch::Tensor out = torch::empty({skin.I, 3}, rest_t.options());
-  T* x = out.data_ptr<T>();
-  at::parallel_for(0, skin.I, DEFORM_GRAIN, [&](int64_t s, int64_t e) {
-    for (int64_t i = s; i < e; ++i) skin.deform(i, x + 3 * i);
-  });
-  return out;
+EnergyInputs<T> energy_inputs(const torch::Tensor& axis, const T* R, const torch::Tensor& t, const torch::Tensor& g,
+                              const torch::Tensor& rest, const torch::Tensor& vidx, const torch::Tensor& vw,
+                              const torch::Tensor& data_idx, const torch::Tensor& data_tri,
+                              const torch::Tensor& data_n, const torch::Tensor& data_w, const torch::Tensor& samples,
+                              const torch::Tensor& rev_faces, const torch::Tensor& rev_w, const torch::Tensor& edges,
+                              const std::vector<torch::Tensor>& layout) {
+  TORCH_CHECK(layout.size() == 7, "deformation energy: 7 layout tensors expected");
+  EnergyInputs<T> in;
+  in.axis = axis.data_ptr<T>();
+  in.R = R;
+  in.t = t.data_ptr<T>();
+  in.g = g.data_ptr<T>();
+  in.rest = rest.data_ptr<T>();
+  in.vw = vw.data_ptr<T>();
+  in.dtri = data_tri.data_ptr<T>();
+  in.dn = data_n.data_ptr<T>();
+  in.dw = data_w.data_ptr<T>();
+  in.smp = samples.data_ptr<T>();
+  in.rw = rev_w.data_ptr<T>();
+  in.sums = layout[6].data_ptr<T>();
+  in.vidx = vidx.data_ptr<int64_t>();
+  in.di = data_idx.data_ptr<int64_t>();
+  in.rf = rev_faces.data_ptr<int64_t>();
+  in.ed = edges.data_ptr<int64_t>();
+  in.vptr = layout[0].data_ptr<int64_t>();
+  in.vitems = layout[1].data_ptr<int64_t>();
+  in.nptr = layout[2].data_ptr<int64_t>();
+  in.nitems = layout[3].data_ptr<int64_t>();
+  in.item_order = layout[4].data_ptr<int64_t>();
+  in.node_order = layout[5].data_ptr<int64_t>();
+  in.N = g.size(0);
+  in.I = rest.size(0);
+  in.K = vidx.size(1);
+  in.S = data_idx.size(0);
+  in.Q = samples.size(0);
+  in.E = edges.size(0);
+  TORCH_CHECK(layout[0].numel() == in.I + 1 && layout[2].numel() == in.N + 1 &&
+                  layout[4].numel() == in.S + in.Q && layout[5].numel() == in.N,
+              "deformation energy: the layout belongs to other terms");
+  return in;
+}
+
+void check_cpu(std::initializer_list<const torch::Tensor*> xs, const char* who) {
+  for (const auto* x : xs) TORCH_CHECK(x->is_contiguous() && x->device().is_cpu(), who, ": contiguous CPU tensors expected");
+}
+
+bool is_double(const torch::Tensor& x, const char* who) {
+  if (x.scalar_type() == torch::kFloat64) return true;
+  TORCH_CHECK(x.scalar_type() == torch::kFloat32, who, ": float32 or float64 expected");
+  return false;
 }
 
 // Farthest-point sampling from `start` until every point is within sqrt(s2) of a chosen one: the operations of
@@ -289,17 +619,208 @@ std::vector<int64_t> fps_impl(const T* p, int64_t n, int64_t start, double s2) {
   return chosen;
 }
 
+// Face cross product (b - a) x (c - a) and its norm with the operations of Mesh._face_cross and the row norm: torch's
+// CPU kernels (AVX2 / AVX-512 builds) contract a*b - c*d into fma(a, b, -(c*d)) and accumulate the squares by fma.
+template <typename T>
+inline void face_cross(const T* verts, const int64_t* f, T* n) {
+  const T *a = verts + 3 * f[0], *b = verts + 3 * f[1], *c = verts + 3 * f[2];
+  const T u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+  const T v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+  n[0] = std::fma(u[1], v[2], -(u[2] * v[1]));
+  n[1] = std::fma(u[2], v[0], -(u[0] * v[2]));
+  n[2] = std::fma(u[0], v[1], -(u[1] * v[0]));
+}
+
+// x / |x| with structures._unit's convention: exactly zero where the norm is zero.
+template <typename T>
+inline void unit(const T* x, T* out) {
+  const T norm = std::sqrt(std::fma(x[2], x[2], std::fma(x[1], x[1], x[0] * x[0])));
+  for (int c = 0; c < 3; ++c) out[c] = norm > 0 ? x[c] / norm : T(0);
+}
+
+// Every vertex deformed by the graph (rotations from axis-angle), and the area-weighted unit vertex normals of the
+// deformed mesh at the vertices `at` (Mesh.vertex_normals: face cross products summed per vertex in (corner, face)
+// order, the order of its three index_add passes; `inc_ptr` / `inc_items` from incident_faces).
+template <typename T>
+std::vector<torch::Tensor> deform_normals_impl(const torch::Tensor& axis, const torch::Tensor& t,
+                                               const torch::Tensor& g, const torch::Tensor& rest,
+                                               const torch::Tensor& vidx, const torch::Tensor& vw,
+                                               const torch::Tensor& faces, const torch::Tensor& inc_ptr,
+                                               const torch::Tensor& inc_items, const torch::Tensor& at_t) {
+  const torch::Tensor R = rotation_matrices<T>(axis);
+  const Skinning<T> skin(R.data_ptr<T>(), t, g, rest, vidx, vw);
+  torch::Tensor out = torch::empty({skin.I, 3}, rest.options());
+  T* x = out.data_ptr<T>();
+  chunked_for(skin.I, 4 * CHUNK_VERTS, [&](int64_t s, int64_t e) {
+    for (int64_t i = s; i < e; ++i) skin.deform(i, x + 3 * i);
+  });
+  const int64_t A = at_t.size(0), F = faces.size(0);
+  const int64_t* at = at_t.data_ptr<int64_t>();
+  const int64_t* fc = faces.data_ptr<int64_t>();
+  const int64_t* ptr = inc_ptr.data_ptr<int64_t>();
+  const int64_t* items = inc_items.data_ptr<int64_t>();
+  TORCH_CHECK(inc_ptr.numel() == skin.I + 1, "deform_normals: incident faces of another mesh");
+  for (int64_t a = 0; a < A; ++a) TORCH_CHECK(at[a] >= 0 && at[a] < skin.I, "deform_normals: vertex out of range");
+  torch::Tensor normals = torch::empty({A, 3}, rest.options());
+  T* nv = normals.data_ptr<T>();
+  chunked_for(A, CHUNK_GATHER, [&](int64_t s, int64_t e) {
+    for (int64_t a = s; a < e; ++a) {
+      T acc[3] = {0, 0, 0};
+      for (int64_t m = ptr[at[a]]; m < ptr[at[a] + 1]; ++m) {
+        T n[3];
+        face_cross(x, fc + 3 * (items[m] % F), n);
+        for (int c = 0; c < 3; ++c) acc[c] += n[c];
+      }
+      unit(acc, nv + 3 * a);
+    }
+  });
+  return {out, normals};
+}
+
+// ---- torch operators (torch.ops.torchmeshmetric_registration) ----
+
+std::vector<torch::Tensor> energy_layout(const torch::Tensor& data_idx, const torch::Tensor& data_w,
+                                         const torch::Tensor& rev_faces, const torch::Tensor& rev_w,
+                                         const torch::Tensor& vert_nodes, const torch::Tensor& nodes,
+                                         const torch::Tensor& edges) {
+  check_cpu({&data_idx, &data_w, &rev_faces, &rev_w, &vert_nodes, &nodes, &edges}, "energy_layout");
+  if (is_double(nodes, "energy_layout"))
+    return layout_impl<double>(data_idx, data_w, rev_faces, rev_w, vert_nodes, nodes, edges);
+  return layout_impl<float>(data_idx, data_w, rev_faces, rev_w, vert_nodes, nodes, edges);
+}
+
+std::vector<torch::Tensor> energy_terms(const torch::Tensor& surf, const torch::Tensor& rev_face_idx,
+                                        const torch::Tensor& faces, const torch::Tensor& verts,
+                                        const torch::Tensor& vert_nodes, const torch::Tensor& vert_weights,
+                                        const torch::Tensor& target_verts, const torch::Tensor& target_faces,
+                                        const torch::Tensor& target_normals, const torch::Tensor& data_face_idx,
+                                        const torch::Tensor& data_w, const torch::Tensor& rev_w,
+                                        const torch::Tensor& nodes, const torch::Tensor& edges) {
+  check_cpu({&surf, &rev_face_idx, &faces, &verts, &vert_nodes, &vert_weights, &target_verts, &target_faces,
+             &target_normals, &data_face_idx, &data_w, &rev_w, &nodes, &edges}, "energy_terms");
+  if (is_double(verts, "energy_terms"))
+    return terms_impl<double>(surf, rev_face_idx, faces, verts, vert_nodes, vert_weights, target_verts, target_faces,
+                              target_normals, data_face_idx, data_w, rev_w, nodes, edges);
+  return terms_impl<float>(surf, rev_face_idx, faces, verts, vert_nodes, vert_weights, target_verts, target_faces,
+                           target_normals, data_face_idx, data_w, rev_w, nodes, edges);
+}
+
+template <typename T>
+std::vector<torch::Tensor> energy_step_impl(const torch::Tensor& axis, const torch::Tensor& t, const torch::Tensor& g,
+                                            const torch::Tensor& rest, const torch::Tensor& vidx,
+                                            const torch::Tensor& vw, const torch::Tensor& data_idx,
+                                            const torch::Tensor& data_tri, const torch::Tensor& data_n,
+                                            const torch::Tensor& data_w, const torch::Tensor& samples,
+                                            const torch::Tensor& rev_faces, const torch::Tensor& rev_w,
+                                            const torch::Tensor& edges, const std::vector<torch::Tensor>& layout,
+                                            const std::vector<double>& scalars) {
+  const torch::Tensor R = rotation_matrices<T>(axis);
+  const auto in = energy_inputs<T>(axis, R.data_ptr<T>(), t, g, rest, vidx, vw, data_idx, data_tri, data_n, data_w,
+                                   samples, rev_faces, rev_w, edges, layout);
+  return energy_core<T>(in, scalars, t.options());
+}
+
+// [loss, dL/d(axis-angle), dL/dt, max |gradient|] at the graph's current parameters.
+std::vector<torch::Tensor> energy_step(const torch::Tensor& axis, const torch::Tensor& t, const torch::Tensor& g,
+                                       const torch::Tensor& rest, const torch::Tensor& vidx, const torch::Tensor& vw,
+                                       const torch::Tensor& data_idx, const torch::Tensor& data_tri,
+                                       const torch::Tensor& data_n, const torch::Tensor& data_w,
+                                       const torch::Tensor& samples, const torch::Tensor& rev_faces,
+                                       const torch::Tensor& rev_w, const torch::Tensor& edges,
+                                       at::TensorList layout_list, at::ArrayRef<double> scalars_ref) {
+  check_cpu({&axis, &t, &g, &rest, &vidx, &vw, &data_idx, &data_tri, &data_n, &data_w, &samples, &rev_faces, &rev_w,
+             &edges}, "energy_step");
+  const std::vector<torch::Tensor> layout(layout_list.begin(), layout_list.end());
+  const std::vector<double> scalars(scalars_ref.begin(), scalars_ref.end());
+  TORCH_CHECK(scalars.size() == 6, "energy_step: 6 scalars expected");
+  if (is_double(axis, "energy_step"))
+    return energy_step_impl<double>(axis, t, g, rest, vidx, vw, data_idx, data_tri, data_n, data_w, samples, rev_faces,
+                                    rev_w, edges, layout, scalars);
+  return energy_step_impl<float>(axis, t, g, rest, vidx, vw, data_idx, data_tri, data_n, data_w, samples, rev_faces,
+                                 rev_w, edges, layout, scalars);
+}
+
+// Per vertex, its faces as codes c F + f (corner c of face f) in increasing order: [ptr (V + 1), items (3 F)].
+std::vector<torch::Tensor> incident_faces(const torch::Tensor& faces, int64_t num_verts) {
+  check_cpu({&faces}, "incident_faces");
+  TORCH_CHECK(faces.scalar_type() == torch::kInt64 && faces.dim() == 2 && faces.size(1) == 3,
+              "incident_faces: (F, 3) int64 faces expected");
+  const int64_t F = faces.size(0);
+  const int64_t* f = faces.data_ptr<int64_t>();
+  for (int64_t k = 0; k < 3 * F; ++k)
+    TORCH_CHECK(f[k] >= 0 && f[k] < num_verts, "incident_faces: vertex index out of range");
+  const Rows rows = build_rows(num_verts, 3 * F, [&](const auto& put) {
+    for (int c = 0; c < 3; ++c)
+      for (int64_t k = 0; k < F; ++k) put(f[3 * k + c], c * F + k);
+  });
+  return {rows.ptr, rows.items};
+}
+
+std::vector<torch::Tensor> deform_normals(const torch::Tensor& axis, const torch::Tensor& t, const torch::Tensor& g,
+                                          const torch::Tensor& rest, const torch::Tensor& vidx,
+                                          const torch::Tensor& vw, const torch::Tensor& faces,
+                                          const torch::Tensor& inc_ptr, const torch::Tensor& inc_items,
+                                          const torch::Tensor& at) {
+  check_cpu({&axis, &t, &g, &rest, &vidx, &vw, &faces, &inc_ptr, &inc_items, &at}, "deform_normals");
+  if (is_double(axis, "deform_normals"))
+    return deform_normals_impl<double>(axis, t, g, rest, vidx, vw, faces, inc_ptr, inc_items, at);
+  return deform_normals_impl<float>(axis, t, g, rest, vidx, vw, faces, inc_ptr, inc_items, at);
+}
+
+// Unit normals (Mesh.face_normals) of the faces `face_idx` of a mesh.
+torch::Tensor face_normals(const torch::Tensor& verts, const torch::Tensor& faces, const torch::Tensor& face_idx) {
+  check_cpu({&verts, &faces, &face_idx}, "face_normals");
+  const int64_t M = face_idx.size(0), F = faces.size(0);
+  const int64_t* fi = face_idx.data_ptr<int64_t>();
+  for (int64_t m = 0; m < M; ++m) TORCH_CHECK(fi[m] >= 0 && fi[m] < F, "face_normals: face index out of range");
+  torch::Tensor out = torch::empty({M, 3}, verts.options());
+  AT_DISPATCH_FLOATING_TYPES(verts.scalar_type(), "face_normals", [&] {
+    const scalar_t* v = verts.data_ptr<scalar_t>();
+    const int64_t* f = faces.data_ptr<int64_t>();
+    scalar_t* o = out.data_ptr<scalar_t>();
+    chunked_for(M, CHUNK_GATHER, [&](int64_t s, int64_t e) {
+      for (int64_t m = s; m < e; ++m) {
+        scalar_t n[3];
+        face_cross(v, f + 3 * fi[m], n);
+        unit(n, o + 3 * m);
+      }
+    });
+  });
+  return out;
+}
+
+torch::Tensor axis_angle_rotations(const torch::Tensor& axis) {
+  check_cpu({&axis}, "axis_angle_rotations");
+  return is_double(axis, "axis_angle_rotations") ? rotation_matrices<double>(axis) : rotation_matrices<float>(axis);
+}
+
 }  // namespace
+
+TORCH_LIBRARY(torchmeshmetric_registration, m) {
+  m.def("energy_layout(Tensor data_idx, Tensor data_w, Tensor rev_faces, Tensor rev_w, Tensor vert_nodes, "
+        "Tensor nodes, Tensor edges) -> Tensor[]", &energy_layout);
+  m.def("energy_terms(Tensor surf, Tensor rev_face_idx, Tensor faces, Tensor verts, Tensor vert_nodes, "
+        "Tensor vert_weights, Tensor target_verts, Tensor target_faces, Tensor target_normals, Tensor data_face_idx, "
+        "Tensor data_w, Tensor rev_w, Tensor nodes, Tensor edges) -> Tensor[]", &energy_terms);
+  m.def("energy_step(Tensor axis, Tensor t, Tensor g, Tensor rest, Tensor vidx, Tensor vw, Tensor data_idx, "
+        "Tensor data_tri, Tensor data_n, Tensor data_w, Tensor samples, Tensor rev_faces, Tensor rev_w, "
+        "Tensor edges, Tensor[] layout, float[] scalars) -> Tensor[]", &energy_step);
+  m.def("incident_faces(Tensor faces, int num_verts) -> Tensor[]", &incident_faces);
+  m.def("deform_normals(Tensor axis, Tensor t, Tensor g, Tensor rest, Tensor vidx, Tensor vw, Tensor faces, "
+        "Tensor inc_ptr, Tensor inc_items, Tensor at) -> Tensor[]", &deform_normals);
+  m.def("face_normals(Tensor verts, Tensor faces, Tensor face_idx) -> Tensor", &face_normals);
+  m.def("axis_angle_rotations(Tensor axis) -> Tensor", &axis_angle_rotations);
+}
+
+// ---- functions bound by bvh.cpp's module ----
 
 torch::Tensor farthest_point_sampling(torch::Tensor points, int64_t start, double spacing2) {
   TORCH_CHECK(points.is_contiguous() && points.device().is_cpu(), "farthest_point_sampling: contiguous CPU points");
   std::vector<int64_t> out;
-  if (points.scalar_type() == torch::kFloat64)
+  if (is_double(points, "farthest_point_sampling"))
     out = fps_impl<double>(points.data_ptr<double>(), points.size(0), start, spacing2);
-  else {
-    TORCH_CHECK(points.scalar_type() == torch::kFloat32, "farthest_point_sampling: float32 or float64 expected");
+  else
     out = fps_impl<float>(points.data_ptr<float>(), points.size(0), start, spacing2);
-  }
   auto t = torch::empty({static_cast<int64_t>(out.size())}, torch::dtype(torch::kInt64));
   std::copy(out.begin(), out.end(), t.data_ptr<int64_t>());
   return t;
@@ -307,26 +828,35 @@ torch::Tensor farthest_point_sampling(torch::Tensor points, int64_t start, doubl
 
 torch::Tensor deform_vertices(torch::Tensor R, torch::Tensor t, torch::Tensor g, torch::Tensor rest,
                               torch::Tensor vidx, torch::Tensor vw) {
-  for (const auto* x : {&R, &t, &g, &rest, &vidx, &vw})
-    TORCH_CHECK(x->is_contiguous() && x->device().is_cpu(), "deform_vertices: contiguous CPU tensors expected");
-  if (R.scalar_type() == torch::kFloat64) return deform_impl<double>(R, t, g, rest, vidx, vw);
-  TORCH_CHECK(R.scalar_type() == torch::kFloat32, "deform_vertices: float32 or float64 expected");
-  return deform_impl<float>(R, t, g, rest, vidx, vw);
+  check_cpu({&R, &t, &g, &rest, &vidx, &vw}, "deform_vertices");
+  torch::Tensor out = torch::empty({rest.size(0), 3}, rest.options());
+  AT_DISPATCH_FLOATING_TYPES(R.scalar_type(), "deform_vertices", [&] {
+    const Skinning<scalar_t> skin(R.data_ptr<scalar_t>(), t, g, rest, vidx, vw);
+    scalar_t* x = out.data_ptr<scalar_t>();
+    chunked_for(skin.I, 4 * CHUNK_VERTS, [&](int64_t s, int64_t e) {
+      for (int64_t i = s; i < e; ++i) skin.deform(i, x + 3 * i);
+    });
+  });
+  return out;
 }
 
-std::vector<torch::Tensor> deformation_energy(torch::Tensor axis, torch::Tensor R, torch::Tensor t, torch::Tensor g, torch::Tensor rest,
-                                              torch::Tensor vidx, torch::Tensor vw, torch::Tensor data_idx,
-                                              torch::Tensor data_tri, torch::Tensor data_n, torch::Tensor data_w,
-                                              torch::Tensor samples, torch::Tensor rev_faces, torch::Tensor rev_w,
-                                              torch::Tensor edges, std::vector<double> scalars) {
+// The energy and its gradients with given rotation matrices R: [loss, dL/d(axis-angle), dL/dt]. Kept for bvh.cpp's
+// binding only: the package calls the operators above (energy_terms / energy_step); drop it with that binding.
+std::vector<torch::Tensor> deformation_energy(torch::Tensor axis, torch::Tensor R, torch::Tensor t, torch::Tensor g,
+                                              torch::Tensor rest, torch::Tensor vidx, torch::Tensor vw,
+                                              torch::Tensor data_idx, torch::Tensor data_tri, torch::Tensor data_n,
+                                              torch::Tensor data_w, torch::Tensor samples, torch::Tensor rev_faces,
+                                              torch::Tensor rev_w, torch::Tensor edges, std::vector<double> scalars) {
   TORCH_CHECK(scalars.size() == 6, "deformation_energy: 6 scalars expected");
-  for (const auto* x : {&axis, &R, &t, &g, &rest, &vidx, &vw, &data_idx, &data_tri, &data_n, &data_w, &samples, &rev_faces,
-                        &rev_w, &edges})
-    TORCH_CHECK(x->is_contiguous() && x->device().is_cpu(), "deformation_energy: contiguous CPU tensors expected");
-  if (R.scalar_type() == torch::kFloat64)
-    return energy_impl<double>(axis, R, t, g, rest, vidx, vw, data_idx, data_tri, data_n, data_w, samples, rev_faces, rev_w,
-                               edges, scalars);
-  TORCH_CHECK(R.scalar_type() == torch::kFloat32, "deformation_energy: float32 or float64 expected");
-  return energy_impl<float>(axis, R, t, g, rest, vidx, vw, data_idx, data_tri, data_n, data_w, samples, rev_faces, rev_w,
-                            edges, scalars);
+  check_cpu({&axis, &R, &t, &g, &rest, &vidx, &vw, &data_idx, &data_tri, &data_n, &data_w, &samples, &rev_faces,
+             &rev_w, &edges}, "deformation_energy");
+  const auto layout = energy_layout(data_idx, data_w, rev_faces, rev_w, vidx, g, edges);
+  std::vector<torch::Tensor> out;
+  AT_DISPATCH_FLOATING_TYPES(R.scalar_type(), "deformation_energy", [&] {
+    const auto in = energy_inputs<scalar_t>(axis, R.data_ptr<scalar_t>(), t, g, rest, vidx, vw, data_idx, data_tri,
+                                            data_n, data_w, samples, rev_faces, rev_w, edges, layout);
+    out = energy_core<scalar_t>(in, scalars, t.options());
+  });
+  out.pop_back();
+  return out;
 }
