@@ -36,6 +36,7 @@ from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.kernels.sampling import sample_surface
 from torchmeshmetric.registration._common import normalisation, validate_pair
+from torchmeshmetric.registration.adam import Adam
 from torchmeshmetric.registration.deformation_graph import DeformationGraph
 from torchmeshmetric.registration.energies import (
     Correspondences,
@@ -113,10 +114,6 @@ def _load_parameters(graph: DeformationGraph, state: dict[str, Tensor]) -> None:
 
 def _lengths(x: Tensor) -> Tensor:
     return torch.tensor([x.shape[0]], device=x.device)
-
-
-# Adam's step on the CPU as one fused kernel per parameter list (same update rule; fewer small ops per step).
-_ADAM_OPTIONS: dict[str, Any] = {"foreach": False, "fused": True}
 
 
 def register_nonrigid(
@@ -343,7 +340,7 @@ class _Fit:
     def run_stage(self, stage: Stage) -> None:
         """Adam steps of one stage; ends on the stage's best iterate, or sets ``reason`` when it diverges."""
         every = self.opts.correspondence_every
-        opt = torch.optim.Adam(self.graph.parameters(), lr=stage.lr, **_ADAM_OPTIONS)
+        opt = Adam(self.graph.parameters(), lr=stage.lr)
         prev_window: float | None = None
         terms: _Terms | None = None
         # Best iterate of the stage, judged on the loss right after a correspondence refresh (a function of the

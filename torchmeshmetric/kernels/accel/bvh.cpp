@@ -1494,15 +1494,8 @@ std::vector<torch::Tensor> mpeg_knn(torch::Tensor query, torch::Tensor ref, int6
 torch::Tensor deform_vertices(torch::Tensor R, torch::Tensor t, torch::Tensor g, torch::Tensor rest,
                               torch::Tensor vidx, torch::Tensor vw);
 torch::Tensor farthest_point_sampling(torch::Tensor points, int64_t start, double spacing2);
-std::vector<torch::Tensor> deformation_energy(torch::Tensor axis, torch::Tensor R, torch::Tensor t, torch::Tensor g, torch::Tensor rest,
-                                              torch::Tensor vidx, torch::Tensor vw, torch::Tensor data_idx,
-                                              torch::Tensor data_tri, torch::Tensor data_n, torch::Tensor data_w,
-                                              torch::Tensor samples, torch::Tensor rev_faces, torch::Tensor rev_w,
-                                              torch::Tensor edges, std::vector<double> scalars);
 
 PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
-  m.def("deformation_energy", &deformation_energy,
-        "Registration energy of a deformation graph and its gradient to axis-angle rotations and translations");
   m.def("deform_vertices", &deform_vertices, "Embedded deformation of skinned vertices (no gradient)");
   m.def("farthest_point_sampling", &farthest_point_sampling, "Farthest-point sampling to a covering radius");
   m.def("face_bvh_build", &face_bvh_build,

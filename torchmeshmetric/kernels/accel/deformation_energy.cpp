@@ -12,7 +12,7 @@
 // its contributions in the order of the serial loop (`energy_layout`), and the loss adds its per-item terms in item
 // order. So the results are bit-identical for any number of threads, and to the single loop they replace.
 //
-// Functions bound by bvh.cpp's module: deformation_energy, deform_vertices, farthest_point_sampling. The registration
+// Functions bound by bvh.cpp's module: deform_vertices, farthest_point_sampling. The registration
 // loop's per-step entry points are torch operators (torch.ops.torchmeshmetric_registration.*), registered below.
 #include <torch/extension.h>
 #include <torch/library.h>
@@ -837,26 +837,5 @@ torch::Tensor deform_vertices(torch::Tensor R, torch::Tensor t, torch::Tensor g,
       for (int64_t i = s; i < e; ++i) skin.deform(i, x + 3 * i);
     });
   });
-  return out;
-}
-
-// The energy and its gradients with given rotation matrices R: [loss, dL/d(axis-angle), dL/dt]. Kept for bvh.cpp's
-// binding only: the package calls the operators above (energy_terms / energy_step); drop it with that binding.
-std::vector<torch::Tensor> deformation_energy(torch::Tensor axis, torch::Tensor R, torch::Tensor t, torch::Tensor g,
-                                              torch::Tensor rest, torch::Tensor vidx, torch::Tensor vw,
-                                              torch::Tensor data_idx, torch::Tensor data_tri, torch::Tensor data_n,
-                                              torch::Tensor data_w, torch::Tensor samples, torch::Tensor rev_faces,
-                                              torch::Tensor rev_w, torch::Tensor edges, std::vector<double> scalars) {
-  TORCH_CHECK(scalars.size() == 6, "deformation_energy: 6 scalars expected");
-  check_cpu({&axis, &R, &t, &g, &rest, &vidx, &vw, &data_idx, &data_tri, &data_n, &data_w, &samples, &rev_faces,
-             &rev_w, &edges}, "deformation_energy");
-  const auto layout = energy_layout(data_idx, data_w, rev_faces, rev_w, vidx, g, edges);
-  std::vector<torch::Tensor> out;
-  AT_DISPATCH_FLOATING_TYPES(R.scalar_type(), "deformation_energy", [&] {
-    const auto in = energy_inputs<scalar_t>(axis, R.data_ptr<scalar_t>(), t, g, rest, vidx, vw, data_idx, data_tri,
-                                            data_n, data_w, samples, rev_faces, rev_w, edges, layout);
-    out = energy_core<scalar_t>(in, scalars, t.options());
-  });
-  out.pop_back();
   return out;
 }
