@@ -19,7 +19,7 @@ from types import ModuleType
 __all__ = ["bvh_ready", "load_bvh"]
 
 _SOURCES = [Path(__file__).with_name(n) for n in ("bvh.cpp", "deformation_energy.cpp")]
-_HEADERS = [Path(__file__).with_name("triangle.h")]
+_HEADERS = [Path(__file__).with_name(n) for n in ("parallel.h", "triangle.h")]
 _LOCK = threading.Lock()
 _STATE: dict[str, ModuleType | None] = {}
 

@@ -12,7 +12,7 @@
 //
 // Query: points processed in Morton order (cache coherence), stack traversal, nearer child first, pruning a node
 // when its box is farther than the current best (with a certified slack, see `prune_bound`), dynamic chunks of
-// queries on torch's threads (parallel_chunks).
+// queries on torch's threads (chunked_for, parallel.h).
 //
 // Exactness: the squared point-triangle distance is computed with the very same floating-point operations, in the
 // same order and the same dtype, as `_region_candidates` in point_triangle.py (edge-segment clamped projections
@@ -29,10 +29,12 @@
 #include <limits>
 #include <vector>
 
+#include "parallel.h"
 #include "triangle.h"
 
 namespace {
 
+using tmm::chunked_for;
 using tmm::clamp01;
 using tmm::closest_on_face;
 using tmm::dot3;
@@ -48,7 +50,7 @@ constexpr int LEAF_POINTS = 32;
 // Cheap linear loops run threaded only above this size: on a loaded machine every parallel region costs
 // a barrier, which outweighs the work of a few hundred thousand simple iterations.
 constexpr int64_t GRAIN_LINEAR = int64_t(1) << 18;
-// Queries per scheduling chunk (see parallel_chunks).
+// Queries per scheduling chunk (see chunked_for).
 constexpr int64_t QUERY_CHUNK = 256;
 
 template <typename T>
@@ -403,24 +405,6 @@ void build_forest(const T* box_lo, const T* box_hi, const T* cen, const int64_t*
   }
 }
 
-
-// Dynamic scheduling on torch's thread pool: the threads take chunks of `chunk` consecutive items from a shared
-// counter, so a thread that the OS preempts (a loaded machine) does not hold the others back as a static split
-// would. Consecutive items stay together (queries are in Morton order: seeding from the previous answer).
-template <typename F>
-void parallel_chunks(int64_t n, int64_t chunk, const F& fn) {
-  const int64_t num_chunks = (n + chunk - 1) / chunk;
-  const int64_t workers = std::min<int64_t>(at::get_num_threads(), num_chunks);
-  if (workers <= 1) {
-    if (n > 0) fn(int64_t(0), n);
-    return;
-  }
-  std::atomic<int64_t> next{0};
-  at::parallel_for(0, workers, 1, [&](int64_t, int64_t) {
-    for (int64_t c = next.fetch_add(1); c < num_chunks; c = next.fetch_add(1))
-      fn(c * chunk, std::min(n, (c + 1) * chunk));
-  });
-}
 
 template <typename T>
 inline T box_sq_dist(const Node<T>& nd, const T* p) {
@@ -1002,7 +986,7 @@ inline void wide_face_nearest(const WideNode<T>* nodes, const FaceBlock<T>* bloc
 }
 
 // One int64 answer per query point: `fn(begin, end, order, out)` answers the queries order[begin, end) (Morton
-// order, chunks scheduled by parallel_chunks) into out.
+// order, chunks scheduled by chunked_for) into out.
 template <typename T, typename F>
 torch::Tensor query_in_morton_order(const torch::Tensor& points, const F& fn) {
   const int64_t P = points.size(0);
@@ -1010,7 +994,7 @@ torch::Tensor query_in_morton_order(const torch::Tensor& points, const F& fn) {
   int64_t* o = out.data_ptr<int64_t>();
   const std::vector<int64_t> order = query_order<T>(points.data_ptr<T>(), P);
   const int64_t* ord = order.data();
-  parallel_chunks(P, QUERY_CHUNK, [&](int64_t s, int64_t e) { fn(s, e, ord, o); });
+  chunked_for(P, QUERY_CHUNK, [&](int64_t s, int64_t e) { fn(s, e, ord, o); });
   return out;
 }
 
@@ -1226,7 +1210,7 @@ std::vector<torch::Tensor> nearest_single_impl(const torch::Tensor& points, cons
   const Node<T>* nd = nodes.data();
   const std::vector<int64_t> order = query_order<T>(Pp, P);
   const int64_t* ord = order.data();
-  parallel_chunks(P, QUERY_CHUNK, [&](int64_t s, int64_t e) {
+  chunked_for(P, QUERY_CHUNK, [&](int64_t s, int64_t e) {
     int64_t prev_slot = -1;
     for (int64_t q = s; q < e; ++q) {
       const int64_t i = ord[q];
@@ -1344,7 +1328,7 @@ std::vector<torch::Tensor> mpeg_knn_impl(const torch::Tensor& query, const torch
   const std::vector<int64_t> order = query_order<float>(Qp, Q);
   const Node<float>* nd = nodes.data();
   const int64_t* pm = perm.data();
-  parallel_chunks(Q, QUERY_CHUNK, [&](int64_t s0, int64_t e) {
+  chunked_for(Q, QUERY_CHUNK, [&](int64_t s0, int64_t e) {
     KnnList prev{k};  // the previous (Morton-adjacent) query's answers: a tight first bound
     for (int64_t q = s0; q < e; ++q) {
       const int64_t i = order[q];
