@@ -90,10 +90,15 @@ def test_a_failing_rank_fails_the_run_names_rank_and_pair_writes_nothing_and_rer
     done = sorted(int(p.name.split("-")[0]) for p in calls.iterdir())
     # rank 0 registers pairs 0->1 and 2->3; under torchrun it may be stopped before finishing them (kill)
     assert 2 not in done and set(done) <= {1, 3} and (fault == "kill" or done == [1, 3])
-    assert len(list(cache.glob("*.pt"))) == len(done)
-    # the rerun (here: one process) computes only the registrations the failed run did not finish
+    cached = len(list(cache.glob("*.pt")))
+    # A killed run can be stopped between a registration and the write of its entry (the marker comes first):
+    # entries never outnumber registrations, and every entry is complete (the rerun trusts them all).
+    assert cached == len(done) if fault == "raise" else cached <= len(done)
+    # the rerun (here: one process) computes exactly the registrations the failed run left no entry for
     assert main(_compare_args(frames, out, "--overwrite", "--cache-dir", str(cache))) == 0
-    assert exact_registration() == sorted({1, 2, 3, 4} - set(done))
+    rerun = exact_registration()
+    assert len(rerun) == 4 - cached and set(rerun) >= {1, 2, 3, 4} - set(done)
+    assert fault == "kill" or rerun == sorted({1, 2, 3, 4} - set(done))
     assert json.loads(out.read_text())["methods"].keys() == {"A", "B"}
 
 
