@@ -102,9 +102,7 @@ def check_queries(
         raise ValueError(count_error.format(items=num_items, sets=num_sets))
     if points.shape[0] == 0:
         raise EmptyInputError("points: expected at least one point, found an empty point set")
-    if num_items == 1:  # the common batch of one: one scalar read instead of four tensor operations
-        if int(prim_lengths[0]) == 0:
-            raise EmptyInputError(lacking_error.format(item=0, points=points.shape[0]))
+    if num_items and int(prim_lengths.min()) > 0:  # the usual case, one reduction: every item has primitives
         return
     lacking = (points_lengths > 0) & (prim_lengths == 0)
     if bool(lacking.any()):

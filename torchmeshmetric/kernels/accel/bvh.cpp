@@ -35,14 +35,8 @@
 namespace {
 
 using tmm::chunked_for;
-using tmm::clamp01;
 using tmm::closest_on_face;
-using tmm::dot3;
 using tmm::face_data;
-using tmm::FaceData;
-using tmm::region_candidates;
-using tmm::RegionCandidates;
-using tmm::safe_div;
 using tmm::tri_sq_dist;
 
 constexpr int LEAF_FACES = 4;
@@ -427,7 +421,13 @@ inline T prune_bound(T best_sq, T slack_abs) {
   return d * d;
 }
 
-// Per-item absolute pruning slack: 64 ulps of the item's largest |coordinate| (items are centred).
+// Absolute pruning slack of an item whose largest |coordinate| is `scale` (items are centred): 64 ulps of it.
+template <typename T>
+inline T slack_of_scale(T scale) {
+  return scale * (T(64) * std::numeric_limits<T>::epsilon());
+}
+
+// Per-item pruning slack (slack_of_scale) from the items' primitive boxes.
 template <typename T>
 std::vector<T> item_slack(const T* box_lo, const T* box_hi, const int64_t* offsets, int64_t num_items) {
   std::vector<T> scale(num_items, T(0));
@@ -435,7 +435,7 @@ std::vector<T> item_slack(const T* box_lo, const T* box_hi, const int64_t* offse
     for (int64_t i = offsets[b]; i < offsets[b + 1]; ++i)
       for (int k = 0; k < 3; ++k)
         scale[b] = std::max(scale[b], std::max(std::abs(box_lo[3 * i + k]), std::abs(box_hi[3 * i + k])));
-  for (int64_t b = 0; b < num_items; ++b) scale[b] *= T(64) * std::numeric_limits<T>::epsilon();
+  for (int64_t b = 0; b < num_items; ++b) scale[b] = slack_of_scale(scale[b]);
   return scale;
 }
 
@@ -816,7 +816,7 @@ FaceBlock<T>* blocks_of(const torch::Tensor& t) {
 
 // Face records and bounds of a kept face hierarchy from (moved) vertices, in place: every block's lanes (face data
 // of its faces), every node's child boxes bottom up (a leaf lane: the union of its block's face boxes), and the
-// per-item slack (64 ulps of the largest |coordinate| of the item, read from its root's boxes). Min and max are
+// per-item slack (slack_of_scale of the largest |coordinate| of the item, read from its root's boxes). Min and max are
 // exact, so the boxes equal those of the binary build over the same faces.
 template <typename T>
 void fill_face_hierarchy(const std::vector<torch::Tensor>& h, const T* V, const int64_t* Fi) {
@@ -876,7 +876,7 @@ void fill_face_hierarchy(const std::vector<torch::Tensor>& h, const T* V, const 
       for (int l = 0; l < w.lanes; ++l)
         for (int k = 0; k < 3; ++k) scale = std::max(scale, std::max(std::abs(w.lo[k][l]), std::abs(w.hi[k][l])));
     }
-    slack[b] = scale * T(64) * std::numeric_limits<T>::epsilon();
+    slack[b] = slack_of_scale(scale);
   }
 }
 
@@ -1188,7 +1188,7 @@ std::vector<torch::Tensor> nearest_single_impl(const torch::Tensor& points, cons
     // Rounding is monotone, so the extremes of the centred values are the centred extremes.
     scale = std::max(scale, std::max(std::abs(lo[k] - c[k]), std::abs(hi[k] - c[k])));
   }
-  const T slack = scale * T(64) * std::numeric_limits<T>::epsilon();
+  const T slack = slack_of_scale(scale);
   std::vector<uint32_t> code;
   std::vector<int64_t> perm;
   morton_sort(Rp, R, lo, hi, code, perm);
@@ -1483,7 +1483,8 @@ PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
   m.def("deform_vertices", &deform_vertices, "Embedded deformation of skinned vertices (no gradient)");
   m.def("farthest_point_sampling", &farthest_point_sampling, "Farthest-point sampling to a covering radius");
   m.def("face_bvh_build", &face_bvh_build,
-        "Kept face hierarchy (Morton split, or binned SAH): [nodes, roots, perm, face data, slack]");
+        "Kept 4-wide face hierarchy (Morton split, or binned SAH, collapsed): [nodes, roots, block faces, blocks, "
+        "slack]");
   m.def("face_bvh_refit", &face_bvh_refit, "Refit a kept face hierarchy to moved vertices (in place)");
   m.def("face_bvh_query", &face_bvh_query,
         "Closest face per point (kept hierarchy, exact, lowest index on ties): {face_idx}, or with closest=True "
