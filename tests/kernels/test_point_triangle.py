@@ -305,6 +305,13 @@ class TestBadInput:
         with pytest.raises(EmptyInputError, match="faces: mesh 0 has no faces"):
             point_mesh_distance(self.pts, self.verts, torch.zeros(0, 3, dtype=torch.long))
 
+    def test_a_mesh_without_faces_in_a_batch(self) -> None:
+        batch = [(self.verts, self.faces), (self.verts, torch.zeros(0, 3, dtype=torch.long))]
+        with pytest.raises(EmptyInputError, match="faces: mesh 1 has no faces but 3 query points"):
+            point_mesh_distance([self.pts[:2], self.pts[:3]], batch)
+        # without query points of its own, a mesh without faces is no error
+        assert point_mesh_distance([self.pts[:2], self.pts[:0]], batch).dists.shape == (2,)
+
     def test_wrong_mesh_type(self) -> None:
         with pytest.raises(TypeError, match=r"mesh: expected a Mesh, a \(verts, faces\) tuple or a trimesh\.Trimesh"):
             point_mesh_distance(self.pts, "not a mesh")  # type: ignore[arg-type]
