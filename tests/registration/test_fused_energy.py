@@ -11,8 +11,15 @@ import trimesh
 from kornia.geometry.conversions import axis_angle_to_rotation_matrix
 
 from tests.registration.gt_pairs import torch_threads
+from torchmeshmetric import closest_point_on_triangle
 from torchmeshmetric.kernels.accel._extension import load_bvh
-from torchmeshmetric.registration import DeformationGraph, embedded_deformation_regularizer, surface_term
+from torchmeshmetric.registration import (
+    DeformationGraph,
+    data_term,
+    embedded_deformation_regularizer,
+    interpolated_normals,
+    reverse_term,
+)
 from torchmeshmetric.registration.energies import (
     Correspondences,
     EnergyTerms,
@@ -33,7 +40,7 @@ def _ops() -> Any:
 
 
 def _problem(dtype: torch.dtype = torch.float64, subdivisions: int = 2, spacing: float = 0.3, samples: int = 60):
-    """A deformed graph over an icosphere, data points on assigned target faces, target samples on source faces."""
+    """A deformed graph over an icosphere, data points matched to target points, target samples to source points."""
     g = torch.Generator().manual_seed(0)
     src = trimesh.creation.icosphere(subdivisions=subdivisions)
     tgt = trimesh.creation.icosphere(subdivisions=subdivisions + 1)
@@ -49,32 +56,43 @@ def _problem(dtype: torch.dtype = torch.float64, subdivisions: int = 2, spacing:
     surf = torch.arange(0, sv.shape[0], 2)
     data_faces = torch.randint(0, tf.shape[0], (surf.numel(),), generator=g)
     data_faces[0] = tf.shape[0] - 1
-    data_w = (torch.rand(surf.numel(), generator=g, dtype=dtype) > 0.2).to(dtype)
+    # Soft weights: zeros, ones and values between.
+    data_w = torch.rand(surf.numel(), generator=g, dtype=dtype).mul(1.25).clamp(max=1.0)
+    data_w[torch.rand(surf.numel(), generator=g) < 0.2] = 0.0
+    tri = tv[tf[data_faces]]
+    closest = closest_point_on_triangle(sv[surf] * 1.05, tri[:, 0], tri[:, 1], tri[:, 2])
+    normals = interpolated_normals(Mesh(tv, tf, validate=False).vertex_normals(), tf, data_faces, closest.bary)
+    forward = Correspondences(data_faces, data_w, torch.zeros_like(data_w), closest.closest, closest.bary, normals)
     points = tv[torch.randint(0, tv.shape[0], (samples,), generator=g)] * 1.02
-    rev_faces = sf[torch.randint(0, sf.shape[0], (samples,), generator=g)]
+    rev_face_idx = torch.randint(0, sf.shape[0], (samples,), generator=g)
+    rev_faces = sf[rev_face_idx]
     rev_w = (torch.rand(samples, generator=g, dtype=dtype) > 0.2).to(dtype)
+    rev_bary = torch.rand(samples, 3, generator=g, dtype=dtype)
+    rev_bary = rev_bary / rev_bary.sum(-1, keepdim=True)
+    rev_normals = interpolated_normals(Mesh(sv, sf, validate=False).vertex_normals(), sf, rev_face_idx, rev_bary)
     need, inv = torch.cat([surf, rev_faces.reshape(-1)]).unique(return_inverse=True)
     surf_loc, faces_loc = inv[: surf.numel()], inv[surf.numel() :].view(-1, 3)
-    terms = EnergyTerms(
-        graph.verts[need], graph.vert_nodes[need], graph.vert_weights[need], surf_loc, tv[tf[data_faces]],
-        Mesh(tv, tf, validate=False).face_normals()[data_faces], data_w, points, faces_loc, rev_w,
+    reverse = Correspondences(
+        torch.arange(samples), rev_w, torch.zeros_like(rev_w), points[:0], rev_bary, rev_normals
     )  # fmt: skip
-    reference = (tv, tf, need, surf_loc, faces_loc, data_faces, data_w, points, rev_w)
+    terms = EnergyTerms(
+        graph.verts[need], graph.vert_nodes[need], graph.vert_weights[need], surf_loc, forward.closest, normals,
+        data_w, points, faces_loc, rev_w, rev_bary, rev_normals,
+    )  # fmt: skip
+    reference = (need, surf_loc, faces_loc, forward, reverse, points)
     return graph, terms, reference
 
 
 @pytest.mark.parametrize("threads", [1, 2])
 @pytest.mark.parametrize("plane_weight", [0.0, 1.0])
 def test_fused_energy_equals_the_torch_energy(plane_weight: float, threads: int) -> None:
-    graph, terms, (tv, tf, need, surf_loc, faces_loc, data_faces, data_w, samples, rev_w) = _problem()
+    graph, terms, (need, surf_loc, faces_loc, forward, reverse, samples) = _problem()
     options = {"sigma": 0.05, "plane_weight": plane_weight, "point_weight": 0.1, "reverse_weight": 1.0}
 
     dsub = graph.deform_vertices(need)
-    corr_f = Correspondences(data_faces, data_w, torch.zeros_like(data_w))
-    corr_r = Correspondences(torch.arange(samples.shape[0]), rev_w, torch.zeros_like(rev_w))
-    sigma, pw, qw = options["sigma"], options["plane_weight"], options["point_weight"]
-    expected = surface_term(dsub[surf_loc], tv, tf, corr_f, sigma=sigma, plane_weight=pw, point_weight=qw)
-    expected = expected + surface_term(samples, dsub, faces_loc, corr_r, sigma=sigma, plane_weight=0, point_weight=1)
+    weights = {"sigma": options["sigma"], "plane_weight": plane_weight, "point_weight": options["point_weight"]}
+    expected = data_term(dsub[surf_loc], forward, **weights)
+    expected = expected + reverse_term(samples, dsub, faces_loc, reverse, **weights)
     expected = expected * 4.0 + 0.7 * embedded_deformation_regularizer(graph)
     expected.backward()
     grads = [graph.rotations.grad.clone(), graph.translations.grad.clone()]
@@ -186,29 +204,22 @@ def test_energy_terms_equal_the_torch_layout() -> None:
     ops = _ops()
     g = torch.Generator().manual_seed(4)
     src = trimesh.creation.icosphere(subdivisions=3)
-    tgt = trimesh.creation.icosphere(subdivisions=2)
     sv, sf = torch.tensor(src.vertices), torch.tensor(src.faces)
-    tv, tf = torch.tensor(tgt.vertices), torch.tensor(tgt.faces)
     graph = DeformationGraph(sv, sf, node_spacing=0.3)
     surf = torch.randperm(sv.shape[0], generator=g)[:200]
     rev_idx = torch.randint(0, sf.shape[0], (150,), generator=g)
-    data_faces = torch.randint(0, tf.shape[0], (200,), generator=g)
     data_w, rev_w = torch.rand(200, generator=g, dtype=torch.float64), torch.rand(150, generator=g, dtype=torch.float64)
-    normals = Mesh(tv, tf, validate=False).face_normals()
     skin = [t.contiguous() for t in (graph.verts, graph.vert_nodes, graph.vert_weights)]
-    out = ops.energy_terms(
-        surf, rev_idx, sf, *skin, tv, tf, normals, data_faces, data_w, rev_w, graph.nodes, graph.edges
-    )
+    out = ops.energy_terms(surf, rev_idx, sf, *skin, data_w, rev_w, graph.nodes, graph.edges)
     need, inv = torch.cat([surf, sf[rev_idx].reshape(-1)]).unique(return_inverse=True)
     expected = [
-        need, graph.verts[need], graph.vert_nodes[need], graph.vert_weights[need], inv[:200], tv[tf[data_faces]],
-        normals[data_faces], inv[200:].view(-1, 3),
+        need, graph.verts[need], graph.vert_nodes[need], graph.vert_weights[need], inv[:200], inv[200:].view(-1, 3)
     ]  # fmt: skip
-    expected += ops.energy_layout(expected[4], data_w, expected[7], rev_w, expected[2], graph.nodes, graph.edges)
-    assert len(out) == len(expected) == 15
+    expected += ops.energy_layout(expected[4], data_w, expected[5], rev_w, expected[2], graph.nodes, graph.edges)
+    assert len(out) == len(expected) == 13
     for got, want in zip(out, expected, strict=True):
         assert torch.equal(got, want)
     with pytest.raises(RuntimeError, match="face index out of range"):
-        ops.energy_terms(
-            surf, rev_idx + sf.shape[0], sf, *skin, tv, tf, normals, data_faces, data_w, rev_w, graph.nodes, graph.edges
-        )
+        ops.energy_terms(surf, rev_idx + sf.shape[0], sf, *skin, data_w, rev_w, graph.nodes, graph.edges)
+    with pytest.raises(RuntimeError, match="data index out of range"):
+        ops.energy_terms(surf + sv.shape[0], rev_idx, sf, *skin, data_w, rev_w, graph.nodes, graph.edges)

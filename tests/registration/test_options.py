@@ -81,7 +81,7 @@ def test_different_settings_never_share_a_key():
     # Every field of every stage, one at a time.
     for field in Stage._fields:
         value = getattr(DEFAULT_SCHEDULE[2], field)
-        changed = DEFAULT_SCHEDULE[2]._replace(**{field: value + 1})
+        changed = DEFAULT_SCHEDULE[2]._replace(**{field: value * 0.5 if field == "lr_decay" else value + 1})
         variants.append(NonRigidOptions(schedule=(*DEFAULT_SCHEDULE[:2], changed, DEFAULT_SCHEDULE[3])))
     assert {f.name for f in dataclasses.fields(NonRigidOptions)} <= {
         name for v in variants[1:16] for name, x in v.canonical().items() if x != NonRigidOptions().canonical()[name]

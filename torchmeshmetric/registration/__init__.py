@@ -8,10 +8,13 @@ from torchmeshmetric.registration.deformation_graph import (
 )
 from torchmeshmetric.registration.energies import (
     Correspondences,
+    acceptance_weights,
+    data_term,
     embedded_deformation_regularizer,
     find_correspondences,
     geman_mcclure,
-    surface_term,
+    interpolated_normals,
+    reverse_term,
 )
 from torchmeshmetric.registration.nonrigid import NonRigidRegistration, RegistrationWarning, register_nonrigid
 from torchmeshmetric.registration.options import DEFAULT_SCHEDULE, NonRigidOptions, Stage
@@ -37,15 +40,18 @@ __all__ = [
     "Stage",
     "SurfaceWarp",
     "Warp",
+    "acceptance_weights",
+    "data_term",
     "embedded_deformation",
     "embedded_deformation_regularizer",
     "farthest_point_nodes",
     "find_correspondences",
     "geman_mcclure",
+    "interpolated_normals",
     "kabsch_umeyama",
     "register_nonrigid",
     "register_rigid",
+    "reverse_term",
     "skinning_weights",
-    "surface_term",
     "transform_matrix",
 ]

@@ -1,11 +1,16 @@
-"""Energies of non-rigid registration: robust data terms, correspondence rejection, the embedded-deformation prior.
+"""Energies of non-rigid registration: robust data terms, soft correspondence weights, the embedded-deformation prior.
 
-Correspondences are *face* assignments found with the exact closest-point kernel
-(:func:`~torchmeshmetric.point_mesh_distance`, accelerated exact backends) and refreshed every few
-optimiser steps; between refreshes each energy recomputes the exact closest point on the assigned face
-(Ericson 2004, :func:`~torchmeshmetric.closest_point_on_triangle`), so the residual stays exact and differentiable
-while the expensive search is amortised. All distances are in the units of the points given; the registration loop
-normalises meshes to a unit bounding-box diagonal, so its thresholds are fractions of the diagonal.
+Correspondences are found with the exact closest-point kernel (:func:`~torchmeshmetric.point_mesh_distance`,
+accelerated exact backends) and refreshed every few optimiser steps. Between refreshes they are held as *points*,
+not faces: a data point is pulled to its fixed closest target point ``q`` and the plane through ``q`` with the
+target's interpolated (Phong) vertex normal there; a target sample to the fixed barycentric point of its closest
+deformed source face. Both are continuous functions of the meshes: a point whose closest point lies on an edge or a
+vertex ties between faces, and which tied face the search returns changes with the last bit of the input, but the
+closest point, its barycentric combination of the shared corners and the interpolated normal do not. The acceptance
+weights fall smoothly to zero at the rejection thresholds (:func:`acceptance_weights`) instead of jumping, for the
+same reason: a registration built on them is a continuous function of its input (docs/registration.md,
+"Stability"). All distances are in the units of the points given; the registration loop normalises meshes to a unit
+bounding-box diagonal, so its thresholds are fractions of the diagonal.
 """
 
 from __future__ import annotations
@@ -18,12 +23,16 @@ from torch import Tensor
 
 from torchmeshmetric.kernels.accel._extension import bvh_ready, load_bvh
 from torchmeshmetric.kernels.mesh_index import MeshIndex
-from torchmeshmetric.kernels.point_triangle import closest_point_on_triangle, point_mesh_distance
+from torchmeshmetric.kernels.point_triangle import point_mesh_distance
 from torchmeshmetric.registration.deformation_graph import DeformationGraph
 from torchmeshmetric.structures import Mesh
 
 __all__ = [
     "Correspondences",
+    "acceptance_weights",
+    "data_term",
+    "interpolated_normals",
+    "reverse_term",
     "EnergyTerms",
     "deformed_vertices",
     "embedded_deformation_regularizer",
@@ -32,23 +41,95 @@ __all__ = [
     "fused_energy",
     "geman_mcclure",
     "registration_ops",
-    "reject_correspondences",
-    "surface_term",
 ]
 
 
 class Correspondences(NamedTuple):
-    """Face assignments of query points on a mesh, with rejection.
+    """Closest points of query points on a mesh, with soft acceptance weights (no gradient).
 
     Attributes:
-        face_idx: ``(P,)`` int64 closest face of each point.
-        weights: ``(P,)`` 1 for accepted matches, 0 for rejected ones (too far, or normals too different).
-        dists: ``(P,)`` distance at assignment time (no gradient).
+        face_idx: ``(P,)`` int64 closest face of each point (among tied faces, the one the search returned).
+        weights: ``(P,)`` acceptance weights in ``[0, 1]`` (:func:`acceptance_weights`).
+        dists: ``(P,)`` distance at assignment time.
+        closest: ``(P, 3)`` the closest point on the mesh.
+        bary: ``(P, 3)`` its barycentric coordinates on ``face_idx``.
+        normals: ``(P, 3)`` the mesh's unit normal at the closest point (:func:`interpolated_normals`).
     """
 
     face_idx: Tensor
     weights: Tensor
     dists: Tensor
+    closest: Tensor
+    bary: Tensor
+    normals: Tensor
+
+
+def _smoothstep(e0: float, e1: float, x: Tensor) -> Tensor:
+    t = ((x - e0) / (e1 - e0)).clamp(0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
+def acceptance_weights(
+    dists: Tensor,
+    point_normals: Tensor | None,
+    matched_normals: Tensor | None,
+    max_distance: float,
+    max_normal_angle: float,
+) -> Tensor:
+    """Soft acceptance of matches: 1 when clearly plausible, falling smoothly (C1) to 0 at the rejection thresholds.
+
+    ``w = (1 - S(d; D/2, D)) * S(cos a; cos A, cos(A/2))`` with ``S`` the smoothstep, ``D = max_distance`` and
+    ``A = max_normal_angle``: a match at most half the distance away and within half the angle counts fully, one beyond
+    either threshold not at all. A hard cut-off would make the energy, and so the registration, jump when a distance
+    crosses the threshold by one ulp. Points or matches without a normal (zero vectors) skip the angle factor.
+
+    Args:
+        dists: ``(P,)`` distances of the matches.
+        point_normals: ``(P, 3)`` unit normals of the points, or ``None``.
+        matched_normals: ``(P, 3)`` unit normals of the mesh at the matches, or ``None``.
+        max_distance: distance beyond which the weight is 0 (> 0).
+        max_normal_angle: angle between the normals, in degrees, beyond which the weight is 0 (``(0, 180]``).
+
+    Returns:
+        ``(P,)`` weights in ``[0, 1]``.
+
+    Example:
+        >>> import torch
+        >>> acceptance_weights(torch.tensor([0.0, 0.5, 0.75, 1.0]), None, None, 1.0, 90.0).tolist()
+        [1.0, 1.0, 0.5, 0.0]
+    """
+    w = 1.0 - _smoothstep(0.5 * max_distance, max_distance, dists)
+    if point_normals is not None and matched_normals is not None:
+        cos = (matched_normals * point_normals).sum(-1)
+        has = ((matched_normals * matched_normals).sum(-1) > 0) & ((point_normals * point_normals).sum(-1) > 0)
+        full, zero = math.cos(math.radians(0.5 * max_normal_angle)), math.cos(math.radians(max_normal_angle))
+        w = torch.where(has, w * _smoothstep(zero, full, cos), w)
+    return w
+
+
+def interpolated_normals(vertex_normals: Tensor, faces: Tensor, face_idx: Tensor, bary: Tensor) -> Tensor:
+    """Unit normals at surface points from the vertex normals of their faces (Phong), ``(P, 3)``.
+
+    Continuous over the surface: on an edge or at a vertex every face sharing it gives the same normal (its
+    barycentric coordinates weight the shared corners alike), unlike the face normals, which jump there. Zero where
+    the interpolated vector vanishes (no normal).
+
+    Args:
+        vertex_normals: ``(V, 3)`` unit vertex normals (:meth:`~torchmeshmetric.Mesh.vertex_normals`).
+        faces: ``(F, 3)`` faces.
+        face_idx: ``(P,)`` face of each point.
+        bary: ``(P, 3)`` barycentric coordinates of each point on its face.
+
+    Example:
+        >>> import torch
+        >>> vn = torch.tensor([[0.0, 0, 1], [0, 1, 0], [0, 0, 1]])
+        >>> interpolated_normals(vn, torch.tensor([[0, 1, 2]]), torch.tensor([0]), torch.tensor([[0.5, 0.5, 0]]))
+        tensor([[0.0000, 0.7071, 0.7071]])
+    """
+    corners = vertex_normals[faces[face_idx]]  # (P, 3, 3)
+    n = (bary[:, :, None] * corners).sum(1)
+    norm = n.norm(dim=-1, keepdim=True)
+    return torch.where(norm > 0, n / torch.where(norm > 0, norm, torch.ones_like(norm)), torch.zeros_like(n))
 
 
 def geman_mcclure(sq: Tensor, sigma: float) -> Tensor:
@@ -72,13 +153,13 @@ def find_correspondences(
     max_distance: float,
     max_normal_angle: float,
     index: MeshIndex | None = None,
-    face_normals: Tensor | None = None,
+    vertex_normals: Tensor | None = None,
 ) -> Correspondences:
-    """Assign each point its exactly closest face and reject implausible matches (no gradient).
+    """Find each point's exactly closest point on the mesh and weigh how plausible the match is (no gradient).
 
-    A match is rejected when it is farther than ``max_distance`` or when the point's normal and the face's
-    normal differ by more than ``max_normal_angle`` degrees. Points or faces without a normal (zero vectors, e.g.
-    zero-area faces) skip the angle test.
+    The weight (:func:`acceptance_weights`) falls to 0 for a match farther than ``max_distance`` or whose normals
+    (the point's, and the mesh's interpolated normal at the match) differ by more than ``max_normal_angle`` degrees.
+    Points or matches without a normal (zero vectors, e.g. zero-area faces) skip the angle factor.
 
     Args:
         points: ``(P, 3)`` query points.
@@ -89,7 +170,7 @@ def find_correspondences(
         max_normal_angle: rejection angle in degrees.
         index: a :class:`~torchmeshmetric.MeshIndex` of ``(verts, faces)`` of the points' dtype, to query instead of
             building a structure for this call (the registration loop keeps one per mesh).
-        face_normals: ``(F, 3)`` :meth:`~torchmeshmetric.Mesh.face_normals` of the mesh, when already known.
+        vertex_normals: ``(V, 3)`` :meth:`~torchmeshmetric.Mesh.vertex_normals` of the mesh, when already known.
 
     Returns:
         :class:`Correspondences`.
@@ -101,32 +182,42 @@ def find_correspondences(
             res = point_mesh_distance(p, v, faces)
         else:
             res = index._point_mesh_distance(p, torch.tensor([p.shape[0]], device=p.device))
-        fn = None
-        if point_normals is not None:
-            fn = (Mesh(v, faces, validate=False).face_normals() if face_normals is None else face_normals)[res.face_idx]
-        return reject_correspondences(res.face_idx, res.dists, point_normals, fn, max_distance, max_normal_angle)
+        vn = Mesh(v, faces, validate=False).vertex_normals() if vertex_normals is None else vertex_normals
+        normals = interpolated_normals(vn, faces, res.face_idx, res.bary)
+        pn = None if point_normals is None else point_normals.detach()
+        weights = acceptance_weights(res.dists, pn, normals, max_distance, max_normal_angle)
+        return Correspondences(res.face_idx, weights, res.dists, res.closest, res.bary, normals)
 
 
-def reject_correspondences(
-    face_idx: Tensor,
-    dists: Tensor,
-    point_normals: Tensor | None,
-    matched_normals: Tensor | None,
-    max_distance: float,
-    max_normal_angle: float,
-) -> Correspondences:
-    """:func:`find_correspondences`' rejection of assignments, given the unit normals of the matched faces."""
-    ok = dists <= max_distance
-    if point_normals is not None and matched_normals is not None:
-        fn = matched_normals
-        cos = (fn * point_normals.detach()).sum(-1)
-        has = ((fn * fn).sum(-1) > 0) & ((point_normals * point_normals).sum(-1) > 0)
-        ok &= ~has | (cos >= math.cos(math.radians(max_normal_angle)))
-    return Correspondences(face_idx, ok.to(dists.dtype), dists)
+def data_term(
+    points: Tensor, corr: Correspondences, *, sigma: float, plane_weight: float = 1.0, point_weight: float = 1.0
+) -> Tensor:
+    """Robust point-to-point + point-to-plane energy of ``points`` to their fixed matches (weighted mean).
+
+    ``E = sum_i c_i [a rho(|p_i - q_i|^2) + b rho(((p_i - q_i) . n_i)^2)] / max(sum_i c_i, 1)`` with ``q_i`` and
+    ``n_i`` the match's closest point and interpolated normal (``corr.closest``, ``corr.normals``, held fixed between
+    refreshes), ``rho`` the Geman-McClure kernel and ``c_i`` the acceptance weights. Differentiable w.r.t. ``points``.
+
+    Args:
+        points: ``(P, 3)`` points (e.g. deformed data vertices).
+        corr: their :class:`Correspondences`.
+        sigma: Geman-McClure scale.
+        plane_weight: ``b``, weight of point-to-plane.
+        point_weight: ``a``, weight of point-to-point.
+
+    Returns:
+        0-dim energy (0 when every weight is 0).
+    """
+    d = points - corr.closest
+    e = point_weight * geman_mcclure((d * d).sum(-1), sigma)
+    if plane_weight:
+        e = e + plane_weight * geman_mcclure((d * corr.normals).sum(-1) ** 2, sigma)
+    w = corr.weights
+    return (w * e).sum() / w.sum().clamp_min(1.0)
 
 
-def surface_term(
-    points: Tensor,
+def reverse_term(
+    samples: Tensor,
     verts: Tensor,
     faces: Tensor,
     corr: Correspondences,
@@ -135,38 +226,28 @@ def surface_term(
     plane_weight: float = 1.0,
     point_weight: float = 1.0,
 ) -> Tensor:
-    """Robust point-to-point + point-to-plane energy of ``points`` to their assigned faces (weighted mean).
+    """Robust energy of fixed ``samples`` to the fixed barycentric points of their (deforming) faces (weighted mean).
 
-    ``E = sum_i c_i [a rho(|p_i - q_i|^2) + b rho(((p_i - x_i) . n_i)^2)] / sum_i c_i`` with ``q_i`` the exact
-    closest point on the assigned face, ``n_i`` its unit normal (zero for zero-area faces, which therefore drop
-    out of the point-to-plane part), ``rho`` the Geman-McClure kernel and ``c_i`` the acceptance weights.
-    Differentiable w.r.t. ``points`` and ``verts``.
+    ``E = sum_k r_k [a rho(|s_k - x_k|^2) + b rho(((s_k - x_k) . n_k)^2)] / max(sum_k r_k, 1)`` with
+    ``x_k = sum_c b_kc v_{f_k c}``, ``(f_k, b_k)`` the face and barycentric coordinates found at the refresh
+    (``corr.face_idx``, ``corr.bary``) and ``n_k`` the mesh's interpolated normal there (``corr.normals``, fixed).
+    Differentiable w.r.t. ``verts``.
 
     Args:
-        points: ``(P, 3)`` points.
-        verts: ``(V, 3)`` mesh vertices.
-        faces: ``(F, 3)`` mesh faces.
-        corr: assignments from :func:`find_correspondences`.
+        samples: ``(Q, 3)`` points (e.g. target samples).
+        verts: ``(V, 3)`` vertices of the mesh they were matched to (e.g. the deformed source).
+        faces: ``(F, 3)`` its faces.
+        corr: the samples' :class:`Correspondences` on that mesh.
         sigma: Geman-McClure scale.
         plane_weight: ``b``, weight of point-to-plane.
         point_weight: ``a``, weight of point-to-point.
 
     Returns:
-        0-dim energy (0 when every match is rejected).
+        0-dim energy.
     """
-    tri = verts[faces[corr.face_idx]]
-    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
-    sq = closest_point_on_triangle(points, a, b, c).sq_dists
-    e = point_weight * geman_mcclure(sq, sigma)
-    if plane_weight:
-        n = torch.linalg.cross(b - a, c - a, dim=-1)
-        nn_ = (n * n).sum(-1)
-        ok = nn_ > 0
-        n = n / torch.where(ok, nn_, torch.ones_like(nn_)).sqrt()[:, None]
-        plane_sq = torch.where(ok, ((points - a) * n).sum(-1) ** 2, torch.zeros_like(nn_))
-        e = e + plane_weight * geman_mcclure(plane_sq, sigma)
-    w = corr.weights
-    return (w * e).sum() / w.sum().clamp_min(1.0)
+    x = (corr.bary[:, :, None] * verts[faces[corr.face_idx]]).sum(1)
+    fixed = corr._replace(closest=samples)
+    return data_term(x, fixed, sigma=sigma, plane_weight=plane_weight, point_weight=point_weight)
 
 
 def embedded_deformation_regularizer(graph: DeformationGraph) -> Tensor:
@@ -203,24 +284,28 @@ class EnergyTerms(NamedTuple):
         vert_nodes: ``(I, K)`` their skinning nodes, ``graph.vert_nodes[need]``.
         vert_weights: ``(I, K)`` their skinning weights, ``graph.vert_weights[need]``.
         data_idx: ``(S,)`` int64 row of ``need`` of each data vertex.
-        data_tri: ``(S, 3, 3)`` its assigned target triangle ``(a, b, c)``.
-        data_normals: ``(S, 3)`` unit normal of that triangle (zero for a zero-area face).
+        data_points: ``(S, 3)`` its fixed target point (the closest point at the refresh).
+        data_normals: ``(S, 3)`` the target's interpolated unit normal there (zero where there is none).
         data_weights: ``(S,)`` acceptance weights.
         samples: ``(Q, 3)`` target samples of the reverse term.
         rev_faces: ``(Q, 3)`` int64 rows of ``need`` of the corners of each sample's assigned source face.
         rev_weights: ``(Q,)`` acceptance weights.
+        rev_bary: ``(Q, 3)`` the fixed barycentric coordinates of each sample's point on that face.
+        rev_normals: ``(Q, 3)`` the source's interpolated unit normal there at the refresh.
     """
 
     rest: Tensor
     vert_nodes: Tensor
     vert_weights: Tensor
     data_idx: Tensor
-    data_tri: Tensor
+    data_points: Tensor
     data_normals: Tensor
     data_weights: Tensor
     samples: Tensor
     rev_faces: Tensor
     rev_weights: Tensor
+    rev_bary: Tensor
+    rev_normals: Tensor
 
 
 def registration_ops() -> Any | None:
@@ -251,7 +336,7 @@ class FusedStep:
     ) -> None:
         self._ops = ops
         self._buffers = [t.contiguous() for t in (graph.nodes, *terms, graph.edges)]
-        nodes, _, vidx, _, data_idx, _, _, data_w, _, rev_faces, rev_w, edges = self._buffers
+        nodes, _, vidx, _, data_idx, _, _, data_w, _, rev_faces, rev_w, _, _, edges = self._buffers
         if layout is None:
             layout = ops.energy_layout(data_idx, data_w, rev_faces, rev_w, vidx, nodes, edges)
         self._layout = layout
@@ -299,13 +384,12 @@ def fused_energy(
 ) -> Tensor | None:
     """The registration loop's energy in one C++ pass, or ``None`` where the C++ extension cannot serve (not CPU).
 
-    ``data_scale * (surface_term(data) + reverse_weight * surface_term(reverse)) + regularization * E_reg`` with
-    the data vertices deformed by ``graph`` (the loop's energy, :func:`surface_term` and
-    :func:`embedded_deformation_regularizer`), differentiable w.r.t. the graph's rotations and translations. The
-    gradient to the deformed points is ``2 (p - q)`` through the Geman-McClure weights (the closest point ``q``
-    moves along the surface, orthogonally to ``p - q``), so it is the torch formulation's within rounding
-    (tested); forward and backward cost one pass over the terms instead of ~100 small torch ops. Threaded over
-    torch's intra-op threads, with the same result for any thread count.
+    ``data_scale * (data_term(data) + reverse_weight * reverse_term(reverse)) + regularization * E_reg`` with
+    the data vertices deformed by ``graph`` (the loop's energy, :func:`data_term`, :func:`reverse_term` and
+    :func:`embedded_deformation_regularizer`), differentiable w.r.t. the graph's rotations and translations: the
+    torch formulation's value and gradient within rounding (tested); forward and backward cost one pass over the
+    terms instead of ~100 small torch ops. Threaded over torch's intra-op threads, with the same result for any
+    thread count.
     """
     ops = registration_ops() if graph.nodes.device.type == "cpu" else None
     if ops is None:

@@ -26,7 +26,6 @@ from __future__ import annotations
 import math
 import time
 import warnings
-from collections.abc import Callable
 from typing import Any, NamedTuple
 
 import torch
@@ -42,11 +41,13 @@ from torchmeshmetric.registration.energies import (
     Correspondences,
     EnergyTerms,
     FusedStep,
+    acceptance_weights,
+    data_term,
     deformed_vertices,
     embedded_deformation_regularizer,
+    interpolated_normals,
     registration_ops,
-    reject_correspondences,
-    surface_term,
+    reverse_term,
 )
 from torchmeshmetric.registration.options import DEFAULT_SCHEDULE, NonRigidOptions, Stage
 from torchmeshmetric.registration.rigid import RigidRegistration, register_rigid
@@ -173,11 +174,11 @@ def register_nonrigid(
         >>> src = trimesh.creation.icosphere(subdivisions=2)
         >>> tgt = trimesh.creation.icosphere(subdivisions=3)
         >>> tgt.vertices *= [1.1, 1.0, 0.9]
-        >>> r = register_nonrigid(src, tgt, schedule=DEFAULT_SCHEDULE[:2], generator=torch.Generator().manual_seed(0))
+        >>> quick = NonRigidOptions(schedule=DEFAULT_SCHEDULE[-2:])
+        >>> r = register_nonrigid(src, tgt, quick, generator=torch.Generator().manual_seed(0))
         >>> r.converged, bool(r.residual.max() < 0.02)
         (True, True)
-        >>> quick = NonRigidOptions(schedule=DEFAULT_SCHEDULE[:2])
-        >>> bool((register_nonrigid(src, tgt, quick).verts == r.verts).all())  # same settings, same result
+        >>> bool((register_nonrigid(src, tgt, schedule=DEFAULT_SCHEDULE[-2:]).verts == r.verts).all())  # same result
         True
     """
     opts = NonRigidOptions.from_keywords(options, **keywords)
@@ -219,7 +220,7 @@ def _register(
     t0 = time.perf_counter()
     verts, residual, implausible = fit.plausibility()
     timings["residual"] = time.perf_counter() - t0
-    reason = fit.reason or implausible
+    reason = fit.reason or implausible or fit.convergence()
     if not reason and not all(math.isfinite(h) for h in fit.history):
         reason = "diverged: non-finite loss"
     if reason and warn:
@@ -326,35 +327,50 @@ class _Fit:
             self._skinning = [t.contiguous() for t in (g.nodes, g.verts, g.vert_nodes, g.vert_weights)]
             self._faces = src.faces.contiguous()
             self._incident = self.ops.incident_faces(self._faces, src.num_verts)
-            self._target = [t.contiguous() for t in (tgt.verts, tgt.faces, tgt.face_normals())]
+            self._all_verts = torch.arange(src.num_verts, device=dev)
         # Adam's step is lr * m / (sqrt(v) + eps): about lr in every coordinate whatever the gradient's size, so at
         # a stationary point (e.g. an exact pair, whose gradient is rounding noise) it would move the parameters by
         # lr instead of not at all; a stage stops where every gradient component is below sqrt(eps) of the dtype
         # (the loss is in units of the node spacing squared: residuals of ~1e-10 of the diagonal).
         self.stationary_tol = math.sqrt(torch.finfo(src.dtype).eps)
-        self.best_state = _parameters(self.graph)
+        self.last_good = _parameters(self.graph)
         self.history: list[float] = []
         self.first_loss: float | None = None
+        self.stationary = False
+        self.refresh_losses: list[float] = []
         self.reason = ""
 
     def run_stage(self, stage: Stage) -> None:
-        """Adam steps of one stage; ends on the stage's best iterate, or sets ``reason`` when it diverges."""
+        """Adam steps of one stage, at a step size annealed from ``lr0`` to ``lr0 * stage.lr_decay``.
+
+        ``lr0`` is ``stage.lr``, or the data points' RMS residual at the stage's start where that is smaller.
+
+        Ends on the stage's last iterate (or sets ``reason`` when it diverges). Correspondences are refreshed every
+        ``correspondence_every`` steps. The step count is fixed: a stage stops early only at a stationary point (every
+        gradient component below ``sqrt(eps)`` of the dtype, where Adam would turn rounding noise into lr-sized
+        steps), so no threshold on a noisy quantity decides which iterate is returned.
+        """
         every = self.opts.correspondence_every
         opt = Adam(self.graph.parameters(), lr=stage.lr)
-        prev_window: float | None = None
+        self.stationary, self.refresh_losses = False, []
+        # Geometric annealing: Adam moves every parameter by about the step size whatever the gradient's size, so at a
+        # constant step size it never settles (it ends at a noise floor of ~lr, where one ulp of input flips the
+        # sign of a near-zero gradient and so the step); annealed, it ends within ~lr * lr_decay of the minimum.
+        decay = stage.lr_decay ** (1.0 / max(stage.max_steps - 1, 1))
         terms: _Terms | None = None
-        # Best iterate of the stage, judged on the loss right after a correspondence refresh (a function of the
-        # parameters alone, so comparable across refreshes); the stage's last iterate gets one more refresh.
-        stage_best = math.inf
-        stage_best_state = self.best_state
-        finishing = False
-        for step in range(stage.max_steps + 1):
-            finishing = finishing or step == stage.max_steps
-            refresh = finishing or step % every == 0
-            if refresh:
+        for step in range(stage.max_steps):
+            if step % every == 0:
                 terms = self._refresh(stage)
+                if step == 0:
+                    # A stage's step size is at most the weighted RMS residual of its data points at its start (in
+                    # diagonals, as the translations): Adam moves every parameter by ~lr per step, so a pair already
+                    # within r of its target would otherwise drift by the stage's lr in directions the energy barely
+                    # sees (sliding along the surface). Continuous in the input, unlike returning a best iterate.
+                    fw = terms.forward
+                    rms = float(((fw.weights * fw.dists**2).sum() / fw.weights.sum().clamp_min(1e-30)).sqrt())
+                    lr0 = min(stage.lr, rms)
             assert terms is not None
-            value, grad_max = self._evaluate(stage, terms, gradient=not finishing)
+            value, grad_max = self._evaluate(stage, terms, gradient=True)
             if self.first_loss is None:
                 # The loss is in units of (node spacing)^2: a floor of 1 (a residual of one node spacing) keeps an
                 # exact start (loss ~1e-30) from calling rounding noise a divergence.
@@ -362,33 +378,41 @@ class _Fit:
             if not math.isfinite(value) or value > 1e6 * self.first_loss:
                 self._diverged(f"diverged: loss became {value:.3g} (first loss {self.first_loss:.3g})")
                 return
-            if refresh and value < stage_best:
-                stage_best = value
-                stage_best_state = _parameters(self.graph)
-            if finishing:
-                break
             self.history.append(value)
             if not math.isfinite(grad_max):
                 self._diverged("diverged: non-finite gradient")
                 return
-            if refresh:
-                self.best_state = _parameters(self.graph)
+            if step % every == 0:
+                self.last_good = _parameters(self.graph)
+                self.refresh_losses.append(value)
             if grad_max <= self.stationary_tol:
-                finishing = True  # the gradient is rounding noise: Adam would turn it into lr-sized steps
-                continue
+                self.stationary = True
+                break  # the gradient is rounding noise: Adam would turn it into lr-sized steps
+            opt.lr = lr0 * decay**step
             opt.step()
-            if step % every == every - 1:
-                if prev_window is not None and abs(prev_window - value) <= self.opts.tolerance * max(
-                    abs(prev_window), 1e-30
-                ):
-                    finishing = True
-                prev_window = value
-        _load_parameters(self.graph, stage_best_state)
-        self.best_state = stage_best_state
+
+    def convergence(self) -> str:
+        """Why the fit is not converged (empty when it is): the stated criterion on the last stage's last window.
+
+        Converged: the last stage stopped at a stationary point, or its loss right after its last two correspondence
+        refreshes (a function of the parameters alone) differs by at most ``tolerance`` times its loss at its start.
+        This only reports; it decides no iterate.
+        """
+        h = self.refresh_losses
+        if self.stationary or len(h) < 2:
+            return ""
+        change = abs(h[-1] - h[-2]) / max(abs(h[0]), 1e-30)
+        if change <= self.opts.tolerance:
+            return ""
+        return (
+            f"not converged: the loss changed by {change:.2g} of the last stage's first loss between its last two "
+            f"refreshes, more than "
+            f"tolerance={self.opts.tolerance:g}; give the last stage more steps or a stronger lr_decay"
+        )
 
     def _diverged(self, reason: str) -> None:
         self.reason = reason
-        _load_parameters(self.graph, self.best_state)
+        _load_parameters(self.graph, self.last_good)
 
     def _source_index(self, deformed: Tensor) -> MeshIndex:
         faces = self.frame.source.faces
@@ -406,40 +430,34 @@ class _Fit:
         with torch.no_grad():
             if self.ops is not None:
                 g = self.graph
-                dv, surf_normals = self.ops.deform_normals(
-                    g.rotations.detach(), g.translations.detach(), *self._skinning, self._faces, *self._incident, surf
+                dv, source_normals = self.ops.deform_normals(
+                    g.rotations.detach(), g.translations.detach(), *self._skinning, self._faces, *self._incident,
+                    self._all_verts,
                 )  # fmt: skip
             else:
                 deformed = Mesh(deformed_vertices(self.graph), sf, validate=False)
-                dv, surf_normals = deformed.verts, deformed.vertex_normals()[surf]
-            target_normals = tgt.face_normals()
+                dv, source_normals = deformed.verts, deformed.vertex_normals()
             forward = self._match(
-                stage,
-                dv.index_select(0, surf),
-                surf_normals,
-                self.target_index,
-                lambda f: target_normals.index_select(0, f),
-            )
+                stage, dv.index_select(0, surf), source_normals.index_select(0, surf), self.target_index, tgt.faces,
+                tgt.vertex_normals(),
+            )  # fmt: skip
             reverse = None
             if self.samples is not None:
-                if self.ops is not None:
-                    ops = self.ops
-                    source_normals = lambda f: ops.face_normals(dv, self._faces, f)  # noqa: E731
-                else:
-                    source_normals = lambda f: Mesh(dv, sf, validate=False).face_normals()[f]  # noqa: E731
-                reverse = self._match(stage, self.samples, self.sample_normals, self._source_index(dv), source_normals)
+                reverse = self._match(
+                    stage, self.samples, self.sample_normals, self._source_index(dv), sf, source_normals
+                )
         self.timings["correspondences"] += time.perf_counter() - t0
         return self._terms(forward, reverse)
 
     @staticmethod
     def _match(
-        stage: Stage, points: Tensor, normals: Tensor, index: MeshIndex, face_normals: Callable[[Tensor], Tensor]
+        stage: Stage, points: Tensor, normals: Tensor, index: MeshIndex, faces: Tensor, vertex_normals: Tensor
     ) -> Correspondences:
-        """:func:`find_correspondences` with a kept index and the normals of the matched faces only."""
+        """:func:`find_correspondences` with a kept index and the mesh's vertex normals."""
         res = index._point_mesh_distance(points, _lengths(points))
-        return reject_correspondences(
-            res.face_idx, res.dists, normals, face_normals(res.face_idx), stage.max_distance, stage.max_normal_angle
-        )
+        matched = interpolated_normals(vertex_normals, faces, res.face_idx, res.bary)
+        weights = acceptance_weights(res.dists, normals, matched, stage.max_distance, stage.max_normal_angle)
+        return Correspondences(res.face_idx, weights, res.dists, res.closest, res.bary, matched)
 
     def _terms(self, forward: Correspondences, reverse: Correspondences | None) -> _Terms:
         """Lay out one refresh's correspondences for the energies, indexed by the vertices they touch.
@@ -451,25 +469,27 @@ class _Fit:
         samples = self.samples if reverse is not None and self.samples is not None else tgt.verts[:0]
         rev_weights = reverse.weights if reverse is not None else tgt.verts.new_zeros(0)
         rev_faces_idx = reverse.face_idx if reverse is not None else sf.new_zeros(0)
+        rev_bary = reverse.bary if reverse is not None else tgt.verts.new_zeros(0, 3)
+        rev_normals = reverse.normals if reverse is not None else tgt.verts.new_zeros(0, 3)
         if self.ops is not None:
             nodes, verts, vert_nodes, vert_weights = self._skinning
             out = self.ops.energy_terms(
-                surf, rev_faces_idx, self._faces, verts, vert_nodes, vert_weights, *self._target, forward.face_idx,
-                forward.weights, rev_weights, nodes, graph.edges,
+                surf, rev_faces_idx, self._faces, verts, vert_nodes, vert_weights, forward.weights, rev_weights, nodes,
+                graph.edges,
             )  # fmt: skip
-            need, rest, vidx, vw, surf_loc, data_tri, data_normals, faces_loc = out[:8]
+            need, rest, vidx, vw, surf_loc, faces_loc = out[:6]
             energy = EnergyTerms(
-                rest, vidx, vw, surf_loc, data_tri, data_normals, forward.weights, samples, faces_loc, rev_weights
-            )
-            fused: FusedStep | None = FusedStep(graph, energy, self.ops, out[8:])
+                rest, vidx, vw, surf_loc, forward.closest.contiguous(), forward.normals.contiguous(), forward.weights,
+                samples, faces_loc, rev_weights, rev_bary.contiguous(), rev_normals.contiguous(),
+            )  # fmt: skip
+            fused: FusedStep | None = FusedStep(graph, energy, self.ops, out[6:])
         else:
             rev_faces = sf[rev_faces_idx]
             need, inv = torch.cat([surf, rev_faces.reshape(-1)]).unique(return_inverse=True)
             surf_loc, faces_loc = inv[: surf.numel()], inv[surf.numel() :].view(-1, 3)
-            tv, tf, fidx = tgt.verts, tgt.faces, forward.face_idx
             energy = EnergyTerms(
-                graph.verts[need], graph.vert_nodes[need], graph.vert_weights[need], surf_loc, tv[tf[fidx]],
-                tgt.face_normals()[fidx], forward.weights, samples, faces_loc, rev_weights,
+                graph.verts[need], graph.vert_nodes[need], graph.vert_weights[need], surf_loc, forward.closest,
+                forward.normals, forward.weights, samples, faces_loc, rev_weights, rev_bary, rev_normals,
             )  # fmt: skip
             fused = None
         if reverse is not None:
@@ -483,7 +503,7 @@ class _Fit:
         off the CPU. Data terms are in units of the node spacing, so a regularisation weight of 1 trades an edge
         residual of one spacing against a data residual of one spacing.
         """
-        opts, tgt, graph = self.opts, self.frame.target, self.graph
+        opts, graph = self.opts, self.graph
         weights = {"plane_weight": opts.plane_weight, "point_weight": opts.point_weight}
         data_scale = 1.0 / (opts.node_spacing * opts.node_spacing)
         if terms.fused is not None:
@@ -497,14 +517,11 @@ class _Fit:
         graph.zero_grad(set_to_none=True)
         with torch.set_grad_enabled(gradient):
             dsub = graph.deform_vertices(terms.need)
-            loss = surface_term(
-                dsub[terms.surf_loc], tgt.verts, tgt.faces, terms.forward, sigma=stage.robust_scale, **weights
-            )
+            loss = data_term(dsub[terms.surf_loc], terms.forward, sigma=stage.robust_scale, **weights)
             if terms.reverse is not None and self.samples is not None and opts.reverse_weight:
-                loss = loss + opts.reverse_weight * surface_term(
-                    self.samples, dsub, terms.faces_loc, terms.reverse, sigma=stage.robust_scale, plane_weight=0.0,
-                    point_weight=1.0,
-                )  # fmt: skip
+                loss = loss + opts.reverse_weight * reverse_term(
+                    self.samples, dsub, terms.faces_loc, terms.reverse, sigma=stage.robust_scale, **weights
+                )
             loss = loss / (opts.node_spacing * opts.node_spacing)
             loss = loss + stage.regularization * embedded_deformation_regularizer(graph)
         value = float(loss.detach())

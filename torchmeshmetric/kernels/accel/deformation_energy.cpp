@@ -1,9 +1,8 @@
 // Registration energy of an embedded deformation graph and its gradient to the node rotations and translations, in
 // one pass (torchmeshmetric.registration.energies): the node rotations (kornia's SO(3) exponential map), the deformed
-// data vertices, the robust data terms to fixed target faces (point-to-point + point-to-plane), the reverse term of
-// fixed target samples to deformed source faces, Sumner's E_reg, and their gradients by the chain rule (the closest
-// point's own motion does not contribute: the gradient of the squared distance to a closest point is 2 (p - q), the
-// envelope theorem). Also the per-refresh geometry of the deformed source (every vertex, vertex normals, face
+// data vertices, the robust data terms to fixed target points and normals (point-to-point + point-to-plane), the
+// reverse term of fixed target samples to fixed barycentric points of deformed source faces, Sumner's E_reg, and
+// their gradients by the chain rule. Also the per-refresh geometry of the deformed source (every vertex, vertex normals, face
 // normals) and the graph's farthest-point node sampling.
 //
 // Threads: each pass is a few phases over independent items (vertices, data points, target samples, edges, nodes),
@@ -277,30 +276,22 @@ std::vector<torch::Tensor> layout_impl(const torch::Tensor& data_idx_t, const to
 
 // One refresh's terms laid out for the energy: the touched source vertices (data points and the corners of the faces
 // matched by target samples), sorted and distinct, with their rest positions and skinning; the data points' rows
-// among them, their assigned target triangles and normals; the corners' rows; then energy_layout's seven tensors.
+// among them; the corners' rows; then energy_layout's seven tensors.
 template <typename T>
 std::vector<torch::Tensor> terms_impl(const torch::Tensor& surf_t, const torch::Tensor& rev_face_t,
                                       const torch::Tensor& faces_t, const torch::Tensor& verts_t,
                                       const torch::Tensor& vert_nodes_t, const torch::Tensor& vert_weights_t,
-                                      const torch::Tensor& tverts_t, const torch::Tensor& tfaces_t,
-                                      const torch::Tensor& tnormals_t, const torch::Tensor& data_face_t,
                                       const torch::Tensor& data_w_t, const torch::Tensor& rev_w_t,
                                       const torch::Tensor& nodes_t, const torch::Tensor& edges_t) {
   const int64_t V = verts_t.size(0), K = vert_nodes_t.size(1), S = surf_t.size(0), Q = rev_face_t.size(0),
-                F = faces_t.size(0), TV = tverts_t.size(0), TF = tfaces_t.size(0);
-  TORCH_CHECK(data_face_t.size(0) == S && data_w_t.size(0) == S && rev_w_t.size(0) == Q,
-              "energy_terms: one face and one weight per data point and per target sample expected");
+                F = faces_t.size(0);
+  TORCH_CHECK(data_w_t.size(0) == S && rev_w_t.size(0) == Q,
+              "energy_terms: one weight per data point and per target sample expected");
   const int64_t* surf = surf_t.data_ptr<int64_t>();
   const int64_t* rfi = rev_face_t.data_ptr<int64_t>();
   const int64_t* faces = faces_t.data_ptr<int64_t>();
-  const int64_t* dfi = data_face_t.data_ptr<int64_t>();
-  const int64_t* tf = tfaces_t.data_ptr<int64_t>();
   // Every index read below is checked where it is used (the faces themselves only where matched).
-  for (int64_t k = 0; k < S; ++k) {
-    TORCH_CHECK(surf[k] >= 0 && surf[k] < V && dfi[k] >= 0 && dfi[k] < TF, "energy_terms: data index out of range");
-    for (int c = 0; c < 3; ++c)
-      TORCH_CHECK(tf[3 * dfi[k] + c] >= 0 && tf[3 * dfi[k] + c] < TV, "energy_terms: target corner out of range");
-  }
+  for (int64_t k = 0; k < S; ++k) TORCH_CHECK(surf[k] >= 0 && surf[k] < V, "energy_terms: data index out of range");
   for (int64_t k = 0; k < Q; ++k) {
     TORCH_CHECK(rfi[k] >= 0 && rfi[k] < F, "energy_terms: face index out of range");
     for (int c = 0; c < 3; ++c)
@@ -331,22 +322,13 @@ std::vector<torch::Tensor> terms_impl(const torch::Tensor& surf_t, const torch::
     std::copy(vn + K * nd[i], vn + K * nd[i] + K, ip + K * i);
     std::copy(vwt + K * nd[i], vwt + K * nd[i] + K, wp + K * i);
   }
-  torch::Tensor data_idx = torch::empty({S}, i64), data_tri = torch::empty({S, 3, 3}, tverts_t.options()),
-                data_n = torch::empty({S, 3}, tverts_t.options()), rev_loc = torch::empty({Q, 3}, i64);
+  torch::Tensor data_idx = torch::empty({S}, i64), rev_loc = torch::empty({Q, 3}, i64);
   int64_t* di = data_idx.data_ptr<int64_t>();
-  T* dt = data_tri.data_ptr<T>();
-  T* dn = data_n.data_ptr<T>();
-  const T* tv = tverts_t.data_ptr<T>();
-  const T* tn = tnormals_t.data_ptr<T>();
-  for (int64_t k = 0; k < S; ++k) {
-    di[k] = row[surf[k]];
-    for (int c = 0; c < 3; ++c) std::copy(tv + 3 * tf[3 * dfi[k] + c], tv + 3 * tf[3 * dfi[k] + c] + 3, dt + 9 * k + 3 * c);
-    std::copy(tn + 3 * dfi[k], tn + 3 * dfi[k] + 3, dn + 3 * k);
-  }
+  for (int64_t k = 0; k < S; ++k) di[k] = row[surf[k]];
   int64_t* rl = rev_loc.data_ptr<int64_t>();
   for (int64_t k = 0; k < Q; ++k)
     for (int c = 0; c < 3; ++c) rl[3 * k + c] = row[faces[3 * rfi[k] + c]];
-  std::vector<torch::Tensor> out{need, rest, vidx, vw, data_idx, data_tri, data_n, rev_loc};
+  std::vector<torch::Tensor> out{need, rest, vidx, vw, data_idx, rev_loc};
   for (auto& t : layout_impl<T>(data_idx, data_w_t, rev_loc, rev_w_t, vidx, nodes_t, edges_t)) out.push_back(t);
   return out;
 }
@@ -355,7 +337,7 @@ std::vector<torch::Tensor> terms_impl(const torch::Tensor& surf_t, const torch::
 // vertices (rest positions, skinning), the data terms, the reverse terms, the edges, and their layout.
 template <typename T>
 struct EnergyInputs {
-  const T *axis, *R, *t, *g, *rest, *vw, *dtri, *dn, *dw, *smp, *rw, *sums;
+  const T *axis, *R, *t, *g, *rest, *vw, *dpt, *dn, *dw, *smp, *rw, *rb, *rn, *sums;
   const int64_t *vidx, *di, *rf, *ed, *vptr, *vitems, *nptr, *nitems, *item_order, *node_order;
   int64_t N, I, K, S, Q, E;
 };
@@ -387,16 +369,16 @@ std::vector<torch::Tensor> energy_core(const EnergyInputs<T>& in, const std::vec
         const int64_t k = it;
         if (in.dw[k] == 0) continue;
         const T* p = &x[3 * in.di[k]];
-        const T* a = in.dtri + 9 * k;
-        T bw[3], q[3];
-        const T sq = tmm::closest_on_face(a, a + 3, a + 6, p, bw, q);
+        const T* q = in.dpt + 3 * k;  // the fixed target point, and the plane through it
+        const T dq[3] = {p[0] - q[0], p[1] - q[1], p[2] - q[2]};
+        const T sq = (dq[0] * dq[0] + dq[1] * dq[1]) + dq[2] * dq[2];
         T d1;
         T e = point_w * gm(sq, s2, d1);
         T gp[3];
-        for (int c = 0; c < 3; ++c) gp[c] = point_w * d1 * T(2) * (p[c] - q[c]);
+        for (int c = 0; c < 3; ++c) gp[c] = point_w * d1 * T(2) * dq[c];
         if (plane_w != 0) {
           const T* n = in.dn + 3 * k;
-          const T dist = (p[0] - a[0]) * n[0] + (p[1] - a[1]) * n[1] + (p[2] - a[2]) * n[2];
+          const T dist = (dq[0] * n[0] + dq[1] * n[1]) + dq[2] * n[2];
           T d2;
           e += plane_w * gm(dist * dist, s2, d2);
           for (int c = 0; c < 3; ++c) gp[c] += plane_w * d2 * T(2) * dist * n[c];
@@ -409,13 +391,32 @@ std::vector<torch::Tensor> energy_core(const EnergyInputs<T>& in, const std::vec
         if (!reverse_on || in.rw[k] == 0) continue;
         const T* p = in.smp + 3 * k;
         const int64_t* fc = in.rf + 3 * k;
+        // The fixed barycentric point of the deformed face: tied faces at the refresh (a sample closest to an
+        // edge or a vertex) give the same point, so the energy does not depend on which one the search returned.
+        const T* b = in.rb + 3 * k;
         T q[3];
-        const T sq = tmm::closest_on_face(&x[3 * fc[0]], &x[3 * fc[1]], &x[3 * fc[2]], p, &bary[3 * k], q);
+        for (int c = 0; c < 3; ++c) {
+          bary[3 * k + c] = b[c];
+          q[c] = (b[0] * x[3 * fc[0] + c] + b[1] * x[3 * fc[1] + c]) + b[2] * x[3 * fc[2] + c];
+        }
+        // Point-to-point + point-to-plane, as the data term, with the source's interpolated normal at the refresh:
+        // the plane lets the source slide along the sample's tangent plane between refreshes.
+        const T d[3] = {p[0] - q[0], p[1] - q[1], p[2] - q[2]};
+        const T sq = (d[0] * d[0] + d[1] * d[1]) + d[2] * d[2];
         T d1;
-        const T e = gm(sq, s2, d1);
+        T e = point_w * gm(sq, s2, d1);
+        T gq[3];
+        for (int c = 0; c < 3; ++c) gq[c] = point_w * d1 * T(2) * d[c];
+        if (plane_w != 0) {
+          const T* n = in.rn + 3 * k;
+          const T dist = (d[0] * n[0] + d[1] * n[1]) + d[2] * n[2];
+          T d2;
+          e += plane_w * gm(dist * dist, s2, d2);
+          for (int c = 0; c < 3; ++c) gq[c] += plane_w * d2 * T(2) * dist * n[c];
+        }
         const T f = in.rw[k] * rnorm;
         term[S + k] = f * e;
-        for (int c = 0; c < 3; ++c) grad_rev[3 * k + c] = -f * d1 * T(2) * (p[c] - q[c]);  // d/dq, q = sum b_i x_i
+        for (int c = 0; c < 3; ++c) grad_rev[3 * k + c] = -f * gq[c];  // d/dq, q = sum b_i x_i
       }
     }
   });
@@ -521,10 +522,11 @@ std::vector<torch::Tensor> energy_core(const EnergyInputs<T>& in, const std::vec
 template <typename T>
 EnergyInputs<T> energy_inputs(const torch::Tensor& axis, const T* R, const torch::Tensor& t, const torch::Tensor& g,
                               const torch::Tensor& rest, const torch::Tensor& vidx, const torch::Tensor& vw,
-                              const torch::Tensor& data_idx, const torch::Tensor& data_tri,
+                              const torch::Tensor& data_idx, const torch::Tensor& data_pt,
                               const torch::Tensor& data_n, const torch::Tensor& data_w, const torch::Tensor& samples,
-                              const torch::Tensor& rev_faces, const torch::Tensor& rev_w, const torch::Tensor& edges,
-                              const std::vector<torch::Tensor>& layout) {
+                              const torch::Tensor& rev_faces, const torch::Tensor& rev_w,
+                              const torch::Tensor& rev_bary, const torch::Tensor& rev_n,
+                              const torch::Tensor& edges, const std::vector<torch::Tensor>& layout) {
   TORCH_CHECK(layout.size() == 7, "deformation energy: 7 layout tensors expected");
   EnergyInputs<T> in;
   in.axis = axis.data_ptr<T>();
@@ -533,11 +535,13 @@ EnergyInputs<T> energy_inputs(const torch::Tensor& axis, const T* R, const torch
   in.g = g.data_ptr<T>();
   in.rest = rest.data_ptr<T>();
   in.vw = vw.data_ptr<T>();
-  in.dtri = data_tri.data_ptr<T>();
+  in.dpt = data_pt.data_ptr<T>();
   in.dn = data_n.data_ptr<T>();
   in.dw = data_w.data_ptr<T>();
   in.smp = samples.data_ptr<T>();
   in.rw = rev_w.data_ptr<T>();
+  in.rb = rev_bary.data_ptr<T>();
+  in.rn = rev_n.data_ptr<T>();
   in.sums = layout[6].data_ptr<T>();
   in.vidx = vidx.data_ptr<int64_t>();
   in.di = data_idx.data_ptr<int64_t>();
@@ -555,6 +559,9 @@ EnergyInputs<T> energy_inputs(const torch::Tensor& axis, const T* R, const torch
   in.S = data_idx.size(0);
   in.Q = samples.size(0);
   in.E = edges.size(0);
+  TORCH_CHECK(data_pt.numel() == 3 * in.S && data_n.numel() == 3 * in.S && rev_bary.numel() == 3 * in.Q &&
+                  rev_n.numel() == 3 * in.Q,
+              "deformation energy: one point and normal per data point and per target sample expected");
   TORCH_CHECK(layout[0].numel() == in.I + 1 && layout[2].numel() == in.N + 1 &&
                   layout[4].numel() == in.S + in.Q && layout[5].numel() == in.N,
               "deformation energy: the layout belongs to other terms");
@@ -670,52 +677,50 @@ std::vector<torch::Tensor> energy_layout(const torch::Tensor& data_idx, const to
 std::vector<torch::Tensor> energy_terms(const torch::Tensor& surf, const torch::Tensor& rev_face_idx,
                                         const torch::Tensor& faces, const torch::Tensor& verts,
                                         const torch::Tensor& vert_nodes, const torch::Tensor& vert_weights,
-                                        const torch::Tensor& target_verts, const torch::Tensor& target_faces,
-                                        const torch::Tensor& target_normals, const torch::Tensor& data_face_idx,
                                         const torch::Tensor& data_w, const torch::Tensor& rev_w,
                                         const torch::Tensor& nodes, const torch::Tensor& edges) {
-  check_cpu({&surf, &rev_face_idx, &faces, &verts, &vert_nodes, &vert_weights, &target_verts, &target_faces,
-             &target_normals, &data_face_idx, &data_w, &rev_w, &nodes, &edges}, "energy_terms");
+  check_cpu({&surf, &rev_face_idx, &faces, &verts, &vert_nodes, &vert_weights, &data_w, &rev_w, &nodes, &edges},
+            "energy_terms");
   if (is_double(verts, "energy_terms"))
-    return terms_impl<double>(surf, rev_face_idx, faces, verts, vert_nodes, vert_weights, target_verts, target_faces,
-                              target_normals, data_face_idx, data_w, rev_w, nodes, edges);
-  return terms_impl<float>(surf, rev_face_idx, faces, verts, vert_nodes, vert_weights, target_verts, target_faces,
-                           target_normals, data_face_idx, data_w, rev_w, nodes, edges);
+    return terms_impl<double>(surf, rev_face_idx, faces, verts, vert_nodes, vert_weights, data_w, rev_w, nodes, edges);
+  return terms_impl<float>(surf, rev_face_idx, faces, verts, vert_nodes, vert_weights, data_w, rev_w, nodes, edges);
 }
 
 template <typename T>
 std::vector<torch::Tensor> energy_step_impl(const torch::Tensor& axis, const torch::Tensor& t, const torch::Tensor& g,
                                             const torch::Tensor& rest, const torch::Tensor& vidx,
                                             const torch::Tensor& vw, const torch::Tensor& data_idx,
-                                            const torch::Tensor& data_tri, const torch::Tensor& data_n,
+                                            const torch::Tensor& data_pt, const torch::Tensor& data_n,
                                             const torch::Tensor& data_w, const torch::Tensor& samples,
                                             const torch::Tensor& rev_faces, const torch::Tensor& rev_w,
+                                            const torch::Tensor& rev_bary, const torch::Tensor& rev_n,
                                             const torch::Tensor& edges, const std::vector<torch::Tensor>& layout,
                                             const std::vector<double>& scalars) {
   const torch::Tensor R = rotation_matrices<T>(axis);
-  const auto in = energy_inputs<T>(axis, R.data_ptr<T>(), t, g, rest, vidx, vw, data_idx, data_tri, data_n, data_w,
-                                   samples, rev_faces, rev_w, edges, layout);
+  const auto in = energy_inputs<T>(axis, R.data_ptr<T>(), t, g, rest, vidx, vw, data_idx, data_pt, data_n, data_w,
+                                   samples, rev_faces, rev_w, rev_bary, rev_n, edges, layout);
   return energy_core<T>(in, scalars, t.options());
 }
 
 // [loss, dL/d(axis-angle), dL/dt, max |gradient|] at the graph's current parameters.
 std::vector<torch::Tensor> energy_step(const torch::Tensor& axis, const torch::Tensor& t, const torch::Tensor& g,
                                        const torch::Tensor& rest, const torch::Tensor& vidx, const torch::Tensor& vw,
-                                       const torch::Tensor& data_idx, const torch::Tensor& data_tri,
+                                       const torch::Tensor& data_idx, const torch::Tensor& data_pt,
                                        const torch::Tensor& data_n, const torch::Tensor& data_w,
                                        const torch::Tensor& samples, const torch::Tensor& rev_faces,
-                                       const torch::Tensor& rev_w, const torch::Tensor& edges,
+                                       const torch::Tensor& rev_w, const torch::Tensor& rev_bary,
+                                       const torch::Tensor& rev_n, const torch::Tensor& edges,
                                        at::TensorList layout_list, at::ArrayRef<double> scalars_ref) {
-  check_cpu({&axis, &t, &g, &rest, &vidx, &vw, &data_idx, &data_tri, &data_n, &data_w, &samples, &rev_faces, &rev_w,
-             &edges}, "energy_step");
+  check_cpu({&axis, &t, &g, &rest, &vidx, &vw, &data_idx, &data_pt, &data_n, &data_w, &samples, &rev_faces, &rev_w,
+             &rev_bary, &rev_n, &edges}, "energy_step");
   const std::vector<torch::Tensor> layout(layout_list.begin(), layout_list.end());
   const std::vector<double> scalars(scalars_ref.begin(), scalars_ref.end());
   TORCH_CHECK(scalars.size() == 6, "energy_step: 6 scalars expected");
   if (is_double(axis, "energy_step"))
-    return energy_step_impl<double>(axis, t, g, rest, vidx, vw, data_idx, data_tri, data_n, data_w, samples, rev_faces,
-                                    rev_w, edges, layout, scalars);
-  return energy_step_impl<float>(axis, t, g, rest, vidx, vw, data_idx, data_tri, data_n, data_w, samples, rev_faces,
-                                 rev_w, edges, layout, scalars);
+    return energy_step_impl<double>(axis, t, g, rest, vidx, vw, data_idx, data_pt, data_n, data_w, samples, rev_faces,
+                                    rev_w, rev_bary, rev_n, edges, layout, scalars);
+  return energy_step_impl<float>(axis, t, g, rest, vidx, vw, data_idx, data_pt, data_n, data_w, samples, rev_faces,
+                                 rev_w, rev_bary, rev_n, edges, layout, scalars);
 }
 
 // Per vertex, its faces as codes c F + f (corner c of face f) in increasing order: [ptr (V + 1), items (3 F)].
@@ -778,11 +783,10 @@ TORCH_LIBRARY(torchmeshmetric_registration, m) {
   m.def("energy_layout(Tensor data_idx, Tensor data_w, Tensor rev_faces, Tensor rev_w, Tensor vert_nodes, "
         "Tensor nodes, Tensor edges) -> Tensor[]", &energy_layout);
   m.def("energy_terms(Tensor surf, Tensor rev_face_idx, Tensor faces, Tensor verts, Tensor vert_nodes, "
-        "Tensor vert_weights, Tensor target_verts, Tensor target_faces, Tensor target_normals, Tensor data_face_idx, "
-        "Tensor data_w, Tensor rev_w, Tensor nodes, Tensor edges) -> Tensor[]", &energy_terms);
+        "Tensor vert_weights, Tensor data_w, Tensor rev_w, Tensor nodes, Tensor edges) -> Tensor[]", &energy_terms);
   m.def("energy_step(Tensor axis, Tensor t, Tensor g, Tensor rest, Tensor vidx, Tensor vw, Tensor data_idx, "
-        "Tensor data_tri, Tensor data_n, Tensor data_w, Tensor samples, Tensor rev_faces, Tensor rev_w, "
-        "Tensor edges, Tensor[] layout, float[] scalars) -> Tensor[]", &energy_step);
+        "Tensor data_pt, Tensor data_n, Tensor data_w, Tensor samples, Tensor rev_faces, Tensor rev_w, "
+        "Tensor rev_bary, Tensor rev_n, Tensor edges, Tensor[] layout, float[] scalars) -> Tensor[]", &energy_step);
   m.def("incident_faces(Tensor faces, int num_verts) -> Tensor[]", &incident_faces);
   m.def("deform_normals(Tensor axis, Tensor t, Tensor g, Tensor rest, Tensor vidx, Tensor vw, Tensor faces, "
         "Tensor inc_ptr, Tensor inc_items, Tensor at) -> Tensor[]", &deform_normals);
