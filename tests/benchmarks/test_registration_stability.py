@@ -1,0 +1,41 @@
+"""Stability of the registration-based sets on ~17k-vertex frames: inputs moved by 1 ulp, 1e-9, 1e-6; 2 threads.
+
+Run: ``python -m pytest tests/benchmarks/test_registration_stability.py --benchmark-only -s``. Prints, for each
+pair and perturbation of frame k-1, how far the registered vertices moved (fraction of the diagonal) and the largest
+relative change of any statistic (Ave, Var, STD, MSE, RMSE, Max, median, p95) of every set. Goals (issue 25): 1 ulp
+and 1e-9: registered vertices <= 1e-5 of the diagonal and every statistic of the k-1 and flicker sets <= 1e-5
+relative; 1 and 2 threads the same. The figures are in docs/registration.md ("Stability").
+"""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from tests.registration.gt_pairs import make_pair
+from tests.registration.stability import stability, stability_table
+from torchmeshmetric.data import demo_sequence
+
+SPACING = float(os.environ.get("TMM_BENCH_SPACING", "0.0145"))
+
+
+def _demo_pair():
+    seq = demo_sequence(num_frames=3, resolution=160)
+    (k1, k) = seq.frames[1], seq.frames[2]
+    return (k.verts.double().numpy(), k.faces.numpy()), (k1.verts.double().numpy(), k1.faces.numpy())
+
+
+@pytest.mark.parametrize("pair", ["gt-small", "gt-medium", "gt-large", "demo"])
+def test_registration_stability(benchmark, pair: str) -> None:
+    if pair == "demo":
+        k, km1 = _demo_pair()
+    else:
+        p = make_pair(pair.removeprefix("gt-"), SPACING)
+        k, km1 = p.target, p.source
+    results = benchmark.pedantic(lambda: stability(k, km1), rounds=1, iterations=1)
+    print(f"\n{pair} ({km1[0].shape[0]} -> {k[0].shape[0]} vertices)\n{stability_table(results)}")
+    for case in ("ulp+", "ulp-", "rel1e-9", "threads=2"):
+        r = results[case]
+        assert r["verts"] <= 1e-5, (case, r)
+        assert all(v <= 1e-5 for v in r["sets"].values()), (case, r)
