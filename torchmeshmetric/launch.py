@@ -33,6 +33,7 @@ __all__ = [
     "Launch",
     "error_line",
     "launch_from_environment",
+    "report_error",
     "run_command",
     "thread_count",
 ]
