@@ -9,6 +9,7 @@ from torchmeshmetric._checks import (
     IndexRangeError,
     NonFiniteError,
     ShapeError,
+    StaleIndexError,
 )
 from torchmeshmetric._version import __version__
 from torchmeshmetric.data import *  # noqa: F403
@@ -61,6 +62,7 @@ __all__ = [
     "MeshLike",
     "NonFiniteError",
     "ShapeError",
+    "StaleIndexError",
     "__version__",
     "as_mesh",
     "pack_meshes",

@@ -19,6 +19,7 @@ __all__ = [
     "IndexRangeError",
     "NonFiniteError",
     "ShapeError",
+    "StaleIndexError",
     "all_finite",
     "check_finite",
     "check_float",
@@ -52,6 +53,10 @@ class IndexRangeError(ValueError):
 
 class EmptyInputError(ValueError):
     """A mesh or point set is empty where at least one element is required."""
+
+
+class StaleIndexError(ValueError):
+    """A kept index is queried after a tensor it was built from changed in place (refit it, or build a new one)."""
 
 
 def _fmt_shape(shape: Sequence[int | str]) -> str:

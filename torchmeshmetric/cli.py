@@ -35,6 +35,7 @@ from torchmeshmetric._atomic import atomic_file_set, atomic_write, blocking_file
 from torchmeshmetric.data import demo_sequence, list_frames, load_mesh, load_sequence, save_mesh
 from torchmeshmetric.evaluation import (
     RegistrationCache,
+    check_methods,
     compare_methods,
     comparison_markdown,
     evaluate_sequence,
@@ -65,7 +66,7 @@ from torchmeshmetric.evaluation.reports import _clean
 from torchmeshmetric.evaluation.results import SequenceEvaluation
 from torchmeshmetric.evaluation.validation import DISTORTIONS, FULL, REDUCED, run_validation
 from torchmeshmetric.kernels import IndexCache
-from torchmeshmetric.launch import run_command
+from torchmeshmetric.launch import error_line, run_command
 from torchmeshmetric.mpeg.command import add_mpeg_command, json_safe
 from torchmeshmetric.mpeg.sequence import mpeg_csv, mpeg_markdown, mpeg_sequence
 from torchmeshmetric.registration import DEFAULT_SCHEDULE
@@ -217,6 +218,7 @@ def _mpeg_methods(original: list[Any], methods: dict[str, list[Any]], args: argp
             sampling=args.mpeg_sampling,
             grid_size=args.mpeg_grid_size,
             progress=_progress(f"{name} mpeg"),
+            names=("--original", f"method {name!r}"),
         )
         for name, frames in methods.items()
     }
@@ -253,13 +255,8 @@ def _evaluate_methods(
     cache = RegistrationCache(args.cache_dir)
     indexes = IndexCache(max_entries=2 * len(original))  # each original frame's index built once for all methods
     results = {}
+    check_methods(original, methods)  # every method's count before any work
     for name, frames in methods.items():
-        if len(frames) != len(original):
-            raise CLIError(
-                f"method {name!r}: {len(frames)} simplified frames but {len(original)} original frames (must match)"
-            )
-        if len(original) < 2:
-            raise CLIError(f"the sequence has {len(original)} frame; at least 2 are needed (pairs k-1, k)")
         if is_distributed():
             continue  # evaluated below, shared by the ranks of the torchrun job
         results[name] = _evaluate_method(name, original, frames, args, device, indexes, registration_cache=cache)
@@ -396,14 +393,7 @@ def _cmd_campaign(args: argparse.Namespace) -> int:
             m: _load_frames(str(d), f"sequence {seq.name!r}: method {m!r}", _dtype(args))
             for m, d in seq.methods.items()
         }
-        for method, frames in methods.items():
-            if len(frames) != len(original):
-                raise CLIError(
-                    f"sequence {seq.name!r}: method {method!r}: {len(frames)} simplified frames but {len(original)} "
-                    "original frames (must match)"
-                )
-        if len(original) < 2:
-            raise CLIError(f"sequence {seq.name!r}: {len(original)} frame; at least 2 are needed (pairs k-1, k)")
+        check_methods(original, methods, sequence=seq.name)
         sequences.append((seq.name, original, methods))
     args.one_sided = not campaign.two_sided
     args.register_options = _fast_registration_options() if campaign.registration == "fast" else None
@@ -1037,8 +1027,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except Exception as exc:
         if os.environ.get("TORCHMESHMETRIC_DEBUG"):
             raise
-        message = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        print(f"torchmeshmetric {args.command}: error: {message}", file=sys.stderr)
+        print(error_line(args.command, exc), file=sys.stderr)
         return 1
 
 

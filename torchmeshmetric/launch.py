@@ -12,6 +12,7 @@ sets ``OMP_NUM_THREADS=1`` when unset), which is replaced by the usable cores di
 
 from __future__ import annotations
 
+import contextlib
 import datetime
 import os
 import signal
@@ -25,13 +26,104 @@ import torch.distributed as dist
 
 from torchmeshmetric.evaluation.distributed import RankFailedError, in_flight
 
-__all__ = ["COLLECTIVE_TIMEOUT", "SHARDED_COMMANDS", "Launch", "launch_from_environment", "run_command", "thread_count"]
+__all__ = [
+    "COLLECTIVE_TIMEOUT",
+    "ERROR_WAIT",
+    "SHARDED_COMMANDS",
+    "Launch",
+    "error_line",
+    "launch_from_environment",
+    "report_error",
+    "run_command",
+    "thread_count",
+]
 
 #: The commands that share their work across the processes of a torchrun job.
 SHARDED_COMMANDS = ("evaluate", "compare", "campaign")
 
 #: How long a rank waits in a collective for the others (their shares of the work may differ by hours).
 COLLECTIVE_TIMEOUT = datetime.timedelta(days=1)
+
+
+#: How long a rank other than 0 that failed waits for rank 0's error line (to stay silent when it is the same).
+ERROR_WAIT = datetime.timedelta(seconds=5)
+
+_ERROR_KEY = "torchmeshmetric/error/0"  # rank 0's error line, in the process group's key-value store
+_SAID_KEY = "torchmeshmetric/error/said"  # set once some rank printed an error line for the job
+
+
+def error_line(command: str, exc: BaseException, rank: int | None = None) -> str:
+    """The one line the command line prints for an error: ``torchmeshmetric <command>: error: <first line>``.
+
+    ``rank``: the torchrun rank that alone saw it (its number then prefixes the message).
+
+    Example:
+        >>> error_line("compare", ValueError("method 'b': 2 simplified frames but 3 original frames"))
+        "torchmeshmetric compare: error: method 'b': 2 simplified frames but 3 original frames"
+        >>> error_line("compare", ValueError("bad"), rank=1)
+        'torchmeshmetric compare: error: rank 1: bad'
+    """
+    text = str(exc).strip()
+    message = text.splitlines()[0] if text else type(exc).__name__
+    where = "" if rank is None else f"rank {rank}: "
+    return f"torchmeshmetric {command}: error: {where}{message}"
+
+
+def _store() -> Any:
+    """The default process group's key-value store (c10d keeps it private: ``None`` where it is not reachable)."""
+    try:
+        return dist.distributed_c10d._get_default_store()
+    except Exception:
+        return None
+
+
+def _rank_0_line(store: Any, wait: datetime.timedelta) -> str | None:
+    """Rank 0's error line once it is posted (waiting up to ``wait``); ``None`` when it is not (in time)."""
+    if store is None:
+        return None
+    try:
+        if wait.total_seconds() > 0:
+            store.wait([_ERROR_KEY], wait)
+        elif not store.check([_ERROR_KEY]):
+            return None
+        return bytes(store.get(_ERROR_KEY)).decode()
+    except Exception:  # not posted in time, or the store is gone with rank 0
+        return None
+
+
+def _said(store: Any) -> bool:
+    """Whether some rank already printed the job's error line."""
+    try:
+        return store is not None and bool(store.check([_SAID_KEY]))
+    except Exception:
+        return False
+
+
+def report_error(launch: Launch, command: str, exc: BaseException) -> int:
+    """Print a rank's error once for the whole job; the exit code (1).
+
+    Every rank usually fails alike (a bad argument or file is bad for all): rank 0 prints the line and posts it in
+    the store, the others wait for it (up to :data:`ERROR_WAIT`) and stay silent when it is theirs. A rank whose error
+    rank 0 did not report (it failed alone: a file unreadable on its node, its own device) prints its line with its
+    rank, so that no error is lost.
+    """
+    line = error_line(command, exc)
+    store = _store()
+    if launch.rank == 0:
+        _post(store, _ERROR_KEY, line)
+    elif _rank_0_line(store, ERROR_WAIT) == line:
+        return 1
+    else:
+        line = error_line(command, exc, rank=launch.rank)
+    _post(store, _SAID_KEY, line)  # the ranks torchrun then stops stay silent: the job's error is said
+    print(line, file=sys.stderr)
+    return 1
+
+
+def _post(store: Any, key: str, value: str) -> None:
+    if store is not None:
+        with contextlib.suppress(Exception):  # the store is best effort: the line is printed anyway
+            store.set(key, value)
 
 
 class Launch(NamedTuple):
@@ -123,7 +215,8 @@ def run_command(command: Callable[[Any], int], args: Any) -> int:
     """Run a CLI command, inside a process group when torchrun started this process.
 
     Ranks other than 0 stay silent about failures of the shared work: rank 0 prints the one line that names the
-    failing rank and frame pair, and every rank exits with code 1.
+    failing rank and frame pair, and every rank exits with code 1. Any other error is printed once for the job
+    (:func:`report_error`): by rank 0, or by the rank that alone saw it, with its rank.
     """
     launch = launch_from_environment()
     threads = thread_count(getattr(args, "threads", None), launch)
@@ -132,22 +225,30 @@ def run_command(command: Callable[[Any], int], args: Any) -> int:
     if launch is None:
         return command(args)
     if getattr(args, "command", None) not in SHARDED_COMMANDS:
+        if launch.rank != 0:
+            return 1  # the same refusal on every rank (it depends on the arguments alone): rank 0 says it
         raise RuntimeError(
             f"{args.command} runs in one process; under torchrun use {', '.join(SHARDED_COMMANDS)} (WORLD_SIZE is "
             f"{launch.world_size})"
         )
-    if getattr(args, "device", "cpu") == "cuda":
-        args.device = _cuda_device(launch)
     previous = signal.signal(signal.SIGTERM, _stop)
     dist.init_process_group("gloo", timeout=COLLECTIVE_TIMEOUT)
     try:
+        if getattr(args, "device", "cpu") == "cuda":  # in the group: a device missing on some ranks is said once
+            args.device = _cuda_device(launch)
         return command(args)
     except RankFailedError:
-        if launch.rank != 0:
-            return 1
+        if launch.rank != 0 or _said(_store()):
+            return 1  # rank 0 names the failing rank, unless that rank already said why itself
         raise
+    except Exception as exc:
+        if os.environ.get("TORCHMESHMETRIC_DEBUG"):
+            raise
+        return report_error(launch, args.command, exc)
     except Stopped:
         busy = in_flight()
+        if _said(_store()):
+            return 1  # a rank failed and said why; torchrun stopped the others
         if launch.rank == min(set(range(launch.world_size)) - {r for r, _ in busy}):  # one line, from one survivor
             print(f"torchmeshmetric {args.command}: error: {_stopped_message(busy)}", file=sys.stderr)
         return 1

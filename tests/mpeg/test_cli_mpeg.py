@@ -63,8 +63,8 @@ def test_identical_meshes_json_inf_and_table(tmp_path: Path, capsys: pytest.Capt
 @pytest.mark.parametrize(
     ("ref_text", "dis_text", "extra", "message"),
     [
-        (TRI, "", [], "dis: expected a mesh with vertices and faces, found an empty mesh"),
-        (TRI, "v 0 0 0\nv 1 0 0\nv 0 1 0\n", [], "dis: expected triangles, found 3 vertices and no face"),
+        (TRI, "", [], "dis.obj': expected a mesh with vertices and faces, found an empty mesh"),
+        (TRI, "v 0 0 0\nv 1 0 0\nv 0 1 0\n", [], "dis.obj': expected triangles, found 3 vertices and no face"),
         (TRI, "v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", [], "dis.obj:1: malformed 'v' line"),
         (TRI, TRI, ["--grid-size", "0"], "grid_size: expected an integer >= 2, found 0"),
         (TRI, TRI, ["--box", "0 0 0", "0.5 0.5 0.5"], "does not contain the reference mesh"),

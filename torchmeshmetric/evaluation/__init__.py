@@ -9,6 +9,7 @@ from torchmeshmetric.evaluation.comparison import (
 )
 from torchmeshmetric.evaluation.flicker import FLICKER, FlickerDistances, flicker_distances
 from torchmeshmetric.evaluation.pipeline import (
+    check_methods,
     default_register,
     evaluate_pair,
     evaluate_sequence,
@@ -50,6 +51,7 @@ __all__ = [
     "WeightSweep",
     "compare_methods",
     "comparison_markdown",
+    "check_methods",
     "default_register",
     "evaluate_pair",
     "evaluate_sequence",

@@ -27,7 +27,7 @@ import torch.distributed as dist
 
 from torchmeshmetric._deprecation import renamed_keywords
 from torchmeshmetric.evaluation.cache import CachedRegistration, RegistrationCache
-from torchmeshmetric.evaluation.pipeline import evaluate_sequence
+from torchmeshmetric.evaluation.pipeline import _check_sequence, check_methods, evaluate_sequence
 from torchmeshmetric.evaluation.results import SequenceEvaluation
 from torchmeshmetric.structures import MeshLike
 
@@ -342,10 +342,20 @@ def evaluate_sequences(
         Per sequence, method name -> :class:`SequenceEvaluation` (on the receiving rank(s)); ``None`` elsewhere.
 
     Raises:
+        ValueError: before any work (on every rank alike): a method whose frame count differs from its sequence's,
+            fewer than 2 frames, or precomputed registrations of the wrong count.
         RankFailedError: a rank raised or died; names the rank and its frame pair.
     """
-    cache = registration_cache if registration_cache is not None else RegistrationCache()
     regs = list(precomputed_registrations) if precomputed_registrations is not None else [None] * len(work)
+    if len(regs) != len(work):
+        raise ValueError(
+            f"precomputed_registrations: expected {len(work)} entries (one per sequence), found {len(regs)}"
+        )
+    for item, given in zip(work, regs, strict=True):  # every count checked before the first task starts
+        check_methods(item.original, item.methods, sequence=item.name)
+        for frames in item.methods.values():
+            _check_sequence(item.original, frames, given)
+    cache = registration_cache if registration_cache is not None else RegistrationCache()
     first: list[tuple[int, str, int]] = []
     rest: list[tuple[int, str, int]] = []
     for w, item in enumerate(work):

@@ -33,6 +33,7 @@ from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
 __all__ = [
     "RegisterFn",
+    "check_methods",
     "default_register",
     "evaluate_pair",
     "evaluate_sequence",
@@ -488,6 +489,40 @@ def evaluate_sequence(
         if progress is not None:
             progress(k, total)
     return SequenceEvaluation(pairs)
+
+
+def check_methods(original_frames: Sequence[Any], methods: Mapping[str, Sequence[Any]], *, sequence: str = "") -> None:
+    """Refuse, before any work starts, methods that cannot be evaluated on ``original_frames``.
+
+    Every multi-method entry point (``evaluate_sequences``, the ``evaluate`` / ``compare`` / ``campaign`` commands)
+    calls it first, so a method with fewer frames fails in milliseconds, not after the others were evaluated.
+
+    Args:
+        original_frames: the ``N`` original frames.
+        methods: method name -> its simplified frames.
+        sequence: the sequence's name in the messages (``""``: none).
+
+    Raises:
+        ValueError: a method's frame count differs from ``N``, no method is given, or ``N < 2``.
+
+    Example:
+        >>> check_methods([0, 1, 2], {"a": [0, 1, 2], "b": [0, 1]})
+        Traceback (most recent call last):
+            ...
+        ValueError: method 'b': 2 simplified frames but 3 original frames (must match)
+    """
+    where = f"sequence {sequence!r}: " if sequence else ""
+    if not methods:
+        raise ValueError(f"{where}methods: expected at least one method, found none")
+    for name, frames in methods.items():
+        if len(frames) != len(original_frames):
+            raise ValueError(
+                f"{where}method {name!r}: {len(frames)} simplified frames but {len(original_frames)} original frames "
+                "(must match)"
+            )
+    if len(original_frames) < 2:
+        has = f"{where}{len(original_frames)} frame" if sequence else f"the sequence has {len(original_frames)} frame"
+        raise ValueError(f"{has}; at least 2 are needed (pairs k-1, k)")
 
 
 def _check_sequence(

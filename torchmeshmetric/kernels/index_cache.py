@@ -13,8 +13,9 @@ from collections.abc import Sequence
 
 import torch
 
-from torchmeshmetric.kernels.mesh_index import MeshIndex
-from torchmeshmetric.structures import Mesh, MeshLike, _looks_like_pair, as_mesh
+from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY
+from torchmeshmetric.kernels.mesh_index import MeshIndex, _given_tensors
+from torchmeshmetric.structures import Mesh, MeshLike, _looks_like_pair, as_mesh, pack_meshes
 
 __all__ = ["IndexCache"]
 
@@ -56,26 +57,30 @@ class IndexCache:
         """The index of ``mesh`` (a mesh-like or a list: a batch), built on the first request for this content.
 
         When the cached index was built from other tensors of equal content, the returned index shares its
-        structure but recomputes distances from ``mesh``'s own vertices (so gradients reach them). ``tree`` as in
+        structure but recomputes distances from ``mesh``'s own vertices (so gradients reach them). The entry itself
+        is built on copies the cache owns; the returned index refuses to answer (``StaleIndexError``) once
+        ``mesh``'s tensors change in place: ask the cache again for the changed mesh. ``tree`` as in
         :class:`~torchmeshmetric.MeshIndex` (``"morton"`` for references queried only a few times).
         """
         batch = isinstance(mesh, list) or (isinstance(mesh, tuple) and not _looks_like_pair(mesh))
         meshes = [as_mesh(m) for m in mesh] if batch else [as_mesh(mesh)]  # type: ignore[union-attr,arg-type]
         key = _fingerprint(meshes, f"{backend}/{tree}")
         index = self._entries.get(key)
-        verts = meshes[0].verts if len(meshes) == 1 else None
         if index is None:
-            index = MeshIndex(meshes if batch else meshes[0], backend=backend, tree=tree)
+            # Built on copies of its own (packing copies), so the entry answers for the content it is keyed by even
+            # when the caller's tensors change later; each caller gets a copy that watches the caller's tensors.
+            index = MeshIndex._trusted(pack_meshes(meshes if batch else meshes[0]), backend, DEFAULT_MAX_MEMORY, tree)
             self._entries[key] = index
             if len(self._entries) > self.max_entries:
                 self._entries.popitem(last=False)
         else:
             self._entries.move_to_end(key)
-            if verts is not None and index.verts is not verts:
-                index = index._with_verts(verts)
-            elif verts is None and any(m.verts.requires_grad for m in meshes):
-                index = index._with_verts(torch.cat([m.verts for m in meshes]))
-        return index
+        verts_given, faces_given = _given_tensors(mesh, None)
+        if len(meshes) == 1:
+            return index._with_verts(meshes[0].verts, verts_given, faces_given)
+        if any(m.verts.requires_grad for m in meshes):
+            return index._with_verts(torch.cat([m.verts for m in meshes]), verts_given, faces_given)
+        return index._with_verts(None, verts_given, faces_given)
 
     def __len__(self) -> int:
         return len(self._entries)

@@ -16,7 +16,14 @@ from typing import Any
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import DeviceError, DTypeError, check_finite, check_float, check_shape
+from torchmeshmetric._checks import (
+    DeviceError,
+    DTypeError,
+    StaleIndexError,
+    check_finite,
+    check_float,
+    check_shape,
+)
 from torchmeshmetric.kernels._common import (
     DEFAULT_MAX_MEMORY,
     centred,
@@ -32,9 +39,11 @@ from torchmeshmetric.kernels.point_triangle import PointMeshResult, closest_poin
 from torchmeshmetric.kernels.sampling import vertex_set_mask
 from torchmeshmetric.kernels.select import FaceSet, Selector, check_backend
 from torchmeshmetric.structures import (
+    Mesh,
     MeshLike,
     PackedMeshes,
     PackedPoints,
+    _looks_like_pair,
     batch_index,
     lengths_to_offsets,
     pack_meshes,
@@ -42,6 +51,42 @@ from torchmeshmetric.structures import (
 )
 
 __all__ = ["MeshIndex"]
+
+_Source = tuple[str, Tensor, int]
+"""A tensor an index was built from: the name its errors give it, the tensor, its version counter then."""
+
+
+def _version(t: Tensor) -> int:
+    """``t``'s in-place version counter; -1 for inference tensors (none: they change only in inference mode)."""
+    return -1 if t.is_inference() else t._version
+
+
+def _sources(named: Sequence[tuple[str, Any]]) -> tuple[_Source, ...]:
+    """The tensors among ``named`` with their versions now, each tensor once (numpy arrays were copied: no watch)."""
+    out: list[_Source] = []
+    for name, t in named:
+        if isinstance(t, Tensor) and not any(t is s[1] for s in out):
+            out.append((name, t, _version(t)))
+    return tuple(out)
+
+
+def _given_tensors(mesh: Any, faces: Tensor | None, prefix: str = "mesh") -> tuple[list[tuple[str, Any]], ...]:
+    """The caller's own vertex and face tensors in the mesh arguments of :class:`MeshIndex`, with their names."""
+    if isinstance(mesh, Tensor):
+        return [("verts", mesh)], [("faces", faces)]
+    if isinstance(mesh, Mesh):
+        return [(f"{prefix}.verts", mesh.verts)], [(f"{prefix}.faces", mesh.faces)]
+    if isinstance(mesh, tuple) and _looks_like_pair(mesh):
+        return [(f"{prefix}.verts", mesh[0])], [(f"{prefix}.faces", mesh[1])]
+    if isinstance(mesh, (list, tuple)):
+        verts: list[tuple[str, Any]] = []
+        faces_: list[tuple[str, Any]] = []
+        for i, m in enumerate(mesh):
+            v, f = _given_tensors(m, None, f"{prefix}[{i}]")
+            verts += v
+            faces_ += f
+        return verts, faces_
+    return [], []  # a trimesh: converted by copy, nothing of the caller's is kept
 
 
 def pack_mesh_args(
@@ -72,6 +117,12 @@ class MeshIndex:
     (to the points, and to the mesh vertices through the same recomputation on the selected face).
     :meth:`refit` moves the vertices (same faces): bounds are refitted, not rebuilt, and answers stay exact.
 
+    The index keeps the tensors it was built from (no copy: gradients reach them, e.g. an ``nn.Parameter``) and
+    their in-place version counters. Once one of them changes in place (``verts.add_(...)``, ``optimizer.step()``)
+    every query raises :class:`~torchmeshmetric.StaleIndexError` naming it, whatever the form the index was built from,
+    until :meth:`refit` (moved vertices; changed faces need a new index). Writes torch does not count (``.data``, a
+    shared numpy array, ``fused=True`` optimizers) are not seen: refit after them (``docs/kernels.md``).
+
     Args:
         mesh: a mesh-like, a list of mesh-likes (a ragged batch), or packed ``(V, 3)`` vertices with ``faces``.
         faces: ``(F, 3)`` faces when ``mesh`` is a vertex tensor.
@@ -88,6 +139,7 @@ class MeshIndex:
     Raises:
         ShapeError, DTypeError, NonFiniteError, IndexRangeError, DeviceError: on a malformed mesh.
         ValueError: on an unknown backend.
+        StaleIndexError: (on a query) a tensor the index was built from changed in place since.
 
     Example:
         >>> import torch, trimesh
@@ -118,6 +170,11 @@ class MeshIndex:
     ) -> None:
         packed = pack_mesh_args(mesh, faces, verts_lengths, faces_lengths)
         self._init(packed, backend, max_memory, referenced_only, tree)
+        given_verts, given_faces = _given_tensors(mesh, faces)
+        self._verts_sources = _sources([*given_verts, ("verts", self.verts)])
+        self._faces_sources = _sources(
+            [*given_faces, ("faces", self.faces), ("verts_lengths", verts_lengths), ("faces_lengths", faces_lengths)]
+        )
 
     @classmethod
     def _trusted(cls, packed: PackedMeshes, backend: str, max_memory: int, tree: str = "morton") -> MeshIndex:
@@ -144,7 +201,36 @@ class MeshIndex:
         self._face_offsets = lengths_to_offsets(packed.faces_lengths)
         self._faces: Selector | None = None
         self._nearest: _NearestIndex | None = None
+        self._origin: MeshIndex | None = None  # the index a `_with_verts` copy shares its structures with
         self._set_verts(packed.verts)
+        self._verts_sources = _sources([("verts", packed.verts)])
+        self._faces_sources = _sources([("faces", packed.faces)])
+
+    def _check_current(self) -> None:
+        """Refuse to answer for a mesh that is gone: a tensor the index was built from changed in place since.
+
+        Costs a few version-counter reads per query; no copy of the mesh is kept or compared.
+
+        Raises:
+            StaleIndexError: naming the tensor, with what to do (refit for vertices, a new index for faces).
+        """
+        for sources, remedy in (
+            (
+                self._verts_sources,
+                "refit the index (index.refit(verts)) after changing its vertices, e.g. after "
+                "every optimizer.step() on them",
+            ),
+            (
+                self._faces_sources,
+                "the faces of an index cannot change (refit moves vertices only): build a new MeshIndex",
+            ),
+        ):
+            for name, t, version in sources:
+                if _version(t) != version:
+                    raise StaleIndexError(
+                        f"{name}: modified in place since the index was built or last refitted (version "
+                        f"{version}, now {_version(t)}), so the index would answer for a mesh that is gone; {remedy}"
+                    )
 
     def _set_verts(self, verts: Tensor) -> None:
         self.verts = verts
@@ -211,12 +297,14 @@ class MeshIndex:
         Raises:
             DeviceError, DTypeError: when the points are not on the index's device or of its dtype.
             ShapeError, NonFiniteError, EmptyInputError, ValueError: on bad points.
+            StaleIndexError: a tensor the index was built from changed in place since it was built or refitted.
         """
         pts = self._check_points(points, points_lengths)
         return self._point_mesh_distance(pts.points, pts.lengths)
 
     def _point_mesh_distance(self, points: Tensor, points_lengths: Tensor) -> PointMeshResult:
         """Trusted entry (validated points of the index's dtype and device)."""
+        self._check_current()
         check_queries(
             points,
             points_lengths,
@@ -230,7 +318,7 @@ class MeshIndex:
         if scale is not None:
             points_c = points_c * scale
         if self._faces is None:
-            self._faces = Selector(self.backend, self._faceset, self.max_memory, self.tree)
+            self._faces = self._face_selector()
         result: PointMeshResult | None = None
         if not (points_c.requires_grad or self.verts.requires_grad):
             fused = self._faces.select_closest(points_c, point_batch)
@@ -274,36 +362,80 @@ class MeshIndex:
         Raises:
             DeviceError, DTypeError: when the points are not on the index's device or of its dtype.
             ShapeError, NonFiniteError, EmptyInputError, ValueError: on bad points.
+            StaleIndexError: a tensor the index was built from changed in place since it was built or refitted.
         """
         pts = self._check_points(points, points_lengths)
         return self._nearest_vertex_distance(pts.points, pts.lengths)
 
     def _nearest_vertex_distance(self, points: Tensor, points_lengths: Tensor) -> NearestVertexResult:
         """Trusted entry (validated points of the index's dtype and device)."""
+        self._check_current()
+        if self._nearest is None and self._origin is None:
+            ref, lengths = self._ref_points()
+            self._nearest = _NearestIndex(ref, lengths, self.backend, self.max_memory)
+        elif self._nearest is None or self.verts.requires_grad:
+            if self._nearest is None:
+                self._nearest = copy.copy(self._origin._nearest_structure())  # type: ignore[union-attr]
+            self._nearest.ref = self._ref_points()[0]  # a fresh graph to the vertices for this call
+        return self._nearest.query(points, points_lengths)
+
+    def _face_selector(self) -> Selector:
+        """The closest-face structure, built now; a copy's is built on (and kept by) the index it was made from."""
+        if self._origin is None:
+            return Selector(self.backend, self._faceset, self.max_memory, self.tree)
+        if self._origin._faces is None:
+            self._origin._faces = self._origin._face_selector()
+        return self._origin._faces
+
+    def _nearest_structure(self) -> _NearestIndex:
+        """The nearest-vertex structure, built on this index's own vertices if not yet (kept for its copies)."""
         if self._nearest is None:
             ref, lengths = self._ref_points()
             self._nearest = _NearestIndex(ref, lengths, self.backend, self.max_memory)
-        elif self.verts.requires_grad:
-            self._nearest.ref = self._ref_points()[0]  # a fresh graph to the vertices for this call
-        return self._nearest.query(points, points_lengths)
+        return self._nearest
 
     def __getstate__(self) -> dict[str, Any]:
         # The selection structures are rebuilt on the first query after unpickling (they hold backend functions).
         state = dict(self.__dict__)
-        state.update(_faces=None, _nearest=None)
+        state.update(_faces=None, _nearest=None, _origin=None)
         return state
 
-    def _with_verts(self, verts: Tensor) -> MeshIndex:
-        """A shallow copy over ``verts`` of equal values (same structures; autograd reaches ``verts``)."""
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        # The unpickled (or deep-copied) tensors are new ones, with counters of their own: watched from now on.
+        self.__dict__.update(state)
+        for key in ("_verts_sources", "_faces_sources"):
+            self.__dict__[key] = tuple((n, t, _version(t)) for n, t, _ in state.get(key, ()))
+
+    def _with_verts(
+        self,
+        verts: Tensor | None,
+        verts_given: Sequence[tuple[str, Any]] = (),
+        faces_given: Sequence[tuple[str, Any]] = (),
+    ) -> MeshIndex:
+        """A shallow copy over ``verts`` of equal values (same structures; autograd reaches ``verts``).
+
+        ``verts=None`` keeps the index's vertices. The copy also refuses to answer once ``verts`` or one of the
+        caller's tensors ``verts_given`` / ``faces_given`` (``(name, tensor)``) changes in place, as the index does
+        for the tensors it was built from (which stay watched).
+        """
         other = MeshIndex.__new__(MeshIndex)
         other.__dict__.update(self.__dict__)  # not copy.copy: __getstate__ drops the structures
-        other.verts = verts
+        # Structures not built yet are built on the origin, so that the next copy finds them (an IndexCache's hits).
+        other._origin = self if self._origin is None else self._origin
+        if verts is not None:
+            other.verts = verts
+            verts_given = [*verts_given, ("verts", verts)]
+        other._verts_sources = self._verts_sources + _sources(verts_given)
+        other._faces_sources = self._faces_sources + _sources(faces_given)
         if other._nearest is not None:
             other._nearest = copy.copy(other._nearest)
         return other
 
     def refit(self, verts: Tensor) -> None:
         """Move the vertices (same faces, same order): bounds are refitted, not rebuilt; answers stay exact.
+
+        ``verts`` (often the same tensor, moved in place by an optimizer) is watched from now on instead of the
+        vertices the index was built from.
 
         Args:
             verts: ``(V, 3)`` new packed vertices, of the index's dtype and device.
@@ -323,6 +455,7 @@ class MeshIndex:
     def _refit(self, verts: Tensor) -> None:
         """Trusted entry of :meth:`refit`."""
         self._set_verts(verts)
+        self._verts_sources = _sources([("verts", verts)])
         if self._faces is not None:
             self._faces.refit(self._faceset)
         if self._nearest is not None:

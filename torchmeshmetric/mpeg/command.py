@@ -74,6 +74,7 @@ def _run(args: argparse.Namespace) -> int:
         box=box,
         peak=args.peak,
         bilinear=not args.nearest,
+        names=(f"REF {args.ref!r}", f"DIS {args.dis!r}"),
     )
     d = result.to_dict()
     d["sampling"] = "grid" if args.sampling == "grid" else "mesh"

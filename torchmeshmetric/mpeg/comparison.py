@@ -255,8 +255,8 @@ def mpeg_compare(ref: PointCloud, dis: PointCloud, *, peak: float | None = None)
         >>> round(r.symmetric.d1_mse, 6), round(r.symmetric.d2_mse, 6)
         (0.005, 0.005)
     """
-    a = merge_duplicate_points(ref)
-    b = merge_duplicate_points(dis)
+    a = merge_duplicate_points(ref, "ref")
+    b = merge_duplicate_points(dis, "dis")
     ap = a.points.numpy()
     bp = b.points.numpy()
     if peak is None:

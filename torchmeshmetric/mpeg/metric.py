@@ -9,6 +9,7 @@ import torch
 from torch import Tensor
 from torchmetrics import Metric
 
+from torchmeshmetric._checks import EmptyInputError
 from torchmeshmetric.mpeg.mpeg_metrics import Sampling, mpeg_metrics
 from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
 from torchmeshmetric.structures import MeshLike
@@ -59,7 +60,9 @@ class MpegPSNR(Metric):
 
     def update(self, preds: MeshLike | TexturedMesh, target: MeshLike | TexturedMesh) -> None:
         """Add one frame: ``preds`` (distorted) against ``target`` (reference)."""
-        r = mpeg_metrics(target, preds, sampling=self.sampling, grid_size=self.grid_size).symmetric
+        r = mpeg_metrics(
+            target, preds, sampling=self.sampling, grid_size=self.grid_size, names=("target", "preds")
+        ).symmetric
         for key, value in (("d1_psnr", r.d1_psnr), ("d2_psnr", r.d2_psnr)):
             if math.isfinite(value):
                 setattr(self, f"{key}_sum", getattr(self, f"{key}_sum") + value)
@@ -68,7 +71,16 @@ class MpegPSNR(Metric):
                 setattr(self, f"{key}_inf", getattr(self, f"{key}_inf") + 1)
 
     def compute(self) -> dict[str, Tensor]:
-        """``{"d1_psnr", "d2_psnr", "d1_psnr_inf_frames", "d2_psnr_inf_frames"}`` (float64 scalars)."""
+        """``{"d1_psnr", "d2_psnr", "d1_psnr_inf_frames", "d2_psnr_inf_frames"}`` (float64 scalars).
+
+        Raises:
+            EmptyInputError: no frame was accumulated (no :meth:`update` since the last reset, on any process): the
+                mean PSNR of no frame is undefined, and a NaN would be logged silently.
+        """
+        if all(float(getattr(self, f"{key}_finite") + getattr(self, f"{key}_inf")) == 0 for key in _KEYS):
+            raise EmptyInputError(
+                f"{type(self).__name__}.compute: no frame was accumulated; call update() with a mesh pair first"
+            )
         out: dict[str, Tensor] = {}
         for key in _KEYS:
             s, n, inf = getattr(self, f"{key}_sum"), getattr(self, f"{key}_finite"), getattr(self, f"{key}_inf")

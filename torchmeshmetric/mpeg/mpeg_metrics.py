@@ -10,11 +10,12 @@ import numpy as np
 from torch import Tensor
 
 from torchmeshmetric._checks import EmptyInputError
+from torchmeshmetric.mpeg import _float32 as f32
 from torchmeshmetric.mpeg.comparison import MpegResult, mpeg_compare
-from torchmeshmetric.mpeg.grid_sampling import check_box, grid_sample, mesh_box
+from torchmeshmetric.mpeg.grid_sampling import check_box, grid_sample, mesh_arrays, mesh_box
 from torchmeshmetric.mpeg.point_cloud import PointCloud
 from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
-from torchmeshmetric.mpeg.vertex_sampling import vertex_sample
+from torchmeshmetric.mpeg.vertex_sampling import _DBL_EPSILON, vertex_sample, zero_area_message
 from torchmeshmetric.structures import MeshLike, as_mesh
 
 __all__ = ["Sampling", "mpeg_metrics", "mpeg_point_cloud"]
@@ -33,6 +34,11 @@ def _parts(m: MeshLike | TexturedMesh, name: str = "mesh") -> TexturedMesh:
             f"{name}: expected triangles, found {t.mesh.verts.shape[0]} vertices and no face (MPEG sampling needs "
             "a surface)"
         )
+    # Checked before any sampling (a reference of degenerate faces would otherwise first fail on its empty box).
+    verts, faces = mesh_arrays(t.mesh)
+    tri = verts[faces]
+    if not (f32.area(tri[:, 0], tri[:, 1], tri[:, 2]) >= _DBL_EPSILON).any():
+        raise EmptyInputError(zero_area_message(name, int(faces.shape[0])))
     return t
 
 
@@ -44,11 +50,16 @@ def mpeg_point_cloud(
     box: BoxLike | None = None,
     use_normal: bool = True,
     bilinear: bool = True,
+    name: str = "mesh",
 ) -> PointCloud:
     """The point cloud mmetric measures for a mesh, by ``grid`` or ``mesh`` sampling.
 
     ``grid`` is ``mm sample --mode grid`` (:func:`grid_sample`); ``mesh`` the conversion ``mm compare --mode pcc``
     applies to a mesh (:func:`vertex_sample`: its vertices, subdivided where faces are large).
+
+    Raises:
+        EmptyInputError: nothing was sampled, with the reason, the mesh named by ``name``: every face has zero
+            area, or (grid) no grid ray hits the surface inside the box.
 
     Example:
         >>> import torch
@@ -56,9 +67,9 @@ def mpeg_point_cloud(
         >>> mpeg_point_cloud(tri, "mesh").num_points
         3
     """
-    t = _parts(mesh)
+    t = _parts(mesh, name)
     if sampling == "grid":
-        return grid_sample(
+        cloud = grid_sample(
             t.mesh,
             grid_size,
             use_normal=use_normal,
@@ -68,9 +79,24 @@ def mpeg_point_cloud(
             colors=t.colors,
             bilinear=bilinear,
         )
+        if cloud.num_points == 0:
+            raise EmptyInputError(_why_no_grid_point(name, grid_size, box))
+        return cloud
     if sampling == "mesh":
-        return vertex_sample(t.mesh, texture=t.texture, uvs=t.uvs, colors=t.colors)
+        return vertex_sample(t.mesh, texture=t.texture, uvs=t.uvs, colors=t.colors, name=name)
     raise ValueError(f"sampling: expected 'grid' or 'mesh', found {sampling!r}")
+
+
+def _why_no_grid_point(name: str, grid_size: int, box: BoxLike | None) -> str:
+    """Why grid sampling gave no point from a mesh with a surface (`_parts` checked that): no grid ray reaches it."""
+    where = (
+        "its bounding box" if box is None else f"the box {np.asarray(box[0]).tolist()}, {np.asarray(box[1]).tolist()}"
+    )
+    return (
+        f"{name}: no point was sampled: no ray of the {grid_size}-step grid over {where} hits its surface (a mesh "
+        "outside the sampling box, or thinner than one grid step in every direction); use a larger grid size or a "
+        "box that contains it"
+    )
 
 
 def mpeg_metrics(
@@ -83,6 +109,7 @@ def mpeg_metrics(
     peak: float | None = None,
     use_normal: bool = True,
     bilinear: bool = True,
+    names: tuple[str, str] = ("ref", "dis"),
 ) -> MpegResult:
     """MPEG D1/D2 PSNR, Hausdorff and colour PSNR of a distorted mesh against a reference, equal to mmetric's.
 
@@ -100,13 +127,15 @@ def mpeg_metrics(
         peak: PSNR peak; default the box diagonal (grid) or the reference cloud's diagonal (mesh).
         use_normal: mmetric's ``--useNormal`` (grid mode).
         bilinear: bilinear texture filtering in grid mode (nearest otherwise); mesh mode is always bilinear.
+        names: how error messages name the two meshes (the command line: ``REF 'a.obj'``, ``DIS 'b.obj'``).
 
     Returns:
         :class:`MpegResult` (colour figures when both meshes carry colour).
 
     Raises:
         BoxError: a malformed box or one that does not contain the reference.
-        EmptyInputError: a mesh without faces.
+        EmptyInputError: a mesh without faces, or one that gives no point (every face of zero area; grid: no ray
+            hits it), named by ``names``.
         NonFiniteError: NaN or Inf vertices.
         ValueError: a bad ``sampling``, ``grid_size`` or ``peak``.
 
@@ -117,7 +146,7 @@ def mpeg_metrics(
         >>> r.symmetric.d1_psnr, r.points_ref == r.points_dis
         (inf, True)
     """
-    r, d = _parts(ref, "ref"), _parts(dis, "dis")
+    r, d = _parts(ref, names[0]), _parts(dis, names[1])
     if peak is not None and not (np.isfinite(peak) and peak > 0):
         raise ValueError(f"peak: expected a positive finite number, found {peak!r}")
     if sampling == "grid":
@@ -129,6 +158,6 @@ def mpeg_metrics(
     kw: dict[str, Any] = dict(grid_size=grid_size, box=box, use_normal=use_normal, bilinear=bilinear)
     # the two samplings are independent numpy work that releases the GIL: run them side by side
     with ThreadPoolExecutor(max_workers=2) as pool:
-        ref_cloud = pool.submit(mpeg_point_cloud, r, sampling, **kw)
-        dis_cloud = pool.submit(mpeg_point_cloud, d, sampling, **kw)
+        ref_cloud = pool.submit(mpeg_point_cloud, r, sampling, name=names[0], **kw)
+        dis_cloud = pool.submit(mpeg_point_cloud, d, sampling, name=names[1], **kw)
         return mpeg_compare(ref_cloud.result(), dis_cloud.result(), peak=peak)

@@ -57,7 +57,7 @@ def _run_starts(sorted_pts: np.ndarray) -> np.ndarray:
     return np.flatnonzero(new)
 
 
-def merge_duplicate_points(cloud: PointCloud) -> PointCloud:
+def merge_duplicate_points(cloud: PointCloud, name: str = "cloud") -> PointCloud:
     """Merge points with equal coordinates as mmetric's ``compare --mode pcc`` does before measuring.
 
     The cloud is sorted by ``(x, y, z)`` (ties by index); each run of equal positions becomes one point whose normal is
@@ -66,6 +66,7 @@ def merge_duplicate_points(cloud: PointCloud) -> PointCloud:
 
     Args:
         cloud: the cloud to merge.
+        name: the cloud's name in the error message (``"ref"``, ``"dis"``).
 
     Returns:
         The merged cloud, sorted by position; colours are returned as integers in ``[0, 255]`` (float32).
@@ -82,7 +83,7 @@ def merge_duplicate_points(cloud: PointCloud) -> PointCloud:
         ([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0], [0.5, 0.0, 0.5]])
     """
     if cloud.num_points == 0:
-        raise EmptyInputError("cloud: expected at least one point, found an empty point cloud")
+        raise EmptyInputError(f"{name}: expected at least one point, found an empty point cloud")
     pts = cloud.points.detach().cpu().numpy().astype(np.float32, copy=False)
     order = _position_order(pts)
     spts = pts[order]

@@ -116,6 +116,7 @@ def mpeg_sequence(
     grid_size: int = 1024,
     box: BoxLike | None = None,
     progress: Callable[[int, int], None] | None = None,
+    names: tuple[str, str] = ("reference", "distorted"),
 ) -> MpegSequence:
     """MPEG figures of every frame (distorted frame k against reference frame k), as the CTC reports a sequence.
 
@@ -127,6 +128,7 @@ def mpeg_sequence(
         box: one sampling box for every frame; default each reference frame's own box (as the CTC runs mmetric per
             frame).
         progress: called with ``(done, total)`` after each frame.
+        names: how error messages name the two sequences (a frame is ``"<name> frame <k>"``).
 
     Returns:
         :class:`MpegSequence`.
@@ -149,7 +151,8 @@ def mpeg_sequence(
         )
     results = []
     for k, (r, d) in enumerate(zip(reference, distorted, strict=True)):
-        results.append(mpeg_metrics(r, d, sampling=sampling, grid_size=grid_size, box=box))
+        frame_names = (f"{names[0]} frame {k}", f"{names[1]} frame {k}")
+        results.append(mpeg_metrics(r, d, sampling=sampling, grid_size=grid_size, box=box, names=frame_names))
         if progress is not None:
             progress(k + 1, len(reference))
     return MpegSequence(list(range(len(reference))), results, sampling)

@@ -8,6 +8,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from torchmeshmetric._checks import EmptyInputError
 from torchmeshmetric.mpeg import _float32 as f32
 from torchmeshmetric.mpeg.grid_sampling import mesh_arrays, unique_vertex_rows
 from torchmeshmetric.mpeg.point_cloud import PointCloud
@@ -17,6 +18,14 @@ from torchmeshmetric.structures import MeshLike
 __all__ = ["vertex_sample"]
 
 _DBL_EPSILON = 2.220446049250313e-16
+
+
+def zero_area_message(name: str, num_faces: int) -> str:
+    """Why a mesh gave no point: all its faces are degenerate (mmetric skips faces of area below ``DBL_EPSILON``)."""
+    return (
+        f"{name}: no point was sampled: all {num_faces} face(s) have zero area (below DBL_EPSILON once the vertices "
+        "are rounded to float32; MPEG sampling skips such faces), so the mesh has no surface to sample"
+    )
 
 
 def _oriented_faces(corner_keys: np.ndarray, faces_keys: np.ndarray) -> np.ndarray:
@@ -46,6 +55,7 @@ def vertex_sample(
     colors: Tensor | np.ndarray | None = None,
     max_depth: int = 3,
     area_threshold: float = 2.0,
+    name: str = "mesh",
 ) -> PointCloud:
     """Turn a mesh into the point cloud mmetric's ``compare --mode pcc`` measures (its ``sampleIfNeeded``).
 
@@ -64,12 +74,13 @@ def vertex_sample(
         colors: ``(V, 3)`` per-vertex colours in ``[0, 255]``.
         max_depth: mmetric's maximum recursion depth (3).
         area_threshold: mmetric's subdivision area threshold (2.0).
+        name: the mesh's name in error messages (``"ref"``, ``"dis"``, a file).
 
     Returns:
         :class:`PointCloud` with normals (and colours).
 
     Raises:
-        EmptyInputError: the mesh has no face.
+        EmptyInputError: the mesh has no face, or every face has zero area (nothing to sample).
         NonFiniteError: NaN or Inf vertices.
 
     Example:
@@ -96,6 +107,8 @@ def vertex_sample(
     tri = _oriented_faces(corner_keys, np.arange(3 * nf).reshape(nf, 3))
     p1, p2, p3 = pos[tri[:, 0]], pos[tri[:, 1]], pos[tri[:, 2]]
     keep = f32.area(p1, p2, p3) >= _DBL_EPSILON
+    if not keep.any():
+        raise EmptyInputError(zero_area_message(name, nf))
     tri, p1, p2, p3 = tri[keep], p1[keep], p2[keep], p3[keep]
     attr = uv if uv is not None else col
     empty = np.zeros((tri.shape[0], 0), np.float32)

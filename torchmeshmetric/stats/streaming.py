@@ -101,7 +101,10 @@ class DistanceAccumulator:
             EmptyInputError: nothing was accumulated.
         """
         if self.count == 0:
-            raise EmptyInputError("DistanceAccumulator.compute: no distances were accumulated")
+            raise EmptyInputError(
+                "DistanceAccumulator.compute: no distances were accumulated; call update() with non-empty distances "
+                "first"
+            )
         m = self.moments
         if self._sketch is None:
             quantile_data = torch.cat([v.to(m.count.device) for v in self._values])
