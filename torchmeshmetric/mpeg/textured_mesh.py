@@ -76,10 +76,14 @@ def read_texture(path: str | os.PathLike, where: str = "texture") -> np.ndarray:
     path = Path(path)
     if not path.is_file():
         raise MeshFileError(f"{where}: texture file '{path}' not found")
+    with open(path, "rb") as fh:
+        head = fh.read(26)
+    # Pillow widens a 16-bit grey+alpha PNG to RGBA: read the PNG's own colour type (0 grey, 4 grey + alpha)
+    png_grey = head[:8] == b"\x89PNG\r\n\x1a\n" and len(head) == 26 and head[25] in (0, 4)
     try:
         with Image.open(path) as im:
             im.load()
-            mode = im.mode
+            mode = "LA" if png_grey and im.mode not in ("L", "LA", "1", "I", "I;16", "I;16B") else im.mode
             if mode in ("RGB", "RGBA", "RGBX", "RGBa"):
                 # Pillow already reduces 16-bit RGB(A) PNGs to their high byte, as stb_image does.
                 arr = np.asarray(im)[..., :3]
