@@ -10,7 +10,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from torchmeshmetric.data.io import check_dtype_range, check_mesh, read_mesh_arrays
+from torchmeshmetric.data.io import check_dtype_range, check_mesh, read_mesh_arrays, to_tensor
 from torchmeshmetric.data.obj import MeshFileError, MtlMaterial, ObjData, parse_mtl, parse_obj
 from torchmeshmetric.structures import Mesh
 
@@ -209,7 +209,7 @@ def load_textured_mesh(path: str | os.PathLike, texture: str | os.PathLike | Non
         check_dtype_range(p, verts, torch.float32, None, hint)
         tex = read_texture(Path(texture), "texture") if texture is not None else None
         col = torch.from_numpy(colors.astype(np.float32)) if colors is not None else None
-        return TexturedMesh(Mesh(torch.from_numpy(verts).to(torch.float32), torch.from_numpy(faces)), None, tex, col)
+        return TexturedMesh(Mesh(to_tensor(verts, torch.float32), torch.from_numpy(faces)), None, tex, col)
     d = parse_obj(p, p.read_bytes(), uvs=True)
     faces, face_uvs = d.triangles()
     check_mesh(p, d.verts, faces, d.vert_lines)
@@ -225,7 +225,7 @@ def load_textured_mesh(path: str | os.PathLike, texture: str | os.PathLike | Non
                 "textured mesh needs its UVs"
             )
         corner_uv = d.uvs[face_uvs]
-    mesh = Mesh(torch.from_numpy(d.verts).to(torch.float32), torch.from_numpy(faces), validate=False)
+    mesh = Mesh(to_tensor(d.verts, torch.float32), torch.from_numpy(faces), validate=False)
     tex = None
     if texture is not None:
         tex = read_texture(Path(texture), "texture")
