@@ -78,7 +78,7 @@ def test_early_break_and_keyboard_interrupt_stop_the_thread(tmp_path: Path) -> N
     assert _threads() == 0
 
 
-def test_interrupt_while_waiting_for_a_slow_item() -> None:
+def test_waits_for_a_slow_item() -> None:
     gate = threading.Event()
 
     def load(k: int) -> int:

@@ -129,3 +129,25 @@ def test_faces_using_two_textures_are_refused(tmp_path: Path) -> None:
 def test_material_without_map_gives_no_colour(tmp_path: Path) -> None:
     """A material with only a Kd colour has no texture (mmetric: no map, no colour figures); documented."""
     assert not load_textured_mesh(_textured(tmp_path, "newmtl skin\nKd 1 0 0\n", None)).has_color
+
+
+def test_material_numbering_follows_mmetric(tmp_path: Path) -> None:
+    """Faces before any ``usemtl`` take the first material; an unknown name keeps the material in force."""
+    mtl = "newmtl skin\nmap_Kd tex.png\nnewmtl hair\nmap_Kd hair.png\n"
+    obj = OBJ.replace("usemtl skin\n", "") + "usemtl nonexistent\nf 1/1 2/2 3/3\n"
+    assert load_textured_mesh(_textured(tmp_path, mtl, "tex.png", obj)).has_color  # all faces: 'skin'
+    obj = OBJ + "usemtl nonexistent\nf 1/1 2/2 3/3\nusemtl hair\nf 1/1 2/2 3/3\n"
+    with pytest.raises(MeshFileError, match="different textures"):
+        load_textured_mesh(_textured(tmp_path, mtl, "tex.png", obj))
+
+
+def test_mmetric_test_meshes(tmp_path: Path) -> None:
+    from tests.mpeg.conftest import MPEG_REF
+
+    folder = MPEG_REF / "mmetric-tests"
+    if not folder.is_dir():
+        pytest.skip("mmetric's test meshes absent (../shared/reference/mpeg/mmetric-tests)")
+    t = load_textured_mesh(folder / "plane.obj")
+    assert t.has_color and t.texture is not None and t.uvs is not None
+    with pytest.raises(MeshFileError, match=r"different textures \('material0000' \(plane\.png\), 'material0001'"):
+        load_textured_mesh(folder / "plane_multi_map.obj")  # mmetric: one map per material; we: one per mesh

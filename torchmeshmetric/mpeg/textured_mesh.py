@@ -134,16 +134,10 @@ def _obj_texture(p: Path, d: ObjData, corner_uv: np.ndarray | None) -> tuple[Pat
         mtl_of += [mtl] * len(found)
     if not materials:
         return None
-    index = {m.name: i for i, m in reversed(list(enumerate(materials)))}
-    current = np.zeros(len(d.materials), dtype=np.int64)
-    for k, name in enumerate(d.materials):
-        current[k] = index.get(name, -1)
-    # the material of each face: that of the usemtl in force, the previous one when the name is unknown
-    per_face = (
-        np.where(d.face_materials >= 0, current[np.maximum(d.face_materials, 0)], 0)
-        if d.materials
-        else (np.zeros(d.face_lines.shape[0], dtype=np.int64))
-    )
+    index = {m.name: i for i, m in reversed(list(enumerate(materials)))}  # the first of equal names, as mmetric
+    # usemtl k -> material index; the last entry (-1 in face_materials: before any usemtl) is the first material
+    known = np.array([index.get(name, -1) for name in d.materials] + [0], dtype=np.int64)
+    per_face = known[d.face_materials]
     if (per_face < 0).any():
         per_face = per_face.copy()
         last = 0
