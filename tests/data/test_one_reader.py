@@ -236,3 +236,18 @@ def test_ply_reader_equals_trimesh(tmp_path_factory, seed, encoding, colour) -> 
         t = load_textured_mesh(p)
         assert t.colors is not None and torch.equal(t.colors, torch.from_numpy(colors).float())
     np.testing.assert_array_equal(load_mesh(p, dtype=torch.float64).verts.numpy(), theirs.vertices)
+
+
+@settings(max_examples=30, deadline=None)
+@given(values=st.lists(st.integers(-(10**16), 10**16), min_size=3, max_size=30), sign=st.sampled_from(["", "+"]))
+def test_integer_coordinates_are_read_exactly(values, sign) -> None:
+    """The integer shortcut gives Python's floats, also for values too large for it (the float parser then)."""
+    values = values[: len(values) // 3 * 3]
+    text = "".join(
+        "v " + " ".join(f"{sign if x >= 0 else ''}{x}" for x in values[i : i + 3]) + "\n"
+        for i in range(0, len(values), 3)
+    )
+    d = parse_obj(Path("x.obj"), (text + "f 1 1 1\n").encode())
+    np.testing.assert_array_equal(d.verts, np.array([float(x) for x in values]).reshape(-1, 3))
+    z = parse_obj(Path("x.obj"), b"v -0 0 -00\nf 1 1 1\n").verts
+    assert np.signbit(z).tolist() == [[True, False, True]]  # as Python's float("-0")

@@ -335,6 +335,23 @@ def _parse_fast(data: bytes, read_uvs: bool) -> ObjData | None:
     )
 
 
+_INTEGER_TEXT = b"0123456789-+ \t\n\r\v\f"
+
+
+def _floats(text: bytes) -> np.ndarray:
+    """Whitespace-separated numbers as float64, each the correctly rounded value Python's ``float`` gives.
+
+    Integer coordinates (quantised meshes) are parsed as integers, about ten times faster, when every token is
+    one and every value is below ``1e15`` (exact in float64, and no token can have been clamped by the parser), and
+    no token is a negative zero.
+    """
+    if not text.translate(None, _INTEGER_TEXT) and b"-0" not in text:  # "-0" is the float -0.0
+        ints = np.fromstring(text, dtype=np.int64, sep=" ")
+        if ints.size == 0 or int(np.abs(ints).max()) < 10**15:
+            return ints.astype(np.float64)
+    return np.fromstring(text, dtype=np.float64, sep=" ")
+
+
 class _Regions:
     """The bytes of the lines of one kind: a slice when they are consecutive (the usual layout), else a mask."""
 
@@ -363,7 +380,7 @@ def _numbers(
     if not np.isin(counts, allowed).all():
         return None, None
     try:
-        flat = np.fromstring(text.tobytes(), dtype=np.float64, sep=" ")
+        flat = _floats(text.tobytes())
     except ValueError:
         return None, None
     if flat.size != int(counts.sum()):
