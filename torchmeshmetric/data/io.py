@@ -16,7 +16,7 @@ import re
 import threading
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
-from typing import Any, TypeVar, cast
+from typing import Any, TypeVar, cast, overload
 
 import numpy as np
 import torch
@@ -739,7 +739,15 @@ class Prefetcher(Iterator[T]):
 _END = object()
 
 
-def prefetch_frames(paths: PathsLike, *, load: Callable[[Path], T] | None = None, ahead: int = 2) -> Prefetcher[Any]:
+@overload
+def prefetch_frames(paths: PathsLike, *, load: None = None, ahead: int = 2) -> Prefetcher[Mesh]: ...
+
+
+@overload
+def prefetch_frames(paths: PathsLike, *, load: Callable[[Path], T], ahead: int = 2) -> Prefetcher[T]: ...
+
+
+def prefetch_frames(paths: PathsLike, *, load: Callable[[Path], Any] | None = None, ahead: int = 2) -> Prefetcher[Any]:
     r"""Load frames in a background thread, ``ahead`` in advance, and yield them in order (I/O overlaps work).
 
     Args:
