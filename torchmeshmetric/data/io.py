@@ -549,7 +549,8 @@ def _read_ply_fast(p: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None] 
     else:
         order = "<" if fmt == "binary_little_endian" else ">"
         vdt = np.dtype([(n, order + _PLY_TYPES[t]) for t, n in vprops])
-        fdt = np.dtype([("n", order + _PLY_TYPES[count_t]), ("i", order + _PLY_TYPES[index_t], (3,))])
+        idx_t = order + _PLY_TYPES[index_t]
+        fdt = np.dtype([("n", order + _PLY_TYPES[count_t]), ("i0", idx_t), ("i1", idx_t), ("i2", idx_t)])
         if len(body) != nv * vdt.itemsize + nf * fdt.itemsize:
             return None  # polygons, truncation or trailing bytes: trimesh names which
         vtab = np.frombuffer(body, dtype=vdt, count=nv)
@@ -562,7 +563,8 @@ def _read_ply_fast(p: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None] 
             xyz = np.ndarray((nv, 3), dtype=vdt["x"], buffer=body, offset=0, strides=(vdt.itemsize, vdt["x"].itemsize))
             cols = {**cols, "xyz": xyz}
         faces = np.empty((nf, 3), dtype=np.int64)
-        faces[...] = ftab["i"]
+        for k in range(3):  # one column at a time: three times faster than a (3,) subarray field
+            faces[:, k] = ftab[f"i{k}"]
         int_colors = all(_PLY_TYPES[pr[0]] == "u1" for pr in vprops if pr[1] in ("red", "green", "blue"))
     if "xyz" in cols:
         verts = cols["xyz"].astype(np.float64)
