@@ -23,7 +23,7 @@ import torch
 
 from torchmeshmetric._atomic import atomic_write, missing_folder_error
 from torchmeshmetric._checks import EmptyInputError, ShapeError
-from torchmeshmetric.data.obj import MeshFileError, ObjData, check_text, not_a_mesh, parse_obj, text_lines
+from torchmeshmetric.data.obj import MeshFileError, check_text, not_a_mesh, parse_obj, text_lines
 from torchmeshmetric.structures import Mesh
 
 __all__ = [
@@ -250,11 +250,6 @@ def check_dtype_range(
 
 def _text_lines(p: Path, data: bytes) -> list[bytes]:
     return text_lines(p, data)
-
-
-def read_obj(p: Path, data: bytes | None = None, *, uvs: bool = False) -> ObjData:
-    """The one OBJ reader (:func:`~torchmeshmetric.data.obj.parse_obj`) on a file, with the file-level checks."""
-    return parse_obj(p, p.read_bytes() if data is None else data, uvs=uvs)
 
 
 def _parse_obj(p: Path, data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
