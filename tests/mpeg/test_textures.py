@@ -151,3 +151,40 @@ def test_mmetric_test_meshes(tmp_path: Path) -> None:
     assert t.has_color and t.texture is not None and t.uvs is not None
     with pytest.raises(MeshFileError, match=r"different textures \('material0000' \(plane\.png\), 'material0001'"):
         load_textured_mesh(folder / "plane_multi_map.obj")  # mmetric: one map per material; we: one per mesh
+
+
+@pytest.mark.parametrize("kind", ["rgb16", "rgba16", "palette", "rgba8"])
+def test_texture_colours_equal_mm_sample(tmp_path: Path, kind: str) -> None:
+    """The outside oracle: ``mm sample --mode grid`` on a textured mesh with a 16-bit, paletted or RGBA map gives
+    the colours we sample from the map as ``read_texture`` reads it (mmetric writes them rounded to 8 bits)."""
+    import subprocess
+
+    from tests.mpeg.conftest import MM
+    from torchmeshmetric.mpeg import grid_sample
+
+    if not MM.is_file():
+        pytest.skip("mmetric's mm binary absent (../shared/tools/mmetric/mm)")
+    rng = np.random.default_rng(7)
+    if kind == "rgb16":
+        png = _png(rng.integers(0, 65536, (8, 8, 3), dtype=np.uint16), bit_depth=16)
+    elif kind == "rgba16":
+        png = _png(rng.integers(0, 65536, (8, 8, 4), dtype=np.uint16), bit_depth=16)
+    elif kind == "palette":
+        png = _png(rng.integers(0, 16, (8, 8)), palette=rng.integers(0, 256, (16, 3)))
+    else:
+        png = _png(rng.integers(0, 256, (8, 8, 4)))
+    (tmp_path / "tex.png").write_bytes(png)
+    obj = "v 0 0 0\nv 1 0 0\nv 1 1 0.2\nv 0 1 0.1\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n"
+    (tmp_path / "m.obj").write_text(obj)
+    args = ["sample", "--mode", "grid", "--gridSize", "32", "--useNormal", "--bilinear", "--hideProgress"]
+    args += ["-i", str(tmp_path / "m.obj"), "-m", str(tmp_path / "tex.png"), "-o", str(tmp_path / "s.ply")]
+    subprocess.run([str(MM), *args], capture_output=True, text=True, timeout=300, check=True)
+    with open(tmp_path / "s.ply") as fh:
+        for line in fh:
+            if line.startswith("end_header"):
+                break
+        theirs = np.loadtxt(fh, dtype=np.float64, ndmin=2)
+    t = load_textured_mesh(tmp_path / "m.obj", tmp_path / "tex.png")
+    ours = grid_sample(t.mesh, 32, texture=t.texture, uvs=t.uvs, bilinear=True)
+    assert ours.colors is not None and ours.num_points == theirs.shape[0]
+    np.testing.assert_array_equal(np.floor(ours.colors.numpy() + 0.5), theirs[:, 6:9])
