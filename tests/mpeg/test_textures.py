@@ -188,3 +188,36 @@ def test_texture_colours_equal_mm_sample(tmp_path: Path, kind: str) -> None:
     ours = grid_sample(t.mesh, 32, texture=t.texture, uvs=t.uvs, bilinear=True)
     assert ours.colors is not None and ours.num_points == theirs.shape[0]
     np.testing.assert_array_equal(np.floor(ours.colors.numpy() + 0.5), theirs[:, 6:9])
+
+
+def test_obj_vertex_colours_equal_mm_sample(tmp_path: Path) -> None:
+    """OBJ ``v x y z r g b`` colours anywhere in [0, 1] (not only k / 255): mmetric rounds ``value * 255`` when it
+    reads them, and its grid samples interpolate the rounded colours; failed before (unrounded colours)."""
+    import subprocess
+
+    import trimesh
+
+    from tests.mpeg.conftest import MM
+    from torchmeshmetric.mpeg import grid_sample
+
+    if not MM.is_file():
+        pytest.skip("mmetric's mm binary absent (../shared/tools/mmetric/mm)")
+    m = trimesh.creation.icosphere(2)
+    c = np.random.default_rng(4).random((len(m.vertices), 3))
+    lines = [
+        f"v {x:.9g} {y:.9g} {z:.9g} {r:.9g} {g:.9g} {b:.9g}" for (x, y, z), (r, g, b) in zip(m.vertices, c, strict=True)
+    ]
+    lines += [f"f {a + 1} {b + 1} {d + 1}" for a, b, d in m.faces]
+    (tmp_path / "c.obj").write_text("\n".join(lines) + "\n")
+    args = ["sample", "--mode", "grid", "--gridSize", "48", "--useNormal", "--hideProgress"]
+    args += ["-i", str(tmp_path / "c.obj"), "-o", str(tmp_path / "s.ply")]
+    subprocess.run([str(MM), *args], capture_output=True, text=True, timeout=300, check=True)
+    with open(tmp_path / "s.ply") as fh:
+        for line in fh:
+            if line.startswith("end_header"):
+                break
+        theirs = np.loadtxt(fh, dtype=np.float64, ndmin=2)
+    t = load_textured_mesh(tmp_path / "c.obj")
+    ours = grid_sample(t.mesh, 48, colors=t.colors)
+    assert ours.colors is not None and ours.num_points == theirs.shape[0]
+    np.testing.assert_array_equal(np.floor(ours.colors.numpy() + 0.5), theirs[:, 6:9])
