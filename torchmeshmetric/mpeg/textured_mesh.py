@@ -5,16 +5,16 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import torch
 from torch import Tensor
 
-from torchmeshmetric.data.io import MeshFileError, load_mesh
+from torchmeshmetric.data.io import check_dtype_range, check_mesh, read_mesh_arrays, to_tensor
+from torchmeshmetric.data.obj import MeshFileError, MtlMaterial, ObjData, parse_mtl, parse_obj
 from torchmeshmetric.structures import Mesh
 
-__all__ = ["TexturedMesh", "load_textured_mesh"]
+__all__ = ["TexturedMesh", "load_textured_mesh", "read_texture"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -45,99 +45,144 @@ class TexturedMesh:
         return (self.texture is not None and self.uvs is not None) or self.colors is not None
 
 
-def _read_texture(path: Path, where: str) -> np.ndarray:
+def read_texture(path: str | os.PathLike, where: str = "texture") -> np.ndarray:
+    """A texture image as mmetric reads it (stb_image): ``(H, W, 3)`` uint8, row 0 at the top.
+
+    8-bit RGB and RGBA images are taken as stored (alpha dropped: mmetric reads the first three channels);
+    16-bit ones are reduced to their high byte (``value >> 8``, stb_image's ``stbi__convert_16_to_8``); paletted
+    images are expanded through their palette. Greyscale images (1 or 2 channels, any depth) are refused: mmetric
+    keeps their channel count and reads three consecutive bytes per texel, so its colours would be meaningless.
+
+    Args:
+        path: PNG, JPEG (or another format Pillow reads) file.
+        where: who asked for it, for messages (the OBJ and MTL line).
+
+    Returns:
+        ``(H, W, 3)`` uint8 array.
+
+    Raises:
+        MeshFileError: missing or unreadable file, a greyscale or otherwise unsupported image mode.
+
+    Example:
+        >>> import tempfile, pathlib
+        >>> from PIL import Image
+        >>> p = pathlib.Path(tempfile.mkdtemp()) / "t.png"
+        >>> Image.new("P", (2, 1), 0).save(p)  # a paletted image
+        >>> read_texture(p).shape
+        (1, 2, 3)
+    """
     from PIL import Image
 
+    path = Path(path)
     if not path.is_file():
-        raise MeshFileError(f"{where}: texture file {path} not found")
+        raise MeshFileError(f"{where}: texture file '{path}' not found")
+    with open(path, "rb") as fh:
+        head = fh.read(26)
+    # Pillow widens a 16-bit grey+alpha PNG to RGBA: read the PNG's own colour type (0 grey, 4 grey + alpha)
+    png_grey = head[:8] == b"\x89PNG\r\n\x1a\n" and len(head) == 26 and head[25] in (0, 4)
     try:
         with Image.open(path) as im:
-            return np.asarray(im.convert("RGB"), dtype=np.uint8).copy()
+            im.load()
+            mode = "LA" if png_grey and im.mode not in ("L", "LA", "1", "I", "I;16", "I;16B") else im.mode
+            if mode in ("RGB", "RGBA", "RGBX", "RGBa"):
+                # Pillow already reduces 16-bit RGB(A) PNGs to their high byte, as stb_image does.
+                arr = np.asarray(im)[..., :3]
+            elif mode in ("P", "PA"):
+                arr = np.asarray(im.convert("RGBA" if mode == "PA" else "RGB"))[..., :3]
+            elif mode in ("CMYK", "YCbCr", "LAB", "HSV"):
+                arr = np.asarray(im.convert("RGB"))
+            elif mode in ("1", "L", "LA", "La", "I", "I;16", "I;16B", "I;16L", "I;16N", "F"):
+                raise MeshFileError(
+                    f"{where}: texture '{path}' is a greyscale image (mode {mode}); mmetric v1.1.7 reads a "
+                    "greyscale map as if it had three channels per texel, so its colour figures would be "
+                    "meaningless: save the texture as RGB"
+                )
+            else:
+                raise MeshFileError(f"{where}: texture '{path}' has the unsupported image mode {mode}")
     except OSError as exc:
-        raise MeshFileError(f"{where}: cannot read texture {path}: {exc}") from exc
+        raise MeshFileError(f"{where}: cannot read texture '{path}': {exc}") from exc
+    return np.ascontiguousarray(arr, dtype=np.uint8)
 
 
-def _parse_obj(
-    path: Path,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None, np.ndarray | None, str | None]:
-    verts: list[list[float]] = []
-    cols: list[list[float]] = []
-    uvs: list[list[float]] = []
-    faces: list[list[int]] = []
-    fuv: list[list[int]] = []
-    mtllib = None
-    with open(path, encoding="utf-8", errors="replace") as fh:
-        for lineno, line in enumerate(fh, 1):
-            parts = line.split()
-            if not parts:
-                continue
-            tag = parts[0]
-            try:
-                if tag == "v":
-                    xyz = [float(x) for x in parts[1:4]]
-                    if len(xyz) != 3 or not all(np.isfinite(xyz)):
-                        raise ValueError("expected 3 finite coordinates")
-                    verts.append(xyz)
-                    if len(parts) >= 7:
-                        cols.append([float(x) for x in parts[4:7]])
-                elif tag == "vt":
-                    uvs.append([float(x) for x in parts[1:3]])
-                elif tag == "f":
-                    corners = [c.split("/") for c in parts[1:]]
-                    if len(corners) < 3:
-                        raise ValueError("a face needs at least 3 corners")
-                    vi = [int(c[0]) for c in corners]
-                    ti = [int(c[1]) if len(c) > 1 and c[1] else 0 for c in corners]
-                    for k in range(1, len(vi) - 1):  # fan triangulation of polygons
-                        faces.append([vi[0], vi[k], vi[k + 1]])
-                        fuv.append([ti[0], ti[k], ti[k + 1]])
-                elif tag == "mtllib" and mtllib is None:
-                    mtllib = line.strip()[len("mtllib") :].strip()
-            except (ValueError, IndexError) as exc:
-                raise MeshFileError(f"{path}:{lineno}: malformed '{tag}' line: {line.strip()!r} ({exc})") from exc
-    v = np.asarray(verts, dtype=np.float64).reshape(-1, 3)
-    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
-    f = np.where(f < 0, f + v.shape[0], f - 1)
-    t = np.asarray(fuv, dtype=np.int64).reshape(-1, 3)
-    uv_arr = np.asarray(uvs, dtype=np.float64).reshape(-1, 2)
-    corner_uv = None
-    if uv_arr.shape[0] and f.shape[0] and (t != 0).all():
-        t = np.where(t < 0, t + uv_arr.shape[0], t - 1)
-        if (t >= uv_arr.shape[0]).any() or (t < 0).any():
-            raise MeshFileError(f"{path}: a face's texture index is outside the {uv_arr.shape[0]} 'vt' lines")
-        corner_uv = uv_arr[t]
-    if f.size and ((f < 0).any() or (f >= v.shape[0]).any()):
-        raise MeshFileError(f"{path}: a face's vertex index is outside the {v.shape[0]} 'v' lines")
-    colors = np.asarray(cols, dtype=np.float64) if len(cols) == v.shape[0] and cols else None
-    return v, f, corner_uv, colors, uv_arr, mtllib
+def _obj_colors(colors: np.ndarray) -> np.ndarray:
+    """``v x y z r g b`` colours as mmetric stores them: ``roundf((float)value * 255)`` (halves away from 0)."""
+    scaled = colors.astype(np.float32) * np.float32(255.0)
+    return (np.sign(scaled) * np.floor(np.abs(scaled) + np.float32(0.5))).astype(np.float32)
 
 
-def _texture_from_mtl(mtl: Path) -> Path | None:
-    if not mtl.is_file():
+def _obj_texture(p: Path, d: ObjData, corner_uv: np.ndarray | None) -> tuple[Path, str] | None:
+    """The texture file the faces' material names (through ``mtllib`` / ``usemtl`` / ``map_Kd``), with its source.
+
+    Returns ``None`` when the faces use no textured material. Materials are numbered as mmetric numbers them (every
+    ``mtllib``'s ``newmtl`` in order; faces before any ``usemtl``, or after one naming an unknown material, keep
+    the material in force, the first by default).
+    """
+    if corner_uv is None:
+        return None  # no UVs: no texture is looked up (nor its MTL)
+    materials: list[MtlMaterial] = []
+    mtl_of: list[Path] = []
+    for name, line in d.mtllibs:
+        mtl = p.parent / name
+        if not mtl.is_file():
+            raise MeshFileError(
+                f"{p}:{line}: 'mtllib {name}' names a material file that does not exist ({mtl}); the texture it "
+                "names is needed for the colour figures: restore it, pass the texture explicitly (texture=..., "
+                "--ref-texture/--dis-texture), or remove the mtllib line for geometry-only figures"
+            )
+        found = parse_mtl(mtl)
+        materials += found
+        mtl_of += [mtl] * len(found)
+    if not materials:
         return None
-    with open(mtl, encoding="utf-8", errors="replace") as fh:
-        for line in fh:
-            parts = line.strip().split(maxsplit=1)
-            if len(parts) == 2 and parts[0] == "map_Kd":
-                return mtl.parent / parts[1].split()[-1]
-    return None
+    index = {m.name: i for i, m in reversed(list(enumerate(materials)))}  # the first of equal names, as mmetric
+    # usemtl k -> material index; the last entry (-1 in face_materials: before any usemtl) is the first material
+    known = np.array([index.get(name, -1) for name in d.materials] + [0], dtype=np.int64)
+    per_face = known[d.face_materials]
+    if (per_face < 0).any():
+        per_face = per_face.copy()
+        last = 0
+        for j in range(per_face.shape[0]):  # rare: an unknown usemtl name keeps the previous material
+            if per_face[j] < 0:
+                per_face[j] = last
+            last = per_face[j]
+    used = sorted(set(per_face.tolist()))
+    maps = {i: (mtl_of[i].parent / materials[i].map_kd if materials[i].map_kd else None) for i in used}
+    textured = {i: m for i, m in maps.items() if m is not None}
+    if not textured:
+        return None
+    if len(set(textured.values())) > 1 or len(textured) != len(maps):
+        lines = ", ".join(
+            f"'{materials[i].name}' ({m.name if (m := maps[i]) is not None else 'no map_Kd'})" for i in used
+        )
+        raise MeshFileError(
+            f"{p}: its faces use materials with different textures ({lines}); one texture per mesh is supported: "
+            "merge the textures into one atlas, or pass one texture explicitly"
+        )
+    i = used[0] if used[0] in textured else next(iter(textured))
+    return textured[i], f"{mtl_of[i]}:{materials[i].map_line}"
 
 
 def load_textured_mesh(path: str | os.PathLike, texture: str | os.PathLike | None = None) -> TexturedMesh:
-    r"""Load a mesh with its colour (texture and UVs, or per-vertex colours).
+    r"""Load a mesh with its colour (texture and UVs, or per-vertex colours), through the library's one reader.
 
-    An OBJ with UVs and a texture (from its MTL ``map_Kd`` or ``texture``), an OBJ
-    with per-vertex colours (``v x y z r g b``, values in ``[0, 1]`` scaled to 8 bits), or a PLY with vertex colours.
+    An OBJ with UVs and a texture (from its MTL ``map_Kd`` or ``texture``), an OBJ with per-vertex colours
+    (``v x y z r g b``, values in ``[0, 1]`` scaled to 8 bits as mmetric does: ``roundf(value * 255)``), or a PLY
+    with vertex colours. The OBJ is read by the same parser as :func:`~torchmeshmetric.data.load_mesh` (the same
+    geometry, checks and file:line messages; negative indices count back from the last element defined before
+    their line), polygons are fanned from their first corner as mmetric does, and ``vt`` lines and indices are
+    checked too (finite, in range, every face with one when any has one). Textures are read as mmetric reads them
+    (:func:`read_texture`). Coordinates must fit float32 (mmetric reads them as float).
 
     Args:
-        path: OBJ or PLY file.
+        path: OBJ, PLY or OFF file.
         texture: texture image overriding the MTL's (mmetric's ``--inputMap``).
 
     Returns:
         :class:`TexturedMesh` (no colour when the file has none).
 
     Raises:
-        MeshFileError: unreadable or malformed file, a missing texture.
+        MeshFileError: unreadable or malformed file (naming the file and line), an ``mtllib`` naming a missing
+            MTL file, a missing or greyscale texture, faces using several textures.
 
     Example:
         >>> import tempfile, pathlib
@@ -148,25 +193,40 @@ def load_textured_mesh(path: str | os.PathLike, texture: str | os.PathLike | Non
     """
     p = Path(path)
     if not p.is_file():
-        raise MeshFileError(f"{p}: file not found")
-    if p.suffix.lower() != ".obj":
-        mesh = load_mesh(p)
-        colors = None
-        import trimesh
-
-        loaded: Any = trimesh.load(os.fspath(p), process=False, maintain_order=True)
-        visual = getattr(loaded, "visual", None)
-        vc = getattr(visual, "vertex_colors", None)
-        if vc is not None and getattr(visual, "kind", None) == "vertex":
-            colors = torch.from_numpy(np.asarray(vc, dtype=np.float32)[:, :3].copy())
-        tex = _read_texture(Path(texture), "texture") if texture is not None else None
-        return TexturedMesh(mesh, None, tex, colors)
-    v, f, corner_uv, vcolors, _, mtllib = _parse_obj(p)
-    mesh = Mesh(torch.from_numpy(v).to(torch.float32), torch.from_numpy(f))
-    tex_path = Path(texture) if texture is not None else None
-    if tex_path is None and mtllib is not None and corner_uv is not None:
-        tex_path = _texture_from_mtl(p.parent / mtllib)
-    tex = _read_texture(tex_path, str(p)) if tex_path is not None else None
+        raise MeshFileError(f"path: mesh file '{p}' does not exist")
+    if p.stat().st_size == 0:
+        raise MeshFileError(f"path: mesh file '{p}' is empty (0 bytes)")
+    suffix = p.suffix.lower()
+    hint = "mmetric reads coordinates as float32"
+    if suffix != ".obj":
+        verts, faces, colors = read_mesh_arrays(p)
+        check_dtype_range(p, verts, torch.float32, None, hint)
+        tex = read_texture(Path(texture), "texture") if texture is not None else None
+        col = torch.from_numpy(colors.astype(np.float32)) if colors is not None else None
+        return TexturedMesh(Mesh(to_tensor(verts, torch.float32), torch.from_numpy(faces)), None, tex, col)
+    d = parse_obj(p, p.read_bytes(), uvs=True)
+    faces, face_uvs = d.triangles()
+    check_mesh(p, d.verts, faces, d.vert_lines)
+    check_dtype_range(p, d.verts, torch.float32, d.vert_lines, hint)
+    corner_uv = None
+    has_uv = face_uvs >= 0
+    if d.uvs.shape[0] and has_uv.any():
+        if not has_uv.all():
+            j = int(np.nonzero(~has_uv.all(axis=1))[0][0])
+            line = int(d.triangle_lines()[j])
+            raise MeshFileError(
+                f"{p}:{line}: this face has no texture index ('vt') while other faces have one; every face of a "
+                "textured mesh needs its UVs"
+            )
+        corner_uv = d.uvs[face_uvs]
+    mesh = Mesh(to_tensor(d.verts, torch.float32), torch.from_numpy(faces), validate=False)
+    tex = None
+    if texture is not None:
+        tex = read_texture(Path(texture), "texture")
+    else:
+        found = _obj_texture(p, d, corner_uv)
+        if found is not None:
+            tex = read_texture(found[0], f"{p} (map_Kd at {found[1]})")
     uvs = torch.from_numpy(corner_uv.astype(np.float32)) if corner_uv is not None else None
-    col = torch.from_numpy((vcolors * 255.0).astype(np.float32)) if vcolors is not None else None
+    col = torch.from_numpy(_obj_colors(d.vert_colors)) if d.vert_colors is not None else None
     return TexturedMesh(mesh, uvs, tex, col)

@@ -1,0 +1,648 @@
+"""The one Wavefront OBJ (and MTL) reader: positions, UVs, faces, materials, with file:line errors.
+
+Every OBJ the library reads goes through :func:`parse_obj` — :func:`~torchmeshmetric.data.load_mesh`,
+:func:`~torchmeshmetric.data.load_sequence` and :func:`~torchmeshmetric.mpeg.load_textured_mesh` — so a file is one
+geometry everywhere and a bad file gives the same message on every path (see the docs' *Bad input* page).
+
+Two passes share one set of rules. The fast pass classifies lines by their first bytes and parses every number of a
+kind in one call (numpy's C parser, correctly rounded like Python's ``float``); whenever anything is unusual (line
+continuations, a comment after a statement, mixed corner forms) or wrong, the slow pass parses the file statement by
+statement and raises the error naming the file and line. The two give identical results on every file the fast pass
+accepts (tested against each other).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["MeshFileError", "MtlMaterial", "ObjData", "parse_mtl", "parse_obj", "text_lines"]
+
+
+class MeshFileError(ValueError):
+    """A mesh file is missing, unreadable, corrupt, empty or not made of triangles (the message names the file)."""
+
+
+@dataclass(frozen=True, eq=False)
+class ObjData:
+    """What an OBJ file holds, in file order, with the line of every element (for messages).
+
+    Attributes:
+        verts: ``(V, 3)`` float64 positions.
+        vert_lines: ``(V,)`` 1-based line of each ``v``.
+        vert_colors: ``(V, 3)`` float64 ``v x y z r g b`` colours, or ``None`` unless every vertex has one.
+        uvs: ``(T, 2)`` float64 texture coordinates (``vt u v``; a third ``w`` is dropped).
+        uv_lines: ``(T,)`` 1-based line of each ``vt``.
+        corners: ``(C,)`` 0-based vertex index of every face corner (negative indices resolved).
+        corner_uvs: ``(C,)`` 0-based ``vt`` index of every corner, ``-1`` where the corner has none.
+        face_sizes: ``(F,)`` corners per face (3 for a triangle).
+        face_lines: ``(F,)`` 1-based line of each ``f``.
+        face_materials: ``(F,)`` index into ``materials`` of the ``usemtl`` in force, ``-1`` before any.
+        materials: names given to ``usemtl``, in order of first use.
+        material_lines: 1-based line of the first ``usemtl`` of each name.
+        mtllibs: ``(name, line)`` of every ``mtllib`` statement (the name is the rest of the line).
+    """
+
+    verts: np.ndarray
+    vert_lines: np.ndarray
+    vert_colors: np.ndarray | None
+    uvs: np.ndarray
+    uv_lines: np.ndarray
+    corners: np.ndarray
+    corner_uvs: np.ndarray
+    face_sizes: np.ndarray
+    face_lines: np.ndarray
+    face_materials: np.ndarray
+    materials: list[str] = field(default_factory=list)
+    material_lines: list[int] = field(default_factory=list)
+    mtllibs: list[tuple[str, int]] = field(default_factory=list)
+
+    def triangles(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(F', 3)`` vertex and ``vt`` indices, polygons fanned from their first corner (as mmetric does).
+
+        Returns:
+            ``(faces, face_uvs)``, both ``(F', 3)`` int64; ``face_uvs`` is ``-1`` where a corner has no ``vt``.
+        """
+        sizes = self.face_sizes
+        if sizes.size and int(sizes.min()) == int(sizes.max()) == 3:
+            return self.corners.reshape(-1, 3), self.corner_uvs.reshape(-1, 3)
+        first = np.cumsum(sizes) - sizes
+        fan = sizes - 2
+        base = np.repeat(first, fan)
+        k = np.arange(int(fan.sum())) - np.repeat(np.cumsum(fan) - fan, fan) + 1
+        idx = np.stack([base, base + k, base + k + 1], axis=1)
+        return self.corners[idx], self.corner_uvs[idx]
+
+    def triangle_lines(self) -> np.ndarray:
+        """``(F',)`` the line of each triangle of :meth:`triangles`."""
+        return np.repeat(self.face_lines, self.face_sizes - 2)
+
+
+_KEYWORDS = frozenset(
+    b"v vt vn vp f l p o g s mg mtllib usemtl cstype deg bmat step curv curv2 surf parm trim hole scrv sp end con "
+    b"bevel c_interp d_interp lod shadow_obj trace_obj ctech stech call csh maplib usemap".split()
+)
+
+
+def _name(p: Path) -> str:
+    return f"'{p}'"
+
+
+def not_a_mesh(p: Path, why: str) -> MeshFileError:
+    """The error for a file that is no mesh file of its format."""
+    return MeshFileError(f"path: {_name(p)} is not a mesh file ({why})")
+
+
+def text_lines(p: Path, data: bytes) -> list[bytes]:
+    """Lines of a text mesh format; binary data (NUL or other control bytes) is refused as not a mesh file."""
+    check_text(p, data)
+    return data.removeprefix(b"\xef\xbb\xbf").splitlines()  # a UTF-8 byte-order mark is no statement
+
+
+_CONTROL = bytes([*range(0, 9), *range(14, 32), 127])
+
+
+def check_text(p: Path, data: bytes) -> None:
+    """Refuse binary data (NUL or other control bytes) in a text format, naming its line and byte."""
+    if len(data.translate(None, _CONTROL)) == len(data):
+        return  # no control byte (bytes.translate is one C pass; a regex search is ten times slower)
+    control = re.search(rb"[\x00-\x08\x0e-\x1f\x7f]", data)
+    if control is not None:
+        line = data.count(b"\n", 0, control.start()) + 1
+        raise not_a_mesh(p, f"binary data at line {line}, byte {control.start()}")
+
+
+def _rest(line: bytes, key: bytes) -> str:
+    """The rest of a statement line after its keyword, as text (names may hold spaces)."""
+    body = line.split(b"#", 1)[0].strip()
+    return body[len(key) :].strip().decode("utf-8", errors="replace")
+
+
+def parse_obj(p: Path, data: bytes, *, uvs: bool = True) -> ObjData:
+    r"""Parse an OBJ file's bytes (every check of the docs' *Bad input* page; errors name ``p`` and the line).
+
+    OBJ indices are 1-based; a negative index ``-k`` is the ``k``-th element counted back from the last one defined
+    before its line (so ``f -3 -2 -1`` is the last three vertices), for vertices and ``vt`` alike. Corners may be
+    ``v``, ``v/vt``, ``v/vt/vn`` or ``v//vn``. Polygons are kept as such (:meth:`ObjData.triangles` fans them).
+
+    Args:
+        p: the file (for messages).
+        data: its bytes.
+        uvs: read and check the texture coordinates (``vt`` lines and the corners' ``vt`` indices). Without,
+            they are skipped unread, as a reader of geometry only needs (``uvs`` then is empty, ``corner_uvs``
+            ``-1``).
+
+    Returns:
+        :class:`ObjData`.
+
+    Raises:
+        MeshFileError: binary data, a line that is no OBJ statement, a vertex with a wrong number of coordinates
+            or non-numbers, NaN/Inf coordinates or UVs, a face with fewer than 3 corners, an index 0, a negative
+            index counting back past the first element, an index past the last element.
+
+    Example:
+        >>> d = parse_obj(Path("t.obj"), b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 -1/1\n")
+        >>> d.corners.tolist(), d.corner_uvs.tolist()
+        ([0, 1, 2], [0, 0, 0])
+    """
+    check_text(p, data)
+    data = data.removeprefix(b"\xef\xbb\xbf")
+    fast = _parse_fast(data, uvs)
+    if fast is None or not _valid(fast):
+        fast = _parse_slow(p, data, uvs)
+    _check_finite(p, fast)
+    return fast
+
+
+def _valid(d: ObjData) -> bool:
+    """Whether the fast pass's result passes every check (else the slow pass names the problem)."""
+    nv, nt = d.verts.shape[0], d.uvs.shape[0]
+    if d.corners.size and (int(d.corners.min()) < 0 or int(d.corners.max()) >= nv):
+        return False
+    return not (d.corner_uvs.size and int(d.corner_uvs.max()) >= nt)
+
+
+def _check_finite(p: Path, d: ObjData) -> None:
+    bad = ~np.isfinite(d.verts).all(axis=1)
+    if bad.any():
+        i = int(np.nonzero(bad)[0][0])
+        raise MeshFileError(
+            f"path: mesh file {_name(p)} vertex {i} (line {int(d.vert_lines[i])}) has non-finite coordinates "
+            f"{d.verts[i].tolist()} ({int(bad.sum())} such vertices)"
+        )
+    bad = ~np.isfinite(d.uvs).all(axis=1)
+    if bad.any():
+        i = int(np.nonzero(bad)[0][0])
+        raise MeshFileError(
+            f"path: mesh file {_name(p)} texture coordinate {i} (line {int(d.uv_lines[i])}) is not finite: "
+            f"{d.uvs[i].tolist()} ({int(bad.sum())} such 'vt' lines)"
+        )
+
+
+# ----------------------------------------------------------------------------------------------- the fast pass
+_SPACE = np.zeros(256, dtype=bool)
+_SPACE[[9, 11, 12, 13, 32]] = True  # not the newline: a keyword must be followed by something on its line
+_V, _VT, _F, _SKIP, _OTHER = 1, 2, 3, 4, 5
+
+
+def _parse_fast(data: bytes, read_uvs: bool) -> ObjData | None:
+    """Vectorised parse, or ``None`` whenever the file is unusual (the slow pass then decides)."""
+    if not data or b"\\" in data:
+        return None  # line continuations: statement by statement
+    if b"\r" in data:
+        data = data.replace(b"\r\n", b"\n")
+        if b"\r" in data:
+            return None
+    if not data.endswith(b"\n"):
+        data += b"\n"
+    buf = np.frombuffer(data + b"\0\0", dtype=np.uint8).copy()  # two bytes to look past the last line start
+    nl = np.flatnonzero(buf == 10)
+    starts = np.concatenate(([0], nl[:-1] + 1))
+    ends = nl
+    c0, c1, c2 = buf[starts], buf[starts + 1], buf[starts + 2]
+    sp1, sp2 = _SPACE[c1], _SPACE[c2]
+    kind = np.full(len(starts), _OTHER, dtype=np.uint8)
+    kind[starts == ends] = _SKIP
+    kind[c0 == ord("#")] = _SKIP
+    kind[(c0 == ord("v")) & sp1] = _V
+    kind[(c0 == ord("v")) & (c1 == ord("t")) & sp2] = _VT if read_uvs else _SKIP
+    kind[(c0 == ord("v")) & (c1 == ord("n")) & sp2] = _SKIP  # normals are not used
+    kind[(c0 == ord("f")) & sp1] = _F
+    hashes = np.flatnonzero(buf == ord("#"))
+    if hashes.size:
+        hash_line = np.searchsorted(starts, hashes, side="right") - 1
+        k = kind[hash_line]
+        if ((k == _V) | (k == _VT) | (k == _F)).any():
+            return None  # a comment after a statement
+    materials: list[str] = []
+    material_lines: list[int] = []
+    mtllibs: list[tuple[str, int]] = []
+    use_at: list[tuple[int, int]] = []  # (line index, material index)
+    for i in np.flatnonzero(kind == _OTHER).tolist():
+        line = data[starts[i] : ends[i]]
+        tokens = line.split(b"#", 1)[0].split()
+        if not tokens:
+            continue
+        key = tokens[0]
+        if key not in _KEYWORDS or key in (b"v", b"vt", b"f") or not line[:1].strip():
+            return None  # not OBJ, or an indented statement: the slow pass
+        if key == b"mtllib":
+            mtllibs.append((_rest(line, key), i + 1))
+        elif key == b"usemtl":
+            name = _rest(line, key)
+            if name not in materials:
+                materials.append(name)
+                material_lines.append(i + 1)
+            use_at.append((i, materials.index(name)))
+    if not ((kind == _V).any() or (kind == _F).any() or (kind == _VT).any() or mtllibs):
+        return None  # no statement at all (or only odd ones): the slow pass names it
+    v_lines = np.flatnonzero(kind == _V)
+    vt_lines = np.flatnonzero(kind == _VT)
+    f_lines = np.flatnonzero(kind == _F)
+    buf[starts[v_lines]] = 32  # blank the keywords
+    buf[starts[vt_lines]] = 32
+    buf[starts[vt_lines] + 1] = 32
+    buf[starts[f_lines]] = 32
+    # Tokens per line: space-to-text transitions, counted by a running sum read at the line ends. Control bytes
+    # other than whitespace were refused, so "<= 32" is whitespace.
+    space = buf <= 32
+    rise = np.empty(buf.shape[0], dtype=bool)
+    rise[0] = not space[0]
+    np.greater(space[:-1], space[1:], out=rise[1:])  # space, then text
+    # each line's segment ends with its newline (a space), so an empty line sums to 0
+    counts = np.add.reduceat(rise, starts, dtype=np.int32)
+    regions = _Regions(buf, kind, starts, ends)
+
+    verts, colors = _numbers(regions.of(_V, v_lines), counts[v_lines], (3, 4, 6, 7))
+    if verts is None:
+        return None
+    uvs, _ = _numbers(regions.of(_VT, vt_lines), counts[vt_lines], (2, 3))
+    if uvs is None:
+        return None
+    if colors is not None and (counts[v_lines] < 6).any():
+        colors = None
+
+    sizes = counts[f_lines]
+    if sizes.size and int(sizes.min()) < 3:
+        return None
+    fbytes = regions.of(_F, f_lines)
+    slash = fbytes == ord("/")
+    n_slash = int(np.count_nonzero(slash))
+    n_corner = int(sizes.sum())
+    double = int(np.count_nonzero(slash[:-1] & slash[1:])) if n_slash else 0
+    if n_slash == 0:
+        per, uv_col = 1, -1
+    elif double == 0 and n_slash == n_corner:
+        per, uv_col = 2, 1
+    elif double == 0 and n_slash == 2 * n_corner:
+        per, uv_col = 3, 1
+    elif double == n_corner and n_slash == 2 * n_corner:
+        per, uv_col = 2, -1
+    else:
+        return None
+    if n_slash:
+        per_corner = 2 if uv_col < 0 else per - 1  # slashes in each corner of the form found
+        per_line = np.add.reduceat(buf == ord("/"), starts, dtype=np.int32)[f_lines]
+        if not np.array_equal(per_line, sizes * per_corner):
+            return None  # corners of mixed forms
+        fbytes = np.where(slash, np.uint8(32), fbytes)
+    try:
+        ints = np.fromstring(fbytes.tobytes(), dtype=np.int64, sep=" ")
+    except ValueError:
+        return None
+    if ints.size != n_corner * per:
+        return None
+    ints = ints.reshape(-1, per)
+    corner_line = np.repeat(f_lines, sizes)
+    v_before = np.cumsum(kind == _V)[corner_line]  # vertices defined up to each face's line
+    idx = ints[:, 0]
+    if (idx == 0).any():
+        return None
+    corners = np.where(idx < 0, v_before + idx, idx - 1)
+    if (idx < 0).any() and (corners[idx < 0] < 0).any():
+        return None
+    if uv_col > 0 and read_uvs:
+        t = ints[:, uv_col]
+        if (t == 0).any():
+            return None
+        t_before = np.cumsum(kind == _VT)[corner_line]
+        corner_uvs = np.where(t < 0, t_before + t, t - 1)
+        if (t < 0).any() and (corner_uvs[t < 0] < 0).any():
+            return None
+    else:
+        corner_uvs = np.full(n_corner, -1, dtype=np.int64)
+    face_materials = np.full(len(f_lines), -1, dtype=np.int64)
+    if use_at:
+        at = np.searchsorted(np.array([a for a, _ in use_at]), f_lines) - 1  # the last usemtl before each face
+        face_materials = np.where(at >= 0, np.array([m for _, m in use_at])[at], -1)
+    return ObjData(
+        verts=verts[:, :3],
+        vert_lines=v_lines + 1,
+        vert_colors=colors,
+        uvs=uvs[:, :2],
+        uv_lines=vt_lines + 1,
+        corners=corners.astype(np.int64),
+        corner_uvs=corner_uvs.astype(np.int64),
+        face_sizes=sizes.astype(np.int64),
+        face_lines=f_lines + 1,
+        face_materials=face_materials,
+        materials=materials,
+        material_lines=material_lines,
+        mtllibs=mtllibs,
+    )
+
+
+_INTEGER_TEXT = b"0123456789-+ \t\n\r\v\f"
+
+
+def _floats(text: bytes) -> np.ndarray:
+    """Whitespace-separated numbers as float64, each the correctly rounded value Python's ``float`` gives.
+
+    Integer coordinates (quantised meshes) are parsed as integers, about ten times faster, when every token is
+    one and every value is below ``1e15`` (exact in float64, and no token can have been clamped by the parser), and
+    no token is a negative zero.
+    """
+    if not text.translate(None, _INTEGER_TEXT) and b"-0" not in text:  # "-0" is the float -0.0
+        ints = np.fromstring(text, dtype=np.int64, sep=" ")
+        if ints.size == 0 or int(np.abs(ints).max()) < 10**15:
+            return ints.astype(np.float64)
+    return np.fromstring(text, dtype=np.float64, sep=" ")
+
+
+class _Regions:
+    """The bytes of the lines of one kind: a slice when they are consecutive (the usual layout), else a mask."""
+
+    def __init__(self, buf: np.ndarray, kind: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> None:
+        self.buf, self.kind, self.starts, self.ends = buf, kind, starts, ends
+        self._line_of_byte: np.ndarray | None = None
+
+    def of(self, k: int, lines: np.ndarray) -> np.ndarray:
+        if lines.size == 0:
+            return self.buf[:0]
+        first, last = int(lines[0]), int(lines[-1])
+        if last - first + 1 == lines.size:
+            return self.buf[self.starts[first] : self.ends[last] + 1]
+        if self._line_of_byte is None:
+            self._line_of_byte = np.repeat(self.kind, self.ends - self.starts + 1)
+        return self.buf[: self._line_of_byte.shape[0]][self._line_of_byte == k]
+
+
+def _numbers(
+    text: np.ndarray, counts: np.ndarray, allowed: tuple[int, ...]
+) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The numbers of every line of one kind: ``(rows, colours)`` (``rows`` ``(N, min(allowed))``), or ``None``."""
+    width = allowed[0]
+    if counts.size == 0:
+        return np.zeros((0, width)), None
+    if not np.isin(counts, allowed).all():
+        return None, None
+    try:
+        flat = _floats(text.tobytes())
+    except ValueError:
+        return None, None
+    if flat.size != int(counts.sum()):
+        return None, None
+    lo, hi = int(counts.min()), int(counts.max())
+    if lo == hi:
+        rows = flat.reshape(-1, lo)
+        return rows[:, :width], (rows[:, 3:6] if lo >= 6 else None)
+    offset = np.cumsum(counts) - counts
+    rows = flat[offset[:, None] + np.arange(width)]
+    colors = None
+    if lo >= 6:
+        colors = flat[offset[:, None] + np.arange(3, 6)]
+    elif hi >= 6:
+        colors = np.zeros((counts.size, 3))  # some vertices lack a colour: the caller drops them
+    return rows, colors
+
+
+# ----------------------------------------------------------------------------------------------- the slow pass
+def _parse_slow(p: Path, data: bytes, read_uvs: bool) -> ObjData:
+    """One statement at a time, naming the line of the first problem."""
+    lines = data.splitlines()
+    verts: list[list[float]] = []
+    vert_lines: list[int] = []
+    colors: list[list[float] | None] = []
+    uvs: list[list[float]] = []
+    uv_lines: list[int] = []
+    corners: list[int] = []
+    corner_uvs: list[int] = []
+    sizes: list[int] = []
+    face_lines: list[int] = []
+    face_materials: list[int] = []
+    materials: list[str] = []
+    material_lines: list[int] = []
+    mtllibs: list[tuple[str, int]] = []
+    material = -1
+    pending = b""
+    start = 0
+    statements = 0
+    for lineno, raw in enumerate(lines, 1):
+        line = pending + raw
+        if line.rstrip().endswith(b"\\"):  # line continuation
+            pending = line.rstrip()[:-1] + b" "
+            start = start or lineno
+            continue
+        at, pending, start = start or lineno, b"", 0
+        tokens = line.split(b"#", 1)[0].split()
+        if not tokens:
+            continue
+        key = tokens[0]
+        if key not in _KEYWORDS:
+            raise not_a_mesh(p, f"line {at} starts with {key.decode('latin-1')!r}, not an OBJ statement")
+        statements += 1
+        if key == b"v":
+            n = len(tokens) - 1
+            if n not in (3, 4, 6, 7):
+                raise MeshFileError(
+                    f"path: {_name(p)} line {at}: vertex {len(verts)} has {n} coordinate(s); expected 'v x y z' "
+                    "(optionally w, or r g b [a])"
+                )
+            try:
+                verts.append([float(t) for t in tokens[1:4]])
+                colors.append([float(t) for t in tokens[4:7]] if n >= 6 else None)
+            except ValueError:
+                raise MeshFileError(
+                    f"path: {_name(p)} line {at}: vertex coordinates "
+                    f"{b' '.join(tokens[1 : n + 1]).decode('latin-1')!r} are not numbers"
+                ) from None
+            vert_lines.append(at)
+        elif key == b"vt" and read_uvs:
+            n = len(tokens) - 1
+            if n not in (2, 3):
+                raise MeshFileError(
+                    f"path: {_name(p)} line {at}: texture coordinate {len(uvs)} has {n} value(s); expected 'vt u v' "
+                    "(optionally w)"
+                )
+            try:
+                uvs.append([float(t) for t in tokens[1:3]])
+            except ValueError:
+                raise MeshFileError(
+                    f"path: {_name(p)} line {at}: texture coordinates "
+                    f"{b' '.join(tokens[1:]).decode('latin-1')!r} are not numbers"
+                ) from None
+            uv_lines.append(at)
+        elif key == b"f":
+            n = len(tokens) - 1
+            if n < 3:
+                raise MeshFileError(f"path: {_name(p)} line {at} has a face with {n} corners; expected triangles")
+            for t in tokens[1:]:
+                parts = t.split(b"/")
+                corners.append(_index(p, at, parts[0], len(verts), "vertex", t))
+                has_uv = read_uvs and len(parts) > 1 and parts[1] != b""
+                corner_uvs.append(_index(p, at, parts[1], len(uvs), "texture", t) if has_uv else -1)
+            sizes.append(n)
+            face_lines.append(at)
+            face_materials.append(material)
+        elif key == b"mtllib":
+            mtllibs.append((_rest(line, key), at))
+        elif key == b"usemtl":
+            name = _rest(line, key)
+            if name not in materials:
+                materials.append(name)
+                material_lines.append(at)
+            material = materials.index(name)
+    if statements == 0:
+        raise not_a_mesh(p, "no OBJ statement (v, f, ...) found")
+    nv = len(verts)
+    for c, line_no in zip(corners, np.repeat(face_lines, sizes).tolist(), strict=True):
+        if c >= nv:
+            face = face_lines.index(line_no)
+            raise MeshFileError(
+                f"path: {_name(p)} line {line_no}: face {face}: vertex index {c + 1} is out of range (the file "
+                f"has {nv} vertices)"
+            )
+    for c, line_no in zip(corner_uvs, np.repeat(face_lines, sizes).tolist(), strict=True):
+        if c >= len(uvs):
+            raise MeshFileError(
+                f"path: {_name(p)} line {line_no}: texture index {c + 1} is out of range (the file has {len(uvs)} "
+                "'vt' lines)"
+            )
+    has_color = bool(colors) and all(c is not None for c in colors)
+    return ObjData(
+        verts=np.array(verts, dtype=np.float64).reshape(-1, 3),
+        vert_lines=np.array(vert_lines, dtype=np.int64),
+        vert_colors=np.array(colors, dtype=np.float64).reshape(-1, 3) if has_color else None,
+        uvs=np.array(uvs, dtype=np.float64).reshape(-1, 2),
+        uv_lines=np.array(uv_lines, dtype=np.int64),
+        corners=np.array(corners, dtype=np.int64),
+        corner_uvs=np.array(corner_uvs, dtype=np.int64),
+        face_sizes=np.array(sizes, dtype=np.int64),
+        face_lines=np.array(face_lines, dtype=np.int64),
+        face_materials=np.array(face_materials, dtype=np.int64),
+        materials=materials,
+        material_lines=material_lines,
+        mtllibs=mtllibs,
+    )
+
+
+def _index(p: Path, at: int, text: bytes, defined: int, what: str, corner: bytes) -> int:
+    """A 0-based index from an OBJ corner field (1-based, or negative counting back from the last defined)."""
+    things = "vertex" if what == "vertex" else "'vt'"
+    try:
+        idx = int(text)
+    except ValueError:
+        raise MeshFileError(
+            f"path: {_name(p)} line {at}: face corner {corner.decode('latin-1')!r} is not a {what} index"
+        ) from None
+    if idx == 0:
+        raise MeshFileError(
+            f"path: {_name(p)} line {at}: face {what} index 0 is invalid (OBJ indices start at 1; negative ones "
+            f"count back from the last {things} defined)"
+            if what != "vertex"
+            else f"path: {_name(p)} line {at}: face index 0 is invalid (OBJ indices start at 1; negative ones "
+            "count back from the last vertex)"
+        )
+    if idx < 0:
+        if -idx > defined:
+            lead = "face index" if what == "vertex" else "face texture index"
+            first = "the first vertex" if what == "vertex" else "the first 'vt'"
+            plural = "vertices" if what == "vertex" else "'vt' lines"
+            raise MeshFileError(
+                f"path: {_name(p)} line {at}: {lead} {idx} counts back past {first} ({defined} {plural} defined "
+                "before this line)"
+            )
+        return defined + idx
+    return idx - 1
+
+
+# ----------------------------------------------------------------------------------------------- MTL
+@dataclass(frozen=True)
+class MtlMaterial:
+    """One ``newmtl`` of an MTL file.
+
+    Attributes:
+        name: the material's name (the rest of the ``newmtl`` line).
+        line: its ``newmtl`` line.
+        map_kd: the ``map_Kd`` texture file, relative to the MTL's folder, or ``None``.
+        map_line: the ``map_Kd`` line (0 when there is none).
+    """
+
+    name: str
+    line: int
+    map_kd: str | None = None
+    map_line: int = 0
+
+
+# map_Kd options and how many arguments each takes (-o, -s, -t take 1 to 3 numbers).
+_MAP_OPTIONS = {
+    "-blendu": 1,
+    "-blendv": 1,
+    "-bm": 1,
+    "-boost": 1,
+    "-cc": 1,
+    "-clamp": 1,
+    "-imfchan": 1,
+    "-mm": 2,
+    "-texres": 1,
+    "-type": 1,
+    "-o": 3,
+    "-s": 3,
+    "-t": 3,
+}
+
+
+def _map_name(rest: str) -> str:
+    """The file name of a ``map_Kd`` statement: what follows the keyword and its options (it may hold spaces)."""
+    text = rest.strip()
+    while text.startswith("-"):
+        parts = text.split(None, 1)
+        option = parts[0]
+        if option not in _MAP_OPTIONS:
+            break
+        text = parts[1] if len(parts) > 1 else ""
+        for k in range(_MAP_OPTIONS[option]):
+            arg = text.split(None, 1)
+            if not arg:
+                break
+            if k > 0 or option in ("-o", "-s", "-t"):
+                try:
+                    float(arg[0])
+                except ValueError:
+                    break  # -o/-s/-t take 1 to 3 numbers
+            text = arg[1] if len(arg) > 1 else ""
+    return text.strip()
+
+
+def parse_mtl(path: Path) -> list[MtlMaterial]:
+    r"""The materials of an MTL file and their ``map_Kd`` textures (names may hold spaces; options are skipped).
+
+    Args:
+        path: the MTL file (it must exist).
+
+    Returns:
+        The materials in file order.
+
+    Raises:
+        MeshFileError: binary data in the file, or a ``map_Kd`` without a file name (naming the line).
+
+    Example:
+        >>> import tempfile
+        >>> p = Path(tempfile.mkdtemp()) / "m.mtl"
+        >>> _ = p.write_text("newmtl skin\nmap_Kd -s 1 1 1 my texture.png\n")
+        >>> parse_mtl(p)[0].map_kd
+        'my texture.png'
+    """
+    data = path.read_bytes()
+    check_text(path, data)
+    out: list[MtlMaterial] = []
+    for lineno, raw in enumerate(data.removeprefix(b"\xef\xbb\xbf").splitlines(), 1):
+        line = raw.split(b"#", 1)[0].strip()
+        tokens = line.split()
+        if not tokens:
+            continue
+        key = tokens[0]
+        if key == b"newmtl":
+            out.append(MtlMaterial(_rest(line, key), lineno))
+        elif key == b"map_Kd":
+            name = _map_name(_rest(line, key))
+            if not name:
+                raise MeshFileError(f"path: {_name(path)} line {lineno}: 'map_Kd' names no texture file")
+            if not out:
+                raise MeshFileError(f"path: {_name(path)} line {lineno}: 'map_Kd' before any 'newmtl'")
+            last = out[-1]
+            out[-1] = MtlMaterial(last.name, last.line, name, lineno)
+    return out
