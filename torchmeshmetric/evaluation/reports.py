@@ -56,6 +56,14 @@ COLUMNS: tuple[tuple[str, str], ...] = (
 _MESH_LABELS = {"k_minus_1": "(k-1)-th", "k": "k-th"}
 #: Algorithm cell of the registration's rows, and their mesh cells.
 REGISTRATION_ROW = "Registration"
+STABILITY_NOTE = (
+    "moving the original frames by one ulp or by 1e-9 (relative) moves the (k-1)-th and flicker statistics by at most "
+    "~1e-7 (relative; measured, docs/registration.md), so their printed digits are determined by the input frames; "
+    "a change of 1e-6 in the input (float32 storage, six-decimal files) can move them by up to ~1e-2, so compare "
+    "them between methods to about 2 significant digits unless the frames are stored in float64."
+)
+"""What the registration's stability (``tests/benchmarks/test_registration_stability.py``) says about the digits of
+the sets built on it; printed under the report's tables."""
 _REGISTRATION_LABELS = {"residual": "residual to k", "error": "error to truth"}
 _TITLES = {
     "I": "Table I: best pair, mesh surface distance",
@@ -167,7 +175,8 @@ def paper_tables(methods: Mapping[str, SequenceEvaluation], *, reverse: bool = T
         "flicker: simplified frame k against the simplified frame k-1 moved onto frame k by the registration. "
         f"{REGISTRATION_ROW} rows (the same for every algorithm): the registration of original k-1 onto k, its "
         "residual (registered vertices to the surface of frame k) and, when the true motion is known, its error; "
-        "differences between algorithms on the (k-1)-th and flicker rows smaller than these are not meaningful."
+        "differences between algorithms on the (k-1)-th and flicker rows smaller than these are not meaningful. "
+        f"Stability: {STABILITY_NOTE}"
     )
     return "\n".join(out) + "\n"
 
