@@ -318,7 +318,12 @@ def main() -> None:
     parser.add_argument("--quick", action="store_true", help="the few-second version (what the test runs)")
     parser.add_argument("--lambdas", type=float, nargs="+", default=[0.0, 1.0, 4.0])
     parser.add_argument("--json", help="also write the results to this JSON file")
+    parser.add_argument(
+        "--threads", type=int, help="torch threads (1 on a shared machine: many small ops, each a parallel region)"
+    )
     args = parser.parse_args()
+    if args.threads:
+        torch.set_num_threads(args.threads)
     setup = Setup.quick() if args.quick else Setup()
     with tempfile.TemporaryDirectory() as tmp:
         out = run(setup, tuple(args.lambdas), tmp)

@@ -19,7 +19,10 @@ Contenders, the same step, the same warp (torch, shared), the same four directed
   with ``Mesh.refit`` every step) queried with ``wp.mesh_query_point_no_sign``, the distance to the returned closest
   point computed in a Warp kernel recorded on a ``wp.Tape``, wrapped in a ``torch.autograd.Function`` through
   ``wp.from_torch`` / ``wp.to_torch`` (the closest face's barycentrics held fixed in the backward pass, which is the
-  exact gradient of the distance). Warp's CPU kernels run on one thread; ours use torch's threads.
+  exact gradient of the distance). Warp's CPU kernels run on one thread; ours and the shared torch parts (the warp)
+  use torch's threads: ``TMM_BENCH_THREADS=1`` sets torch's thread count (one thread each: the like-for-like
+  comparison, and the only meaningful one on a loaded machine, where every parallel region of a torch op waits for a
+  descheduled thread; measured 10x slower on two threads than on one with a load of 9 on 2 cores).
 """
 
 from __future__ import annotations
@@ -36,6 +39,8 @@ from torchmeshmetric.metrics import TemporalConsistencyLoss, temporal_consistenc
 
 DEVICES = [d for d in os.environ.get("TMM_BENCH_DEVICES", "cpu").split(",") if d]
 PAIRS = 8
+if os.environ.get("TMM_BENCH_THREADS"):
+    torch.set_num_threads(int(os.environ["TMM_BENCH_THREADS"]))
 STEP = 1e-5  # vertex motion per step (a fraction of the ~2-unit figure): an optimiser's step
 
 
@@ -55,16 +60,24 @@ def case() -> dict[str, Any]:
     }
 
 
+def identity(points: torch.Tensor) -> torch.Tensor:
+    """The "no motion" warp: isolates the distance queries and their backward pass from the warp's cost."""
+    return points
+
+
+WARPS = ["registration", "identity"]
+
+
 class Step:
     """The moving simplified frames: leaf tensors moved by ``STEP`` noise at each call (no autograd)."""
 
-    def __init__(self, device: str) -> None:
+    def __init__(self, device: str, warp: str) -> None:
         c = case()
         self.device = device
         self.verts = [s.verts.to(device).clone().requires_grad_(True) for s in c["simplified"]]
         self.faces = [s.faces.to(device) for s in c["simplified"]]
         self.originals = [o.to(device) for o in c["originals"]]
-        self.warp = c["warp"].to(device, torch.float32)
+        self.warp = c["warp"].to(device, torch.float32) if warp == "registration" else identity
         self.gen = torch.Generator(device=device).manual_seed(0)
 
     def move(self) -> None:
@@ -83,19 +96,20 @@ def sync(device: str) -> None:
         torch.cuda.synchronize()
 
 
-def _group(device: str) -> str:
+def _group(device: str, warp: str) -> str:
     c = case()
     return (
-        f"temporal loss fwd+bwd, {device}, {PAIRS} pairs, ~{c['simplified'][1].num_verts} simplified verts, "
-        f"~{c['originals'][1].num_faces} reference faces, float32"
+        f"temporal loss fwd+bwd, {device}, {warp} warp, {PAIRS} pairs, ~{c['simplified'][1].num_verts} simplified "
+        f"verts, ~{c['originals'][1].num_faces} reference faces, float32, {torch.get_num_threads()} torch threads"
     )
 
 
+@pytest.mark.parametrize("warp", WARPS)
 @pytest.mark.parametrize("device", DEVICES)
-def test_ours(benchmark, record, device):
+def test_ours(benchmark, record, device, warp):
     if device == "cuda" and not torch.cuda.is_available():
         pytest.skip("no CUDA device")
-    state = Step(device)
+    state = Step(device, warp)
     loss_fn = TemporalConsistencyLoss()
 
     def step() -> None:
@@ -105,14 +119,15 @@ def test_ours(benchmark, record, device):
 
     step()  # the original frames' indexes and the kept indexes are built here, once
     benchmark.pedantic(step, rounds=5, iterations=1, warmup_rounds=1)
-    record(_group(device), "ours", benchmark.stats.stats.min)
+    record(_group(device, warp), "ours", benchmark.stats.stats.min)
 
 
+@pytest.mark.parametrize("warp", WARPS)
 @pytest.mark.parametrize("device", DEVICES)
-def test_ours_rebuilt(benchmark, record, device):
+def test_ours_rebuilt(benchmark, record, device, warp):
     if device == "cuda" and not torch.cuda.is_available():
         pytest.skip("no CUDA device")
-    state = Step(device)
+    state = Step(device, warp)
 
     def step() -> None:
         state.move()
@@ -120,7 +135,7 @@ def test_ours_rebuilt(benchmark, record, device):
         sync(device)
 
     benchmark.pedantic(step, rounds=3, iterations=1, warmup_rounds=1)
-    record(_group(device), "ours, rebuilt", benchmark.stats.stats.min)
+    record(_group(device, warp), "ours, rebuilt", benchmark.stats.stats.min)
 
 
 class WarpPeer:
@@ -223,12 +238,13 @@ class WarpPeer:
         return sum((torch.cat(d).mean() for d in sets.values()), start=torch.zeros((), device=s_k[0][0].device))
 
 
+@pytest.mark.parametrize("warp", WARPS)
 @pytest.mark.parametrize("device", DEVICES)
-def test_warp_peer(benchmark, record, device):
+def test_warp_peer(benchmark, record, device, warp):
     if device == "cuda" and not torch.cuda.is_available():
         pytest.skip("no CUDA device")
     pytest.importorskip("warp")
-    state = Step(device)
+    state = Step(device, warp)
     peer = WarpPeer(device)
     s_k, s_km1, o_k, _o_km1, warps = state.args()
     # Same value as ours (float32 rounding only): the peer computes the same loss.
@@ -244,4 +260,4 @@ def test_warp_peer(benchmark, record, device):
 
     step()  # kernels compiled and the original frames' meshes built here, once
     benchmark.pedantic(step, rounds=5, iterations=1, warmup_rounds=1)
-    record(_group(device), "warp mesh_query_point", benchmark.stats.stats.min)
+    record(_group(device, warp), "warp mesh_query_point", benchmark.stats.stats.min)
