@@ -35,9 +35,10 @@ from torch import Tensor, nn
 from torchmeshmetric._checks import ShapeError
 from torchmeshmetric.kernels.index_cache import IndexCache, _fingerprint
 from torchmeshmetric.kernels.mesh_index import MeshIndex
+from torchmeshmetric.kernels.sampling import vertex_set
 from torchmeshmetric.metrics._inputs import _is_mesh_like
 from torchmeshmetric.metrics._loss import check_loss_args, reduce_directed
-from torchmeshmetric.metrics.mesh_surface_distance import mesh_surface_distance_sets
+from torchmeshmetric.metrics.directed_distances import DirectedDistances
 from torchmeshmetric.registration.nonrigid import register_nonrigid
 from torchmeshmetric.registration.options import NonRigidOptions
 from torchmeshmetric.registration.warp import RegistrationWarp, SurfaceWarp, Warp
@@ -113,6 +114,7 @@ class TemporalLossCache:
         self.indexes = IndexCache(max_entries=max_indexes)
         self._simplified = _KeptIndex()
         self._moved = _KeptIndex()
+        self._frame_simplified = _KeptIndex()  # the simplified frames in a wider dtype, for the original vertices
 
     @property
     def num_warps(self) -> int:
@@ -137,7 +139,72 @@ class TemporalLossCache:
     def __getstate__(self) -> dict[str, object]:
         # A cache: pickled empty (a module holding one is deep-copied, pickled by checkpoints).
         return {"max_warps": self.max_warps, "_warps": OrderedDict(), "indexes": self.indexes,
-                "_simplified": _KeptIndex(), "_moved": _KeptIndex()}  # fmt: skip
+                "_simplified": _KeptIndex(), "_moved": _KeptIndex(), "_frame_simplified": _KeptIndex()}  # fmt: skip
+
+
+class _DanskinDistance(torch.autograd.Function):
+    """Distances from points to the surface an index holds, with the gradient of Danskin's theorem.
+
+    ``d(p, V) = min_{b in simplex} |p - sum_j b_j v_j|``: where the minimiser ``b*`` (the closest point) is unique,
+    the gradient of the minimum is the gradient at the fixed minimiser (Danskin 1967): ``dd/dp = (p - c) / d`` and
+    ``dd/dv_j = -b*_j (p - c) / d`` for the corners of the closest face, 0 at ``d = 0`` (the convention of the
+    kernels' ``safe_sqrt``). The same values as autograd through the closest-point formulas (float64: 1e-10 apart),
+    without their graph: the forward pass is the index's fused no-autograd query, the backward pass a few
+    ``(P, 3)`` operations and one ``index_add_`` (about 5x faster than autograd through the seven-region formulas).
+    """
+
+    @staticmethod
+    def forward(ctx: Any, points: Tensor, verts: Tensor, faces: Tensor, index: MeshIndex, lengths: Tensor) -> Tensor:
+        with torch.no_grad():
+            hit = index._point_mesh_distance(points.detach(), lengths)
+        ctx.save_for_backward(points.detach() - hit.closest, hit.dists, hit.bary, faces[hit.face_idx])
+        ctx.num_verts = int(verts.shape[0])
+        return hit.dists
+
+    @staticmethod
+    def backward(ctx: Any, grad: Tensor) -> tuple[Tensor | None, Tensor | None, None, None, None]:
+        diff, dists, bary, corners = ctx.saved_tensors
+        scale = torch.where(dists > 0, grad / torch.where(dists > 0, dists, torch.ones_like(dists)), 0.0)
+        unit = scale[:, None] * diff  # dL/dp
+        grad_verts = None
+        if ctx.needs_input_grad[1]:
+            grad_verts = unit.new_zeros(ctx.num_verts, 3).index_add_(
+                0, corners.reshape(-1), (-bary[:, :, None] * unit[:, None, :]).reshape(-1, 3)
+            )
+        return (unit if ctx.needs_input_grad[0] else None), grad_verts, None, None, None
+
+
+def _to_surface(points: list[Tensor], meshes: list[Mesh], index: MeshIndex) -> Tensor:
+    """Packed distances from each item's points to its mesh, on ``index`` (the index of ``meshes``).
+
+    Differentiable w.r.t. the points and the meshes' vertices (:class:`_DanskinDistance`).
+    """
+    p = torch.cat(points) if len(points) > 1 else points[0]
+    if p.shape[0] == 0:
+        return p.new_zeros(0)
+    verts = torch.cat([m.verts for m in meshes]) if len(meshes) > 1 else meshes[0].verts
+    offsets = [0]
+    for m in meshes[:-1]:
+        offsets.append(offsets[-1] + m.num_verts)
+    faces = (
+        torch.cat([m.faces + o for m, o in zip(meshes, offsets, strict=True)]) if len(meshes) > 1 else meshes[0].faces
+    )
+    lengths = torch.tensor([q.shape[0] for q in points], dtype=torch.long, device=p.device)
+    out: Tensor = _DanskinDistance.apply(p.to(index.dtype), verts.to(index.dtype), faces, index, lengths)
+    return out
+
+
+def _directed(
+    points: list[Tensor],
+    meshes: list[Mesh],
+    index: MeshIndex,
+    reverse: tuple[list[Tensor], list[Mesh], MeshIndex] | None,
+) -> DirectedDistances:
+    """Forward (``points`` → ``meshes``) and, when given, reverse distances, packed as the losses reduce them."""
+    forward = _to_surface(points, meshes, index)
+    rev = None if reverse is None else _to_surface(*reverse)
+    no_lengths = torch.zeros(0, dtype=torch.long)
+    return DirectedDistances(forward, no_lengths, rev, None, forward.new_zeros(0))
 
 
 def _mesh_items(x: Any, name: str) -> list[Mesh]:
@@ -306,27 +373,35 @@ def temporal_consistency_loss(
         warp = work.warp(ok, okm1, options, backend) if g is None else _as_warp(g, ok, okm1, name)
         moved.append(_moved(warp, skm1, sk, name))
     # One index per role for the whole batch: the moved frames k-1 (measured to) and the simplified frames k
-    # (measured to by both reverse directions), refitted across calls while their faces stay the same.
+    # (measured to by both reverse directions), refitted across calls while their faces stay the same; the
+    # original frames k found again by content. Every index holds detached vertices: the gradient to the vertices
+    # comes from _DanskinDistance, to the meshes given here.
+    k_points = [vertex_set(m) for m in s_k]
     simplified_index = work._simplified.get(s_k, backend) if two_sided else None
-    flicker = mesh_surface_distance_sets(
-        s_k,
+    moved_index = work._moved.get(moved, backend)
+    flicker = _directed(
+        k_points,
         moved,
-        two_sided=two_sided,
-        detach_reference=False,
-        backend=backend,
-        reference_index=work._moved.get(moved, backend),
-        simplified_index=simplified_index,
+        moved_index,
+        ([vertex_set(m) for m in moved], s_k, simplified_index) if simplified_index is not None else None,
     )
     total = reduce_directed(flicker, power, reduction)
     if frame_weight == 0:
         return total
-    # The reverse frame term queries original vertices on the simplified index: only when no wider dtype is needed.
-    shared = simplified_index
-    if shared is not None and any(torch.promote_types(o.dtype, shared.dtype) != shared.dtype for o in o_k):
-        shared = None
-    frame = mesh_surface_distance_sets(
-        s_k, o_k, two_sided=two_sided, backend=backend, indexes=work.indexes, simplified_index=shared
-    )
+    dtype = s_k[0].dtype
+    for m in o_k:
+        dtype = torch.promote_types(dtype, m.dtype)
+    originals = [m.detach().to(dtype=dtype) for m in o_k]
+    original_index = work.indexes.get(originals if len(originals) > 1 else originals[0], backend=backend)
+    reverse = None
+    if two_sided:
+        # The reverse frame term queries the original vertices on the simplified index when it has their dtype.
+        shared = simplified_index
+        if shared is not None and shared.dtype != dtype:
+            shared = work._frame_simplified.get([m.to(dtype=dtype) for m in s_k], backend)
+        assert shared is not None
+        reverse = ([vertex_set(m) for m in originals], [m.to(dtype=dtype) for m in s_k], shared)
+    frame = _directed([q.to(dtype) for q in k_points], originals, original_index, reverse)
     frame_term = reduce_directed(frame, power, reduction)
     if reduction == "none":
         return torch.cat([total, frame_weight * frame_term])
