@@ -26,6 +26,11 @@ from torchmeshmetric.metrics.nearest_vertex_distance_loss import (
     nearest_vertex_distance_loss,
 )
 from torchmeshmetric.metrics.selected_statistic import SelectedStatistic
+from torchmeshmetric.metrics.temporal_consistency_loss import (
+    TemporalConsistencyLoss,
+    TemporalLossCache,
+    temporal_consistency_loss,
+)
 
 __all__ = [
     "DirectedDistances",
@@ -38,10 +43,13 @@ __all__ = [
     "NearestVertexOptions",
     "SelectedStatistic",
     "SurfaceDistanceOptions",
+    "TemporalConsistencyLoss",
+    "TemporalLossCache",
     "mesh_surface_distance_loss",
     "mesh_surface_distance_sets",
     "nearest_vertex_distance_loss",
     "nearest_vertex_distance_sets",
+    "temporal_consistency_loss",
 ]
 
 __getattr__ = deprecated_names(
