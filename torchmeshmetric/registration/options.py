@@ -179,7 +179,8 @@ class NonRigidOptions:
         reverse_weight: weight (>= 0) of the reverse term.
         tolerance: convergence criterion (>= 0): the fit is reported as not converged when the last stage's loss
             still changes, between its last correspondence refresh and its end (correspondences refreshed at the
-            final parameters), by more than this fraction of its loss at the stage's start. It decides no iterate: every stage runs its steps (or stops at a stationary point).
+            final parameters), by more than this fraction of its loss at the stage's start. It decides no
+            iterate: every stage runs its steps (or stops at a stationary point).
         max_outlier_fraction: the fit is reported as failed when more than this fraction (in ``[0, 1]``) of surface
             vertices, or of target samples, lies farther than ``outlier_distance`` from the other mesh.
         outlier_distance: see ``max_outlier_fraction`` (>= 0).
