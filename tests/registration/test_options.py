@@ -164,4 +164,6 @@ def test_options_and_keywords_give_the_same_registration():
                               num_target_samples=300, correspondence_every=4)  # fmt: skip
     for r in (by_options, mixed):
         assert torch.equal(r.verts, by_keywords.verts) and r.loss_history == by_keywords.loss_history
-    assert by_keywords.converged, by_keywords.reason
+    # SHORT is a 12-step schedule cut short: not converged by the stated criterion, and said so alike by all three.
+    assert not by_keywords.converged and "not converged" in by_keywords.reason
+    assert by_options.reason == mixed.reason == by_keywords.reason

@@ -338,6 +338,7 @@ class _Fit:
         self.first_loss: float | None = None
         self.stationary = False
         self.refresh_losses: list[float] = []
+        self.last_stage: Stage | None = None
         self.reason = ""
 
     def run_stage(self, stage: Stage) -> None:
@@ -352,7 +353,7 @@ class _Fit:
         """
         every = self.opts.correspondence_every
         opt = Adam(self.graph.parameters(), lr=stage.lr)
-        self.stationary, self.refresh_losses = False, []
+        self.stationary, self.refresh_losses, self.last_stage = False, [], stage
         # Geometric annealing: Adam moves every parameter by about the step size whatever the gradient's size, so at a
         # constant step size it never settles (it ends at a noise floor of ~lr, where one ulp of input flips the
         # sign of a near-zero gradient and so the step); annealed, it ends within ~lr * lr_decay of the minimum.
@@ -394,20 +395,22 @@ class _Fit:
     def convergence(self) -> str:
         """Why the fit is not converged (empty when it is): the stated criterion on the last stage's last window.
 
-        Converged: the last stage stopped at a stationary point, or its loss right after its last two correspondence
-        refreshes (a function of the parameters alone) differs by at most ``tolerance`` times its loss at its start.
-        This only reports; it decides no iterate.
+        Converged: the last stage stopped at a stationary point, or its loss with correspondences refreshed at its
+        final parameters differs from its loss right after its last refresh (both functions of the parameters
+        alone) by at most ``tolerance`` times its loss at its start. This only reports; it decides no iterate.
         """
         h = self.refresh_losses
-        if self.stationary or len(h) < 2:
+        if self.stationary or not h or self.last_stage is None:
             return ""
+        final, _ = self._evaluate(self.last_stage, self._refresh(self.last_stage), gradient=False)
+        h = [*h, final]
         change = abs(h[-1] - h[-2]) / max(abs(h[0]), 1e-30)
         if change <= self.opts.tolerance:
             return ""
         return (
-            f"not converged: the loss changed by {change:.2g} of the last stage's first loss between its last two "
-            f"refreshes, more than "
-            f"tolerance={self.opts.tolerance:g}; give the last stage more steps or a stronger lr_decay"
+            f"not converged: the loss changed by {change:.2g} of the last stage's first loss between its last refresh "
+            f"and its end, more than tolerance={self.opts.tolerance:g}; give the last stage more steps or a stronger "
+            "lr_decay"
         )
 
     def _diverged(self, reason: str) -> None:

@@ -178,8 +178,9 @@ class NonRigidOptions:
         point_weight: weight (>= 0) of the point-to-point part of the data term.
         reverse_weight: weight (>= 0) of the reverse term.
         tolerance: convergence criterion (>= 0): the fit is reported as not converged when the last stage's loss
-            still changes, between its last two correspondence refreshes, by more than this fraction of its loss at
-            the stage's start. It decides no iterate: every stage runs its steps (or stops at a stationary point).
+            still changes, between its last correspondence refresh and its end (correspondences refreshed at the
+            final parameters), by more than this fraction of its loss at the stage's start. It decides no
+            iterate: every stage runs its steps (or stops at a stationary point).
         max_outlier_fraction: the fit is reported as failed when more than this fraction (in ``[0, 1]``) of surface
             vertices, or of target samples, lies farther than ``outlier_distance`` from the other mesh.
         outlier_distance: see ``max_outlier_fraction`` (>= 0).
@@ -212,7 +213,7 @@ class NonRigidOptions:
     plane_weight: float = 1.0
     point_weight: float = 0.1
     reverse_weight: float = 1.0
-    tolerance: float = 1e-3
+    tolerance: float = 1e-2
     max_outlier_fraction: float = 0.1
     outlier_distance: float = 0.02
     rigid_options: Mapping[str, Any] | None = None
