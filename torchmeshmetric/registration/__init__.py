@@ -1,51 +1,6 @@
 """Registration of frame k-1 onto frame k: rigid ICP, then an Adam-optimised embedded deformation graph."""
 
-from torchmeshmetric.registration.deformation_graph import (
-    DeformationGraph,
-    embedded_deformation,
-    farthest_point_nodes,
-    skinning_weights,
-)
-from torchmeshmetric.registration.energies import (
-    Correspondences,
-    embedded_deformation_regularizer,
-    find_correspondences,
-    geman_mcclure,
-    surface_term,
-)
-from torchmeshmetric.registration.nonrigid import NonRigidRegistration, RegistrationWarning, register_nonrigid
-from torchmeshmetric.registration.options import DEFAULT_SCHEDULE, NonRigidOptions, Stage
-from torchmeshmetric.registration.rigid import (
-    RigidRegistration,
-    SimilarityTransform,
-    kabsch_umeyama,
-    register_rigid,
-    transform_matrix,
-)
-from torchmeshmetric.registration.warp import RegistrationWarp, SurfaceWarp, Warp
+from torchmeshmetric._lazy import attach
 
-__all__ = [
-    "DEFAULT_SCHEDULE",
-    "Correspondences",
-    "DeformationGraph",
-    "NonRigidOptions",
-    "NonRigidRegistration",
-    "RegistrationWarning",
-    "RegistrationWarp",
-    "RigidRegistration",
-    "SimilarityTransform",
-    "Stage",
-    "SurfaceWarp",
-    "Warp",
-    "embedded_deformation",
-    "embedded_deformation_regularizer",
-    "farthest_point_nodes",
-    "find_correspondences",
-    "geman_mcclure",
-    "kabsch_umeyama",
-    "register_nonrigid",
-    "register_rigid",
-    "skinning_weights",
-    "surface_term",
-    "transform_matrix",
-]
+# Every name loads on first use: __init__.pyi lists them (for this loader, mypy and IDEs) and their modules.
+__getattr__, __dir__, __all__ = attach(__name__, __file__)
