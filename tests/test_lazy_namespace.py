@@ -92,3 +92,17 @@ def test_eager_import_loads_every_name_at_once():
         check=False,
     )
     assert r.returncode == 0 and r.stdout.strip() == "True", r.stderr
+
+
+def test_a_name_is_bound_when_its_module_is_imported_so_a_later_patch_does_not_leak():
+    """As with eager imports: the package's name is the object its module held when imported, not when first used."""
+    code = (
+        "import torchmeshmetric.evaluation.pipeline as pipeline\n"
+        "original = pipeline.default_register\n"
+        "pipeline.default_register = 'patched'  # what monkeypatch.setattr('...pipeline.default_register') does\n"
+        "import torchmeshmetric.evaluation as evaluation\n"
+        "assert evaluation.default_register is original, evaluation.default_register\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(PACKAGE.parent)}
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=False)
+    assert r.returncode == 0, r.stderr

@@ -14,6 +14,7 @@ from __future__ import annotations
 import ast
 import os
 import sys
+import types
 from collections.abc import Callable
 from typing import Any
 
@@ -22,14 +23,42 @@ import lazy_loader
 __all__ = ["attach"]
 
 
-def _stub_all(stub: str) -> list[str]:
-    """The ``__all__ = [...]`` list of a stub file."""
+class _Package(types.ModuleType):
+    """A lazy package that binds a submodule's names as soon as the submodule is imported, as eager imports would.
+
+    The import system sets ``package.submodule`` when a submodule finishes loading (however it was imported); the
+    names the stub takes from that submodule are bound then, to the objects it holds at that moment. Without that,
+    a name would be bound on its first access, and see whatever the submodule holds by then (a test's patch of
+    ``pipeline.default_register`` would leak into ``evaluation.default_register`` and outlive the test). A function
+    named like its own module (``mpeg.mpeg_metrics``) keeps the name: the submodule does not replace it.
+    """
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        binds: dict[str, list[str]] = self.__dict__.get("__lazy_binds__", {})
+        if name in binds and value is sys.modules.get(f"{self.__name__}.{name}"):
+            names = vars(value)
+            for attr in binds[name]:
+                if attr in names:  # a lazy subpackage holds only the names already used
+                    self.__dict__[attr] = names[attr]
+            if name in binds[name]:
+                return  # the function of the same name stays the package's attribute
+        super().__setattr__(name, value)
+
+
+def _read_stub(stub: str) -> tuple[list[str], dict[str, list[str]]]:
+    """The ``__all__ = [...]`` list of a stub file, and the names it imports from each direct submodule."""
     with open(stub) as f:
         tree = ast.parse(f.read(), stub)
+    public: list[str] | None = None
+    binds: dict[str, list[str]] = {}
     for node in tree.body:
         if isinstance(node, ast.Assign) and any(getattr(t, "id", None) == "__all__" for t in node.targets):
-            return list(ast.literal_eval(node.value))
-    raise ImportError(f"{stub}: no __all__ list")
+            public = list(ast.literal_eval(node.value))
+        elif isinstance(node, ast.ImportFrom) and node.module and "." not in node.module:
+            binds.setdefault(node.module, []).extend(alias.name for alias in node.names)
+    if public is None:
+        raise ImportError(f"{stub}: no __all__ list")
+    return public, binds
 
 
 def attach(
@@ -62,7 +91,11 @@ def attach(
     """
     load, _, names = lazy_loader.attach_stub(package, file)
     stub = f"{os.path.splitext(file)[0]}.pyi"
-    public = _stub_all(stub)
+    public, binds = _read_stub(stub)
+    module = sys.modules[package]
+    module.__dict__["__lazy_binds__"] = binds
+    if type(module) is not _Package:
+        module.__class__ = _Package  # replaces lazy_loader's guard of same-named functions, which _Package keeps
     unknown = sorted(set(public) - set(names))
     if unknown:
         raise ImportError(f"{stub}: __all__ lists {unknown}, which the stub does not import")
