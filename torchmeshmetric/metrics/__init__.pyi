@@ -10,13 +10,17 @@ from . import distance_statistics_metric as distance_statistics_metric
 from . import mesh_surface_distance as mesh_surface_distance
 from . import nearest_vertex_distance as nearest_vertex_distance
 from . import selected_statistic as selected_statistic
+from . import surface_distance_sets as surface_distance_sets
+from . import vertex_distance_sets as vertex_distance_sets
 from .directed_distances import DirectedDistances
 from .distance_statistics_metric import DistanceStatisticsBase, DistanceStatisticsMetric
-from .mesh_surface_distance import MeshSurfaceDistance, SurfaceDistanceOptions, mesh_surface_distance_sets
+from .mesh_surface_distance import MeshSurfaceDistance
 from .mesh_surface_distance_loss import MeshSurfaceDistanceLoss, mesh_surface_distance_loss
-from .nearest_vertex_distance import NearestVertexDistance, NearestVertexOptions, nearest_vertex_distance_sets
+from .nearest_vertex_distance import NearestVertexDistance
 from .nearest_vertex_distance_loss import NearestVertexDistanceLoss, nearest_vertex_distance_loss
 from .selected_statistic import SelectedStatistic
+from .surface_distance_sets import SurfaceDistanceOptions, mesh_surface_distance_sets
+from .vertex_distance_sets import NearestVertexOptions, nearest_vertex_distance_sets
 
 __all__ = [
     "DirectedDistances",
