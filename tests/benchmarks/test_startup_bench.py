@@ -4,8 +4,9 @@ Run on a quiet machine: ``python -m pytest tests/benchmarks/test_startup_bench.p
 (issue 22): ``import torchmeshmetric`` <= ``import torch`` + 0.35 s, ``torchmeshmetric --help`` and
 ``torchmeshmetric evaluate --help`` <= 0.5 s; min of ``TMM_BENCH_ROUNDS`` (default 5) fresh processes each, the
 contenders interleaved round by round so that a busy machine slows them alike. Also timed: ``python -c pass`` (the
-interpreter alone), and the first use of a torch-based name and of a torchmetrics-based class. The table printed
-gives each contender's best time, its difference to ``import torch`` and whether its goal is met.
+interpreter alone), the first use of a torch-based name and of a torchmetrics-based class, and what ``evaluate``
+imports before it computes. The table printed gives each contender's best time, its difference to
+``import torch`` and whether its goal is met.
 """
 
 from __future__ import annotations
@@ -23,6 +24,8 @@ SCRIPT = shutil.which("torchmeshmetric", path=str(Path(sys.executable).parent))
 HELP = [SCRIPT] if SCRIPT else [sys.executable, "-m", "torchmeshmetric"]
 
 PEER = "import torch"
+#: What `torchmeshmetric evaluate ...` imports before it computes: its module, the run-time helpers, the launcher.
+EVALUATE_IMPORTS = "import torchmeshmetric.cli.evaluate, torchmeshmetric.cli._shared, torchmeshmetric.launch"
 #: contender -> (command, goal: the most seconds it may take, or None; relative to the peer when the flag is set)
 CONTENDERS: dict[str, tuple[list[str], float | None, bool]] = {
     "python -c pass": ([sys.executable, "-c", "pass"], None, False),
@@ -31,6 +34,11 @@ CONTENDERS: dict[str, tuple[list[str], float | None, bool]] = {
     "torchmeshmetric --help": ([*HELP, "--help"], 0.5, False),
     "torchmeshmetric evaluate --help": ([*HELP, "evaluate", "--help"], 0.5, False),
     "torchmeshmetric.Mesh": ([sys.executable, "-c", "import torchmeshmetric; torchmeshmetric.Mesh"], 0.35, True),
+    "evaluate's imports (before computing)": (
+        [sys.executable, "-c", EVALUATE_IMPORTS],
+        None,
+        False,
+    ),
     "torchmeshmetric.MeshSurfaceDistance": (
         [sys.executable, "-c", "import torchmeshmetric; torchmeshmetric.MeshSurfaceDistance"],
         None,
