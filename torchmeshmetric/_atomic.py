@@ -22,7 +22,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import BinaryIO
 
-__all__ = ["AtomicFileSet", "atomic_file_set", "atomic_write", "atomic_write_with"]
+__all__ = ["AtomicFileSet", "atomic_file_set", "atomic_write", "atomic_write_with", "discard_pending"]
 
 
 def _umask() -> int:
@@ -102,6 +102,31 @@ class AtomicFileSet:
 
 
 _ACTIVE: contextvars.ContextVar[AtomicFileSet | None] = contextvars.ContextVar("atomic_file_set", default=None)
+# Temporary files being written by atomic_write_with (neither in place, staged nor removed yet), for discard_pending.
+_WRITING: set[str] = set()
+
+
+def discard_pending() -> None:
+    """Remove what an exit without unwinding would leave: files being written, the active set's staged files.
+
+    For a process that ends at once (``os._exit``, e.g. the command line at Ctrl-C inside an import, where unwinding
+    is unsafe): the ``except`` clauses that normally remove them will not run. The files already in place stay.
+    Called from the main thread, it sees the file set of the code it interrupted.
+
+    Example:
+        >>> import os, tempfile
+        >>> d = tempfile.mkdtemp()
+        >>> with atomic_file_set():
+        ...     _ = atomic_write(os.path.join(d, "report.json"), "{}")  # staged as a hidden temporary file
+        ...     discard_pending()  # what the command line does before an immediate exit
+        ...     os.listdir(d)
+        []
+    """
+    for tmp in list(_WRITING):
+        Path(tmp).unlink(missing_ok=True)
+    files = _ACTIVE.get()
+    if files is not None:
+        files._discard()
 
 
 @contextlib.contextmanager
@@ -181,6 +206,7 @@ def atomic_write_with(
     if not folder.is_dir():
         raise missing_folder_error(folder)
     fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp", dir=folder)
+    _WRITING.add(tmp)
     try:
         os.chmod(tmp, dest.stat().st_mode & 0o777 if dest.exists() else 0o666 & ~_umask())
         with os.fdopen(fd, "wb") as fh:
@@ -195,6 +221,8 @@ def atomic_write_with(
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+    finally:
+        _WRITING.discard(tmp)
     return dest
 
 

@@ -7,6 +7,7 @@ accepts renamed keyword arguments.
 from __future__ import annotations
 
 import functools
+import importlib
 import warnings
 from collections.abc import Callable, Mapping
 from typing import Any, ParamSpec, TypeVar
@@ -17,14 +18,19 @@ P = ParamSpec("P")
 R = TypeVar("R")
 
 
-def deprecated_names(module: str, renamed: Mapping[str, tuple[str, Any]]) -> Callable[[str], Any]:
+def deprecated_names(
+    module: str, renamed: Mapping[str, tuple[str, Any] | str], *, stacklevel: int = 2
+) -> Callable[[str], Any]:
     """A module ``__getattr__`` serving each old name of ``renamed`` with a ``DeprecationWarning``.
 
     Python calls a module's ``__getattr__`` only for names the module does not define, so current names cost nothing.
 
     Args:
         module: the module's ``__name__`` (for messages).
-        renamed: ``{old_name: (new name as users should write it, the object)}``.
+        renamed: ``{old_name: (new name as users should write it, the object)}``, or ``{old_name: new dotted
+            name}`` alone, imported on first use (for a lazy package, whose objects are not loaded yet).
+        stacklevel: the warning's ``stacklevel`` (3 when another ``__getattr__`` calls this one), so that it names
+            the user's line.
 
     Returns:
         The function to assign to the module's ``__getattr__``.
@@ -37,14 +43,23 @@ def deprecated_names(module: str, renamed: Mapping[str, tuple[str, Any]]) -> Cal
         ...     value = getattr_("old")
         >>> value, str(caught[0].message)
         (42, 'pkg.old is deprecated: use pkg.new (same behaviour)')
+        >>> with warnings.catch_warnings(record=True):
+        ...     warnings.simplefilter("always")
+        ...     deprecated_names("pkg", {"old_sqrt": "math.sqrt"})("old_sqrt")(4.0)
+        2.0
     """
 
     def module_getattr(name: str) -> Any:
         if name not in renamed:
             raise AttributeError(f"module {module!r} has no attribute {name!r}")
-        new_name, obj = renamed[name]
+        entry = renamed[name]
+        if isinstance(entry, str):
+            owner, _, attribute = entry.rpartition(".")
+            new_name, obj = entry, getattr(importlib.import_module(owner), attribute)
+        else:
+            new_name, obj = entry
         warnings.warn(
-            f"{module}.{name} is deprecated: use {new_name} (same behaviour)", DeprecationWarning, stacklevel=2
+            f"{module}.{name} is deprecated: use {new_name} (same behaviour)", DeprecationWarning, stacklevel=stacklevel
         )
         return obj
 

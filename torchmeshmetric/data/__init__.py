@@ -1,18 +1,6 @@
 """Data: mesh / sequence I/O, the built-in demo sequence with ground-truth motion, capture-defect fixtures."""
 
-from torchmeshmetric.data.defects import add_capture_defects
-from torchmeshmetric.data.demo import BONE_NAMES, DemoSequence, demo_sequence
-from torchmeshmetric.data.io import MeshFileError, list_frames, load_mesh, load_sequence, natural_key, save_mesh
+from torchmeshmetric._lazy import attach
 
-__all__ = [
-    "BONE_NAMES",
-    "DemoSequence",
-    "MeshFileError",
-    "add_capture_defects",
-    "demo_sequence",
-    "list_frames",
-    "load_mesh",
-    "load_sequence",
-    "natural_key",
-    "save_mesh",
-]
+# Every name loads on first use: __init__.pyi lists them (for this loader, mypy and IDEs) and their modules.
+__getattr__, __dir__, __all__ = attach(__name__, __file__)

@@ -24,8 +24,8 @@ from torchmeshmetric.evaluation.cache import CachedRegistration, RegistrationCac
 from torchmeshmetric.evaluation.flicker import FLICKER, flicker_distances
 from torchmeshmetric.evaluation.results import SET_NAMES, PairEvaluation, SequenceEvaluation
 from torchmeshmetric.kernels import IndexCache, MeshIndex, point_mesh_distance
-from torchmeshmetric.metrics.mesh_surface_distance import _surface_distance_sets
-from torchmeshmetric.metrics.nearest_vertex_distance import _vertex_distance_sets
+from torchmeshmetric.metrics.surface_distance_sets import _surface_distance_sets
+from torchmeshmetric.metrics.vertex_distance_sets import _vertex_distance_sets
 from torchmeshmetric.registration import NonRigidOptions, register_nonrigid
 from torchmeshmetric.registration.warp import RegistrationWarp, SurfaceWarp, Warp
 from torchmeshmetric.stats import DistanceStatistics, distance_statistics

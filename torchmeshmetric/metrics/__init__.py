@@ -8,57 +8,19 @@ measure one query set against one reference and return indices too.
 """
 
 from torchmeshmetric._deprecation import deprecated_names
-from torchmeshmetric.metrics.directed_distances import DirectedDistances
-from torchmeshmetric.metrics.distance_statistics_metric import DistanceStatisticsBase, DistanceStatisticsMetric
-from torchmeshmetric.metrics.mesh_surface_distance import (
-    MeshSurfaceDistance,
-    SurfaceDistanceOptions,
-    mesh_surface_distance_sets,
-)
-from torchmeshmetric.metrics.mesh_surface_distance_loss import MeshSurfaceDistanceLoss, mesh_surface_distance_loss
-from torchmeshmetric.metrics.nearest_vertex_distance import (
-    NearestVertexDistance,
-    NearestVertexOptions,
-    nearest_vertex_distance_sets,
-)
-from torchmeshmetric.metrics.nearest_vertex_distance_loss import (
-    NearestVertexDistanceLoss,
-    nearest_vertex_distance_loss,
-)
-from torchmeshmetric.metrics.selected_statistic import SelectedStatistic
-from torchmeshmetric.metrics.temporal_consistency_loss import (
-    TemporalConsistencyLoss,
-    TemporalLossCache,
-    temporal_consistency_loss,
-)
+from torchmeshmetric._lazy import attach
 
-__all__ = [
-    "DirectedDistances",
-    "DistanceStatisticsBase",
-    "DistanceStatisticsMetric",
-    "MeshSurfaceDistance",
-    "MeshSurfaceDistanceLoss",
-    "NearestVertexDistance",
-    "NearestVertexDistanceLoss",
-    "NearestVertexOptions",
-    "SelectedStatistic",
-    "SurfaceDistanceOptions",
-    "TemporalConsistencyLoss",
-    "TemporalLossCache",
-    "mesh_surface_distance_loss",
-    "mesh_surface_distance_sets",
-    "nearest_vertex_distance_loss",
-    "nearest_vertex_distance_sets",
-    "temporal_consistency_loss",
-]
-
-__getattr__ = deprecated_names(
+# Every name loads on first use: __init__.pyi lists them (for this loader, mypy and IDEs) and their modules. The
+# renamed names are served, with a warning, by the fallback.
+__getattr__, __dir__, __all__ = attach(
     __name__,
-    {
-        "mesh_surface_distances": ("torchmeshmetric.metrics.mesh_surface_distance_sets", mesh_surface_distance_sets),
-        "nearest_vertex_distances": (
-            "torchmeshmetric.metrics.nearest_vertex_distance_sets",
-            nearest_vertex_distance_sets,
-        ),
-    },
+    __file__,
+    fallback=deprecated_names(
+        __name__,
+        {
+            "mesh_surface_distances": "torchmeshmetric.metrics.mesh_surface_distance_sets",
+            "nearest_vertex_distances": "torchmeshmetric.metrics.nearest_vertex_distance_sets",
+        },
+        stacklevel=3,
+    ),
 )

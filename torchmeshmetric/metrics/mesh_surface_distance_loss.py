@@ -9,7 +9,7 @@ from torch import Tensor
 from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.metrics._inputs import check_surface_samples
 from torchmeshmetric.metrics._loss import DistanceLossModule, check_loss_args, check_options, reduce_directed
-from torchmeshmetric.metrics.mesh_surface_distance import SurfaceDistanceOptions, mesh_surface_distance_sets
+from torchmeshmetric.metrics.surface_distance_sets import SurfaceDistanceOptions, mesh_surface_distance_sets
 
 if TYPE_CHECKING:  # typing.Unpack needs Python 3.11; annotations are not evaluated at run time
     from typing_extensions import Unpack

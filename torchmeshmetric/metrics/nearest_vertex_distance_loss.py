@@ -8,7 +8,7 @@ from torch import Tensor
 
 from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.metrics._loss import DistanceLossModule, check_loss_args, check_options, reduce_directed
-from torchmeshmetric.metrics.nearest_vertex_distance import NearestVertexOptions, nearest_vertex_distance_sets
+from torchmeshmetric.metrics.vertex_distance_sets import NearestVertexOptions, nearest_vertex_distance_sets
 
 if TYPE_CHECKING:  # typing.Unpack needs Python 3.11; annotations are not evaluated at run time
     from typing_extensions import Unpack

@@ -4,70 +4,7 @@ Meshes become point clouds as mmetric makes them (:func:`grid_sample`: the V-DMC
 what ``mm compare --mode pcc`` does to a mesh), and :func:`mpeg_compare` measures them as mpeg-pcc-dmetric does.
 """
 
-from torchmeshmetric.mpeg.colour import rgb_to_ycbcr
-from torchmeshmetric.mpeg.comparison import MpegDirection, MpegResult, bbox_diagonal, mpeg_compare
-from torchmeshmetric.mpeg.grid_sampling import (
-    BoxError,
-    GridHits,
-    check_box,
-    grid_hits,
-    grid_sample,
-    mesh_box,
-    unique_vertex_rows,
-)
-from torchmeshmetric.mpeg.losses import (
-    MpegGeometryLoss,
-    differentiable_grid_sample,
-    mpeg_geometry_loss,
-    mpeg_psnr_from_mse,
-    point_to_plane_mse,
-    point_to_point_mse,
-)
-from torchmeshmetric.mpeg.metric import MpegPSNR
-from torchmeshmetric.mpeg.mpeg_metrics import Sampling, mpeg_metrics, mpeg_point_cloud
-from torchmeshmetric.mpeg.neighbours import NeighbourTies, k_nearest, mpeg_sq_dists, nearest_with_ties
-from torchmeshmetric.mpeg.point_cloud import PointCloud, merge_duplicate_points
-from torchmeshmetric.mpeg.psnr import mpeg_psnr
-from torchmeshmetric.mpeg.sequence import MpegSequence, mean_psnr, mpeg_sequence
-from torchmeshmetric.mpeg.texture import sample_texture
-from torchmeshmetric.mpeg.textured_mesh import TexturedMesh, load_textured_mesh
-from torchmeshmetric.mpeg.vertex_sampling import vertex_sample
+from torchmeshmetric._lazy import attach
 
-__all__ = [
-    "BoxError",
-    "GridHits",
-    "MpegGeometryLoss",
-    "MpegPSNR",
-    "MpegDirection",
-    "MpegResult",
-    "MpegSequence",
-    "NeighbourTies",
-    "PointCloud",
-    "Sampling",
-    "TexturedMesh",
-    "bbox_diagonal",
-    "check_box",
-    "differentiable_grid_sample",
-    "grid_hits",
-    "grid_sample",
-    "load_textured_mesh",
-    "merge_duplicate_points",
-    "mean_psnr",
-    "mesh_box",
-    "mpeg_compare",
-    "mpeg_geometry_loss",
-    "mpeg_metrics",
-    "mpeg_point_cloud",
-    "mpeg_psnr",
-    "mpeg_sequence",
-    "mpeg_sq_dists",
-    "k_nearest",
-    "nearest_with_ties",
-    "point_to_plane_mse",
-    "point_to_point_mse",
-    "mpeg_psnr_from_mse",
-    "rgb_to_ycbcr",
-    "sample_texture",
-    "unique_vertex_rows",
-    "vertex_sample",
-]
+# Every name loads on first use: __init__.pyi lists them (for this loader, mypy and IDEs) and their modules.
+__getattr__, __dir__, __all__ = attach(__name__, __file__)

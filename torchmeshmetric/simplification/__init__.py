@@ -1,7 +1,6 @@
 """Simplifiers: plain QEM (fast-simplification) and Registered QEM (ours), Garland & Heckbert 1997."""
 
-from torchmeshmetric.simplification.qem import simplify_qem
-from torchmeshmetric.simplification.registered_qem import DEFAULT_WEIGHT, simplify_registered_qem
-from torchmeshmetric.simplification.sequence import simplify_sequence
+from torchmeshmetric._lazy import attach
 
-__all__ = ["DEFAULT_WEIGHT", "simplify_qem", "simplify_registered_qem", "simplify_sequence"]
+# Every name loads on first use: __init__.pyi lists them (for this loader, mypy and IDEs) and their modules.
+__getattr__, __dir__, __all__ = attach(__name__, __file__)

@@ -1,27 +1,6 @@
 """Statistics of distance sets: the paper's five (Ave, Var, STD, MSE, RMSE) plus Hausdorff, quantiles and PSNR."""
 
-from torchmeshmetric.stats.moments import Moments, merge_moments, moments_of
-from torchmeshmetric.stats.sketch import QuantileSketch
-from torchmeshmetric.stats.statistics import (
-    QUANTILE_LEVELS,
-    DistanceStatistics,
-    distance_statistics,
-    linear_quantiles,
-    psnr_from_mse,
-    statistics_from_parts,
-)
-from torchmeshmetric.stats.streaming import DistanceAccumulator
+from torchmeshmetric._lazy import attach
 
-__all__ = [
-    "QUANTILE_LEVELS",
-    "DistanceAccumulator",
-    "DistanceStatistics",
-    "Moments",
-    "QuantileSketch",
-    "distance_statistics",
-    "linear_quantiles",
-    "merge_moments",
-    "moments_of",
-    "psnr_from_mse",
-    "statistics_from_parts",
-]
+# Every name loads on first use: __init__.pyi lists them (for this loader, mypy and IDEs) and their modules.
+__getattr__, __dir__, __all__ = attach(__name__, __file__)

@@ -8,10 +8,7 @@
 Importing this package registers nothing: the one table of backends is ``select.BACKENDS``.
 """
 
-from __future__ import annotations
+from torchmeshmetric._lazy import attach
 
-from torchmeshmetric.kernels.accel.bvh import bvh_closest_points, bvh_nearest_single
-from torchmeshmetric.kernels.accel.pruned import pruned_faces, pruned_nearest
-from torchmeshmetric.kernels.accel.triton_backend import triton_available
-
-__all__ = ["bvh_closest_points", "bvh_nearest_single", "pruned_faces", "pruned_nearest", "triton_available"]
+# Every name loads on first use: __init__.pyi lists them (for this loader, mypy and IDEs) and their modules.
+__getattr__, __dir__, __all__ = attach(__name__, __file__)

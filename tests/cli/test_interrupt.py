@@ -1,0 +1,114 @@
+"""Ctrl-C at any moment of a command: exit code 130, one line on stderr, no traceback, no output (issue 22).
+
+Real processes get a real SIGINT: during the start-up imports (0.5 s and 1.5 s after the start: torch is still
+loading on a 2-core machine, and so are the frames on a fast one) and in the middle of the computation (after the
+first frame pair's progress line), from both entry points (the console script and ``python -m torchmeshmetric``).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import trimesh
+
+from torchmeshmetric.cli import _interrupts
+
+REPO = Path(__file__).resolve().parents[2]
+MESSAGE = "torchmeshmetric: interrupted"
+SCRIPT = shutil.which("torchmeshmetric", path=str(Path(sys.executable).parent))
+ENTRY_POINTS = {
+    "python -m": [sys.executable, "-m", "torchmeshmetric"],
+    "console script": [SCRIPT] if SCRIPT else None,
+}
+
+
+@pytest.fixture(scope="module")
+def frames(tmp_path_factory):
+    """Frames large enough that evaluating them takes seconds on any machine (registering 10k-vertex frames)."""
+    root = tmp_path_factory.mktemp("interrupt")
+    for name, subdivisions in (("orig", 5), ("simp", 4)):
+        (root / name).mkdir()
+        for k in range(3):
+            mesh = trimesh.creation.icosphere(subdivisions=subdivisions)
+            mesh.apply_translation([0.05 * k, 0.0, 0.0])
+            mesh.export(root / name / f"frame_{k:02d}.ply")
+    return root
+
+
+def _start(entry: str, frames: Path, out: Path) -> subprocess.Popen[str]:
+    command = ENTRY_POINTS[entry]
+    if command is None:
+        pytest.skip("the console script is not installed beside this interpreter")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")]))}
+    env.pop("TORCHMESHMETRIC_DEBUG", None)  # it makes errors tracebacks on purpose
+    args = ["evaluate", "--original", str(frames / "orig"), "--simplified", str(frames / "simp")]
+    return subprocess.Popen(
+        [*command, *args, "--out", str(out / "report.json")],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+        cwd=REPO,
+    )
+
+
+def _interrupted(proc: subprocess.Popen[str], out: Path) -> list[str]:
+    """Wait for the interrupted process; check what every interrupt must give; return its stderr lines."""
+    stdout, stderr = proc.communicate(timeout=120)
+    lines = stderr.splitlines()
+    assert proc.returncode == 130, stderr
+    assert "Traceback" not in stderr and "Error" not in stderr, stderr
+    assert lines[-1] == MESSAGE and lines.count(MESSAGE) == 1, stderr
+    assert stdout == ""  # the tables come at the end, after every frame pair
+    assert os.listdir(out) == []  # no report, complete or partial, and no temporary file
+    return lines
+
+
+@pytest.mark.parametrize("entry", sorted(ENTRY_POINTS))
+@pytest.mark.parametrize("delay", [0.5, 1.5])
+def test_ctrl_c_during_start_up(frames, tmp_path, entry, delay):
+    proc = _start(entry, frames, tmp_path)
+    time.sleep(delay)
+    proc.send_signal(signal.SIGINT)
+    assert _interrupted(proc, tmp_path) == [MESSAGE]  # nothing else: the frames were not even measured yet
+
+
+@pytest.mark.parametrize("entry", sorted(ENTRY_POINTS))
+def test_ctrl_c_during_the_computation(frames, tmp_path, entry):
+    proc = _start(entry, frames, tmp_path)
+    assert proc.stderr is not None
+    first = proc.stderr.readline()  # the first frame pair's progress line: the second pair is being computed
+    assert "frame pair 1/2" in first, first
+    proc.send_signal(signal.SIGINT)
+    lines = _interrupted(proc, tmp_path)
+    assert lines == [MESSAGE]  # the progress line was read above
+
+
+def test_interrupts_inside_an_import_are_recognised(tmp_path, monkeypatch):
+    """The handler exits at once inside an import (unwinding a half-run import is unsafe), raises elsewhere."""
+    (tmp_path / "probe_module_for_interrupts.py").write_text(
+        "import sys\nfrom torchmeshmetric.cli import _interrupts\nINSIDE = _interrupts._in_import(sys._getframe())\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    import probe_module_for_interrupts
+
+    assert probe_module_for_interrupts.INSIDE is True
+    assert _interrupts._in_import(sys._getframe()) is False
+    with pytest.raises(KeyboardInterrupt):
+        _interrupts._Handler()(signal.SIGINT, sys._getframe())
+
+
+def test_main_in_process_restores_the_previous_handler():
+    from torchmeshmetric.cli import main
+
+    before = signal.getsignal(signal.SIGINT)
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    assert signal.getsignal(signal.SIGINT) is before

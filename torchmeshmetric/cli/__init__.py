@@ -1,0 +1,168 @@
+"""Command line interface of torchmeshmetric (also ``python -m torchmeshmetric``).
+
+Commands:
+  evaluate  evaluate one simplified sequence against its original frames (the paper's Fig. 2)
+  compare   evaluate several simplification methods on one original sequence (Tables I-IV side by side)
+  campaign  evaluate several sequences, each with several methods, listed in a TOML manifest
+  simplify  simplify every frame of a sequence with QEM or Registered QEM
+  register  register one mesh (frame k-1) onto another (frame k), rigid then non-rigid
+  demo      the main job: built-in sequence -> QEM and Registered QEM -> evaluation, tables, report and plots
+  mpeg      MPEG D1/D2 (and colour) PSNR of one mesh pair, equal to mmetric's figures
+  validate  which distance sets respond to which controlled distortion (noise, offsets, flicker, registration)
+
+Errors (missing or corrupt files, frame-count mismatch, unwritable output) end with a one-line message on stderr
+and exit code 1; reports are written atomically and never half-written. Set TORCHMESHMETRIC_DEBUG=1 for tracebacks.
+
+evaluate, compare and campaign also run under torchrun (torchrun --nproc-per-node N -m torchmeshmetric ...): the
+processes share the work and rank 0 prints and writes the same report as one process (docs/scaling.md).
+"""
+
+# How the command line is built (docs/architecture.md): COMMANDS below is the one table of commands, as pip's
+# commands_dict. `torchmeshmetric --help` is printed from the table alone; `torchmeshmetric COMMAND ...` imports
+# only COMMAND's module (its parser: argparse and cli.options, no torch), and the command's `run` imports what it
+# computes with. So --help and COMMAND --help never import torch, and a command pays only for its own imports.
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+from collections.abc import Collection, Sequence
+from typing import NamedTuple
+
+from torchmeshmetric.cli import _interrupts
+
+__all__ = ["COMMANDS", "CommandInfo", "build_parser", "main"]
+
+
+class CommandInfo(NamedTuple):
+    """One command of the table: where it is defined and the summary ``torchmeshmetric --help`` prints.
+
+    Attributes:
+        module_path: the module that defines the command, imported only when the command is run or its help asked.
+        add_function: the function of that module that adds the command to the CLI's subparsers, ``add(sub)``: it
+            calls ``sub.add_parser(name, help=summary, ...)``, declares the options and sets ``func`` (called with
+            the parsed arguments, it runs the command and returns the exit code).
+        summary: the command's one-line help (equal to the ``help`` its ``add_function`` gives, which a test checks).
+    """
+
+    module_path: str
+    add_function: str
+    summary: str
+
+
+#: The commands, in the order ``--help`` lists them.
+COMMANDS: dict[str, CommandInfo] = {
+    "evaluate": CommandInfo(
+        "torchmeshmetric.cli.evaluate",
+        "add_evaluate_command",
+        "evaluate a simplified sequence against its original frames",
+    ),
+    "compare": CommandInfo(
+        "torchmeshmetric.cli.compare",
+        "add_compare_command",
+        "compare several simplification methods (Tables I-IV side by side)",
+    ),
+    "campaign": CommandInfo(
+        "torchmeshmetric.cli.campaign",
+        "add_campaign_command",
+        "evaluate a test campaign: several sequences, each with several methods (TOML manifest)",
+    ),
+    "simplify": CommandInfo(
+        "torchmeshmetric.cli.simplify",
+        "add_simplify_command",
+        "simplify every frame of a sequence with QEM or Registered QEM",
+    ),
+    "register": CommandInfo(
+        "torchmeshmetric.cli.register",
+        "add_register_command",
+        "register one mesh onto another (rigid, then non-rigid)",
+    ),
+    "demo": CommandInfo(
+        "torchmeshmetric.cli.demo",
+        "add_demo_command",
+        "the paper's experiment on the built-in sequence (QEM vs Registered QEM)",
+    ),
+    "mpeg": CommandInfo(
+        "torchmeshmetric.mpeg.command",
+        "add_mpeg_command",
+        "MPEG D1/D2 (and colour) PSNR of one mesh pair, as mmetric computes them",
+    ),
+    "validate": CommandInfo(
+        "torchmeshmetric.cli.validate",
+        "add_validate_command",
+        "validation study: which distance sets respond to which controlled distortion",
+    ),
+}
+
+
+def _parser(full: Collection[str]) -> argparse.ArgumentParser:
+    """The parser, with every option of the commands in ``full``; the others are listed by name and summary only."""
+    parser = argparse.ArgumentParser(
+        prog="torchmeshmetric", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name, info in COMMANDS.items():
+        if name in full:
+            getattr(importlib.import_module(info.module_path), info.add_function)(sub)
+        else:
+            sub.add_parser(name, help=info.summary)  # never parsed: the command line names another command
+    return parser
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the command line, with every command's options (imports every command's module)."""
+    return _parser(COMMANDS)
+
+
+def _named_command(argv: Sequence[str]) -> list[str]:
+    """The command the arguments name: the first one that is not an option (the top level takes no values)."""
+    for arg in argv:
+        if not arg.startswith("-"):
+            return [arg] if arg in COMMANDS else []
+    return []
+
+
+def _error(command: str, exc: Exception) -> int:
+    """End a command that raised with one line on stderr and exit code 1 (``TORCHMESHMETRIC_DEBUG=1``: re-raise)."""
+    if os.environ.get("TORCHMESHMETRIC_DEBUG"):
+        raise exc
+    from torchmeshmetric.launch import error_line  # under torchrun: once, by rank 0 (or by the rank that failed)
+
+    print(error_line(command, exc), file=sys.stderr)
+    return 1
+
+
+def _run(args: argparse.Namespace) -> int:
+    """Run the parsed command (inside a process group under torchrun); an error becomes one line."""
+    try:
+        from torchmeshmetric.launch import run_command  # torch: imported once a command is run, not for --help
+
+        return int(run_command(args.func, args))
+    except Exception as exc:
+        return _error(args.command, exc)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit code.
+
+    Exit codes: 0 ok, 1 error (one line on stderr), 2 usage error, 3 registration not converged, 130 interrupted
+    (Ctrl-C at any moment, start-up included: one line, ``torchmeshmetric: interrupted``; see
+    ``torchmeshmetric.cli._interrupts``).
+
+    Args:
+        argv: the arguments; ``None``: ``sys.argv[1:]``, and this call is the whole program (the console script,
+            ``python -m torchmeshmetric``), so a Ctrl-C during the interpreter's shutdown still ends with code 130.
+    """
+    with _interrupts.handled(own_process=argv is None):
+        try:
+            arguments = sys.argv[1:] if argv is None else list(argv)
+            args = _parser(_named_command(arguments)).parse_args(arguments)
+            return _run(args)
+        except KeyboardInterrupt:
+            return _interrupts.interrupted()
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,112 @@
+"""The ``campaign`` command: several sequences, each with several methods, listed in a TOML manifest."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from torchmeshmetric.cli.options import add_cache_dir, add_command, common_options
+
+__all__ = ["add_campaign_command", "run"]
+
+
+def run(args: argparse.Namespace) -> int:
+    """Evaluate a test campaign: several sequences, each with several methods (TOML manifest).
+
+    Evaluate every method of every sequence listed in a TOML manifest (see examples/campaign.toml and
+    docs/scaling.md); registrations of each sequence's original pairs are computed once and shared by its methods.
+    Prints the combined tables (per sequence and overall: mean over sequences); with --out-dir writes
+    campaign.json/.md/.csv and one report per sequence (<sequence>.json/.md/.csv). Under torchrun the work is shared
+    by all processes.
+    """
+    from torchmeshmetric.cli._shared import (
+        CLIError,
+        check_writable,
+        device_of,
+        dtype_of,
+        evaluate_across_ranks,
+        fast_registration_options,
+        load_frames,
+        make_folder,
+        output_set,
+        report_paths,
+        write_reports,
+    )
+    from torchmeshmetric.evaluation.cache import RegistrationCache
+    from torchmeshmetric.evaluation.campaign import (
+        COMBINED,
+        campaign_report_dict,
+        campaign_tables,
+        load_campaign,
+        report_name,
+        write_campaign_csv,
+        write_campaign_markdown,
+    )
+    from torchmeshmetric.evaluation.comparison import compare_methods
+    from torchmeshmetric.evaluation.reports import write_json
+    from torchmeshmetric.evaluation.pipeline import check_methods
+
+    device = device_of(args)
+    campaign = load_campaign(args.manifest)
+    out = None if args.out_dir is None else Path(args.out_dir)
+    stems = [COMBINED] + [report_name(s.name) for s in campaign.sequences]
+    if out is not None:
+        targets = [out / f"{stem}.{ext}" for stem in stems for ext in ("json", "md", "csv")]
+        check_writable(targets if out.is_dir() else [out], args.overwrite)
+    sequences = []
+    for seq in campaign.sequences:
+        original = load_frames(str(seq.original), f"sequence {seq.name!r}: original", dtype_of(args))
+        methods = {
+            m: load_frames(str(d), f"sequence {seq.name!r}: method {m!r}", dtype_of(args))
+            for m, d in seq.methods.items()
+        }
+        check_methods(original, methods, sequence=seq.name)
+        sequences.append((seq.name, original, methods))
+    args.one_sided = not campaign.two_sided
+    args.register_options = fast_registration_options() if campaign.registration == "fast" else None
+    cache = RegistrationCache(args.cache_dir or campaign.cache_dir)
+    evaluated = evaluate_across_ranks(sequences, cache, args, device)
+    if evaluated[0] is None:  # a torchrun rank other than 0: rank 0 reports
+        return 0
+    results = {seq.name: methods for seq, methods in zip(campaign.sequences, evaluated, strict=True)}
+    print(campaign_tables(results))
+    if out is None:
+        return 0
+    settings: dict[str, Any] = {
+        "campaign": str(campaign.path),
+        "two_sided": campaign.two_sided,
+        "registration": campaign.registration,
+        "dtype": args.dtype,
+    }
+    with output_set("the campaign's reports") as files:
+        if not out.is_dir():
+            make_folder(out, "--out-dir", files)
+        for seq, stem in zip(campaign.sequences, stems[1:], strict=True):
+            folders = {m: str(d) for m, d in seq.methods.items()}
+            sequence_settings = {**settings, "sequence": seq.name, "original": str(seq.original), "methods": folders}
+            paths = report_paths(str(out / f"{stem}.json"))
+            # The same comparisons `compare` writes for these methods (default margin; none for a single method).
+            comparisons = compare_methods(results[seq.name]) if len(results[seq.name]) >= 2 else None
+            write_reports(paths, results[seq.name], sequence_settings, args.overwrite, comparisons=comparisons)
+        combined = campaign_report_dict(results, settings=settings)
+        write_json(out / f"{COMBINED}.json", combined, overwrite=args.overwrite)
+        write_campaign_markdown(out / f"{COMBINED}.md", results, overwrite=args.overwrite)
+        write_campaign_csv(out / f"{COMBINED}.csv", results, overwrite=args.overwrite)
+    print(f"wrote {out / COMBINED}.json/.md/.csv and one report per sequence", file=sys.stderr)
+    return 0
+
+
+def add_campaign_command(sub: Any) -> None:
+    """Add the ``campaign`` subcommand to the CLI's subparsers."""
+    p = add_command(sub, "campaign", run, [common_options()])
+    p.add_argument("manifest", metavar="MANIFEST", help="the campaign manifest (TOML); folders relative to it")
+    p.add_argument(
+        "--out-dir",
+        default=None,
+        metavar="DIR",
+        help="write the combined report and the per-sequence reports there (created; its parent must exist)",
+    )
+    add_cache_dir(p, "registration cache folder (overrides the manifest's cache_dir); a rerun resumes from it")
+    p.add_argument("--overwrite", action="store_true", help="replace existing reports in --out-dir")

@@ -1,0 +1,80 @@
+"""The ``compare`` command: several simplification methods on one original sequence (Tables I-IV side by side)."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from torchmeshmetric.cli.options import add_command, common_options, evaluation_options, report_options
+
+__all__ = ["add_compare_command", "run"]
+
+
+def run(args: argparse.Namespace) -> int:
+    """Compare several simplification methods (Tables I-IV side by side).
+
+    Evaluate several simplified versions of one original sequence; registrations of the original frames are computed
+    once and shared by all methods. With two or more methods, every pair of methods is compared set by set: the mean
+    difference over frame pairs, its 95% paired t interval and a verdict ('<A> better', '<B> better' or
+    'inconclusive': the interval contains 0, or the difference is below the registration's noise floor (k-1 and
+    flicker sets) or the relative margin), in the report's 'comparisons' and as verdict tables.
+    """
+    from torchmeshmetric.cli._shared import (
+        check_writable,
+        device_of,
+        dtype_of,
+        evaluate_methods,
+        load_frames,
+        mpeg_methods,
+        parse_methods,
+        report_paths,
+        write_reports,
+    )
+    from torchmeshmetric.evaluation.comparison import compare_methods, comparison_markdown
+    from torchmeshmetric.evaluation.reports import paper_tables
+
+    device = device_of(args)
+    specs = parse_methods(args.method)
+    paths = report_paths(args.out, args.mpeg)
+    check_writable(list(paths.values()), args.overwrite)
+    original = load_frames(args.original, "--original", dtype_of(args))
+    frames = {name: load_frames(d, f"--method {name}", dtype_of(args)) for name, d in specs.items()}
+    results = evaluate_methods(original, frames, args, device)
+    if results is None:  # a torchrun rank other than 0: rank 0 reports
+        return 0
+    print(paper_tables(results))
+    mpeg = mpeg_methods(original, frames, args)
+    comparisons = None
+    if len(results) >= 2:
+        comparisons = compare_methods(results, relative_margin=args.relative_margin)
+        print("## Comparisons with confidence\n\n" + comparison_markdown(comparisons))
+    settings = {
+        "original": args.original,
+        "methods": specs,
+        "two_sided": not args.one_sided,
+        "relative_margin": args.relative_margin,
+        "dtype": args.dtype,
+    }
+    write_reports(paths, results, settings, args.overwrite, mpeg, comparisons)
+    return 0
+
+
+def add_compare_command(sub: Any) -> None:
+    """Add the ``compare`` subcommand to the CLI's subparsers."""
+    p = add_command(sub, "compare", run, [common_options(), evaluation_options(), report_options()])
+    p.add_argument("--original", required=True, metavar="DIR", help="folder of the original frames")
+    p.add_argument(
+        "--method",
+        required=True,
+        action="append",
+        metavar="NAME=DIR",
+        help="a method's name and the folder of its simplified frames; repeat for every method",
+    )
+    p.add_argument(
+        "--relative-margin",
+        type=float,
+        default=0.02,
+        metavar="FRACTION",
+        help="differences below this fraction of the better method's value are 'inconclusive' (default 0.02; "
+        "0 relies on the interval and the registration's noise floor alone)",
+    )

@@ -1,0 +1,180 @@
+"""The command line's shared option groups and argument types (imported by every command's parser; no torch).
+
+Each command module declares its own options and takes the groups it needs from here: :func:`common_options`
+(device, precision, kernel backend, threads: every command that computes), :func:`evaluation_options` (the
+commands that evaluate sequences) and :func:`report_options` (the commands that write one report).
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable, Sequence
+from typing import Any
+
+__all__ = [
+    "add_cache_dir",
+    "add_command",
+    "add_target",
+    "add_weight",
+    "common_options",
+    "evaluation_options",
+    "parse_target",
+    "parse_weight",
+    "parse_weights",
+    "positive_int",
+    "report_options",
+]
+
+
+def positive_int(text: str) -> int:
+    """An argument that is an integer >= 1 (``--threads``)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, found {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, found {text!r}")
+    return value
+
+
+def parse_target(text: str) -> float | int:
+    """A ``--target``: a face count (an integer >= 1) or a ratio in (0, 1) of each frame's faces."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a face count or a ratio in (0, 1), found {text!r}") from None
+    if value >= 1 and value.is_integer():
+        return int(value)
+    if 0 < value < 1:
+        return value
+    raise argparse.ArgumentTypeError(f"expected a face count (>= 1) or a ratio in (0, 1), found {text!r}")
+
+
+def parse_weight(text: str) -> float:
+    """A Registered QEM weight: finite and >= 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a weight >= 0, found {text!r}") from None
+    if not (value >= 0 and value != float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a finite weight >= 0, found {text!r}")
+    return value
+
+
+def parse_weights(text: str) -> tuple[float, ...]:
+    """A comma-separated list of weights, or ``none`` (no weight: an empty tuple)."""
+    if text.strip().lower() == "none":
+        return ()
+    weights = tuple(parse_weight(w) for w in text.split(",") if w.strip())
+    if not weights:
+        raise argparse.ArgumentTypeError(f"expected a comma-separated list of weights or 'none', found {text!r}")
+    return weights
+
+
+def common_options() -> argparse.ArgumentParser:
+    """Options of every command that computes: device, precision, kernel backend, threads."""
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument(
+        "--device", choices=("cpu", "cuda"), default="cpu", help="where distances and registration run (default cpu)"
+    )
+    common.add_argument(
+        "--dtype",
+        choices=("float32", "float64"),
+        default="float32",
+        help="precision of the frames and of every computation (default float32: statistics within ~3e-5 "
+        "relative of float64 on a 40k-face pair, see the docs' command-line page; float64 to compare tiny differences)",
+    )
+    common.add_argument(
+        "--backend",
+        choices=("auto", "bvh", "triton", "pruned", "bruteforce"),
+        default="auto",
+        help="exact distance kernel (default auto: the C++ BVH on the CPU, Triton on CUDA); all give the same values",
+    )
+    common.add_argument(
+        "--threads",
+        type=positive_int,
+        default=None,
+        metavar="N",
+        help="torch CPU threads of this process (default: torch's choice; under torchrun: the cores divided by the "
+        "processes on this machine unless OMP_NUM_THREADS is set to more than 1)",
+    )
+    return common
+
+
+def evaluation_options() -> argparse.ArgumentParser:
+    """Options of the commands that evaluate sequences: sides, registration cache, MPEG figures."""
+    evaluation = argparse.ArgumentParser(add_help=False)
+    evaluation.add_argument(
+        "--one-sided",
+        action="store_true",
+        help="only the paper's simplified -> reference sets; by default the reverse (reference -> simplified) "
+        "sets are reported too, so a simplification that drops part of the surface cannot score well",
+    )
+    add_cache_dir(
+        evaluation,
+        "keep registrations of original frame pairs in DIR (keyed by mesh content and settings) and reuse "
+        "them in later runs (default: in memory for this run only)",
+    )
+    evaluation.add_argument(
+        "--mpeg",
+        action="store_true",
+        help="also report MPEG's per-frame D1/D2 PSNR and Hausdorff (mmetric's figures, frame k vs original frame "
+        "k) in the tables and reports (REPORT.mpeg.csv, REPORT.mpeg.png); averaged as the CTC: mean of per-frame PSNR",
+    )
+    evaluation.add_argument(
+        "--mpeg-sampling", choices=("grid", "mesh"), default="grid", help="MPEG sampling (default grid, the CTC's)"
+    )
+    evaluation.add_argument("--mpeg-grid-size", type=int, default=1024, metavar="N", help="MPEG grid size (1024)")
+    return evaluation
+
+
+def report_options() -> argparse.ArgumentParser:
+    """Options of the commands that write one report (evaluate, compare)."""
+    output = argparse.ArgumentParser(add_help=False)
+    output.add_argument(
+        "--out",
+        default=None,
+        metavar="REPORT.json",
+        help="write the JSON report there, and the paper's tables beside it as REPORT.md and REPORT.csv "
+        "(default: print the tables only)",
+    )
+    output.add_argument("--overwrite", action="store_true", help="replace existing output files")
+    return output
+
+
+def add_cache_dir(p: argparse.ArgumentParser, help_text: str) -> None:
+    """Add ``--cache-dir DIR`` (a registration cache folder) with the command's own help."""
+    p.add_argument("--cache-dir", default=None, metavar="DIR", help=help_text)
+
+
+def add_target(p: argparse.ArgumentParser, default: float | int, help_text: str) -> None:
+    """Add ``--target`` (faces to keep) with the command's default and help."""
+    p.add_argument("--target", type=parse_target, default=default, help=help_text)
+
+
+def add_weight(p: argparse.ArgumentParser, help_text: str) -> None:
+    """Add ``--weight`` (Registered QEM's weight; default ``None``: the library's) with the command's help."""
+    p.add_argument("--weight", type=parse_weight, default=None, help=help_text)
+
+
+def add_command(
+    sub: Any,
+    name: str,
+    run: Callable[[argparse.Namespace], int],
+    parents: Sequence[argparse.ArgumentParser] = (),
+) -> argparse.ArgumentParser:
+    """A subcommand that runs ``run``; its help is the command table's summary, its description ``run``'s docstring.
+
+    The description is the docstring without its first paragraph (the summary line).
+    """
+    from torchmeshmetric.cli import COMMANDS
+
+    _, _, description = (run.__doc__ or "").partition("\n\n")
+    p: argparse.ArgumentParser = sub.add_parser(
+        name,
+        parents=list(parents),
+        help=COMMANDS[name].summary,
+        description=" ".join(description.split()).replace("%", "%%"),  # docstrings are gone under python -OO
+    )
+    p.set_defaults(func=run)
+    return p

@@ -1,0 +1,78 @@
+"""The names of ``torchmeshmetric.mpeg``, which ``__init__.py`` imports on first use.
+
+``torchmeshmetric._lazy`` reads the imports and ``__all__`` below at run time; mypy and IDEs read the types.
+"""
+
+# The public submodules (attributes of the package, as after a normal import).
+from . import colour as colour
+from . import comparison as comparison
+from . import grid_sampling as grid_sampling
+from . import losses as losses
+from . import metric as metric
+from . import neighbours as neighbours
+from . import point_cloud as point_cloud
+from . import psnr as psnr
+from . import sequence as sequence
+from . import texture as texture
+from . import textured_mesh as textured_mesh
+from . import vertex_sampling as vertex_sampling
+from .colour import rgb_to_ycbcr
+from .comparison import MpegDirection, MpegResult, bbox_diagonal, mpeg_compare
+from .grid_sampling import BoxError, GridHits, check_box, grid_hits, grid_sample, mesh_box, unique_vertex_rows
+from .losses import (
+    MpegGeometryLoss,
+    differentiable_grid_sample,
+    mpeg_geometry_loss,
+    mpeg_psnr_from_mse,
+    point_to_plane_mse,
+    point_to_point_mse,
+)
+from .metric import MpegPSNR
+from .mpeg_metrics import Sampling, mpeg_metrics, mpeg_point_cloud
+from .neighbours import NeighbourTies, k_nearest, mpeg_sq_dists, nearest_with_ties
+from .point_cloud import PointCloud, merge_duplicate_points
+from .psnr import mpeg_psnr
+from .sequence import MpegSequence, mean_psnr, mpeg_sequence
+from .texture import sample_texture
+from .textured_mesh import TexturedMesh, load_textured_mesh, read_texture
+from .vertex_sampling import vertex_sample
+
+__all__ = [
+    "read_texture",
+    "BoxError",
+    "GridHits",
+    "MpegGeometryLoss",
+    "MpegPSNR",
+    "MpegDirection",
+    "MpegResult",
+    "MpegSequence",
+    "NeighbourTies",
+    "PointCloud",
+    "Sampling",
+    "TexturedMesh",
+    "bbox_diagonal",
+    "check_box",
+    "differentiable_grid_sample",
+    "grid_hits",
+    "grid_sample",
+    "load_textured_mesh",
+    "merge_duplicate_points",
+    "mean_psnr",
+    "mesh_box",
+    "mpeg_compare",
+    "mpeg_geometry_loss",
+    "mpeg_metrics",
+    "mpeg_point_cloud",
+    "mpeg_psnr",
+    "mpeg_sequence",
+    "mpeg_sq_dists",
+    "k_nearest",
+    "nearest_with_ties",
+    "point_to_plane_mse",
+    "point_to_point_mse",
+    "mpeg_psnr_from_mse",
+    "rgb_to_ycbcr",
+    "sample_texture",
+    "unique_vertex_rows",
+    "vertex_sample",
+]
