@@ -59,9 +59,6 @@ from .kernels import (
 )
 from .metrics import (
     DirectedDistances,
-    TemporalConsistencyLoss,
-    TemporalLossCache,
-    temporal_consistency_loss,
     DistanceStatisticsBase,
     DistanceStatisticsMetric,
     MeshSurfaceDistance,
@@ -71,10 +68,13 @@ from .metrics import (
     NearestVertexOptions,
     SelectedStatistic,
     SurfaceDistanceOptions,
+    TemporalConsistencyLoss,
+    TemporalLossCache,
     mesh_surface_distance_loss,
     mesh_surface_distance_sets,
     nearest_vertex_distance_loss,
     nearest_vertex_distance_sets,
+    temporal_consistency_loss,
 )
 from .mpeg import (
     MpegGeometryLoss,

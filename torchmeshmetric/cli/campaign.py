@@ -22,7 +22,6 @@ def run(args: argparse.Namespace) -> int:
     by all processes.
     """
     from torchmeshmetric.cli._shared import (
-        CLIError,
         check_writable,
         device_of,
         dtype_of,
@@ -45,8 +44,8 @@ def run(args: argparse.Namespace) -> int:
         write_campaign_markdown,
     )
     from torchmeshmetric.evaluation.comparison import compare_methods
-    from torchmeshmetric.evaluation.reports import write_json
     from torchmeshmetric.evaluation.pipeline import check_methods
+    from torchmeshmetric.evaluation.reports import write_json
 
     device = device_of(args)
     campaign = load_campaign(args.manifest)
