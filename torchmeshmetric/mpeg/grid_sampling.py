@@ -18,6 +18,8 @@ __all__ = [
     "BoxError",
     "GridHits",
     "check_box",
+    "fixed_point_box",
+    "fixed_point_ceil",
     "grid_hits",
     "grid_sample",
     "mesh_arrays",
@@ -26,12 +28,37 @@ __all__ = [
 ]
 
 _DBL_EPSILON = 2.220446049250313e-16
+_FP16 = np.float32(1 << 16)
 _ZERO_TOLERANCE = np.float32(1e-6)
 _CHUNK = 1 << 21  # ray-triangle pairs per vectorised step (a few tens of MB of float32 temporaries)
 
 
 class BoxError(ValueError):
     """A sampling box that is malformed or does not contain the mesh."""
+
+
+def fixed_point_ceil(x: np.ndarray | np.floating[Any]) -> np.ndarray:
+    """Round float32 values up to a multiple of 1/65536 (mmetric's 16-bit fixed point; exact in float32).
+
+    Example:
+        >>> float(fixed_point_ceil(np.float32(0.1)) * 65536)
+        6554.0
+    """
+    return (np.ceil(np.asarray(x, np.float32) * _FP16) / _FP16).astype(np.float32)
+
+
+def fixed_point_box(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The ``--useFixedPoint`` box of mmetric: min corner rounded down, max corner up, to multiples of 1/65536.
+
+    The products by 65536 and the quotients are exact in float32, so this equals mmetric's float32 arithmetic.
+
+    Example:
+        >>> lo, hi = fixed_point_box(np.float32([-0.1, 0, 0.1]), np.float32([0.1, 1, -0.05]))
+        >>> (lo * 65536).tolist(), (hi * 65536).tolist()
+        ([-6554.0, 0.0, 6553.0], [6554.0, 65536.0, -3276.0])
+    """
+    lo32, hi32 = np.asarray(lo, np.float32), np.asarray(hi, np.float32)
+    return (np.floor(lo32 * _FP16) / _FP16).astype(np.float32), fixed_point_ceil(hi32)
 
 
 def mesh_box(verts: np.ndarray | Tensor) -> tuple[np.ndarray, np.ndarray]:
@@ -122,6 +149,7 @@ def grid_sample(
     uvs: Tensor | np.ndarray | None = None,
     colors: Tensor | np.ndarray | None = None,
     bilinear: bool = True,
+    use_fixed_point: bool = False,
 ) -> PointCloud:
     """Sample a mesh on a grid exactly as ``mm sample --mode grid`` does (the V-DMC common test conditions).
 
@@ -143,6 +171,8 @@ def grid_sample(
         uvs: ``(F, 3, 2)`` texture coordinates per face corner.
         colors: ``(V, 3)`` per-vertex colours in ``[0, 255]`` (used without a texture).
         bilinear: bilinear texture filtering (mmetric ``--bilinear``), nearest otherwise.
+        use_fixed_point: mmetric ``--useFixedPoint`` (the CTC setting; needs ``box``): the box's min corner is
+            rounded down and its max corner up to a multiple of 1/65536, and so is the grid step (up).
 
     Returns:
         :class:`PointCloud` with normals (and colours when the mesh has some).
@@ -160,7 +190,7 @@ def grid_sample(
     """
     from torchmeshmetric.mpeg.texture import sample_texture
 
-    hits = grid_hits(mesh, grid_size, use_normal=use_normal, box=box)
+    hits = grid_hits(mesh, grid_size, use_normal=use_normal, box=box, use_fixed_point=use_fixed_point)
     pos, nrm, face, bary = hits.points, hits.normals, hits.face_idx, hits.bary
     faces = hits.faces
     col = None
@@ -324,6 +354,7 @@ def grid_hits(
     *,
     use_normal: bool = True,
     box: tuple[Sequence[float] | np.ndarray | Tensor, Sequence[float] | np.ndarray | Tensor] | None = None,
+    use_fixed_point: bool = False,
 ) -> GridHits:
     """The rays of :func:`grid_sample` that hit the mesh, with their faces, axes and origins.
 
@@ -336,10 +367,16 @@ def grid_hits(
     if isinstance(grid_size, bool) or not isinstance(grid_size, int) or grid_size < 2:
         raise ValueError(f"grid_size: expected an integer >= 2, found {grid_size!r}")
     verts, faces = mesh_arrays(mesh)
+    if use_fixed_point and box is None:
+        raise ValueError("use_fixed_point: needs a box (mmetric rounds only a box given as --minPos/--maxPos)")
     min_box, max_box = mesh_box(verts) if box is None else _parse_box(box)
+    if use_fixed_point:
+        min_box, max_box = fixed_point_box(min_box, max_box)
     diag = max_box - min_box
     rng = max(diag[0], diag[1], diag[2])
     step = np.full(3, rng * (np.float32(1.0) / np.float32(grid_size - 1)), dtype=np.float32)
+    if use_fixed_point:
+        step = fixed_point_ceil(step)
     en = _entries(verts, faces, min_box, max_box, step, use_normal)
 
     out: list[tuple[np.ndarray, ...]] = []
