@@ -8,10 +8,13 @@ The MPEG V-DMC test model (``scripts/run.sh``, mmetric v1.1.7) runs, for every f
    corner, duplicate faces dropped: the float32 ray-triangle arithmetic of the sampling depends on that order);
 3. ``sample --mode grid --gridSize 1024 --useNormal --useFixedPoint --bilinear --minPos MIN --maxPos MAX`` on both
    (the *sequence's* box, rounded to 1/65536, for every frame; a decoded frame may reach outside it);
-4. ``compare --mode pcc --resolution R``, R = the longest side of the sequence's box.
+4. ``compare --mode pcc --resolution R``, R = the longest side of the sequence's box;
+5. ``compare --mode ibsm`` on the two dequantised meshes with their textures (2048 x 2048 buffers, 16 cameras,
+   software renderer, culling and reordering on: :func:`~torchmeshmetric.mpeg.ibsm.ibsm`).
 
 The figures are the CTC spreadsheet's ``GridD1`` (D1 PSNR), ``GridD2`` (D2 PSNR), ``GridLuma``, ``GridChromaCb``,
-``GridChromaCr`` (colour PSNR, when both frames carry a texture or vertex colours), and the sequence figure of each
+``GridChromaCr`` (colour PSNR, when both frames carry a texture or vertex colours), ``IbsmGeom`` (IBSM's GEO
+PSNR) and ``IbsmLuma`` (its Y PSNR), and the sequence figure of each
 is mmetric's statistic: the arithmetic mean over frames of the per-frame PSNR clipped at 99.99.
 """
 
@@ -186,6 +189,8 @@ def ctc_frame(
     resolution: float,
     decoded_qt: int = 0,
     grid_size: int = 1024,
+    ibsm_resolution: int | None = 2048,
+    ibsm_cameras: int = 16,
     frame: int = 0,
 ) -> CtcFrame:
     """The grid figures of one frame pair, as the CTC's ``mm sequence`` chain computes them (see the module).
@@ -201,19 +206,22 @@ def ctc_frame(
         resolution: PSNR peak (``compare --resolution``; the test model: the box's longest side).
         decoded_qt: UV bit depth of the decoded frame.
         grid_size: ``--gridSize`` (1024).
+        ibsm_resolution: IBSM's buffer side (``--ibsmResolution``, 2048); ``None`` leaves IBSM out.
+        ibsm_cameras: IBSM's camera count (``--ibsmCameraCount``, 16).
         frame: frame number stored in the result.
 
     Returns:
-        :class:`CtcFrame` with ``GridD1``, ``GridD2`` and, when both carry colour, ``GridLuma``, ``GridChromaCb``,
-        ``GridChromaCr``.
+        :class:`CtcFrame` with ``GridD1``, ``GridD2``, ``IbsmGeom``, ``IbsmLuma`` and, when both carry colour,
+        ``GridLuma``, ``GridChromaCb``, ``GridChromaCr``.
 
     Example:
         >>> import trimesh
         >>> s = trimesh.creation.icosphere(2)
         >>> q = TexturedMesh(Mesh(torch.tensor(np.round((s.vertices + 1) * 511.5)), torch.tensor(s.faces)))
-        >>> r = ctc_frame(q, q, qp=10, qt=0, min_pos=[-1, -1, -1], max_pos=[1, 1, 1], resolution=2.0, grid_size=64)
-        >>> r.figures["GridD1"]
-        inf
+        >>> r = ctc_frame(q, q, qp=10, qt=0, min_pos=[-1, -1, -1], max_pos=[1, 1, 1], resolution=2.0, grid_size=64,
+        ...               ibsm_resolution=64)
+        >>> r.figures["GridD1"], r.figures["IbsmGeom"]
+        (inf, 99.99)
     """
     box = (min_pos, max_pos)
     r = _dequantized(ref, qp, qt, box)
@@ -223,10 +231,17 @@ def ctc_frame(
         rc = pool.submit(_grid_cloud, r, grid_size, box)
         dc = pool.submit(_grid_cloud, d, grid_size, box)
         res = mpeg_compare(rc.result(), dc.result(), peak=resolution)
+        ib = None
+        if ibsm_resolution is not None:  # on the dequantised meshes, not the reindexed ones: ibsm reorders itself
+            from torchmeshmetric.mpeg.ibsm import ibsm
+
+            ib = ibsm(r, d, resolution=ibsm_resolution, cameras=ibsm_cameras)
     figures = {"GridD1": res.symmetric.d1_psnr, "GridD2": res.symmetric.d2_psnr}
     if res.symmetric.color_psnr is not None:
         y, cb, cr = res.symmetric.color_psnr
         figures.update({"GridLuma": y, "GridChromaCb": cb, "GridChromaCr": cr})
+    if ib is not None:
+        figures.update({"IbsmGeom": ib.geo_psnr, "IbsmLuma": ib.yuv_psnr[0]})
     return CtcFrame(frame, figures, res.points_ref, res.points_dis)
 
 
@@ -240,6 +255,8 @@ def ctc_sequence(
     resolution: float,
     decoded_qt: int = 0,
     grid_size: int = 1024,
+    ibsm_resolution: int | None = 2048,
+    ibsm_cameras: int = 16,
     progress: Callable[[CtcFrame], None] | None = None,
 ) -> CtcSequence:
     """The CTC figures of a decoded sequence: :func:`ctc_frame` on every ``(frame, source, decoded)`` pair.
@@ -251,14 +268,15 @@ def ctc_sequence(
         >>> s = trimesh.creation.icosphere(2)
         >>> q = TexturedMesh(Mesh(torch.tensor(np.round((s.vertices + 1) * 511.5)), torch.tensor(s.faces)))
         >>> seq = ctc_sequence([(0, q, q)], qp=10, qt=0, min_pos=[-1] * 3, max_pos=[1] * 3, resolution=2.0,
-        ...                    grid_size=64)
+        ...                    grid_size=64, ibsm_resolution=None)
         >>> seq.mean()["GridD1"]
         99.99
     """
     frames = []
     for k, ref, dis in pairs:
         f = ctc_frame(ref, dis, qp=qp, qt=qt, min_pos=min_pos, max_pos=max_pos, resolution=resolution,
-                      decoded_qt=decoded_qt, grid_size=grid_size, frame=k)  # fmt: skip
+                      decoded_qt=decoded_qt, grid_size=grid_size, ibsm_resolution=ibsm_resolution,
+                      ibsm_cameras=ibsm_cameras, frame=k)  # fmt: skip
         frames.append(f)
         if progress is not None:
             progress(f)
