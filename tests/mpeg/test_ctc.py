@@ -22,7 +22,7 @@ import torch
 
 from tests.mpeg.conftest import REPO
 from torchmeshmetric.mpeg import grid_sampling as gs
-from torchmeshmetric.mpeg.ctc import CtcSequence, ctc_mean, ctc_sequence, oriented_reindex
+from torchmeshmetric.mpeg.ctc import CTC_COLUMNS, CtcSequence, ctc_mean, ctc_sequence, oriented_reindex
 from torchmeshmetric.mpeg.dequantize import dequantize_positions, dequantize_uvs, position_scale
 from torchmeshmetric.mpeg.textured_mesh import TexturedMesh, load_textured_mesh
 from torchmeshmetric.structures import Mesh
@@ -51,23 +51,29 @@ def _mm(*args: str, cwd: Path) -> str:
 
 
 def _mm_chain(cwd: Path, n: int, qp: int, qt: int, box: tuple[np.ndarray, np.ndarray], res: float, grid: int,
-              textured: bool) -> str:  # fmt: skip
-    """``mm sequence`` with the test model's ``mmpsnr_seq`` + ``mmpsnr_pcc`` steps (scripts/run.sh)."""
+              textured: bool, ibsm: tuple[int, int] | None = None) -> str:  # fmt: skip
+    """``mm sequence`` runs of the test model (scripts/run.sh): ``mmpsnr_seq`` + ``mmpsnr_pcc``, and ``mmpsnr_ibsm``."""
     b = _box_args(*box)
     uv = ["--minUv", "0 0", "--maxUv", "1.0 1.0"]
     samp = ["--mode", "grid", "--gridSize", str(grid), "--hideProgress", "--useNormal", "--useFixedPoint", *b]
-    args = ["sequence", "--firstFrame", "0", "--lastFrame", str(n - 1), "END"]
-    args += ["dequantize", "--inputModel", "src_%04d.obj", "--outputModel", "ID:deqRef", "--useFixedPoint",
-             "--qp", str(qp), *b, "--qt", str(qt), *uv, "END"]  # fmt: skip
-    args += ["dequantize", "--inputModel", "dec_%04d.obj", "--outputModel", "ID:deqDis", "--useFixedPoint",
-             "--qp", str(qp), *b, "--qt", "0", *uv, "END"]  # fmt: skip
+    seq = ["sequence", "--firstFrame", "0", "--lastFrame", str(n - 1), "END"]
+    seq += ["dequantize", "--inputModel", "src_%04d.obj", "--outputModel", "ID:deqRef", "--useFixedPoint",
+            "--qp", str(qp), *b, "--qt", str(qt), *uv, "END"]  # fmt: skip
+    seq += ["dequantize", "--inputModel", "dec_%04d.obj", "--outputModel", "ID:deqDis", "--useFixedPoint",
+            "--qp", str(qp), *b, "--qt", "0", *uv, "END"]  # fmt: skip
+    args = list(seq)
     for name, out in (("Ref", "pcRef"), ("Dis", "pcDis")):
         tex = ["-m", ("src" if name == "Ref" else "dec") + "_%04d.png"] if textured else []
         args += ["reindex", "--sort", "oriented", "-i", f"ID:deq{name}", "-o", "ID:reordered", "END"]
         args += ["sample", *samp, "--bilinear", "-i", "ID:reordered", *tex, "-o", f"ID:{out}", "END"]
     args += ["compare", "--mode", "pcc", "--resolution", f"{res:.9g}", "--inputModelA", "ID:pcRef",
              "--inputModelB", "ID:pcDis"]  # fmt: skip
-    return _mm(*args, cwd=cwd)
+    log = _mm(*args, cwd=cwd)
+    if ibsm is not None:
+        maps = ["--inputMapA", "src_%04d.png", "--inputMapB", "dec_%04d.png"] if textured else []
+        log += _mm(*seq, "compare", "--mode", "ibsm", "--inputModelA", "ID:deqRef", "--inputModelB", "ID:deqDis",
+                   *maps, "--ibsmResolution", str(ibsm[0]), "--ibsmCameraCount", str(ibsm[1]), cwd=cwd)  # fmt: skip
+    return log
 
 
 def _parse(log: str) -> tuple[list[dict[str, float]], dict[str, float]]:
@@ -83,10 +89,16 @@ def _parse(log: str) -> tuple[list[dict[str, float]], dict[str, float]]:
         m = re.match(r"\s*c\[(\d)\],PSNRF\s*: (\S+)", line)
         if m:
             frames[-1][("GridLuma", "GridChromaCb", "GridChromaCr")[int(m.group(1))]] = float(m.group(2))
+        m = re.match(r"(GEO|Y  ) PSNR = (\S+)", line)  # the IBSM run comes after the grid run: frames in order
+        if m:
+            col = "IbsmGeom" if m.group(1) == "GEO" else "IbsmLuma"
+            k = next(i for i, f in enumerate(frames) if col not in f)
+            frames[k][col] = float(m.group(2))
     means = {}
     for key, col in (("mseF, PSNR\\(p2point\\)", "GridD1"), ("mseF, PSNR\\(p2plane\\)", "GridD2"),
                      ("c\\[0\\],PSNRF", "GridLuma"), ("c\\[1\\],PSNRF", "GridChromaCb"),
-                     ("c\\[2\\],PSNRF", "GridChromaCr")):  # fmt: skip
+                     ("c\\[2\\],PSNRF", "GridChromaCr"), ("GEO PSNR ", "IbsmGeom"),
+                     ("Y   PSNR ", "IbsmLuma")):  # fmt: skip
         m = re.search(key + r"\s*Mean=(\S+)", log)
         if m:
             means[col] = float(m.group(1))
@@ -152,15 +164,16 @@ def test_dequantize_equals_mm(demo_seq: tuple[Path, tuple[np.ndarray, np.ndarray
 
 @needs_mm
 def test_demo_sequence_chain_equals_mm(demo_seq: tuple[Path, tuple[np.ndarray, np.ndarray]]) -> None:
-    """Untextured 2-frame sequence at grid 512 (one decoded frame leaving the box): every figure and mean."""
+    """Untextured 2-frame sequence at grid 512, IBSM 512 x 8 (a decoded frame leaves the box): every figure, mean."""
     d, (lo, hi) = demo_seq
     res = float(np.max(hi - lo))
-    log = _mm_chain(d, 2, 12, 0, (lo, hi), res, 512, textured=False)
+    log = _mm_chain(d, 2, 12, 0, (lo, hi), res, 512, textured=False, ibsm=(512, 8))
     pairs = (
         (i, load_textured_mesh(d / f"src_{i:04d}.obj"), load_textured_mesh(d / f"dec_{i:04d}.obj")) for i in range(2)
     )
-    ours = ctc_sequence(pairs, qp=12, qt=0, min_pos=lo, max_pos=hi, resolution=res, grid_size=512)
-    assert ours.columns == ("GridD1", "GridD2")
+    ours = ctc_sequence(pairs, qp=12, qt=0, min_pos=lo, max_pos=hi, resolution=res, grid_size=512,
+                        ibsm_resolution=512, ibsm_cameras=8)  # fmt: skip
+    assert ours.columns == ("GridD1", "GridD2", "IbsmGeom", "IbsmLuma")
     _assert_equal(ours, log)
 
 
@@ -183,14 +196,15 @@ def test_textured_chain_equals_mm(tmp_path: Path) -> None:
         (tmp_path / f"{name}.png").write_bytes((t / f"{src}.png").read_bytes())
     for p in tmp_path.glob("*.obj"):  # the textures are named explicitly (the MTLs are not copied)
         p.write_text("".join(line for line in p.read_text().splitlines(True) if not line.startswith("mtllib")))
-    log = _mm_chain(tmp_path, 2, 11, 10, (lo, hi), 2.72, 256, textured=True)
+    log = _mm_chain(tmp_path, 2, 11, 10, (lo, hi), 2.72, 256, textured=True, ibsm=(400, 5))
     pairs = (
         (i, load_textured_mesh(tmp_path / f"src_{i:04d}.obj", tmp_path / f"src_{i:04d}.png"),
          load_textured_mesh(tmp_path / f"dec_{i:04d}.obj", tmp_path / f"dec_{i:04d}.png"))
         for i in range(2)
     )  # fmt: skip
-    ours = ctc_sequence(pairs, qp=11, qt=10, min_pos=lo, max_pos=hi, resolution=2.72, grid_size=256)
-    assert ours.columns == ("GridD1", "GridD2", "GridLuma", "GridChromaCb", "GridChromaCr")
+    ours = ctc_sequence(pairs, qp=11, qt=10, min_pos=lo, max_pos=hi, resolution=2.72, grid_size=256,
+                        ibsm_resolution=400, ibsm_cameras=5)  # fmt: skip
+    assert ours.columns == CTC_COLUMNS
     assert math.isinf(ours.frames[1].figures["GridD1"])
     _assert_equal(ours, log)
 
