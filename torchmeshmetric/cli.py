@@ -1022,6 +1022,10 @@ def build_parser() -> argparse.ArgumentParser:
     _add_register(sub, [common])
     _add_demo(sub, [common, evaluation])
     add_mpeg_command(sub)
+    from torchmeshmetric.mpeg.ctc_command import add_bdrate_command, add_ctc_command
+
+    add_ctc_command(sub)
+    add_bdrate_command(sub)
     _add_validate(sub)
     return parser
 

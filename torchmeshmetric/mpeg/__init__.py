@@ -4,17 +4,22 @@ Meshes become point clouds as mmetric makes them (:func:`grid_sample`: the V-DMC
 what ``mm compare --mode pcc`` does to a mesh), and :func:`mpeg_compare` measures them as mpeg-pcc-dmetric does.
 """
 
+from torchmeshmetric.mpeg.bd_rate import bd_rate
 from torchmeshmetric.mpeg.colour import rgb_to_ycbcr
 from torchmeshmetric.mpeg.comparison import MpegDirection, MpegResult, bbox_diagonal, mpeg_compare
+from torchmeshmetric.mpeg.ctc import CTC_COLUMNS, CtcFrame, CtcSequence, ctc_frame, ctc_mean, ctc_sequence
+from torchmeshmetric.mpeg.dequantize import dequantize_positions, dequantize_uvs
 from torchmeshmetric.mpeg.grid_sampling import (
     BoxError,
     GridHits,
+    GridTooLargeError,
     check_box,
     grid_hits,
     grid_sample,
     mesh_box,
     unique_vertex_rows,
 )
+from torchmeshmetric.mpeg.ibsm import IbsmResult, ibsm
 from torchmeshmetric.mpeg.losses import (
     MpegGeometryLoss,
     differentiable_grid_sample,
@@ -34,8 +39,13 @@ from torchmeshmetric.mpeg.textured_mesh import TexturedMesh, load_textured_mesh
 from torchmeshmetric.mpeg.vertex_sampling import vertex_sample
 
 __all__ = [
+    "CTC_COLUMNS",
     "BoxError",
+    "CtcFrame",
+    "CtcSequence",
     "GridHits",
+    "GridTooLargeError",
+    "IbsmResult",
     "MpegGeometryLoss",
     "MpegPSNR",
     "MpegDirection",
@@ -46,10 +56,17 @@ __all__ = [
     "Sampling",
     "TexturedMesh",
     "bbox_diagonal",
+    "bd_rate",
+    "ctc_frame",
+    "ctc_mean",
+    "ctc_sequence",
+    "dequantize_positions",
+    "dequantize_uvs",
     "check_box",
     "differentiable_grid_sample",
     "grid_hits",
     "grid_sample",
+    "ibsm",
     "load_textured_mesh",
     "merge_duplicate_points",
     "mean_psnr",
