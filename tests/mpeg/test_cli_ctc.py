@@ -95,8 +95,16 @@ def test_frame_path() -> None:
 
 def test_bdrate_command(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """bdrate A.csv B.csv --json: one BD-rate per metric column in both files, equal to bd_rate."""
-    a = {"rate": [1000, 2000, 4000, 8000], "GridD1": [60.1, 63.4, 66.2, 68.9], "IbsmGeom": [50, 53, 55, 57]}
-    b = {"rate": [900, 1900, 3900, 8100], "GridD1": [60.5, 63.9, 66.4, 69.3], "IbsmGeom": [50.5, 53.1, 55.9, 57.2]}
+    a: dict[str, list[float]] = {
+        "rate": [1000, 2000, 4000, 8000],
+        "GridD1": [60.1, 63.4, 66.2, 68.9],
+        "IbsmGeom": [50, 53, 55, 57],
+    }
+    b: dict[str, list[float]] = {
+        "rate": [900, 1900, 3900, 8100],
+        "GridD1": [60.5, 63.9, 66.4, 69.3],
+        "IbsmGeom": [50.5, 53.1, 55.9, 57.2],
+    }
     for name, cols in (("a", a), ("b", b)):
         with (tmp_path / f"{name}.csv").open("w", newline="") as fh:
             w = csv.writer(fh)
