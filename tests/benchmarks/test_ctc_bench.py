@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from tests.mpeg.test_ctc import MM_BIN, _box_args, _mm, _mm_chain, _write_obj
-from torchmeshmetric.mpeg.ctc import ctc_sequence
+from torchmeshmetric.mpeg.ctc import CtcSequence, ctc_sequence
 from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
 
 FRAMES = 3
@@ -46,7 +46,7 @@ def frames(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, np.ndarray, 
     return d, lo, hi
 
 
-def _ours(d: Path, lo: np.ndarray, hi: np.ndarray) -> object:
+def _ours(d: Path, lo: np.ndarray, hi: np.ndarray) -> CtcSequence:
     pairs = ((k, load_textured_mesh(d / f"src_{k:04d}.obj"), load_textured_mesh(d / f"dec_{k:04d}.obj"))
              for k in range(FRAMES))  # fmt: skip
     return ctc_sequence(pairs, qp=12, qt=0, min_pos=lo, max_pos=hi, resolution=float(np.max(hi - lo)))
@@ -69,4 +69,4 @@ def test_ctc_chain(benchmark, record, frames, contender: str) -> None:  # type: 
         return
     seq = benchmark.pedantic(_ours, args=(d, lo, hi), rounds=1, iterations=1)
     record(benchmark.group, "ours", min(benchmark.stats.stats.data))
-    assert len(seq.frames) == FRAMES  # type: ignore[attr-defined]
+    assert len(seq.frames) == FRAMES
