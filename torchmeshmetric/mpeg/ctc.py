@@ -163,8 +163,7 @@ def _dequantized(mesh: TexturedMesh, qp: int, qt: int, box: tuple[Corner, Corner
     return TexturedMesh(Mesh(verts, mesh.mesh.faces), uvs, mesh.texture, mesh.colors)
 
 
-def _grid_cloud(mesh: TexturedMesh, grid_size: int, box: tuple[Corner, Corner]) -> PointCloud:
-    m = oriented_reindex(mesh)
+def _grid_cloud(m: TexturedMesh, grid_size: int, box: tuple[Corner, Corner]) -> PointCloud:
     return grid_sample(
         m.mesh,
         grid_size,
@@ -224,18 +223,20 @@ def ctc_frame(
         (inf, 99.99)
     """
     box = (min_pos, max_pos)
-    r = _dequantized(ref, qp, qt, box)
-    d = _dequantized(dis, qp, decoded_qt, box)
+    # both mmetric steps reindex the dequantised meshes with the same oriented reorder (the grid chain's reindex
+    # command, IBSM's own reordering): done once here, and IBSM told not to redo it
+    r = oriented_reindex(_dequantized(ref, qp, qt, box))
+    d = oriented_reindex(_dequantized(dis, qp, decoded_qt, box))
     # the two samplings are independent numpy work that releases the GIL: run them side by side
     with ThreadPoolExecutor(max_workers=2) as pool:
         rc = pool.submit(_grid_cloud, r, grid_size, box)
         dc = pool.submit(_grid_cloud, d, grid_size, box)
         res = mpeg_compare(rc.result(), dc.result(), peak=resolution)
-        ib = None
-        if ibsm_resolution is not None:  # on the dequantised meshes, not the reindexed ones: ibsm reorders itself
-            from torchmeshmetric.mpeg.ibsm import ibsm
+    ib = None
+    if ibsm_resolution is not None:
+        from torchmeshmetric.mpeg.ibsm import ibsm
 
-            ib = ibsm(r, d, resolution=ibsm_resolution, cameras=ibsm_cameras)
+        ib = ibsm(r, d, resolution=ibsm_resolution, cameras=ibsm_cameras, reorder=False)
     figures = {"GridD1": res.symmetric.d1_psnr, "GridD2": res.symmetric.d2_psnr}
     if res.symmetric.color_psnr is not None:
         y, cb, cr = res.symmetric.color_psnr
