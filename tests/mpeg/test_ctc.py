@@ -279,3 +279,23 @@ def test_estimated_hits_close_to_actual() -> None:
     est = gs._estimated_hits(gs._entries(v, f, lo, hi, step, True), step)
     hits = gs.grid_hits(mesh, 256).points.shape[0]
     assert abs(est - hits) < 0.01 * hits
+
+
+def test_oriented_faces_equals_the_mesh_mode_reorder() -> None:
+    """The lexsort reorder equals the np.unique one of vertex_sampling (validated against mm), -0.0 and repeats too."""
+    from torchmeshmetric.mpeg.ctc import _oriented_faces
+    from torchmeshmetric.mpeg.vertex_sampling import _oriented_faces as unique_based
+
+    rng = np.random.default_rng(0)
+    for trial in range(200):
+        nv, nf = int(rng.integers(3, 30)), int(rng.integers(1, 40))
+        v = rng.integers(-3, 4, (nv, 3)).astype(np.float32)
+        v[v == 0] = np.where(rng.random(int((v == 0).sum())) < 0.5, -0.0, 0.0).astype(np.float32)
+        f = rng.integers(0, nv, (nf, 3))
+        if trial % 3 == 0:  # repeated and rotated faces
+            f = np.concatenate([f, f[:, [1, 2, 0]], f])
+        keys = v[f].reshape(-1, 3)
+        if trial % 2:  # UV keys
+            keys = np.concatenate([keys, rng.integers(0, 3, (keys.shape[0], 2)).astype(np.float32)], axis=1)
+        n = keys.shape[0] // 3
+        np.testing.assert_array_equal(_oriented_faces(keys, n), unique_based(keys, np.arange(3 * n).reshape(n, 3)))

@@ -35,7 +35,6 @@ from torchmeshmetric.mpeg.dequantize import dequantize_positions, dequantize_uvs
 from torchmeshmetric.mpeg.grid_sampling import grid_sample
 from torchmeshmetric.mpeg.point_cloud import PointCloud
 from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
-from torchmeshmetric.mpeg.vertex_sampling import _oriented_faces
 from torchmeshmetric.structures import Mesh
 
 __all__ = [
@@ -120,6 +119,35 @@ class CtcSequence:
         return {"frames": rows, "mean": self.mean()}
 
 
+def _lex_groups(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Dense lexicographic rank of every row of ``keys`` and the first (smallest) row index of every rank.
+
+    The same as ``np.unique(keys, axis=0, return_index=True, return_inverse=True)`` (numeric order column by column,
+    ``-0.0 == 0.0``), through one stable ``lexsort`` instead of a sort of row records.
+    """
+    order = np.lexsort(keys.T[::-1])
+    ks = keys[order]
+    new = np.ones(order.size, dtype=bool)
+    new[1:] = np.any(ks[1:] != ks[:-1], axis=1)
+    rank = np.empty(order.size, dtype=np.int64)
+    rank[order] = np.cumsum(new) - 1
+    return rank, order[new]
+
+
+def _oriented_faces(corner_keys: np.ndarray, nf: int) -> np.ndarray:
+    """The oriented reorder of faces ``(3k, 3k+1, 3k+2)``: rows of corner indices (see :func:`oriented_reindex`)."""
+    rank, first = _lex_groups(corner_keys)
+    tri = rank.reshape(nf, 3)
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    rot1 = (b < a) & (b <= c)
+    rot2 = ~rot1 & (c <= a) & (c < b)
+    out = tri.copy()
+    out[rot1] = np.stack([b, c, a], axis=1)[rot1]
+    out[rot2] = np.stack([c, a, b], axis=1)[rot2]
+    _, kept = _lex_groups(out)  # sorted faces, each once
+    return first[out[kept]]
+
+
 def oriented_reindex(mesh: TexturedMesh) -> TexturedMesh:
     """The ``reindex --sort oriented`` of mmetric: equal corners merged and sorted, faces rotated and sorted.
 
@@ -145,7 +173,7 @@ def oriented_reindex(mesh: TexturedMesh) -> TexturedMesh:
     elif mesh.colors is not None:
         col = mesh.colors.detach().cpu().numpy().astype(np.float32)[faces].reshape(-1, 3)
         keys.append(col)
-    tri = _oriented_faces(np.concatenate(keys, axis=1), np.arange(3 * nf).reshape(nf, 3))
+    tri = _oriented_faces(np.concatenate(keys, axis=1), nf)
     used, inv = np.unique(tri, return_inverse=True)
     new_faces = torch.from_numpy(inv.reshape(-1, 3).astype(np.int64))
     new_mesh = Mesh(torch.from_numpy(np.ascontiguousarray(pos[used])), new_faces)
