@@ -28,7 +28,7 @@ from torchmeshmetric.evaluation.distributed import RankFailedError, in_flight
 __all__ = ["COLLECTIVE_TIMEOUT", "SHARDED_COMMANDS", "Launch", "launch_from_environment", "run_command", "thread_count"]
 
 #: The commands that share their work across the processes of a torchrun job.
-SHARDED_COMMANDS = ("evaluate", "compare", "campaign")
+SHARDED_COMMANDS = ("evaluate", "compare", "campaign", "ctc")
 
 #: How long a rank waits in a collective for the others (their shares of the work may differ by hours).
 COLLECTIVE_TIMEOUT = datetime.timedelta(days=1)

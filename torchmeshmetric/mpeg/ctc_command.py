@@ -112,35 +112,38 @@ def _run_ctc(args: argparse.Namespace) -> int:
             if p.exists() and not args.overwrite:
                 raise ValueError(f"--out: {str(p)!r} already exists (pass --overwrite to replace it)")
 
-    from torchmeshmetric.mpeg.ctc import CtcFrame, ctc_sequence
+    from torchmeshmetric.evaluation.distributed import rank_and_world_size, run_tasks
+    from torchmeshmetric.mpeg.ctc import CtcFrame, CtcSequence, ctc_frame
     from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
 
-    def pairs() -> Any:
-        for k, ref, dis, rt, dt in files:
-            yield k, load_textured_mesh(ref, rt), load_textured_mesh(dis, dt)
-
     start = time.perf_counter()
-    done = [0]
 
-    def progress(f: CtcFrame) -> None:
-        done[0] += 1
+    def one_frame(task: tuple[int, Path, Path, Path | None, Path | None]) -> CtcFrame:
+        k, ref, dis, rt, dt = task
+        f = ctc_frame(
+            load_textured_mesh(ref, rt),
+            load_textured_mesh(dis, dt),
+            qp=args.qp,
+            qt=args.qt,
+            min_pos=lo,
+            max_pos=hi,
+            resolution=args.resolution,
+            decoded_qt=args.decoded_qt,
+            grid_size=args.grid_size,
+            ibsm_resolution=None if args.no_ibsm else args.ibsm_resolution,
+            ibsm_cameras=args.ibsm_cameras,
+            frame=k,
+        )
         figs = "  ".join(f"{c} {_fmt(f.figures[c])}" for c in _COLUMNS if c in f.figures)
         elapsed = time.perf_counter() - start
-        print(f"ctc: frame {f.frame} ({done[0]}/{len(files)}): {figs}  [{elapsed:.1f} s]", file=sys.stderr, flush=True)
+        print(f"ctc: frame {k}: {figs}  [{elapsed:.1f} s]", file=sys.stderr, flush=True)
+        return f
 
-    seq = ctc_sequence(
-        pairs(),
-        qp=args.qp,
-        qt=args.qt,
-        min_pos=lo,
-        max_pos=hi,
-        resolution=args.resolution,
-        decoded_qt=args.decoded_qt,
-        grid_size=args.grid_size,
-        ibsm_resolution=None if args.no_ibsm else args.ibsm_resolution,
-        ibsm_cameras=args.ibsm_cameras,
-        progress=progress,
-    )
+    # under torchrun the frames are shared round robin by the ranks and gathered on rank 0, which reports
+    done = run_tasks(one_frame, files, describe=lambda t: f"frame {t[0]}", to=0)
+    if done is None or rank_and_world_size()[0] != 0:
+        return 0
+    seq = CtcSequence(done, tuple(c for c in _COLUMNS if any(c in f.figures for f in done)))
     d = seq.as_dict()
     columns = list(seq.columns)
     settings = {
