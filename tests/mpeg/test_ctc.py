@@ -245,7 +245,8 @@ def test_oriented_reindex_keeps_surface() -> None:
 
 @pytest.mark.parametrize("chunk", [1, 7, 1000])
 def test_grid_chunks_split_entries(monkeypatch: pytest.MonkeyPatch, chunk: int) -> None:
-    """Ray chunks that split one triangle's rays give the same hits in the same order as one chunk."""
+    """Ray chunks that split one triangle's rays give the same hits in the same order as one chunk (numpy path)."""
+    monkeypatch.setattr(gs, "_USE_NATIVE", False)
     import trimesh
 
     s = trimesh.creation.icosphere(1)
@@ -299,3 +300,24 @@ def test_oriented_faces_equals_the_mesh_mode_reorder() -> None:
             keys = np.concatenate([keys, rng.integers(0, 3, (keys.shape[0], 2)).astype(np.float32)], axis=1)
         n = keys.shape[0] // 3
         np.testing.assert_array_equal(_oriented_faces(keys, n), unique_based(keys, np.arange(3 * n).reshape(n, 3)))
+
+
+@pytest.mark.parametrize(
+    ("grid", "box", "use_normal", "fixed"),
+    [(97, ([-1, -1, 0], [1, 1, 0]), True, True), (50, ([-1, -1, -1], [1, 1, 1]), False, False), (64, None, True, False),
+     (300, ([-1.2, -1, -1], [1, 1.3, 1]), False, True)],
+)  # fmt: skip
+def test_native_grid_caster_equals_numpy(
+    monkeypatch: pytest.MonkeyPatch, grid: int, box: tuple | None, use_normal: bool, fixed: bool
+) -> None:
+    """The C++ ray caster gives the numpy path's hits, bit for bit and in the same order (flat box, all axes too)."""
+    import trimesh
+
+    s = trimesh.creation.icosphere(2)
+    mesh = (torch.tensor(s.vertices * [1.0, 0.7, 1.2]), torch.tensor(s.faces))
+    native = gs.grid_hits(mesh, grid, box=box, use_normal=use_normal, use_fixed_point=fixed)
+    monkeypatch.setattr(gs, "_USE_NATIVE", False)
+    reference = gs.grid_hits(mesh, grid, box=box, use_normal=use_normal, use_fixed_point=fixed)
+    assert native.points.shape[0] > 0
+    for a, b in zip(native, reference, strict=True):
+        np.testing.assert_array_equal(a, b)

@@ -429,6 +429,9 @@ def grid_hits(
     en = _entries(verts, faces, min_box, max_box, step, use_normal)
 
     _check_hit_budget(en, step, grid_size)
+    native = _native()
+    if native is not None:
+        return _native_hits(native, verts, faces, en, min_box, max_box, step, use_normal)
     out: list[tuple[np.ndarray, ...]] = []
     for a in range(3):
         ents = np.flatnonzero((en.axis == a) & en.live)
@@ -461,6 +464,37 @@ def grid_hits(
         uv_all,
         faces,
     )
+
+
+_USE_NATIVE = True  # the C++ caster (same float32 operations, same order); False: this module's numpy path
+
+
+def _native() -> Any:
+    """The compiled caster (shared with IBSM's rasterizer), or ``None`` (numpy path) where it cannot be built."""
+    if not _USE_NATIVE:
+        return None
+    try:
+        from torchmeshmetric.mpeg.ibsm import _extension
+
+        return _extension()
+    except RuntimeError:
+        return None
+
+
+def _native_hits(native: Any, verts: np.ndarray, faces: np.ndarray, en: _Entries, min_box: np.ndarray,
+                 max_box: np.ndarray, step: np.ndarray, use_normal: bool) -> GridHits:  # fmt: skip
+    pos, origin, bary, face, axis = native.grid_cast(
+        torch.from_numpy(np.ascontiguousarray(verts, np.float32)),
+        torch.from_numpy(np.ascontiguousarray(faces, np.int64)),
+        torch.from_numpy(np.ascontiguousarray(min_box, np.float32)),
+        torch.from_numpy(np.ascontiguousarray(step, np.float32)),
+        torch.from_numpy(np.ascontiguousarray(min_box == max_box)),
+        use_normal,
+    )
+    normals = np.zeros((faces.shape[0], 3), np.float32)
+    normals[en.fid] = en.normal
+    f = face.numpy()
+    return GridHits(pos.numpy(), normals[f], f, axis.numpy(), origin.numpy(), bary.numpy(), faces)
 
 
 def _ray_triangle(

@@ -1,5 +1,5 @@
 // Image-based sampling metric (IBSM) of MPEG's mmetric: an orthographic software rasterizer and the per-camera
-// squared errors of two renderings. Compiled just in time by torchmeshmetric.mpeg.ibsm (torch.utils.cpp_extension).
+// squared errors of two renderings; and the ray casting of its grid sampling (at the end of the file). Compiled just in time by torchmeshmetric.mpeg.ibsm (torch.utils.cpp_extension).
 //
 // Written from the description of mmetric v1.1.7's `compare --mode ibsm` with its `sw_raster` renderer: every
 // operation is float32 and in the order glm evaluates it (no fused multiply-add: -ffp-contract=off), so the depth and
@@ -217,6 +217,11 @@ void render(const MeshView& m, const Camera& cam, int width, int height, bool cu
         const V3 a = {pts[2].x - pts[0].x, pts[1].x - pts[0].x, pts[0].x - static_cast<float>(x)};
         const V3 b = {pts[2].y - pts[0].y, pts[1].y - pts[0].y, pts[0].y - static_cast<float>(y)};
         const V3 u = cross(a, b);
+        // Exact early exit, before the divisions: u.y / u.z and u.x / u.z are negative exactly when the numerator
+        // is non-zero and the signs differ (finite values; no quotient of pixel-scale values underflows to -0).
+        if (std::isfinite(u.z) && ((u.y != 0 && (u.y < 0) != std::signbit(u.z)) ||
+                                   (u.x != 0 && (u.x < 0) != std::signbit(u.z))))
+          continue;
         const V3 bs = {1.0F - (u.x + u.y) / u.z, u.y / u.z, u.x / u.z};
         const V3 bc = {bs.x / pts[0].w, bs.y / pts[1].w, bs.z / pts[2].w};
         const float depth = dot({clip[0].z, clip[1].z, clip[2].z}, bc);
@@ -380,8 +385,138 @@ torch::Tensor fibonacci_sphere(int64_t n) {
   return out;
 }
 
+
+// ---------------------------------------------------------------------------------------------------------------
+// mmetric's `sample --mode grid` ray casting (Sample::meshToPcGrid), the same float32 operations as the numpy path of
+// torchmeshmetric.mpeg.grid_sampling (which documents each step); hits come out in mmetric's push order: faces in
+// order, their axes in order, rays i (second axis) then j (third axis). Faces are cut into chunks cast in parallel,
+// each chunk's hits kept in order and the chunks concatenated in order.
+struct GridHitsC {
+  std::vector<float> pos, origin, bary;
+  std::vector<int64_t> face, axis;
+};
+
+inline float area_f(const float* a, const float* b, const float* c, double* out) {
+  const V3 e1 = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+  const V3 e2 = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+  const V3 cr = cross(e1, e2);
+  *out = 0.5 * static_cast<double>(std::sqrt(dot(cr, cr)));
+  return 0.0F;
+}
+
+void cast_face(const float* verts, const int64_t* faces, int64_t t, const float* min_box, const float* step,
+               const bool* flat, bool use_normal, GridHitsC& out) {
+  const float* p1 = verts + faces[t * 3] * 3;
+  const float* p2 = verts + faces[t * 3 + 1] * 3;
+  const float* p3 = verts + faces[t * 3 + 2] * 3;
+  double area;
+  area_f(p1, p2, p3, &area);
+  if (area < 2.220446049250313e-16) return;
+  const V3 v1 = {p1[0], p1[1], p1[2]};
+  const V3 e1 = {p2[0] - p1[0], p2[1] - p1[1], p2[2] - p1[2]};
+  const V3 e2 = {p3[0] - p1[0], p3[1] - p1[1], p3[2] - p1[2]};
+  const V3 n = normalize(cross(e1, e2));
+  const float* e1p = &e1.x;
+  const float* e2p = &e2.x;
+  const float* v1p = &v1.x;
+  float lmin[3], lcnt[3];
+  for (int k = 0; k < 3; ++k) {
+    const float tmin = std::min(std::min(p1[k], p2[k]), p3[k]);
+    const float tmax = std::max(std::max(p1[k], p2[k]), p3[k]);
+    lmin[k] = std::floor((tmin - min_box[k]) / step[k]);
+    const float lmax = std::ceil((tmax - min_box[k]) / step[k]);
+    lcnt[k] = lmax - lmin[k];
+  }
+  int axes[3] = {0, 1, 2};
+  int num_axes = 3;
+  if (use_normal) {
+    const float ax = std::abs(n.x), ay = std::abs(n.y), az = std::abs(n.z);
+    axes[0] = (ax >= ay && ax >= az) ? 0 : ((ay >= ax && ay >= az) ? 1 : 2);
+    num_axes = 1;
+  }
+  for (int k = 0; k < num_axes; ++k) {
+    const int a = axes[k];
+    const int s2 = a == 0 ? 1 : 0, s3 = a == 2 ? 1 : 2;
+    if (flat[s2] || flat[s3]) continue;
+    const int b = (a + 1) % 3, c = (a + 2) % 3;
+    const float e1b = e1p[b], e1c = e1p[c], e2b = e2p[b], e2c = e2p[c];
+    const float det = e1c * e2b - e1b * e2c;
+    if (det > -1e-6F && det < 1e-6F) continue;
+    const float idet = 1.0F / det;
+    const float main_origin = step[a] == 0 ? min_box[a] - 0.5F : min_box[a] + lmin[a] * step[a];
+    const int64_t n2 = static_cast<int64_t>(lcnt[s2]) + 1, n3 = static_cast<int64_t>(lcnt[s3]) + 1;
+    for (int64_t i = 0; i < n2; ++i) {
+      const float o2 = min_box[s2] + (lmin[s2] + static_cast<float>(i)) * step[s2];
+      for (int64_t j = 0; j < n3; ++j) {
+        const float o3 = min_box[s3] + (lmin[s3] + static_cast<float>(j)) * step[s3];
+        float tv[3];
+        tv[a] = main_origin - v1p[a];
+        tv[s2] = o2 - v1p[s2];
+        tv[s3] = o3 - v1p[s3];
+        const float u = (tv[c] * e2b - tv[b] * e2c) * idet;
+        if (u < 0 || u > 1) continue;
+        const V3 q = cross({tv[0], tv[1], tv[2]}, e1);
+        const float* qp = &q.x;
+        const float v = qp[a] * idet;
+        if (v < 0 || u + v > 1) continue;
+        const float tt = dot(e2, q) * idet;
+        float org[3];
+        org[a] = main_origin;
+        org[s2] = o2;
+        org[s3] = o3;
+        for (int m = 0; m < 3; ++m) {
+          out.origin.push_back(org[m]);
+          out.pos.push_back(m == a ? org[m] + tt : org[m]);
+        }
+        out.bary.push_back(u);
+        out.bary.push_back(v);
+        out.face.push_back(t);
+        out.axis.push_back(a);
+      }
+    }
+  }
+}
+
+std::vector<torch::Tensor> grid_cast(torch::Tensor verts, torch::Tensor faces, torch::Tensor min_box,
+                                     torch::Tensor step, torch::Tensor flat, bool use_normal) {
+  const float* v = verts.data_ptr<float>();
+  const int64_t* f = faces.data_ptr<int64_t>();
+  const float* mb = min_box.data_ptr<float>();
+  const float* st = step.data_ptr<float>();
+  const bool* fl = flat.data_ptr<bool>();
+  const int64_t nf = faces.size(0);
+  const int64_t chunk = 2048;
+  const int64_t nchunks = (nf + chunk - 1) / chunk;
+  std::vector<GridHitsC> parts(static_cast<size_t>(nchunks));
+  {
+    pybind11::gil_scoped_release release;
+    at::parallel_for(0, nchunks, 1, [&](int64_t begin, int64_t end) {
+      for (int64_t c = begin; c < end; ++c)
+        for (int64_t t = c * chunk; t < std::min(nf, (c + 1) * chunk); ++t)
+          cast_face(v, f, t, mb, st, fl, use_normal, parts[c]);
+    });
+  }
+  int64_t h = 0;
+  for (const auto& p : parts) h += static_cast<int64_t>(p.face.size());
+  auto pos = torch::empty({h, 3}, torch::kFloat32), origin = torch::empty({h, 3}, torch::kFloat32);
+  auto bary = torch::empty({h, 2}, torch::kFloat32);
+  auto face = torch::empty({h}, torch::kInt64), axis = torch::empty({h}, torch::kInt64);
+  int64_t at = 0;
+  for (const auto& p : parts) {
+    const int64_t n = static_cast<int64_t>(p.face.size());
+    std::copy(p.pos.begin(), p.pos.end(), pos.data_ptr<float>() + at * 3);
+    std::copy(p.origin.begin(), p.origin.end(), origin.data_ptr<float>() + at * 3);
+    std::copy(p.bary.begin(), p.bary.end(), bary.data_ptr<float>() + at * 2);
+    std::copy(p.face.begin(), p.face.end(), face.data_ptr<int64_t>() + at);
+    std::copy(p.axis.begin(), p.axis.end(), axis.data_ptr<int64_t>() + at);
+    at += n;
+  }
+  return {pos, origin, bary, face, axis};
+}
+
 PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
   m.def("ibsm_sums", &ibsm_sums, "per-camera IBSM squared-error sums of two meshes");
   m.def("ibsm_render", &ibsm_render, "one orthographic rendering (depth, RGBA, depth range)");
   m.def("fibonacci_sphere", &fibonacci_sphere, "mmetric's Fibonacci-sphere camera directions");
+  m.def("grid_cast", &grid_cast, "mmetric's grid sampling ray casting, hits in its push order");
 }
