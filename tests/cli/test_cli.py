@@ -118,7 +118,18 @@ def test_bad_method_spec_and_cuda_without_gpu(capsys, tmp_path, sequence):
 def test_help_explains_every_option():
     parser = build_parser()
     subparsers = next(a for a in parser._actions if a.dest == "command").choices
-    assert set(subparsers) == {"evaluate", "compare", "campaign", "simplify", "register", "demo", "mpeg", "validate"}
+    assert set(subparsers) == {
+        "evaluate",
+        "compare",
+        "campaign",
+        "simplify",
+        "register",
+        "demo",
+        "mpeg",
+        "ctc",
+        "bdrate",
+        "validate",
+    }
     for name, sub in subparsers.items():
         for action in sub._actions:
             assert action.help, f"{name} {action.option_strings} has no help"

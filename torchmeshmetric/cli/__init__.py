@@ -89,6 +89,16 @@ COMMANDS: dict[str, CommandInfo] = {
         "add_mpeg_command",
         "MPEG D1/D2 (and colour) PSNR of one mesh pair, as mmetric computes them",
     ),
+    "ctc": CommandInfo(
+        "torchmeshmetric.mpeg.ctc_command",
+        "add_ctc_command",
+        "the V-DMC CTC metric step on a decoded sequence (mmetric's sequence chain: grid D1/D2/colour, IBSM)",
+    ),
+    "bdrate": CommandInfo(
+        "torchmeshmetric.mpeg.ctc_command",
+        "add_bdrate_command",
+        "BD-rate of a test codec against an anchor (the CTC spreadsheet's bdRateExtend), per metric",
+    ),
     "validate": CommandInfo(
         "torchmeshmetric.cli.validate",
         "add_validate_command",

@@ -16,9 +16,22 @@ from . import sequence as sequence
 from . import texture as texture
 from . import textured_mesh as textured_mesh
 from . import vertex_sampling as vertex_sampling
+from .bd_rate import bd_rate
 from .colour import rgb_to_ycbcr
 from .comparison import MpegDirection, MpegResult, bbox_diagonal, mpeg_compare
-from .grid_sampling import BoxError, GridHits, check_box, grid_hits, grid_sample, mesh_box, unique_vertex_rows
+from .ctc import CTC_COLUMNS, CtcFrame, CtcSequence, ctc_frame, ctc_mean, ctc_sequence
+from .dequantize import dequantize_positions, dequantize_uvs
+from .grid_sampling import (
+    BoxError,
+    GridHits,
+    GridTooLargeError,
+    check_box,
+    grid_hits,
+    grid_sample,
+    mesh_box,
+    unique_vertex_rows,
+)
+from .ibsm import IbsmResult, ibsm
 from .losses import (
     MpegGeometryLoss,
     differentiable_grid_sample,
@@ -38,6 +51,18 @@ from .textured_mesh import TexturedMesh, load_textured_mesh, read_texture
 from .vertex_sampling import vertex_sample
 
 __all__ = [
+    "CTC_COLUMNS",
+    "CtcFrame",
+    "CtcSequence",
+    "GridTooLargeError",
+    "IbsmResult",
+    "bd_rate",
+    "ctc_frame",
+    "ctc_mean",
+    "ctc_sequence",
+    "dequantize_positions",
+    "dequantize_uvs",
+    "ibsm",
     "read_texture",
     "BoxError",
     "GridHits",

@@ -93,14 +93,20 @@ def add_mpeg_command(sub: Any) -> None:
         "mpeg",
         help="MPEG D1/D2 (and colour) PSNR of one mesh pair, as mmetric computes them",
         description="MPEG's geometry (D1 point-to-point, D2 point-to-plane: MSE, PSNR, Hausdorff) and colour (Y, Cb, "
-        "Cr PSNR) figures of DIS against REF, equal to mmetric v1.1.7's. --sampling grid (default) is the V-DMC CTC "
-        "recipe: both meshes sampled on a grid over the reference's box with useNormal and bilinear texture "
-        "filtering, peak = the box diagonal (mm sample + mm sample + mm compare --mode pcc --resolution). --sampling "
-        "mesh is mm compare --mode pcc on the meshes. Textures come from the OBJ's MTL (map_Kd) unless given.",
+        "Cr PSNR) figures of DIS against REF, equal to mmetric v1.1.7's. --sampling grid (default) reproduces mm "
+        "sample --mode grid --gridSize N --useNormal --bilinear --minPos/--maxPos BOX on both meshes, then mm compare "
+        "--mode pcc --resolution PEAK; by default BOX = the reference's bounding box and PEAK = its diagonal (the "
+        "figures of ../shared/reference/mpeg), no fixed-point rounding. That is not the V-DMC test model's recipe: "
+        "its metric step dequantises both frames with --useFixedPoint, samples with --useFixedPoint over the "
+        "*sequence's* box and passes the sequence box's longest side as --resolution -- use 'torchmeshmetric ctc' for "
+        "it. --sampling mesh is mm compare --mode pcc on the meshes. Textures come from the OBJ's MTL (map_Kd) "
+        "unless given.",
     )
     p.add_argument("ref", metavar="REF", help="reference mesh (OBJ/PLY; OBJ with MTL + texture for colour)")
     p.add_argument("dis", metavar="DIS", help="distorted mesh")
-    p.add_argument("--sampling", choices=("grid", "mesh"), default="grid", help="grid (CTC, default) or mesh")
+    p.add_argument(
+        "--sampling", choices=("grid", "mesh"), default="grid", help="grid (mm sample --mode grid, default) or mesh"
+    )
     p.add_argument("--grid-size", type=int, default=1024, metavar="N", help="grid steps (default 1024)")
     p.add_argument(
         "--box",
@@ -110,7 +116,13 @@ def add_mpeg_command(sub: Any) -> None:
         help='sampling box corners, e.g. --box "-1 -1 -1" "1 1 1" (default: the reference\'s bounding box); it must '
         "contain the reference",
     )
-    p.add_argument("--peak", type=float, default=None, help="PSNR peak (default: the box diagonal)")
+    p.add_argument(
+        "--peak",
+        type=float,
+        default=None,
+        help="PSNR peak, mm compare --resolution (default: the box diagonal; the V-DMC test model passes the "
+        "sequence box's longest side)",
+    )
     p.add_argument("--ref-texture", default=None, metavar="IMG", help="texture of REF (overrides its MTL)")
     p.add_argument("--dis-texture", default=None, metavar="IMG", help="texture of DIS (overrides its MTL)")
     p.add_argument("--nearest", action="store_true", help="nearest texture filtering in grid mode (default bilinear)")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from typing import Any, NamedTuple
 
@@ -17,7 +18,10 @@ from torchmeshmetric.structures import MeshLike, as_mesh
 __all__ = [
     "BoxError",
     "GridHits",
+    "GridTooLargeError",
     "check_box",
+    "fixed_point_box",
+    "fixed_point_ceil",
     "grid_hits",
     "grid_sample",
     "mesh_arrays",
@@ -26,12 +30,37 @@ __all__ = [
 ]
 
 _DBL_EPSILON = 2.220446049250313e-16
+_FP16 = np.float32(1 << 16)
 _ZERO_TOLERANCE = np.float32(1e-6)
 _CHUNK = 1 << 21  # ray-triangle pairs per vectorised step (a few tens of MB of float32 temporaries)
 
 
 class BoxError(ValueError):
     """A sampling box that is malformed or does not contain the mesh."""
+
+
+def fixed_point_ceil(x: np.ndarray | np.floating[Any]) -> np.ndarray:
+    """Round float32 values up to a multiple of 1/65536 (mmetric's 16-bit fixed point; exact in float32).
+
+    Example:
+        >>> float(fixed_point_ceil(np.float32(0.1)) * 65536)
+        6554.0
+    """
+    return (np.ceil(np.asarray(x, np.float32) * _FP16) / _FP16).astype(np.float32)
+
+
+def fixed_point_box(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The ``--useFixedPoint`` box of mmetric: min corner rounded down, max corner up, to multiples of 1/65536.
+
+    The products by 65536 and the quotients are exact in float32, so this equals mmetric's float32 arithmetic.
+
+    Example:
+        >>> lo, hi = fixed_point_box(np.float32([-0.1, 0, 0.1]), np.float32([0.1, 1, -0.05]))
+        >>> (lo * 65536).tolist(), (hi * 65536).tolist()
+        ([-6554.0, 0.0, 6553.0], [6554.0, 65536.0, -3276.0])
+    """
+    lo32, hi32 = np.asarray(lo, np.float32), np.asarray(hi, np.float32)
+    return (np.floor(lo32 * _FP16) / _FP16).astype(np.float32), fixed_point_ceil(hi32)
 
 
 def mesh_box(verts: np.ndarray | Tensor) -> tuple[np.ndarray, np.ndarray]:
@@ -122,6 +151,7 @@ def grid_sample(
     uvs: Tensor | np.ndarray | None = None,
     colors: Tensor | np.ndarray | None = None,
     bilinear: bool = True,
+    use_fixed_point: bool = False,
 ) -> PointCloud:
     """Sample a mesh on a grid exactly as ``mm sample --mode grid`` does (the V-DMC common test conditions).
 
@@ -143,6 +173,8 @@ def grid_sample(
         uvs: ``(F, 3, 2)`` texture coordinates per face corner.
         colors: ``(V, 3)`` per-vertex colours in ``[0, 255]`` (used without a texture).
         bilinear: bilinear texture filtering (mmetric ``--bilinear``), nearest otherwise.
+        use_fixed_point: mmetric ``--useFixedPoint`` (the CTC setting; needs ``box``): the box's min corner is
+            rounded down and its max corner up to a multiple of 1/65536, and so is the grid step (up).
 
     Returns:
         :class:`PointCloud` with normals (and colours when the mesh has some).
@@ -151,6 +183,9 @@ def grid_sample(
         ValueError: ``grid_size < 2``.
         EmptyInputError: the mesh has no face.
         BoxError: a malformed box (wrong shape, non-finite, max below min, a single point).
+        GridTooLargeError: the expected number of samples (the triangles' projected areas over the squared step)
+            cannot fit in the memory available; raised before any ray is cast. Rays are cast in chunks of a few
+            million, so the memory used is the samples' plus a bounded working set.
 
     Example:
         >>> import torch
@@ -160,7 +195,7 @@ def grid_sample(
     """
     from torchmeshmetric.mpeg.texture import sample_texture
 
-    hits = grid_hits(mesh, grid_size, use_normal=use_normal, box=box)
+    hits = grid_hits(mesh, grid_size, use_normal=use_normal, box=box, use_fixed_point=use_fixed_point)
     pos, nrm, face, bary = hits.points, hits.normals, hits.face_idx, hits.bary
     faces = hits.faces
     col = None
@@ -279,17 +314,17 @@ def _entries(verts: np.ndarray, faces: np.ndarray, min_box: np.ndarray, max_box:
                     main_origin)  # fmt: skip
 
 
-def _cast_rays(en: _Entries, ent: np.ndarray, cum: np.ndarray, a: int, min_box: np.ndarray,
+def _cast_rays(en: _Entries, ent: np.ndarray, first: np.ndarray, cnt: np.ndarray, a: int, min_box: np.ndarray,
                step: np.ndarray) -> tuple[np.ndarray, ...]:  # fmt: skip
-    """The hits of every ray of the entries ``ent`` (all along axis ``a``; ``cum``: their first rays, relative).
+    """The hits of rays ``first[k] .. first[k] + cnt[k] - 1`` of every entry ``ent[k]`` (all along axis ``a``).
 
     Returns (push-order key, position, origin, entry, u, v) of each hit.
     """
     b, c = (a + 1) % 3, (a + 2) % 3
     s2, s3 = (1, 2) if a == 0 else ((0, 2) if a == 1 else (0, 1))
-    cnt = en.rays[ent]
     e = np.repeat(ent, cnt)
-    local = np.arange(e.size) - np.repeat(cum, cnt)
+    starts = np.concatenate([[0], np.cumsum(cnt)[:-1]])
+    local = np.arange(e.size) - np.repeat(starts - first, cnt)
     n3e = en.n3[e]
     i = (local // n3e).astype(np.float32)
     j = (local % n3e).astype(np.float32)
@@ -318,12 +353,57 @@ def _cast_rays(en: _Entries, ent: np.ndarray, cum: np.ndarray, a: int, min_box: 
     return en.starts[eh] + local[hit], pos, origin, eh, u[hit], v[hit]
 
 
+class GridTooLargeError(ValueError):
+    """A grid so fine that its samples cannot fit in memory (refused before any ray is cast)."""
+
+
+# Peak bytes per sample of grid_sample (tracemalloc, torus of tests/mpeg: 157 at grid 1024 = 1.7 M points, 128 at
+# 2048 = 6.8 M): ray temporaries, hit lists, their sort, normals, colours, the kept cloud.
+_BYTES_PER_HIT = 160
+
+
+def _available_memory() -> int:
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+
+
+def _estimated_hits(en: _Entries, step: np.ndarray) -> float:
+    """The expected number of ray hits: every triangle's area projected across its ray axis, over the step squared.
+
+    A triangle of projected area ``A`` on a grid of step ``s`` is crossed by about ``A / s**2`` rays (exact on
+    average over grid offsets), so the sum predicts the sampling's size before a ray is cast.
+    """
+    live = en.live
+    area = 0.5 * np.abs(en.e1[live, (en.axis[live] + 2) % 3].astype(np.float64) * en.e2b[live]
+                        - en.e1[live, (en.axis[live] + 1) % 3].astype(np.float64) * en.e2c[live])  # fmt: skip
+    return float(area.sum() / (float(step[0]) ** 2))
+
+
+def _check_hit_budget(en: _Entries, step: np.ndarray, grid_size: int) -> None:
+    hits = _estimated_hits(en, step)
+    need = hits * _BYTES_PER_HIT
+    avail = _available_memory()
+    if need > avail:
+        raise GridTooLargeError(
+            f"grid_size (--grid-size) {grid_size}: the grid sampling would give about {hits:.3g} points and need "
+            f"about {need / 2**30:.3g} GiB, more than the {avail / 2**30:.3g} GiB of memory available; use a "
+            f"smaller grid size (about {int(grid_size * (avail / need) ** 0.5)} fits)"
+        )
+
+
 def grid_hits(
     mesh: MeshLike,
     grid_size: int = 1024,
     *,
     use_normal: bool = True,
     box: tuple[Sequence[float] | np.ndarray | Tensor, Sequence[float] | np.ndarray | Tensor] | None = None,
+    use_fixed_point: bool = False,
 ) -> GridHits:
     """The rays of :func:`grid_sample` that hit the mesh, with their faces, axes and origins.
 
@@ -336,21 +416,35 @@ def grid_hits(
     if isinstance(grid_size, bool) or not isinstance(grid_size, int) or grid_size < 2:
         raise ValueError(f"grid_size: expected an integer >= 2, found {grid_size!r}")
     verts, faces = mesh_arrays(mesh)
+    if use_fixed_point and box is None:
+        raise ValueError("use_fixed_point: needs a box (mmetric rounds only a box given as --minPos/--maxPos)")
     min_box, max_box = mesh_box(verts) if box is None else _parse_box(box)
+    if use_fixed_point:
+        min_box, max_box = fixed_point_box(min_box, max_box)
     diag = max_box - min_box
     rng = max(diag[0], diag[1], diag[2])
     step = np.full(3, rng * (np.float32(1.0) / np.float32(grid_size - 1)), dtype=np.float32)
+    if use_fixed_point:
+        step = fixed_point_ceil(step)
     en = _entries(verts, faces, min_box, max_box, step, use_normal)
 
+    _check_hit_budget(en, step, grid_size)
+    native = _native()
+    if native is not None:
+        return _native_hits(native, verts, faces, en, min_box, max_box, step, use_normal)
     out: list[tuple[np.ndarray, ...]] = []
     for a in range(3):
         ents = np.flatnonzero((en.axis == a) & en.live)
-        cum = np.concatenate([[0], np.cumsum(en.rays[ents])])
-        lo = 0
-        while lo < ents.size:  # chunks of about _CHUNK rays
-            hi = max(int(np.searchsorted(cum, cum[lo] + _CHUNK, side="right")) - 1, lo + 1)
-            out.append(_cast_rays(en, ents[lo:hi], cum[lo:hi] - cum[lo], a, min_box, step))
-            lo = hi
+        cum = np.concatenate([[0], np.cumsum(en.rays[ents])])  # first ray of every entry along this axis
+        # chunks of _CHUNK consecutive rays: an entry whose rays straddle a chunk boundary is split, so one large
+        # triangle on a fine grid never needs more than one chunk of temporaries
+        for g0 in range(0, int(cum[-1]), _CHUNK):
+            g1 = min(g0 + _CHUNK, int(cum[-1]))
+            k0 = int(np.searchsorted(cum, g0, side="right")) - 1
+            k1 = int(np.searchsorted(cum, g1, side="left"))
+            first = np.maximum(cum[k0:k1], g0) - cum[k0:k1]
+            cnt = np.minimum(cum[k0 + 1 : k1 + 1], g1) - cum[k0:k1] - first
+            out.append(_cast_rays(en, ents[k0:k1], first, cnt, a, min_box, step))
     if out:
         order = np.argsort(np.concatenate([o[0] for o in out]), kind="stable")  # mmetric's push order
         pos_all = np.concatenate([o[1] for o in out])[order]
@@ -370,6 +464,37 @@ def grid_hits(
         uv_all,
         faces,
     )
+
+
+_USE_NATIVE = True  # the C++ caster (same float32 operations, same order); False: this module's numpy path
+
+
+def _native() -> Any:
+    """The compiled caster (shared with IBSM's rasterizer), or ``None`` (numpy path) where it cannot be built."""
+    if not _USE_NATIVE:
+        return None
+    try:
+        from torchmeshmetric.mpeg.ibsm import _extension
+
+        return _extension()
+    except RuntimeError:
+        return None
+
+
+def _native_hits(native: Any, verts: np.ndarray, faces: np.ndarray, en: _Entries, min_box: np.ndarray,
+                 max_box: np.ndarray, step: np.ndarray, use_normal: bool) -> GridHits:  # fmt: skip
+    pos, origin, bary, face, axis = native.grid_cast(
+        torch.from_numpy(np.ascontiguousarray(verts, np.float32)),
+        torch.from_numpy(np.ascontiguousarray(faces, np.int64)),
+        torch.from_numpy(np.ascontiguousarray(min_box, np.float32)),
+        torch.from_numpy(np.ascontiguousarray(step, np.float32)),
+        torch.from_numpy(np.ascontiguousarray(min_box == max_box)),
+        use_normal,
+    )
+    normals = np.zeros((faces.shape[0], 3), np.float32)
+    normals[en.fid] = en.normal
+    f = face.numpy()
+    return GridHits(pos.numpy(), normals[f], f, axis.numpy(), origin.numpy(), bary.numpy(), faces)
 
 
 def _ray_triangle(

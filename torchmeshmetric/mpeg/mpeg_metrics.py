@@ -113,9 +113,11 @@ def mpeg_metrics(
 ) -> MpegResult:
     """MPEG D1/D2 PSNR, Hausdorff and colour PSNR of a distorted mesh against a reference, equal to mmetric's.
 
-    ``sampling="grid"`` is the V-DMC CTC recipe: both meshes sampled on a ``grid_size`` grid over ``box`` (default
-    the reference's bounding box) with ``useNormal`` and bilinear texture filtering, compared with the box diagonal
-    as peak (``mm sample`` + ``mm sample`` + ``mm compare --mode pcc --resolution``). ``sampling="mesh"`` is
+    ``sampling="grid"``: both meshes sampled on a ``grid_size`` grid over ``box`` (default the reference's bounding
+    box) with ``useNormal`` and bilinear texture filtering, compared with ``peak`` (default the box diagonal):
+    ``mm sample`` + ``mm sample`` + ``mm compare --mode pcc --resolution``, without ``--useFixedPoint``. The V-DMC
+    test model's metric step (fixed-point dequantisation and sampling over the sequence's box, peak = its longest
+    side, IBSM) is :func:`~torchmeshmetric.mpeg.ctc.ctc_frame`. ``sampling="mesh"`` is
     ``mm compare --mode pcc`` on the meshes (peak = the reference cloud's bounding-box diagonal).
 
     Args:

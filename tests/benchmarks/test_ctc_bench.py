@@ -1,0 +1,72 @@
+"""The V-DMC CTC metric step: ``ctc_sequence`` (ours) vs ``mm sequence`` (the test model's two runs), same frames.
+
+Run: ``python -m pytest tests/benchmarks/test_ctc_bench.py --benchmark-only -s``. Three frames of the built-in
+sequence (~20k vertices / ~40k faces each) quantised to 12 bits with ``mm quantize`` as the source; the decoded
+frames are a simplified (40 %) and noisy copy in the same integer space. mmetric is timed as the test model runs it
+(scripts/run.sh: ``mmpsnr_pcc`` and ``mmpsnr_ibsm``, two ``mm sequence`` processes: dequantise, reindex, grid
+sampling at 1024, pcc comparison; dequantise, IBSM at 2048 x 16 cameras); ours is the CLI's library call with the
+same settings, frames read from the same files. Goal (issue 21): ours <= 0.25x mmetric, same run.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tests.mpeg.test_ctc import MM_BIN, _box_args, _mm, _mm_chain, _write_obj
+from torchmeshmetric.mpeg.ctc import CtcSequence, ctc_sequence
+from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
+
+FRAMES = 3
+
+
+@pytest.fixture(scope="module")
+def frames(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, np.ndarray, np.ndarray]:
+    if not MM_BIN.is_file():
+        pytest.skip("mmetric's mm binary absent")
+    import fast_simplification
+
+    from torchmeshmetric.data import demo_sequence
+
+    d = tmp_path_factory.mktemp("ctc_bench")
+    seq = demo_sequence(FRAMES)
+    allv = np.concatenate([f.verts.numpy() for f in seq.frames])
+    lo, hi = allv.min(0).astype(np.float32), allv.max(0).astype(np.float32)
+    rng = np.random.default_rng(0)
+    for i, f in enumerate(seq.frames):
+        _write_obj(d / f"raw_{i:04d}.obj", f.verts.numpy(), f.faces.numpy())
+        _mm("quantize", "-i", f"raw_{i:04d}.obj", "-o", f"src_{i:04d}.obj", "--qp", "12", "--qt", "0", "--qn", "0",
+            "--qc", "0", *_box_args(lo, hi), cwd=d)  # fmt: skip
+        q = load_textured_mesh(d / f"src_{i:04d}.obj").mesh
+        v, fc = fast_simplification.simplify(q.verts.numpy(), q.faces.numpy().astype(np.int32), 0.4)
+        _write_obj(d / f"dec_{i:04d}.obj", np.round(v + rng.normal(0, 1.5, v.shape)).clip(0, 4095), fc, ".0f")
+    return d, lo, hi
+
+
+def _ours(d: Path, lo: np.ndarray, hi: np.ndarray) -> CtcSequence:
+    pairs = ((k, load_textured_mesh(d / f"src_{k:04d}.obj"), load_textured_mesh(d / f"dec_{k:04d}.obj"))
+             for k in range(FRAMES))  # fmt: skip
+    return ctc_sequence(pairs, qp=12, qt=0, min_pos=lo, max_pos=hi, resolution=float(np.max(hi - lo)))
+
+
+def _theirs(d: Path, lo: np.ndarray, hi: np.ndarray) -> float:
+    t0 = time.perf_counter()
+    log = _mm_chain(d, FRAMES, 12, 0, (lo, hi), float(np.max(hi - lo)), 1024, textured=False, ibsm=(2048, 16))
+    assert "GEO PSNR Mean" in log
+    return time.perf_counter() - t0
+
+
+@pytest.mark.parametrize("contender", ["ours", "mmetric"])
+def test_ctc_chain(benchmark, record, frames, contender: str) -> None:  # type: ignore[no-untyped-def]
+    d, lo, hi = frames
+    benchmark.group = f"ctc-chain-{FRAMES}-frames-40k-faces"
+    if contender == "mmetric":
+        benchmark.pedantic(_theirs, args=(d, lo, hi), rounds=1, iterations=1)
+        record(benchmark.group, "mmetric (mm sequence x 2)", min(benchmark.stats.stats.data))
+        return
+    seq = benchmark.pedantic(_ours, args=(d, lo, hi), rounds=1, iterations=1)
+    record(benchmark.group, "ours", min(benchmark.stats.stats.data))
+    assert len(seq.frames) == FRAMES

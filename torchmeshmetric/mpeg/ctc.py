@@ -1,0 +1,312 @@
+"""The V-DMC CTC metric step: mmetric's ``sequence`` chain of dequantise, grid sampling and comparison, per frame.
+
+The MPEG V-DMC test model (``scripts/run.sh``, mmetric v1.1.7) runs, for every frame of a sequence:
+
+1. ``dequantize --useFixedPoint --qp QP --qt QT --minPos MIN --maxPos MAX --minUv "0 0" --maxUv "1 1"`` on the
+   source frame and on the decoded frame (:mod:`torchmeshmetric.mpeg.dequantize`);
+2. ``reindex --sort oriented`` on both (corners merged and sorted, each face rotated to start at its smallest
+   corner, duplicate faces dropped: the float32 ray-triangle arithmetic of the sampling depends on that order);
+3. ``sample --mode grid --gridSize 1024 --useNormal --useFixedPoint --bilinear --minPos MIN --maxPos MAX`` on both
+   (the *sequence's* box, rounded to 1/65536, for every frame; a decoded frame may reach outside it);
+4. ``compare --mode pcc --resolution R``, R = the longest side of the sequence's box;
+5. ``compare --mode ibsm`` on the two dequantised meshes with their textures (2048 x 2048 buffers, 16 cameras,
+   software renderer, culling and reordering on: :func:`~torchmeshmetric.mpeg.ibsm.ibsm`).
+
+The figures are the CTC spreadsheet's ``GridD1`` (D1 PSNR), ``GridD2`` (D2 PSNR), ``GridLuma``, ``GridChromaCb``,
+``GridChromaCr`` (colour PSNR, when both frames carry a texture or vertex colours), ``IbsmGeom`` (IBSM's GEO
+PSNR) and ``IbsmLuma`` (its Y PSNR), and the sequence figure of each
+is mmetric's statistic: the arithmetic mean over frames of the per-frame PSNR clipped at 99.99.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from typing import Any, Union
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from torchmeshmetric.mpeg.comparison import mpeg_compare
+from torchmeshmetric.mpeg.dequantize import dequantize_positions, dequantize_uvs
+from torchmeshmetric.mpeg.grid_sampling import grid_sample
+from torchmeshmetric.mpeg.point_cloud import PointCloud
+from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
+from torchmeshmetric.structures import Mesh
+
+__all__ = [
+    "CTC_CLIP",
+    "CTC_COLUMNS",
+    "CtcFrame",
+    "CtcSequence",
+    "ctc_frame",
+    "ctc_mean",
+    "ctc_sequence",
+    "oriented_reindex",
+]
+
+Corner = Union[Sequence[float], np.ndarray, Tensor]  # noqa: UP007 (a runtime alias)
+
+CTC_COLUMNS = ("GridD1", "GridD2", "GridLuma", "GridChromaCb", "GridChromaCr", "IbsmGeom", "IbsmLuma")
+"""The CTC spreadsheet's metric columns, in its order."""
+
+CTC_CLIP = 99.99
+"""mmetric's statistics clip every per-frame PSNR at this value before averaging (``mm::CLIP``)."""
+
+
+def ctc_mean(values: Sequence[float], clip: float = CTC_CLIP) -> float:
+    """The sequence mean of mmetric: ``sum_i (1/n) * min(psnr_i, clip)``, accumulated in that order in float64.
+
+    An infinite PSNR (a frame identical to its source) counts as ``clip``; NaN stays NaN.
+
+    Example:
+        >>> ctc_mean([40.0, float("inf")])
+        69.995
+    """
+    if len(values) == 0:
+        return math.nan
+    fract = 1.0 / len(values)
+    mean = 0.0
+    for v in values:
+        mean += fract * min(float(v), clip) if not math.isnan(v) else math.nan
+    return mean
+
+
+@dataclass(frozen=True)
+class CtcFrame:
+    """The CTC figures of one frame (keys of :data:`CTC_COLUMNS`; a figure not computed is absent).
+
+    Attributes:
+        frame: the frame number.
+        figures: column name -> PSNR in dB (unclipped, ``inf`` for identical frames).
+        points_ref: the reference's grid samples after duplicate merging.
+        points_dis: the decoded frame's.
+    """
+
+    frame: int
+    figures: dict[str, float]
+    points_ref: int = 0
+    points_dis: int = 0
+
+
+@dataclass(frozen=True)
+class CtcSequence:
+    """Per-frame CTC figures of one decoded sequence and their means (mmetric's statistics).
+
+    Attributes:
+        frames: one :class:`CtcFrame` per frame, in order.
+        columns: the figures present, in spreadsheet order.
+    """
+
+    frames: list[CtcFrame]
+    columns: tuple[str, ...] = field(default=CTC_COLUMNS)
+
+    def mean(self) -> dict[str, float]:
+        """Column -> :func:`ctc_mean` over the frames that have it."""
+        out = {}
+        for c in self.columns:
+            vals = [f.figures[c] for f in self.frames if c in f.figures]
+            if vals:
+                out[c] = ctc_mean(vals)
+        return out
+
+    def as_dict(self) -> dict[str, Any]:
+        """``{"frames": [{"frame": i, "GridD1": ...}, ...], "mean": {...}}`` (floats may be infinite)."""
+        rows = [{"frame": f.frame, **{c: f.figures[c] for c in self.columns if c in f.figures}} for f in self.frames]
+        return {"frames": rows, "mean": self.mean()}
+
+
+def _lex_groups(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Dense lexicographic rank of every row of ``keys`` and the first (smallest) row index of every rank.
+
+    The same as ``np.unique(keys, axis=0, return_index=True, return_inverse=True)`` (numeric order column by column,
+    ``-0.0 == 0.0``), through one stable ``lexsort`` instead of a sort of row records.
+    """
+    order = np.lexsort(keys.T[::-1])
+    ks = keys[order]
+    new = np.ones(order.size, dtype=bool)
+    new[1:] = np.any(ks[1:] != ks[:-1], axis=1)
+    rank = np.empty(order.size, dtype=np.int64)
+    rank[order] = np.cumsum(new) - 1
+    return rank, order[new]
+
+
+def _oriented_faces(corner_keys: np.ndarray, nf: int) -> np.ndarray:
+    """The oriented reorder of faces ``(3k, 3k+1, 3k+2)``: rows of corner indices (see :func:`oriented_reindex`)."""
+    rank, first = _lex_groups(corner_keys)
+    tri = rank.reshape(nf, 3)
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    rot1 = (b < a) & (b <= c)
+    rot2 = ~rot1 & (c <= a) & (c < b)
+    out = tri.copy()
+    out[rot1] = np.stack([b, c, a], axis=1)[rot1]
+    out[rot2] = np.stack([c, a, b], axis=1)[rot2]
+    _, kept = _lex_groups(out)  # sorted faces, each once
+    return first[out[kept]]
+
+
+def oriented_reindex(mesh: TexturedMesh) -> TexturedMesh:
+    """The ``reindex --sort oriented`` of mmetric: equal corners merged and sorted, faces rotated and sorted.
+
+    Corners are equal when position and UV (or vertex colour) are equal. Each face is rotated to start at its
+    smallest corner (orientation kept), duplicate faces are dropped and the faces sorted. Positions are unchanged;
+    only the order of corners within faces and of faces moves, which moves the float32 arithmetic of the grid
+    sampling (mmetric's ray-triangle test starts from a face's first corner).
+
+    Example:
+        >>> m = TexturedMesh(Mesh(torch.eye(3), torch.tensor([[2, 0, 1], [0, 1, 2]])))
+        >>> oriented_reindex(m).mesh.faces.shape[0]
+        1
+    """
+    verts = mesh.mesh.verts.detach().cpu().numpy().astype(np.float32)
+    faces = mesh.mesh.faces.detach().cpu().numpy()
+    nf = faces.shape[0]
+    pos = verts[faces].reshape(-1, 3)
+    keys = [pos]
+    uv = col = None
+    if mesh.texture is not None and mesh.uvs is not None:
+        uv = mesh.uvs.detach().cpu().numpy().astype(np.float32).reshape(-1, 2)
+        keys.append(uv)
+    elif mesh.colors is not None:
+        col = mesh.colors.detach().cpu().numpy().astype(np.float32)[faces].reshape(-1, 3)
+        keys.append(col)
+    tri = _oriented_faces(np.concatenate(keys, axis=1), nf)
+    used, inv = np.unique(tri, return_inverse=True)
+    new_faces = torch.from_numpy(inv.reshape(-1, 3).astype(np.int64))
+    new_mesh = Mesh(torch.from_numpy(np.ascontiguousarray(pos[used])), new_faces)
+    return TexturedMesh(
+        new_mesh,
+        None if uv is None else torch.from_numpy(np.ascontiguousarray(uv[tri])),
+        mesh.texture,
+        None if col is None else torch.from_numpy(np.ascontiguousarray(col[used])),
+    )
+
+
+def _dequantized(mesh: TexturedMesh, qp: int, qt: int, box: tuple[Corner, Corner]) -> TexturedMesh:
+    verts = dequantize_positions(mesh.mesh.verts, qp, box[0], box[1], fixed_point=True)
+    uvs = None if mesh.uvs is None else dequantize_uvs(mesh.uvs, qt)
+    return TexturedMesh(Mesh(verts, mesh.mesh.faces), uvs, mesh.texture, mesh.colors)
+
+
+def _grid_cloud(m: TexturedMesh, grid_size: int, box: tuple[Corner, Corner]) -> PointCloud:
+    return grid_sample(
+        m.mesh,
+        grid_size,
+        use_normal=True,
+        box=box,
+        texture=m.texture,
+        uvs=m.uvs,
+        colors=m.colors,
+        bilinear=True,
+        use_fixed_point=True,
+    )
+
+
+def ctc_frame(
+    ref: TexturedMesh,
+    dis: TexturedMesh,
+    *,
+    qp: int,
+    qt: int,
+    min_pos: Corner,
+    max_pos: Corner,
+    resolution: float,
+    decoded_qt: int = 0,
+    grid_size: int = 1024,
+    ibsm_resolution: int | None = 2048,
+    ibsm_cameras: int = 16,
+    frame: int = 0,
+) -> CtcFrame:
+    """The grid figures of one frame pair, as the CTC's ``mm sequence`` chain computes them (see the module).
+
+    Args:
+        ref: the *quantised* source frame (integer positions, quantised UVs) with its texture.
+        dis: the decoded frame (integer positions over the same box; UVs already in ``[0, 1]`` unless
+            ``decoded_qt >= 7``).
+        qp: geometry bit depth of both (``--qp``).
+        qt: UV bit depth of the source (``--qt``); ``decoded_qt`` that of the decoded frame (the test model: 0).
+        min_pos: ``(3,)`` the sequence box's min corner (``--minPos``).
+        max_pos: ``(3,)`` its max corner (``--maxPos``).
+        resolution: PSNR peak (``compare --resolution``; the test model: the box's longest side).
+        decoded_qt: UV bit depth of the decoded frame.
+        grid_size: ``--gridSize`` (1024).
+        ibsm_resolution: IBSM's buffer side (``--ibsmResolution``, 2048); ``None`` leaves IBSM out.
+        ibsm_cameras: IBSM's camera count (``--ibsmCameraCount``, 16).
+        frame: frame number stored in the result.
+
+    Returns:
+        :class:`CtcFrame` with ``GridD1``, ``GridD2``, ``IbsmGeom``, ``IbsmLuma`` and, when both carry colour,
+        ``GridLuma``, ``GridChromaCb``, ``GridChromaCr``.
+
+    Example:
+        >>> import trimesh
+        >>> s = trimesh.creation.icosphere(2)
+        >>> q = TexturedMesh(Mesh(torch.tensor(np.round((s.vertices + 1) * 511.5)), torch.tensor(s.faces)))
+        >>> r = ctc_frame(q, q, qp=10, qt=0, min_pos=[-1, -1, -1], max_pos=[1, 1, 1], resolution=2.0, grid_size=64,
+        ...               ibsm_resolution=64)
+        >>> r.figures["GridD1"], r.figures["IbsmGeom"]
+        (inf, 99.99)
+    """
+    box = (min_pos, max_pos)
+    # both mmetric steps reindex the dequantised meshes with the same oriented reorder (the grid chain's reindex
+    # command, IBSM's own reordering): done once here, and IBSM told not to redo it
+    r = oriented_reindex(_dequantized(ref, qp, qt, box))
+    d = oriented_reindex(_dequantized(dis, qp, decoded_qt, box))
+    # the two samplings are independent numpy work that releases the GIL: run them side by side
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        rc = pool.submit(_grid_cloud, r, grid_size, box)
+        dc = pool.submit(_grid_cloud, d, grid_size, box)
+        res = mpeg_compare(rc.result(), dc.result(), peak=resolution)
+    ib = None
+    if ibsm_resolution is not None:
+        from torchmeshmetric.mpeg.ibsm import ibsm
+
+        ib = ibsm(r, d, resolution=ibsm_resolution, cameras=ibsm_cameras, reorder=False)
+    figures = {"GridD1": res.symmetric.d1_psnr, "GridD2": res.symmetric.d2_psnr}
+    if res.symmetric.color_psnr is not None:
+        y, cb, cr = res.symmetric.color_psnr
+        figures.update({"GridLuma": y, "GridChromaCb": cb, "GridChromaCr": cr})
+    if ib is not None:
+        figures.update({"IbsmGeom": ib.geo_psnr, "IbsmLuma": ib.yuv_psnr[0]})
+    return CtcFrame(frame, figures, res.points_ref, res.points_dis)
+
+
+def ctc_sequence(
+    pairs: Iterable[tuple[int, TexturedMesh, TexturedMesh]],
+    *,
+    qp: int,
+    qt: int,
+    min_pos: Corner,
+    max_pos: Corner,
+    resolution: float,
+    decoded_qt: int = 0,
+    grid_size: int = 1024,
+    ibsm_resolution: int | None = 2048,
+    ibsm_cameras: int = 16,
+    progress: Callable[[CtcFrame], None] | None = None,
+) -> CtcSequence:
+    """The CTC figures of a decoded sequence: :func:`ctc_frame` on every ``(frame, source, decoded)`` pair.
+
+    ``pairs`` may be a generator that reads the frames lazily (one pair in memory at a time).
+
+    Example:
+        >>> import trimesh
+        >>> s = trimesh.creation.icosphere(2)
+        >>> q = TexturedMesh(Mesh(torch.tensor(np.round((s.vertices + 1) * 511.5)), torch.tensor(s.faces)))
+        >>> seq = ctc_sequence([(0, q, q)], qp=10, qt=0, min_pos=[-1] * 3, max_pos=[1] * 3, resolution=2.0,
+        ...                    grid_size=64, ibsm_resolution=None)
+        >>> seq.mean()["GridD1"]
+        99.99
+    """
+    frames = []
+    for k, ref, dis in pairs:
+        f = ctc_frame(ref, dis, qp=qp, qt=qt, min_pos=min_pos, max_pos=max_pos, resolution=resolution,
+                      decoded_qt=decoded_qt, grid_size=grid_size, ibsm_resolution=ibsm_resolution,
+                      ibsm_cameras=ibsm_cameras, frame=k)  # fmt: skip
+        frames.append(f)
+        if progress is not None:
+            progress(f)
+    return CtcSequence(frames, tuple(c for c in CTC_COLUMNS if any(c in f.figures for f in frames)))
