@@ -28,12 +28,16 @@ from .data import (
     BONE_NAMES,
     DemoSequence,
     MeshFileError,
+    Prefetcher,
     add_capture_defects,
     demo_sequence,
+    iter_sequence,
     list_frames,
     load_mesh,
     load_sequence,
     natural_key,
+    prefetch_frames,
+    read_mesh_arrays,
     save_mesh,
 )
 from .evaluation import (
@@ -106,6 +110,10 @@ from .stats import DistanceAccumulator, DistanceStatistics, distance_statistics
 from .structures import Mesh, MeshLike, as_mesh, pack_meshes, pack_points
 
 __all__ = [
+    "Prefetcher",
+    "iter_sequence",
+    "prefetch_frames",
+    "read_mesh_arrays",
     "DTypeError",
     "DeviceError",
     "EmptyInputError",

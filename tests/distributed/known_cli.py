@@ -13,6 +13,7 @@ import os
 import sys
 
 import torchmeshmetric.cli
+import torchmeshmetric.cli._shared
 import torchmeshmetric.evaluation
 import torchmeshmetric.evaluation.pipeline
 from tests.distributed.helpers import register
@@ -27,5 +28,5 @@ if __name__ == "__main__":  # only then: pytest imports this module too (doctest
         def refuse(*args: object, **kwargs: object) -> None:
             raise ValueError(f"injected on rank {bad_rank} only")
 
-        torchmeshmetric.cli.check_methods = refuse  # type: ignore[assignment]
+        torchmeshmetric.cli._shared.check_methods = refuse  # type: ignore[assignment]
     sys.exit(main(sys.argv[1:]))

@@ -622,8 +622,8 @@ def iter_sequence(paths: PathsLike, *, dtype: torch.dtype = torch.float32, ahead
         >>> for n in (2, 1):
         ...     _ = (d / f"f{n}.obj").write_text(f"v 0 0 {n}\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
         >>> with iter_sequence(d) as frames:
-        ...     [m.num_verts for m in frames]
-        [3, 3]
+        ...     tuple(m.num_verts for m in frames)
+        (3, 3)
     """
     return prefetch_frames(list_frames(paths), load=lambda p: load_mesh(p, dtype=dtype), ahead=ahead)
 
@@ -768,8 +768,8 @@ def prefetch_frames(paths: PathsLike, *, load: Callable[[Path], Any] | None = No
         >>> for n in (10, 2):
         ...     _ = (d / f"f{n}.obj").write_text(f"v 0 0 {n}\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
         >>> with prefetch_frames(d, ahead=1) as frames:
-        ...     [float(m.verts[0, 2]) for m in frames]
-        [2.0, 10.0]
+        ...     tuple(float(m.verts[0, 2]) for m in frames)
+        (2.0, 10.0)
     """
     files = list_frames(paths)
     return Prefetcher(files, load if load is not None else load_mesh, ahead)

@@ -120,10 +120,10 @@ def _run_ctc(args: argparse.Namespace) -> int:
 
     def one_frame(task: tuple[int, Path, Path, Path | None, Path | None]) -> CtcFrame:
         k, ref, dis, rt, dt = task
-        r, d = load_textured_mesh(ref, rt), load_textured_mesh(dis, dt)
-        for m, path in ((r, ref), (d, dis)):  # a surface is needed by both the grid sampling and IBSM
-            if m.mesh.faces.shape[0] == 0:
-                raise ValueError(f"frame {k}: {path}: no face (the CTC metrics sample and render surfaces)")
+        try:  # the reader refuses a file without faces too (both the grid sampling and IBSM need a surface)
+            r, d = load_textured_mesh(ref, rt), load_textured_mesh(dis, dt)
+        except ValueError as exc:
+            raise ValueError(f"frame {k}: {exc}") from exc
         f = ctc_frame(
             r,
             d,
