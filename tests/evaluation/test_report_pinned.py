@@ -49,9 +49,10 @@ FILES = ("report.json", "report.csv", "report.md")
 VARYING = "<varies>"
 RTOL = 1e-6
 """Relative tolerance of the report's floats. From the measured stability (docs/registration.md, "Stability";
-tests/registration/test_stability.py): inputs moved by one ulp or 1e-9 relative move the registered vertices and every
-statistic of the k-1 and flicker sets by at most ~1e-7 relative, and another machine changes the registration's
-inputs by rounding only. Before the registration converged, one ulp moved them by 1e-3 to 5e-2: far outside."""
+tests/registration/test_stability.py): inputs moved by one ulp move the registered vertices and every statistic of the
+k-1 and flicker sets by at most ~1e-11 relative (1e-9 of input by up to 6e-5 on one pair), and another CPU, BLAS or
+thread count changes the registration's inputs by rounding (ulps) only. Before the registration converged, one ulp
+moved them by 1e-3 to 5e-2: far outside."""
 _NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 
 

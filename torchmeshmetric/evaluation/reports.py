@@ -57,8 +57,8 @@ _MESH_LABELS = {"k_minus_1": "(k-1)-th", "k": "k-th"}
 #: Algorithm cell of the registration's rows, and their mesh cells.
 REGISTRATION_ROW = "Registration"
 STABILITY_NOTE = (
-    "moving the original frames by one ulp or by 1e-9 (relative) moves the (k-1)-th and flicker statistics by at most "
-    "~1e-7 (relative; measured, docs/registration.md), so their printed digits are determined by the input frames; "
+    "moving the original frames by one ulp moves the (k-1)-th and flicker statistics by at most ~1e-11 (relative), "
+    "by 1e-9 at most ~1e-4 (measured, docs/registration.md), so their 4 printed digits are determined by the input; "
     "a change of 1e-6 in the input (float32 storage, six-decimal files) can move them by up to ~1e-2, so compare "
     "them between methods to about 2 significant digits unless the frames are stored in float64."
 )
