@@ -41,11 +41,10 @@ from torchmeshmetric.registration.energies import (
     Correspondences,
     EnergyTerms,
     FusedStep,
-    acceptance_weights,
     data_term,
     deformed_vertices,
     embedded_deformation_regularizer,
-    interpolated_normals,
+    find_correspondences,
     registration_ops,
     reverse_term,
 )
@@ -440,27 +439,19 @@ class _Fit:
             else:
                 deformed = Mesh(deformed_vertices(self.graph), sf, validate=False)
                 dv, source_normals = deformed.verts, deformed.vertex_normals()
-            forward = self._match(
-                stage, dv.index_select(0, surf), source_normals.index_select(0, surf), self.target_index, tgt.faces,
-                tgt.vertex_normals(),
+            thresholds = {"max_distance": stage.max_distance, "max_normal_angle": stage.max_normal_angle}
+            forward = find_correspondences(
+                dv.index_select(0, surf), source_normals.index_select(0, surf), tgt.verts, tgt.faces,
+                index=self.target_index, vertex_normals=tgt.vertex_normals(), **thresholds,
             )  # fmt: skip
             reverse = None
             if self.samples is not None:
-                reverse = self._match(
-                    stage, self.samples, self.sample_normals, self._source_index(dv), sf, source_normals
-                )
+                reverse = find_correspondences(
+                    self.samples, self.sample_normals, dv, sf, index=self._source_index(dv),
+                    vertex_normals=source_normals, **thresholds,
+                )  # fmt: skip
         self.timings["correspondences"] += time.perf_counter() - t0
         return self._terms(forward, reverse)
-
-    @staticmethod
-    def _match(
-        stage: Stage, points: Tensor, normals: Tensor, index: MeshIndex, faces: Tensor, vertex_normals: Tensor
-    ) -> Correspondences:
-        """:func:`find_correspondences` with a kept index and the mesh's vertex normals."""
-        res = index._point_mesh_distance(points, _lengths(points))
-        matched = interpolated_normals(vertex_normals, faces, res.face_idx, res.bary)
-        weights = acceptance_weights(res.dists, normals, matched, stage.max_distance, stage.max_normal_angle)
-        return Correspondences(res.face_idx, weights, res.dists, res.closest, res.bary, matched)
 
     def _terms(self, forward: Correspondences, reverse: Correspondences | None) -> _Terms:
         """Lay out one refresh's correspondences for the energies, indexed by the vertices they touch.
