@@ -750,28 +750,6 @@ std::vector<torch::Tensor> deform_normals(const torch::Tensor& axis, const torch
   return deform_normals_impl<float>(axis, t, g, rest, vidx, vw, faces, inc_ptr, inc_items, at);
 }
 
-// Unit normals (Mesh.face_normals) of the faces `face_idx` of a mesh.
-torch::Tensor face_normals(const torch::Tensor& verts, const torch::Tensor& faces, const torch::Tensor& face_idx) {
-  check_cpu({&verts, &faces, &face_idx}, "face_normals");
-  const int64_t M = face_idx.size(0), F = faces.size(0);
-  const int64_t* fi = face_idx.data_ptr<int64_t>();
-  for (int64_t m = 0; m < M; ++m) TORCH_CHECK(fi[m] >= 0 && fi[m] < F, "face_normals: face index out of range");
-  torch::Tensor out = torch::empty({M, 3}, verts.options());
-  AT_DISPATCH_FLOATING_TYPES(verts.scalar_type(), "face_normals", [&] {
-    const scalar_t* v = verts.data_ptr<scalar_t>();
-    const int64_t* f = faces.data_ptr<int64_t>();
-    scalar_t* o = out.data_ptr<scalar_t>();
-    chunked_for(M, CHUNK_GATHER, [&](int64_t s, int64_t e) {
-      for (int64_t m = s; m < e; ++m) {
-        scalar_t n[3];
-        face_cross(v, f + 3 * fi[m], n);
-        unit(n, o + 3 * m);
-      }
-    });
-  });
-  return out;
-}
-
 torch::Tensor axis_angle_rotations(const torch::Tensor& axis) {
   check_cpu({&axis}, "axis_angle_rotations");
   return is_double(axis, "axis_angle_rotations") ? rotation_matrices<double>(axis) : rotation_matrices<float>(axis);
@@ -790,7 +768,6 @@ TORCH_LIBRARY(torchmeshmetric_registration, m) {
   m.def("incident_faces(Tensor faces, int num_verts) -> Tensor[]", &incident_faces);
   m.def("deform_normals(Tensor axis, Tensor t, Tensor g, Tensor rest, Tensor vidx, Tensor vw, Tensor faces, "
         "Tensor inc_ptr, Tensor inc_items, Tensor at) -> Tensor[]", &deform_normals);
-  m.def("face_normals(Tensor verts, Tensor faces, Tensor face_idx) -> Tensor", &face_normals);
   m.def("axis_angle_rotations(Tensor axis) -> Tensor", &axis_angle_rotations);
 }
 
