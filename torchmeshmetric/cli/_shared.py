@@ -17,7 +17,7 @@ from typing import Any
 import torch
 
 from torchmeshmetric._atomic import atomic_file_set, atomic_write, blocking_file
-from torchmeshmetric.mpeg.command import json_safe
+from torchmeshmetric._format import json_safe
 from torchmeshmetric.data.io import load_sequence
 from torchmeshmetric.evaluation.cache import RegistrationCache
 from torchmeshmetric.evaluation.distributed import SequenceWork, evaluate_sequences
