@@ -17,7 +17,6 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, NamedTuple
 
-from torchmeshmetric._deprecation import renamed_keywords
 from torchmeshmetric.evaluation.cache import RegistrationCache
 from torchmeshmetric.evaluation.pipeline import PairTask, check_methods, check_sequence, evaluate_pairs
 from torchmeshmetric.evaluation.results import SequenceEvaluation
@@ -46,7 +45,6 @@ def _describe(work: Sequence[SequenceWork], w: int, method: str, k: int) -> str:
     return f"{seq}{named}frame pair {k - 1} -> {k}"
 
 
-@renamed_keywords(cache="registration_cache", registrations="precomputed_registrations")
 def evaluate_sequences(
     work: Sequence[SequenceWork],
     *,
@@ -71,9 +69,6 @@ def evaluate_sequences(
         to: the rank that receives the results (``None``: every rank).
         progress: called on rank 0 as ``progress(pairs_done, pairs_total)`` across all ranks.
         **options: passed to ``evaluate_sequence`` (``two_sided``, ``device``, ``registration_fn``, ...).
-
-    The keywords ``cache`` and ``registrations`` are the deprecated names of ``registration_cache`` and
-    ``precomputed_registrations``.
 
     Returns:
         Per sequence, method name -> :class:`SequenceEvaluation` (on the receiving rank(s)); ``None`` elsewhere.

@@ -19,7 +19,6 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric._checks import ShapeError
-from torchmeshmetric._deprecation import renamed_keywords
 from torchmeshmetric.evaluation.cache import CachedRegistration, RegistrationCache
 from torchmeshmetric.evaluation.flicker import FLICKER, flicker_distances
 from torchmeshmetric.evaluation.results import SET_NAMES, PairEvaluation, SequenceEvaluation
@@ -227,12 +226,6 @@ def _registration_error(registered: Mesh, true_registration: Tensor, peak: float
     return error, distance_statistics(error, peak=peak)
 
 
-@renamed_keywords(
-    registration="precomputed_registration",
-    register="registration_fn",
-    register_options="registration_options",
-    cache="registration_cache",
-)
 def evaluate_pair(
     simplified_k: MeshLike,
     original_k: MeshLike,
@@ -276,9 +269,6 @@ def evaluate_pair(
         true_registration: ``(V_{k-1}, 3)`` true positions in frame ``k`` of the vertices of ``original_k_minus_1``
             (known motion, e.g. :meth:`~torchmeshmetric.data.DemoSequence.transfer`): the registration's error is
             then reported beside its residual.
-
-    The keywords ``registration``, ``register``, ``register_options`` and ``cache`` are the deprecated names of
-    ``precomputed_registration``, ``registration_fn``, ``registration_options`` and ``registration_cache``.
 
     Returns:
         :class:`PairEvaluation` with the four distance sets (keys ``surface_k``, ``surface_k_minus_1``,
@@ -362,13 +352,6 @@ def evaluate_pair(
     )
 
 
-@renamed_keywords(
-    registrations="precomputed_registrations",
-    register="registration_fn",
-    register_options="registration_options",
-    cache="registration_cache",
-    cache_dir="registration_cache_dir",
-)
 def evaluate_sequence(
     original_frames: Sequence[MeshLike],
     simplified_frames: Sequence[MeshLike],
@@ -419,10 +402,6 @@ def evaluate_sequence(
             see :mod:`torchmeshmetric.tasks`). Explicit, not automatic: inside a DDP job each rank
             may be evaluating its own data. Without a process group the sequence is evaluated here. Each pair is
             :func:`evaluate_pair` in both cases (:func:`evaluate_pairs`).
-
-    The keywords ``cache_dir``, ``cache``, ``register``, ``register_options`` and ``registrations`` are the
-    deprecated names of ``registration_cache_dir``, ``registration_cache``, ``registration_fn``,
-    ``registration_options`` and ``precomputed_registrations``.
 
     Returns:
         :class:`SequenceEvaluation` with ``N - 1`` pairs.
