@@ -23,8 +23,8 @@ from torchmeshmetric.evaluation.cache import CachedRegistration, RegistrationCac
 from torchmeshmetric.evaluation.flicker import FLICKER, flicker_distances
 from torchmeshmetric.evaluation.results import SET_NAMES, PairEvaluation, SequenceEvaluation
 from torchmeshmetric.kernels import IndexCache, MeshIndex, point_mesh_distance
-from torchmeshmetric.metrics.surface_distance_sets import _surface_distance_sets
-from torchmeshmetric.metrics.vertex_distance_sets import _vertex_distance_sets
+from torchmeshmetric.metrics.surface_distance_sets import measure_surface_distance_sets
+from torchmeshmetric.metrics.vertex_distance_sets import measure_vertex_distance_sets
 from torchmeshmetric.registration import NonRigidOptions, register_nonrigid
 from torchmeshmetric.registration.warp import RegistrationWarp, SurfaceWarp, Warp
 from torchmeshmetric.stats import DistanceStatistics, distance_statistics
@@ -203,10 +203,10 @@ def _distance_sets(
         ref_index = shared.get(mesh, backend=backend, tree="morton")
         ref_points = [ref_index.ref_points.points]
         # The metrics' trusted entries: the meshes are validated and their vertex sets taken once, here.
-        surface = _surface_distance_sets(
+        surface = measure_surface_distance_sets(
             points, [mesh], ref_points if two_sided else None, [simplified], ref_index, simp_index, backend
         )
-        vertex = _vertex_distance_sets(points, ref_points, two_sided, ref_index, simp_index, backend)
+        vertex = measure_vertex_distance_sets(points, ref_points, two_sided, ref_index, simp_index, backend)
         for kind, (to_reference, from_reference) in (("surface", surface), ("vertex", vertex)):
             forward[f"{kind}_{name}"] = to_reference
             if from_reference is not None:

@@ -15,12 +15,21 @@ import torch
 
 from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY
 from torchmeshmetric.kernels.mesh_index import MeshIndex, _given_tensors
-from torchmeshmetric.structures import Mesh, MeshLike, _looks_like_pair, as_mesh, pack_meshes
+from torchmeshmetric.structures import Mesh, MeshLike, as_mesh, looks_like_pair, pack_meshes
 
-__all__ = ["IndexCache"]
+__all__ = ["IndexCache", "fingerprint"]
 
 
-def _fingerprint(meshes: list[Mesh], backend: str) -> str:
+def fingerprint(meshes: list[Mesh], backend: str) -> str:
+    """A key of the content of ``meshes`` (shapes, dtype, device, every vertex and face) and a settings string.
+
+    Example:
+        >>> import torch
+        >>> from torchmeshmetric import Mesh
+        >>> m = Mesh(torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]]))
+        >>> fingerprint([m], "a") == fingerprint([Mesh(m.verts.clone(), m.faces)], "a") != fingerprint([m], "b")
+        True
+    """
     h = hashlib.blake2b(digest_size=20)
     h.update(backend.encode())
     for m in meshes:
@@ -62,9 +71,9 @@ class IndexCache:
         ``mesh``'s tensors change in place: ask the cache again for the changed mesh. ``tree`` as in
         :class:`~torchmeshmetric.MeshIndex` (``"morton"`` for references queried only a few times).
         """
-        batch = isinstance(mesh, list) or (isinstance(mesh, tuple) and not _looks_like_pair(mesh))
+        batch = isinstance(mesh, list) or (isinstance(mesh, tuple) and not looks_like_pair(mesh))
         meshes = [as_mesh(m) for m in mesh] if batch else [as_mesh(mesh)]  # type: ignore[union-attr,arg-type]
-        key = _fingerprint(meshes, f"{backend}/{tree}")
+        key = fingerprint(meshes, f"{backend}/{tree}")
         index = self._entries.get(key)
         if index is None:
             # Built on copies of its own (packing copies), so the entry answers for the content it is keyed by even

@@ -9,7 +9,7 @@ import numpy as np
 from torch import Tensor
 
 from torchmeshmetric.kernels.sampling import vertex_set
-from torchmeshmetric.structures import Mesh, _looks_like_pair, as_mesh, as_points
+from torchmeshmetric.structures import Mesh, as_mesh, as_points, looks_like_pair
 
 __all__ = ["PointSource", "as_point_sources", "as_reference_meshes", "check_surface_samples"]
 
@@ -24,7 +24,7 @@ class PointSource(NamedTuple):
 def _is_mesh_like(x: Any) -> bool:
     if isinstance(x, Mesh):
         return True
-    if isinstance(x, tuple) and _looks_like_pair(x):
+    if isinstance(x, tuple) and looks_like_pair(x):
         return True
     return type(x).__name__ == "Trimesh"
 

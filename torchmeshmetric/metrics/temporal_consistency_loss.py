@@ -35,7 +35,7 @@ from torch import Tensor, nn
 
 from torchmeshmetric._checks import EmptyInputError, NonFiniteError, ShapeError
 from torchmeshmetric.kernels.danskin import mesh_surface_distances
-from torchmeshmetric.kernels.index_cache import IndexCache, _fingerprint
+from torchmeshmetric.kernels.index_cache import IndexCache, fingerprint
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.kernels.sampling import vertex_set
 from torchmeshmetric.metrics._inputs import _is_mesh_like
@@ -72,7 +72,7 @@ class _KeptIndex:
             and [int(x) for x in self.index.verts_lengths] == [m.num_verts for m in meshes]
         )
         if same and self.index is not None:
-            self.index._refit(verts)
+            self.index.refit(verts)
             return self.index
         detached = [Mesh(m.verts.detach(), m.faces, validate=False) for m in meshes]
         index = MeshIndex(detached if len(detached) > 1 else detached[0], backend=backend)
@@ -84,7 +84,7 @@ class _KeptIndex:
             lengths = torch.zeros(len(meshes), dtype=torch.long, device=verts.device)
             lengths[with_faces[0]] = 1
             with torch.no_grad():
-                index._point_mesh_distance(verts[:1], lengths)
+                mesh_surface_distances(verts[:1].to(index.dtype), lengths, detached, index)
         self.index, self.faces = index, [m.faces.clone() for m in meshes]
         return index
 
@@ -125,7 +125,7 @@ class TemporalLossCache:
 
     def warp(self, original_k: Mesh, original_k_minus_1: Mesh, options: NonRigidOptions, backend: str) -> Warp:
         """The warp of ``original_k_minus_1`` registered onto ``original_k`` (registered on the first request)."""
-        key = _fingerprint([original_k_minus_1, original_k], repr(options))
+        key = fingerprint([original_k_minus_1, original_k], repr(options))
         found = self._warps.get(key)
         if found is not None:
             self._warps.move_to_end(key)
