@@ -39,6 +39,7 @@ __all__ = [
     "as_mesh",
     "as_points",
     "batch_index",
+    "is_mesh_like",
     "lengths_to_offsets",
     "looks_like_pair",
     "pack_meshes",
@@ -437,3 +438,18 @@ def pack_meshes(
 def looks_like_pair(t: tuple[Any, ...]) -> bool:
     """A 2-tuple whose items are arrays/tensors is a ``(verts, faces)`` mesh, not a list of two meshes."""
     return len(t) == 2 and all(isinstance(x, (Tensor, np.ndarray)) for x in t)
+
+
+def is_mesh_like(x: Any) -> bool:
+    """Whether ``x`` is one mesh: a :class:`Mesh`, a ``(verts, faces)`` pair of arrays/tensors, a ``trimesh.Trimesh``.
+
+    Example:
+        >>> import torch
+        >>> is_mesh_like((torch.zeros(3, 3), torch.tensor([[0, 1, 2]]))), is_mesh_like([torch.zeros(3, 3)])
+        (True, False)
+    """
+    if isinstance(x, Mesh):
+        return True
+    if isinstance(x, tuple) and looks_like_pair(x):
+        return True
+    return type(x).__name__ == "Trimesh"
