@@ -10,10 +10,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from torchmeshmetric.kernels.accel import bruteforce, pruned_faces
-from torchmeshmetric.kernels.accel._extension import load_bvh
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance
 from torchmeshmetric.kernels.point_triangle import point_mesh_distance
 from torchmeshmetric.kernels.select import FaceSet
+from torchmeshmetric.native import try_load
 
 BACKENDS = ["bvh", "pruned"]
 DTYPES = [torch.float32, torch.float64]
@@ -22,7 +22,7 @@ DTYPES = [torch.float32, torch.float64]
 @pytest.fixture(scope="module", autouse=True)
 def _compiled() -> None:
     # Compile (or load from the cache) once for the module; a missing compiler would warn and fail here.
-    assert load_bvh() is not None
+    assert try_load("bvh") is not None
 
 
 def assert_same_faces(points, verts, faces, backend, **kw):
@@ -266,23 +266,24 @@ def test_nearest_gradients_equal_bruteforce(backend):
 
 
 def test_auto_picks_bvh_on_cpu_for_large_problems_and_bruteforce_for_small(monkeypatch):
+    from torchmeshmetric import native
     from torchmeshmetric.kernels import select
 
     cpu = torch.device("cpu")
     small, large = 10 * 10, 5000 * 1000
     # Before the extension is compiled: small problems stay on the brute force (no compilation for them).
-    monkeypatch.setattr(select, "bvh_ready", lambda: False)
+    monkeypatch.setattr(native, "ready", lambda name: False)
     assert select.auto_backend_name(cpu, torch.float32, small) == "bruteforce"
     assert select.auto_backend_name(cpu, torch.float32, large) == "bvh"
     # Compiled: the BVH at every size.
-    monkeypatch.setattr(select, "bvh_ready", lambda: True)
+    monkeypatch.setattr(native, "ready", lambda name: True)
     assert select.auto_backend_name(cpu, torch.float32, small) == "bvh"
 
 
 def test_bvh_ready_reflects_the_compiled_extension():
-    from torchmeshmetric.kernels.accel._extension import bvh_ready
+    from torchmeshmetric.native import ready
 
-    assert load_bvh() is not None and bvh_ready()
+    assert try_load("bvh") is not None and ready("bvh")
 
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")

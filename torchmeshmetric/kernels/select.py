@@ -32,8 +32,8 @@ from typing import Any, NamedTuple
 import torch
 from torch import Tensor
 
+from torchmeshmetric import native
 from torchmeshmetric.kernels.accel import bruteforce, bvh, pruned, triton_backend
-from torchmeshmetric.kernels.accel._extension import bvh_ready, load_bvh
 
 __all__ = [
     "BACKENDS",
@@ -148,7 +148,7 @@ def auto_backend_name(device: torch.device, dtype: torch.dtype, num_pairs: int) 
     brute force below :data:`MIN_PAIRS` and ``"bvh"`` above. Other devices: brute force below :data:`MIN_PAIRS`;
     above, ``"triton"`` on CUDA when Triton imports (float32/float64), else ``"pruned"``.
     """
-    if device.type == "cpu" and bvh_ready():
+    if device.type == "cpu" and native.ready("bvh"):
         return "bvh"
     if num_pairs < MIN_PAIRS:
         return "bruteforce"
@@ -176,7 +176,7 @@ def resolve_backend(name: str, device: torch.device, dtype: torch.dtype, num_pai
     check_backend(name)
     if name == "auto":
         name = auto_backend_name(device, dtype, num_pairs)
-    if name == "bvh" and (device.type != "cpu" or load_bvh() is None):
+    if name == "bvh" and (device.type != "cpu" or native.try_load("bvh") is None):
         return PRUNED
     return BACKENDS[name]
 

@@ -21,7 +21,7 @@ from typing import Any, NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric.kernels.accel._extension import bvh_ready, load_bvh
+from torchmeshmetric import native
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.kernels.point_triangle import point_mesh_distance
 from torchmeshmetric.registration.deformation_graph import DeformationGraph
@@ -313,7 +313,7 @@ def registration_ops() -> Any | None:
 
     Only where the extension is ready (built, or cached), as ``backend="auto"``: never compiles on first use.
     """
-    if not bvh_ready() or load_bvh() is None:
+    if not native.ready("bvh") or native.try_load("bvh") is None:
         return None
     return torch.ops.torchmeshmetric_registration
 
@@ -402,9 +402,9 @@ def fused_energy(
 def deformed_vertices(graph: DeformationGraph) -> Tensor:
     """``graph()`` without gradient: every vertex deformed, in one C++ pass on the CPU (torch ops elsewhere)."""
     with torch.no_grad():
-        if graph.nodes.device.type != "cpu" or not bvh_ready():
+        if graph.nodes.device.type != "cpu" or not native.ready("bvh"):
             return graph()
-        ext = load_bvh()
+        ext = native.try_load("bvh")
         assert ext is not None
         rot = graph.rotation_matrices().contiguous()
         return ext.deform_vertices(
