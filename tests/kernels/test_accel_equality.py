@@ -265,19 +265,20 @@ def test_nearest_gradients_equal_bruteforce(backend):
     assert torch.equal(grads[0][0], grads[1][0]) and torch.equal(grads[0][1], grads[1][1])
 
 
-def test_auto_picks_bvh_on_cpu_for_large_problems_and_bruteforce_for_small(monkeypatch):
+def test_auto_picks_bvh_on_cpu_at_every_size_and_bruteforce_or_pruned_without_it(monkeypatch):
     from torchmeshmetric import native
     from torchmeshmetric.kernels import select
 
     cpu = torch.device("cpu")
     small, large = 10 * 10, 5000 * 1000
-    # Before the extension is compiled: small problems stay on the brute force (no compilation for them).
-    monkeypatch.setattr(native, "ready", lambda name: False)
+    # Where the extension cannot be built: small problems on the brute force, large ones pruned.
+    monkeypatch.setattr(native, "try_load", lambda name: None)
     assert select.auto_backend_name(cpu, torch.float32, small) == "bruteforce"
-    assert select.auto_backend_name(cpu, torch.float32, large) == "bvh"
-    # Compiled: the BVH at every size.
-    monkeypatch.setattr(native, "ready", lambda name: True)
+    assert select.auto_backend_name(cpu, torch.float32, large) == "pruned"
+    # Otherwise the BVH at every size (built first where needed, whether or not a build existed).
+    monkeypatch.setattr(native, "try_load", lambda name: object())
     assert select.auto_backend_name(cpu, torch.float32, small) == "bvh"
+    assert select.auto_backend_name(cpu, torch.float32, large) == "bvh"
 
 
 def test_bvh_ready_reflects_the_compiled_extension():

@@ -48,7 +48,7 @@ def farthest_point_nodes(points: Tensor, spacing: float) -> Tensor:
         raise EmptyInputError("points: expected at least one candidate node position, found none")
     p = points.detach()
     start = int(((p - p.mean(0)) ** 2).sum(-1).argmin())
-    if p.device.type == "cpu" and p.dtype in (torch.float32, torch.float64) and native.ready("bvh"):
+    if p.device.type == "cpu" and p.dtype in (torch.float32, torch.float64):
         # The same loop in C++ (bit-identical choices, tested): one pass per node instead of ~4 torch ops, each a
         # parallel region on large inputs (seconds on a loaded machine).
         ext = native.try_load("bvh")

@@ -311,9 +311,10 @@ class EnergyTerms(NamedTuple):
 def registration_ops() -> Any | None:
     """The C++ registration operators (``torch.ops.torchmeshmetric_registration``), or ``None`` without the extension.
 
-    Only where the extension is ready (built, or cached), as ``backend="auto"``: never compiles on first use.
+    The extension is built first where needed (once per machine, the caller waits); ``None`` only where it cannot
+    be built here, which holds for the whole process, so a registration never mixes the two formulations.
     """
-    if not native.ready("bvh") or native.try_load("bvh") is None:
+    if native.try_load("bvh") is None:
         return None
     return torch.ops.torchmeshmetric_registration
 
@@ -402,10 +403,9 @@ def fused_energy(
 def deformed_vertices(graph: DeformationGraph) -> Tensor:
     """``graph()`` without gradient: every vertex deformed, in one C++ pass on the CPU (torch ops elsewhere)."""
     with torch.no_grad():
-        if graph.nodes.device.type != "cpu" or not native.ready("bvh"):
+        ext = native.try_load("bvh") if graph.nodes.device.type == "cpu" else None
+        if ext is None:
             return graph()
-        ext = native.try_load("bvh")
-        assert ext is not None
         rot = graph.rotation_matrices().contiguous()
         return ext.deform_vertices(
             rot, graph.translations.detach().contiguous(), graph.nodes.contiguous(), graph.verts.contiguous(),

@@ -120,10 +120,10 @@ def bvh_closest_points(
     """Closest point on the selected faces without autograd, in C++: ``(sq_dists, bary, closest)`` or ``None``.
 
     Bit-identical to :func:`~torchmeshmetric.closest_point_on_triangle` on the selected faces (same operations,
-    order and dtype; tested). ``None`` (the torch recomputation runs) off the CPU, for other dtypes, or while the
-    extension is not compiled yet (a small call never triggers the compilation).
+    order and dtype; tested). ``None`` (the torch recomputation runs) off the CPU, for other dtypes, or where the
+    extension cannot be built (fixed for the process: see :mod:`torchmeshmetric.native`).
     """
-    if points.device.type != "cpu" or points.dtype not in (torch.float32, torch.float64) or not native.ready("bvh"):
+    if points.device.type != "cpu" or points.dtype not in (torch.float32, torch.float64):
         return None
     ext = native.try_load("bvh")
     if ext is None:
