@@ -18,7 +18,7 @@ import torch
 
 from torchmeshmetric._atomic import atomic_file_set, atomic_write, blocking_file
 from torchmeshmetric._format import json_safe
-from torchmeshmetric.data.io import load_sequence
+from torchmeshmetric.data.sequence import load_sequence
 from torchmeshmetric.evaluation.cache import RegistrationCache
 from torchmeshmetric.evaluation.distributed import SequenceWork, evaluate_sequences
 from torchmeshmetric.evaluation.pipeline import check_methods, evaluate_sequence
