@@ -45,6 +45,7 @@ PSNRs): every set-like entry (a mapping of statistic names to numbers) is compar
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from collections.abc import Mapping, Sequence
@@ -70,6 +71,7 @@ _NOT_SETS = ("frame", "registration", "timings", "peak")
 _REVERSE = "reverse"
 
 
+@functools.cache  # a pure function of (p, df): compare_methods asks for the same few quantiles hundreds of times
 def t_quantile(p: float, df: int) -> float:
     """Quantile ``p`` in ``(0.5, 1)`` of Student's *t* distribution with ``df >= 1`` degrees of freedom.
 
