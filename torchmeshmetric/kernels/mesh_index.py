@@ -472,6 +472,11 @@ class MeshIndex:
 
     def _refit(self, verts: Tensor) -> None:
         """Trusted entry of :meth:`refit`."""
+        if self._origin is not None:
+            # A copy (an IndexCache hit) shares its origin's structures with the cache entry and every other copy:
+            # refitting them would move their answers too. The copy takes structures of its own, built on first
+            # use for the moved vertices (refitted, not rebuilt, from then on).
+            self._origin, self._faces, self._nearest = None, None, None
         self._set_verts(verts)
         self._verts_sources = _sources([("verts", verts)])
         if self._faces is not None:

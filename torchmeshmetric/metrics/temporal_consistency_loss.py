@@ -33,7 +33,7 @@ import torch
 from torch import Tensor, nn
 
 from torchmeshmetric._checks import ShapeError
-from torchmeshmetric.kernels.index_cache import IndexCache, _fingerprint
+from torchmeshmetric.kernels.index_cache import IndexCache, content_key
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.kernels.sampling import vertex_set
 from torchmeshmetric.metrics._inputs import _is_mesh_like
@@ -123,7 +123,7 @@ class TemporalLossCache:
 
     def warp(self, original_k: Mesh, original_k_minus_1: Mesh, options: NonRigidOptions, backend: str) -> Warp:
         """The warp of ``original_k_minus_1`` registered onto ``original_k`` (registered on the first request)."""
-        key = _fingerprint([original_k_minus_1, original_k], repr(options))
+        key = content_key([original_k_minus_1, original_k], repr(options))
         found = self._warps.get(key)
         if found is not None:
             self._warps.move_to_end(key)
