@@ -12,6 +12,7 @@ from torch import Tensor
 
 from torchmeshmetric._checks import EmptyInputError, NonFiniteError
 from torchmeshmetric.mpeg import _float32 as f32
+from torchmeshmetric.mpeg._extension import ibsm_extension
 from torchmeshmetric.mpeg.point_cloud import PointCloud
 from torchmeshmetric.structures import MeshLike, as_mesh
 
@@ -474,9 +475,7 @@ def _native() -> Any:
     if not _USE_NATIVE:
         return None
     try:
-        from torchmeshmetric.mpeg.ibsm import _extension
-
-        return _extension()
+        return ibsm_extension()
     except RuntimeError:
         return None
 
