@@ -135,16 +135,16 @@ def test_read_only_texture_gives_no_torch_warning() -> None:
     import sys
 
     code = (
-        "import numpy as np, torch\n"
+        "import numpy as np, torch, trimesh\n"
         "from torchmeshmetric.mpeg.ibsm import ibsm\n"
         "from torchmeshmetric.mpeg.textured_mesh import TexturedMesh\n"
         "from torchmeshmetric.structures import Mesh\n"
         "tex = np.full((4, 4, 3), 200, np.uint8); tex.setflags(write=False)\n"
-        "v = torch.tensor([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])\n"
-        "f = torch.tensor([[0, 1, 2], [0, 2, 3]])\n"
-        "uv = torch.rand(2, 3, 2)\n"
+        "s = trimesh.creation.icosphere(1)\n"
+        "v, f = torch.tensor(s.vertices, dtype=torch.float32), torch.tensor(s.faces)\n"
+        "uv = torch.rand(f.shape[0], 3, 2)\n"
         "m = TexturedMesh(Mesh(v, f), uv, tex)\n"
-        "ibsm(m, m, resolution=16, cameras=2)\n"
+        "assert ibsm(m, m, resolution=32, cameras=4).pixels > 0\n"
     )
     out = subprocess.run([sys.executable, "-W", "error", "-c", code], capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr[-2000:]

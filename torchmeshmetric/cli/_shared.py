@@ -17,6 +17,7 @@ from typing import Any
 import torch
 
 from torchmeshmetric._atomic import atomic_file_set, atomic_write, blocking_file
+from torchmeshmetric.cli._format import json_safe
 from torchmeshmetric.data.io import load_sequence
 from torchmeshmetric.evaluation.cache import RegistrationCache
 from torchmeshmetric.evaluation.distributed import (
@@ -29,7 +30,6 @@ from torchmeshmetric.evaluation.pipeline import check_methods, evaluate_sequence
 from torchmeshmetric.evaluation.reports import report_dict, write_csv, write_json, write_markdown
 from torchmeshmetric.evaluation.results import SequenceEvaluation
 from torchmeshmetric.kernels.index_cache import IndexCache
-from torchmeshmetric.mpeg.command import json_safe
 from torchmeshmetric.mpeg.sequence import mpeg_csv, mpeg_markdown, mpeg_sequence
 from torchmeshmetric.registration.options import DEFAULT_SCHEDULE
 from torchmeshmetric.viz.plots import plot_mpeg_curves

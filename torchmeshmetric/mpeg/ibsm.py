@@ -13,15 +13,21 @@ mmetric's pixel for pixel; it runs the cameras in parallel on torch's CPU thread
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 import torch
 
 from torchmeshmetric.mpeg._extension import ibsm_extension
+from torchmeshmetric.mpeg.reindex import oriented_reindex
 from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
 
-__all__ = ["IbsmResult", "ibsm", "ibsm_render"]
+__all__ = ["IbsmNoOverlapWarning", "IbsmResult", "ibsm", "ibsm_render"]
+
+
+class IbsmNoOverlapWarning(UserWarning):
+    """IBSM of two meshes with no pixel covered in both renderings: the 99.99 dB figures measure nothing."""
 
 
 @dataclass(frozen=True)
@@ -84,8 +90,6 @@ def _check(resolution: int, cameras: int) -> None:
 
 
 def _prepared(m: TexturedMesh, name: str, reorder: bool) -> TexturedMesh:
-    from torchmeshmetric.mpeg.ctc import oriented_reindex
-
     if m.mesh.faces.shape[0] == 0:
         raise ValueError(f"{name}: expected a mesh with faces, found none (IBSM renders surfaces)")
     if not torch.isfinite(m.mesh.verts).all():
@@ -148,6 +152,13 @@ def ibsm(
         geo = float(np.float64(total[8]) / n)
     rgb_mse = (rgb[0], rgb[1], rgb[2], (rgb[0] + rgb[1] + rgb[2]) / 3.0)
     yuv_mse = (yuv[0], yuv[1], yuv[2], (yuv[0] * 6.0 + yuv[1] + yuv[2]) / 8.0)
+    if n == 0:  # mmetric's figure is kept (its 0 / 0 gives 99.99), but it says nothing about the pair
+        warnings.warn(
+            "ibsm: no pixel is covered in both renderings (the meshes never overlap on screen); the PSNRs are "
+            "mmetric's 99.99 for this case, not a measure of similarity",
+            IbsmNoOverlapWarning,
+            stacklevel=2,
+        )
     return IbsmResult(
         rgb_mse=rgb_mse,
         yuv_mse=yuv_mse,
