@@ -13,6 +13,7 @@ from . import registration as registration
 from . import simplification as simplification
 from . import stats as stats
 from . import structures as structures
+from . import tasks as tasks
 from . import viz as viz
 from ._checks import (
     DeviceError,

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from torchmeshmetric import native
 from torchmeshmetric.mpeg import k_nearest, mpeg_sq_dists, nearest_with_ties
 from torchmeshmetric.mpeg import neighbours as nb
 from torchmeshmetric.mpeg.neighbours import NeighbourTies, nearest_with_ties_both
@@ -26,23 +27,23 @@ def _clouds(seed: int, grid: bool, n_ref: int, n_query: int) -> tuple[np.ndarray
     return query.astype(np.float32), ref.astype(np.float32)
 
 
-def _no_pcc() -> None:
-    raise RuntimeError("no compiler (test)")
+def _without_pcc(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The extension loader answering as on a machine without a C++ compiler, for the pcc extension alone."""
+    load = native.try_load
+    monkeypatch.setattr(native, "try_load", lambda name: None if name == "pcc" else load(name))
 
 
 @pytest.fixture(params=["pcc", "cpp", "brute"])
 def path(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> str:
     if request.param == "pcc":
-        try:
-            nb.pcc_extension()
-        except RuntimeError:
+        if native.try_load("pcc") is None:
             pytest.skip("C++ extension unavailable")
         return "pcc"
-    monkeypatch.setattr(nb, "pcc_extension", _no_pcc)  # the k-nearest searches of nearest_with_ties
+    _without_pcc(monkeypatch)  # the k-nearest searches of nearest_with_ties
     if request.param == "brute":
-        monkeypatch.setattr(nb, "load_bvh", lambda: None)
+        monkeypatch.setattr(native, "try_load", lambda name: None)
         monkeypatch.setattr(nb, "_BRUTE_CHUNK", 5000)  # several blocks
-    elif nb.load_bvh() is None:
+    elif native.try_load("bvh") is None:
         pytest.skip("C++ extension unavailable")
     return str(request.param)
 
@@ -108,13 +109,11 @@ def _tie_cases() -> list[tuple[np.ndarray, np.ndarray]]:
 
 def test_pcc_search_equals_k_nearest_widening(monkeypatch: pytest.MonkeyPatch) -> None:
     """The one-pass C++ search (nearest, ties, dmetric's widening) equals the k-nearest searches it replaces."""
-    try:
-        nb.pcc_extension()
-    except RuntimeError:
+    if native.try_load("pcc") is None:
         pytest.skip("C++ extension unavailable")
     cases = _tie_cases()
     got = [nearest_with_ties_both(q, t) for q, t in cases]
-    monkeypatch.setattr(nb, "pcc_extension", _no_pcc)
+    _without_pcc(monkeypatch)
     for (q, t), (ab, ba) in zip(cases, got, strict=True):
         _same_ties(ab, nearest_with_ties(q, t))
         _same_ties(ba, nearest_with_ties(t, q))

@@ -11,6 +11,7 @@ Commands:
   ctc       the V-DMC CTC metric step on a decoded sequence (grid D1/D2/colour and IBSM, mmetric's chain)
   bdrate    BD-rate of a test codec against an anchor, per metric (the CTC spreadsheet's bdRateExtend)
   validate  which distance sets respond to which controlled distortion (noise, offsets, flicker, registration)
+  build     compile the C++ extensions now (once per machine) instead of on first use
 
 Errors (missing or corrupt files, frame-count mismatch, unwritable output) end with a one-line message on stderr
 and exit code 1; reports are written atomically and never half-written. Set TORCHMESHMETRIC_DEBUG=1 for tracebacks.
@@ -105,6 +106,11 @@ COMMANDS: dict[str, CommandInfo] = {
         "torchmeshmetric.cli.validate",
         "add_validate_command",
         "validation study: which distance sets respond to which controlled distortion",
+    ),
+    "build": CommandInfo(
+        "torchmeshmetric.cli.build",
+        "add_build_command",
+        "compile the C++ extensions now (once per machine) instead of on first use",
     ),
 }
 

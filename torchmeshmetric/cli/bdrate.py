@@ -9,7 +9,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from torchmeshmetric.cli._format import json_safe
+from torchmeshmetric._format import json_safe
 
 __all__ = ["add_bdrate_command", "read_curve"]
 

@@ -18,7 +18,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from torchmeshmetric.cli._format import corner, fmt_figure, json_safe
+from torchmeshmetric._format import format_number, json_safe
+from torchmeshmetric.cli.options import corner
 
 __all__ = ["add_ctc_command", "frame_path"]
 
@@ -41,6 +42,10 @@ def frame_path(pattern: str, frame: int, option: str = "PATTERN") -> str:
     return pattern % frame
 
 
+def _fmt(x: Any) -> str:
+    return format_number(x, ".4f")
+
+
 def _csv(d: dict[str, Any], columns: list[str]) -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
@@ -56,8 +61,8 @@ def _markdown(d: dict[str, Any], columns: list[str], settings: dict[str, Any]) -
     lines += [f"- {k}: `{v}`" for k, v in settings.items()]
     lines += ["", "| frame | " + " | ".join(columns) + " |", "|---|" + "---:|" * len(columns)]
     for row in d["frames"]:
-        lines.append(f"| {row['frame']} | " + " | ".join(fmt_figure(row.get(c, "")) for c in columns) + " |")
-    lines.append("| **mean** | " + " | ".join(f"**{fmt_figure(d['mean'].get(c, ''))}**" for c in columns) + " |")
+        lines.append(f"| {row['frame']} | " + " | ".join(_fmt(row.get(c, "")) for c in columns) + " |")
+    lines.append("| **mean** | " + " | ".join(f"**{_fmt(d['mean'].get(c, ''))}**" for c in columns) + " |")
     lines += ["", "Mean: mmetric's statistic, the mean over frames of the per-frame PSNR clipped at 99.99 dB.", ""]
     return "\n".join(lines)
 
@@ -139,10 +144,10 @@ def _run_ctc(args: argparse.Namespace) -> int:
 
 def _compute(args: argparse.Namespace, files: list[Any], lo: list[float], hi: list[float]) -> list[Any] | None:
     """Every frame's figures (on rank 0 under torchrun, ``None`` on the others); frames read one pair ahead."""
-    from torchmeshmetric.data.io import Prefetcher
-    from torchmeshmetric.evaluation.distributed import rank_and_world_size, run_tasks, shard
+    from torchmeshmetric.data.sequence import Prefetcher
     from torchmeshmetric.mpeg.ctc import CTC_COLUMNS, CtcFrame, ctc_frame
     from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
+    from torchmeshmetric.tasks import rank_and_world_size, run_tasks, shard
 
     start = time.perf_counter()
     rank, world = rank_and_world_size()
@@ -168,7 +173,7 @@ def _compute(args: argparse.Namespace, files: list[Any], lo: list[float], hi: li
                       ibsm_resolution=None if args.no_ibsm else args.ibsm_resolution, ibsm_cameras=args.ibsm_cameras,
                       frame=k)  # fmt: skip
         seconds = {"read": read_s, **f.seconds}
-        figs = "  ".join(f"{c} {fmt_figure(f.figures[c])}" for c in CTC_COLUMNS if c in f.figures)
+        figs = "  ".join(f"{c} {_fmt(f.figures[c])}" for c in CTC_COLUMNS if c in f.figures)
         line = f"ctc: frame {k}: {figs}  [{time.perf_counter() - start:.1f} s]"
         if args.verbose:
             for s in _STAGES:
@@ -218,7 +223,7 @@ def _report(args: argparse.Namespace, seq: Any, lo: list[float], hi: list[float]
     else:
         width = max(len(c) for c in columns)
         for c in columns:
-            print(f"{c.ljust(width)}  {fmt_figure(d['mean'][c])}")
+            print(f"{c.ljust(width)}  {_fmt(d['mean'][c])}")
         if outputs:
             print("wrote " + ", ".join(str(p) for p in outputs))
 

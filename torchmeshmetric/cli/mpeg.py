@@ -6,13 +6,14 @@ import argparse
 import json
 from typing import Any
 
-from torchmeshmetric.cli._format import corner, fmt_figure, json_safe
+from torchmeshmetric._format import format_number, json_safe
+from torchmeshmetric.cli.options import corner
 
 __all__ = ["add_mpeg_command"]
 
 
 def _fmt_small(x: Any) -> str:
-    return fmt_figure(x, small=True)
+    return format_number(x, ".4f", small_spec=".6g")
 
 
 def _table(d: dict[str, Any]) -> str:

@@ -10,9 +10,9 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from torchmeshmetric import native
 from torchmeshmetric._checks import EmptyInputError, NonFiniteError
 from torchmeshmetric.mpeg import _float32 as f32
-from torchmeshmetric.mpeg._extension import ibsm_extension
 from torchmeshmetric.mpeg.fixed_point import fixed_point_box, fixed_point_ceil
 from torchmeshmetric.mpeg.point_cloud import PointCloud
 from torchmeshmetric.structures import MeshLike, as_mesh
@@ -451,10 +451,7 @@ def _native() -> Any:
     """The compiled caster (shared with IBSM's rasterizer), or ``None`` (numpy path) where it cannot be built."""
     if not _USE_NATIVE:
         return None
-    try:
-        return ibsm_extension()
-    except RuntimeError:
-        return None
+    return native.try_load("ibsm")
 
 
 def _native_hits(native: Any, verts: np.ndarray, faces: np.ndarray, en: _Entries, min_box: np.ndarray,

@@ -15,11 +15,12 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass
+from types import ModuleType
 
 import numpy as np
 import torch
 
-from torchmeshmetric.mpeg._extension import ibsm_extension
+from torchmeshmetric import native
 from torchmeshmetric.mpeg.reindex import oriented_reindex
 from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
 
@@ -28,6 +29,14 @@ __all__ = ["IbsmNoOverlapWarning", "IbsmResult", "ibsm", "ibsm_render"]
 
 class IbsmNoOverlapWarning(UserWarning):
     """IBSM of two meshes with no pixel covered in both renderings: the 99.99 dB figures measure nothing."""
+
+
+def _rasterizer() -> ModuleType:
+    """The compiled rasterizer (``native/ibsm_raster.cpp``); a clear error where it cannot be built."""
+    try:
+        return native.load("ibsm")
+    except native.NativeBuildError as err:
+        raise RuntimeError(f"ibsm: {err}; IBSM needs a C++ compiler and ninja") from err
 
 
 @dataclass(frozen=True)
@@ -139,7 +148,7 @@ def ibsm(
     bmin, bmax = vb.min(0).values, vb.max(0).values
     box = torch.cat([torch.minimum(amin, bmin), torch.maximum(amax, bmax)]).contiguous()
     box_ratio = 100.0 * float(torch.linalg.vector_norm(bmax - bmin)) / float(torch.linalg.vector_norm(amax - amin))
-    sums = ibsm_extension().ibsm_sums(*_arrays(a), *_arrays(b), box, cameras, resolution, cull).numpy()
+    sums = _rasterizer().ibsm_sums(*_arrays(a), *_arrays(b), box, cameras, resolution, cull).numpy()
     # mmetric adds camera after camera into one float64 accumulator; the per-camera sums are added in that order
     acc = np.zeros(sums.shape[1])
     for row in sums:
@@ -194,5 +203,5 @@ def ibsm_render(
     _check(resolution, 2)
     b = torch.tensor([*box[0], *box[1]], dtype=torch.float32)
     d = torch.tensor(direction, dtype=torch.float32)
-    z, c, rng = ibsm_extension().ibsm_render(*_arrays(mesh), b, d, resolution, cull)
+    z, c, rng = _rasterizer().ibsm_render(*_arrays(mesh), b, d, resolution, cull)
     return z, c, float(rng[0])

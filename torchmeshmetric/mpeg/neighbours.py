@@ -16,8 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from torchmeshmetric.kernels.accel._extension import load_bvh
-from torchmeshmetric.mpeg._extension import pcc_extension
+from torchmeshmetric import native
 
 __all__ = ["NeighbourTies", "k_nearest", "mpeg_sq_dists", "nearest_with_ties", "nearest_with_ties_both"]
 
@@ -113,7 +112,7 @@ def k_nearest(query: np.ndarray, target: np.ndarray, k: int) -> tuple[np.ndarray
     target = np.ascontiguousarray(target, dtype=np.float32)
     if query.shape[0] == 0:
         return np.zeros((0, k), np.int64), np.zeros((0, k))
-    ext = load_bvh()
+    ext = native.try_load("bvh")
     if ext is None:
         return _k_nearest_brute(query, target, k)
     idx, sq = ext.mpeg_knn(torch.from_numpy(query), torch.from_numpy(target), k)
@@ -140,10 +139,7 @@ def nearest_with_ties(query: np.ndarray, target: np.ndarray) -> NeighbourTies:
     """
     query = np.ascontiguousarray(query, dtype=np.float32)
     target = np.ascontiguousarray(target, dtype=np.float32)
-    try:
-        ext = pcc_extension()
-    except RuntimeError:  # no C++ compiler: the k-nearest searches below
-        ext = None
+    ext = native.try_load("pcc")  # None without a C++ compiler: the k-nearest searches below
     if ext is not None and query.shape[0] > 0:
         nearest, sq0, rows, cand, sq = (
             t.numpy() for t in ext.mpeg_nearest_ties(torch.from_numpy(query), torch.from_numpy(target))
@@ -176,7 +172,8 @@ def nearest_with_ties(query: np.ndarray, target: np.ndarray) -> NeighbourTies:
 def _with_chains(nearest: np.ndarray, sq0: np.ndarray, rows: np.ndarray, cand: np.ndarray,
                  sq: np.ndarray) -> NeighbourTies:  # fmt: skip
     """The tie chain (consecutive distances within ``1e-20``) and equal sets of the candidates of tie rows."""
-    step = np.abs(np.diff(sq, axis=1)) < _SIMILAR
+    with np.errstate(invalid="ignore"):  # inf - inf between padding slots: NaN, no tie
+        step = np.abs(np.diff(sq, axis=1)) < _SIMILAR
     chain = np.concatenate([np.ones((rows.shape[0], 1), bool), np.cumprod(step, axis=1).astype(bool)], axis=1)
     equal = (sq == sq[:, :1]) & (cand >= 0)
     return NeighbourTies(nearest, sq0, rows, cand, chain & (cand >= 0), equal)
@@ -200,9 +197,8 @@ def nearest_with_ties_both(a: np.ndarray, b: np.ndarray) -> tuple[NeighbourTies,
     """
     a = np.ascontiguousarray(a, dtype=np.float32)
     b = np.ascontiguousarray(b, dtype=np.float32)
-    try:
-        ext = pcc_extension()
-    except RuntimeError:  # no C++ compiler
+    ext = native.try_load("pcc")
+    if ext is None:  # no C++ compiler
         return nearest_with_ties(a, b), nearest_with_ties(b, a)
     out = [t.numpy() for t in ext.mpeg_nearest_ties_both(torch.from_numpy(a), torch.from_numpy(b))]
     return _with_chains(*out[:5]), _with_chains(*out[5:])

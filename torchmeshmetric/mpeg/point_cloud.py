@@ -8,8 +8,8 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from torchmeshmetric import native
 from torchmeshmetric._checks import EmptyInputError, check_finite, check_shape
-from torchmeshmetric.mpeg._extension import pcc_extension
 
 __all__ = ["PointCloud", "merge_duplicate_points"]
 
@@ -49,15 +49,16 @@ class PointCloud:
 
 def _merge_order(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Points sorted by (x, y, z) then original index (std::sort with mmetric's comparator), and each run's start."""
-    try:
-        order_t, starts_t = pcc_extension().mpeg_merge_order(torch.from_numpy(pts))
+    ext = native.try_load("pcc")
+    if ext is not None:
+        order_t, starts_t = ext.mpeg_merge_order(torch.from_numpy(pts))
         return order_t.numpy(), starts_t.numpy()
-    except RuntimeError:  # no C++ compiler: the same order through numpy (a few times slower)
-        order = np.lexsort((np.arange(pts.shape[0]), pts[:, 2], pts[:, 1], pts[:, 0]))
-        spts = pts[order]
-        new = np.ones(spts.shape[0], dtype=bool)
-        new[1:] = np.any(spts[1:] != spts[:-1], axis=1)
-        return order, np.flatnonzero(new)
+    # no C++ compiler: the same order through numpy (a few times slower)
+    order = np.lexsort((np.arange(pts.shape[0]), pts[:, 2], pts[:, 1], pts[:, 0]))
+    spts = pts[order]
+    new = np.ones(spts.shape[0], dtype=bool)
+    new[1:] = np.any(spts[1:] != spts[:-1], axis=1)
+    return order, np.flatnonzero(new)
 
 
 def merge_duplicate_points(cloud: PointCloud, name: str = "cloud") -> PointCloud:
