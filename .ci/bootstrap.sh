@@ -34,4 +34,10 @@ if [[ ! -f "$stamp" || pyproject.toml -nt "$stamp" ]]; then
     python -m pip install -q -e ".${extras:+[$extras]}"
     touch "$stamp"
 fi
+# The C++ extensions (torchmeshmetric/native) are built on first use with this compiler and ninja (a dependency):
+# say loudly where there is none, since the library then runs its slower pure formulations.
+if ! command -v "${CXX:-c++}" >/dev/null 2>&1; then
+    echo "bootstrap: no C++ compiler (${CXX:-c++}) on PATH: the C++ extensions cannot be built; install one" \
+        "(e.g. g++), or the library runs its slower pure formulations and IBSM is unavailable" >&2
+fi
 exec "$@"

@@ -1,22 +1,26 @@
-"""Train a small learned simplifier with the temporal-consistency loss, validate it on held-out frames (Lightning).
+"""Train a learned simplifier with the temporal-consistency loss, validate it on held-out frames (Lightning).
 
-Run: PYTHONPATH=. python examples/train_temporal_simplifier.py [--quick]   (a few minutes on 2 CPU cores)
+Run: PYTHONPATH=. python examples/train_temporal_simplifier.py --threads 1 [--quick] [--cache DIR]
 
 What it does (docs/training.md explains the choices and shows the results):
 
 1. The built-in demo sequence; its first frames train, the following frames are held out (a later part of the
-   motion). Every original pair is registered once (``register_pairs``); the registrations serve the loss, the
-   Registered QEM baseline, the validation metric and the final evaluation alike.
-2. The model: QEM simplifies each frame to a face count; a per-vertex MLP, shared by all frames, reads local features
-   of the QEM mesh (its curvature, and where the original surface lies relative to the simplified faces around the
-   vertex) and moves the vertex along its normal by at most half its mean edge length. Same faces as QEM: equal face
-   counts by construction.
-3. Loss, per training pair ``(k-1, k)``: frame-``k`` term + λ · temporal term, the two-sided surface distances of
-   :class:`~torchmeshmetric.metrics.TemporalConsistencyLoss` (λ > 0: ``λ * TemporalConsistencyLoss(frame_weight=1/λ)``;
-   λ = 0: the frame term alone, ``MeshSurfaceDistanceLoss``). Gradients reach both frames of the pair.
+   motion). Every original pair is registered once (``register_pairs``); the registrations serve the model, the loss,
+   the Registered QEM baseline, the validation metric and the final evaluation alike.
+2. The model (``simplify_tracking``): QEM on the first frame, then Anchored QEM on every frame — the QEM queue with a
+   point quadric pulling the survivors towards the warped vertices of the previous simplified frame, so that frame
+   ``k`` keeps frame ``k-1``'s tessellation where the surface allows — and a learned ``TemporalSlide``: a per-vertex
+   MLP, shared by all frames, gating how far each vertex slides towards the warped previous output, along the surface
+   and across it. Equal face counts: every method simplifies to the same count.
+3. Training on the training frames: the anchor weight is fitted first (the largest weight of a grid whose frame-k
+   errors on the training frames stay within the budget over QEM's); then the slide, Adam on
+   frame-``k`` term + λ · temporal term (``λ * TemporalConsistencyLoss(frame_weight=1/λ)``) through the chain of
+   training frames (each output is the next frame's target). Gradients reach both frames of every pair.
 4. Validation every few epochs on the held-out pairs with ``TemporalConsistency(flicker=True)``, logged through
-   Lightning; at the end ``evaluate_sequence`` + ``compare_methods`` on the held-out frames: QEM, Registered QEM and
-   the model for each λ, with the paired 95 % intervals over frame pairs.
+   Lightning; at the end ``evaluate_sequence`` + ``compare_methods`` on the held-out frames: QEM, Registered QEM,
+   Anchored QEM and the trained model, with the paired 95 % intervals over frame pairs; the same on a second sequence
+   built differently (another performer, part of the motion, speed, blend and resolution); and the held-out flicker
+   measured through the ground-truth motion instead of the registration the methods used.
 """
 
 from __future__ import annotations
@@ -26,21 +30,37 @@ import csv
 import json
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import torch
 from lightning.pytorch import LightningModule, Trainer
 from lightning.pytorch.loggers import CSVLogger
-from torch import Tensor, nn
+from torch import Tensor
 
 from torchmeshmetric import Mesh
 from torchmeshmetric.data import demo_sequence
-from torchmeshmetric.evaluation import TemporalConsistency, compare_methods, evaluate_sequence, register_pairs
+from torchmeshmetric.evaluation import (
+    RegistrationCache,
+    TemporalConsistency,
+    compare_methods,
+    evaluate_sequence,
+    register_pairs,
+)
+from torchmeshmetric.evaluation.distortions import ground_truth_registrations
 from torchmeshmetric.evaluation.results import flatten_statistics
-from torchmeshmetric.kernels import point_mesh_distance
-from torchmeshmetric.metrics import MeshSurfaceDistanceLoss, TemporalConsistencyLoss
-from torchmeshmetric.simplification import simplify_qem, simplify_sequence
+from torchmeshmetric.metrics import TemporalConsistencyLoss
+from torchmeshmetric.simplification import (
+    TemporalSlide,
+    anchored_sequence,
+    simplify_qem,
+    simplify_sequence,
+    simplify_tracking,
+    slide_sequence,
+)
+
+MODEL = "Anchored QEM + slide"
+ACROSS = "Anchored QEM + slide across"
 
 
 @dataclass
@@ -51,145 +71,93 @@ class Setup:
     num_held_out: int = 8  # held-out frames (7 held-out pairs)
     resolution: int = 64  # demo marching-cubes resolution (~6k faces per frame)
     faces: int = 1000  # faces per simplified frame
-    steps: int = 150  # Adam steps (one step per epoch: the whole training set is one batch)
+    anchor_weights: tuple[float, ...] = (0.1, 0.2, 0.3, 0.5)  # the grid of the anchor weight's fit
+    budget: float = 1.07  # fitted weight: training frame-k errors (both directions) <= budget x QEM's
+    lam: float = 1.0  # loss = frame-k term + lam * temporal term
+    steps: int = 60  # Adam steps (one step per epoch: the whole training chain is one batch)
     lr: float = 1e-2
-    validate_every: int = 50
+    validate_every: int = 20
     seed: int = 0
+    # The second sequence: another performer (seed: proportions), part of the motion, speed, blend and resolution.
+    other: dict[str, Any] = field(
+        default_factory=lambda: {"seed": 7, "start_phase": 0.55, "frames_per_cycle": 16, "blend": 0.04}
+    )
+    other_resolution: int = 72
+    other_frames: int = 8
 
     @classmethod
     def quick(cls) -> Setup:
-        return cls(num_train=3, num_held_out=3, resolution=32, faces=200, steps=6, validate_every=3)
+        return cls(
+            num_train=3, num_held_out=3, resolution=32, faces=200, anchor_weights=(0.1, 0.3), steps=6,
+            validate_every=3, other_resolution=32, other_frames=3,
+        )  # fmt: skip
 
 
-# --- data -----------------------------------------------------------------------------------------------------------
+# --- the anchor weight, fitted on the training frames ----------------------------------------------------------------
 
 
-@dataclass
-class Frame:
-    """One frame ready for the model: the original, its QEM simplification and the QEM vertices' features."""
-
-    original: Mesh
-    qem: Mesh
-    normals: Tensor  # (V, 3) unit vertex normals of the QEM mesh
-    scale: Tensor  # (V,) mean incident edge length (the offsets' unit)
-    features: Tensor  # (V, F)
+def frame_errors(originals: list[Mesh], simplified: list[Mesh], regs: list[Any]) -> dict[str, float]:
+    """Mean over pairs of the per-pair Average of flicker and surface_k, both directions (``evaluate_sequence``)."""
+    return frame_errors_of(evaluate_sequence(originals, simplified, precomputed_registrations=regs))
 
 
-def vertex_normals_and_scale(mesh: Mesh) -> tuple[Tensor, Tensor]:
-    """Area-weighted vertex normals and mean incident edge length of each vertex."""
-    v, f = mesh.verts, mesh.faces
-    fn = torch.linalg.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])  # |fn| = 2 * area
-    normals = torch.zeros_like(v).index_add_(0, f.reshape(-1), fn.repeat_interleave(3, 0))
-    normals = normals / normals.norm(dim=1, keepdim=True).clamp_min(torch.finfo(v.dtype).tiny)
-    edges = torch.cat([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
-    length = (v[edges[:, 0]] - v[edges[:, 1]]).norm(dim=1)
-    total = torch.zeros(v.shape[0], dtype=v.dtype).index_add_(0, edges.reshape(-1), length.repeat(2))
-    count = torch.zeros(v.shape[0], dtype=v.dtype).index_add_(0, edges.reshape(-1), torch.ones_like(length).repeat(2))
-    return normals, total / count.clamp_min(1)
+def fit_anchor_weight(setup: Setup, train: list[Mesh], regs: list[Any]) -> tuple[float, dict[str, Any]]:
+    """The largest weight of the grid whose training frame-k errors (both directions) stay within the budget."""
+    qem = frame_errors(train, [simplify_qem(m, setup.faces) for m in train], regs)
+    table: dict[str, Any] = {"QEM": qem}
+    best = 0.0
+    for w in sorted(setup.anchor_weights):
+        errors = frame_errors(train, anchored_sequence(train, setup.faces, regs, weight=w), regs)
+        table[f"{w:g}"] = errors
+        if all(errors[k] <= setup.budget * qem[k] for k in ("surface_k_ave", "reverse_surface_k_ave")):
+            best = w
+    return best, table
 
 
-def local_features(original: Mesh, qem: Mesh) -> tuple[Tensor, Tensor, Tensor]:
-    """``(normals, scale, features)`` of the QEM vertices; every feature is a length divided by the local scale.
-
-    * the umbrella curvature: (mean of the neighbours - vertex) . normal / scale;
-    * where the original surface lies relative to the simplified faces around the vertex: each original vertex's
-      signed offset from its closest simplified face (along that face's normal), averaged onto the face's corners
-      with its barycentric weights;
-    * its spread (the mean squared offset), which says whether the region is flat or folded at this scale.
-    """
-    v, f = qem.verts, qem.faces
-    normals, scale = vertex_normals_and_scale(qem)
-    n = v.shape[0]
-    edges = torch.cat([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
-    ends = torch.cat([edges, edges.flip(1)])
-    nb_sum = torch.zeros_like(v).index_add_(0, ends[:, 0], v[ends[:, 1]])
-    nb_cnt = torch.zeros(n, dtype=v.dtype).index_add_(0, ends[:, 0], torch.ones(ends.shape[0], dtype=v.dtype))
-    umbrella = ((nb_sum / nb_cnt.clamp_min(1)[:, None] - v) * normals).sum(1) / scale
-    hit = point_mesh_distance(original.verts.to(v.dtype), qem)
-    fn = torch.linalg.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
-    fn = fn / fn.norm(dim=1, keepdim=True).clamp_min(torch.finfo(v.dtype).tiny)
-    signed = ((original.verts.to(v.dtype) - hit.closest) * fn[hit.face_idx]).sum(1)
-    corners, weights = f[hit.face_idx].reshape(-1), hit.bary.reshape(-1)
-    wsum = torch.zeros(n, dtype=v.dtype).index_add_(0, corners, weights)
-    mean = torch.zeros(n, dtype=v.dtype).index_add_(0, corners, weights * signed.repeat_interleave(3))
-    sq = torch.zeros(n, dtype=v.dtype).index_add_(0, corners, weights * (signed**2).repeat_interleave(3))
-    mean, sq = mean / wsum.clamp_min(1e-12), sq / wsum.clamp_min(1e-12)
-    features = torch.stack([umbrella, mean / scale, sq.sqrt() / scale], dim=1)
-    return normals, scale, features
-
-
-def make_frames(setup: Setup) -> tuple[list[Mesh], list[Frame]]:
-    seq = demo_sequence(setup.num_train + setup.num_held_out, resolution=setup.resolution, seed=setup.seed)
-    frames = []
-    for original in seq.frames:
-        qem = simplify_qem(original, setup.faces)
-        normals, scale, features = local_features(original, qem)
-        frames.append(Frame(original, qem, normals, scale, features))
-    return seq.frames, frames
-
-
-# --- model ----------------------------------------------------------------------------------------------------------
-
-
-class OffsetMLP(nn.Module):
-    """Per-vertex MLP on local features, shared by all frames: an offset along the normal, |offset| < scale / 2."""
-
-    def __init__(self, num_features: int = 3, hidden: int = 32) -> None:
-        super().__init__()
-        self.net = nn.Sequential(
-            nn.Linear(num_features, hidden), nn.SiLU(), nn.Linear(hidden, hidden), nn.SiLU(), nn.Linear(hidden, 1)
-        )
-        nn.init.zeros_(self.net[-1].weight)  # starts as QEM exactly
-        nn.init.zeros_(self.net[-1].bias)
-
-    def forward(self, frame: Frame) -> tuple[Tensor, Tensor]:
-        """The simplified frame ``(verts, faces)``: QEM's vertices moved along their normals, QEM's faces."""
-        dtype = self.net[0].weight.dtype
-        offset = 0.5 * torch.tanh(self.net(frame.features.to(dtype))[:, 0]) * frame.scale.to(dtype)
-        return frame.qem.verts.to(dtype) + offset[:, None] * frame.normals.to(dtype), frame.qem.faces
-
-
-# --- training (Lightning) -------------------------------------------------------------------------------------------
+# --- training the slide (Lightning) ---------------------------------------------------------------------------------
 
 
 class TemporalSimplifier(LightningModule):
-    """Trains :class:`OffsetMLP` with frame-``k`` term + λ · temporal term; validates with the flicker set."""
+    """Trains a :class:`TemporalSlide` with frame-``k`` term + λ · temporal term; validates with the flicker set."""
 
     def __init__(
-        self, train: list[Frame], train_regs: list[Any], held: list[Frame], held_regs: list[Any], lam: float, lr: float
+        self,
+        train: tuple[list[Mesh], list[Mesh], list[Any]],
+        held: tuple[list[Mesh], list[Mesh], list[Any]],
+        lam: float,
+        lr: float,
+        across: bool = False,
     ) -> None:
         super().__init__()
-        self.model = OffsetMLP()
-        self.train_frames, self.train_regs = train, train_regs
-        self.held_frames, self.held_regs = held, held_regs
-        self.lam, self.lr = lam, lr
-        # λ > 0: λ * (flicker + frame / λ) = frame + λ * flicker, both two-sided. The module registers nothing here
+        self.model = TemporalSlide(across=across).double()
+        self.train_chain, self.held_chain = train, held  # (originals, anchored frames, registrations) each
+        self.lr = lr
+        # λ * (flicker + frame / λ) = frame + λ * flicker, both two-sided. The module registers nothing here
         # (registrations are passed), keeps the original frames' indexes and refits the simplified ones each step.
-        self.temporal = TemporalConsistencyLoss(frame_weight=1.0 / lam) if lam > 0 else None
-        self.frame_only = MeshSurfaceDistanceLoss(two_sided=True)
+        self.lam, self.loss_fn = lam, TemporalConsistencyLoss(frame_weight=1.0 / lam)
         self.val_metric = TemporalConsistency(flicker=True)
         self.history: list[float] = []
 
-    def loss(self) -> Tensor:
-        out = [self.model(fr) for fr in self.train_frames]
-        originals = [fr.original for fr in self.train_frames]
-        if self.temporal is None:
-            return self.frame_only(out[1:], originals[1:])
-        return self.lam * self.temporal(out[1:], out[:-1], originals[1:], originals[:-1], self.train_regs)
+    def outputs(self, chain: tuple[list[Mesh], list[Mesh], list[Any]]) -> list[Mesh]:
+        originals, anchored, regs = chain
+        return slide_sequence(anchored, originals, regs, self.model)
 
     def training_step(self, batch: Any, batch_idx: int) -> Tensor:
-        loss = self.loss()
+        originals, _, regs = self.train_chain
+        out = self.outputs(self.train_chain)
+        loss = self.lam * self.loss_fn(out[1:], out[:-1], originals[1:], originals[:-1], regs)
         self.history.append(float(loss.detach()))
         self.log("train/loss", loss, batch_size=1)
         return loss
 
     def validation_step(self, batch: Any, batch_idx: int) -> None:
-        out = [self.model(fr) for fr in self.held_frames]
-        for k in range(1, len(self.held_frames)):
-            fr, prev = self.held_frames[k], self.held_frames[k - 1]
+        originals, _, regs = self.held_chain
+        out = self.outputs(self.held_chain)
+        for k in range(1, len(out)):
             self.val_metric.update(
-                out[k], fr.original, prev.original, out[k - 1], precomputed_registration=self.held_regs[k - 1]
-            )
+                out[k].detach(), originals[k], originals[k - 1], out[k - 1].detach(),
+                precomputed_registration=regs[k - 1],
+            )  # fmt: skip
 
     def on_validation_epoch_end(self) -> None:
         stats = flatten_statistics(self.val_metric.compute())
@@ -202,24 +170,28 @@ class TemporalSimplifier(LightningModule):
 
 
 def _one_batch() -> torch.utils.data.DataLoader:
-    # Every epoch is one step on the whole training set (the frames live in the module; the batch is a token).
+    # Every epoch is one step on the whole training chain (the frames live in the module; the batch is a token).
     return torch.utils.data.DataLoader([0], batch_size=1)
 
 
 def train(
-    setup: Setup, frames: list[Frame], regs: list[Any], lam: float, log_dir: str
+    setup: Setup, originals: list[Mesh], regs: list[Any], weight: float, log_dir: str, across: bool = False
 ) -> tuple[TemporalSimplifier, list[dict[str, str]]]:
-    """Train one model for ``lam``; returns it and the rows Lightning logged (CSV)."""
+    """Train the slide on the training chain (anchored frames of ``weight``); returns it and Lightning's rows."""
     torch.manual_seed(setup.seed)
     t = setup.num_train
-    module = TemporalSimplifier(frames[:t], regs[: t - 1], frames[t:], regs[t:], lam, setup.lr)
+    chains = []
+    for frames, pair_regs in ((originals[:t], regs[: t - 1]), (originals[t:], regs[t:])):
+        frames = [m.to(dtype=torch.float64) for m in frames]
+        chains.append((frames, anchored_sequence(frames, setup.faces, pair_regs, weight=weight), pair_regs))
+    module = TemporalSimplifier(chains[0], chains[1], setup.lam, setup.lr, across)
     trainer = Trainer(
         accelerator="cpu",
         max_epochs=setup.steps,
         check_val_every_n_epoch=setup.validate_every,
         num_sanity_val_steps=0,
         log_every_n_steps=1,
-        logger=CSVLogger(log_dir, name=f"lambda_{lam:g}"),
+        logger=CSVLogger(log_dir, name=f"lambda_{setup.lam:g}_across_{across}"),
         enable_checkpointing=False,
         enable_progress_bar=False,
         enable_model_summary=False,
@@ -231,43 +203,55 @@ def train(
     return module, rows
 
 
-# --- evaluation on the held-out frames ------------------------------------------------------------------------------
+# --- evaluation -----------------------------------------------------------------------------------------------------
 
 
-def held_out_report(
-    setup: Setup, originals: list[Mesh], frames: list[Frame], regs: list[Any], models: dict[str, OffsetMLP]
-) -> dict[str, Any]:
-    """Every method on the held-out frames (``evaluate_sequence``), aggregates and paired comparisons."""
-    t = setup.num_train
-    held, held_regs = originals[t:], regs[t:]
-    methods: dict[str, list[Any]] = {
-        "QEM": [fr.qem for fr in frames[t:]],
-        "Registered QEM": simplify_sequence(held, setup.faces, registrations=held_regs),
+def report(
+    setup: Setup, originals: list[Mesh], regs: list[Any], weight: float, slides: dict[str, TemporalSlide],
+    true_regs: list[Any] | None = None,
+) -> dict[str, Any]:  # fmt: skip
+    """Every method on ``originals`` (``evaluate_sequence``), aggregates and paired comparisons.
+
+    With ``true_regs`` (the ground-truth motion), the flicker is also measured through them (the methods still use
+    ``regs``): a check that a method does not merely follow the registration it was given.
+    """
+    methods: dict[str, list[Mesh]] = {
+        "QEM": [simplify_qem(m, setup.faces) for m in originals],
+        "Registered QEM": simplify_sequence(originals, setup.faces, registrations=regs),
+        "Anchored QEM": simplify_tracking(originals, setup.faces, regs, weight=weight),
     }
-    with torch.no_grad():
-        for name, model in models.items():
-            methods[name] = [Mesh(*model(fr)) for fr in frames[t:]]
-    evaluations = {
-        name: evaluate_sequence(held, simplified, precomputed_registrations=held_regs)
-        for name, simplified in methods.items()
-    }
-    aggregates = {}
-    for name, ev in evaluations.items():
-        pairs = ev.as_dict()["pairs"]
-        aggregates[name] = {
-            "faces": [int(m.faces.shape[0]) for m in methods[name]],
-            **{
-                key: sum(p[s]["ave"] if r is None else p["reverse"][s]["ave"] for p in pairs) / len(pairs)
-                for key, s, r in (
-                    ("flicker_ave", "flicker", None),
-                    ("surface_k_ave", "surface_k", None),
-                    ("reverse_flicker_ave", "flicker", "reverse"),
-                    ("reverse_surface_k_ave", "surface_k", "reverse"),
-                )
-            },
+    as_f64 = [m.to(dtype=torch.float64) for m in originals]
+    for name, slide in slides.items():
+        methods[name] = simplify_tracking(as_f64, setup.faces, regs, weight=weight, slide=slide)
+    out: dict[str, Any] = {}
+    for label, eval_regs in (("", regs), ("true motion: ", true_regs)):
+        if eval_regs is None:
+            continue
+        evaluations = {
+            name: evaluate_sequence(originals, [m.to(dtype=originals[0].dtype) for m in s],
+                                    precomputed_registrations=eval_regs)
+            for name, s in methods.items()
+        }  # fmt: skip
+        out[f"{label}aggregates"] = {
+            name: {"faces": [m.num_faces for m in methods[name]], **frame_errors_of(ev)}
+            for name, ev in evaluations.items()
         }
-    comparisons = compare_methods(evaluations, statistics=("ave",))
-    return {"aggregates": aggregates, "comparisons": comparisons}
+        out[f"{label}comparisons"] = compare_methods(evaluations, statistics=("ave",))
+    return out
+
+
+def frame_errors_of(evaluation: Any) -> dict[str, float]:
+    """:func:`frame_errors`'s figures of an existing evaluation."""
+    pairs = evaluation.as_dict()["pairs"]
+    return {
+        key: sum(p[s]["ave"] if r is None else p["reverse"][s]["ave"] for p in pairs) / len(pairs)
+        for key, s, r in (
+            ("flicker_ave", "flicker", None),
+            ("surface_k_ave", "surface_k", None),
+            ("reverse_flicker_ave", "flicker", "reverse"),
+            ("reverse_surface_k_ave", "surface_k", "reverse"),
+        )
+    }
 
 
 def quick_schedule() -> list[Any]:
@@ -278,45 +262,82 @@ def quick_schedule() -> list[Any]:
 
 
 def run(
-    setup: Setup, lambdas: tuple[float, ...], log_dir: str, registration_options: dict[str, Any] | None = None
+    setup: Setup, log_dir: str, registration_options: dict[str, Any] | None = None, cache: str | None = None
 ) -> dict[str, Any]:
-    """The whole experiment; returns timings, training curves, validation logs and the held-out report."""
+    """The whole experiment; returns timings, the fit, training curves, validation logs and both reports."""
     t0 = time.perf_counter()
-    originals, frames = make_frames(setup)
-    t_data = time.perf_counter()
+    cached = RegistrationCache(cache)
+    seq = demo_sequence(setup.num_train + setup.num_held_out, resolution=setup.resolution, seed=setup.seed)
+    originals, t = seq.frames, setup.num_train
     # N - 1 pairs, registered once; the pair (last training frame, first held-out frame) is never used.
-    regs = register_pairs(originals, registration_options=registration_options)
+    regs = register_pairs(originals, registration_options=registration_options, registration_cache=cached)
     t_reg = time.perf_counter()
-    models, curves, val_logs, train_seconds = {}, {}, {}, {}
-    for lam in lambdas:
-        start = time.perf_counter()
-        module, rows = train(setup, frames, regs, lam, log_dir)
-        train_seconds[f"{lam:g}"] = time.perf_counter() - start
-        name = f"MLP λ={lam:g}"
-        models[name], curves[name] = module.model, module.history
-        val_logs[name] = [
+    weight, fit = fit_anchor_weight(setup, originals[:t], regs[: t - 1])
+    t_fit = time.perf_counter()
+    module, rows = train(setup, originals, regs, weight, log_dir)
+    t_train = time.perf_counter()
+    # the ablation: the same slide, also gated across the surface
+    across, across_rows = train(setup, originals, regs, weight, log_dir, across=True)
+    slides = {MODEL: module.model, ACROSS: across.model}
+    # the true motion of the held-out frames (their indexes in the whole sequence start at t)
+    true_regs = ground_truth_registrations(originals[t:], lambda p, a, b: seq.transfer(p, a + t, b + t))
+    held = report(setup, originals[t:], regs[t:], weight, slides, true_regs)
+    other_seq = demo_sequence(setup.other_frames, resolution=setup.other_resolution, **setup.other)
+    other_regs = register_pairs(other_seq.frames, registration_options=registration_options, registration_cache=cached)
+    other = report(setup, other_seq.frames, other_regs, weight, slides)
+    validation = {
+        name: [
             {k: float(v) for k, v in r.items() if v and k.startswith("val/")} | {"epoch": int(r["epoch"])}
-            for r in rows
+            for r in logged
             if r.get("val/flicker/ave")
         ]
-    report = held_out_report(setup, originals, frames, regs, models)
+        for name, logged in ((MODEL, rows), (ACROSS, across_rows))
+    }
     return {
         "seconds": {
-            "data": t_data - t0,
-            "registration": t_reg - t_data,
-            "training": train_seconds,
+            "registration": t_reg - t0,
+            "fit": t_fit - t_reg,
+            "training": t_train - t_fit,
             "total": time.perf_counter() - t0,
         },
-        "curves": curves,
-        "validation": val_logs,
-        **report,
+        "anchor_weight": weight,
+        "fit": fit,
+        "curves": {MODEL: module.history, ACROSS: across.history},
+        "validation": validation,
+        "held_out": held,
+        "other_sequence": other,
     }
+
+
+def _print_report(title: str, rep: dict[str, Any]) -> None:
+    for label in ("", "true motion: "):
+        if f"{label}aggregates" not in rep:
+            continue
+        print(f"{title}, {label or 'registration: '}mean over pairs of the per-pair Ave:")
+        for name, agg in rep[f"{label}aggregates"].items():
+            print(
+                f"  {name:<28s} faces {min(agg['faces'])}-{max(agg['faces'])}  flicker {agg['flicker_ave']:.6f}  "
+                f"surface_k {agg['surface_k_ave']:.6f}  reverse flicker {agg['reverse_flicker_ave']:.6f}  "
+                f"reverse surface_k {agg['reverse_surface_k_ave']:.6f}"
+            )
+        print("  paired differences A - B over pairs (95 % t interval):")
+        for versus, sets in rep[f"{label}comparisons"].items():
+            for set_name in ("flicker", "surface_k", "reverse:flicker", "reverse:surface_k"):
+                e = sets.get(set_name, {}).get("ave")
+                if e is not None:
+                    lo, hi = e["ci95"]
+                    floor = f"  floor {e['noise_floor']:.6f}" if "noise_floor" in e else ""
+                    print(
+                        f"  {versus:<52s} {set_name:<18s} {e['difference']:+.6f} [{lo:+.6f}, {hi:+.6f}] "
+                        f"{e['verdict']}{floor}"
+                    )
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="the few-second version (what the test runs)")
-    parser.add_argument("--lambdas", type=float, nargs="+", default=[0.0, 1.0, 4.0])
+    parser.add_argument("--lam", type=float, default=1.0, help="weight of the temporal term (default 1)")
+    parser.add_argument("--cache", help="folder of an on-disk registration cache (reruns skip the registrations)")
     parser.add_argument("--json", help="also write the results to this JSON file")
     parser.add_argument(
         "--threads", type=int, help="torch threads (1 on a shared machine: many small ops, each a parallel region)"
@@ -325,27 +346,19 @@ def main() -> None:
     if args.threads:
         torch.set_num_threads(args.threads)
     setup = Setup.quick() if args.quick else Setup()
+    setup.lam = args.lam
     with tempfile.TemporaryDirectory() as tmp:
-        out = run(setup, tuple(args.lambdas), tmp)
+        out = run(setup, tmp, cache=args.cache)
     print(f"seconds: {json.dumps(out['seconds'])}")
-    print("held-out frames, mean over pairs of the per-pair Ave:")
-    for name, agg in out["aggregates"].items():
-        print(
-            f"  {name:<16s} faces {min(agg['faces'])}-{max(agg['faces'])}  flicker {agg['flicker_ave']:.6f}  "
-            f"surface_k {agg['surface_k_ave']:.6f}  reverse flicker {agg['reverse_flicker_ave']:.6f}  "
-            f"reverse surface_k {agg['reverse_surface_k_ave']:.6f}"
-        )
-    print("paired differences A - B over held-out pairs (95 % t interval):")
-    for versus, sets in out["comparisons"].items():
-        for set_name in ("flicker", "surface_k", "reverse:flicker", "reverse:surface_k"):
-            e = sets.get(set_name, {}).get("ave")
-            if e is not None:
-                lo, hi = e["ci95"]
-                floor = f"  floor {e['noise_floor']:.6f}" if "noise_floor" in e else ""
-                print(
-                    f"  {versus:<30s} {set_name:<18s} {e['difference']:+.6f} [{lo:+.6f}, {hi:+.6f}] "
-                    f"{e['verdict']}{floor}"
-                )
+    print(f"anchor weight fitted on the training frames: {out['anchor_weight']:g}")
+    for w, errors in out["fit"].items():
+        print(f"  {w:<6s} " + "  ".join(f"{k} {v:.6f}" for k, v in errors.items()))
+    for name, curve in out["curves"].items():
+        print(f"{name}: training loss {curve[0]:.6f} -> {curve[-1]:.6f}")
+        for row in out["validation"][name]:
+            print(f"  validation {row}")
+    _print_report("held-out frames", out["held_out"])
+    _print_report("second sequence", out["other_sequence"])
     if args.json:
         from torchmeshmetric._atomic import atomic_write
 

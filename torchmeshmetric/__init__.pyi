@@ -13,9 +13,11 @@ from . import registration as registration
 from . import simplification as simplification
 from . import stats as stats
 from . import structures as structures
+from . import tasks as tasks
 from . import viz as viz
 from ._checks import (
     DeviceError,
+    DoubleBackwardError,
     DTypeError,
     EmptyInputError,
     IndexRangeError,
@@ -116,6 +118,7 @@ __all__ = [
     "read_mesh_arrays",
     "DTypeError",
     "DeviceError",
+    "DoubleBackwardError",
     "EmptyInputError",
     "IndexRangeError",
     "Mesh",

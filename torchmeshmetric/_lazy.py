@@ -7,6 +7,10 @@ here, at run time, by :func:`lazy_loader.attach_stub`, and by mypy and IDEs for 
 that defines it (and what that module needs) on first access, and ``dir()``, ``from torchmeshmetric import *`` and
 autocompletion see every name. ``EAGER_IMPORT=1`` in the environment imports everything at once (lazy_loader's
 switch: handy to find a broken import).
+
+What this adds to ``lazy_loader.attach_stub``: ``__all__`` is the stub's own list (lazy_loader's holds every
+imported name); a submodule's names are bound when it is imported (:class:`_Package`); unknown names get Python's
+usual ``AttributeError`` message.
 """
 
 from __future__ import annotations
@@ -61,16 +65,12 @@ def _read_stub(stub: str) -> tuple[list[str], dict[str, list[str]]]:
     return public, binds
 
 
-def attach(
-    package: str, file: str, fallback: Callable[[str], Any] | None = None
-) -> tuple[Callable[[str], Any], Callable[[], list[str]], list[str]]:
+def attach(package: str, file: str) -> tuple[Callable[[str], Any], Callable[[], list[str]], list[str]]:
     """The ``__getattr__``, ``__dir__`` and ``__all__`` of a package whose names ``__init__.pyi`` lists.
 
     Args:
         package: the package's ``__name__``.
         file: the package's ``__file__`` (``__init__.py``; the stub is ``__init__.pyi`` beside it).
-        fallback: called with a name the stub does not list (e.g. renamed names served with a warning); by default
-            such a name is an ``AttributeError``.
 
     Returns:
         The module-level ``__getattr__`` (PEP 562) that imports a listed name's module on first access and caches
@@ -104,8 +104,6 @@ def attach(
     def module_getattr(name: str) -> Any:
         if name in listed:
             return load(name)
-        if fallback is not None:
-            return fallback(name)
         raise AttributeError(f"module {package!r} has no attribute {name!r}")
 
     def module_dir() -> list[str]:

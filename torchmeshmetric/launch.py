@@ -3,7 +3,7 @@
 ``torchrun --nproc-per-node N -m torchmeshmetric evaluate|compare|campaign ...`` starts ``N`` processes with
 ``RANK``, ``WORLD_SIZE``, ``LOCAL_RANK``, ``LOCAL_WORLD_SIZE``, ``MASTER_ADDR`` and ``MASTER_PORT`` set; the command
 then joins one ``gloo`` process group (only Python objects are exchanged, so ``gloo`` also serves GPU runs), shares
-the work (:mod:`torchmeshmetric.evaluation.distributed`) and rank 0 prints the tables and writes the reports.
+the work (:mod:`torchmeshmetric.tasks`) and rank 0 prints the tables and writes the reports.
 
 Threads: ``--threads N`` wins; otherwise a user's ``OMP_NUM_THREADS`` wins, except torchrun's own default of 1 (it
 sets ``OMP_NUM_THREADS=1`` when unset), which is replaced by the usable cores divided by the processes on this machine
@@ -24,7 +24,7 @@ from typing import Any, NamedTuple
 import torch
 import torch.distributed as dist
 
-from torchmeshmetric.evaluation.distributed import RankFailedError, in_flight
+from torchmeshmetric.tasks import RankFailedError, default_store, in_flight
 
 __all__ = [
     "COLLECTIVE_TIMEOUT",
@@ -69,14 +69,6 @@ def error_line(command: str, exc: BaseException, rank: int | None = None) -> str
     return f"torchmeshmetric {command}: error: {where}{message}"
 
 
-def _store() -> Any:
-    """The default process group's key-value store (c10d keeps it private: ``None`` where it is not reachable)."""
-    try:
-        return dist.distributed_c10d._get_default_store()
-    except Exception:
-        return None
-
-
 def _rank_0_line(store: Any, wait: datetime.timedelta) -> str | None:
     """Rank 0's error line once it is posted (waiting up to ``wait``); ``None`` when it is not (in time)."""
     if store is None:
@@ -108,7 +100,7 @@ def report_error(launch: Launch, command: str, exc: BaseException) -> int:
     rank, so that no error is lost.
     """
     line = error_line(command, exc)
-    store = _store()
+    store = default_store()
     if launch.rank == 0:
         _post(store, _ERROR_KEY, line)
     elif _rank_0_line(store, ERROR_WAIT) == line:
@@ -238,7 +230,7 @@ def run_command(command: Callable[[Any], int], args: Any) -> int:
             args.device = _cuda_device(launch)
         return command(args)
     except RankFailedError:
-        if launch.rank != 0 or _said(_store()):
+        if launch.rank != 0 or _said(default_store()):
             return 1  # rank 0 names the failing rank, unless that rank already said why itself
         raise
     except Exception as exc:
@@ -247,7 +239,7 @@ def run_command(command: Callable[[Any], int], args: Any) -> int:
         return report_error(launch, args.command, exc)
     except Stopped:
         busy = in_flight()
-        if _said(_store()):
+        if _said(default_store()):
             return 1  # a rank failed and said why; torchrun stopped the others
         if launch.rank == min(set(range(launch.world_size)) - {r for r, _ in busy}):  # one line, from one survivor
             print(f"torchmeshmetric {args.command}: error: {_stopped_message(busy)}", file=sys.stderr)

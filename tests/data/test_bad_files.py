@@ -217,3 +217,17 @@ def test_binary_garbage_is_not_a_mesh_file(tmp_path_factory, payload, suffix):
     with pytest.raises(MeshFileError, match="is not a mesh file") as info:
         load_mesh(p)
     assert "charset" not in str(info.value) and "module" not in str(info.value)
+
+
+def test_a_directory_given_as_a_frame_is_reported_as_a_directory(tmp_path):
+    # issue 29: it was reported as "does not exist", by every reader and by a list of frames
+    from torchmeshmetric.data import list_frames, read_mesh_arrays
+    from torchmeshmetric.mpeg import load_textured_mesh
+
+    folder = tmp_path / "frame_0001.obj"
+    folder.mkdir()
+    for read in (load_mesh, read_mesh_arrays, load_textured_mesh):
+        with pytest.raises(MeshFileError, match=r"frame_0001\.obj' is a directory, not a mesh file"):
+            read(folder)
+    with pytest.raises(MeshFileError, match=r"paths: '.*frame_0001\.obj' is a directory, not a mesh file"):
+        list_frames([folder])

@@ -10,7 +10,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from torchmeshmetric.data.io import MeshFileError, Prefetcher, iter_sequence, load_sequence, prefetch_frames
+from torchmeshmetric.data.mesh_file import MeshFileError
+from torchmeshmetric.data.sequence import Prefetcher, iter_sequence, load_sequence, prefetch_frames
 
 
 def _frames(folder: Path, n: int) -> list[Path]:

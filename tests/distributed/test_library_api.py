@@ -11,7 +11,7 @@ import torch.multiprocessing as mp
 from tests.distributed.helpers import free_port
 from tests.evaluation.eval_helpers import TranslationRegister, sphere
 from torchmeshmetric.evaluation import RegistrationCache, evaluate_sequence
-from torchmeshmetric.evaluation.distributed import RankFailedError, run_tasks
+from torchmeshmetric.tasks import RankFailedError, run_tasks
 
 pytestmark = pytest.mark.skipif(
     not dist.is_available() or sys.platform == "win32", reason="needs torch.distributed with gloo"

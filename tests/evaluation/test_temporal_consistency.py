@@ -72,25 +72,6 @@ def test_states_declared_for_every_set_and_merged_like_a_ddp_gather(moving_spher
 
 
 @pytest.mark.filterwarnings("ignore:The ``compute`` method of metric TemporalConsistency was called before:UserWarning")
-def test_empty_compute_raises_and_old_module_name_warns():
+def test_empty_compute_raises():
     with pytest.raises(EmptyInputError, match="no surface_k_minus_1 distances"):
         TemporalConsistency(registration_fn=TranslationRegister()).compute()
-    from torchmeshmetric.evaluation import metric
-
-    with pytest.warns(DeprecationWarning, match="evaluation.metric.TemporalConsistency is deprecated"):
-        assert metric.TemporalConsistency is TemporalConsistency
-    with pytest.raises(AttributeError):
-        _ = metric.NotThere
-
-
-def test_old_keywords_warn_and_still_work(moving_spheres):
-    with pytest.warns(DeprecationWarning, match="registration_fn"):
-        old = TemporalConsistency(register=TranslationRegister())
-    new = TemporalConsistency(registration_fn=TranslationRegister())
-    assert isinstance(old.registration_fn, TranslationRegister)
-    original, simplified = moving_spheres
-    moved = original[1]  # frame 0 "registered" onto frame 1
-    with pytest.warns(DeprecationWarning, match="precomputed_registration"):
-        old.update(simplified[1], original[1], original[0], registration=moved)
-    new.update(simplified[1], original[1], original[0], precomputed_registration=moved)
-    assert float(old.compute()["vertex_k"]["ave"]) == float(new.compute()["vertex_k"]["ave"])

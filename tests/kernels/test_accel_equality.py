@@ -10,10 +10,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from torchmeshmetric.kernels.accel import bruteforce, pruned_faces
-from torchmeshmetric.kernels.accel._extension import load_bvh
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance
 from torchmeshmetric.kernels.point_triangle import point_mesh_distance
 from torchmeshmetric.kernels.select import FaceSet
+from torchmeshmetric.native import try_load
 
 BACKENDS = ["bvh", "pruned"]
 DTYPES = [torch.float32, torch.float64]
@@ -22,7 +22,7 @@ DTYPES = [torch.float32, torch.float64]
 @pytest.fixture(scope="module", autouse=True)
 def _compiled() -> None:
     # Compile (or load from the cache) once for the module; a missing compiler would warn and fail here.
-    assert load_bvh() is not None
+    assert try_load("bvh") is not None
 
 
 def assert_same_faces(points, verts, faces, backend, **kw):
@@ -265,24 +265,26 @@ def test_nearest_gradients_equal_bruteforce(backend):
     assert torch.equal(grads[0][0], grads[1][0]) and torch.equal(grads[0][1], grads[1][1])
 
 
-def test_auto_picks_bvh_on_cpu_for_large_problems_and_bruteforce_for_small(monkeypatch):
+def test_auto_picks_bvh_on_cpu_at_every_size_and_bruteforce_or_pruned_without_it(monkeypatch):
+    from torchmeshmetric import native
     from torchmeshmetric.kernels import select
 
     cpu = torch.device("cpu")
     small, large = 10 * 10, 5000 * 1000
-    # Before the extension is compiled: small problems stay on the brute force (no compilation for them).
-    monkeypatch.setattr(select, "bvh_ready", lambda: False)
+    # Where the extension cannot be built: small problems on the brute force, large ones pruned.
+    monkeypatch.setattr(native, "try_load", lambda name: None)
     assert select.auto_backend_name(cpu, torch.float32, small) == "bruteforce"
-    assert select.auto_backend_name(cpu, torch.float32, large) == "bvh"
-    # Compiled: the BVH at every size.
-    monkeypatch.setattr(select, "bvh_ready", lambda: True)
+    assert select.auto_backend_name(cpu, torch.float32, large) == "pruned"
+    # Otherwise the BVH at every size (built first where needed, whether or not a build existed).
+    monkeypatch.setattr(native, "try_load", lambda name: object())
     assert select.auto_backend_name(cpu, torch.float32, small) == "bvh"
+    assert select.auto_backend_name(cpu, torch.float32, large) == "bvh"
 
 
 def test_bvh_ready_reflects_the_compiled_extension():
-    from torchmeshmetric.kernels.accel._extension import bvh_ready
+    from torchmeshmetric.native import ready
 
-    assert load_bvh() is not None and bvh_ready()
+    assert try_load("bvh") is not None and ready("bvh")
 
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")

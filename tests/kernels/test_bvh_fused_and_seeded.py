@@ -15,14 +15,14 @@ from hypothesis import strategies as st
 
 from torchmeshmetric._checks import NonFiniteError
 from torchmeshmetric.kernels.accel import bvh as accel_bvh
-from torchmeshmetric.kernels.accel._extension import load_bvh
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance
 from torchmeshmetric.kernels.point_triangle import point_mesh_distance
+from torchmeshmetric.native import try_load
 
 
 @pytest.fixture(scope="module", autouse=True)
 def _compiled() -> None:
-    assert load_bvh() is not None
+    assert try_load("bvh") is not None
 
 
 def _assert_bitwise_equal(points: torch.Tensor, ref: torch.Tensor, **kw: torch.Tensor) -> None:

@@ -13,14 +13,14 @@ import trimesh
 
 from torchmeshmetric.kernels import mesh_index
 from torchmeshmetric.kernels.accel import bvh_closest_points
-from torchmeshmetric.kernels.accel._extension import load_bvh
 from torchmeshmetric.kernels.point_triangle import closest_point_on_triangle, point_mesh_distance
 from torchmeshmetric.kernels.select import Selector
+from torchmeshmetric.native import try_load
 
 
 @pytest.fixture(scope="module", autouse=True)
 def _compiled() -> None:
-    assert load_bvh() is not None
+    assert try_load("bvh") is not None
 
 
 def _both(points: torch.Tensor, verts: torch.Tensor, faces: torch.Tensor, **kw: torch.Tensor):

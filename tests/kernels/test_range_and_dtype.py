@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 import torchmeshmetric as tmm
 from torchmeshmetric import DTypeError, EmptyInputError, NonFiniteError
-from torchmeshmetric.kernels.accel._extension import load_bvh
+from torchmeshmetric.native import try_load
 
 SPHERE = trimesh.creation.icosphere(subdivisions=1)
 FACE_BACKENDS = ["bruteforce", "bvh", "pruned", "auto"]
@@ -22,7 +22,7 @@ POINTS = torch.tensor([[0.0, 0.0, 3.0], [0.3, 0.2, 0.1], [2.0, 1.0, 0.0], [0.1, 
 
 @pytest.fixture(scope="module", autouse=True)
 def _compiled() -> None:
-    assert load_bvh() is not None
+    assert try_load("bvh") is not None
 
 
 def _scaled(scale: float, dtype: torch.dtype) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:

@@ -6,12 +6,10 @@ The production extension only exposes selections; this test compiles a test-only
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
 import torch
 
-from torchmeshmetric.kernels.accel import _extension
+from torchmeshmetric import native
 from torchmeshmetric.kernels.point_triangle import _region_candidates
 
 _SOURCE = r"""
@@ -42,17 +40,16 @@ torch::Tensor pair_sq_dists(torch::Tensor points, torch::Tensor verts, torch::Te
 
 @pytest.fixture(scope="module")
 def pair_sq_dists():  # type: ignore[no-untyped-def]
-    if _extension.load_bvh() is None:
+    if native.try_load("bvh") is None:
         pytest.skip("no C++ compiler: the extension cannot be built")
     from torch.utils.cpp_extension import load_inline
 
-    header_dir = Path(_extension.__file__).parent
     module = load_inline(
         name="tmm_triangle_header_test",
         cpp_sources=[_SOURCE],
         functions=["pair_sq_dists"],
-        extra_cflags=list(_extension._CFLAGS),
-        extra_include_paths=[str(header_dir)],
+        extra_cflags=list(native.EXTENSIONS["bvh"].cflags),
+        extra_include_paths=[str(native.HOME)],
     )
     return module.pair_sq_dists
 

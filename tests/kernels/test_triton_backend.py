@@ -414,14 +414,15 @@ def test_missing_triton_is_an_import_error(monkeypatch):
 
 
 def test_auto_rules(monkeypatch):
+    from torchmeshmetric import native
     from torchmeshmetric.kernels import select
 
-    monkeypatch.setattr(select, "bvh_ready", lambda: False)
+    monkeypatch.setattr(native, "try_load", lambda name: None)  # no compiler
     cpu, meta, large, small = torch.device("cpu"), torch.device("meta"), 5000 * 1000, 10 * 1000
-    assert select.auto_backend_name(cpu, torch.float32, large) == "bvh"  # CPU: unchanged
+    assert select.auto_backend_name(cpu, torch.float32, large) == "pruned"  # CPU without the extension
     assert select.auto_backend_name(meta, torch.float32, large) == "pruned"  # neither CPU nor CUDA
     assert select.auto_backend_name(cpu, torch.float32, small) == "bruteforce"  # small: brute force
-    monkeypatch.setattr(select, "bvh_ready", lambda: True)  # a compiled extension changes nothing off the CPU
+    monkeypatch.setattr(native, "try_load", lambda name: object())  # the extension changes nothing off the CPU
     assert select.auto_backend_name(meta, torch.float32, large) == "pruned"
     assert select.auto_backend_name(meta, torch.float32, small) == "bruteforce"
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from torchmeshmetric import native
 from torchmeshmetric.mpeg import k_nearest, mpeg_sq_dists, nearest_with_ties
 from torchmeshmetric.mpeg import neighbours as nb
 
@@ -28,9 +29,9 @@ def _clouds(seed: int, grid: bool, n_ref: int, n_query: int) -> tuple[np.ndarray
 @pytest.fixture(params=["cpp", "brute"])
 def path(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> str:
     if request.param == "brute":
-        monkeypatch.setattr(nb, "load_bvh", lambda: None)
+        monkeypatch.setattr(native, "try_load", lambda name: None)
         monkeypatch.setattr(nb, "_BRUTE_CHUNK", 5000)  # several blocks
-    elif nb.load_bvh() is None:
+    elif native.try_load("bvh") is None:
         pytest.skip("C++ extension unavailable")
     return str(request.param)
 

@@ -12,7 +12,7 @@ from kornia.geometry.conversions import axis_angle_to_rotation_matrix
 
 from tests.registration.gt_pairs import torch_threads
 from torchmeshmetric import closest_point_on_triangle
-from torchmeshmetric.kernels.accel._extension import load_bvh
+from torchmeshmetric.native import try_load
 from torchmeshmetric.registration import (
     DeformationGraph,
     data_term,
@@ -33,7 +33,7 @@ from torchmeshmetric.structures import Mesh
 
 
 def _ops() -> Any:
-    assert load_bvh() is not None
+    assert try_load("bvh") is not None
     ops = registration_ops()
     assert ops is not None
     return ops
@@ -186,13 +186,14 @@ def test_deformed_vertices_equal_the_graph() -> None:
 
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
 def test_farthest_point_nodes_in_cpp_equal_the_torch_loop(monkeypatch: pytest.MonkeyPatch, dtype: torch.dtype) -> None:
-    from torchmeshmetric.registration import deformation_graph, farthest_point_nodes
+    from torchmeshmetric import native
+    from torchmeshmetric.registration import farthest_point_nodes
 
     g = torch.Generator().manual_seed(2)
     points = torch.rand(3000, 3, generator=g, dtype=dtype).mul(4).round()  # a lattice: many equal distances
     points = torch.cat([points, torch.rand(2000, 3, generator=g, dtype=dtype)])
     fast = farthest_point_nodes(points, 0.3)
-    monkeypatch.setattr(deformation_graph, "bvh_ready", lambda: False)
+    monkeypatch.setattr(native, "try_load", lambda name: None)  # the torch loop
     assert torch.equal(fast, farthest_point_nodes(points, 0.3))
 
 

@@ -9,6 +9,7 @@ Commands:
   demo      the main job: built-in sequence -> QEM and Registered QEM -> evaluation, tables, report and plots
   mpeg      MPEG D1/D2 (and colour) PSNR of one mesh pair, equal to mmetric's figures
   validate  which distance sets respond to which controlled distortion (noise, offsets, flicker, registration)
+  build     compile the C++ extensions now (once per machine) instead of on first use
 
 Errors (missing or corrupt files, frame-count mismatch, unwritable output) end with a one-line message on stderr
 and exit code 1; reports are written atomically and never half-written. Set TORCHMESHMETRIC_DEBUG=1 for tracebacks.
@@ -103,6 +104,11 @@ COMMANDS: dict[str, CommandInfo] = {
         "torchmeshmetric.cli.validate",
         "add_validate_command",
         "validation study: which distance sets respond to which controlled distortion",
+    ),
+    "build": CommandInfo(
+        "torchmeshmetric.cli.build",
+        "add_build_command",
+        "compile the C++ extensions now (once per machine) instead of on first use",
     ),
 }
 

@@ -17,21 +17,17 @@ from typing import Any
 import torch
 
 from torchmeshmetric._atomic import atomic_file_set, atomic_write, blocking_file
-from torchmeshmetric.data.io import load_sequence
+from torchmeshmetric._format import json_safe
+from torchmeshmetric.data.sequence import load_sequence
 from torchmeshmetric.evaluation.cache import RegistrationCache
-from torchmeshmetric.evaluation.distributed import (
-    SequenceWork,
-    evaluate_sequences,
-    is_distributed,
-    rank_and_world_size,
-)
+from torchmeshmetric.evaluation.distributed import SequenceWork, evaluate_sequences
 from torchmeshmetric.evaluation.pipeline import check_methods, evaluate_sequence
 from torchmeshmetric.evaluation.reports import report_dict, write_csv, write_json, write_markdown
 from torchmeshmetric.evaluation.results import SequenceEvaluation
 from torchmeshmetric.kernels.index_cache import IndexCache
-from torchmeshmetric.mpeg.command import json_safe
 from torchmeshmetric.mpeg.sequence import mpeg_csv, mpeg_markdown, mpeg_sequence
 from torchmeshmetric.registration.options import DEFAULT_SCHEDULE
+from torchmeshmetric.tasks import is_distributed, rank_and_world_size
 from torchmeshmetric.viz.plots import plot_mpeg_curves
 
 __all__ = [
@@ -224,24 +220,52 @@ def evaluate_method(
 
 
 def evaluate_methods(
-    original: list[Any], methods: dict[str, list[Any]], args: argparse.Namespace, device: str
+    original: list[Any],
+    methods: dict[str, list[Any]],
+    args: argparse.Namespace,
+    device: str,
+    *,
+    registration_options: dict[str, Any] | None = None,
 ) -> dict[str, Any] | None:
-    """Every method evaluated against the original frames, sharing the registrations; ``None`` on torchrun ranks > 0."""
+    """Every method evaluated against the original frames, sharing the registrations; ``None`` on torchrun ranks > 0.
+
+    ``registration_options``: options of the default registration, the same on the local and the torchrun path.
+    """
     cache = RegistrationCache(args.cache_dir)
-    indexes = IndexCache(max_entries=2 * len(original))  # each original frame's index built once for all methods
-    results = {}
     check_methods(original, methods)  # every method's count before any work
-    for name, frames in methods.items():
-        if is_distributed():
-            continue  # evaluated below, shared by the ranks of the torchrun job
-        results[name] = evaluate_method(name, original, frames, args, device, indexes, registration_cache=cache)
-    if is_distributed():
-        return evaluate_across_ranks([("", original, methods)], cache, args, device)[0]
-    return results
+    if is_distributed():  # shared by the ranks of the torchrun job
+        return evaluate_across_ranks(
+            [("", original, methods)],
+            cache,
+            two_sided=not args.one_sided,
+            device=device,
+            backend=args.backend,
+            registration_options=registration_options,
+        )[0]
+    indexes = IndexCache(max_entries=2 * len(original))  # each original frame's index built once for all methods
+    return {
+        name: evaluate_method(
+            name,
+            original,
+            frames,
+            args,
+            device,
+            indexes,
+            registration_cache=cache,
+            registration_options=registration_options,
+        )
+        for name, frames in methods.items()
+    }
 
 
 def evaluate_across_ranks(
-    sequences: list[tuple[str, list[Any], dict[str, list[Any]]]], cache: Any, args: argparse.Namespace, device: str
+    sequences: list[tuple[str, list[Any], dict[str, list[Any]]]],
+    cache: RegistrationCache,
+    *,
+    two_sided: bool,
+    device: str,
+    backend: str,
+    registration_options: dict[str, Any] | None,
 ) -> list[Any]:
     """Every method of every sequence, sharded over the ranks; results on rank 0, ``[None, ...]`` elsewhere."""
     _, world_size = rank_and_world_size()
@@ -249,11 +273,11 @@ def evaluate_across_ranks(
     results = evaluate_sequences(
         [SequenceWork(*s) for s in sequences],
         registration_cache=cache,
-        two_sided=not args.one_sided,
+        two_sided=two_sided,
         device=device,
-        registration_options=getattr(args, "register_options", None),
+        registration_options=registration_options,
         progress=progress(label),
-        backend=args.backend,
+        backend=backend,
     )
     return [None] * len(sequences) if results is None else list(results)
 

@@ -63,10 +63,15 @@ def run(args: argparse.Namespace) -> int:
         }
         check_methods(original, methods, sequence=seq.name)
         sequences.append((seq.name, original, methods))
-    args.one_sided = not campaign.two_sided
-    args.register_options = fast_registration_options() if campaign.registration == "fast" else None
     cache = RegistrationCache(args.cache_dir or campaign.cache_dir)
-    evaluated = evaluate_across_ranks(sequences, cache, args, device)
+    evaluated = evaluate_across_ranks(
+        sequences,
+        cache,
+        two_sided=campaign.two_sided,
+        device=device,
+        backend=args.backend,
+        registration_options=fast_registration_options() if campaign.registration == "fast" else None,
+    )
     if evaluated[0] is None:  # a torchrun rank other than 0: rank 0 reports
         return 0
     results = {seq.name: methods for seq, methods in zip(campaign.sequences, evaluated, strict=True)}

@@ -28,7 +28,8 @@ def run(args: argparse.Namespace) -> int:
         output_set,
         simplify_frames,
     )
-    from torchmeshmetric.data.io import list_frames, save_mesh
+    from torchmeshmetric.data.frames import list_frames
+    from torchmeshmetric.data.io import save_mesh
     from torchmeshmetric.evaluation.cache import RegistrationCache
     from torchmeshmetric.evaluation.pipeline import register_pairs
 

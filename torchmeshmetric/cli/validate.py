@@ -25,8 +25,8 @@ def run(args: argparse.Namespace) -> int:
     frame size (docs/validation.md).
     """
     from torchmeshmetric._atomic import atomic_write
+    from torchmeshmetric._format import json_safe
     from torchmeshmetric.cli._shared import CLIError, check_writable
-    from torchmeshmetric.evaluation.reports import _clean
     from torchmeshmetric.evaluation.validation import DISTORTIONS, FULL, REDUCED, run_validation
     from torchmeshmetric.viz.validation import plot_validation
 
@@ -67,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
     text = result.markdown()
     print(title + text)
     atomic_write(
-        paths[0], json.dumps(_clean(result.as_dict()), indent=2, allow_nan=False) + "\n", overwrite=args.overwrite
+        paths[0], json.dumps(json_safe(result.as_dict()), indent=2, allow_nan=False) + "\n", overwrite=args.overwrite
     )
     atomic_write(paths[1], title + text, overwrite=args.overwrite)
     if not args.no_plots:

@@ -13,17 +13,18 @@ accepts (tested against each other).
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-__all__ = ["MeshFileError", "MtlMaterial", "ObjData", "parse_mtl", "parse_obj", "text_lines"]
+from torchmeshmetric.data.mesh_file import MeshFileError, check_text, not_a_mesh
 
+if TYPE_CHECKING:
+    from torchmeshmetric.structures import Mesh
 
-class MeshFileError(ValueError):
-    """A mesh file is missing, unreadable, corrupt, empty or not made of triangles (the message names the file)."""
+__all__ = ["MtlMaterial", "ObjData", "obj_bytes", "parse_mtl", "parse_obj", "read_obj_triangles"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -87,34 +88,6 @@ _KEYWORDS = frozenset(
 )
 
 
-def _name(p: Path) -> str:
-    return f"'{p}'"
-
-
-def not_a_mesh(p: Path, why: str) -> MeshFileError:
-    """The error for a file that is no mesh file of its format."""
-    return MeshFileError(f"path: {_name(p)} is not a mesh file ({why})")
-
-
-def text_lines(p: Path, data: bytes) -> list[bytes]:
-    """Lines of a text mesh format; binary data (NUL or other control bytes) is refused as not a mesh file."""
-    check_text(p, data)
-    return data.removeprefix(b"\xef\xbb\xbf").splitlines()  # a UTF-8 byte-order mark is no statement
-
-
-_CONTROL = bytes([*range(0, 9), *range(14, 32), 127])
-
-
-def check_text(p: Path, data: bytes) -> None:
-    """Refuse binary data (NUL or other control bytes) in a text format, naming its line and byte."""
-    if len(data.translate(None, _CONTROL)) == len(data):
-        return  # no control byte (bytes.translate is one C pass; a regex search is ten times slower)
-    control = re.search(rb"[\x00-\x08\x0e-\x1f\x7f]", data)
-    if control is not None:
-        line = data.count(b"\n", 0, control.start()) + 1
-        raise not_a_mesh(p, f"binary data at line {line}, byte {control.start()}")
-
-
 def _rest(line: bytes, key: bytes) -> str:
     """The rest of a statement line after its keyword, as text (names may hold spaces)."""
     body = line.split(b"#", 1)[0].strip()
@@ -170,14 +143,14 @@ def _check_finite(p: Path, d: ObjData) -> None:
     if bad.any():
         i = int(np.nonzero(bad)[0][0])
         raise MeshFileError(
-            f"path: mesh file {_name(p)} vertex {i} (line {int(d.vert_lines[i])}) has non-finite coordinates "
+            f"path: mesh file '{p}' vertex {i} (line {int(d.vert_lines[i])}) has non-finite coordinates "
             f"{d.verts[i].tolist()} ({int(bad.sum())} such vertices)"
         )
     bad = ~np.isfinite(d.uvs).all(axis=1)
     if bad.any():
         i = int(np.nonzero(bad)[0][0])
         raise MeshFileError(
-            f"path: mesh file {_name(p)} texture coordinate {i} (line {int(d.uv_lines[i])}) is not finite: "
+            f"path: mesh file '{p}' texture coordinate {i} (line {int(d.uv_lines[i])}) is not finite: "
             f"{d.uvs[i].tolist()} ({int(bad.sum())} such 'vt' lines)"
         )
 
@@ -188,8 +161,18 @@ _SPACE[[9, 11, 12, 13, 32]] = True  # not the newline: a keyword must be followe
 _V, _VT, _F, _SKIP, _OTHER = 1, 2, 3, 4, 5
 
 
-def _parse_fast(data: bytes, read_uvs: bool) -> ObjData | None:
-    """Vectorised parse, or ``None`` whenever the file is unusual (the slow pass then decides)."""
+class _Lines(NamedTuple):
+    """A file's bytes cut into lines for the fast pass: each line's start, end and kind."""
+
+    data: bytes
+    buf: np.ndarray  # the bytes as uint8 (two more bytes to look past the last line start); keywords get blanked
+    starts: np.ndarray
+    ends: np.ndarray
+    kind: np.ndarray  # _SKIP, _V, _VT, _F or _OTHER per line
+
+
+def _classify(data: bytes, read_uvs: bool) -> _Lines | None:
+    """Every line's kind from its first bytes, or ``None`` for what the fast pass does not take."""
     if not data or b"\\" in data:
         return None  # line continuations: statement by statement
     if b"\r" in data:
@@ -217,12 +200,21 @@ def _parse_fast(data: bytes, read_uvs: bool) -> ObjData | None:
         k = kind[hash_line]
         if ((k == _V) | (k == _VT) | (k == _F)).any():
             return None  # a comment after a statement
-    materials: list[str] = []
-    material_lines: list[int] = []
-    mtllibs: list[tuple[str, int]] = []
-    use_at: list[tuple[int, int]] = []  # (line index, material index)
-    for i in np.flatnonzero(kind == _OTHER).tolist():
-        line = data[starts[i] : ends[i]]
+    return _Lines(data, buf, starts, ends, kind)
+
+
+class _Materials(NamedTuple):
+    names: list[str]
+    lines: list[int]
+    mtllibs: list[tuple[str, int]]
+    use_at: list[tuple[int, int]]  # (line index, material index)
+
+
+def _other_statements(lines: _Lines) -> _Materials | None:
+    """The ``mtllib`` and ``usemtl`` statements; ``None`` for anything the fast pass leaves to the slow one."""
+    found = _Materials([], [], [], [])
+    for i in np.flatnonzero(lines.kind == _OTHER).tolist():
+        line = lines.data[lines.starts[i] : lines.ends[i]]
         tokens = line.split(b"#", 1)[0].split()
         if not tokens:
             continue
@@ -230,14 +222,85 @@ def _parse_fast(data: bytes, read_uvs: bool) -> ObjData | None:
         if key not in _KEYWORDS or key in (b"v", b"vt", b"f") or not line[:1].strip():
             return None  # not OBJ, or an indented statement: the slow pass
         if key == b"mtllib":
-            mtllibs.append((_rest(line, key), i + 1))
+            found.mtllibs.append((_rest(line, key), i + 1))
         elif key == b"usemtl":
             name = _rest(line, key)
-            if name not in materials:
-                materials.append(name)
-                material_lines.append(i + 1)
-            use_at.append((i, materials.index(name)))
-    if not ((kind == _V).any() or (kind == _F).any() or (kind == _VT).any() or mtllibs):
+            if name not in found.names:
+                found.names.append(name)
+                found.lines.append(i + 1)
+            found.use_at.append((i, found.names.index(name)))
+    return found
+
+
+def _corner_form(slash: np.ndarray, n_corner: int) -> tuple[int, int] | None:
+    """``(numbers per corner, column of the UV index or -1)`` of ``v``, ``v/t``, ``v/t/n`` or ``v//n`` corners."""
+    n_slash = int(np.count_nonzero(slash))
+    double = int(np.count_nonzero(slash[:-1] & slash[1:])) if n_slash else 0
+    if n_slash == 0:
+        return 1, -1
+    if double == 0 and n_slash == n_corner:
+        return 2, 1
+    if double == 0 and n_slash == 2 * n_corner:
+        return 3, 1
+    if double == n_corner and n_slash == 2 * n_corner:
+        return 2, -1
+    return None
+
+
+def _resolve(index: np.ndarray, defined_before: np.ndarray) -> np.ndarray | None:
+    """OBJ's 1-based (or negative, counting back) indices as 0-based ones; ``None`` for 0 or before the first."""
+    if (index == 0).any():
+        return None
+    resolved = np.where(index < 0, defined_before + index, index - 1)
+    if (index < 0).any() and (resolved[index < 0] < 0).any():
+        return None
+    return resolved
+
+
+def _face_corners(
+    lines: _Lines, regions: _Regions, f_lines: np.ndarray, sizes: np.ndarray, read_uvs: bool
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(vertex index, UV index or -1)`` of every face corner, 0-based; ``None`` for mixed or bad corners."""
+    fbytes = regions.of(_F, f_lines)
+    slash = fbytes == ord("/")
+    n_corner = int(sizes.sum())
+    form = _corner_form(slash, n_corner)
+    if form is None:
+        return None
+    per, uv_col = form
+    if slash.any():
+        per_corner = 2 if uv_col < 0 else per - 1  # slashes in each corner of the form found
+        per_line = np.add.reduceat(lines.buf == ord("/"), lines.starts, dtype=np.int32)[f_lines]
+        if not np.array_equal(per_line, sizes * per_corner):
+            return None  # corners of mixed forms
+        fbytes = np.where(slash, np.uint8(32), fbytes)
+    try:
+        ints = np.fromstring(fbytes.tobytes(), dtype=np.int64, sep=" ")
+    except ValueError:
+        return None
+    if ints.size != n_corner * per:
+        return None
+    ints = ints.reshape(-1, per)
+    corner_line = np.repeat(f_lines, sizes)
+    corners = _resolve(ints[:, 0], np.cumsum(lines.kind == _V)[corner_line])  # vertices defined up to each face
+    if corners is None:
+        return None
+    if uv_col < 0 or not read_uvs:
+        return corners, np.full(n_corner, -1, dtype=np.int64)
+    corner_uvs = _resolve(ints[:, uv_col], np.cumsum(lines.kind == _VT)[corner_line])
+    return None if corner_uvs is None else (corners, corner_uvs)
+
+
+def _parse_fast(data: bytes, read_uvs: bool) -> ObjData | None:
+    """Vectorised parse, or ``None`` whenever the file is unusual (the slow pass then decides)."""
+    lines = _classify(data, read_uvs)
+    if lines is None:
+        return None
+    materials = _other_statements(lines)
+    if materials is None:
+        return None
+    buf, starts, kind = lines.buf, lines.starts, lines.kind
+    if not ((kind == _V).any() or (kind == _F).any() or (kind == _VT).any() or materials.mtllibs):
         return None  # no statement at all (or only odd ones): the slow pass names it
     v_lines = np.flatnonzero(kind == _V)
     vt_lines = np.flatnonzero(kind == _VT)
@@ -254,7 +317,7 @@ def _parse_fast(data: bytes, read_uvs: bool) -> ObjData | None:
     np.greater(space[:-1], space[1:], out=rise[1:])  # space, then text
     # each line's segment ends with its newline (a space), so an empty line sums to 0
     counts = np.add.reduceat(rise, starts, dtype=np.int32)
-    regions = _Regions(buf, kind, starts, ends)
+    regions = _Regions(buf, kind, starts, lines.ends)
 
     verts, colors = _numbers(regions.of(_V, v_lines), counts[v_lines], (3, 4, 6, 7))
     if verts is None:
@@ -264,74 +327,30 @@ def _parse_fast(data: bytes, read_uvs: bool) -> ObjData | None:
         return None
     if colors is not None and (counts[v_lines] < 6).any():
         colors = None
-
     sizes = counts[f_lines]
     if sizes.size and int(sizes.min()) < 3:
         return None
-    fbytes = regions.of(_F, f_lines)
-    slash = fbytes == ord("/")
-    n_slash = int(np.count_nonzero(slash))
-    n_corner = int(sizes.sum())
-    double = int(np.count_nonzero(slash[:-1] & slash[1:])) if n_slash else 0
-    if n_slash == 0:
-        per, uv_col = 1, -1
-    elif double == 0 and n_slash == n_corner:
-        per, uv_col = 2, 1
-    elif double == 0 and n_slash == 2 * n_corner:
-        per, uv_col = 3, 1
-    elif double == n_corner and n_slash == 2 * n_corner:
-        per, uv_col = 2, -1
-    else:
+    corners = _face_corners(lines, regions, f_lines, sizes, read_uvs)
+    if corners is None:
         return None
-    if n_slash:
-        per_corner = 2 if uv_col < 0 else per - 1  # slashes in each corner of the form found
-        per_line = np.add.reduceat(buf == ord("/"), starts, dtype=np.int32)[f_lines]
-        if not np.array_equal(per_line, sizes * per_corner):
-            return None  # corners of mixed forms
-        fbytes = np.where(slash, np.uint8(32), fbytes)
-    try:
-        ints = np.fromstring(fbytes.tobytes(), dtype=np.int64, sep=" ")
-    except ValueError:
-        return None
-    if ints.size != n_corner * per:
-        return None
-    ints = ints.reshape(-1, per)
-    corner_line = np.repeat(f_lines, sizes)
-    v_before = np.cumsum(kind == _V)[corner_line]  # vertices defined up to each face's line
-    idx = ints[:, 0]
-    if (idx == 0).any():
-        return None
-    corners = np.where(idx < 0, v_before + idx, idx - 1)
-    if (idx < 0).any() and (corners[idx < 0] < 0).any():
-        return None
-    if uv_col > 0 and read_uvs:
-        t = ints[:, uv_col]
-        if (t == 0).any():
-            return None
-        t_before = np.cumsum(kind == _VT)[corner_line]
-        corner_uvs = np.where(t < 0, t_before + t, t - 1)
-        if (t < 0).any() and (corner_uvs[t < 0] < 0).any():
-            return None
-    else:
-        corner_uvs = np.full(n_corner, -1, dtype=np.int64)
     face_materials = np.full(len(f_lines), -1, dtype=np.int64)
-    if use_at:
-        at = np.searchsorted(np.array([a for a, _ in use_at]), f_lines) - 1  # the last usemtl before each face
-        face_materials = np.where(at >= 0, np.array([m for _, m in use_at])[at], -1)
+    if materials.use_at:
+        at = np.searchsorted(np.array([a for a, _ in materials.use_at]), f_lines) - 1  # the last usemtl before
+        face_materials = np.where(at >= 0, np.array([m for _, m in materials.use_at])[at], -1)
     return ObjData(
         verts=verts[:, :3],
         vert_lines=v_lines + 1,
         vert_colors=colors,
         uvs=uvs[:, :2],
         uv_lines=vt_lines + 1,
-        corners=corners.astype(np.int64),
-        corner_uvs=corner_uvs.astype(np.int64),
+        corners=corners[0].astype(np.int64),
+        corner_uvs=corners[1].astype(np.int64),
         face_sizes=sizes.astype(np.int64),
         face_lines=f_lines + 1,
         face_materials=face_materials,
-        materials=materials,
-        material_lines=material_lines,
-        mtllibs=mtllibs,
+        materials=materials.names,
+        material_lines=materials.lines,
+        mtllibs=materials.mtllibs,
     )
 
 
@@ -400,27 +419,123 @@ def _numbers(
 
 
 # ----------------------------------------------------------------------------------------------- the slow pass
+@dataclass
+class _Statements:
+    """What the slow pass has read so far, statement by statement (``p``: the file, in messages)."""
+
+    p: Path
+    read_uvs: bool
+    verts: list[list[float]] = field(default_factory=list)
+    vert_lines: list[int] = field(default_factory=list)
+    colors: list[list[float] | None] = field(default_factory=list)
+    uvs: list[list[float]] = field(default_factory=list)
+    uv_lines: list[int] = field(default_factory=list)
+    corners: list[int] = field(default_factory=list)
+    corner_uvs: list[int] = field(default_factory=list)
+    sizes: list[int] = field(default_factory=list)
+    face_lines: list[int] = field(default_factory=list)
+    face_materials: list[int] = field(default_factory=list)
+    materials: list[str] = field(default_factory=list)
+    material_lines: list[int] = field(default_factory=list)
+    mtllibs: list[tuple[str, int]] = field(default_factory=list)
+    material: int = -1
+
+    def vertex(self, at: int, tokens: list[bytes]) -> None:
+        n = len(tokens) - 1
+        if n not in (3, 4, 6, 7):
+            raise MeshFileError(
+                f"path: '{self.p}' line {at}: vertex {len(self.verts)} has {n} coordinate(s); expected 'v x y z' "
+                "(optionally w, or r g b [a])"
+            )
+        try:
+            self.verts.append([float(t) for t in tokens[1:4]])
+            self.colors.append([float(t) for t in tokens[4:7]] if n >= 6 else None)
+        except ValueError:
+            raise MeshFileError(
+                f"path: '{self.p}' line {at}: vertex coordinates "
+                f"{b' '.join(tokens[1 : n + 1]).decode('latin-1')!r} are not numbers"
+            ) from None
+        self.vert_lines.append(at)
+
+    def uv(self, at: int, tokens: list[bytes]) -> None:
+        n = len(tokens) - 1
+        if n not in (2, 3):
+            raise MeshFileError(
+                f"path: '{self.p}' line {at}: texture coordinate {len(self.uvs)} has {n} value(s); expected "
+                "'vt u v' (optionally w)"
+            )
+        try:
+            self.uvs.append([float(t) for t in tokens[1:3]])
+        except ValueError:
+            raise MeshFileError(
+                f"path: '{self.p}' line {at}: texture coordinates "
+                f"{b' '.join(tokens[1:]).decode('latin-1')!r} are not numbers"
+            ) from None
+        self.uv_lines.append(at)
+
+    def face(self, at: int, tokens: list[bytes]) -> None:
+        n = len(tokens) - 1
+        if n < 3:
+            raise MeshFileError(f"path: '{self.p}' line {at} has a face with {n} corners; expected triangles")
+        for t in tokens[1:]:
+            parts = t.split(b"/")
+            self.corners.append(_index(self.p, at, parts[0], len(self.verts), "vertex", t))
+            has_uv = self.read_uvs and len(parts) > 1 and parts[1] != b""
+            self.corner_uvs.append(_index(self.p, at, parts[1], len(self.uvs), "texture", t) if has_uv else -1)
+        self.sizes.append(n)
+        self.face_lines.append(at)
+        self.face_materials.append(self.material)
+
+    def use_material(self, at: int, name: str) -> None:
+        if name not in self.materials:
+            self.materials.append(name)
+            self.material_lines.append(at)
+        self.material = self.materials.index(name)
+
+    def check_indices(self) -> None:
+        """Corners that name a vertex or UV defined after their face (or never): the first one's line."""
+        corner_lines = np.repeat(self.face_lines, self.sizes).tolist()
+        nv = len(self.verts)
+        for c, line_no in zip(self.corners, corner_lines, strict=True):
+            if c >= nv:
+                face = self.face_lines.index(line_no)
+                raise MeshFileError(
+                    f"path: '{self.p}' line {line_no}: face {face}: vertex index {c + 1} is out of range (the file "
+                    f"has {nv} vertices)"
+                )
+        for c, line_no in zip(self.corner_uvs, corner_lines, strict=True):
+            if c >= len(self.uvs):
+                raise MeshFileError(
+                    f"path: '{self.p}' line {line_no}: texture index {c + 1} is out of range (the file has "
+                    f"{len(self.uvs)} 'vt' lines)"
+                )
+
+    def result(self) -> ObjData:
+        has_color = bool(self.colors) and all(c is not None for c in self.colors)
+        return ObjData(
+            verts=np.array(self.verts, dtype=np.float64).reshape(-1, 3),
+            vert_lines=np.array(self.vert_lines, dtype=np.int64),
+            vert_colors=np.array(self.colors, dtype=np.float64).reshape(-1, 3) if has_color else None,
+            uvs=np.array(self.uvs, dtype=np.float64).reshape(-1, 2),
+            uv_lines=np.array(self.uv_lines, dtype=np.int64),
+            corners=np.array(self.corners, dtype=np.int64),
+            corner_uvs=np.array(self.corner_uvs, dtype=np.int64),
+            face_sizes=np.array(self.sizes, dtype=np.int64),
+            face_lines=np.array(self.face_lines, dtype=np.int64),
+            face_materials=np.array(self.face_materials, dtype=np.int64),
+            materials=self.materials,
+            material_lines=self.material_lines,
+            mtllibs=self.mtllibs,
+        )
+
+
 def _parse_slow(p: Path, data: bytes, read_uvs: bool) -> ObjData:
     """One statement at a time, naming the line of the first problem."""
-    lines = data.splitlines()
-    verts: list[list[float]] = []
-    vert_lines: list[int] = []
-    colors: list[list[float] | None] = []
-    uvs: list[list[float]] = []
-    uv_lines: list[int] = []
-    corners: list[int] = []
-    corner_uvs: list[int] = []
-    sizes: list[int] = []
-    face_lines: list[int] = []
-    face_materials: list[int] = []
-    materials: list[str] = []
-    material_lines: list[int] = []
-    mtllibs: list[tuple[str, int]] = []
-    material = -1
+    read = _Statements(p, read_uvs)
     pending = b""
     start = 0
     statements = 0
-    for lineno, raw in enumerate(lines, 1):
+    for lineno, raw in enumerate(data.splitlines(), 1):
         line = pending + raw
         if line.rstrip().endswith(b"\\"):  # line continuation
             pending = line.rstrip()[:-1] + b" "
@@ -435,88 +550,19 @@ def _parse_slow(p: Path, data: bytes, read_uvs: bool) -> ObjData:
             raise not_a_mesh(p, f"line {at} starts with {key.decode('latin-1')!r}, not an OBJ statement")
         statements += 1
         if key == b"v":
-            n = len(tokens) - 1
-            if n not in (3, 4, 6, 7):
-                raise MeshFileError(
-                    f"path: {_name(p)} line {at}: vertex {len(verts)} has {n} coordinate(s); expected 'v x y z' "
-                    "(optionally w, or r g b [a])"
-                )
-            try:
-                verts.append([float(t) for t in tokens[1:4]])
-                colors.append([float(t) for t in tokens[4:7]] if n >= 6 else None)
-            except ValueError:
-                raise MeshFileError(
-                    f"path: {_name(p)} line {at}: vertex coordinates "
-                    f"{b' '.join(tokens[1 : n + 1]).decode('latin-1')!r} are not numbers"
-                ) from None
-            vert_lines.append(at)
+            read.vertex(at, tokens)
         elif key == b"vt" and read_uvs:
-            n = len(tokens) - 1
-            if n not in (2, 3):
-                raise MeshFileError(
-                    f"path: {_name(p)} line {at}: texture coordinate {len(uvs)} has {n} value(s); expected 'vt u v' "
-                    "(optionally w)"
-                )
-            try:
-                uvs.append([float(t) for t in tokens[1:3]])
-            except ValueError:
-                raise MeshFileError(
-                    f"path: {_name(p)} line {at}: texture coordinates "
-                    f"{b' '.join(tokens[1:]).decode('latin-1')!r} are not numbers"
-                ) from None
-            uv_lines.append(at)
+            read.uv(at, tokens)
         elif key == b"f":
-            n = len(tokens) - 1
-            if n < 3:
-                raise MeshFileError(f"path: {_name(p)} line {at} has a face with {n} corners; expected triangles")
-            for t in tokens[1:]:
-                parts = t.split(b"/")
-                corners.append(_index(p, at, parts[0], len(verts), "vertex", t))
-                has_uv = read_uvs and len(parts) > 1 and parts[1] != b""
-                corner_uvs.append(_index(p, at, parts[1], len(uvs), "texture", t) if has_uv else -1)
-            sizes.append(n)
-            face_lines.append(at)
-            face_materials.append(material)
+            read.face(at, tokens)
         elif key == b"mtllib":
-            mtllibs.append((_rest(line, key), at))
+            read.mtllibs.append((_rest(line, key), at))
         elif key == b"usemtl":
-            name = _rest(line, key)
-            if name not in materials:
-                materials.append(name)
-                material_lines.append(at)
-            material = materials.index(name)
+            read.use_material(at, _rest(line, key))
     if statements == 0:
         raise not_a_mesh(p, "no OBJ statement (v, f, ...) found")
-    nv = len(verts)
-    for c, line_no in zip(corners, np.repeat(face_lines, sizes).tolist(), strict=True):
-        if c >= nv:
-            face = face_lines.index(line_no)
-            raise MeshFileError(
-                f"path: {_name(p)} line {line_no}: face {face}: vertex index {c + 1} is out of range (the file "
-                f"has {nv} vertices)"
-            )
-    for c, line_no in zip(corner_uvs, np.repeat(face_lines, sizes).tolist(), strict=True):
-        if c >= len(uvs):
-            raise MeshFileError(
-                f"path: {_name(p)} line {line_no}: texture index {c + 1} is out of range (the file has {len(uvs)} "
-                "'vt' lines)"
-            )
-    has_color = bool(colors) and all(c is not None for c in colors)
-    return ObjData(
-        verts=np.array(verts, dtype=np.float64).reshape(-1, 3),
-        vert_lines=np.array(vert_lines, dtype=np.int64),
-        vert_colors=np.array(colors, dtype=np.float64).reshape(-1, 3) if has_color else None,
-        uvs=np.array(uvs, dtype=np.float64).reshape(-1, 2),
-        uv_lines=np.array(uv_lines, dtype=np.int64),
-        corners=np.array(corners, dtype=np.int64),
-        corner_uvs=np.array(corner_uvs, dtype=np.int64),
-        face_sizes=np.array(sizes, dtype=np.int64),
-        face_lines=np.array(face_lines, dtype=np.int64),
-        face_materials=np.array(face_materials, dtype=np.int64),
-        materials=materials,
-        material_lines=material_lines,
-        mtllibs=mtllibs,
-    )
+    read.check_indices()
+    return read.result()
 
 
 def _index(p: Path, at: int, text: bytes, defined: int, what: str, corner: bytes) -> int:
@@ -526,14 +572,14 @@ def _index(p: Path, at: int, text: bytes, defined: int, what: str, corner: bytes
         idx = int(text)
     except ValueError:
         raise MeshFileError(
-            f"path: {_name(p)} line {at}: face corner {corner.decode('latin-1')!r} is not a {what} index"
+            f"path: '{p}' line {at}: face corner {corner.decode('latin-1')!r} is not a {what} index"
         ) from None
     if idx == 0:
         raise MeshFileError(
-            f"path: {_name(p)} line {at}: face {what} index 0 is invalid (OBJ indices start at 1; negative ones "
+            f"path: '{p}' line {at}: face {what} index 0 is invalid (OBJ indices start at 1; negative ones "
             f"count back from the last {things} defined)"
             if what != "vertex"
-            else f"path: {_name(p)} line {at}: face index 0 is invalid (OBJ indices start at 1; negative ones "
+            else f"path: '{p}' line {at}: face index 0 is invalid (OBJ indices start at 1; negative ones "
             "count back from the last vertex)"
         )
     if idx < 0:
@@ -542,7 +588,7 @@ def _index(p: Path, at: int, text: bytes, defined: int, what: str, corner: bytes
             first = "the first vertex" if what == "vertex" else "the first 'vt'"
             plural = "vertices" if what == "vertex" else "'vt' lines"
             raise MeshFileError(
-                f"path: {_name(p)} line {at}: {lead} {idx} counts back past {first} ({defined} {plural} defined "
+                f"path: '{p}' line {at}: {lead} {idx} counts back past {first} ({defined} {plural} defined "
                 "before this line)"
             )
         return defined + idx
@@ -640,9 +686,30 @@ def parse_mtl(path: Path) -> list[MtlMaterial]:
         elif key == b"map_Kd":
             name = _map_name(_rest(line, key))
             if not name:
-                raise MeshFileError(f"path: {_name(path)} line {lineno}: 'map_Kd' names no texture file")
+                raise MeshFileError(f"path: '{path}' line {lineno}: 'map_Kd' names no texture file")
             if not out:
-                raise MeshFileError(f"path: {_name(path)} line {lineno}: 'map_Kd' before any 'newmtl'")
+                raise MeshFileError(f"path: '{path}' line {lineno}: 'map_Kd' before any 'newmtl'")
             last = out[-1]
             out[-1] = MtlMaterial(last.name, last.line, name, lineno)
     return out
+
+
+def read_obj_triangles(p: Path, data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Vertices, triangles and vertex lines of a Wavefront OBJ file (polygons refused, naming their line)."""
+    d = parse_obj(p, data, uvs=False)
+    sizes = d.face_sizes
+    if sizes.size and (int(sizes.min()) != 3 or int(sizes.max()) != 3):
+        j = int(np.nonzero(sizes != 3)[0][0])
+        raise MeshFileError(
+            f"path: '{p}' line {int(d.face_lines[j])} has a face with {int(sizes[j])} corners; expected triangles"
+        )
+    return d.verts, d.corners.reshape(-1, 3), d.vert_lines
+
+
+def obj_bytes(mesh: Mesh) -> bytes:
+    """Minimal OBJ writer (vertices at full float64 precision via ``repr``-exact ``%.17g``, 1-based faces)."""
+    v = mesh.verts.detach().cpu().double().numpy()
+    f = mesh.faces.cpu().numpy() + 1
+    lines = ["v " + " ".join(f"{x:.17g}" for x in row) for row in v]
+    lines += [f"f {a} {b} {c}" for a, b, c in f]
+    return ("\n".join(lines) + "\n").encode()

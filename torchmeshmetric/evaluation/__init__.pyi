@@ -4,7 +4,6 @@
 """
 
 # The public submodules (attributes of the package, as after a normal import).
-from . import atomic as atomic
 from . import cache as cache
 from . import campaign as campaign
 from . import comparison as comparison

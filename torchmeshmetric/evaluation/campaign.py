@@ -30,7 +30,8 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from torchmeshmetric._atomic import atomic_write
-from torchmeshmetric.evaluation.reports import COLUMNS, _clean, _fmt, report_dict
+from torchmeshmetric._format import format_number, json_safe
+from torchmeshmetric.evaluation.reports import COLUMNS, report_dict
 from torchmeshmetric.evaluation.results import SequenceEvaluation
 
 if sys.version_info >= (3, 11):
@@ -245,7 +246,7 @@ def campaign_report_dict(
     report = report_dict({}, settings=settings)
     report.pop("methods")
     report["sequences"] = per_sequence
-    report["overall"] = _clean(overall(results))
+    report["overall"] = json_safe(overall(results))
     return report
 
 
@@ -277,7 +278,8 @@ def campaign_tables(results: Mapping[str, Mapping[str, SequenceEvaluation]]) -> 
             continue
         out += [f"### {title}", "", header, rule]
         for scope, method, label, _, stats in rows:
-            out.append(f"| {scope} | {method} | {label} | " + " | ".join(_fmt(stats[k]) for k, _ in COLUMNS) + " |")
+            cells = " | ".join(format_number(stats[k]) for k, _ in COLUMNS)
+            out.append(f"| {scope} | {method} | {label} | {cells} |")
         out.append("")
     out.append(
         "Per sequence: mean over its pairs of each per-pair statistic. Overall: mean over the sequences of those "

@@ -45,6 +45,7 @@ PSNRs): every set-like entry (a mapping of statistic names to numbers) is compar
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from collections.abc import Mapping, Sequence
@@ -52,6 +53,7 @@ from typing import Any
 
 import numpy as np
 
+from torchmeshmetric._format import format_number
 from torchmeshmetric.evaluation.results import FLOOR_SET_NAMES, SequenceEvaluation
 
 __all__ = [
@@ -69,6 +71,7 @@ _NOT_SETS = ("frame", "registration", "timings", "peak")
 _REVERSE = "reverse"
 
 
+@functools.cache  # a pure function of (p, df): compare_methods asks for the same few quantiles hundreds of times
 def t_quantile(p: float, df: int) -> float:
     """Quantile ``p`` in ``(0.5, 1)`` of Student's *t* distribution with ``df >= 1`` degrees of freedom.
 
@@ -315,8 +318,8 @@ def _floor(
     return 20.0 * math.log10((r + f) / r)
 
 
-def _fmt(x: float) -> str:
-    return "nan" if math.isnan(x) else f"{x:.3g}"
+def _cell(x: float) -> str:
+    return format_number(x, ".3g")  # 3 significant digits: a verdict cell holds two numbers
 
 
 def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapping[str, Any]]]]) -> str:
@@ -344,11 +347,11 @@ def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapp
                 lo, hi = e["ci95"]
                 half = (hi - lo) / 2 if math.isfinite(hi - lo) else math.inf
                 winner = e["verdict"].removesuffix(" better") if e["verdict"] != "inconclusive" else "≈"
-                cells.append(f"{winner}: {_fmt(e['difference'])} ± {_fmt(half)}")
+                cells.append(f"{winner}: {_cell(e['difference'])} ± {_cell(half)}")
             marked = f"{set_name} *" if any("noise_floor" in e for e in entries.values()) else set_name
             out.append(f"| {marked} | " + " | ".join(cells) + " |")
             if any("noise_floor" in e for e in entries.values()):
-                floors.append(f"{set_name}: " + ", ".join(f"{s} {_fmt(e['noise_floor'])}" for s, e in entries.items()))
+                floors.append(f"{set_name}: " + ", ".join(f"{s} {_cell(e['noise_floor'])}" for s, e in entries.items()))
         out.append("")
         if floors:
             out += ["\\* noise floor (registration residual, or its error when known): " + "; ".join(floors), ""]

@@ -13,13 +13,12 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import torch
 from torch import Tensor
 
 from torchmeshmetric._checks import ShapeError
-from torchmeshmetric._deprecation import renamed_keywords
 from torchmeshmetric.evaluation.cache import CachedRegistration, RegistrationCache
 from torchmeshmetric.evaluation.flicker import FLICKER, flicker_distances
 from torchmeshmetric.evaluation.results import SET_NAMES, PairEvaluation, SequenceEvaluation
@@ -30,12 +29,16 @@ from torchmeshmetric.registration import NonRigidOptions, register_nonrigid
 from torchmeshmetric.registration.warp import RegistrationWarp, SurfaceWarp, Warp
 from torchmeshmetric.stats import DistanceStatistics, distance_statistics
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
+from torchmeshmetric.tasks import exchange, run_tasks
 
 __all__ = [
+    "PairTask",
     "RegisterFn",
     "check_methods",
+    "check_sequence",
     "default_register",
     "evaluate_pair",
+    "evaluate_pairs",
     "evaluate_sequence",
     "register_pairs",
     "registration_settings",
@@ -223,12 +226,6 @@ def _registration_error(registered: Mesh, true_registration: Tensor, peak: float
     return error, distance_statistics(error, peak=peak)
 
 
-@renamed_keywords(
-    registration="precomputed_registration",
-    register="registration_fn",
-    register_options="registration_options",
-    cache="registration_cache",
-)
 def evaluate_pair(
     simplified_k: MeshLike,
     original_k: MeshLike,
@@ -272,9 +269,6 @@ def evaluate_pair(
         true_registration: ``(V_{k-1}, 3)`` true positions in frame ``k`` of the vertices of ``original_k_minus_1``
             (known motion, e.g. :meth:`~torchmeshmetric.data.DemoSequence.transfer`): the registration's error is
             then reported beside its residual.
-
-    The keywords ``registration``, ``register``, ``register_options`` and ``cache`` are the deprecated names of
-    ``precomputed_registration``, ``registration_fn``, ``registration_options`` and ``registration_cache``.
 
     Returns:
         :class:`PairEvaluation` with the four distance sets (keys ``surface_k``, ``surface_k_minus_1``,
@@ -358,13 +352,6 @@ def evaluate_pair(
     )
 
 
-@renamed_keywords(
-    registrations="precomputed_registrations",
-    register="registration_fn",
-    register_options="registration_options",
-    cache="registration_cache",
-    cache_dir="registration_cache_dir",
-)
 def evaluate_sequence(
     original_frames: Sequence[MeshLike],
     simplified_frames: Sequence[MeshLike],
@@ -412,12 +399,9 @@ def evaluate_sequence(
             reports the registration's error to it.
         distributed: share the frame pairs among the ranks of the initialised ``torch.distributed`` process group
             (every rank calls with the same arguments; every rank returns the whole result, equal to one process's;
-            see :mod:`torchmeshmetric.evaluation.distributed`). Explicit, not automatic: inside a DDP job each rank
-            may be evaluating its own data. Without a process group the sequence is evaluated here.
-
-    The keywords ``cache_dir``, ``cache``, ``register``, ``register_options`` and ``registrations`` are the
-    deprecated names of ``registration_cache_dir``, ``registration_cache``, ``registration_fn``,
-    ``registration_options`` and ``precomputed_registrations``.
+            see :mod:`torchmeshmetric.tasks`). Explicit, not automatic: inside a DDP job each rank
+            may be evaluating its own data. Without a process group the sequence is evaluated here. Each pair is
+            :func:`evaluate_pair` in both cases (:func:`evaluate_pairs`).
 
     Returns:
         :class:`SequenceEvaluation` with ``N - 1`` pairs.
@@ -434,61 +418,129 @@ def evaluate_sequence(
         >>> len(result.pairs), float(result.pairs[0].statistics["surface_k"].max) < 1e-12
         (2, True)
     """
-    _check_sequence(original_frames, simplified_frames, precomputed_registrations)
+    check_sequence(original_frames, simplified_frames, precomputed_registrations)
     if registration_cache is None:
         registration_cache = RegistrationCache(registration_cache_dir)
-    # What every frame pair is evaluated with, here or on the ranks.
-    pair_options: dict[str, Any] = {
-        "two_sided": two_sided,
-        "device": device,
-        "registration_fn": registration_fn,
-        "registration_options": registration_options,
-        "backend": backend,
-    }
-    if distributed:
-        # Imported here: the distributed module evaluates each frame pair with this function (a genuine cycle).
-        from torchmeshmetric.evaluation.distributed import SequenceWork, evaluate_sequences
-
-        if ground_truth is not None:
-            raise ValueError("ground_truth: not supported with distributed=True (each rank sees frame pairs alone)")
-        work = [SequenceWork("", original_frames, {"": simplified_frames})]
-        shared = evaluate_sequences(
-            work,
-            registration_cache=registration_cache,
-            precomputed_registrations=[precomputed_registrations],
-            to=None,
-            progress=progress,
-            **pair_options,
-        )
-        assert shared is not None  # every rank receives the result (to=None)
-        return shared[0][""]
     if indexes is None:
         # Each original frame is a reference of two pairs (k, and k-1 registered is another mesh): keep them all.
         indexes = IndexCache(max_entries=2 * len(original_frames))
-    pairs = []
-    total = len(original_frames) - 1
-    given: Sequence[Any] = [None] * total if precomputed_registrations is None else precomputed_registrations
-    for k in range(1, len(original_frames)):
-        truth = None
-        if ground_truth is not None:
-            truth = ground_truth(as_mesh(original_frames[k - 1]).verts, k - 1, k)
-        pairs.append(
-            evaluate_pair(
-                simplified_frames[k],
-                original_frames[k],
-                original_frames[k - 1],
-                precomputed_registration=given[k - 1],
-                registration_cache=registration_cache,
-                frame=k,
-                indexes=indexes,
-                **pair_options,
-                simplified_k_minus_1=simplified_frames[k - 1],
-                true_registration=truth,
-            )
-        )
-        if progress is not None:
-            progress(k, total)
+    given: Sequence[Any] = [None] * (len(original_frames) - 1)
+    if precomputed_registrations is not None:
+        given = precomputed_registrations
+    tasks = [
+        PairTask(original_frames, simplified_frames, k, given[k - 1], f"frame pair {k - 1} -> {k}")
+        for k in range(1, len(original_frames))
+    ]
+    pairs = evaluate_pairs(
+        tasks,
+        registration_cache=registration_cache,
+        sharded=distributed,
+        to=None,
+        progress=progress,
+        ground_truth=ground_truth,
+        two_sided=two_sided,
+        device=device,
+        registration_fn=registration_fn,
+        registration_options=registration_options,
+        backend=backend,
+        indexes=indexes,
+    )
+    assert pairs is not None  # every rank receives the result (to=None)
     return SequenceEvaluation(pairs)
+
+
+class PairTask(NamedTuple):
+    """One frame pair ``(k-1, k)`` of a sequence to evaluate, as :func:`evaluate_pairs` takes it.
+
+    Attributes:
+        original: the sequence's ``N`` original frames.
+        simplified: the method's ``N`` simplified frames.
+        frame: ``k`` (``1 .. N-1``).
+        precomputed_registration: frame ``k-1`` registered onto frame ``k``, or ``None`` (registered here).
+        name: the pair's name in messages (e.g. ``"sequence 'a' method 'QEM' frame pair 1 -> 2"``).
+    """
+
+    original: Sequence[MeshLike]
+    simplified: Sequence[MeshLike]
+    frame: int
+    precomputed_registration: Any
+    name: str
+
+
+def evaluate_pairs(
+    tasks: Sequence[PairTask],
+    *,
+    registration_cache: RegistrationCache,
+    sharded: bool = False,
+    to: int | None = 0,
+    progress: Callable[[int, int], None] | None = None,
+    ground_truth: Callable[[Tensor, int, int], Tensor] | None = None,
+    **options: Any,
+) -> list[PairEvaluation] | None:
+    """:func:`evaluate_pair` of every task, here or shared among the ranks (:func:`torchmeshmetric.tasks.run_tasks`).
+
+    The registrations this call computed or loaded are then in ``registration_cache`` on every rank, so a later call
+    (another method on the same originals) finds them there.
+
+    Args:
+        tasks: the frame pairs (identical on every rank when ``sharded``).
+        registration_cache: the registration cache every pair registers through.
+        sharded: share the tasks among the ranks of the initialised process group (a collective); ``False``: every
+            task runs in this process.
+        to: the rank that receives the results (``None``: every rank).
+        progress: called as ``progress(done, len(tasks))`` (sharded: on rank 0, with the pairs done by all ranks).
+        ground_truth: the true motion (see :func:`evaluate_sequence`); each pair then reports its registration error.
+        **options: passed to :func:`evaluate_pair` (``two_sided``, ``device``, ``registration_fn``, ...).
+
+    Returns:
+        The :class:`PairEvaluation` of every task, in task order, on the receiving rank(s); ``None`` elsewhere.
+
+    Raises:
+        RankFailedError: sharded only: a rank raised or died (names the rank and the task's ``name``).
+
+    Example:
+        >>> import trimesh
+        >>> frames = [trimesh.creation.icosphere(subdivisions=1)] * 2
+        >>> same = lambda source, target: source  # the frames do not move
+        >>> [p] = evaluate_pairs([PairTask(frames, frames, 1, None, "pair")], registration_cache=RegistrationCache(),
+        ...                      registration_fn=same)
+        >>> p.frame, float(p.statistics["surface_k"].max) < 1e-12
+        (1, True)
+    """
+
+    def one_pair(task: PairTask) -> PairEvaluation:
+        original, simplified, k = task.original, task.simplified, task.frame
+        truth = None if ground_truth is None else ground_truth(as_mesh(original[k - 1]).verts, k - 1, k)
+        return evaluate_pair(
+            simplified[k],
+            original[k],
+            original[k - 1],
+            precomputed_registration=task.precomputed_registration,
+            registration_cache=registration_cache,
+            frame=k,
+            simplified_k_minus_1=simplified[k - 1],
+            true_registration=truth,
+            **options,
+        )
+
+    if not sharded:
+        pairs = []
+        for done, task in enumerate(tasks, start=1):
+            pairs.append(one_pair(task))
+            if progress is not None:
+                progress(done, len(tasks))
+        return pairs
+    journal: dict[str, CachedRegistration] = {}
+    outer, registration_cache.journal = registration_cache.journal, journal  # this call's entries, by key
+    try:
+        results = run_tasks(one_pair, tasks, describe=lambda task: task.name, to=to, progress=progress)
+    finally:
+        registration_cache.journal = outer
+    if outer is not None:
+        outer.update(journal)
+    for entries in exchange(journal, what="the exchange of registrations"):
+        registration_cache.adopt(entries)
+    return results
 
 
 def check_methods(original_frames: Sequence[Any], methods: Mapping[str, Sequence[Any]], *, sequence: str = "") -> None:
@@ -525,9 +577,20 @@ def check_methods(original_frames: Sequence[Any], methods: Mapping[str, Sequence
         raise ValueError(f"{has}; at least 2 are needed (pairs k-1, k)")
 
 
-def _check_sequence(
+def check_sequence(
     original_frames: Sequence[MeshLike], simplified_frames: Sequence[MeshLike], registrations: Sequence[Any] | None
 ) -> None:
+    """Refuse, before any work, a simplified sequence or precomputed registrations of the wrong length.
+
+    Raises:
+        ValueError: the frame counts differ, fewer than 2 frames, or not ``N - 1`` registrations.
+
+    Example:
+        >>> check_sequence([0, 1], [0], None)
+        Traceback (most recent call last):
+            ...
+        ValueError: simplified_frames: expected as many frames as original_frames (2), found 1
+    """
     if len(original_frames) != len(simplified_frames):
         raise ValueError(
             f"simplified_frames: expected as many frames as original_frames ({len(original_frames)}), "

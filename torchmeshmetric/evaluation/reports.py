@@ -18,13 +18,13 @@ from __future__ import annotations
 import csv
 import io
 import json
-import math
 import os
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from torchmeshmetric._atomic import atomic_write
+from torchmeshmetric._format import format_number, json_safe
 from torchmeshmetric._version import __version__
 from torchmeshmetric.evaluation.comparison import comparison_markdown
 from torchmeshmetric.evaluation.flicker import FLICKER
@@ -137,14 +137,6 @@ def _rows(methods: Mapping[str, SequenceEvaluation], table: str) -> list[tuple[s
     return rows
 
 
-def _fmt(x: float) -> str:
-    if math.isnan(x):
-        return "nan"
-    if math.isinf(x):
-        return "inf" if x > 0 else "-inf"
-    return f"{x:.4g}"
-
-
 def paper_tables(methods: Mapping[str, SequenceEvaluation], *, reverse: bool = True) -> str:
     """The paper's Tables I-IV (plus the two-sided check) as Markdown, 4 significant digits.
 
@@ -167,7 +159,7 @@ def paper_tables(methods: Mapping[str, SequenceEvaluation], *, reverse: bool = T
         title = _TITLES[table] + (f" (frames {frame - 1} -> {frame})" if table in ("I", "II") else "")
         out += [f"### {title}", "", header, rule]
         for name, mesh, stats in rows:
-            out.append(f"| {name} | {mesh} | " + " | ".join(_fmt(stats[k]) for k, _ in COLUMNS) + " |")
+            out.append(f"| {name} | {mesh} | " + " | ".join(format_number(stats[k]) for k, _ in COLUMNS) + " |")
         out.append("")
     out.append(f"Best pair rule: {BEST_PAIR_RULE}. Averages: mean over pairs of each per-pair statistic.")
     out.append("")
@@ -179,17 +171,6 @@ def paper_tables(methods: Mapping[str, SequenceEvaluation], *, reverse: bool = T
         f"Stability: {STABILITY_NOTE}"
     )
     return "\n".join(out) + "\n"
-
-
-def _clean(value: Any) -> Any:
-    """JSON has no NaN/Infinity: write them as strings so the file stays strict JSON."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return str(value)
-    if isinstance(value, dict):
-        return {k: _clean(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_clean(v) for v in value]
-    return value
 
 
 def report_dict(
@@ -206,7 +187,7 @@ def report_dict(
     written as the strings ``"nan"``, ``"inf"``. With ``comparisons`` (from
     :func:`~torchmeshmetric.evaluation.compare_methods`) the report also holds ``"comparisons"``.
     """
-    return _clean(
+    return json_safe(
         {
             "tool": "torchmeshmetric",
             "version": __version__,

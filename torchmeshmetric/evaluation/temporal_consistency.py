@@ -9,7 +9,6 @@ import torch
 from torch import Tensor
 from torchmetrics import Metric
 
-from torchmeshmetric._deprecation import renamed_keywords
 from torchmeshmetric.evaluation.cache import RegistrationCache
 from torchmeshmetric.evaluation.flicker import FLICKER
 from torchmeshmetric.evaluation.pipeline import RegisterFn, evaluate_pair
@@ -63,7 +62,7 @@ class TemporalConsistency(Metric):
             ``simplified_k_minus_1``).
         registration_fn: registration function (default: the library's non-rigid registration); the old
             keyword ``register`` still works, with a ``DeprecationWarning``.
-        registration_options: options of the default registration (old keyword: ``register_options``).
+        registration_options: options of the default registration.
         backend: kernel backend of the distances and of the default registration (``"auto"``, ``"bvh"``, ...).
         kwargs: passed to :class:`torchmetrics.Metric`.
 
@@ -91,7 +90,6 @@ class TemporalConsistency(Metric):
     full_state_update = False
     peak: Tensor
 
-    @renamed_keywords(register="registration_fn", register_options="registration_options")
     def __init__(
         self,
         *,
@@ -124,7 +122,6 @@ class TemporalConsistency(Metric):
                 _REVERSE_STATES[name].add_to(self, sketch=None)
         self.add_state("peak", default=torch.tensor(0.0, dtype=torch.float64), dist_reduce_fx="max")
 
-    @renamed_keywords(registration="precomputed_registration")
     def update(
         self,
         simplified_k: MeshLike,

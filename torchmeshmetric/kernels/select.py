@@ -32,8 +32,8 @@ from typing import Any, NamedTuple
 import torch
 from torch import Tensor
 
+from torchmeshmetric import native
 from torchmeshmetric.kernels.accel import bruteforce, bvh, pruned, triton_backend
-from torchmeshmetric.kernels.accel._extension import bvh_ready, load_bvh
 
 __all__ = [
     "BACKENDS",
@@ -48,8 +48,8 @@ __all__ = [
 ]
 
 MIN_PAIRS = 1 << 20
-"""Below this many point-primitive pairs ``backend="auto"`` keeps the brute force until the C++ extension is
-compiled: tiny problems never pay its one-time compilation (see docs/acceleration.md)."""
+"""Below this many point-primitive pairs ``backend="auto"`` keeps the brute force off the CPU (and on a CPU where
+the C++ extension cannot be built); above, an accelerated backend (see docs/acceleration.md)."""
 
 
 class FaceSet(NamedTuple):
@@ -144,16 +144,15 @@ BACKENDS: dict[str, SelectionBackend] = {b.name: b for b in (BRUTEFORCE, PRUNED,
 def auto_backend_name(device: torch.device, dtype: torch.dtype, num_pairs: int) -> str:
     """The backend ``"auto"`` picks for ``num_pairs`` query-primitive pairs on ``device`` (docs/acceleration.md).
 
-    CPU: ``"bvh"`` once the C++ extension is compiled (faster than the brute force at every size), before that the
-    brute force below :data:`MIN_PAIRS` and ``"bvh"`` above. Other devices: brute force below :data:`MIN_PAIRS`;
-    above, ``"triton"`` on CUDA when Triton imports (float32/float64), else ``"pruned"``.
+    CPU: ``"bvh"`` (faster than the brute force at every size; the C++ extension is built first, once per machine,
+    with a progress line); where it cannot be built, as on other devices. Other devices: brute force below
+    :data:`MIN_PAIRS`; above, ``"triton"`` on CUDA when Triton imports (float32/float64), else ``"pruned"``. The
+    choice never depends on whether a build happened to exist: it is fixed for the process.
     """
-    if device.type == "cpu" and bvh_ready():
+    if device.type == "cpu" and native.try_load("bvh") is not None:
         return "bvh"
     if num_pairs < MIN_PAIRS:
         return "bruteforce"
-    if device.type == "cpu":
-        return "bvh"
     if device.type == "cuda" and dtype in (torch.float32, torch.float64) and triton_backend.triton_available():
         return "triton"
     return "pruned"
@@ -176,7 +175,7 @@ def resolve_backend(name: str, device: torch.device, dtype: torch.dtype, num_pai
     check_backend(name)
     if name == "auto":
         name = auto_backend_name(device, dtype, num_pairs)
-    if name == "bvh" and (device.type != "cpu" or load_bvh() is None):
+    if name == "bvh" and (device.type != "cpu" or native.try_load("bvh") is None):
         return PRUNED
     return BACKENDS[name]
 

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 from typing import Any
 
-from torchmeshmetric._deprecation import deprecated_names
 from torchmeshmetric.metrics._inputs import check_surface_samples
 from torchmeshmetric.metrics.distance_states import DistanceStates
 from torchmeshmetric.metrics.distance_statistics_metric import MeasuredDistanceBase
@@ -63,9 +62,3 @@ class MeshSurfaceDistance(MeasuredDistanceBase):
         self.seed = int(seed)
         self.backend = backend
         self._options = {"surface_samples": surface_samples, "seed": self.seed, "backend": backend}
-
-
-__getattr__ = deprecated_names(
-    __name__,
-    {"mesh_surface_distances": ("torchmeshmetric.metrics.mesh_surface_distance_sets", mesh_surface_distance_sets)},
-)

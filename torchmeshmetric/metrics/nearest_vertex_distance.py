@@ -7,7 +7,6 @@ from __future__ import annotations
 
 from typing import Any
 
-from torchmeshmetric._deprecation import deprecated_names
 from torchmeshmetric.metrics.distance_states import DistanceStates
 from torchmeshmetric.metrics.distance_statistics_metric import MeasuredDistanceBase
 
@@ -50,14 +49,3 @@ class NearestVertexDistance(MeasuredDistanceBase):
         super().__init__(**kwargs)
         self.backend = backend
         self._options = {"backend": backend}
-
-
-__getattr__ = deprecated_names(
-    __name__,
-    {
-        "nearest_vertex_distances": (
-            "torchmeshmetric.metrics.nearest_vertex_distance_sets",
-            nearest_vertex_distance_sets,
-        )
-    },
-)

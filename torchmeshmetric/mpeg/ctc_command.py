@@ -112,9 +112,9 @@ def _run_ctc(args: argparse.Namespace) -> int:
             if p.exists() and not args.overwrite:
                 raise ValueError(f"--out: {str(p)!r} already exists (pass --overwrite to replace it)")
 
-    from torchmeshmetric.evaluation.distributed import rank_and_world_size, run_tasks
     from torchmeshmetric.mpeg.ctc import CtcFrame, CtcSequence, ctc_frame
     from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
+    from torchmeshmetric.tasks import rank_and_world_size, run_tasks
 
     start = time.perf_counter()
 

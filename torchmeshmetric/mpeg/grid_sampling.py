@@ -10,6 +10,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from torchmeshmetric import native
 from torchmeshmetric._checks import EmptyInputError, NonFiniteError
 from torchmeshmetric.mpeg import _float32 as f32
 from torchmeshmetric.mpeg.point_cloud import PointCloud
@@ -473,12 +474,7 @@ def _native() -> Any:
     """The compiled caster (shared with IBSM's rasterizer), or ``None`` (numpy path) where it cannot be built."""
     if not _USE_NATIVE:
         return None
-    try:
-        from torchmeshmetric.mpeg.ibsm import _extension
-
-        return _extension()
-    except RuntimeError:
-        return None
+    return native.try_load("ibsm")
 
 
 def _native_hits(native: Any, verts: np.ndarray, faces: np.ndarray, en: _Entries, min_box: np.ndarray,

@@ -12,59 +12,25 @@ mmetric's pixel for pixel; it runs the cameras in parallel on torch's CPU thread
 
 from __future__ import annotations
 
-import functools
-import hashlib
 import math
-import threading
 from dataclasses import dataclass
-from pathlib import Path
 from types import ModuleType
 
 import numpy as np
 import torch
 
+from torchmeshmetric import native
 from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
 
 __all__ = ["IbsmResult", "ibsm", "ibsm_render"]
 
-_SOURCE = Path(__file__).with_name("ibsm_raster.cpp")
-_LOCK = threading.Lock()
-_STATE: dict[str, ModuleType] = {}
-# -ffp-contract=off: no fused multiply-add, every float32 operation rounded as mmetric's compiled glm code rounds it
-_CFLAGS = ["-O3", "-ffp-contract=off", "-fno-fast-math", "-std=c++17"]
 
-
-@functools.cache
-def _module_name() -> str:
-    return "torchmeshmetric_ibsm_" + hashlib.sha1(_SOURCE.read_bytes()).hexdigest()[:10]
-
-
-def _extension() -> ModuleType:
-    """The compiled rasterizer (built once, cached by torch); a clear error where it cannot be built."""
-    with _LOCK:
-        if "ext" in _STATE:
-            return _STATE["ext"]
-        import importlib.util
-
-        from torch.utils.cpp_extension import _get_build_directory, load
-
-        name = _module_name()
-        built = Path(_get_build_directory(name, verbose=False)) / f"{name}.so"
-        try:
-            if built.is_file():  # skip ninja and the build lock when this exact source is built
-                spec = importlib.util.spec_from_file_location(name, built)
-                assert spec is not None and spec.loader is not None
-                module = importlib.util.module_from_spec(spec)
-                spec.loader.exec_module(module)
-            else:
-                module = load(name=name, sources=[str(_SOURCE)], extra_cflags=_CFLAGS, verbose=False)
-        except Exception as err:
-            raise RuntimeError(
-                f"ibsm: the C++ rasterizer could not be built ({type(err).__name__}: {err}); IBSM needs a C++ "
-                "compiler and ninja"
-            ) from err
-        _STATE["ext"] = module
-        return module
+def _rasterizer() -> ModuleType:
+    """The compiled rasterizer (``native/ibsm_raster.cpp``); a clear error where it cannot be built."""
+    try:
+        return native.load("ibsm")
+    except native.NativeBuildError as err:
+        raise RuntimeError(f"ibsm: {err}; IBSM needs a C++ compiler and ninja") from err
 
 
 @dataclass(frozen=True)
@@ -177,7 +143,7 @@ def ibsm(
     bmin, bmax = vb.min(0).values, vb.max(0).values
     box = torch.cat([torch.minimum(amin, bmin), torch.maximum(amax, bmax)]).contiguous()
     box_ratio = 100.0 * float(torch.linalg.vector_norm(bmax - bmin)) / float(torch.linalg.vector_norm(amax - amin))
-    sums = _extension().ibsm_sums(*_arrays(a), *_arrays(b), box, cameras, resolution, cull).numpy()
+    sums = _rasterizer().ibsm_sums(*_arrays(a), *_arrays(b), box, cameras, resolution, cull).numpy()
     # mmetric adds camera after camera into one float64 accumulator; the per-camera sums are added in that order
     acc = np.zeros(sums.shape[1])
     for row in sums:
@@ -225,5 +191,5 @@ def ibsm_render(
     _check(resolution, 2)
     b = torch.tensor([*box[0], *box[1]], dtype=torch.float32)
     d = torch.tensor(direction, dtype=torch.float32)
-    z, c, rng = _extension().ibsm_render(*_arrays(mesh), b, d, resolution, cull)
+    z, c, rng = _rasterizer().ibsm_render(*_arrays(mesh), b, d, resolution, cull)
     return z, c, float(rng[0])

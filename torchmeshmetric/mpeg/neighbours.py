@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from torchmeshmetric.kernels.accel._extension import load_bvh
+from torchmeshmetric import native
 
 __all__ = ["NeighbourTies", "k_nearest", "mpeg_sq_dists", "nearest_with_ties"]
 
@@ -112,7 +112,7 @@ def k_nearest(query: np.ndarray, target: np.ndarray, k: int) -> tuple[np.ndarray
     target = np.ascontiguousarray(target, dtype=np.float32)
     if query.shape[0] == 0:
         return np.zeros((0, k), np.int64), np.zeros((0, k))
-    ext = load_bvh()
+    ext = native.try_load("bvh")
     if ext is None:
         return _k_nearest_brute(query, target, k)
     idx, sq = ext.mpeg_knn(torch.from_numpy(query), torch.from_numpy(target), k)

@@ -10,8 +10,9 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from torchmeshmetric.data.io import check_dtype_range, check_mesh, read_mesh_arrays, to_tensor
-from torchmeshmetric.data.obj import MeshFileError, MtlMaterial, ObjData, parse_mtl, parse_obj
+from torchmeshmetric.data.io import read_mesh_arrays
+from torchmeshmetric.data.mesh_file import MeshFileError, check_dtype_range, check_mesh, existing_mesh_file, to_tensor
+from torchmeshmetric.data.obj import MtlMaterial, ObjData, parse_mtl, parse_obj
 from torchmeshmetric.structures import Mesh
 
 __all__ = ["TexturedMesh", "load_textured_mesh", "read_texture"]
@@ -191,11 +192,7 @@ def load_textured_mesh(path: str | os.PathLike, texture: str | os.PathLike | Non
         >>> load_textured_mesh(d / "t.obj").colors[0].tolist()
         [255.0, 0.0, 0.0]
     """
-    p = Path(path)
-    if not p.is_file():
-        raise MeshFileError(f"path: mesh file '{p}' does not exist")
-    if p.stat().st_size == 0:
-        raise MeshFileError(f"path: mesh file '{p}' is empty (0 bytes)")
+    p = existing_mesh_file(path)
     suffix = p.suffix.lower()
     hint = "mmetric reads coordinates as float32"
     if suffix != ".obj":

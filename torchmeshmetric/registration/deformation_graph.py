@@ -25,8 +25,8 @@ import torch
 from kornia.geometry.conversions import axis_angle_to_rotation_matrix
 from torch import Tensor, nn
 
+from torchmeshmetric import native
 from torchmeshmetric._checks import EmptyInputError, check_finite, check_float, check_shape
-from torchmeshmetric.kernels.accel._extension import bvh_ready, load_bvh
 from torchmeshmetric.structures import Mesh
 
 __all__ = ["DeformationGraph", "embedded_deformation", "farthest_point_nodes", "skinning_weights"]
@@ -48,10 +48,10 @@ def farthest_point_nodes(points: Tensor, spacing: float) -> Tensor:
         raise EmptyInputError("points: expected at least one candidate node position, found none")
     p = points.detach()
     start = int(((p - p.mean(0)) ** 2).sum(-1).argmin())
-    if p.device.type == "cpu" and p.dtype in (torch.float32, torch.float64) and bvh_ready():
+    if p.device.type == "cpu" and p.dtype in (torch.float32, torch.float64):
         # The same loop in C++ (bit-identical choices, tested): one pass per node instead of ~4 torch ops, each a
         # parallel region on large inputs (seconds on a loaded machine).
-        ext = load_bvh()
+        ext = native.try_load("bvh")
         if ext is not None:
             return ext.farthest_point_sampling(p.contiguous(), start, spacing * spacing).to(points.device)
     chosen = [start]

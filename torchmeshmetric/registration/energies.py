@@ -21,7 +21,7 @@ from typing import Any, NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric.kernels.accel._extension import bvh_ready, load_bvh
+from torchmeshmetric import native
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.kernels.point_triangle import point_mesh_distance
 from torchmeshmetric.registration.deformation_graph import DeformationGraph
@@ -311,9 +311,10 @@ class EnergyTerms(NamedTuple):
 def registration_ops() -> Any | None:
     """The C++ registration operators (``torch.ops.torchmeshmetric_registration``), or ``None`` without the extension.
 
-    Only where the extension is ready (built, or cached), as ``backend="auto"``: never compiles on first use.
+    The extension is built first where needed (once per machine, the caller waits); ``None`` only where it cannot
+    be built here, which holds for the whole process, so a registration never mixes the two formulations.
     """
-    if not bvh_ready() or load_bvh() is None:
+    if native.try_load("bvh") is None:
         return None
     return torch.ops.torchmeshmetric_registration
 
@@ -402,10 +403,9 @@ def fused_energy(
 def deformed_vertices(graph: DeformationGraph) -> Tensor:
     """``graph()`` without gradient: every vertex deformed, in one C++ pass on the CPU (torch ops elsewhere)."""
     with torch.no_grad():
-        if graph.nodes.device.type != "cpu" or not bvh_ready():
+        ext = native.try_load("bvh") if graph.nodes.device.type == "cpu" else None
+        if ext is None:
             return graph()
-        ext = load_bvh()
-        assert ext is not None
         rot = graph.rotation_matrices().contiguous()
         return ext.deform_vertices(
             rot, graph.translations.detach().contiguous(), graph.nodes.contiguous(), graph.verts.contiguous(),

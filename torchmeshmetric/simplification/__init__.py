@@ -1,4 +1,7 @@
-"""Simplifiers: plain QEM (fast-simplification) and Registered QEM (ours), Garland & Heckbert 1997."""
+"""Simplifiers: plain QEM (fast-simplification), and ours: Registered QEM, Anchored QEM and the learned tracking one.
+
+All are quadric error metric edge collapse (Garland & Heckbert 1997).
+"""
 
 from torchmeshmetric._lazy import attach
 

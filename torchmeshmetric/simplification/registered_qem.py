@@ -30,7 +30,15 @@ from torchmeshmetric.kernels.nearest import nearest_vertex_distance
 from torchmeshmetric.simplification._target import resolve_target
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
-__all__ = ["DEFAULT_WEIGHT", "face_quadrics", "simplify_registered_qem", "vertex_quadrics"]
+__all__ = [
+    "DEFAULT_WEIGHT",
+    "collapse_mesh",
+    "face_quadrics",
+    "mesh_arrays",
+    "scatter_rows",
+    "simplify_registered_qem",
+    "vertex_quadrics",
+]
 
 #: Default weight of the registered previous frame's quadrics: 1, the knee of the sweep in docs/simplification.md
 #: (the largest weight that does not raise the frame-k error over weight 0 at 50 % on the built-in sequence).
@@ -52,7 +60,8 @@ def face_quadrics(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return (0.5 * dbl_area)[:, None] * (plane[:, :, None] * plane[:, None, :]).reshape(-1, 16)
 
 
-def _scatter_rows(idx: np.ndarray, vals: np.ndarray, n: int) -> np.ndarray:
+def scatter_rows(idx: np.ndarray, vals: np.ndarray, n: int) -> np.ndarray:
+    """``(n, C)`` sums of the rows of ``vals (M, C)`` by destination ``idx (M,)``."""
     out = np.empty((n, vals.shape[1]))
     for j in range(vals.shape[1]):
         out[:, j] = np.bincount(idx, weights=vals[:, j], minlength=n)
@@ -62,7 +71,7 @@ def _scatter_rows(idx: np.ndarray, vals: np.ndarray, n: int) -> np.ndarray:
 def vertex_quadrics(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Per-vertex quadric ``(V, 16)``: the sum of the plane quadrics of the faces around each vertex."""
     fq = face_quadrics(verts, faces)
-    return _scatter_rows(faces.reshape(-1), np.repeat(fq, 3, axis=0), verts.shape[0])
+    return scatter_rows(faces.reshape(-1), np.repeat(fq, 3, axis=0), verts.shape[0])
 
 
 def _quadric_cost(q: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -169,9 +178,7 @@ def simplify_registered_qem(
     if not -1.0 <= min_normal_cos < 1.0:
         raise ValueError(f"min_normal_cos: expected a float in [-1, 1), found {min_normal_cos!r}")
     count = resolve_target(target, mk.num_faces)
-    verts = mk.verts.detach().cpu().double().numpy().copy()
-    faces = mk.faces.cpu().numpy().astype(np.int64)
-    faces = faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])]
+    verts, faces = mesh_arrays(mk)
     num_v = verts.shape[0]
     quad = vertex_quadrics(verts, faces)
     if registered_mesh_k_minus_1 is not None and weight > 0:
@@ -182,13 +189,30 @@ def simplify_registered_qem(
             used = np.unique(faces)
             near, dist = _nearest_vertices(pv[pf].mean(1), verts[used])
             keep = np.ones(pf.shape[0], bool) if max_distance is None else dist <= max_distance
-            quad += weight * _scatter_rows(used[near[keep]], face_quadrics(pv, pf[keep]), num_v)
-    faces = _collapse_to(verts, faces, quad, count, candidate_fraction, min_normal_cos)
+            quad += weight * scatter_rows(used[near[keep]], face_quadrics(pv, pf[keep]), num_v)
+    return collapse_mesh(mk, verts, faces, quad, count, candidate_fraction, min_normal_cos)
+
+
+def mesh_arrays(mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
+    """float64 ``(V, 3)`` vertices (a copy) and int64 ``(F, 3)`` faces without the faces that repeat a vertex."""
+    verts = mesh.verts.detach().cpu().double().numpy().copy()
+    faces = mesh.faces.cpu().numpy().astype(np.int64)
+    return verts, faces[(faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])]
+
+
+def collapse_mesh(
+    like: Mesh, verts: np.ndarray, faces: np.ndarray, quad: np.ndarray, count: int, fraction: float, min_cos: float
+) -> Mesh:
+    """The QEM queue on per-vertex quadrics ``quad (V, 16)`` down to ``count`` faces; a mesh like ``like``.
+
+    The shared engine of the quadric simplifiers of this package (the caller chooses the quadrics); unreferenced
+    vertices are removed. Edits ``verts`` and ``quad``.
+    """
+    faces = _collapse_to(verts, faces, quad, count, fraction, min_cos)
     used, faces = np.unique(faces, return_inverse=True)
-    faces = faces.reshape(-1, 3)
     return Mesh(
-        torch.from_numpy(verts[used]).to(device=mk.device, dtype=mk.dtype),
-        torch.from_numpy(faces.astype(np.int64)).to(mk.device),
+        torch.from_numpy(verts[used]).to(device=like.device, dtype=like.dtype),
+        torch.from_numpy(faces.reshape(-1, 3).astype(np.int64)).to(like.device),
         validate=False,
     )
 

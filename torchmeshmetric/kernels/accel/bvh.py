@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 import torch
 from torch import Tensor
 
-from torchmeshmetric.kernels.accel._extension import bvh_ready, load_bvh
+from torchmeshmetric import native
 
 if TYPE_CHECKING:
     from torchmeshmetric.kernels.select import FaceSet, PointSet
@@ -32,7 +32,7 @@ __all__ = [
 
 
 def _ext() -> ModuleType:
-    ext = load_bvh()
+    ext = native.try_load("bvh")
     if ext is None:  # resolve_backend never hands out "bvh" then
         raise RuntimeError("bvh: the C++ extension is not available")
     return ext
@@ -105,7 +105,7 @@ def bvh_nearest_single(points: Tensor, ref: Tensor) -> tuple[Tensor, Tensor, Ten
     """
     if points.device.type != "cpu" or points.dtype not in (torch.float32, torch.float64):
         return None
-    ext = load_bvh()
+    ext = native.try_load("bvh")
     if ext is None:
         return None
     out = ext.nearest_single(points.contiguous(), ref.contiguous())
@@ -120,12 +120,12 @@ def bvh_closest_points(
     """Closest point on the selected faces without autograd, in C++: ``(sq_dists, bary, closest)`` or ``None``.
 
     Bit-identical to :func:`~torchmeshmetric.closest_point_on_triangle` on the selected faces (same operations,
-    order and dtype; tested). ``None`` (the torch recomputation runs) off the CPU, for other dtypes, or while the
-    extension is not compiled yet (a small call never triggers the compilation).
+    order and dtype; tested). ``None`` (the torch recomputation runs) off the CPU, for other dtypes, or where the
+    extension cannot be built (fixed for the process: see :mod:`torchmeshmetric.native`).
     """
-    if points.device.type != "cpu" or points.dtype not in (torch.float32, torch.float64) or not bvh_ready():
+    if points.device.type != "cpu" or points.dtype not in (torch.float32, torch.float64):
         return None
-    ext = load_bvh()
+    ext = native.try_load("bvh")
     if ext is None:
         return None
     out = ext.closest_points(points.contiguous(), verts.contiguous(), faces.long().contiguous(), face_idx.contiguous())

@@ -1,5 +1,5 @@
 // Image-based sampling metric (IBSM) of MPEG's mmetric: an orthographic software rasterizer and the per-camera
-// squared errors of two renderings; and the ray casting of its grid sampling (at the end of the file). Compiled just in time by torchmeshmetric.mpeg.ibsm (torch.utils.cpp_extension).
+// squared errors of two renderings; and the ray casting of its grid sampling (at the end of the file). Compiled by torchmeshmetric.native.loader (torch.utils.cpp_extension).
 //
 // Written from the description of mmetric v1.1.7's `compare --mode ibsm` with its `sw_raster` renderer: every
 // operation is float32 and in the order glm evaluates it (no fused multiply-add: -ffp-contract=off), so the depth and

@@ -1,6 +1,6 @@
 // Bounding volume hierarchies for exact closest-face and nearest-point selection on the CPU.
 //
-// Compiled just in time by torchmeshmetric.kernels.accel._extension (torch.utils.cpp_extension.load).
+// Compiled by torchmeshmetric.native.loader (torch.utils.cpp_extension.load) with deformation_energy.cpp.
 //
 // Build: primitives sorted along a 30-bit Morton curve of their box centres (radix sort), then split at the highest
 // differing Morton bit (LBVH, Karras 2012; object median when the codes are equal) into leaves of at most LEAF

@@ -1,0 +1,52 @@
+"""Numbers as the package writes them: one formatter for tables, one JSON cleaner for reports.
+
+A leaf module (standard library only), used by the reports, the comparisons, the campaign tables and the commands.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+__all__ = ["format_number", "json_safe"]
+
+
+def format_number(value: Any, spec: str = ".4g", *, small_spec: str | None = None) -> str:
+    """A table cell: a float with the format ``spec``, non-finite values as ``nan``, ``inf``, ``-inf``.
+
+    Args:
+        value: a real number (Python, NumPy or a 0-d tensor), or anything else (written with ``str``: ints, names).
+        spec: the format of a finite float (``".4g"``: 4 significant digits, the paper's tables).
+        small_spec: the format of a finite float below ``1e-3`` in magnitude (``None``: ``spec``), for columns whose
+            fixed-point format would round small errors to zero.
+
+    Example:
+        >>> format_number(0.0123456), format_number(float("nan")), format_number(-math.inf, ".4f")
+        ('0.01235', 'nan', '-inf')
+        >>> format_number(2.5e-5, ".4f", small_spec=".6g"), format_number(3)
+        ('2.5e-05', '3')
+    """
+    if isinstance(value, (bool, int, str)) or not hasattr(value, "__float__"):
+        return str(value)
+    x = float(value)
+    if not math.isfinite(x):
+        return "nan" if math.isnan(x) else ("inf" if x > 0 else "-inf")
+    return format(x, small_spec if small_spec is not None and abs(x) < 1e-3 else spec)
+
+
+def json_safe(value: Any) -> Any:
+    """Non-finite floats replaced by the strings ``"inf"``, ``"-inf"``, ``"nan"`` (strict JSON has no infinity).
+
+    Walks dicts, lists and tuples (tuples become lists, as ``json`` writes them).
+
+    Example:
+        >>> json_safe({"a": float("inf"), "b": [1.0, float("nan")]})
+        {'a': 'inf', 'b': [1.0, 'nan']}
+    """
+    if isinstance(value, float) and not math.isfinite(value):
+        return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
+    if isinstance(value, dict):
+        return {k: json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    return value

@@ -1,0 +1,71 @@
+"""The frames of a sequence: a directory, a glob pattern, a file or a list, in natural order."""
+
+from __future__ import annotations
+
+import glob as _glob
+import os
+import re
+from collections.abc import Sequence
+from pathlib import Path
+
+from torchmeshmetric.data.mesh_file import MESH_SUFFIXES, MeshFileError
+
+__all__ = ["PathsLike", "list_frames", "natural_key"]
+
+
+PathsLike = str | os.PathLike | Sequence[str | os.PathLike]
+"""A directory, a glob pattern, a single file, or a list of files."""
+
+
+def natural_key(path: str | os.PathLike) -> tuple[object, ...]:
+    """Sort key that orders embedded numbers by value: ``frame2 < frame10``.
+
+    Example:
+        >>> sorted(["f10.obj", "f2.obj", "f1.obj"], key=natural_key)
+        ['f1.obj', 'f2.obj', 'f10.obj']
+    """
+    parts = re.split(r"(\d+)", os.fspath(path))
+    return tuple((0, int(p), p) if p.isdigit() else (1, 0, p.lower()) for p in parts)
+
+
+def list_frames(paths: PathsLike) -> list[Path]:
+    r"""Resolve a directory, glob pattern, single file or list of files into frame paths in natural order.
+
+    A directory yields its files with a mesh suffix (:data:`MESH_SUFFIXES`); a glob yields its matches; a list is kept
+    in the given order (an explicit order is respected).
+
+    Raises:
+        MeshFileError: nothing matches, or a listed file does not exist.
+
+    Example:
+        >>> import tempfile, pathlib
+        >>> d = pathlib.Path(tempfile.mkdtemp())
+        >>> for n in (10, 2, 1):
+        ...     _ = (d / f"frame{n}.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+        >>> " ".join(p.name for p in list_frames(d))
+        'frame1.obj frame2.obj frame10.obj'
+    """
+    if isinstance(paths, (str, os.PathLike)):
+        p = Path(paths)
+        if p.is_dir():
+            found = [q for q in p.iterdir() if q.is_file() and q.suffix.lower() in MESH_SUFFIXES]
+            if not found:
+                raise MeshFileError(f"paths: directory '{p}' holds no mesh files (suffixes {', '.join(MESH_SUFFIXES)})")
+            return sorted(found, key=natural_key)
+        if p.is_file():
+            return [p]
+        if _glob.has_magic(os.fspath(p)):
+            matches = [Path(m) for m in _glob.glob(os.fspath(p)) if Path(m).is_file()]
+            if not matches:
+                raise MeshFileError(f"paths: glob pattern '{p}' matches no files")
+            return sorted(matches, key=natural_key)
+        raise MeshFileError(f"paths: '{p}' does not exist (expected a directory, a glob pattern or a mesh file)")
+    out = [Path(q) for q in paths]
+    if not out:
+        raise MeshFileError("paths: the list of frame files is empty")
+    for q in out:
+        if q.is_dir():
+            raise MeshFileError(f"paths: '{q}' is a directory, not a mesh file")
+        if not q.is_file():
+            raise MeshFileError(f"paths: file '{q}' does not exist")
+    return out

@@ -1,0 +1,145 @@
+"""What every mesh reader shares: the error type, the suffixes, the file and text checks, the checks of the result.
+
+Each format has one reader (:mod:`~torchmeshmetric.data.obj`, :mod:`~torchmeshmetric.data.off`,
+:mod:`~torchmeshmetric.data.ply`, :mod:`~torchmeshmetric.data.trimesh_formats`); they all raise
+:class:`MeshFileError` naming the file (and the line or element), and :func:`check_mesh` checks what any of them read.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+import torch
+
+__all__ = [
+    "MESH_SUFFIXES",
+    "MeshFileError",
+    "check_dtype_range",
+    "check_mesh",
+    "check_text",
+    "check_vertices",
+    "existing_mesh_file",
+    "not_a_mesh",
+    "text_lines",
+    "to_tensor",
+]
+
+
+class MeshFileError(ValueError):
+    """A mesh file is missing, unreadable, corrupt, empty or not made of triangles (the message names the file)."""
+
+
+MESH_SUFFIXES: tuple[str, ...] = (".obj", ".ply", ".off", ".stl", ".glb", ".gltf")
+"""File suffixes recognised as mesh frames (case-insensitive)."""
+
+
+def not_a_mesh(p: Path, why: str) -> MeshFileError:
+    """The error for a file that is no mesh file of its format."""
+    return MeshFileError(f"path: '{p}' is not a mesh file ({why})")
+
+
+def text_lines(p: Path, data: bytes) -> list[bytes]:
+    """Lines of a text mesh format; binary data (NUL or other control bytes) is refused as not a mesh file."""
+    check_text(p, data)
+    return data.removeprefix(b"\xef\xbb\xbf").splitlines()  # a UTF-8 byte-order mark is no statement
+
+
+_CONTROL = bytes([*range(0, 9), *range(14, 32), 127])
+
+
+def check_text(p: Path, data: bytes) -> None:
+    """Refuse binary data (NUL or other control bytes) in a text format, naming its line and byte."""
+    if len(data.translate(None, _CONTROL)) == len(data):
+        return  # no control byte (bytes.translate is one C pass; a regex search is ten times slower)
+    control = re.search(rb"[\x00-\x08\x0e-\x1f\x7f]", data)
+    if control is not None:
+        line = data.count(b"\n", 0, control.start()) + 1
+        raise not_a_mesh(p, f"binary data at line {line}, byte {control.start()}")
+
+
+def existing_mesh_file(path: str | os.PathLike) -> Path:
+    """``path`` as a ``Path`` when it is a non-empty file with a mesh suffix; else the error saying what it is.
+
+    Raises:
+        MeshFileError: a directory, a missing file, an unsupported suffix or an empty file.
+
+    Example:
+        >>> import tempfile
+        >>> existing_mesh_file(tempfile.mkdtemp())  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+            ...
+        torchmeshmetric.data.mesh_file.MeshFileError: path: '...' is a directory, not a mesh file
+    """
+    p = Path(path)
+    if p.is_dir():
+        raise MeshFileError(f"path: '{p}' is a directory, not a mesh file")
+    if not p.is_file():
+        raise MeshFileError(f"path: mesh file '{p}' does not exist")
+    if p.suffix.lower() not in MESH_SUFFIXES:
+        raise MeshFileError(f"path: '{p}' has unsupported suffix '{p.suffix}' (expected one of {MESH_SUFFIXES})")
+    if p.stat().st_size == 0:
+        raise MeshFileError(f"path: mesh file '{p}' is empty (0 bytes)")
+    return p
+
+
+def check_mesh(p: Path, verts: np.ndarray, faces: np.ndarray, lines: np.ndarray | None) -> None:
+    """What every mesh file must satisfy, whatever its format: faces, triangles, finite vertices, valid indices."""
+    if faces.ndim != 2 or faces.shape[0] == 0:
+        raise MeshFileError(f"path: mesh file '{p}' has no faces ({verts.shape[0]} vertices)")
+    if faces.shape[1] != 3:
+        raise MeshFileError(f"path: mesh file '{p}' has {faces.shape[1]}-sided faces; expected triangles")
+    if verts.ndim != 2 or verts.shape[1] != 3:
+        raise MeshFileError(f"path: mesh file '{p}' has vertices of shape {verts.shape}; expected (V, 3)")
+    check_vertices(p, verts, "vertex", lines)
+    lo, hi = int(faces.min()), int(faces.max())
+    if lo < 0 or hi >= verts.shape[0]:
+        bad = int(np.nonzero((faces < 0).any(1) | (faces >= verts.shape[0]).any(1))[0][0])
+        raise MeshFileError(
+            f"path: mesh file '{p}' face {bad} has vertex indices {faces[bad].tolist()} outside "
+            f"[0, {verts.shape[0] - 1}]"
+        )
+
+
+def check_vertices(p: Path, verts: np.ndarray, what: str, lines: np.ndarray | None = None) -> None:
+    """Every coordinate finite; the message names the first bad vertex (and its line when known)."""
+    if np.isfinite(verts.sum()) or np.isfinite(verts).all():
+        return  # a finite sum: every value finite (the sum of finite float64 coordinates of a mesh cannot overflow)
+    bad = ~np.isfinite(verts).all(axis=1)
+    if bad.any():
+        i = int(np.nonzero(bad)[0][0])
+        where = f" (line {int(lines[i])})" if lines is not None else ""
+        raise MeshFileError(
+            f"path: mesh file '{p}' {what} {i}{where} has non-finite coordinates {verts[i].tolist()} "
+            f"({int(bad.sum())} such vertices)"
+        )
+
+
+def check_dtype_range(
+    p: Path, verts: np.ndarray, dtype: torch.dtype, lines: np.ndarray | None = None, hint: str | None = None
+) -> None:
+    """Refuse coordinates that ``dtype`` cannot hold (they would become Inf), naming the first one and its line."""
+    finfo_max = torch.finfo(dtype).max
+    if verts.size == 0 or float(np.abs(verts).max()) <= finfo_max:
+        return
+    big = np.abs(verts).max(axis=1) > finfo_max
+    i = int(np.nonzero(big)[0][0])
+    where = f" line {int(lines[i])}:" if lines is not None else ""
+    raise MeshFileError(
+        f"path: mesh file '{p}'{where} vertex {i} has coordinates up to "
+        f"{float(np.abs(verts).max()):.3g}, beyond the range of {dtype} (max {finfo_max:.3g}; "
+        f"{int(big.sum())} such vertices); {hint or 'load it with dtype=torch.float64'}"
+    )
+
+
+_NUMPY_DTYPES = {torch.float32: np.float32, torch.float64: np.float64}
+
+
+def to_tensor(verts: np.ndarray, dtype: torch.dtype) -> torch.Tensor:
+    """``verts`` as a ``dtype`` tensor, converted by numpy (torch's ``.to`` wakes its thread pool: 20 ms here)."""
+    target = _NUMPY_DTYPES.get(dtype)
+    if target is None:
+        return torch.from_numpy(verts).to(dtype)
+    return torch.from_numpy(np.ascontiguousarray(verts, dtype=target))

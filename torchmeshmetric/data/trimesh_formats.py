@@ -1,0 +1,96 @@
+"""PLY, STL and GLB/GLTF through trimesh (``process=False``, order kept), with the declared element counts checked.
+
+trimesh is imported on use only (~0.3 s): ``import torchmeshmetric`` never loads it.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from torchmeshmetric.data.mesh_file import MeshFileError, not_a_mesh, text_lines
+
+__all__ = ["read_with_trimesh"]
+
+
+def _utf8(data: bytes) -> bytes:
+    """``data`` as UTF-8: unchanged when it is, else read as Latin-1 (trimesh then never guesses an encoding)."""
+    try:
+        data.decode("utf-8")
+    except UnicodeDecodeError:
+        return data.decode("latin-1").encode("utf-8")
+    return data
+
+
+def read_with_trimesh(p: Path, suffix: str) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """PLY, STL and GLB/GLTF through trimesh, with the declared element counts checked; ``(verts, faces, colors)``.
+
+    ``colors`` are ``(V, 3)`` per-vertex colours in ``[0, 255]`` when the file has some, else ``None``.
+    """
+    import trimesh  # ~0.3 s to import: on use only, `import torchmeshmetric` never loads it
+
+    declared: dict[str, int] = {}
+    source: Any = os.fspath(p)
+    if suffix == ".ply":
+        data = p.read_bytes()
+        if not data.startswith(b"ply"):
+            raise not_a_mesh(p, "a PLY file starts with 'ply'")
+        end = data.find(b"end_header")
+        if end < 0:
+            raise MeshFileError(f"path: '{p}' has a PLY header without 'end_header'")
+        header = data[:end]
+        text_lines(p, header)
+        declared = {m[1].decode(): int(m[2]) for m in re.finditer(rb"element\s+(\w+)\s+(\d+)", header)}
+        source = io.BytesIO(_utf8(header) + data[end:])
+    elif suffix == ".stl":
+        data = p.read_bytes()
+        n = int.from_bytes(data[80:84], "little") if len(data) >= 84 else -1
+        if len(data) != 84 + 50 * n:  # not binary STL: must be text
+            if not data.lstrip().startswith(b"solid"):
+                raise MeshFileError(
+                    f"path: '{p}' is not a mesh file, or is truncated: a text STL starts with 'solid', and a binary "
+                    f"STL whose header declares {max(n, 0)} triangles holds 84 + 50 * {max(n, 0)} bytes, this file "
+                    f"{len(data)} bytes"
+                )
+            text_lines(p, data)
+            data = _utf8(data)
+        else:
+            declared = {"face": n}
+        source = io.BytesIO(data)
+    elif suffix == ".glb" and p.read_bytes()[:4] != b"glTF":
+        raise not_a_mesh(p, "a GLB file starts with 'glTF'")
+    try:
+        loaded = trimesh.load(source, file_type=suffix[1:], process=False, maintain_order=True)
+    except Exception as err:  # trimesh raises many exception types on malformed input
+        hint = ""
+        if declared:
+            counts = ", ".join(f"{n} {element}" for element, n in declared.items())
+            hint = f"; its header declares {counts} elements: truncated or malformed?"
+        raise MeshFileError(f"path: could not read mesh file '{p}' ({type(err).__name__}: {err}){hint}") from err
+    if isinstance(loaded, trimesh.Scene):
+        geoms = [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)] if loaded.geometry else []
+        if not geoms:
+            raise MeshFileError(f"path: mesh file '{p}' holds no triangle geometry")
+        loaded = trimesh.util.concatenate(geoms) if len(geoms) > 1 else geoms[0]
+    if not isinstance(loaded, trimesh.Trimesh):
+        raise MeshFileError(f"path: '{p}' holds a {type(loaded).__name__}, not a triangle mesh")
+    verts = np.asarray(loaded.vertices, dtype=np.float64)
+    faces = np.asarray(loaded.faces, dtype=np.int64)
+    for element, held in (("vertex", verts.shape[0]), ("face", faces.shape[0])):
+        if element in declared and declared[element] != held:
+            what = "triangles" if element == "face" else "vertices"
+            hint = " (truncated, or faces that are not triangles)" if element == "face" else " (truncated)"
+            raise MeshFileError(
+                f"path: '{p}' declares {declared[element]} {element} elements but holds {held} {what}{hint}"
+            )
+    visual = getattr(loaded, "visual", None)
+    vc = getattr(visual, "vertex_colors", None)
+    colors = None
+    if vc is not None and getattr(visual, "kind", None) == "vertex":
+        colors = np.asarray(vc, dtype=np.float64)[:, :3]
+    return verts, faces, colors

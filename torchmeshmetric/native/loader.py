@@ -1,0 +1,245 @@
+"""The one loader of the package's C++ extensions: every source lives in this folder, built once per machine.
+
+Each extension (:data:`EXTENSIONS`) is compiled with :func:`torch.utils.cpp_extension.load` into torch's extensions
+directory (``$TORCH_EXTENSIONS_DIR``, by default ``~/.cache/torch_extensions``) under a name that carries a hash of
+its sources and flags, so an edited source is rebuilt instead of a stale build reused. A finished build is imported
+directly (no ninja run, no build lock). A build prints one progress line to stderr when it starts and one when it
+ends, and the caller waits for it: no computation runs another formulation meanwhile. Where a build is impossible
+(no C++ compiler, no ninja) :func:`load` raises :class:`NativeBuildError` and :func:`try_load` warns once and
+returns ``None``; either outcome is kept for the whole process, so one process never mixes formulations.
+
+Build everything ahead of first use with ``torchmeshmetric build`` or ``python -m torchmeshmetric.native``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import sys
+import threading
+import time
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from types import ModuleType
+
+__all__ = ["EXTENSIONS", "HOME", "NativeBuildError", "NativeExtension", "build", "load", "ready", "try_load"]
+
+HOME = Path(__file__).parent
+"""The folder of every C++ source and header of the package (the include directory of every extension)."""
+
+# -ffp-contract=off: no fused multiply-add, so the C++ arithmetic rounds as the torch kernels (and mmetric's compiled
+# code) round it, bit for bit; -fno-fast-math: no reassociation either.
+_EXACT = ("-O3", "-ffp-contract=off", "-fno-fast-math", "-std=c++17")
+
+
+@dataclass(frozen=True)
+class NativeExtension:
+    """One compiled extension: its sources and headers (file names in :data:`HOME`) and compiler flags.
+
+    Attributes:
+        sources: the ``.cpp`` files compiled into the extension.
+        headers: the headers they include (part of the build's hash: an edited header rebuilds).
+        cflags: compiler flags.
+        ldflags: linker flags.
+    """
+
+    sources: tuple[str, ...]
+    headers: tuple[str, ...] = ()
+    cflags: tuple[str, ...] = _EXACT
+    ldflags: tuple[str, ...] = ()
+
+    def module_name(self, name: str) -> str:
+        """The build's module name: ``torchmeshmetric_<name>_<hash of sources, headers and flags>``."""
+        digest = hashlib.sha1()
+        for file in self.sources + self.headers:
+            digest.update((HOME / file).read_bytes())
+        digest.update(" ".join(self.cflags + self.ldflags).encode())
+        return f"torchmeshmetric_{name}_{digest.hexdigest()[:10]}"
+
+
+EXTENSIONS: dict[str, NativeExtension] = {
+    # The CPU BVH selections (kernels.accel.bvh) and the fused deformation-graph energy (registration.energies).
+    "bvh": NativeExtension(
+        sources=("bvh.cpp", "deformation_energy.cpp"),
+        headers=("parallel.h", "triangle.h"),
+        cflags=(*_EXACT, "-fopenmp"),
+        ldflags=("-fopenmp",),
+    ),
+    # mmetric's IBSM rasterizer and its grid sampling's ray caster (mpeg.ibsm, mpeg.grid_sampling).
+    "ibsm": NativeExtension(sources=("ibsm_raster.cpp",)),
+}
+"""Every extension of the package, by the name :func:`load` takes."""
+
+
+class NativeBuildError(RuntimeError):
+    """A C++ extension could not be built or imported here (no compiler, no ninja, a read-only cache, ...)."""
+
+
+_LOCK = threading.Lock()
+_STATE: dict[str, ModuleType | NativeBuildError] = {}
+_WARNED: set[str] = set()
+
+
+def _extension(name: str) -> NativeExtension:
+    if name not in EXTENSIONS:
+        raise KeyError(f"native: no extension named {name!r}; known: {sorted(EXTENSIONS)}")
+    return EXTENSIONS[name]
+
+
+def _built_path(module_name: str) -> Path:
+    from torch.utils.cpp_extension import _get_build_directory
+
+    return Path(_get_build_directory(module_name, verbose=False)) / f"{module_name}.so"
+
+
+def _import_built(module_name: str) -> ModuleType | None:
+    """Import a finished build of this exact source directly, or ``None`` where there is none.
+
+    ``load`` re-runs ninja and takes a file lock in every new process (seconds, and much longer when several
+    processes start at once); a finished build is simply imported.
+    """
+    try:
+        path = _built_path(module_name)
+        if not path.is_file():
+            return None
+        spec = importlib.util.spec_from_file_location(module_name, path)
+        if spec is None or spec.loader is None:
+            return None
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        return module
+    except Exception:  # anything unexpected: the regular (checked) build-and-load path decides
+        return None
+
+
+def _compile(name: str, ext: NativeExtension, module_name: str) -> ModuleType:
+    """Build (or finish another process's build of) the extension, with a progress line on stderr."""
+    from torch.utils.cpp_extension import load as torch_load
+
+    print(
+        f"torchmeshmetric: building the C++ extension {name!r} ({', '.join(ext.sources)}) once for this machine...",
+        file=sys.stderr,
+        flush=True,
+    )
+    start = time.perf_counter()
+    module = torch_load(
+        name=module_name,
+        sources=[str(HOME / s) for s in ext.sources],
+        extra_cflags=list(ext.cflags),
+        extra_ldflags=list(ext.ldflags),
+        extra_include_paths=[str(HOME)],
+        verbose=False,
+    )
+    print(f"torchmeshmetric: built {name!r} in {time.perf_counter() - start:.1f} s", file=sys.stderr, flush=True)
+    return module
+
+
+def ready(name: str) -> bool:
+    """Whether the extension is usable without compiling: loaded in this process, or a finished build is cached.
+
+    Args:
+        name: a key of :data:`EXTENSIONS`.
+
+    Returns:
+        ``True`` when :func:`load` would not compile.
+
+    Example:
+        >>> isinstance(ready("bvh"), bool)
+        True
+    """
+    ext = _extension(name)
+    state = _STATE.get(name)
+    if state is not None:
+        return isinstance(state, ModuleType)
+    try:
+        return _built_path(ext.module_name(name)).is_file()
+    except Exception:
+        return False
+
+
+def load(name: str) -> ModuleType:
+    """The compiled extension, built first (waiting for it, progress on stderr) where no build is cached.
+
+    Args:
+        name: a key of :data:`EXTENSIONS` (``"bvh"``, ``"ibsm"``).
+
+    Returns:
+        The extension module.
+
+    Raises:
+        NativeBuildError: the extension cannot be built here; raised again by every later call in this process.
+
+    Example:
+        >>> hasattr(load("bvh"), "deform_vertices")
+        True
+    """
+    ext = _extension(name)
+    with _LOCK:
+        state = _STATE.get(name)
+        if state is None:
+            try:
+                module_name = ext.module_name(name)
+                state = _import_built(module_name) or _compile(name, ext, module_name)
+            except Exception as err:  # no compiler, no ninja, read-only cache, ...
+                state = NativeBuildError(
+                    f"native: the C++ extension {name!r} could not be built ({type(err).__name__}: {err})"
+                )
+                state.__cause__ = err
+            _STATE[name] = state
+    if isinstance(state, NativeBuildError):
+        raise state
+    return state
+
+
+def try_load(name: str) -> ModuleType | None:
+    """:func:`load`, or ``None`` with one ``RuntimeWarning`` per process where the extension cannot be built.
+
+    For callers with an exact pure-torch (or numpy) formulation of the same computation; the outcome is fixed for
+    the process, so one result never mixes the two.
+
+    Args:
+        name: a key of :data:`EXTENSIONS`.
+
+    Returns:
+        The extension module, or ``None``.
+
+    Example:
+        >>> try_load("bvh") is not None
+        True
+    """
+    try:
+        return load(name)
+    except NativeBuildError as err:
+        if name not in _WARNED:
+            _WARNED.add(name)
+            warnings.warn(
+                f"torchmeshmetric: {err}; falling back to the exact pure formulation, which is slower on the CPU.",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+        return None
+
+
+def build(names: Sequence[str] | None = None) -> dict[str, Path]:
+    """Build (or find built) the given extensions, all by default, ahead of first use.
+
+    Args:
+        names: keys of :data:`EXTENSIONS`; ``None``: every extension.
+
+    Returns:
+        The path of each extension's compiled module, by name.
+
+    Raises:
+        NativeBuildError: an extension cannot be built here.
+
+    Example:
+        >>> sorted(build())
+        ['bvh', 'ibsm']
+    """
+    out: dict[str, Path] = {}
+    for name in EXTENSIONS if names is None else names:
+        module = load(name)
+        out[name] = Path(str(getattr(module, "__file__", ""))) if hasattr(module, "__file__") else Path()
+    return out
