@@ -5,12 +5,14 @@
 
 # The public submodules (attributes of the package, as after a normal import).
 from . import accel as accel
+from . import danskin as danskin
 from . import index_cache as index_cache
 from . import mesh_index as mesh_index
 from . import nearest as nearest
 from . import point_triangle as point_triangle
 from . import sampling as sampling
 from . import select as select
+from .danskin import surface_distances
 from .index_cache import IndexCache
 from .mesh_index import MeshIndex
 from .nearest import NearestVertexResult, nearest_vertex_distance
@@ -28,5 +30,6 @@ __all__ = [
     "nearest_vertex_distance",
     "point_mesh_distance",
     "sample_surface",
+    "surface_distances",
     "vertex_set",
 ]
