@@ -17,21 +17,31 @@ from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY
 from torchmeshmetric.kernels.mesh_index import MeshIndex, _given_tensors
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh, looks_like_pair, pack_meshes
 
-__all__ = ["IndexCache", "fingerprint"]
+__all__ = ["IndexCache", "content_key"]
 
 
-def fingerprint(meshes: list[Mesh], backend: str) -> str:
-    """A key of the content of ``meshes`` (shapes, dtype, device, every vertex and face) and a settings string.
+def content_key(meshes: Sequence[Mesh], salt: str) -> str:
+    """A hash of the meshes' content (shapes, dtype, device, vertex and face values) and ``salt``.
+
+    The key of an :class:`IndexCache` entry (``salt``: backend and tree), and of any cache of results computed
+    from meshes (``salt``: the settings of the computation).
+
+    Args:
+        meshes: the meshes, in order.
+        salt: what else the cached result depends on.
+
+    Returns:
+        40 hexadecimal digits; equal content and salt give equal keys, through new tensors too.
 
     Example:
         >>> import torch
         >>> from torchmeshmetric import Mesh
-        >>> m = Mesh(torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]]))
-        >>> fingerprint([m], "a") == fingerprint([Mesh(m.verts.clone(), m.faces)], "a") != fingerprint([m], "b")
+        >>> m = Mesh(torch.eye(3), torch.tensor([[0, 1, 2]]))
+        >>> content_key([m], "a") == content_key([Mesh(torch.eye(3), torch.tensor([[0, 1, 2]]))], "a")
         True
     """
     h = hashlib.blake2b(digest_size=20)
-    h.update(backend.encode())
+    h.update(salt.encode())
     for m in meshes:
         v, f = m.verts, m.faces
         h.update(repr((tuple(v.shape), tuple(f.shape), str(v.dtype), str(v.device))).encode())
@@ -73,7 +83,7 @@ class IndexCache:
         """
         batch = isinstance(mesh, list) or (isinstance(mesh, tuple) and not looks_like_pair(mesh))
         meshes = [as_mesh(m) for m in mesh] if batch else [as_mesh(mesh)]  # type: ignore[union-attr,arg-type]
-        key = fingerprint(meshes, f"{backend}/{tree}")
+        key = content_key(meshes, f"{backend}/{tree}")
         index = self._entries.get(key)
         if index is None:
             # Built on copies of its own (packing copies), so the entry answers for the content it is keyed by even

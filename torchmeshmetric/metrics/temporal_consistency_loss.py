@@ -35,7 +35,7 @@ from torch import Tensor, nn
 
 from torchmeshmetric._checks import EmptyInputError, NonFiniteError, ShapeError
 from torchmeshmetric.kernels.danskin import mesh_surface_distances
-from torchmeshmetric.kernels.index_cache import IndexCache, fingerprint
+from torchmeshmetric.kernels.index_cache import IndexCache, content_key
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.kernels.sampling import vertex_set
 from torchmeshmetric.metrics._loss import check_loss_args, reduce_directed
@@ -124,7 +124,7 @@ class TemporalLossCache:
 
     def warp(self, original_k: Mesh, original_k_minus_1: Mesh, options: NonRigidOptions, backend: str) -> Warp:
         """The warp of ``original_k_minus_1`` registered onto ``original_k`` (registered on the first request)."""
-        key = fingerprint([original_k_minus_1, original_k], repr(options))
+        key = content_key([original_k_minus_1, original_k], repr(options))
         found = self._warps.get(key)
         if found is not None:
             self._warps.move_to_end(key)
