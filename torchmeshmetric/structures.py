@@ -39,7 +39,9 @@ __all__ = [
     "as_mesh",
     "as_points",
     "batch_index",
+    "is_mesh_like",
     "lengths_to_offsets",
+    "looks_like_pair",
     "pack_meshes",
     "pack_points",
     "vertex_set_mask",
@@ -434,7 +436,7 @@ def pack_meshes(
         return PackedMeshes(verts, faces, vl, fl)
     if faces is not None:
         raise TypeError("faces: only valid when verts is a tensor")
-    if isinstance(meshes, (list, tuple)) and not (isinstance(meshes, tuple) and _looks_like_pair(meshes)):
+    if isinstance(meshes, (list, tuple)) and not (isinstance(meshes, tuple) and looks_like_pair(meshes)):
         items = [as_mesh(m, name=f"{name}[{i}]") for i, m in enumerate(meshes)]
         if not items:
             raise ValueError(f"{name}: expected at least one mesh, found an empty list")
@@ -453,6 +455,21 @@ def pack_meshes(
     )
 
 
-def _looks_like_pair(t: tuple[Any, ...]) -> bool:
+def looks_like_pair(t: tuple[Any, ...]) -> bool:
     """A 2-tuple whose items are arrays/tensors is a ``(verts, faces)`` mesh, not a list of two meshes."""
     return len(t) == 2 and all(isinstance(x, (Tensor, np.ndarray)) for x in t)
+
+
+def is_mesh_like(x: Any) -> bool:
+    """Whether ``x`` is one mesh: a :class:`Mesh`, a ``(verts, faces)`` pair of arrays/tensors, a ``trimesh.Trimesh``.
+
+    Example:
+        >>> import torch
+        >>> is_mesh_like((torch.zeros(3, 3), torch.tensor([[0, 1, 2]]))), is_mesh_like([torch.zeros(3, 3)])
+        (True, False)
+    """
+    if isinstance(x, Mesh):
+        return True
+    if isinstance(x, tuple) and looks_like_pair(x):
+        return True
+    return type(x).__name__ == "Trimesh"
