@@ -61,6 +61,7 @@ from .kernels import (
     nearest_vertex_distance,
     point_mesh_distance,
     sample_surface,
+    surface_distances,
     vertex_set,
 )
 from .metrics import (
@@ -140,6 +141,7 @@ __all__ = [
     "nearest_vertex_distance",
     "point_mesh_distance",
     "sample_surface",
+    "surface_distances",
     "vertex_set",
     "DistanceAccumulator",
     "DistanceStatistics",

@@ -5,11 +5,15 @@ sequence (~20k vertices / ~40k faces each) quantised to 12 bits with ``mm quanti
 frames are a simplified (40 %) and noisy copy in the same integer space. mmetric is timed as the test model runs it
 (scripts/run.sh: ``mmpsnr_pcc`` and ``mmpsnr_ibsm``, two ``mm sequence`` processes: dequantise, reindex, grid
 sampling at 1024, pcc comparison; dequantise, IBSM at 2048 x 16 cameras); ours is the CLI's library call with the
-same settings, frames read from the same files. Goal (issue 21): ours <= 0.25x mmetric, same run.
+same settings, frames read from the same files. Goal (issue 28): ours <= 0.25x mmetric's wall time and <= 0.5x its
+CPU time, same run. Per stage (read, dequantize + reindex, grid sampling, pcc comparison, IBSM) ours is recorded
+against the "Time on loading / processing" lines mmetric prints for each of its commands.
 """
 
 from __future__ import annotations
 
+import re
+import resource
 import time
 from pathlib import Path
 
@@ -46,16 +50,56 @@ def frames(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, np.ndarray, 
     return d, lo, hi
 
 
+STAGES = ("read", "dequantize", "grid", "pcc", "ibsm")
+_SECONDS: dict[str, dict[str, float]] = {}
+
+
+def _cpu(who: int) -> float:
+    r = resource.getrusage(who)
+    return r.ru_utime + r.ru_stime
+
+
 def _ours(d: Path, lo: np.ndarray, hi: np.ndarray) -> CtcSequence:
-    pairs = ((k, load_textured_mesh(d / f"src_{k:04d}.obj"), load_textured_mesh(d / f"dec_{k:04d}.obj"))
-             for k in range(FRAMES))  # fmt: skip
-    return ctc_sequence(pairs, qp=12, qt=0, min_pos=lo, max_pos=hi, resolution=float(np.max(hi - lo)))
+    read = 0.0
+
+    def pairs():  # type: ignore[no-untyped-def]
+        nonlocal read
+        for k in range(FRAMES):
+            t0 = time.perf_counter()
+            ref, dis = load_textured_mesh(d / f"src_{k:04d}.obj"), load_textured_mesh(d / f"dec_{k:04d}.obj")
+            read += time.perf_counter() - t0
+            yield k, ref, dis
+
+    c0 = _cpu(resource.RUSAGE_SELF)
+    seq = ctc_sequence(pairs(), qp=12, qt=0, min_pos=lo, max_pos=hi, resolution=float(np.max(hi - lo)))
+    stages = {s: sum(f.seconds.get(s, 0.0) for f in seq.frames) for s in STAGES}
+    _SECONDS["ours"] = {**stages, "read": read, "cpu": _cpu(resource.RUSAGE_SELF) - c0}
+    return seq
+
+
+def _mm_stages(log: str) -> dict[str, float]:
+    """mmetric's own timings: per frame, the pcc run's 7 commands then (after all frames) the IBSM run's 3."""
+    proc = [float(x) for x in re.findall(r"Time on processing: ([0-9.e+-]+) sec", log)]
+    assert len(proc) == 10 * FRAMES, len(proc)
+    pcc_run, ibsm_run = proc[: 7 * FRAMES], proc[7 * FRAMES :]
+    out = dict.fromkeys(STAGES, 0.0)
+    out["read"] = sum(float(x) for x in re.findall(r"Time on loading: ([0-9.e+-]+) sec", log))
+    for f in range(FRAMES):
+        deq_a, deq_b, re_a, samp_a, re_b, samp_b, cmp_pcc = pcc_run[7 * f : 7 * f + 7]
+        ib_deq_a, ib_deq_b, cmp_ibsm = ibsm_run[3 * f : 3 * f + 3]
+        out["dequantize"] += deq_a + deq_b + re_a + re_b + ib_deq_a + ib_deq_b
+        out["grid"] += samp_a + samp_b
+        out["pcc"] += cmp_pcc
+        out["ibsm"] += cmp_ibsm
+    return out
 
 
 def _theirs(d: Path, lo: np.ndarray, hi: np.ndarray) -> float:
     t0 = time.perf_counter()
+    c0 = _cpu(resource.RUSAGE_CHILDREN)
     log = _mm_chain(d, FRAMES, 12, 0, (lo, hi), float(np.max(hi - lo)), 1024, textured=False, ibsm=(2048, 16))
     assert "GEO PSNR Mean" in log
+    _SECONDS["mmetric"] = {**_mm_stages(log), "cpu": _cpu(resource.RUSAGE_CHILDREN) - c0}
     return time.perf_counter() - t0
 
 
@@ -70,3 +114,16 @@ def test_ctc_chain(benchmark, record, frames, contender: str) -> None:  # type: 
     seq = benchmark.pedantic(_ours, args=(d, lo, hi), rounds=1, iterations=1)
     record(benchmark.group, "ours", min(benchmark.stats.stats.data))
     assert len(seq.frames) == FRAMES
+
+
+def test_ctc_stage_ratios(record, frames) -> None:  # type: ignore[no-untyped-def]
+    """Per stage, ours against mmetric's own stage timings, the two run back to back (same load)."""
+    d, lo, hi = frames
+    _ours(d, lo, hi)  # warm: the C++ extensions built and loaded
+    _theirs(d, lo, hi)
+    _ours(d, lo, hi)
+    ours, theirs = _SECONDS["ours"], _SECONDS["mmetric"]
+    for s in (*STAGES, "cpu"):
+        record(f"ctc-stage-{s}-{FRAMES}-frames", "ours", ours[s])
+        record(f"ctc-stage-{s}-{FRAMES}-frames", "mmetric", theirs[s])
+        print(f"{s:11s} ours {ours[s]:7.3f} s  mmetric {theirs[s]:7.3f} s  ratio {ours[s] / max(theirs[s], 1e-9):.3f}")

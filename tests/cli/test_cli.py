@@ -128,6 +128,7 @@ def test_help_explains_every_option():
         "mpeg",
         "ctc",
         "bdrate",
+        "build",
         "validate",
     }
     for name, sub in subparsers.items():

@@ -37,7 +37,7 @@ def test_only_the_named_command_is_built():
 
 
 def test_a_command_of_another_module_joins_with_one_entry(tmp_path, monkeypatch, capsys):
-    """How a new command (e.g. ``ctc`` in ``torchmeshmetric/mpeg/ctc_command.py``) is added: one line in the table."""
+    """How a new command (e.g. ``ctc`` in ``torchmeshmetric/cli/ctc.py``) is added: one line in the table."""
     (tmp_path / "extra_command_for_table_test.py").write_text(
         "def add_hello_command(sub):\n"
         "    p = sub.add_parser('hello', help='say hello', description='Say hello.')\n"

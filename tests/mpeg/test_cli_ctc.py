@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from torchmeshmetric.cli import main
+from torchmeshmetric.cli.ctc import frame_path
 from torchmeshmetric.mpeg.bd_rate import bd_rate
 from torchmeshmetric.mpeg.ctc import ctc_sequence
-from torchmeshmetric.mpeg.ctc_command import frame_path
 from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
 
 

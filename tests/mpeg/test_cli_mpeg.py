@@ -71,7 +71,7 @@ def test_identical_meshes_json_inf_and_table(tmp_path: Path, capsys: pytest.Capt
         (TRI, TRI.replace("f 1 2 3", "vt nan nan\nf 1/1 2/1 3/1"), [], "texture coordinate 0 (line 4) is not finite"),
         (TRI, TRI, ["--grid-size", "0"], "grid_size: expected an integer >= 2, found 0"),
         (TRI, TRI, ["--box", "0 0 0", "0.5 0.5 0.5"], "does not contain the reference mesh"),
-        (TRI, TRI, ["--box", "0 0", "1 1 1"], "--box: the min corner must be three numbers"),
+        (TRI, TRI, ["--box", "0 0", "1 1 1"], "--box MIN: expected three finite numbers"),
         (TRI, TRI, ["--box", "1 1 1", "0 0 0"], "max corner [0.0, 0.0, 0.0] is below min corner"),
         (TRI, TRI, ["--peak", "0"], "peak: expected a positive finite number, found 0.0"),
     ],

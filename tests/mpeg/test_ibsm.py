@@ -127,3 +127,24 @@ def test_identical_meshes_and_bad_input() -> None:
     empty = TexturedMesh(Mesh(torch.zeros(3, 3), torch.zeros(0, 3, dtype=torch.int64)))
     with pytest.raises(ValueError, match="dis: expected a mesh with faces"):
         ibsm(_square(), empty)
+
+
+def test_read_only_texture_gives_no_torch_warning() -> None:
+    """A texture read from a file is a read-only array: IBSM must not hand it to torch as is (torch warns once)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import numpy as np, torch, trimesh\n"
+        "from torchmeshmetric.mpeg.ibsm import ibsm\n"
+        "from torchmeshmetric.mpeg.textured_mesh import TexturedMesh\n"
+        "from torchmeshmetric.structures import Mesh\n"
+        "tex = np.full((4, 4, 3), 200, np.uint8); tex.setflags(write=False)\n"
+        "s = trimesh.creation.icosphere(1)\n"
+        "v, f = torch.tensor(s.vertices, dtype=torch.float32), torch.tensor(s.faces)\n"
+        "uv = torch.rand(f.shape[0], 3, 2)\n"
+        "m = TexturedMesh(Mesh(v, f), uv, tex)\n"
+        "assert ibsm(m, m, resolution=32, cameras=4).pixels > 0\n"
+    )
+    out = subprocess.run([sys.executable, "-W", "error", "-c", code], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]

@@ -9,6 +9,7 @@ import pytest
 from torchmeshmetric import native
 from torchmeshmetric.mpeg import k_nearest, mpeg_sq_dists, nearest_with_ties
 from torchmeshmetric.mpeg import neighbours as nb
+from torchmeshmetric.mpeg.neighbours import NeighbourTies, nearest_with_ties_both
 
 
 def _reference(query: np.ndarray, target: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
@@ -26,8 +27,19 @@ def _clouds(seed: int, grid: bool, n_ref: int, n_query: int) -> tuple[np.ndarray
     return query.astype(np.float32), ref.astype(np.float32)
 
 
-@pytest.fixture(params=["cpp", "brute"])
+def _without_pcc(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The extension loader answering as on a machine without a C++ compiler, for the pcc extension alone."""
+    load = native.try_load
+    monkeypatch.setattr(native, "try_load", lambda name: None if name == "pcc" else load(name))
+
+
+@pytest.fixture(params=["pcc", "cpp", "brute"])
 def path(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> str:
+    if request.param == "pcc":
+        if native.try_load("pcc") is None:
+            pytest.skip("C++ extension unavailable")
+        return "pcc"
+    _without_pcc(monkeypatch)  # the k-nearest searches of nearest_with_ties
     if request.param == "brute":
         monkeypatch.setattr(native, "try_load", lambda name: None)
         monkeypatch.setattr(nb, "_BRUTE_CHUNK", 5000)  # several blocks
@@ -72,3 +84,36 @@ def test_nearest_with_ties_chains(path: str) -> None:
         # dmetric stops widening at 30 neighbours: up to 30 equidistant ones, lowest indices first
         assert got == set(want_idx[q, : min(n_equal, 30)].tolist())
         np.testing.assert_array_equal(ties.chain[r], ties.equal[r])  # lattice distances: chain == exact ties
+
+
+def _same_ties(got: NeighbourTies, want: NeighbourTies) -> None:
+    np.testing.assert_array_equal(got.nearest, want.nearest)
+    np.testing.assert_array_equal(got.sq_dist, want.sq_dist)
+    np.testing.assert_array_equal(got.rows, want.rows)
+    for r in range(want.rows.shape[0]):
+        for mask in ("chain", "equal"):
+            np.testing.assert_array_equal(got.cand[r, getattr(got, mask)[r]], want.cand[r, getattr(want, mask)[r]])
+
+
+def _tie_cases() -> list[tuple[np.ndarray, np.ndarray]]:
+    rng = np.random.default_rng(7)
+    cases = []
+    for n in (1, 2, 3, 9, 40, 1500):  # a lattice: up to 30+ equidistant neighbours, and targets smaller than k
+        ref = rng.integers(0, 4, (n, 3)).astype(np.float32)
+        cases.append(((rng.integers(0, 8, (300, 3)) / 2).astype(np.float32), ref))
+    tiny = (rng.integers(-3, 3, (400, 3)) * 1e-30).astype(np.float32)  # distances near the 1e-20 threshold
+    cases.append((tiny, tiny[::-1].copy()))
+    cases.append(_clouds(11, False, 3000, 2000))
+    return cases
+
+
+def test_pcc_search_equals_k_nearest_widening(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The one-pass C++ search (nearest, ties, dmetric's widening) equals the k-nearest searches it replaces."""
+    if native.try_load("pcc") is None:
+        pytest.skip("C++ extension unavailable")
+    cases = _tie_cases()
+    got = [nearest_with_ties_both(q, t) for q, t in cases]
+    _without_pcc(monkeypatch)
+    for (q, t), (ab, ba) in zip(cases, got, strict=True):
+        _same_ties(ab, nearest_with_ties(q, t))
+        _same_ties(ba, nearest_with_ties(t, q))

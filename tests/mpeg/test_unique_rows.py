@@ -23,3 +23,31 @@ def test_unique_vertex_rows_hash_matches_lexsort(with_colour: bool, monkeypatch:
     # every hash equal: the collision check must fall back to the exact lexicographic path
     monkeypatch.setattr(gs, "_row_hashes", lambda k: np.zeros(k[0].shape[0], np.uint64))
     np.testing.assert_array_equal(gs.unique_vertex_rows(pos, nrm, col), want)
+
+
+def test_merge_order_native_equals_lexsort(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The C++ sort of the duplicate merge gives numpy's stable lexicographic order (-0.0 == 0.0) and the same runs."""
+    import torch
+
+    from torchmeshmetric.mpeg import point_cloud as pc
+
+    rng = np.random.default_rng(9)
+    pos = (np.round(rng.random((4000, 3)) * 5) / 5).astype(np.float32)
+    pos[::7] = -pos[::7] * 0
+    cloud = pc.PointCloud(
+        torch.from_numpy(pos),
+        torch.from_numpy(rng.normal(size=(4000, 3)).astype(np.float32)),
+        torch.from_numpy((rng.random((4000, 3)) * 255).astype(np.float32)),
+    )
+    from torchmeshmetric import native
+
+    if native.try_load("pcc") is None:
+        pytest.skip("C++ extension unavailable")
+    got = pc.merge_duplicate_points(cloud)
+    load = native.try_load
+    monkeypatch.setattr(native, "try_load", lambda name: None if name == "pcc" else load(name))
+    want = pc.merge_duplicate_points(cloud)
+    assert 0 < want.num_points < 4000
+    for name in ("points", "normals", "colors"):
+        a, b = getattr(got, name).numpy(), getattr(want, name).numpy()
+        np.testing.assert_array_equal(a.view(np.uint32), b.view(np.uint32))  # bit for bit, sign of zero included

@@ -8,6 +8,8 @@ Commands:
   register  register one mesh (frame k-1) onto another (frame k), rigid then non-rigid
   demo      the main job: built-in sequence -> QEM and Registered QEM -> evaluation, tables, report and plots
   mpeg      MPEG D1/D2 (and colour) PSNR of one mesh pair, equal to mmetric's figures
+  ctc       the V-DMC CTC metric step on a decoded sequence (grid D1/D2/colour and IBSM, mmetric's chain)
+  bdrate    BD-rate of a test codec against an anchor, per metric (the CTC spreadsheet's bdRateExtend)
   validate  which distance sets respond to which controlled distortion (noise, offsets, flicker, registration)
   build     compile the C++ extensions now (once per machine) instead of on first use
 
@@ -86,17 +88,17 @@ COMMANDS: dict[str, CommandInfo] = {
         "the paper's experiment on the built-in sequence (QEM vs Registered QEM)",
     ),
     "mpeg": CommandInfo(
-        "torchmeshmetric.mpeg.command",
+        "torchmeshmetric.cli.mpeg",
         "add_mpeg_command",
         "MPEG D1/D2 (and colour) PSNR of one mesh pair, as mmetric computes them",
     ),
     "ctc": CommandInfo(
-        "torchmeshmetric.mpeg.ctc_command",
+        "torchmeshmetric.cli.ctc",
         "add_ctc_command",
         "the V-DMC CTC metric step on a decoded sequence (mmetric's sequence chain: grid D1/D2/colour, IBSM)",
     ),
     "bdrate": CommandInfo(
-        "torchmeshmetric.mpeg.ctc_command",
+        "torchmeshmetric.cli.bdrate",
         "add_bdrate_command",
         "BD-rate of a test codec against an anchor (the CTC spreadsheet's bdRateExtend), per metric",
     ),
@@ -144,6 +146,12 @@ def _error(command: str, exc: Exception) -> int:
     """End a command that raised with one line on stderr and exit code 1 (``TORCHMESHMETRIC_DEBUG=1``: re-raise)."""
     if os.environ.get("TORCHMESHMETRIC_DEBUG"):
         raise exc
+    if "torchmeshmetric.launch" not in sys.modules:  # the command ran without torch: the same line, torch not loaded
+        text = str(exc).strip()
+        print(
+            f"torchmeshmetric {command}: error: {text.splitlines()[0] if text else type(exc).__name__}", file=sys.stderr
+        )
+        return 1
     from torchmeshmetric.launch import error_line  # under torchrun: once, by rank 0 (or by the rank that failed)
 
     print(error_line(command, exc), file=sys.stderr)
@@ -153,6 +161,8 @@ def _error(command: str, exc: Exception) -> int:
 def _run(args: argparse.Namespace) -> int:
     """Run the parsed command (inside a process group under torchrun); an error becomes one line."""
     try:
+        if getattr(args, "without_torch", False) and "WORLD_SIZE" not in os.environ:
+            return int(args.func(args))  # a command that computes without torch (bdrate) starts without it
         from torchmeshmetric.launch import run_command  # torch: imported once a command is run, not for --help
 
         return int(run_command(args.func, args))

@@ -8,11 +8,14 @@ commands that evaluate sequences) and :func:`report_options` (the commands that 
 from __future__ import annotations
 
 import argparse
+import math
+import re
 from collections.abc import Callable, Sequence
 from typing import Any
 
 __all__ = [
     "add_cache_dir",
+    "corner",
     "add_command",
     "add_target",
     "add_weight",
@@ -178,3 +181,27 @@ def add_command(
     )
     p.set_defaults(func=run)
     return p
+
+
+def corner(text: str, option: str) -> list[float]:
+    """A box corner given as three finite numbers (``"-1 -1 -1"`` or ``"-1,-1,-1"``).
+
+    Args:
+        text: the option's value.
+        option: the option's name in the error (``"--min-pos"``).
+
+    Raises:
+        ValueError: not three finite numbers.
+
+    Example:
+        >>> corner("-1, 0 2.5", "--min-pos")
+        [-1.0, 0.0, 2.5]
+    """
+    parts = [p for p in re.split(r"[,\s]+", text.strip()) if p]
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        values = []
+    if len(values) != 3 or not all(math.isfinite(v) for v in values):
+        raise ValueError(f'{option}: expected three finite numbers such as "-1 -1 -1", found {text!r}')
+    return values

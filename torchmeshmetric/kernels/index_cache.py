@@ -15,7 +15,7 @@ import torch
 
 from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY
 from torchmeshmetric.kernels.mesh_index import MeshIndex, _given_tensors
-from torchmeshmetric.structures import Mesh, MeshLike, _looks_like_pair, as_mesh, pack_meshes
+from torchmeshmetric.structures import Mesh, MeshLike, as_mesh, looks_like_pair, pack_meshes
 
 __all__ = ["IndexCache", "content_key"]
 
@@ -81,7 +81,7 @@ class IndexCache:
         ``mesh``'s tensors change in place: ask the cache again for the changed mesh. ``tree`` as in
         :class:`~torchmeshmetric.MeshIndex` (``"morton"`` for references queried only a few times).
         """
-        batch = isinstance(mesh, list) or (isinstance(mesh, tuple) and not _looks_like_pair(mesh))
+        batch = isinstance(mesh, list) or (isinstance(mesh, tuple) and not looks_like_pair(mesh))
         meshes = [as_mesh(m) for m in mesh] if batch else [as_mesh(mesh)]  # type: ignore[union-attr,arg-type]
         key = content_key(meshes, f"{backend}/{tree}")
         index = self._entries.get(key)

@@ -44,9 +44,9 @@ from torchmeshmetric.structures import (
     MeshLike,
     PackedMeshes,
     PackedPoints,
-    _looks_like_pair,
     batch_index,
     lengths_to_offsets,
+    looks_like_pair,
     pack_meshes,
     pack_points,
 )
@@ -94,7 +94,7 @@ def _given_tensors(mesh: Any, faces: Tensor | None, prefix: str = "mesh") -> tup
         return [("verts", mesh)], [("faces", faces)]
     if isinstance(mesh, Mesh):
         return [(f"{prefix}.verts", mesh.verts)], [(f"{prefix}.faces", mesh.faces)]
-    if isinstance(mesh, tuple) and _looks_like_pair(mesh):
+    if isinstance(mesh, tuple) and looks_like_pair(mesh):
         return [(f"{prefix}.verts", mesh[0])], [(f"{prefix}.faces", mesh[1])]
     if isinstance(mesh, (list, tuple)):
         verts: list[tuple[str, Any]] = []

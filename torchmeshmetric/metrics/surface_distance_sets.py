@@ -27,7 +27,7 @@ from torchmeshmetric.metrics._prebuilt_index import bound_to, check_index, index
 from torchmeshmetric.metrics.directed_distances import DirectedDistances, lengths_of, packed
 from torchmeshmetric.structures import Mesh
 
-__all__ = ["SurfaceDistanceOptions", "mesh_surface_distance_sets"]
+__all__ = ["SurfaceDistanceOptions", "measure_surface_distance_sets", "mesh_surface_distance_sets"]
 
 
 class SurfaceDistanceOptions(TypedDict, total=False):
@@ -81,7 +81,7 @@ def _to_surface(
     ).dists
 
 
-def _surface_distance_sets(
+def measure_surface_distance_sets(
     points: list[Tensor],
     references: list[Mesh],
     reference_points: list[Tensor] | None,
@@ -198,7 +198,7 @@ def mesh_surface_distance_sets(
     simplified_index = bound_to(simplified_index, [s.mesh for s in sources if s.mesh is not None])
     points = [s.points for s in sources]
     ref_points = [vertex_set(m) for m in refs] if two_sided else None
-    forward, reverse = _surface_distance_sets(
+    forward, reverse = measure_surface_distance_sets(
         points,
         refs,
         ref_points,

@@ -38,13 +38,12 @@ from torchmeshmetric.kernels.danskin import mesh_surface_distances
 from torchmeshmetric.kernels.index_cache import IndexCache, content_key
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.kernels.sampling import vertex_set
-from torchmeshmetric.metrics._inputs import _is_mesh_like
 from torchmeshmetric.metrics._loss import check_loss_args, reduce_directed
 from torchmeshmetric.metrics.directed_distances import DirectedDistances
 from torchmeshmetric.registration.nonrigid import register_nonrigid
 from torchmeshmetric.registration.options import NonRigidOptions
-from torchmeshmetric.registration.warp import RegistrationWarp, SurfaceWarp, Warp
-from torchmeshmetric.structures import Mesh, as_mesh
+from torchmeshmetric.registration.warp import RegistrationWarp, Warp, as_warp
+from torchmeshmetric.structures import Mesh, as_mesh, is_mesh_like
 
 __all__ = ["TemporalConsistencyLoss", "TemporalLossCache", "temporal_consistency_loss"]
 
@@ -72,7 +71,7 @@ class _KeptIndex:
             and [int(x) for x in self.index.verts_lengths] == [m.num_verts for m in meshes]
         )
         if same and self.index is not None:
-            self.index._refit(verts)
+            self.index.refit(verts)
             return self.index
         detached = [Mesh(m.verts.detach(), m.faces, validate=False) for m in meshes]
         index = MeshIndex(detached if len(detached) > 1 else detached[0], backend=backend)
@@ -84,7 +83,7 @@ class _KeptIndex:
             lengths = torch.zeros(len(meshes), dtype=torch.long, device=verts.device)
             lengths[with_faces[0]] = 1
             with torch.no_grad():
-                index._point_mesh_distance(verts[:1], lengths)
+                mesh_surface_distances(verts[:1].to(index.dtype), lengths, detached, index)
         self.index, self.faces = index, [m.faces.clone() for m in meshes]
         return index
 
@@ -171,7 +170,7 @@ def _directed(
 
 def _mesh_items(x: Any, name: str) -> list[Mesh]:
     """A mesh-like is a batch of one; a list/tuple of mesh-likes a batch. Each item must be a mesh."""
-    if _is_mesh_like(x):
+    if is_mesh_like(x):
         items = [(name, as_mesh(x, name=name))]
     elif isinstance(x, (list, tuple)):
         if not x:
@@ -192,39 +191,13 @@ def _registration_items(registration: Any, count: int) -> list[Any]:
     if registration is None:
         return [None] * count
     # A list, or a plain tuple, is a batch; a NamedTuple (a RegistrationWarp, a NonRigidRegistration) is one item.
-    if (isinstance(registration, list) or type(registration) is tuple) and not _is_mesh_like(registration):
+    if (isinstance(registration, list) or type(registration) is tuple) and not is_mesh_like(registration):
         if len(registration) != count:
             raise ValueError(f"registration: expected {count} (one per frame pair), found {len(registration)}")
         return list(registration)
     if count != 1:
         raise ValueError(f"registration: expected a list of {count} (one per frame pair), found a single one")
     return [registration]
-
-
-def _as_warp(given: Any, original_k: Mesh, original_k_minus_1: Mesh, name: str) -> Warp:
-    """A caller's registration as a warp: a warp, a ``NonRigidRegistration``, something with ``warp`` or ``verts``."""
-    warp = getattr(given, "warp", None)  # a CachedRegistration (evaluation), or anything holding a warp
-    if warp is not None:
-        return warp
-    if getattr(given, "graph", None) is not None and hasattr(given, "rigid"):  # a NonRigidRegistration
-        return RegistrationWarp.from_registration(given, original_k)
-    verts = getattr(given, "verts", None)
-    if verts is None and _is_mesh_like(given):
-        verts = as_mesh(given, name=name).verts
-    if verts is not None:  # known only by its registered vertices: their piecewise-linear map
-        verts = torch.as_tensor(verts).detach()
-        if tuple(verts.shape) != tuple(original_k_minus_1.verts.shape):
-            raise ShapeError(
-                f"{name}: expected registered vertices of shape {tuple(original_k_minus_1.verts.shape)} "
-                f"(the vertices of original_k_minus_1), found {tuple(verts.shape)}"
-            )
-        return SurfaceWarp(original_k_minus_1.detach(), verts.to(original_k_minus_1.verts))
-    if callable(given):
-        return given
-    raise TypeError(
-        f"{name}: expected None, a warp (callable), a NonRigidRegistration, a registration with 'warp' or 'verts', "
-        f"or the registered mesh, found {type(given).__name__}"
-    )
 
 
 def _moved(warp: Warp, simplified_k_minus_1: Mesh, like: Mesh, name: str) -> Mesh:
@@ -242,6 +215,11 @@ def _moved(warp: Warp, simplified_k_minus_1: Mesh, like: Mesh, name: str) -> Mes
             f"{name}: the warp moved {bad} vertices of simplified_k_minus_1 to non-finite positions (NaN/Inf)"
         )
     return Mesh(moved.to(like.device, like.dtype), simplified_k_minus_1.faces.to(like.device), validate=False)
+
+
+def _options(given: Mapping[str, Any] | NonRigidOptions | None) -> NonRigidOptions:
+    """The default registration's options, validated (a misspelled field fails here, before any work)."""
+    return given if isinstance(given, NonRigidOptions) else NonRigidOptions.from_keywords(None, **dict(given or {}))
 
 
 def _check_arguments(frame_weight: float, two_sided: bool, reduction: str, power: float) -> None:
@@ -348,16 +326,12 @@ def temporal_consistency_loss(
         if len(items) != len(s_k):
             raise ValueError(f"{name}: expected {len(s_k)} frame(s), one per simplified_k, found {len(items)}")
     given = _registration_items(registration, len(s_k))
-    options = (
-        registration_options
-        if isinstance(registration_options, NonRigidOptions)
-        else NonRigidOptions.from_keywords(None, **dict(registration_options or {}))
-    )
+    options = _options(registration_options)
     work = cache if cache is not None else TemporalLossCache(max_warps=max(1, len(s_k)))
     moved = []
     for i, (g, ok, okm1, skm1, sk) in enumerate(zip(given, o_k, o_km1, s_km1, s_k, strict=True)):
         name = "registration" if len(s_k) == 1 else f"registration[{i}]"
-        warp = work.warp(ok, okm1, options, backend) if g is None else _as_warp(g, ok, okm1, name)
+        warp = work.warp(ok, okm1, options, backend) if g is None else as_warp(g, ok, okm1, name=name)
         moved.append(_moved(warp, skm1, sk, name))
     # One index per role for the whole batch: the moved frames k-1 (measured to) and the simplified frames k
     # (measured to by both reverse directions), refitted across calls while their faces stay the same; the
@@ -440,11 +414,7 @@ class TemporalConsistencyLoss(nn.Module):
         self.reduction = reduction
         self.power = power
         # Validated once here (a misspelled option fails at construction, not at the first step).
-        self.registration_options = (
-            registration_options
-            if isinstance(registration_options, NonRigidOptions)
-            else NonRigidOptions.from_keywords(None, **dict(registration_options or {}))
-        )
+        self.registration_options = _options(registration_options)
         self.backend = backend
         self.cache = TemporalLossCache()
 

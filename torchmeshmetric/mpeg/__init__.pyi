@@ -31,7 +31,7 @@ from .grid_sampling import (
     mesh_box,
     unique_vertex_rows,
 )
-from .ibsm import IbsmResult, ibsm
+from .ibsm import IbsmNoOverlapWarning, IbsmResult, ibsm
 from .losses import (
     MpegGeometryLoss,
     differentiable_grid_sample,
@@ -55,6 +55,7 @@ __all__ = [
     "CtcFrame",
     "CtcSequence",
     "GridTooLargeError",
+    "IbsmNoOverlapWarning",
     "IbsmResult",
     "bd_rate",
     "ctc_frame",

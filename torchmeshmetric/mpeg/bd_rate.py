@@ -22,12 +22,22 @@ from collections.abc import Sequence
 __all__ = ["bd_rate"]
 
 
+def _real(value: object, name: str, i: int, what: str) -> float:
+    # float() would take "3" and answer None with its own message: a number is asked for, by name and point
+    if isinstance(value, (str, bytes, bool)) or value is None:
+        raise TypeError(f"{name}: point {i}: expected a real {what}, found {value!r}")
+    try:
+        return float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise TypeError(f"{name}: point {i}: expected a real {what}, found {value!r}") from None
+
+
 def _points(rate: Sequence[float], psnr: Sequence[float], name: str) -> tuple[list[float], list[float]]:
     if len(rate) != len(psnr):
         raise ValueError(f"{name}: expected as many rates as PSNR values, found {len(rate)} and {len(psnr)}")
     pts = []
     for i, (r, q) in enumerate(zip(rate, psnr, strict=True)):
-        r, q = float(r), float(q)
+        r, q = _real(r, name, i, "rate"), _real(q, name, i, "PSNR")
         if r == 0 and q == 0:  # an empty spreadsheet cell
             continue
         if not (math.isfinite(r) and r > 0):
@@ -98,6 +108,7 @@ def bd_rate(
 
     Raises:
         ValueError: unequal lengths, fewer than 2 points, a non-positive rate or a non-finite PSNR.
+        TypeError: a rate or PSNR that is not a real number (a string, ``None``).
 
     Example:
         >>> a = [100, 200, 400, 800]

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from torchmeshmetric.mpeg.colour import rgb_to_ycbcr
-from torchmeshmetric.mpeg.neighbours import NeighbourTies, nearest_with_ties
+from torchmeshmetric.mpeg.neighbours import NeighbourTies, nearest_with_ties_both
 from torchmeshmetric.mpeg.point_cloud import PointCloud, merge_duplicate_points
 from torchmeshmetric.mpeg.psnr import mpeg_psnr
 
@@ -168,6 +168,24 @@ def _transfer_normals(
     return out.astype(np.float32)
 
 
+def _tie_rows(ties: NeighbourTies) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(row, target) pairs of the queries with a tie chain, in chain order, and their position among the tie rows."""
+    r, c = np.nonzero(ties.chain)  # row-major: each row's chain in rank order
+    return ties.rows[r], ties.cand[r, c], r
+
+
+def _per_point_d2(qp: np.ndarray, tp: np.ndarray, nrm: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """Dmetric's squared point-to-plane error of each (query, neighbour) pair, float32 then double."""
+    diff = qp[rows] - tp[cols]  # float32, as dmetric
+    n = nrm[cols]
+    proj = (diff[:, 0] * n[:, 0] + diff[:, 1] * n[:, 1]) + diff[:, 2] * n[:, 2]
+    per = (proj * proj).astype(np.float64)
+    bad = np.isnan(n).any(axis=1)
+    if bad.any():  # dmetric's fallback for a NaN normal: the plain sum of the error's components
+        per[bad] = ((diff[bad, 0] + diff[bad, 1]) + diff[bad, 2]).astype(np.float64)
+    return per
+
+
 def _direction(
     query: PointCloud,
     target: PointCloud,
@@ -176,31 +194,34 @@ def _direction(
     peak: float,
     with_color: bool,
 ) -> MpegDirection:
+    # Every query averages over its chain of equally near neighbours; almost all chains hold the nearest point
+    # alone, so the figures are computed for the nearest first and recomputed for the few tie rows. The sums start
+    # at 0.0 and run in chain order, as dmetric's (0.0 + x is x, so a single neighbour's term is unchanged).
     qp = query.points.numpy()
     tp = target.points.numpy()
     n = qp.shape[0]
+    all_rows = np.arange(n)
     d1 = ties.sq_dist
     d1_mse = float(np.sum(d1)) / n
     d1_h = max(_DBL_MIN, float(d1.max()))
-    rows, cols = _tie_lists(ties, ties.chain)
-    counts = np.bincount(rows, minlength=n)
+    t_rows, t_cols, t_pos = _tie_rows(ties)
+    t_counts = np.bincount(t_pos, minlength=ties.rows.shape[0])
     d2_mse = d2_h = math.nan
     if target_normals is not None:
-        diff = qp[rows] - tp[cols]  # float32, as dmetric
-        nrm = target_normals[cols]
-        proj = (diff[:, 0] * nrm[:, 0] + diff[:, 1] * nrm[:, 1]) + diff[:, 2] * nrm[:, 2]
-        per = (proj * proj).astype(np.float64)
-        bad = np.isnan(nrm).any(axis=1)
-        if bad.any():  # dmetric's fallback for a NaN normal: the plain sum of the error's components
-            per[bad] = ((diff[bad, 0] + diff[bad, 1]) + diff[bad, 2]).astype(np.float64)
-        d2 = np.bincount(rows, weights=per, minlength=n) / counts
+        d2 = 0.0 + _per_point_d2(qp, tp, target_normals, all_rows, ties.nearest)
+        if ties.rows.size:
+            per = _per_point_d2(qp, tp, target_normals, t_rows, t_cols)
+            d2[ties.rows] = np.bincount(t_pos, weights=per, minlength=ties.rows.shape[0]) / t_counts
         d2_mse = float(np.sum(d2)) / n
         d2_h = max(_DBL_MIN, float(d2.max()))
     color_mse = color_psnr = None
     if with_color and query.colors is not None and target.colors is not None:
         tc = target.colors.numpy().astype(np.int64)
-        sums = np.stack([np.bincount(rows, weights=tc[cols, k], minlength=n) for k in range(3)], axis=1)
-        mean = np.floor(sums / counts[:, None] + 0.5)  # round() of a non-negative double
+        mean = tc[ties.nearest].astype(np.float64)  # floor(x + 0.5) of an integer is the integer
+        if ties.rows.size:
+            sums = np.stack([np.bincount(t_pos, weights=tc[t_cols, k], minlength=ties.rows.shape[0])
+                             for k in range(3)], axis=1)  # fmt: skip
+            mean[ties.rows] = np.floor(sums / t_counts[:, None] + 0.5)  # round() of a non-negative double
         yuv_q = rgb_to_ycbcr(query.colors.numpy())
         yuv_t = rgb_to_ycbcr(mean)
         e = yuv_q - yuv_t
@@ -262,8 +283,7 @@ def mpeg_compare(ref: PointCloud, dis: PointCloud, *, peak: float | None = None)
     if peak is None:
         peak = bbox_diagonal(ref.points.detach().cpu().numpy().astype(np.float32))
     peak = float(np.float32(peak))
-    ab = nearest_with_ties(ap, bp)
-    ba = nearest_with_ties(bp, ap)
+    ab, ba = nearest_with_ties_both(ap, bp)
     na = a.normals.numpy() if a.normals is not None else None
     nb: np.ndarray | None = None
     if na is not None:

@@ -21,19 +21,20 @@ is mmetric's statistic: the arithmetic mean over frames of the per-frame PSNR cl
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any, Union
 
 import numpy as np
-import torch
 from torch import Tensor
 
 from torchmeshmetric.mpeg.comparison import mpeg_compare
 from torchmeshmetric.mpeg.dequantize import dequantize_positions, dequantize_uvs
 from torchmeshmetric.mpeg.grid_sampling import grid_sample
 from torchmeshmetric.mpeg.point_cloud import PointCloud
+from torchmeshmetric.mpeg.reindex import oriented_reindex
 from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
 from torchmeshmetric.structures import Mesh
 
@@ -45,7 +46,6 @@ __all__ = [
     "ctc_frame",
     "ctc_mean",
     "ctc_sequence",
-    "oriented_reindex",
 ]
 
 Corner = Union[Sequence[float], np.ndarray, Tensor]  # noqa: UP007 (a runtime alias)
@@ -62,12 +62,15 @@ def ctc_mean(values: Sequence[float], clip: float = CTC_CLIP) -> float:
 
     An infinite PSNR (a frame identical to its source) counts as ``clip``; NaN stays NaN.
 
+    Raises:
+        ValueError: no value (a mean of nothing is no figure).
+
     Example:
         >>> ctc_mean([40.0, float("inf")])
         69.995
     """
     if len(values) == 0:
-        return math.nan
+        raise ValueError("values: expected at least one per-frame PSNR, found none")
     fract = 1.0 / len(values)
     mean = 0.0
     for v in values:
@@ -84,12 +87,14 @@ class CtcFrame:
         figures: column name -> PSNR in dB (unclipped, ``inf`` for identical frames).
         points_ref: the reference's grid samples after duplicate merging.
         points_dis: the decoded frame's.
+        seconds: wall seconds per stage (``dequantize``, ``grid``, ``pcc``, ``ibsm``) of this computation.
     """
 
     frame: int
     figures: dict[str, float]
     points_ref: int = 0
     points_dis: int = 0
+    seconds: dict[str, float] = field(default_factory=dict, compare=False)
 
 
 @dataclass(frozen=True)
@@ -117,72 +122,6 @@ class CtcSequence:
         """``{"frames": [{"frame": i, "GridD1": ...}, ...], "mean": {...}}`` (floats may be infinite)."""
         rows = [{"frame": f.frame, **{c: f.figures[c] for c in self.columns if c in f.figures}} for f in self.frames]
         return {"frames": rows, "mean": self.mean()}
-
-
-def _lex_groups(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Dense lexicographic rank of every row of ``keys`` and the first (smallest) row index of every rank.
-
-    The same as ``np.unique(keys, axis=0, return_index=True, return_inverse=True)`` (numeric order column by column,
-    ``-0.0 == 0.0``), through one stable ``lexsort`` instead of a sort of row records.
-    """
-    order = np.lexsort(keys.T[::-1])
-    ks = keys[order]
-    new = np.ones(order.size, dtype=bool)
-    new[1:] = np.any(ks[1:] != ks[:-1], axis=1)
-    rank = np.empty(order.size, dtype=np.int64)
-    rank[order] = np.cumsum(new) - 1
-    return rank, order[new]
-
-
-def _oriented_faces(corner_keys: np.ndarray, nf: int) -> np.ndarray:
-    """The oriented reorder of faces ``(3k, 3k+1, 3k+2)``: rows of corner indices (see :func:`oriented_reindex`)."""
-    rank, first = _lex_groups(corner_keys)
-    tri = rank.reshape(nf, 3)
-    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
-    rot1 = (b < a) & (b <= c)
-    rot2 = ~rot1 & (c <= a) & (c < b)
-    out = tri.copy()
-    out[rot1] = np.stack([b, c, a], axis=1)[rot1]
-    out[rot2] = np.stack([c, a, b], axis=1)[rot2]
-    _, kept = _lex_groups(out)  # sorted faces, each once
-    return first[out[kept]]
-
-
-def oriented_reindex(mesh: TexturedMesh) -> TexturedMesh:
-    """The ``reindex --sort oriented`` of mmetric: equal corners merged and sorted, faces rotated and sorted.
-
-    Corners are equal when position and UV (or vertex colour) are equal. Each face is rotated to start at its
-    smallest corner (orientation kept), duplicate faces are dropped and the faces sorted. Positions are unchanged;
-    only the order of corners within faces and of faces moves, which moves the float32 arithmetic of the grid
-    sampling (mmetric's ray-triangle test starts from a face's first corner).
-
-    Example:
-        >>> m = TexturedMesh(Mesh(torch.eye(3), torch.tensor([[2, 0, 1], [0, 1, 2]])))
-        >>> oriented_reindex(m).mesh.faces.shape[0]
-        1
-    """
-    verts = mesh.mesh.verts.detach().cpu().numpy().astype(np.float32)
-    faces = mesh.mesh.faces.detach().cpu().numpy()
-    nf = faces.shape[0]
-    pos = verts[faces].reshape(-1, 3)
-    keys = [pos]
-    uv = col = None
-    if mesh.texture is not None and mesh.uvs is not None:
-        uv = mesh.uvs.detach().cpu().numpy().astype(np.float32).reshape(-1, 2)
-        keys.append(uv)
-    elif mesh.colors is not None:
-        col = mesh.colors.detach().cpu().numpy().astype(np.float32)[faces].reshape(-1, 3)
-        keys.append(col)
-    tri = _oriented_faces(np.concatenate(keys, axis=1), nf)
-    used, inv = np.unique(tri, return_inverse=True)
-    new_faces = torch.from_numpy(inv.reshape(-1, 3).astype(np.int64))
-    new_mesh = Mesh(torch.from_numpy(np.ascontiguousarray(pos[used])), new_faces)
-    return TexturedMesh(
-        new_mesh,
-        None if uv is None else torch.from_numpy(np.ascontiguousarray(uv[tri])),
-        mesh.texture,
-        None if col is None else torch.from_numpy(np.ascontiguousarray(col[used])),
-    )
 
 
 def _dequantized(mesh: TexturedMesh, qp: int, qt: int, box: tuple[Corner, Corner]) -> TexturedMesh:
@@ -250,16 +189,27 @@ def ctc_frame(
         >>> r.figures["GridD1"], r.figures["IbsmGeom"]
         (inf, 99.99)
     """
+    if isinstance(resolution, bool) or not isinstance(resolution, (int, float, np.integer, np.floating)):
+        raise TypeError(f"resolution: expected a real number, found {type(resolution).__name__}")
+    if not (math.isfinite(resolution) and resolution > 0):
+        raise ValueError(
+            f"resolution: expected a positive finite PSNR peak (the box's longest side), found {resolution}"
+        )
     box = (min_pos, max_pos)
+    t0 = time.perf_counter()
     # both mmetric steps reindex the dequantised meshes with the same oriented reorder (the grid chain's reindex
     # command, IBSM's own reordering): done once here, and IBSM told not to redo it
     r = oriented_reindex(_dequantized(ref, qp, qt, box))
     d = oriented_reindex(_dequantized(dis, qp, decoded_qt, box))
+    t1 = time.perf_counter()
     # the two samplings are independent numpy work that releases the GIL: run them side by side
     with ThreadPoolExecutor(max_workers=2) as pool:
         rc = pool.submit(_grid_cloud, r, grid_size, box)
         dc = pool.submit(_grid_cloud, d, grid_size, box)
-        res = mpeg_compare(rc.result(), dc.result(), peak=resolution)
+        ref_cloud, dis_cloud = rc.result(), dc.result()
+    t2 = time.perf_counter()
+    res = mpeg_compare(ref_cloud, dis_cloud, peak=resolution)
+    t3 = time.perf_counter()
     ib = None
     if ibsm_resolution is not None:
         from torchmeshmetric.mpeg.ibsm import ibsm
@@ -271,7 +221,8 @@ def ctc_frame(
         figures.update({"GridLuma": y, "GridChromaCb": cb, "GridChromaCr": cr})
     if ib is not None:
         figures.update({"IbsmGeom": ib.geo_psnr, "IbsmLuma": ib.yuv_psnr[0]})
-    return CtcFrame(frame, figures, res.points_ref, res.points_dis)
+    seconds = {"dequantize": t1 - t0, "grid": t2 - t1, "pcc": t3 - t2, "ibsm": time.perf_counter() - t3}
+    return CtcFrame(frame, figures, res.points_ref, res.points_dis, seconds)
 
 
 def ctc_sequence(

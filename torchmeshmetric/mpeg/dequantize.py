@@ -17,7 +17,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from torchmeshmetric.mpeg.grid_sampling import fixed_point_box, fixed_point_ceil
+from torchmeshmetric.mpeg.fixed_point import fixed_point_box, fixed_point_ceil
 
 __all__ = ["dequantize_positions", "dequantize_uvs", "position_scale"]
 
@@ -29,6 +29,17 @@ def _corner(x: Corner, name: str, n: int) -> np.ndarray:
     if a.shape != (n,) or not np.isfinite(a).all():
         raise ValueError(f"{name}: expected {n} finite numbers, found {np.asarray(x).tolist()!r}")
     return a
+
+
+def _quantised(x: Tensor | np.ndarray, name: str) -> np.ndarray:
+    """Quantised values as float32, refusing what float32 would silently change: complex, NaN or infinite input."""
+    a = np.asarray(x.detach().cpu().numpy() if isinstance(x, Tensor) else x)
+    if np.iscomplexobj(a) or a.dtype.kind not in "biuf":
+        raise TypeError(f"{name}: expected real integer values, found dtype {a.dtype}")
+    if a.dtype.kind == "f" and not np.isfinite(a).all():
+        bad = int((~np.isfinite(a)).sum())
+        raise ValueError(f"{name}: expected finite quantised values, found {bad} NaN or infinite")
+    return a.astype(np.float32)
 
 
 def _bits(q: int, name: str) -> int:
@@ -89,7 +100,8 @@ def dequantize_positions(
         ``(V, 3)`` float32 positions (CPU).
 
     Raises:
-        ValueError: a bad bit depth or box.
+        ValueError: a bad bit depth or box, NaN or infinite positions.
+        TypeError: complex (or non-numeric) positions.
 
     Example:
         >>> q = torch.tensor([[0, 1023, 512]])
@@ -98,7 +110,7 @@ def dequantize_positions(
         >>> dequantize_positions(q, 10, [0, 0, 0], [1, 1, 1], fixed_point=False).tolist()
         [[0.0, 1.0, 0.5004887580871582]]
     """
-    v = np.asarray(verts.detach().cpu().numpy() if isinstance(verts, Tensor) else verts).astype(np.float32)
+    v = _quantised(verts, "verts")
     if v.ndim != 2 or v.shape[1] != 3:
         raise ValueError(f"verts: expected shape (V, 3), found {tuple(v.shape)}")
     if _bits(qp, "qp") < 7:
@@ -132,7 +144,7 @@ def dequantize_uvs(
         >>> dequantize_uvs(torch.tensor([[0.0, 1023.0]]), 10).tolist()
         [[0.0, 1.0]]
     """
-    u = np.asarray(uvs.detach().cpu().numpy() if isinstance(uvs, Tensor) else uvs).astype(np.float32)
+    u = _quantised(uvs, "uvs")
     if u.shape[-1:] != (2,):
         raise ValueError(f"uvs: expected shape (..., 2), found {tuple(u.shape)}")
     if _bits(qt, "qt") < 7:

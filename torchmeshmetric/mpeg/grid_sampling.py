@@ -13,6 +13,7 @@ from torch import Tensor
 from torchmeshmetric import native
 from torchmeshmetric._checks import EmptyInputError, NonFiniteError
 from torchmeshmetric.mpeg import _float32 as f32
+from torchmeshmetric.mpeg.fixed_point import fixed_point_box, fixed_point_ceil
 from torchmeshmetric.mpeg.point_cloud import PointCloud
 from torchmeshmetric.structures import MeshLike, as_mesh
 
@@ -38,30 +39,6 @@ _CHUNK = 1 << 21  # ray-triangle pairs per vectorised step (a few tens of MB of 
 
 class BoxError(ValueError):
     """A sampling box that is malformed or does not contain the mesh."""
-
-
-def fixed_point_ceil(x: np.ndarray | np.floating[Any]) -> np.ndarray:
-    """Round float32 values up to a multiple of 1/65536 (mmetric's 16-bit fixed point; exact in float32).
-
-    Example:
-        >>> float(fixed_point_ceil(np.float32(0.1)) * 65536)
-        6554.0
-    """
-    return (np.ceil(np.asarray(x, np.float32) * _FP16) / _FP16).astype(np.float32)
-
-
-def fixed_point_box(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The ``--useFixedPoint`` box of mmetric: min corner rounded down, max corner up, to multiples of 1/65536.
-
-    The products by 65536 and the quotients are exact in float32, so this equals mmetric's float32 arithmetic.
-
-    Example:
-        >>> lo, hi = fixed_point_box(np.float32([-0.1, 0, 0.1]), np.float32([0.1, 1, -0.05]))
-        >>> (lo * 65536).tolist(), (hi * 65536).tolist()
-        ([-6554.0, 0.0, 6553.0], [6554.0, 65536.0, -3276.0])
-    """
-    lo32, hi32 = np.asarray(lo, np.float32), np.asarray(hi, np.float32)
-    return (np.floor(lo32 * _FP16) / _FP16).astype(np.float32), fixed_point_ceil(hi32)
 
 
 def mesh_box(verts: np.ndarray | Tensor) -> tuple[np.ndarray, np.ndarray]:
@@ -491,27 +468,6 @@ def _native_hits(native: Any, verts: np.ndarray, faces: np.ndarray, en: _Entries
     normals[en.fid] = en.normal
     f = face.numpy()
     return GridHits(pos.numpy(), normals[f], f, axis.numpy(), origin.numpy(), bary.numpy(), faces)
-
-
-def _ray_triangle(
-    origin: np.ndarray, direction: np.ndarray, v0: np.ndarray, v1: np.ndarray, v2: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Moller-Trumbore as mmetric's ``evalRayTriangle`` (non-culling, float32, epsilon 1e-6 on the determinant)."""
-    edge1 = v1 - v0
-    edge2 = v2 - v0
-    pvec = f32.cross(direction, edge2)
-    det = f32.dot(edge1, pvec)
-    ok = ~((det > -_ZERO_TOLERANCE) & (det < _ZERO_TOLERANCE))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv_det = np.float32(1.0) / det
-    tvec = origin - v0
-    u = f32.dot(tvec, pvec) * inv_det
-    ok &= ~((u < 0) | (u > 1))
-    qvec = f32.cross(tvec, edge1)
-    v = f32.dot(direction, qvec) * inv_det
-    ok &= ~((v < 0) | (u + v > 1))
-    t = f32.dot(edge2, qvec) * inv_det
-    return ok, t, u, v
 
 
 _HASH_MIX = np.uint64(0x9E3779B97F4A7C15)

@@ -13,6 +13,7 @@ mmetric's pixel for pixel; it runs the cameras in parallel on torch's CPU thread
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 from types import ModuleType
 
@@ -20,9 +21,14 @@ import numpy as np
 import torch
 
 from torchmeshmetric import native
+from torchmeshmetric.mpeg.reindex import oriented_reindex
 from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
 
-__all__ = ["IbsmResult", "ibsm", "ibsm_render"]
+__all__ = ["IbsmNoOverlapWarning", "IbsmResult", "ibsm", "ibsm_render"]
+
+
+class IbsmNoOverlapWarning(UserWarning):
+    """IBSM of two meshes with no pixel covered in both renderings: the 99.99 dB figures measure nothing."""
 
 
 def _rasterizer() -> ModuleType:
@@ -78,7 +84,8 @@ def _arrays(m: TexturedMesh) -> tuple[torch.Tensor, ...]:
         tex = np.asarray(m.texture)
         if tex.ndim == 2:
             tex = np.repeat(tex[..., None], 3, axis=2)
-        tex_t = torch.from_numpy(np.ascontiguousarray(tex[..., :3], dtype=np.uint8))
+        # a copy: a texture read from a file is a read-only array, which torch would warn about
+        tex_t = torch.from_numpy(np.array(tex[..., :3], dtype=np.uint8, order="C"))
         return v, f, uv, tex_t, empty_f
     col = empty_f if m.colors is None else m.colors.detach().to("cpu", torch.float32).contiguous()
     return v, f, empty_f, torch.zeros(0, dtype=torch.uint8), col
@@ -92,8 +99,6 @@ def _check(resolution: int, cameras: int) -> None:
 
 
 def _prepared(m: TexturedMesh, name: str, reorder: bool) -> TexturedMesh:
-    from torchmeshmetric.mpeg.ctc import oriented_reindex
-
     if m.mesh.faces.shape[0] == 0:
         raise ValueError(f"{name}: expected a mesh with faces, found none (IBSM renders surfaces)")
     if not torch.isfinite(m.mesh.verts).all():
@@ -156,6 +161,13 @@ def ibsm(
         geo = float(np.float64(total[8]) / n)
     rgb_mse = (rgb[0], rgb[1], rgb[2], (rgb[0] + rgb[1] + rgb[2]) / 3.0)
     yuv_mse = (yuv[0], yuv[1], yuv[2], (yuv[0] * 6.0 + yuv[1] + yuv[2]) / 8.0)
+    if n == 0:  # mmetric's figure is kept (its 0 / 0 gives 99.99), but it says nothing about the pair
+        warnings.warn(
+            "ibsm: no pixel is covered in both renderings (the meshes never overlap on screen); the PSNRs are "
+            "mmetric's 99.99 for this case, not a measure of similarity",
+            IbsmNoOverlapWarning,
+            stacklevel=2,
+        )
     return IbsmResult(
         rgb_mse=rgb_mse,
         yuv_mse=yuv_mse,

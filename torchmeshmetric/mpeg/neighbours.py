@@ -18,7 +18,7 @@ import torch
 
 from torchmeshmetric import native
 
-__all__ = ["NeighbourTies", "k_nearest", "mpeg_sq_dists", "nearest_with_ties"]
+__all__ = ["NeighbourTies", "k_nearest", "mpeg_sq_dists", "nearest_with_ties", "nearest_with_ties_both"]
 
 _SIMILAR = 1e-20  # dmetric's similarPointThreshold (mmetric passes 1e-20)
 _MAX_K = 30  # dmetric's num_results_max
@@ -139,6 +139,12 @@ def nearest_with_ties(query: np.ndarray, target: np.ndarray) -> NeighbourTies:
     """
     query = np.ascontiguousarray(query, dtype=np.float32)
     target = np.ascontiguousarray(target, dtype=np.float32)
+    ext = native.try_load("pcc")  # None without a C++ compiler: the k-nearest searches below
+    if ext is not None and query.shape[0] > 0:
+        nearest, sq0, rows, cand, sq = (
+            t.numpy() for t in ext.mpeg_nearest_ties(torch.from_numpy(query), torch.from_numpy(target))
+        )
+        return _with_chains(nearest, sq0, rows, cand, sq)
     k0 = min(2, target.shape[0])
     cand, sq = k_nearest(query, target, k0)
     nearest, sq0 = cand[:, 0].copy(), sq[:, 0].copy()
@@ -160,7 +166,39 @@ def nearest_with_ties(query: np.ndarray, target: np.ndarray) -> NeighbourTies:
         cand = np.pad(cand, ((0, 0), (0, pad)), constant_values=-1)
         sq = np.pad(sq, ((0, 0), (0, pad)), constant_values=np.inf)
         cand[wide], sq[wide] = c2, s2
-    step = np.abs(np.diff(sq, axis=1)) < _SIMILAR
+    return _with_chains(nearest, sq0, rows, cand, sq)
+
+
+def _with_chains(nearest: np.ndarray, sq0: np.ndarray, rows: np.ndarray, cand: np.ndarray,
+                 sq: np.ndarray) -> NeighbourTies:  # fmt: skip
+    """The tie chain (consecutive distances within ``1e-20``) and equal sets of the candidates of tie rows."""
+    with np.errstate(invalid="ignore"):  # inf - inf between padding slots: NaN, no tie
+        step = np.abs(np.diff(sq, axis=1)) < _SIMILAR
     chain = np.concatenate([np.ones((rows.shape[0], 1), bool), np.cumprod(step, axis=1).astype(bool)], axis=1)
     equal = (sq == sq[:, :1]) & (cand >= 0)
     return NeighbourTies(nearest, sq0, rows, cand, chain & (cand >= 0), equal)
+
+
+def nearest_with_ties_both(a: np.ndarray, b: np.ndarray) -> tuple[NeighbourTies, NeighbourTies]:
+    """:func:`nearest_with_ties` of ``a`` in ``b`` and of ``b`` in ``a``, each cloud's search tree built once.
+
+    Args:
+        a: ``(A, 3)`` float32 points, ``A >= 1``.
+        b: ``(B, 3)`` float32 points, ``B >= 1``.
+
+    Returns:
+        ``(a -> b, b -> a)``.
+
+    Example:
+        >>> import numpy as np
+        >>> ab, ba = nearest_with_ties_both(np.zeros((1, 3), np.float32), np.ones((2, 3), np.float32))
+        >>> ab.nearest.tolist(), ba.nearest.tolist()
+        ([0], [0, 0])
+    """
+    a = np.ascontiguousarray(a, dtype=np.float32)
+    b = np.ascontiguousarray(b, dtype=np.float32)
+    ext = native.try_load("pcc")
+    if ext is None:  # no C++ compiler
+        return nearest_with_ties(a, b), nearest_with_ties(b, a)
+    out = [t.numpy() for t in ext.mpeg_nearest_ties_both(torch.from_numpy(a), torch.from_numpy(b))]
+    return _with_chains(*out[:5]), _with_chains(*out[5:])

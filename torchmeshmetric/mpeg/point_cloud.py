@@ -8,6 +8,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from torchmeshmetric import native
 from torchmeshmetric._checks import EmptyInputError, check_finite, check_shape
 
 __all__ = ["PointCloud", "merge_duplicate_points"]
@@ -46,15 +47,18 @@ class PointCloud:
         return int(self.points.shape[0])
 
 
-def _position_order(pts: np.ndarray) -> np.ndarray:
-    # Lexicographic (x, y, z) then original index: the order std::sort gives with mmetric's comparator.
-    return np.lexsort((np.arange(pts.shape[0]), pts[:, 2], pts[:, 1], pts[:, 0]))
-
-
-def _run_starts(sorted_pts: np.ndarray) -> np.ndarray:
-    new = np.ones(sorted_pts.shape[0], dtype=bool)
-    new[1:] = np.any(sorted_pts[1:] != sorted_pts[:-1], axis=1)
-    return np.flatnonzero(new)
+def _merge_order(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points sorted by (x, y, z) then original index (std::sort with mmetric's comparator), and each run's start."""
+    ext = native.try_load("pcc")
+    if ext is not None:
+        order_t, starts_t = ext.mpeg_merge_order(torch.from_numpy(pts))
+        return order_t.numpy(), starts_t.numpy()
+    # no C++ compiler: the same order through numpy (a few times slower)
+    order = np.lexsort((np.arange(pts.shape[0]), pts[:, 2], pts[:, 1], pts[:, 0]))
+    spts = pts[order]
+    new = np.ones(spts.shape[0], dtype=bool)
+    new[1:] = np.any(spts[1:] != spts[:-1], axis=1)
+    return order, np.flatnonzero(new)
 
 
 def merge_duplicate_points(cloud: PointCloud, name: str = "cloud") -> PointCloud:
@@ -84,11 +88,9 @@ def merge_duplicate_points(cloud: PointCloud, name: str = "cloud") -> PointCloud
     """
     if cloud.num_points == 0:
         raise EmptyInputError(f"{name}: expected at least one point, found an empty point cloud")
-    pts = cloud.points.detach().cpu().numpy().astype(np.float32, copy=False)
-    order = _position_order(pts)
-    spts = pts[order]
-    starts = _run_starts(spts)
-    counts = np.diff(np.append(starts, spts.shape[0]))
+    pts = np.ascontiguousarray(cloud.points.detach().cpu().numpy(), dtype=np.float32)
+    order, starts = _merge_order(pts)
+    counts = np.diff(np.append(starts, pts.shape[0]))
     normals = colors = None
     if cloud.normals is not None:
         n = cloud.normals.detach().cpu().numpy().astype(np.float32, copy=False)[order]
@@ -99,4 +101,4 @@ def merge_duplicate_points(cloud: PointCloud, name: str = "cloud") -> PointCloud
         c8 = np.floor(c.astype(np.float64) + 0.5).clip(0, 255).astype(np.int64)  # roundf, then unsigned char
         csum = np.add.reduceat(c8, starts, axis=0)
         colors = torch.from_numpy((csum // counts[:, None]).astype(np.float32))
-    return PointCloud(torch.from_numpy(np.ascontiguousarray(spts[starts])), normals, colors)
+    return PointCloud(torch.from_numpy(pts[order[starts]]), normals, colors)

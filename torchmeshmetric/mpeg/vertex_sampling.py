@@ -12,6 +12,7 @@ from torchmeshmetric._checks import EmptyInputError
 from torchmeshmetric.mpeg import _float32 as f32
 from torchmeshmetric.mpeg.grid_sampling import mesh_arrays, unique_vertex_rows
 from torchmeshmetric.mpeg.point_cloud import PointCloud
+from torchmeshmetric.mpeg.reindex import oriented_faces
 from torchmeshmetric.mpeg.texture import sample_texture
 from torchmeshmetric.structures import MeshLike
 
@@ -26,25 +27,6 @@ def zero_area_message(name: str, num_faces: int) -> str:
         f"{name}: no point was sampled: all {num_faces} face(s) have zero area (below DBL_EPSILON once the vertices "
         "are rounded to float32; MPEG sampling skips such faces), so the mesh has no surface to sample"
     )
-
-
-def _oriented_faces(corner_keys: np.ndarray, faces_keys: np.ndarray) -> np.ndarray:
-    """The faces of mmetric's ``reorder(..., "oriented")``, as ``(F', 3)`` rows into ``corner_keys``.
-
-    Unique corners sorted, each face rotated to start at its smallest corner (orientation kept), duplicate faces
-    dropped, faces sorted.
-    """
-    _, first, inverse = np.unique(corner_keys, axis=0, return_index=True, return_inverse=True)
-    rank = inverse.reshape(-1)  # np.unique sorts rows lexicographically: the rank of each corner's key
-    tri = rank[faces_keys]
-    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
-    rot1 = (b < a) & (b <= c)
-    rot2 = ~rot1 & (c <= a) & (c < b)
-    out = tri.copy()
-    out[rot1] = np.stack([b, c, a], axis=1)[rot1]
-    out[rot2] = np.stack([c, a, b], axis=1)[rot2]
-    out = np.unique(out, axis=0)
-    return first[out]
 
 
 def vertex_sample(
@@ -104,7 +86,7 @@ def vertex_sample(
         col = c[faces].reshape(-1, 3)
         keys.append(col)
     corner_keys = np.concatenate(keys, axis=1)
-    tri = _oriented_faces(corner_keys, np.arange(3 * nf).reshape(nf, 3))
+    tri = oriented_faces(corner_keys)
     p1, p2, p3 = pos[tri[:, 0]], pos[tri[:, 1]], pos[tri[:, 2]]
     keep = f32.area(p1, p2, p3) >= _DBL_EPSILON
     if not keep.any():

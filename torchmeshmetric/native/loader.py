@@ -69,6 +69,8 @@ EXTENSIONS: dict[str, NativeExtension] = {
     ),
     # mmetric's IBSM rasterizer and its grid sampling's ray caster (mpeg.ibsm, mpeg.grid_sampling).
     "ibsm": NativeExtension(sources=("ibsm_raster.cpp",)),
+    # mmetric's pcc comparison: the duplicate merge and the neighbour search with ties (mpeg.point_cloud, neighbours).
+    "pcc": NativeExtension(sources=("mpeg_pcc.cpp",)),
 }
 """Every extension of the package, by the name :func:`load` takes."""
 

@@ -1,7 +1,8 @@
-"""The ``torchmeshmetric ctc`` and ``torchmeshmetric bdrate`` commands (the V-DMC CTC metric step and its BD-rates).
+"""The ``torchmeshmetric ctc`` command: the V-DMC CTC metric step over a decoded sequence.
 
 Only the standard library is imported here: ``--help`` stays fast; torch and the metrics load inside the run
-functions.
+function. Every option and every frame file is checked, and the outputs' folder, before any frame is computed; the
+next frame pair is read while the current one is computed.
 """
 
 from __future__ import annotations
@@ -17,9 +18,11 @@ import time
 from pathlib import Path
 from typing import Any
 
-__all__ = ["add_bdrate_command", "add_ctc_command", "frame_path"]
+from torchmeshmetric._format import format_number, json_safe
+from torchmeshmetric.cli.options import corner
 
-_COLUMNS = ("GridD1", "GridD2", "GridLuma", "GridChromaCb", "GridChromaCr", "IbsmGeom", "IbsmLuma")
+__all__ = ["add_ctc_command", "frame_path"]
+
 _FIELD = re.compile(r"%[-+ #0]*\d*[diu]")
 
 
@@ -39,21 +42,8 @@ def frame_path(pattern: str, frame: int, option: str = "PATTERN") -> str:
     return pattern % frame
 
 
-def _corner(text: str, option: str) -> list[float]:
-    parts = [p for p in re.split(r"[,\s]+", text.strip()) if p]
-    try:
-        values = [float(p) for p in parts]
-    except ValueError:
-        values = []
-    if len(values) != 3 or not all(math.isfinite(v) for v in values):
-        raise ValueError(f'{option}: expected three finite numbers such as "-1 -1 -1", found {text!r}')
-    return values
-
-
 def _fmt(x: Any) -> str:
-    if isinstance(x, float):
-        return "inf" if math.isinf(x) else ("nan" if math.isnan(x) else f"{x:.4f}")
-    return str(x)
+    return format_number(x, ".4f")
 
 
 def _csv(d: dict[str, Any], columns: list[str]) -> str:
@@ -77,77 +67,136 @@ def _markdown(d: dict[str, Any], columns: list[str], settings: dict[str, Any]) -
     return "\n".join(lines)
 
 
-def _run_ctc(args: argparse.Namespace) -> int:
-    from torchmeshmetric._atomic import atomic_file_set, atomic_write
-    from torchmeshmetric.mpeg.command import json_safe
+_STAGES = ("read", "dequantize", "grid", "pcc", "ibsm")
 
+
+def _check_options(args: argparse.Namespace) -> tuple[list[float], list[float]]:
+    """Every numeric option, by its name, before any file is read."""
     if args.last_frame < args.first_frame:
         raise ValueError(f"--last-frame: {args.last_frame} is before --first-frame {args.first_frame}")
     if not math.isfinite(args.resolution) or args.resolution <= 0:
         raise ValueError(f"--resolution: expected a positive number (the box's longest side), found {args.resolution}")
-    lo, hi = _corner(args.min_pos, "--min-pos"), _corner(args.max_pos, "--max-pos")
+    ranges = (("--qp", args.qp, 7, 31), ("--qt", args.qt, 0, 31), ("--decoded-qt", args.decoded_qt, 0, 31),
+              ("--grid-size", args.grid_size, 1, 1 << 20), ("--ibsm-resolution", args.ibsm_resolution, 1, 1 << 15),
+              ("--ibsm-cameras", args.ibsm_cameras, 2, 4096))  # fmt: skip
+    for option, value, low, high in ranges:
+        if not low <= value <= high:
+            raise ValueError(f"{option}: expected an integer in {low}..{high}, found {value}")
+    lo, hi = corner(args.min_pos, "--min-pos"), corner(args.max_pos, "--max-pos")
     if any(h < lo_ for lo_, h in zip(lo, hi, strict=True)):
         raise ValueError(f"--max-pos: {hi} is below --min-pos {lo}")
-    frames = list(range(args.first_frame, args.last_frame + 1))
-    # every file is checked before any work starts
-    files = []
-    for k in frames:
-        ref = Path(frame_path(args.reference, k, "--reference"))
-        dis = Path(frame_path(args.decoded, k, "--decoded"))
-        rt = (
-            None
-            if args.reference_texture is None
-            else Path(frame_path(args.reference_texture, k, "--reference-texture"))
-        )
-        dt = None if args.decoded_texture is None else Path(frame_path(args.decoded_texture, k, "--decoded-texture"))
-        for p, opt in ((ref, "--reference"), (dis, "--decoded"), (rt, "--reference-texture"),
-                       (dt, "--decoded-texture")):  # fmt: skip
-            if p is not None and not p.is_file():
-                raise ValueError(f"{opt}: frame {k}: file {str(p)!r} not found")
-        files.append((k, ref, dis, rt, dt))
-    outputs = []
-    if args.out is not None:
-        outputs = [Path(f"{args.out}.{ext}") for ext in ("json", "csv", "md")]
-        for p in outputs:
-            if p.exists() and not args.overwrite:
-                raise ValueError(f"--out: {str(p)!r} already exists (pass --overwrite to replace it)")
+    return lo, hi
 
-    from torchmeshmetric.mpeg.ctc import CtcFrame, CtcSequence, ctc_frame
+
+def _frame_files(args: argparse.Namespace) -> list[tuple[int, Path, Path, Path | None, Path | None]]:
+    """Every frame's files, each checked to be a non-empty file."""
+    files = []
+    for k in range(args.first_frame, args.last_frame + 1):
+        paths = [
+            (Path(frame_path(getattr(args, attr), k, opt)) if getattr(args, attr) is not None else None, opt)
+            for attr, opt in (("reference", "--reference"), ("decoded", "--decoded"),
+                              ("reference_texture", "--reference-texture"), ("decoded_texture", "--decoded-texture"))
+        ]  # fmt: skip
+        for p, opt in paths:
+            if p is None:
+                continue
+            if p.is_dir():
+                raise ValueError(f"{opt}: frame {k}: {str(p)!r} is a directory, expected a file")
+            if not p.is_file():
+                raise ValueError(f"{opt}: frame {k}: file {str(p)!r} not found")
+            if p.stat().st_size == 0:
+                raise ValueError(f"{opt}: frame {k}: file {str(p)!r} is empty")
+        (ref, _), (dis, _), (rt, _), (dt, _) = paths
+        assert ref is not None and dis is not None
+        files.append((k, ref, dis, rt, dt))
+    return files
+
+
+def _check_colour(args: argparse.Namespace, k: int, ref: Any, dis: Any, first: dict[str, bool]) -> None:
+    """A texture given for UV-less frames, or colour present in some frames only, would change the colour means."""
+    for name, mesh, option in (("reference", ref, "--reference-texture"), ("decoded", dis, "--decoded-texture")):
+        if getattr(args, option[2:].replace("-", "_")) is not None and mesh.uvs is None:
+            raise ValueError(f"{option}: frame {k}: the {name} OBJ has no texture coordinates (vt), so its texture "
+                             "cannot be sampled")  # fmt: skip
+        has = bool(mesh.has_color)
+        if first.setdefault(name, has) != has:
+            now, before = ("has", "have none") if has else ("has no", "have")
+            raise ValueError(f"--{name}: frame {k}: the {name} frame {now} colour (texture or vertex colours) while "
+                             f"the earlier frames {before}; the colour means need every frame")  # fmt: skip
+
+
+def _run_ctc(args: argparse.Namespace) -> int:
+    lo, hi = _check_options(args)
+    files = _frame_files(args)
+    outputs = [] if args.out is None else [Path(f"{args.out}.{ext}") for ext in ("json", "csv", "md")]
+    from torchmeshmetric.cli._shared import check_writable
+
+    check_writable(outputs, args.overwrite)  # folder present and writable, no file replaced without --overwrite
+    from torchmeshmetric.mpeg.ctc import CTC_COLUMNS, CtcSequence
+
+    done = _compute(args, files, lo, hi)
+    if done is None:
+        return 0
+    seq = CtcSequence(done, tuple(c for c in CTC_COLUMNS if any(c in f.figures for f in done)))
+    _report(args, seq, lo, hi, outputs)
+    return 0
+
+
+def _compute(args: argparse.Namespace, files: list[Any], lo: list[float], hi: list[float]) -> list[Any] | None:
+    """Every frame's figures (on rank 0 under torchrun, ``None`` on the others); frames read one pair ahead."""
+    from torchmeshmetric.data.sequence import Prefetcher
+    from torchmeshmetric.mpeg.ctc import CTC_COLUMNS, CtcFrame, ctc_frame
     from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
-    from torchmeshmetric.tasks import rank_and_world_size, run_tasks
+    from torchmeshmetric.tasks import rank_and_world_size, run_tasks, shard
 
     start = time.perf_counter()
+    rank, world = rank_and_world_size()
 
-    def one_frame(task: tuple[int, Path, Path, Path | None, Path | None]) -> CtcFrame:
+    def load(task: tuple[int, Path, Path, Path | None, Path | None]) -> tuple[Any, Any, float]:
         k, ref, dis, rt, dt = task
+        t0 = time.perf_counter()
         try:  # the reader refuses a file without faces too (both the grid sampling and IBSM need a surface)
-            r, d = load_textured_mesh(ref, rt), load_textured_mesh(dis, dt)
+            return load_textured_mesh(ref, rt), load_textured_mesh(dis, dt), time.perf_counter() - t0
         except ValueError as exc:
             raise ValueError(f"frame {k}: {exc}") from exc
-        f = ctc_frame(
-            r,
-            d,
-            qp=args.qp,
-            qt=args.qt,
-            min_pos=lo,
-            max_pos=hi,
-            resolution=args.resolution,
-            decoded_qt=args.decoded_qt,
-            grid_size=args.grid_size,
-            ibsm_resolution=None if args.no_ibsm else args.ibsm_resolution,
-            ibsm_cameras=args.ibsm_cameras,
-            frame=k,
-        )
-        figs = "  ".join(f"{c} {_fmt(f.figures[c])}" for c in _COLUMNS if c in f.figures)
-        elapsed = time.perf_counter() - start
-        print(f"ctc: frame {k}: {figs}  [{elapsed:.1f} s]", file=sys.stderr, flush=True)
+
+    ahead = Prefetcher([files[i] for i in shard(len(files), rank, world)], load=load, ahead=1)
+    totals = dict.fromkeys(_STAGES, 0.0)
+    colour: dict[str, bool] = {}
+
+    def one_frame(task: tuple[int, Path, Path, Path | None, Path | None]) -> CtcFrame:
+        k = task[0]
+        r, d, read_s = next(ahead)  # run_tasks takes this rank's tasks in the prefetcher's order
+        _check_colour(args, k, r, d, colour)
+        f = ctc_frame(r, d, qp=args.qp, qt=args.qt, min_pos=lo, max_pos=hi, resolution=args.resolution,
+                      decoded_qt=args.decoded_qt, grid_size=args.grid_size,
+                      ibsm_resolution=None if args.no_ibsm else args.ibsm_resolution, ibsm_cameras=args.ibsm_cameras,
+                      frame=k)  # fmt: skip
+        seconds = {"read": read_s, **f.seconds}
+        figs = "  ".join(f"{c} {_fmt(f.figures[c])}" for c in CTC_COLUMNS if c in f.figures)
+        line = f"ctc: frame {k}: {figs}  [{time.perf_counter() - start:.1f} s]"
+        if args.verbose:
+            for s in _STAGES:
+                totals[s] += seconds.get(s, 0.0)
+            line += "  " + " ".join(f"{s} {seconds.get(s, 0.0):.2f}" for s in _STAGES)
+        print(line, file=sys.stderr, flush=True)
         return f
 
-    # under torchrun the frames are shared round robin by the ranks and gathered on rank 0, which reports
-    done = run_tasks(one_frame, files, describe=lambda t: f"frame {t[0]}", to=0)
-    if done is None or rank_and_world_size()[0] != 0:
-        return 0
-    seq = CtcSequence(done, tuple(c for c in _COLUMNS if any(c in f.figures for f in done)))
+    with ahead:
+        # under torchrun the frames are shared round robin by the ranks and gathered on rank 0, which reports
+        done = run_tasks(one_frame, files, describe=lambda t: f"frame {t[0]}", to=0)
+    if args.verbose:
+        wall = time.perf_counter() - start
+        parts = " ".join(f"{s} {totals[s]:.2f}" for s in _STAGES)
+        print(f"ctc: {len(files)} frames in {wall:.2f} s (reading overlapped); stage seconds: {parts}", file=sys.stderr)
+    if done is None or rank != 0:
+        return None
+    return done
+
+
+def _report(args: argparse.Namespace, seq: Any, lo: list[float], hi: list[float], outputs: list[Path]) -> None:
+    from torchmeshmetric._atomic import atomic_file_set, atomic_write
+
     d = seq.as_dict()
     columns = list(seq.columns)
     settings = {
@@ -177,7 +226,6 @@ def _run_ctc(args: argparse.Namespace) -> int:
             print(f"{c.ljust(width)}  {_fmt(d['mean'][c])}")
         if outputs:
             print("wrote " + ", ".join(str(p) for p in outputs))
-    return 0
 
 
 def add_ctc_command(sub: Any) -> None:
@@ -216,58 +264,7 @@ def add_ctc_command(sub: Any) -> None:
     p.add_argument("--json", action="store_true", help='print {"frames": [...], "mean": {...}} (non-finite: "inf")')
     p.add_argument("--out", default=None, metavar="REPORT", help="write REPORT.json, REPORT.csv, REPORT.md")
     p.add_argument("--overwrite", action="store_true", help="replace existing --out files")
-    p.set_defaults(func=_run_ctc)
-
-
-def _read_curve(path: str) -> dict[str, list[float]]:
-    p = Path(path)
-    if not p.is_file():
-        raise ValueError(f"{path}: file not found")
-    with open(p, newline="", encoding="utf-8") as fh:
-        reader = csv.DictReader(fh)
-        if reader.fieldnames is None or "rate" not in reader.fieldnames:
-            raise ValueError(f"{path}:1: expected a header with a 'rate' column and one column per metric")
-        cols: dict[str, list[float]] = {k: [] for k in reader.fieldnames if k}
-        for lineno, row in enumerate(reader, 2):
-            for k in cols:
-                try:
-                    cols[k].append(float(row[k]))
-                except (TypeError, ValueError):
-                    raise ValueError(f"{path}:{lineno}: column {k!r}: expected a number, found {row[k]!r}") from None
-    return cols
-
-
-def _run_bdrate(args: argparse.Namespace) -> int:
-    from torchmeshmetric.mpeg.bd_rate import bd_rate
-
-    a, b = _read_curve(args.anchor), _read_curve(args.test)
-    metrics = [k for k in a if k != "rate" and k in b]
-    if not metrics:
-        raise ValueError(f"{args.test}: no metric column in common with {args.anchor}")
-    out = {m: bd_rate(a["rate"], a[m], b["rate"], b[m]) for m in metrics}
-    if args.json:
-        from torchmeshmetric.mpeg.command import json_safe
-
-        print(json.dumps(json_safe({"bd_rate": out}), indent=1))
-    else:
-        width = max(len(m) for m in metrics)
-        for m in metrics:
-            print(f"{m.ljust(width)}  {out[m]:+.4f} %")
-    return 0
-
-
-def add_bdrate_command(sub: Any) -> None:
-    """Add the ``bdrate`` subcommand to the CLI's subparsers."""
-    p = sub.add_parser(
-        "bdrate",
-        help="BD-rate of a test codec against an anchor (the CTC spreadsheet's bdRateExtend), per metric",
-        description="Bjontegaard delta rate in percent of TEST against ANCHOR, per metric column present in both "
-        "CSVs (a 'rate' column and one PSNR column per metric, one row per rate point): log10(rate) as a piecewise "
-        "cubic Hermite function of PSNR (the CTC spreadsheet's bdRateExtend: its slopes, no monotonicity clamp), "
-        "integrated exactly over the overlapping PSNR range; +-100 when the curves do not overlap. Negative = TEST "
-        "needs less rate for the same quality.",
+    p.add_argument(
+        "--verbose", action="store_true", help="seconds per stage (read, dequantize, grid, pcc, ibsm) on stderr"
     )
-    p.add_argument("anchor", metavar="ANCHOR.csv", help="the anchor's rate points")
-    p.add_argument("test", metavar="TEST.csv", help="the tested codec's rate points")
-    p.add_argument("--json", action="store_true", help='print {"bd_rate": {"GridD1": percent, ...}}')
-    p.set_defaults(func=_run_bdrate)
+    p.set_defaults(func=_run_ctc)

@@ -4,44 +4,16 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
-import re
 from typing import Any
 
-__all__ = ["add_mpeg_command", "json_safe"]
+from torchmeshmetric._format import format_number, json_safe
+from torchmeshmetric.cli.options import corner
+
+__all__ = ["add_mpeg_command"]
 
 
-def json_safe(value: Any) -> Any:
-    """Replace non-finite floats by the strings ``"inf"``, ``"-inf"``, ``"nan"`` (strict JSON has no infinity).
-
-    Example:
-        >>> json_safe({"a": float("inf"), "b": [1.0, float("nan")]})
-        {'a': 'inf', 'b': [1.0, 'nan']}
-    """
-    if isinstance(value, float) and not math.isfinite(value):
-        return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
-    if isinstance(value, dict):
-        return {k: json_safe(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [json_safe(v) for v in value]
-    return value
-
-
-def _corner(text: str, which: str) -> list[float]:
-    parts = [p for p in re.split(r"[,\s]+", text.strip()) if p]
-    try:
-        values = [float(p) for p in parts]
-    except ValueError:
-        values = []
-    if len(values) != 3:
-        raise ValueError(f'--box: the {which} corner must be three numbers such as "-1 -1 -1", found {text!r}')
-    return values
-
-
-def _fmt(x: Any) -> str:
-    if isinstance(x, float):
-        return "inf" if math.isinf(x) else ("nan" if math.isnan(x) else f"{x:.6g}" if abs(x) < 1e-3 else f"{x:.4f}")
-    return str(x)
+def _fmt_small(x: Any) -> str:
+    return format_number(x, ".4f", small_spec=".6g")
 
 
 def _table(d: dict[str, Any]) -> str:
@@ -50,10 +22,12 @@ def _table(d: dict[str, Any]) -> str:
 
     keys = [k for k in (*FRAME_KEYS, "y_mse", "cb_mse", "cr_mse") if k in d]
     for k in keys:
-        rows.append((k, _fmt(d[k]), _fmt(d["ref_to_dis"][k]), _fmt(d["dis_to_ref"][k])))
+        rows.append((k, _fmt_small(d[k]), _fmt_small(d["ref_to_dis"][k]), _fmt_small(d["dis_to_ref"][k])))
     w = [max(len(r[i]) for r in rows) for i in range(4)]
     lines = ["  ".join(c.ljust(w[i]) if i == 0 else c.rjust(w[i]) for i, c in enumerate(r)) for r in rows]
-    lines.append(f"peak {_fmt(d['peak'])}  points ref {d['points_ref']}  dis {d['points_dis']}  ({d['sampling']})")
+    lines.append(
+        f"peak {_fmt_small(d['peak'])}  points ref {d['points_ref']}  dis {d['points_dis']}  ({d['sampling']})"
+    )
     return "\n".join(lines)
 
 
@@ -63,7 +37,7 @@ def _run(args: argparse.Namespace) -> int:
 
     box = None
     if args.box is not None:
-        box = (_corner(args.box[0], "min"), _corner(args.box[1], "max"))
+        box = (corner(args.box[0], "--box MIN"), corner(args.box[1], "--box MAX"))
     ref = load_textured_mesh(args.ref, args.ref_texture)
     dis = load_textured_mesh(args.dis, args.dis_texture)
     result = mpeg_metrics(

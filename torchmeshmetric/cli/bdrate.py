@@ -1,0 +1,108 @@
+"""The ``torchmeshmetric bdrate ANCHOR.csv TEST.csv`` command: BD-rate per metric column (no torch imported)."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+from torchmeshmetric._format import json_safe
+
+__all__ = ["add_bdrate_command", "read_curve"]
+
+
+def _number(path: str, lineno: int, column: str, text: str | None) -> float:
+    try:
+        return float(text)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise ValueError(f"{path}:{lineno}: column {column!r}: expected a number, found {text!r}") from None
+
+
+def _check_row(path: str, lineno: int, row: dict[str | None, Any], cols: dict[str, list[float]]) -> None:
+    if None in row:  # csv.DictReader's key for fields past the header
+        raise ValueError(f"{path}:{lineno}: {len(row[None])} field(s) more than the header's {len(cols)} columns")
+    for k in cols:
+        value = _number(path, lineno, k, row[k])
+        if k == "rate" and not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{path}:{lineno}: column 'rate': expected a positive finite rate, found {row[k]!r}")
+        if k != "rate" and not math.isfinite(value):
+            raise ValueError(f"{path}:{lineno}: column {k!r}: expected a finite PSNR, found {row[k]!r} "
+                             "(clip identical frames first, as the ctc means do)")  # fmt: skip
+        cols[k].append(value)
+
+
+def read_curve(path: str) -> dict[str, list[float]]:
+    r"""The rate points of one CSV: ``{"rate": [...], metric: [...]}``, every value checked, errors as ``file:line``.
+
+    A UTF-8 byte-order mark (spreadsheets write one) is accepted; every row must have the header's fields, positive
+    rates and finite PSNRs; a metric needs 2 rate points or more with distinct PSNRs.
+
+    Raises:
+        ValueError: the first problem found, naming the file, the line and the column.
+
+    Example:
+        >>> import tempfile, os
+        >>> p = os.path.join(tempfile.mkdtemp(), "a.csv")
+        >>> _ = open(p, "w").write("rate,GridD1\n100,30\n200,33\n")
+        >>> read_curve(p)
+        {'rate': [100.0, 200.0], 'GridD1': [30.0, 33.0]}
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise ValueError(f"{path}: file not found" if not p.exists() else f"{path}: not a file")
+    with open(p, newline="", encoding="utf-8-sig") as fh:
+        reader = csv.DictReader(fh)
+        if reader.fieldnames is None or "rate" not in reader.fieldnames:
+            raise ValueError(f"{path}:1: expected a header with a 'rate' column and one column per metric")
+        cols: dict[str, list[float]] = {k: [] for k in reader.fieldnames if k}
+        lines: list[int] = []
+        for row in reader:
+            _check_row(path, reader.line_num, row, cols)
+            lines.append(reader.line_num)
+    if len(lines) < 2:
+        raise ValueError(f"{path}: expected at least 2 rate points (rows), found {len(lines)}")
+    for k, values in cols.items():
+        seen: dict[float, int] = {}
+        for v, line in zip(values, lines, strict=True):
+            if k != "rate" and v in seen:
+                raise ValueError(f"{path}:{line}: column {k!r}: PSNR {v!r} repeats line {seen[v]}'s; BD-rate needs "
+                                 "distinct PSNRs on a curve")  # fmt: skip
+            seen.setdefault(v, line)
+    return cols
+
+
+def _run_bdrate(args: argparse.Namespace) -> int:
+    from torchmeshmetric.mpeg.bd_rate import bd_rate
+
+    a, b = read_curve(args.anchor), read_curve(args.test)
+    metrics = [k for k in a if k != "rate" and k in b]
+    if not metrics:
+        raise ValueError(f"{args.test}: no metric column in common with {args.anchor}")
+    out = {m: bd_rate(a["rate"], a[m], b["rate"], b[m]) for m in metrics}
+    if args.json:
+        print(json.dumps(json_safe({"bd_rate": out}), indent=1))
+    else:
+        width = max(len(m) for m in metrics)
+        for m in metrics:
+            print(f"{m.ljust(width)}  {out[m]:+.4f} %")
+    return 0
+
+
+def add_bdrate_command(sub: Any) -> None:
+    """Add the ``bdrate`` subcommand to the CLI's subparsers."""
+    p = sub.add_parser(
+        "bdrate",
+        help="BD-rate of a test codec against an anchor (the CTC spreadsheet's bdRateExtend), per metric",
+        description="Bjontegaard delta rate in percent of TEST against ANCHOR, per metric column present in both "
+        "CSVs (a 'rate' column and one PSNR column per metric, one row per rate point): log10(rate) as a piecewise "
+        "cubic Hermite function of PSNR (the CTC spreadsheet's bdRateExtend: its slopes, no monotonicity clamp), "
+        "integrated exactly over the overlapping PSNR range; +-100 when the curves do not overlap. Negative = TEST "
+        "needs less rate for the same quality.",
+    )
+    p.add_argument("anchor", metavar="ANCHOR.csv", help="the anchor's rate points")
+    p.add_argument("test", metavar="TEST.csv", help="the tested codec's rate points")
+    p.add_argument("--json", action="store_true", help='print {"bd_rate": {"GridD1": percent, ...}}')
+    p.set_defaults(func=_run_bdrate, without_torch=True)
