@@ -7,7 +7,10 @@ frames are a simplified (40 %) and noisy copy in the same integer space. mmetric
 sampling at 1024, pcc comparison; dequantise, IBSM at 2048 x 16 cameras); ours is the CLI's library call with the
 same settings, frames read from the same files. Goal (issue 28): ours <= 0.25x mmetric's wall time and <= 0.5x its
 CPU time, same run. Per stage (read, dequantize + reindex, grid sampling, pcc comparison, IBSM) ours is recorded
-against the "Time on loading / processing" lines mmetric prints for each of its commands.
+against the "Time on loading / processing" lines mmetric prints for each of its commands. mmetric's lines are its
+process CPU time (clock(); single-threaded, so its wall time on a quiet machine) and ours are wall seconds, with IBSM
+running beside the grid and pcc stages: compare the stages on a quiet machine only; the "cpu" row (both processes'
+CPU time) is comparable anywhere.
 """
 
 from __future__ import annotations

@@ -126,9 +126,19 @@ class CtcSequence:
         return {"frames": rows, "mean": self.mean()}
 
 
-def _dequantized(mesh: TexturedMesh, qp: int, qt: int, box: tuple[Corner, Corner]) -> TexturedMesh:
-    verts = dequantize_positions(mesh.mesh.verts, qp, box[0], box[1], fixed_point=True)
-    uvs = None if mesh.uvs is None else dequantize_uvs(mesh.uvs, qt)
+def _dequantized(mesh: TexturedMesh, qp: int, qt: int, box: tuple[Corner, Corner], name: str,
+                 qt_name: str) -> TexturedMesh:  # fmt: skip
+    """The dequantised mesh; an error names the argument (``ref`` / ``dis``, ``qt`` / ``decoded_qt``)."""
+    if not isinstance(mesh, TexturedMesh):
+        raise TypeError(f"{name}: expected a TexturedMesh (load_textured_mesh), found {type(mesh).__name__}")
+    try:
+        verts = dequantize_positions(mesh.mesh.verts, qp, box[0], box[1], fixed_point=True)
+    except (TypeError, ValueError) as exc:
+        raise type(exc)(f"{name}: {exc}".replace("verts: ", "positions: ")) from None
+    try:
+        uvs = None if mesh.uvs is None else dequantize_uvs(mesh.uvs, qt)
+    except (TypeError, ValueError) as exc:
+        raise type(exc)(f"{name}: {exc}".replace("qt: ", f"{qt_name}: ")) from None
     return TexturedMesh(Mesh(verts, mesh.mesh.faces), uvs, mesh.texture, mesh.colors)
 
 
@@ -208,8 +218,8 @@ def ctc_frame(
     t0 = time.perf_counter()
     # both mmetric steps reindex the dequantised meshes with the same oriented reorder (the grid chain's reindex
     # command, IBSM's own reordering): done once here, and IBSM told not to redo it
-    r = oriented_reindex(_dequantized(ref, qp, qt, box))
-    d = oriented_reindex(_dequantized(dis, qp, decoded_qt, box))
+    r = oriented_reindex(_dequantized(ref, qp, qt, box, "ref", "qt"))
+    d = oriented_reindex(_dequantized(dis, qp, decoded_qt, box, "dis", "decoded_qt"))
     t1 = time.perf_counter()
     # IBSM, the two samplings and then the comparison release the GIL in their C++ and numpy work: IBSM runs beside
     # the grid chain, so that one's single-threaded parts fill the core the other leaves
