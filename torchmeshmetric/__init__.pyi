@@ -17,6 +17,7 @@ from . import tasks as tasks
 from . import viz as viz
 from ._checks import (
     DeviceError,
+    DoubleBackwardError,
     DTypeError,
     EmptyInputError,
     IndexRangeError,
@@ -117,6 +118,7 @@ __all__ = [
     "read_mesh_arrays",
     "DTypeError",
     "DeviceError",
+    "DoubleBackwardError",
     "EmptyInputError",
     "IndexRangeError",
     "Mesh",

@@ -14,6 +14,7 @@ from torch import Tensor
 
 __all__ = [
     "DeviceError",
+    "DoubleBackwardError",
     "DTypeError",
     "EmptyInputError",
     "IndexRangeError",
@@ -33,6 +34,10 @@ __all__ = [
 
 class ShapeError(ValueError):
     """A tensor has the wrong number of dimensions or the wrong size along one of them."""
+
+
+class DoubleBackwardError(RuntimeError):
+    """A second derivative was asked of an operation that is differentiable once only (e.g. Danskin's gradient)."""
 
 
 class DTypeError(TypeError):

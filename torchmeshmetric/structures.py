@@ -39,7 +39,9 @@ __all__ = [
     "as_mesh",
     "as_points",
     "batch_index",
+    "is_mesh_like",
     "lengths_to_offsets",
+    "looks_like_pair",
     "pack_meshes",
     "pack_points",
     "vertex_set_mask",
@@ -76,11 +78,11 @@ class Mesh:
         ShapeError, DTypeError, NonFiniteError, IndexRangeError, DeviceError: on malformed input.
 
     Derived per-face and per-vertex quantities (:meth:`face_areas`, :meth:`face_normals`, :meth:`vertex_normals`,
-    :meth:`surface_vertex_mask`, :meth:`referenced_vertex_mask`) are computed from one pass of face cross products
-    and cached on the mesh, like trimesh's ``face_normals``, under one rule: a value is reused only while ``verts``
-    does not require grad and neither ``verts``, ``faces`` nor the returned tensor was modified in place (torch's
-    version counters tell). When ``verts`` requires grad every call computes afresh, so each loss gets its own
-    autograd graph and no graph is kept alive by the mesh. Treat the returned tensors as read-only.
+    :meth:`surface_face_mask`, :meth:`surface_vertex_mask`, :meth:`referenced_vertex_mask`) are computed from one pass
+    of face cross products and cached on the mesh, like trimesh's ``face_normals``, under one rule: a value is reused
+    only while ``verts`` does not require grad and neither ``verts``, ``faces`` nor the returned tensor was modified in
+    place (torch's version counters tell). When ``verts`` requires grad every call computes afresh, so each loss gets
+    its own autograd graph and no graph is kept alive by the mesh. Treat the returned tensors as read-only.
 
     Example:
         >>> import torch
@@ -196,8 +198,28 @@ class Mesh:
 
         return self._cached("vertex_normals", compute)
 
+    def surface_face_mask(self) -> Tensor:
+        """``(F,)`` bool: the faces whose normal is set by their vertices, not by rounding.
+
+        A face counts when twice its area exceeds 64 times the rounding error of computing it from its coordinates
+        (``eps * max|coordinate| * longest edge``): captured frames hold zero-area faces (collinear corners, a
+        zero-length edge) whose computed area is 0 or rounding noise depending on the last bits of the input, and
+        whose normal then points anywhere. Their vertices must not enter or leave a selection under a change of one
+        ulp (measured: a midpoint vertex moving in and out of the registration's data points moved the registered
+        vertices of a captured-like pair by 1.6e-4 of the diagonal under one ulp).
+        """
+
+        def compute() -> Tensor:
+            tri = self.verts[self.faces]
+            longest = (tri.roll(-1, dims=1) - tri).norm(dim=-1).amax(dim=1)
+            scale = tri.abs().flatten(1).amax(dim=1)
+            noise = 64.0 * torch.finfo(self.verts.dtype).eps * scale * longest
+            return self._face_cross_norm()[:, 0] > noise
+
+        return self._cached("surface_face_mask", compute)
+
     def surface_vertex_mask(self) -> Tensor:
-        """``(V,)`` bool: the vertices of at least one face of positive area (a face with a normal).
+        """``(V,)`` bool: the vertices of at least one face with a normal (:meth:`surface_face_mask`).
 
         Captured frames hold unreferenced vertices and zero-area faces; these are the vertices that lie on the surface
         proper (the registration samples them, :meth:`referenced_vertex_mask` keeps any face's vertices).
@@ -205,7 +227,7 @@ class Mesh:
 
         def compute() -> Tensor:
             used = torch.zeros(self.num_verts, dtype=torch.bool, device=self.device)
-            used[self.faces[self._face_cross_norm()[:, 0] > 0].reshape(-1)] = True
+            used[self.faces[self.surface_face_mask()].reshape(-1)] = True
             return used
 
         return self._cached("surface_vertex_mask", compute)
@@ -414,7 +436,7 @@ def pack_meshes(
         return PackedMeshes(verts, faces, vl, fl)
     if faces is not None:
         raise TypeError("faces: only valid when verts is a tensor")
-    if isinstance(meshes, (list, tuple)) and not (isinstance(meshes, tuple) and _looks_like_pair(meshes)):
+    if isinstance(meshes, (list, tuple)) and not (isinstance(meshes, tuple) and looks_like_pair(meshes)):
         items = [as_mesh(m, name=f"{name}[{i}]") for i, m in enumerate(meshes)]
         if not items:
             raise ValueError(f"{name}: expected at least one mesh, found an empty list")
@@ -433,6 +455,21 @@ def pack_meshes(
     )
 
 
-def _looks_like_pair(t: tuple[Any, ...]) -> bool:
+def looks_like_pair(t: tuple[Any, ...]) -> bool:
     """A 2-tuple whose items are arrays/tensors is a ``(verts, faces)`` mesh, not a list of two meshes."""
     return len(t) == 2 and all(isinstance(x, (Tensor, np.ndarray)) for x in t)
+
+
+def is_mesh_like(x: Any) -> bool:
+    """Whether ``x`` is one mesh: a :class:`Mesh`, a ``(verts, faces)`` pair of arrays/tensors, a ``trimesh.Trimesh``.
+
+    Example:
+        >>> import torch
+        >>> is_mesh_like((torch.zeros(3, 3), torch.tensor([[0, 1, 2]]))), is_mesh_like([torch.zeros(3, 3)])
+        (True, False)
+    """
+    if isinstance(x, Mesh):
+        return True
+    if isinstance(x, tuple) and looks_like_pair(x):
+        return True
+    return type(x).__name__ == "Trimesh"

@@ -10,9 +10,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from torchmeshmetric.kernels.accel import bruteforce, pruned_faces
+from torchmeshmetric.kernels.contract import FaceSet
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance
 from torchmeshmetric.kernels.point_triangle import point_mesh_distance
-from torchmeshmetric.kernels.select import FaceSet
 from torchmeshmetric.native import try_load
 
 BACKENDS = ["bvh", "pruned"]

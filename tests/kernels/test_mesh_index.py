@@ -8,7 +8,7 @@ import trimesh
 
 from torchmeshmetric import MeshIndex, nearest_vertex_distance, point_mesh_distance, vertex_set
 from torchmeshmetric._checks import DeviceError, DTypeError, NonFiniteError, ShapeError
-from torchmeshmetric.kernels.point_triangle import closest_point_on_triangle
+from torchmeshmetric.kernels.triangle import closest_point_on_triangle
 from torchmeshmetric.native import try_load
 
 

@@ -13,8 +13,9 @@ import trimesh
 
 from torchmeshmetric.kernels import mesh_index
 from torchmeshmetric.kernels.accel import bvh_closest_points
-from torchmeshmetric.kernels.point_triangle import closest_point_on_triangle, point_mesh_distance
+from torchmeshmetric.kernels.point_triangle import point_mesh_distance
 from torchmeshmetric.kernels.select import Selector
+from torchmeshmetric.kernels.triangle import closest_point_on_triangle
 from torchmeshmetric.native import try_load
 
 

@@ -10,7 +10,7 @@ import pytest
 import torch
 
 from torchmeshmetric import native
-from torchmeshmetric.kernels.point_triangle import _region_candidates
+from torchmeshmetric.kernels.triangle import region_candidates
 
 _SOURCE = r"""
 #include <torch/extension.h>
@@ -57,7 +57,7 @@ def pair_sq_dists():  # type: ignore[no-untyped-def]
 def _sq_to_faces(points: torch.Tensor, verts: torch.Tensor, faces: torch.Tensor) -> torch.Tensor:
     tri = verts[faces]
     p = points[:, None]
-    return _region_candidates(
+    return region_candidates(
         p - tri[:, 0], p - tri[:, 1], tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], tri[:, 2] - tri[:, 1]
     )[-1].amin(-1)
 

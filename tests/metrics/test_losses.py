@@ -137,7 +137,6 @@ def test_unknown_names_are_attribute_errors():
         _ = tmm_metrics.mesh_surface_distancez
 
 
-
 @pytest.mark.parametrize("two_sided", [False, True])
 def test_nearest_vertex_module_keeps_one_index_per_reference(pair, two_sided):
     (sv, sf), ref_tm = pair

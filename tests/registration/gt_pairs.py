@@ -213,3 +213,47 @@ def _make_pair(level: str, source_spacing: float, target_spacing: float | None) 
     gt = phi.forward(torch.from_numpy(sv)).numpy()
     diag = float(np.linalg.norm(tv.max(0) - tv.min(0)))
     return GTPair((sv, sf), (tv, tf), gt, diag)
+
+
+FINGERS = (
+    ((0.80, 0.05, 0.33), (0.93, 0.07, 0.36), 0.014),
+    ((0.80, 0.06, 0.31), (0.94, 0.08, 0.30), 0.013),
+    ((0.80, 0.04, 0.29), (0.92, 0.05, 0.25), 0.012),
+    ((0.76, -0.02, 0.31), (0.82, -0.09, 0.30), 0.013),  # thumb
+)
+"""Thin parts of the captured-like performer: fingers about one grid spacing thick (~20 % of the arm's radius)."""
+
+
+def captured_sdf(x: torch.Tensor, k: float = 0.04) -> torch.Tensor:
+    """:func:`figure_sdf` with thin fingers on the right hand (smaller blend width there, so they stay thin)."""
+    body = figure_sdf(x, k)
+    parts = [_capsule(x, a, b, r) for a, b, r in FINGERS]
+    d = torch.stack([body, *parts], 1)
+    kf = 0.008
+    return -kf * torch.logsumexp(-d / kf, dim=1)
+
+
+CAPTURE_SCALE = 1.0 / 1.3
+"""Both frames scaled so the performer's coordinates lie within about +-1, as captured frames are normalised."""
+
+
+def make_captured_pair(level: str = "medium", spacing: float = 0.0135, seed: int = 0) -> GTPair:
+    """A captured-like pair: thin parts, real non-rigid motion, ~20k vertices at the default spacing, coordinates
+    within +-1, and the defects of captured frames in both frames (duplicate vertices with open seams, zero-length
+    edges, zero-area and repeated-index faces, unreferenced vertices, shuffled order: :func:`add_capture_defects`).
+
+    Ground truth: ``phi`` of every source vertex, defect vertices included (``phi`` is defined everywhere).
+    """
+    from torchmeshmetric.data import add_capture_defects
+
+    with torch_threads(1):
+        phi = deformation(level)
+        sv, sf = mesh_level_set(captured_sdf, spacing)
+        tv, tf = mesh_level_set(lambda x: captured_sdf(phi.inverse(x)), spacing * 0.93, offset=0.37)
+        src = add_capture_defects((torch.from_numpy(sv), torch.from_numpy(sf)), seed=seed, normalize=False)
+        tgt = add_capture_defects((torch.from_numpy(tv), torch.from_numpy(tf)), seed=seed + 1, normalize=False)
+        sv2, tv2 = src.verts.numpy(), tgt.verts.numpy()
+        gt = phi.forward(torch.from_numpy(sv2)).numpy() * CAPTURE_SCALE
+        sv2, tv2 = sv2 * CAPTURE_SCALE, tv2 * CAPTURE_SCALE
+    diag = float(np.linalg.norm(tv2.max(0) - tv2.min(0)))
+    return GTPair((sv2, src.faces.numpy()), (tv2, tgt.faces.numpy()), gt, diag)

@@ -72,6 +72,7 @@ def test_different_settings_never_share_a_key():
         NonRigidOptions(point_weight=0.2),
         NonRigidOptions(reverse_weight=0.0),
         NonRigidOptions(tolerance=1e-4),
+        NonRigidOptions(adam_eps=1e-5),
         NonRigidOptions(max_outlier_fraction=0.2),
         NonRigidOptions(outlier_distance=0.03),
         NonRigidOptions(rigid_options={"point_to_plane": False}),
@@ -84,7 +85,7 @@ def test_different_settings_never_share_a_key():
         changed = DEFAULT_SCHEDULE[2]._replace(**{field: value * 0.5 if field == "lr_decay" else value + 1})
         variants.append(NonRigidOptions(schedule=(*DEFAULT_SCHEDULE[:2], changed, DEFAULT_SCHEDULE[3])))
     assert {f.name for f in dataclasses.fields(NonRigidOptions)} <= {
-        name for v in variants[1:16] for name, x in v.canonical().items() if x != NonRigidOptions().canonical()[name]
+        name for v in variants[1:17] for name, x in v.canonical().items() if x != NonRigidOptions().canonical()[name]
     }  # every field is varied above
     keys = [registration_key(m, m, o) for o in variants]
     assert len(set(keys)) == len(keys)

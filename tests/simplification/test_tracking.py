@@ -37,9 +37,9 @@ def _mean_flicker(out: list[Mesh]) -> float:
 
 
 def test_tracking_flickers_less_than_qem_at_equal_face_counts(frames):
-    # Measured: mean two-sided flicker 3.3e-3 for Anchored QEM (weight 0.3) against 1.0e-2 for QEM.
+    # Measured: mean two-sided flicker 3.8e-3 for Anchored QEM (weight 0.3; 3.9e-3 at 0.1) against 1.05e-2 for QEM.
     regs = [_identity, _identity]
-    tracked = simplify_tracking(frames, 400, regs)
+    tracked = simplify_tracking(frames, 400, regs, weight=0.3)
     qem = [simplify_qem(m, 400) for m in frames]
     assert [m.num_faces for m in tracked] == [m.num_faces for m in qem] == [400, 400, 400]
     assert _mean_flicker(tracked) < 0.5 * _mean_flicker(qem)

@@ -23,10 +23,10 @@ from torchmeshmetric.evaluation.cache import CachedRegistration, RegistrationCac
 from torchmeshmetric.evaluation.flicker import FLICKER, flicker_distances
 from torchmeshmetric.evaluation.results import SET_NAMES, PairEvaluation, SequenceEvaluation
 from torchmeshmetric.kernels import IndexCache, MeshIndex, point_mesh_distance
-from torchmeshmetric.metrics.surface_distance_sets import _surface_distance_sets
-from torchmeshmetric.metrics.vertex_distance_sets import _vertex_distance_sets
+from torchmeshmetric.metrics.surface_distance_sets import measure_surface_distance_sets
+from torchmeshmetric.metrics.vertex_distance_sets import measure_vertex_distance_sets
 from torchmeshmetric.registration import NonRigidOptions, register_nonrigid
-from torchmeshmetric.registration.warp import RegistrationWarp, SurfaceWarp, Warp
+from torchmeshmetric.registration.warp import RegistrationWarp, as_warp, deformation_of
 from torchmeshmetric.stats import DistanceStatistics, distance_statistics
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 from torchmeshmetric.tasks import exchange, run_tasks
@@ -34,6 +34,7 @@ from torchmeshmetric.tasks import exchange, run_tasks
 __all__ = [
     "PairTask",
     "RegisterFn",
+    "RegistrationOptions",
     "check_methods",
     "check_sequence",
     "default_register",
@@ -41,6 +42,7 @@ __all__ = [
     "evaluate_pairs",
     "evaluate_sequence",
     "register_pairs",
+    "registration_keywords",
     "registration_settings",
 ]
 
@@ -49,6 +51,35 @@ __all__ = [
 #: :class:`CachedRegistration`, a result object with ``verts`` (and optionally ``residual``, ``converged``), or a
 #: mesh-like with the vertices of the source.
 RegisterFn = Callable[[Mesh, Mesh], Any]
+
+
+#: The options of the default registration, as every entry point takes them: a ``NonRigidOptions``, its fields as
+#: keywords (``{"num_points": 500}``, ``{"options": NonRigidOptions(...), "tolerance": 0.01}``), or ``None``.
+RegistrationOptions = NonRigidOptions | Mapping[str, Any] | None
+
+
+def registration_keywords(options: RegistrationOptions) -> dict[str, Any]:
+    """The keywords of :func:`~torchmeshmetric.registration.register_nonrigid` that ``options`` stands for.
+
+    The one reading of the registration options of the evaluation (``evaluate_pair``, ``evaluate_sequence``,
+    ``register_pairs``, ``TemporalConsistency``): their cache key and the registration they run both come from it.
+
+    Example:
+        >>> registration_keywords(NonRigidOptions(num_points=500))["options"].num_points
+        500
+        >>> registration_keywords({"num_points": 500}), registration_keywords(None)
+        ({'num_points': 500}, {})
+    """
+    if options is None:
+        return {}
+    if isinstance(options, NonRigidOptions):
+        return {"options": options}
+    if not isinstance(options, Mapping):
+        raise TypeError(
+            f"registration_options: expected NonRigidOptions, a mapping of its fields or None, found "
+            f"{type(options).__name__}"
+        )
+    return dict(options)
 
 
 def default_register(
@@ -91,9 +122,7 @@ def _registration_from(registration: Any, original_k_minus_1: Mesh, original_k: 
         if residual is None:
             with torch.no_grad():
                 residual = point_mesh_distance(verts.to(original_k.verts), original_k).dists
-        warp = getattr(registration, "warp", None)
-        if warp is None and getattr(registration, "graph", None) is not None and hasattr(registration, "rigid"):
-            warp = RegistrationWarp.from_registration(registration, original_k)  # a NonRigidRegistration
+        warp = deformation_of(registration, original_k)
         converged = bool(getattr(registration, "converged", True))
         reg = CachedRegistration(verts, torch.as_tensor(residual), converged, 0.0, warp)
     if tuple(reg.verts.shape) != tuple(original_k_minus_1.verts.shape):
@@ -109,13 +138,13 @@ def _register_pair(
     original_k: Mesh,
     *,
     registration_fn: RegisterFn | None,
-    registration_options: Mapping[str, Any] | None,
+    registration_options: RegistrationOptions,
     registration_cache: RegistrationCache | None,
     device: torch.device | str | None,
     backend: str,
 ) -> tuple[CachedRegistration, bool, float]:
     """Frame ``k-1`` registered onto frame ``k``, through the cache: ``(registration, cache hit, seconds spent)``."""
-    options = dict(registration_options or {})
+    options = registration_keywords(registration_options)
 
     def compute() -> CachedRegistration:
         if registration_fn is None:
@@ -138,7 +167,7 @@ def register_pairs(
     original_frames: Sequence[MeshLike],
     *,
     registration_fn: RegisterFn | None = None,
-    registration_options: Mapping[str, Any] | None = None,
+    registration_options: RegistrationOptions = None,
     registration_cache: RegistrationCache | None = None,
     device: torch.device | str | None = None,
     backend: str = "auto",
@@ -151,7 +180,8 @@ def register_pairs(
     Args:
         original_frames: the ``N`` original frames, in order.
         registration_fn: registration function (default :func:`default_register`).
-        registration_options: keyword options of the default registration (part of the cache key).
+        registration_options: options of the default registration (part of the cache key): a
+            :class:`~torchmeshmetric.registration.NonRigidOptions` or its fields as keywords.
         registration_cache: a :class:`RegistrationCache`; ``None`` computes every registration.
         device: where the default registration runs.
         backend: kernel backend of the default registration.
@@ -203,10 +233,10 @@ def _distance_sets(
         ref_index = shared.get(mesh, backend=backend, tree="morton")
         ref_points = [ref_index.ref_points.points]
         # The metrics' trusted entries: the meshes are validated and their vertex sets taken once, here.
-        surface = _surface_distance_sets(
+        surface = measure_surface_distance_sets(
             points, [mesh], ref_points if two_sided else None, [simplified], ref_index, simp_index, backend
         )
-        vertex = _vertex_distance_sets(points, ref_points, two_sided, ref_index, simp_index, backend)
+        vertex = measure_vertex_distance_sets(points, ref_points, two_sided, ref_index, simp_index, backend)
         for kind, (to_reference, from_reference) in (("surface", surface), ("vertex", vertex)):
             forward[f"{kind}_{name}"] = to_reference
             if from_reference is not None:
@@ -235,7 +265,7 @@ def evaluate_pair(
     two_sided: bool = True,
     device: torch.device | str | None = None,
     registration_fn: RegisterFn | None = None,
-    registration_options: Mapping[str, Any] | None = None,
+    registration_options: RegistrationOptions = None,
     registration_cache: RegistrationCache | None = None,
     frame: int = 1,
     backend: str = "auto",
@@ -256,7 +286,8 @@ def evaluate_pair(
         device: where distances are computed (default: the device of ``simplified_k``).
         registration_fn: registration function ``(source, target) -> registered source`` (see :data:`RegisterFn`);
             default :func:`default_register` (with ``registration_options`` and ``device``).
-        registration_options: keyword options of the default registration (part of the cache key).
+        registration_options: options of the default registration (part of the cache key): a
+            :class:`~torchmeshmetric.registration.NonRigidOptions` or its fields as keywords.
         registration_cache: a :class:`RegistrationCache`; reused registrations cost nothing.
         frame: the index ``k`` recorded in the result.
         backend: kernel backend of the distances and of the default registration (``"auto"``, ``"bvh"``, ...).
@@ -314,7 +345,7 @@ def evaluate_pair(
         motion = float((registered.verts - orig_km1.verts).norm(dim=-1).mean() / orig_k.bbox_diagonal())
         flicker = None
         if simplified_k_minus_1 is not None:
-            warp: Warp = reg.warp if reg.warp is not None else SurfaceWarp(orig_km1, registered.verts)
+            warp = as_warp(reg, orig_k, orig_km1, name="precomputed_registration")
             flicker = flicker_distances(simp, simplified_k_minus_1, warp, two_sided=two_sided)
     timings["distances"] = time.perf_counter() - start
 
@@ -361,7 +392,7 @@ def evaluate_sequence(
     two_sided: bool = True,
     device: torch.device | str | None = None,
     registration_fn: RegisterFn | None = None,
-    registration_options: Mapping[str, Any] | None = None,
+    registration_options: RegistrationOptions = None,
     precomputed_registrations: Sequence[Any] | None = None,
     progress: Callable[[int, int], None] | None = None,
     backend: str = "auto",
@@ -385,7 +416,7 @@ def evaluate_sequence(
         two_sided: also compute the reverse sets (default ``True``).
         device: where distances (and the default registration) are computed.
         registration_fn: registration function (default :func:`default_register`).
-        registration_options: options of the default registration.
+        registration_options: options of the default registration (``NonRigidOptions`` or its fields as keywords).
         precomputed_registrations: optional registrations, one per pair (``precomputed_registrations[k-1]`` is frame
             ``k-1`` registered onto frame ``k``, e.g. from :func:`register_pairs`); bypasses ``registration_fn`` and
             the cache.

@@ -58,8 +58,8 @@ _MESH_LABELS = {"k_minus_1": "(k-1)-th", "k": "k-th"}
 REGISTRATION_ROW = "Registration"
 STABILITY_NOTE = (
     "moving the original frames by one ulp moves the (k-1)-th and flicker statistics by at most ~1e-11 (relative), "
-    "by 1e-9 at most ~1e-4 (measured, docs/registration.md), so their 4 printed digits are determined by the input; "
-    "a change of 1e-6 in the input (float32 storage, six-decimal files) can move them by up to ~1e-2, so compare "
+    "by 1e-9 at most ~1e-5 (measured, docs/registration.md), so their 4 printed digits are determined by the input; "
+    "a change of 1e-6 in the input (float32 storage, six-decimal files) can move them by up to ~1e-3, so compare "
     "them between methods to about 2 significant digits unless the frames are stored in float64."
 )
 """What the registration's stability (``tests/benchmarks/test_registration_stability.py``) says about the digits of

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from typing import Any
 
 import torch
@@ -11,7 +10,7 @@ from torchmetrics import Metric
 
 from torchmeshmetric.evaluation.cache import RegistrationCache
 from torchmeshmetric.evaluation.flicker import FLICKER
-from torchmeshmetric.evaluation.pipeline import RegisterFn, evaluate_pair
+from torchmeshmetric.evaluation.pipeline import RegisterFn, RegistrationOptions, evaluate_pair, registration_keywords
 from torchmeshmetric.evaluation.results import SET_NAMES
 from torchmeshmetric.kernels import IndexCache
 from torchmeshmetric.metrics.distance_states import DistanceStates
@@ -62,7 +61,7 @@ class TemporalConsistency(Metric):
             ``simplified_k_minus_1``).
         registration_fn: registration function (default: the library's non-rigid registration); the old
             keyword ``register`` still works, with a ``DeprecationWarning``.
-        registration_options: options of the default registration.
+        registration_options: options of the default registration (``NonRigidOptions`` or its fields).
         backend: kernel backend of the distances and of the default registration (``"auto"``, ``"bvh"``, ...).
         kwargs: passed to :class:`torchmetrics.Metric`.
 
@@ -95,7 +94,7 @@ class TemporalConsistency(Metric):
         *,
         two_sided: bool = True,
         registration_fn: RegisterFn | Any | None = None,
-        registration_options: Mapping[str, Any] | None = None,
+        registration_options: RegistrationOptions = None,
         backend: str = "auto",
         flicker: bool = False,
         **kwargs: Any,
@@ -108,7 +107,7 @@ class TemporalConsistency(Metric):
             raise TypeError(f"registration_fn: expected a callable or None, found {type(registration_fn).__name__}")
         self.two_sided = two_sided
         self.registration_fn = registration_fn
-        self.registration_options = dict(registration_options or {})
+        self.registration_options = registration_keywords(registration_options)
         self.registration_cache = RegistrationCache()
         self.backend = backend
         # One index per reference mesh, found again by content: validating every epoch on the same frames builds

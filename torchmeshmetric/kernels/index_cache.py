@@ -15,14 +15,33 @@ import torch
 
 from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY
 from torchmeshmetric.kernels.mesh_index import MeshIndex, _given_tensors
-from torchmeshmetric.structures import Mesh, MeshLike, _looks_like_pair, as_mesh, pack_meshes
+from torchmeshmetric.structures import Mesh, MeshLike, as_mesh, looks_like_pair, pack_meshes
 
-__all__ = ["IndexCache"]
+__all__ = ["IndexCache", "content_key"]
 
 
-def _fingerprint(meshes: list[Mesh], backend: str) -> str:
+def content_key(meshes: Sequence[Mesh], salt: str) -> str:
+    """A hash of the meshes' content (shapes, dtype, device, vertex and face values) and ``salt``.
+
+    The key of an :class:`IndexCache` entry (``salt``: backend and tree), and of any cache of results computed
+    from meshes (``salt``: the settings of the computation).
+
+    Args:
+        meshes: the meshes, in order.
+        salt: what else the cached result depends on.
+
+    Returns:
+        40 hexadecimal digits; equal content and salt give equal keys, through new tensors too.
+
+    Example:
+        >>> import torch
+        >>> from torchmeshmetric import Mesh
+        >>> m = Mesh(torch.eye(3), torch.tensor([[0, 1, 2]]))
+        >>> content_key([m], "a") == content_key([Mesh(torch.eye(3), torch.tensor([[0, 1, 2]]))], "a")
+        True
+    """
     h = hashlib.blake2b(digest_size=20)
-    h.update(backend.encode())
+    h.update(salt.encode())
     for m in meshes:
         v, f = m.verts, m.faces
         h.update(repr((tuple(v.shape), tuple(f.shape), str(v.dtype), str(v.device))).encode())
@@ -62,9 +81,9 @@ class IndexCache:
         ``mesh``'s tensors change in place: ask the cache again for the changed mesh. ``tree`` as in
         :class:`~torchmeshmetric.MeshIndex` (``"morton"`` for references queried only a few times).
         """
-        batch = isinstance(mesh, list) or (isinstance(mesh, tuple) and not _looks_like_pair(mesh))
+        batch = isinstance(mesh, list) or (isinstance(mesh, tuple) and not looks_like_pair(mesh))
         meshes = [as_mesh(m) for m in mesh] if batch else [as_mesh(mesh)]  # type: ignore[union-attr,arg-type]
-        key = _fingerprint(meshes, f"{backend}/{tree}")
+        key = content_key(meshes, f"{backend}/{tree}")
         index = self._entries.get(key)
         if index is None:
             # Built on copies of its own (packing copies), so the entry answers for the content it is keyed by even

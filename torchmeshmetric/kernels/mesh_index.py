@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import copy
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, NamedTuple
 
 import torch
 from torch import Tensor
@@ -34,23 +34,41 @@ from torchmeshmetric.kernels._common import (
     safe_sqrt,
 )
 from torchmeshmetric.kernels.accel.bvh import bvh_closest_points
+from torchmeshmetric.kernels.contract import FaceSet
 from torchmeshmetric.kernels.nearest import NearestVertexResult, _NearestIndex
-from torchmeshmetric.kernels.point_triangle import PointMeshResult, closest_point_on_triangle
 from torchmeshmetric.kernels.sampling import vertex_set_mask
-from torchmeshmetric.kernels.select import FaceSet, Selector, check_backend
+from torchmeshmetric.kernels.select import Selector, check_backend
+from torchmeshmetric.kernels.triangle import closest_point_on_triangle
 from torchmeshmetric.structures import (
     Mesh,
     MeshLike,
     PackedMeshes,
     PackedPoints,
-    _looks_like_pair,
     batch_index,
     lengths_to_offsets,
+    looks_like_pair,
     pack_meshes,
     pack_points,
 )
 
-__all__ = ["MeshIndex"]
+__all__ = ["MeshIndex", "PointMeshResult"]
+
+
+class PointMeshResult(NamedTuple):
+    """Result of :func:`point_mesh_distance`.
+
+    Attributes:
+        dists: ``(P,)`` Euclidean distance (**not squared**) from each point to the mesh surface.
+        face_idx: ``(P,)`` int64 index of the closest face, a row of the (packed) ``faces`` tensor.
+        bary: ``(P, 3)`` barycentric coordinates of the closest point on that face.
+        closest: ``(P, 3)`` the closest point on the surface.
+    """
+
+    dists: Tensor
+    face_idx: Tensor
+    bary: Tensor
+    closest: Tensor
+
 
 _Source = tuple[str, Tensor, int]
 """A tensor an index was built from: the name its errors give it, the tensor, its version counter then."""
@@ -76,7 +94,7 @@ def _given_tensors(mesh: Any, faces: Tensor | None, prefix: str = "mesh") -> tup
         return [("verts", mesh)], [("faces", faces)]
     if isinstance(mesh, Mesh):
         return [(f"{prefix}.verts", mesh.verts)], [(f"{prefix}.faces", mesh.faces)]
-    if isinstance(mesh, tuple) and _looks_like_pair(mesh):
+    if isinstance(mesh, tuple) and looks_like_pair(mesh):
         return [(f"{prefix}.verts", mesh[0])], [(f"{prefix}.faces", mesh[1])]
     if isinstance(mesh, (list, tuple)):
         verts: list[tuple[str, Any]] = []
@@ -454,6 +472,11 @@ class MeshIndex:
 
     def _refit(self, verts: Tensor) -> None:
         """Trusted entry of :meth:`refit`."""
+        if self._origin is not None:
+            # A copy (an IndexCache hit) shares its origin's structures with the cache entry and every other copy:
+            # refitting them would move their answers too. The copy takes structures of its own, built on first
+            # use for the moved vertices (refitted, not rebuilt, from then on).
+            self._origin, self._faces, self._nearest = None, None, None
         self._set_verts(verts)
         self._verts_sources = _sources([("verts", verts)])
         if self._faces is not None:

@@ -21,7 +21,8 @@ from torchmeshmetric.kernels._common import (
     safe_sqrt,
 )
 from torchmeshmetric.kernels.accel import bvh
-from torchmeshmetric.kernels.select import PointSet, Selector, check_backend, resolve_backend
+from torchmeshmetric.kernels.contract import PointSet
+from torchmeshmetric.kernels.select import Selector, check_backend, resolve_backend
 from torchmeshmetric.structures import PackedPoints, lengths_to_offsets, pack_points
 
 __all__ = ["NearestVertexResult", "nearest_vertex_distance"]

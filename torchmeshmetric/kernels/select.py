@@ -2,7 +2,8 @@
 
 Every distance call splits its work in two: a **selection** without gradient (closest face, or nearest reference
 point, per query) and a differentiable recomputation on the selected primitive. Only the selection differs between
-backends. A backend is a :class:`SelectionBackend`: six functions that build, refit and query a structure over
+backends. A backend is a :class:`~torchmeshmetric.kernels.contract.SelectionBackend` (a leaf module, so the
+backends need not import this one): six functions that build, refit and query a structure over
 *centred, packed, detached* primitives (:class:`FaceSet` / :class:`PointSet`), taken from one module of
 ``kernels/accel/`` (``bruteforce``, ``pruned``, ``bvh``, ``triton_backend``) that names them as the contract does.
 A structure is whatever the backend keeps (``None`` for the scanning backends: they read the set at each query); a
@@ -12,7 +13,7 @@ builds once and queries many times. A new backend is a module with the six funct
 Contract of every backend (the brute force is the reference in tests):
 
 - ``query_faces`` returns, per query, the face (row of ``FaceSet.faces``) of least computed squared distance
-  (the expression of ``point_triangle._region_candidates``), the lowest index among equal squares;
+  (the expression of :func:`~torchmeshmetric.kernels.triangle.region_candidates`), the lowest index among equal squares;
 - ``query_points`` returns the reference row of least ``(dx*dx + dy*dy) + dz*dz``, the lowest index among ties;
 - ``refit_*`` accepts moved coordinates of the same primitives (same faces, same counts) and returns a structure
   whose queries are exact for them;
@@ -25,22 +26,19 @@ Contract of every backend (the brute force is the reference in tests):
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from types import ModuleType
-from typing import Any, NamedTuple
+from typing import Any
 
 import torch
 from torch import Tensor
 
 from torchmeshmetric import native
 from torchmeshmetric.kernels.accel import bruteforce, bvh, pruned, triton_backend
+from torchmeshmetric.kernels.contract import FaceSet, PointSet, SelectionBackend
 
 __all__ = [
     "BACKENDS",
     "MIN_PAIRS",
-    "FaceSet",
-    "PointSet",
-    "SelectionBackend",
     "Selector",
     "auto_backend_name",
     "check_backend",
@@ -50,63 +48,6 @@ __all__ = [
 MIN_PAIRS = 1 << 20
 """Below this many point-primitive pairs ``backend="auto"`` keeps the brute force off the CPU (and on a CPU where
 the C++ extension cannot be built); above, an accelerated backend (see docs/acceleration.md)."""
-
-
-class FaceSet(NamedTuple):
-    """Faces a backend selects from: centred, packed, detached.
-
-    Attributes:
-        verts: ``(V, 3)`` vertices, each item centred on its bounding box.
-        faces: ``(F, 3)`` int64 rows of ``verts`` (global indices).
-        batch: ``(F,)`` int64 item of each face.
-        offsets: ``(B + 1,)`` int64 first face of each item.
-    """
-
-    verts: Tensor
-    faces: Tensor
-    batch: Tensor
-    offsets: Tensor
-
-
-class PointSet(NamedTuple):
-    """Reference points a backend selects from: centred, packed, detached.
-
-    Attributes:
-        points: ``(R, 3)`` reference points, each item centred on its bounding box.
-        batch: ``(R,)`` int64 item of each point.
-        offsets: ``(B + 1,)`` int64 first point of each item.
-    """
-
-    points: Tensor
-    batch: Tensor
-    offsets: Tensor
-
-
-class SelectionBackend(NamedTuple):
-    """What a selection backend receives and returns (see the module docstring for the contract).
-
-    Attributes:
-        name: the ``backend=`` value.
-        build_faces: ``(faces, tree) -> structure``; ``tree``: ``"sah"`` (spend more on the build for faster
-            queries) or ``"morton"`` (cheapest build); a backend may have one kind only.
-        refit_faces: ``(structure, moved faces) -> structure``.
-        query_faces: ``(structure, faces, points, point_batch, max_memory) -> (P,) int64 face rows``.
-        build_points: ``(ref) -> structure``.
-        refit_points: ``(structure, moved ref) -> structure``.
-        query_points: ``(structure, ref, points, point_batch, max_memory) -> (P,) int64 reference rows``.
-        query_faces_closest: optional, ``(structure, faces, points, point_batch) -> (face_idx, sq_dists, bary,
-            closest)``: the selection and the closest point on the selected face in one pass, bit-identical to
-            ``query_faces`` followed by :func:`~torchmeshmetric.closest_point_on_triangle` without autograd.
-    """
-
-    name: str
-    build_faces: Callable[[FaceSet, str], Any]
-    refit_faces: Callable[[Any, FaceSet], Any]
-    query_faces: Callable[[Any, FaceSet, Tensor, Tensor, int], Tensor]
-    build_points: Callable[[PointSet], Any]
-    refit_points: Callable[[Any, PointSet], Any]
-    query_points: Callable[[Any, PointSet, Tensor, Tensor, int], Tensor]
-    query_faces_closest: Callable[[Any, FaceSet, Tensor, Tensor], tuple[Tensor, Tensor, Tensor, Tensor]] | None = None
 
 
 def _none(*_: Any) -> None:

@@ -9,7 +9,7 @@ import numpy as np
 from torch import Tensor
 
 from torchmeshmetric.kernels.sampling import vertex_set
-from torchmeshmetric.structures import Mesh, _looks_like_pair, as_mesh, as_points
+from torchmeshmetric.structures import Mesh, as_mesh, as_points, is_mesh_like
 
 __all__ = ["PointSource", "as_point_sources", "as_reference_meshes", "check_surface_samples"]
 
@@ -21,21 +21,13 @@ class PointSource(NamedTuple):
     mesh: Mesh | None
 
 
-def _is_mesh_like(x: Any) -> bool:
-    if isinstance(x, Mesh):
-        return True
-    if isinstance(x, tuple) and _looks_like_pair(x):
-        return True
-    return type(x).__name__ == "Trimesh"
-
-
 def _as_items(x: Any) -> list[Any]:
     """A single item (tensor, array, mesh-like) becomes a batch of one; a list/tuple of items stays a batch."""
     if isinstance(x, (Tensor, np.ndarray)):
         if x.ndim == 3:
             return list(x)
         return [x]
-    if _is_mesh_like(x):
+    if is_mesh_like(x):
         return [x]
     if isinstance(x, (list, tuple)):
         return list(x)
@@ -53,7 +45,7 @@ def as_point_sources(x: Any, name: str = "simplified") -> list[PointSource]:
     out = []
     for i, it in enumerate(items):
         nm = name if len(items) == 1 else f"{name}[{i}]"
-        if _is_mesh_like(it):
+        if is_mesh_like(it):
             m = as_mesh(it, name=nm)
             out.append(PointSource(vertex_set(m), m))
         else:
@@ -63,7 +55,7 @@ def as_point_sources(x: Any, name: str = "simplified") -> list[PointSource]:
 
 def as_reference_meshes(x: Any, num_items: int, name: str = "reference") -> list[Mesh]:
     """Reference meshes, one per item (a single mesh-like is used for a batch of one only)."""
-    items = [x] if _is_mesh_like(x) else list(x) if isinstance(x, (list, tuple)) else [x]
+    items = [x] if is_mesh_like(x) else list(x) if isinstance(x, (list, tuple)) else [x]
     meshes = [as_mesh(m, name=name if len(items) == 1 else f"{name}[{i}]") for i, m in enumerate(items)]
     _check_count(len(meshes), num_items, name)
     return meshes

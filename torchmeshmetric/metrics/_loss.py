@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -18,8 +19,11 @@ def check_loss_args(reduction: str, power: float) -> None:
     """Validate ``reduction`` and ``power`` (constructor and functional arguments)."""
     if reduction not in REDUCTIONS:
         raise ValueError(f"reduction: expected one of {REDUCTIONS}, found {reduction!r}")
-    if not isinstance(power, (int, float)) or not power > 0:
-        raise ValueError(f"power: expected a positive number (1: distance, 2: squared distance), found {power!r}")
+    if isinstance(power, bool) or not isinstance(power, (int, float)) or not 0 < power < math.inf:
+        # inf would make every distance below 1 count 0 and every other one inf; NaN fails both comparisons
+        raise ValueError(
+            f"power: expected a finite positive number (1: distance, 2: squared distance), found {power!r}"
+        )
 
 
 def check_options(options: Mapping[str, Any], allowed: type, owner: str) -> None:

@@ -9,15 +9,33 @@ once per ``update``, however many statistics are logged), its DDP synchronisatio
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from torch import Tensor
 from torchmetrics import Metric
 
-if TYPE_CHECKING:
-    from torchmeshmetric.metrics.distance_statistics_metric import DistanceStatisticsBase
+__all__ = ["SelectedStatistic", "StatisticSource"]
 
-__all__ = ["SelectedStatistic"]
+
+class StatisticSource(Protocol):
+    """What a view needs of its source, a :class:`~torchmeshmetric.metrics.DistanceStatisticsBase`.
+
+    Typed here so that the view does not import the metric that makes it (no import circle).
+    """
+
+    _update_count: int
+
+    def statistic_names(self) -> tuple[str, ...]:
+        """The keys of the source's ``compute()``."""
+        ...
+
+    def compute(self) -> Any:
+        """The source's statistics, by key."""
+        ...
+
+    def reset(self) -> None:
+        """Reset the source's state."""
+        ...
 
 
 class SelectedStatistic(Metric):
@@ -49,7 +67,7 @@ class SelectedStatistic(Metric):
     higher_is_better: bool | None = None
     full_state_update = False
 
-    def __init__(self, source: DistanceStatisticsBase, key: str) -> None:
+    def __init__(self, source: StatisticSource, key: str) -> None:
         super().__init__(compute_with_cache=False)
         names = source.statistic_names()
         if key not in names:

@@ -11,6 +11,7 @@ from typing import Any, TypedDict
 import torch
 from torch import Tensor
 
+from torchmeshmetric.kernels.danskin import mesh_surface_distances
 from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance
@@ -26,7 +27,7 @@ from torchmeshmetric.metrics._prebuilt_index import bound_to, check_index, index
 from torchmeshmetric.metrics.directed_distances import DirectedDistances, lengths_of, packed
 from torchmeshmetric.structures import Mesh
 
-__all__ = ["SurfaceDistanceOptions", "mesh_surface_distance_sets"]
+__all__ = ["SurfaceDistanceOptions", "measure_surface_distance_sets", "mesh_surface_distance_sets"]
 
 
 class SurfaceDistanceOptions(TypedDict, total=False):
@@ -65,9 +66,13 @@ def _to_surface(
         return p.new_zeros(0)
     if surface_samples is None:
         index = index_of(meshes, index, indexes, p.dtype, backend)
-        if index is not None:
-            return index._point_mesh_distance(query_points(index, p, index_name), lengths_of(points)).dists
-        return point_mesh_distance(p, meshes, points_lengths=lengths_of(points), backend=backend).dists
+        differentiable = torch.is_grad_enabled() and (p.requires_grad or any(m.verts.requires_grad for m in meshes))
+        if index is None and differentiable:  # a loss: every surface loss differentiates by Danskin's theorem
+            index = MeshIndex([m.detach() for m in meshes] if len(meshes) > 1 else meshes[0].detach(), backend=backend)
+        if index is None:
+            return point_mesh_distance(p, meshes, points_lengths=lengths_of(points), backend=backend).dists
+        q = query_points(index, p, index_name)
+        return mesh_surface_distances(q, lengths_of(points), meshes, index, owner="mesh_surface_distance_loss")
     gen = torch.Generator(device=meshes[0].device).manual_seed(seed)
     s = sample_surface(meshes, n=surface_samples, generator=gen)
     dtype = torch.promote_types(p.dtype, s.points.dtype)
@@ -76,7 +81,7 @@ def _to_surface(
     ).dists
 
 
-def _surface_distance_sets(
+def measure_surface_distance_sets(
     points: list[Tensor],
     references: list[Mesh],
     reference_points: list[Tensor] | None,
@@ -193,7 +198,7 @@ def mesh_surface_distance_sets(
     simplified_index = bound_to(simplified_index, [s.mesh for s in sources if s.mesh is not None])
     points = [s.points for s in sources]
     ref_points = [vertex_set(m) for m in refs] if two_sided else None
-    forward, reverse = _surface_distance_sets(
+    forward, reverse = measure_surface_distance_sets(
         points,
         refs,
         ref_points,

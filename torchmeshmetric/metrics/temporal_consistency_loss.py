@@ -25,6 +25,7 @@ vertices move: the cache keeps their indexes too and refits them (bounds only, a
 
 from __future__ import annotations
 
+import math
 from collections import OrderedDict
 from collections.abc import Mapping
 from typing import Any
@@ -32,17 +33,17 @@ from typing import Any
 import torch
 from torch import Tensor, nn
 
-from torchmeshmetric._checks import ShapeError
-from torchmeshmetric.kernels.index_cache import IndexCache, _fingerprint
+from torchmeshmetric._checks import EmptyInputError, NonFiniteError, ShapeError
+from torchmeshmetric.kernels.danskin import mesh_surface_distances
+from torchmeshmetric.kernels.index_cache import IndexCache, content_key
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.kernels.sampling import vertex_set
-from torchmeshmetric.metrics._inputs import _is_mesh_like
 from torchmeshmetric.metrics._loss import check_loss_args, reduce_directed
 from torchmeshmetric.metrics.directed_distances import DirectedDistances
 from torchmeshmetric.registration.nonrigid import register_nonrigid
 from torchmeshmetric.registration.options import NonRigidOptions
-from torchmeshmetric.registration.warp import RegistrationWarp, SurfaceWarp, Warp
-from torchmeshmetric.structures import Mesh, as_mesh
+from torchmeshmetric.registration.warp import RegistrationWarp, Warp, as_warp
+from torchmeshmetric.structures import Mesh, as_mesh, is_mesh_like
 
 __all__ = ["TemporalConsistencyLoss", "TemporalLossCache", "temporal_consistency_loss"]
 
@@ -70,7 +71,7 @@ class _KeptIndex:
             and [int(x) for x in self.index.verts_lengths] == [m.num_verts for m in meshes]
         )
         if same and self.index is not None:
-            self.index._refit(verts)
+            self.index.refit(verts)
             return self.index
         detached = [Mesh(m.verts.detach(), m.faces, validate=False) for m in meshes]
         index = MeshIndex(detached if len(detached) > 1 else detached[0], backend=backend)
@@ -82,7 +83,7 @@ class _KeptIndex:
             lengths = torch.zeros(len(meshes), dtype=torch.long, device=verts.device)
             lengths[with_faces[0]] = 1
             with torch.no_grad():
-                index._point_mesh_distance(verts[:1], lengths)
+                mesh_surface_distances(verts[:1].to(index.dtype), lengths, detached, index)
         self.index, self.faces = index, [m.faces.clone() for m in meshes]
         return index
 
@@ -123,7 +124,7 @@ class TemporalLossCache:
 
     def warp(self, original_k: Mesh, original_k_minus_1: Mesh, options: NonRigidOptions, backend: str) -> Warp:
         """The warp of ``original_k_minus_1`` registered onto ``original_k`` (registered on the first request)."""
-        key = _fingerprint([original_k_minus_1, original_k], repr(options))
+        key = content_key([original_k_minus_1, original_k], repr(options))
         found = self._warps.get(key)
         if found is not None:
             self._warps.move_to_end(key)
@@ -142,56 +143,16 @@ class TemporalLossCache:
                 "_simplified": _KeptIndex(), "_moved": _KeptIndex(), "_frame_simplified": _KeptIndex()}  # fmt: skip
 
 
-class _DanskinDistance(torch.autograd.Function):
-    """Distances from points to the surface an index holds, with the gradient of Danskin's theorem.
-
-    ``d(p, V) = min_{b in simplex} |p - sum_j b_j v_j|``: where the minimiser ``b*`` (the closest point) is unique,
-    the gradient of the minimum is the gradient at the fixed minimiser (Danskin 1967): ``dd/dp = (p - c) / d`` and
-    ``dd/dv_j = -b*_j (p - c) / d`` for the corners of the closest face, 0 at ``d = 0`` (the convention of the
-    kernels' ``safe_sqrt``). The same values as autograd through the closest-point formulas (float64: 1e-10 apart),
-    without their graph: the forward pass is the index's fused no-autograd query, the backward pass a few
-    ``(P, 3)`` operations and one ``index_add_`` (about 5x faster than autograd through the seven-region formulas).
-    """
-
-    @staticmethod
-    def forward(ctx: Any, points: Tensor, verts: Tensor, faces: Tensor, index: MeshIndex, lengths: Tensor) -> Tensor:
-        with torch.no_grad():
-            hit = index._point_mesh_distance(points.detach(), lengths)
-        ctx.save_for_backward(points.detach() - hit.closest, hit.dists, hit.bary, faces[hit.face_idx])
-        ctx.num_verts = int(verts.shape[0])
-        return hit.dists
-
-    @staticmethod
-    def backward(ctx: Any, grad: Tensor) -> tuple[Tensor | None, Tensor | None, None, None, None]:
-        diff, dists, bary, corners = ctx.saved_tensors
-        scale = torch.where(dists > 0, grad / torch.where(dists > 0, dists, torch.ones_like(dists)), 0.0)
-        unit = scale[:, None] * diff  # dL/dp
-        grad_verts = None
-        if ctx.needs_input_grad[1]:
-            grad_verts = unit.new_zeros(ctx.num_verts, 3).index_add_(
-                0, corners.reshape(-1), (-bary[:, :, None] * unit[:, None, :]).reshape(-1, 3)
-            )
-        return (unit if ctx.needs_input_grad[0] else None), grad_verts, None, None, None
-
-
 def _to_surface(points: list[Tensor], meshes: list[Mesh], index: MeshIndex) -> Tensor:
     """Packed distances from each item's points to its mesh, on ``index`` (the index of ``meshes``).
 
-    Differentiable w.r.t. the points and the meshes' vertices (:class:`_DanskinDistance`).
+    Differentiable w.r.t. the points and the meshes' vertices, first order (:mod:`torchmeshmetric.kernels.danskin`).
     """
     p = torch.cat(points) if len(points) > 1 else points[0]
     if p.shape[0] == 0:
         return p.new_zeros(0)
-    verts = torch.cat([m.verts for m in meshes]) if len(meshes) > 1 else meshes[0].verts
-    offsets = [0]
-    for m in meshes[:-1]:
-        offsets.append(offsets[-1] + m.num_verts)
-    faces = (
-        torch.cat([m.faces + o for m, o in zip(meshes, offsets, strict=True)]) if len(meshes) > 1 else meshes[0].faces
-    )
     lengths = torch.tensor([q.shape[0] for q in points], dtype=torch.long, device=p.device)
-    out: Tensor = _DanskinDistance.apply(p.to(index.dtype), verts.to(index.dtype), faces, index, lengths)
-    return out
+    return mesh_surface_distances(p.to(index.dtype), lengths, meshes, index, owner="temporal_consistency_loss")
 
 
 def _directed(
@@ -209,54 +170,34 @@ def _directed(
 
 def _mesh_items(x: Any, name: str) -> list[Mesh]:
     """A mesh-like is a batch of one; a list/tuple of mesh-likes a batch. Each item must be a mesh."""
-    if _is_mesh_like(x):
-        return [as_mesh(x, name=name)]
-    if isinstance(x, (list, tuple)):
+    if is_mesh_like(x):
+        items = [(name, as_mesh(x, name=name))]
+    elif isinstance(x, (list, tuple)):
         if not x:
             raise ValueError(f"{name}: expected a mesh or a non-empty list of meshes, found an empty list")
-        return [as_mesh(m, name=f"{name}[{i}]") for i, m in enumerate(x)]
-    raise TypeError(
-        f"{name}: expected a mesh (Mesh, (verts, faces) or trimesh.Trimesh) or a list of them, found {type(x).__name__}"
-    )
+        items = [(f"{name}[{i}]", as_mesh(m, name=f"{name}[{i}]")) for i, m in enumerate(x)]
+    else:
+        raise TypeError(
+            f"{name}: expected a mesh (Mesh, (verts, faces) or trimesh.Trimesh) or a list of them, found "
+            f"{type(x).__name__}"
+        )
+    for item_name, mesh in items:  # named here: the kernels would name their own argument ("mesh")
+        if mesh.num_faces == 0:
+            raise EmptyInputError(f"{item_name}: expected a mesh with at least one face, found none")
+    return [mesh for _, mesh in items]
 
 
 def _registration_items(registration: Any, count: int) -> list[Any]:
     if registration is None:
         return [None] * count
     # A list, or a plain tuple, is a batch; a NamedTuple (a RegistrationWarp, a NonRigidRegistration) is one item.
-    if (isinstance(registration, list) or type(registration) is tuple) and not _is_mesh_like(registration):
+    if (isinstance(registration, list) or type(registration) is tuple) and not is_mesh_like(registration):
         if len(registration) != count:
             raise ValueError(f"registration: expected {count} (one per frame pair), found {len(registration)}")
         return list(registration)
     if count != 1:
         raise ValueError(f"registration: expected a list of {count} (one per frame pair), found a single one")
     return [registration]
-
-
-def _as_warp(given: Any, original_k: Mesh, original_k_minus_1: Mesh, name: str) -> Warp:
-    """A caller's registration as a warp: a warp, a ``NonRigidRegistration``, something with ``warp`` or ``verts``."""
-    warp = getattr(given, "warp", None)  # a CachedRegistration (evaluation), or anything holding a warp
-    if warp is not None:
-        return warp
-    if getattr(given, "graph", None) is not None and hasattr(given, "rigid"):  # a NonRigidRegistration
-        return RegistrationWarp.from_registration(given, original_k)
-    verts = getattr(given, "verts", None)
-    if verts is None and _is_mesh_like(given):
-        verts = as_mesh(given, name=name).verts
-    if verts is not None:  # known only by its registered vertices: their piecewise-linear map
-        verts = torch.as_tensor(verts).detach()
-        if tuple(verts.shape) != tuple(original_k_minus_1.verts.shape):
-            raise ShapeError(
-                f"{name}: expected registered vertices of shape {tuple(original_k_minus_1.verts.shape)} "
-                f"(the vertices of original_k_minus_1), found {tuple(verts.shape)}"
-            )
-        return SurfaceWarp(original_k_minus_1.detach(), verts.to(original_k_minus_1.verts))
-    if callable(given):
-        return given
-    raise TypeError(
-        f"{name}: expected None, a warp (callable), a NonRigidRegistration, a registration with 'warp' or 'verts', "
-        f"or the registered mesh, found {type(given).__name__}"
-    )
 
 
 def _moved(warp: Warp, simplified_k_minus_1: Mesh, like: Mesh, name: str) -> Mesh:
@@ -268,7 +209,30 @@ def _moved(warp: Warp, simplified_k_minus_1: Mesh, like: Mesh, name: str) -> Mes
             f"{name}: the warp must map (P, 3) points to (P, 3) points; it mapped "
             f"{tuple(simplified_k_minus_1.verts.shape)} to {found}"
         )
+    if not bool(torch.isfinite(moved).all()):
+        bad = int((~torch.isfinite(moved)).any(dim=1).sum())
+        raise NonFiniteError(
+            f"{name}: the warp moved {bad} vertices of simplified_k_minus_1 to non-finite positions (NaN/Inf)"
+        )
     return Mesh(moved.to(like.device, like.dtype), simplified_k_minus_1.faces.to(like.device), validate=False)
+
+
+def _options(given: Mapping[str, Any] | NonRigidOptions | None) -> NonRigidOptions:
+    """The default registration's options, validated (a misspelled field fails here, before any work)."""
+    return given if isinstance(given, NonRigidOptions) else NonRigidOptions.from_keywords(None, **dict(given or {}))
+
+
+def _check_arguments(frame_weight: float, two_sided: bool, reduction: str, power: float) -> None:
+    """The loss's scalar arguments (function and module alike): a bad one would give a NaN or inf loss, or 0."""
+    check_loss_args(reduction, power)
+    if (
+        isinstance(frame_weight, bool)
+        or not isinstance(frame_weight, (int, float))
+        or not 0 <= frame_weight < math.inf  # NaN fails both comparisons
+    ):
+        raise ValueError(f"frame_weight: expected a finite number >= 0, found {frame_weight!r}")
+    if not isinstance(two_sided, bool):
+        raise TypeError(f"two_sided: expected a bool, found {type(two_sided).__name__}")
 
 
 def temporal_consistency_loss(
@@ -294,7 +258,8 @@ def temporal_consistency_loss(
     the distances between ``simplified_k`` and ``original_k`` (two-sided: both directions), as
     :func:`~torchmeshmetric.metrics.mesh_surface_distance_loss` measures them. Differentiable w.r.t. the vertices
     of ``simplified_k`` and ``simplified_k_minus_1`` (through ``W``, whose parameters are constants); gradients are
-    finite (zero) where a distance is exactly 0.
+    finite (zero) where a distance is exactly 0. First order only (Danskin's theorem,
+    :mod:`torchmeshmetric.kernels.danskin`): a double backward is refused.
 
     Args:
         simplified_k: the simplified frame ``k``: a mesh-like (:class:`~torchmeshmetric.Mesh`, ``(verts, faces)``,
@@ -310,9 +275,9 @@ def temporal_consistency_loss(
             ``CachedRegistration``) or only ``verts``, or the registered mesh (frame ``k-1``'s topology); the last
             two are extended by their piecewise-linear map (:class:`~torchmeshmetric.registration.SurfaceWarp`,
             whose gradient treats each point's local displacement as constant).
-        frame_weight: weight (>= 0) of the frame-``k`` term; 0 leaves it out (not computed).
+        frame_weight: weight (finite, >= 0) of the frame-``k`` term; 0 leaves it out (not computed).
         two_sided: also measure the reverse directions (moved ``k-1`` → ``k``; original ``k`` → simplified ``k``).
-        power: exponent ``p`` of each distance (> 0; 1: the Average of the statistics, 2: their MSE).
+        power: exponent ``p`` of each distance (finite, > 0; 1: the Average of the statistics, 2: their MSE).
         reduction: ``"mean"`` (pooled mean over the batch per direction and term, then added), ``"sum"`` or
             ``"none"``: the packed per-point terms, in the order flicker forward, (flicker reverse), frame forward,
             (frame reverse), the frame terms already multiplied by ``frame_weight`` (absent when it is 0), so that
@@ -329,7 +294,11 @@ def temporal_consistency_loss(
 
     Raises:
         TypeError: an argument that is not a mesh or list of meshes, a registration of an unknown kind.
-        ValueError: batches of different lengths, a bad ``frame_weight``, ``power`` or ``reduction``.
+        ValueError: batches of different lengths, a bad ``frame_weight`` (negative, NaN or infinite), ``power``
+            (not a finite positive number) or ``reduction``.
+        EmptyInputError: a frame without faces (named: ``simplified_k``, ``original_k[1]``, ...).
+        NonFiniteError: a warp that moves vertices to NaN or infinite positions.
+        DoubleBackwardError: a double backward (``create_graph=True``): the loss is differentiable once.
         ShapeError: a registration whose vertices are not those of ``original_k_minus_1``, a warp that does not map
             ``(P, 3)`` to ``(P, 3)``.
         EmptyInputError: ``reduction="mean"`` on a batch without any point.
@@ -346,11 +315,7 @@ def temporal_consistency_loss(
         >>> float(loss), float(v.grad.abs().max())  # the same simplification twice: no flicker, zero gradient
         (0.0, 0.0)
     """
-    check_loss_args(reduction, power)
-    if isinstance(frame_weight, bool) or not isinstance(frame_weight, (int, float)) or not frame_weight >= 0:
-        raise ValueError(f"frame_weight: expected a number >= 0, found {frame_weight!r}")
-    if not isinstance(two_sided, bool):
-        raise TypeError(f"two_sided: expected a bool, found {type(two_sided).__name__}")
+    _check_arguments(frame_weight, two_sided, reduction, power)
     if cache is not None and not isinstance(cache, TemporalLossCache):
         raise TypeError(f"cache: expected a TemporalLossCache or None, found {type(cache).__name__}")
     s_k = _mesh_items(simplified_k, "simplified_k")
@@ -361,21 +326,17 @@ def temporal_consistency_loss(
         if len(items) != len(s_k):
             raise ValueError(f"{name}: expected {len(s_k)} frame(s), one per simplified_k, found {len(items)}")
     given = _registration_items(registration, len(s_k))
-    options = (
-        registration_options
-        if isinstance(registration_options, NonRigidOptions)
-        else NonRigidOptions.from_keywords(None, **dict(registration_options or {}))
-    )
+    options = _options(registration_options)
     work = cache if cache is not None else TemporalLossCache(max_warps=max(1, len(s_k)))
     moved = []
     for i, (g, ok, okm1, skm1, sk) in enumerate(zip(given, o_k, o_km1, s_km1, s_k, strict=True)):
         name = "registration" if len(s_k) == 1 else f"registration[{i}]"
-        warp = work.warp(ok, okm1, options, backend) if g is None else _as_warp(g, ok, okm1, name)
+        warp = work.warp(ok, okm1, options, backend) if g is None else as_warp(g, ok, okm1, name=name)
         moved.append(_moved(warp, skm1, sk, name))
     # One index per role for the whole batch: the moved frames k-1 (measured to) and the simplified frames k
     # (measured to by both reverse directions), refitted across calls while their faces stay the same; the
     # original frames k found again by content. Every index holds detached vertices: the gradient to the vertices
-    # comes from _DanskinDistance, to the meshes given here.
+    # comes from Danskin's backward (kernels.danskin), to the meshes given here.
     k_points = [vertex_set(m) for m in s_k]
     simplified_index = work._simplified.get(s_k, backend) if two_sided else None
     moved_index = work._moved.get(moved, backend)
@@ -447,21 +408,13 @@ class TemporalConsistencyLoss(nn.Module):
         backend: str = "auto",
     ) -> None:
         super().__init__()
-        check_loss_args(reduction, power)
-        if isinstance(frame_weight, bool) or not isinstance(frame_weight, (int, float)) or not frame_weight >= 0:
-            raise ValueError(f"frame_weight: expected a number >= 0, found {frame_weight!r}")
-        if not isinstance(two_sided, bool):
-            raise TypeError(f"two_sided: expected a bool, found {type(two_sided).__name__}")
+        _check_arguments(frame_weight, two_sided, reduction, power)
         self.frame_weight = float(frame_weight)
         self.two_sided = two_sided
         self.reduction = reduction
         self.power = power
         # Validated once here (a misspelled option fails at construction, not at the first step).
-        self.registration_options = (
-            registration_options
-            if isinstance(registration_options, NonRigidOptions)
-            else NonRigidOptions.from_keywords(None, **dict(registration_options or {}))
-        )
+        self.registration_options = _options(registration_options)
         self.backend = backend
         self.cache = TemporalLossCache()
 

@@ -19,7 +19,7 @@ from torchmeshmetric.metrics._prebuilt_index import bound_to, check_index, index
 from torchmeshmetric.metrics.directed_distances import DirectedDistances, lengths_of, packed
 from torchmeshmetric.structures import Mesh
 
-__all__ = ["NearestVertexOptions", "nearest_vertex_distance_sets"]
+__all__ = ["NearestVertexOptions", "measure_vertex_distance_sets", "nearest_vertex_distance_sets"]
 
 
 class NearestVertexOptions(TypedDict, total=False):
@@ -70,7 +70,7 @@ def _bbox_diagonal(p: Tensor) -> Tensor:
     return (q.amax(0) - q.amin(0)).to(torch.float64).norm().to(q.dtype) if q.shape[0] else q.new_zeros(())
 
 
-def _vertex_distance_sets(
+def measure_vertex_distance_sets(
     points: list[Tensor],
     refs: list[Tensor],
     two_sided: bool,
@@ -172,7 +172,7 @@ def nearest_vertex_distance_sets(
     points = [s.points for s in sources]
     refs = [s.points.detach() if detach_reference else s.points for s in ref_sources]
     all_meshes = len(ref_meshes) == len(ref_sources)
-    forward, reverse = _vertex_distance_sets(
+    forward, reverse = measure_vertex_distance_sets(
         points, refs, two_sided, reference_index, simplified_index, backend, ref_meshes if all_meshes else None, indexes
     )
     peak = torch.stack([_bbox_diagonal(r) for r in refs])

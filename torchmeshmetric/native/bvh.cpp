@@ -15,7 +15,7 @@
 // queries on torch's threads (chunked_for, parallel.h).
 //
 // Exactness: the squared point-triangle distance is computed with the very same floating-point operations, in the
-// same order and the same dtype, as `_region_candidates` in point_triangle.py (edge-segment clamped projections
+// same order and the same dtype, as `region_candidates` in kernels/triangle.py (edge-segment clamped projections
 // and the face-interior projection, on difference vectors), so the selected face is the brute-force argmin,
 // lowest face index among equal squared distances. Must be compiled with -ffp-contract=off (no FMA contraction).
 #include <torch/extension.h>
@@ -1226,7 +1226,7 @@ std::vector<torch::Tensor> nearest_single_impl(const torch::Tensor& points, cons
 }
 
 // Closest point on the selected face of every point, without autograd: the operations of the torch functions
-// point_triangle._region_candidates and closest_point_on_triangle, in their order and dtype (no FMA), so that
+// kernels/triangle.py region_candidates and closest_point_on_triangle, in their order and dtype (no FMA), so that
 // the results are bit-identical to the differentiable recomputation. Inputs are centred; faces index verts.
 // Returns {sq_dists (P,), bary (P, 3), closest (P, 3)} (closest in the centred frame).
 template <typename T>

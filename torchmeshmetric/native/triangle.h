@@ -1,5 +1,5 @@
 // Point-triangle closest point and squared distance, shared by the BVH (bvh.cpp) and the registration energy
-// (deformation_energy.cpp). The operations mirror point_triangle._region_candidates / closest_point_on_triangle
+// (deformation_energy.cpp). The operations mirror kernels/triangle.py region_candidates / closest_point_on_triangle
 // in their order and dtype; compile with -ffp-contract=off (no FMA contraction) to keep them bit-identical.
 //
 // The distance is written once for a value type S that is either a scalar T or a vector of lanes of T (GCC/Clang
@@ -100,7 +100,7 @@ inline FaceData<T> face_data(const T* a, const T* b, const T* c) {
   return d;
 }
 
-// point_triangle._region_candidates for one point and one face: the clamped edge parameters, the face
+// kernels/triangle.py region_candidates for one point and one face: the clamped edge parameters, the face
 // barycentrics v, w, and the squared distances [edge AB, edge AC, edge BC, face] (face: +inf outside).
 template <typename S>
 struct RegionCandidates {
@@ -148,7 +148,7 @@ TMM_ALWAYS_INLINE RegionCandidates<S> region_candidates(const FaceData<S>& f, co
   return r;
 }
 
-// Squared distance from p to a triangle, mirroring point_triangle._region_candidates(...)[-1].amin(-1).
+// Squared distance from p to a triangle, mirroring kernels/triangle.py region_candidates(...)[-1].amin(-1).
 template <typename S>
 inline S tri_sq_dist(const FaceData<S>& f, const S* p) {
   const RegionCandidates<S> r = region_candidates(f, p);

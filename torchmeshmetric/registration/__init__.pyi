@@ -25,7 +25,7 @@ from .energies import (
 from .nonrigid import NonRigidRegistration, RegistrationWarning, register_nonrigid
 from .options import DEFAULT_SCHEDULE, NonRigidOptions, Stage
 from .rigid import RigidRegistration, SimilarityTransform, kabsch_umeyama, register_rigid, transform_matrix
-from .warp import RegistrationWarp, SurfaceWarp, Warp
+from .warp import RegistrationWarp, SurfaceWarp, Warp, as_warp, deformation_of
 
 __all__ = [
     "DEFAULT_SCHEDULE",
@@ -40,6 +40,8 @@ __all__ = [
     "Stage",
     "SurfaceWarp",
     "Warp",
+    "as_warp",
+    "deformation_of",
     "embedded_deformation",
     "embedded_deformation_regularizer",
     "farthest_point_nodes",

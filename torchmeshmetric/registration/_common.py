@@ -31,6 +31,20 @@ def validate_pair(source: MeshLike, target: MeshLike) -> tuple[Mesh, Mesh]:
     return src.to(dtype=dtype), tgt.to(dtype=dtype)
 
 
+def welded_faces(verts: Tensor, faces: Tensor) -> Tensor:
+    """``faces`` with every corner re-pointed to the first vertex at exactly the same position.
+
+    Captured frames hold duplicate vertices along open seams. Split there, a vertex normal averages half of the
+    vertex's faces, so the interpolated normal jumps across the seam, and which side a closest point on the seam
+    takes depends on the input's last bits. Welded, both sides share one vertex and one normal; the positions, and so
+    every closest point, are unchanged (a copy is at its original's position, and moves with the same skinning).
+    """
+    _, group = torch.unique(verts, dim=0, return_inverse=True)
+    first = torch.full((int(group.max()) + 1 if group.numel() else 0,), verts.shape[0], device=verts.device)
+    first = first.scatter_reduce(0, group, torch.arange(verts.shape[0], device=verts.device), "amin")
+    return first[group][faces]
+
+
 def normalisation(mesh: Mesh) -> tuple[Tensor, Tensor]:
     """``(center (3,), diagonal (0-dim))`` of the bounding box of the surface vertices: the registration's frame.
 

@@ -34,7 +34,7 @@ from torch import Tensor
 from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.kernels.sampling import sample_surface
-from torchmeshmetric.registration._common import normalisation, validate_pair
+from torchmeshmetric.registration._common import normalisation, validate_pair, welded_faces
 from torchmeshmetric.registration.adam import Adam
 from torchmeshmetric.registration.deformation_graph import DeformationGraph
 from torchmeshmetric.registration.energies import (
@@ -112,6 +112,10 @@ def _load_parameters(graph: DeformationGraph, state: dict[str, Tensor]) -> None:
             p.copy_(state[name])
 
 
+ADAM_EPS = 1e-8
+"""torch's Adam ``eps``: the floor of the registration's (see ``NonRigidOptions.adam_eps``)."""
+
+
 def _lengths(x: Tensor) -> Tensor:
     return torch.tensor([x.shape[0]], device=x.device)
 
@@ -158,8 +162,8 @@ def register_nonrigid(
             machine). More threads pay on an otherwise idle machine. ``None``: keep torch's setting.
         **keywords: fields of :class:`NonRigidOptions` (``rigid_init``, ``node_spacing``, ``num_neighbors``,
             ``num_points``, ``num_target_samples``, ``correspondence_every``, ``schedule``, ``plane_weight``,
-            ``point_weight``, ``reverse_weight``, ``tolerance``, ``max_outlier_fraction``, ``outlier_distance``,
-            ``rigid_options``).
+            ``point_weight``, ``reverse_weight``, ``adam_eps``, ``tolerance``, ``max_outlier_fraction``,
+            ``outlier_distance``, ``rigid_options``).
 
     Returns:
         :class:`NonRigidRegistration`.
@@ -227,7 +231,7 @@ def _register(
     timings["total"] = time.perf_counter() - t_total
     return NonRigidRegistration(
         verts=verts,
-        mesh=Mesh(verts, frame.source.faces, validate=False),
+        mesh=Mesh(verts, frame.faces, validate=False),
         residual=residual,
         loss_history=fit.history,
         converged=not reason,
@@ -239,13 +243,20 @@ def _register(
 
 
 class _Frame(NamedTuple):
-    """Both meshes in the registration's frame (the target's bounding-box centre at 0, its diagonal 1)."""
+    """Both meshes in the registration's frame (the target's bounding-box centre at 0, its diagonal 1).
+
+    ``source`` and ``target`` keep only their faces with a normal (:meth:`~torchmeshmetric.Mesh.surface_face_mask`),
+    welded (:func:`welded_faces`): a zero-area face lies on the edges of others, and a closest point on it ties with
+    one on them, where its rounding-noise normal would decide the match's plane and weight by the input's last bits;
+    a seam of duplicate vertices would make the interpolated normal jump where two faces tie.
+    """
 
     center: Tensor
     diag: Tensor
-    source: Mesh  # after the rigid stage
-    target: Mesh
+    source: Mesh  # after the rigid stage, faces with a normal only
+    target: Mesh  # faces with a normal only
     rigid: RigidRegistration
+    faces: Tensor  # every source face (the registered mesh's)
 
 
 def _normalise(
@@ -269,8 +280,12 @@ def _normalise(
         rigid = _identity_rigid(src.verts)
         moved = src.verts
     timings["rigid"] = time.perf_counter() - t0
-    source_n = Mesh((moved - center) / diag, src.faces, validate=False)
-    return _Frame(center, diag, source_n, Mesh((tgt.verts - center) / diag, tgt.faces, validate=False), rigid)
+    # The faces with a normal and the welding are decided on the input frames (not on the rigid motion's rounding).
+    source_faces = welded_faces(src.verts, src.faces[src.surface_face_mask()])
+    target_faces = welded_faces(tgt.verts, tgt.faces[tgt.surface_face_mask()])
+    source_n = Mesh((moved - center) / diag, source_faces, validate=False)
+    target_n = Mesh((tgt.verts - center) / diag, target_faces, validate=False)
+    return _Frame(center, diag, source_n, target_n, rigid, src.faces)
 
 
 class _Terms(NamedTuple):
@@ -382,6 +397,12 @@ class _Fit:
             if not math.isfinite(grad_max):
                 self._diverged("diverged: non-finite gradient")
                 return
+            if step == 0:
+                # Adam's first steps are ~lr * sign(g) per component: one whose gradient is near zero would move by
+                # the step size in a direction set by the input's last bits (1e-9 of input moved the demo pair's
+                # registration by 3.6e-5 of the diagonal). An eps relative to the stage's largest gradient component
+                # keeps such components' steps proportional to their gradient (docs/registration.md, "Stability").
+                opt.eps = max(ADAM_EPS, self.opts.adam_eps * grad_max)
             if step % every == 0:
                 self.last_good = _parameters(self.graph)
                 self.refresh_losses.append(value)
@@ -396,20 +417,25 @@ class _Fit:
 
         Converged: the last stage stopped at a stationary point, or its loss with correspondences refreshed at its
         final parameters differs from its loss right after its last refresh (both functions of the parameters
-        alone) by at most ``tolerance`` times its loss at its start. This only reports; it decides no iterate.
+        alone) by at most ``tolerance`` times that final loss (or the loss of residuals of 1e-5 of the diagonal, when
+        larger). Relative to the final loss, not to the stage's first:
+        a stage's loss falls fastest at its start, so a window that still removes 1-2 % of the loss (a schedule cut
+        after a stage that anneals to half its rate) is small against the first loss and passed the old criterion.
+        This only reports; it decides no iterate.
         """
         h = self.refresh_losses
         if self.stationary or not h or self.last_stage is None:
             return ""
         final, _ = self._evaluate(self.last_stage, self._refresh(self.last_stage), gradient=False)
-        h = [*h, final]
-        change = abs(h[-1] - h[-2]) / max(abs(h[0]), 1e-30)
+        # Below the loss of residuals of 1e-5 of the diagonal (in node spacings) the fit is as good as exact, and a
+        # relative change of its tiny loss is rounding (a 1e-5 stretch ends at a loss of 7e-11, changing by 2e-13).
+        floor = (1e-5 / self.opts.node_spacing) ** 2
+        change = abs(final - h[-1]) / max(abs(final), floor)
         if change <= self.opts.tolerance:
             return ""
         return (
-            f"not converged: the loss changed by {change:.2g} of the last stage's first loss between its last refresh "
-            f"and its end, more than tolerance={self.opts.tolerance:g}; give the last stage more steps or a stronger "
-            "lr_decay"
+            f"not converged: the loss changed by {change:.2g} of itself between the last stage's last refresh and its "
+            f"end, more than tolerance={self.opts.tolerance:g}; give the last stage more steps or a stronger lr_decay"
         )
 
     def _diverged(self, reason: str) -> None:

@@ -18,8 +18,7 @@ from kornia.geometry.conversions import axis_angle_to_rotation_matrix
 from torch import Tensor
 
 from torchmeshmetric._checks import EmptyInputError, ShapeError, check_finite, check_float, check_shape
-from torchmeshmetric.kernels.mesh_index import MeshIndex
-from torchmeshmetric.kernels.point_triangle import PointMeshResult
+from torchmeshmetric.kernels.mesh_index import MeshIndex, PointMeshResult
 from torchmeshmetric.registration._common import one_thread, validate_pair
 from torchmeshmetric.structures import Mesh, MeshLike
 

@@ -32,12 +32,12 @@ from torchmeshmetric._checks import ShapeError, check_finite, check_float, check
 from torchmeshmetric.kernels.point_triangle import point_mesh_distance
 from torchmeshmetric.registration._common import normalisation
 from torchmeshmetric.registration.deformation_graph import embedded_deformation, skinning_weights
-from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
+from torchmeshmetric.structures import Mesh, MeshLike, as_mesh, is_mesh_like
 
 if TYPE_CHECKING:
     from torchmeshmetric.registration.nonrigid import NonRigidRegistration
 
-__all__ = ["RegistrationWarp", "SurfaceWarp", "Warp"]
+__all__ = ["RegistrationWarp", "SurfaceWarp", "Warp", "as_warp", "deformation_of"]
 
 
 class Warp(Protocol):
@@ -171,3 +171,64 @@ class SurfaceWarp(NamedTuple):
             hit = point_mesh_distance(points.to(dtype), src)
         moved = points.to(dtype) + (hit.bary[..., None] * disp[src.faces[hit.face_idx]]).sum(1)
         return moved.to(points.dtype)
+
+
+def deformation_of(registration: object, original_k: MeshLike) -> Warp | None:
+    """The deformation a caller's registration carries: its ``warp``, or a ``NonRigidRegistration``'s; else ``None``.
+
+    One of the two conversions of a registration (the evaluation's and the temporal loss's); :func:`as_warp` is the
+    other, for registrations known only by their registered vertices.
+
+    Example:
+        >>> deformation_of(object(), None) is None
+        True
+    """
+    warp = getattr(registration, "warp", None)  # a CachedRegistration (evaluation), or anything holding a warp
+    if warp is not None:
+        return warp
+    if getattr(registration, "graph", None) is not None and hasattr(registration, "rigid"):  # NonRigidRegistration
+        return RegistrationWarp.from_registration(registration, original_k)  # type: ignore[arg-type]
+    return None
+
+
+def as_warp(registration: object, original_k: MeshLike, original_k_minus_1: Mesh, *, name: str) -> Warp:
+    """A caller's registration of ``original_k_minus_1`` onto ``original_k`` as a map of points (frame k-1 → k).
+
+    Args:
+        registration: a warp (any callable ``(P, 3) -> (P, 3)``), a ``NonRigidRegistration``, an object with a
+            ``warp`` (the evaluation's ``CachedRegistration``) or only ``verts``, or the registered mesh (frame
+            ``k-1``'s topology): the last two as their :class:`SurfaceWarp`.
+        original_k: the target frame.
+        original_k_minus_1: the source frame.
+        name: the argument's name in errors.
+
+    Raises:
+        ShapeError: registered vertices that are not those of ``original_k_minus_1``.
+        TypeError: anything else.
+
+    Example:
+        >>> import torch, trimesh
+        >>> sphere = as_mesh(trimesh.creation.icosphere(subdivisions=1))
+        >>> type(as_warp((sphere.verts + 1.0, sphere.faces), sphere, sphere, name="registration")).__name__
+        'SurfaceWarp'
+    """
+    warp = deformation_of(registration, original_k)
+    if warp is not None:
+        return warp
+    verts = getattr(registration, "verts", None)
+    if verts is None and is_mesh_like(registration):
+        verts = as_mesh(registration, name=name).verts  # type: ignore[arg-type]
+    if verts is not None:  # known only by its registered vertices: their piecewise-linear map
+        verts = torch.as_tensor(verts).detach()
+        if tuple(verts.shape) != tuple(original_k_minus_1.verts.shape):
+            raise ShapeError(
+                f"{name}: expected registered vertices of shape {tuple(original_k_minus_1.verts.shape)} "
+                f"(the vertices of original_k_minus_1), found {tuple(verts.shape)}"
+            )
+        return SurfaceWarp(original_k_minus_1.detach(), verts.to(original_k_minus_1.verts))
+    if callable(registration):
+        return registration
+    raise TypeError(
+        f"{name}: expected None, a warp (callable), a NonRigidRegistration, a registration with 'warp' or 'verts', "
+        f"or the registered mesh, found {type(registration).__name__}"
+    )

@@ -66,8 +66,8 @@ def anchored_sequence(
         >>> import trimesh
         >>> frames = [trimesh.creation.icosphere(subdivisions=2)] * 3
         >>> same = [lambda points: points] * 2  # frames that do not move
-        >>> [m.num_faces for m in anchored_sequence(frames, 0.5, same)]
-        [160, 160, 160]
+        >>> tuple(m.num_faces for m in anchored_sequence(frames, 0.5, same))
+        (160, 160, 160)
     """
     _check_lengths(frames, registrations)
     out = [simplify_qem(frames[0], target)]
@@ -132,8 +132,8 @@ def simplify_tracking(
     Example:
         >>> import trimesh
         >>> frames = [trimesh.creation.icosphere(subdivisions=2)] * 2
-        >>> [m.num_faces for m in simplify_tracking(frames, 0.5, [lambda points: points])]
-        [160, 160]
+        >>> tuple(m.num_faces for m in simplify_tracking(frames, 0.5, [lambda points: points]))
+        (160, 160)
     """
     anchored = anchored_sequence(frames, target, registrations, weight=weight)
     if slide is None:

@@ -14,10 +14,10 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric.kernels._common import pair_chunks
-from torchmeshmetric.kernels.point_triangle import _region_candidates
+from torchmeshmetric.kernels.triangle import region_candidates
 
 if TYPE_CHECKING:
-    from torchmeshmetric.kernels.select import FaceSet, PointSet
+    from torchmeshmetric.kernels.contract import FaceSet, PointSet
 
 __all__ = ["query_faces", "query_points"]
 
@@ -63,7 +63,7 @@ def query_faces(_structure: None, faces: FaceSet, points: Tensor, point_batch: T
 
     def chunk_sq(p0: int, p1: int, f0: int, f1: int) -> Tensor:
         p = points[p0:p1, None]
-        return _region_candidates(p - a[f0:f1], p - b[f0:f1], ab[f0:f1], ac[f0:f1], bc[f0:f1])[-1].amin(-1)
+        return region_candidates(p - a[f0:f1], p - b[f0:f1], ab[f0:f1], ac[f0:f1], bc[f0:f1])[-1].amin(-1)
 
     # ~40 live scalars per pair (three (..,3) edge differences, cross products, candidates).
     rows, cols = pair_chunks(points.shape[0], tri.shape[0], 40 * points.element_size(), max_memory)

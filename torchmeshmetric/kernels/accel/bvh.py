@@ -16,7 +16,7 @@ from torch import Tensor
 from torchmeshmetric import native
 
 if TYPE_CHECKING:
-    from torchmeshmetric.kernels.select import FaceSet, PointSet
+    from torchmeshmetric.kernels.contract import FaceSet, PointSet
 
 __all__ = [
     "build_faces",

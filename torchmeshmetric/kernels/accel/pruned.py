@@ -23,10 +23,10 @@ from typing import TYPE_CHECKING
 import torch
 from torch import Tensor
 
-from torchmeshmetric.kernels.point_triangle import _region_candidates
+from torchmeshmetric.kernels.triangle import region_candidates
 
 if TYPE_CHECKING:
-    from torchmeshmetric.kernels.select import FaceSet, PointSet
+    from torchmeshmetric.kernels.contract import FaceSet, PointSet
 
 __all__ = ["pruned_faces", "pruned_nearest", "query_faces", "query_points"]
 
@@ -158,7 +158,7 @@ def pruned_faces(
     def pair_sq(p: Tensor, mem: Tensor) -> Tensor:
         f = mem.clamp_min(0)
         q = p[:, None]
-        sq = _region_candidates(q - a[f], q - b[f], ab[f], ac[f], bc[f])[-1].amin(-1)
+        sq = region_candidates(q - a[f], q - b[f], ab[f], ac[f], bc[f])[-1].amin(-1)
         return sq.masked_fill(mem < 0, float("inf"))
 
     return _select(points, point_batch, tri.amin(1), tri.amax(1), face_batch, face_offsets, pair_sq, max_memory)

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 from torch import Tensor
 
 if TYPE_CHECKING:
-    from torchmeshmetric.kernels.select import FaceSet, PointSet
+    from torchmeshmetric.kernels.contract import FaceSet, PointSet
 
 __all__ = [
     "build_faces",

@@ -12,7 +12,7 @@ state in registers:
   whose box is tested again against the (possibly smaller) current bound. A lane is done when its trail is empty;
   the program loops while any lane is active.
 - **exact leaf tests**: the squared point-triangle distance uses exactly the floating-point operations, in the
-  same order and dtype, of ``_region_candidates`` (``point_triangle.py``) and of ``tri_sq_dist`` in ``bvh.cpp``;
+  same order and dtype, of ``region_candidates`` (``kernels/triangle.py``) and of ``tri_sq_dist`` in ``bvh.cpp``;
   the per-face terms that do not depend on the query (``n = ab x ac``, ``n.n``, ``ab.ab``, ``ac.ac``, ``bc.bc``)
   are computed by the very torch expressions of the brute force. Divisions and square roots are IEEE
   round-to-nearest (``div_rn`` / ``sqrt_rn`` in float32) and kernels are compiled with ``enable_fp_fusion=False``
@@ -155,7 +155,7 @@ def _traversal_step(  # type: ignore[no-untyped-def]
 
 @_jit
 def _tri_sq_dist(f, m, qx, qy, qz, IS_F64: tl.constexpr):  # type: ignore[no-untyped-def]
-    """Squared distance from the query to the face record at ``f``: the operations of ``_region_candidates``."""
+    """Squared distance from the query to the face record at ``f``: the operations of ``region_candidates``."""
     ax, ay, az = _load3(f, m)
     bx, by, bz = _load3(f + 3, m)
     abx, aby, abz = _load3(f + 6, m)

@@ -1,0 +1,101 @@
+"""Issue 29 on the losses: bad arguments and second derivatives refused with typed errors, never a wrong number."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import torch
+import trimesh
+
+from torchmeshmetric import DoubleBackwardError, EmptyInputError, NonFiniteError
+from torchmeshmetric.kernels.danskin import surface_distances
+from torchmeshmetric.kernels.mesh_index import MeshIndex
+from torchmeshmetric.metrics import (
+    MeshSurfaceDistanceLoss,
+    TemporalConsistencyLoss,
+    mesh_surface_distance_loss,
+    temporal_consistency_loss,
+)
+
+
+@pytest.fixture(scope="module")
+def spheres():
+    fine = trimesh.creation.icosphere(subdivisions=2)
+    coarse = trimesh.creation.icosphere(subdivisions=1)
+    return fine, torch.tensor(coarse.vertices), torch.tensor(coarse.faces)
+
+
+def _shifted(v):
+    return v + torch.tensor([0.0, 0.0, 0.05], dtype=v.dtype)
+
+
+@pytest.mark.parametrize("frame_weight", [math.inf, -math.inf, math.nan, -1.0])
+def test_a_frame_weight_that_is_not_finite_and_non_negative_is_refused_at_construction(frame_weight, spheres):
+    # inf gave an inf or NaN loss, NaN a NaN loss (issue 29)
+    with pytest.raises(ValueError, match=r"frame_weight: expected a finite number >= 0, found"):
+        TemporalConsistencyLoss(frame_weight=frame_weight)
+    fine, v, f = spheres
+    with pytest.raises(ValueError, match=r"frame_weight: expected a finite number >= 0, found"):
+        temporal_consistency_loss((v, f), (v, f), fine, fine, lambda p: p, frame_weight=frame_weight)
+
+
+@pytest.mark.parametrize("power", [math.inf, math.nan, 0.0, -2.0, True])
+def test_a_power_that_is_not_finite_and_positive_is_refused_by_every_loss(power):
+    # power=inf gave 0 for every distance below 1 (issue 29)
+    for make in (lambda: TemporalConsistencyLoss(power=power), lambda: MeshSurfaceDistanceLoss(power=power)):
+        with pytest.raises(ValueError, match=r"power: expected a finite positive number"):
+            make()
+
+
+def test_a_double_backward_through_the_temporal_loss_is_refused(spheres):
+    # it returned a wrong Hessian-vector product (the closest points are held fixed: first order only)
+    fine, v, f = spheres
+    vk = _shifted(v).requires_grad_()
+    loss = temporal_consistency_loss((vk, f), (v, f), fine, fine, lambda p: p)
+    with pytest.raises(DoubleBackwardError, match=r"temporal_consistency_loss: first-order only"):
+        torch.autograd.grad(loss, vk, create_graph=True)
+    (grad,) = torch.autograd.grad(temporal_consistency_loss((vk, f), (v, f), fine, fine, lambda p: p), vk)
+    assert torch.isfinite(grad).all() and grad.abs().max() > 0  # the first derivative still works
+
+
+def test_a_double_backward_through_the_surface_loss_is_refused(spheres):
+    fine, v, _ = spheres
+    x = (1.5 * v).requires_grad_()
+    loss = mesh_surface_distance_loss(x, fine, power=2)
+    with pytest.raises(DoubleBackwardError, match=r"mesh_surface_distance_loss: first-order only"):
+        torch.autograd.grad(loss, x, create_graph=True)
+
+
+def test_danskin_gradient_passes_gradcheck_away_from_ties(spheres):
+    fine, _, _ = spheres
+    index = MeshIndex(fine)
+    torch.manual_seed(0)
+    points = (torch.randn(7, 3, dtype=torch.float64) * 1.3).requires_grad_()
+    verts = index.verts.clone().requires_grad_()
+    lengths = torch.tensor([7])
+    faces = index.faces
+
+    def distances(p, w):  # the index rebuilt on the perturbed vertices, as a caller's index of those vertices
+        return surface_distances(p, w, faces, MeshIndex((w.detach(), faces)), lengths)
+
+    # Central differences of 1e-6 stay on one closest face for random points (a tie would move it).
+    assert torch.autograd.gradcheck(distances, (points, verts), eps=1e-6, atol=1e-6)
+
+
+@pytest.mark.parametrize("which", [0, 1, 2])
+def test_the_loss_names_the_frame_without_faces(which, spheres):
+    # the kernels named their own argument ("mesh: no vertex is referenced by a face")
+    fine, v, f = spheres
+    frames = [(v, f), (v, f), fine]
+    frames[which] = (v[:0], f[:0])
+    name = ["simplified_k", "simplified_k_minus_1", "original_k"][which]
+    with pytest.raises(EmptyInputError, match=rf"^{name}: expected a mesh with at least one face, found none"):
+        temporal_consistency_loss(*frames, fine, lambda p: p)
+
+
+def test_a_warp_to_non_finite_positions_is_refused(spheres):
+    # it gave a loss of 0
+    fine, v, f = spheres
+    with pytest.raises(NonFiniteError, match=r"registration: the warp moved 42 vertices of simplified_k_minus_1"):
+        temporal_consistency_loss((v, f), (v, f), fine, fine, lambda p: p * math.nan)

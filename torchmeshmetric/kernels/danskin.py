@@ -1,0 +1,133 @@
+r"""Point-to-surface distances differentiated by Danskin's theorem: the backward pass of every surface loss.
+
+``d(p, V) = min_{b in simplex} |p - sum_j b_j v_j|``: where the minimiser ``b*`` (the closest point) is unique, the
+gradient of the minimum is the gradient at the fixed minimiser (Danskin 1967): ``dd/dp = (p - c) / d`` and
+``dd/dv_j = -b*_j (p - c) / d`` for the corners of the closest face, 0 at ``d = 0`` (the convention of the kernels'
+``safe_sqrt``). These are the values of autograd through the closest-point formulas (float64: 1e-10 apart), without
+their graph: the forward pass is the index's fused no-autograd query, the backward pass a few ``(P, 3)`` operations
+and one ``index_add_`` (about 5x faster than autograd through the seven-region formulas).
+
+First order only: the backward pass is not itself differentiable (the closest face and its barycentric coordinates
+are held fixed), so a double backward (``create_graph=True``) is refused with :class:`DoubleBackwardError` rather
+than returning a wrong Hessian-vector product.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import torch
+from torch import Tensor
+
+from torchmeshmetric._checks import DoubleBackwardError
+from torchmeshmetric.kernels.mesh_index import MeshIndex
+from torchmeshmetric.structures import Mesh
+
+__all__ = ["mesh_surface_distances", "surface_distances"]
+
+
+class _DanskinDistance(torch.autograd.Function):
+    """Distances from packed points to the packed surface an index holds, with Danskin's gradient."""
+
+    @staticmethod
+    def forward(
+        ctx: Any, points: Tensor, verts: Tensor, faces: Tensor, index: MeshIndex, lengths: Tensor, owner: str
+    ) -> Tensor:
+        with torch.no_grad():
+            hit = index._point_mesh_distance(points.detach(), lengths)
+        ctx.save_for_backward(points.detach() - hit.closest, hit.dists, hit.bary, faces[hit.face_idx])
+        ctx.num_verts = int(verts.shape[0])
+        ctx.owner = owner
+        return hit.dists
+
+    @staticmethod
+    def backward(ctx: Any, grad: Tensor) -> tuple[Tensor | None, Tensor | None, None, None, None, None]:
+        if torch.is_grad_enabled():  # create_graph=True: the caller wants to differentiate this gradient
+            raise DoubleBackwardError(
+                f"{ctx.owner}: first-order only: its gradient holds the closest points fixed (Danskin's theorem), "
+                "so a double backward (create_graph=True, Hessian-vector products) would be wrong; differentiate "
+                "once"
+            )
+        diff, dists, bary, corners = ctx.saved_tensors
+        scale = torch.where(dists > 0, grad / torch.where(dists > 0, dists, torch.ones_like(dists)), 0.0)
+        unit = scale[:, None] * diff  # dL/dp
+        grad_verts = None
+        if ctx.needs_input_grad[1]:
+            grad_verts = unit.new_zeros(ctx.num_verts, 3).index_add_(
+                0, corners.reshape(-1), (-bary[:, :, None] * unit[:, None, :]).reshape(-1, 3)
+            )
+        return (unit if ctx.needs_input_grad[0] else None), grad_verts, None, None, None, None
+
+
+def surface_distances(
+    points: Tensor, verts: Tensor, faces: Tensor, index: MeshIndex, lengths: Tensor, *, owner: str = "loss"
+) -> Tensor:
+    """Exact distances from packed points to the packed meshes ``index`` holds; differentiable by Danskin's theorem.
+
+    Args:
+        points: ``(sum P_b, 3)`` query points, packed, in the index's dtype and on its device (trusted: the callers'
+            validated vertex or point sets).
+        verts: ``(sum V_b, 3)`` the vertices the gradient reaches: the packed vertices of the meshes the index was
+            built from (equal values; the index itself may hold detached copies).
+        faces: ``(sum F_b, 3)`` their faces, packed, indices into ``verts``.
+        index: the :class:`~torchmeshmetric.MeshIndex` of those meshes (queried without autograd).
+        lengths: ``(B,)`` points per item; item ``b``'s points are measured to mesh ``b``.
+        owner: the loss's name in the error of a double backward.
+
+    Returns:
+        ``(sum P_b,)`` distances (those of ``index.point_mesh_distance``, bit for bit), differentiable w.r.t.
+        ``points`` and ``verts``; the gradient is 0 where a distance is exactly 0.
+
+    Raises:
+        DoubleBackwardError: at a backward pass with ``create_graph=True``.
+
+    Example:
+        >>> import torch, trimesh
+        >>> from torchmeshmetric import MeshIndex
+        >>> sphere = trimesh.creation.icosphere(subdivisions=2)
+        >>> index = MeshIndex(sphere)
+        >>> v, f = index.verts.clone().requires_grad_(), index.faces
+        >>> p = torch.tensor([[0.0, 0.0, 3.0]], dtype=torch.float64, requires_grad=True)
+        >>> d = surface_distances(p, v, f, index, torch.tensor([1]))
+        >>> d.sum().backward()
+        >>> round(float(d), 4), [round(g, 4) for g in p.grad[0].tolist()], round(float(v.grad.sum(0)[2]), 4)
+        (2.0, [0.0, 0.0, 1.0], -1.0)
+    """
+    out: Tensor = _DanskinDistance.apply(points, verts, faces, index, lengths, owner)
+    return out
+
+
+def mesh_surface_distances(
+    points: Tensor, lengths: Tensor, meshes: list[Mesh], index: MeshIndex, *, owner: str = "loss"
+) -> Tensor:
+    """:func:`surface_distances` to a batch of meshes: their vertices and faces packed as the index packs them.
+
+    Args:
+        points: ``(sum P_b, 3)`` packed query points in the index's dtype, on its device.
+        lengths: ``(B,)`` points per item.
+        meshes: the ``B`` meshes the index was built from (equal values); the gradient reaches their vertices
+            unless they are detached.
+        index: their :class:`~torchmeshmetric.MeshIndex`.
+        owner: the loss's name in the error of a double backward.
+
+    Returns:
+        ``(sum P_b,)`` distances, differentiable w.r.t. ``points`` and the meshes' vertices (first order). Without
+        anything to differentiate (no gradient required, or grad mode off) the index's query alone, bit for bit.
+
+    Example:
+        >>> import torch, trimesh
+        >>> from torchmeshmetric import MeshIndex, as_mesh
+        >>> sphere = as_mesh(trimesh.creation.icosphere(subdivisions=2))
+        >>> p = torch.tensor([[0.0, 0.0, 3.0]], dtype=torch.float64)
+        >>> round(float(mesh_surface_distances(p, torch.tensor([1]), [sphere], MeshIndex(sphere))), 4)
+        2.0
+    """
+    if not (torch.is_grad_enabled() and (points.requires_grad or any(m.verts.requires_grad for m in meshes))):
+        return index._point_mesh_distance(points, lengths).dists  # a metric: nothing to differentiate
+    if len(meshes) == 1:
+        verts, faces = meshes[0].verts, meshes[0].faces
+    else:
+        offsets = torch.tensor([0] + [m.num_verts for m in meshes[:-1]], device=meshes[0].faces.device).cumsum(0)
+        verts = torch.cat([m.verts for m in meshes])
+        faces = torch.cat([m.faces + int(o) for m, o in zip(meshes, offsets, strict=True)])
+    return surface_distances(points, verts.to(index.dtype), faces, index, lengths, owner=owner)
