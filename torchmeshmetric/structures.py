@@ -210,10 +210,10 @@ class Mesh:
         """
 
         def compute() -> Tensor:
-            tri = self.verts[self.faces]
-            longest = (tri.roll(-1, dims=1) - tri).norm(dim=-1).amax(dim=1)
-            scale = tri.abs().flatten(1).amax(dim=1)
-            noise = 64.0 * torch.finfo(self.verts.dtype).eps * scale * longest
+            a, b, c = (self.verts.index_select(0, self.faces[:, i]) for i in range(3))
+            longest2 = torch.stack([(b - a).square().sum(1), (c - b).square().sum(1), (a - c).square().sum(1)])
+            scale = torch.stack([a.abs().amax(1), b.abs().amax(1), c.abs().amax(1)]).amax(0)
+            noise = 64.0 * torch.finfo(self.verts.dtype).eps * scale * longest2.amax(0).sqrt()
             return self._face_cross_norm()[:, 0] > noise
 
         return self._cached("surface_face_mask", compute)

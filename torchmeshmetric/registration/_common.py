@@ -39,9 +39,20 @@ def welded_faces(verts: Tensor, faces: Tensor) -> Tensor:
     takes depends on the input's last bits. Welded, both sides share one vertex and one normal; the positions, and so
     every closest point, are unchanged (a copy is at its original's position, and moves with the same skinning).
     """
-    _, group = torch.unique(verts, dim=0, return_inverse=True)
-    first = torch.full((int(group.max()) + 1 if group.numel() else 0,), verts.shape[0], device=verts.device)
-    first = first.scatter_reduce(0, group, torch.arange(verts.shape[0], device=verts.device), "amin")
+    n = verts.shape[0]
+    if n == 0:
+        return faces
+    # Rows sorted lexicographically by three stable 1-D sorts (torch.unique(dim=0) took ~80 ms on 20k rows).
+    order = torch.arange(n, device=verts.device)
+    for axis in (2, 1, 0):
+        order = order[torch.sort(verts[order, axis], stable=True).indices]
+    rows = verts[order]
+    starts = torch.ones(n, dtype=torch.bool, device=verts.device)
+    starts[1:] = (rows[1:] != rows[:-1]).any(dim=1)
+    group = torch.empty_like(order)
+    group[order] = torch.cumsum(starts, 0) - 1
+    first = torch.full((int(starts.sum()),), n, device=verts.device)
+    first = first.scatter_reduce(0, group, torch.arange(n, device=verts.device), "amin")
     return first[group][faces]
 
 

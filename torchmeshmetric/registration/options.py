@@ -68,7 +68,8 @@ DEFAULT_SCHEDULE: tuple[Stage, ...] = (
 
 Each stage anneals its step size geometrically (to half its initial rate in the first three, to a thousandth in the
 last), so the registration ends converged: under one-ulp and 1e-9-relative input perturbations the registered
-vertices of a ~17k-vertex pair move by ~1e-9 of the diagonal (docs/registration.md, "Stability"). The last stage runs
+vertices of a ~17k-20k-vertex pair move by at most ~1e-12 and ~2e-6 of the diagonal (docs/registration.md,
+"Stability"). The last stage runs
 80 steps (was 40 at a constant rate) so that it has room to converge."""
 
 
