@@ -183,3 +183,17 @@ def test_ibsm_of_meshes_that_never_overlap_keeps_99_99_and_warns() -> None:
     with pytest.warns(IbsmNoOverlapWarning, match="no pixel is covered in both renderings"):
         r = ibsm(a, b, resolution=32, cameras=4)
     assert r.geo_psnr == 99.99 and r.pixels == 0 and r.unmatched_percent == 100.0
+
+
+def test_ctc_frame_errors_name_ref_and_dis() -> None:
+    q = TexturedMesh(Mesh(torch.tensor([[0.0, 0, 0], [9, 0, 0], [0, 9, 0]]), torch.tensor([[0, 1, 2]])))
+    nan = TexturedMesh(Mesh(torch.tensor([[0.0, 0, 0], [9, 0, 0], [0, float("nan"), 0]]), torch.tensor([[0, 1, 2]]),
+                            validate=False))  # fmt: skip
+    kw = dict(qp=10, qt=0, min_pos=[0, 0, 0], max_pos=[1, 1, 1], resolution=1.0, grid_size=16, ibsm_resolution=None)
+    with pytest.raises(ValueError, match=r"^dis: positions: expected finite quantised values"):
+        ctc_frame(q, nan, **kw)  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match=r"^ref: expected a TexturedMesh"):
+        ctc_frame(q.mesh, q, **kw)  # type: ignore[arg-type]
+    uv = TexturedMesh(q.mesh, torch.zeros(1, 3, 2), np.zeros((2, 2, 3), np.uint8))
+    with pytest.raises(ValueError, match=r"^dis: decoded_qt: expected an integer bit depth"):
+        ctc_frame(q, uv, decoded_qt=40, **kw)  # type: ignore[arg-type]

@@ -40,8 +40,8 @@ def run(args: argparse.Namespace) -> int:
     every frame with QEM and with Registered QEM (which uses the registered previous frame), evaluate both, print
     the paper's four tables and write report.json/.md/.csv, plots and coloured PLYs. The defaults are the paper's
     sizes (6 frames of ~20k vertices / 40k faces, keep 97% of the faces, full registration): about 40 s on 2 CPU
-    cores; the first run on a machine also compiles the C++ distance extension once (~30 s). --resolution 80
-    --registration fast is a ~15 s preview.
+    cores; the first run on a machine first builds the C++ extension once, with a progress line (minutes on 2
+    cores; `torchmeshmetric build` does it ahead). --resolution 80 --registration fast is a ~15 s preview.
     """
     from torchmeshmetric.cli._shared import (
         device_of,

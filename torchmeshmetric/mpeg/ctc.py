@@ -33,6 +33,7 @@ from torch import Tensor
 from torchmeshmetric.mpeg.comparison import mpeg_compare
 from torchmeshmetric.mpeg.dequantize import dequantize_positions, dequantize_uvs
 from torchmeshmetric.mpeg.grid_sampling import grid_sample
+from torchmeshmetric.mpeg.ibsm import IbsmResult, ibsm
 from torchmeshmetric.mpeg.point_cloud import PointCloud
 from torchmeshmetric.mpeg.reindex import oriented_reindex
 from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
@@ -87,7 +88,8 @@ class CtcFrame:
         figures: column name -> PSNR in dB (unclipped, ``inf`` for identical frames).
         points_ref: the reference's grid samples after duplicate merging.
         points_dis: the decoded frame's.
-        seconds: wall seconds per stage (``dequantize``, ``grid``, ``pcc``, ``ibsm``) of this computation.
+        seconds: wall seconds per stage (``dequantize``, ``grid``, ``pcc``, ``ibsm``; IBSM runs beside the grid and pcc
+            stages, so the stages may add up to more than the frame took).
     """
 
     frame: int
@@ -124,9 +126,19 @@ class CtcSequence:
         return {"frames": rows, "mean": self.mean()}
 
 
-def _dequantized(mesh: TexturedMesh, qp: int, qt: int, box: tuple[Corner, Corner]) -> TexturedMesh:
-    verts = dequantize_positions(mesh.mesh.verts, qp, box[0], box[1], fixed_point=True)
-    uvs = None if mesh.uvs is None else dequantize_uvs(mesh.uvs, qt)
+def _dequantized(mesh: TexturedMesh, qp: int, qt: int, box: tuple[Corner, Corner], name: str,
+                 qt_name: str) -> TexturedMesh:  # fmt: skip
+    """The dequantised mesh; an error names the argument (``ref`` / ``dis``, ``qt`` / ``decoded_qt``)."""
+    if not isinstance(mesh, TexturedMesh):
+        raise TypeError(f"{name}: expected a TexturedMesh (load_textured_mesh), found {type(mesh).__name__}")
+    try:
+        verts = dequantize_positions(mesh.mesh.verts, qp, box[0], box[1], fixed_point=True)
+    except (TypeError, ValueError) as exc:
+        raise type(exc)(f"{name}: {exc}".replace("verts: ", "positions: ")) from None
+    try:
+        uvs = None if mesh.uvs is None else dequantize_uvs(mesh.uvs, qt)
+    except (TypeError, ValueError) as exc:
+        raise type(exc)(f"{name}: {exc}".replace("qt: ", f"{qt_name}: ")) from None
     return TexturedMesh(Mesh(verts, mesh.mesh.faces), uvs, mesh.texture, mesh.colors)
 
 
@@ -142,6 +154,13 @@ def _grid_cloud(m: TexturedMesh, grid_size: int, box: tuple[Corner, Corner]) -> 
         bilinear=True,
         use_fixed_point=True,
     )
+
+
+def _timed_ibsm(r: TexturedMesh, d: TexturedMesh, resolution: int, cameras: int) -> tuple[IbsmResult, float]:
+    t0 = time.perf_counter()
+    # both meshes are already reindexed as IBSM would (the grid chain's reorder is the same)
+    out = ibsm(r, d, resolution=resolution, cameras=cameras, reorder=False)
+    return out, time.perf_counter() - t0
 
 
 def ctc_frame(
@@ -199,29 +218,27 @@ def ctc_frame(
     t0 = time.perf_counter()
     # both mmetric steps reindex the dequantised meshes with the same oriented reorder (the grid chain's reindex
     # command, IBSM's own reordering): done once here, and IBSM told not to redo it
-    r = oriented_reindex(_dequantized(ref, qp, qt, box))
-    d = oriented_reindex(_dequantized(dis, qp, decoded_qt, box))
+    r = oriented_reindex(_dequantized(ref, qp, qt, box, "ref", "qt"))
+    d = oriented_reindex(_dequantized(dis, qp, decoded_qt, box, "dis", "decoded_qt"))
     t1 = time.perf_counter()
-    # the two samplings are independent numpy work that releases the GIL: run them side by side
-    with ThreadPoolExecutor(max_workers=2) as pool:
+    # IBSM, the two samplings and then the comparison release the GIL in their C++ and numpy work: IBSM runs beside
+    # the grid chain, so that one's single-threaded parts fill the core the other leaves
+    with ThreadPoolExecutor(max_workers=3) as pool:
+        ib_job = None if ibsm_resolution is None else pool.submit(_timed_ibsm, r, d, ibsm_resolution, ibsm_cameras)
         rc = pool.submit(_grid_cloud, r, grid_size, box)
         dc = pool.submit(_grid_cloud, d, grid_size, box)
         ref_cloud, dis_cloud = rc.result(), dc.result()
-    t2 = time.perf_counter()
-    res = mpeg_compare(ref_cloud, dis_cloud, peak=resolution)
-    t3 = time.perf_counter()
-    ib = None
-    if ibsm_resolution is not None:
-        from torchmeshmetric.mpeg.ibsm import ibsm
-
-        ib = ibsm(r, d, resolution=ibsm_resolution, cameras=ibsm_cameras, reorder=False)
+        t2 = time.perf_counter()
+        res = mpeg_compare(ref_cloud, dis_cloud, peak=resolution)
+        t3 = time.perf_counter()
+        ib, ibsm_seconds = (None, 0.0) if ib_job is None else ib_job.result()
     figures = {"GridD1": res.symmetric.d1_psnr, "GridD2": res.symmetric.d2_psnr}
     if res.symmetric.color_psnr is not None:
         y, cb, cr = res.symmetric.color_psnr
         figures.update({"GridLuma": y, "GridChromaCb": cb, "GridChromaCr": cr})
     if ib is not None:
         figures.update({"IbsmGeom": ib.geo_psnr, "IbsmLuma": ib.yuv_psnr[0]})
-    seconds = {"dequantize": t1 - t0, "grid": t2 - t1, "pcc": t3 - t2, "ibsm": time.perf_counter() - t3}
+    seconds = {"dequantize": t1 - t0, "grid": t2 - t1, "pcc": t3 - t2, "ibsm": ibsm_seconds}
     return CtcFrame(frame, figures, res.points_ref, res.points_dis, seconds)
 
 
