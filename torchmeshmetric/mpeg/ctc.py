@@ -200,7 +200,7 @@ def ctc_frame(
         ``GridLuma``, ``GridChromaCb``, ``GridChromaCr``.
 
     Example:
-        >>> import trimesh
+        >>> import torch, trimesh
         >>> s = trimesh.creation.icosphere(2)
         >>> q = TexturedMesh(Mesh(torch.tensor(np.round((s.vertices + 1) * 511.5)), torch.tensor(s.faces)))
         >>> r = ctc_frame(q, q, qp=10, qt=0, min_pos=[-1, -1, -1], max_pos=[1, 1, 1], resolution=2.0, grid_size=64,
@@ -261,7 +261,7 @@ def ctc_sequence(
     ``pairs`` may be a generator that reads the frames lazily (one pair in memory at a time).
 
     Example:
-        >>> import trimesh
+        >>> import torch, trimesh
         >>> s = trimesh.creation.icosphere(2)
         >>> q = TexturedMesh(Mesh(torch.tensor(np.round((s.vertices + 1) * 511.5)), torch.tensor(s.faces)))
         >>> seq = ctc_sequence([(0, q, q)], qp=10, qt=0, min_pos=[-1] * 3, max_pos=[1] * 3, resolution=2.0,
