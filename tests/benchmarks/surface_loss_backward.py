@@ -28,7 +28,7 @@ N = int(sys.argv[1]) if len(sys.argv) > 1 else 7
 
 def autograd_path() -> torch.Tensor:
     p = (simp.verts * 1.01).requires_grad_()
-    d = index._point_mesh_distance(p, lengths).dists  # autograd through the closest-point formulas
+    d = index.point_mesh_distance_unchecked(p, lengths).dists  # autograd through the closest-point formulas
     d.pow(2).mean().backward()
     return p.grad
 

@@ -42,6 +42,16 @@ def frames(tmp_path_factory):
     return root
 
 
+def _as_from_a_terminal() -> None:
+    """SIGINT at its default in the child, as a shell in a terminal starts a command.
+
+    A command started in the background of a non-interactive shell (``cmd &``, nohup, some CI runners) inherits
+    SIGINT ignored, and the command rightly keeps it ignored (``_interrupts.handled``): without this the test
+    would depend on how the test run itself was started.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _start(entry: str, frames: Path, out: Path) -> subprocess.Popen[str]:
     command = ENTRY_POINTS[entry]
     if command is None:
@@ -56,6 +66,7 @@ def _start(entry: str, frames: Path, out: Path) -> subprocess.Popen[str]:
         text=True,
         env=env,
         cwd=REPO,
+        preexec_fn=_as_from_a_terminal,
     )
 
 

@@ -34,7 +34,7 @@ class _DanskinDistance(torch.autograd.Function):
         ctx: Any, points: Tensor, verts: Tensor, faces: Tensor, index: MeshIndex, lengths: Tensor, owner: str
     ) -> Tensor:
         with torch.no_grad():
-            hit = index._point_mesh_distance(points.detach(), lengths)
+            hit = index.point_mesh_distance_unchecked(points.detach(), lengths)
         ctx.save_for_backward(points.detach() - hit.closest, hit.dists, hit.bary, faces[hit.face_idx])
         ctx.num_verts = int(verts.shape[0])
         ctx.owner = owner
@@ -123,7 +123,7 @@ def mesh_surface_distances(
         2.0
     """
     if not (torch.is_grad_enabled() and (points.requires_grad or any(m.verts.requires_grad for m in meshes))):
-        return index._point_mesh_distance(points, lengths).dists  # a metric: nothing to differentiate
+        return index.point_mesh_distance_unchecked(points, lengths).dists  # a metric: nothing to differentiate
     if len(meshes) == 1:
         verts, faces = meshes[0].verts, meshes[0].faces
     else:

@@ -88,7 +88,8 @@ class IndexCache:
         if index is None:
             # Built on copies of its own (packing copies), so the entry answers for the content it is keyed by even
             # when the caller's tensors change later; each caller gets a copy that watches the caller's tensors.
-            index = MeshIndex._trusted(pack_meshes(meshes if batch else meshes[0]), backend, DEFAULT_MAX_MEMORY, tree)
+            packed = pack_meshes(meshes if batch else meshes[0])
+            index = MeshIndex.from_packed(packed, backend, DEFAULT_MAX_MEMORY, tree)
             self._entries[key] = index
             if len(self._entries) > self.max_entries:
                 self._entries.popitem(last=False)
@@ -96,10 +97,10 @@ class IndexCache:
             self._entries.move_to_end(key)
         verts_given, faces_given = _given_tensors(mesh, None)
         if len(meshes) == 1:
-            return index._with_verts(meshes[0].verts, verts_given, faces_given)
+            return index.with_verts(meshes[0].verts, verts_given, faces_given)
         if any(m.verts.requires_grad for m in meshes):
-            return index._with_verts(torch.cat([m.verts for m in meshes]), verts_given, faces_given)
-        return index._with_verts(None, verts_given, faces_given)
+            return index.with_verts(torch.cat([m.verts for m in meshes]), verts_given, faces_given)
+        return index.with_verts(None, verts_given, faces_given)
 
     def __len__(self) -> int:
         return len(self._entries)

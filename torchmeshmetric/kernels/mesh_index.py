@@ -195,8 +195,21 @@ class MeshIndex:
         )
 
     @classmethod
-    def _trusted(cls, packed: PackedMeshes, backend: str, max_memory: int, tree: str = "morton") -> MeshIndex:
-        """An index over already validated packed meshes (the library's own loops; no checks repeated)."""
+    def from_packed(cls, packed: PackedMeshes, backend: str, max_memory: int, tree: str = "morton") -> MeshIndex:
+        """An index over packed meshes that the caller has already validated: no check is repeated.
+
+        The entry of the library's own loops (the registration validates its two meshes once, not at each of its
+        searches). Give it only what :class:`MeshIndex` itself would accept: finite vertices, faces in range.
+
+        Args:
+            packed: the packed meshes (:func:`~torchmeshmetric.pack_meshes`).
+            backend: a backend name (``"bvh"``, ``"pruned"``, ...).
+            max_memory: the bytes a chunked backend may use.
+            tree: ``"morton"`` or ``"sah"``.
+
+        Returns:
+            The index; it watches ``packed``'s tensors as :class:`MeshIndex` does.
+        """
         index = cls.__new__(cls)
         index._init(packed, backend, max_memory, True, tree)
         return index
@@ -219,7 +232,7 @@ class MeshIndex:
         self._face_offsets = lengths_to_offsets(packed.faces_lengths)
         self._faces: Selector | None = None
         self._nearest: _NearestIndex | None = None
-        self._origin: MeshIndex | None = None  # the index a `_with_verts` copy shares its structures with
+        self._origin: MeshIndex | None = None  # the index a `with_verts` copy shares its structures with
         self._set_verts(packed.verts)
         self._verts_sources = _sources([("verts", packed.verts)])
         self._faces_sources = _sources([("faces", packed.faces)])
@@ -318,10 +331,18 @@ class MeshIndex:
             StaleIndexError: a tensor the index was built from changed in place since it was built or refitted.
         """
         pts = self._check_points(points, points_lengths)
-        return self._point_mesh_distance(pts.points, pts.lengths)
+        return self.point_mesh_distance_unchecked(pts.points, pts.lengths)
 
-    def _point_mesh_distance(self, points: Tensor, points_lengths: Tensor) -> PointMeshResult:
-        """Trusted entry (validated points of the index's dtype and device)."""
+    def point_mesh_distance_unchecked(self, points: Tensor, points_lengths: Tensor) -> PointMeshResult:
+        """:meth:`point_mesh_distance` for points the caller has validated (packed, finite, dtype and device).
+
+        Args:
+            points: ``(P, 3)`` packed query points.
+            points_lengths: ``(B,)`` points per indexed mesh.
+
+        Returns:
+            As :meth:`point_mesh_distance`.
+        """
         self._check_current()
         check_queries(
             points,
@@ -383,10 +404,18 @@ class MeshIndex:
             StaleIndexError: a tensor the index was built from changed in place since it was built or refitted.
         """
         pts = self._check_points(points, points_lengths)
-        return self._nearest_vertex_distance(pts.points, pts.lengths)
+        return self.nearest_vertex_distance_unchecked(pts.points, pts.lengths)
 
-    def _nearest_vertex_distance(self, points: Tensor, points_lengths: Tensor) -> NearestVertexResult:
-        """Trusted entry (validated points of the index's dtype and device)."""
+    def nearest_vertex_distance_unchecked(self, points: Tensor, points_lengths: Tensor) -> NearestVertexResult:
+        """:meth:`nearest_vertex_distance` for points the caller has validated (packed, finite, dtype and device).
+
+        Args:
+            points: ``(P, 3)`` packed query points.
+            points_lengths: ``(B,)`` points per indexed mesh.
+
+        Returns:
+            As :meth:`nearest_vertex_distance`.
+        """
         self._check_current()
         if self._nearest is None and self._origin is None:
             ref, lengths = self._ref_points()
@@ -424,7 +453,7 @@ class MeshIndex:
         for key in ("_verts_sources", "_faces_sources"):
             self.__dict__[key] = tuple((n, t, _version(t)) for n, t, _ in state.get(key, ()))
 
-    def _with_verts(
+    def with_verts(
         self,
         verts: Tensor | None,
         verts_given: Sequence[tuple[str, Any]] = (),
@@ -434,7 +463,15 @@ class MeshIndex:
 
         ``verts=None`` keeps the index's vertices. The copy also refuses to answer once ``verts`` or one of the
         caller's tensors ``verts_given`` / ``faces_given`` (``(name, tensor)``) changes in place, as the index does
-        for the tensors it was built from (which stay watched).
+        for the tensors it was built from (which stay watched). A copy that is refitted takes structures of its own.
+
+        Args:
+            verts: ``(V, 3)`` packed vertices equal in value to the index's, or ``None``.
+            verts_given: the caller's vertex tensors to watch, as ``(name, tensor)``.
+            faces_given: the caller's face tensors to watch, as ``(name, tensor)``.
+
+        Returns:
+            The copy.
         """
         other = MeshIndex.__new__(MeshIndex)
         other.__dict__.update(self.__dict__)  # not copy.copy: __getstate__ drops the structures
@@ -468,10 +505,14 @@ class MeshIndex:
         if verts.dtype != self.dtype:
             raise DTypeError(f"verts: expected the index's dtype {self.dtype}, found {verts.dtype}")
         check_finite(verts, "verts")
-        self._refit(verts)
+        self.refit_unchecked(verts)
 
-    def _refit(self, verts: Tensor) -> None:
-        """Trusted entry of :meth:`refit`."""
+    def refit_unchecked(self, verts: Tensor) -> None:
+        """:meth:`refit` for ``(V, 3)`` vertices the caller has validated (shape, dtype, device, finite).
+
+        Args:
+            verts: the new packed vertices.
+        """
         if self._origin is not None:
             # A copy (an IndexCache hit) shares its origin's structures with the cache entry and every other copy:
             # refitting them would move their answers too. The copy takes structures of its own, built on first

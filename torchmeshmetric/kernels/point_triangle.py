@@ -75,5 +75,5 @@ def point_mesh_distance(
     check_same_device({"points": pts.points, "verts": packed.verts})
     dtype = torch.promote_types(pts.points.dtype, packed.verts.dtype)
     # MeshIndex scales extreme coordinates exactly itself and raises when distances overflow the dtype.
-    index = MeshIndex._trusted(packed._replace(verts=packed.verts.to(dtype)), backend, max_memory, tree="morton")
-    return index._point_mesh_distance(pts.points.to(dtype), pts.lengths)
+    index = MeshIndex.from_packed(packed._replace(verts=packed.verts.to(dtype)), backend, max_memory, tree="morton")
+    return index.point_mesh_distance_unchecked(pts.points.to(dtype), pts.lengths)

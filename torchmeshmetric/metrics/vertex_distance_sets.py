@@ -57,7 +57,7 @@ def _cloud_to_cloud(
     if ref_meshes is not None:
         index = index_of(ref_meshes, index, indexes, p.dtype, backend)
     if index is not None:
-        return index._nearest_vertex_distance(query_points(index, p, index_name), lengths_of(points)).dists
+        return index.nearest_vertex_distance_unchecked(query_points(index, p, index_name), lengths_of(points)).dists
     r = packed(refs)
     dtype = torch.promote_types(p.dtype, r.dtype)
     return nearest_vertex_distance(

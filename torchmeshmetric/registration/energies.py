@@ -181,7 +181,7 @@ def find_correspondences(
         if index is None:
             res = point_mesh_distance(p, v, faces)
         else:
-            res = index._point_mesh_distance(p, torch.tensor([p.shape[0]], device=p.device))
+            res = index.point_mesh_distance_unchecked(p, torch.tensor([p.shape[0]], device=p.device))
         vn = Mesh(v, faces, validate=False).vertex_normals() if vertex_normals is None else vertex_normals
         normals = interpolated_normals(vn, faces, res.face_idx, res.bary)
         pn = None if point_normals is None else point_normals.detach()

@@ -331,7 +331,7 @@ class _Fit:
             self.sample_normals = tgt.face_normals()[samples.face_idx.to(dev)]
         timings["graph"] = time.perf_counter() - t0
         packed = PackedMeshes(tgt.verts, tgt.faces, _lengths(tgt.verts), _lengths(tgt.faces))
-        self.target_index = MeshIndex._trusted(packed, backend, DEFAULT_MAX_MEMORY)
+        self.target_index = MeshIndex.from_packed(packed, backend, DEFAULT_MAX_MEMORY)
         self.source_index: MeshIndex | None = None
         # On the CPU, the C++ passes: each refresh's deformed source with the vertex normals of the data points, and
         # each step's fused energy (the same values as the torch formulation's kernels, tested).
@@ -446,9 +446,9 @@ class _Fit:
         faces = self.frame.source.faces
         if self.source_index is None:
             packed = PackedMeshes(deformed, faces, _lengths(deformed), _lengths(faces))
-            self.source_index = MeshIndex._trusted(packed, self.backend, DEFAULT_MAX_MEMORY)
+            self.source_index = MeshIndex.from_packed(packed, self.backend, DEFAULT_MAX_MEMORY)
         else:
-            self.source_index._refit(deformed)
+            self.source_index.refit_unchecked(deformed)
         return self.source_index
 
     def _refresh(self, stage: Stage) -> _Terms:
@@ -563,13 +563,13 @@ class _Fit:
         with torch.no_grad():
             dv = deformed_vertices(self.graph)
             verts = dv * frame.diag + frame.center
-            residual_n = self.target_index._point_mesh_distance(dv, _lengths(dv)).dists
+            residual_n = self.target_index.point_mesh_distance_unchecked(dv, _lengths(dv)).dists
             used = frame.source.surface_vertex_mask()
             frac_src = float((residual_n[used] > opts.outlier_distance).to(dtype).mean())
             frac_tgt = 0.0
             if self.samples is not None and self.source_index is not None:
-                self.source_index._refit(dv)
-                far = self.source_index._point_mesh_distance(self.samples, _lengths(self.samples)).dists
+                self.source_index.refit_unchecked(dv)
+                far = self.source_index.point_mesh_distance_unchecked(self.samples, _lengths(self.samples)).dists
                 frac_tgt = float((far > opts.outlier_distance).to(dtype).mean())
         reason = ""
         if frac_src > opts.max_outlier_fraction or frac_tgt > opts.max_outlier_fraction:
