@@ -6,6 +6,7 @@
 # The public submodules (attributes of the package, as after a normal import).
 from . import colour as colour
 from . import comparison as comparison
+from . import equality as equality
 from . import grid_sampling as grid_sampling
 from . import losses as losses
 from . import metric as metric
@@ -21,6 +22,7 @@ from .colour import rgb_to_ycbcr
 from .comparison import MpegDirection, MpegResult, bbox_diagonal, mpeg_compare
 from .ctc import CTC_COLUMNS, CtcFrame, CtcSequence, ctc_frame, ctc_mean, ctc_sequence
 from .dequantize import dequantize_positions, dequantize_uvs
+from .equality import MeshEquality, mesh_equality
 from .grid_sampling import (
     BoxError,
     GridHits,
@@ -67,6 +69,7 @@ __all__ = [
     "read_texture",
     "BoxError",
     "GridHits",
+    "MeshEquality",
     "MpegGeometryLoss",
     "MpegPSNR",
     "MpegDirection",
@@ -85,6 +88,7 @@ __all__ = [
     "merge_duplicate_points",
     "mean_psnr",
     "mesh_box",
+    "mesh_equality",
     "mpeg_compare",
     "mpeg_geometry_loss",
     "mpeg_metrics",
