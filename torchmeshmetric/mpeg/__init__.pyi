@@ -7,6 +7,7 @@
 from . import colour as colour
 from . import comparison as comparison
 from . import equality as equality
+from . import face_sampling as face_sampling
 from . import grid_sampling as grid_sampling
 from . import losses as losses
 from . import metric as metric
@@ -23,6 +24,7 @@ from .comparison import MpegDirection, MpegResult, bbox_diagonal, mpeg_compare
 from .ctc import CTC_COLUMNS, CtcFrame, CtcSequence, ctc_frame, ctc_mean, ctc_sequence
 from .dequantize import dequantize_positions, dequantize_uvs
 from .equality import MeshEquality, mesh_equality
+from .face_sampling import face_sample
 from .grid_sampling import (
     BoxError,
     GridHits,
@@ -65,6 +67,7 @@ __all__ = [
     "ctc_sequence",
     "dequantize_positions",
     "dequantize_uvs",
+    "face_sample",
     "ibsm",
     "read_texture",
     "BoxError",
