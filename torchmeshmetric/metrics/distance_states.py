@@ -1,7 +1,7 @@
 """The ``torchmetrics`` states that accumulate one distance set: exact, mergeable and DDP-synchronised.
 
 A metric declares, per distance set it accumulates, a :class:`DistanceStates` naming its states; the states hold
-what :func:`~torchmeshmetric.stats.statistics._distance_statistics_update` returns for every batch:
+what :func:`~torchmeshmetric.stats.statistics.distance_statistics_update` returns for every batch:
 
 - ``moments``: ``(R, 6)`` float64 rows of partial :class:`~torchmeshmetric.stats.moments.Moments`
   (``dist_reduce_fx="cat"``). Every update merges its batch into one row (Chan et al. 1979); a DDP sync gathers one
@@ -28,8 +28,8 @@ from torchmeshmetric.stats.moments import Moments, merge_into_row, merge_rows
 from torchmeshmetric.stats.sketch import QuantileSketch
 from torchmeshmetric.stats.statistics import (
     DistanceStatistics,
-    _distance_statistics_compute,
-    _distance_statistics_update,
+    distance_statistics_compute,
+    distance_statistics_update,
 )
 
 __all__ = ["DistanceStates"]
@@ -82,9 +82,9 @@ class DistanceStates(NamedTuple):
 
         Raises:
             ShapeError, TypeError, NonFiniteError: see
-                :func:`~torchmeshmetric.stats.statistics._distance_statistics_update`.
+                :func:`~torchmeshmetric.stats.statistics.distance_statistics_update`.
         """
-        moments, quantile_data = _distance_statistics_update(dists, sketch, name)
+        moments, quantile_data = distance_statistics_update(dists, sketch, name)
         if dists.numel() == 0:
             return
         rows: Tensor = getattr(metric, self.moments)
@@ -130,7 +130,7 @@ class DistanceStates(NamedTuple):
         quantile_data = (
             dim_zero_cat(getattr(metric, self.values)) if sketch is None else getattr(metric, self._sketch_name())
         )
-        return _distance_statistics_compute(moments, quantile_data, sketch=sketch, ddof=ddof, peak=peak)
+        return distance_statistics_compute(moments, quantile_data, sketch=sketch, ddof=ddof, peak=peak)
 
     def _sketch_name(self) -> str:
         if self.sketch is None:

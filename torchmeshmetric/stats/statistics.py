@@ -37,6 +37,8 @@ __all__ = [
     "QUANTILE_LEVELS",
     "DistanceStatistics",
     "distance_statistics",
+    "distance_statistics_compute",
+    "distance_statistics_update",
     "linear_quantiles",
     "psnr_from_mse",
     "statistics_from_parts",
@@ -263,10 +265,10 @@ def distance_statistics(
         d = torch.cat([t.to(torch.float64) for t in items])
     sketch = None if exact_quantiles else QuantileSketch(relative_accuracy)
     if lengths is None:
-        moments, quantile_data = _distance_statistics_update(d, sketch)
+        moments, quantile_data = distance_statistics_update(d, sketch)
         if d.numel() == 0:
             raise EmptyInputError("dists: expected at least one distance, found an empty tensor")
-        return _distance_statistics_compute(moments, quantile_data, sketch=sketch, ddof=ddof, peak=peak)
+        return distance_statistics_compute(moments, quantile_data, sketch=sketch, ddof=ddof, peak=peak)
     _check_distances(d, "dists")
     mom = moments_of(d, lengths)
     if sketch is None:
@@ -288,7 +290,7 @@ def _check_distances(dists: Tensor, name: str) -> None:
     check_finite(dists, name)
 
 
-def _distance_statistics_update(
+def distance_statistics_update(
     dists: Tensor, sketch: QuantileSketch | None = None, name: str = "dists"
 ) -> tuple[Moments, Tensor]:
     """Check one ``(N,)`` distance set and return its sufficient statistics (``N`` may be 0).
@@ -319,7 +321,7 @@ def _distance_statistics_update(
     return moments_of(d), d if sketch is None else sketch.counts(d)
 
 
-def _distance_statistics_compute(
+def distance_statistics_compute(
     moments: Moments,
     quantile_data: Tensor,
     *,
@@ -332,7 +334,7 @@ def _distance_statistics_compute(
     Args:
         moments: 0-dim :class:`~torchmeshmetric.stats.moments.Moments` of the whole set (merged).
         quantile_data: the set's float64 distances (``sketch=None``) or its ``(num_bins,)`` sketch counts, as
-            :func:`_distance_statistics_update` returns them (concatenated or added over batches).
+            :func:`distance_statistics_update` returns them (concatenated or added over batches).
         sketch: the sketch that made the counts, ``None`` for exact quantiles.
         ddof: delta degrees of freedom of ``var``/``std``.
         peak: PSNR peak, or ``None`` (no PSNR).
@@ -342,7 +344,7 @@ def _distance_statistics_compute(
 
     Example:
         >>> import torch
-        >>> s = _distance_statistics_compute(*_distance_statistics_update(torch.tensor([1.0, 2.0, 3.0, 4.0])))
+        >>> s = distance_statistics_compute(*distance_statistics_update(torch.tensor([1.0, 2.0, 3.0, 4.0])))
         >>> s.ave.item(), s.var.item(), s.median.item()
         (2.5, 1.25, 2.5)
     """

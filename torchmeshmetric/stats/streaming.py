@@ -10,8 +10,8 @@ from torchmeshmetric.stats.moments import Moments, merge_into_row, moments_of, m
 from torchmeshmetric.stats.sketch import QuantileSketch
 from torchmeshmetric.stats.statistics import (
     DistanceStatistics,
-    _distance_statistics_compute,
-    _distance_statistics_update,
+    distance_statistics_compute,
+    distance_statistics_update,
 )
 
 __all__ = ["DistanceAccumulator"]
@@ -26,7 +26,7 @@ class DistanceAccumulator:
     estimates are within relative error ``relative_accuracy`` of the exact order statistics.
     ``compute()`` equals :func:`~torchmeshmetric.stats.distance_statistics` on the concatenated data (to float64
     rounding), whatever the batching or merge order: every batch passes through the same checks and sufficient
-    statistics (``_distance_statistics_update``) and the result is finished by the same ``_distance_statistics_compute``
+    statistics (``distance_statistics_update``) and the result is finished by the same ``distance_statistics_compute``
     as that function and the ``torchmetrics`` metrics.
 
     Args:
@@ -70,7 +70,7 @@ class DistanceAccumulator:
 
     def update(self, dists: Tensor) -> DistanceAccumulator:
         """Add a ``(N,)`` tensor of distances (``N`` may be 0). Returns ``self``."""
-        moments, quantile_data = _distance_statistics_update(dists, self._sketch)
+        moments, quantile_data = distance_statistics_update(dists, self._sketch)
         if dists.numel() == 0:
             return self
         if self._sketch is None:
@@ -111,4 +111,4 @@ class DistanceAccumulator:
         else:
             assert self._counts is not None
             quantile_data = self._counts
-        return _distance_statistics_compute(m, quantile_data, sketch=self._sketch, ddof=ddof, peak=peak)
+        return distance_statistics_compute(m, quantile_data, sketch=self._sketch, ddof=ddof, peak=peak)
