@@ -15,6 +15,7 @@ from . import neighbours as neighbours
 from . import point_cloud as point_cloud
 from . import psnr as psnr
 from . import sequence as sequence
+from . import subdivision_sampling as subdivision_sampling
 from . import texture as texture
 from . import textured_mesh as textured_mesh
 from . import vertex_sampling as vertex_sampling
@@ -50,6 +51,7 @@ from .neighbours import NeighbourTies, k_nearest, mpeg_sq_dists, nearest_with_ti
 from .point_cloud import PointCloud, merge_duplicate_points
 from .psnr import mpeg_psnr
 from .sequence import MpegSequence, mean_psnr, mpeg_sequence
+from .subdivision_sampling import subdivision_sample
 from .texture import sample_texture
 from .textured_mesh import TexturedMesh, load_textured_mesh, read_texture
 from .vertex_sampling import vertex_sample
@@ -106,6 +108,7 @@ __all__ = [
     "mpeg_psnr_from_mse",
     "rgb_to_ycbcr",
     "sample_texture",
+    "subdivision_sample",
     "unique_vertex_rows",
     "vertex_sample",
 ]
