@@ -42,3 +42,12 @@ def test_refuses_to_overwrite(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     assert main(["sample", str(obj), str(out), "--resolution", "4", "--overwrite"]) == 0
     # step 1/4; edge 2-3 is sqrt(2) long: 1 + 2 + 3 + 5 + 6 points (mm sample prints "Generated 17 points")
     assert _body(out)[0] == "0 0 0 0 0 1" and len(_body(out)) == 17
+
+
+@pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")
+def test_sdiv_same_rows_as_mm(tmp_path: Path) -> None:
+    obj, ours, theirs = TESTS / "sphere.obj", tmp_path / "ours.ply", tmp_path / "mm.ply"
+    assert main(["sample", str(obj), str(ours), "--mode", "sdiv", "--area-threshold", "0.01"]) == 0
+    args = [str(MM), "sample", "--mode", "sdiv", "--areaThreshold", "0.01", "-i", str(obj), "-o", str(theirs)]
+    subprocess.run([*args, "--hideProgress", "-m", ""], capture_output=True, timeout=120, check=True)
+    assert sorted(_body(ours)) == sorted(_body(theirs))  # mm recurses depth first: another order
