@@ -51,3 +51,12 @@ def test_sdiv_same_rows_as_mm(tmp_path: Path) -> None:
     args = [str(MM), "sample", "--mode", "sdiv", "--areaThreshold", "0.01", "-i", str(obj), "-o", str(theirs)]
     subprocess.run([*args, "--hideProgress", "-m", ""], capture_output=True, timeout=120, check=True)
     assert sorted(_body(ours)) == sorted(_body(theirs))  # mm recurses depth first: another order
+
+
+@pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")
+def test_ediv_same_rows_as_mm(tmp_path: Path) -> None:
+    obj, ours, theirs = TESTS / "sphere.obj", tmp_path / "ours.ply", tmp_path / "mm.ply"
+    assert main(["sample", str(obj), str(ours), "--mode", "ediv", "--resolution", "40"]) == 0
+    args = [str(MM), "sample", "--mode", "ediv", "--resolution", "40", "-i", str(obj), "-o", str(theirs)]
+    subprocess.run([*args, "--hideProgress", "-m", ""], capture_output=True, timeout=120, check=True)
+    assert sorted(_body(ours)) == sorted(_body(theirs))  # mm recurses depth first: another order

@@ -6,6 +6,7 @@
 # The public submodules (attributes of the package, as after a normal import).
 from . import colour as colour
 from . import comparison as comparison
+from . import edge_sampling as edge_sampling
 from . import equality as equality
 from . import face_sampling as face_sampling
 from . import grid_sampling as grid_sampling
@@ -24,6 +25,7 @@ from .colour import rgb_to_ycbcr
 from .comparison import MpegDirection, MpegResult, bbox_diagonal, mpeg_compare
 from .ctc import CTC_COLUMNS, CtcFrame, CtcSequence, ctc_frame, ctc_mean, ctc_sequence
 from .dequantize import dequantize_positions, dequantize_uvs
+from .edge_sampling import edge_sample
 from .equality import MeshEquality, mesh_equality
 from .face_sampling import face_sample
 from .grid_sampling import (
@@ -69,6 +71,7 @@ __all__ = [
     "ctc_sequence",
     "dequantize_positions",
     "dequantize_uvs",
+    "edge_sample",
     "face_sample",
     "ibsm",
     "read_texture",

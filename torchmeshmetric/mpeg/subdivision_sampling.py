@@ -20,18 +20,18 @@ from torchmeshmetric.mpeg.texture import sample_texture
 from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
 from torchmeshmetric.mpeg.vertex_sampling import zero_area_message
 
-__all__ = ["subdivision_sample"]
+__all__ = ["builder_cloud", "corner_attributes", "subdivision_sample"]
 
 _DBL_EPSILON = 2.220446049250313e-16
 
 
-def _corner_attributes(mesh: TexturedMesh, faces: np.ndarray) -> tuple[np.ndarray, bool]:
-    """``(F, 3, C)`` float32 corner UVs (``True``: a texture colours them) or colours, ``C = 0`` without colour."""
+def corner_attributes(mesh: TexturedMesh, faces: np.ndarray) -> np.ndarray:
+    """``(F, 3, C)`` float32 corner UVs, or else per-vertex colours; ``C = 0`` without either."""
     if mesh.uvs is not None:
-        return mesh.uvs.numpy().astype(np.float32), mesh.texture is not None
+        return mesh.uvs.numpy().astype(np.float32)
     if mesh.colors is not None:
-        return mesh.colors.numpy().astype(np.float32)[faces], False
-    return np.zeros((faces.shape[0], 3, 0), np.float32), False
+        return mesh.colors.numpy().astype(np.float32)[faces]
+    return np.zeros((faces.shape[0], 3, 0), np.float32)
 
 
 def subdivision_sample(
@@ -71,7 +71,7 @@ def subdivision_sample(
     if not (np.isfinite(area_threshold) and area_threshold > 0):
         raise ValueError(f"area_threshold: expected a finite value > 0, found {area_threshold!r}")
     verts, faces = mesh_arrays(mesh.mesh)
-    attr, textured = _corner_attributes(mesh, faces)
+    attr = corner_attributes(mesh, faces)
     p = verts[faces]
     keep = f32.area(p[:, 0], p[:, 1], p[:, 2]) >= _DBL_EPSILON
     if not keep.any():
@@ -95,10 +95,20 @@ def subdivision_sample(
         out_nrm.append(np.repeat(nrm, 3, axis=0))
         p = _children(p, ep)
         attr = _children(attr, ea)
-    points, normals, att = np.concatenate(out_pos), np.concatenate(out_nrm), np.concatenate(out_att)
+    return builder_cloud(mesh, np.concatenate(out_pos), np.concatenate(out_nrm), np.concatenate(out_att), bilinear)
+
+
+def builder_cloud(
+    mesh: TexturedMesh, points: np.ndarray, normals: np.ndarray, att: np.ndarray, bilinear: bool
+) -> PointCloud:
+    """The rows mmetric's ``ModelBuilder`` keeps of pushed points with corner attributes ``att`` (UVs or colours).
+
+    The key is position, UV, colour and normal; UVs become texture colours (nearest or bilinear) when a texture
+    is there.
+    """
     colours = None
-    key = att if att.shape[1] else None  # mmetric's ModelBuilder keys on position, UV, colour and normal
-    if textured:
+    key = att if att.shape[1] else None
+    if mesh.uvs is not None and mesh.texture is not None:
         colours = sample_texture(mesh.texture, att, bilinear=bilinear)
         key = np.concatenate([att, colours], axis=1)
     elif mesh.colors is not None and mesh.uvs is None:
