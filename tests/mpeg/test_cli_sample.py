@@ -60,3 +60,13 @@ def test_ediv_same_rows_as_mm(tmp_path: Path) -> None:
     args = [str(MM), "sample", "--mode", "ediv", "--resolution", "40", "-i", str(obj), "-o", str(theirs)]
     subprocess.run([*args, "--hideProgress", "-m", ""], capture_output=True, timeout=120, check=True)
     assert sorted(_body(ours)) == sorted(_body(theirs))  # mm recurses depth first: another order
+
+
+@pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")
+def test_prnd_same_body_as_mm(tmp_path: Path) -> None:
+    obj, ours, theirs = TESTS / "plane_irregular.obj", tmp_path / "ours.ply", tmp_path / "mm.ply"
+    tex = str(TESTS / "plane_10_10.png")
+    assert main(["sample", str(obj), str(ours), "--mode", "prnd", "--num-samples", "3000", "--texture", tex]) == 0
+    args = [str(MM), "sample", "--mode", "prnd", "--nbSamples", "3000", "-i", str(obj), "-o", str(theirs)]
+    subprocess.run([*args, "--hideProgress", "-m", tex], capture_output=True, timeout=120, check=True)
+    assert _body(ours) == _body(theirs)

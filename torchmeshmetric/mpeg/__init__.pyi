@@ -14,6 +14,7 @@ from . import losses as losses
 from . import metric as metric
 from . import neighbours as neighbours
 from . import point_cloud as point_cloud
+from . import prnd_sampling as prnd_sampling
 from . import psnr as psnr
 from . import sequence as sequence
 from . import subdivision_sampling as subdivision_sampling
@@ -51,6 +52,7 @@ from .metric import MpegPSNR
 from .mpeg_metrics import Sampling, mpeg_metrics, mpeg_point_cloud
 from .neighbours import NeighbourTies, k_nearest, mpeg_sq_dists, nearest_with_ties
 from .point_cloud import PointCloud, merge_duplicate_points
+from .prnd_sampling import prnd_sample
 from .psnr import mpeg_psnr
 from .sequence import MpegSequence, mean_psnr, mpeg_sequence
 from .subdivision_sampling import subdivision_sample
@@ -104,6 +106,7 @@ __all__ = [
     "mpeg_psnr",
     "mpeg_sequence",
     "mpeg_sq_dists",
+    "prnd_sample",
     "k_nearest",
     "nearest_with_ties",
     "point_to_plane_mse",
