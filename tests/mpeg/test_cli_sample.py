@@ -70,3 +70,13 @@ def test_prnd_same_body_as_mm(tmp_path: Path) -> None:
     args = [str(MM), "sample", "--mode", "prnd", "--nbSamples", "3000", "-i", str(obj), "-o", str(theirs)]
     subprocess.run([*args, "--hideProgress", "-m", tex], capture_output=True, timeout=120, check=True)
     assert _body(ours) == _body(theirs)
+
+
+@pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")
+def test_map_same_body_as_mm(tmp_path: Path) -> None:
+    obj, ours, theirs = TESTS / "plane_irregular.obj", tmp_path / "ours.ply", tmp_path / "mm.ply"
+    tex = str(TESTS / "plane_16_16.png")
+    assert main(["sample", str(obj), str(ours), "--mode", "map", "--texture", tex]) == 0
+    args = [str(MM), "sample", "--mode", "map", "-i", str(obj), "-o", str(theirs), "--hideProgress", "-m", tex]
+    subprocess.run(args, capture_output=True, timeout=120, check=True)
+    assert _body(ours) == _body(theirs)

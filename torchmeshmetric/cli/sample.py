@@ -41,6 +41,7 @@ def _run(args: argparse.Namespace) -> int:
     from torchmeshmetric.cli._shared import check_writable
     from torchmeshmetric.mpeg.edge_sampling import edge_sample
     from torchmeshmetric.mpeg.face_sampling import face_sample
+    from torchmeshmetric.mpeg.map_sampling import map_sample
     from torchmeshmetric.mpeg.prnd_sampling import prnd_sample
     from torchmeshmetric.mpeg.subdivision_sampling import subdivision_sample
     from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
@@ -50,6 +51,8 @@ def _run(args: argparse.Namespace) -> int:
     mesh = load_textured_mesh(args.mesh, args.texture)
     if args.mode == "face":
         pc = face_sample(mesh, resolution=args.resolution, thickness=args.thickness, bilinear=args.bilinear)
+    elif args.mode == "map":
+        pc = map_sample(mesh)
     elif args.mode == "prnd":
         pc = prnd_sample(mesh, num_samples=args.num_samples, bilinear=args.bilinear)
     elif args.mode == "ediv":
@@ -71,8 +74,8 @@ def add_sample_command(sub: Any) -> None:
     """Add the ``sample`` subcommand to the CLI's subparsers."""
     p = sub.add_parser(
         "sample",
-        help="a mesh to the point cloud mmetric's mm sample writes (face, sdiv, ediv, prnd)",
-        description="Sample MESH as 'mm sample --mode face' (or sdiv, ediv, prnd) does and write the PLY it writes "
+        help="a mesh to the point cloud mmetric's mm sample writes (face, sdiv, ediv, prnd, map)",
+        description="Sample MESH as 'mm sample --mode face' (or sdiv, ediv, prnd, map) does and writes its PLY "
         "(positions and face normals bit for bit, colours from the texture or per-vertex colours as rounded bytes; "
         "sdiv and ediv give mm's points in another order). The grid "
         "sampling of the CTC is inside the 'mpeg' and 'ctc' commands.",
@@ -81,9 +84,9 @@ def add_sample_command(sub: Any) -> None:
     p.add_argument("output", metavar="OUT", help="PLY file to write (never overwritten unless --overwrite)")
     p.add_argument(
         "--mode",
-        choices=("face", "sdiv", "ediv", "prnd"),
+        choices=("face", "sdiv", "ediv", "prnd", "map"),
         default="face",
-        help="mm sample --mode: face (default), sdiv, ediv or prnd",
+        help="mm sample --mode: face (default), sdiv, ediv, prnd or map (one point per texel; needs a texture)",
     )
     p.add_argument("--resolution", type=int, default=1024, help="steps along the bounding box's largest side (1024)")
     p.add_argument("--thickness", type=float, default=0.0, help="distance sampled either side of each face (0)")

@@ -11,6 +11,7 @@ from . import equality as equality
 from . import face_sampling as face_sampling
 from . import grid_sampling as grid_sampling
 from . import losses as losses
+from . import map_sampling as map_sampling
 from . import metric as metric
 from . import neighbours as neighbours
 from . import point_cloud as point_cloud
@@ -48,6 +49,7 @@ from .losses import (
     point_to_plane_mse,
     point_to_point_mse,
 )
+from .map_sampling import map_sample
 from .metric import MpegPSNR
 from .mpeg_metrics import Sampling, mpeg_metrics, mpeg_point_cloud
 from .neighbours import NeighbourTies, k_nearest, mpeg_sq_dists, nearest_with_ties
@@ -95,6 +97,7 @@ __all__ = [
     "grid_hits",
     "grid_sample",
     "load_textured_mesh",
+    "map_sample",
     "merge_duplicate_points",
     "mean_psnr",
     "mesh_box",
