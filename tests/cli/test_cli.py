@@ -126,6 +126,7 @@ def test_help_explains_every_option():
         "register",
         "demo",
         "mpeg",
+        "sample",
         "ctc",
         "bdrate",
         "build",

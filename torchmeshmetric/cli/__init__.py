@@ -8,6 +8,7 @@ Commands:
   register  register one mesh (frame k-1) onto another (frame k), rigid then non-rigid
   demo      the main job: built-in sequence -> QEM and Registered QEM -> evaluation, tables, report and plots
   mpeg      MPEG D1/D2 (and colour) PSNR of one mesh pair, equal to mmetric's figures
+  sample    a mesh to the point cloud mmetric's mm sample writes (face, sdiv, ediv, prnd, map)
   ctc       the V-DMC CTC metric step on a decoded sequence (grid D1/D2/colour and IBSM, mmetric's chain)
   bdrate    BD-rate of a test codec against an anchor, per metric (the CTC spreadsheet's bdRateExtend)
   validate  which distance sets respond to which controlled distortion (noise, offsets, flicker, registration)
@@ -91,6 +92,11 @@ COMMANDS: dict[str, CommandInfo] = {
         "torchmeshmetric.cli.mpeg",
         "add_mpeg_command",
         "MPEG D1/D2 (and colour) PSNR of one mesh pair, as mmetric computes them",
+    ),
+    "sample": CommandInfo(
+        "torchmeshmetric.cli.sample",
+        "add_sample_command",
+        "a mesh to the point cloud mmetric's mm sample writes (face, sdiv, ediv, prnd, map)",
     ),
     "ctc": CommandInfo(
         "torchmeshmetric.cli.ctc",

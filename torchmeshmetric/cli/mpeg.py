@@ -31,9 +31,29 @@ def _table(d: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def _run_equality(args: argparse.Namespace) -> int:
+    """``--mode equ``: mmetric's verdict in its words (or JSON); exit status 0 when equal, 1 otherwise."""
+    from dataclasses import asdict
+
+    from torchmeshmetric.mpeg.equality import mesh_equality
+    from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
+
+    ref = load_textured_mesh(args.ref, args.ref_texture)
+    dis = load_textured_mesh(args.dis, args.dis_texture)
+    result = mesh_equality(ref, dis, unoriented=args.unoriented)
+    if args.json:
+        print(json.dumps(asdict(result), indent=1))
+    else:
+        print(result.report(early_return=not args.all_differences))
+    return 0 if result.equal else 1
+
+
 def _run(args: argparse.Namespace) -> int:
     from torchmeshmetric.mpeg.mpeg_metrics import mpeg_metrics
     from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
+
+    if args.mode == "equ":
+        return _run_equality(args)
 
     box = None
     if args.box is not None:
@@ -74,7 +94,8 @@ def add_mpeg_command(sub: Any) -> None:
         "its metric step dequantises both frames with --useFixedPoint, samples with --useFixedPoint over the "
         "*sequence's* box and passes the sequence box's longest side as --resolution -- use 'torchmeshmetric ctc' for "
         "it. --sampling mesh is mm compare --mode pcc on the meshes. Textures come from the OBJ's MTL (map_Kd) "
-        "unless given.",
+        "unless given. --mode equ is mm compare --mode equ instead: are the two meshes the same triangles in any order "
+        "(exit status 0 when equal, 1 otherwise).",
     )
     p.add_argument("ref", metavar="REF", help="reference mesh (OBJ/PLY; OBJ with MTL + texture for colour)")
     p.add_argument("dis", metavar="DIS", help="distorted mesh")
@@ -101,4 +122,16 @@ def add_mpeg_command(sub: Any) -> None:
     p.add_argument("--dis-texture", default=None, metavar="IMG", help="texture of DIS (overrides its MTL)")
     p.add_argument("--nearest", action="store_true", help="nearest texture filtering in grid mode (default bilinear)")
     p.add_argument("--json", action="store_true", help='print one JSON object (non-finite values as "inf")')
+    p.add_argument(
+        "--mode",
+        choices=("pcc", "equ"),
+        default="pcc",
+        help="pcc: the D1/D2/colour figures (default); equ: mm compare --mode equ, the equality verdict",
+    )
+    p.add_argument("--unoriented", action="store_true", help="equ mode: a triangle also equals its reversed copy")
+    p.add_argument(
+        "--all-differences",
+        action="store_true",
+        help="equ mode: count every different triangle (mm --earlyReturn=false) instead of naming the first",
+    )
     p.set_defaults(func=_run)

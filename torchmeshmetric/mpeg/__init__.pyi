@@ -6,13 +6,19 @@
 # The public submodules (attributes of the package, as after a normal import).
 from . import colour as colour
 from . import comparison as comparison
+from . import edge_sampling as edge_sampling
+from . import equality as equality
+from . import face_sampling as face_sampling
 from . import grid_sampling as grid_sampling
 from . import losses as losses
+from . import map_sampling as map_sampling
 from . import metric as metric
 from . import neighbours as neighbours
 from . import point_cloud as point_cloud
+from . import prnd_sampling as prnd_sampling
 from . import psnr as psnr
 from . import sequence as sequence
+from . import subdivision_sampling as subdivision_sampling
 from . import texture as texture
 from . import textured_mesh as textured_mesh
 from . import vertex_sampling as vertex_sampling
@@ -21,6 +27,9 @@ from .colour import rgb_to_ycbcr
 from .comparison import MpegDirection, MpegResult, bbox_diagonal, mpeg_compare
 from .ctc import CTC_COLUMNS, CtcFrame, CtcSequence, ctc_frame, ctc_mean, ctc_sequence
 from .dequantize import dequantize_positions, dequantize_uvs
+from .edge_sampling import edge_sample
+from .equality import MeshEquality, mesh_equality
+from .face_sampling import face_sample
 from .grid_sampling import (
     BoxError,
     GridHits,
@@ -40,12 +49,15 @@ from .losses import (
     point_to_plane_mse,
     point_to_point_mse,
 )
+from .map_sampling import map_sample
 from .metric import MpegPSNR
 from .mpeg_metrics import Sampling, mpeg_metrics, mpeg_point_cloud
 from .neighbours import NeighbourTies, k_nearest, mpeg_sq_dists, nearest_with_ties
 from .point_cloud import PointCloud, merge_duplicate_points
+from .prnd_sampling import prnd_sample
 from .psnr import mpeg_psnr
 from .sequence import MpegSequence, mean_psnr, mpeg_sequence
+from .subdivision_sampling import subdivision_sample
 from .texture import sample_texture
 from .textured_mesh import TexturedMesh, load_textured_mesh, read_texture
 from .vertex_sampling import vertex_sample
@@ -63,10 +75,13 @@ __all__ = [
     "ctc_sequence",
     "dequantize_positions",
     "dequantize_uvs",
+    "edge_sample",
+    "face_sample",
     "ibsm",
     "read_texture",
     "BoxError",
     "GridHits",
+    "MeshEquality",
     "MpegGeometryLoss",
     "MpegPSNR",
     "MpegDirection",
@@ -82,9 +97,11 @@ __all__ = [
     "grid_hits",
     "grid_sample",
     "load_textured_mesh",
+    "map_sample",
     "merge_duplicate_points",
     "mean_psnr",
     "mesh_box",
+    "mesh_equality",
     "mpeg_compare",
     "mpeg_geometry_loss",
     "mpeg_metrics",
@@ -92,6 +109,7 @@ __all__ = [
     "mpeg_psnr",
     "mpeg_sequence",
     "mpeg_sq_dists",
+    "prnd_sample",
     "k_nearest",
     "nearest_with_ties",
     "point_to_plane_mse",
@@ -99,6 +117,7 @@ __all__ = [
     "mpeg_psnr_from_mse",
     "rgb_to_ycbcr",
     "sample_texture",
+    "subdivision_sample",
     "unique_vertex_rows",
     "vertex_sample",
 ]

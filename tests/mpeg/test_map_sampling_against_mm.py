@@ -1,0 +1,65 @@
+"""``map_sample`` against the ``mm`` binary's ``sample --mode map`` (skipped where it is absent): point by point,
+in mm's order, bit for bit, with mm's colour bytes, on mmetric's textured test meshes (the cases of its
+test-sample-map.sh) and the textured reference frame of ../shared/reference/mpeg/textured."""
+
+from __future__ import annotations
+
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from tests.mpeg.conftest import MM, MPEG_REF
+from torchmeshmetric.mpeg import TexturedMesh, load_textured_mesh, map_sample
+from torchmeshmetric.structures import Mesh
+
+pytestmark = pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")
+
+TESTS = MPEG_REF / "mmetric-tests"
+
+
+def _check(obj: Path, texture: Path, tmp_path: Path) -> int:
+    out = tmp_path / "mm.ply"
+    args = [str(MM), "sample", "--mode", "map", "-i", str(obj), "-m", str(texture), "-o", str(out), "--hideProgress"]
+    subprocess.run(args, capture_output=True, text=True, timeout=300, check=True)
+    with open(out) as fh:
+        for line in fh:
+            if line.startswith("end_header"):
+                break
+        theirs = np.loadtxt(fh, dtype=np.float64, ndmin=2)
+    pc = map_sample(load_textured_mesh(obj, texture))
+    assert pc.colors is not None
+    ours = np.concatenate([pc.points.numpy(), pc.normals.numpy()], axis=1)
+    assert ours.shape == theirs[:, :6].shape
+    np.testing.assert_array_equal(ours, theirs[:, :6].astype(np.float32))  # same points, same order
+    np.testing.assert_array_equal(np.floor(pc.colors.numpy() + 0.5), theirs[:, 6:])  # mm writes roundf(c)
+    return ours.shape[0]
+
+
+@pytest.mark.parametrize(
+    "name,texture",
+    [
+        ("plane", "plane.png"),
+        ("plane_qp8", "plane_10_10.png"),
+        ("plane_qp8", "plane.png"),
+        ("plane_irregular", "plane_16_16.png"),
+        ("degenerate", "plane.png"),
+        ("pyramid", "plane.png"),
+    ],
+)
+def test_mmetric_test_meshes(name: str, texture: str, tmp_path: Path) -> None:
+    assert _check(TESTS / f"{name}.obj", TESTS / texture, tmp_path) > 0
+
+
+@pytest.mark.skipif(not (MPEG_REF / "textured").is_dir(), reason="../shared/reference/mpeg absent")
+def test_textured_frame(tmp_path: Path) -> None:
+    ref = MPEG_REF / "textured" / "ref.obj"
+    assert _check(ref, MPEG_REF / "textured" / "texture.png", tmp_path) > 1000
+
+
+def test_needs_uvs_and_texture() -> None:
+    tri = Mesh(torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]]))
+    with pytest.raises(ValueError, match="mesh: map sampling needs UVs and a texture; found no UVs"):
+        map_sample(TexturedMesh(tri))

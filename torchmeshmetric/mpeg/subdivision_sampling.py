@@ -1,0 +1,129 @@
+"""mmetric's subdivision sampling (``mm sample --mode sdiv``): face corners, then edge midpoints, recursively.
+
+Every face of area at least ``DBL_EPSILON`` gives its three corners with the face normal; a face whose area is at
+least ``area_threshold`` gives its three edge midpoints (``a * 0.5 + b * 0.5`` in float32, for positions, UVs and
+colours) with its own normal and is split into four, down to ``max_depth - 1`` levels. mmetric recurses depth
+first; the faces of one level are processed here together, which yields the same set of points (the points kept
+are the distinct (position, UV, colour, normal) rows, whatever their order) but not mmetric's order.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from torchmeshmetric._checks import EmptyInputError
+from torchmeshmetric.mpeg import _float32 as f32
+from torchmeshmetric.mpeg.grid_sampling import mesh_arrays, unique_vertex_rows
+from torchmeshmetric.mpeg.point_cloud import PointCloud
+from torchmeshmetric.mpeg.texture import sample_texture
+from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
+from torchmeshmetric.mpeg.vertex_sampling import zero_area_message
+
+__all__ = ["builder_cloud", "corner_attributes", "subdivision_sample"]
+
+_DBL_EPSILON = 2.220446049250313e-16
+
+
+def corner_attributes(mesh: TexturedMesh, faces: np.ndarray) -> np.ndarray:
+    """``(F, 3, C)`` float32 corner UVs, or else per-vertex colours; ``C = 0`` without either."""
+    if mesh.uvs is not None:
+        return mesh.uvs.numpy().astype(np.float32)
+    if mesh.colors is not None:
+        return mesh.colors.numpy().astype(np.float32)[faces]
+    return np.zeros((faces.shape[0], 3, 0), np.float32)
+
+
+def subdivision_sample(
+    mesh: TexturedMesh,
+    *,
+    max_depth: int = 100,
+    area_threshold: float = 1.0,
+    bilinear: bool = False,
+    name: str = "mesh",
+) -> PointCloud:
+    """Sample a mesh as ``mm sample --mode sdiv --maxDepth D --areaThreshold A [--bilinear]`` does.
+
+    Args:
+        mesh: the mesh with its colour (e.g. from :func:`load_textured_mesh`); vertices are float32.
+        max_depth: mmetric's ``--maxDepth`` (1 keeps only the corners).
+        area_threshold: mmetric's ``--areaThreshold``, an absolute area in model units: faces at least this large
+            are split.
+        bilinear: bilinear texture filtering (mmetric ``--bilinear``), nearest otherwise.
+        name: the mesh's name in error messages.
+
+    Returns:
+        :class:`PointCloud` with face normals (and colours): mmetric's points, in another order.
+
+    Raises:
+        ValueError: ``max_depth`` below 1 or ``area_threshold`` not positive and finite.
+        EmptyInputError: every face has zero area.
+
+    Example:
+        >>> import torch
+        >>> from torchmeshmetric.structures import Mesh
+        >>> tri = Mesh(torch.tensor([[0.0, 0, 0], [4, 0, 0], [0, 4, 0]]), torch.tensor([[0, 1, 2]]))
+        >>> subdivision_sample(TexturedMesh(tri), max_depth=3, area_threshold=2.0).num_points  # area 8, then 2
+        15
+    """
+    if isinstance(max_depth, bool) or not isinstance(max_depth, int) or max_depth < 1:
+        raise ValueError(f"max_depth: expected an integer >= 1, found {max_depth!r}")
+    if not (np.isfinite(area_threshold) and area_threshold > 0):
+        raise ValueError(f"area_threshold: expected a finite value > 0, found {area_threshold!r}")
+    verts, faces = mesh_arrays(mesh.mesh)
+    attr = corner_attributes(mesh, faces)
+    p = verts[faces]
+    keep = f32.area(p[:, 0], p[:, 1], p[:, 2]) >= _DBL_EPSILON
+    if not keep.any():
+        raise EmptyInputError(zero_area_message(name, faces.shape[0]))
+    p, attr = p[keep], attr[keep]
+    normal = f32.normalize(f32.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]))
+    out_pos, out_att = [p.reshape(-1, 3)], [attr.reshape(3 * attr.shape[0], attr.shape[2])]
+    out_nrm = [np.repeat(normal, 3, axis=0)]
+    half = np.float32(0.5)
+    for _ in range(max_depth - 1):
+        big = f32.area(p[:, 0], p[:, 1], p[:, 2]) >= area_threshold
+        p, attr = p[big], attr[big]
+        if p.shape[0] == 0:
+            break
+        nrm = f32.normalize(f32.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]))
+        # e1 = mid(v1, v2), e2 = mid(v2, v3), e3 = mid(v3, v1); children (e1 e2 e3) (v1 e1 e3) (e1 v2 e2) (e2 v3 e3)
+        ep = p * half + p[:, [1, 2, 0]] * half
+        ea = attr * half + attr[:, [1, 2, 0]] * half
+        out_pos.append(ep.reshape(-1, 3))
+        out_att.append(ea.reshape(3 * ea.shape[0], ea.shape[2]))
+        out_nrm.append(np.repeat(nrm, 3, axis=0))
+        p = _children(p, ep)
+        attr = _children(attr, ea)
+    return builder_cloud(mesh, np.concatenate(out_pos), np.concatenate(out_nrm), np.concatenate(out_att), bilinear)
+
+
+def builder_cloud(
+    mesh: TexturedMesh, points: np.ndarray, normals: np.ndarray, att: np.ndarray, bilinear: bool
+) -> PointCloud:
+    """The rows mmetric's ``ModelBuilder`` keeps of pushed points with corner attributes ``att`` (UVs or colours).
+
+    The key is position, UV, colour and normal; UVs become texture colours (nearest or bilinear) when a texture
+    is there.
+    """
+    colours = None
+    key = att if att.shape[1] else None
+    if mesh.uvs is not None and mesh.texture is not None:
+        colours = sample_texture(mesh.texture, att, bilinear=bilinear)
+        key = np.concatenate([att, colours], axis=1)
+    elif mesh.colors is not None and mesh.uvs is None:
+        colours = att
+    kept = unique_vertex_rows(points, normals, key)
+    return PointCloud(
+        torch.from_numpy(np.ascontiguousarray(points[kept])),
+        torch.from_numpy(np.ascontiguousarray(normals[kept])),
+        None if colours is None else torch.from_numpy(np.ascontiguousarray(colours[kept], dtype=np.float32)),
+    )
+
+
+def _children(v: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """The children ``(e1 e2 e3) (v1 e1 e3) (e1 v2 e2) (e2 v3 e3)`` of ``(F, 3, C)`` corners and midpoints."""
+    v1, v2, v3 = v[:, 0], v[:, 1], v[:, 2]
+    e1, e2, e3 = e[:, 0], e[:, 1], e[:, 2]
+    kids = [(e1, e2, e3), (v1, e1, e3), (e1, v2, e2), (e2, v3, e3)]
+    return np.concatenate([np.stack(k, axis=1) for k in kids])
