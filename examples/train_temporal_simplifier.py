@@ -41,7 +41,6 @@ from torch import Tensor
 from torchmeshmetric import Mesh
 from torchmeshmetric.data import demo_sequence
 from torchmeshmetric.evaluation import (
-    RegistrationCache,
     TemporalConsistency,
     compare_methods,
     evaluate_sequence,
@@ -50,6 +49,7 @@ from torchmeshmetric.evaluation import (
 from torchmeshmetric.evaluation.distortions import ground_truth_registrations
 from torchmeshmetric.evaluation.results import flatten_statistics
 from torchmeshmetric.metrics import TemporalConsistencyLoss
+from torchmeshmetric.registration import RegistrationCache
 from torchmeshmetric.simplification import (
     TemporalSlide,
     anchored_sequence,

@@ -4,7 +4,7 @@ import torch
 import trimesh
 
 from torchmeshmetric import Mesh
-from torchmeshmetric.evaluation import CachedRegistration
+from torchmeshmetric.registration import CachedRegistration
 
 STEP = 0.1
 

@@ -17,7 +17,7 @@ from pathlib import Path
 import torch
 
 from tests.cli.cli_helpers import STEP
-from torchmeshmetric.evaluation import CachedRegistration
+from torchmeshmetric.registration import CachedRegistration
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -10,7 +10,8 @@ import torch.multiprocessing as mp
 
 from tests.distributed.helpers import free_port
 from tests.evaluation.eval_helpers import TranslationRegister, sphere
-from torchmeshmetric.evaluation import RegistrationCache, evaluate_sequence
+from torchmeshmetric.evaluation import evaluate_sequence
+from torchmeshmetric.registration import RegistrationCache
 from torchmeshmetric.tasks import RankFailedError, run_tasks
 
 pytestmark = pytest.mark.skipif(

@@ -8,7 +8,8 @@ import pytest
 import torch
 
 from tests.evaluation.eval_helpers import TranslationRegister
-from torchmeshmetric.evaluation import RegistrationCache, evaluate_sequence
+from torchmeshmetric.evaluation import evaluate_sequence
+from torchmeshmetric.registration import RegistrationCache
 
 
 def _entry(tmp_path):

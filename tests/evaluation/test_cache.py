@@ -5,8 +5,9 @@ import torch
 
 from tests.evaluation.eval_helpers import TranslationRegister, sphere
 from torchmeshmetric import Mesh
-from torchmeshmetric.evaluation import RegistrationCache, evaluate_sequence, registration_key, registration_settings
-from torchmeshmetric.registration import DEFAULT_SCHEDULE
+from torchmeshmetric.evaluation import default_register, evaluate_sequence, registration_settings
+from torchmeshmetric.registration import DEFAULT_SCHEDULE, CachedRegistration, RegistrationCache, registration_key
+from torchmeshmetric.registration.cache import DEFAULT_REGISTER
 
 
 def test_cache_hit_avoids_reregistration_across_methods(moving_spheres):
@@ -87,3 +88,38 @@ def test_default_registration_is_keyed_by_its_complete_options():
     assert key({"schedule": DEFAULT_SCHEDULE[:1]}) != key({})
     with pytest.raises(TypeError):
         registration_settings(None, {"num_pointz": 10})
+
+
+def test_default_register_name_is_the_one_of_the_disk_entries():
+    # The library's registration is keyed by this name (evaluation and temporal loss alike); existing caches hold it.
+    assert f"{default_register.__module__}.{default_register.__qualname__}" == DEFAULT_REGISTER
+    assert registration_settings(None, {})["register"] == DEFAULT_REGISTER
+
+
+def test_memory_bound_drops_the_least_recently_used(tmp_path):
+    frames = [sphere(1, offset=(0.1 * k, 0, 0)) for k in range(4)]
+    a, b, c = (frames[0], frames[1]), (frames[1], frames[2]), (frames[2], frames[3])
+    calls = []
+
+    def get(cache: RegistrationCache, pair: tuple[Mesh, Mesh]) -> bool:
+        def compute() -> CachedRegistration:
+            calls.append(pair)
+            return CachedRegistration(pair[1].verts, torch.zeros(pair[0].num_verts), True, 0.0)
+
+        return cache.get_or_compute(pair[0], pair[1], {}, compute)[1]
+
+    cache = RegistrationCache(max_entries=2)
+    assert [get(cache, p) for p in (a, b, a, c)] == [False, False, True, False]  # c drops b, not a (used last)
+    assert len(cache) == 2
+    assert [get(cache, p) for p in (a, c, b)] == [True, True, False]  # b was dropped: registered again
+    assert len(calls) == 4 and (cache.hits, cache.misses) == (3, 4) and len(cache) == 2
+    unbounded = RegistrationCache()
+    assert [get(unbounded, p) for p in (a, b, c, a, b, c)] == [False] * 3 + [True] * 3 and len(unbounded) == 3
+    # The bound is on memory only: a dropped entry is found again on disk, not recomputed.
+    disk = RegistrationCache(tmp_path, max_entries=1)
+    calls.clear()
+    assert [get(disk, p) for p in (a, b, a)] == [False, False, True]
+    assert len(calls) == 2 and len(disk) == 1 and len(list(tmp_path.glob("*.pt"))) == 2
+    for bad in (0, -1, True, 2.0):
+        with pytest.raises(ValueError, match="max_entries"):
+            RegistrationCache(max_entries=bad)  # type: ignore[arg-type]

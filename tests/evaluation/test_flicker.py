@@ -8,17 +8,22 @@ import torch
 from tests.evaluation.eval_helpers import TranslationRegister, sphere
 from torchmeshmetric import Mesh
 from torchmeshmetric.evaluation import (
-    CachedRegistration,
-    RegistrationCache,
     TemporalConsistency,
     evaluate_pair,
     evaluate_sequence,
     flicker_distances,
-    registration_key,
     registration_settings,
     report_dict,
 )
-from torchmeshmetric.registration import DEFAULT_SCHEDULE, RegistrationWarp, SurfaceWarp, register_nonrigid
+from torchmeshmetric.registration import (
+    DEFAULT_SCHEDULE,
+    CachedRegistration,
+    RegistrationCache,
+    RegistrationWarp,
+    SurfaceWarp,
+    register_nonrigid,
+    registration_key,
+)
 
 SHORT = (DEFAULT_SCHEDULE[0]._replace(max_steps=10),)  # a real graph fit, cheap: the tests check the warp, not the fit
 

@@ -7,9 +7,9 @@ import torch
 import trimesh
 
 from torchmeshmetric import ShapeError
-from torchmeshmetric.evaluation import CachedRegistration, TemporalConsistency, registration_settings
+from torchmeshmetric.evaluation import TemporalConsistency, registration_settings
 from torchmeshmetric.evaluation.pipeline import registration_keywords
-from torchmeshmetric.registration import NonRigidOptions, SurfaceWarp, as_warp
+from torchmeshmetric.registration import CachedRegistration, NonRigidOptions, SurfaceWarp, as_warp
 from torchmeshmetric.structures import as_mesh
 
 

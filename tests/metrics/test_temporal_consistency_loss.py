@@ -9,6 +9,7 @@ import trimesh
 
 from torchmeshmetric import Mesh
 from torchmeshmetric._checks import EmptyInputError, ShapeError
+from torchmeshmetric.evaluation import register_pairs
 from torchmeshmetric.evaluation.flicker import flicker_distances
 from torchmeshmetric.metrics import (
     TemporalConsistencyLoss,
@@ -16,7 +17,14 @@ from torchmeshmetric.metrics import (
     mesh_surface_distance_sets,
     temporal_consistency_loss,
 )
-from torchmeshmetric.registration import DEFAULT_SCHEDULE, RegistrationWarp, SurfaceWarp, register_nonrigid
+from torchmeshmetric.registration import (
+    DEFAULT_SCHEDULE,
+    NonRigidOptions,
+    RegistrationCache,
+    RegistrationWarp,
+    SurfaceWarp,
+    register_nonrigid,
+)
 
 
 def mesh64(m: trimesh.Trimesh) -> tuple[torch.Tensor, torch.Tensor]:
@@ -237,7 +245,7 @@ def test_default_registration_is_computed_once_per_original_pair(monkeypatch):
     s_k = noisy(trimesh.creation.icosphere(subdivisions=1), 0.01, 6)
     quick = {"schedule": [DEFAULT_SCHEDULE[0]._replace(max_steps=10)]}
     calls = []
-    module_file = sys.modules["torchmeshmetric.metrics.temporal_consistency_loss"]  # the package's name is the function
+    module_file = sys.modules["torchmeshmetric.registration.cache"]  # where the loss's registrations are computed
 
     def counting(*args, **kwargs):
         calls.append(1)
@@ -247,12 +255,39 @@ def test_default_registration_is_computed_once_per_original_pair(monkeypatch):
     loss_fn = TemporalConsistencyLoss(registration_options=quick)
     first = loss_fn(s_k, s_km1, tgt, src)
     second = loss_fn(s_k, s_km1, tgt.copy(), src.copy())  # same content, new objects: found again
-    assert len(calls) == 1 and loss_fn.cache.num_warps == 1
+    assert len(calls) == 1 and loss_fn.cache.num_warps == 1 and len(loss_fn.cache.registrations) == 1
     assert torch.equal(first, second)
     # the same as giving the registration (its warp) explicitly
     r = register_nonrigid(src, tgt, schedule=quick["schedule"])
     explicit = temporal_consistency_loss(s_k, s_km1, tgt, src, r)
     torch.testing.assert_close(explicit, first, rtol=1e-12, atol=0)
+
+
+def test_loss_and_evaluation_share_registrations():
+    # One cache, one key: a registration computed by the evaluation is a hit for the loss, and the other way round.
+    src = trimesh.creation.icosphere(subdivisions=2)
+    tgt = trimesh.creation.icosphere(subdivisions=2)
+    tgt.vertices *= [1.1, 1.0, 0.9]
+    s_km1 = noisy(trimesh.creation.icosphere(subdivisions=1), 0.01, 5)
+    s_k = noisy(trimesh.creation.icosphere(subdivisions=1), 0.01, 6)
+    quick = {"schedule": [DEFAULT_SCHEDULE[0]._replace(max_steps=10)]}
+    own = TemporalConsistencyLoss(registration_options=quick)(s_k, s_km1, tgt, src)
+
+    evaluation_first = RegistrationCache()
+    [reg] = register_pairs([src, tgt], registration_options=quick, registration_cache=evaluation_first)
+    loss_fn = TemporalConsistencyLoss(registration_options=quick, registration_cache=evaluation_first)
+    shared = loss_fn(s_k, s_km1, tgt, src)
+    assert (evaluation_first.hits, evaluation_first.misses, len(evaluation_first)) == (1, 1, 1)
+    # the same registration as the loss's own (same problem, dtype and options: a deterministic CPU run)
+    torch.testing.assert_close(shared, own, rtol=1e-12, atol=0)
+    assert isinstance(reg.warp, RegistrationWarp)
+
+    loss_first = RegistrationCache()
+    TemporalConsistencyLoss(registration_options=quick, registration_cache=loss_first)(s_k, s_km1, tgt, src)
+    register_pairs([src, tgt], registration_options=NonRigidOptions(**quick), registration_cache=loss_first)
+    assert (loss_first.hits, loss_first.misses, len(loss_first)) == (1, 1, 1)
+    with pytest.raises(TypeError, match="registrations"):
+        TemporalLossCache(registrations={})  # type: ignore[arg-type]
 
 
 def test_registration_given_as_the_registered_mesh_uses_its_surface_warp(frames):

@@ -14,8 +14,7 @@ import torch
 import trimesh
 
 from torchmeshmetric import Mesh
-from torchmeshmetric.evaluation import registration_key
-from torchmeshmetric.registration import DEFAULT_SCHEDULE, NonRigidOptions, Stage, register_nonrigid
+from torchmeshmetric.registration import DEFAULT_SCHEDULE, NonRigidOptions, Stage, register_nonrigid, registration_key
 from torchmeshmetric.registration.options import RUN_ARGUMENTS
 
 SHORT = (DEFAULT_SCHEDULE[0]._replace(max_steps=8), DEFAULT_SCHEDULE[1]._replace(max_steps=4))

@@ -19,13 +19,13 @@ import torch
 from torchmeshmetric._atomic import atomic_file_set, atomic_write, blocking_file
 from torchmeshmetric._format import json_safe
 from torchmeshmetric.data.sequence import load_sequence
-from torchmeshmetric.evaluation.cache import RegistrationCache
 from torchmeshmetric.evaluation.distributed import SequenceWork, evaluate_sequences
 from torchmeshmetric.evaluation.pipeline import check_methods, evaluate_sequence
 from torchmeshmetric.evaluation.reports import report_dict, write_csv, write_json, write_markdown
 from torchmeshmetric.evaluation.results import SequenceEvaluation
 from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.mpeg.sequence import mpeg_csv, mpeg_markdown, mpeg_sequence
+from torchmeshmetric.registration.cache import RegistrationCache
 from torchmeshmetric.registration.options import DEFAULT_SCHEDULE
 from torchmeshmetric.tasks import is_distributed, rank_and_world_size
 from torchmeshmetric.viz.plots import plot_mpeg_curves

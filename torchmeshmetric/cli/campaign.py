@@ -33,7 +33,6 @@ def run(args: argparse.Namespace) -> int:
         report_paths,
         write_reports,
     )
-    from torchmeshmetric.evaluation.cache import RegistrationCache
     from torchmeshmetric.evaluation.campaign import (
         COMBINED,
         campaign_report_dict,
@@ -46,6 +45,7 @@ def run(args: argparse.Namespace) -> int:
     from torchmeshmetric.evaluation.comparison import compare_methods
     from torchmeshmetric.evaluation.pipeline import check_methods
     from torchmeshmetric.evaluation.reports import write_json
+    from torchmeshmetric.registration.cache import RegistrationCache
 
     device = device_of(args)
     campaign = load_campaign(args.manifest)

@@ -51,10 +51,10 @@ def run(args: argparse.Namespace) -> int:
         simplify_frames,
     )
     from torchmeshmetric.data.demo import demo_sequence
-    from torchmeshmetric.evaluation.cache import RegistrationCache
     from torchmeshmetric.evaluation.pipeline import register_pairs
     from torchmeshmetric.evaluation.reports import paper_tables
     from torchmeshmetric.kernels.index_cache import IndexCache
+    from torchmeshmetric.registration.cache import RegistrationCache
 
     device = device_of(args)
     out_dir = _demo_out_dir(args)

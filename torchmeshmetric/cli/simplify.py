@@ -30,8 +30,8 @@ def run(args: argparse.Namespace) -> int:
     )
     from torchmeshmetric.data.frames import list_frames
     from torchmeshmetric.data.io import save_mesh
-    from torchmeshmetric.evaluation.cache import RegistrationCache
     from torchmeshmetric.evaluation.pipeline import register_pairs
+    from torchmeshmetric.registration.cache import RegistrationCache
 
     device = device_of(args)
     frames = load_frames(args.input, "--input", dtype_of(args))

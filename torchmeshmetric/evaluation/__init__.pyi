@@ -4,7 +4,6 @@
 """
 
 # The public submodules (attributes of the package, as after a normal import).
-from . import cache as cache
 from . import campaign as campaign
 from . import comparison as comparison
 from . import distortions as distortions
@@ -16,7 +15,6 @@ from . import results as results
 from . import sweep as sweep
 from . import temporal_consistency as temporal_consistency
 from . import validation as validation
-from .cache import CachedRegistration, RegistrationCache, registration_key
 from .comparison import DEFAULT_COMPARISON_STATISTICS, compare_methods, comparison_markdown, paired_t_interval
 from .flicker import FLICKER, FlickerDistances, flicker_distances
 from .pipeline import (
@@ -48,10 +46,8 @@ __all__ = [
     "FLICKER",
     "FLOOR_SET_NAMES",
     "SET_NAMES",
-    "CachedRegistration",
     "FlickerDistances",
     "PairEvaluation",
-    "RegistrationCache",
     "SequenceEvaluation",
     "TemporalConsistency",
     "WeightSweep",
@@ -67,7 +63,6 @@ __all__ = [
     "paper_tables",
     "register_pairs",
     "registered_qem_sweep",
-    "registration_key",
     "registration_settings",
     "report_dict",
     "write_csv",

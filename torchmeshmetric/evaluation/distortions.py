@@ -23,8 +23,8 @@ from collections.abc import Callable, Sequence
 import torch
 from torch import Tensor
 
-from torchmeshmetric.evaluation.cache import CachedRegistration
 from torchmeshmetric.kernels import point_mesh_distance
+from torchmeshmetric.registration.cache import CachedRegistration
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
 __all__ = [

@@ -17,9 +17,9 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, NamedTuple
 
-from torchmeshmetric.evaluation.cache import RegistrationCache
 from torchmeshmetric.evaluation.pipeline import PairTask, check_methods, check_sequence, evaluate_pairs
 from torchmeshmetric.evaluation.results import SequenceEvaluation
+from torchmeshmetric.registration.cache import RegistrationCache
 from torchmeshmetric.structures import MeshLike
 
 __all__ = ["SequenceWork", "evaluate_sequences"]

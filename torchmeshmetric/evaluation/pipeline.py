@@ -19,14 +19,19 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric._checks import ShapeError
-from torchmeshmetric.evaluation.cache import CachedRegistration, RegistrationCache
 from torchmeshmetric.evaluation.flicker import FLICKER, flicker_distances
 from torchmeshmetric.evaluation.results import SET_NAMES, PairEvaluation, SequenceEvaluation
 from torchmeshmetric.kernels import IndexCache, MeshIndex, point_mesh_distance
 from torchmeshmetric.metrics.surface_distance_sets import measure_surface_distance_sets
 from torchmeshmetric.metrics.vertex_distance_sets import measure_vertex_distance_sets
-from torchmeshmetric.registration import NonRigidOptions, register_nonrigid
-from torchmeshmetric.registration.warp import RegistrationWarp, as_warp, deformation_of
+from torchmeshmetric.registration import NonRigidOptions
+from torchmeshmetric.registration.cache import (
+    CachedRegistration,
+    RegistrationCache,
+    compute_registration,
+    default_registration_settings,
+)
+from torchmeshmetric.registration.warp import as_warp, deformation_of
 from torchmeshmetric.stats import DistanceStatistics, distance_statistics
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 from torchmeshmetric.tasks import exchange, run_tasks
@@ -87,25 +92,23 @@ def default_register(
 ) -> CachedRegistration:
     """Register ``source`` (frame ``k-1``) onto ``target`` (frame ``k``) with the library's non-rigid registration.
 
-    Calls :func:`torchmeshmetric.registration.register_nonrigid` (rigid initialisation, then the deformation
-    graph) and keeps its registered vertices, residual, convergence flag and deformation
-    (:class:`~torchmeshmetric.registration.RegistrationWarp`, which moves any point: the ``flicker`` set needs it).
+    The evaluation's registration when none is given: :func:`~torchmeshmetric.registration.cache.compute_registration`
+    (registered vertices, residual, convergence flag and deformation, a
+    :class:`~torchmeshmetric.registration.RegistrationWarp`, which moves any point: the ``flicker`` set needs it).
+    Its qualified name is the ``"register"`` of its cache settings
+    (:data:`~torchmeshmetric.registration.cache.DEFAULT_REGISTER`).
     """
-    start = time.perf_counter()
-    result = register_nonrigid(source, target, device=device, **options)
-    seconds = time.perf_counter() - start
-    warp = RegistrationWarp.from_registration(result, target)
-    return CachedRegistration(result.verts.detach(), result.residual.detach(), bool(result.converged), seconds, warp)
+    return compute_registration(source, target, device=device, **options)
 
 
 def registration_settings(register: RegisterFn | None, options: Mapping[str, Any] | None) -> dict[str, Any]:
     """The settings that identify a registration in the cache: the function's qualified name and its options."""
-    fn: Any = default_register if register is None else register
-    name = f"{getattr(fn, '__module__', '?')}.{getattr(fn, '__qualname__', type(fn).__name__)}"
     if register is None:
         # The library's registration: its complete, validated options (defaults filled), so equal settings spelled
-        # differently share one cache entry and a misspelled option fails here, before any work.
-        return {"register": name, "options": NonRigidOptions.from_call(options or {})}
+        # differently share one cache entry (the temporal loss's too) and a misspelled option fails here, before any
+        # work.
+        return default_registration_settings(NonRigidOptions.from_call(options or {}))
+    name = f"{getattr(register, '__module__', '?')}.{getattr(register, '__qualname__', type(register).__name__)}"
     return {"register": name, "options": dict(options or {})}
 
 

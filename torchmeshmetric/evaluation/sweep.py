@@ -97,7 +97,7 @@ def registered_qem_sweep(
     Args:
         frames: the original frames.
         registrations: one registration of original frame ``k-1`` onto frame ``k`` per pair (with ``verts``, e.g.
-            :class:`~torchmeshmetric.evaluation.CachedRegistration`): used by the simplifier and the evaluation.
+            :class:`~torchmeshmetric.registration.CachedRegistration`): used by the simplifier and the evaluation.
         target: faces to keep per frame.
         weights: weights (>= 0) of the registered previous frame.
         baseline: also evaluate plain QEM (fast-simplification).

@@ -8,12 +8,12 @@ import torch
 from torch import Tensor
 from torchmetrics import Metric
 
-from torchmeshmetric.evaluation.cache import RegistrationCache
 from torchmeshmetric.evaluation.flicker import FLICKER
 from torchmeshmetric.evaluation.pipeline import RegisterFn, RegistrationOptions, evaluate_pair, registration_keywords
 from torchmeshmetric.evaluation.results import SET_NAMES
 from torchmeshmetric.kernels import IndexCache
 from torchmeshmetric.metrics.distance_states import DistanceStates
+from torchmeshmetric.registration.cache import RegistrationCache
 from torchmeshmetric.structures import MeshLike
 
 __all__ = ["TemporalConsistency"]

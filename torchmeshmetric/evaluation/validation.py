@@ -33,7 +33,6 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric.data import demo_sequence
-from torchmeshmetric.evaluation.cache import CachedRegistration
 from torchmeshmetric.evaluation.distortions import (
     ground_truth_registrations,
     normal_offset,
@@ -44,6 +43,7 @@ from torchmeshmetric.evaluation.distortions import (
 from torchmeshmetric.evaluation.pipeline import evaluate_sequence
 from torchmeshmetric.evaluation.results import SequenceEvaluation
 from torchmeshmetric.kernels import point_mesh_distance
+from torchmeshmetric.registration.cache import CachedRegistration
 from torchmeshmetric.simplification import simplify_qem
 from torchmeshmetric.structures import Mesh
 

@@ -18,9 +18,11 @@ over the batch (``reduction="mean"``) and ``\lambda_f`` the ``frame_weight``. Th
 (``W`` is differentiable in the points it moves; its parameters are constants).
 
 The registration is the expensive part (about a second per pair) and depends only on the original frames: the loss
-registers each original pair once and keeps its warp in a :class:`TemporalLossCache` (found again by content), with
-the indexes of the original frames ``k``. Within a training loop the simplified frames keep their faces while their
-vertices move: the cache keeps their indexes too and refits them (bounds only, answers exact) instead of rebuilding.
+registers each original pair once through a :class:`TemporalLossCache`, whose
+:class:`~torchmeshmetric.registration.RegistrationCache` (the evaluation's cache, under the same key: they can share
+one) finds it again by content; the cache also keeps the indexes of the original frames ``k``. Within a training
+loop the simplified frames keep their faces while their vertices move: the cache keeps their indexes too and refits
+them (bounds only, answers exact) instead of rebuilding.
 """
 
 from __future__ import annotations
@@ -35,12 +37,18 @@ from torch import Tensor, nn
 
 from torchmeshmetric._checks import EmptyInputError, NonFiniteError, ShapeError
 from torchmeshmetric.kernels.danskin import mesh_surface_distances
-from torchmeshmetric.kernels.index_cache import IndexCache, content_key
+from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.kernels.sampling import vertex_set
 from torchmeshmetric.metrics._loss import check_loss_args, reduce_directed
 from torchmeshmetric.metrics.directed_distances import DirectedDistances
-from torchmeshmetric.registration.nonrigid import register_nonrigid
+from torchmeshmetric.registration.cache import (
+    CachedRegistration,
+    RegistrationCache,
+    compute_registration,
+    default_registration_settings,
+    registration_key,
+)
 from torchmeshmetric.registration.options import NonRigidOptions
 from torchmeshmetric.registration.warp import RegistrationWarp, Warp, as_warp
 from torchmeshmetric.structures import Mesh, as_mesh, is_mesh_like
@@ -89,29 +97,48 @@ class _KeptIndex:
 
 
 class TemporalLossCache:
-    """What :func:`temporal_consistency_loss` keeps between calls: registrations' warps and meshes' indexes.
+    """What :func:`temporal_consistency_loss` keeps between calls: registrations, their warps, meshes' indexes.
 
-    * the warp of every original pair registered by the loss (``registration=None``), keyed by the content of both
-      frames and the registration settings (least recently used dropped beyond ``max_warps``);
+    * the registration of every original pair the loss registers (``registration=None``), in a
+      :class:`~torchmeshmetric.registration.RegistrationCache` keyed by
+      :func:`~torchmeshmetric.registration.registration_key` (the content of both frames and the registration
+      settings, as the evaluation keys them): give the evaluation's cache as ``registrations`` and each finds the
+      other's registrations;
+    * the warp of each of those registrations on the device and in the dtype of the loss's frames, converted once
+      (least recently used dropped beyond ``max_warps``);
     * the indexes of the original frames ``k`` (an :class:`~torchmeshmetric.IndexCache`);
     * the indexes of the simplified frames ``k`` and of the moved frames ``k-1`` of the last call, refitted when the
       next call brings the same faces (a training step moves vertices, not faces), rebuilt otherwise.
 
     Args:
-        max_warps: registrations kept.
+        max_warps: warps kept (and registrations, when the cache is the loss's own).
         max_indexes: indexes of original frames kept.
+        registrations: the registration cache to use (e.g. the evaluation's, or one on disk); ``None``: a memory
+            cache of its own, bounded by ``max_warps``.
+
+    Raises:
+        ValueError: ``max_warps`` not a positive int.
+        TypeError: ``registrations`` not a :class:`~torchmeshmetric.registration.RegistrationCache` or ``None``.
 
     Example:
         >>> cache = TemporalLossCache()
-        >>> cache.num_warps
-        0
+        >>> cache.num_warps, cache.registrations.max_entries
+        (0, 64)
     """
 
-    def __init__(self, max_warps: int = 64, max_indexes: int = 64) -> None:
-        if not isinstance(max_warps, int) or max_warps < 1:
+    def __init__(
+        self, max_warps: int = 64, max_indexes: int = 64, *, registrations: RegistrationCache | None = None
+    ) -> None:
+        if isinstance(max_warps, bool) or not isinstance(max_warps, int) or max_warps < 1:
             raise ValueError(f"max_warps: expected a positive int, found {max_warps!r}")
+        if registrations is not None and not isinstance(registrations, RegistrationCache):
+            raise TypeError(
+                f"registrations: expected a RegistrationCache or None, found {type(registrations).__name__}"
+            )
         self.max_warps = max_warps
-        self._warps: OrderedDict[str, RegistrationWarp] = OrderedDict()
+        self.registrations = registrations if registrations is not None else RegistrationCache(max_entries=max_warps)
+        # The warps in use, by (registration key, dtype, device): converted from the cache's CPU entry once.
+        self._warps: OrderedDict[tuple[str, torch.dtype, torch.device], Warp] = OrderedDict()
         self.indexes = IndexCache(max_entries=max_indexes)
         self._simplified = _KeptIndex()
         self._moved = _KeptIndex()
@@ -119,28 +146,43 @@ class TemporalLossCache:
 
     @property
     def num_warps(self) -> int:
-        """Registrations held."""
+        """Warps held, converted to the loss's devices and dtypes."""
         return len(self._warps)
 
     def warp(self, original_k: Mesh, original_k_minus_1: Mesh, options: NonRigidOptions, backend: str) -> Warp:
         """The warp of ``original_k_minus_1`` registered onto ``original_k`` (registered on the first request)."""
-        key = content_key([original_k_minus_1, original_k], repr(options))
-        found = self._warps.get(key)
+        source, target = original_k_minus_1.detach(), original_k.detach()
+        settings = default_registration_settings(options)
+        key = registration_key(source, target, settings)
+        converted = (key, source.dtype, source.device)
+        found = self._warps.get(converted)
         if found is not None:
-            self._warps.move_to_end(key)
+            self._warps.move_to_end(converted)
             return found
-        with torch.no_grad():
-            result = register_nonrigid(original_k_minus_1.detach(), original_k.detach(), options, backend=backend)
-            warp = RegistrationWarp.from_registration(result, original_k.detach())
-        self._warps[key] = warp
+
+        def compute() -> CachedRegistration:
+            with torch.no_grad():
+                return compute_registration(source, target, options=options, backend=backend)
+
+        entry, _ = self.registrations.get_or_compute(source, target, settings, compute)
+        # The entry is on the CPU; the warp goes where the frames are, in the dtype a registration of them has (that
+        # of frame k-1). An entry without a deformation is extended by its registered vertices' piecewise-linear map.
+        if isinstance(entry.warp, RegistrationWarp):
+            warp: Warp = entry.warp.to(source.device, source.dtype)
+        else:
+            warp = as_warp(entry, target, source, name="registration")
+        self._warps[converted] = warp
         if len(self._warps) > self.max_warps:
             self._warps.popitem(last=False)
         return warp
 
     def __getstate__(self) -> dict[str, object]:
-        # A cache: pickled empty (a module holding one is deep-copied, pickled by checkpoints).
-        return {"max_warps": self.max_warps, "_warps": OrderedDict(), "indexes": self.indexes,
-                "_simplified": _KeptIndex(), "_moved": _KeptIndex(), "_frame_simplified": _KeptIndex()}  # fmt: skip
+        # A cache: pickled empty (a module holding one is deep-copied, pickled by checkpoints); a shared registration
+        # cache comes back as an empty one with the same folder and bound.
+        registrations = RegistrationCache(self.registrations.directory, max_entries=self.registrations.max_entries)
+        return {"max_warps": self.max_warps, "registrations": registrations, "_warps": OrderedDict(),
+                "indexes": self.indexes, "_simplified": _KeptIndex(), "_moved": _KeptIndex(),
+                "_frame_simplified": _KeptIndex()}  # fmt: skip
 
 
 def _to_surface(points: list[Tensor], meshes: list[Mesh], index: MeshIndex) -> Tensor:
@@ -383,6 +425,9 @@ class TemporalConsistencyLoss(nn.Module):
         power: exponent of each distance.
         registration_options: options of the default registration.
         backend: kernel backend.
+        registration_cache: where the default registrations are kept (e.g. the evaluation's
+            :class:`~torchmeshmetric.registration.RegistrationCache`, to share them); ``None``: a memory cache of
+            the loss's own (64 registrations, least recently used dropped).
 
     Example:
         >>> import torch, trimesh
@@ -406,6 +451,7 @@ class TemporalConsistencyLoss(nn.Module):
         power: float = 1.0,
         registration_options: Mapping[str, Any] | NonRigidOptions | None = None,
         backend: str = "auto",
+        registration_cache: RegistrationCache | None = None,
     ) -> None:
         super().__init__()
         _check_arguments(frame_weight, two_sided, reduction, power)
@@ -416,7 +462,7 @@ class TemporalConsistencyLoss(nn.Module):
         # Validated once here (a misspelled option fails at construction, not at the first step).
         self.registration_options = _options(registration_options)
         self.backend = backend
-        self.cache = TemporalLossCache()
+        self.cache = TemporalLossCache(registrations=registration_cache)
 
     def forward(
         self,

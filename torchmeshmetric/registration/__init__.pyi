@@ -5,12 +5,20 @@
 
 # The public submodules (attributes of the package, as after a normal import).
 from . import adam as adam
+from . import cache as cache
 from . import deformation_graph as deformation_graph
 from . import energies as energies
 from . import nonrigid as nonrigid
 from . import options as options
 from . import rigid as rigid
 from . import warp as warp
+from .cache import (
+    CachedRegistration,
+    RegistrationCache,
+    compute_registration,
+    default_registration_settings,
+    registration_key,
+)
 from .deformation_graph import DeformationGraph, embedded_deformation, farthest_point_nodes, skinning_weights
 from .energies import (
     Correspondences,
@@ -29,10 +37,12 @@ from .warp import RegistrationWarp, SurfaceWarp, Warp, as_warp, deformation_of
 
 __all__ = [
     "DEFAULT_SCHEDULE",
+    "CachedRegistration",
     "Correspondences",
     "DeformationGraph",
     "NonRigidOptions",
     "NonRigidRegistration",
+    "RegistrationCache",
     "RegistrationWarning",
     "RegistrationWarp",
     "RigidRegistration",
@@ -41,6 +51,8 @@ __all__ = [
     "SurfaceWarp",
     "Warp",
     "as_warp",
+    "compute_registration",
+    "default_registration_settings",
     "deformation_of",
     "embedded_deformation",
     "embedded_deformation_regularizer",
@@ -50,6 +62,7 @@ __all__ = [
     "kabsch_umeyama",
     "register_nonrigid",
     "register_rigid",
+    "registration_key",
     "skinning_weights",
     "acceptance_weights",
     "data_term",

@@ -25,7 +25,7 @@ def simplify_sequence(
         frames: the ``N`` original frames.
         target: faces to keep per frame (an ``int`` count or a ``float`` ratio in ``(0, 1]``).
         registrations: ``N - 1`` registrations of original frame ``k-1`` onto frame ``k`` (anything with ``verts``
-            of frame ``k-1``'s shape, e.g. :class:`~torchmeshmetric.evaluation.CachedRegistration`); ``None``:
+            of frame ``k-1``'s shape, e.g. :class:`~torchmeshmetric.registration.CachedRegistration`); ``None``:
             :func:`simplify_qem` on every frame.
         weight: Registered QEM's weight of the previous frame (see :func:`simplify_registered_qem`).
 

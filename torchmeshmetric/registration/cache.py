@@ -1,10 +1,13 @@
-"""Cache of registrations of original frame pairs, in memory and optionally on disk.
+"""The one cache of registrations of original frame pairs: in memory (optionally bounded) and optionally on disk.
 
-Registering original frame ``k-1`` onto frame ``k`` is by far the most expensive step of the evaluation and does
-not depend on the simplification method, so comparing several methods on one sequence must not repeat it. Entries
-are keyed by a SHA-256 content hash of both meshes (vertex positions as float64 and faces as int64, with their
-shapes) and of the registration settings; disk entries are written atomically (temporary file in the same folder,
-then :func:`os.replace`), so an interrupted run never leaves a truncated entry behind.
+Registering original frame ``k-1`` onto frame ``k`` is by far the most expensive step of the evaluation and of the
+temporal loss, and it does not depend on the simplification method, so comparing several methods on one sequence, or
+training over many epochs, must not repeat it. The evaluation (:mod:`torchmeshmetric.evaluation`) and the temporal
+loss (:class:`~torchmeshmetric.metrics.TemporalLossCache`) both keep their registrations here, under one key
+(:func:`registration_key`): a registration computed through one is found by the other when they share a cache.
+Entries are keyed by a SHA-256 content hash of both meshes (vertex positions as float64 and faces as int64, with
+their shapes) and of the registration settings; disk entries are written atomically (temporary file in the same
+folder, then :func:`os.replace`), so an interrupted run never leaves a truncated entry behind.
 
 Entries keep the registration's deformation (:class:`~torchmeshmetric.registration.RegistrationWarp`) when it has
 one, because the ``flicker`` set moves points other than the registered vertices. Entries written before the
@@ -16,7 +19,9 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import time
 import warnings
+from collections import OrderedDict
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -26,17 +31,30 @@ from torch import Tensor
 
 from torchmeshmetric._atomic import atomic_write_with
 from torchmeshmetric._checks import ShapeError
+from torchmeshmetric.registration.nonrigid import register_nonrigid
 from torchmeshmetric.registration.options import NonRigidOptions
 from torchmeshmetric.registration.warp import RegistrationWarp, Warp
 from torchmeshmetric.structures import Mesh
 
-__all__ = ["CachedRegistration", "RegistrationCache", "registration_key"]
+__all__ = [
+    "DEFAULT_REGISTER",
+    "CachedRegistration",
+    "RegistrationCache",
+    "compute_registration",
+    "default_registration_settings",
+    "registration_key",
+]
 
 _FORMAT = "torchmeshmetric-registration-cache-v1"
 
+#: The ``"register"`` name in the settings of the library's registration: the qualified name of the evaluation's
+#: ``default_register``, under which disk caches have stored its entries since the first format. Kept verbatim (a
+#: test checks it still names that function) so that existing caches keep their keys.
+DEFAULT_REGISTER = "torchmeshmetric.evaluation.pipeline.default_register"
+
 
 class CachedRegistration(NamedTuple):
-    """What the evaluation keeps of a registration of frame ``k-1`` onto frame ``k``.
+    """What the cache keeps of a registration of frame ``k-1`` onto frame ``k`` (for the evaluation and the loss).
 
     Attributes:
         verts: ``(V_{k-1}, 3)`` registered vertices (topology of frame ``k-1``), on the CPU.
@@ -138,6 +156,47 @@ def registration_key(source: Mesh, target: Mesh, settings: Mapping[str, object] 
     return h.hexdigest()
 
 
+def default_registration_settings(options: NonRigidOptions) -> dict[str, object]:
+    """The settings that key the library's registration (:func:`compute_registration` with ``options``).
+
+    What the evaluation (``registration_fn=None``) and the temporal loss both pass to :func:`registration_key`, so
+    that they find each other's entries. The backend, device and thread count are left out: they change a
+    registration only by rounding.
+
+    Example:
+        >>> default_registration_settings(NonRigidOptions())["register"] == DEFAULT_REGISTER
+        True
+    """
+    return {"register": DEFAULT_REGISTER, "options": options}
+
+
+def compute_registration(
+    source: Mesh, target: Mesh, *, device: torch.device | str | None = None, **options: Any
+) -> CachedRegistration:
+    """Register ``source`` (frame ``k-1``) onto ``target`` (frame ``k``) as a cache entry, timed.
+
+    Calls :func:`~torchmeshmetric.registration.register_nonrigid` (rigid initialisation, then the deformation graph)
+    with ``options`` (its keywords: ``options=NonRigidOptions(...)``, fields, ``backend``) and keeps the registered
+    vertices ``(V_{k-1}, 3)``, the residual ``(V_{k-1},)``, the convergence flag, the wall time and the deformation
+    (:class:`~torchmeshmetric.registration.RegistrationWarp`, which moves any point: the ``flicker`` set and the
+    temporal loss need it).
+
+    Example:
+        >>> import trimesh
+        >>> from torchmeshmetric.registration import DEFAULT_SCHEDULE
+        >>> from torchmeshmetric.structures import as_mesh
+        >>> m = as_mesh(trimesh.creation.icosphere(subdivisions=1))
+        >>> reg = compute_registration(m, m, schedule=[DEFAULT_SCHEDULE[0]._replace(max_steps=5)])
+        >>> tuple(reg.verts.shape) == tuple(m.verts.shape), type(reg.warp).__name__
+        (True, 'RegistrationWarp')
+    """
+    start = time.perf_counter()
+    result = register_nonrigid(source, target, device=device, **options)
+    seconds = time.perf_counter() - start
+    warp = RegistrationWarp.from_registration(result, target)
+    return CachedRegistration(result.verts.detach(), result.residual.detach(), bool(result.converged), seconds, warp)
+
+
 def _entry_problem(entry: CachedRegistration, num_verts: int) -> str | None:
     """What is wrong with an entry read from disk for a source of ``num_verts`` vertices, or ``None``."""
     verts, residual = entry.verts, entry.residual
@@ -161,10 +220,15 @@ def _storable(warp: Warp | None) -> dict[str, Any] | None:
 
 
 class RegistrationCache:
-    """Registrations keyed by content, kept in memory and, when ``directory`` is given, on disk.
+    """Registrations keyed by content (:func:`registration_key`), in memory and, given a ``directory``, on disk.
 
     Args:
         directory: folder for ``<key>.pt`` entries (created when needed); ``None`` keeps entries in memory only.
+        max_entries: entries kept in memory; beyond it the least recently used is dropped from memory (never from
+            disk, where a later lookup finds it again). ``None``: unbounded.
+
+    Raises:
+        ValueError: ``max_entries`` not a positive int or ``None``.
 
     Attributes:
         hits: number of lookups answered from memory or disk.
@@ -180,9 +244,14 @@ class RegistrationCache:
         (1, 1)
     """
 
-    def __init__(self, directory: str | os.PathLike[str] | None = None) -> None:
+    def __init__(self, directory: str | os.PathLike[str] | None = None, *, max_entries: int | None = None) -> None:
+        if max_entries is not None and (
+            isinstance(max_entries, bool) or not isinstance(max_entries, int) or max_entries < 1
+        ):
+            raise ValueError(f"max_entries: expected a positive int or None, found {max_entries!r}")
         self.directory = None if directory is None else Path(directory)
-        self._memory: dict[str, CachedRegistration] = {}
+        self.max_entries = max_entries
+        self._memory: OrderedDict[str, CachedRegistration] = OrderedDict()
         self.hits = 0
         self.misses = 0
         #: When a dict: every entry :meth:`get_or_compute` returns is also recorded there by key (the ranks of a
@@ -191,7 +260,16 @@ class RegistrationCache:
 
     def adopt(self, entries: Mapping[str, CachedRegistration]) -> None:
         """Answer later lookups of these entries (by key, e.g. another rank's :attr:`journal`) from memory."""
-        self._memory.update(entries)
+        for key, entry in entries.items():
+            self._remember(key, entry)
+
+    def _remember(self, key: str, entry: CachedRegistration) -> None:
+        """Keep ``entry`` in memory as the most recently used, dropping the least recently used beyond the bound."""
+        self._memory[key] = entry
+        self._memory.move_to_end(key)
+        if self.max_entries is not None:
+            while len(self._memory) > self.max_entries:
+                self._memory.popitem(last=False)
 
     def _path(self, key: str) -> Path:
         assert self.directory is not None
@@ -256,9 +334,8 @@ class RegistrationCache:
         entry = self._memory.get(key)
         if entry is None:
             entry = self._load(key, source)
-            if entry is not None:
-                self._memory[key] = entry
         if entry is not None:
+            self._remember(key, entry)
             self.hits += 1
             return entry, True
         self.misses += 1
@@ -267,9 +344,10 @@ class RegistrationCache:
         entry = CachedRegistration(
             fresh.verts.detach().cpu(), fresh.residual.detach().cpu(), bool(fresh.converged), float(fresh.seconds), warp
         )
-        self._memory[key] = entry
+        self._remember(key, entry)
         self._store(key, entry)
         return entry, False
 
     def __len__(self) -> int:
+        """Entries held in memory."""
         return len(self._memory)
