@@ -18,6 +18,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 #include <vector>
 
@@ -173,11 +174,43 @@ inline void bilinear(const MeshView& m, float u, float v, float rgb[3]) {
 
 inline uint8_t to8(float c) { return static_cast<uint8_t>(static_cast<int>(std::round(c))); }
 
+// The pixels a rendering wrote, as an inclusive rectangle (empty while x0 > x1).
+struct Rect {
+  int x0 = std::numeric_limits<int>::max(), x1 = -1, y0 = std::numeric_limits<int>::max(), y1 = -1;
+  void add(int x, int y) {
+    x0 = std::min(x0, x);
+    x1 = std::max(x1, x);
+    y0 = std::min(y0, y);
+    y1 = std::max(y1, y);
+  }
+  Rect join(const Rect& o) const {
+    return {std::min(x0, o.x0), std::max(x1, o.x1), std::min(y0, o.y0), std::max(y1, o.y1)};
+  }
+};
+
+// Buffers of one rendering, cleared (depth -FLT_MAX, RGBA 0) once; `drawn` is what the last rendering wrote, the
+// only part the next one must clear. A performer covers a small part of the 2048^2 view: clearing and comparing only
+// the drawn rectangle saves most of the memory traffic, and pixels outside it are empty in both renderings (they add
+// nothing to any sum, so the sums and their order are unchanged).
+struct Target {
+  std::vector<float> z;
+  std::vector<uint8_t> rgba;
+  Rect drawn;
+  Target(int w, int h)
+      : z(size_t(w) * h, -std::numeric_limits<float>::max()), rgba(size_t(w) * h * 4, uint8_t(0)) {}
+};
+
 // One rendering: depth (float, cleared to -FLT_MAX) and RGBA (alpha 255 where a face is drawn, 0 elsewhere).
-void render(const MeshView& m, const Camera& cam, int width, int height, bool cull, std::vector<float>& zbuf,
-            std::vector<uint8_t>& fbuf) {
-  std::fill(zbuf.begin(), zbuf.end(), -std::numeric_limits<float>::max());
-  std::fill(fbuf.begin(), fbuf.end(), uint8_t(0));
+void render(const MeshView& m, const Camera& cam, int width, int height, bool cull, Target& target) {
+  std::vector<float>& zbuf = target.z;
+  std::vector<uint8_t>& fbuf = target.rgba;
+  const Rect old = target.drawn;
+  for (int y = old.y0; y <= old.y1; ++y) {
+    const size_t row = size_t(y) * width;
+    std::fill(zbuf.begin() + row + old.x0, zbuf.begin() + row + old.x1 + 1, -std::numeric_limits<float>::max());
+    std::fill(fbuf.begin() + (row + old.x0) * 4, fbuf.begin() + (row + old.x1 + 1) * 4, uint8_t(0));
+  }
+  Rect drawn;
   const float hw = static_cast<float>(width / 2.), hh = static_cast<float>(height / 2.);
   const bool textured = m.uvs != nullptr && m.tex != nullptr;
   for (int64_t t = 0; t < m.num_faces; ++t) {
@@ -212,8 +245,9 @@ void render(const MeshView& m, const Camera& cam, int width, int height, bool cu
         bmax[j] = std::min(clampv[j], std::max(bmax[j], p2[k][j]));
       }
     const float* uv = textured ? m.uvs + t * 6 : nullptr;
-    for (int x = static_cast<int>(bmin[0]); x <= static_cast<int>(bmax[0]); ++x) {
-      for (int y = static_cast<int>(bmin[1]); y <= static_cast<int>(bmax[1]); ++y) {
+    // row by row (a face writes each pixel once, so the order within a face changes nothing but memory locality)
+    for (int y = static_cast<int>(bmin[1]); y <= static_cast<int>(bmax[1]); ++y) {
+      for (int x = static_cast<int>(bmin[0]); x <= static_cast<int>(bmax[0]); ++x) {
         const V3 a = {pts[2].x - pts[0].x, pts[1].x - pts[0].x, pts[0].x - static_cast<float>(x)};
         const V3 b = {pts[2].y - pts[0].y, pts[1].y - pts[0].y, pts[0].y - static_cast<float>(y)};
         const V3 u = cross(a, b);
@@ -247,9 +281,11 @@ void render(const MeshView& m, const Camera& cam, int width, int height, bool cu
         fbuf[i * 4 + 1] = to8(rgb[1]);
         fbuf[i * 4 + 2] = to8(rgb[2]);
         fbuf[i * 4 + 3] = 255;
+        drawn.add(x, y);
       }
     }
   }
+  target.drawn = drawn;
 }
 
 MeshView view_of(const torch::Tensor& verts, const torch::Tensor& faces, const torch::Tensor& uvs,
@@ -305,15 +341,18 @@ torch::Tensor ibsm_sums(torch::Tensor va, torch::Tensor fa, torch::Tensor uva, t
   {
     pybind11::gil_scoped_release release;
     at::parallel_for(0, cameras, 1, [&](int64_t begin, int64_t end) {
-      std::vector<float> za(size_t(w) * h), zb(size_t(w) * h);
-      std::vector<uint8_t> ca(size_t(w) * h * 4), cb(size_t(w) * h * 4);
+      Target ta(w, h), tb(w, h);
+      const std::vector<float>&za = ta.z, &zb = tb.z;
+      const std::vector<uint8_t>&ca = ta.rgba, &cb = tb.rgba;
       for (int64_t k = begin; k < end; ++k) {
         const Camera cam = make_camera(dirs[k], up_for(dirs[k]), bmin, bmax, w, h);
-        render(A, cam, w, h, cull, za, ca);
-        render(B, cam, w, h, cull, zb, cb);
+        render(A, cam, w, h, cull, ta);
+        render(B, cam, w, h, cull, tb);
         double* r = o + k * 11;
         const double sig = cam.depth_range;
-        for (size_t i = 0; i < size_t(w) * h; ++i) {
+        const Rect u = ta.drawn.join(tb.drawn);
+        for (int y = u.y0; y <= u.y1; ++y)
+          for (size_t i = size_t(y) * w + u.x0; i <= size_t(y) * w + u.x1; ++i) {
           const bool ma = ca[i * 4 + 3] != 0, mb = cb[i * 4 + 3] != 0;
           if (!(ma && mb)) {
             if (ma || mb) r[1] += 1;
@@ -365,9 +404,10 @@ std::vector<torch::Tensor> ibsm_render(torch::Tensor v, torch::Tensor f, torch::
   const int w = static_cast<int>(resolution);
   const V3 vd = {d[0], d[1], d[2]};
   const Camera cam = make_camera(vd, up_for(vd), {bx[0], bx[1], bx[2]}, {bx[3], bx[4], bx[5]}, w, w);
-  std::vector<float> z(size_t(w) * w);
-  std::vector<uint8_t> c(size_t(w) * w * 4);
-  render(M, cam, w, w, cull, z, c);
+  Target target(w, w);
+  render(M, cam, w, w, cull, target);
+  std::vector<float>& z = target.z;
+  std::vector<uint8_t>& c = target.rgba;
   auto zt = torch::from_blob(z.data(), {w, w}, torch::kFloat32).clone();
   auto ct = torch::from_blob(c.data(), {w, w, 4}, torch::kUInt8).clone();
   return {zt, ct, torch::tensor({cam.depth_range})};
@@ -514,9 +554,65 @@ std::vector<torch::Tensor> grid_cast(torch::Tensor verts, torch::Tensor faces, t
   return {pos, origin, bary, face, axis};
 }
 
+// The rows kept by mmetric's ModelBuilder after grid sampling: the first of every set of rows equal in value (position,
+// normal and, when given, colour; -0.0 equals 0.0, a NaN equals nothing). One pass in index order over an
+// open-addressing table of the rows kept so far, keyed by a hash of their bits; a hash match is compared value by
+// value, so the answer is exact whatever the hash. Returns the kept row indices, ascending.
+torch::Tensor unique_rows(torch::Tensor pos, torch::Tensor nrm, torch::Tensor col) {
+  const int64_t n = pos.size(0);
+  const bool with_c = col.numel() > 0;
+  for (const torch::Tensor* t : {&pos, &nrm, &col})
+    TORCH_CHECK(t->numel() == 0 || (t->is_contiguous() && t->scalar_type() == torch::kFloat32 && t->dim() == 2 &&
+                                    t->size(0) == n && t->size(1) == 3),
+                "unique_rows: contiguous float32 (N, 3) rows expected");
+  const int width = with_c ? 9 : 6;
+  const float* src[3] = {pos.data_ptr<float>(), nrm.data_ptr<float>(), with_c ? col.data_ptr<float>() : nullptr};
+  const auto value = [&](int64_t i, int k) { return src[k / 3][3 * i + k % 3]; };
+  const auto hash = [&](int64_t i) {
+    uint64_t h = 0;
+    for (int k = 0; k < width; ++k) {
+      const float f = value(i, k) + 0.0F;
+      uint32_t b;
+      std::memcpy(&b, &f, sizeof b);
+      h = (h ^ b) * 0x9E3779B97F4A7C15ULL;
+      h ^= h >> 29;
+    }
+    return h;
+  };
+  int64_t size = 16;
+  while (size < 2 * n) size *= 2;
+  std::vector<int64_t> table(static_cast<size_t>(size), -1);
+  std::vector<int64_t> kept;
+  kept.reserve(static_cast<size_t>(n));
+  {
+    pybind11::gil_scoped_release release;
+    for (int64_t i = 0; i < n; ++i) {
+      int64_t slot = static_cast<int64_t>(hash(i) & static_cast<uint64_t>(size - 1));
+      bool seen = false;
+      for (; table[slot] >= 0; slot = (slot + 1) & (size - 1)) {
+        const int64_t j = table[slot];
+        bool same = true;
+        for (int k = 0; k < width && same; ++k) same = value(i, k) == value(j, k);
+        if (same) {
+          seen = true;
+          break;
+        }
+      }
+      if (!seen) {
+        table[slot] = i;
+        kept.push_back(i);
+      }
+    }
+  }
+  auto out = torch::empty({static_cast<int64_t>(kept.size())}, torch::kInt64);
+  std::copy(kept.begin(), kept.end(), out.data_ptr<int64_t>());
+  return out;
+}
+
 PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
   m.def("ibsm_sums", &ibsm_sums, "per-camera IBSM squared-error sums of two meshes");
   m.def("ibsm_render", &ibsm_render, "one orthographic rendering (depth, RGBA, depth range)");
   m.def("fibonacci_sphere", &fibonacci_sphere, "mmetric's Fibonacci-sphere camera directions");
   m.def("grid_cast", &grid_cast, "mmetric's grid sampling ray casting, hits in its push order");
+  m.def("unique_rows", &unique_rows, "the first of every set of equal (position, normal, colour) rows");
 }
