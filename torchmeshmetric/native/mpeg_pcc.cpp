@@ -8,6 +8,8 @@
 
 #include <ATen/Parallel.h>
 
+#include "parallel.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -214,8 +216,7 @@ struct SortKey {
   bool same_point(const SortKey& o) const { return hi == o.hi && (lo >> 32) == (o.lo >> 32); }
 };
 
-// Points sorted by (x, y, z, index): keys sorted directly (no comparator reading the points), in one block per thread
-// and the blocks merged.
+// Points sorted by (x, y, z, index): keys sorted directly (no comparator reading the points).
 std::vector<SortKey> sorted_keys(const float* p, int64_t n) {
   std::vector<SortKey> keys(static_cast<size_t>(n));
   at::parallel_for(0, n, 1 << 14, [&](int64_t b, int64_t e) {
@@ -223,14 +224,7 @@ std::vector<SortKey> sorted_keys(const float* p, int64_t n) {
       keys[i] = {(ordered_bits(p[3 * i]) << 32) | ordered_bits(p[3 * i + 1]),
                  (ordered_bits(p[3 * i + 2]) << 32) | static_cast<uint64_t>(i)};
   });
-  const int64_t blocks = std::max<int64_t>(1, std::min<int64_t>(at::get_num_threads(), n / 65536));
-  at::parallel_for(0, blocks, 1, [&](int64_t b, int64_t e) {
-    for (int64_t k = b; k < e; ++k) std::sort(keys.begin() + k * n / blocks, keys.begin() + (k + 1) * n / blocks);
-  });
-  for (int64_t width = 1; width < blocks; width *= 2)
-    for (int64_t k = 0; k + width < blocks; k += 2 * width)
-      std::inplace_merge(keys.begin() + k * n / blocks, keys.begin() + (k + width) * n / blocks,
-                         keys.begin() + std::min(blocks, k + 2 * width) * n / blocks);
+  tmm::parallel_sort(keys);
   return keys;
 }
 
