@@ -497,7 +497,8 @@ namespace {
 
 // mpeg_nearest_ties over the target's grid; the queries run in that grid's column order (consecutive queries visit
 // the same columns), each seeded with the previous one's nearest point. Queries whose answer lies farther than two
-// column sides (clouds far apart) are answered by the target's kd-tree, with the same ranking.
+// column sides (clouds far apart) are answered by the target's kd-tree, with the same ranking, and so is the next
+// query after such an answer (until an answer lies within reach again).
 std::vector<torch::Tensor> nearest_ties(const torch::Tensor& query, const torch::Tensor& target,
                                         const ColumnGrid& grid, LazyTree& tree) {
   const int64_t Q = query.size(0), T = target.size(0);
@@ -511,19 +512,15 @@ std::vector<torch::Tensor> nearest_ties(const torch::Tensor& query, const torch:
   bool* tie = tie_t.data_ptr<bool>();
   const double h = 1.0 / grid.inv_h, r_max = 2 * h;
   const std::vector<int64_t> qorder = column_order(grid, qp, Q, nullptr);
-  std::vector<uint8_t> far(static_cast<size_t>(Q), 0);
   // The nearest and the second by rank, searched only as far as a tie could reach: all points within 1e-20 of the
   // nearest are visited, so the second is exact whenever it is a tie, and a farther second is no tie either way.
   const auto tie_bound = [](const Best& b) {
     return b.n == 0 ? std::numeric_limits<double>::infinity() : b.sq[0] + SIMILAR;
   };
-  const auto one = [&](int64_t i, const Best& best) {
-    nearest[i] = best.idx[0];
-    sq[i] = best.sq[0];
-    tie[i] = best.n == 2 && best.sq[1] - best.sq[0] < SIMILAR;
-  };
+  const auto kd_tie_bound = [&](const Best& b) { return tie_bound(b) * WIDEN; };
   at::parallel_for(0, Q, GRAIN, [&](int64_t s0, int64_t e) {
     int64_t prev = -1;
+    bool far = false;  // the previous answer lay beyond the grid's reach: go to the kd-tree at once
     for (int64_t s = s0; s < e; ++s) {
       const int64_t i = qorder[s];
       const float* q = qp + 3 * i;
@@ -535,29 +532,21 @@ std::vector<torch::Tensor> nearest_ties(const torch::Tensor& query, const torch:
         const float* t = tp + 3 * prev;
         r0 = std::min(h, std::sqrt((mpeg_sq(q[0], q[1], q[2], t[0], t[1], t[2]) + SIMILAR) * WIDEN) * (1 + 1e-6));
       }
-      if (search(grid, q, prev, tp, r0, r_max, best, tie_bound)) {
-        one(i, best);
-        prev = best.idx[0];
-      } else {
-        far[i] = 1;
-        prev = -1;
+      if (far || !search(grid, q, prev, tp, r0, r_max, best, tie_bound)) {
+        best.n = 0;
+        if (prev >= 0) {
+          const float* t = tp + 3 * prev;
+          best.offer(mpeg_sq(q[0], q[1], q[2], t[0], t[1], t[2]), prev);
+        }
+        kd_search(tree.get(), q, best, kd_tie_bound);
       }
+      nearest[i] = best.idx[0];
+      sq[i] = best.sq[0];
+      tie[i] = best.n == 2 && best.sq[1] - best.sq[0] < SIMILAR;
+      far = best.sq[0] > r_max * r_max;
+      prev = best.idx[0];
     }
   });
-  std::vector<int64_t> far_rows;
-  for (int64_t i = 0; i < Q; ++i)
-    if (far[i]) far_rows.push_back(i);
-  if (!far_rows.empty()) {
-    const KdTree& kd = tree.get();
-    const auto kd_tie_bound = [&](const Best& b) { return tie_bound(b) * WIDEN; };
-    at::parallel_for(0, static_cast<int64_t>(far_rows.size()), GRAIN, [&](int64_t s0, int64_t e) {
-      for (int64_t s = s0; s < e; ++s) {
-        Best best{2};
-        kd_search(kd, qp + 3 * far_rows[s], best, kd_tie_bound);
-        one(far_rows[s], best);
-      }
-    });
-  }
   auto rows_t = torch::nonzero(tie_t).reshape({-1}).contiguous();
   const int64_t S = rows_t.size(0);
   const int kmax = static_cast<int>(std::min<int64_t>(MAX_K, T));
