@@ -22,7 +22,9 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+import torch
 
+from torchmeshmetric import native
 from torchmeshmetric.mpeg.colour import rgb_to_ycbcr
 from torchmeshmetric.mpeg.neighbours import NeighbourTies, nearest_with_ties_both
 from torchmeshmetric.mpeg.point_cloud import PointCloud, merge_duplicate_points
@@ -176,6 +178,11 @@ def _tie_rows(ties: NeighbourTies) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def _per_point_d2(qp: np.ndarray, tp: np.ndarray, nrm: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
     """Dmetric's squared point-to-plane error of each (query, neighbour) pair, float32 then double."""
+    ext = native.try_load("pcc")
+    if ext is not None:  # the same float32 operations without the gathered copies
+        t = [torch.from_numpy(np.ascontiguousarray(a)) for a in (qp, tp, nrm)]
+        ij = [torch.from_numpy(np.ascontiguousarray(a, dtype=np.int64)) for a in (rows, cols)]
+        return ext.mpeg_plane_errors(*t, *ij).numpy()
     diff = qp[rows] - tp[cols]  # float32, as dmetric
     n = nrm[cols]
     proj = (diff[:, 0] * n[:, 0] + diff[:, 1] * n[:, 1]) + diff[:, 2] * n[:, 2]

@@ -608,7 +608,45 @@ std::vector<torch::Tensor> mpeg_nearest_ties_both(torch::Tensor a, torch::Tensor
   return out;
 }
 
+// dmetric's squared point-to-plane error of each (query row, target col) pair: the float32 difference projected on
+// the target's normal in float32, squared in float32 and returned in double; for a normal with a NaN component,
+// dmetric's fallback, the plain float32 sum of the difference's components. Returns (P,) float64.
+torch::Tensor mpeg_plane_errors(torch::Tensor query, torch::Tensor target, torch::Tensor normals, torch::Tensor rows,
+                                torch::Tensor cols) {
+  check_points(query, "mpeg_plane_errors: query");
+  check_points(target, "mpeg_plane_errors: target");
+  check_points(normals, "mpeg_plane_errors: normals");
+  TORCH_CHECK(normals.size(0) == target.size(0), "mpeg_plane_errors: one normal per target point expected");
+  TORCH_CHECK(rows.scalar_type() == torch::kInt64 && cols.scalar_type() == torch::kInt64 && rows.is_contiguous() &&
+                  cols.is_contiguous() && rows.dim() == 1 && rows.sizes() == cols.sizes(),
+              "mpeg_plane_errors: rows and cols: contiguous int64 (P,) expected");
+  const int64_t n = rows.size(0);
+  const float *qp = query.data_ptr<float>(), *tp = target.data_ptr<float>(), *np_ = normals.data_ptr<float>();
+  const int64_t *r = rows.data_ptr<int64_t>(), *c = cols.data_ptr<int64_t>();
+  const int64_t Q = query.size(0), T = target.size(0);
+  for (int64_t k = 0; k < n; ++k)
+    TORCH_CHECK(r[k] >= 0 && r[k] < Q && c[k] >= 0 && c[k] < T, "mpeg_plane_errors: index out of range");
+  auto out_t = torch::empty({n}, torch::kFloat64);
+  double* out = out_t.data_ptr<double>();
+  at::parallel_for(0, n, 1 << 14, [&](int64_t b, int64_t e) {
+    for (int64_t k = b; k < e; ++k) {
+      const float* q = qp + 3 * r[k];
+      const float* t = tp + 3 * c[k];
+      const float* nn = np_ + 3 * c[k];
+      const float d0 = q[0] - t[0], d1 = q[1] - t[1], d2 = q[2] - t[2];
+      if (std::isnan(nn[0]) || std::isnan(nn[1]) || std::isnan(nn[2])) {
+        out[k] = static_cast<double>((d0 + d1) + d2);
+      } else {
+        const float proj = (d0 * nn[0] + d1 * nn[1]) + d2 * nn[2];
+        out[k] = static_cast<double>(proj * proj);
+      }
+    }
+  });
+  return out_t;
+}
+
 PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
+  m.def("mpeg_plane_errors", &mpeg_plane_errors, "dmetric's squared point-to-plane error per (query, target) pair");
   m.def("mpeg_merge", &mpeg_merge, "dmetric's duplicate merge (dropDuplicates = 2): sorted, runs averaged");
   m.def("mpeg_nearest_ties", &mpeg_nearest_ties, "nearest neighbours with dmetric's equidistant-neighbour rule");
   m.def("mpeg_nearest_ties_both", &mpeg_nearest_ties_both, "mpeg_nearest_ties in both directions");
