@@ -48,12 +48,33 @@ def _run_equality(args: argparse.Namespace) -> int:
     return 0 if result.equal else 1
 
 
+def _run_topology(args: argparse.Namespace) -> int:
+    """``--mode topo``: mmetric's topology verdict in its words (or JSON); exit status 0 when matching, 1 otherwise."""
+    from dataclasses import asdict
+
+    from torchmeshmetric.cli._shared import CLIError
+    from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
+    from torchmeshmetric.mpeg.topology import topology_equivalence
+
+    if args.face_map is None or args.vertex_map is None:
+        raise CLIError(
+            "--mode topo needs --face-map FILE and --vertex-map FILE (mmetric's --faceMapFile/--vertexMapFile)"
+        )
+    ref = load_textured_mesh(args.ref, args.ref_texture)
+    dis = load_textured_mesh(args.dis, args.dis_texture)
+    result = topology_equivalence(ref, dis, args.face_map, args.vertex_map)
+    print(json.dumps(asdict(result), indent=1) if args.json else result.report())
+    return 0 if result.matching else 1
+
+
 def _run(args: argparse.Namespace) -> int:
     from torchmeshmetric.mpeg.mpeg_metrics import mpeg_metrics
     from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
 
     if args.mode == "equ":
         return _run_equality(args)
+    if args.mode == "topo":
+        return _run_topology(args)
 
     box = None
     if args.box is not None:
@@ -95,7 +116,8 @@ def add_mpeg_command(sub: Any) -> None:
         "*sequence's* box and passes the sequence box's longest side as --resolution -- use 'torchmeshmetric ctc' for "
         "it. --sampling mesh is mm compare --mode pcc on the meshes. Textures come from the OBJ's MTL (map_Kd) "
         "unless given. --mode equ is mm compare --mode equ instead: are the two meshes the same triangles in any order "
-        "(exit status 0 when equal, 1 otherwise).",
+        "(exit status 0 when equal, 1 otherwise). --mode topo is mm compare --mode topo: is DIS the connectivity of "
+        "REF under --face-map and --vertex-map (exit status 0 when matching, 1 otherwise).",
     )
     p.add_argument("ref", metavar="REF", help="reference mesh (OBJ/PLY; OBJ with MTL + texture for colour)")
     p.add_argument("dis", metavar="DIS", help="distorted mesh")
@@ -124,9 +146,22 @@ def add_mpeg_command(sub: Any) -> None:
     p.add_argument("--json", action="store_true", help='print one JSON object (non-finite values as "inf")')
     p.add_argument(
         "--mode",
-        choices=("pcc", "equ"),
+        choices=("pcc", "equ", "topo"),
         default="pcc",
-        help="pcc: the D1/D2/colour figures (default); equ: mm compare --mode equ, the equality verdict",
+        help="pcc: the D1/D2/colour figures (default); equ: mm compare --mode equ, the equality verdict; topo: mm "
+        "compare --mode topo, the topology verdict",
+    )
+    p.add_argument(
+        "--face-map",
+        default=None,
+        metavar="FILE",
+        help="topo mode: text file of 'b a' lines, face b of DIS is face a of REF (mm --faceMapFile)",
+    )
+    p.add_argument(
+        "--vertex-map",
+        default=None,
+        metavar="FILE",
+        help="topo mode: text file of 'b a' lines, vertex b of DIS is vertex a of REF (mm --vertexMapFile)",
     )
     p.add_argument("--unoriented", action="store_true", help="equ mode: a triangle also equals its reversed copy")
     p.add_argument(

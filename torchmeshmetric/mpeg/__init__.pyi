@@ -21,6 +21,7 @@ from . import sequence as sequence
 from . import subdivision_sampling as subdivision_sampling
 from . import texture as texture
 from . import textured_mesh as textured_mesh
+from . import topology as topology
 from . import vertex_sampling as vertex_sampling
 from .bd_rate import bd_rate
 from .colour import rgb_to_ycbcr
@@ -60,6 +61,7 @@ from .sequence import MpegSequence, mean_psnr, mpeg_sequence
 from .subdivision_sampling import subdivision_sample
 from .texture import sample_texture
 from .textured_mesh import TexturedMesh, load_textured_mesh, read_texture
+from .topology import TopologyComparison, TopologyMapError, read_topology_map, topology_equivalence
 from .vertex_sampling import vertex_sample
 
 __all__ = [
@@ -91,6 +93,8 @@ __all__ = [
     "PointCloud",
     "Sampling",
     "TexturedMesh",
+    "TopologyComparison",
+    "TopologyMapError",
     "bbox_diagonal",
     "check_box",
     "differentiable_grid_sample",
@@ -110,6 +114,7 @@ __all__ = [
     "mpeg_sequence",
     "mpeg_sq_dists",
     "prnd_sample",
+    "read_topology_map",
     "k_nearest",
     "nearest_with_ties",
     "point_to_plane_mse",
@@ -118,6 +123,7 @@ __all__ = [
     "rgb_to_ycbcr",
     "sample_texture",
     "subdivision_sample",
+    "topology_equivalence",
     "unique_vertex_rows",
     "vertex_sample",
 ]
