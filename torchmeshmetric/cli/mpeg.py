@@ -68,20 +68,25 @@ def _run_topology(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from torchmeshmetric.mpeg.mpeg_metrics import mpeg_metrics
+    from torchmeshmetric.cli.mpeg_outputs import check_outputs, run_ibsm, write_pcc_outputs
+    from torchmeshmetric.mpeg.comparison import mpeg_compare
+    from torchmeshmetric.mpeg.mpeg_metrics import mpeg_point_clouds
     from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
 
+    check_outputs(args)
     if args.mode == "equ":
         return _run_equality(args)
     if args.mode == "topo":
         return _run_topology(args)
+    if args.mode == "ibsm":
+        return run_ibsm(args)
 
     box = None
     if args.box is not None:
         box = (corner(args.box[0], "--box MIN"), corner(args.box[1], "--box MAX"))
     ref = load_textured_mesh(args.ref, args.ref_texture)
     dis = load_textured_mesh(args.dis, args.dis_texture)
-    result = mpeg_metrics(
+    clouds = mpeg_point_clouds(
         ref,
         dis,
         sampling=args.sampling,
@@ -91,6 +96,8 @@ def _run(args: argparse.Namespace) -> int:
         bilinear=not args.nearest,
         names=(f"REF {args.ref!r}", f"DIS {args.dis!r}"),
     )
+    result = mpeg_compare(clouds.ref, clouds.dis, peak=clouds.peak)
+    write_pcc_outputs(args, clouds, result)
     d = result.to_dict()
     d["sampling"] = "grid" if args.sampling == "grid" else "mesh"
     if args.sampling == "grid":
@@ -146,10 +153,10 @@ def add_mpeg_command(sub: Any) -> None:
     p.add_argument("--json", action="store_true", help='print one JSON object (non-finite values as "inf")')
     p.add_argument(
         "--mode",
-        choices=("pcc", "equ", "topo"),
+        choices=("pcc", "equ", "topo", "ibsm"),
         default="pcc",
         help="pcc: the D1/D2/colour figures (default); equ: mm compare --mode equ, the equality verdict; topo: mm "
-        "compare --mode topo, the topology verdict",
+        "compare --mode topo, the topology verdict; ibsm: mm compare --mode ibsm, the image-based figures",
     )
     p.add_argument(
         "--face-map",
@@ -169,4 +176,7 @@ def add_mpeg_command(sub: Any) -> None:
         action="store_true",
         help="equ mode: count every different triangle (mm --earlyReturn=false) instead of naming the first",
     )
+    from torchmeshmetric.cli.mpeg_outputs import add_output_options
+
+    add_output_options(p)
     p.set_defaults(func=_run)

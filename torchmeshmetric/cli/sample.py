@@ -5,33 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-__all__ = ["add_sample_command", "ply_text"]
-
-
-def ply_text(points: Any, normals: Any, colors: Any) -> str:
-    """An ASCII PLY as mmetric writes it: 9 significant digits (float32 round-trips), colours as ``roundf`` bytes.
-
-    Example:
-        >>> import numpy as np
-        >>> print(ply_text(np.array([[0.5, 0, 1]], np.float32), np.array([[0, 0, 1]], np.float32), None))
-        ... # doctest: +ELLIPSIS
-        ply
-        ...
-        end_header
-        0.5 0 1 0 0 1
-        <BLANKLINE>
-    """
-    import numpy as np
-
-    head = ["ply", "format ascii 1.0", f"element vertex {len(points)}"]
-    head += [f"property float {c}" for c in ("x", "y", "z", "nx", "ny", "nz")]
-    cols = [np.asarray(points, np.float32), np.asarray(normals, np.float32)]
-    rows = [" ".join(f"{v:.9g}" for v in r) for r in np.concatenate(cols, axis=1).tolist()]
-    if colors is not None:
-        head += [f"property uchar {c}" for c in ("red", "green", "blue")]
-        rgb = np.clip(np.floor(np.asarray(colors, np.float32) + np.float32(0.5)), 0, 255).astype(np.int64)
-        rows = [f"{r} {c[0]} {c[1]} {c[2]}" for r, c in zip(rows, rgb.tolist(), strict=True)]
-    return "\n".join([*head, "end_header", *rows]) + "\n"
+__all__ = ["add_sample_command"]
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -42,6 +16,7 @@ def _run(args: argparse.Namespace) -> int:
     from torchmeshmetric.mpeg.edge_sampling import edge_sample
     from torchmeshmetric.mpeg.face_sampling import face_sample
     from torchmeshmetric.mpeg.map_sampling import map_sample
+    from torchmeshmetric.mpeg.model_files import point_cloud_ply_text
     from torchmeshmetric.mpeg.prnd_sampling import prnd_sample
     from torchmeshmetric.mpeg.subdivision_sampling import subdivision_sample
     from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
@@ -63,9 +38,7 @@ def _run(args: argparse.Namespace) -> int:
         pc = subdivision_sample(
             mesh, max_depth=args.max_depth, area_threshold=args.area_threshold, bilinear=args.bilinear
         )
-    colors = None if pc.colors is None else pc.colors.numpy()
-    normals = pc.normals.numpy() if pc.normals is not None else None
-    atomic_write(out, ply_text(pc.points.numpy(), normals, colors), overwrite=args.overwrite)
+    atomic_write(out, point_cloud_ply_text(pc), overwrite=args.overwrite)
     print(f"Generated {pc.num_points} points -> {out}")
     return 0
 
@@ -76,8 +49,7 @@ def add_sample_command(sub: Any) -> None:
         "sample",
         help="a mesh to the point cloud mmetric's mm sample writes (face, sdiv, ediv, prnd, map)",
         description="Sample MESH as 'mm sample --mode face' (or sdiv, ediv, prnd, map) does and writes its PLY "
-        "(positions and face normals bit for bit, colours from the texture or per-vertex colours as rounded bytes; "
-        "sdiv and ediv give mm's points in another order). The grid "
+        "(byte for byte as mm writes it, except ediv, whose points come in another order). The grid "
         "sampling of the CTC is inside the 'mpeg' and 'ctc' commands.",
     )
     p.add_argument("mesh", metavar="MESH", help="mesh to sample (OBJ/PLY; OBJ with MTL + texture for colour)")

@@ -52,7 +52,7 @@ from .losses import (
 )
 from .map_sampling import map_sample
 from .metric import MpegPSNR
-from .mpeg_metrics import Sampling, mpeg_metrics, mpeg_point_cloud
+from .mpeg_metrics import MpegClouds, Sampling, mpeg_metrics, mpeg_point_cloud, mpeg_point_clouds
 from .neighbours import NeighbourTies, k_nearest, mpeg_sq_dists, nearest_with_ties
 from .point_cloud import PointCloud, merge_duplicate_points
 from .prnd_sampling import prnd_sample
@@ -86,6 +86,7 @@ __all__ = [
     "MeshEquality",
     "MpegGeometryLoss",
     "MpegPSNR",
+    "MpegClouds",
     "MpegDirection",
     "MpegResult",
     "MpegSequence",
@@ -110,6 +111,7 @@ __all__ = [
     "mpeg_geometry_loss",
     "mpeg_metrics",
     "mpeg_point_cloud",
+    "mpeg_point_clouds",
     "mpeg_psnr",
     "mpeg_sequence",
     "mpeg_sq_dists",
