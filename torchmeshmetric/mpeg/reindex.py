@@ -79,10 +79,11 @@ def oriented_reindex(mesh: TexturedMesh) -> TexturedMesh:
     pos = verts[faces].reshape(-1, 3)
     keys = [pos]
     uv = col = None
-    if mesh.texture is not None and mesh.uvs is not None:
+    # mmetric's key: position, then UV and colour whenever the model has them (with or without a texture)
+    if mesh.uvs is not None:
         uv = mesh.uvs.detach().cpu().numpy().astype(np.float32).reshape(-1, 2)
         keys.append(uv)
-    elif mesh.colors is not None:
+    if mesh.colors is not None:
         col = mesh.colors.detach().cpu().numpy().astype(np.float32)[faces].reshape(-1, 3)
         keys.append(col)
     corner_keys = np.concatenate(keys, axis=1)
