@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import argparse
-from typing import Any
+from typing import Any, Literal
 
 __all__ = ["add_sample_command"]
 
@@ -12,7 +12,7 @@ def _run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from torchmeshmetric._atomic import atomic_write
-    from torchmeshmetric.cli._shared import check_writable
+    from torchmeshmetric.cli._shared import CLIError, check_writable
     from torchmeshmetric.mpeg.edge_sampling import edge_sample
     from torchmeshmetric.mpeg.face_sampling import face_sample
     from torchmeshmetric.mpeg.map_sampling import map_sample
@@ -24,20 +24,42 @@ def _run(args: argparse.Namespace) -> int:
     out = Path(args.output)
     check_writable([out], args.overwrite)
     mesh = load_textured_mesh(args.mesh, args.texture)
-    if args.mode == "face":
-        pc = face_sample(mesh, resolution=args.resolution, thickness=args.thickness, bilinear=args.bilinear)
-    elif args.mode == "map":
-        pc = map_sample(mesh)
-    elif args.mode == "prnd":
-        pc = prnd_sample(mesh, num_samples=args.num_samples, bilinear=args.bilinear)
-    elif args.mode == "ediv":
-        pc = edge_sample(
-            mesh, length_threshold=args.length_threshold, resolution=args.resolution, bilinear=args.bilinear
+
+    def sample(value: float | None = None) -> Any:
+        """The mode's sampling; ``value`` replaces the resolution (face) or threshold (sdiv, ediv) when searched."""
+        if args.mode == "face":
+            res = args.resolution if value is None else int(value)
+            return face_sample(mesh, resolution=res, thickness=args.thickness, bilinear=args.bilinear)
+        if args.mode == "map":
+            return map_sample(mesh)
+        if args.mode == "prnd":
+            return prnd_sample(mesh, num_samples=args.num_samples, bilinear=args.bilinear)
+        if args.mode == "ediv":
+            length = args.length_threshold if value is None else value
+            return edge_sample(mesh, length_threshold=length, resolution=args.resolution, bilinear=args.bilinear)
+        depth, area = (args.max_depth, args.area_threshold) if value is None else (10000, value)  # mm's search depth
+        mapped = args.map_threshold and value is None  # mmetric's search runs without it
+        return subdivision_sample(
+            mesh, max_depth=depth, area_threshold=area, bilinear=args.bilinear, map_threshold=mapped
         )
+
+    if args.num_samples_min:
+        if args.mode not in ("face", "sdiv", "ediv"):
+            raise CLIError(f"--num-samples-min: a search of face, sdiv and ediv modes, not of {args.mode} mode")
+        from torchmeshmetric.mpeg.sample_count_search import search_sample_count
+
+        kind: Literal["resolution", "threshold"] = "resolution" if args.mode == "face" else "threshold"
+        try:
+            found = search_sample_count(sample, kind, args.num_samples_min, args.num_samples_max, args.max_iterations)
+        except ValueError as exc:
+            raise CLIError(f"--num-samples-min/--num-samples-max: {exc}") from exc
+        pc = found.cloud
+        if found.earlier_points and pc.colors is not None:
+            # mmetric's Model::reset keeps the earlier samplings' colours: its file then has none (see CountSearch)
+            pc = type(pc)(pc.points, pc.normals)
+        print(f"Computed {kind} {found.value:.9g} after {found.iterations} iterations")
     else:
-        pc = subdivision_sample(
-            mesh, max_depth=args.max_depth, area_threshold=args.area_threshold, bilinear=args.bilinear
-        )
+        pc = sample()
     atomic_write(out, point_cloud_ply_text(pc), overwrite=args.overwrite)
     print(f"Generated {pc.num_points} points -> {out}")
     return 0
@@ -71,6 +93,21 @@ def add_sample_command(sub: Any) -> None:
         help="ediv: mm --lengthThreshold, edges split while half as long; 0 = box side / --resolution (0)",
     )
     p.add_argument("--num-samples", type=int, default=2000000, help="prnd: mm --nbSamples, the target count (2e6)")
+    p.add_argument(
+        "--map-threshold",
+        action="store_true",
+        help="sdiv: also split faces while their corners' texels are more than one apart (mm --mapThreshold)",
+    )
+    p.add_argument(
+        "--num-samples-min",
+        type=int,
+        default=0,
+        metavar="N",
+        help="face/sdiv/ediv: resample, searching the resolution or threshold, until the count is in [N, MAX] (mm "
+        "--nbSamplesMin; 0 = no search)",
+    )
+    p.add_argument("--num-samples-max", type=int, default=0, metavar="MAX", help="mm --nbSamplesMax (> N)")
+    p.add_argument("--max-iterations", type=int, default=10, help="mm --maxIterations of the search (10)")
     p.add_argument("--bilinear", action="store_true", help="bilinear texture filtering (default nearest, as mm)")
     p.add_argument("--texture", default=None, metavar="IMG", help="texture of MESH (overrides its MTL)")
     p.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")

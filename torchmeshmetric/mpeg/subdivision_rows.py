@@ -20,7 +20,11 @@ __all__ = ["subdivision_rows"]
 
 
 def subdivision_rows(
-    corners: np.ndarray, attributes: np.ndarray, max_depth: int, area_threshold: float
+    corners: np.ndarray,
+    attributes: np.ndarray,
+    max_depth: int,
+    area_threshold: float,
+    texture_size: tuple[int, int] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Points, face normals and attributes pushed by mmetric's recursive subdivision, in its push order.
 
@@ -30,6 +34,8 @@ def subdivision_rows(
             ``C = 0`` for none).
         max_depth: mmetric's maximum recursion depth (1: the corners only).
         area_threshold: faces with an area at least this are split (mmetric's ``areaThreshold``).
+        texture_size: ``(W, H)`` of the texture for mmetric's ``mapThreshold`` (``attributes`` are then UVs): a
+            face is also split while its corners' texels are more than one apart in x or y. ``None``: area only.
 
     Returns:
         ``(N, 3)`` points, ``(N, 3)`` normals and ``(N, C)`` attributes, in mmetric's order (duplicates included).
@@ -52,6 +58,8 @@ def subdivision_rows(
     half = np.float32(0.5)
     for level in range(max_depth - 1):
         big = f32.area(p[:, 0], p[:, 1], p[:, 2]) >= area_threshold
+        if texture_size is not None:
+            big |= ~_texels_adjacent(attr, texture_size)
         p, attr, face = p[big], attr[big], face[big]
         paths = [d[big] for d in paths]
         n = p.shape[0]
@@ -74,6 +82,14 @@ def subdivision_rows(
     keys = [np.concatenate(out_slot), *(digits[:, k] for k in reversed(range(depth))), np.concatenate(out_face)]
     order = np.lexsort(keys)  # a path sorts before its extensions (padding 0 < child numbers 1..4): pre-order
     return np.concatenate(out_pos)[order], np.concatenate(out_nrm)[order], np.concatenate(out_att)[order]
+
+
+def _texels_adjacent(uv: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """Whether the three corners' texels (mmetric's ``mapCoordClamped``) are within one of each other in x and y."""
+    w, h = size
+    x = np.clip((uv[:, :, 0] * np.float32(w)).astype(np.int64), 0, w - 1)  # (int) truncates toward zero
+    y = np.clip((uv[:, :, 1] * np.float32(h)).astype(np.int64), 0, h - 1)  # (the v flip keeps differences)
+    return (np.ptp(x, axis=1) <= 1) & (np.ptp(y, axis=1) <= 1)
 
 
 def _children(v: np.ndarray, e: np.ndarray) -> np.ndarray:

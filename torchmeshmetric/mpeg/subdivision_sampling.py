@@ -42,9 +42,10 @@ def subdivision_sample(
     max_depth: int = 100,
     area_threshold: float = 1.0,
     bilinear: bool = False,
+    map_threshold: bool = False,
     name: str = "mesh",
 ) -> PointCloud:
-    """Sample a mesh as ``mm sample --mode sdiv --maxDepth D --areaThreshold A [--bilinear]`` does.
+    """Sample a mesh as ``mm sample --mode sdiv --maxDepth D --areaThreshold A [--bilinear] [--mapThreshold]`` does.
 
     Args:
         mesh: the mesh with its colour (e.g. from :func:`load_textured_mesh`); vertices are float32.
@@ -52,6 +53,8 @@ def subdivision_sample(
         area_threshold: mmetric's ``--areaThreshold``, an absolute area in model units: faces at least this large
             are split.
         bilinear: bilinear texture filtering (mmetric ``--bilinear``), nearest otherwise.
+        map_threshold: mmetric's ``--mapThreshold``: with a texture, a face is also split while its corners' texels
+            (``int(u * W)``, ``int(v * H)``, clamped) are more than one texel apart in x or y.
         name: the mesh's name in error messages.
 
     Returns:
@@ -79,7 +82,10 @@ def subdivision_sample(
     if not keep.any():
         raise EmptyInputError(zero_area_message(name, faces.shape[0]))
     p, attr = p[keep], attr[keep]
-    points, normals, att = subdivision_rows(p, attr, max_depth, area_threshold)
+    texels = None
+    if map_threshold and mesh.texture is not None and mesh.uvs is not None:
+        texels = (int(mesh.texture.shape[1]), int(mesh.texture.shape[0]))
+    points, normals, att = subdivision_rows(p, attr, max_depth, area_threshold, texels)
     return builder_cloud(mesh, points, normals, att, bilinear)
 
 
