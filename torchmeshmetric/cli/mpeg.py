@@ -67,6 +67,15 @@ def _run_topology(args: argparse.Namespace) -> int:
     return 0 if result.matching else 1
 
 
+def _run_tfan(args: argparse.Namespace) -> int:
+    """``--mode eqTFAN``: mmetric's TFAN connectivity verdict in its words; exit status 0 when equal, 1 otherwise."""
+    from torchmeshmetric.mpeg.tfan_equality import load_tfan_mesh, tfan_equality
+
+    report = tfan_equality(load_tfan_mesh(args.ref), load_tfan_mesh(args.dis), early_return=not args.all_differences)
+    print(json.dumps({"equal": report.endswith(" meshes are equal"), "report": report}) if args.json else report)
+    return 0 if report.endswith(" meshes are equal") else 1
+
+
 def _run(args: argparse.Namespace) -> int:
     from torchmeshmetric.cli.mpeg_outputs import check_outputs, run_ibsm, write_pcc_outputs
     from torchmeshmetric.mpeg.comparison import mpeg_compare
@@ -78,6 +87,8 @@ def _run(args: argparse.Namespace) -> int:
         return _run_equality(args)
     if args.mode == "topo":
         return _run_topology(args)
+    if args.mode == "eqTFAN":
+        return _run_tfan(args)
     if args.mode == "ibsm":
         return run_ibsm(args)
 
@@ -153,9 +164,10 @@ def add_mpeg_command(sub: Any) -> None:
     p.add_argument("--json", action="store_true", help='print one JSON object (non-finite values as "inf")')
     p.add_argument(
         "--mode",
-        choices=("pcc", "equ", "topo", "ibsm"),
+        choices=("pcc", "equ", "eqTFAN", "topo", "ibsm"),
         default="pcc",
-        help="pcc: the D1/D2/colour figures (default); equ: mm compare --mode equ, the equality verdict; topo: mm "
+        help="pcc: the D1/D2/colour figures (default); equ: mm compare --mode equ, the equality verdict; eqTFAN: mm "
+        "compare --mode eqTFAN, the triangle-fan connectivity verdict; topo: mm "
         "compare --mode topo, the topology verdict; ibsm: mm compare --mode ibsm, the image-based figures",
     )
     p.add_argument(
@@ -174,7 +186,8 @@ def add_mpeg_command(sub: Any) -> None:
     p.add_argument(
         "--all-differences",
         action="store_true",
-        help="equ mode: count every different triangle (mm --earlyReturn=false) instead of naming the first",
+        help="equ / eqTFAN modes: count every difference (mm --earlyReturn=false / --eqTFAN_earlyReturn=false) "
+        "instead of stopping at the first",
     )
     from torchmeshmetric.cli.mpeg_outputs import add_output_options
 
