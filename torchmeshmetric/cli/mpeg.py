@@ -69,7 +69,7 @@ def _run_topology(args: argparse.Namespace) -> int:
 
 def _run_tfan(args: argparse.Namespace) -> int:
     """``--mode eqTFAN``: mmetric's TFAN connectivity verdict in its words; exit status 0 when equal, 1 otherwise."""
-    from torchmeshmetric.mpeg.tfan_equality import load_tfan_mesh, tfan_equality
+    from torchmeshmetric.mpeg.tfan_comparison import load_tfan_mesh, tfan_equality
 
     report = tfan_equality(load_tfan_mesh(args.ref), load_tfan_mesh(args.dis), early_return=not args.all_differences)
     print(json.dumps({"equal": report.endswith(" meshes are equal"), "report": report}) if args.json else report)

@@ -21,7 +21,7 @@ from . import sequence as sequence
 from . import subdivision_sampling as subdivision_sampling
 from . import texture as texture
 from . import textured_mesh as textured_mesh
-from . import tfan_equality as tfan_equality
+from . import tfan_comparison as tfan_comparison
 from . import topology as topology
 from . import vertex_sampling as vertex_sampling
 from .bd_rate import bd_rate
@@ -62,7 +62,7 @@ from .sequence import MpegSequence, mean_psnr, mpeg_sequence
 from .subdivision_sampling import subdivision_sample
 from .texture import sample_texture
 from .textured_mesh import TexturedMesh, load_textured_mesh, read_texture
-from .tfan_equality import TfanMesh, TfanUndefinedError, load_tfan_mesh, tfan_equality
+from .tfan_comparison import TfanMesh, TfanUndefinedError, load_tfan_mesh, tfan_equality
 from .topology import TopologyComparison, TopologyMapError, read_topology_map, topology_equivalence
 from .vertex_sampling import vertex_sample
 
