@@ -117,3 +117,15 @@ def test_subdivision_rows_depth_first_order() -> None:
     c = _cross(tris[0, 1] - tris[0, 0], tris[0, 2] - tris[0, 0])
     first = c * (np.float32(1) / np.sqrt((c[0] * c[0] + c[1] * c[1]) + c[2] * c[2]))  # glm::normalize
     np.testing.assert_array_equal(normals[:3], np.repeat(first[None], 3, axis=0))
+
+
+def test_merged_normals_summed_in_order() -> None:
+    """mmetric adds a run's normals one at a time (float nattr += n): 1 + 2^-24 + 2^-24 + 2^-24 stays 1 in float32
+    (each addition rounds to even), where a pairwise sum gives 1 + 2^-23. numpy's reduceat did the latter."""
+    from torchmeshmetric.mpeg import merge_duplicate_points
+
+    tiny = 2.0**-24
+    normals = torch.tensor([[1.0, 0, 0]] + [[tiny, 0, 0]] * 3)
+    merged = merge_duplicate_points(PointCloud(torch.zeros(4, 3), normals))
+    assert merged.normals is not None
+    assert merged.normals[0, 0].item() == 0.25  # (1.0 in float32, added in order) / 4
