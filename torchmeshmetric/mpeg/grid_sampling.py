@@ -501,7 +501,8 @@ def unique_vertex_rows(pos: np.ndarray, nrm: np.ndarray, col: np.ndarray | None)
         [0, 2]
     """
     ext = _native()
-    if ext is not None:  # the same rows, one pass over a hash table in C++
+    # the C++ table takes a colour of 3 columns; the samplers' keys of UV (+ colour) rows take the numpy path
+    if ext is not None and (col is None or (col.ndim == 2 and col.shape[1] == 3)):
         rows = [torch.from_numpy(np.ascontiguousarray(k, np.float32)) for k in (pos, nrm)]
         c = torch.empty(0, 3) if col is None else torch.from_numpy(np.ascontiguousarray(col, np.float32))
         return ext.unique_rows(rows[0], rows[1], c).numpy()
