@@ -13,6 +13,7 @@ from torchmeshmetric.mpeg import _float32 as f32
 from torchmeshmetric.mpeg.grid_sampling import mesh_arrays, unique_vertex_rows
 from torchmeshmetric.mpeg.point_cloud import PointCloud
 from torchmeshmetric.mpeg.reindex import oriented_faces
+from torchmeshmetric.mpeg.subdivision_rows import subdivision_rows
 from torchmeshmetric.mpeg.texture import sample_texture
 from torchmeshmetric.structures import MeshLike
 
@@ -93,32 +94,12 @@ def vertex_sample(
         raise EmptyInputError(zero_area_message(name, nf))
     tri, p1, p2, p3 = tri[keep], p1[keep], p2[keep], p3[keep]
     attr = uv if uv is not None else col
-    empty = np.zeros((tri.shape[0], 0), np.float32)
-    a1, a2, a3 = (empty, empty, empty) if attr is None else (attr[tri[:, 0]], attr[tri[:, 1]], attr[tri[:, 2]])
-    normal = f32.normalize(f32.cross(p2 - p1, p3 - p1))
-    out_pos = [np.stack([p1, p2, p3], axis=1).reshape(-1, 3)]
-    out_nrm = [np.repeat(normal, 3, axis=0)]
-    out_att = [np.stack([a1, a2, a3], axis=1).reshape(3 * a1.shape[0], a1.shape[1])]
-    half = np.float32(0.5)
-    depth = max_depth - 1
-    while depth > 0 and p1.shape[0] > 0:
-        big = f32.area(p1, p2, p3) >= area_threshold
-        p1, p2, p3 = p1[big], p2[big], p3[big]
-        nrm = f32.normalize(f32.cross(p2 - p1, p3 - p1))
-        e1, e2, e3 = p1 * half + p2 * half, p2 * half + p3 * half, p3 * half + p1 * half
-        out_pos.append(np.stack([e1, e2, e3], axis=1).reshape(-1, 3))
-        out_nrm.append(np.repeat(nrm, 3, axis=0))
-        a1, a2, a3 = a1[big], a2[big], a3[big]
-        b1, b2, b3 = a1 * half + a2 * half, a2 * half + a3 * half, a3 * half + a1 * half
-        out_att.append(np.stack([b1, b2, b3], axis=1).reshape(3 * b1.shape[0], b1.shape[1]))
-        a1, a2, a3 = (np.concatenate(x) for x in ((b1, a1, b1, b2), (b2, b1, a2, a3), (b3, b3, b2, b3)))
-        p1, p2, p3 = (np.concatenate(x) for x in ((e1, p1, e1, e2), (e2, e1, p2, p3), (e3, e3, e2, e3)))
-        depth -= 1
-    points = np.concatenate(out_pos)
-    normals = np.concatenate(out_nrm)
+    corners = np.stack([p1, p2, p3], axis=1)
+    width = 0 if attr is None else attr.shape[1]
+    att3 = np.zeros((tri.shape[0], 3, 0), np.float32) if attr is None else attr[tri]
+    points, normals, att = subdivision_rows(corners, att3.reshape(tri.shape[0], 3, width), max_depth, area_threshold)
     colours = None
     if attr is not None:
-        att = np.concatenate(out_att)
         colours = sample_texture(texture, att, bilinear=True) if uv is not None else att
     kept = unique_vertex_rows(points, normals, colours)
     return PointCloud(
