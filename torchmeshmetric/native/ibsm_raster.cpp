@@ -415,7 +415,7 @@ torch::Tensor ibsm_sums(torch::Tensor va, torch::Tensor fa, torch::Tensor uva, t
   double* o = out.data_ptr<double>();
   {
     pybind11::gil_scoped_release release;
-    at::parallel_for(0, cameras, 1, [&](int64_t begin, int64_t end) {
+    tmm::chunked_for(cameras, 1, [&](int64_t begin, int64_t end) {
       std::unique_ptr<Target> pa = target_pool().take(w, h), pb = target_pool().take(w, h);
       Target &ta = *pa, &tb = *pb;
       const std::vector<float>&za = ta.z, &zb = tb.z;
@@ -608,7 +608,7 @@ std::vector<torch::Tensor> grid_cast(torch::Tensor verts, torch::Tensor faces, t
   std::vector<GridHitsC> parts(static_cast<size_t>(nchunks));
   {
     pybind11::gil_scoped_release release;
-    at::parallel_for(0, nchunks, 1, [&](int64_t begin, int64_t end) {
+    tmm::chunked_for(nchunks, 1, [&](int64_t begin, int64_t end) {
       for (int64_t c = begin; c < end; ++c)
         for (int64_t t = c * chunk; t < std::min(nf, (c + 1) * chunk); ++t)
           cast_face(v, f, t, mb, st, fl, use_normal, parts[c]);

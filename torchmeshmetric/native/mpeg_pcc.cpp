@@ -3,8 +3,8 @@
 //
 // Distances are dmetric's: float32 coordinate differences, squares summed in double as (dx*dx + dy*dy) + dz*dz.
 // Neighbours are ranked by (squared distance, index), so the answers do not depend on the search structure (a grid of
-// columns for near queries, a kd-tree for far ones), the thread count or
-// the query order. Built with -ffp-contract=off (no fused multiply-add): every operation rounds as written.
+// columns for near queries, a kd-tree for far ones), the thread count or the query order. Built with
+// -ffp-contract=off (no fused multiply-add): every operation rounds as written.
 #include <torch/extension.h>
 
 #include <ATen/Parallel.h>
@@ -201,7 +201,7 @@ std::vector<int64_t> column_order(const ColumnGrid& g, const float* p, int64_t n
     for (int64_t i = 0; i < n; ++i) order[fill[col[i]]++] = i;  // ascending index within a column
   }
   const int ac = g.ac;
-  at::parallel_for(0, cols, 256, [&](int64_t b, int64_t e) {
+  tmm::chunked_for(cols, 256, [&](int64_t b, int64_t e) {
     for (int64_t c = b; c < e; ++c)
       std::stable_sort(order.begin() + first[c], order.begin() + first[c + 1],
                        [p, ac](int64_t u, int64_t v) { return p[3 * u + ac] < p[3 * v + ac]; });
@@ -518,7 +518,7 @@ std::vector<torch::Tensor> nearest_ties(const torch::Tensor& query, const torch:
     return b.n == 0 ? std::numeric_limits<double>::infinity() : b.sq[0] + SIMILAR;
   };
   const auto kd_tie_bound = [&](const Best& b) { return tie_bound(b) * WIDEN; };
-  at::parallel_for(0, Q, GRAIN, [&](int64_t s0, int64_t e) {
+  tmm::chunked_for(Q, GRAIN, [&](int64_t s0, int64_t e) {
     int64_t prev = -1;
     bool far = false;  // the previous answer lay beyond the grid's reach: go to the kd-tree at once
     for (int64_t s = s0; s < e; ++s) {
@@ -559,7 +559,7 @@ std::vector<torch::Tensor> nearest_ties(const torch::Tensor& query, const torch:
   const auto k_bound = [](const Best& b) { return b.keep(); };
   const auto kd_k_bound = [](const Best& b) { return b.keep() * WIDEN; };
   int used = kfirst;
-  at::parallel_for(0, S, 16, [&](int64_t s0, int64_t e) {
+  tmm::chunked_for(S, 16, [&](int64_t s0, int64_t e) {
     for (int64_t s = s0; s < e; ++s) {
       Best best{kmax};
       const float* q = qp + 3 * rows[s];
