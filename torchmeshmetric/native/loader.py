@@ -71,6 +71,8 @@ EXTENSIONS: dict[str, NativeExtension] = {
     "ibsm": NativeExtension(sources=("ibsm_raster.cpp",)),
     # mmetric's pcc comparison: the duplicate merge and the neighbour search with ties (mpeg.point_cloud, neighbours).
     "pcc": NativeExtension(sources=("mpeg_pcc.cpp",)),
+    # mmetric's PCQM (compare --mode pcqm): its k-d tree searches, quadric fits and pooled features (mpeg.pcqm).
+    "pcqm": NativeExtension(sources=("pcqm.cpp",)),
 }
 """Every extension of the package, by the name :func:`load` takes."""
 
