@@ -48,12 +48,32 @@ def _run_equality(args: argparse.Namespace) -> int:
     return 0 if result.equal else 1
 
 
+def _run_pcqm(args: argparse.Namespace) -> int:
+    """``--mode pcqm``: mm compare --mode pcqm's printed figures (or JSON)."""
+    from torchmeshmetric.mpeg.model_cloud import load_model_cloud
+    from torchmeshmetric.mpeg.pcqm import mpeg_pcqm
+
+    ref = load_model_cloud(args.ref, args.ref_texture, name=f"REF {args.ref!r}")
+    dis = load_model_cloud(args.dis, args.dis_texture, name=f"DIS {args.dis!r}")
+    result = mpeg_pcqm(
+        ref,
+        dis,
+        radius_curvature=args.radius_curvature,
+        knn=args.threshold_knn_search,
+        radius_factor=args.radius_factor,
+    )
+    print(json.dumps(json_safe(result.to_dict()), indent=1) if args.json else result.report())
+    return 0
+
+
 def _run(args: argparse.Namespace) -> int:
     from torchmeshmetric.mpeg.mpeg_metrics import mpeg_metrics
     from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
 
     if args.mode == "equ":
         return _run_equality(args)
+    if args.mode == "pcqm":
+        return _run_pcqm(args)
 
     box = None
     if args.box is not None:
@@ -124,9 +144,32 @@ def add_mpeg_command(sub: Any) -> None:
     p.add_argument("--json", action="store_true", help='print one JSON object (non-finite values as "inf")')
     p.add_argument(
         "--mode",
-        choices=("pcc", "equ"),
+        choices=("pcc", "equ", "pcqm"),
         default="pcc",
-        help="pcc: the D1/D2/colour figures (default); equ: mm compare --mode equ, the equality verdict",
+        help="pcc: the D1/D2/colour figures (default); equ: mm compare --mode equ, the equality verdict; pcqm: mm "
+        "compare --mode pcqm, the PCQM score and its PSNR (meshes sampled as mm compare does; point-cloud PLY files "
+        "used as they are)",
+    )
+    p.add_argument(
+        "--radius-curvature",
+        type=float,
+        default=0.001,
+        metavar="R",
+        help="pcqm mode: curvature neighbourhood radius relative to REF's box (mm --radiusCurvature, default 0.001)",
+    )
+    p.add_argument(
+        "--threshold-knn-search",
+        type=int,
+        default=20,
+        metavar="K",
+        help="pcqm mode: neighbours of the projection quadric (mm --thresholdKnnSearch, default 20)",
+    )
+    p.add_argument(
+        "--radius-factor",
+        type=float,
+        default=2.0,
+        metavar="F",
+        help="pcqm mode: pooling radius over the curvature radius (mm --radiusFactor, default 2.0)",
     )
     p.add_argument("--unoriented", action="store_true", help="equ mode: a triangle also equals its reversed copy")
     p.add_argument(

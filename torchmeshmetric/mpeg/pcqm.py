@@ -156,8 +156,8 @@ def mpeg_pcqm(
         NativeBuildError: the C++ extension cannot be built here.
 
     Example:
-        >>> pts = torch.rand(200, 3, generator=torch.Generator().manual_seed(0))
-        >>> r = mpeg_pcqm(PointCloud(pts), PointCloud(pts), radius_curvature=0.1)
+        >>> pts = torch.rand(200, 3, generator=torch.Generator().manual_seed(0)) * torch.tensor([1.0, 1.0, 0.0])
+        >>> r = mpeg_pcqm(PointCloud(pts), PointCloud(pts), radius_curvature=0.1)  # flat, same colour: no distortion
         >>> r.pcqm, r.psnr
         (0.0, inf)
     """

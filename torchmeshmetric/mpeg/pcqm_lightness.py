@@ -49,8 +49,8 @@ def pcqm_lightness(colors: Tensor | np.ndarray) -> np.ndarray:
         ``(N,)`` float64 lightness.
 
     Example:
-        >>> pcqm_lightness(np.array([[0, 0, 0], [255, 255, 255]])).tolist()
-        [0.0, 75.1532]
+        >>> pcqm_lightness(np.array([[0, 0, 0], [255, 255, 255]])).round(4).tolist()
+        [0.0, 75.1522]
     """
     c = colors.detach().cpu().to(torch.float64).numpy() if isinstance(colors, Tensor) else np.asarray(colors)
     rgb = np.trunc(c.astype(np.float64)) / 255.0

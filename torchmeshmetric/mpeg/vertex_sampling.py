@@ -38,6 +38,7 @@ def vertex_sample(
     max_depth: int = 3,
     area_threshold: float = 2.0,
     name: str = "mesh",
+    mm_order: bool = False,
 ) -> PointCloud:
     """Turn a mesh into the point cloud mmetric's ``compare --mode pcc`` measures (its ``sampleIfNeeded``).
 
@@ -57,6 +58,9 @@ def vertex_sample(
         max_depth: mmetric's maximum recursion depth (3).
         area_threshold: mmetric's subdivision area threshold (2.0).
         name: the mesh's name in error messages (``"ref"``, ``"dis"``, a file).
+        mm_order: return the points in mmetric's order (face after face, each face's corners then its subdivision
+            points depth first) instead of level by level; the set is the same. Figures that depend on the order,
+            such as PCQM's (its k-d tree keeps the first of equidistant points), need it.
 
     Returns:
         :class:`PointCloud` with normals (and colours).
@@ -101,9 +105,29 @@ def vertex_sample(
     out_att = [np.stack([a1, a2, a3], axis=1).reshape(3 * a1.shape[0], a1.shape[1])]
     half = np.float32(0.5)
     depth = max_depth - 1
+    # mmetric's push order, as sort keys: (face, path of child numbers + 1 padded with 0, slot); a node's points
+    # come before its children's (pre-order), corners are slots 0-2 and a node's edge midpoints slots 3-5.
+    levels = max(depth, 0)
+    face_id = np.arange(tri.shape[0])
+    path = np.zeros((tri.shape[0], levels), np.int8)
+    keys_face = [np.repeat(face_id, 3)]
+    keys_path = [np.repeat(path, 3, axis=0)]
+    keys_slot = [np.tile(np.arange(3), tri.shape[0])]
     while depth > 0 and p1.shape[0] > 0:
         big = f32.area(p1, p2, p3) >= area_threshold
         p1, p2, p3 = p1[big], p2[big], p3[big]
+        face_id, path = face_id[big], path[big]
+        keys_face.append(np.repeat(face_id, 3))
+        keys_path.append(np.repeat(path, 3, axis=0))
+        keys_slot.append(np.tile(np.arange(3, 6), face_id.shape[0]))
+        level = levels - depth
+        children = []
+        for child in range(4):
+            sub = path.copy()
+            if level + 1 < levels:
+                sub[:, level] = child + 1
+            children.append(sub)
+        face_id, path = np.tile(face_id, 4), np.concatenate(children)
         nrm = f32.normalize(f32.cross(p2 - p1, p3 - p1))
         e1, e2, e3 = p1 * half + p2 * half, p2 * half + p3 * half, p3 * half + p1 * half
         out_pos.append(np.stack([e1, e2, e3], axis=1).reshape(-1, 3))
@@ -120,6 +144,12 @@ def vertex_sample(
     if attr is not None:
         att = np.concatenate(out_att)
         colours = sample_texture(texture, att, bilinear=True) if uv is not None else att
+    if mm_order:
+        path_cols = np.concatenate(keys_path)
+        cols: list[np.ndarray] = [np.concatenate(keys_slot), *(path_cols[:, j] for j in reversed(range(levels)))]
+        order = np.lexsort((*cols, np.concatenate(keys_face)))
+        points, normals = points[order], normals[order]
+        colours = None if colours is None else colours[order]
     kept = unique_vertex_rows(points, normals, colours)
     return PointCloud(
         torch.from_numpy(np.ascontiguousarray(points[kept])),
