@@ -20,8 +20,9 @@ over the points of A (``ref`` here). Per point ``p`` of A:
 ``PCQM = 0.0057 mean(structure) + 0.9771 (1 - mean(lightness)) + 0.0172 (1 - mean(lightness structure))``, returned
 by PCQM as float32; mmetric's ``PCQM-PSNR = 10 log10(E^2 / (PCQM E)^2)`` with E the float32 diagonal of A's box.
 Points without colour are white. The neighbour searches follow PCQM's k-d tree (nanoflann: which of several
-equidistant points is found first), so the figures equal mm's; the local frame is computed by another eigensolver
-than Eigen's, equal up to rounding wherever the frame is defined.
+equidistant points is found first) and the fits follow Eigen 3.3's eigensolver and QR operation for operation
+(``native/pcqm.cpp``), because fits of 1 to 5 points -- most neighbourhoods at the default radius -- depend on
+rounding: the per-point fields are bit-identical to PCQM's, and the printed figures equal mm's.
 """
 
 from __future__ import annotations

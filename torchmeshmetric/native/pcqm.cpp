@@ -8,9 +8,11 @@
 // Which neighbours are found, in which order, and how ties are broken follow the k-d tree mmetric uses (nanoflann
 // 1.2.3: leaves of at most 10 points, middle splits, double distances (dx*dx + dy*dy) + dz*dz, first-found wins among
 // equal distances, radius test `d < r^2`), so that equidistant neighbours -- frequent on sampled clouds -- are the
-// same ones. The least-squares quadric is solved as Eigen 3.3's column-pivoting Householder QR solves it (its
-// pivots, its rank rule and its basic solution for the many rank-deficient neighbourhoods of fewer than 6 points);
-// the local frame comes from a Jacobi eigensolver, equal to Eigen's up to rounding wherever the frame is defined.
+// same ones. The local frame and the least-squares quadric follow Eigen 3.3.5 (as bundled with mmetric, SSE2) operation
+// for operation: its symmetric eigensolver, and its column-pivoting Householder QR with its pivots, its rank rule, its
+// basic solution for the many rank-deficient neighbourhoods of fewer than 6 points and its vectorised summation
+// orders. Neighbourhoods of 1 or 2 points have a frame fixed by rounding alone, and ill-conditioned fits amplify last
+// bits into the printed figures, so nothing less reproduces mm; the per-point fields are bit-identical to PCQM's.
 // Built with -ffp-contract=off: every operation rounds as written.
 #include <torch/extension.h>
 
@@ -388,18 +390,55 @@ void eigen_sym3(const double a_in[3][3], double vec[3][3]) {
     for (int c = 0; c < 3; ++c) vec[r][c] = q[r][c];
 }
 
-// Eigen 3.3's ColPivHouseholderQR(A).solve(b) for an (m, 6) column-major A (overwritten): column pivoting on the
-// running column norms (LAPACK's downdate), rank = the pivots met before a column's norm fell below
-// (max norm * eps)^2 * (m - k) / m, and the basic solution (zeros for the columns past the rank).
+// Eigen 3.3's sum of a dynamic-size expression (redux, SSE2 packets of 2 doubles): two packet accumulators over
+// groups of four, merged, one more packet, then the lanes added and the odd last term. An ill-conditioned quadric fit
+// amplifies the last bits of these sums into the printed figures, so they are summed in exactly this order.
+template <typename F>
+double eigen_sum(int64_t n, const F& x) {
+  if (n == 0) return 0.0;
+  const int64_t size2 = (n / 4) * 4, size1 = (n / 2) * 2;
+  if (size1 == 0) return x(0);
+  double a0 = x(0), a1 = x(1);
+  if (size1 > 2) {
+    double b0 = x(2), b1 = x(3);
+    for (int64_t i = 4; i < size2; i += 4) a0 = a0 + x(i), a1 = a1 + x(i + 1), b0 = b0 + x(i + 2), b1 = b1 + x(i + 3);
+    a0 = a0 + b0, a1 = a1 + b1;
+    if (size1 > size2) a0 = a0 + x(size2), a1 = a1 + x(size2 + 1);
+  }
+  double res = a0 + a1;
+  for (int64_t i = size1; i < n; ++i) res = res + x(i);
+  return res;
+}
+
+// Eigen 3.3's row-major matrix-vector kernel for one output (SSE2): the terms before the right-hand side's first
+// 16-byte boundary, then two lanes over aligned pairs, then the rest. `start` is the start of the products from that
+// boundary (0 or 1); `vectorised` false when the kernel falls back to plain sums.
+template <typename F>
+double eigen_gemv_dot(int64_t depth, int64_t start, bool vectorised, const F& x) {
+  if (!vectorised) start = 0;
+  const int64_t aligned = vectorised ? start + ((depth - start) & ~int64_t(1)) : 0;
+  double t = 0.0;
+  for (int64_t j = 0; j < start; ++j) t += x(j);
+  if (aligned > start) {
+    double l0 = 0.0, l1 = 0.0;
+    for (int64_t j = start; j < aligned; j += 2) l0 = x(j) + l0, l1 = x(j + 1) + l1;
+    t += l0 + l1;
+  }
+  for (int64_t j = aligned; j < depth; ++j) t += x(j);
+  return t;
+}
+
+// Eigen 3.3's ColPivHouseholderQR(A).solve(b) for an (m, 6) column-major A (overwritten, its storage 16-byte aligned
+// as Eigen's): column pivoting on the running column norms (LAPACK's downdate), rank = the pivots met before a
+// column's norm fell below (max norm * eps)^2 * (m - k) / m, and the basic solution (zeros past the rank).
 void colpiv_solve(std::vector<double>& A, int64_t m, std::vector<double>& b, double out[6]) {
   const int cols = 6;
   const int64_t size = std::min<int64_t>(m, cols);
   const double eps = DBL_EPSILON;
-  auto col = [&](int j) { return A.data() + j * m; };
-  auto norm = [&](int j, int64_t from) {
-    double s = 0.0;
-    for (int64_t i = from; i < m; ++i) s += col(j)[i] * col(j)[i];
-    return std::sqrt(s);
+  auto col = [&](int64_t j) { return A.data() + j * m; };
+  auto norm = [&](int64_t j, int64_t from) {
+    const double* c = col(j) + from;
+    return std::sqrt(eigen_sum(m - from, [&](int64_t i) { return c[i] * c[i]; }));
   };
   double nu[6], nd[6], hc[6];
   int transp[6];
@@ -410,20 +449,20 @@ void colpiv_solve(std::vector<double>& A, int64_t m, std::vector<double>& b, dou
   const double downdate = std::sqrt(eps);
   int64_t nonzero = size;
   for (int64_t k = 0; k < size; ++k) {
-    int bi = static_cast<int>(k);
-    for (int j = bi + 1; j < cols; ++j)
+    int64_t bi = k;
+    for (int64_t j = bi + 1; j < cols; ++j)
       if (nu[j] > nu[bi]) bi = j;
     if (nonzero == size && nu[bi] * nu[bi] < th * static_cast<double>(m - k)) nonzero = k;
-    transp[k] = bi;
+    transp[k] = static_cast<int>(bi);
     if (bi != k) {
-      std::swap_ranges(col(static_cast<int>(k)), col(static_cast<int>(k)) + m, col(bi));
+      std::swap_ranges(col(k), col(k) + m, col(bi));
       std::swap(nu[k], nu[bi]);
       std::swap(nd[k], nd[bi]);
     }
-    double* ck = col(static_cast<int>(k));
+    double* ck = col(k);
     const double c0 = ck[k];
-    double tail = 0.0;
-    for (int64_t i = k + 1; i < m; ++i) tail += ck[i] * ck[i];
+    const int64_t r = m - k - 1;  // the Householder vector's tail (its "essential part") and the rows below k
+    const double tail = r == 0 ? 0.0 : eigen_sum(r, [&](int64_t i) { return ck[k + 1 + i] * ck[k + 1 + i]; });
     double tau, beta;
     if (tail <= DBL_MIN) {
       tau = 0.0, beta = c0;
@@ -436,16 +475,20 @@ void colpiv_solve(std::vector<double>& A, int64_t m, std::vector<double>& b, dou
     }
     hc[k] = tau;
     ck[k] = beta;
-    if (m - k > 1 && tau != 0.0)
-      for (int j = static_cast<int>(k) + 1; j < cols; ++j) {
+    if (r > 0 && tau != 0.0) {
+      // tmp = essential^T * bottom through Eigen's gemv; its alignment tests use the element offsets from A's start
+      const int64_t ncols = cols - k - 1, ess_off = k * m + k + 1, lhs_off = (k + 1) * m + k + 1;
+      const int64_t start = std::min<int64_t>(r, ess_off % 2);
+      const bool vectorised = !(std::min<int64_t>(r, lhs_off % 2) == r || std::min<int64_t>(ncols, ess_off % 2) == ncols);
+      for (int64_t j = k + 1; j < cols; ++j) {
         double* cj = col(j);
-        double tmp = 0.0;
-        for (int64_t i = k + 1; i < m; ++i) tmp += ck[i] * cj[i];
+        double tmp = eigen_gemv_dot(r, start, vectorised, [&](int64_t i) { return ck[k + 1 + i] * cj[k + 1 + i]; });
         tmp += cj[k];
         cj[k] -= tau * tmp;
-        for (int64_t i = k + 1; i < m; ++i) cj[i] -= tau * ck[i] * tmp;
+        for (int64_t i = k + 1; i < m; ++i) cj[i] -= tmp * (tau * ck[i]);
       }
-    for (int j = static_cast<int>(k) + 1; j < cols; ++j) {
+    }
+    for (int64_t j = k + 1; j < cols; ++j) {
       if (nu[j] == 0.0) continue;
       double t = std::fabs(col(j)[k]) / nu[j];
       t = (1.0 + t) * (1.0 - t);
@@ -464,18 +507,17 @@ void colpiv_solve(std::vector<double>& A, int64_t m, std::vector<double>& b, dou
   for (int j = 0; j < cols; ++j) out[j] = 0.0;
   if (nonzero == 0) return;
   for (int64_t k = 0; k < nonzero; ++k) {  // b <- H_{k} ... H_0 b
-    const double* ck = col(static_cast<int>(k));
+    const double* ck = col(k);
     if (m - k == 1 || hc[k] == 0.0) continue;
-    double tmp = 0.0;
-    for (int64_t i = k + 1; i < m; ++i) tmp += ck[i] * b[i];
+    double tmp = eigen_sum(m - k - 1, [&](int64_t i) { return ck[k + 1 + i] * b[k + 1 + i]; });
     tmp += b[k];
     b[k] -= hc[k] * tmp;
-    for (int64_t i = k + 1; i < m; ++i) b[i] -= hc[k] * ck[i] * tmp;
+    for (int64_t i = k + 1; i < m; ++i) b[i] -= tmp * (hc[k] * ck[i]);
   }
   for (int64_t i = nonzero - 1; i >= 0; --i) {  // column-oriented back substitution, as Eigen's
     if (b[i] == 0.0) continue;
-    b[i] /= col(static_cast<int>(i))[i];
-    for (int64_t r = 0; r < i; ++r) b[r] -= b[i] * col(static_cast<int>(i))[r];
+    b[i] /= col(i)[i];
+    for (int64_t r = 0; r < i; ++r) b[r] -= b[i] * col(i)[r];
   }
   for (int64_t i = 0; i < nonzero; ++i) out[perm[i]] = b[i];
 }
