@@ -72,7 +72,7 @@ EXTENSIONS: dict[str, NativeExtension] = {
     # mmetric's pcc comparison: the duplicate merge and the neighbour search with ties (mpeg.point_cloud, neighbours).
     "pcc": NativeExtension(sources=("mpeg_pcc.cpp",)),
     # mmetric's PCQM (compare --mode pcqm): its k-d tree searches, quadric fits and pooled features (mpeg.pcqm).
-    "pcqm": NativeExtension(sources=("pcqm.cpp",)),
+    "pcqm": NativeExtension(sources=("pcqm.cpp",), cflags=(*_EXACT, "-fopenmp"), ldflags=("-fopenmp",)),
 }
 """Every extension of the package, by the name :func:`load` takes."""
 

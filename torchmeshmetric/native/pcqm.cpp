@@ -530,6 +530,9 @@ struct FitScratch {
 // Returns the mean curvature at o; `proj` gets o moved along the normal to the quadric.
 double fit_quadric(const double* o, const double* pts, const int64_t* ind, int64_t m, double proj[3],
                    FitScratch& s) {
+  // No neighbour: PCQM's covariance is 0/0 and its eigenvectors NaN, but the empty system's solution is 0, so H = 0
+  // (proj is only asked of the k nearest, never empty). Returned at once rather than iterating on NaN.
+  if (m == 0) return 0.0;
   double mu[3] = {0, 0, 0}, M[3][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}};
   for (int64_t i = 0; i < m; ++i) {
     const double* p = pts + 3 * ind[i];
@@ -653,11 +656,11 @@ std::vector<torch::Tensor> pcqm_fields(torch::Tensor reg, torch::Tensor ref, tor
       for (size_t j = 0; j < k; ++j) {
         const int64_t q = hits[j].first;
         const double ea = std::fabs(curv_reg[q]) - mu_a, eb = std::fabs(curv_ref[q]) - mu_b;
-        va += std::pow(ea, 2.0) * wa[j];
-        vb += std::pow(eb, 2.0) * wb[j];
+        va += (ea * ea) * wa[j];  // pow(x, 2.0): GCC emits x * x, the same correctly rounded square
+        vb += (eb * eb) * wb[j];
         cov += (ea * eb) * wa[j];
-        sda += std::pow(lr[q] - ua, 2.0);
-        sdb += std::pow(l_proj[q] - ub, 2.0);
+        sda += (lr[q] - ua) * (lr[q] - ua);
+        sdb += (l_proj[q] - ub) * (l_proj[q] - ub);
         ccov += (lr[q] - ua) * (l_proj[q] - ub);
       }
       const double sd_a = std::sqrt(va / sa), sd_b = std::sqrt(vb / sb);
