@@ -115,6 +115,17 @@ def test_empty_cloud_is_refused() -> None:
         mpeg_pcqm(PointCloud(torch.rand(5, 3)), PointCloud(torch.zeros(0, 3)))
 
 
+def test_degenerate_inputs_are_named() -> None:
+    from torchmeshmetric._checks import NonFiniteError
+
+    pc = PointCloud(torch.rand(5, 3))
+    with pytest.raises(ValueError, match="box measure"):  # a single point at the origin: radius 0, means 0/0
+        mpeg_pcqm(PointCloud(torch.zeros(1, 3)), pc)
+    bad = PointCloud(torch.rand(5, 3), colors=torch.full((5, 3), math.nan))
+    with pytest.raises(NonFiniteError, match=r"dis\.colors"):
+        mpeg_pcqm(pc, bad)
+
+
 def test_cli_bad_option_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     obj = tmp_path / "t.obj"
     obj.write_text("v 0 0 0\nv 4 0 0\nv 0 4 0\nf 1 2 3\n")

@@ -34,7 +34,7 @@ import numpy as np
 import torch
 
 from torchmeshmetric import native
-from torchmeshmetric._checks import EmptyInputError
+from torchmeshmetric._checks import EmptyInputError, check_finite
 from torchmeshmetric.mpeg.comparison import bbox_diagonal
 from torchmeshmetric.mpeg.pcqm_lightness import pcqm_lightness
 from torchmeshmetric.mpeg.point_cloud import PointCloud
@@ -153,7 +153,8 @@ def mpeg_pcqm(
 
     Raises:
         EmptyInputError: a cloud without points.
-        ValueError: a non-positive radius or factor, ``knn < 1``.
+        NonFiniteError: NaN or Inf colours.
+        ValueError: a non-positive radius or factor, ``knn < 1``, or a cloud ``ref`` whose box measure is 0.
         NativeBuildError: the C++ extension cannot be built here.
 
     Example:
@@ -166,6 +167,8 @@ def mpeg_pcqm(
     for name, cloud in (("ref", ref), ("dis", dis)):
         if cloud.num_points == 0:
             raise EmptyInputError(f"{name}: expected a point cloud with points, found 0 points")
+        if cloud.colors is not None:
+            check_finite(cloud.colors, f"{name}.colors")
     a = ref.points.detach().cpu().to(torch.float32).to(torch.float64).contiguous()
     b = dis.points.detach().cpu().to(torch.float32).to(torch.float64).contiguous()
     white = np.full((1, 3), 255.0)
@@ -175,6 +178,11 @@ def mpeg_pcqm(
     lb = np.broadcast_to(lb, (b.shape[0],)).copy()
     max_dim = _max_dim(a.numpy())
     radius = radius_curvature * max_dim
+    if (radius * radius_factor) ** 2 == 0.0:  # no point would be its own neighbour: PCQM's means would be 0/0
+        raise ValueError(
+            f"ref: PCQM's box measure (largest |min| + |max| over the axes) is {max_dim!r}, so the pooling radius "
+            f"{radius * radius_factor!r} squares to 0; a cloud at the origin has no PCQM"
+        )
     ext = native.load("pcqm")
     _, sums = ext.pcqm_fields(a, b, torch.from_numpy(la), torch.from_numpy(lb), radius, max_dim, int(knn),
                               float(radius_factor))  # fmt: skip
