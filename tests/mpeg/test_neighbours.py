@@ -104,6 +104,16 @@ def _tie_cases() -> list[tuple[np.ndarray, np.ndarray]]:
     tiny = (rng.integers(-3, 3, (400, 3)) * 1e-30).astype(np.float32)  # distances near the 1e-20 threshold
     cases.append((tiny, tiny[::-1].copy()))
     cases.append(_clouds(11, False, 3000, 2000))
+    # the column grid of the C++ search: a sheet (long columns, no extent along one axis), points on a line (no
+    # extent along two), queries far outside the target's box (clamped columns), and a box far from the origin
+    sheet = np.stack(np.meshgrid(np.arange(40), np.arange(30), [0.0], indexing="ij"), -1).reshape(-1, 3) * 0.25
+    cases.append(((rng.random((400, 3)) * [10, 8, 1]).astype(np.float32), sheet.astype(np.float32)))
+    line = np.zeros((200, 3), np.float32)
+    line[:, 0] = rng.integers(0, 50, 200)
+    cases.append(((rng.integers(0, 60, (300, 3)) / 3).astype(np.float32), line))
+    cases.append(((rng.random((200, 3)) * 5 + 1000).astype(np.float32), rng.random((500, 3)).astype(np.float32)))
+    far = (1e5 + rng.integers(0, 40, (800, 3)) / 64).astype(np.float32)
+    cases.append((far[:300] + np.float32(1 / 128), far))
     return cases
 
 

@@ -15,18 +15,22 @@ def test_unique_vertex_rows_hash_matches_lexsort(with_colour: bool, monkeypatch:
     pos[::5] = -pos[::5] * 0  # -0.0 rows must merge with 0.0 rows
     pos[1::5] = 0.0
     nrm = np.round(rng.random((3000, 3))).astype(np.float32)
+    nrm[3:5] = np.nan  # a NaN equals nothing: rows 3 and 4 are kept even where they are otherwise equal
+    pos[4] = pos[3]
     col = rng.integers(0, 2, (3000, 3)).astype(np.float32) if with_colour else None
     keys = [pos, nrm] if col is None else [pos, nrm, col]
     want = gs._unique_rows_lexsort(keys)
     assert 0 < want.size < 3000
+    np.testing.assert_array_equal(gs.unique_vertex_rows(pos, nrm, col), want)  # C++ where it can be built
+    monkeypatch.setattr(gs, "_USE_NATIVE", False)
     np.testing.assert_array_equal(gs.unique_vertex_rows(pos, nrm, col), want)
     # every hash equal: the collision check must fall back to the exact lexicographic path
     monkeypatch.setattr(gs, "_row_hashes", lambda k: np.zeros(k[0].shape[0], np.uint64))
     np.testing.assert_array_equal(gs.unique_vertex_rows(pos, nrm, col), want)
 
 
-def test_merge_order_native_equals_lexsort(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The C++ sort of the duplicate merge gives numpy's stable lexicographic order (-0.0 == 0.0) and the same runs."""
+def test_merge_native_equals_numpy(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The C++ merge equals the numpy one bit for bit: stable (x, y, z) order (-0.0 == 0.0), runs, sums in run order."""
     import torch
 
     from torchmeshmetric.mpeg import point_cloud as pc

@@ -490,15 +490,21 @@ def _row_hashes(keys: list[np.ndarray]) -> np.ndarray:
 def unique_vertex_rows(pos: np.ndarray, nrm: np.ndarray, col: np.ndarray | None) -> np.ndarray:
     """Rows mmetric's ``ModelBuilder`` keeps: the first of the points equal in position, normal and colour (sorted).
 
-    Equal rows are found through a 64-bit hash of their values (one integer sort instead of a lexicographic sort of
-    six to nine keys); every pair of equal hashes is compared value by value, and a collision falls back to the
-    lexicographic sort, so the result is exact either way.
+    Equal rows are found through a 64-bit hash of their values: in C++, one pass over a hash table of the rows kept so
+    far; without the extension, one integer sort instead of a lexicographic sort of six to nine keys. Rows with equal
+    hashes are compared value by value (a collision falls back to the lexicographic sort), so the result is exact
+    either way.
 
     Example:
         >>> p = np.array([[0, 0, 0], [0, 0, 0], [1, 0, 0]], np.float32)
         >>> unique_vertex_rows(p, np.zeros_like(p), None).tolist()
         [0, 2]
     """
+    ext = _native()
+    if ext is not None:  # the same rows, one pass over a hash table in C++
+        rows = [torch.from_numpy(np.ascontiguousarray(k, np.float32)) for k in (pos, nrm)]
+        c = torch.empty(0, 3) if col is None else torch.from_numpy(np.ascontiguousarray(col, np.float32))
+        return ext.unique_rows(rows[0], rows[1], c).numpy()
     keys = [pos, nrm] if col is None else [pos, nrm, col]
     h = _row_hashes(keys)
     order = np.argsort(h, kind="stable")  # equal hashes stay in index order: the first of a run is the one kept

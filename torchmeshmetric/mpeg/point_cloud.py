@@ -47,18 +47,35 @@ class PointCloud:
         return int(self.points.shape[0])
 
 
-def _merge_order(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Points sorted by (x, y, z) then original index (std::sort with mmetric's comparator), and each run's start."""
-    ext = native.try_load("pcc")
-    if ext is not None:
-        order_t, starts_t = ext.mpeg_merge_order(torch.from_numpy(pts))
-        return order_t.numpy(), starts_t.numpy()
-    # no C++ compiler: the same order through numpy (a few times slower)
+def _merge_numpy(pts: np.ndarray, cloud: PointCloud) -> PointCloud:
+    """The merge through numpy, where the C++ extension cannot be built (a few times slower, the same figures)."""
     order = np.lexsort((np.arange(pts.shape[0]), pts[:, 2], pts[:, 1], pts[:, 0]))
     spts = pts[order]
     new = np.ones(spts.shape[0], dtype=bool)
     new[1:] = np.any(spts[1:] != spts[:-1], axis=1)
-    return order, np.flatnonzero(new)
+    starts = np.flatnonzero(new)
+    counts = np.diff(np.append(starts, pts.shape[0]))
+    normals = colors = None
+    if cloud.normals is not None:
+        n = cloud.normals.detach().cpu().numpy().astype(np.float32, copy=False)[order]
+        # summed one point at a time in run order, as dmetric's loop (numpy's reduceat sums long runs pairwise)
+        sums = np.zeros((starts.shape[0], 3), np.float32)
+        for k in range(int(counts.max())):
+            live = np.flatnonzero(counts > k)
+            sums[live] += n[starts[live] + k]
+        normals = torch.from_numpy((sums / counts.astype(np.float32)[:, None]).astype(np.float32))
+    if cloud.colors is not None:
+        c = cloud.colors.detach().cpu().numpy().astype(np.float32, copy=False)[order]
+        c8 = np.nan_to_num(np.floor(c.astype(np.float64) + 0.5), nan=0.0).clip(0, 255).astype(np.int64)
+        csum = np.add.reduceat(c8, starts, axis=0)
+        colors = torch.from_numpy((csum // counts[:, None]).astype(np.float32))
+    return PointCloud(torch.from_numpy(pts[order[starts]]), normals, colors)
+
+
+def _float32_rows(t: Tensor | None) -> Tensor:
+    if t is None:
+        return torch.empty(0, 3)
+    return t.detach().cpu().to(torch.float32).contiguous()
 
 
 def merge_duplicate_points(cloud: PointCloud, name: str = "cloud") -> PointCloud:
@@ -66,7 +83,7 @@ def merge_duplicate_points(cloud: PointCloud, name: str = "cloud") -> PointCloud
 
     The cloud is sorted by ``(x, y, z)`` (ties by index); each run of equal positions becomes one point whose normal is
     the float32 mean of the run's normals (not renormalised) and whose colour is the integer mean (truncated) of the
-    colours rounded to 8 bits. ``-0.0`` and ``0.0`` are the same coordinate.
+    colours rounded to 8 bits (a NaN colour counts as 0). ``-0.0`` and ``0.0`` are the same coordinate.
 
     Args:
         cloud: the cloud to merge.
@@ -89,16 +106,9 @@ def merge_duplicate_points(cloud: PointCloud, name: str = "cloud") -> PointCloud
     if cloud.num_points == 0:
         raise EmptyInputError(f"{name}: expected at least one point, found an empty point cloud")
     pts = np.ascontiguousarray(cloud.points.detach().cpu().numpy(), dtype=np.float32)
-    order, starts = _merge_order(pts)
-    counts = np.diff(np.append(starts, pts.shape[0]))
-    normals = colors = None
-    if cloud.normals is not None:
-        n = cloud.normals.detach().cpu().numpy().astype(np.float32, copy=False)[order]
-        sums = np.add.reduceat(n, starts, axis=0, dtype=np.float32)
-        normals = torch.from_numpy((sums / counts.astype(np.float32)[:, None]).astype(np.float32))
-    if cloud.colors is not None:
-        c = cloud.colors.detach().cpu().numpy().astype(np.float32, copy=False)[order]
-        c8 = np.floor(c.astype(np.float64) + 0.5).clip(0, 255).astype(np.int64)  # roundf, then unsigned char
-        csum = np.add.reduceat(c8, starts, axis=0)
-        colors = torch.from_numpy((csum // counts[:, None]).astype(np.float32))
-    return PointCloud(torch.from_numpy(pts[order[starts]]), normals, colors)
+    ext = native.try_load("pcc")
+    if ext is None:
+        return _merge_numpy(pts, cloud)
+    points, normals, colors = ext.mpeg_merge(torch.from_numpy(pts), _float32_rows(cloud.normals),
+                                             _float32_rows(cloud.colors))  # fmt: skip
+    return PointCloud(points, None if cloud.normals is None else normals, None if cloud.colors is None else colors)

@@ -15,9 +15,12 @@
 
 #include <ATen/Parallel.h>
 
+#include "parallel.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 #include <vector>
 
@@ -132,6 +135,7 @@ Camera make_camera(V3 dir, V3 up, V3 box_min, V3 box_max, int width, int height)
 struct MeshView {
   const float* verts;     // (V, 3)
   const int64_t* faces;   // (F, 3)
+  int64_t num_verts;
   int64_t num_faces;
   const float* uvs;       // (F, 3, 2) or null
   const uint8_t* tex;     // (H, W, 3) or null
@@ -173,36 +177,76 @@ inline void bilinear(const MeshView& m, float u, float v, float rgb[3]) {
 
 inline uint8_t to8(float c) { return static_cast<uint8_t>(static_cast<int>(std::round(c))); }
 
+// The pixels a rendering wrote, as an inclusive rectangle (empty while x0 > x1).
+struct Rect {
+  int x0 = std::numeric_limits<int>::max(), x1 = -1, y0 = std::numeric_limits<int>::max(), y1 = -1;
+  void add(int x, int y) {
+    x0 = std::min(x0, x);
+    x1 = std::max(x1, x);
+    y0 = std::min(y0, y);
+    y1 = std::max(y1, y);
+  }
+  Rect join(const Rect& o) const {
+    return {std::min(x0, o.x0), std::max(x1, o.x1), std::min(y0, o.y0), std::max(y1, o.y1)};
+  }
+};
+
+// Buffers of one rendering, cleared (depth -FLT_MAX, RGBA 0) once; `drawn` is what the last rendering wrote, the
+// only part the next one must clear. A performer covers a small part of the 2048^2 view: clearing and comparing only
+// the drawn rectangle saves most of the memory traffic, and pixels outside it are empty in both renderings (they add
+// nothing to any sum, so the sums and their order are unchanged).
+struct Target {
+  std::vector<float> z;
+  std::vector<uint8_t> rgba;
+  Rect drawn;
+  Target(int w, int h)
+      : z(size_t(w) * h, -std::numeric_limits<float>::max()), rgba(size_t(w) * h * 4, uint8_t(0)) {}
+};
+
 // One rendering: depth (float, cleared to -FLT_MAX) and RGBA (alpha 255 where a face is drawn, 0 elsewhere).
-void render(const MeshView& m, const Camera& cam, int width, int height, bool cull, std::vector<float>& zbuf,
-            std::vector<uint8_t>& fbuf) {
-  std::fill(zbuf.begin(), zbuf.end(), -std::numeric_limits<float>::max());
-  std::fill(fbuf.begin(), fbuf.end(), uint8_t(0));
+void render(const MeshView& m, const Camera& cam, int width, int height, bool cull, Target& target) {
+  std::vector<float>& zbuf = target.z;
+  std::vector<uint8_t>& fbuf = target.rgba;
+  const Rect old = target.drawn;
+  for (int y = old.y0; y <= old.y1; ++y) {
+    const size_t row = size_t(y) * width;
+    std::fill(zbuf.begin() + row + old.x0, zbuf.begin() + row + old.x1 + 1, -std::numeric_limits<float>::max());
+    std::fill(fbuf.begin() + (row + old.x0) * 4, fbuf.begin() + (row + old.x1 + 1) * 4, uint8_t(0));
+  }
+  Rect drawn;
+  std::vector<uint8_t> keep(static_cast<size_t>(width) + 1);
   const float hw = static_cast<float>(width / 2.), hh = static_cast<float>(height / 2.);
   const bool textured = m.uvs != nullptr && m.tex != nullptr;
+  // every vertex transformed once, with its viewport position (a face's corners repeat the same operations on the
+  // same vertex); viewport = glm columns (w/2, 0, w/2, 0), (0, h/2, h/2, 0), (0, 0, 1, 0), (0, 0, 0, 1)
+  struct Shot {
+    V4 clip, pts;
+    float p2[2];
+  };
+  std::vector<Shot> shot(static_cast<size_t>(m.num_verts));
+  for (int64_t v = 0; v < m.num_verts; ++v) {
+    const float* p = m.verts + v * 3;
+    Shot& o = shot[v];
+    const V4 c = o.clip = mv(cam.mvp, {p[0], p[1], p[2], 1.0F});
+    o.pts.x = (hw * c.x + 0.0F * c.y) + (0.0F * c.z + 0.0F * c.w);
+    o.pts.y = (0.0F * c.x + hh * c.y) + (0.0F * c.z + 0.0F * c.w);
+    o.pts.z = (hw * c.x + hh * c.y) + (1.0F * c.z + 0.0F * c.w);
+    o.pts.w = (0.0F * c.x + 0.0F * c.y) + (0.0F * c.z + 1.0F * c.w);
+    o.p2[0] = o.pts.x / o.pts.w;
+    o.p2[1] = o.pts.y / o.pts.w;
+  }
   for (int64_t t = 0; t < m.num_faces; ++t) {
-    V4 clip[3];
-    for (int k = 0; k < 3; ++k) {
-      const float* p = m.verts + m.faces[t * 3 + k] * 3;
-      clip[k] = mv(cam.mvp, {p[0], p[1], p[2], 1.0F});
-    }
+    const Shot* corner[3] = {&shot[m.faces[t * 3]], &shot[m.faces[t * 3 + 1]], &shot[m.faces[t * 3 + 2]]};
+    const V4 clip[3] = {corner[0]->clip, corner[1]->clip, corner[2]->clip};
     if (cull) {
       const V3 e1 = {clip[1].x - clip[0].x, clip[1].y - clip[0].y, clip[1].z - clip[0].z};
       const V3 e2 = {clip[2].x - clip[0].x, clip[2].y - clip[0].y, clip[2].z - clip[0].z};
       if (cross(e1, e2).z <= 0) continue;  // clockwise culling, mmetric's default
     }
-    // viewport (glm columns (w/2, 0, w/2, 0), (0, h/2, h/2, 0), (0, 0, 1, 0), (0, 0, 0, 1))
-    V4 pts[3];
-    float p2[3][2];
-    for (int k = 0; k < 3; ++k) {
-      const V4 c = clip[k];
-      pts[k].x = (hw * c.x + 0.0F * c.y) + (0.0F * c.z + 0.0F * c.w);
-      pts[k].y = (0.0F * c.x + hh * c.y) + (0.0F * c.z + 0.0F * c.w);
-      pts[k].z = (hw * c.x + hh * c.y) + (1.0F * c.z + 0.0F * c.w);
-      pts[k].w = (0.0F * c.x + 0.0F * c.y) + (0.0F * c.z + 1.0F * c.w);
-      p2[k][0] = pts[k].x / pts[k].w;
-      p2[k][1] = pts[k].y / pts[k].w;
-    }
+    const V4 pts[3] = {corner[0]->pts, corner[1]->pts, corner[2]->pts};
+    const float p2[3][2] = {{corner[0]->p2[0], corner[0]->p2[1]},
+                            {corner[1]->p2[0], corner[1]->p2[1]},
+                            {corner[2]->p2[0], corner[2]->p2[1]}};
     float bmin[2] = {std::numeric_limits<float>::infinity(), std::numeric_limits<float>::infinity()};
     float bmax[2] = {-std::numeric_limits<float>::infinity(), -std::numeric_limits<float>::infinity()};
     const float clampv[2] = {static_cast<float>(width - 1), static_cast<float>(height - 1)};
@@ -212,16 +256,43 @@ void render(const MeshView& m, const Camera& cam, int width, int height, bool cu
         bmax[j] = std::min(clampv[j], std::max(bmax[j], p2[k][j]));
       }
     const float* uv = textured ? m.uvs + t * 6 : nullptr;
-    for (int x = static_cast<int>(bmin[0]); x <= static_cast<int>(bmax[0]); ++x) {
-      for (int y = static_cast<int>(bmin[1]); y <= static_cast<int>(bmax[1]); ++y) {
-        const V3 a = {pts[2].x - pts[0].x, pts[1].x - pts[0].x, pts[0].x - static_cast<float>(x)};
-        const V3 b = {pts[2].y - pts[0].y, pts[1].y - pts[0].y, pts[0].y - static_cast<float>(y)};
+    // Row by row (a face writes each pixel once, so the order within a face changes nothing but memory locality).
+    // u = cross(a, b) below, with a = (A, B, p0.x - x) and b = (C, D, p0.y - y): its z is the face's constant, its
+    // x and y are computed for a whole row first, in a loop the compiler vectorises (the same IEEE operations per
+    // lane), which keeps only the pixels past the exact early exit: u.y / u.z and u.x / u.z are negative exactly when
+    // the numerator is non-zero and the signs differ (finite values; no quotient of pixel-scale values underflows
+    // to -0), i.e. u < 0 for u.z >= +0, !(u <= 0) for u.z <= -0; no exit when u.z is not finite.
+    const float A = pts[2].x - pts[0].x, B = pts[1].x - pts[0].x;
+    const float C = pts[2].y - pts[0].y, D = pts[1].y - pts[0].y;
+    const float uz = A * D - C * B;
+    const bool exits = std::isfinite(uz), negative = std::signbit(uz);
+    const int xs = static_cast<int>(bmin[0]), xe = static_cast<int>(bmax[0]);
+    for (int y = static_cast<int>(bmin[1]); y <= static_cast<int>(bmax[1]); ++y) {
+      const float bz = pts[0].y - static_cast<float>(y);
+      const float Bbz = B * bz, bzA = bz * A;
+      const int n = xe - xs + 1;
+      if (n <= 0) break;
+      if (!exits) {
+        std::fill(keep.begin(), keep.begin() + n, uint8_t(1));
+      } else if (!negative) {
+        for (int k = 0; k < n; ++k) {
+          const float az = pts[0].x - static_cast<float>(xs + k);
+          const float ux = Bbz - D * az, uy = az * C - bzA;
+          keep[k] = static_cast<uint8_t>(!(ux < 0.0F) & !(uy < 0.0F));
+        }
+      } else {
+        for (int k = 0; k < n; ++k) {
+          const float az = pts[0].x - static_cast<float>(xs + k);
+          const float ux = Bbz - D * az, uy = az * C - bzA;
+          keep[k] = static_cast<uint8_t>((ux <= 0.0F) & (uy <= 0.0F));
+        }
+      }
+      for (int k = 0; k < n; ++k) {
+        if (!keep[k]) continue;
+        const int x = xs + k;
+        const V3 a = {A, B, pts[0].x - static_cast<float>(x)};
+        const V3 b = {C, D, bz};
         const V3 u = cross(a, b);
-        // Exact early exit, before the divisions: u.y / u.z and u.x / u.z are negative exactly when the numerator
-        // is non-zero and the signs differ (finite values; no quotient of pixel-scale values underflows to -0).
-        if (std::isfinite(u.z) && ((u.y != 0 && (u.y < 0) != std::signbit(u.z)) ||
-                                   (u.x != 0 && (u.x < 0) != std::signbit(u.z))))
-          continue;
         const V3 bs = {1.0F - (u.x + u.y) / u.z, u.y / u.z, u.x / u.z};
         const V3 bc = {bs.x / pts[0].w, bs.y / pts[1].w, bs.z / pts[2].w};
         const float depth = dot({clip[0].z, clip[1].z, clip[2].z}, bc);
@@ -247,9 +318,11 @@ void render(const MeshView& m, const Camera& cam, int width, int height, bool cu
         fbuf[i * 4 + 1] = to8(rgb[1]);
         fbuf[i * 4 + 2] = to8(rgb[2]);
         fbuf[i * 4 + 3] = 255;
+        drawn.add(x, y);
       }
     }
   }
+  target.drawn = drawn;
 }
 
 MeshView view_of(const torch::Tensor& verts, const torch::Tensor& faces, const torch::Tensor& uvs,
@@ -257,6 +330,7 @@ MeshView view_of(const torch::Tensor& verts, const torch::Tensor& faces, const t
   MeshView m;
   m.verts = verts.data_ptr<float>();
   m.faces = faces.data_ptr<int64_t>();
+  m.num_verts = verts.size(0);
   m.num_faces = faces.size(0);
   m.uvs = uvs.numel() ? uvs.data_ptr<float>() : nullptr;
   m.tex = tex.numel() ? tex.data_ptr<uint8_t>() : nullptr;
@@ -305,15 +379,18 @@ torch::Tensor ibsm_sums(torch::Tensor va, torch::Tensor fa, torch::Tensor uva, t
   {
     pybind11::gil_scoped_release release;
     at::parallel_for(0, cameras, 1, [&](int64_t begin, int64_t end) {
-      std::vector<float> za(size_t(w) * h), zb(size_t(w) * h);
-      std::vector<uint8_t> ca(size_t(w) * h * 4), cb(size_t(w) * h * 4);
+      Target ta(w, h), tb(w, h);
+      const std::vector<float>&za = ta.z, &zb = tb.z;
+      const std::vector<uint8_t>&ca = ta.rgba, &cb = tb.rgba;
       for (int64_t k = begin; k < end; ++k) {
         const Camera cam = make_camera(dirs[k], up_for(dirs[k]), bmin, bmax, w, h);
-        render(A, cam, w, h, cull, za, ca);
-        render(B, cam, w, h, cull, zb, cb);
+        render(A, cam, w, h, cull, ta);
+        render(B, cam, w, h, cull, tb);
         double* r = o + k * 11;
         const double sig = cam.depth_range;
-        for (size_t i = 0; i < size_t(w) * h; ++i) {
+        const Rect u = ta.drawn.join(tb.drawn);
+        for (int y = u.y0; y <= u.y1; ++y)
+          for (size_t i = size_t(y) * w + u.x0; i <= size_t(y) * w + u.x1; ++i) {
           const bool ma = ca[i * 4 + 3] != 0, mb = cb[i * 4 + 3] != 0;
           if (!(ma && mb)) {
             if (ma || mb) r[1] += 1;
@@ -365,9 +442,10 @@ std::vector<torch::Tensor> ibsm_render(torch::Tensor v, torch::Tensor f, torch::
   const int w = static_cast<int>(resolution);
   const V3 vd = {d[0], d[1], d[2]};
   const Camera cam = make_camera(vd, up_for(vd), {bx[0], bx[1], bx[2]}, {bx[3], bx[4], bx[5]}, w, w);
-  std::vector<float> z(size_t(w) * w);
-  std::vector<uint8_t> c(size_t(w) * w * 4);
-  render(M, cam, w, w, cull, z, c);
+  Target target(w, w);
+  render(M, cam, w, w, cull, target);
+  std::vector<float>& z = target.z;
+  std::vector<uint8_t>& c = target.rgba;
   auto zt = torch::from_blob(z.data(), {w, w}, torch::kFloat32).clone();
   auto ct = torch::from_blob(c.data(), {w, w, 4}, torch::kUInt8).clone();
   return {zt, ct, torch::tensor({cam.depth_range})};
@@ -514,9 +592,74 @@ std::vector<torch::Tensor> grid_cast(torch::Tensor verts, torch::Tensor faces, t
   return {pos, origin, bary, face, axis};
 }
 
+// The rows kept by mmetric's ModelBuilder after grid sampling: the first of every set of rows equal in value (position,
+// normal and, when given, colour; -0.0 equals 0.0, a NaN equals nothing). The rows are sorted by a hash of their
+// bits, then by index; rows of equal hash are compared value by value, so the answer is exact whatever the hash.
+// Returns the kept row indices, ascending.
+torch::Tensor unique_rows(torch::Tensor pos, torch::Tensor nrm, torch::Tensor col) {
+  const int64_t n = pos.size(0);
+  const bool with_c = col.numel() > 0;
+  for (const torch::Tensor* t : {&pos, &nrm, &col})
+    TORCH_CHECK(t->numel() == 0 || (t->is_contiguous() && t->scalar_type() == torch::kFloat32 && t->dim() == 2 &&
+                                    t->size(0) == n && t->size(1) == 3),
+                "unique_rows: contiguous float32 (N, 3) rows expected");
+  const int width = with_c ? 9 : 6;
+  const float* src[3] = {pos.data_ptr<float>(), nrm.data_ptr<float>(), with_c ? col.data_ptr<float>() : nullptr};
+  const auto value = [&](int64_t i, int k) { return src[k / 3][3 * i + k % 3]; };
+  const auto hash = [&](int64_t i) {
+    uint64_t h = 0;
+    for (int k = 0; k < width; ++k) {
+      const float f = value(i, k) + 0.0F;
+      uint32_t b;
+      std::memcpy(&b, &f, sizeof b);
+      h = (h ^ b) * 0x9E3779B97F4A7C15ULL;
+      h ^= h >> 29;
+    }
+    return h;
+  };
+  struct Key {
+    uint64_t hash;
+    int64_t row;
+    bool operator<(const Key& o) const { return hash != o.hash ? hash < o.hash : row < o.row; }
+  };
+  std::vector<Key> keys(static_cast<size_t>(n));
+  std::vector<uint8_t> drop(static_cast<size_t>(n), 0);
+  {
+    pybind11::gil_scoped_release release;
+    at::parallel_for(0, n, 1 << 14, [&](int64_t b, int64_t e) {
+      for (int64_t i = b; i < e; ++i) keys[i] = {hash(i), i};
+    });
+    tmm::parallel_sort(keys);
+    // within a run of equal hashes (rows ascending), a row equal to an earlier kept row of the run is dropped
+    for (int64_t s = 0; s < n;) {
+      int64_t t = s + 1;
+      while (t < n && keys[t].hash == keys[s].hash) ++t;
+      for (int64_t a = s + 1; a < t; ++a)
+        for (int64_t b = s; b < a; ++b) {
+          if (drop[keys[b].row]) continue;
+          bool same = true;
+          for (int k = 0; k < width && same; ++k) same = value(keys[a].row, k) == value(keys[b].row, k);
+          if (same) {
+            drop[keys[a].row] = 1;
+            break;
+          }
+        }
+      s = t;
+    }
+  }
+  std::vector<int64_t> kept;
+  kept.reserve(static_cast<size_t>(n));
+  for (int64_t i = 0; i < n; ++i)
+    if (!drop[i]) kept.push_back(i);
+  auto out = torch::empty({static_cast<int64_t>(kept.size())}, torch::kInt64);
+  std::copy(kept.begin(), kept.end(), out.data_ptr<int64_t>());
+  return out;
+}
+
 PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
   m.def("ibsm_sums", &ibsm_sums, "per-camera IBSM squared-error sums of two meshes");
   m.def("ibsm_render", &ibsm_render, "one orthographic rendering (depth, RGBA, depth range)");
   m.def("fibonacci_sphere", &fibonacci_sphere, "mmetric's Fibonacci-sphere camera directions");
   m.def("grid_cast", &grid_cast, "mmetric's grid sampling ray casting, hits in its push order");
+  m.def("unique_rows", &unique_rows, "the first of every set of equal (position, normal, colour) rows");
 }

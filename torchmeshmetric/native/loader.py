@@ -68,9 +68,13 @@ EXTENSIONS: dict[str, NativeExtension] = {
         ldflags=("-fopenmp",),
     ),
     # mmetric's IBSM rasterizer and its grid sampling's ray caster (mpeg.ibsm, mpeg.grid_sampling).
-    "ibsm": NativeExtension(sources=("ibsm_raster.cpp",)),
+    "ibsm": NativeExtension(
+        sources=("ibsm_raster.cpp",), headers=("parallel.h",), cflags=(*_EXACT, "-fopenmp"), ldflags=("-fopenmp",)
+    ),
     # mmetric's pcc comparison: the duplicate merge and the neighbour search with ties (mpeg.point_cloud, neighbours).
-    "pcc": NativeExtension(sources=("mpeg_pcc.cpp",)),
+    "pcc": NativeExtension(
+        sources=("mpeg_pcc.cpp",), headers=("parallel.h",), cflags=(*_EXACT, "-fopenmp"), ldflags=("-fopenmp",)
+    ),
     # mmetric's PCQM (compare --mode pcqm): its k-d tree searches, quadric fits and pooled features (mpeg.pcqm).
     "pcqm": NativeExtension(sources=("pcqm.cpp",), cflags=(*_EXACT, "-fopenmp"), ldflags=("-fopenmp",)),
 }

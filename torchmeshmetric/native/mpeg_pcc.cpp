@@ -8,6 +8,8 @@
 
 #include <ATen/Parallel.h>
 
+#include "parallel.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -17,13 +19,15 @@
 
 namespace {
 
-constexpr int LEAF = 8;          // points per kd-tree leaf
 constexpr int MAX_K = 30;        // dmetric's num_results_max
 constexpr int FIRST_K = 10;      // dmetric's first search of a query with equidistant neighbours
 constexpr int STEP_K = 5;        // dmetric's num_results_incr
 constexpr double SIMILAR = 1e-20;  // dmetric's similarPointThreshold as mmetric passes it
-constexpr double WIDEN = 1.0 + 1e-6;  // see box_gap_sq
+// mpeg_sq rounds each float32 difference (relative 2^-24), so it can lie below the exact squared distance by a
+// relative 2^-22 at most: a point with mpeg_sq <= b is within sqrt(b * WIDEN) of the query.
+constexpr double WIDEN = 1.0 + 1e-6;
 constexpr int64_t GRAIN = 512;   // queries per parallel task
+constexpr double POINTS_PER_COLUMN = 32.0;  // see build_grid
 
 inline double mpeg_sq(float qx, float qy, float qz, float rx, float ry, float rz) {
   const double dx = static_cast<double>(qx - rx);
@@ -34,127 +38,81 @@ inline double mpeg_sq(float qx, float qy, float qz, float rx, float ry, float rz
   return s;
 }
 
-// An inner node holds both children's boxes, so that a pruned child is never read. A child reference >= 0 is an
-// inner node; a leaf is ~start (< 0) with its point count.
-struct KdNode {
-  float lo[2][3], hi[2][3];
-  int32_t child[2], count[2];
+// A grid of columns: the plane of the two shorter sides of the box cut into square cells of side h, each cell's
+// points sorted along the longest side (ties by index) and stored in that order, one array per coordinate. A
+// search visits the columns within a radius of the query and, in each, the points within the radius along the
+// column by binary search. Sampled surfaces have a nearly even density, so a radius of a few point spacings
+// visits a few columns and a few dozen points.
+struct ColumnGrid {
+  int a0 = 0, a1 = 1, ac = 2;  // the column plane's axes and the column axis
+  double o0 = 0, o1 = 0, inv_h = 1;
+  int64_t g0 = 1, g1 = 1;
+  std::vector<int64_t> start;  // g0 * g1 + 1 column offsets
+  std::vector<float> xyz[3];   // per coordinate, in column order
+  std::vector<int64_t> idx;    // column order -> original index
+  // monotone in u, so a point in [lo, hi] lies in a column between cell(lo) and cell(hi)
+  int64_t cell(double u, double o, int64_t g) const {
+    const double c = std::floor((u - o) * inv_h);
+    return c < 0 ? 0 : (c >= static_cast<double>(g) ? g - 1 : static_cast<int64_t>(c));
+  }
+  int64_t column_of(const float* p) const { return cell(p[a0], o0, g0) * g1 + cell(p[a1], o1, g1); }
 };
 
-struct Box {
+ColumnGrid build_grid(const float* p, int64_t n) {
+  ColumnGrid g;
   float lo[3], hi[3];
-};
-
-// A kd-tree of median splits on the longest side; the points copied in tree order, one array per coordinate.
-struct KdTree {
-  std::vector<KdNode> nodes;
-  int32_t root = 0, root_count = 0;
-  Box root_box{};
-  std::vector<int64_t> perm;  // tree slot -> original index
-  std::vector<float> xs, ys, zs;
-};
-
-struct Slot {
-  float c[3];
-  int64_t idx;
-};
-
-int64_t inner_count(int64_t n) { return n <= LEAF ? 0 : 1 + inner_count(n / 2) + inner_count(n - n / 2); }
-
-// Node over slots [begin, end): the axis is chosen on `approx` (the parent's box cut at the split), the box kept is
-// the tight one, from the children up. Inner nodes are numbered in depth-first order from `id`.
-int32_t build_node(KdTree& t, Slot* sl, int64_t begin, int64_t end, const Box& approx, int64_t id, Box& tight,
-                   bool parallel) {
-  if (end - begin <= LEAF) {
-    for (int a = 0; a < 3; ++a) {
-      tight.lo[a] = std::numeric_limits<float>::infinity();
-      tight.hi[a] = -std::numeric_limits<float>::infinity();
-    }
-    for (int64_t i = begin; i < end; ++i)
-      for (int a = 0; a < 3; ++a) {
-        tight.lo[a] = std::min(tight.lo[a], sl[i].c[a]);
-        tight.hi[a] = std::max(tight.hi[a], sl[i].c[a]);
-      }
-    return static_cast<int32_t>(~begin);
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = std::numeric_limits<float>::infinity();
+    hi[a] = -std::numeric_limits<float>::infinity();
   }
-  int axis = 0;
+  for (int64_t i = 0; i < n; ++i)
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = std::min(lo[a], p[3 * i + a]);
+      hi[a] = std::max(hi[a], p[3 * i + a]);
+    }
+  double ext[3];
+  for (int a = 0; a < 3; ++a) ext[a] = static_cast<double>(hi[a]) - static_cast<double>(lo[a]);
+  g.ac = 0;
   for (int a = 1; a < 3; ++a)
-    if (approx.hi[a] - approx.lo[a] > approx.hi[axis] - approx.lo[axis]) axis = a;
-  const int64_t mid = begin + (end - begin) / 2;
-  std::nth_element(sl + begin, sl + mid, sl + end,
-                   [axis](const Slot& u, const Slot& v) { return u.c[axis] < v.c[axis]; });
-  Box sub[2] = {approx, approx}, got[2];
-  sub[0].hi[axis] = sl[mid].c[axis];
-  sub[1].lo[axis] = sl[mid].c[axis];
-  const int64_t first[2] = {id + 1, id + 1 + inner_count(mid - begin)};
-  const int64_t lo_[2] = {begin, mid}, hi_[2] = {mid, end};
-  int32_t ref[2];
-  const auto side = [&](int c) { ref[c] = build_node(t, sl, lo_[c], hi_[c], sub[c], first[c], got[c], false); };
-  if (parallel) {
-    at::parallel_for(0, 2, 1, [&](int64_t b, int64_t e) {
-      for (int64_t c = b; c < e; ++c) side(static_cast<int>(c));
-    });
-  } else {
-    side(0);
-    side(1);
+    if (ext[a] > ext[g.ac]) g.ac = a;
+  g.a0 = g.ac == 0 ? 1 : 0;
+  g.a1 = g.ac == 2 ? 1 : 2;
+  // about POINTS_PER_COLUMN points per column if they filled the plane's rectangle (8 to 128 search alike on
+  // grid-sampled frames; 2 is four times slower), at most 2048 x 2048 columns
+  const double area = std::max(ext[g.a0], 1e-30) * std::max(ext[g.a1], 1e-30);
+  double h = std::sqrt(area * POINTS_PER_COLUMN / static_cast<double>(std::max<int64_t>(n, 1)));
+  const double max_cells = 2048.0;
+  h = std::max({h, ext[g.a0] / max_cells, ext[g.a1] / max_cells, 1e-30});
+  g.inv_h = 1.0 / h;
+  g.o0 = lo[g.a0];
+  g.o1 = lo[g.a1];
+  g.g0 = std::max<int64_t>(1, std::min<int64_t>(static_cast<int64_t>(ext[g.a0] * g.inv_h) + 1, 2048));
+  g.g1 = std::max<int64_t>(1, std::min<int64_t>(static_cast<int64_t>(ext[g.a1] * g.inv_h) + 1, 2048));
+  const int64_t cols = g.g0 * g.g1;
+  std::vector<int64_t> col(static_cast<size_t>(n));
+  at::parallel_for(0, n, 1 << 14, [&](int64_t b, int64_t e) {
+    for (int64_t i = b; i < e; ++i) col[i] = g.column_of(p + 3 * i);
+  });
+  g.start.assign(static_cast<size_t>(cols + 1), 0);
+  for (int64_t i = 0; i < n; ++i) ++g.start[col[i] + 1];
+  for (int64_t c = 0; c < cols; ++c) g.start[c + 1] += g.start[c];
+  g.idx.resize(static_cast<size_t>(n));
+  {
+    std::vector<int64_t> fill(g.start.begin(), g.start.end() - 1);
+    for (int64_t i = 0; i < n; ++i) g.idx[fill[col[i]]++] = i;  // ascending index within a column
   }
-  KdNode& nd = t.nodes[id];
-  for (int c = 0; c < 2; ++c) {
-    nd.child[c] = ref[c];
-    nd.count[c] = static_cast<int32_t>(hi_[c] - lo_[c]);
-    for (int a = 0; a < 3; ++a) {
-      nd.lo[c][a] = got[c].lo[a];
-      nd.hi[c][a] = got[c].hi[a];
-    }
-  }
-  for (int a = 0; a < 3; ++a) {
-    tight.lo[a] = std::min(got[0].lo[a], got[1].lo[a]);
-    tight.hi[a] = std::max(got[0].hi[a], got[1].hi[a]);
-  }
-  return static_cast<int32_t>(id);
-}
-
-KdTree build_tree(const float* p, int64_t n) {
-  KdTree t;
-  std::vector<Slot> sl(static_cast<size_t>(n));
-  Box box;
-  for (int a = 0; a < 3; ++a) {
-    box.lo[a] = std::numeric_limits<float>::infinity();
-    box.hi[a] = -std::numeric_limits<float>::infinity();
-  }
-  for (int64_t i = 0; i < n; ++i) {
-    sl[i] = Slot{{p[3 * i], p[3 * i + 1], p[3 * i + 2]}, i};
-    for (int a = 0; a < 3; ++a) {
-      box.lo[a] = std::min(box.lo[a], p[3 * i + a]);
-      box.hi[a] = std::max(box.hi[a], p[3 * i + a]);
-    }
-  }
-  t.nodes.resize(static_cast<size_t>(inner_count(n)));
-  t.root = build_node(t, sl.data(), 0, n, box, 0, t.root_box, true);
-  t.root_count = static_cast<int32_t>(n);
-  // padded by a leaf so that every leaf's distances are computed in one straight loop
-  t.perm.resize(n);
-  t.xs.assign(n + LEAF, 0.0f);
-  t.ys.assign(n + LEAF, 0.0f);
-  t.zs.assign(n + LEAF, 0.0f);
-  for (int64_t i = 0; i < n; ++i) {
-    t.perm[i] = sl[i].idx;
-    t.xs[i] = sl[i].c[0];
-    t.ys[i] = sl[i].c[1];
-    t.zs[i] = sl[i].c[2];
-  }
-  return t;
-}
-
-// Lower bound of mpeg_sq over a box, per axis the gap in double. The float32 difference of a point in the box can
-// round below the exact gap by a relative 2^-24, so callers compare it with their bound widened by WIDEN.
-inline double box_gap_sq(const float* lo, const float* hi, const float* q) {
-  double s = 0;
-  for (int a = 0; a < 3; ++a) {
-    const double d = std::max({static_cast<double>(lo[a]) - q[a], static_cast<double>(q[a]) - hi[a], 0.0});
-    s += d * d;
-  }
-  return s;
+  const int ac = g.ac;
+  at::parallel_for(0, cols, 256, [&](int64_t b, int64_t e) {
+    for (int64_t c = b; c < e; ++c)
+      std::stable_sort(g.idx.begin() + g.start[c], g.idx.begin() + g.start[c + 1],
+                       [p, ac](int64_t u, int64_t v) { return p[3 * u + ac] < p[3 * v + ac]; });
+  });
+  for (int a = 0; a < 3; ++a) g.xyz[a].resize(static_cast<size_t>(n));
+  at::parallel_for(0, n, 1 << 14, [&](int64_t b, int64_t e) {
+    for (int64_t s = b; s < e; ++s)
+      for (int a = 0; a < 3; ++a) g.xyz[a][s] = p[3 * g.idx[s] + a];
+  });
+  return g;
 }
 
 // The k best (squared distance, index) pairs offered, in rank order.
@@ -165,7 +123,7 @@ struct Best {
   void offer(double s, int64_t i) {
     if (n == k && (s > sq[k - 1] || (s == sq[k - 1] && i >= idx[k - 1]))) return;
     for (int j = 0; j < n; ++j)
-      if (idx[j] == i) return;  // the seed met again in the traversal
+      if (idx[j] == i) return;  // the seed met again
     int j = n < k ? n++ : k - 1;
     while (j > 0 && (sq[j - 1] > s || (sq[j - 1] == s && idx[j - 1] > i))) {
       sq[j] = sq[j - 1];
@@ -175,53 +133,61 @@ struct Best {
     sq[j] = s;
     idx[j] = i;
   }
+  double keep() const { return n < k ? std::numeric_limits<double>::infinity() : sq[k - 1]; }
 };
 
-// Depth-first search, nearer child first, of every box within `bound(best)`.
-template <typename Bound>
-void search(const KdTree& t, const float* q, Best& best, const Bound& bound) {
-  const KdNode* nd = t.nodes.data();
-  int32_t stack[64], stack_n[64];
-  double stack_d[64];
-  int top = 0;
-  int32_t ref = t.root, cnt = t.root_count;
-  double dn = box_gap_sq(t.root_box.lo, t.root_box.hi, q);
-  double b = bound(best);
-  for (;;) {
-    if (dn <= b) {
-      if (ref < 0) {
-        const int32_t start = ~ref;
-        double sq[LEAF];
-        for (int l = 0; l < LEAF; ++l) {
-          const int32_t j = start + l;
-          sq[l] = mpeg_sq(q[0], q[1], q[2], t.xs[j], t.ys[j], t.zs[j]);
-        }
-        const double keep = best.n < best.k ? std::numeric_limits<double>::infinity() : best.sq[best.k - 1];
-        for (int l = 0; l < cnt; ++l)
-          if (sq[l] <= keep) best.offer(sq[l], t.perm[start + l]);
-        b = bound(best);
-      } else {
-        const KdNode& node = nd[ref];
-        const double d0 = box_gap_sq(node.lo[0], node.hi[0], q), d1 = box_gap_sq(node.lo[1], node.hi[1], q);
-        const int near = d0 <= d1 ? 0 : 1;
-        const double dfar = near == 0 ? d1 : d0;
-        if (dfar <= b) {
-          stack[top] = node.child[1 - near];
-          stack_n[top] = node.count[1 - near];
-          stack_d[top] = dfar;
-          ++top;
-        }
-        ref = node.child[near];
-        cnt = node.count[near];
-        dn = near == 0 ? d0 : d1;
-        continue;
+// u - r and u + r rounded outwards (a double subtraction is off by half an ulp of its result at most)
+inline double down(double u, double r) {
+  const double v = u - r;
+  return v - (std::abs(v) * 1e-15 + 1e-300);
+}
+inline double up(double u, double r) {
+  const double v = u + r;
+  return v + (std::abs(v) * 1e-15 + 1e-300);
+}
+
+// Offers every point of the columns within r of q along the plane and within r along the column: a superset of the
+// points whose exact distance to q is at most r.
+void visit(const ColumnGrid& g, const float* q, double r, Best& best) {
+  const double qa = q[g.a0], qb = q[g.a1], qc = q[g.ac];
+  const int64_t c0 = g.cell(down(qa, r), g.o0, g.g0), c1 = g.cell(up(qa, r), g.o0, g.g0);
+  const int64_t d0 = g.cell(down(qb, r), g.o1, g.g1), d1 = g.cell(up(qb, r), g.o1, g.g1);
+  const double zlo = down(qc, r), zhi = up(qc, r);
+  const float* zs = g.xyz[g.ac].data();
+  const float *xs = g.xyz[0].data(), *ys = g.xyz[1].data(), *ws = g.xyz[2].data();
+  for (int64_t c = c0; c <= c1; ++c)
+    for (int64_t d = d0; d <= d1; ++d) {
+      const int64_t col = c * g.g1 + d;
+      const float* first = zs + g.start[col];
+      const float* last = zs + g.start[col + 1];
+      if (first == last) continue;
+      const float* it = std::lower_bound(first, last, zlo, [](float z, double v) { return z < v; });
+      for (; it != last && *it <= zhi; ++it) {
+        const int64_t s = it - zs;
+        const double sq = mpeg_sq(q[0], q[1], q[2], xs[s], ys[s], ws[s]);
+        if (sq <= best.keep()) best.offer(sq, g.idx[s]);
       }
     }
-    if (top == 0) break;
-    --top;
-    ref = stack[top];
-    cnt = stack_n[top];
-    dn = stack_d[top];
+}
+
+// The points ranked by (mpeg_sq, index) up to what `bound(best)` asks: visits within a radius r0, and while a point
+// within the bound could lie beyond the radius visited, again within a larger radius. The answer depends on the
+// points only, not on the grid, the seed or r0.
+template <typename Bound>
+void search(const ColumnGrid& g, const float* q, int64_t seed, const float* tp, double r0, Best& best,
+            const Bound& bound) {
+  double r = r0;
+  for (;;) {
+    best.n = 0;
+    if (seed >= 0) {
+      const float* s = tp + 3 * seed;
+      best.offer(mpeg_sq(q[0], q[1], q[2], s[0], s[1], s[2]), seed);
+    }
+    visit(g, q, r, best);
+    const double b = bound(best) * WIDEN;
+    if (b <= r * r) return;
+    // a radius past the whole cloud visits every point, and then the bound (finite: k <= points) is within it
+    r = std::isfinite(b) ? std::max(2 * r, std::sqrt(b) * (1 + 1e-6)) : 2 * r;
   }
 }
 
@@ -234,33 +200,92 @@ void check_points(const torch::Tensor& p, const char* name) {
 
 }  // namespace
 
-// The merge order of dmetric's dropDuplicates: point indices sorted by (x, y, z, index), and the first position of
-// every run of equal coordinates (-0.0 equals 0.0). Returns {order (N,), starts (M,)}.
-std::vector<torch::Tensor> mpeg_merge_order(torch::Tensor points) {
-  check_points(points, "mpeg_merge_order");
-  const int64_t n = points.size(0);
-  const float* p = points.data_ptr<float>();
-  auto order_t = torch::empty({n}, torch::kInt64);
-  int64_t* order = order_t.data_ptr<int64_t>();
-  for (int64_t i = 0; i < n; ++i) order[i] = i;
-  std::sort(order, order + n, [p](int64_t u, int64_t v) {
-    const float* a = p + 3 * u;
-    const float* b = p + 3 * v;
-    if (a[0] != b[0]) return a[0] < b[0];
-    if (a[1] != b[1]) return a[1] < b[1];
-    if (a[2] != b[2]) return a[2] < b[2];
-    return u < v;
+namespace {
+
+// A float's bits mapped so that unsigned order is numeric order (-0.0 first made 0.0: they are one coordinate).
+inline uint64_t ordered_bits(float f) {
+  f = f + 0.0F;
+  uint32_t b;
+  std::memcpy(&b, &f, sizeof b);
+  return (b & 0x80000000U) ? ~b : (b | 0x80000000U);
+}
+
+struct SortKey {
+  uint64_t hi, lo;  // (x, y), (z, index)
+  bool operator<(const SortKey& o) const { return hi != o.hi ? hi < o.hi : lo < o.lo; }
+  bool same_point(const SortKey& o) const { return hi == o.hi && (lo >> 32) == (o.lo >> 32); }
+};
+
+// Points sorted by (x, y, z, index): keys sorted directly (no comparator reading the points).
+std::vector<SortKey> sorted_keys(const float* p, int64_t n) {
+  std::vector<SortKey> keys(static_cast<size_t>(n));
+  at::parallel_for(0, n, 1 << 14, [&](int64_t b, int64_t e) {
+    for (int64_t i = b; i < e; ++i)
+      keys[i] = {(ordered_bits(p[3 * i]) << 32) | ordered_bits(p[3 * i + 1]),
+                 (ordered_bits(p[3 * i + 2]) << 32) | static_cast<uint64_t>(i)};
   });
+  tmm::parallel_sort(keys);
+  return keys;
+}
+
+}  // namespace
+
+// dmetric's dropDuplicates = 2 (average): the points sorted by (x, y, z), ties by index; each run of equal coordinates
+// (-0.0 equals 0.0) becomes one point whose normal is the float32 mean of the run's normals (summed in run order, not
+// renormalised) and whose colour is the integer mean (truncated) of the colours rounded to 8 bits (roundf, clamped;
+// NaN as 0). normals / colors may be empty (0 elements): their result is empty too.
+// Returns {points (M, 3), normals (M, 3), colors (M, 3) float32}.
+std::vector<torch::Tensor> mpeg_merge(torch::Tensor points, torch::Tensor normals, torch::Tensor colors) {
+  check_points(points, "mpeg_merge");
+  const int64_t n = points.size(0);
+  const bool with_n = normals.numel() > 0, with_c = colors.numel() > 0;
+  if (with_n) check_points(normals, "mpeg_merge: normals");
+  if (with_c) check_points(colors, "mpeg_merge: colors");
+  TORCH_CHECK(!with_n || normals.size(0) == n, "mpeg_merge: normals and points differ in count");
+  TORCH_CHECK(!with_c || colors.size(0) == n, "mpeg_merge: colors and points differ in count");
+  const float* p = points.data_ptr<float>();
+  std::vector<SortKey> keys = sorted_keys(p, n);
   std::vector<int64_t> starts;
-  starts.reserve(static_cast<size_t>(n));
-  for (int64_t i = 0; i < n; ++i) {
-    const float* a = p + 3 * order[i];
-    const float* b = i > 0 ? p + 3 * order[i - 1] : nullptr;
-    if (i == 0 || a[0] != b[0] || a[1] != b[1] || a[2] != b[2]) starts.push_back(i);
-  }
-  auto starts_t = torch::empty({static_cast<int64_t>(starts.size())}, torch::kInt64);
-  std::memcpy(starts_t.data_ptr<int64_t>(), starts.data(), starts.size() * sizeof(int64_t));
-  return {order_t, starts_t};
+  starts.reserve(static_cast<size_t>(n) + 1);
+  for (int64_t i = 0; i < n; ++i)
+    if (i == 0 || !keys[i].same_point(keys[i - 1])) starts.push_back(i);
+  const int64_t m = static_cast<int64_t>(starts.size());
+  starts.push_back(n);
+  auto out_p = torch::empty({m, 3}, torch::kFloat32);
+  auto out_n = with_n ? torch::empty({m, 3}, torch::kFloat32) : torch::empty({0, 3}, torch::kFloat32);
+  auto out_c = with_c ? torch::empty({m, 3}, torch::kFloat32) : torch::empty({0, 3}, torch::kFloat32);
+  float* op = out_p.data_ptr<float>();
+  float* on = with_n ? out_n.data_ptr<float>() : nullptr;
+  float* oc = with_c ? out_c.data_ptr<float>() : nullptr;
+  const float* nrm = with_n ? normals.data_ptr<float>() : nullptr;
+  const float* col = with_c ? colors.data_ptr<float>() : nullptr;
+  at::parallel_for(0, m, 1 << 12, [&](int64_t b, int64_t e) {
+    for (int64_t r = b; r < e; ++r) {
+      const int64_t s = starts[r], t = starts[r + 1];
+      const int64_t first = static_cast<int64_t>(keys[s].lo & 0xffffffffU);
+      for (int a = 0; a < 3; ++a) op[3 * r + a] = p[3 * first + a];
+      if (with_n) {
+        float sum[3] = {0.0F, 0.0F, 0.0F};
+        for (int64_t i = s; i < t; ++i) {
+          const int64_t j = static_cast<int64_t>(keys[i].lo & 0xffffffffU);
+          for (int a = 0; a < 3; ++a) sum[a] += nrm[3 * j + a];
+        }
+        for (int a = 0; a < 3; ++a) on[3 * r + a] = sum[a] / static_cast<float>(t - s);
+      }
+      if (with_c) {
+        int64_t sum[3] = {0, 0, 0};
+        for (int64_t i = s; i < t; ++i) {
+          const int64_t j = static_cast<int64_t>(keys[i].lo & 0xffffffffU);
+          for (int a = 0; a < 3; ++a) {
+            const double v = std::floor(static_cast<double>(col[3 * j + a]) + 0.5);
+            sum[a] += std::isnan(v) ? 0 : static_cast<int64_t>(std::min(255.0, std::max(0.0, v)));
+          }
+        }
+        for (int a = 0; a < 3; ++a) oc[3 * r + a] = static_cast<float>(sum[a] / (t - s));
+      }
+    }
+  });
+  return {out_p, out_n, out_c};
 }
 
 // Nearest target point of every query point and dmetric's equidistant neighbours, one pass over the queries:
@@ -270,9 +295,10 @@ std::vector<torch::Tensor> mpeg_merge_order(torch::Tensor points) {
 // candidates padded with -1 / inf.
 namespace {
 
-// mpeg_nearest_ties over built trees; the queries run in the tree order of their own cloud (near in space).
-std::vector<torch::Tensor> nearest_ties(const torch::Tensor& query, const KdTree& qtree, const torch::Tensor& target,
-                                        const KdTree& tree) {
+// mpeg_nearest_ties over built grids; the queries run in the column order of their own cloud (near in space), each
+// seeded with the previous one's nearest point.
+std::vector<torch::Tensor> nearest_ties(const torch::Tensor& query, const ColumnGrid& qgrid,
+                                        const torch::Tensor& target, const ColumnGrid& grid) {
   const int64_t Q = query.size(0), T = target.size(0);
   const float* qp = query.data_ptr<float>();
   const float* tp = target.data_ptr<float>();
@@ -282,22 +308,26 @@ std::vector<torch::Tensor> nearest_ties(const torch::Tensor& query, const KdTree
   int64_t* nearest = nearest_t.data_ptr<int64_t>();
   double* sq = sq_t.data_ptr<double>();
   bool* tie = tie_t.data_ptr<bool>();
+  const double h = 1.0 / grid.inv_h;
   // The nearest and the second by rank, searched only as far as a tie could reach: all points within 1e-20 of the
   // nearest are visited, so the second is exact whenever it is a tie, and a farther second is no tie either way.
   const auto tie_bound = [](const Best& b) {
-    return b.n == 0 ? std::numeric_limits<double>::infinity() : (b.sq[0] + SIMILAR) * WIDEN;
+    return b.n == 0 ? std::numeric_limits<double>::infinity() : b.sq[0] + SIMILAR;
   };
   at::parallel_for(0, Q, GRAIN, [&](int64_t s0, int64_t e) {
     int64_t prev = -1;
     for (int64_t s = s0; s < e; ++s) {
-      const int64_t i = qtree.perm[s];
+      const int64_t i = qgrid.idx[s];
       const float* q = qp + 3 * i;
       Best best{2};
+      // the previous query's nearest point bounds the radius when it is near (most queries: the next point of the
+      // same column); a column's first query starts from one column side
+      double r0 = h;
       if (prev >= 0) {
-        const float* r = tp + 3 * prev;
-        best.offer(mpeg_sq(q[0], q[1], q[2], r[0], r[1], r[2]), prev);
+        const float* t = tp + 3 * prev;
+        r0 = std::min(h, std::sqrt((mpeg_sq(q[0], q[1], q[2], t[0], t[1], t[2]) + SIMILAR) * WIDEN) * (1 + 1e-6));
       }
-      search(tree, q, best, tie_bound);
+      search(grid, q, prev, tp, r0, best, tie_bound);
       nearest[i] = best.idx[0];
       sq[i] = best.sq[0];
       tie[i] = best.n == 2 && best.sq[1] - best.sq[0] < SIMILAR;
@@ -313,14 +343,12 @@ std::vector<torch::Tensor> nearest_ties(const torch::Tensor& query, const KdTree
   const int64_t* rows = rows_t.data_ptr<int64_t>();
   int64_t* cand = cand_t.data_ptr<int64_t>();
   double* csq = csq_t.data_ptr<double>();
-  const auto k_bound = [](const Best& b) {
-    return b.n < b.k ? std::numeric_limits<double>::infinity() : b.sq[b.k - 1] * WIDEN;
-  };
+  const auto k_bound = [](const Best& b) { return b.keep(); };
   int used = kfirst;
   at::parallel_for(0, S, 16, [&](int64_t s0, int64_t e) {
     for (int64_t s = s0; s < e; ++s) {
       Best best{kmax};
-      search(tree, qp + 3 * rows[s], best, k_bound);
+      search(grid, qp + 3 * rows[s], nearest[rows[s]], tp, h, best, k_bound);
       // dmetric's widening: the first 10, then 5 more while the k found are all equally far; the ranking by
       // (distance, index) makes the first k of the 30 nearest the k nearest
       int k = kfirst;
@@ -343,26 +371,26 @@ std::vector<torch::Tensor> mpeg_nearest_ties(torch::Tensor query, torch::Tensor 
   check_points(query, "mpeg_nearest_ties: query");
   check_points(target, "mpeg_nearest_ties: target");
   TORCH_CHECK(target.size(0) > 0, "mpeg_nearest_ties: empty target");
-  const KdTree tree = build_tree(target.data_ptr<float>(), target.size(0));
-  const KdTree qtree = build_tree(query.data_ptr<float>(), query.size(0));
-  return nearest_ties(query, qtree, target, tree);
+  const ColumnGrid grid = build_grid(target.data_ptr<float>(), target.size(0));
+  const ColumnGrid qgrid = build_grid(query.data_ptr<float>(), query.size(0));
+  return nearest_ties(query, qgrid, target, grid);
 }
 
-// Both directions of the comparison (a -> b, then b -> a: ten tensors), each cloud's tree built once.
+// Both directions of the comparison (a -> b, then b -> a: ten tensors), each cloud's grid built once.
 std::vector<torch::Tensor> mpeg_nearest_ties_both(torch::Tensor a, torch::Tensor b) {
   check_points(a, "mpeg_nearest_ties_both: a");
   check_points(b, "mpeg_nearest_ties_both: b");
   TORCH_CHECK(a.size(0) > 0 && b.size(0) > 0, "mpeg_nearest_ties_both: empty cloud");
-  const KdTree ta = build_tree(a.data_ptr<float>(), a.size(0));
-  const KdTree tb = build_tree(b.data_ptr<float>(), b.size(0));
-  std::vector<torch::Tensor> out = nearest_ties(a, ta, b, tb);
-  std::vector<torch::Tensor> back = nearest_ties(b, tb, a, ta);
+  const ColumnGrid ga = build_grid(a.data_ptr<float>(), a.size(0));
+  const ColumnGrid gb = build_grid(b.data_ptr<float>(), b.size(0));
+  std::vector<torch::Tensor> out = nearest_ties(a, ga, b, gb);
+  std::vector<torch::Tensor> back = nearest_ties(b, gb, a, ga);
   out.insert(out.end(), back.begin(), back.end());
   return out;
 }
 
 PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
-  m.def("mpeg_merge_order", &mpeg_merge_order, "dmetric's duplicate merge order (points sorted, run starts)");
+  m.def("mpeg_merge", &mpeg_merge, "dmetric's duplicate merge (dropDuplicates = 2): sorted, runs averaged");
   m.def("mpeg_nearest_ties", &mpeg_nearest_ties, "nearest neighbours with dmetric's equidistant-neighbour rule");
   m.def("mpeg_nearest_ties_both", &mpeg_nearest_ties_both, "mpeg_nearest_ties in both directions");
 }

@@ -1,4 +1,4 @@
-// Scheduling of the C++ kernels' loops on torch's thread pool, shared by bvh.cpp and deformation_energy.cpp.
+// Scheduling of the C++ kernels' loops on torch's thread pool, shared by every extension of native/.
 #pragma once
 
 #include <ATen/Parallel.h>
@@ -7,6 +7,7 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <vector>
 
 namespace tmm {
 
@@ -33,6 +34,21 @@ inline void chunked_for(int64_t n, int64_t chunk, const F& fn) {
           fn(c * chunk, std::min(n, (c + 1) * chunk));
       }
   });
+}
+
+// std::sort of `v` in one block per thread, the blocks then merged (the result is std::sort's: a total order of
+// distinct keys leaves one possible order).
+template <typename T>
+inline void parallel_sort(std::vector<T>& v) {
+  const int64_t n = static_cast<int64_t>(v.size());
+  const int64_t blocks = std::max<int64_t>(1, std::min<int64_t>(at::get_num_threads(), n / 65536));
+  at::parallel_for(0, blocks, 1, [&](int64_t b, int64_t e) {
+    for (int64_t k = b; k < e; ++k) std::sort(v.begin() + k * n / blocks, v.begin() + (k + 1) * n / blocks);
+  });
+  for (int64_t width = 1; width < blocks; width *= 2)
+    for (int64_t k = 0; k + width < blocks; k += 2 * width)
+      std::inplace_merge(v.begin() + k * n / blocks, v.begin() + (k + width) * n / blocks,
+                         v.begin() + std::min(blocks, k + 2 * width) * n / blocks);
 }
 
 }  // namespace tmm
