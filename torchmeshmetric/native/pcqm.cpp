@@ -233,7 +233,8 @@ struct Radius {
   }
 };
 
-void radius_search(const Tree& t, const double* q, double r2, bool sorted, std::vector<std::pair<int64_t, double>>& out) {
+void radius_search(const Tree& t, const double* q, double r2, bool sorted,
+                   std::vector<std::pair<int64_t, double>>& out) {
   out.clear();
   Radius res{r2, &out};
   t.find(res, q);
@@ -268,13 +269,12 @@ double eigen_hypot(double x, double y) {
   return p * std::sqrt(1.0 + qp * qp);
 }
 
-// Eigenvectors of a symmetric 3x3 matrix as Eigen 3.3's SelfAdjointEigenSolver<MatrixXd> computes them, operation
-// for operation: the lower triangle scaled by its largest magnitude, Householder tridiagonalisation, Q formed in
-// place, implicit symmetric QR steps with Wilkinson's shift, then eigenvalues sorted ascending by selection. The
-// frame of a neighbourhood of one or two points (a zero or rank-one covariance) is fixed by these very roundings,
-// and with fewer than 6 points it changes the least-squares basic solution, so an equal-up-to-rounding solver is
-// not enough. vec[row][col]; column 0 has the smallest eigenvalue.
-void eigen_sym3(const double a_in[3][3], double vec[3][3]) {
+// The first half of Eigen 3.3's SelfAdjointEigenSolver<MatrixXd>, operation for operation: the lower triangle scaled
+// by its largest magnitude, Householder tridiagonalisation (Eigen's scalar symv and rank-2 update orders), Q formed in
+// place. The frame of a neighbourhood of one or two points (a zero or rank-one covariance) is fixed by these very
+// roundings, and with fewer than 6 points it changes the least-squares basic solution, so an equal-up-to-rounding
+// solver is not enough.
+void tridiagonalise3(const double a_in[3][3], double diag[3], double sub[2], double q[3][3]) {
   double a[3][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}};  // lower triangle only, as Eigen copies it
   double scale = 0.0;
   for (int i = 0; i < 3; ++i)
@@ -315,10 +315,11 @@ void eigen_sym3(const double a_in[3][3], double vec[3][3]) {
   a[1][1] += (-1.0 * v0) * hc0 + (-1.0 * hc0) * v0;
   a[2][1] += (-1.0 * v0) * hc1 + (-1.0 * hc0) * v1;
   a[2][2] += (-1.0 * v1) * hc1 + (-1.0 * hc1) * v1;
-  double diag[3] = {a[0][0], a[1][1], a[2][2]};
-  double sub[2] = {beta0, a[2][1]};  // step 1's Householder of a length-1 vector is the identity
-  // Q = H0 formed in place (columns: vec[.][c])
-  double q[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  diag[0] = a[0][0], diag[1] = a[1][1], diag[2] = a[2][2];
+  sub[0] = beta0, sub[1] = a[2][1];  // step 1's Householder of a length-1 vector is the identity
+  // Q = H0 formed in place (columns: q[.][c])
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) q[r][c] = r == c ? 1.0 : 0.0;
   if (h0 != 0.0) {
     const double te = h0 * ess;
     q[1][1] = 1.0 - h0 * 1.0;
@@ -326,9 +327,13 @@ void eigen_sym3(const double a_in[3][3], double vec[3][3]) {
     q[2][1] = 0.0 - te * 1.0;
     q[2][2] = 1.0 - te * (ess * 1.0 + 0.0);
   }
+}
+
+// Eigen's computeFromTridiagonal_impl on the 3x3 tridiagonal (diag, sub), accumulating the rotations into q; false
+// when it gives up after 30 * 3 steps (Eigen then leaves the eigenvalues unsorted).
+bool tridiagonal_qr3(double diag[3], double sub[2], double q[3][3]) {
   const double zero_tol = DBL_MIN, precision = 2.0 * DBL_EPSILON;
   int64_t end = 2, start = 0, iter = 0;
-  bool ok = true;
   while (end > 0) {
     for (int64_t i = start; i < end; ++i)
       if (std::fabs(sub[i]) <= (std::fabs(diag[i]) + std::fabs(diag[i + 1])) * precision ||
@@ -336,10 +341,7 @@ void eigen_sym3(const double a_in[3][3], double vec[3][3]) {
         sub[i] = 0.0;
     while (end > 0 && sub[end - 1] == 0.0) end--;
     if (end <= 0) break;
-    if (++iter > 30 * 3) {
-      ok = false;
-      break;
-    }
+    if (++iter > 30 * 3) return false;
     start = end - 1;
     while (start > 0 && sub[start - 1] != 0.0) start--;
     // tridiagonal_qr_step
@@ -376,6 +378,16 @@ void eigen_sym3(const double a_in[3][3], double vec[3][3]) {
       }
     }
   }
+  return true;
+}
+
+// Eigenvectors of a symmetric 3x3 matrix as Eigen 3.3's SelfAdjointEigenSolver<MatrixXd> computes them: the two
+// steps above, then the eigenvalues sorted ascending by selection (the first smallest; equal ones keep their order).
+// vec[row][col]; column 0 has the smallest eigenvalue.
+void eigen_sym3(const double a_in[3][3], double vec[3][3]) {
+  double diag[3], sub[2], q[3][3];
+  tridiagonalise3(a_in, diag, sub, q);
+  const bool ok = tridiagonal_qr3(diag, sub, q);
   if (ok)
     for (int i = 0; i < 2; ++i) {
       int k = i;
@@ -428,10 +440,34 @@ double eigen_gemv_dot(int64_t depth, int64_t start, bool vectorised, const F& x)
   return t;
 }
 
-// Eigen 3.3's ColPivHouseholderQR(A).solve(b) for an (m, 6) column-major A (overwritten, its storage 16-byte aligned
-// as Eigen's): column pivoting on the running column norms (LAPACK's downdate), rank = the pivots met before a
-// column's norm fell below (max norm * eps)^2 * (m - k) / m, and the basic solution (zeros past the rank).
-void colpiv_solve(std::vector<double>& A, int64_t m, std::vector<double>& b, double out[6]) {
+// Applies step k's Householder reflection (essential part below A(k, k), coefficient tau) to the columns right of k,
+// as Eigen's applyHouseholderOnTheLeft: tmp = essential^T * bottom through Eigen's gemv, whose alignment tests use the
+// element offsets from A's 16-byte aligned start.
+void householder_right_columns(std::vector<double>& A, int64_t m, int64_t k, double tau) {
+  const int64_t cols = 6, r = m - k - 1;
+  if (r == 0 || tau == 0.0) return;
+  const double* ck = A.data() + k * m;
+  const int64_t ncols = cols - k - 1, ess_off = k * m + k + 1, lhs_off = (k + 1) * m + k + 1;
+  const int64_t start = std::min<int64_t>(r, ess_off % 2);
+  const bool vectorised = !(std::min<int64_t>(r, lhs_off % 2) == r || std::min<int64_t>(ncols, ess_off % 2) == ncols);
+  for (int64_t j = k + 1; j < cols; ++j) {
+    double* cj = A.data() + j * m;
+    double tmp = eigen_gemv_dot(r, start, vectorised, [&](int64_t i) { return ck[k + 1 + i] * cj[k + 1 + i]; });
+    tmp += cj[k];
+    cj[k] -= tau * tmp;
+    for (int64_t i = k + 1; i < m; ++i) cj[i] -= tmp * (tau * ck[i]);
+  }
+}
+
+// Eigen 3.3's ColPivHouseholderQR of an (m, 6) column-major A, in place: column pivoting on the running column norms
+// (LAPACK's downdate), rank = the pivots met before a column's norm fell below (max norm * eps)^2 * (m - k) / m.
+struct ColPivQR {
+  int64_t nonzero = 0;
+  double hc[6] = {0, 0, 0, 0, 0, 0};
+  int perm[6] = {0, 1, 2, 3, 4, 5};
+};
+
+ColPivQR colpiv_decompose(std::vector<double>& A, int64_t m) {
   const int cols = 6;
   const int64_t size = std::min<int64_t>(m, cols);
   const double eps = DBL_EPSILON;
@@ -440,19 +476,19 @@ void colpiv_solve(std::vector<double>& A, int64_t m, std::vector<double>& b, dou
     const double* c = col(j) + from;
     return std::sqrt(eigen_sum(m - from, [&](int64_t i) { return c[i] * c[i]; }));
   };
-  double nu[6], nd[6], hc[6];
+  ColPivQR qr;
+  double nu[6], nd[6];
   int transp[6];
   for (int j = 0; j < cols; ++j) nu[j] = nd[j] = norm(j, 0);
   double maxn = nu[0];
   for (int j = 1; j < cols; ++j) maxn = std::max(maxn, nu[j]);
-  const double th = (maxn * eps) * (maxn * eps) / static_cast<double>(m);
-  const double downdate = std::sqrt(eps);
-  int64_t nonzero = size;
+  const double th = (maxn * eps) * (maxn * eps) / static_cast<double>(m), downdate = std::sqrt(eps);
+  qr.nonzero = size;
   for (int64_t k = 0; k < size; ++k) {
     int64_t bi = k;
     for (int64_t j = bi + 1; j < cols; ++j)
       if (nu[j] > nu[bi]) bi = j;
-    if (nonzero == size && nu[bi] * nu[bi] < th * static_cast<double>(m - k)) nonzero = k;
+    if (qr.nonzero == size && nu[bi] * nu[bi] < th * static_cast<double>(m - k)) qr.nonzero = k;
     transp[k] = static_cast<int>(bi);
     if (bi != k) {
       std::swap_ranges(col(k), col(k) + m, col(bi));
@@ -461,7 +497,7 @@ void colpiv_solve(std::vector<double>& A, int64_t m, std::vector<double>& b, dou
     }
     double* ck = col(k);
     const double c0 = ck[k];
-    const int64_t r = m - k - 1;  // the Householder vector's tail (its "essential part") and the rows below k
+    const int64_t r = m - k - 1;  // the Householder vector's tail (its "essential part")
     const double tail = r == 0 ? 0.0 : eigen_sum(r, [&](int64_t i) { return ck[k + 1 + i] * ck[k + 1 + i]; });
     double tau, beta;
     if (tail <= DBL_MIN) {
@@ -473,21 +509,9 @@ void colpiv_solve(std::vector<double>& A, int64_t m, std::vector<double>& b, dou
       for (int64_t i = k + 1; i < m; ++i) ck[i] = ck[i] / (c0 - beta);
       tau = (beta - c0) / beta;
     }
-    hc[k] = tau;
+    qr.hc[k] = tau;
     ck[k] = beta;
-    if (r > 0 && tau != 0.0) {
-      // tmp = essential^T * bottom through Eigen's gemv; its alignment tests use the element offsets from A's start
-      const int64_t ncols = cols - k - 1, ess_off = k * m + k + 1, lhs_off = (k + 1) * m + k + 1;
-      const int64_t start = std::min<int64_t>(r, ess_off % 2);
-      const bool vectorised = !(std::min<int64_t>(r, lhs_off % 2) == r || std::min<int64_t>(ncols, ess_off % 2) == ncols);
-      for (int64_t j = k + 1; j < cols; ++j) {
-        double* cj = col(j);
-        double tmp = eigen_gemv_dot(r, start, vectorised, [&](int64_t i) { return ck[k + 1 + i] * cj[k + 1 + i]; });
-        tmp += cj[k];
-        cj[k] -= tau * tmp;
-        for (int64_t i = k + 1; i < m; ++i) cj[i] -= tmp * (tau * ck[i]);
-      }
-    }
+    householder_right_columns(A, m, k, tau);
     for (int64_t j = k + 1; j < cols; ++j) {
       if (nu[j] == 0.0) continue;
       double t = std::fabs(col(j)[k]) / nu[j];
@@ -502,24 +526,30 @@ void colpiv_solve(std::vector<double>& A, int64_t m, std::vector<double>& b, dou
       }
     }
   }
-  int perm[6] = {0, 1, 2, 3, 4, 5};
-  for (int64_t k = 0; k < size; ++k) std::swap(perm[k], perm[transp[k]]);
-  for (int j = 0; j < cols; ++j) out[j] = 0.0;
-  if (nonzero == 0) return;
-  for (int64_t k = 0; k < nonzero; ++k) {  // b <- H_{k} ... H_0 b
+  for (int64_t k = 0; k < size; ++k) std::swap(qr.perm[k], qr.perm[transp[k]]);
+  return qr;
+}
+
+// ColPivHouseholderQR::solve: Q^T b with the first `nonzero` reflections, back substitution on R's leading block
+// (column-oriented, as Eigen's), zeros for the columns past the rank (the basic solution), un-permuted.
+void colpiv_solve(const std::vector<double>& A, int64_t m, const ColPivQR& qr, std::vector<double>& b, double out[6]) {
+  auto col = [&](int64_t j) { return A.data() + j * m; };
+  for (int j = 0; j < 6; ++j) out[j] = 0.0;
+  if (qr.nonzero == 0) return;
+  for (int64_t k = 0; k < qr.nonzero; ++k) {  // b <- H_{k} ... H_0 b
     const double* ck = col(k);
-    if (m - k == 1 || hc[k] == 0.0) continue;
+    if (m - k == 1 || qr.hc[k] == 0.0) continue;
     double tmp = eigen_sum(m - k - 1, [&](int64_t i) { return ck[k + 1 + i] * b[k + 1 + i]; });
     tmp += b[k];
-    b[k] -= hc[k] * tmp;
-    for (int64_t i = k + 1; i < m; ++i) b[i] -= tmp * (hc[k] * ck[i]);
+    b[k] -= qr.hc[k] * tmp;
+    for (int64_t i = k + 1; i < m; ++i) b[i] -= tmp * (qr.hc[k] * ck[i]);
   }
-  for (int64_t i = nonzero - 1; i >= 0; --i) {  // column-oriented back substitution, as Eigen's
+  for (int64_t i = qr.nonzero - 1; i >= 0; --i) {
     if (b[i] == 0.0) continue;
     b[i] /= col(i)[i];
     for (int64_t r = 0; r < i; ++r) b[r] -= b[i] * col(i)[r];
   }
-  for (int64_t i = 0; i < nonzero; ++i) out[perm[i]] = b[i];
+  for (int64_t i = 0; i < qr.nonzero; ++i) out[qr.perm[i]] = b[i];
 }
 
 struct FitScratch {
@@ -562,7 +592,8 @@ double fit_quadric(const double* o, const double* pts, const int64_t* ind, int64
     s.b[i] = z;
   }
   double c[6];
-  colpiv_solve(s.A, m, s.b, c);
+  const ColPivQR qr = colpiv_decompose(s.A, m);
+  colpiv_solve(s.A, m, qr, s.b, c);
   for (int a = 0; a < 3; ++a) proj[a] = o[a] + c[5] * n[a];
   const double fxx = 2 * c[0], fyy = 2 * c[1], fxy = c[2], fx = c[3], fy = c[4];
   return 0.5 * ((1 + fx * fx) * fyy + (1 + fy * fy) * fxx - 2 * fxy * fx * fy) / std::pow(1 + fx * fx + fy * fy, 1.5);
@@ -572,116 +603,131 @@ double distance(const double* a, const double* b) {
   return std::sqrt((b[0] - a[0]) * (b[0] - a[0]) + (b[1] - a[1]) * (b[1] - a[1]) + (b[2] - a[2]) * (b[2] - a[2]));
 }
 
+// What PCQM's first loop leaves per point of the registered cloud: the projection on the reference (or the nearest
+// reference point, if nearer), both curvatures times max_dim, and the lightness of the nearest reference point.
+struct Projected {
+  std::vector<double> proj, curv_ref, curv_reg, l_proj;
+};
+
+Projected project_and_curve(const Tree& t_ref, const Tree& t_reg, const double* lf, double radius, double max_dim,
+                            int64_t knn) {
+  const int64_t n = t_reg.n;
+  Projected out{std::vector<double>(3 * n), std::vector<double>(n), std::vector<double>(n), std::vector<double>(n)};
+  at::parallel_for(0, n, GRAIN, [&](int64_t begin, int64_t end) {
+    std::vector<int64_t> ki(knn), ind;
+    std::vector<double> kd(knn);
+    std::vector<std::pair<int64_t, double>> hits;
+    FitScratch s;
+    for (int64_t i = begin; i < end; ++i) {
+      const double* o = t_reg.p + 3 * i;
+      std::fill(ki.begin(), ki.end(), 0);  // PCQM's zero-initialised index vector: missing neighbours = point 0
+      Knn res(knn, ki.data(), kd.data());
+      t_ref.find(res, o);
+      double p[3], dummy[3], h[2];
+      fit_quadric(o, t_ref.p, ki.data(), knn, p, s);
+      const Tree* trees[2] = {&t_ref, &t_reg};
+      for (int w = 0; w < 2; ++w) {
+        radius_search(*trees[w], o, radius * radius, true, hits);
+        ind.resize(hits.size());
+        for (size_t j = 0; j < hits.size(); ++j) ind[j] = hits[j].first;
+        h[w] = fit_quadric(o, trees[w]->p, ind.data(), static_cast<int64_t>(ind.size()), dummy, s);
+      }
+      out.curv_ref[i] = std::fabs(h[0]) * max_dim;
+      out.curv_reg[i] = std::fabs(h[1]) * max_dim;
+      const double* near = t_ref.p + 3 * ki[0];
+      const bool keep = distance(o, p) <= distance(o, near);
+      for (int a = 0; a < 3; ++a) out.proj[3 * i + a] = keep ? p[a] : near[a];
+      out.l_proj[i] = lf[ki[0]];
+    }
+  });
+  return out;
+}
+
+// PCQM's compute_statistics for point i: Gaussian weights over its registered neighbours within r2 (of their
+// distance, and of their projections' distance), then the curvature structure, lightness and lightness structure
+// features (PCQM's "me" = registered, "proj" = reference side), written to f[0..2].
+void pool_features(const Tree& t_reg, const Projected& pr, const double* lr, double r2, double var, int64_t i,
+                   std::vector<std::pair<int64_t, double>>& hits, std::vector<double>& wa, std::vector<double>& wb,
+                   double* f) {
+  radius_search(t_reg, t_reg.p + 3 * i, r2, false, hits);
+  const size_t k = hits.size();
+  wa.resize(k), wb.resize(k);
+  double sa = 0.0, sb = 0.0;
+  for (size_t j = 0; j < k; ++j) {
+    const double da = std::sqrt(hits[j].second);
+    const double db = distance(&pr.proj[3 * i], &pr.proj[3 * hits[j].first]);
+    wa[j] = 1.0 / var / std::sqrt(2 * 3.141592) * std::exp(-(da * da) / 2.0 / var / var);
+    wb[j] = 1.0 / var / std::sqrt(2 * 3.141592) * std::exp(-(db * db) / 2.0 / var / var);
+    sa += wa[j], sb += wb[j];
+  }
+  const double *ca = pr.curv_reg.data(), *cb = pr.curv_ref.data(), *lb = pr.l_proj.data();
+  double mu_a = 0.0, mu_b = 0.0, la = 0.0, lm = 0.0, ua = 0.0, ub = 0.0, cnt = 0.0;
+  for (size_t j = 0; j < k; ++j) {
+    const int64_t q = hits[j].first;
+    mu_a += ca[q] * wa[j], mu_b += cb[q] * wb[j];
+    la += lr[q] * wa[j], lm += lb[q] * wb[j];
+    ua += lr[q], ub += lb[q];
+    cnt += 1.0;
+  }
+  mu_a /= sa, mu_b /= sb, la /= sa, lm /= sb, ua /= cnt, ub /= cnt;
+  double va = 0.0, vb = 0.0, cov = 0.0, sda = 0.0, sdb = 0.0, ccov = 0.0;
+  for (size_t j = 0; j < k; ++j) {
+    const int64_t q = hits[j].first;
+    const double ea = std::fabs(ca[q]) - mu_a, eb = std::fabs(cb[q]) - mu_b;
+    va += (ea * ea) * wa[j];  // pow(x, 2.0): GCC emits x * x, the same correctly rounded square
+    vb += (eb * eb) * wb[j];
+    cov += (ea * eb) * wa[j];
+    sda += (lr[q] - ua) * (lr[q] - ua);
+    sdb += (lb[q] - ub) * (lb[q] - ub);
+    ccov += (lr[q] - ua) * (lb[q] - ub);
+  }
+  const double sd_a = std::sqrt(va / sa), sd_b = std::sqrt(vb / sb);
+  cov = cov / sa;
+  double structure = std::fabs(sd_a * sd_b - cov) / ((sd_a * sd_b) + 1.0);
+  if (structure > 1.0) structure = 1.0;
+  f[0] = structure;
+  f[1] = 1.0 / (0.002 * (la - lm) * (la - lm) + 1.0);
+  sda /= cnt, sdb /= cnt;
+  if (sda < 0) sda = 0.0;
+  if (sdb < 0) sdb = 0.0;
+  ccov /= cnt;
+  f[2] = (ccov + 0.1) / (std::sqrt(sda) * std::sqrt(sdb) + 0.1);
+}
+
 }  // namespace
 
-// Phase 1 (PCQM's projection and curvature loop) and phase 2 (compute_statistics) for every point of `reg`.
-// reg: (N, 3) float64, ref: (M, 3) float64, l_reg: (N,), l_ref: (M,) the points' LAB2000HL lightness.
-// Returns (fields (N, 5): geometric structure, colour lightness, colour structure, |H| * max_dim on the reference,
-// |K| * max_dim on the registered cloud; sums (3,): the first three fields summed in point order).
+// PCQM's two loops for every point of `reg`. reg: (N, 3) float64, ref: (M, 3) float64, l_reg: (N,), l_ref: (M,) the
+// points' LAB2000HL lightness. Returns (fields (N, 5): geometric structure, colour lightness, colour structure,
+// |H| * max_dim on the reference, |K| * max_dim on the registered cloud; sums (3,): the first three fields summed
+// in point order, as PCQM accumulates them).
 std::vector<torch::Tensor> pcqm_fields(torch::Tensor reg, torch::Tensor ref, torch::Tensor l_reg, torch::Tensor l_ref,
                                        double radius, double max_dim, int64_t knn, double factor) {
   TORCH_CHECK(reg.dtype() == torch::kFloat64 && ref.dtype() == torch::kFloat64, "pcqm: float64 points expected");
+  TORCH_CHECK(l_reg.dtype() == torch::kFloat64 && l_ref.dtype() == torch::kFloat64, "pcqm: float64 lightness expected");
   reg = reg.contiguous(), ref = ref.contiguous(), l_reg = l_reg.contiguous(), l_ref = l_ref.contiguous();
   const int64_t n = reg.size(0), m = ref.size(0);
   TORCH_CHECK(n > 0 && m > 0 && knn > 0, "pcqm: empty cloud or knn < 1");
-  const double* rp = reg.data_ptr<double>();
-  const double* fp = ref.data_ptr<double>();
-  const double* lr = l_reg.data_ptr<double>();
-  const double* lf = l_ref.data_ptr<double>();
+  TORCH_CHECK(l_reg.numel() == n && l_ref.numel() == m, "pcqm: one lightness per point expected");
   Tree t_ref, t_reg;
-  t_ref.build(fp, m);
-  t_reg.build(rp, n);
-  std::vector<double> proj(3 * n), curv_ref(n), curv_reg(n), l_proj(n);
-  {
-    torch::NoGradGuard guard;
-    at::parallel_for(0, n, GRAIN, [&](int64_t begin, int64_t end) {
-      std::vector<int64_t> ki(knn);
-      std::vector<double> kd(knn);
-      std::vector<std::pair<int64_t, double>> hits;
-      std::vector<int64_t> ind;
-      FitScratch s;
-      for (int64_t i = begin; i < end; ++i) {
-        const double* o = rp + 3 * i;
-        std::fill(ki.begin(), ki.end(), 0);  // PCQM's zero-initialised index vector: missing neighbours = point 0
-        Knn res(knn, ki.data(), kd.data());
-        t_ref.find(res, o);
-        double p[3], dummy[3];
-        fit_quadric(o, fp, ki.data(), knn, p, s);
-        double h[2];
-        const Tree* trees[2] = {&t_ref, &t_reg};
-        for (int w = 0; w < 2; ++w) {
-          radius_search(*trees[w], o, radius * radius, true, hits);
-          ind.resize(hits.size());
-          for (size_t j = 0; j < hits.size(); ++j) ind[j] = hits[j].first;
-          h[w] = fit_quadric(o, trees[w]->p, ind.data(), static_cast<int64_t>(ind.size()), dummy, s);
-        }
-        curv_ref[i] = std::fabs(h[0]) * max_dim;
-        curv_reg[i] = std::fabs(h[1]) * max_dim;
-        const double* near = fp + 3 * ki[0];
-        const bool keep = distance(o, p) <= distance(o, near);
-        for (int a = 0; a < 3; ++a) proj[3 * i + a] = keep ? p[a] : near[a];
-        l_proj[i] = lf[ki[0]];
-      }
-    });
-  }
+  t_ref.build(ref.data_ptr<double>(), m);
+  t_reg.build(reg.data_ptr<double>(), n);
+  const Projected pr = project_and_curve(t_ref, t_reg, l_ref.data_ptr<double>(), radius, max_dim, knn);
   auto fields = torch::empty({n, 5}, torch::kFloat64);
   double* out = fields.data_ptr<double>();
+  const double* lr = l_reg.data_ptr<double>();
   const double search = radius * factor, var = search / 2.0, r2 = std::pow(search, 2.0);
   at::parallel_for(0, n, GRAIN, [&](int64_t begin, int64_t end) {
     std::vector<std::pair<int64_t, double>> hits;
     std::vector<double> wa, wb;
     for (int64_t i = begin; i < end; ++i) {
-      radius_search(t_reg, rp + 3 * i, r2, false, hits);
-      const size_t k = hits.size();
-      wa.resize(k), wb.resize(k);
-      double sa = 0.0, sb = 0.0;
-      for (size_t j = 0; j < k; ++j) {
-        const double da = std::sqrt(hits[j].second);
-        const double db = distance(&proj[3 * i], &proj[3 * hits[j].first]);
-        wa[j] = 1.0 / var / std::sqrt(2 * 3.141592) * std::exp(-(da * da) / 2.0 / var / var);
-        wb[j] = 1.0 / var / std::sqrt(2 * 3.141592) * std::exp(-(db * db) / 2.0 / var / var);
-        sa += wa[j], sb += wb[j];
-      }
-      // geometric structure (PCQM's compute_geometric_feature; "me" = registered, "proj" = reference curvature)
-      double mu_a = 0.0, mu_b = 0.0, la = 0.0, lb = 0.0, ua = 0.0, ub = 0.0, cnt = 0.0;
-      for (size_t j = 0; j < k; ++j) {
-        const int64_t q = hits[j].first;
-        mu_a += curv_reg[q] * wa[j], mu_b += curv_ref[q] * wb[j];
-        la += lr[q] * wa[j], lb += l_proj[q] * wb[j];
-        ua += lr[q], ub += l_proj[q];
-        cnt += 1.0;
-      }
-      mu_a /= sa, mu_b /= sb, la /= sa, lb /= sb, ua /= cnt, ub /= cnt;
-      double va = 0.0, vb = 0.0, cov = 0.0, sda = 0.0, sdb = 0.0, ccov = 0.0;
-      for (size_t j = 0; j < k; ++j) {
-        const int64_t q = hits[j].first;
-        const double ea = std::fabs(curv_reg[q]) - mu_a, eb = std::fabs(curv_ref[q]) - mu_b;
-        va += (ea * ea) * wa[j];  // pow(x, 2.0): GCC emits x * x, the same correctly rounded square
-        vb += (eb * eb) * wb[j];
-        cov += (ea * eb) * wa[j];
-        sda += (lr[q] - ua) * (lr[q] - ua);
-        sdb += (l_proj[q] - ub) * (l_proj[q] - ub);
-        ccov += (lr[q] - ua) * (l_proj[q] - ub);
-      }
-      const double sd_a = std::sqrt(va / sa), sd_b = std::sqrt(vb / sb);
-      cov = cov / sa;
-      double structure = std::fabs(sd_a * sd_b - cov) / ((sd_a * sd_b) + 1.0);
-      if (structure > 1.0) structure = 1.0;
-      double* f = out + 5 * i;
-      f[0] = structure;
-      f[1] = 1.0 / (0.002 * (la - lb) * (la - lb) + 1.0);
-      sda /= cnt, sdb /= cnt;
-      if (sda < 0) sda = 0.0;
-      if (sdb < 0) sdb = 0.0;
-      ccov /= cnt;
-      f[2] = (ccov + 0.1) / (std::sqrt(sda) * std::sqrt(sdb) + 0.1);
-      f[3] = curv_ref[i];
-      f[4] = curv_reg[i];
+      pool_features(t_reg, pr, lr, r2, var, i, hits, wa, wb, out + 5 * i);
+      out[5 * i + 3] = pr.curv_ref[i];
+      out[5 * i + 4] = pr.curv_reg[i];
     }
   });
   auto sums = torch::zeros({3}, torch::kFloat64);
   double* s = sums.data_ptr<double>();
-  for (int64_t i = 0; i < n; ++i)  // PCQM accumulates f3, f4, f6 point after point
+  for (int64_t i = 0; i < n; ++i)
     for (int c = 0; c < 3; ++c) s[c] += out[5 * i + c];
   return {fields, sums};
 }
