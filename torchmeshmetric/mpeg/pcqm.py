@@ -146,7 +146,8 @@ def mpeg_pcqm(
     equidistant points.
 
     Args:
-        ref: ``(N, 3)`` cloud A with optional ``(N, 3)`` RGB colours in ``[0, 255]`` (white without).
+        ref: ``(N, 3)`` cloud A (positions rounded to float32, as mmetric holds them) with optional ``(N, 3)`` RGB
+            colours in ``[0, 255]`` (white without; truncated to integers, as PCQM does).
         dis: ``(M, 3)`` cloud B, likewise.
         radius_curvature: mm's ``--radiusCurvature``: the curvature neighbourhood radius relative to A's box.
         knn: mm's ``--thresholdKnnSearch``: the neighbours of the projection quadric.
