@@ -112,6 +112,10 @@ def _tie_cases() -> list[tuple[np.ndarray, np.ndarray]]:
     line[:, 0] = rng.integers(0, 50, 200)
     cases.append(((rng.integers(0, 60, (300, 3)) / 3).astype(np.float32), line))
     cases.append(((rng.random((200, 3)) * 5 + 1000).astype(np.float32), rng.random((500, 3)).astype(np.float32)))
+    # queries far from a lattice, equidistant to several of its points: the kd-tree answers both searches
+    cube = np.stack(np.meshgrid(*[np.arange(3.0)] * 3, indexing="ij"), -1).reshape(-1, 3).astype(np.float32)
+    cases.append(((np.array([[1, 1, 60], [0.5, 0.5, -40], [1, 80, 1]]) + rng.integers(0, 2, (3, 3)) / 2).astype(
+        np.float32), cube))  # fmt: skip
     far = (1e5 + rng.integers(0, 40, (800, 3)) / 64).astype(np.float32)
     cases.append((far[:300] + np.float32(1 / 128), far))
     return cases

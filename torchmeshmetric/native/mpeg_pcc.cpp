@@ -2,7 +2,8 @@
 // the nearest-neighbour search with mpeg-pcc-dmetric's distance arithmetic and its rule for equidistant neighbours.
 //
 // Distances are dmetric's: float32 coordinate differences, squares summed in double as (dx*dx + dy*dy) + dz*dz.
-// Neighbours are ranked by (squared distance, index), so the answers do not depend on the tree, the thread count or
+// Neighbours are ranked by (squared distance, index), so the answers do not depend on the search structure (a grid of
+// columns for near queries, a kd-tree for far ones), the thread count or
 // the query order. Built with -ffp-contract=off (no fused multiply-add): every operation rounds as written.
 #include <torch/extension.h>
 
@@ -15,10 +16,12 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <mutex>
 #include <vector>
 
 namespace {
 
+constexpr int LEAF = 8;          // points per kd-tree leaf
 constexpr int MAX_K = 30;        // dmetric's num_results_max
 constexpr int FIRST_K = 10;      // dmetric's first search of a query with equidistant neighbours
 constexpr int STEP_K = 5;        // dmetric's num_results_incr
@@ -35,6 +38,129 @@ inline double mpeg_sq(float qx, float qy, float qz, float rx, float ry, float rz
   const double dz = static_cast<double>(qz - rz);
   double s = dx * dx + dy * dy;
   s += dz * dz;
+  return s;
+}
+
+// An inner node holds both children's boxes, so that a pruned child is never read. A child reference >= 0 is an
+// inner node; a leaf is ~start (< 0) with its point count.
+struct KdNode {
+  float lo[2][3], hi[2][3];
+  int32_t child[2], count[2];
+};
+
+struct Box {
+  float lo[3], hi[3];
+};
+
+// A kd-tree of median splits on the longest side; the points copied in tree order, one array per coordinate.
+struct KdTree {
+  std::vector<KdNode> nodes;
+  int32_t root = 0, root_count = 0;
+  Box root_box{};
+  std::vector<int64_t> perm;  // tree slot -> original index
+  std::vector<float> xs, ys, zs;
+};
+
+struct Slot {
+  float c[3];
+  int64_t idx;
+};
+
+int64_t inner_count(int64_t n) { return n <= LEAF ? 0 : 1 + inner_count(n / 2) + inner_count(n - n / 2); }
+
+// Node over slots [begin, end): the axis is chosen on `approx` (the parent's box cut at the split), the box kept is
+// the tight one, from the children up. Inner nodes are numbered in depth-first order from `id`.
+int32_t build_node(KdTree& t, Slot* sl, int64_t begin, int64_t end, const Box& approx, int64_t id, Box& tight,
+                   bool parallel) {
+  if (end - begin <= LEAF) {
+    for (int a = 0; a < 3; ++a) {
+      tight.lo[a] = std::numeric_limits<float>::infinity();
+      tight.hi[a] = -std::numeric_limits<float>::infinity();
+    }
+    for (int64_t i = begin; i < end; ++i)
+      for (int a = 0; a < 3; ++a) {
+        tight.lo[a] = std::min(tight.lo[a], sl[i].c[a]);
+        tight.hi[a] = std::max(tight.hi[a], sl[i].c[a]);
+      }
+    return static_cast<int32_t>(~begin);
+  }
+  int axis = 0;
+  for (int a = 1; a < 3; ++a)
+    if (approx.hi[a] - approx.lo[a] > approx.hi[axis] - approx.lo[axis]) axis = a;
+  const int64_t mid = begin + (end - begin) / 2;
+  std::nth_element(sl + begin, sl + mid, sl + end,
+                   [axis](const Slot& u, const Slot& v) { return u.c[axis] < v.c[axis]; });
+  Box sub[2] = {approx, approx}, got[2];
+  sub[0].hi[axis] = sl[mid].c[axis];
+  sub[1].lo[axis] = sl[mid].c[axis];
+  const int64_t first[2] = {id + 1, id + 1 + inner_count(mid - begin)};
+  const int64_t lo_[2] = {begin, mid}, hi_[2] = {mid, end};
+  int32_t ref[2];
+  const auto side = [&](int c) { ref[c] = build_node(t, sl, lo_[c], hi_[c], sub[c], first[c], got[c], false); };
+  if (parallel) {
+    at::parallel_for(0, 2, 1, [&](int64_t b, int64_t e) {
+      for (int64_t c = b; c < e; ++c) side(static_cast<int>(c));
+    });
+  } else {
+    side(0);
+    side(1);
+  }
+  KdNode& nd = t.nodes[id];
+  for (int c = 0; c < 2; ++c) {
+    nd.child[c] = ref[c];
+    nd.count[c] = static_cast<int32_t>(hi_[c] - lo_[c]);
+    for (int a = 0; a < 3; ++a) {
+      nd.lo[c][a] = got[c].lo[a];
+      nd.hi[c][a] = got[c].hi[a];
+    }
+  }
+  for (int a = 0; a < 3; ++a) {
+    tight.lo[a] = std::min(got[0].lo[a], got[1].lo[a]);
+    tight.hi[a] = std::max(got[0].hi[a], got[1].hi[a]);
+  }
+  return static_cast<int32_t>(id);
+}
+
+KdTree build_tree(const float* p, int64_t n) {
+  KdTree t;
+  std::vector<Slot> sl(static_cast<size_t>(n));
+  Box box;
+  for (int a = 0; a < 3; ++a) {
+    box.lo[a] = std::numeric_limits<float>::infinity();
+    box.hi[a] = -std::numeric_limits<float>::infinity();
+  }
+  for (int64_t i = 0; i < n; ++i) {
+    sl[i] = Slot{{p[3 * i], p[3 * i + 1], p[3 * i + 2]}, i};
+    for (int a = 0; a < 3; ++a) {
+      box.lo[a] = std::min(box.lo[a], p[3 * i + a]);
+      box.hi[a] = std::max(box.hi[a], p[3 * i + a]);
+    }
+  }
+  t.nodes.resize(static_cast<size_t>(inner_count(n)));
+  t.root = build_node(t, sl.data(), 0, n, box, 0, t.root_box, true);
+  t.root_count = static_cast<int32_t>(n);
+  // padded by a leaf so that every leaf's distances are computed in one straight loop
+  t.perm.resize(n);
+  t.xs.assign(n + LEAF, 0.0f);
+  t.ys.assign(n + LEAF, 0.0f);
+  t.zs.assign(n + LEAF, 0.0f);
+  for (int64_t i = 0; i < n; ++i) {
+    t.perm[i] = sl[i].idx;
+    t.xs[i] = sl[i].c[0];
+    t.ys[i] = sl[i].c[1];
+    t.zs[i] = sl[i].c[2];
+  }
+  return t;
+}
+
+// Lower bound of mpeg_sq over a box, per axis the gap in double. The float32 difference of a point in the box can
+// round below the exact gap by a relative 2^-24, so callers compare it with their bound widened by WIDEN.
+inline double box_gap_sq(const float* lo, const float* hi, const float* q) {
+  double s = 0;
+  for (int a = 0; a < 3; ++a) {
+    const double d = std::max({static_cast<double>(lo[a]) - q[a], static_cast<double>(q[a]) - hi[a], 0.0});
+    s += d * d;
+  }
   return s;
 }
 
@@ -57,6 +183,32 @@ struct ColumnGrid {
   }
   int64_t column_of(const float* p) const { return cell(p[a0], o0, g0) * g1 + cell(p[a1], o1, g1); }
 };
+
+// The points in the column order of grid g: by column, then along the column axis (ties by index); the column
+// offsets in `start` when asked.
+std::vector<int64_t> column_order(const ColumnGrid& g, const float* p, int64_t n, std::vector<int64_t>* start) {
+  const int64_t cols = g.g0 * g.g1;
+  std::vector<int64_t> col(static_cast<size_t>(n));
+  at::parallel_for(0, n, 1 << 14, [&](int64_t b, int64_t e) {
+    for (int64_t i = b; i < e; ++i) col[i] = g.column_of(p + 3 * i);
+  });
+  std::vector<int64_t> first(static_cast<size_t>(cols + 1), 0);
+  for (int64_t i = 0; i < n; ++i) ++first[col[i] + 1];
+  for (int64_t c = 0; c < cols; ++c) first[c + 1] += first[c];
+  std::vector<int64_t> order(static_cast<size_t>(n));
+  {
+    std::vector<int64_t> fill(first.begin(), first.end() - 1);
+    for (int64_t i = 0; i < n; ++i) order[fill[col[i]]++] = i;  // ascending index within a column
+  }
+  const int ac = g.ac;
+  at::parallel_for(0, cols, 256, [&](int64_t b, int64_t e) {
+    for (int64_t c = b; c < e; ++c)
+      std::stable_sort(order.begin() + first[c], order.begin() + first[c + 1],
+                       [p, ac](int64_t u, int64_t v) { return p[3 * u + ac] < p[3 * v + ac]; });
+  });
+  if (start != nullptr) *start = std::move(first);
+  return order;
+}
 
 ColumnGrid build_grid(const float* p, int64_t n) {
   ColumnGrid g;
@@ -88,25 +240,7 @@ ColumnGrid build_grid(const float* p, int64_t n) {
   g.o1 = lo[g.a1];
   g.g0 = std::max<int64_t>(1, std::min<int64_t>(static_cast<int64_t>(ext[g.a0] * g.inv_h) + 1, 2048));
   g.g1 = std::max<int64_t>(1, std::min<int64_t>(static_cast<int64_t>(ext[g.a1] * g.inv_h) + 1, 2048));
-  const int64_t cols = g.g0 * g.g1;
-  std::vector<int64_t> col(static_cast<size_t>(n));
-  at::parallel_for(0, n, 1 << 14, [&](int64_t b, int64_t e) {
-    for (int64_t i = b; i < e; ++i) col[i] = g.column_of(p + 3 * i);
-  });
-  g.start.assign(static_cast<size_t>(cols + 1), 0);
-  for (int64_t i = 0; i < n; ++i) ++g.start[col[i] + 1];
-  for (int64_t c = 0; c < cols; ++c) g.start[c + 1] += g.start[c];
-  g.idx.resize(static_cast<size_t>(n));
-  {
-    std::vector<int64_t> fill(g.start.begin(), g.start.end() - 1);
-    for (int64_t i = 0; i < n; ++i) g.idx[fill[col[i]]++] = i;  // ascending index within a column
-  }
-  const int ac = g.ac;
-  at::parallel_for(0, cols, 256, [&](int64_t b, int64_t e) {
-    for (int64_t c = b; c < e; ++c)
-      std::stable_sort(g.idx.begin() + g.start[c], g.idx.begin() + g.start[c + 1],
-                       [p, ac](int64_t u, int64_t v) { return p[3 * u + ac] < p[3 * v + ac]; });
-  });
+  g.idx = column_order(g, p, n, &g.start);
   for (int a = 0; a < 3; ++a) g.xyz[a].resize(static_cast<size_t>(n));
   at::parallel_for(0, n, 1 << 14, [&](int64_t b, int64_t e) {
     for (int64_t s = b; s < e; ++s)
@@ -135,6 +269,56 @@ struct Best {
   }
   double keep() const { return n < k ? std::numeric_limits<double>::infinity() : sq[k - 1]; }
 };
+
+// Depth-first search of the kd-tree, nearer child first, of every box within `bound(best)` (a bound widened by
+// WIDEN: box gaps are exact, the float32 differences of the points inside may be smaller).
+template <typename Bound>
+void kd_search(const KdTree& t, const float* q, Best& best, const Bound& bound) {
+  const KdNode* nd = t.nodes.data();
+  int32_t stack[64], stack_n[64];
+  double stack_d[64];
+  int top = 0;
+  int32_t ref = t.root, cnt = t.root_count;
+  double dn = box_gap_sq(t.root_box.lo, t.root_box.hi, q);
+  double b = bound(best);
+  for (;;) {
+    if (dn <= b) {
+      if (ref < 0) {
+        const int32_t start = ~ref;
+        double sq[LEAF];
+        for (int l = 0; l < LEAF; ++l) {
+          const int32_t j = start + l;
+          sq[l] = mpeg_sq(q[0], q[1], q[2], t.xs[j], t.ys[j], t.zs[j]);
+        }
+        const double keep = best.n < best.k ? std::numeric_limits<double>::infinity() : best.sq[best.k - 1];
+        for (int l = 0; l < cnt; ++l)
+          if (sq[l] <= keep) best.offer(sq[l], t.perm[start + l]);
+        b = bound(best);
+      } else {
+        const KdNode& node = nd[ref];
+        const double d0 = box_gap_sq(node.lo[0], node.hi[0], q), d1 = box_gap_sq(node.lo[1], node.hi[1], q);
+        const int near = d0 <= d1 ? 0 : 1;
+        const double dfar = near == 0 ? d1 : d0;
+        if (dfar <= b) {
+          stack[top] = node.child[1 - near];
+          stack_n[top] = node.count[1 - near];
+          stack_d[top] = dfar;
+          ++top;
+        }
+        ref = node.child[near];
+        cnt = node.count[near];
+        dn = near == 0 ? d0 : d1;
+        continue;
+      }
+    }
+    if (top == 0) break;
+    --top;
+    ref = stack[top];
+    cnt = stack_n[top];
+    dn = stack_d[top];
+  }
+}
+
 
 // u - r and u + r rounded outwards (a double subtraction is off by half an ulp of its result at most)
 inline double down(double u, double r) {
@@ -171,13 +355,13 @@ void visit(const ColumnGrid& g, const float* q, double r, Best& best) {
 }
 
 // The points ranked by (mpeg_sq, index) up to what `bound(best)` asks: visits within a radius r0, and while a point
-// within the bound could lie beyond the radius visited, again within a larger radius. The answer depends on the
-// points only, not on the grid, the seed or r0.
+// within the bound could lie beyond the radius visited, again within a larger radius, up to r_max. Returns whether
+// the answer is complete (it then depends on the points only, not on the grid, the seed or r0); past r_max the
+// column grid would visit many columns and points per query, and the caller searches the kd-tree instead.
 template <typename Bound>
-void search(const ColumnGrid& g, const float* q, int64_t seed, const float* tp, double r0, Best& best,
+bool search(const ColumnGrid& g, const float* q, int64_t seed, const float* tp, double r0, double r_max, Best& best,
             const Bound& bound) {
-  double r = r0;
-  for (;;) {
+  for (double r = r0;;) {
     best.n = 0;
     if (seed >= 0) {
       const float* s = tp + 3 * seed;
@@ -185,11 +369,27 @@ void search(const ColumnGrid& g, const float* q, int64_t seed, const float* tp, 
     }
     visit(g, q, r, best);
     const double b = bound(best) * WIDEN;
-    if (b <= r * r) return;
-    // a radius past the whole cloud visits every point, and then the bound (finite: k <= points) is within it
-    r = std::isfinite(b) ? std::max(2 * r, std::sqrt(b) * (1 + 1e-6)) : 2 * r;
+    if (b <= r * r) return true;
+    if (r >= r_max) return false;
+    r = std::min(r_max, std::isfinite(b) ? std::max(2 * r, std::sqrt(b) * (1 + 1e-6)) : 2 * r);
   }
 }
+
+// The kd-tree of a cloud, built on first use (only clouds with queries far from them need one).
+class LazyTree {
+ public:
+  LazyTree(const float* p, int64_t n) : p_(p), n_(n) {}
+  const KdTree& get() {
+    std::call_once(once_, [this] { tree_ = build_tree(p_, n_); });
+    return tree_;
+  }
+
+ private:
+  const float* p_;
+  int64_t n_;
+  std::once_flag once_;
+  KdTree tree_;
+};
 
 void check_points(const torch::Tensor& p, const char* name) {
   TORCH_CHECK(p.device().is_cpu() && p.is_contiguous() && p.scalar_type() == torch::kFloat32 && p.dim() == 2 &&
@@ -295,10 +495,11 @@ std::vector<torch::Tensor> mpeg_merge(torch::Tensor points, torch::Tensor normal
 // candidates padded with -1 / inf.
 namespace {
 
-// mpeg_nearest_ties over built grids; the queries run in the column order of their own cloud (near in space), each
-// seeded with the previous one's nearest point.
-std::vector<torch::Tensor> nearest_ties(const torch::Tensor& query, const ColumnGrid& qgrid,
-                                        const torch::Tensor& target, const ColumnGrid& grid) {
+// mpeg_nearest_ties over the target's grid; the queries run in that grid's column order (consecutive queries visit
+// the same columns), each seeded with the previous one's nearest point. Queries whose answer lies farther than two
+// column sides (clouds far apart) are answered by the target's kd-tree, with the same ranking.
+std::vector<torch::Tensor> nearest_ties(const torch::Tensor& query, const torch::Tensor& target,
+                                        const ColumnGrid& grid, LazyTree& tree) {
   const int64_t Q = query.size(0), T = target.size(0);
   const float* qp = query.data_ptr<float>();
   const float* tp = target.data_ptr<float>();
@@ -308,16 +509,23 @@ std::vector<torch::Tensor> nearest_ties(const torch::Tensor& query, const Column
   int64_t* nearest = nearest_t.data_ptr<int64_t>();
   double* sq = sq_t.data_ptr<double>();
   bool* tie = tie_t.data_ptr<bool>();
-  const double h = 1.0 / grid.inv_h;
+  const double h = 1.0 / grid.inv_h, r_max = 2 * h;
+  const std::vector<int64_t> qorder = column_order(grid, qp, Q, nullptr);
+  std::vector<uint8_t> far(static_cast<size_t>(Q), 0);
   // The nearest and the second by rank, searched only as far as a tie could reach: all points within 1e-20 of the
   // nearest are visited, so the second is exact whenever it is a tie, and a farther second is no tie either way.
   const auto tie_bound = [](const Best& b) {
     return b.n == 0 ? std::numeric_limits<double>::infinity() : b.sq[0] + SIMILAR;
   };
+  const auto one = [&](int64_t i, const Best& best) {
+    nearest[i] = best.idx[0];
+    sq[i] = best.sq[0];
+    tie[i] = best.n == 2 && best.sq[1] - best.sq[0] < SIMILAR;
+  };
   at::parallel_for(0, Q, GRAIN, [&](int64_t s0, int64_t e) {
     int64_t prev = -1;
     for (int64_t s = s0; s < e; ++s) {
-      const int64_t i = qgrid.idx[s];
+      const int64_t i = qorder[s];
       const float* q = qp + 3 * i;
       Best best{2};
       // the previous query's nearest point bounds the radius when it is near (most queries: the next point of the
@@ -327,13 +535,29 @@ std::vector<torch::Tensor> nearest_ties(const torch::Tensor& query, const Column
         const float* t = tp + 3 * prev;
         r0 = std::min(h, std::sqrt((mpeg_sq(q[0], q[1], q[2], t[0], t[1], t[2]) + SIMILAR) * WIDEN) * (1 + 1e-6));
       }
-      search(grid, q, prev, tp, r0, best, tie_bound);
-      nearest[i] = best.idx[0];
-      sq[i] = best.sq[0];
-      tie[i] = best.n == 2 && best.sq[1] - best.sq[0] < SIMILAR;
-      prev = best.idx[0];
+      if (search(grid, q, prev, tp, r0, r_max, best, tie_bound)) {
+        one(i, best);
+        prev = best.idx[0];
+      } else {
+        far[i] = 1;
+        prev = -1;
+      }
     }
   });
+  std::vector<int64_t> far_rows;
+  for (int64_t i = 0; i < Q; ++i)
+    if (far[i]) far_rows.push_back(i);
+  if (!far_rows.empty()) {
+    const KdTree& kd = tree.get();
+    const auto kd_tie_bound = [&](const Best& b) { return tie_bound(b) * WIDEN; };
+    at::parallel_for(0, static_cast<int64_t>(far_rows.size()), GRAIN, [&](int64_t s0, int64_t e) {
+      for (int64_t s = s0; s < e; ++s) {
+        Best best{2};
+        kd_search(kd, qp + 3 * far_rows[s], best, kd_tie_bound);
+        one(far_rows[s], best);
+      }
+    });
+  }
   auto rows_t = torch::nonzero(tie_t).reshape({-1}).contiguous();
   const int64_t S = rows_t.size(0);
   const int kmax = static_cast<int>(std::min<int64_t>(MAX_K, T));
@@ -344,11 +568,16 @@ std::vector<torch::Tensor> nearest_ties(const torch::Tensor& query, const Column
   int64_t* cand = cand_t.data_ptr<int64_t>();
   double* csq = csq_t.data_ptr<double>();
   const auto k_bound = [](const Best& b) { return b.keep(); };
+  const auto kd_k_bound = [](const Best& b) { return b.keep() * WIDEN; };
   int used = kfirst;
   at::parallel_for(0, S, 16, [&](int64_t s0, int64_t e) {
     for (int64_t s = s0; s < e; ++s) {
       Best best{kmax};
-      search(grid, qp + 3 * rows[s], nearest[rows[s]], tp, h, best, k_bound);
+      const float* q = qp + 3 * rows[s];
+      if (!search(grid, q, nearest[rows[s]], tp, h, r_max, best, k_bound)) {
+        best.n = 0;
+        kd_search(tree.get(), q, best, kd_k_bound);
+      }
       // dmetric's widening: the first 10, then 5 more while the k found are all equally far; the ranking by
       // (distance, index) makes the first k of the 30 nearest the k nearest
       int k = kfirst;
@@ -372,8 +601,8 @@ std::vector<torch::Tensor> mpeg_nearest_ties(torch::Tensor query, torch::Tensor 
   check_points(target, "mpeg_nearest_ties: target");
   TORCH_CHECK(target.size(0) > 0, "mpeg_nearest_ties: empty target");
   const ColumnGrid grid = build_grid(target.data_ptr<float>(), target.size(0));
-  const ColumnGrid qgrid = build_grid(query.data_ptr<float>(), query.size(0));
-  return nearest_ties(query, qgrid, target, grid);
+  LazyTree tree(target.data_ptr<float>(), target.size(0));
+  return nearest_ties(query, target, grid, tree);
 }
 
 // Both directions of the comparison (a -> b, then b -> a: ten tensors), each cloud's grid built once.
@@ -383,8 +612,9 @@ std::vector<torch::Tensor> mpeg_nearest_ties_both(torch::Tensor a, torch::Tensor
   TORCH_CHECK(a.size(0) > 0 && b.size(0) > 0, "mpeg_nearest_ties_both: empty cloud");
   const ColumnGrid ga = build_grid(a.data_ptr<float>(), a.size(0));
   const ColumnGrid gb = build_grid(b.data_ptr<float>(), b.size(0));
-  std::vector<torch::Tensor> out = nearest_ties(a, ga, b, gb);
-  std::vector<torch::Tensor> back = nearest_ties(b, gb, a, ga);
+  LazyTree ta(a.data_ptr<float>(), a.size(0)), tb(b.data_ptr<float>(), b.size(0));
+  std::vector<torch::Tensor> out = nearest_ties(a, b, gb, tb);
+  std::vector<torch::Tensor> back = nearest_ties(b, a, ga, ta);
   out.insert(out.end(), back.begin(), back.end());
   return out;
 }
