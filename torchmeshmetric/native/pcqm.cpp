@@ -13,10 +13,14 @@
 // basic solution for the many rank-deficient neighbourhoods of fewer than 6 points and its vectorised summation
 // orders. Neighbourhoods of 1 or 2 points have a frame fixed by rounding alone, and ill-conditioned fits amplify last
 // bits into the printed figures, so nothing less reproduces mm; the per-point fields are bit-identical to PCQM's.
-// Built with -ffp-contract=off: every operation rounds as written.
+// The points are shared among threads in chunks that an idle thread takes over (tmm::chunked_for): each point's
+// figures are independent, and the three sums are added in point order afterwards, so the thread count changes
+// nothing. Built with -ffp-contract=off: every operation rounds as written.
 #include <torch/extension.h>
 
 #include <ATen/Parallel.h>
+
+#include "parallel.h"
 
 #include <algorithm>
 #include <cfloat>
@@ -613,7 +617,7 @@ Projected project_and_curve(const Tree& t_ref, const Tree& t_reg, const double* 
                             int64_t knn) {
   const int64_t n = t_reg.n;
   Projected out{std::vector<double>(3 * n), std::vector<double>(n), std::vector<double>(n), std::vector<double>(n)};
-  at::parallel_for(0, n, GRAIN, [&](int64_t begin, int64_t end) {
+  tmm::chunked_for(n, GRAIN, [&](int64_t begin, int64_t end) {
     std::vector<int64_t> ki(knn), ind;
     std::vector<double> kd(knn);
     std::vector<std::pair<int64_t, double>> hits;
@@ -716,7 +720,7 @@ std::vector<torch::Tensor> pcqm_fields(torch::Tensor reg, torch::Tensor ref, tor
   double* out = fields.data_ptr<double>();
   const double* lr = l_reg.data_ptr<double>();
   const double search = radius * factor, var = search / 2.0, r2 = std::pow(search, 2.0);
-  at::parallel_for(0, n, GRAIN, [&](int64_t begin, int64_t end) {
+  tmm::chunked_for(n, GRAIN, [&](int64_t begin, int64_t end) {
     std::vector<std::pair<int64_t, double>> hits;
     std::vector<double> wa, wb;
     for (int64_t i = begin; i < end; ++i) {
