@@ -66,12 +66,49 @@ def _run_pcqm(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_topology(args: argparse.Namespace) -> int:
+    """``--mode topo``: mmetric's topology verdict in its words (or JSON); exit status 0 when matching, 1 otherwise."""
+    from dataclasses import asdict
+
+    from torchmeshmetric.cli._shared import CLIError
+    from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
+    from torchmeshmetric.mpeg.topology import topology_equivalence
+
+    if args.face_map is None or args.vertex_map is None:
+        raise CLIError(
+            "--mode topo needs --face-map FILE and --vertex-map FILE (mmetric's --faceMapFile/--vertexMapFile)"
+        )
+    ref = load_textured_mesh(args.ref, args.ref_texture)
+    dis = load_textured_mesh(args.dis, args.dis_texture)
+    result = topology_equivalence(ref, dis, args.face_map, args.vertex_map)
+    print(json.dumps(asdict(result), indent=1) if args.json else result.report())
+    return 0 if result.matching else 1
+
+
+def _run_tfan(args: argparse.Namespace) -> int:
+    """``--mode eqTFAN``: mmetric's TFAN connectivity verdict in its words; exit status 0 when equal, 1 otherwise."""
+    from torchmeshmetric.mpeg.tfan_comparison import load_tfan_mesh, tfan_equality
+
+    report = tfan_equality(load_tfan_mesh(args.ref), load_tfan_mesh(args.dis), early_return=not args.all_differences)
+    print(json.dumps({"equal": report.endswith(" meshes are equal"), "report": report}) if args.json else report)
+    return 0 if report.endswith(" meshes are equal") else 1
+
+
 def _run(args: argparse.Namespace) -> int:
-    from torchmeshmetric.mpeg.mpeg_metrics import mpeg_metrics
+    from torchmeshmetric.cli.mpeg_outputs import check_outputs, run_ibsm, write_pcc_outputs
+    from torchmeshmetric.mpeg.comparison import mpeg_compare
+    from torchmeshmetric.mpeg.mpeg_metrics import mpeg_point_clouds
     from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
 
+    check_outputs(args)
     if args.mode == "equ":
         return _run_equality(args)
+    if args.mode == "topo":
+        return _run_topology(args)
+    if args.mode == "eqTFAN":
+        return _run_tfan(args)
+    if args.mode == "ibsm":
+        return run_ibsm(args)
     if args.mode == "pcqm":
         return _run_pcqm(args)
 
@@ -80,7 +117,7 @@ def _run(args: argparse.Namespace) -> int:
         box = (corner(args.box[0], "--box MIN"), corner(args.box[1], "--box MAX"))
     ref = load_textured_mesh(args.ref, args.ref_texture)
     dis = load_textured_mesh(args.dis, args.dis_texture)
-    result = mpeg_metrics(
+    clouds = mpeg_point_clouds(
         ref,
         dis,
         sampling=args.sampling,
@@ -90,6 +127,8 @@ def _run(args: argparse.Namespace) -> int:
         bilinear=not args.nearest,
         names=(f"REF {args.ref!r}", f"DIS {args.dis!r}"),
     )
+    result = mpeg_compare(clouds.ref, clouds.dis, peak=clouds.peak)
+    write_pcc_outputs(args, clouds, result)
     d = result.to_dict()
     d["sampling"] = "grid" if args.sampling == "grid" else "mesh"
     if args.sampling == "grid":
@@ -115,7 +154,8 @@ def add_mpeg_command(sub: Any) -> None:
         "*sequence's* box and passes the sequence box's longest side as --resolution -- use 'torchmeshmetric ctc' for "
         "it. --sampling mesh is mm compare --mode pcc on the meshes. Textures come from the OBJ's MTL (map_Kd) "
         "unless given. --mode equ is mm compare --mode equ instead: are the two meshes the same triangles in any order "
-        "(exit status 0 when equal, 1 otherwise).",
+        "(exit status 0 when equal, 1 otherwise). --mode topo is mm compare --mode topo: is DIS the connectivity of "
+        "REF under --face-map and --vertex-map (exit status 0 when matching, 1 otherwise).",
     )
     p.add_argument("ref", metavar="REF", help="reference mesh (OBJ/PLY; OBJ with MTL + texture for colour)")
     p.add_argument("dis", metavar="DIS", help="distorted mesh")
@@ -144,11 +184,25 @@ def add_mpeg_command(sub: Any) -> None:
     p.add_argument("--json", action="store_true", help='print one JSON object (non-finite values as "inf")')
     p.add_argument(
         "--mode",
-        choices=("pcc", "equ", "pcqm"),
+        choices=("pcc", "equ", "eqTFAN", "topo", "ibsm", "pcqm"),
         default="pcc",
-        help="pcc: the D1/D2/colour figures (default); equ: mm compare --mode equ, the equality verdict; pcqm: mm "
+        help="pcc: the D1/D2/colour figures (default); equ: mm compare --mode equ, the equality verdict; eqTFAN: mm "
+        "compare --mode eqTFAN, the triangle-fan connectivity verdict; topo: mm "
+        "compare --mode topo, the topology verdict; ibsm: mm compare --mode ibsm, the image-based figures; pcqm: mm "
         "compare --mode pcqm, the PCQM score and its PSNR (meshes sampled as mm compare does; point-cloud PLY files "
         "used as they are)",
+    )
+    p.add_argument(
+        "--face-map",
+        default=None,
+        metavar="FILE",
+        help="topo mode: text file of 'b a' lines, face b of DIS is face a of REF (mm --faceMapFile)",
+    )
+    p.add_argument(
+        "--vertex-map",
+        default=None,
+        metavar="FILE",
+        help="topo mode: text file of 'b a' lines, vertex b of DIS is vertex a of REF (mm --vertexMapFile)",
     )
     p.add_argument(
         "--radius-curvature",
@@ -175,6 +229,10 @@ def add_mpeg_command(sub: Any) -> None:
     p.add_argument(
         "--all-differences",
         action="store_true",
-        help="equ mode: count every different triangle (mm --earlyReturn=false) instead of naming the first",
+        help="equ / eqTFAN modes: count every difference (mm --earlyReturn=false / --eqTFAN_earlyReturn=false) "
+        "instead of stopping at the first",
     )
+    from torchmeshmetric.cli.mpeg_outputs import add_output_options
+
+    add_output_options(p)
     p.set_defaults(func=_run)

@@ -3,45 +3,20 @@
 from __future__ import annotations
 
 import argparse
-from typing import Any
+from typing import Any, Literal
 
-__all__ = ["add_sample_command", "ply_text"]
-
-
-def ply_text(points: Any, normals: Any, colors: Any) -> str:
-    """An ASCII PLY as mmetric writes it: 9 significant digits (float32 round-trips), colours as ``roundf`` bytes.
-
-    Example:
-        >>> import numpy as np
-        >>> print(ply_text(np.array([[0.5, 0, 1]], np.float32), np.array([[0, 0, 1]], np.float32), None))
-        ... # doctest: +ELLIPSIS
-        ply
-        ...
-        end_header
-        0.5 0 1 0 0 1
-        <BLANKLINE>
-    """
-    import numpy as np
-
-    head = ["ply", "format ascii 1.0", f"element vertex {len(points)}"]
-    head += [f"property float {c}" for c in ("x", "y", "z", "nx", "ny", "nz")]
-    cols = [np.asarray(points, np.float32), np.asarray(normals, np.float32)]
-    rows = [" ".join(f"{v:.9g}" for v in r) for r in np.concatenate(cols, axis=1).tolist()]
-    if colors is not None:
-        head += [f"property uchar {c}" for c in ("red", "green", "blue")]
-        rgb = np.clip(np.floor(np.asarray(colors, np.float32) + np.float32(0.5)), 0, 255).astype(np.int64)
-        rows = [f"{r} {c[0]} {c[1]} {c[2]}" for r, c in zip(rows, rgb.tolist(), strict=True)]
-    return "\n".join([*head, "end_header", *rows]) + "\n"
+__all__ = ["add_sample_command"]
 
 
 def _run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from torchmeshmetric._atomic import atomic_write
-    from torchmeshmetric.cli._shared import check_writable
+    from torchmeshmetric.cli._shared import CLIError, check_writable
     from torchmeshmetric.mpeg.edge_sampling import edge_sample
     from torchmeshmetric.mpeg.face_sampling import face_sample
     from torchmeshmetric.mpeg.map_sampling import map_sample
+    from torchmeshmetric.mpeg.model_files import point_cloud_ply_text
     from torchmeshmetric.mpeg.prnd_sampling import prnd_sample
     from torchmeshmetric.mpeg.subdivision_sampling import subdivision_sample
     from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
@@ -49,23 +24,43 @@ def _run(args: argparse.Namespace) -> int:
     out = Path(args.output)
     check_writable([out], args.overwrite)
     mesh = load_textured_mesh(args.mesh, args.texture)
-    if args.mode == "face":
-        pc = face_sample(mesh, resolution=args.resolution, thickness=args.thickness, bilinear=args.bilinear)
-    elif args.mode == "map":
-        pc = map_sample(mesh)
-    elif args.mode == "prnd":
-        pc = prnd_sample(mesh, num_samples=args.num_samples, bilinear=args.bilinear)
-    elif args.mode == "ediv":
-        pc = edge_sample(
-            mesh, length_threshold=args.length_threshold, resolution=args.resolution, bilinear=args.bilinear
+
+    def sample(value: float | None = None) -> Any:
+        """The mode's sampling; ``value`` replaces the resolution (face) or threshold (sdiv, ediv) when searched."""
+        if args.mode == "face":
+            res = args.resolution if value is None else int(value)
+            return face_sample(mesh, resolution=res, thickness=args.thickness, bilinear=args.bilinear)
+        if args.mode == "map":
+            return map_sample(mesh)
+        if args.mode == "prnd":
+            return prnd_sample(mesh, num_samples=args.num_samples, bilinear=args.bilinear)
+        if args.mode == "ediv":
+            length = args.length_threshold if value is None else value
+            return edge_sample(mesh, length_threshold=length, resolution=args.resolution, bilinear=args.bilinear)
+        depth, area = (args.max_depth, args.area_threshold) if value is None else (10000, value)  # mm's search depth
+        mapped = args.map_threshold and value is None  # mmetric's search runs without it
+        return subdivision_sample(
+            mesh, max_depth=depth, area_threshold=area, bilinear=args.bilinear, map_threshold=mapped
         )
+
+    if args.num_samples_min:
+        if args.mode not in ("face", "sdiv", "ediv"):
+            raise CLIError(f"--num-samples-min: a search of face, sdiv and ediv modes, not of {args.mode} mode")
+        from torchmeshmetric.mpeg.sample_count_search import search_sample_count
+
+        kind: Literal["resolution", "threshold"] = "resolution" if args.mode == "face" else "threshold"
+        try:
+            found = search_sample_count(sample, kind, args.num_samples_min, args.num_samples_max, args.max_iterations)
+        except ValueError as exc:
+            raise CLIError(f"--num-samples-min/--num-samples-max: {exc}") from exc
+        pc = found.cloud
+        if found.earlier_points and pc.colors is not None:
+            # mmetric's Model::reset keeps the earlier samplings' colours: its file then has none (see CountSearch)
+            pc = type(pc)(pc.points, pc.normals)
+        print(f"Computed {kind} {found.value:.9g} after {found.iterations} iterations")
     else:
-        pc = subdivision_sample(
-            mesh, max_depth=args.max_depth, area_threshold=args.area_threshold, bilinear=args.bilinear
-        )
-    colors = None if pc.colors is None else pc.colors.numpy()
-    normals = pc.normals.numpy() if pc.normals is not None else None
-    atomic_write(out, ply_text(pc.points.numpy(), normals, colors), overwrite=args.overwrite)
+        pc = sample()
+    atomic_write(out, point_cloud_ply_text(pc), overwrite=args.overwrite)
     print(f"Generated {pc.num_points} points -> {out}")
     return 0
 
@@ -76,8 +71,7 @@ def add_sample_command(sub: Any) -> None:
         "sample",
         help="a mesh to the point cloud mmetric's mm sample writes (face, sdiv, ediv, prnd, map)",
         description="Sample MESH as 'mm sample --mode face' (or sdiv, ediv, prnd, map) does and writes its PLY "
-        "(positions and face normals bit for bit, colours from the texture or per-vertex colours as rounded bytes; "
-        "sdiv and ediv give mm's points in another order). The grid "
+        "(byte for byte as mm writes it, except ediv, whose points come in another order). The grid "
         "sampling of the CTC is inside the 'mpeg' and 'ctc' commands.",
     )
     p.add_argument("mesh", metavar="MESH", help="mesh to sample (OBJ/PLY; OBJ with MTL + texture for colour)")
@@ -99,6 +93,21 @@ def add_sample_command(sub: Any) -> None:
         help="ediv: mm --lengthThreshold, edges split while half as long; 0 = box side / --resolution (0)",
     )
     p.add_argument("--num-samples", type=int, default=2000000, help="prnd: mm --nbSamples, the target count (2e6)")
+    p.add_argument(
+        "--map-threshold",
+        action="store_true",
+        help="sdiv: also split faces while their corners' texels are more than one apart (mm --mapThreshold)",
+    )
+    p.add_argument(
+        "--num-samples-min",
+        type=int,
+        default=0,
+        metavar="N",
+        help="face/sdiv/ediv: resample, searching the resolution or threshold, until the count is in [N, MAX] (mm "
+        "--nbSamplesMin; 0 = no search)",
+    )
+    p.add_argument("--num-samples-max", type=int, default=0, metavar="MAX", help="mm --nbSamplesMax (> N)")
+    p.add_argument("--max-iterations", type=int, default=10, help="mm --maxIterations of the search (10)")
     p.add_argument("--bilinear", action="store_true", help="bilinear texture filtering (default nearest, as mm)")
     p.add_argument("--texture", default=None, metavar="IMG", help="texture of MESH (overrides its MTL)")
     p.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")

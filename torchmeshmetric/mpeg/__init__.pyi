@@ -23,6 +23,8 @@ from . import sequence as sequence
 from . import subdivision_sampling as subdivision_sampling
 from . import texture as texture
 from . import textured_mesh as textured_mesh
+from . import tfan_comparison as tfan_comparison
+from . import topology as topology
 from . import vertex_sampling as vertex_sampling
 from .bd_rate import bd_rate
 from .colour import rgb_to_ycbcr
@@ -54,7 +56,7 @@ from .losses import (
 from .map_sampling import map_sample
 from .metric import MpegPSNR
 from .model_cloud import load_model_cloud
-from .mpeg_metrics import Sampling, mpeg_metrics, mpeg_point_cloud
+from .mpeg_metrics import MpegClouds, Sampling, mpeg_metrics, mpeg_point_cloud, mpeg_point_clouds
 from .neighbours import NeighbourTies, k_nearest, mpeg_sq_dists, nearest_with_ties
 from .pcqm import PcqmResult, mpeg_pcqm
 from .pcqm_lightness import pcqm_lightness
@@ -65,6 +67,8 @@ from .sequence import MpegSequence, mean_psnr, mpeg_sequence
 from .subdivision_sampling import subdivision_sample
 from .texture import sample_texture
 from .textured_mesh import TexturedMesh, load_textured_mesh, read_texture
+from .tfan_comparison import TfanMesh, TfanUndefinedError, load_tfan_mesh, tfan_equality
+from .topology import TopologyComparison, TopologyMapError, read_topology_map, topology_equivalence
 from .vertex_sampling import vertex_sample
 
 __all__ = [
@@ -89,6 +93,7 @@ __all__ = [
     "MeshEquality",
     "MpegGeometryLoss",
     "MpegPSNR",
+    "MpegClouds",
     "MpegDirection",
     "MpegResult",
     "MpegSequence",
@@ -96,12 +101,17 @@ __all__ = [
     "PointCloud",
     "Sampling",
     "TexturedMesh",
+    "TfanMesh",
+    "TfanUndefinedError",
+    "TopologyComparison",
+    "TopologyMapError",
     "bbox_diagonal",
     "check_box",
     "differentiable_grid_sample",
     "grid_hits",
     "grid_sample",
     "load_textured_mesh",
+    "load_tfan_mesh",
     "map_sample",
     "merge_duplicate_points",
     "mean_psnr",
@@ -111,10 +121,12 @@ __all__ = [
     "mpeg_geometry_loss",
     "mpeg_metrics",
     "mpeg_point_cloud",
+    "mpeg_point_clouds",
     "mpeg_psnr",
     "mpeg_sequence",
     "mpeg_sq_dists",
     "prnd_sample",
+    "read_topology_map",
     "k_nearest",
     "nearest_with_ties",
     "point_to_plane_mse",
@@ -123,6 +135,8 @@ __all__ = [
     "rgb_to_ycbcr",
     "sample_texture",
     "subdivision_sample",
+    "tfan_equality",
+    "topology_equivalence",
     "unique_vertex_rows",
     "vertex_sample",
     "PcqmResult",

@@ -22,7 +22,9 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+import torch
 
+from torchmeshmetric import native
 from torchmeshmetric.mpeg.colour import rgb_to_ycbcr
 from torchmeshmetric.mpeg.neighbours import NeighbourTies, nearest_with_ties_both
 from torchmeshmetric.mpeg.point_cloud import PointCloud, merge_duplicate_points
@@ -45,6 +47,9 @@ class MpegDirection:
         d1_psnr, d2_psnr, d1_hausdorff_psnr, d2_hausdorff_psnr: their PSNR (peak ``peak``, factor 3).
         color_mse: ``(Y, Cb, Cr)`` mean squared errors, or ``None`` without colours.
         color_psnr: their PSNR (peak 1), or ``None``.
+        color_rgb_hausdorff: ``(R, G, B)`` largest squared difference (in 0..255 units) between a point's colour and
+            its neighbours' averaged colour, or ``None`` without colours (dmetric's ``h.c[k]``).
+        color_rgb_hausdorff_psnr: their PSNR (peak 255, factor 1).
     """
 
     d1_mse: float
@@ -57,6 +62,8 @@ class MpegDirection:
     d2_hausdorff_psnr: float
     color_mse: tuple[float, float, float] | None = None
     color_psnr: tuple[float, float, float] | None = None
+    color_rgb_hausdorff: tuple[float, float, float] | None = None
+    color_rgb_hausdorff_psnr: tuple[float, float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -82,6 +89,16 @@ class MpegResult:
         if a.color_mse is not None and b.color_mse is not None and a.color_psnr and b.color_psnr:
             color_mse = tuple(max(x, y) for x, y in zip(a.color_mse, b.color_mse, strict=True))
             color_psnr = tuple(min(x, y) for x, y in zip(a.color_psnr, b.color_psnr, strict=True))
+        rgb_h = rgb_h_psnr = None
+        ha, hb, pa, pb = (
+            a.color_rgb_hausdorff,
+            b.color_rgb_hausdorff,
+            a.color_rgb_hausdorff_psnr,
+            b.color_rgb_hausdorff_psnr,
+        )
+        if ha and hb and pa and pb:
+            rgb_h = tuple(max(x, y) for x, y in zip(ha, hb, strict=True))
+            rgb_h_psnr = tuple(min(x, y) for x, y in zip(pa, pb, strict=True))
         sym = MpegDirection(
             d1_mse=max(a.d1_mse, b.d1_mse),
             d2_mse=max(a.d2_mse, b.d2_mse),
@@ -93,6 +110,8 @@ class MpegResult:
             d2_hausdorff_psnr=min(a.d2_hausdorff_psnr, b.d2_hausdorff_psnr),
             color_mse=color_mse,  # type: ignore[arg-type]
             color_psnr=color_psnr,  # type: ignore[arg-type]
+            color_rgb_hausdorff=rgb_h,  # type: ignore[arg-type]
+            color_rgb_hausdorff_psnr=rgb_h_psnr,  # type: ignore[arg-type]
         )
         object.__setattr__(self, "symmetric", sym)
 
@@ -176,6 +195,11 @@ def _tie_rows(ties: NeighbourTies) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 def _per_point_d2(qp: np.ndarray, tp: np.ndarray, nrm: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
     """Dmetric's squared point-to-plane error of each (query, neighbour) pair, float32 then double."""
+    ext = native.try_load("pcc")
+    if ext is not None:  # the same float32 operations without the gathered copies
+        t = [torch.from_numpy(np.ascontiguousarray(a)) for a in (qp, tp, nrm)]
+        ij = [torch.from_numpy(np.ascontiguousarray(a, dtype=np.int64)) for a in (rows, cols)]
+        return ext.mpeg_plane_errors(*t, *ij).numpy()
     diff = qp[rows] - tp[cols]  # float32, as dmetric
     n = nrm[cols]
     proj = (diff[:, 0] * n[:, 0] + diff[:, 1] * n[:, 1]) + diff[:, 2] * n[:, 2]
@@ -214,7 +238,7 @@ def _direction(
             d2[ties.rows] = np.bincount(t_pos, weights=per, minlength=ties.rows.shape[0]) / t_counts
         d2_mse = float(np.sum(d2)) / n
         d2_h = max(_DBL_MIN, float(d2.max()))
-    color_mse = color_psnr = None
+    color_mse = color_psnr = rgb_h = rgb_h_psnr = None
     if with_color and query.colors is not None and target.colors is not None:
         tc = target.colors.numpy().astype(np.int64)
         mean = tc[ties.nearest].astype(np.float64)  # floor(x + 0.5) of an integer is the integer
@@ -229,6 +253,11 @@ def _direction(
         cm = tuple(float(v) for v in sq.sum(axis=0) / n)
         color_mse = (cm[0], cm[1], cm[2])
         color_psnr = (mpeg_psnr(cm[0], 1.0, 1.0), mpeg_psnr(cm[1], 1.0, 1.0), mpeg_psnr(cm[2], 1.0, 1.0))
+        # dmetric's RGB Hausdorff: integer differences squared, the running maximum starting at DBL_MIN
+        rgb_err = query.colors.numpy().astype(np.float64) - mean
+        hm = np.maximum((rgb_err * rgb_err).max(axis=0), _DBL_MIN)
+        rgb_h = (float(hm[0]), float(hm[1]), float(hm[2]))
+        rgb_h_psnr = (mpeg_psnr(rgb_h[0], 255.0, 1.0), mpeg_psnr(rgb_h[1], 255.0, 1.0), mpeg_psnr(rgb_h[2], 255.0, 1.0))
     return MpegDirection(
         d1_mse=d1_mse,
         d2_mse=d2_mse,
@@ -240,6 +269,8 @@ def _direction(
         d2_hausdorff_psnr=mpeg_psnr(d2_h, peak) if not math.isnan(d2_h) else math.nan,
         color_mse=color_mse,
         color_psnr=color_psnr,
+        color_rgb_hausdorff=rgb_h,
+        color_rgb_hausdorff_psnr=rgb_h_psnr,
     )
 
 

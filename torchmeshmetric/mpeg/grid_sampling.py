@@ -490,8 +490,8 @@ def _row_hashes(keys: list[np.ndarray]) -> np.ndarray:
 def unique_vertex_rows(pos: np.ndarray, nrm: np.ndarray, col: np.ndarray | None) -> np.ndarray:
     """Rows mmetric's ``ModelBuilder`` keeps: the first of the points equal in position, normal and colour (sorted).
 
-    Equal rows are found through a 64-bit hash of their values: in C++, one pass over a hash table of the rows kept so
-    far; without the extension, one integer sort instead of a lexicographic sort of six to nine keys. Rows with equal
+    Equal rows are found through a 64-bit hash of their values, sorted (in C++ for float32 ``(N, 3)`` keys, otherwise
+    in numpy): one integer sort instead of a lexicographic sort of six to nine keys. Rows with equal
     hashes are compared value by value (a collision falls back to the lexicographic sort), so the result is exact
     either way.
 
@@ -500,12 +500,12 @@ def unique_vertex_rows(pos: np.ndarray, nrm: np.ndarray, col: np.ndarray | None)
         >>> unique_vertex_rows(p, np.zeros_like(p), None).tolist()
         [0, 2]
     """
-    ext = _native()
-    if ext is not None:  # the same rows, one pass over a hash table in C++
-        rows = [torch.from_numpy(np.ascontiguousarray(k, np.float32)) for k in (pos, nrm)]
-        c = torch.empty(0, 3) if col is None else torch.from_numpy(np.ascontiguousarray(col, np.float32))
-        return ext.unique_rows(rows[0], rows[1], c).numpy()
     keys = [pos, nrm] if col is None else [pos, nrm, col]
+    ext = _native()
+    if ext is not None and all(k.dtype == np.float32 and k.ndim == 2 and k.shape[1] == 3 for k in keys):
+        # the same rows through a sort of hashed rows in C++ (float32 (N, 3) keys: the grid sampling's)
+        rows = [torch.from_numpy(np.ascontiguousarray(k)) for k in keys]
+        return ext.unique_rows(rows[0], rows[1], rows[2] if col is not None else torch.empty(0, 3)).numpy()
     h = _row_hashes(keys)
     order = np.argsort(h, kind="stable")  # equal hashes stay in index order: the first of a run is the one kept
     i = np.flatnonzero(h[order[1:]] == h[order[:-1]])

@@ -76,7 +76,7 @@ def load_model_cloud(
         model = load_textured_mesh(p, texture)
         if model.mesh.faces.shape[0] > 0:
             t = model
-            return vertex_sample(t.mesh, texture=t.texture, uvs=t.uvs, colors=t.colors, name=name, mm_order=True)
+            return vertex_sample(t.mesh, texture=t.texture, uvs=t.uvs, colors=t.colors, name=name)
         cloud = PointCloud(model.mesh.verts.to(torch.float32), colors=model.colors)
     if cloud.num_points == 0:
         raise EmptyInputError(f"{name}: expected points, found none in '{p}'")

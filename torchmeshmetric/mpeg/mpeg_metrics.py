@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
-from typing import Any, Literal, Union
+from typing import Any, Literal, NamedTuple, Union
 
 import numpy as np
 from torch import Tensor
@@ -18,7 +18,7 @@ from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
 from torchmeshmetric.mpeg.vertex_sampling import _DBL_EPSILON, vertex_sample, zero_area_message
 from torchmeshmetric.structures import MeshLike, as_mesh
 
-__all__ = ["Sampling", "mpeg_metrics", "mpeg_point_cloud"]
+__all__ = ["MpegClouds", "Sampling", "mpeg_metrics", "mpeg_point_cloud", "mpeg_point_clouds"]
 
 Sampling = Literal["grid", "mesh"]
 Corner = Union[Sequence[float], np.ndarray, Tensor]  # noqa: UP007 (a runtime alias)
@@ -148,6 +148,49 @@ def mpeg_metrics(
         >>> r.symmetric.d1_psnr, r.points_ref == r.points_dis
         (inf, True)
     """
+    clouds = mpeg_point_clouds(
+        ref, dis, sampling=sampling, grid_size=grid_size, box=box, peak=peak, use_normal=use_normal,
+        bilinear=bilinear, names=names,
+    )  # fmt: skip
+    return mpeg_compare(clouds.ref, clouds.dis, peak=clouds.peak)
+
+
+class MpegClouds(NamedTuple):
+    """The two point clouds mmetric compares for a mesh pair, and the PSNR peak.
+
+    Attributes:
+        ref: the reference's cloud (before the duplicate merge: what ``mm sample`` writes, or what
+            ``compare --mode pcc --outputModelA`` writes in mesh mode).
+        dis: the distorted mesh's cloud.
+        peak: the peak (grid mode: the box diagonal unless given), or ``None`` for the reference cloud's diagonal.
+    """
+
+    ref: PointCloud
+    dis: PointCloud
+    peak: float | None
+
+
+def mpeg_point_clouds(
+    ref: MeshLike | TexturedMesh,
+    dis: MeshLike | TexturedMesh,
+    *,
+    sampling: Sampling = "grid",
+    grid_size: int = 1024,
+    box: BoxLike | None = None,
+    peak: float | None = None,
+    use_normal: bool = True,
+    bilinear: bool = True,
+    names: tuple[str, str] = ("ref", "dis"),
+) -> MpegClouds:
+    """The clouds and peak :func:`mpeg_metrics` compares (same arguments, same errors), before the comparison.
+
+    Example:
+        >>> import trimesh
+        >>> ref = trimesh.creation.icosphere(1)
+        >>> c = mpeg_point_clouds(ref, ref, sampling="mesh")
+        >>> c.ref.num_points == c.dis.num_points, c.peak
+        (True, None)
+    """
     r, d = _parts(ref, names[0]), _parts(dis, names[1])
     if peak is not None and not (np.isfinite(peak) and peak > 0):
         raise ValueError(f"peak: expected a positive finite number, found {peak!r}")
@@ -162,4 +205,4 @@ def mpeg_metrics(
     with ThreadPoolExecutor(max_workers=2) as pool:
         ref_cloud = pool.submit(mpeg_point_cloud, r, sampling, name=names[0], **kw)
         dis_cloud = pool.submit(mpeg_point_cloud, d, sampling, name=names[1], **kw)
-        return mpeg_compare(ref_cloud.result(), dis_cloud.result(), peak=peak)
+        return MpegClouds(ref_cloud.result(), dis_cloud.result(), peak)

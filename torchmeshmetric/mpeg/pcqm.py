@@ -141,9 +141,9 @@ def mpeg_pcqm(
 ) -> PcqmResult:
     """PCQM of ``dis`` (mmetric's model B) against ``ref`` (model A), equal to ``mm compare --mode pcqm``.
 
-    mm compares meshes as the point sets of its ``sampleIfNeeded``: pass ``vertex_sample(mesh, mm_order=True)`` (or
-    :func:`~torchmeshmetric.mpeg.load_model_cloud` for a file); the order matters, as PCQM keeps the first of
-    equidistant points.
+    mm compares meshes as the point sets of its ``sampleIfNeeded``: pass ``vertex_sample(mesh)`` (or
+    :func:`~torchmeshmetric.mpeg.load_model_cloud` for a file), whose points come in mmetric's order; the order
+    matters, as PCQM keeps the first of equidistant points.
 
     Args:
         ref: ``(N, 3)`` cloud A (positions rounded to float32, as mmetric holds them) with optional ``(N, 3)`` RGB

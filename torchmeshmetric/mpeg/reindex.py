@@ -64,9 +64,10 @@ def oriented_reindex(mesh: TexturedMesh) -> TexturedMesh:
     """The ``reindex --sort oriented`` of mmetric: equal corners merged and sorted, faces rotated and sorted.
 
     Corners are equal when position and UV (or vertex colour) are equal. Each face is rotated to start at its
-    smallest corner (orientation kept), duplicate faces are dropped and the faces sorted. Positions are unchanged;
-    only the order of corners within faces and of faces moves, which moves the float32 arithmetic of the grid
-    sampling (mmetric's ray-triangle test starts from a face's first corner).
+    smallest corner (orientation kept), duplicate faces are dropped and the faces sorted; the vertices are the
+    distinct corners in sorted order (mmetric's numbering, which its ``--outputModel`` files show). Positions are
+    unchanged; only the order of corners within faces and of faces moves, which moves the float32 arithmetic of the
+    grid sampling (mmetric's ray-triangle test starts from a face's first corner).
 
     Example:
         >>> m = TexturedMesh(Mesh(torch.eye(3), torch.tensor([[2, 0, 1], [0, 1, 2]])))
@@ -78,15 +79,20 @@ def oriented_reindex(mesh: TexturedMesh) -> TexturedMesh:
     pos = verts[faces].reshape(-1, 3)
     keys = [pos]
     uv = col = None
-    if mesh.texture is not None and mesh.uvs is not None:
+    # mmetric's key: position, then UV and colour whenever the model has them (with or without a texture)
+    if mesh.uvs is not None:
         uv = mesh.uvs.detach().cpu().numpy().astype(np.float32).reshape(-1, 2)
         keys.append(uv)
-    elif mesh.colors is not None:
+    if mesh.colors is not None:
         col = mesh.colors.detach().cpu().numpy().astype(np.float32)[faces].reshape(-1, 3)
         keys.append(col)
-    tri = oriented_faces(np.concatenate(keys, axis=1))
-    used, inv = np.unique(tri, return_inverse=True)
-    new_faces = torch.from_numpy(inv.reshape(-1, 3).astype(np.int64))
+    corner_keys = np.concatenate(keys, axis=1)
+    tri = oriented_faces(corner_keys)
+    used = np.unique(tri)
+    used = used[np.lexsort(corner_keys[used].T[::-1])]  # the corners in sorted order, as mmetric numbers them
+    renumber = np.empty(corner_keys.shape[0], dtype=np.int64)
+    renumber[used] = np.arange(used.size)
+    new_faces = torch.from_numpy(renumber[tri])
     new_mesh = Mesh(torch.from_numpy(np.ascontiguousarray(pos[used])), new_faces)
     return TexturedMesh(
         new_mesh,

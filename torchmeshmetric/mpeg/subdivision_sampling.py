@@ -3,8 +3,9 @@
 Every face of area at least ``DBL_EPSILON`` gives its three corners with the face normal; a face whose area is at
 least ``area_threshold`` gives its three edge midpoints (``a * 0.5 + b * 0.5`` in float32, for positions, UVs and
 colours) with its own normal and is split into four, down to ``max_depth - 1`` levels. mmetric recurses depth
-first; the faces of one level are processed here together, which yields the same set of points (the points kept
-are the distinct (position, UV, colour, normal) rows, whatever their order) but not mmetric's order.
+first; the faces of one level are processed here together and the rows then put in mmetric's depth-first order
+(:func:`~torchmeshmetric.mpeg.subdivision_rows.subdivision_rows`), so the points kept (the first of the rows equal
+in position, UV, colour and normal) are mmetric's, in its order.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from torchmeshmetric._checks import EmptyInputError
 from torchmeshmetric.mpeg import _float32 as f32
 from torchmeshmetric.mpeg.grid_sampling import mesh_arrays, unique_vertex_rows
 from torchmeshmetric.mpeg.point_cloud import PointCloud
+from torchmeshmetric.mpeg.subdivision_rows import subdivision_rows
 from torchmeshmetric.mpeg.texture import sample_texture
 from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
 from torchmeshmetric.mpeg.vertex_sampling import zero_area_message
@@ -40,9 +42,10 @@ def subdivision_sample(
     max_depth: int = 100,
     area_threshold: float = 1.0,
     bilinear: bool = False,
+    map_threshold: bool = False,
     name: str = "mesh",
 ) -> PointCloud:
-    """Sample a mesh as ``mm sample --mode sdiv --maxDepth D --areaThreshold A [--bilinear]`` does.
+    """Sample a mesh as ``mm sample --mode sdiv --maxDepth D --areaThreshold A [--bilinear] [--mapThreshold]`` does.
 
     Args:
         mesh: the mesh with its colour (e.g. from :func:`load_textured_mesh`); vertices are float32.
@@ -50,10 +53,12 @@ def subdivision_sample(
         area_threshold: mmetric's ``--areaThreshold``, an absolute area in model units: faces at least this large
             are split.
         bilinear: bilinear texture filtering (mmetric ``--bilinear``), nearest otherwise.
+        map_threshold: mmetric's ``--mapThreshold``: with a texture, a face is also split while its corners' texels
+            (``int(u * W)``, ``int(v * H)``, clamped) are more than one texel apart in x or y.
         name: the mesh's name in error messages.
 
     Returns:
-        :class:`PointCloud` with face normals (and colours): mmetric's points, in another order.
+        :class:`PointCloud` with face normals (and colours): mmetric's points, in its order.
 
     Raises:
         ValueError: ``max_depth`` below 1 or ``area_threshold`` not positive and finite.
@@ -77,25 +82,11 @@ def subdivision_sample(
     if not keep.any():
         raise EmptyInputError(zero_area_message(name, faces.shape[0]))
     p, attr = p[keep], attr[keep]
-    normal = f32.normalize(f32.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]))
-    out_pos, out_att = [p.reshape(-1, 3)], [attr.reshape(3 * attr.shape[0], attr.shape[2])]
-    out_nrm = [np.repeat(normal, 3, axis=0)]
-    half = np.float32(0.5)
-    for _ in range(max_depth - 1):
-        big = f32.area(p[:, 0], p[:, 1], p[:, 2]) >= area_threshold
-        p, attr = p[big], attr[big]
-        if p.shape[0] == 0:
-            break
-        nrm = f32.normalize(f32.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]))
-        # e1 = mid(v1, v2), e2 = mid(v2, v3), e3 = mid(v3, v1); children (e1 e2 e3) (v1 e1 e3) (e1 v2 e2) (e2 v3 e3)
-        ep = p * half + p[:, [1, 2, 0]] * half
-        ea = attr * half + attr[:, [1, 2, 0]] * half
-        out_pos.append(ep.reshape(-1, 3))
-        out_att.append(ea.reshape(3 * ea.shape[0], ea.shape[2]))
-        out_nrm.append(np.repeat(nrm, 3, axis=0))
-        p = _children(p, ep)
-        attr = _children(attr, ea)
-    return builder_cloud(mesh, np.concatenate(out_pos), np.concatenate(out_nrm), np.concatenate(out_att), bilinear)
+    texels = None
+    if map_threshold and mesh.texture is not None and mesh.uvs is not None:
+        texels = (int(mesh.texture.shape[1]), int(mesh.texture.shape[0]))
+    points, normals, att = subdivision_rows(p, attr, max_depth, area_threshold, texels)
+    return builder_cloud(mesh, points, normals, att, bilinear)
 
 
 def builder_cloud(
@@ -119,11 +110,3 @@ def builder_cloud(
         torch.from_numpy(np.ascontiguousarray(normals[kept])),
         None if colours is None else torch.from_numpy(np.ascontiguousarray(colours[kept], dtype=np.float32)),
     )
-
-
-def _children(v: np.ndarray, e: np.ndarray) -> np.ndarray:
-    """The children ``(e1 e2 e3) (v1 e1 e3) (e1 v2 e2) (e2 v3 e3)`` of ``(F, 3, C)`` corners and midpoints."""
-    v1, v2, v3 = v[:, 0], v[:, 1], v[:, 2]
-    e1, e2, e3 = e[:, 0], e[:, 1], e[:, 2]
-    kids = [(e1, e2, e3), (v1, e1, e3), (e1, v2, e2), (e2, v3, e3)]
-    return np.concatenate([np.stack(k, axis=1) for k in kids])

@@ -497,7 +497,8 @@ namespace {
 
 // mpeg_nearest_ties over the target's grid; the queries run in that grid's column order (consecutive queries visit
 // the same columns), each seeded with the previous one's nearest point. Queries whose answer lies farther than two
-// column sides (clouds far apart) are answered by the target's kd-tree, with the same ranking.
+// column sides (clouds far apart) are answered by the target's kd-tree, with the same ranking, and so is the next
+// query after such an answer (until an answer lies within reach again).
 std::vector<torch::Tensor> nearest_ties(const torch::Tensor& query, const torch::Tensor& target,
                                         const ColumnGrid& grid, LazyTree& tree) {
   const int64_t Q = query.size(0), T = target.size(0);
@@ -511,19 +512,15 @@ std::vector<torch::Tensor> nearest_ties(const torch::Tensor& query, const torch:
   bool* tie = tie_t.data_ptr<bool>();
   const double h = 1.0 / grid.inv_h, r_max = 2 * h;
   const std::vector<int64_t> qorder = column_order(grid, qp, Q, nullptr);
-  std::vector<uint8_t> far(static_cast<size_t>(Q), 0);
   // The nearest and the second by rank, searched only as far as a tie could reach: all points within 1e-20 of the
   // nearest are visited, so the second is exact whenever it is a tie, and a farther second is no tie either way.
   const auto tie_bound = [](const Best& b) {
     return b.n == 0 ? std::numeric_limits<double>::infinity() : b.sq[0] + SIMILAR;
   };
-  const auto one = [&](int64_t i, const Best& best) {
-    nearest[i] = best.idx[0];
-    sq[i] = best.sq[0];
-    tie[i] = best.n == 2 && best.sq[1] - best.sq[0] < SIMILAR;
-  };
+  const auto kd_tie_bound = [&](const Best& b) { return tie_bound(b) * WIDEN; };
   at::parallel_for(0, Q, GRAIN, [&](int64_t s0, int64_t e) {
     int64_t prev = -1;
+    bool far = false;  // the previous answer lay beyond the grid's reach: go to the kd-tree at once
     for (int64_t s = s0; s < e; ++s) {
       const int64_t i = qorder[s];
       const float* q = qp + 3 * i;
@@ -535,29 +532,21 @@ std::vector<torch::Tensor> nearest_ties(const torch::Tensor& query, const torch:
         const float* t = tp + 3 * prev;
         r0 = std::min(h, std::sqrt((mpeg_sq(q[0], q[1], q[2], t[0], t[1], t[2]) + SIMILAR) * WIDEN) * (1 + 1e-6));
       }
-      if (search(grid, q, prev, tp, r0, r_max, best, tie_bound)) {
-        one(i, best);
-        prev = best.idx[0];
-      } else {
-        far[i] = 1;
-        prev = -1;
+      if (far || !search(grid, q, prev, tp, r0, r_max, best, tie_bound)) {
+        best.n = 0;
+        if (prev >= 0) {
+          const float* t = tp + 3 * prev;
+          best.offer(mpeg_sq(q[0], q[1], q[2], t[0], t[1], t[2]), prev);
+        }
+        kd_search(tree.get(), q, best, kd_tie_bound);
       }
+      nearest[i] = best.idx[0];
+      sq[i] = best.sq[0];
+      tie[i] = best.n == 2 && best.sq[1] - best.sq[0] < SIMILAR;
+      far = best.sq[0] > r_max * r_max;
+      prev = best.idx[0];
     }
   });
-  std::vector<int64_t> far_rows;
-  for (int64_t i = 0; i < Q; ++i)
-    if (far[i]) far_rows.push_back(i);
-  if (!far_rows.empty()) {
-    const KdTree& kd = tree.get();
-    const auto kd_tie_bound = [&](const Best& b) { return tie_bound(b) * WIDEN; };
-    at::parallel_for(0, static_cast<int64_t>(far_rows.size()), GRAIN, [&](int64_t s0, int64_t e) {
-      for (int64_t s = s0; s < e; ++s) {
-        Best best{2};
-        kd_search(kd, qp + 3 * far_rows[s], best, kd_tie_bound);
-        one(far_rows[s], best);
-      }
-    });
-  }
   auto rows_t = torch::nonzero(tie_t).reshape({-1}).contiguous();
   const int64_t S = rows_t.size(0);
   const int kmax = static_cast<int>(std::min<int64_t>(MAX_K, T));
@@ -619,7 +608,45 @@ std::vector<torch::Tensor> mpeg_nearest_ties_both(torch::Tensor a, torch::Tensor
   return out;
 }
 
+// dmetric's squared point-to-plane error of each (query row, target col) pair: the float32 difference projected on
+// the target's normal in float32, squared in float32 and returned in double; for a normal with a NaN component,
+// dmetric's fallback, the plain float32 sum of the difference's components. Returns (P,) float64.
+torch::Tensor mpeg_plane_errors(torch::Tensor query, torch::Tensor target, torch::Tensor normals, torch::Tensor rows,
+                                torch::Tensor cols) {
+  check_points(query, "mpeg_plane_errors: query");
+  check_points(target, "mpeg_plane_errors: target");
+  check_points(normals, "mpeg_plane_errors: normals");
+  TORCH_CHECK(normals.size(0) == target.size(0), "mpeg_plane_errors: one normal per target point expected");
+  TORCH_CHECK(rows.scalar_type() == torch::kInt64 && cols.scalar_type() == torch::kInt64 && rows.is_contiguous() &&
+                  cols.is_contiguous() && rows.dim() == 1 && rows.sizes() == cols.sizes(),
+              "mpeg_plane_errors: rows and cols: contiguous int64 (P,) expected");
+  const int64_t n = rows.size(0);
+  const float *qp = query.data_ptr<float>(), *tp = target.data_ptr<float>(), *np_ = normals.data_ptr<float>();
+  const int64_t *r = rows.data_ptr<int64_t>(), *c = cols.data_ptr<int64_t>();
+  const int64_t Q = query.size(0), T = target.size(0);
+  for (int64_t k = 0; k < n; ++k)
+    TORCH_CHECK(r[k] >= 0 && r[k] < Q && c[k] >= 0 && c[k] < T, "mpeg_plane_errors: index out of range");
+  auto out_t = torch::empty({n}, torch::kFloat64);
+  double* out = out_t.data_ptr<double>();
+  at::parallel_for(0, n, 1 << 14, [&](int64_t b, int64_t e) {
+    for (int64_t k = b; k < e; ++k) {
+      const float* q = qp + 3 * r[k];
+      const float* t = tp + 3 * c[k];
+      const float* nn = np_ + 3 * c[k];
+      const float d0 = q[0] - t[0], d1 = q[1] - t[1], d2 = q[2] - t[2];
+      if (std::isnan(nn[0]) || std::isnan(nn[1]) || std::isnan(nn[2])) {
+        out[k] = static_cast<double>((d0 + d1) + d2);
+      } else {
+        const float proj = (d0 * nn[0] + d1 * nn[1]) + d2 * nn[2];
+        out[k] = static_cast<double>(proj * proj);
+      }
+    }
+  });
+  return out_t;
+}
+
 PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
+  m.def("mpeg_plane_errors", &mpeg_plane_errors, "dmetric's squared point-to-plane error per (query, target) pair");
   m.def("mpeg_merge", &mpeg_merge, "dmetric's duplicate merge (dropDuplicates = 2): sorted, runs averaged");
   m.def("mpeg_nearest_ties", &mpeg_nearest_ties, "nearest neighbours with dmetric's equidistant-neighbour rule");
   m.def("mpeg_nearest_ties_both", &mpeg_nearest_ties_both, "mpeg_nearest_ties in both directions");

@@ -1,0 +1,133 @@
+"""The files ``torchmeshmetric mpeg`` writes beside its figures, as mmetric's ``compare`` writes them.
+
+``--output-model-ref/--output-model-dis`` (mmetric's ``--outputModelA/B``): in pcc mode the two point clouds
+compared (the grid samples, or the mesh-mode subdivision of the reordered mesh), as PLY; in ibsm mode the two
+meshes after mmetric's oriented reordering, as PLY or OBJ. ``--output-csv`` (``--outputCsv``): one row appended
+per run, the header first in a new or empty file. Models are written atomically (never over an existing file
+without ``--overwrite``); the CSV is only ever appended to.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+__all__ = ["add_output_options", "check_outputs", "run_ibsm", "write_pcc_outputs"]
+
+
+def add_output_options(p: Any) -> None:
+    """The ``mpeg`` command's output-file options."""
+    p.add_argument(
+        "--output-csv",
+        default=None,
+        metavar="FILE",
+        help="pcc/ibsm modes: append mmetric's --outputCsv row (header first in a new or empty file)",
+    )
+    p.add_argument(
+        "--output-model-ref",
+        default=None,
+        metavar="FILE",
+        help="pcc mode: REF's sampled cloud (.ply); ibsm mode: REF reordered (.ply/.obj) -- mm's --outputModelA",
+    )
+    p.add_argument("--output-model-dis", default=None, metavar="FILE", help="the same for DIS (--outputModelB)")
+    p.add_argument("--overwrite", action="store_true", help="replace existing --output-model-* files")
+    p.add_argument("--ibsm-resolution", type=int, default=2048, metavar="N", help="ibsm mode: buffer side (2048)")
+    p.add_argument("--ibsm-cameras", type=int, default=16, metavar="N", help="ibsm mode: camera count (16)")
+
+
+def check_outputs(args: argparse.Namespace) -> None:
+    """Refuse, before any computation, output options the mode does not write or files that cannot be written."""
+    from torchmeshmetric.cli._shared import CLIError, check_writable
+
+    models = [Path(m) for m in (args.output_model_ref, args.output_model_dis) if m is not None]
+    if (models or args.output_csv is not None) and args.mode not in ("pcc", "ibsm"):
+        raise CLIError(f"--output-csv / --output-model-*: written in pcc and ibsm modes, not in {args.mode} mode")
+    allowed = (".ply",) if args.mode == "pcc" else (".ply", ".obj")
+    for m in models:
+        if m.suffix.lower() not in allowed:
+            raise CLIError(f"--output-model-*: {str(m)!r} must end with {' or '.join(allowed)} in {args.mode} mode")
+    check_writable(models, args.overwrite)
+    if args.output_csv is not None:
+        csv = Path(args.output_csv)
+        check_writable([csv], True)  # appended to, never replaced
+
+
+def _write_models(args: argparse.Namespace, texts: tuple[str, str]) -> None:
+    from torchmeshmetric._atomic import atomic_file_set, atomic_write
+
+    with atomic_file_set():
+        for path, text in zip((args.output_model_ref, args.output_model_dis), texts, strict=True):
+            if path is not None:
+                atomic_write(path, text, overwrite=args.overwrite)
+
+
+def write_pcc_outputs(args: argparse.Namespace, clouds: Any, result: Any) -> None:
+    """The pcc mode's output models and CSV row."""
+    from torchmeshmetric.mpeg.csv_rows import PCC_CSV_HEADER, append_csv_row, mmetric_texture_url, pcc_csv_row
+    from torchmeshmetric.mpeg.model_files import point_cloud_ply_text
+
+    if args.output_model_ref is not None or args.output_model_dis is not None:
+        ref = point_cloud_ply_text(clouds.ref) if args.output_model_ref is not None else ""
+        dis = point_cloud_ply_text(clouds.dis) if args.output_model_dis is not None else ""
+        _write_models(args, (ref, dis))
+    if args.output_csv is not None:
+        given = args.peak if args.sampling == "mesh" else result.peak  # the grid chain passes the peak to mm
+        row = pcc_csv_row(
+            result,
+            model_a=args.ref,
+            model_b=args.dis,
+            map_a=mmetric_texture_url(args.ref, args.ref_texture),
+            map_b=mmetric_texture_url(args.dis, args.dis_texture),
+            resolution=0.0 if given is None else given,
+        )
+        append_csv_row(args.output_csv, PCC_CSV_HEADER, [row])
+
+
+def _ibsm_lines(r: Any) -> str:
+    """The figures as mmetric prints them (``R   PSNR = ...``)."""
+    names = ("R  ", "G  ", "B  ", "RGB", "Y  ", "U  ", "V  ", "YUV")
+    values = (*r.rgb_psnr, *r.yuv_psnr)
+    lines = [f"{n} PSNR = {v:.9g}" for n, v in zip(names, values, strict=True)]
+    return "\n".join([*lines, f"GEO PSNR = {r.geo_psnr:.9g}"])
+
+
+def run_ibsm(args: argparse.Namespace) -> int:
+    """``--mode ibsm``: mmetric's IBSM figures of DIS against REF, and its output files."""
+    from dataclasses import asdict
+
+    from torchmeshmetric._format import json_safe
+    from torchmeshmetric.mpeg.csv_rows import IBSM_CSV_HEADER, append_csv_row, ibsm_csv_row, mmetric_texture_url
+    from torchmeshmetric.mpeg.ibsm import ibsm
+    from torchmeshmetric.mpeg.model_files import obj_header, textured_mesh_text
+    from torchmeshmetric.mpeg.reindex import oriented_reindex
+    from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
+
+    check_outputs(args)
+    ref = load_textured_mesh(args.ref, args.ref_texture)
+    dis = load_textured_mesh(args.dis, args.dis_texture)
+    start = time.process_time()
+    result = ibsm(ref, dis, resolution=args.ibsm_resolution, cameras=args.ibsm_cameras)
+    seconds = time.process_time() - start
+    print(json.dumps(json_safe(asdict(result)), indent=1) if args.json else _ibsm_lines(result))
+    texts = []
+    for path, mesh, name in ((args.output_model_ref, ref, args.ref), (args.output_model_dis, dis, args.dis)):
+        text = "" if path is None else textured_mesh_text(oriented_reindex(mesh), Path(path).suffix, obj_header(name))
+        texts.append(text)
+    if args.output_model_ref is not None or args.output_model_dis is not None:
+        _write_models(args, (texts[0], texts[1]))
+    if args.output_csv is not None:
+        row = ibsm_csv_row(
+            result,
+            model_a=args.ref,
+            model_b=args.dis,
+            map_a=mmetric_texture_url(args.ref, args.ref_texture),
+            map_b=mmetric_texture_url(args.dis, args.dis_texture),
+            cameras=args.ibsm_cameras,
+            resolution=args.ibsm_resolution,
+            seconds=seconds,
+        )
+        append_csv_row(args.output_csv, IBSM_CSV_HEADER, [row])
+    return 0
