@@ -48,6 +48,24 @@ def _run_equality(args: argparse.Namespace) -> int:
     return 0 if result.equal else 1
 
 
+def _run_pcqm(args: argparse.Namespace) -> int:
+    """``--mode pcqm``: mm compare --mode pcqm's printed figures (or JSON)."""
+    from torchmeshmetric.mpeg.model_cloud import load_model_cloud
+    from torchmeshmetric.mpeg.pcqm import mpeg_pcqm
+
+    ref = load_model_cloud(args.ref, args.ref_texture, name=f"REF {args.ref!r}")
+    dis = load_model_cloud(args.dis, args.dis_texture, name=f"DIS {args.dis!r}")
+    result = mpeg_pcqm(
+        ref,
+        dis,
+        radius_curvature=args.radius_curvature,
+        knn=args.threshold_knn_search,
+        radius_factor=args.radius_factor,
+    )
+    print(json.dumps(json_safe(result.to_dict()), indent=1) if args.json else result.report())
+    return 0
+
+
 def _run_topology(args: argparse.Namespace) -> int:
     """``--mode topo``: mmetric's topology verdict in its words (or JSON); exit status 0 when matching, 1 otherwise."""
     from dataclasses import asdict
@@ -91,6 +109,8 @@ def _run(args: argparse.Namespace) -> int:
         return _run_tfan(args)
     if args.mode == "ibsm":
         return run_ibsm(args)
+    if args.mode == "pcqm":
+        return _run_pcqm(args)
 
     box = None
     if args.box is not None:
@@ -164,11 +184,13 @@ def add_mpeg_command(sub: Any) -> None:
     p.add_argument("--json", action="store_true", help='print one JSON object (non-finite values as "inf")')
     p.add_argument(
         "--mode",
-        choices=("pcc", "equ", "eqTFAN", "topo", "ibsm"),
+        choices=("pcc", "equ", "eqTFAN", "topo", "ibsm", "pcqm"),
         default="pcc",
         help="pcc: the D1/D2/colour figures (default); equ: mm compare --mode equ, the equality verdict; eqTFAN: mm "
         "compare --mode eqTFAN, the triangle-fan connectivity verdict; topo: mm "
-        "compare --mode topo, the topology verdict; ibsm: mm compare --mode ibsm, the image-based figures",
+        "compare --mode topo, the topology verdict; ibsm: mm compare --mode ibsm, the image-based figures; pcqm: mm "
+        "compare --mode pcqm, the PCQM score and its PSNR (meshes sampled as mm compare does; point-cloud PLY files "
+        "used as they are)",
     )
     p.add_argument(
         "--face-map",
@@ -181,6 +203,27 @@ def add_mpeg_command(sub: Any) -> None:
         default=None,
         metavar="FILE",
         help="topo mode: text file of 'b a' lines, vertex b of DIS is vertex a of REF (mm --vertexMapFile)",
+    )
+    p.add_argument(
+        "--radius-curvature",
+        type=float,
+        default=0.001,
+        metavar="R",
+        help="pcqm mode: curvature neighbourhood radius relative to REF's box (mm --radiusCurvature, default 0.001)",
+    )
+    p.add_argument(
+        "--threshold-knn-search",
+        type=int,
+        default=20,
+        metavar="K",
+        help="pcqm mode: neighbours of the projection quadric (mm --thresholdKnnSearch, default 20)",
+    )
+    p.add_argument(
+        "--radius-factor",
+        type=float,
+        default=2.0,
+        metavar="F",
+        help="pcqm mode: pooling radius over the curvature radius (mm --radiusFactor, default 2.0)",
     )
     p.add_argument("--unoriented", action="store_true", help="equ mode: a triangle also equals its reversed copy")
     p.add_argument(

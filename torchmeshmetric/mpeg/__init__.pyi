@@ -13,7 +13,9 @@ from . import grid_sampling as grid_sampling
 from . import losses as losses
 from . import map_sampling as map_sampling
 from . import metric as metric
+from . import model_cloud as model_cloud
 from . import neighbours as neighbours
+from . import pcqm as pcqm
 from . import point_cloud as point_cloud
 from . import prnd_sampling as prnd_sampling
 from . import psnr as psnr
@@ -53,8 +55,11 @@ from .losses import (
 )
 from .map_sampling import map_sample
 from .metric import MpegPSNR
+from .model_cloud import load_model_cloud
 from .mpeg_metrics import MpegClouds, Sampling, mpeg_metrics, mpeg_point_cloud, mpeg_point_clouds
 from .neighbours import NeighbourTies, k_nearest, mpeg_sq_dists, nearest_with_ties
+from .pcqm import PcqmResult, mpeg_pcqm
+from .pcqm_lightness import pcqm_lightness
 from .point_cloud import PointCloud, merge_duplicate_points
 from .prnd_sampling import prnd_sample
 from .psnr import mpeg_psnr
@@ -134,4 +139,8 @@ __all__ = [
     "topology_equivalence",
     "unique_vertex_rows",
     "vertex_sample",
+    "PcqmResult",
+    "load_model_cloud",
+    "mpeg_pcqm",
+    "pcqm_lightness",
 ]

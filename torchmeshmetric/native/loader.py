@@ -75,6 +75,10 @@ EXTENSIONS: dict[str, NativeExtension] = {
     "pcc": NativeExtension(
         sources=("mpeg_pcc.cpp",), headers=("parallel.h",), cflags=(*_EXACT, "-fopenmp"), ldflags=("-fopenmp",)
     ),
+    # mmetric's PCQM (compare --mode pcqm): its k-d tree searches, quadric fits and pooled features (mpeg.pcqm).
+    "pcqm": NativeExtension(
+        sources=("pcqm.cpp",), headers=("parallel.h",), cflags=(*_EXACT, "-fopenmp"), ldflags=("-fopenmp",)
+    ),
 }
 """Every extension of the package, by the name :func:`load` takes."""
 
