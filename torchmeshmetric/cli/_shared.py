@@ -6,18 +6,17 @@ Imported by a command's ``run`` only (it imports torch and the evaluation system
 from __future__ import annotations
 
 import argparse
-import contextlib
-import os
 import sys
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 import torch
 
-from torchmeshmetric._atomic import atomic_file_set, atomic_write, blocking_file
+from torchmeshmetric._atomic import atomic_write
 from torchmeshmetric._format import json_safe
+from torchmeshmetric.cli._outputs import CLIError, output_set
 from torchmeshmetric.data.sequence import load_sequence
 from torchmeshmetric.evaluation.distributed import SequenceWork, evaluate_sequences
 from torchmeshmetric.evaluation.pipeline import check_methods, evaluate_sequence
@@ -31,9 +30,6 @@ from torchmeshmetric.tasks import is_distributed, rank_and_world_size
 from torchmeshmetric.viz.plots import plot_mpeg_curves
 
 __all__ = [
-    "CLIError",
-    "check_folder",
-    "check_writable",
     "device_of",
     "dtype_of",
     "evaluate_across_ranks",
@@ -41,18 +37,12 @@ __all__ = [
     "evaluate_methods",
     "fast_registration_options",
     "load_frames",
-    "make_folder",
-    "output_set",
     "parse_methods",
     "progress",
     "report_paths",
     "simplify_frames",
     "write_reports",
 ]
-
-
-class CLIError(Exception):
-    """An error reported to the user as one line (exit code 1)."""
 
 
 def progress(label: str) -> Callable[[int, int], None]:
@@ -89,52 +79,6 @@ def report_paths(out: str | None, mpeg: bool = False) -> dict[str, Path]:
 def dtype_of(args: argparse.Namespace) -> Any:
     """The torch dtype of ``--dtype``."""
     return {"float32": torch.float32, "float64": torch.float64}[args.dtype]
-
-
-def check_folder(folder: Path, what: str, *, may_create: bool = False) -> None:
-    """An output folder: existing (or, with ``may_create``, missing), never a file nor below a file."""
-    if not folder.is_dir():
-        blocker = blocking_file(folder)
-        if blocker is not None:
-            raise CLIError(f"{what} {str(folder)!r}: {str(blocker)!r} is a file, not a folder")
-        if not may_create:
-            raise CLIError(f"{what} {str(folder)!r} does not exist")
-
-
-def make_folder(folder: Path, what: str, files: Any) -> None:
-    """Create an output folder inside a file set (removed again when the run fails), naming a file in the way."""
-    try:
-        files.mkdir(folder)
-    except (FileExistsError, NotADirectoryError) as exc:  # a file appeared in the way since the check
-        check_folder(folder, what)
-        raise CLIError(f"{what} {str(folder)!r}: cannot create it ({exc.strerror})") from exc
-    except OSError as exc:
-        raise CLIError(f"{what} {str(folder)!r}: cannot create it ({exc.strerror})") from exc
-
-
-@contextlib.contextmanager
-def output_set(what: str) -> Iterator[Any]:
-    """Write this run's outputs as one set (all or none); a write error becomes one line saying nothing was kept."""
-    try:
-        with atomic_file_set() as files:
-            yield files
-    except OSError as exc:
-        reason = exc.strerror or str(exc)
-        where = f" ({exc.filename})" if exc.filename else ""
-        raise CLIError(f"could not write {what}: {reason}{where}; none of its files was written") from exc
-
-
-def check_writable(paths: Sequence[Path], overwrite: bool) -> None:
-    """Fail before any computation when an output cannot be written."""
-    for path in paths:
-        folder = path.parent if str(path.parent) else Path(".")
-        check_folder(folder, "output folder")
-        if not os.access(folder, os.W_OK):
-            raise CLIError(f"output folder {str(folder)!r} is not writable")
-        if path.is_dir():
-            raise CLIError(f"output {str(path)!r} is a directory, expected a file")
-        if path.exists() and not overwrite:
-            raise CLIError(f"output {str(path)!r} already exists (pass --overwrite to replace it)")
 
 
 def load_frames(directory: str, what: str, dtype: Any) -> list[Any]:

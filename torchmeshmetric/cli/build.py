@@ -19,7 +19,7 @@ def run(args: argparse.Namespace) -> int:
     C++ compiler or ninja the command fails with the reason; the library then runs its pure formulations.
     """
     from torchmeshmetric import native
-    from torchmeshmetric.cli._shared import CLIError
+    from torchmeshmetric.cli._outputs import CLIError
 
     names = args.names or list(native.EXTENSIONS)
     unknown = [n for n in names if n not in native.EXTENSIONS]

@@ -21,15 +21,13 @@ def run(args: argparse.Namespace) -> int:
     campaign.json/.md/.csv and one report per sequence (<sequence>.json/.md/.csv). Under torchrun the work is shared
     by all processes.
     """
+    from torchmeshmetric.cli._outputs import check_writable, make_folder, output_set
     from torchmeshmetric.cli._shared import (
-        check_writable,
         device_of,
         dtype_of,
         evaluate_across_ranks,
         fast_registration_options,
         load_frames,
-        make_folder,
-        output_set,
         report_paths,
         write_reports,
     )

@@ -19,8 +19,8 @@ def run(args: argparse.Namespace) -> int:
     'inconclusive': the interval contains 0, or the difference is below the registration's noise floor (k-1 and
     flicker sets) or the relative margin), in the report's 'comparisons' and as verdict tables.
     """
+    from torchmeshmetric.cli._outputs import check_writable
     from torchmeshmetric.cli._shared import (
-        check_writable,
         device_of,
         dtype_of,
         evaluate_methods,

@@ -129,7 +129,7 @@ def _run_ctc(args: argparse.Namespace) -> int:
     lo, hi = _check_options(args)
     files = _frame_files(args)
     outputs = [] if args.out is None else [Path(f"{args.out}.{ext}") for ext in ("json", "csv", "md")]
-    from torchmeshmetric.cli._shared import check_writable
+    from torchmeshmetric.cli._outputs import check_writable
 
     check_writable(outputs, args.overwrite)  # folder present and writable, no file replaced without --overwrite
     from torchmeshmetric.mpeg.ctc import CTC_COLUMNS, CtcSequence

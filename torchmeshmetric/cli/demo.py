@@ -112,7 +112,7 @@ def run(args: argparse.Namespace) -> int:
 
 def _demo_out_dir(args: argparse.Namespace) -> Path:
     """The demo's output folder, created and marked as the demo's (another tool's non-empty one: --overwrite)."""
-    from torchmeshmetric.cli._shared import CLIError, check_folder
+    from torchmeshmetric.cli._outputs import CLIError, check_folder
 
     out_dir = Path(args.out_dir)
     check_folder(out_dir, "--out-dir", may_create=True)
@@ -137,7 +137,7 @@ def _write_demo(
     ground_truth: Any,
 ) -> list[str]:
     """The demo's report, meshes, plots and weight sweep, written as one set; the names written."""
-    from torchmeshmetric.cli._shared import output_set
+    from torchmeshmetric.cli._outputs import output_set
     from torchmeshmetric.data.io import save_mesh
     from torchmeshmetric.evaluation.reports import report_dict, write_csv, write_json, write_markdown
 

@@ -19,8 +19,8 @@ def run(args: argparse.Namespace) -> int:
     k-1), print the paper's Tables I-IV and optionally write a report. Frames are matched by natural sort order of
     the file names in each folder; the counts must be equal.
     """
+    from torchmeshmetric.cli._outputs import check_writable
     from torchmeshmetric.cli._shared import (
-        check_writable,
         device_of,
         dtype_of,
         evaluate_methods,

@@ -70,7 +70,7 @@ def _run_topology(args: argparse.Namespace) -> int:
     """``--mode topo``: mmetric's topology verdict in its words (or JSON); exit status 0 when matching, 1 otherwise."""
     from dataclasses import asdict
 
-    from torchmeshmetric.cli._shared import CLIError
+    from torchmeshmetric.cli._outputs import CLIError
     from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
     from torchmeshmetric.mpeg.topology import topology_equivalence
 

@@ -40,7 +40,7 @@ def add_output_options(p: Any) -> None:
 
 def check_outputs(args: argparse.Namespace) -> None:
     """Refuse, before any computation, output options the mode does not write or files that cannot be written."""
-    from torchmeshmetric.cli._shared import CLIError, check_writable
+    from torchmeshmetric.cli._outputs import CLIError, check_writable
 
     models = [Path(m) for m in (args.output_model_ref, args.output_model_dis) if m is not None]
     if (models or args.output_csv is not None) and args.mode not in ("pcc", "ibsm"):

@@ -17,7 +17,8 @@ def run(args: argparse.Namespace) -> int:
     Align --source (frame k-1) onto --target (frame k), keeping the source's vertices and topology, and write the
     registered mesh. Exit code 3 when the registration did not converge.
     """
-    from torchmeshmetric.cli._shared import CLIError, check_writable, device_of, dtype_of
+    from torchmeshmetric.cli._outputs import CLIError, check_writable
+    from torchmeshmetric.cli._shared import device_of, dtype_of
     from torchmeshmetric.data.io import load_mesh, save_mesh
     from torchmeshmetric.evaluation.pipeline import register_pairs
     from torchmeshmetric.stats.statistics import distance_statistics

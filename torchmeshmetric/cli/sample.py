@@ -12,7 +12,7 @@ def _run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from torchmeshmetric._atomic import atomic_write
-    from torchmeshmetric.cli._shared import CLIError, check_writable
+    from torchmeshmetric.cli._outputs import CLIError, check_writable
     from torchmeshmetric.mpeg.edge_sampling import edge_sample
     from torchmeshmetric.mpeg.face_sampling import face_sample
     from torchmeshmetric.mpeg.map_sampling import map_sample

@@ -18,14 +18,11 @@ def run(args: argparse.Namespace) -> int:
     Simplify each frame of --input into --output (same file names). 'rqem' (Registered QEM) also uses the previous
     original frame registered onto the current one; frame 0 is simplified with QEM.
     """
+    from torchmeshmetric.cli._outputs import check_folder, check_writable, make_folder, output_set
     from torchmeshmetric.cli._shared import (
-        check_folder,
-        check_writable,
         device_of,
         dtype_of,
         load_frames,
-        make_folder,
-        output_set,
         simplify_frames,
     )
     from torchmeshmetric.data.frames import list_frames

@@ -26,7 +26,7 @@ def run(args: argparse.Namespace) -> int:
     """
     from torchmeshmetric._atomic import atomic_write
     from torchmeshmetric._format import json_safe
-    from torchmeshmetric.cli._shared import CLIError, check_writable
+    from torchmeshmetric.cli._outputs import CLIError, check_writable
     from torchmeshmetric.evaluation.validation import DISTORTIONS, FULL, REDUCED, run_validation
     from torchmeshmetric.viz.validation import plot_validation
 
