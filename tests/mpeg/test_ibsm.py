@@ -15,7 +15,7 @@ import pytest
 import torch
 
 from tests.mpeg.test_ctc import MM_BIN, MPEG_REF, needs_mm
-from torchmeshmetric.mpeg.ibsm import IbsmResult, ibsm, ibsm_render
+from torchmeshmetric.mpeg.ibsm import IbsmNoOverlapWarning, IbsmResult, ibsm, ibsm_render
 from torchmeshmetric.mpeg.textured_mesh import TexturedMesh, load_textured_mesh
 from torchmeshmetric.structures import Mesh
 
@@ -118,7 +118,8 @@ def test_identical_meshes_and_bad_input() -> None:
     """Identical meshes: every PSNR at the 99.99 cap, no unmatched pixel; typed errors name the argument."""
     r = ibsm(_square(), _square(), resolution=32, cameras=4)
     assert r.geo_psnr == 99.99 and r.yuv_psnr[0] == 99.99 and r.unmatched_percent == 0.0 and r.pixels > 0
-    edge_on = ibsm(_square(), _square(), resolution=32, cameras=2)  # seen from +-y only: nothing covered
+    with pytest.warns(IbsmNoOverlapWarning, match="no pixel is covered in both renderings"):
+        edge_on = ibsm(_square(), _square(), resolution=32, cameras=2)  # seen from +-y only: nothing covered
     assert edge_on.pixels == 0 and edge_on.unmatched_percent == 100.0 and edge_on.geo_psnr == 99.99  # as mmetric
     with pytest.raises(ValueError, match="cameras"):
         ibsm(_square(), _square(), cameras=1)
