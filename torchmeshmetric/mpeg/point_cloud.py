@@ -83,7 +83,8 @@ def merge_duplicate_points(cloud: PointCloud, name: str = "cloud") -> PointCloud
 
     The cloud is sorted by ``(x, y, z)`` (ties by index); each run of equal positions becomes one point whose normal is
     the float32 mean of the run's normals (not renormalised) and whose colour is the integer mean (truncated) of the
-    colours rounded to 8 bits (a NaN colour counts as 0). ``-0.0`` and ``0.0`` are the same coordinate.
+    colours rounded to 8 bits (a NaN colour counts as 0, what mmetric's conversion to 8 bits gives on x86). ``-0.0``
+    and ``0.0`` are the same coordinate.
 
     Args:
         cloud: the cloud to merge.

@@ -433,8 +433,8 @@ std::vector<SortKey> sorted_keys(const float* p, int64_t n) {
 // dmetric's dropDuplicates = 2 (average): the points sorted by (x, y, z), ties by index; each run of equal coordinates
 // (-0.0 equals 0.0) becomes one point whose normal is the float32 mean of the run's normals (summed in run order, not
 // renormalised) and whose colour is the integer mean (truncated) of the colours rounded to 8 bits (roundf, clamped;
-// NaN as 0). normals / colors may be empty (0 elements): their result is empty too.
-// Returns {points (M, 3), normals (M, 3), colors (M, 3) float32}.
+// NaN as 0, as mmetric's int conversion gives on x86). normals / colors may be empty (0 elements): their result is
+// empty too. Returns {points (M, 3), normals (M, 3), colors (M, 3) float32}.
 std::vector<torch::Tensor> mpeg_merge(torch::Tensor points, torch::Tensor normals, torch::Tensor colors) {
   check_points(points, "mpeg_merge");
   const int64_t n = points.size(0);
