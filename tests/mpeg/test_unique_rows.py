@@ -8,8 +8,8 @@ import pytest
 from torchmeshmetric.mpeg import grid_sampling as gs
 
 
-@pytest.mark.parametrize("with_colour", [False, True])
-def test_unique_vertex_rows_hash_matches_lexsort(with_colour: bool, monkeypatch: pytest.MonkeyPatch) -> None:
+@pytest.mark.parametrize("colour_width", [0, 3, 5])  # none, a colour, UV + colour (map and sdiv sampling)
+def test_unique_vertex_rows_hash_matches_lexsort(colour_width: int, monkeypatch: pytest.MonkeyPatch) -> None:
     rng = np.random.default_rng(5)
     pos = (np.round(rng.random((3000, 3)) * 6) / 6).astype(np.float32)
     pos[::5] = -pos[::5] * 0  # -0.0 rows must merge with 0.0 rows
@@ -17,7 +17,7 @@ def test_unique_vertex_rows_hash_matches_lexsort(with_colour: bool, monkeypatch:
     nrm = np.round(rng.random((3000, 3))).astype(np.float32)
     nrm[3:5] = np.nan  # a NaN equals nothing: rows 3 and 4 are kept even where they are otherwise equal
     pos[4] = pos[3]
-    col = rng.integers(0, 2, (3000, 3)).astype(np.float32) if with_colour else None
+    col = rng.integers(0, 2, (3000, colour_width)).astype(np.float32) if colour_width else None
     keys = [pos, nrm] if col is None else [pos, nrm, col]
     want = gs._unique_rows_lexsort(keys)
     assert 0 < want.size < 3000

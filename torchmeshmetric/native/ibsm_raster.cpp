@@ -632,20 +632,26 @@ std::vector<torch::Tensor> grid_cast(torch::Tensor verts, torch::Tensor faces, t
   return {pos, origin, bary, face, axis};
 }
 
-// The rows kept by mmetric's ModelBuilder after grid sampling: the first of every set of rows equal in value (position,
-// normal and, when given, colour; -0.0 equals 0.0, a NaN equals nothing). The rows are sorted by a hash of their
-// bits, then by index; rows of equal hash are compared value by value, so the answer is exact whatever the hash.
-// Returns the kept row indices, ascending.
-torch::Tensor unique_rows(torch::Tensor pos, torch::Tensor nrm, torch::Tensor col) {
-  const int64_t n = pos.size(0);
-  const bool with_c = col.numel() > 0;
-  for (const torch::Tensor* t : {&pos, &nrm, &col})
-    TORCH_CHECK(t->numel() == 0 || (t->is_contiguous() && t->scalar_type() == torch::kFloat32 && t->dim() == 2 &&
-                                    t->size(0) == n && t->size(1) == 3),
-                "unique_rows: contiguous float32 (N, 3) rows expected");
-  const int width = with_c ? 9 : 6;
-  const float* src[3] = {pos.data_ptr<float>(), nrm.data_ptr<float>(), with_c ? col.data_ptr<float>() : nullptr};
-  const auto value = [&](int64_t i, int k) { return src[k / 3][3 * i + k % 3]; };
+// The rows kept by mmetric's ModelBuilder after a sampling: the first of every set of rows equal in value over all
+// the key columns (position, normal and the attributes of the mode: colour, UV; -0.0 equals 0.0, a NaN equals
+// nothing). The rows are sorted by a hash of their bits, then by index; rows of equal hash are compared value by value,
+// so the answer is exact whatever the hash. `columns`: (N, w) float32 blocks side by side. Returns the kept row
+// indices, ascending.
+torch::Tensor unique_rows(std::vector<torch::Tensor> columns) {
+  TORCH_CHECK(!columns.empty(), "unique_rows: at least one key block expected");
+  const int64_t n = columns[0].size(0);
+  std::vector<const float*> src;  // one pointer per key column: block start + column, stride = block width
+  std::vector<int64_t> stride;
+  for (const torch::Tensor& t : columns) {
+    TORCH_CHECK(t.is_contiguous() && t.scalar_type() == torch::kFloat32 && t.dim() == 2 && t.size(0) == n,
+                "unique_rows: contiguous float32 (N, w) key blocks with the same N expected");
+    for (int64_t c = 0; c < t.size(1); ++c) {
+      src.push_back(t.data_ptr<float>() + c);
+      stride.push_back(t.size(1));
+    }
+  }
+  const int width = static_cast<int>(src.size());
+  const auto value = [&](int64_t i, int k) { return src[k][stride[k] * i]; };
   const auto hash = [&](int64_t i) {
     uint64_t h = 0;
     for (int k = 0; k < width; ++k) {
@@ -701,5 +707,5 @@ PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
   m.def("ibsm_render", &ibsm_render, "one orthographic rendering (depth, RGBA, depth range)");
   m.def("fibonacci_sphere", &fibonacci_sphere, "mmetric's Fibonacci-sphere camera directions");
   m.def("grid_cast", &grid_cast, "mmetric's grid sampling ray casting, hits in its push order");
-  m.def("unique_rows", &unique_rows, "the first of every set of equal (position, normal, colour) rows");
+  m.def("unique_rows", &unique_rows, "the first of every set of rows equal over all key columns");
 }
