@@ -121,21 +121,26 @@ int32_t build_node(KdTree& t, Slot* sl, int64_t begin, int64_t end, const Box& a
   return static_cast<int32_t>(id);
 }
 
-KdTree build_tree(const float* p, int64_t n) {
-  KdTree t;
-  std::vector<Slot> sl(static_cast<size_t>(n));
+// The bounding box of n points (x, y, z rows).
+Box bounds(const float* p, int64_t n) {
   Box box;
   for (int a = 0; a < 3; ++a) {
     box.lo[a] = std::numeric_limits<float>::infinity();
     box.hi[a] = -std::numeric_limits<float>::infinity();
   }
-  for (int64_t i = 0; i < n; ++i) {
-    sl[i] = Slot{{p[3 * i], p[3 * i + 1], p[3 * i + 2]}, i};
+  for (int64_t i = 0; i < n; ++i)
     for (int a = 0; a < 3; ++a) {
       box.lo[a] = std::min(box.lo[a], p[3 * i + a]);
       box.hi[a] = std::max(box.hi[a], p[3 * i + a]);
     }
-  }
+  return box;
+}
+
+KdTree build_tree(const float* p, int64_t n) {
+  KdTree t;
+  std::vector<Slot> sl(static_cast<size_t>(n));
+  const Box box = bounds(p, n);
+  for (int64_t i = 0; i < n; ++i) sl[i] = Slot{{p[3 * i], p[3 * i + 1], p[3 * i + 2]}, i};
   t.nodes.resize(static_cast<size_t>(inner_count(n)));
   t.root = build_node(t, sl.data(), 0, n, box, 0, t.root_box, true);
   t.root_count = static_cast<int32_t>(n);
@@ -212,16 +217,8 @@ std::vector<int64_t> column_order(const ColumnGrid& g, const float* p, int64_t n
 
 ColumnGrid build_grid(const float* p, int64_t n) {
   ColumnGrid g;
-  float lo[3], hi[3];
-  for (int a = 0; a < 3; ++a) {
-    lo[a] = std::numeric_limits<float>::infinity();
-    hi[a] = -std::numeric_limits<float>::infinity();
-  }
-  for (int64_t i = 0; i < n; ++i)
-    for (int a = 0; a < 3; ++a) {
-      lo[a] = std::min(lo[a], p[3 * i + a]);
-      hi[a] = std::max(hi[a], p[3 * i + a]);
-    }
+  const Box box = bounds(p, n);
+  const float *lo = box.lo, *hi = box.hi;
   double ext[3];
   for (int a = 0; a < 3; ++a) ext[a] = static_cast<double>(hi[a]) - static_cast<double>(lo[a]);
   g.ac = 0;
