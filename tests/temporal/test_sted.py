@@ -1,0 +1,84 @@
+from __future__ import annotations
+
+import pytest
+import torch
+
+from tests.temporal.conftest import animated_sphere
+from tests.temporal.naive import naive_sted
+from torchmeshmetric._checks import IndexRangeError, ShapeError
+from torchmeshmetric.temporal import sted
+from torchmeshmetric.temporal.sted import largest_vertex_distance
+
+
+def _distort(a: torch.Tensor, seed: int = 3, size: float = 0.02) -> torch.Tensor:
+    g = torch.Generator().manual_seed(seed)
+    return a + size * torch.randn(a.shape, generator=g, dtype=a.dtype)
+
+
+def test_equals_the_naive_reference(sphere_animation: tuple[torch.Tensor, torch.Tensor]) -> None:
+    a, faces = sphere_animation
+    b = _distort(a)
+    for dt, window, c in ((3e-4, 5, 9.144e-5), (0.05, 1, 0.5)):
+        r = sted(a, b, faces, dt=dt, window=window, c=c)
+        ref = naive_sted(a.numpy(), b.numpy(), faces.numpy(), dt, window, c)
+        # float64 sums in another order: agreement to a few ulps of values of order 1 (measured: < 4e-16).
+        for got, want in zip(r, ref, strict=True):
+            assert abs(got.item() - want) < 1e-13 * max(1.0, abs(want))
+
+
+def test_invariants(sphere_animation: tuple[torch.Tensor, torch.Tensor]) -> None:
+    a, faces = sphere_animation
+    b = _distort(a)
+    zero = sted(a, a, faces)
+    assert zero.spatial.item() == 0.0 and zero.temporal.item() == 0.0 and zero.sted.item() == 0.0
+    q, _ = torch.linalg.qr(torch.randn(3, 3, dtype=torch.float64, generator=torch.Generator().manual_seed(1)))
+    t = torch.tensor([0.3, -2.0, 5.0], dtype=torch.float64)
+    moved = sted(a @ q.T + t, b @ q.T + t, faces)
+    for got, want in zip(moved, sted(a, b, faces), strict=True):
+        assert abs(got.item() - want.item()) < 1e-12
+    assert sted(a, 1.7 * a, faces).spatial.item() < 1e-12  # a uniform scale has no spatial cost
+    assert sted(a, 1.7 * a, faces).temporal.item() > 0.1  # ... but moves every vertex faster
+
+
+def test_flicker_raises_temporal_not_spatial(sphere_animation: tuple[torch.Tensor, torch.Tensor]) -> None:
+    a, faces = sphere_animation
+    shift = torch.tensor([0.01, 0.0, 0.0], dtype=torch.float64)
+    flicker = a + shift * (torch.arange(a.shape[0]) % 2)[:, None, None]  # whole frames jump back and forth
+    r = sted(a, flicker, faces)
+    steady = sted(a, a + shift, faces)  # the same offset in every frame: no jitter
+    assert r.spatial.item() < 1e-12 and steady.spatial.item() < 1e-12
+    assert steady.temporal.item() < 1e-12 and r.temporal.item() > 0.1
+
+
+def test_batch_and_gradients(sphere_animation: tuple[torch.Tensor, torch.Tensor]) -> None:
+    a, faces = sphere_animation
+    b = _distort(a)
+    batch = sted(torch.stack([a, a]), torch.stack([b, a]), faces)
+    single = sted(a, b, faces)
+    assert batch.sted.shape == (2,)
+    assert batch.sted[0].item() == single.sted.item() and batch.sted[1].item() == 0.0
+    small_a, small_faces = animated_sphere(num_frames=3, subdivisions=0)
+    small_b = _distort(small_a).requires_grad_(True)
+    assert torch.autograd.gradcheck(lambda x: sted(small_a, x, small_faces, c=0.5).sted, (small_b,))
+    same = small_a.clone().requires_grad_(True)
+    sted(small_a, same, small_faces).sted.backward()  # at zero error: finite (zero) gradients
+    assert same.grad is not None and bool(torch.isfinite(same.grad).all())
+
+
+def test_largest_vertex_distance_is_exact() -> None:
+    g = torch.Generator().manual_seed(0)
+    x = torch.randn(3000, 3, dtype=torch.float64, generator=g) * 1e3 + 1e6
+    want = torch.cdist(x - x.mean(0), x - x.mean(0), compute_mode="donot_use_mm_for_euclid_dist").max()
+    assert largest_vertex_distance(x).item() == want.item()
+
+
+def test_bad_input_is_named(sphere_animation: tuple[torch.Tensor, torch.Tensor]) -> None:
+    a, faces = sphere_animation
+    with pytest.raises(ShapeError, match="at least 2 frame"):
+        sted(a[:1], a[:1], faces)
+    with pytest.raises(IndexRangeError, match="faces"):
+        sted(a, a, faces + 1000)
+    with pytest.raises(ValueError, match="dt"):
+        sted(a, a, faces, dt=0.0)
+    with pytest.raises(ValueError, match="window"):
+        sted(a, a, faces, window=-1)
