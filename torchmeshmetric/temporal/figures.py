@@ -1,0 +1,158 @@
+"""The five temporal figures of a sequence pair, exact when the connectivity allows, registered otherwise.
+
+The entry point of the tools (``torchmeshmetric temporal``, the evaluation reports): KG, KSO, STED_s, STED_t and
+STED as plain numbers, and whether they came from the registered form (docs/temporal.md).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import torch
+
+from torchmeshmetric._checks import ShapeError
+from torchmeshmetric.evaluation.pipeline import RegisterFn, RegistrationOptions
+from torchmeshmetric.registration.cache import CachedRegistration, RegistrationCache
+from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
+from torchmeshmetric.temporal.kg import kg_error, kso_error
+from torchmeshmetric.temporal.registered import registered_pair
+from torchmeshmetric.temporal.sted import DEFAULT_C, DEFAULT_DT, DEFAULT_WINDOW, sted
+
+__all__ = ["FIGURE_NAMES", "TemporalFigures", "same_connectivity", "temporal_figures"]
+
+#: The figures, in the order the tools print them.
+FIGURE_NAMES = ("kg", "kso", "sted_s", "sted_t", "sted")
+
+
+class TemporalFigures(NamedTuple):
+    """KG, KSO, STED_s, STED_t and STED of a sequence pair (see :func:`temporal_figures`).
+
+    Attributes:
+        kg: KG error (percent).
+        kso: KSO's E_RMS.
+        sted_s: STED's spatial part.
+        sted_t: STED's temporal part.
+        sted: STED.
+        registered: ``True`` when measured with the registered form (the frames' connectivity differs).
+        num_frames: frames compared.
+        num_verts: vertices followed (the original's, or the tracked frame 0's).
+    """
+
+    kg: float
+    kso: float
+    sted_s: float
+    sted_t: float
+    sted: float
+    registered: bool
+    num_frames: int
+    num_verts: int
+
+    def as_dict(self) -> dict[str, float | bool | int]:
+        """The figures as a plain dict (for JSON reports)."""
+        return dict(self._asdict())
+
+
+def same_connectivity(original: Sequence[Mesh], distorted: Sequence[Mesh]) -> bool:
+    """Whether the exact forms apply to two sequences of meshes.
+
+    They do when every frame of both has the original frame 0's vertex count and every original frame its faces.
+    """
+    first = original[0]
+    return all(m.num_verts == first.num_verts for m in (*original, *distorted)) and all(
+        m.faces.shape == first.faces.shape and bool(torch.equal(m.faces.cpu(), first.faces.cpu())) for m in original
+    )
+
+
+def temporal_figures(
+    original: Sequence[MeshLike],
+    distorted: Sequence[MeshLike],
+    *,
+    registered: bool | None = None,
+    registrations: Sequence[CachedRegistration] | None = None,
+    registration_fn: RegisterFn | None = None,
+    registration_options: RegistrationOptions = None,
+    registration_cache: RegistrationCache | None = None,
+    device: torch.device | str | None = None,
+    backend: str = "auto",
+    dt: float = DEFAULT_DT,
+    window: int = DEFAULT_WINDOW,
+    c: float = DEFAULT_C,
+) -> TemporalFigures:
+    """KG, KSO, STED_s, STED_t and STED of ``distorted`` against ``original``, in float64.
+
+    Args:
+        original: the ``F >= 2`` original frames.
+        distorted: the ``F`` distorted frames.
+        registered: ``None`` (default): the exact forms when :func:`same_connectivity`, the registered forms
+            otherwise; ``True``: the registered forms; ``False``: the exact forms (an error if they do not apply).
+        registrations: the ``F - 1`` registrations of the registered forms when already computed.
+        registration_fn: registration function (default: the library's non-rigid registration).
+        registration_options: options of the default registration (part of the cache key).
+        registration_cache: a :class:`~torchmeshmetric.registration.RegistrationCache` (``None``: no cache).
+        device: where the registration, the tracking and the metrics run.
+        backend: kernel backend of the registration and of the closest-point queries.
+        dt: STED's temporal step (see :func:`~torchmeshmetric.temporal.sted`).
+        window: STED's temporal window (half-width in frames).
+        c: STED's weight of the temporal part.
+
+    Returns:
+        :class:`TemporalFigures`.
+
+    Raises:
+        ShapeError: frame counts that differ, fewer than 2 frames, or ``registered=False`` on frames whose
+            connectivity differs.
+
+    Example:
+        >>> import trimesh
+        >>> sphere = trimesh.creation.icosphere(subdivisions=2)
+        >>> frames = [trimesh.Trimesh(sphere.vertices * (1 + 0.1 * k), sphere.faces) for k in range(3)]
+        >>> f = temporal_figures(frames, frames)
+        >>> f.registered, f.kg, f.sted
+        (False, 0.0, 0.0)
+    """
+    if isinstance(original, (str, bytes)) or not isinstance(original, Sequence):
+        raise TypeError(f"original: expected a sequence of meshes, found {type(original).__name__}")
+    if isinstance(distorted, (str, bytes)) or not isinstance(distorted, Sequence):
+        raise TypeError(f"distorted: expected a sequence of meshes, found {type(distorted).__name__}")
+    originals = [as_mesh(m, name=f"original[{k}]") for k, m in enumerate(original)]
+    distorteds = [as_mesh(m, name=f"distorted[{k}]") for k, m in enumerate(distorted)]
+    if len(originals) != len(distorteds):
+        raise ShapeError(f"distorted: expected {len(originals)} frames (those of original), found {len(distorteds)}")
+    if len(originals) < 2:
+        raise ShapeError(f"original: expected at least 2 frames, found {len(originals)}")
+    exact = same_connectivity(originals, distorteds)
+    if registered is False and not exact:
+        raise ShapeError(
+            "registered=False: the exact forms need every frame of both sequences to have the original frame 0's "
+            "vertices and every original frame its faces; these differ (use the registered forms)"
+        )
+    use_registered = not exact if registered is None else registered
+    if use_registered:
+        pair = registered_pair(
+            originals,
+            distorteds,
+            registrations=registrations,
+            registration_fn=registration_fn,
+            registration_options=registration_options,
+            registration_cache=registration_cache,
+            device=device,
+            backend=backend,
+        )
+        a, b, faces = pair.original.detach(), pair.distorted.detach(), pair.faces
+    else:
+        dev = torch.device(device) if device is not None else originals[0].device
+        a = torch.stack([m.verts.detach().to(dev, torch.float64) for m in originals])
+        b = torch.stack([m.verts.detach().to(dev, torch.float64) for m in distorteds])
+        faces = originals[0].faces.to(dev)
+    s = sted(a, b, faces, dt=dt, window=window, c=c)
+    return TemporalFigures(
+        kg=float(kg_error(a, b)),
+        kso=float(kso_error(a, b)),
+        sted_s=float(s.spatial),
+        sted_t=float(s.temporal),
+        sted=float(s.sted),
+        registered=use_registered,
+        num_frames=int(a.shape[0]),
+        num_verts=int(a.shape[1]),
+    )

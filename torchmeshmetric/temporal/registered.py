@@ -1,0 +1,250 @@
+r"""The registered forms: the temporal metrics for sequences whose connectivity changes from frame to frame.
+
+KG, KSO and STED need one vertex set followed through every frame, in the original and in the distorted sequence.
+Captured sequences and simplified ones have a new connectivity every frame, so the library builds that
+correspondence (docs/temporal.md argues each choice):
+
+1. **Track the original.** Frame 0's vertices are carried from frame to frame by the registration of original frame
+   ``k-1`` onto frame ``k`` (the evaluation's own registrations, through the same cache:
+   :func:`~torchmeshmetric.evaluation.register_pairs`), each step's warp applied to the previous step's positions and
+   the result put back on the surface of frame ``k`` by its exact closest point. This gives an original sequence with
+   frame 0's connectivity, ``(F, V_0, 3)``.
+2. **Carry the distorted frames onto it.** Each tracked vertex of frame ``k`` takes its closest point on the
+   distorted frame ``k`` (exact point-to-triangle distance, :class:`~torchmeshmetric.kernels.MeshIndex`), written
+   as the barycentric blend of the distorted face's vertices, so gradients reach the distorted vertices.
+3. **The same metrics** on the two ``(F, V_0, 3)`` sequences, with frame 0's faces.
+
+What it sees is what a surface can show: a displacement along the normal moves the closest point; a vertex sliding
+*along* the surface leaves no trace (the surface is unchanged), which the exact forms count.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import torch
+from torch import Tensor
+
+from torchmeshmetric._checks import ShapeError
+from torchmeshmetric.evaluation.pipeline import RegisterFn, RegistrationOptions, register_pairs
+from torchmeshmetric.kernels import MeshIndex
+from torchmeshmetric.registration.cache import CachedRegistration, RegistrationCache
+from torchmeshmetric.registration.warp import as_warp
+from torchmeshmetric.structures import Mesh, MeshLike, as_mesh, vertex_set_mask
+
+__all__ = ["RegisteredPair", "TrackedSequence", "carry_onto", "registered_pair", "track_original"]
+
+
+class TrackedSequence(NamedTuple):
+    """The original's frame 0 followed through every frame (step 1 of the module docstring).
+
+    Attributes:
+        verts: ``(F, V_0, 3)`` float64 positions of frame 0's referenced vertices in every frame, on each frame's
+            surface.
+        faces: ``(T_0, 3)`` int64 frame 0's faces (indices into ``verts``' vertices).
+        projection: ``(F, V_0)`` how far each warped position was from the surface of its frame before it was put
+            back on it (zero in frame 0): the registration's residual where the tracking runs.
+        registrations: the ``F - 1`` registrations used (entry ``k-1``: frame ``k-1`` onto frame ``k``).
+    """
+
+    verts: Tensor
+    faces: Tensor
+    projection: Tensor
+    registrations: list[CachedRegistration]
+
+
+class RegisteredPair(NamedTuple):
+    """An original and a distorted sequence on one vertex set (the input of the same-connectivity metrics).
+
+    Attributes:
+        original: ``(F, V_0, 3)`` the tracked original (:class:`TrackedSequence` ``verts``).
+        distorted: ``(F, V_0, 3)`` the distorted frames carried onto it (differentiable in the distorted vertices).
+        faces: ``(T_0, 3)`` the faces of both.
+        tracking: the :class:`TrackedSequence`.
+    """
+
+    original: Tensor
+    distorted: Tensor
+    faces: Tensor
+    tracking: TrackedSequence
+
+
+def _frames(frames: Sequence[MeshLike], name: str) -> list[Mesh]:
+    if isinstance(frames, (str, bytes)) or not isinstance(frames, Sequence):
+        raise TypeError(f"{name}: expected a sequence of meshes (one per frame), found {type(frames).__name__}")
+    if len(frames) < 2:
+        raise ShapeError(f"{name}: expected at least 2 frames, found {len(frames)}")
+    return [as_mesh(m, name=f"{name}[{k}]") for k, m in enumerate(frames)]
+
+
+def _compact(mesh: Mesh) -> Mesh:
+    """``mesh`` without the vertices no face references (faces renumbered)."""
+    used = vertex_set_mask(mesh.faces, mesh.num_verts)
+    if bool(used.all()):
+        return mesh
+    new_index = torch.cumsum(used.long(), 0) - 1
+    return Mesh(mesh.verts[used], new_index[mesh.faces], validate=False)
+
+
+def track_original(
+    frames: Sequence[MeshLike],
+    *,
+    registrations: Sequence[CachedRegistration] | None = None,
+    registration_fn: RegisterFn | None = None,
+    registration_options: RegistrationOptions = None,
+    registration_cache: RegistrationCache | None = None,
+    device: torch.device | str | None = None,
+    backend: str = "auto",
+) -> TrackedSequence:
+    """Frame 0 of an original sequence followed through every frame by the registrations (module docstring, step 1).
+
+    Args:
+        frames: the ``F >= 2`` original frames (any connectivity each).
+        registrations: the ``F - 1`` registrations of frame ``k-1`` onto frame ``k`` when already computed (as
+            :func:`~torchmeshmetric.evaluation.register_pairs` returns them); default: computed here.
+        registration_fn: registration function (default: the library's non-rigid registration).
+        registration_options: options of the default registration (part of the cache key).
+        registration_cache: a :class:`~torchmeshmetric.registration.RegistrationCache` (``None``: no cache).
+        device: where the registration and the tracking run (default: frame 0's device).
+        backend: kernel backend of the registration and of the closest-point queries.
+
+    Returns:
+        :class:`TrackedSequence` (float64, on the CPU or ``device``; no gradient).
+
+    Raises:
+        ShapeError: fewer than 2 frames, or a number of registrations other than ``F - 1``.
+
+    Example:
+        >>> import trimesh
+        >>> sphere = trimesh.creation.icosphere(subdivisions=2)
+        >>> moved = trimesh.Trimesh(sphere.vertices + [0.1, 0.0, 0.0], sphere.faces)
+        >>> shift = lambda source, target: (source.verts + torch.tensor([0.1, 0.0, 0.0]), source.faces)
+        >>> t = track_original([sphere, moved], registration_fn=shift)
+        >>> t.verts.shape, float(t.projection.max()) < 1e-6
+        (torch.Size([2, 162, 3]), True)
+    """
+    meshes = _frames(frames, "frames")
+    if registrations is None:
+        registrations = register_pairs(
+            meshes,
+            registration_fn=registration_fn,
+            registration_options=registration_options,
+            registration_cache=registration_cache,
+            device=device,
+            backend=backend,
+        )
+    if len(registrations) != len(meshes) - 1:
+        raise ShapeError(
+            f"registrations: expected {len(meshes) - 1} (one per pair of consecutive frames), "
+            f"found {len(registrations)}"
+        )
+    dev = torch.device(device) if device is not None else meshes[0].device
+    first = _compact(meshes[0].to(dev, torch.float64))
+    positions = [first.verts.detach()]
+    projection = [torch.zeros(first.num_verts, dtype=torch.float64, device=dev)]
+    with torch.no_grad():
+        for k in range(1, len(meshes)):
+            target = meshes[k].to(dev, torch.float64)
+            warp = as_warp(registrations[k - 1], target, meshes[k - 1].to(dev, torch.float64), name="registrations")
+            warped = warp(positions[-1])
+            hit = MeshIndex(target, backend=backend).point_mesh_distance(warped)
+            positions.append(hit.closest)
+            projection.append(hit.dists)
+    return TrackedSequence(torch.stack(positions), first.faces, torch.stack(projection), list(registrations))
+
+
+def carry_onto(distorted: Sequence[MeshLike], tracked: Tensor, *, backend: str = "auto") -> Tensor:
+    """The distorted frames carried onto tracked vertices: each vertex's closest point on its distorted frame.
+
+    Args:
+        distorted: the ``F`` distorted frames (any connectivity each).
+        tracked: ``(F, V, 3)`` positions to carry onto (e.g. :class:`TrackedSequence` ``verts``).
+        backend: kernel backend of the closest-point queries.
+
+    Returns:
+        ``(F, V, 3)`` closest points, in ``tracked``'s dtype, as barycentric blends of the distorted vertices (the
+        gradient reaches them; the face and the barycentric coordinates are held fixed, Danskin's rule).
+
+    Raises:
+        ShapeError: a frame count other than ``tracked``'s.
+
+    Example:
+        >>> import trimesh
+        >>> sphere = trimesh.creation.icosphere(subdivisions=2)
+        >>> points = torch.as_tensor(sphere.vertices)[None] * 1.5
+        >>> onto = carry_onto([sphere], points)
+        >>> round(float(onto.norm(dim=-1).max()), 6)  # on the unit sphere's facets
+        1.0
+    """
+    if not isinstance(tracked, Tensor) or tracked.dim() != 3 or tracked.shape[-1] != 3:
+        found = tuple(tracked.shape) if isinstance(tracked, Tensor) else type(tracked).__name__
+        raise ShapeError(f"tracked: expected a tensor of shape (F, V, 3), found {found}")
+    if len(distorted) != tracked.shape[0]:
+        raise ShapeError(f"distorted: expected {tracked.shape[0]} frames (those of tracked), found {len(distorted)}")
+    out = []
+    for k, frame in enumerate(distorted):
+        mesh = as_mesh(frame, name=f"distorted[{k}]")
+        verts = mesh.verts.to(tracked.device, tracked.dtype)
+        faces = mesh.faces.to(tracked.device)
+        with torch.no_grad():
+            hit = MeshIndex(verts.detach(), faces, backend=backend).point_mesh_distance(tracked[k].detach())
+        corners = verts[faces[hit.face_idx]]  # (V, 3, 3)
+        out.append((hit.bary.to(verts.dtype)[..., None] * corners).sum(1))
+    return torch.stack(out)
+
+
+def registered_pair(
+    original: Sequence[MeshLike],
+    distorted: Sequence[MeshLike],
+    *,
+    registrations: Sequence[CachedRegistration] | None = None,
+    registration_fn: RegisterFn | None = None,
+    registration_options: RegistrationOptions = None,
+    registration_cache: RegistrationCache | None = None,
+    device: torch.device | str | None = None,
+    backend: str = "auto",
+) -> RegisteredPair:
+    """Both sequences on the tracked original's vertices: the input of KG, KSO and STED (module docstring).
+
+    Args:
+        original: the ``F >= 2`` original frames (any connectivity each).
+        distorted: the ``F`` distorted frames (any connectivity each).
+        registrations: the ``F - 1`` registrations when already computed (see :func:`track_original`).
+        registration_fn: registration function (default: the library's non-rigid registration).
+        registration_options: options of the default registration (part of the cache key).
+        registration_cache: a :class:`~torchmeshmetric.registration.RegistrationCache` (``None``: no cache).
+        device: where the registration and the tracking run.
+        backend: kernel backend of the registration and of the closest-point queries.
+
+    Returns:
+        :class:`RegisteredPair`; ``kg_error(p.original, p.distorted)`` and ``sted(p.original, p.distorted, p.faces)``
+        are the registered figures.
+
+    Raises:
+        ShapeError: fewer than 2 frames, or frame counts that differ.
+
+    Example:
+        >>> import trimesh
+        >>> from torchmeshmetric.temporal import kg_error
+        >>> sphere = trimesh.creation.icosphere(subdivisions=2)
+        >>> finer = trimesh.creation.icosphere(subdivisions=3)  # the same surface, another connectivity
+        >>> p = registered_pair([sphere, sphere], [finer, finer], registration_fn=lambda s, t: s)
+        >>> float(kg_error(p.original, p.distorted)) < 2.0  # only the facets differ
+        True
+    """
+    originals = _frames(original, "original")
+    distorteds = _frames(distorted, "distorted")
+    if len(originals) != len(distorteds):
+        raise ShapeError(f"distorted: expected {len(originals)} frames (those of original), found {len(distorteds)}")
+    tracking = track_original(
+        originals,
+        registrations=registrations,
+        registration_fn=registration_fn,
+        registration_options=registration_options,
+        registration_cache=registration_cache,
+        device=device,
+        backend=backend,
+    )
+    carried = carry_onto(distorteds, tracking.verts, backend=backend)
+    return RegisteredPair(tracking.verts, carried, tracking.faces, tracking)
