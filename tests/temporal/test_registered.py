@@ -1,0 +1,129 @@
+from __future__ import annotations
+
+import functools
+
+import pytest
+import torch
+import trimesh
+
+from torchmeshmetric._checks import ShapeError
+from torchmeshmetric.data.demo import demo_sequence
+from torchmeshmetric.registration.cache import CachedRegistration
+from torchmeshmetric.structures import Mesh
+from torchmeshmetric.temporal import carry_onto, kg_error, registered_pair, sted, temporal_figures
+
+
+@functools.cache
+def _performer(num_frames: int = 4) -> tuple[torch.Tensor, torch.Tensor]:
+    """The demo performer's frame 0 carried by its ground-truth motion: a fixed-connectivity (F, V, 3) sequence."""
+    seq = demo_sequence(num_frames, resolution=40)
+    x0 = seq.frames[0].verts.double()
+    return torch.stack([seq.transfer(x0, 0, k) for k in range(num_frames)]), seq.frames[0].faces
+
+
+def _meshes(verts: torch.Tensor, faces: torch.Tensor) -> list[Mesh]:
+    return [Mesh(v, faces) for v in verts]
+
+
+def _true_registrations(frames: list[Mesh]) -> list[CachedRegistration]:
+    """The ground truth of a fixed-connectivity sequence: vertex i of frame k-1 is vertex i of frame k."""
+    return [
+        CachedRegistration(frames[k + 1].verts, torch.zeros(frames[k].num_verts), True, 0.0)
+        for k in range(len(frames) - 1)
+    ]
+
+
+def _normal_displacement(a: torch.Tensor, faces: torch.Tensor, size: float, seed: int = 0) -> torch.Tensor:
+    g = torch.Generator().manual_seed(seed)
+    delta = size * torch.randn(a.shape[1], 1, generator=g, dtype=a.dtype)
+    return torch.stack([v + delta * Mesh(v, faces).vertex_normals() for v in a])
+
+
+def _subdivided(verts: torch.Tensor, faces: torch.Tensor) -> list[Mesh]:
+    """Every frame midpoint-subdivided: the same surface with another connectivity."""
+    out = []
+    for v in verts:
+        sv, sf = trimesh.remesh.subdivide(v.numpy(), faces.numpy())
+        out.append(Mesh(torch.as_tensor(sv), torch.as_tensor(sf)))
+    return out
+
+
+def test_tracking_with_the_true_motion_gives_the_original_back() -> None:
+    a, faces = _performer()
+    frames = _meshes(a, faces)
+    pair = registered_pair(frames, frames, registrations=_true_registrations(frames))
+    scale = float(a.abs().max())
+    assert float((pair.original - a).abs().max()) < 1e-12 * scale
+    assert float((pair.distorted - a).abs().max()) < 1e-12 * scale
+    assert torch.equal(pair.faces, faces)
+
+
+def test_normal_displacement_is_measured_as_the_exact_forms_do() -> None:
+    a, faces = _performer()
+    b = _normal_displacement(a, faces, 0.004)
+    frames = _meshes(a, faces)
+    pair = registered_pair(frames, _subdivided(b, faces), registrations=_true_registrations(frames))
+    exact_kg, registered_kg = kg_error(a, b).item(), kg_error(pair.original, pair.distorted).item()
+    exact, registered = sted(a, b, faces), sted(pair.original, pair.distorted, pair.faces)
+    # Measured on this case: KG -0.3 %, STED_s -5.6 %, STED_t -0.4 % (0.5 % of the normal lines do not reach their
+    # displaced vertex in 8 secant steps); the issue's goal for normal displacements is 10 %.
+    assert abs(registered_kg / exact_kg - 1) < 0.01
+    assert abs(registered.spatial.item() / exact.spatial.item() - 1) < 0.1
+    assert abs(registered.temporal.item() / exact.temporal.item() - 1) < 0.02
+    # A plain closest point lands short of the bumps: the secant steps along the normal are what recovers them.
+    plain = registered_pair(frames, _meshes(b, faces), registrations=_true_registrations(frames), normal_steps=0)
+    assert kg_error(plain.original, plain.distorted).item() < 0.85 * exact_kg
+
+
+def test_the_distorted_connectivity_does_not_matter() -> None:
+    a, faces = _performer()
+    b = _normal_displacement(a, faces, 0.004)
+    frames = _meshes(a, faces)
+    regs = _true_registrations(frames)
+    same = registered_pair(frames, _meshes(b, faces), registrations=regs)
+    other = registered_pair(frames, _subdivided(b, faces), registrations=regs)
+    # The same surface from another triangulation: the same points up to rounding for 99.88 % of the vertices
+    # (measured; the rest are lines that meet the surface more than once, where the secant steps may settle on
+    # another crossing), and figures equal to 0.2 % (measured: KG 3e-5, STED_s 2e-3, STED_t 2e-4).
+    gap = (same.distorted - other.distorted).norm(dim=-1)
+    assert float((gap < 1e-9 * float(a.abs().max())).double().mean()) > 0.995
+    for x, y in zip(
+        sted(same.original, same.distorted, faces), sted(other.original, other.distorted, faces), strict=True
+    ):
+        assert abs(x.item() / y.item() - 1) < 0.005
+
+
+def test_flicker_raises_the_registered_temporal_part() -> None:
+    a, faces = _performer()
+    frames = _meshes(a, faces)
+    regs = _true_registrations(frames)
+    offset = _normal_displacement(a, faces, 0.004, seed=1) - a
+    steady = a + offset
+    flicker = a + offset * (torch.arange(a.shape[0], dtype=a.dtype) % 2 * 2 - 1)[:, None, None]
+    calm = temporal_figures(frames, _subdivided(steady, faces), registrations=regs)
+    jumpy = temporal_figures(frames, _subdivided(flicker, faces), registrations=regs)
+    assert calm.registered and jumpy.registered
+    assert jumpy.sted_t > 2 * calm.sted_t
+
+
+def test_gradient_reaches_the_distorted_vertices() -> None:
+    sphere = trimesh.creation.icosphere(subdivisions=2)
+    verts = torch.as_tensor(sphere.vertices).requires_grad_(True)
+    points = torch.as_tensor(sphere.vertices)[None] * 1.2
+    carried = carry_onto([(verts, torch.as_tensor(sphere.faces))], points, torch.as_tensor(sphere.faces))
+    carried.norm(dim=-1).sum().backward()
+    assert verts.grad is not None and float(verts.grad.abs().sum()) > 0
+
+
+def test_figures_choose_their_form() -> None:
+    a, faces = _performer(3)
+    frames = _meshes(a, faces)
+    b = _normal_displacement(a, faces, 0.004)
+    exact = temporal_figures(frames, _meshes(b, faces))
+    assert not exact.registered and exact.kg == kg_error(a, b).item()
+    with pytest.raises(ShapeError, match="registered=False"):
+        temporal_figures(frames, _subdivided(b, faces), registered=False)
+    with pytest.raises(ShapeError, match="distorted: expected 3 frames"):
+        temporal_figures(frames, _meshes(b, faces)[:2])
+    with pytest.raises(ShapeError, match="registrations: expected 2"):
+        temporal_figures(frames, _meshes(b, faces), registered=True, registrations=_true_registrations(frames)[:1])
