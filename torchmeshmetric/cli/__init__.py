@@ -12,6 +12,7 @@ Commands:
   ctc       the V-DMC CTC metric step on a decoded sequence (grid D1/D2/colour and IBSM, mmetric's chain)
   bdrate    BD-rate of a test codec against an anchor, per metric (the CTC spreadsheet's bdRateExtend)
   validate  which distance sets respond to which controlled distortion (noise, offsets, flicker, registration)
+  temporal  KG, KSO and STED of a distorted sequence (registered forms when the connectivity changes)
   build     compile the C++ extensions now (once per machine) instead of on first use
 
 Errors (missing or corrupt files, frame-count mismatch, unwritable output) end with a one-line message on stderr
@@ -112,6 +113,11 @@ COMMANDS: dict[str, CommandInfo] = {
         "torchmeshmetric.cli.validate",
         "add_validate_command",
         "validation study: which distance sets respond to which controlled distortion",
+    ),
+    "temporal": CommandInfo(
+        "torchmeshmetric.cli.temporal",
+        "add_temporal_command",
+        "KG, KSO and STED of a distorted sequence (registered forms when the connectivity changes)",
     ),
     "build": CommandInfo(
         "torchmeshmetric.cli.build",

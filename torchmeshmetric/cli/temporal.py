@@ -1,0 +1,112 @@
+"""The ``temporal`` command: KG, KSO, STED_s, STED_t and STED of a distorted sequence against its original."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+from torchmeshmetric.cli.options import add_cache_dir, add_command, common_options
+
+__all__ = ["add_temporal_command", "frame_files", "run"]
+
+
+def frame_files(spec: str, what: str, first_frame: int | None, last_frame: int | None) -> list[Path] | str:
+    """The frames a command-line argument names: a folder (returned as is), or a printf pattern's existing files.
+
+    A pattern such as ``dec_%04d.obj`` runs from ``first_frame`` (default: 0, or 1 when frame 0 does not exist) to
+    ``last_frame`` (default: the last consecutive file that exists).
+
+    Raises:
+        CLIError: the pattern is malformed or names no file.
+    """
+    from torchmeshmetric.cli._outputs import CLIError
+    from torchmeshmetric.cli.ctc import frame_path
+
+    if "%" not in spec:
+        return spec
+    try:
+        start = first_frame
+        if start is None:
+            start = 0 if Path(frame_path(spec, 0, what)).is_file() else 1
+        files = []
+        k = start
+        while (last_frame is None or k <= last_frame) and Path(frame_path(spec, k, what)).is_file():
+            files.append(Path(frame_path(spec, k, what)))
+            k += 1
+    except ValueError as exc:
+        raise CLIError(str(exc)) from exc
+    if last_frame is not None and len(files) != last_frame - start + 1:
+        raise CLIError(f"{what} {spec!r}: frame {start + len(files)} is missing ({frame_path(spec, k, what)})")
+    if not files:
+        raise CLIError(f"{what} {spec!r}: no frame file from frame {start}")
+    return files
+
+
+def run(args: argparse.Namespace) -> int:
+    """KG, KSO, STED_s, STED_t and STED of a distorted sequence against its original.
+
+    ORIGINAL and DISTORTED are folders (frames in natural order) or printf patterns such as dec_%04d.obj. When every
+    frame of both has the same vertices and every original frame the same faces, the figures are the exact
+    same-connectivity ones; otherwise (or with --registered) the registered forms: frame 0 of the original followed
+    through the frames by the registration of each original frame onto the next, the distorted frames carried onto
+    it along its normals (docs/temporal.md).
+    """
+    from torchmeshmetric.cli._outputs import CLIError
+    from torchmeshmetric.cli._shared import device_of, dtype_of
+    from torchmeshmetric.data.sequence import load_sequence
+    from torchmeshmetric.registration.cache import RegistrationCache
+    from torchmeshmetric.temporal.figures import FIGURE_NAMES, temporal_figures
+
+    device = device_of(args)
+    sequences = []
+    for what, spec in (("ORIGINAL", args.original), ("DISTORTED", args.distorted)):
+        paths = frame_files(spec, what, args.first_frame, args.last_frame)
+        if isinstance(paths, str) and not Path(paths).is_dir():
+            raise CLIError(f"{what} {spec!r}: no such directory (or a printf pattern such as dec_%04d.obj)")
+        try:
+            sequences.append(load_sequence(paths, dtype=dtype_of(args)))
+        except Exception as exc:
+            raise CLIError(f"{what} {spec!r}: {exc}") from exc
+    original, distorted = sequences
+    if len(original) != len(distorted):
+        raise CLIError(f"DISTORTED: {len(distorted)} frames, ORIGINAL: {len(original)}; the counts must be equal")
+    if len(original) < 2:
+        raise CLIError(f"ORIGINAL: {len(original)} frame; the temporal metrics need at least 2")
+    figures = temporal_figures(
+        original,
+        distorted,
+        registered=True if args.registered else None,
+        registration_cache=RegistrationCache(args.cache_dir) if args.cache_dir else RegistrationCache(),
+        device=device,
+        backend=args.backend,
+    )
+    if args.json:
+        print(json.dumps(figures.as_dict(), indent=2))
+        return 0
+    form = "registered (connectivity differs)" if figures.registered else "exact (same connectivity)"
+    if figures.registered and args.registered:
+        form = "registered (--registered)"
+    print(f"{figures.num_frames} frames, {figures.num_verts} vertices followed; {form}")
+    labels = {"kg": "KG (%)", "kso": "KSO (E_RMS)", "sted_s": "STED_s", "sted_t": "STED_t", "sted": "STED"}
+    values: dict[str, Any] = figures.as_dict()
+    for name in FIGURE_NAMES:
+        print(f"{labels[name]:<12} {values[name]:.6g}")
+    return 0
+
+
+def add_temporal_command(sub: Any) -> None:
+    """Add the ``temporal`` subcommand to the CLI's subparsers."""
+    p = add_command(sub, "temporal", run, [common_options()])
+    p.add_argument("original", metavar="ORIGINAL", help="original frames: a folder or a pattern such as src_%%04d.obj")
+    p.add_argument("distorted", metavar="DISTORTED", help="distorted frames: a folder or a pattern, same count")
+    p.add_argument("--json", action="store_true", help="print the figures as JSON")
+    p.add_argument(
+        "--registered",
+        action="store_true",
+        help="use the registered forms even when the connectivity allows the exact ones",
+    )
+    p.add_argument("--first-frame", type=int, default=None, metavar="F", help="patterns: first frame number")
+    p.add_argument("--last-frame", type=int, default=None, metavar="L", help="patterns: last frame number (included)")
+    add_cache_dir(p, "registration cache folder (registered forms)")
