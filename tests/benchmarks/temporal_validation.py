@@ -1,0 +1,197 @@
+"""Validation of the registered temporal metrics against the exact ones on real fixed-connectivity animations.
+
+Run (once; minutes): ``python -m tests.benchmarks.temporal_validation MODEL_DIR [MODEL_DIR ...] --frames 8
+--out /tmp/temporal-validation.json``, each MODEL_DIR a folder of OBJ frames with one connectivity (e.g.
+``models/horse-gallop`` and ``models/samba`` of CraGL/Hyperspectral-Inverse-Skinning: use them from a scratch
+folder, never commit them). For each animation ``A``:
+
+* every original frame is **remeshed independently** (each edge split at a random point along it, then QEM back to
+  the frame's face count: the same surface, a connectivity of its own in every frame);
+* each **distortion** at four levels gives a fixed-connectivity ``Â`` (the exact figures ``metric(A, Â)``), remeshed
+  the same way frame by frame (another seed) for the registered figures ``registered(remeshed A, remeshed Â)``:
+  quantisation (10 to 7 bits of the bounding box), Laplacian smoothing (1 to 8 steps), per-frame noise along the
+  normals, a smooth static bump along the normals, per-frame jitter (isotropic, tangential included), flicker (a
+  smooth offset along the normals whose sign alternates every frame), and simplification (QEM to 50 % to 5 % of the
+  faces: the simplified frames are the distorted sequence itself, and the exact reference is ``A``'s vertices on the
+  simplified surface along ``A``'s normals);
+* ``none`` (the remeshing alone) is the registered form's floor.
+
+Printed and written: every figure exact and registered, Spearman's rank correlation over all distortions and
+levels (per figure and animation), the spread of registered / exact across the levels of each kind, the normal
+displacements' ratios, and flicker/jitter's rise of STED_t. docs/temporal.md holds the figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import fast_simplification
+import numpy as np
+import torch
+
+from torchmeshmetric.data.sequence import load_sequence
+from torchmeshmetric.structures import Mesh
+from torchmeshmetric.temporal import carry_onto, kg_error, kso_error, sted, track_original
+from torchmeshmetric.temporal.figures import FIGURE_NAMES
+from torchmeshmetric.temporal.topology import mesh_edges
+
+LEVELS = {
+    "quantisation": [10, 9, 8, 7],
+    "smoothing": [1, 2, 4, 8],
+    "noise": [0.001, 0.002, 0.004, 0.008],
+    "bump": [0.002, 0.004, 0.008, 0.016],
+    "jitter": [0.001, 0.002, 0.004, 0.008],
+    "flicker": [0.001, 0.002, 0.004, 0.008],
+    "simplification": [0.5, 0.25, 0.1, 0.05],
+}
+NORMAL_KINDS = ("noise", "bump", "flicker")
+
+
+def _normals(verts: torch.Tensor, faces: torch.Tensor) -> torch.Tensor:
+    return Mesh(verts, faces, validate=False).vertex_normals()
+
+
+def remesh(verts: torch.Tensor, faces: torch.Tensor, rng: np.random.Generator) -> Mesh:
+    """The same surface, another connectivity: split every edge at a random point, then QEM to the face count."""
+    v, f = verts.numpy(), faces.numpy()
+    edges = mesh_edges(faces, v.shape[0]).numpy()
+    t = rng.uniform(0.3, 0.7, size=(edges.shape[0], 1))
+    new = (1 - t) * v[edges[:, 0]] + t * v[edges[:, 1]]
+    key = {(int(a), int(b)): i + v.shape[0] for i, (a, b) in enumerate(edges)}
+
+    def mid(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        return np.array([key[(min(x, y), max(x, y))] for x, y in zip(a.tolist(), b.tolist(), strict=True)])
+
+    a, b, c = f[:, 0], f[:, 1], f[:, 2]
+    ab, bc, ca = mid(a, b), mid(b, c), mid(c, a)
+    split = np.concatenate([np.stack(s, 1) for s in ((a, ab, ca), (b, bc, ab), (c, ca, bc), (ab, bc, ca))])
+    pts, tri = fast_simplification.simplify(np.concatenate([v, new]), split, target_count=f.shape[0])
+    return Mesh(torch.from_numpy(np.asarray(pts, dtype=np.float64)), torch.from_numpy(np.asarray(tri, dtype=np.int64)))
+
+
+def distort(kind: str, level: float, a: torch.Tensor, faces: torch.Tensor, diag: float, seed: int) -> torch.Tensor:
+    """The fixed-connectivity distortion ``Â`` of ``A`` (F, V, 3)."""
+    g = torch.Generator().manual_seed(seed)
+    n = torch.stack([_normals(v, faces) for v in a])
+    if kind == "quantisation":
+        step = diag * 2.0 ** -int(level)
+        lo = a.amin(dim=(0, 1))
+        return torch.round((a - lo) / step) * step + lo
+    if kind == "smoothing":
+        edges = mesh_edges(faces, a.shape[1])
+        out = a.clone()
+        deg = torch.bincount(edges.flatten(), minlength=a.shape[1]).to(a.dtype)[:, None]
+        for _ in range(int(level)):
+            acc = torch.zeros_like(out)
+            acc.index_add_(1, edges[:, 0], out[:, edges[:, 1]])
+            acc.index_add_(1, edges[:, 1], out[:, edges[:, 0]])
+            out = out + 0.5 * (acc / deg - out)
+        return out
+    if kind == "noise":  # a new pattern along the normals every frame (a codec's residual)
+        return a + level * diag * torch.randn(a.shape[:2] + (1,), generator=g, dtype=a.dtype) * n
+    if kind in ("bump", "flicker"):  # a smooth field of the rest shape along the normals
+        x0 = a[0] / diag
+        field = torch.sin(9.0 * x0[:, :1] + 1.0) * torch.sin(7.0 * x0[:, 1:2] + 2.0) * torch.sin(8.0 * x0[:, 2:] + 3.0)
+        sign = torch.ones(a.shape[0], 1, 1, dtype=a.dtype)
+        if kind == "flicker":
+            sign = (torch.arange(a.shape[0]) % 2 * 2 - 1).to(a.dtype)[:, None, None]
+        return a + level * diag * sign * field[None] * n
+    if kind == "jitter":  # isotropic per-vertex per-frame offsets: tangential motion included
+        return a + level * diag * torch.randn(a.shape, generator=g, dtype=a.dtype)
+    raise ValueError(kind)
+
+
+def figures(a: torch.Tensor, b: torch.Tensor, faces: torch.Tensor) -> dict[str, float]:
+    s = sted(a, b, faces)
+    return {
+        "kg": kg_error(a, b).item(),
+        "kso": kso_error(a, b).item(),
+        "sted_s": s.spatial.item(),
+        "sted_t": s.temporal.item(),
+        "sted": s.sted.item(),
+    }
+
+
+def spearman(x: list[float], y: list[float]) -> float:
+    rx, ry = np.argsort(np.argsort(x)).astype(float), np.argsort(np.argsort(y)).astype(float)
+    return float(np.corrcoef(rx, ry)[0, 1])
+
+
+def validate(folder: Path, num_frames: int, log: Callable[[str], None]) -> dict[str, object]:
+    frames = load_sequence(folder, dtype=torch.float64)[:num_frames]
+    faces = frames[0].faces
+    a = torch.stack([m.verts for m in frames])
+    diag = float(frames[0].bbox_diagonal())
+    rng = np.random.default_rng(0)
+    remeshed = [remesh(v, faces, rng) for v in a]
+    t0 = time.perf_counter()
+    tracking = track_original(remeshed)
+    seconds = time.perf_counter() - t0
+    log(f"{folder.name}: {a.shape[1]} vertices, {a.shape[0]} frames; registrations + tracking {seconds:.1f} s")
+    rows = []
+    cases = [("none", 0.0)] + [(kind, level) for kind, levels in LEVELS.items() for level in levels]
+    for i, (kind, level) in enumerate(cases):
+        if kind == "simplification":
+            simplified = [
+                Mesh(
+                    *(
+                        torch.from_numpy(np.asarray(x))
+                        for x in fast_simplification.simplify(v.numpy(), faces.numpy(), 1 - level)
+                    )
+                )
+                for v in a
+            ]
+            simplified = [Mesh(m.verts.double(), m.faces.long()) for m in simplified]
+            b = torch.stack(
+                [carry_onto([m], v[None], faces)[0] for m, v in zip(simplified, a, strict=True)]
+            )  # A's vertices on the simplified surface along A's normals
+            distorted = simplified
+        else:
+            b = a.clone() if kind == "none" else distort(kind, level, a, faces, diag, seed=100 + i)
+            distorted = [remesh(v, faces, rng) for v in b]
+        exact = figures(a, b, faces)
+        carried = carry_onto(distorted, tracking.verts, tracking.faces)
+        registered = figures(tracking.verts, carried, tracking.faces)
+        rows.append({"kind": kind, "level": level, "exact": exact, "registered": registered})
+        log(f"  {kind:>14} {level:<6} " + " ".join(f"{k}={exact[k]:.4g}/{registered[k]:.4g}" for k in FIGURE_NAMES))
+    return {"model": folder.name, "vertices": int(a.shape[1]), "frames": int(a.shape[0]), "rows": rows}
+
+
+def summary(result: dict[str, object]) -> dict[str, object]:
+    rows = [r for r in result["rows"] if r["kind"] != "none"]  # type: ignore[union-attr]
+    out: dict[str, object] = {}
+    out["spearman"] = {
+        k: spearman([r["exact"][k] for r in rows], [r["registered"][k] for r in rows]) for k in FIGURE_NAMES
+    }
+    spread = {}
+    for kind in LEVELS:
+        mine = [r for r in rows if r["kind"] == kind]
+        spread[kind] = {}
+        for k in FIGURE_NAMES:
+            ratios = [r["registered"][k] / r["exact"][k] for r in mine if r["exact"][k] > 0]
+            spread[kind][k] = {"min": min(ratios), "max": max(ratios), "spread": max(ratios) / min(ratios) - 1}
+    out["ratio"] = spread
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("models", nargs="+", type=Path)
+    parser.add_argument("--frames", type=int, default=8)
+    parser.add_argument("--out", type=Path, default=Path("/tmp/temporal-validation.json"))
+    args = parser.parse_args()
+    results = []
+    for folder in args.models:
+        result = validate(folder, args.frames, lambda s: print(s, flush=True))
+        result["summary"] = summary(result)
+        print(json.dumps(result["summary"], indent=1), flush=True)
+        results.append(result)
+        args.out.write_text(json.dumps(results, indent=1))
+
+
+if __name__ == "__main__":
+    main()
