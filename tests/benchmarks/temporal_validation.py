@@ -92,7 +92,7 @@ def distort(kind: str, level: float, a: torch.Tensor, faces: torch.Tensor, diag:
             out = out + 0.5 * (acc / deg - out)
         return out
     if kind == "noise":  # a new pattern along the normals every frame (a codec's residual)
-        return a + level * diag * torch.randn(a.shape[:2] + (1,), generator=g, dtype=a.dtype) * n
+        return a + level * diag * torch.randn((*a.shape[:2], 1), generator=g, dtype=a.dtype) * n
     if kind in ("bump", "flicker"):  # a smooth field of the rest shape along the normals
         x0 = a[0] / diag
         field = torch.sin(9.0 * x0[:, :1] + 1.0) * torch.sin(7.0 * x0[:, 1:2] + 2.0) * torch.sin(8.0 * x0[:, 2:] + 3.0)
