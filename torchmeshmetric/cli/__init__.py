@@ -4,7 +4,7 @@ Commands:
   evaluate  evaluate one simplified sequence against its original frames (the paper's Fig. 2)
   compare   evaluate several simplification methods on one original sequence (Tables I-IV side by side)
   campaign  evaluate several sequences, each with several methods, listed in a TOML manifest
-  simplify  simplify every frame of a sequence with QEM or Registered QEM
+  simplify  simplify every frame of a sequence with QEM, Registered QEM or tracking (Anchored QEM + slide)
   register  register one mesh (frame k-1) onto another (frame k), rigid then non-rigid
   demo      the main job: built-in sequence -> QEM and Registered QEM -> evaluation, tables, report and plots
   mpeg      MPEG D1/D2 (and colour) PSNR of one mesh pair, equal to mmetric's figures
@@ -77,7 +77,7 @@ COMMANDS: dict[str, CommandInfo] = {
     "simplify": CommandInfo(
         "torchmeshmetric.cli.simplify",
         "add_simplify_command",
-        "simplify every frame of a sequence with QEM or Registered QEM",
+        "simplify every frame of a sequence with QEM, Registered QEM or tracking (Anchored QEM + slide)",
     ),
     "register": CommandInfo(
         "torchmeshmetric.cli.register",

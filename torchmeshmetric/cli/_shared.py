@@ -264,7 +264,7 @@ def simplify_frames(
     registrations: list[Any] | None,
     weight: float | None = None,
 ) -> list[Any]:
-    """Every frame simplified with QEM, or Registered QEM with the registrations of the original pairs."""
+    """Every frame simplified with QEM, Registered QEM or tracking (Anchored QEM + slide), with the registrations."""
     # Imported here: fast-simplification is needed by simplify and demo only, not by the evaluation commands.
     from torchmeshmetric.simplification.registered_qem import DEFAULT_WEIGHT
     from torchmeshmetric.simplification.sequence import simplify_sequence
@@ -272,6 +272,16 @@ def simplify_frames(
     if method == "qem":
         return simplify_sequence(frames, target)
     assert registrations is not None
+    if method == "tracking":
+        from torchmeshmetric.simplification.anchored_qem import DEFAULT_ANCHOR_WEIGHT
+        from torchmeshmetric.simplification.temporal_slide import TemporalSlide
+        from torchmeshmetric.simplification.tracking import simplify_tracking
+
+        # Anchored QEM with the slide the training learned (docs/training.md): a gate of 1.000 on every held-out
+        # vertex whatever its features, i.e. slide all the way along the surface; 1 - 1e-4 is that gate to its digits.
+        slide = TemporalSlide(initial_gate=1.0 - 1e-4).to(frames[0].dtype)
+        anchor = DEFAULT_ANCHOR_WEIGHT if weight is None else weight
+        return simplify_tracking(frames, target, registrations, weight=anchor, slide=slide)
     return simplify_sequence(
         frames, target, registrations=registrations, weight=DEFAULT_WEIGHT if weight is None else weight
     )

@@ -16,7 +16,8 @@ def run(args: argparse.Namespace) -> int:
     """Simplify every frame of a sequence with QEM or Registered QEM.
 
     Simplify each frame of --input into --output (same file names). 'rqem' (Registered QEM) also uses the previous
-    original frame registered onto the current one; frame 0 is simplified with QEM.
+    original frame registered onto the current one; 'tracking' (Anchored QEM with the learned slide) makes each frame
+    follow the previous simplified frame moved by that registration; frame 0 is simplified with QEM.
     """
     from torchmeshmetric.cli._outputs import check_folder, check_writable, make_folder, output_set
     from torchmeshmetric.cli._shared import (
@@ -39,7 +40,7 @@ def run(args: argparse.Namespace) -> int:
     if out_dir.is_dir():
         check_writable(targets, args.overwrite)
     registrations = None
-    if args.method == "rqem":
+    if args.method in ("rqem", "tracking"):
         cache = RegistrationCache(args.cache_dir)
         registrations = register_pairs(frames, registration_cache=cache, device=device, backend=args.backend)
     simplified = simplify_frames(frames, args.method, args.target, registrations, args.weight)
@@ -57,12 +58,18 @@ def add_simplify_command(sub: Any) -> None:
     p = add_command(sub, "simplify", run, [common_options()])
     p.add_argument("--input", required=True, metavar="DIR", help="folder of the original frames")
     p.add_argument("--output", required=True, metavar="DIR", help="folder for the simplified frames (created)")
-    p.add_argument("--method", choices=("qem", "rqem"), default="qem", help="qem (default) or rqem (Registered QEM)")
+    p.add_argument(
+        "--method",
+        choices=("qem", "rqem", "tracking"),
+        default="qem",
+        help="qem (default), rqem (Registered QEM) or tracking (Anchored QEM with the learned slide: each frame "
+        "follows the previous one's tessellation, docs/training.md)",
+    )
     add_target(p, 0.5, "faces to keep: a count (>= 1) or a ratio in (0, 1) of each frame's faces (default 0.5)")
     add_weight(
         p,
         "rqem: weight of the registered previous frame's quadrics (default: the library's DEFAULT_WEIGHT, "
-        "chosen from the sweep in docs/simplification.md)",
+        "chosen from the sweep in docs/simplification.md); tracking: the anchor weight (default DEFAULT_ANCHOR_WEIGHT)",
     )
-    add_cache_dir(p, "registration cache folder (rqem only)")
+    add_cache_dir(p, "registration cache folder (rqem and tracking)")
     p.add_argument("--overwrite", action="store_true", help="replace existing files in --output")

@@ -1,0 +1,51 @@
+from __future__ import annotations
+
+import pytest
+import torch
+import trimesh
+
+from torchmeshmetric.cli import main
+from torchmeshmetric.data.io import save_mesh
+from torchmeshmetric.data.sequence import load_sequence
+from torchmeshmetric.evaluation.pipeline import register_pairs
+from torchmeshmetric.registration.cache import RegistrationCache
+from torchmeshmetric.simplification.anchored_qem import DEFAULT_ANCHOR_WEIGHT
+from torchmeshmetric.simplification.temporal_slide import TemporalSlide
+from torchmeshmetric.simplification.tracking import simplify_tracking
+from torchmeshmetric.structures import Mesh
+
+SHIFT = torch.tensor([0.1, 0.0, 0.0], dtype=torch.float64)
+
+
+def _write_frames(folder, n=3):
+    """An egg (no rotational symmetry for the registration to slide along) translated by SHIFT per frame."""
+    folder.mkdir()
+    sphere = trimesh.creation.icosphere(subdivisions=3)
+    v = torch.as_tensor(sphere.vertices) * torch.tensor([1.0, 0.7, 0.5], dtype=torch.float64)
+    v = v * (1.0 + 0.25 * v[:, :1]) + 0.1 * v[:, 1:2] ** 2
+    for k in range(n):
+        save_mesh(Mesh(v + k * SHIFT, torch.as_tensor(sphere.faces)), folder / f"frame_{k:02d}.ply")
+    return folder
+
+
+@pytest.mark.slow
+@pytest.mark.filterwarnings("ignore::torchmeshmetric.registration.RegistrationWarning")  # a tiny motion
+def test_tracking_is_anchored_qem_with_the_learned_slide(tmp_path):
+    frames = _write_frames(tmp_path / "orig")
+    out, cache = tmp_path / "tracking", tmp_path / "cache"
+    argv = ["simplify", "--input", str(frames), "--output", str(out), "--method", "tracking", "--cache-dir", str(cache)]
+    assert main(argv) == 0
+    written = load_sequence(out, dtype=torch.float64)
+    assert [m.num_faces for m in written] == [640, 640, 640]
+    # The library's tracking simplifier on the same frames and registrations (read back from the command's cache).
+    originals = load_sequence(frames)
+    registrations = register_pairs(originals, registration_cache=RegistrationCache(cache))
+    want = simplify_tracking(
+        originals, 0.5, registrations, weight=DEFAULT_ANCHOR_WEIGHT, slide=TemporalSlide(initial_gate=1.0 - 1e-4)
+    )
+    for got, ref in zip(written, want, strict=True):
+        assert torch.equal(got.faces, ref.faces)
+        assert torch.equal(got.verts, ref.verts.double())  # float32 frames, written and read back exactly
+    # The slide moved frame 1 towards frame 0's tessellation: it differs from Anchored QEM alone.
+    anchored = simplify_tracking(originals, 0.5, registrations, weight=DEFAULT_ANCHOR_WEIGHT)
+    assert not torch.equal(anchored[1].verts, want[1].verts)
