@@ -101,6 +101,7 @@ def write_reports(
     overwrite: bool,
     mpeg: dict[str, Any] | None = None,
     comparisons: dict[str, Any] | None = None,
+    temporal: dict[str, Any] | None = None,
 ) -> None:
     """Write the JSON, Markdown and CSV reports (and the --mpeg ones) as one set; nothing when no --out."""
     if not paths:
@@ -110,6 +111,11 @@ def write_reports(
     if mpeg:
         report["mpeg"] = json_safe({name: seq.as_dict() for name, seq in mpeg.items()})
         extra = mpeg_markdown(mpeg)
+    if temporal:  # the temporal figures: their own section, after the paper's tables (docs/temporal.md)
+        from torchmeshmetric.temporal.report import temporal_markdown, temporal_report
+
+        report["temporal"] = json_safe(temporal_report(temporal))
+        extra = f"{extra}\n{temporal_markdown(temporal)}" if extra else temporal_markdown(temporal)
     written = [paths["json"], paths["md"], paths["csv"]]
     with output_set("the report"):
         write_json(paths["json"], report, overwrite=overwrite)
@@ -138,6 +144,37 @@ def mpeg_methods(original: list[Any], methods: dict[str, list[Any]], args: argpa
         for name, frames in methods.items()
     }
     print(mpeg_markdown(out))
+    return out
+
+
+def temporal_methods(
+    original: list[Any],
+    methods: dict[str, list[Any]],
+    args: argparse.Namespace,
+    device: str,
+    *,
+    cache: RegistrationCache | None = None,
+    registration_options: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """KG, KSO and STED of every method (``--temporal``; docs/temporal.md); printed as a Markdown table."""
+    if not getattr(args, "temporal", False):
+        return {}
+    from torchmeshmetric.temporal.figures import temporal_figures
+    from torchmeshmetric.temporal.report import temporal_markdown
+
+    cache = RegistrationCache(args.cache_dir) if cache is None else cache
+    out = {
+        name: temporal_figures(
+            original,
+            frames,
+            registration_cache=cache,
+            registration_options=registration_options,
+            device=device,
+            backend=args.backend,
+        )
+        for name, frames in methods.items()
+    }
+    print(temporal_markdown(out))
     return out
 
 

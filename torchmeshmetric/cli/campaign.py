@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from torchmeshmetric.cli.options import add_cache_dir, add_command, common_options
+from torchmeshmetric.cli.options import add_cache_dir, add_command, add_temporal, common_options
 
 __all__ = ["add_campaign_command", "run"]
 
@@ -29,6 +29,7 @@ def run(args: argparse.Namespace) -> int:
         fast_registration_options,
         load_frames,
         report_paths,
+        temporal_methods,
         write_reports,
     )
     from torchmeshmetric.evaluation.campaign import (
@@ -74,6 +75,11 @@ def run(args: argparse.Namespace) -> int:
         return 0
     results = {seq.name: methods for seq, methods in zip(campaign.sequences, evaluated, strict=True)}
     print(campaign_tables(results))
+    options = fast_registration_options() if campaign.registration == "fast" else None
+    temporal = {  # --temporal: KG, KSO, STED per sequence and method, on the campaign's registrations (its cache)
+        name: temporal_methods(original, methods, args, device, cache=cache, registration_options=options)
+        for name, original, methods in sequences
+    }
     if out is None:
         return 0
     settings: dict[str, Any] = {
@@ -91,7 +97,14 @@ def run(args: argparse.Namespace) -> int:
             paths = report_paths(str(out / f"{stem}.json"))
             # The same comparisons `compare` writes for these methods (default margin; none for a single method).
             comparisons = compare_methods(results[seq.name]) if len(results[seq.name]) >= 2 else None
-            write_reports(paths, results[seq.name], sequence_settings, args.overwrite, comparisons=comparisons)
+            write_reports(
+                paths,
+                results[seq.name],
+                sequence_settings,
+                args.overwrite,
+                comparisons=comparisons,
+                temporal=temporal[seq.name],
+            )
         combined = campaign_report_dict(results, settings=settings)
         write_json(out / f"{COMBINED}.json", combined, overwrite=args.overwrite)
         write_campaign_markdown(out / f"{COMBINED}.md", results, overwrite=args.overwrite)
@@ -111,4 +124,5 @@ def add_campaign_command(sub: Any) -> None:
         help="write the combined report and the per-sequence reports there (created; its parent must exist)",
     )
     add_cache_dir(p, "registration cache folder (overrides the manifest's cache_dir); a rerun resumes from it")
+    add_temporal(p)
     p.add_argument("--overwrite", action="store_true", help="replace existing reports in --out-dir")

@@ -28,6 +28,7 @@ def run(args: argparse.Namespace) -> int:
         mpeg_methods,
         parse_methods,
         report_paths,
+        temporal_methods,
         write_reports,
     )
     from torchmeshmetric.evaluation.comparison import compare_methods, comparison_markdown
@@ -44,6 +45,7 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print(paper_tables(results))
     mpeg = mpeg_methods(original, frames, args)
+    temporal = temporal_methods(original, frames, args, device)
     comparisons = None
     if len(results) >= 2:
         comparisons = compare_methods(results, relative_margin=args.relative_margin)
@@ -55,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
         "relative_margin": args.relative_margin,
         "dtype": args.dtype,
     }
-    write_reports(paths, results, settings, args.overwrite, mpeg, comparisons)
+    write_reports(paths, results, settings, args.overwrite, mpeg, comparisons, temporal)
     return 0
 
 

@@ -27,6 +27,7 @@ def run(args: argparse.Namespace) -> int:
         load_frames,
         mpeg_methods,
         report_paths,
+        temporal_methods,
         write_reports,
     )
     from torchmeshmetric.evaluation.reports import paper_tables
@@ -42,13 +43,14 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print(paper_tables(results))
     mpeg = mpeg_methods(original, {name: simplified}, args)
+    temporal = temporal_methods(original, {name: simplified}, args, device)
     settings = {
         "original": args.original,
         "methods": {name: args.simplified},
         "two_sided": not args.one_sided,
         "dtype": args.dtype,
     }
-    write_reports(paths, results, settings, args.overwrite, mpeg)
+    write_reports(paths, results, settings, args.overwrite, mpeg, temporal=temporal)
     return 0
 
 

@@ -128,7 +128,18 @@ def evaluation_options() -> argparse.ArgumentParser:
         "--mpeg-sampling", choices=("grid", "mesh"), default="grid", help="MPEG sampling (default grid, the CTC's)"
     )
     evaluation.add_argument("--mpeg-grid-size", type=int, default=1024, metavar="N", help="MPEG grid size (1024)")
+    add_temporal(evaluation)
     return evaluation
+
+
+def add_temporal(p: argparse.ArgumentParser) -> None:
+    """Add ``--temporal`` (KG, KSO and STED of every method in the tables and reports)."""
+    p.add_argument(
+        "--temporal",
+        action="store_true",
+        help="also report KG, KSO, STED_s, STED_t and STED of every method (registered forms when the connectivity "
+        "changes, docs/temporal.md; the registrations come from --cache-dir when given, else are computed again)",
+    )
 
 
 def report_options() -> argparse.ArgumentParser:

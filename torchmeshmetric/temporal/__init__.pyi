@@ -8,11 +8,20 @@
 from . import figures as figures
 from . import kg as kg
 from . import registered as registered
+from . import report as report
 from . import sequences as sequences
 from . import topology as topology
 from .figures import FIGURE_NAMES, TemporalFigures, same_connectivity, temporal_figures
 from .kg import kg_error, kso_error
-from .registered import RegisteredPair, TrackedSequence, carry_onto, registered_pair, track_original
+from .registered import (
+    RegisteredPair,
+    TrackedSequence,
+    carry_onto,
+    registered_pair,
+    track_original,
+    weld_short_edges,
+)
+from .report import temporal_markdown, temporal_report
 from .sequences import check_sequence_pair
 from .sted import DEFAULT_C, DEFAULT_DT, DEFAULT_WINDOW, StedResult, largest_vertex_distance, sted
 from .topology import Neighbourhoods, mesh_edges, neighbourhoods
@@ -27,7 +36,10 @@ __all__ = [
     "registered_pair",
     "same_connectivity",
     "temporal_figures",
+    "temporal_markdown",
+    "temporal_report",
     "track_original",
+    "weld_short_edges",
     "DEFAULT_DT",
     "DEFAULT_WINDOW",
     "Neighbourhoods",

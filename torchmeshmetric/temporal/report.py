@@ -1,0 +1,44 @@
+"""The temporal figures of several methods as a report section: a JSON-ready dict and a Markdown table."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from torchmeshmetric.temporal.figures import FIGURE_NAMES, TemporalFigures
+
+__all__ = ["temporal_markdown", "temporal_report"]
+
+_LABELS = {"kg": "KG (%)", "kso": "KSO (E_RMS)", "sted_s": "STED_s", "sted_t": "STED_t", "sted": "STED"}
+
+
+def temporal_report(figures: Mapping[str, TemporalFigures]) -> dict[str, dict[str, Any]]:
+    """``{method: {figure: value, "registered": bool, ...}}`` (the reports' ``"temporal"`` entry).
+
+    Example:
+        >>> f = TemporalFigures(1.0, 2.0, 0.1, 0.2, 0.1, True, 3, 100)
+        >>> temporal_report({"qem": f})["qem"]["kg"]
+        1.0
+    """
+    return {name: f.as_dict() for name, f in figures.items()}
+
+
+def temporal_markdown(figures: Mapping[str, TemporalFigures]) -> str:
+    """A Markdown section with one row per method: KG, KSO, STED_s, STED_t, STED and the form used.
+
+    Example:
+        >>> f = TemporalFigures(1.0, 2.0, 0.1, 0.2, 0.1, True, 3, 100)
+        >>> print(temporal_markdown({"qem": f}).splitlines()[4])
+        | qem | 1 | 2 | 0.1 | 0.2 | 0.1 | registered |
+    """
+    lines = [
+        "## Temporal metrics (KG, KSO, STED; docs/temporal.md)",
+        "",
+        "| method | " + " | ".join(_LABELS[k] for k in FIGURE_NAMES) + " | form |",
+        "|---|" + "---:|" * len(FIGURE_NAMES) + "---|",
+    ]
+    for name, f in figures.items():
+        values = f.as_dict()
+        cells = " | ".join(f"{float(values[k]):.6g}" for k in FIGURE_NAMES)
+        lines.append(f"| {name} | {cells} | {'registered' if f.registered else 'exact'} |")
+    return "\n".join(lines) + "\n"
