@@ -218,7 +218,7 @@ def track_original(
             target = meshes[k].to(dev, torch.float64)
             warp = as_warp(registrations[k - 1], target, meshes[k - 1].to(dev, torch.float64), name="registrations")
             warped = warp(positions[-1])
-            hit = MeshIndex(target, backend=backend).point_mesh_distance(warped)
+            hit = MeshIndex(target, backend=backend, tree="morton").point_mesh_distance(warped)
             positions.append(hit.closest)
             projection.append(hit.dists)
     return TrackedSequence(torch.stack(positions), first.faces, torch.stack(projection), list(registrations))
@@ -301,7 +301,7 @@ def carry_onto(
         mesh_faces = mesh.faces.to(tracked.device)
         x = tracked[k].detach()
         with torch.no_grad():
-            index = MeshIndex(verts.detach(), mesh_faces, backend=backend)
+            index = MeshIndex(verts.detach(), mesh_faces, backend=backend, tree="morton")  # a few queries: cheap build
             hit = index.point_mesh_distance(x)
             if faces is not None and normal_steps:
                 hit = _along_normal(

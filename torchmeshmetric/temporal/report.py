@@ -17,8 +17,9 @@ def temporal_report(figures: Mapping[str, TemporalFigures]) -> dict[str, dict[st
 
     Example:
         >>> f = TemporalFigures(1.0, 2.0, 0.1, 0.2, 0.1, True, 3, 100)
-        >>> temporal_report({"qem": f})["qem"]["kg"]
-        1.0
+        >>> row = temporal_report({"qem": f}).get("qem", {})
+        >>> row.get("kg"), row.get("registered")
+        (1.0, True)
     """
     return {name: f.as_dict() for name, f in figures.items()}
 
