@@ -135,7 +135,6 @@ def validate(folder: Path, num_frames: int, log: Callable[[str], None]) -> dict[
     rows = []
     cases = [("none", 0.0)] + [(kind, level) for kind, levels in LEVELS.items() for level in levels]
     for i, (kind, level) in enumerate(cases):
-        started = time.perf_counter()
         if kind == "simplification":
             simplified = [
                 Mesh(

@@ -83,12 +83,42 @@ def _lengths(verts: Tensor, edges: Tensor) -> Tensor:
     return _safe_sqrt((diff * diff).sum(-1))
 
 
+def _farthest_pair(x: Tensor) -> tuple[int, int]:
+    """Indices of the two farthest of the ``(V, 3)`` points (exact; no gradient)."""
+    c = x.mean(0)
+    radius = (x - c).norm(dim=1)
+    # A lower bound L of the diameter from the extreme points along 13 directions (axes, face and body diagonals).
+    signs = torch.tensor(
+        [[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0], [1, -1, 0], [1, 0, 1], [1, 0, -1], [0, 1, 1], [0, 1, -1]],
+        dtype=x.dtype,
+        device=x.device,
+    )
+    signs = torch.cat(
+        [signs, torch.tensor([[1, 1, 1], [1, 1, -1], [1, -1, 1], [-1, 1, 1]], dtype=x.dtype, device=x.device)]
+    )
+    proj = x @ signs.T
+    extremes = torch.unique(torch.cat([proj.argmax(0), proj.argmin(0)]))
+    lower = torch.cdist(x[extremes], x[extremes], compute_mode="donot_use_mm_for_euclid_dist").max()
+    # A pair farther apart than L has r_i + r_j > L (triangle inequality through the centroid), so both of its
+    # points have r >= L - max(r): only those are compared, exactly, in blocks.
+    keep = torch.nonzero(radius >= lower - radius.max()).flatten()
+    y = x[keep]
+    best, pair = -1.0, (0, 0)
+    step = max(1, 2**22 // max(1, y.shape[0]))
+    for i in range(0, y.shape[0], step):
+        d = ((y[i : i + step, None, :] - y[None, :, :]) ** 2).sum(-1)
+        flat = int(d.argmax())
+        value = float(d.flatten()[flat])
+        if value > best:
+            best, pair = value, (i + flat // y.shape[0], flat % y.shape[0])
+    return int(keep[pair[0]]), int(keep[pair[1]])
+
+
 def largest_vertex_distance(points: Tensor) -> Tensor:
     """The largest distance between two of the ``(..., V, 3)`` points: ``(...)``, exact, differentiable.
 
-    The candidates come from the squared distances computed by a matrix product, row by row (cheap, rounded); every
-    row whose largest value is within a relative ``1e-6`` of the largest is then measured again directly, so the
-    answer is the exact distance of the farthest pair whatever the rounding of the product.
+    Only the points that can belong to a pair farther apart than a lower bound (the farthest of the extreme points
+    along 13 directions) are compared, pair by pair, exactly; the gradient reaches the two points of the answer.
 
     Example:
         >>> largest_vertex_distance(torch.tensor([[0.0, 0, 0], [3.0, 4.0, 0], [1.0, 1.0, 0]])).item()
@@ -98,18 +128,7 @@ def largest_vertex_distance(points: Tensor) -> Tensor:
     out = []
     for x in flat:
         with torch.no_grad():
-            xd = x.detach().double()
-            xd = xd - xd.mean(0)
-            sq = (xd * xd).sum(1)
-            best = torch.empty(xd.shape[0], dtype=torch.float64, device=x.device)
-            step = max(1, 2**24 // max(1, xd.shape[0]))
-            for i in range(0, xd.shape[0], step):
-                block = sq[i : i + step, None] + sq[None, :] - 2.0 * xd[i : i + step] @ xd.T
-                best[i : i + step] = block.amax(1)
-            rows = torch.nonzero(best >= best.max() * (1 - 1e-6) - 1e-300).flatten()
-            exact = ((xd[rows, None, :] - xd[None, :, :]) ** 2).sum(-1)
-            flat_arg = int(exact.argmax())
-            i, j = int(rows[flat_arg // xd.shape[0]]), flat_arg % xd.shape[0]
+            i, j = _farthest_pair(x.detach().double())
         out.append(torch.linalg.vector_norm(x[i] - x[j]))
     return torch.stack(out).reshape(points.shape[:-2])
 
