@@ -225,23 +225,37 @@ def track_original(
 
 
 def _along_normal(index: MeshIndex, x: Tensor, normal: Tensor, hit: PointMeshResult, steps: int) -> PointMeshResult:
-    """Secant steps towards the root of ``g(t) = (q - cp(q)) . n`` on the line ``q = x + t n`` (see carry_onto)."""
+    """Secant steps towards the root of ``g(t) = (q - cp(q)) . n`` on the line ``q = x + t n`` (see carry_onto).
+
+    Only the points whose line has not met the surface yet (``|g|`` above ``1e-10`` of the coordinates' size) are
+    queried again, so a step costs what remains to be found.
+    """
+    tol = 1e-10 * float(x.abs().max())
     t0 = torch.zeros_like(x[:, 0])
     g0 = ((x - hit.closest) * normal).sum(-1)
     t1 = -g0
-    best, best_g = hit, g0.abs()
+    best = PointMeshResult(*(a.clone() for a in hit))
+    best_g = g0.abs()
+    active = torch.nonzero(best_g > tol).flatten()
     for _ in range(steps):
-        h = index.point_mesh_distance(x + t1[:, None] * normal)
-        g1 = ((x + t1[:, None] * normal - h.closest) * normal).sum(-1)
-        better = g1.abs() < best_g
-        best = PointMeshResult(
-            *(torch.where(better.view(-1, *([1] * (a.dim() - 1))), a, b) for a, b in zip(h, best, strict=True))
+        if active.numel() == 0:
+            break
+        q = x[active] + t1[active, None] * normal[active]
+        h = index.point_mesh_distance(q)
+        g1 = ((q - h.closest) * normal[active]).sum(-1)
+        better = g1.abs() < best_g[active]
+        chosen = active[better]
+        for field, value in zip(best, h, strict=True):
+            field[chosen] = value[better]
+        best_g[chosen] = g1.abs()[better]
+        slope = g1 - g0[active]
+        dt = t1[active] - t0[active]
+        moving = slope.abs() > 1e-12 * dt.abs().clamp_min(1e-300)
+        t_next = torch.where(
+            moving, t1[active] - g1 * dt / torch.where(moving, slope, torch.ones_like(slope)), t1[active]
         )
-        best_g = torch.where(better, g1.abs(), best_g)
-        slope = g1 - g0
-        moving = slope.abs() > 1e-12 * (t1 - t0).abs().clamp_min(1e-300)
-        t_next = torch.where(moving, t1 - g1 * (t1 - t0) / torch.where(moving, slope, torch.ones_like(slope)), t1)
-        t0, g0, t1 = t1, g1, t_next
+        t0[active], g0[active], t1[active] = t1[active], g1, t_next
+        active = active[(best_g[active] > tol) & moving]
     return best
 
 
