@@ -49,6 +49,8 @@ __all__ = [
 #: Frame 0's edges shorter than this fraction of the median edge are welded before tracking (docs/temporal.md).
 DEFAULT_WELD = 0.1
 
+_REACH = 10.0
+
 #: Secant steps along the normal of :func:`carry_onto` (docs/temporal.md: 99.5 % of the points have converged by 8).
 DEFAULT_NORMAL_STEPS = 8
 
@@ -224,13 +226,28 @@ def track_original(
     return TrackedSequence(torch.stack(positions), first.faces, torch.stack(projection), list(registrations))
 
 
-def _along_normal(index: MeshIndex, x: Tensor, normal: Tensor, hit: PointMeshResult, steps: int) -> PointMeshResult:
+def _edge_scale(x: Tensor, faces: Tensor) -> Tensor:
+    """``(V,)`` mean length of the edges at each vertex of ``(x, faces)`` (zero at a vertex without edges)."""
+    edges = mesh_edges(faces, x.shape[0])
+    length = (x[edges[:, 0]] - x[edges[:, 1]]).norm(dim=-1)
+    total = torch.zeros_like(x[:, 0]).index_add(0, edges.flatten(), length.repeat_interleave(2))
+    count = torch.bincount(edges.flatten(), minlength=x.shape[0]).to(x.dtype)
+    return total / count.clamp_min(1)
+
+
+def _along_normal(
+    index: MeshIndex, x: Tensor, normal: Tensor, scale: Tensor, hit: PointMeshResult, steps: int
+) -> PointMeshResult:
     """Secant steps towards the root of ``g(t) = (q - cp(q)) . n`` on the line ``q = x + t n`` (see carry_onto).
 
     Only the points whose line has not met the surface yet (``|g|`` above ``1e-10`` of the coordinates' size) are
     queried again, so a step costs what remains to be found.
     """
     tol = 1e-10 * float(x.abs().max())
+    # The line is followed within the larger of _REACH times the closest point's distance and the local edge length:
+    # farther crossings are another part of the surface (the other side of a thin limb), not this point's
+    # displaced surface.
+    reach = torch.maximum(_REACH * hit.dists, scale)
     t0 = torch.zeros_like(x[:, 0])
     g0 = ((x - hit.closest) * normal).sum(-1)
     t1 = -g0
@@ -243,7 +260,7 @@ def _along_normal(index: MeshIndex, x: Tensor, normal: Tensor, hit: PointMeshRes
         q = x[active] + t1[active, None] * normal[active]
         h = index.point_mesh_distance(q)
         g1 = ((q - h.closest) * normal[active]).sum(-1)
-        better = g1.abs() < best_g[active]
+        better = (g1.abs() < best_g[active]) & ((h.closest - x[active]).norm(dim=-1) <= reach[active])
         chosen = active[better]
         for field, value in zip(best, h, strict=True):
             field[chosen] = value[better]
@@ -254,6 +271,7 @@ def _along_normal(index: MeshIndex, x: Tensor, normal: Tensor, hit: PointMeshRes
         t_next = torch.where(
             moving, t1[active] - g1 * dt / torch.where(moving, slope, torch.ones_like(slope)), t1[active]
         )
+        t_next = torch.maximum(torch.minimum(t_next, reach[active]), -reach[active])
         t0[active], g0[active], t1[active] = t1[active], g1, t_next
         active = active[(best_g[active] > tol) & moving]
     return best
@@ -318,9 +336,9 @@ def carry_onto(
             index = MeshIndex(verts.detach(), mesh_faces, backend=backend, tree="morton")  # a few queries: cheap build
             hit = index.point_mesh_distance(x)
             if faces is not None and normal_steps:
-                hit = _along_normal(
-                    index, x, Mesh(x, faces.to(tracked.device), validate=False).vertex_normals(), hit, normal_steps
-                )
+                tracked_faces = faces.to(tracked.device)
+                normal = Mesh(x, tracked_faces, validate=False).vertex_normals()
+                hit = _along_normal(index, x, normal, _edge_scale(x, tracked_faces), hit, normal_steps)
         corners = verts[mesh_faces[hit.face_idx]]  # (V, 3, 3)
         out.append((hit.bary.to(verts.dtype)[..., None] * corners).sum(1))
     return torch.stack(out)
