@@ -178,12 +178,53 @@ def summary(result: dict[str, object]) -> dict[str, object]:
     return out
 
 
+def markdown(results: list[dict[str, object]]) -> str:
+    """The validation's tables (docs/temporal.md): figures, Spearman, ratio spreads, temporal rises."""
+    short = ("kg", "kso", "sted_s", "sted_t")
+    lines = []
+    for result in results:
+        rows = result["rows"]  # type: ignore[index]
+        lines += [
+            f"**{result['model']}** ({result['vertices']} vertices, {result['frames']} frames): exact / registered",
+            "",
+            "| distortion | level | " + " | ".join(short) + " |",
+            "|---|---:|" + "---:|" * len(short),
+        ]
+        for r in rows:  # type: ignore[union-attr]
+            cells = " | ".join(f"{r['exact'][k]:.4g} / {r['registered'][k]:.4g}" for k in short)
+            lines.append(f"| {r['kind']} | {r['level']:g} | {cells} |")
+        summ = result["summary"]  # type: ignore[index]
+        lines += ["", "| | " + " | ".join(FIGURE_NAMES) + " |", "|---|" + "---:|" * len(FIGURE_NAMES)]
+        lines.append("| Spearman | " + " | ".join(f"{summ['spearman'][k]:.3f}" for k in FIGURE_NAMES) + " |")
+        for kind, per in summ["ratio"].items():
+            cells = " | ".join(
+                f"{per[k]['min']:.2f} to {per[k]['max']:.2f} ({100 * per[k]['spread']:.0f} %)" for k in FIGURE_NAMES
+            )
+            lines.append(f"| ratio {kind} | {cells} |")
+        floor = next(r for r in rows if r["kind"] == "none")["registered"]["sted_t"]  # type: ignore[union-attr]
+        lines += ["", "| STED_t rise over the floor | level | exact | registered - floor | registered / exact |"]
+        lines.append("|---|---:|---:|---:|---:|")
+        for r in rows:  # type: ignore[union-attr]
+            if r["kind"] in ("flicker", "jitter", "noise"):
+                rise = r["registered"]["sted_t"] - floor
+                lines.append(
+                    f"| {r['kind']} | {r['level']:g} | {r['exact']['sted_t']:.4g} | {rise:.4g} | "
+                    f"{rise / r['exact']['sted_t']:.2f} |"
+                )
+        lines.append("")
+    return "\n".join(lines)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("models", nargs="+", type=Path)
     parser.add_argument("--frames", type=int, default=8)
     parser.add_argument("--out", type=Path, default=Path("/tmp/temporal-validation.json"))
+    parser.add_argument("--markdown", action="store_true", help="print the tables of --out (written before) and stop")
     args = parser.parse_args()
+    if args.markdown:
+        print(markdown(json.loads(args.out.read_text())))
+        return
     results = []
     for folder in args.models:
         result = validate(folder, args.frames, lambda s: print(s, flush=True))
