@@ -65,7 +65,7 @@ def test_normal_displacement_is_measured_as_the_exact_forms_do() -> None:
     pair = registered_pair(frames, _subdivided(b, faces), registrations=_true_registrations(frames), weld=0.0)
     exact_kg, registered_kg = kg_error(a, b).item(), kg_error(pair.original, pair.distorted).item()
     exact, registered = sted(a, b, faces), sted(pair.original, pair.distorted, pair.faces)
-    # Measured on this case: KG -0.3 %, STED_s -5.6 %, STED_t -0.4 % (0.5 % of the normal lines do not reach their
+    # Measured on this case: KG -0.3 %, STED_s -6.3 %, STED_t -0.4 % (0.7 % of the normal lines do not reach their
     # displaced vertex in 8 secant steps); the goal for normal displacements is 10 %.
     assert abs(registered_kg / exact_kg - 1) < 0.01
     assert abs(registered.spatial.item() / exact.spatial.item() - 1) < 0.1

@@ -291,7 +291,9 @@ def carry_onto(
     root of :math:`g(t) = (q - \mathrm{cp}(q))\cdot n` on the line :math:`q = x + t n`, with :math:`\mathrm{cp}` the
     exact closest point on the distorted frame: :math:`g` vanishes where the line meets the surface, and is linear
     in :math:`t` near a planar piece, so secant steps from :math:`t_0 = 0` and :math:`t_1 = (\mathrm{cp}(x) - x)\cdot n`
-    reach it in one step there. The point kept is the closest point of the step with the smallest :math:`|g|`. Where
+    reach it in one step there. The point kept is the closest point of the step with the smallest :math:`|g|`
+    among those within the larger of 10 times the first closest distance and the local edge length (a farther
+    crossing is another part of the surface). Where
     the distorted surface is a displacement of the original along its normals this ends on the displaced point (a
     closest point alone lands short of a narrow bump: it prefers the bump's flanks), which is what the exact forms
     measure (docs/temporal.md gives the measurement). ``normal_steps=0`` or ``faces=None`` is the plain closest point.
