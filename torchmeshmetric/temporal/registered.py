@@ -51,7 +51,7 @@ DEFAULT_WELD = 0.1
 
 _REACH = 10.0
 
-#: Secant steps along the normal of :func:`carry_onto` (docs/temporal.md: 99.5 % of the points have converged by 8).
+#: Secant steps along the normal of :func:`carry_onto` (docs/temporal.md: 99.3 % of the points have converged by 8).
 DEFAULT_NORMAL_STEPS = 8
 
 
