@@ -30,8 +30,8 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from torchmeshmetric._atomic import atomic_write
-from torchmeshmetric._format import format_number, json_safe
-from torchmeshmetric.evaluation.reports import COLUMNS, report_dict
+from torchmeshmetric._format import json_safe
+from torchmeshmetric.evaluation.reports import COLUMNS, report_dict, statistic_cells
 from torchmeshmetric.evaluation.results import SequenceEvaluation
 
 if sys.version_info >= (3, 11):
@@ -268,7 +268,7 @@ def _rows(results: Mapping[str, Mapping[str, SequenceEvaluation]], kind: str, pa
 
 
 def campaign_tables(results: Mapping[str, Mapping[str, SequenceEvaluation]]) -> str:
-    """The combined tables as Markdown: per sequence and overall (mean over sequences), 4 significant digits."""
+    """The combined tables as Markdown: per sequence and overall (mean over sequences), the report's digits."""
     header = "| Sequence | Algorithm | Mesh | " + " | ".join(h for _, h in COLUMNS) + " |"
     rule = "|" + "---|" * (len(COLUMNS) + 3)
     out = []
@@ -278,7 +278,7 @@ def campaign_tables(results: Mapping[str, Mapping[str, SequenceEvaluation]]) -> 
             continue
         out += [f"### {title}", "", header, rule]
         for scope, method, label, _, stats in rows:
-            cells = " | ".join(format_number(stats[k]) for k, _ in COLUMNS)
+            cells = " | ".join(statistic_cells(stats))
             out.append(f"| {scope} | {method} | {label} | {cells} |")
         out.append("")
     out.append(
