@@ -15,12 +15,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.mpeg.conftest import MM, MPEG_REF
+from tests.mpeg.conftest import MM, MM_TESTS
 from torchmeshmetric.cli import main
 
 pytestmark = pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")
 
-TESTS = MPEG_REF / "mmetric-tests"
+TESTS = MM_TESTS
 _OPTS = {"radius_curvature": "--radiusCurvature", "knn": "--thresholdKnnSearch", "radius_factor": "--radiusFactor"}
 _CLI = {"radius_curvature": "--radius-curvature", "knn": "--threshold-knn-search", "radius_factor": "--radius-factor"}
 
