@@ -161,12 +161,13 @@ def mesh_surface_distance_sets(
         simplified_index: the :class:`~torchmeshmetric.MeshIndex` of the simplified meshes, for the reverse set.
 
     Returns:
-        :class:`~torchmeshmetric.metrics.DirectedDistances`; ``forward`` is differentiable w.r.t. the simplified
+        :class:`~torchmeshmetric.metrics.DirectedDistances` in the promoted dtype of the inputs and of any index
+        given (``docs/concepts.md``, *Precision*); ``forward`` is differentiable w.r.t. the simplified
         vertices (and the reference when not detached).
 
     Raises:
-        ShapeError, DeviceError, DTypeError: an index whose vertex counts, device or (narrower) dtype do not fit
-            its meshes.
+        ShapeError, DeviceError: an index whose vertex counts or device do not fit its meshes.
+        DTypeError: an index narrower than the promoted dtype of the inputs (it would round them).
         ValueError: an index with ``surface_samples`` (the sampled mode measures to samples, not to a surface).
 
     Example:

@@ -330,7 +330,8 @@ def temporal_consistency_loss(
             registers every pair again.
 
     Returns:
-        A 0-dim loss, or the per-point terms (``reduction="none"``).
+        A 0-dim loss, or the per-point terms (``reduction="none"``), in the promoted dtype of the four frames (each
+        frame's gradient in its own dtype: ``docs/concepts.md``, *Precision*).
 
     Raises:
         TypeError: an argument that is not a mesh or list of meshes, a registration of an unknown kind.

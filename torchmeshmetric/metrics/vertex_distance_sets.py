@@ -135,13 +135,14 @@ def nearest_vertex_distance_sets(
         simplified_index: the :class:`~torchmeshmetric.MeshIndex` of the simplified meshes, for the reverse set.
 
     Returns:
-        :class:`~torchmeshmetric.metrics.DirectedDistances` (``peak``: bounding-box diagonal of each reference
+        :class:`~torchmeshmetric.metrics.DirectedDistances` in the promoted dtype of the inputs and of any index
+        given (``docs/concepts.md``, *Precision*; ``peak``: bounding-box diagonal of each reference
         vertex set).
 
     Raises:
         TypeError: an index given with point-set items.
-        ShapeError, DeviceError, DTypeError: an index whose vertex counts, device or (narrower) dtype do not fit
-            its meshes.
+        ShapeError, DeviceError: an index whose vertex counts or device do not fit its meshes.
+        DTypeError: an index narrower than the promoted dtype of the inputs (it would round them).
 
     Example:
         >>> import torch, trimesh
