@@ -211,3 +211,35 @@ def test_temporal_consistency_loss_dtype_rule(
     expected, widened = run(widened=True)
     _check(loss.detach(), expected.detach(), promoted)
     _check_grads(given, widened, promoted)
+
+
+@pytest.mark.parametrize("term", ["d1", "d2"])
+@pytest.mark.parametrize("ref_dtype", [F32, F64])
+@pytest.mark.parametrize("dis_dtype", [F32, F64])
+def test_mpeg_geometry_loss_dtype_rule(dis_dtype: torch.dtype, ref_dtype: torch.dtype, term: str) -> None:
+    """The MPEG geometry loss takes point clouds (tensors only): the same rule through nearest_vertex_distance."""
+    from torchmeshmetric.mpeg import mpeg_geometry_loss
+
+    def run(widened: bool) -> tuple[Tensor, Tensor]:
+        def cloud(v: np.ndarray, dtype: torch.dtype) -> Tensor:
+            t = torch.tensor(v, dtype=dtype)
+            return t.to(F64) if widened else t
+
+        dis = cloud(SIMP_V, dis_dtype).requires_grad_(True)
+        ref = cloud(REF_V, ref_dtype)
+        normals = {}
+        if term == "d2":  # unit normals of spheres: the directions of the points
+            normals = {
+                "dis_normals": cloud(SIMP_V / np.linalg.norm(SIMP_V, axis=1, keepdims=True), dis_dtype),
+                "ref_normals": cloud(REF_V / np.linalg.norm(REF_V, axis=1, keepdims=True), ref_dtype),
+            }
+        loss = mpeg_geometry_loss(dis, ref, term=term, **normals)
+        loss.backward()
+        return loss, dis
+
+    promoted = torch.promote_types(dis_dtype, ref_dtype)
+    loss, dis = run(widened=False)
+    expected, dis64 = run(widened=True)
+    assert loss.dtype == promoted
+    _check(loss.detach(), expected.detach(), promoted)
+    _check_grads([dis], [dis64], promoted)
