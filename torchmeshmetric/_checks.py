@@ -7,6 +7,7 @@ Every check raises an error that names the argument, what was found and what was
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 
 import torch
@@ -29,6 +30,8 @@ __all__ = [
     "check_same_device",
     "check_shape",
     "check_faces",
+    "check_index_dtype",
+    "common_dtype",
 ]
 
 
@@ -98,6 +101,45 @@ def check_float(x: Tensor, name: str) -> None:
         raise DTypeError(
             f"{name}: expected a floating-point tensor (float32 or float64), found dtype {x.dtype}; "
             "convert integer coordinates with .float() or .double()"
+        )
+
+
+def common_dtype(*dtypes: torch.dtype) -> torch.dtype:
+    """The dtype a computation on inputs of ``dtypes`` runs in and answers in: torch's type promotion.
+
+    The library's one dtype rule (``docs/concepts.md``, *Precision*): a distance between float32 and float64
+    geometry is computed and returned in float64, whichever side is which, so that no input is rounded; autograd
+    casts each input's gradient back to that input's own dtype (a float32 model gets float32 gradients).
+
+    Args:
+        dtypes: the floating dtypes of every geometric input (points, vertices, a prebuilt index's).
+
+    Returns:
+        Their promotion (``torch.promote_types`` of all), e.g. float64 for ``(float32, float64)``.
+
+    Example:
+        >>> common_dtype(torch.float32, torch.float64, torch.float32)
+        torch.float64
+    """
+    return functools.reduce(torch.promote_types, dtypes)
+
+
+def check_index_dtype(index_dtype: torch.dtype, dtype: torch.dtype, name: str) -> None:
+    """Refuse a prebuilt index narrower than the dtype its queries are computed in (:func:`common_dtype`).
+
+    An index answers in its own dtype: narrower queries are cast up to it (exactly), wider ones would be rounded
+    down to it, which the dtype rule never does. Converting the index instead would rebuild its whole structure
+    (about the cost of the queries it was built to save) behind the caller's back, at every call or refit; the
+    error says how to build it once in the right dtype.
+
+    Raises:
+        DTypeError: ``index_dtype`` cannot hold ``dtype`` values exactly.
+    """
+    if torch.promote_types(index_dtype, dtype) != index_dtype:
+        raise DTypeError(
+            f"{name}: expected an index of dtype {dtype} (the promoted dtype of its queries), found one of dtype "
+            f"{index_dtype}, which would round them; build the index once in {dtype} "
+            f"(MeshIndex(mesh.to(dtype={dtype}))), or give every input in {index_dtype}"
         )
 
 

@@ -35,7 +35,7 @@ from typing import Any
 import torch
 from torch import Tensor, nn
 
-from torchmeshmetric._checks import EmptyInputError, NonFiniteError, ShapeError
+from torchmeshmetric._checks import EmptyInputError, NonFiniteError, ShapeError, common_dtype
 from torchmeshmetric.kernels.danskin import mesh_surface_distances
 from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.kernels.mesh_index import MeshIndex
@@ -142,7 +142,6 @@ class TemporalLossCache:
         self.indexes = IndexCache(max_entries=max_indexes)
         self._simplified = _KeptIndex()
         self._moved = _KeptIndex()
-        self._frame_simplified = _KeptIndex()  # the simplified frames in a wider dtype, for the original vertices
 
     @property
     def num_warps(self) -> int:
@@ -181,8 +180,7 @@ class TemporalLossCache:
         # cache comes back as an empty one with the same folder and bound.
         registrations = RegistrationCache(self.registrations.directory, max_entries=self.registrations.max_entries)
         return {"max_warps": self.max_warps, "registrations": registrations, "_warps": OrderedDict(),
-                "indexes": self.indexes, "_simplified": _KeptIndex(), "_moved": _KeptIndex(),
-                "_frame_simplified": _KeptIndex()}  # fmt: skip
+                "indexes": self.indexes, "_simplified": _KeptIndex(), "_moved": _KeptIndex()}  # fmt: skip
 
 
 def _to_surface(points: list[Tensor], meshes: list[Mesh], index: MeshIndex) -> Tensor:
@@ -332,7 +330,8 @@ def temporal_consistency_loss(
             registers every pair again.
 
     Returns:
-        A 0-dim loss, or the per-point terms (``reduction="none"``).
+        A 0-dim loss, or the per-point terms (``reduction="none"``), in the promoted dtype of the four frames (each
+        frame's gradient in its own dtype: ``docs/concepts.md``, *Precision*).
 
     Raises:
         TypeError: an argument that is not a mesh or list of meshes, a registration of an unknown kind.
@@ -370,11 +369,16 @@ def temporal_consistency_loss(
     given = _registration_items(registration, len(s_k))
     options = _options(registration_options)
     work = cache if cache is not None else TemporalLossCache(max_warps=max(1, len(s_k)))
+    # The dtype rule (docs/concepts.md, Precision): every term in the promoted dtype of all the frames; the casts
+    # are differentiable, so each frame's gradient comes back in its own dtype. The registrations stay in the
+    # originals' dtype (their cache keys are the evaluation's); the warps promote the points they move.
+    dtype = common_dtype(*(m.dtype for m in (*s_k, *s_km1, *o_k, *o_km1)))
+    s_k = [m.to(dtype=dtype) for m in s_k]
     moved = []
     for i, (g, ok, okm1, skm1, sk) in enumerate(zip(given, o_k, o_km1, s_km1, s_k, strict=True)):
         name = "registration" if len(s_k) == 1 else f"registration[{i}]"
         warp = work.warp(ok, okm1, options, backend) if g is None else as_warp(g, ok, okm1, name=name)
-        moved.append(_moved(warp, skm1, sk, name))
+        moved.append(_moved(warp, skm1.to(dtype=dtype), sk, name))
     # One index per role for the whole batch: the moved frames k-1 (measured to) and the simplified frames k
     # (measured to by both reverse directions), refitted across calls while their faces stay the same; the
     # original frames k found again by content. Every index holds detached vertices: the gradient to the vertices
@@ -391,20 +395,12 @@ def temporal_consistency_loss(
     total = reduce_directed(flicker, power, reduction)
     if frame_weight == 0:
         return total
-    dtype = s_k[0].dtype
-    for m in o_k:
-        dtype = torch.promote_types(dtype, m.dtype)
     originals = [m.detach().to(dtype=dtype) for m in o_k]
     original_index = work.indexes.get(originals if len(originals) > 1 else originals[0], backend=backend)
     reverse = None
-    if two_sided:
-        # The reverse frame term queries the original vertices on the simplified index when it has their dtype.
-        shared = simplified_index
-        if shared is not None and shared.dtype != dtype:
-            shared = work._frame_simplified.get([m.to(dtype=dtype) for m in s_k], backend)
-        assert shared is not None
-        reverse = ([vertex_set(m) for m in originals], [m.to(dtype=dtype) for m in s_k], shared)
-    frame = _directed([q.to(dtype) for q in k_points], originals, original_index, reverse)
+    if simplified_index is not None:  # two-sided: the original vertices are queried on the simplified index too
+        reverse = ([vertex_set(m) for m in originals], s_k, simplified_index)
+    frame = _directed(k_points, originals, original_index, reverse)
     frame_term = reduce_directed(frame, power, reduction)
     if reduction == "none":
         return torch.cat([total, frame_weight * frame_term])
