@@ -22,7 +22,14 @@ def _run(args: argparse.Namespace) -> int:
     from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
 
     out = Path(args.output)
-    check_writable([out], args.overwrite)
+    from torchmeshmetric.mpeg.csv_rows import mmetric_texture_url
+
+    try:
+        texture = mmetric_texture_url(args.mesh, args.texture) or None
+    except (OSError, ValueError):  # an unreadable mesh is reported by its reader
+        texture = None
+    inputs = [("MESH", args.mesh), ("--texture" if args.texture else "MESH's texture", texture)]
+    check_writable([out], args.overwrite, inputs=inputs, what="OUT")
     mesh = load_textured_mesh(args.mesh, args.texture)
 
     def sample(value: float | None = None) -> Any:
@@ -110,5 +117,5 @@ def add_sample_command(sub: Any) -> None:
     p.add_argument("--max-iterations", type=int, default=10, help="mm --maxIterations of the search (10)")
     p.add_argument("--bilinear", action="store_true", help="bilinear texture filtering (default nearest, as mm)")
     p.add_argument("--texture", default=None, metavar="IMG", help="texture of MESH (overrides its MTL)")
-    p.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")
+    p.add_argument("--overwrite", action="store_true", help="replace OUT if it exists (never MESH nor its texture)")
     p.set_defaults(func=_run)
