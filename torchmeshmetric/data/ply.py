@@ -184,7 +184,7 @@ def _declared(p: Path, data: bytes) -> dict[str, int]:
 
 
 def read_ply_points(p: Path) -> tuple[np.ndarray, np.ndarray | None] | None:
-    r"""A PLY point cloud (no faces, ``mm sample``'s output): ``(verts, colors)``, every value checked; a mesh: ``None``.
+    r"""A PLY point cloud (no faces, ``mm sample``'s output) as ``(verts, colors)``, every value checked; else ``None``.
 
     The header is checked line by line and the body against its declared vertex count (a truncated file is refused,
     never read in part); coordinates must be finite (the message names the vertex and, in ASCII, its line).
