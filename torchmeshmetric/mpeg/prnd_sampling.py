@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from torchmeshmetric._checks import EmptyInputError
+from torchmeshmetric._checks import EmptyInputError, check_allocation
 from torchmeshmetric.mpeg import _float32 as f32
 from torchmeshmetric.mpeg.grid_sampling import mesh_arrays
 from torchmeshmetric.mpeg.point_cloud import PointCloud
@@ -65,8 +65,10 @@ def prnd_sample(
         >>> prnd_sample(TexturedMesh(tri), num_samples=10).num_points  # 3 corners + 9 inner points
         12
     """
-    if isinstance(num_samples, bool) or not isinstance(num_samples, int) or num_samples < 1:
+    if isinstance(num_samples, bool) or not isinstance(num_samples, (int, np.integer)) or num_samples < 1:
         raise ValueError(f"num_samples: expected an integer >= 1, found {num_samples!r}")
+    num_samples = int(num_samples)  # a numpy integer too
+    check_allocation(num_samples, 24, "num_samples", num_samples, "points")  # before any int64 count can wrap
     verts, faces = mesh_arrays(mesh.mesh)
     attr = corner_attributes(mesh, faces)
     p = verts[faces]
