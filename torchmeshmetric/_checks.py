@@ -24,6 +24,7 @@ __all__ = [
     "StaleIndexError",
     "all_finite",
     "check_allocation",
+    "check_device",
     "check_finite",
     "check_float",
     "check_lengths",
@@ -199,3 +200,26 @@ def check_allocation(count: float, bytes_each: int, name: str, value: object, wh
             f"{name}: {value!r} asks for about {float(count):.3g} {what}, at least {need / 2**30:.3g} GiB, more than "
             f"{where}; choose a smaller value"
         )
+
+
+def check_device(device: torch.device | str | int, name: str = "device") -> torch.device:
+    """A device this process can use, as a ``torch.device``; else a :class:`DeviceError` naming ``name``.
+
+    Example:
+        >>> check_device("cpu")
+        device(type='cpu')
+        >>> check_device("bogus")  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+            ...
+        torchmeshmetric._checks.DeviceError: device: 'bogus' is not a device (expected e.g. 'cpu', 'cuda', 'cuda:1')...
+    """
+    try:
+        dev = torch.device(device)
+    except (RuntimeError, TypeError) as exc:
+        raise DeviceError(f"{name}: {device!r} is not a device (expected e.g. 'cpu', 'cuda', 'cuda:1'; {exc})") from exc
+    if dev.type == "cuda":
+        if not torch.cuda.is_available():
+            raise DeviceError(f"{name}: {device!r} asked, but no CUDA device is available here; use 'cpu'")
+        if dev.index is not None and dev.index >= torch.cuda.device_count():
+            raise DeviceError(f"{name}: {device!r} asked, but only {torch.cuda.device_count()} CUDA device(s) exist")
+    return dev

@@ -18,8 +18,9 @@ from torchmeshmetric.mpeg import _float32 as f32
 from torchmeshmetric.mpeg.grid_sampling import mesh_arrays
 from torchmeshmetric.mpeg.point_cloud import PointCloud
 from torchmeshmetric.mpeg.subdivision_sampling import builder_cloud, corner_attributes
-from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
+from torchmeshmetric.mpeg.textured_mesh import TexturedMesh, as_textured_mesh
 from torchmeshmetric.mpeg.vertex_sampling import zero_area_message
+from torchmeshmetric.structures import MeshLike
 
 __all__ = ["edge_sample"]
 
@@ -53,7 +54,7 @@ def _length(mesh: TexturedMesh, verts: np.ndarray, length_threshold: float, reso
 
 
 def edge_sample(
-    mesh: TexturedMesh,
+    mesh: TexturedMesh | MeshLike,
     *,
     length_threshold: float = 0.0,
     resolution: int = 1024,
@@ -83,6 +84,7 @@ def edge_sample(
         >>> edge_sample(TexturedMesh(tri), length_threshold=1.0).num_points  # corners + 3 midpoints, then stop
         6
     """
+    mesh = as_textured_mesh(mesh, name)  # a Mesh, (V, F) or trimesh too: no colour
     verts, faces = mesh_arrays(mesh.mesh)
     length = _length(mesh, verts, length_threshold, resolution)
     attr = corner_attributes(mesh, faces)

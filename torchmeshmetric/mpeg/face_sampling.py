@@ -21,8 +21,9 @@ from torchmeshmetric.mpeg import _float32 as f32
 from torchmeshmetric.mpeg.grid_sampling import mesh_arrays, unique_vertex_rows
 from torchmeshmetric.mpeg.point_cloud import PointCloud
 from torchmeshmetric.mpeg.texture import sample_texture
-from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
+from torchmeshmetric.mpeg.textured_mesh import TexturedMesh, as_textured_mesh
 from torchmeshmetric.mpeg.vertex_sampling import zero_area_message
+from torchmeshmetric.structures import MeshLike
 
 __all__ = ["face_sample"]
 
@@ -66,7 +67,12 @@ def _check(resolution: int, thickness: float) -> None:
 
 
 def face_sample(
-    mesh: TexturedMesh, *, resolution: int = 1024, thickness: float = 0.0, bilinear: bool = False, name: str = "mesh"
+    mesh: TexturedMesh | MeshLike,
+    *,
+    resolution: int = 1024,
+    thickness: float = 0.0,
+    bilinear: bool = False,
+    name: str = "mesh",
 ) -> PointCloud:
     """Sample a mesh as ``mm sample --mode face --resolution R [--thickness T] [--bilinear]`` does.
 
@@ -92,6 +98,7 @@ def face_sample(
         >>> face_sample(TexturedMesh(tri), resolution=2).num_points  # s in {0, .5, 1}: 1 + 2 + 3 points
         6
     """
+    mesh = as_textured_mesh(mesh, name)  # a Mesh, (V, F) or trimesh too: no colour
     _check(resolution, thickness)
     resolution = int(resolution)  # a numpy integer too
     verts, faces = mesh_arrays(mesh.mesh)

@@ -19,8 +19,9 @@ from torchmeshmetric.mpeg.grid_sampling import mesh_arrays, unique_vertex_rows
 from torchmeshmetric.mpeg.point_cloud import PointCloud
 from torchmeshmetric.mpeg.subdivision_rows import subdivision_rows
 from torchmeshmetric.mpeg.texture import sample_texture
-from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
+from torchmeshmetric.mpeg.textured_mesh import TexturedMesh, as_textured_mesh
 from torchmeshmetric.mpeg.vertex_sampling import zero_area_message
+from torchmeshmetric.structures import MeshLike
 
 __all__ = ["builder_cloud", "corner_attributes", "subdivision_sample"]
 
@@ -37,7 +38,7 @@ def corner_attributes(mesh: TexturedMesh, faces: np.ndarray) -> np.ndarray:
 
 
 def subdivision_sample(
-    mesh: TexturedMesh,
+    mesh: TexturedMesh | MeshLike,
     *,
     max_depth: int = 100,
     area_threshold: float = 1.0,
@@ -71,6 +72,7 @@ def subdivision_sample(
         >>> subdivision_sample(TexturedMesh(tri), max_depth=3, area_threshold=2.0).num_points  # area 8, then 2
         15
     """
+    mesh = as_textured_mesh(mesh, name)  # a Mesh, (V, F) or trimesh too: no colour
     if isinstance(max_depth, bool) or not isinstance(max_depth, (int, np.integer)) or max_depth < 1:
         raise ValueError(f"max_depth: expected an integer >= 1, found {max_depth!r}")
     if not (np.isfinite(area_threshold) and area_threshold > 0):
