@@ -91,7 +91,7 @@ class TemporalSlide(nn.Module):
         nn.init.zeros_(last.weight)
         nn.init.constant_(last.bias, float(torch.logit(torch.tensor(initial_gate))))
         hidden_layers = [nn.Linear(_NUM_FEATURES, width), nn.SiLU(), nn.Linear(width, width), nn.SiLU()]
-        self.net = nn.Sequential(*hidden_layers, last)
+        self.net: nn.Sequential = nn.Sequential(*hidden_layers, last)
 
     @property
     def dtype(self) -> torch.dtype:
