@@ -36,7 +36,8 @@ print(loader.load("tiny").answer(), flush=True)
 
 # torch's message for a missing compiler (torch 2.x, ``CXX=/nonexistent/c++``), as the loader receives it.
 NO_COMPILER = (
-    "Error building extension 'x': [1/2] /nonexistent/c++ -MMD -MF tiny.o.d -fPIC -std=c++20 -c /t/tiny.cpp -o tiny.o \n"
+    "Error building extension 'x': [1/2] /nonexistent/c++ -MMD -MF tiny.o.d -fPIC -std=c++20 -c /t/tiny.cpp "
+    "-o tiny.o \n"
     "FAILED: [code=127] tiny.o \n/nonexistent/c++ -MMD -MF tiny.o.d -fPIC -std=c++20 -c /t/tiny.cpp -o tiny.o \n"
     "/bin/sh: 1: /nonexistent/c++: not found\nninja: build stopped: subcommand failed.\n"
 )

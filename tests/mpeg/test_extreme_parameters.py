@@ -104,7 +104,7 @@ def test_numpy_float_weight_in_anchored_qem():
     want = simplify_anchored_qem(mesh, anchors, 0.5, weight=0.25)
     got = simplify_anchored_qem(mesh, anchors, 0.5, weight=np.float32(0.25))
     assert torch.equal(got.verts, want.verts) and torch.equal(got.faces, want.faces)
-    with pytest.raises(TypeError, match="^weight: expected a float"):
+    with pytest.raises(TypeError, match=r"^weight: expected a float"):
         simplify_anchored_qem(mesh, anchors, 0.5, weight=np.bool_(True))
 
 

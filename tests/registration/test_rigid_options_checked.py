@@ -37,7 +37,7 @@ def test_good_rigid_options_are_kept_with_numpy_scalars():
 
 def test_register_rigid_uses_the_same_checks():
     box = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]), torch.tensor([[0, 1, 2], [0, 1, 3], [0, 2, 3]])
-    with pytest.raises(TypeError, match="^max_iterations: expected an int, found str 'ten'"):
+    with pytest.raises(TypeError, match=r"^max_iterations: expected an int, found str 'ten'"):
         register_rigid(box, box, max_iterations="ten")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match=r"^trim: expected a fraction in \(0, 1\], found 5.0"):
         register_rigid(box, box, trim=5.0)
