@@ -21,8 +21,11 @@ __all__ = [
     "IndexRangeError",
     "NonFiniteError",
     "ShapeError",
+    "SizeLimitError",
     "StaleIndexError",
     "all_finite",
+    "check_allocation",
+    "check_device",
     "check_finite",
     "check_float",
     "check_lengths",
@@ -61,6 +64,10 @@ class IndexRangeError(ValueError):
 
 class EmptyInputError(ValueError):
     """A mesh or point set is empty where at least one element is required."""
+
+
+class SizeLimitError(ValueError):
+    """A parameter asks for a result that cannot exist here: more elements than this machine's memory holds."""
 
 
 class StaleIndexError(ValueError):
@@ -199,3 +206,62 @@ def check_lengths(lengths: Tensor, total: int, name: str) -> None:
         raise IndexRangeError(f"{name}: expected non-negative lengths, found {lengths.tolist()}")
     if int(lengths.sum()) != total:
         raise ShapeError(f"{name}: expected lengths summing to {total}, found sum {int(lengths.sum())}")
+
+
+def _memory_bytes() -> int:
+    """This machine's physical memory in bytes (``0`` where the system does not say)."""
+    import os
+
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
+    except (AttributeError, ValueError, OSError):  # pragma: no cover (not POSIX)
+        return 0
+
+
+def check_allocation(count: float, bytes_each: int, name: str, value: object, what: str) -> None:
+    """Refuse, before allocating, a parameter whose result cannot fit: ``count`` elements beyond memory or int64.
+
+    ``count`` is computed by the caller in Python or float64 arithmetic (never a wrapping int64 one) and
+    ``bytes_each`` is the least each element takes, so a refused size is certainly impossible, never merely slow.
+
+    Raises:
+        SizeLimitError: naming ``name`` and its ``value``, the count and the memory it needs.
+
+    Example:
+        >>> check_allocation(1e6, 24, "resolution", 1024, "points")  # 24 MB: fine
+        >>> check_allocation(1e19, 24, "num_samples", 10**19, "points")  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+            ...
+        torchmeshmetric._checks.SizeLimitError: num_samples: 10000000000000000000 asks for about 1e+19 points...
+    """
+    need = float(count) * bytes_each
+    memory = _memory_bytes()
+    if not (need <= (memory or float("inf")) and count < 2.0**63):
+        where = f"this machine's {memory / 2**30:.3g} GiB of memory" if memory else "a 64-bit count"
+        raise SizeLimitError(
+            f"{name}: {value!r} asks for about {float(count):.3g} {what}, at least {need / 2**30:.3g} GiB, more than "
+            f"{where}; choose a smaller value"
+        )
+
+
+def check_device(device: torch.device | str | int, name: str = "device") -> torch.device:
+    """A device this process can use, as a ``torch.device``; else a :class:`DeviceError` naming ``name``.
+
+    Example:
+        >>> check_device("cpu")
+        device(type='cpu')
+        >>> check_device("bogus")  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+            ...
+        torchmeshmetric._checks.DeviceError: device: 'bogus' is not a device (expected e.g. 'cpu', 'cuda', 'cuda:1'; ...
+    """
+    try:
+        dev = torch.device(device)
+    except (RuntimeError, TypeError) as exc:
+        raise DeviceError(f"{name}: {device!r} is not a device (expected e.g. 'cpu', 'cuda', 'cuda:1'; {exc})") from exc
+    if dev.type == "cuda":
+        if not torch.cuda.is_available():
+            raise DeviceError(f"{name}: {device!r} asked, but no CUDA device is available here; use 'cpu'")
+        if dev.index is not None and dev.index >= torch.cuda.device_count():
+            raise DeviceError(f"{name}: {device!r} asked, but only {torch.cuda.device_count()} CUDA device(s) exist")
+    return dev

@@ -20,6 +20,7 @@ from torch import Tensor
 from torchmeshmetric._checks import (
     IndexRangeError,
     ShapeError,
+    check_device,
     check_faces,
     check_finite,
     check_float,
@@ -296,6 +297,8 @@ def as_mesh(
         >>> as_mesh(trimesh.creation.box()).num_faces
         12
     """
+    if device is not None:
+        device = check_device(device)
     if isinstance(mesh, Mesh):
         if device is None and dtype is None:
             return mesh

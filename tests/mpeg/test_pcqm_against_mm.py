@@ -93,6 +93,10 @@ def test_sampled_textured_plane_clouds(dis: str, tmp_path: Path, capsys: pytest.
         ("plane.obj", "plane_irregular.obj", ("plane.png", "plane.png"), {"radius_curvature": 0.2, "knn": 8}),
         ("plane_shifted.obj", "plane_reorder.obj", ("plane_16_16.png", "plane_10_10.png"), {"radius_curvature": 0.1}),
         ("pyramid.obj", "triangles.obj", None, {"radius_curvature": 0.3}),
+        # extremes mm prints a figure for (issue 41): a radius whose square overflows, more neighbours than points
+        ("sphere.obj", "sphere_qp8.obj", None, {"radius_curvature": 1e200}),
+        ("plane.obj", "plane_irregular.obj", ("plane.png", "plane.png"), {"radius_curvature": 1e200}),
+        ("pyramid.obj", "triangles.obj", None, {"radius_curvature": 0.3, "knn": 5000}),
     ],
 )
 def test_meshes_sampled_as_mm(

@@ -21,7 +21,7 @@ def run(args: argparse.Namespace) -> int:
     campaign.json/.md/.csv and one report per sequence (<sequence>.json/.md/.csv). Under torchrun the work is shared
     by all processes.
     """
-    from torchmeshmetric.cli._outputs import check_writable, make_folder, output_set
+    from torchmeshmetric.cli._outputs import check_writable, folder_inputs, make_folder, output_set
     from torchmeshmetric.cli._shared import (
         device_of,
         dtype_of,
@@ -51,7 +51,12 @@ def run(args: argparse.Namespace) -> int:
     stems = [COMBINED] + [report_name(s.name) for s in campaign.sequences]
     if out is not None:
         targets = [out / f"{stem}.{ext}" for stem in stems for ext in ("json", "md", "csv")]
-        check_writable(targets if out.is_dir() else [out], args.overwrite)
+        inputs: list[tuple[str, Any]] = [("MANIFEST", args.manifest)]
+        for seq in campaign.sequences:
+            inputs += folder_inputs(f"sequence {seq.name!r}: original", seq.original)
+            for m, d in seq.methods.items():
+                inputs += folder_inputs(f"sequence {seq.name!r}: method {m!r}", d)
+        check_writable(targets if out.is_dir() else [out], args.overwrite, inputs=inputs, what="--out-dir")
     sequences = []
     for seq in campaign.sequences:
         original = load_frames(str(seq.original), f"sequence {seq.name!r}: original", dtype_of(args))

@@ -19,7 +19,7 @@ def run(args: argparse.Namespace) -> int:
     'inconclusive': the interval contains 0, or the difference is below the registration's noise floor (k-1 and
     flicker sets) or the relative margin), in the report's 'comparisons' and as verdict tables.
     """
-    from torchmeshmetric.cli._outputs import check_writable
+    from torchmeshmetric.cli._outputs import check_writable, folder_inputs
     from torchmeshmetric.cli._shared import (
         device_of,
         dtype_of,
@@ -36,7 +36,10 @@ def run(args: argparse.Namespace) -> int:
     device = device_of(args)
     specs = parse_methods(args.method)
     paths = report_paths(args.out, args.mpeg)
-    check_writable(list(paths.values()), args.overwrite)
+    inputs = folder_inputs("--original", args.original)
+    for spec in args.method:
+        inputs += folder_inputs("--method", spec.partition("=")[2])
+    check_writable(list(paths.values()), args.overwrite, inputs=inputs, what="--out")
     original = load_frames(args.original, "--original", dtype_of(args))
     frames = {name: load_frames(d, f"--method {name}", dtype_of(args)) for name, d in specs.items()}
     results = evaluate_methods(original, frames, args, device)

@@ -131,7 +131,14 @@ def _run_ctc(args: argparse.Namespace) -> int:
     outputs = [] if args.out is None else [Path(f"{args.out}.{ext}") for ext in ("json", "csv", "md")]
     from torchmeshmetric.cli._outputs import check_writable
 
-    check_writable(outputs, args.overwrite)  # folder present and writable, no file replaced without --overwrite
+    inputs = [
+        (option, p)
+        for frame in files
+        for option, p in zip(
+            ("--reference", "--decoded", "--reference-texture", "--decoded-texture"), frame[1:], strict=True
+        )
+    ]
+    check_writable(outputs, args.overwrite, inputs=inputs, what="--out")  # never an input, distinct, writable
     from torchmeshmetric.mpeg.ctc import CTC_COLUMNS, CtcSequence
 
     done = _compute(args, files, lo, hi)

@@ -19,7 +19,7 @@ def run(args: argparse.Namespace) -> int:
     k-1), print the paper's Tables I-IV and optionally write a report. Frames are matched by natural sort order of
     the file names in each folder; the counts must be equal.
     """
-    from torchmeshmetric.cli._outputs import check_writable
+    from torchmeshmetric.cli._outputs import check_writable, folder_inputs
     from torchmeshmetric.cli._shared import (
         device_of,
         dtype_of,
@@ -33,7 +33,8 @@ def run(args: argparse.Namespace) -> int:
 
     device = device_of(args)
     paths = report_paths(args.out, args.mpeg)
-    check_writable(list(paths.values()), args.overwrite)
+    inputs = folder_inputs("--original", args.original) + folder_inputs("--simplified", args.simplified)
+    check_writable(list(paths.values()), args.overwrite, inputs=inputs, what="--out")
     original = load_frames(args.original, "--original", dtype_of(args))
     simplified = load_frames(args.simplified, "--simplified", dtype_of(args))
     name = args.name or Path(args.simplified).resolve().name

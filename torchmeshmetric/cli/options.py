@@ -15,6 +15,7 @@ from typing import Any
 
 __all__ = [
     "add_cache_dir",
+    "as_option_error",
     "corner",
     "add_command",
     "add_target",
@@ -205,3 +206,24 @@ def corner(text: str, option: str) -> list[float]:
     if len(values) != 3 or not all(math.isfinite(v) for v in values):
         raise ValueError(f'{option}: expected three finite numbers such as "-1 -1 -1", found {text!r}')
     return values
+
+
+def as_option_error(exc: ValueError, options: dict[str, str]) -> Exception:
+    """A library error about an argument (``knn: ...``) retold about the option that set it (``--knn-...: ...``).
+
+    Args:
+        exc: the library's error, whose message starts with the argument's name and a colon.
+        options: argument name -> command-line option.
+
+    Returns:
+        A ``CLIError`` naming the option (chained to ``exc``), or ``exc`` itself when it names no listed argument.
+    """
+    from torchmeshmetric.cli._outputs import CLIError
+
+    head, sep, rest = str(exc).partition(": ")
+    names = [n.strip() for n in head.split(",")]
+    if not sep or not all(n in options for n in names):
+        return exc
+    err = CLIError(f"{', '.join(options[n] for n in names)}: {rest}")
+    err.__cause__ = exc
+    return err

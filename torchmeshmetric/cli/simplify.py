@@ -18,7 +18,13 @@ def run(args: argparse.Namespace) -> int:
     Simplify each frame of --input into --output (same file names). 'rqem' (Registered QEM) also uses the previous
     original frame registered onto the current one; frame 0 is simplified with QEM.
     """
-    from torchmeshmetric.cli._outputs import check_folder, check_writable, make_folder, output_set
+    from torchmeshmetric.cli._outputs import (
+        check_folder,
+        check_writable,
+        folder_inputs,
+        make_folder,
+        output_set,
+    )
     from torchmeshmetric.cli._shared import (
         device_of,
         dtype_of,
@@ -37,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
     targets = [out_dir / n for n in names]
     check_folder(out_dir, "--output", may_create=True)
     if out_dir.is_dir():
-        check_writable(targets, args.overwrite)
+        check_writable(targets, args.overwrite, inputs=folder_inputs("--input", args.input), what="--output")
     registrations = None
     if args.method == "rqem":
         cache = RegistrationCache(args.cache_dir)
