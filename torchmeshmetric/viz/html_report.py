@@ -22,124 +22,27 @@ import os
 import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 import torch
-from torch import Tensor
 
 from torchmeshmetric._atomic import atomic_write
 from torchmeshmetric.structures import MeshLike
-from torchmeshmetric.viz.colors import ERROR_COLOR_ANCHORS, error_colors, per_vertex_errors
+from torchmeshmetric.viz.colors import ERROR_COLOR_ANCHORS
+from torchmeshmetric.viz.error_mesh import DISPLAY_FACES, ErrorMesh, error_mesh
 
 __all__ = [
-    "DISPLAY_FACES",
-    "MeshLayer",
     "html_page",
     "markdown_html",
     "best_pair_layers",
     "file_layer",
-    "mesh_layer",
     "report_figures",
     "write_html",
 ]
 
-#: Faces above which a mesh is decimated for display (the built-in demo's ~40k-face frames are shown whole).
-DISPLAY_FACES = 60_000
 
-
-class MeshLayer(NamedTuple):
-    """One mesh of the viewer, coloured by one error per vertex.
-
-    Attributes:
-        name: the label of its toggle (e.g. ``"Reg QEM: simplified frame 3"``).
-        verts: ``(V, 3)`` float32 positions.
-        faces: ``(F, 3)`` int64 vertex indices.
-        colors: ``(V, 3)`` uint8 RGB colours (:func:`~torchmeshmetric.viz.colors.error_colors` of the errors).
-        what: what the colour measures (e.g. ``"surface distance to registered k-1"``).
-        vmax: the distance of the brightest colour (larger ones are clamped).
-        unit: the unit of the distances (e.g. ``"mesh units"``).
-        decimated_from: the face count before decimation for display, or ``None`` when shown whole.
-    """
-
-    name: str
-    verts: np.ndarray
-    faces: np.ndarray
-    colors: np.ndarray
-    what: str
-    vmax: float
-    unit: str = "mesh units"
-    decimated_from: int | None = None
-
-
-def mesh_layer(
-    name: str,
-    mesh: MeshLike,
-    dists: Tensor | None,
-    *,
-    what: str,
-    vmax: float | None = None,
-    unit: str = "mesh units",
-    max_faces: int = DISPLAY_FACES,
-) -> MeshLayer:
-    """A mesh with its per-vertex errors, ready for the viewer (decimated above ``max_faces`` faces).
-
-    Args:
-        name: the layer's label.
-        mesh: the mesh.
-        dists: ``(V,)`` one distance per vertex, or one per referenced vertex (the paper's vertex set); ``None``
-            for a reference shown without error (all vertices at distance 0).
-        what: what the distances measure (shown beside the colour scale).
-        vmax: the distance of the brightest colour (default: the 95th percentile, as
-            :func:`~torchmeshmetric.viz.colors.error_colors`); give the same value to layers compared side by side.
-        unit: the unit of the distances.
-        max_faces: above this face count the mesh is decimated for display, each kept vertex coloured by the
-            error of its nearest original vertex.
-
-    Returns:
-        The :class:`MeshLayer`.
-
-    Raises:
-        ShapeError: ``dists`` has neither one value per vertex nor one per referenced vertex.
-
-    Example:
-        >>> import trimesh, torch
-        >>> sphere = trimesh.creation.icosphere(subdivisions=1)
-        >>> layer = mesh_layer("s", sphere, torch.linspace(0, 1, 42), what="test", vmax=1.0)
-        >>> layer.colors.shape, layer.colors[-1].tolist()
-        ((42, 3), [253, 231, 37])
-    """
-    from torchmeshmetric.structures import as_mesh
-
-    m = as_mesh(mesh)
-    d = torch.zeros(m.num_verts, dtype=torch.float64) if dists is None else dists
-    m, d = per_vertex_errors(m, d.detach().cpu())
-    if vmax is None:
-        vmax = float(np.quantile(d.double().numpy(), 0.95)) if d.numel() else 1.0
-    decimated_from = None
-    if m.num_faces > max_faces:
-        from torchmeshmetric.kernels.nearest import nearest_vertex_distance
-        from torchmeshmetric.simplification.qem import simplify_qem
-
-        decimated_from = m.num_faces
-        small = simplify_qem(m.to(dtype=torch.float64), max_faces)
-        nearest = nearest_vertex_distance(small.verts, m.verts.to(small.verts)).idx
-        m, d = small, d[nearest.cpu()]
-    colors = error_colors(d, vmax).numpy()[:, :3] if dists is not None else np.full((m.num_verts, 3), 190, np.uint8)
-    # (a reference without error is grey; its layer's `what` is empty unless the caller gives the colours' meaning)
-    return MeshLayer(
-        name,
-        m.verts.detach().cpu().numpy().astype(np.float32),
-        m.faces.cpu().numpy().astype(np.int64),
-        np.ascontiguousarray(colors, dtype=np.uint8),
-        what,
-        float(vmax),
-        unit,
-        decimated_from,
-    )
-
-
-def file_layer(path: str | os.PathLike[str], *, max_faces: int = DISPLAY_FACES) -> MeshLayer:
+def file_layer(path: str | os.PathLike[str], *, max_faces: int = DISPLAY_FACES) -> ErrorMesh:
     """A mesh file with vertex colours (e.g. an ``error_*.ply`` of the demo) as a layer in its own colours.
 
     The file holds colours, not distances, so the layer has no scale (``vmax`` is NaN). A mesh above ``max_faces``
@@ -155,7 +58,7 @@ def file_layer(path: str | os.PathLike[str], *, max_faces: int = DISPLAY_FACES) 
     if loaded.colors is None:
         raise ValueError(f"{p}: expected a mesh with one colour per vertex (an error-coloured PLY), found none")
     mesh, rgb = loaded.mesh, loaded.colors.round().to(torch.int64)
-    layer = mesh_layer(p.name, mesh, None, what=f"colours of {p.name}", max_faces=max_faces)
+    layer = error_mesh(p.name, mesh, None, what=f"colours of {p.name}", max_faces=max_faces)
     if layer.decimated_from is not None:
         from torchmeshmetric.kernels.nearest import nearest_vertex_distance
 
@@ -171,7 +74,7 @@ def best_pair_layers(
     *,
     unit: str = "mesh units",
     max_faces: int = DISPLAY_FACES,
-) -> list[MeshLayer]:
+) -> list[ErrorMesh]:
     """The viewer's layers of the report's best pair (frames ``k-1 -> k``, the pair of Tables I/II).
 
     Original frame ``k`` (the reference, grey); the registered frame ``k-1`` coloured by its registration residual
@@ -186,16 +89,16 @@ def best_pair_layers(
         simplified: method name → its simplified frames.
         registered: original frame ``k-1`` registered onto frame ``k`` (its layer is left out when ``None``).
         unit: the unit of the distances.
-        max_faces: see :func:`mesh_layer`.
+        max_faces: see :func:`~torchmeshmetric.viz.error_mesh.error_mesh`.
     """
     first = next(iter(results.values()))
     best = first.best_pair_index()
     k = first.pairs[best].frame
     pairs = {name: r.pairs[best] for name, r in results.items()}
-    layers = [mesh_layer(f"original frame {k}", original[k], None, what="", unit=unit, max_faces=max_faces)]
+    layers = [error_mesh(f"original frame {k}", original[k], None, what="", unit=unit, max_faces=max_faces)]
     if registered is not None:
         layers.append(
-            mesh_layer(
+            error_mesh(
                 f"original frame {k - 1} registered onto {k}",
                 registered,
                 first.pairs[best].registration_residual,
@@ -207,7 +110,7 @@ def best_pair_layers(
     vmax = max(float(p.distances["surface_k_minus_1"].max()) for p in pairs.values())
     for name, pair in pairs.items():
         layers.append(
-            mesh_layer(
+            error_mesh(
                 f"{name}: simplified frame {k}",
                 simplified[name][k],
                 pair.distances["surface_k_minus_1"],
@@ -221,7 +124,7 @@ def best_pair_layers(
         rmax = max(float(p.reverse_distances["surface_k"].max()) for p in pairs.values())
         for name, pair in pairs.items():
             layers.append(
-                mesh_layer(
+                error_mesh(
                     f"original frame {k} against {name}",
                     original[k],
                     pair.reverse_distances["surface_k"],
@@ -240,7 +143,7 @@ def report_page(
     *,
     title: str,
     figures: Sequence[tuple[str, bytes]] = (),
-    meshes: Sequence[MeshLayer] = (),
+    meshes: Sequence[ErrorMesh] = (),
 ) -> str:
     """The page of a written report: :func:`report_figures` of its JSON, ``figures``, ``meshes`` and its Markdown.
 
@@ -375,7 +278,7 @@ def _b64(array: np.ndarray) -> str:
     return base64.b64encode(np.ascontiguousarray(array).tobytes()).decode("ascii")
 
 
-def _layer_json(layer: MeshLayer) -> dict[str, Any]:
+def _layer_json(layer: ErrorMesh) -> dict[str, Any]:
     wide = layer.verts.shape[0] > 65535
     return {
         "name": layer.name,
@@ -391,7 +294,7 @@ def _gradient() -> str:
     return f"linear-gradient(to right, {stops})"
 
 
-def _layer_item(i: int, layer: MeshLayer) -> str:
+def _layer_item(i: int, layer: ErrorMesh) -> str:
     note = f" (shown decimated from {layer.decimated_from} faces)" if layer.decimated_from else ""
     if not layer.what:
         scale = '<span class="bar" style="background:rgb(190,190,190)"></span> reference'
@@ -413,7 +316,7 @@ def html_page(
     markdown: str = "",
     *,
     figures: Sequence[tuple[str, bytes]] = (),
-    meshes: Sequence[MeshLayer] = (),
+    meshes: Sequence[ErrorMesh] = (),
     notes: Sequence[str] = (),
 ) -> str:
     """The self-contained page: viewer (when ``meshes``), figures, then the report's Markdown with sortable tables.
