@@ -70,7 +70,7 @@ def _check_in_browser(page: Path, tmp_path: Path, *, meshes: bool) -> None:
     assert numbers == sorted(numbers) and len(numbers) >= 2
     if meshes:
         drawn = drawn_pixels(opened)
-        left, top, width, height = opened.canvas  # type: ignore[misc]
+        _, _, width, height = opened.canvas  # type: ignore[misc]
         assert len(drawn) > 0.03 * width * height  # the meshes cover a good part of the canvas
         # the darkest colour of the error scale (no error), lit: blue well above red and green
         purple = (drawn[:, 2].astype(int) > drawn[:, 1].astype(int) + 20) & (drawn[:, 0] < 120)

@@ -34,7 +34,10 @@ _FLAGS = [
 _RECORDER = """<script>
 (function () {
   var errors = [], root = document.documentElement, error = console.error;
-  console.error = function () { errors.push(Array.prototype.join.call(arguments, " ")); error.apply(console, arguments); };
+  console.error = function () {
+    errors.push(Array.prototype.join.call(arguments, " "));
+    error.apply(console, arguments);
+  };
   window.addEventListener("error", function (e) { errors.push("uncaught: " + e.message); });
   window.addEventListener("load", function () {
     setTimeout(function () {
@@ -89,7 +92,7 @@ def open_page(page: Path, work: Path) -> Opened:
         line for line in taken.stderr.splitlines() if ":CONSOLE" in line and "GPU stall due to ReadPixels" not in line
     ]
     image = np.asarray(Image.open(shot).convert("RGB"))
-    canvas = None if box is None else tuple(int(round(v)) for v in box)
+    canvas = None if box is None else tuple(round(v) for v in box)
     column = re.search(r'data-sorted="([^"]*)"', dom)
     sorted_column = None if column is None else json.loads(unescape(column.group(1)))
     return Opened(errors, console, dom, canvas, sorted_column, image)  # type: ignore[arg-type]
