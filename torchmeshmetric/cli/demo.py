@@ -217,12 +217,13 @@ def _demo_html(
     report: dict[str, Any],
     figures: list[tuple[str, bytes]],
 ) -> str:
-    """``report.html``: the report's page with the histograms drawn for histograms.png (or drawn now: --no-plots)."""
+    """``report.html``: the report's page with the PNGs of --plots (or, with --no-plots, drawn for the page)."""
     from torchmeshmetric.evaluation.reports import markdown_report
     from torchmeshmetric.viz.html_report import best_pair_layers, report_page, write_html
     from torchmeshmetric.viz.plots import histogram_figure, png_bytes
 
     best = next(iter(results.values())).best_pair_index()
+    draw_curves = not figures  # with plots, `figures` holds the PNGs just written (curves, histograms): not redrawn
     if not figures:
         pairs = {n: r.pairs[best] for n, r in results.items()}
         figures = [("distance sets of the best pair", png_bytes(histogram_figure(pairs)))]
@@ -236,6 +237,7 @@ def _demo_html(
         title="torchmeshmetric demo: QEM vs Registered QEM",
         figures=figures,
         meshes=meshes,
+        curves=draw_curves,
     )
     return write_html(out_dir / "report.html", page, overwrite=True).name
 
@@ -246,17 +248,19 @@ def _demo_plots(
     """Histograms and curves (PNG), and each method's best frame coloured by its error (PLY, one colour scale).
 
     The colour is the distance of each simplified vertex to the registered frame k-1 (temporal consistency). The
-    histograms' PNG is appended to ``figures`` (for the --html page).
+    PNGs are appended to ``figures`` (for the --html page, which shows them as they are).
     """
     from torchmeshmetric._atomic import atomic_write
     from torchmeshmetric.viz.colors import write_error_ply
-    from torchmeshmetric.viz.plots import histogram_figure, plot_frame_curves, png_bytes
+    from torchmeshmetric.viz.html_report import CURVES_CAPTION
+    from torchmeshmetric.viz.plots import frame_curves_figure, histogram_figure, png_bytes
 
     best = next(iter(results.values())).best_pair_index()
+    curves = png_bytes(frame_curves_figure({n: [p.as_dict() for p in r.pairs] for n, r in results.items()}))
     histograms = png_bytes(histogram_figure({n: r.pairs[best] for n, r in results.items()}))
+    atomic_write(out_dir / "frame_curves.png", curves, overwrite=True)
     atomic_write(out_dir / "histograms.png", histograms, overwrite=True)
-    figures.append(("distance sets of the best pair", histograms))
-    plot_frame_curves(results, out_dir / "frame_curves.png", overwrite=True)
+    figures += [(CURVES_CAPTION, curves), ("distance sets of the best pair", histograms)]
     written = ["histograms.png", "frame_curves.png"]
     vmax = max(float(r.pairs[best].distances["surface_k_minus_1"].max()) for r in results.values())
     for name, result in results.items():

@@ -33,6 +33,7 @@ from torchmeshmetric.viz.colors import ERROR_COLOR_ANCHORS
 from torchmeshmetric.viz.error_mesh import DISPLAY_FACES, ErrorMesh, error_mesh
 
 __all__ = [
+    "CURVES_CAPTION",
     "html_page",
     "markdown_html",
     "best_pair_layers",
@@ -40,6 +41,10 @@ __all__ = [
     "report_figures",
     "write_html",
 ]
+
+
+#: Caption of the per-frame curves (:func:`~torchmeshmetric.viz.plots.frame_curves_figure`) on a page.
+CURVES_CAPTION = "RMSE per frame pair"
 
 
 def file_layer(path: str | os.PathLike[str], *, max_faces: int = DISPLAY_FACES) -> ErrorMesh:
@@ -144,6 +149,7 @@ def report_page(
     title: str,
     figures: Sequence[tuple[str, bytes]] = (),
     meshes: Sequence[ErrorMesh] = (),
+    curves: bool = True,
 ) -> str:
     """The page of a written report: :func:`report_figures` of its JSON, ``figures``, ``meshes`` and its Markdown.
 
@@ -153,19 +159,22 @@ def report_page(
         title: the page's title.
         figures: further ``(caption, PNG bytes)`` (e.g. the histograms of the best pair).
         meshes: the viewer's layers.
+        curves: draw :func:`report_figures` (``False``: ``figures`` already hold them, e.g. the demo's
+            ``frame_curves.png``).
     """
     notes = [f"{report.get('tool', 'torchmeshmetric')} {report.get('version', '')}".strip()]
     if not meshes:
         notes.append("No meshes on this page: the report was written without them (the commands' `--html` adds them).")
-    return html_page(title, markdown, figures=[*report_figures(report), *figures], meshes=meshes, notes=notes)
+    drawn = report_figures(report) if curves else []
+    return html_page(title, markdown, figures=[*drawn, *figures], meshes=meshes, notes=notes)
 
 
 def report_figures(report: Mapping[str, Any]) -> list[tuple[str, bytes]]:
     """The figures a JSON report's data give, as ``(caption, PNG bytes)``.
 
     A sequence report (``evaluate``, ``compare``, ``demo``: ``"methods"`` with ``"pairs"``) gives the per-frame
-    curves of every set's RMSE and Ave; a CTC report (``ctc``: ``"frames"``) the curve of every column over the
-    frames; a campaign's combined report holds averages only (its sequences' reports have the curves).
+    curves of every set's RMSE (``frame_curves.png``); a CTC report (``ctc``: ``"frames"``) the curve of every
+    column over the frames; a campaign's combined report holds averages only (its sequences' reports have the curves).
 
     Args:
         report: the JSON report (as written, non-finite numbers as strings).
@@ -176,9 +185,7 @@ def report_figures(report: Mapping[str, Any]) -> list[tuple[str, bytes]]:
     methods = report.get("methods")
     if isinstance(methods, Mapping) and all(isinstance(m, Mapping) and "pairs" in m for m in methods.values()):
         pairs = {name: m["pairs"] for name, m in methods.items()}
-        for statistic in ("rmse", "ave"):
-            fig = frame_curves_figure(pairs, statistic=statistic)
-            figures.append((f"{statistic.upper()} per frame pair", png_bytes(fig)))
+        figures.append((CURVES_CAPTION, png_bytes(frame_curves_figure(pairs))))
     frames = report.get("frames")
     if isinstance(frames, list) and frames:
         columns = [c for c in frames[0] if c != "frame"]
