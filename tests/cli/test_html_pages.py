@@ -148,6 +148,7 @@ def test_evaluate_and_compare_pages(capsys, tmp_path, known_registration):
     rep = tmp_path / "eval.json"
     args = ["evaluate", "--original", str(orig), "--simplified", str(simp), "--out", str(rep), "--html"]
     assert main(args) == 0
+    assert known_registration.calls == 2  # the page's registered frame came from the evaluation's cache
     page = rep.with_suffix(".html").read_text()
     _assert_self_contained(page)
     assert _html_tables(page) == _md_tables(rep.with_suffix(".md").read_text())

@@ -90,7 +90,7 @@ document.querySelectorAll("table.sortable th").forEach(function (th) {
                                  depth = Math.max(depth, m.hi[2] - m.lo[2]); });
     width += gap * Math.max(shown.length - 1, 0);
     var radius = 0.5 * Math.sqrt(width * width + height * height + depth * depth) || 1;
-    var dist = 2.2 * radius / zoom, aspect = canvas.width / canvas.height, fov = 1 / Math.tan(Math.PI / 8);
+    var dist = 1.6 * radius / zoom, aspect = canvas.width / canvas.height, fov = 1 / Math.tan(Math.PI / 8);
     var near = Math.max(dist - 2 * radius, dist * 0.01), far = dist + 2 * radius;
     var pr = new Float32Array([fov / aspect, 0, 0, 0, 0, fov, 0, 0, 0, 0, (far + near) / (near - far), -1,
                                0, 0, 2 * far * near / (near - far), 0]);
