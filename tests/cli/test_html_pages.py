@@ -7,6 +7,7 @@ Markdown present and sortable.
 
 from __future__ import annotations
 
+import base64
 import importlib.util
 import json
 import re
@@ -147,12 +148,15 @@ def test_evaluate_and_compare_pages(capsys, tmp_path, known_registration):
     orig, simp = write_frames(tmp_path / "orig", 2), write_frames(tmp_path / "simp", 1)
     rep = tmp_path / "eval.json"
     args = ["evaluate", "--original", str(orig), "--simplified", str(simp), "--out", str(rep), "--html"]
-    assert main(args) == 0
+    assert main([*args, "--mpeg", "--mpeg-sampling", "mesh"]) == 0
     assert known_registration.calls == 2  # the page's registered frame came from the evaluation's cache
     page = rep.with_suffix(".html").read_text()
     _assert_self_contained(page)
     assert _html_tables(page) == _md_tables(rep.with_suffix(".md").read_text())
     assert page.count("simplified frame") >= 1 and "registered onto" in page
+    # curves, histograms, and the --mpeg plot: the bytes of REPORT.mpeg.png, drawn once
+    assert page.count("<img alt=") == 3
+    assert base64.b64encode(rep.with_suffix(".mpeg.png").read_bytes()).decode() in page
     _check_in_browser(rep.with_suffix(".html"), tmp_path, meshes=True)
     cmp = tmp_path / "cmp.json"
     args = ["compare", "--original", str(orig), "--method", f"a={simp}", "--method", f"b={orig}", "--out", str(cmp)]

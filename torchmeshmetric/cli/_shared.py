@@ -27,7 +27,7 @@ from torchmeshmetric.mpeg.sequence import mpeg_csv, mpeg_markdown, mpeg_sequence
 from torchmeshmetric.registration.cache import RegistrationCache
 from torchmeshmetric.registration.options import DEFAULT_SCHEDULE
 from torchmeshmetric.tasks import is_distributed, rank_and_world_size
-from torchmeshmetric.viz.plots import plot_mpeg_curves
+from torchmeshmetric.viz.plots import mpeg_figure, png_bytes
 
 __all__ = [
     "device_of",
@@ -124,11 +124,14 @@ def write_reports(
         write_json(paths["json"], report, overwrite=overwrite)
         write_markdown(paths["md"], methods, overwrite=overwrite, extra=extra, comparisons=comparisons)
         write_csv(paths["csv"], methods, overwrite=overwrite)
+        figures: list[tuple[str, bytes]] = []  # the --html page's PNGs besides its own
         if mpeg:
             written.append(atomic_write(paths["mpeg_csv"], mpeg_csv(mpeg), overwrite=overwrite))
-            written.append(plot_mpeg_curves(mpeg, paths["mpeg_png"], overwrite=overwrite))
+            mpeg_png = png_bytes(mpeg_figure(mpeg))
+            written.append(atomic_write(paths["mpeg_png"], mpeg_png, overwrite=overwrite))
+            figures.append(("MPEG PSNR per frame", mpeg_png))
         if "html" in paths:
-            written.append(_write_html_report(paths, report, methods, extra, comparisons, mpeg, meshes, overwrite))
+            written.append(_write_html_report(paths, report, methods, extra, comparisons, figures, meshes, overwrite))
     print("wrote " + ", ".join(str(p) for p in written), file=sys.stderr)
 
 
@@ -138,21 +141,18 @@ def _write_html_report(
     methods: dict[str, Any],
     extra: str,
     comparisons: dict[str, Any] | None,
-    mpeg: dict[str, Any] | None,
+    figures: list[tuple[str, bytes]],
     meshes: Sequence[Any],
     overwrite: bool,
 ) -> Path:
-    """The ``--html`` page of a report: its Markdown, curves, the best pair's histograms and the meshes."""
+    """The ``--html`` page of a report: its Markdown, curves, the best pair's histograms, ``figures``, the meshes."""
     from torchmeshmetric.evaluation.reports import markdown_report
     from torchmeshmetric.viz.html_report import report_page, write_html
-    from torchmeshmetric.viz.plots import histogram_figure, mpeg_figure, png_bytes
+    from torchmeshmetric.viz.plots import histogram_figure
 
     best = next(iter(methods.values())).best_pair_index()
-    figures = [
-        ("distance sets of the best pair", png_bytes(histogram_figure({n: r.pairs[best] for n, r in methods.items()})))
-    ]
-    if mpeg:
-        figures.append(("MPEG PSNR per frame", png_bytes(mpeg_figure(mpeg))))
+    histograms = png_bytes(histogram_figure({n: r.pairs[best] for n, r in methods.items()}))
+    figures = [("distance sets of the best pair", histograms), *figures]
     markdown = markdown_report(methods, extra=extra, comparisons=comparisons)
     page = report_page(
         report, markdown, title=f"torchmeshmetric report: {paths['json'].stem}", figures=figures, meshes=meshes
