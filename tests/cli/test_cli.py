@@ -131,6 +131,7 @@ def test_help_explains_every_option():
         "bdrate",
         "build",
         "validate",
+        "report",
     }
     for name, sub in subparsers.items():
         for action in sub._actions:

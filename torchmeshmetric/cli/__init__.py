@@ -4,6 +4,7 @@ Commands:
   evaluate  evaluate one simplified sequence against its original frames (the paper's Fig. 2)
   compare   evaluate several simplification methods on one original sequence (Tables I-IV side by side)
   campaign  evaluate several sequences, each with several methods, listed in a TOML manifest
+  report    an existing report as one offline HTML page (tables, curves, 3D viewer); --html on the commands above
   simplify  simplify every frame of a sequence with QEM or Registered QEM
   register  register one mesh (frame k-1) onto another (frame k), rigid then non-rigid
   demo      the main job: built-in sequence -> QEM and Registered QEM -> evaluation, tables, report and plots
@@ -72,6 +73,11 @@ COMMANDS: dict[str, CommandInfo] = {
         "torchmeshmetric.cli.campaign",
         "add_campaign_command",
         "evaluate a test campaign: several sequences, each with several methods (TOML manifest)",
+    ),
+    "report": CommandInfo(
+        "torchmeshmetric.cli.report",
+        "add_report_command",
+        "an existing report (REPORT.json + REPORT.md) as one offline HTML page",
     ),
     "simplify": CommandInfo(
         "torchmeshmetric.cli.simplify",

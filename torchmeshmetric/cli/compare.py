@@ -24,6 +24,7 @@ def run(args: argparse.Namespace) -> int:
         device_of,
         dtype_of,
         evaluate_methods,
+        html_layers,
         load_frames,
         mpeg_methods,
         parse_methods,
@@ -32,17 +33,19 @@ def run(args: argparse.Namespace) -> int:
     )
     from torchmeshmetric.evaluation.comparison import compare_methods, comparison_markdown
     from torchmeshmetric.evaluation.reports import paper_tables
+    from torchmeshmetric.registration.cache import RegistrationCache
 
     device = device_of(args)
     specs = parse_methods(args.method)
-    paths = report_paths(args.out, args.mpeg)
+    paths = report_paths(args.out, args.mpeg, args.html)
     inputs = folder_inputs("--original", args.original)
     for spec in args.method:
         inputs += folder_inputs("--method", spec.partition("=")[2])
     check_writable(list(paths.values()), args.overwrite, inputs=inputs, what="--out")
     original = load_frames(args.original, "--original", dtype_of(args))
     frames = {name: load_frames(d, f"--method {name}", dtype_of(args)) for name, d in specs.items()}
-    results = evaluate_methods(original, frames, args, device)
+    cache = RegistrationCache(args.cache_dir)  # kept: the --html page shows the best pair's registration
+    results = evaluate_methods(original, frames, args, device, cache=cache)
     if results is None:  # a torchrun rank other than 0: rank 0 reports
         return 0
     print(paper_tables(results))
@@ -58,7 +61,8 @@ def run(args: argparse.Namespace) -> int:
         "relative_margin": args.relative_margin,
         "dtype": args.dtype,
     }
-    write_reports(paths, results, settings, args.overwrite, mpeg, comparisons)
+    meshes = html_layers(results, original, frames, cache, args) if paths else []
+    write_reports(paths, results, settings, args.overwrite, mpeg, comparisons, meshes=meshes)
     return 0
 
 

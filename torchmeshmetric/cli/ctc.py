@@ -128,7 +128,10 @@ def _check_colour(args: argparse.Namespace, k: int, ref: Any, dis: Any, first: d
 def _run_ctc(args: argparse.Namespace) -> int:
     lo, hi = _check_options(args)
     files = _frame_files(args)
-    outputs = [] if args.out is None else [Path(f"{args.out}.{ext}") for ext in ("json", "csv", "md")]
+    if args.html and args.out is None:
+        raise ValueError("--html: the page is written beside the report, so it needs --out REPORT")
+    exts = ("json", "csv", "md", "html") if args.html else ("json", "csv", "md")
+    outputs = [] if args.out is None else [Path(f"{args.out}.{ext}") for ext in exts]
     from torchmeshmetric.cli._outputs import check_writable
 
     inputs = [
@@ -225,6 +228,12 @@ def _report(args: argparse.Namespace, seq: Any, lo: list[float], hi: list[float]
                          overwrite=args.overwrite)  # fmt: skip
             atomic_write(outputs[1], _csv(d, columns), overwrite=args.overwrite)
             atomic_write(outputs[2], _markdown(d, columns, settings), overwrite=args.overwrite)
+            if args.html:
+                from torchmeshmetric.viz.html_report import report_page, write_html
+
+                page = report_page(json_safe({**d, "settings": settings}), _markdown(d, columns, settings),
+                                   title=f"V-DMC CTC metrics: {Path(args.out).name}")  # fmt: skip
+                write_html(outputs[3], page, overwrite=args.overwrite)
     if args.json:
         print(json.dumps(json_safe(d), indent=1))
     else:
@@ -271,6 +280,7 @@ def add_ctc_command(sub: Any) -> None:
     p.add_argument("--json", action="store_true", help='print {"frames": [...], "mean": {...}} (non-finite: "inf")')
     p.add_argument("--out", default=None, metavar="REPORT", help="write REPORT.json, REPORT.csv, REPORT.md")
     p.add_argument("--overwrite", action="store_true", help="replace existing --out files")
+    p.add_argument("--html", action="store_true", help="also write REPORT.html: the report as one offline page")
     p.add_argument(
         "--verbose", action="store_true", help="seconds per stage (read, dequantize, grid, pcc, ibsm) on stderr"
     )

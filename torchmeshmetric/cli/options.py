@@ -143,7 +143,13 @@ def report_options() -> argparse.ArgumentParser:
         "(default: print the tables only)",
     )
     output.add_argument("--overwrite", action="store_true", help="replace existing output files")
+    add_html(output, "also write REPORT.html: the report as one offline page (tables, curves, 3D error viewer)")
     return output
+
+
+def add_html(p: argparse.ArgumentParser, help_text: str) -> None:
+    """Add ``--html`` (also write the report as one self-contained page) with the command's own help."""
+    p.add_argument("--html", action="store_true", help=help_text)
 
 
 def add_cache_dir(p: argparse.ArgumentParser, help_text: str) -> None:

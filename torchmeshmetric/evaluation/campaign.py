@@ -51,6 +51,7 @@ __all__ = [
     "report_name",
     "write_campaign_csv",
     "write_campaign_markdown",
+    "campaign_markdown",
 ]
 
 #: File name stem of the combined report (``campaign.json/.md/.csv``); sequences' reports are ``<name>.json/...``.
@@ -311,5 +312,10 @@ def write_campaign_csv(
 def write_campaign_markdown(
     path: str | os.PathLike[str], results: Mapping[str, Mapping[str, SequenceEvaluation]], *, overwrite: bool = False
 ) -> Path:
-    """Write :func:`campaign_tables` to a Markdown file, atomically."""
-    return atomic_write(path, "# torchmeshmetric campaign\n\n" + campaign_tables(results), overwrite=overwrite)
+    """Write :func:`campaign_markdown` to a file, atomically."""
+    return atomic_write(path, campaign_markdown(results), overwrite=overwrite)
+
+
+def campaign_markdown(results: Mapping[str, Mapping[str, SequenceEvaluation]]) -> str:
+    """The text of ``campaign.md``: a title and :func:`campaign_tables`."""
+    return "# torchmeshmetric campaign\n\n" + campaign_tables(results)

@@ -34,6 +34,7 @@ __all__ = [
     "COLUMNS",
     "COLUMN_FORMATS",
     "REGISTRATION_ROW",
+    "markdown_report",
     "paper_tables",
     "report_dict",
     "statistic_cells",
@@ -243,7 +244,14 @@ def write_markdown(
     extra: str = "",
     comparisons: Mapping[str, Any] | None = None,
 ) -> Path:
-    """Write :func:`paper_tables`, ``comparisons``' verdict tables and ``extra`` Markdown to a file, atomically.
+    """Write :func:`markdown_report` to a file, atomically."""
+    return atomic_write(path, markdown_report(methods, extra=extra, comparisons=comparisons), overwrite=overwrite)
+
+
+def markdown_report(
+    methods: Mapping[str, SequenceEvaluation], *, extra: str = "", comparisons: Mapping[str, Any] | None = None
+) -> str:
+    """The text of ``report.md``: :func:`paper_tables`, ``comparisons``' verdict tables and ``extra`` Markdown.
 
     ``extra`` is e.g. the MPEG section of ``--mpeg``.
     """
@@ -252,7 +260,7 @@ def write_markdown(
         text += "\n## Comparisons with confidence\n\n" + comparison_markdown(comparisons)
     if extra:
         text += "\n" + extra
-    return atomic_write(path, text, overwrite=overwrite)
+    return text
 
 
 def write_csv(
