@@ -6,6 +6,9 @@
 # The public submodules (attributes of the package, as after a normal import).
 from . import colour as colour
 from . import comparison as comparison
+from . import ctc_campaign as ctc_campaign
+from . import ctc_manifest as ctc_manifest
+from . import ctc_sheet as ctc_sheet
 from . import edge_sampling as edge_sampling
 from . import equality as equality
 from . import face_sampling as face_sampling
@@ -30,6 +33,9 @@ from .bd_rate import bd_rate
 from .colour import rgb_to_ycbcr
 from .comparison import MpegDirection, MpegResult, bbox_diagonal, mpeg_compare
 from .ctc import CTC_COLUMNS, CtcFrame, CtcSequence, ctc_frame, ctc_mean, ctc_sequence
+from .ctc_campaign import CampaignResult, run_ctc_campaign
+from .ctc_manifest import CtcCampaign, CtcManifestError, load_ctc_campaign
+from .ctc_sheet import RatePoint, ctc_summary, read_test_model_csv
 from .dequantize import dequantize_positions, dequantize_uvs
 from .edge_sampling import edge_sample
 from .equality import MeshEquality, mesh_equality
@@ -75,6 +81,14 @@ __all__ = [
     "CTC_COLUMNS",
     "CtcFrame",
     "CtcSequence",
+    "CampaignResult",
+    "CtcCampaign",
+    "CtcManifestError",
+    "RatePoint",
+    "ctc_summary",
+    "load_ctc_campaign",
+    "read_test_model_csv",
+    "run_ctc_campaign",
     "GridTooLargeError",
     "IbsmNoOverlapWarning",
     "IbsmResult",

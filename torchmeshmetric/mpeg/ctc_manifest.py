@@ -77,8 +77,14 @@ __all__ = [
 ]
 
 _COMPONENTS = ("mesh_intra", "mesh_inter", "displacements", "texture", "metadata")
-_POINT_NUMBERS = ("total_bits", "output_faces", "encoder_seconds", "decoder_seconds", "encoder_memory",
-                  "decoder_memory")  # fmt: skip
+_POINT_NUMBERS = (
+    "total_bits",
+    "output_faces",
+    "encoder_seconds",
+    "decoder_seconds",
+    "encoder_memory",
+    "decoder_memory",
+)
 
 
 class CtcManifestError(ValueError):
@@ -258,8 +264,9 @@ def _check_frame_field(where: str, key: str, pattern: str) -> None:
     try:
         frame_path(pattern.format(sequence="s", seq_id=1, cond_id=1, rate_id=1), 0, key)
     except (KeyError, IndexError) as exc:
-        raise CtcManifestError(f"{where}: {key!r}: unknown field {exc} (expected {{sequence}}, {{seq_id}}, "
-                               "{cond_id}, {rate_id})") from None  # fmt: skip
+        raise CtcManifestError(
+            f"{where}: {key!r}: unknown field {exc} (expected {{sequence}}, {{seq_id}}, {{cond_id}}, {{rate_id}})"
+        ) from None
     except ValueError as exc:
         raise CtcManifestError(f"{where}: {exc}") from None
 
@@ -268,13 +275,28 @@ def _check_template(where: str, key: str, template: str) -> None:
     try:
         template.format(sequence="s", seq_id=1, cond_id=1, rate_id=1)
     except (KeyError, IndexError, ValueError) as exc:
-        raise CtcManifestError(f"{where}: {key!r}: bad template field {exc} (expected {{sequence}}, {{seq_id}}, "
-                               "{cond_id}, {rate_id})") from None  # fmt: skip
+        raise CtcManifestError(
+            f"{where}: {key!r}: bad template field {exc} (expected {{sequence}}, {{seq_id}}, {{cond_id}}, {{rate_id}})"
+        ) from None
 
 
 def _sequence(entry: Any, where: str, base: Path) -> CtcCampaignSequence:
-    keys = ("name", "id", "class", "source", "source_texture", "first_frame", "frame_count", "fps", "qp", "qt",
-            "min_pos", "max_pos", "resolution", "input_faces")  # fmt: skip
+    keys = (
+        "name",
+        "id",
+        "class",
+        "source",
+        "source_texture",
+        "first_frame",
+        "frame_count",
+        "fps",
+        "qp",
+        "qt",
+        "min_pos",
+        "max_pos",
+        "resolution",
+        "input_faces",
+    )
     t = _Table(entry, where, keys)
     name = t.text("name")
     t.where = f"{where.rsplit(':', 1)[0]}: sequence {name!r}"
@@ -320,8 +342,17 @@ def _condition(entry: Any, where: str) -> CtcCondition:
 
 
 def _codec(entry: Any, where: str, base: Path, seq_ids: dict[str, int], conds: dict[int, CtcCondition]) -> CtcCodec:
-    keys = ("name", "decoded", "decoded_texture", "decoded_qt", "csv", "bitstream", "encoder_log", "decoder_log",
-            "points")  # fmt: skip
+    keys = (
+        "name",
+        "decoded",
+        "decoded_texture",
+        "decoded_qt",
+        "csv",
+        "bitstream",
+        "encoder_log",
+        "decoder_log",
+        "points",
+    )
     t = _Table(entry, where, keys)
     decoded = _pattern(t, "decoded", base)
     texture = _pattern(t, "decoded_texture", base, required=False)
@@ -356,10 +387,10 @@ def _codec(entry: Any, where: str, base: Path, seq_ids: dict[str, int], conds: d
             values["components"] = {k: c.number(k, positive=False) for k in comps}
             if any(v < 0 for v in values["components"].values()):
                 raise CtcManifestError(f"{p.where}.components: bits must be >= 0, found {comps}")
-        key = (seq_ids[seq], cond, rate)
-        if key in points:
+        point = (seq_ids[seq], cond, rate)
+        if point in points:
             raise CtcManifestError(f"{p.where}: repeats the point ({seq!r}, condition {cond}, rate {rate})")
-        points[key] = values
+        points[point] = values
     return CtcCodec(
         name=t.text("name", where.rsplit("[", 1)[-1].rstrip("]").split()[-1]),
         decoded=decoded or "",
@@ -419,26 +450,36 @@ def load_ctc_campaign(path: str | Path) -> CtcCampaign:
     where = f"CTC campaign manifest {str(file)!r}"
     top = _Table(data, where, ("options", "sequences", "conditions", "anchor", "test"))
     base = file.parent
-    opt = _Table(top.get("options", dict, {}), f"{where}: options",
-                 ("cache_dir", "grid_size", "ibsm_resolution", "ibsm_cameras"))  # fmt: skip
+    opt = _Table(
+        top.get("options", dict, {}), f"{where}: options", ("cache_dir", "grid_size", "ibsm_resolution", "ibsm_cameras")
+    )
     cache = opt.get("cache_dir", str, "")
-    sequences = [_sequence(e, f"{where}: sequences[{i}]", base)
-                 for i, e in enumerate(top.get("sequences", list, what="at least one [[sequences]]"))]  # fmt: skip
-    conditions = [_condition(e, f"{where}: conditions[{i}]")
-                  for i, e in enumerate(top.get("conditions", list, what="at least one [[conditions]]"))]  # fmt: skip
+    sequences = [
+        _sequence(e, f"{where}: sequences[{i}]", base)
+        for i, e in enumerate(top.get("sequences", list, what="at least one [[sequences]]"))
+    ]
+    conditions = [
+        _condition(e, f"{where}: conditions[{i}]")
+        for i, e in enumerate(top.get("conditions", list, what="at least one [[conditions]]"))
+    ]
     if not sequences or not conditions:
         raise CtcManifestError(f"{where}: expected at least one [[sequences]] and one [[conditions]]")
-    for kind, items in (("sequence name", [s.name for s in sequences]), ("sequence id", [s.seq_id for s in sequences]),
-                        ("condition id", [c.cond_id for c in conditions])):  # fmt: skip
+    for kind, items in (
+        ("sequence name", [s.name for s in sequences]),
+        ("sequence id", [s.seq_id for s in sequences]),
+        ("condition id", [c.cond_id for c in conditions]),
+    ):
         seen = [x for i, x in enumerate(items) if x in items[:i]]
         if seen:
             raise CtcManifestError(f"{where}: {kind} {seen[0]!r} repeats")
     seq_ids = {s.name: s.seq_id for s in sequences}
     conds = {c.cond_id: c for c in conditions}
-    anchor = _codec(top.get("anchor", dict, what="the anchor's [anchor] table"), f"{where}: [anchor]", base, seq_ids,
-                    conds)  # fmt: skip
-    test = _codec(top.get("test", dict, what="the tested codec's [test] table"), f"{where}: [test]", base, seq_ids,
-                  conds)  # fmt: skip
+    anchor = _codec(
+        top.get("anchor", dict, what="the anchor's [anchor] table"), f"{where}: [anchor]", base, seq_ids, conds
+    )
+    test = _codec(
+        top.get("test", dict, what="the tested codec's [test] table"), f"{where}: [test]", base, seq_ids, conds
+    )
     ibsm = opt.int_in("ibsm_resolution", 0, 1 << 15, 2048)
     return CtcCampaign(
         sequences=sequences,

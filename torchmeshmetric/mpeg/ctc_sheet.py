@@ -52,8 +52,18 @@ __all__ = [
 
 _METRICS = ("GridD1", "GridD2", "GridLuma", "GridChromaCb", "GridChromaCr", "IbsmGeom", "IbsmLuma")
 
-TEST_MODEL_COLUMNS = ("SeqId", "CondId", "RateId", "NbOutputFaces", "TotalBitstreamBits", *_METRICS,
-                      "UserEncoderRuntime", "UserDecoderRuntime", "PeakEncoderMemory", "PeakDecoderMemory")  # fmt: skip
+TEST_MODEL_COLUMNS = (
+    "SeqId",
+    "CondId",
+    "RateId",
+    "NbOutputFaces",
+    "TotalBitstreamBits",
+    *_METRICS,
+    "UserEncoderRuntime",
+    "UserDecoderRuntime",
+    "PeakEncoderMemory",
+    "PeakDecoderMemory",
+)
 """The CSV columns ``collect_results.sh`` writes, in its order."""
 
 COMPONENTS = ("mesh_intra", "mesh_inter", "displacements", "texture", "metadata")
@@ -177,10 +187,20 @@ def format_test_model_csv(points: Iterable[RatePoint]) -> str:
                 figs.append(_csv_number(p.figures[m]))
             else:
                 figs.append("0" if m in ("GridLuma", "GridChromaCb", "GridChromaCr") and "GridD1" in p.figures else "")
-        w.writerow([p.seq_id, p.cond_id, p.rate_id, _csv_number(p.output_faces, True),
-                    _csv_number(p.total_bits, True), *figs, _csv_number(p.encoder_seconds),
-                    _csv_number(p.decoder_seconds), _csv_number(p.encoder_memory),
-                    _csv_number(p.decoder_memory)])  # fmt: skip
+        w.writerow(
+            [
+                p.seq_id,
+                p.cond_id,
+                p.rate_id,
+                _csv_number(p.output_faces, True),
+                _csv_number(p.total_bits, True),
+                *figs,
+                _csv_number(p.encoder_seconds),
+                _csv_number(p.decoder_seconds),
+                _csv_number(p.encoder_memory),
+                _csv_number(p.decoder_memory),
+            ]
+        )
     return buf.getvalue()
 
 
@@ -223,8 +243,9 @@ def read_test_model_csv(path: str | Path) -> dict[tuple[int, int, int], RatePoin
         reader = csv.DictReader(fh)
         missing = [c for c in TEST_MODEL_COLUMNS[:5] if c not in (reader.fieldnames or [])]
         if missing:
-            raise ValueError(f"{path}:1: expected the test model's header (SeqId, CondId, RateId, ...); "
-                             f"missing {missing[0]!r}")  # fmt: skip
+            raise ValueError(
+                f"{path}:1: expected the test model's header (SeqId, CondId, RateId, ...); missing {missing[0]!r}"
+            )
         for row in reader:
             line = reader.line_num
             seq, cond, rate = (int(_field(str(p), line, row, c, required=True) or 0) for c in TEST_MODEL_COLUMNS[:3])
@@ -232,10 +253,18 @@ def read_test_model_csv(path: str | Path) -> dict[tuple[int, int, int], RatePoin
             known = {c: x for c, x in v.items() if x is not None and x >= 0}
             figures = {m: known[m] for m in _METRICS if known.get(m, 0) != 0}
             faces = known.get("NbOutputFaces")
-            point = RatePoint(seq, cond, rate, known.get("TotalBitstreamBits", math.nan), figures,
-                              None if faces is None else int(faces), known.get("UserEncoderRuntime"),
-                              known.get("UserDecoderRuntime"), known.get("PeakEncoderMemory"),
-                              known.get("PeakDecoderMemory"))  # fmt: skip
+            point = RatePoint(
+                seq,
+                cond,
+                rate,
+                known.get("TotalBitstreamBits", math.nan),
+                figures,
+                None if faces is None else int(faces),
+                known.get("UserEncoderRuntime"),
+                known.get("UserDecoderRuntime"),
+                known.get("PeakEncoderMemory"),
+                known.get("PeakDecoderMemory"),
+            )
             if point.key in out:
                 raise ValueError(f"{path}:{line}: SeqId {seq}, CondId {cond}, RateId {rate} repeats an earlier row")
             out[point.key] = point
@@ -269,8 +298,9 @@ def _component_ratio(b: RatePoint, a: RatePoint, name: str) -> float | None:
     return b.components[name] / a.components[name] - 1
 
 
-def _bd(a: Sequence[RatePoint], b: Sequence[RatePoint], metric: str, bits: Callable[[RatePoint], float | None]
-        ) -> float | None:  # fmt: skip
+def _bd(
+    a: Sequence[RatePoint], b: Sequence[RatePoint], metric: str, bits: Callable[[RatePoint], float | None]
+) -> float | None:
     """One BD figure of a sequence, or ``None`` when a curve lacks the metric, the rates, or 2 points."""
     rates_a, rates_b = [bits(p) for p in a], [bits(p) for p in b]
     if any(r is None or math.isnan(r) for r in (*rates_a, *rates_b)):
@@ -304,8 +334,9 @@ def _rows(seq: SheetSequence, a: RatePoint, b: RatePoint) -> dict[str, Any]:
     }
 
 
-def _scope(rows: list[tuple[SheetSequence, RatePoint, RatePoint]], bd: list[dict[str, Any]], lossless: bool
-           ) -> dict[str, Any]:  # fmt: skip
+def _scope(
+    rows: list[tuple[SheetSequence, RatePoint, RatePoint]], bd: list[dict[str, Any]], lossless: bool
+) -> dict[str, Any]:
     """The aggregate figures of a set of rate rows (a sequence, a class, the whole condition)."""
     bpif_a = _mean(a.total_bits / s.input_faces for s, a, _ in rows)
     bpif_b = _mean(b.total_bits / s.input_faces for s, _, b in rows)
@@ -323,8 +354,10 @@ def _scope(rows: list[tuple[SheetSequence, RatePoint, RatePoint]], bd: list[dict
         },
     }
     if lossless:
-        mesh = [(_sum_parts(b, ("mesh_intra", "mesh_inter")), _sum_parts(a, ("mesh_intra", "mesh_inter")))
-                for _, a, b in rows]  # fmt: skip
+        mesh = [
+            (_sum_parts(b, ("mesh_intra", "mesh_inter")), _sum_parts(a, ("mesh_intra", "mesh_inter")))
+            for _, a, b in rows
+        ]
         out["mesh_ratio"] = _mean(x / y - 1 if x is not None and y else None for x, y in mesh)
     else:
         for kind in ("bd_rate", "bd_geometry_rate", "bd_attribute_rate"):
@@ -376,8 +409,10 @@ def ctc_summary(
         all_rows: list[tuple[SheetSequence, RatePoint, RatePoint]] = []
         classes: dict[str, tuple[list[Any], list[dict[str, Any]]]] = {}
         for seq in sequences:
-            rate_ids = sorted({k[2] for k in anchor if k[:2] == (seq.seq_id, cond.cond_id)}
-                              & {k[2] for k in test if k[:2] == (seq.seq_id, cond.cond_id)})  # fmt: skip
+            rate_ids = sorted(
+                {k[2] for k in anchor if k[:2] == (seq.seq_id, cond.cond_id)}
+                & {k[2] for k in test if k[:2] == (seq.seq_id, cond.cond_id)}
+            )
             if not rate_ids:
                 continue
             a = [anchor[seq.seq_id, cond.cond_id, r] for r in rate_ids]
@@ -389,21 +424,31 @@ def ctc_summary(
                 bd["bd_geometry_rate"] = {m: _bd(a, b, m, RatePoint.geometry_bits) for m in BD_GEOMETRY}
                 bd["bd_attribute_rate"] = {m: _bd(a, b, m, _texture_bits) for m in BD_ATTRIBUTE}
             rate_rows = [_rows(seq, x, y) for _, x, y in rows]
-            per_seq.append({"id": seq.seq_id, "name": seq.name, "class": seq.cls, "rates": rate_rows,
-                            **_scope(rows, [bd], cond.lossless)})  # fmt: skip
+            per_seq.append(
+                {
+                    "id": seq.seq_id,
+                    "name": seq.name,
+                    "class": seq.cls,
+                    "rates": rate_rows,
+                    **_scope(rows, [bd], cond.lossless),
+                }
+            )
             all_rows += rows
             cls_rows, cls_bd = classes.setdefault(seq.cls, ([], []))
             cls_rows += rows
             cls_bd.append(bd)
-        out["conditions"].append({
-            "id": cond.cond_id,
-            "name": cond.name,
-            "lossless": cond.lossless,
-            "sequences": per_seq,
-            "classes": [{"class": c, **_scope(r, bd_list, cond.lossless)} for c, (r, bd_list) in classes.items()],
-            "overall": _scope(all_rows, [bd for _, bd_list in classes.values() for bd in bd_list], cond.lossless)
-            if all_rows else {},
-        })  # fmt: skip
+        out["conditions"].append(
+            {
+                "id": cond.cond_id,
+                "name": cond.name,
+                "lossless": cond.lossless,
+                "sequences": per_seq,
+                "classes": [{"class": c, **_scope(r, bd_list, cond.lossless)} for c, (r, bd_list) in classes.items()],
+                "overall": _scope(all_rows, [bd for _, bd_list in classes.values() for bd in bd_list], cond.lossless)
+                if all_rows
+                else {},
+            }
+        )
     return out
 
 
@@ -476,9 +521,11 @@ def summary_markdown(summary: Mapping[str, Any]) -> str:
         out += [f"## {cond['name']}", ""]
         rows = [(scope, name, figs) for c, scope, name, _, figs in _scopes(summary) if c is cond]
         if not cond["lossless"]:
-            for kind, title, metrics in (("bd_rate", "BD-rate", _METRICS),
-                                         ("bd_geometry_rate", "BD-TotGeoRate", BD_GEOMETRY),
-                                         ("bd_attribute_rate", "BD-AttrRate", BD_ATTRIBUTE)):  # fmt: skip
+            for kind, title, metrics in (
+                ("bd_rate", "BD-rate", _METRICS),
+                ("bd_geometry_rate", "BD-TotGeoRate", BD_GEOMETRY),
+                ("bd_attribute_rate", "BD-AttrRate", BD_ATTRIBUTE),
+            ):
                 cols = [m for m in metrics if any(_value(f, f"{kind}:{m}") is not None for _, _, f in rows)]
                 if not cols:
                     continue
@@ -487,8 +534,16 @@ def summary_markdown(summary: Mapping[str, Any]) -> str:
                     label = _label(scope, name)
                     out.append(f"| {label} | " + " | ".join(_pct(_value(f, f"{kind}:{m}")) for m in cols) + " |")
                 out.append("")
-        cols = ["bpif A", "bpif B", "bpif ratio", *(c.replace("_", " ") for c in COMPONENTS), "enc time", "dec time",
-                "enc memory", "dec memory"]  # fmt: skip
+        cols = [
+            "bpif A",
+            "bpif B",
+            "bpif ratio",
+            *(c.replace("_", " ") for c in COMPONENTS),
+            "enc time",
+            "dec time",
+            "enc memory",
+            "dec memory",
+        ]
         out += ["### Bits and complexity", "", "| | " + " | ".join(cols) + " |", "|---|" + "---:|" * len(cols)]
         for scope, name, f in rows:
             label = _label(scope, name)
