@@ -250,6 +250,7 @@ def _compute(campaign: CtcCampaign, task: FrameTask, key: str, folder: Path | No
         "settings": _settings(campaign, task),
     }
     if folder is not None:
+        _cache_file(folder, key).parent.mkdir(parents=True, exist_ok=True)
         atomic_write(
             _cache_file(folder, key),
             json.dumps(json_safe(record), indent=1) + "\n",
