@@ -76,7 +76,7 @@ def make(root: Path) -> None:
                     _png(out / f"dec_{k:04d}.png", noisy.clip(0, 255))
     rows = ["SeqId,CondId,RateId,NbOutputFaces,TotalBitstreamBits,GridD1,GridD2,GridLuma,GridChromaCb,GridChromaCr,"
             "IbsmGeom,IbsmLuma,UserEncoderRuntime,UserDecoderRuntime,PeakEncoderMemory,PeakDecoderMemory"]
-    for name, seq_id, frames, _ in SEQUENCES:
+    for _, seq_id, frames, _ in SEQUENCES:
         for rate, bits in ANCHOR_BITS.items():
             # metrics left to the campaign (it computes them); the other columns as the scripts collect them
             rows.append(f"{seq_id},1,{rate},{frames * faces.shape[0]},{bits + 1000 * seq_id},0,0,0,0,0,,,"
