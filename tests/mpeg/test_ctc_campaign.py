@@ -92,8 +92,12 @@ def test_outputs_and_summary(campaign: tuple[Path, Path]) -> None:
     _, out = campaign
     with (out / "anchor.csv").open() as fh:
         anchor = list(csv.DictReader(fh))
-    assert [(r["SeqId"], r["CondId"], r["RateId"]) for r in anchor] == [("1", "1", "1"), ("1", "1", "2"),
-                                                                        ("2", "1", "1"), ("2", "1", "2")]  # fmt: skip
+    assert [(r["SeqId"], r["CondId"], r["RateId"]) for r in anchor] == [
+        ("1", "1", "1"),
+        ("1", "1", "2"),
+        ("2", "1", "1"),
+        ("2", "1", "2"),
+    ]
     assert anchor[0]["TotalBitstreamBits"] == "41000" and anchor[0]["UserEncoderRuntime"] == "12"
     with (out / "test.csv").open() as fh:
         test = list(csv.DictReader(fh))
@@ -162,7 +166,7 @@ def test_checks_before_any_frame(campaign: tuple[Path, Path], tmp_path: Path, ca
     ("edit", "message"),
     [
         (("qp = 10", "qp = 3"), r"sequence 'sphere': 'qp' must be an integer in 7\.\.31, found 3"),
-        (('rates = [1, 2]', 'rates = [1, 1]'), r"condition 1: 'rates' repeats a RateId"),
+        (("rates = [1, 2]", "rates = [1, 1]"), r"condition 1: 'rates' repeats a RateId"),
         (("frame_count = 5", "frame_count = 5\ncolour = 1"), r"sequences\[0\]: unknown key 'colour'"),
         (("src_%04d.obj", "src.obj"), r"sequence 'sphere': source: expected one printf integer field"),
         (("r{rate_id}/dec", "r{rate}/dec"), r"'decoded': unknown field 'rate'"),

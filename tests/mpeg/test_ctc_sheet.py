@@ -30,22 +30,30 @@ from torchmeshmetric.mpeg.ctc_sheet import (
 )
 
 METRICS = ("GridD1", "GridD2", "GridLuma", "GridChromaCb", "GridChromaCr", "IbsmGeom", "IbsmLuma")
-SEQS = [SheetSequence(1, "longdress", "cat1-A", 32, 30.0, 11997440), SheetSequence(2, "soldier", "cat1-A", 32, 30.0,
-        11000000), SheetSequence(5, "mitch", "cat1-B", 32, 30.0, 9000000)]  # fmt: skip
+SEQS = [
+    SheetSequence(1, "longdress", "cat1-A", 32, 30.0, 11997440),
+    SheetSequence(2, "soldier", "cat1-A", 32, 30.0, 11000000),
+    SheetSequence(5, "mitch", "cat1-B", 32, 30.0, 9000000),
+]
 COND = SheetCondition(1, "C1 lossy AI")
 COMP = ("mesh_intra", "mesh_inter", "displacements", "texture", "metadata")
 
 
 def _point(seq: int, rate: int, scale: float, shift: float) -> RatePoint:
     """A monotone RD point: bits grow with the rate, PSNRs too (each metric its own offset)."""
-    comps = {"mesh_intra": 2e5 * rate * scale, "mesh_inter": 0.0 if seq == 5 else 5e4 * rate * scale,
-             "displacements": 3e5 * rate**1.2 * scale, "texture": 8e5 * rate**1.1 * scale * (1.1 if seq == 2 else 1),
-             "metadata": 1e3}  # fmt: skip
+    comps = {
+        "mesh_intra": 2e5 * rate * scale,
+        "mesh_inter": 0.0 if seq == 5 else 5e4 * rate * scale,
+        "displacements": 3e5 * rate**1.2 * scale,
+        "texture": 8e5 * rate**1.1 * scale * (1.1 if seq == 2 else 1),
+        "metadata": 1e3,
+    }
     comps = {c: float(round(v)) for c, v in comps.items()}  # bits are integers
     total = sum(comps.values()) + 4000  # the file's total has headers beyond the five components
     figures = {m: 50.0 + 4.0 * math.log2(rate) + 0.7 * i + shift + 0.1 * seq for i, m in enumerate(METRICS)}
-    return RatePoint(seq, 1, rate, total, figures, 1000 * rate, 100.0 * rate * scale, 10.0 + rate, 2000.0 * scale,
-                     900.0, comps)  # fmt: skip
+    return RatePoint(
+        seq, 1, rate, total, figures, 1000 * rate, 100.0 * rate * scale, 10.0 + rate, 2000.0 * scale, 900.0, comps
+    )
 
 
 ANCHOR = {(s.seq_id, 1, r): _point(s.seq_id, r, 1.0, 0.0) for s in SEQS for r in (1, 2, 3)}
@@ -62,8 +70,16 @@ def _bd(bits: str, metric: str, seq: int) -> float:
 
     a = [ANCHOR[seq, 1, r] for r in (1, 2, 3)]
     b = [TEST[seq, 1, r] for r in (1, 2, 3)]
-    return float(bd.bd_rate([rate(p) for p in a], [p.figures[metric] for p in a], [rate(p) for p in b],
-                            [p.figures[metric] for p in b], method="pchip", min_overlap=0))  # fmt: skip
+    return float(
+        bd.bd_rate(
+            [rate(p) for p in a],
+            [p.figures[metric] for p in a],
+            [rate(p) for p in b],
+            [p.figures[metric] for p in b],
+            method="pchip",
+            min_overlap=0,
+        )
+    )
 
 
 def _close(x: float, y: float) -> bool:
@@ -106,8 +122,9 @@ def test_rates_bpif_ratios_equal_the_sheet() -> None:
     assert a_cls["class"] == "cat1-A"
     want = sum(ANCHOR[s.seq_id, 1, r].total_bits / s.input_faces for s, r in cls_a) / 6
     assert _close(a_cls["bpif"]["anchor"], want)
-    ratios = [TEST[s.seq_id, 1, r].components["texture"] / ANCHOR[s.seq_id, 1, r].components["texture"] - 1
-              for s, r in cls_a]  # fmt: skip
+    ratios = [
+        TEST[s.seq_id, 1, r].components["texture"] / ANCHOR[s.seq_id, 1, r].components["texture"] - 1 for s, r in cls_a
+    ]
     assert _close(a_cls["component_ratios"]["texture"], sum(ratios) / 6)
     enc_b = sum(p.encoder_seconds for p in TEST.values())  # type: ignore[misc]
     enc_a = sum(p.encoder_seconds for p in ANCHOR.values())  # type: ignore[misc]
@@ -155,8 +172,13 @@ def test_reports_and_csv_round_trip(tmp_path: Path) -> None:
         read_test_model_csv(p)
     summary = ctc_summary(SEQS, [COND], ANCHOR, TEST)
     lines = summary_csv(summary).splitlines()
-    assert [r.split(",")[1:3] for r in lines[1:]] == [["sequence", "longdress"], ["sequence", "soldier"],
-                                                      ["sequence", "mitch"], ["class", "cat1-A"], ["class", "cat1-B"],
-                                                      ["overall", "overall"]]  # fmt: skip
+    assert [r.split(",")[1:3] for r in lines[1:]] == [
+        ["sequence", "longdress"],
+        ["sequence", "soldier"],
+        ["sequence", "mitch"],
+        ["class", "cat1-A"],
+        ["class", "cat1-B"],
+        ["overall", "overall"],
+    ]
     md = summary_markdown(summary)
     assert "### BD-TotGeoRate [%]" in md and "| **cat1-A average** |" in md and "| **Overall average** |" in md
