@@ -1,4 +1,4 @@
-"""``torchrun ... -m torchmeshmetric ctc-campaign``: frames shared by two ranks; rank 0 writes what one process writes."""
+"""``torchrun ... -m torchmeshmetric ctc-campaign``: frames shared by two ranks; rank 0 writes what one process does."""
 
 from __future__ import annotations
 
