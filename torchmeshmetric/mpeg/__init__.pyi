@@ -31,7 +31,15 @@ from . import topology as topology
 from . import vertex_sampling as vertex_sampling
 from .bd_rate import bd_rate
 from .colour import rgb_to_ycbcr
-from .comparison import MpegDirection, MpegResult, bbox_diagonal, mpeg_compare
+from .comparison import (
+    MpegDirection,
+    MpegPointErrors,
+    MpegResult,
+    PointErrors,
+    bbox_diagonal,
+    mpeg_compare,
+    mpeg_point_errors,
+)
 from .ctc import CTC_COLUMNS, CtcFrame, CtcSequence, ctc_frame, ctc_mean, ctc_sequence
 from .ctc_campaign import CampaignResult, run_ctc_campaign
 from .ctc_manifest import CtcCampaign, CtcManifestError, load_ctc_campaign
@@ -43,10 +51,12 @@ from .face_sampling import face_sample
 from .grid_sampling import (
     BoxError,
     GridHits,
+    GridSamples,
     GridTooLargeError,
     check_box,
     grid_hits,
     grid_sample,
+    grid_sample_faces,
     mesh_box,
     unique_vertex_rows,
 )
@@ -104,6 +114,11 @@ __all__ = [
     "read_texture",
     "BoxError",
     "GridHits",
+    "GridSamples",
+    "MpegPointErrors",
+    "PointErrors",
+    "grid_sample_faces",
+    "mpeg_point_errors",
     "MeshEquality",
     "MpegGeometryLoss",
     "MpegPSNR",
