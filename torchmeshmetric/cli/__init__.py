@@ -12,6 +12,7 @@ Commands:
   ctc       the V-DMC CTC metric step on a decoded sequence (grid D1/D2/colour and IBSM, mmetric's chain)
   ctc-campaign  a whole V-DMC CTC campaign: every sequence, rate and frame of a test codec and an anchor, the
             test model's CSV and the CTC sheet's summary (BD-rates, bpif, ratios), resumable
+  ctc-face-errors  a decoded frame's CTC grid-sample errors per face (D1, D2, colour) as PLY/CSV
   bdrate    BD-rate of a test codec against an anchor, per metric (the CTC spreadsheet's bdRateExtend)
   validate  which distance sets respond to which controlled distortion (noise, offsets, flicker, registration)
   build     compile the C++ extensions now (once per machine) instead of on first use
@@ -110,6 +111,11 @@ COMMANDS: dict[str, CommandInfo] = {
         "torchmeshmetric.cli.ctc_campaign",
         "add_ctc_campaign_command",
         "a whole V-DMC CTC campaign (TOML manifest): every sequence, rate and frame, the CTC sheet's summary",
+    ),
+    "ctc-face-errors": CommandInfo(
+        "torchmeshmetric.cli.ctc_face_errors",
+        "add_ctc_face_errors_command",
+        "a decoded frame's CTC errors per face (D1, D2, colour; mean and max) as PLY and CSV",
     ),
     "bdrate": CommandInfo(
         "torchmeshmetric.cli.bdrate",
