@@ -121,8 +121,8 @@ def test_resume_computes_only_missing_frames(
     calls: list[str] = []
     real = ctc_campaign._compute
 
-    def counting(campaign, task, key, folder):  # type: ignore[no-untyped-def]
-        record = real(campaign, task, key, folder)
+    def counting(campaign, task, key, *rest):  # type: ignore[no-untyped-def]
+        record = real(campaign, task, key, *rest)
         calls.append(key)
         if len(calls) == 7 and stop:
             raise KeyboardInterrupt

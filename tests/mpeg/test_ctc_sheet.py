@@ -13,6 +13,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -50,7 +51,11 @@ def _point(seq: int, rate: int, scale: float, shift: float) -> RatePoint:
     }
     comps = {c: float(round(v)) for c, v in comps.items()}  # bits are integers
     total = sum(comps.values()) + 4000  # the file's total has headers beyond the five components
-    figures = {m: 50.0 + 4.0 * math.log2(rate) + 0.7 * i + shift + 0.1 * seq for i, m in enumerate(METRICS)}
+    # each metric its own slope, offset and gain, so that no two metrics share a BD figure
+    figures = {
+        m: 50.0 + (4.0 + 0.3 * i) * math.log2(rate) + 0.7 * i + shift * (1 + 0.2 * i) + 0.1 * seq
+        for i, m in enumerate(METRICS)
+    }
     return RatePoint(
         seq, 1, rate, total, figures, 1000 * rate, 100.0 * rate * scale, 10.0 + rate, 2000.0 * scale, 900.0, comps
     )
@@ -102,6 +107,7 @@ def test_bd_figures_equal_the_sheet() -> None:
         assert abs(a_cls["cat1-B"]["bd_rate"][m] - _bd("L", m, 5)) < 1e-6
         assert abs(d["overall"]["bd_rate"][m] - (_bd("L", m, 1) + _bd("L", m, 2) + _bd("L", m, 5)) / 3) < 1e-6
     assert all(v < 0 for v in d["overall"]["bd_rate"].values())  # the test codec: fewer bits, higher PSNR
+    assert len({round(v, 6) for v in d["overall"]["bd_rate"].values()}) == len(METRICS)  # a mix-up would show
 
 
 def test_rates_bpif_ratios_equal_the_sheet() -> None:
@@ -148,6 +154,10 @@ def test_lossless_condition_and_missing_values() -> None:
     s = d["sequences"][0]
     assert s["bd_geometry_rate"]["GridD1"] is None and s["bd_rate"]["GridD1"] is not None  # total bits then
     assert s["component_ratios"]["texture"] is None and d["overall"]["time_ratios"]["encoder"] is None
+    flat = {k: replace(p, figures={**p.figures, "IbsmLuma": 99.99}) for k, p in ANCHOR.items()}
+    d = ctc_summary(SEQS, [COND], flat, TEST)["conditions"][0]  # an untextured anchor: IBSM luma 99.99 everywhere
+    assert d["sequences"][0]["bd_rate"]["IbsmLuma"] is None and d["overall"]["bd_rate"]["IbsmLuma"] is None
+    assert d["sequences"][0]["bd_rate"]["GridD1"] == pytest.approx(_bd("L", "GridD1", 1), abs=1e-6)
 
 
 def test_reports_and_csv_round_trip(tmp_path: Path) -> None:

@@ -211,17 +211,30 @@ def _read_cached(folder: Path, key: str) -> dict[str, Any] | None:
     return record
 
 
-def _compute(campaign: CtcCampaign, task: FrameTask, key: str, folder: Path | None) -> dict[str, Any]:
-    """One frame through the chain; its record written to the cache at once (atomically)."""
-    from torchmeshmetric.mpeg.ctc import ctc_frame
+def _load(item: tuple[str, FrameTask]) -> tuple[Any, Any, float]:
+    """A frame's source and decoded meshes and the seconds reading took (run ahead in a background thread)."""
     from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
 
+    task = item[1]
     t0 = time.perf_counter()
     try:
-        ref = load_textured_mesh(task.ref, task.ref_texture)
-        dis = load_textured_mesh(task.dis, task.dis_texture)
+        return (
+            load_textured_mesh(task.ref, task.ref_texture),
+            load_textured_mesh(task.dis, task.dis_texture),
+            (time.perf_counter() - t0),
+        )
     except ValueError as exc:
         raise ValueError(f"{task.describe()}: {exc}") from exc
+
+
+def _compute(
+    campaign: CtcCampaign, task: FrameTask, key: str, folder: Path | None, loaded: tuple[Any, Any, float]
+) -> dict[str, Any]:
+    """One frame through the chain; its record written to the cache at once (atomically)."""
+    from torchmeshmetric.mpeg.ctc import ctc_frame
+
+    ref, dis, read_seconds = loaded
+    t0 = time.perf_counter() - read_seconds  # the frame's seconds: its reading (ahead of time) and its chain
     s = task.seq
     f = ctc_frame(
         ref,
@@ -387,9 +400,9 @@ def run_ctc_campaign(
             computed.
         RankFailedError: under torchrun, a frame failed on some rank (naming the rank and the frame).
     """
-    from torchmeshmetric.tasks import exchange, rank_and_world_size, run_tasks
+    from torchmeshmetric.tasks import exchange, rank_and_world_size, run_tasks, shard
 
-    rank, _ = rank_and_world_size()
+    rank, world = rank_and_world_size()
     folder = cache_dir if cache_dir is not None else campaign.cache_dir
     tasks = plan_frames(campaign)
     rows = {
@@ -421,13 +434,20 @@ def run_ctc_campaign(
     done = exchange(sorted(cached) if rank == 0 else None, what="the list of cached frames")[0]
     missing = [(k, t) for k, t in unique.items() if k not in set(done)]
 
+    from torchmeshmetric.data.sequence import Prefetcher
+
+    # the next frame is read in a background thread while this one is computed (run_tasks takes this rank's tasks
+    # in the prefetcher's order, as the ctc command)
+    ahead = Prefetcher([missing[i] for i in shard(len(missing), rank, world)], load=_load, ahead=1)
+
     def one(item: tuple[str, FrameTask]) -> dict[str, Any]:
-        record = _compute(campaign, item[1], item[0], folder)
+        record = _compute(campaign, item[1], item[0], folder, next(ahead))
         if progress is not None:
             progress(item[1], record)
         return record
 
-    computed = run_tasks(one, missing, describe=lambda item: item[1].describe(), to=0)
+    with ahead:
+        computed = run_tasks(one, missing, describe=lambda item: item[1].describe(), to=0)
     if rank != 0 or computed is None:
         return None
     records = {**cached, **{k: r for (k, _), r in zip(missing, computed, strict=True)}}

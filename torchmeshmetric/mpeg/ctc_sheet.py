@@ -301,13 +301,16 @@ def _component_ratio(b: RatePoint, a: RatePoint, name: str) -> float | None:
 def _bd(
     a: Sequence[RatePoint], b: Sequence[RatePoint], metric: str, bits: Callable[[RatePoint], float | None]
 ) -> float | None:
-    """One BD figure of a sequence, or ``None`` when a curve lacks the metric, the rates, or 2 points."""
+    """One BD figure of a sequence; ``None`` when a curve lacks the metric, the rates, or 2 distinct finite PSNRs."""
     rates_a, rates_b = [bits(p) for p in a], [bits(p) for p in b]
     if any(r is None or math.isnan(r) for r in (*rates_a, *rates_b)):
         return None
     if not all(metric in p.figures for p in (*a, *b)) or len(a) < 2 or len(b) < 2:
         return None
-    return bd_rate(rates_a, [p.figures[metric] for p in a], rates_b, [p.figures[metric] for p in b])  # type: ignore[arg-type]
+    try:
+        return bd_rate(rates_a, [p.figures[metric] for p in a], rates_b, [p.figures[metric] for p in b])  # type: ignore[arg-type]
+    except ValueError:  # a curve without 2 distinct finite PSNRs (99.99 everywhere, lossless inf): the sheet's error
+        return None
 
 
 def _texture_bits(p: RatePoint) -> float | None:
