@@ -40,7 +40,7 @@ def plot_rd_curves(
     metrics = [m for m in _METRICS if all(m in r["anchor"] and m in r["test"] for r in rows)]
     cols = min(4, max(1, len(metrics)))
     nrows = max(1, -(-len(metrics) // cols))
-    fig = Figure(figsize=(4 * cols, 3.4 * nrows), layout="constrained")
+    fig = Figure(figsize=(4 * cols, 3.4 * nrows))  # fixed margins: a constrained layout costs seconds per figure
     axes = fig.subplots(nrows, cols, squeeze=False).ravel()
     for ax, m in zip(axes, metrics, strict=False):
         for side, label, marker in (("anchor", names[0], "o"), ("test", names[1], "s")):
@@ -56,4 +56,6 @@ def plot_rd_curves(
         ax.set_visible(False)
     if title:
         fig.suptitle(title)
+    h, w = 3.4 * nrows, 4.0 * cols  # margins in inches: 0.55 below, 0.65 above, 0.7 left
+    fig.subplots_adjust(left=0.7 / w, right=1 - 0.15 / w, bottom=0.55 / h, top=1 - 0.65 / h, wspace=0.35, hspace=0.5)
     return _save(fig, path, overwrite)
