@@ -188,3 +188,17 @@ def test_example_manifest_reads() -> None:
     assert [s.name for s in c.sequences] == list(SEQUENCES) and c.conditions[0].rates == RATES
     assert c.anchor.csv is not None and c.test.points[1, 1, 2]["total_bits"] == 81900
     assert c.sequences[0].resolution == 2.0 and not math.isnan(c.sequences[1].fps)
+
+
+def test_point_means_and_the_lossless_rule() -> None:
+    """A point's row: mmetric's clipped means at 9 digits; lossless and identical grid samples: inf everywhere."""
+    same = {"figures": {"GridD1": math.inf, "GridD2": math.inf, "IbsmGeom": 99.99}, "faces_dis": 10}
+    off = {"figures": {"GridD1": 70.123456789, "GridD2": math.inf, "IbsmGeom": 60.0}, "faces_dis": 12}
+    p = ctc_campaign._point([same, same], {"total_bits": 8.0}, (1, 0, 0), True, "x")
+    assert p.figures == {"GridD1": math.inf, "GridD2": math.inf, "IbsmGeom": math.inf} and p.output_faces == 20
+    p = ctc_campaign._point([same, off], {"total_bits": 8.0, "output_faces": 5}, (1, 0, 0), True, "x")
+    assert p.figures == {"GridD1": 85.0567284, "GridD2": 99.99, "IbsmGeom": 79.995} and p.output_faces == 5
+    with pytest.raises(ValueError, match=r"x: GridLuma is computed on 1 of 2 frames"):
+        ctc_campaign._point(
+            [same, {"figures": {**off["figures"], "GridLuma": 30.0}}], {"total_bits": 8.0}, (1, 1, 1), False, "x"
+        )

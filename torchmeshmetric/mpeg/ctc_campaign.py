@@ -347,9 +347,15 @@ def _mm_printed(x: float) -> float:
 def _point(
     task_frames: list[dict[str, Any]], values: dict[str, Any], key: tuple[int, int, int], lossless: bool, what: str
 ) -> RatePoint:
-    """One CSV row: each metric's mmetric mean over the point's frames (infinite everywhere: lossless ``inf``)."""
+    """One CSV row: each metric's mmetric mean over the point's frames.
+
+    A lossless point whose frames all sample exactly as their sources (every grid figure infinite) gets ``inf`` in
+    every column, as ``collect_results.sh`` writes when mmetric finds the meshes and textures equal.
+    """
     from torchmeshmetric.mpeg.ctc import ctc_mean
 
+    grid = [v for f in task_frames for c, v in f["figures"].items() if c.startswith("Grid")]
+    identical = lossless and bool(grid) and all(math.isinf(v) and v > 0 for v in grid)
     figures = {}
     for c in _COLUMNS:
         vals = [f["figures"][c] for f in task_frames if c in f["figures"]]
@@ -359,8 +365,7 @@ def _point(
                 "texture missing on some frames); the sequence mean needs every frame"
             )
         if vals:
-            all_inf = all(math.isinf(x) and x > 0 for x in vals)
-            figures[c] = math.inf if lossless and all_inf else _mm_printed(ctc_mean(vals))
+            figures[c] = math.inf if identical else _mm_printed(ctc_mean(vals))
     faces = values.get("output_faces")
     return RatePoint(
         *key,
