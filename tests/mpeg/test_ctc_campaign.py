@@ -21,6 +21,7 @@ import pytest
 from tests.mpeg.test_ctc import MM_BIN, TOL_DB, _mm_chain, _parse
 from torchmeshmetric.cli import main
 from torchmeshmetric.mpeg import ctc_campaign
+from torchmeshmetric.mpeg.ctc_campaign import FrameTask
 from torchmeshmetric.mpeg.ctc_manifest import CtcManifestError, load_ctc_campaign
 
 REPO = Path(__file__).resolve().parents[2]
@@ -202,3 +203,31 @@ def test_point_means_and_the_lossless_rule() -> None:
         ctc_campaign._point(
             [same, {"figures": {**off["figures"], "GridLuma": 30.0}}], {"total_bits": 8.0}, (1, 1, 1), False, "x"
         )
+
+
+def test_a_second_codec_reuses_the_anchors_frames(
+    campaign: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Another test codec against the same anchor (same cache): only its frames whose files differ are computed."""
+    manifest, reference = campaign
+    data = manifest.parent / "ctc-campaign-data"
+    for seq in SEQUENCES:  # a copy of the test codec's files in another folder, one frame changed
+        shutil.copytree(data / seq / "test", data / seq / "test2", dirs_exist_ok=True)
+    changed = data / "sphere" / "test2" / "r1" / "dec_0003.obj"
+    lines = changed.read_text().splitlines()
+    lines[0] = "v " + " ".join(str(int(x) + 1) for x in lines[0].split()[1:])
+    changed.write_text("\n".join(lines) + "\n")
+    second = manifest.parent / "second.toml"
+    second.write_text(manifest.read_text().replace("/test/r{rate_id}", "/test2/r{rate_id}"))
+    calls: list[FrameTask] = []
+    real = ctc_campaign._compute
+
+    def counting(campaign, task, *rest):  # type: ignore[no-untyped-def]
+        calls.append(task)
+        return real(campaign, task, *rest)
+
+    monkeypatch.setattr(ctc_campaign, "_compute", counting)
+    assert main(["ctc-campaign", str(second), "--out-dir", str(tmp_path / "out"), "--no-plots"]) == 0
+    assert [(t.codec, t.seq.name, t.rate_id, t.frame) for t in calls] == [("test", "sphere", 1, 3)]
+    assert (tmp_path / "out" / "anchor.csv").read_bytes() == (reference / "anchor.csv").read_bytes()
+    assert (tmp_path / "out" / "test.csv").read_bytes() != (reference / "test.csv").read_bytes()
