@@ -436,8 +436,8 @@ def run_ctc_campaign(
     cached: dict[str, dict[str, Any]] = {}
     if rank == 0 and folder is not None:
         cached = {k: r for k in unique if (r := _read_cached(folder, k)) is not None}
-    done = exchange(sorted(cached) if rank == 0 else None, what="the list of cached frames")[0]
-    missing = [(k, t) for k, t in unique.items() if k not in set(done)]
+    done = set(exchange(sorted(cached) if rank == 0 else None, what="the list of cached frames")[0])
+    missing = [(k, t) for k, t in unique.items() if k not in done]
 
     from torchmeshmetric.data.sequence import Prefetcher
 
