@@ -231,3 +231,40 @@ def test_a_second_codec_reuses_the_anchors_frames(
     assert [(t.codec, t.seq.name, t.rate_id, t.frame) for t in calls] == [("test", "sphere", 1, 3)]
     assert (tmp_path / "out" / "anchor.csv").read_bytes() == (reference / "anchor.csv").read_bytes()
     assert (tmp_path / "out" / "test.csv").read_bytes() != (reference / "test.csv").read_bytes()
+
+
+def test_bits_runtimes_and_memory_from_the_codecs_files(tmp_path: Path) -> None:
+    """As collect_results.sh: bits = bitstream size * 8, the logs' 4th fields (memory / 1024); manifest points win."""
+    from torchmeshmetric.mpeg.ctc_manifest import CtcCampaignSequence, CtcCodec
+
+    seq = CtcCampaignSequence("ball", 3, "cat1-B", "s_%04d.obj", None, 0, 2, 30.0, 10, 8, (0, 0, 0), (1, 1, 1), 1.0)
+    folder = tmp_path / "s3c1r2_ball"
+    folder.mkdir()
+    (folder / "out.vmesh").write_bytes(b"\0" * 1234)
+    (folder / "encoder.log").write_text(
+        "Sequence face count 6400\nSequence processing time 12.5 s\nSequence peak memory 20480 KB\n"
+    )
+    (folder / "decoder.log").write_text("Sequence processing time 1.25 s\nSequence peak memory 10240 KB\n")
+    t = str(tmp_path / "s{seq_id}c{cond_id}r{rate_id}_{sequence}")
+    codec = CtcCodec(
+        "test",
+        "d_%04d.obj",
+        bitstream=t + "/out.vmesh",
+        encoder_log=t + "/encoder.log",
+        decoder_log=t + "/decoder.log",
+        points={(3, 1, 2): {"decoder_seconds": 2.0}},
+    )
+    v = ctc_campaign._codec_values(codec, seq, 1, 2, {})
+    assert v == {
+        "total_bits": 1234 * 8,
+        "output_faces": 6400.0,
+        "encoder_seconds": 12.5,
+        "encoder_memory": 20.0,
+        "decoder_seconds": 2.0,
+        "decoder_memory": 10.0,
+    }
+    (folder / "decoder.log").write_text("Sequence processing time n/a\n")
+    with pytest.raises(ValueError, match=r"decoder.log:1: expected a number as the 4th field"):
+        ctc_campaign._codec_values(codec, seq, 1, 2, {})
+    with pytest.raises(ValueError, match=r"test: sequence 'ball' condition 1 rate 1: bitstream .* not found"):
+        ctc_campaign._codec_values(codec, seq, 1, 1, {})
