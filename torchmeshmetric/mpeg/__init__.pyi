@@ -11,6 +11,7 @@ from . import ctc_manifest as ctc_manifest
 from . import ctc_sheet as ctc_sheet
 from . import edge_sampling as edge_sampling
 from . import equality as equality
+from . import face_errors as face_errors
 from . import face_sampling as face_sampling
 from . import grid_sampling as grid_sampling
 from . import losses as losses
@@ -47,6 +48,7 @@ from .ctc_sheet import RatePoint, ctc_summary, read_test_model_csv
 from .dequantize import dequantize_positions, dequantize_uvs
 from .edge_sampling import edge_sample
 from .equality import MeshEquality, mesh_equality
+from .face_errors import FaceErrors, ctc_face_errors
 from .face_sampling import face_sample
 from .grid_sampling import (
     BoxError,
@@ -92,6 +94,8 @@ __all__ = [
     "CtcFrame",
     "CtcSequence",
     "CampaignResult",
+    "FaceErrors",
+    "ctc_face_errors",
     "CtcCampaign",
     "CtcManifestError",
     "RatePoint",
