@@ -39,7 +39,7 @@ __all__ = [
 ]
 
 #: The commands that share their work across the processes of a torchrun job.
-SHARDED_COMMANDS = ("evaluate", "compare", "campaign", "ctc")
+SHARDED_COMMANDS = ("evaluate", "compare", "campaign", "ctc", "ctc-campaign")
 
 #: How long a rank waits in a collective for the others (their shares of the work may differ by hours).
 COLLECTIVE_TIMEOUT = datetime.timedelta(days=1)

@@ -128,6 +128,8 @@ def test_help_explains_every_option():
         "mpeg",
         "sample",
         "ctc",
+        "ctc-campaign",
+        "ctc-face-errors",
         "bdrate",
         "build",
         "validate",

@@ -12,7 +12,6 @@ import csv
 import io
 import json
 import math
-import re
 import sys
 import time
 from pathlib import Path
@@ -20,26 +19,9 @@ from typing import Any
 
 from torchmeshmetric._format import format_number, json_safe
 from torchmeshmetric.cli.options import corner
+from torchmeshmetric.mpeg.frame_pattern import frame_path
 
 __all__ = ["add_ctc_command", "frame_path"]
-
-_FIELD = re.compile(r"%[-+ #0]*\d*[diu]")
-
-
-def frame_path(pattern: str, frame: int, option: str = "PATTERN") -> str:
-    """One frame's file name from a printf frame pattern such as ``dec_%04d.obj`` (mmetric's convention).
-
-    Raises:
-        ValueError: the pattern has no integer field, or more than one conversion.
-
-    Example:
-        >>> frame_path("dec_%04d.obj", 7)
-        'dec_0007.obj'
-    """
-    fields = _FIELD.findall(pattern.replace("%%", ""))
-    if len(fields) != 1 or pattern.replace("%%", "").count("%") != 1:
-        raise ValueError(f"{option}: expected one printf integer field such as dec_%04d.obj, found {pattern!r}")
-    return pattern % frame
 
 
 def _fmt(x: Any) -> str:
