@@ -187,9 +187,11 @@ class CtcCampaign:
     path: Path
 
     def input_files(self) -> list[tuple[str, str | Path | None]]:
-        """``(what, path)`` of every file the campaign reads: the manifest, the codecs' CSVs, and per sequence,
-        condition, rate and frame the source and decoded frames, their textures, bitstreams and logs (the output
-        check refuses an output that is one of them)."""
+        """``(what, path)`` of every file the campaign reads (the output check refuses an output among them).
+
+        The manifest, the codecs' CSVs, and per sequence, condition, rate and frame the source and decoded frames,
+        their textures, bitstreams and logs.
+        """
         from torchmeshmetric.mpeg.frame_pattern import frame_path
 
         files: list[tuple[str, str | Path | None]] = [("MANIFEST", self.path)]
