@@ -38,7 +38,10 @@ from torchmeshmetric import Mesh
 from torchmeshmetric.metrics import TemporalConsistencyLoss, temporal_consistency_loss
 
 DEVICES = [d for d in os.environ.get("TMM_BENCH_DEVICES", "cpu").split(",") if d]
-PAIRS = 8
+PAIRS = int(os.environ.get("TMM_BENCH_PAIRS", "8"))
+# Smaller cases for dry runs (tests/benchmarks/gpu_check.py --dry-run); the benchmark's figures use the defaults.
+RESOLUTION = int(os.environ.get("TMM_BENCH_RESOLUTION", "160"))
+SIMPLIFIED_FACES = int(os.environ.get("TMM_BENCH_SIMPLIFIED_FACES", "20000"))
 if os.environ.get("TMM_BENCH_THREADS"):
     torch.set_num_threads(int(os.environ["TMM_BENCH_THREADS"]))
 STEP = 1e-5  # vertex motion per step (a fraction of the ~2-unit figure): an optimiser's step
@@ -50,8 +53,8 @@ def case() -> dict[str, Any]:
     from torchmeshmetric.registration import RegistrationWarp, register_nonrigid
     from torchmeshmetric.simplification import simplify_qem
 
-    frames = demo_sequence(PAIRS + 1, resolution=160).frames
-    simplified = [simplify_qem(f, 20000) for f in frames]
+    frames = demo_sequence(PAIRS + 1, resolution=RESOLUTION).frames
+    simplified = [simplify_qem(f, SIMPLIFIED_FACES) for f in frames]
     warp = RegistrationWarp.from_registration(register_nonrigid(frames[0], frames[1]), frames[1])
     return {
         "originals": [Mesh(f.verts.float(), f.faces) for f in frames],
