@@ -145,44 +145,11 @@ class WarpPeer:
     """The same loss with Warp's ``mesh_query_point_no_sign`` and its tape (see the module docstring)."""
 
     def __init__(self, device: str) -> None:
-        import warp as wp
+        from tests.benchmarks.warp_kernels import kernels
 
-        wp.config.quiet = True
-        wp.init()
+        k = kernels()
+        wp, query, distance = k.wp, k.closest_face, k.distance
         self.wp, self.device = wp, device
-
-        @wp.kernel
-        def query(
-            mesh: wp.uint64,
-            points: wp.array(dtype=wp.vec3),
-            face: wp.array(dtype=wp.int32),
-            bu: wp.array(dtype=wp.float32),
-            bv: wp.array(dtype=wp.float32),
-        ):
-            i = wp.tid()
-            q = wp.mesh_query_point_no_sign(mesh, points[i], 1.0e6)
-            face[i] = q.face
-            bu[i] = q.u
-            bv[i] = q.v
-
-        @wp.kernel
-        def distance(
-            points: wp.array(dtype=wp.vec3),
-            mesh_points: wp.array(dtype=wp.vec3),
-            indices: wp.array(dtype=wp.int32),
-            face: wp.array(dtype=wp.int32),
-            bu: wp.array(dtype=wp.float32),
-            bv: wp.array(dtype=wp.float32),
-            out: wp.array(dtype=wp.float32),
-        ):
-            i = wp.tid()
-            f = face[i]
-            a = mesh_points[indices[3 * f]]
-            b = mesh_points[indices[3 * f + 1]]
-            c = mesh_points[indices[3 * f + 2]]
-            closest = bu[i] * a + bv[i] * b + (1.0 - bu[i] - bv[i]) * c
-            out[i] = wp.length(points[i] - closest)
-
         self.query, self.distance = query, distance
         self.meshes: dict[Any, Any] = {}
         peer = self
