@@ -5,7 +5,7 @@
 #
 # Before the first GPU call, on a machine with network access: tests/benchmarks/gpu_check_wheels.sh (fills the
 # ignored .gpu/wheels and .gpu/warp). Then, with the device tool (docs/benchmarks.md#gpu-check):
-#   main: carry [".gpu/wheels"],              command "tests/benchmarks/gpu_check.sh",             timeout_s 540
+#   main: carry [".gpu/wheels"],              command "tests/benchmarks/gpu_check.sh",             timeout_s 500
 #   warp: carry [".gpu/wheels", ".gpu/warp"], command "tests/benchmarks/gpu_check.sh --mode warp", timeout_s 300
 # The summary (gpu_check[_warp].json / .md, logs) goes to $OUT (the device tool's folder) or ./out/gpu_check.
 set -uo pipefail
