@@ -190,7 +190,7 @@ def check_faces(faces: Tensor, num_verts: int, name: str = "faces") -> None:
     if faces.is_floating_point() or faces.dtype == torch.bool or faces.is_complex():
         raise DTypeError(f"{name}: expected an integer tensor of vertex indices, found dtype {faces.dtype}")
     if faces.numel():
-        lo, hi = int(faces.min()), int(faces.max())
+        lo, hi = (int(x) for x in torch.stack(torch.aminmax(faces)).tolist())  # one device-to-host read
         if lo < 0 or hi >= num_verts:
             raise IndexRangeError(
                 f"{name}: expected vertex indices in [0, {num_verts - 1}], found values in [{lo}, {hi}]"

@@ -234,6 +234,7 @@ class MeshIndex:
         self._faces: Selector | None = None
         self._nearest: _NearestIndex | None = None
         self._origin: MeshIndex | None = None  # the index a `with_verts` copy shares its structures with
+        self._faces_everywhere: bool | None = None  # every item has faces (read once, at the first query)
         self._set_verts(packed.verts)
         self._verts_sources = _sources([("verts", packed.verts)])
         self._faces_sources = _sources([("faces", packed.faces)])
@@ -349,12 +350,16 @@ class MeshIndex:
             As :meth:`point_mesh_distance`.
         """
         self._check_current()
+        if getattr(self, "_faces_everywhere", None) is None:
+            # Once per index (its faces cannot change): then no query reads the face counts back from the device.
+            self._faces_everywhere = bool((self.faces_lengths > 0).all())
         check_queries(
             points,
             points_lengths,
             self.faces_lengths,
             count_error="points_lengths: expected {items} point sets (one per mesh), found {sets}",
             lacking_error="faces: mesh {item} has no faces but {points} query points",
+            prims_everywhere=bool(self._faces_everywhere),
         )
         point_batch, point_center = item_rows(points_lengths, points.shape[0], self._centers)
         points_c = points - point_center
