@@ -1,6 +1,7 @@
 """Train a (toy) learned simplifier with Lightning and log the paper's metrics every validation epoch.
 
-Run: PYTHONPATH=. python examples/lightning_validation.py   (needs `pip install lightning`; ~15 s on 2 CPU cores)
+Needs: lightning (`pip install -e '.[examples]'`, or `pip install lightning`).
+Run: PYTHONPATH=. python examples/lightning_validation.py   (~15 s on 2 CPU cores)
 
 The pattern (docs/lightning.md):
 

@@ -1,5 +1,6 @@
 """Train a learned simplifier with the temporal-consistency loss, validate it on held-out frames (Lightning).
 
+Needs: lightning (`pip install -e '.[examples]'`, or `pip install lightning`).
 Run: PYTHONPATH=. python examples/train_temporal_simplifier.py --threads 1 [--quick] [--cache DIR]
 
 What it does (docs/training.md explains the choices and shows the results):

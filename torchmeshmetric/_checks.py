@@ -7,6 +7,7 @@ Every check raises an error that names the argument, what was found and what was
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 
 import torch
@@ -20,8 +21,11 @@ __all__ = [
     "IndexRangeError",
     "NonFiniteError",
     "ShapeError",
+    "SizeLimitError",
     "StaleIndexError",
     "all_finite",
+    "check_allocation",
+    "check_device",
     "check_finite",
     "check_float",
     "check_lengths",
@@ -29,6 +33,8 @@ __all__ = [
     "check_same_device",
     "check_shape",
     "check_faces",
+    "check_index_dtype",
+    "common_dtype",
 ]
 
 
@@ -58,6 +64,10 @@ class IndexRangeError(ValueError):
 
 class EmptyInputError(ValueError):
     """A mesh or point set is empty where at least one element is required."""
+
+
+class SizeLimitError(ValueError):
+    """A parameter asks for a result that cannot exist here: more elements than this machine's memory holds."""
 
 
 class StaleIndexError(ValueError):
@@ -101,6 +111,45 @@ def check_float(x: Tensor, name: str) -> None:
         )
 
 
+def common_dtype(*dtypes: torch.dtype) -> torch.dtype:
+    """The dtype a computation on inputs of ``dtypes`` runs in and answers in: torch's type promotion.
+
+    The library's one dtype rule (``docs/concepts.md``, *Precision*): a distance between float32 and float64
+    geometry is computed and returned in float64, whichever side is which, so that no input is rounded; autograd
+    casts each input's gradient back to that input's own dtype (a float32 model gets float32 gradients).
+
+    Args:
+        dtypes: the floating dtypes of every geometric input (points, vertices, a prebuilt index's).
+
+    Returns:
+        Their promotion (``torch.promote_types`` of all), e.g. float64 for ``(float32, float64)``.
+
+    Example:
+        >>> common_dtype(torch.float32, torch.float64, torch.float32)
+        torch.float64
+    """
+    return functools.reduce(torch.promote_types, dtypes)
+
+
+def check_index_dtype(index_dtype: torch.dtype, dtype: torch.dtype, name: str) -> None:
+    """Refuse a prebuilt index narrower than the dtype its queries are computed in (:func:`common_dtype`).
+
+    An index answers in its own dtype: narrower queries are cast up to it (exactly), wider ones would be rounded
+    down to it, which the dtype rule never does. Converting the index instead would rebuild its whole structure
+    (about the cost of the queries it was built to save) behind the caller's back, at every call or refit; the
+    error says how to build it once in the right dtype.
+
+    Raises:
+        DTypeError: ``index_dtype`` cannot hold ``dtype`` values exactly.
+    """
+    if torch.promote_types(index_dtype, dtype) != index_dtype:
+        raise DTypeError(
+            f"{name}: expected an index of dtype {dtype} (the promoted dtype of its queries), found one of dtype "
+            f"{index_dtype}, which would round them; build the index once in {dtype} "
+            f"(MeshIndex(mesh.to(dtype={dtype}))), or give every input in {index_dtype}"
+        )
+
+
 def all_finite(x: Tensor) -> bool:
     """Whether every value of ``x`` is finite (no NaN, no Inf).
 
@@ -141,7 +190,7 @@ def check_faces(faces: Tensor, num_verts: int, name: str = "faces") -> None:
     if faces.is_floating_point() or faces.dtype == torch.bool or faces.is_complex():
         raise DTypeError(f"{name}: expected an integer tensor of vertex indices, found dtype {faces.dtype}")
     if faces.numel():
-        lo, hi = int(faces.min()), int(faces.max())
+        lo, hi = (int(x) for x in torch.stack(torch.aminmax(faces)).tolist())  # one device-to-host read
         if lo < 0 or hi >= num_verts:
             raise IndexRangeError(
                 f"{name}: expected vertex indices in [0, {num_verts - 1}], found values in [{lo}, {hi}]"
@@ -157,3 +206,62 @@ def check_lengths(lengths: Tensor, total: int, name: str) -> None:
         raise IndexRangeError(f"{name}: expected non-negative lengths, found {lengths.tolist()}")
     if int(lengths.sum()) != total:
         raise ShapeError(f"{name}: expected lengths summing to {total}, found sum {int(lengths.sum())}")
+
+
+def _memory_bytes() -> int:
+    """This machine's physical memory in bytes (``0`` where the system does not say)."""
+    import os
+
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
+    except (AttributeError, ValueError, OSError):  # pragma: no cover (not POSIX)
+        return 0
+
+
+def check_allocation(count: float, bytes_each: int, name: str, value: object, what: str) -> None:
+    """Refuse, before allocating, a parameter whose result cannot fit: ``count`` elements beyond memory or int64.
+
+    ``count`` is computed by the caller in Python or float64 arithmetic (never a wrapping int64 one) and
+    ``bytes_each`` is the least each element takes, so a refused size is certainly impossible, never merely slow.
+
+    Raises:
+        SizeLimitError: naming ``name`` and its ``value``, the count and the memory it needs.
+
+    Example:
+        >>> check_allocation(1e6, 24, "resolution", 1024, "points")  # 24 MB: fine
+        >>> check_allocation(1e19, 24, "num_samples", 10**19, "points")  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+            ...
+        torchmeshmetric._checks.SizeLimitError: num_samples: 10000000000000000000 asks for about 1e+19 points...
+    """
+    need = float(count) * bytes_each
+    memory = _memory_bytes()
+    if not (need <= (memory or float("inf")) and count < 2.0**63):
+        where = f"this machine's {memory / 2**30:.3g} GiB of memory" if memory else "a 64-bit count"
+        raise SizeLimitError(
+            f"{name}: {value!r} asks for about {float(count):.3g} {what}, at least {need / 2**30:.3g} GiB, more than "
+            f"{where}; choose a smaller value"
+        )
+
+
+def check_device(device: torch.device | str | int, name: str = "device") -> torch.device:
+    """A device this process can use, as a ``torch.device``; else a :class:`DeviceError` naming ``name``.
+
+    Example:
+        >>> check_device("cpu")
+        device(type='cpu')
+        >>> check_device("bogus")  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+            ...
+        torchmeshmetric._checks.DeviceError: device: 'bogus' is not a device (expected e.g. 'cpu', 'cuda', 'cuda:1'; ...
+    """
+    try:
+        dev = torch.device(device)
+    except (RuntimeError, TypeError) as exc:
+        raise DeviceError(f"{name}: {device!r} is not a device (expected e.g. 'cpu', 'cuda', 'cuda:1'; {exc})") from exc
+    if dev.type == "cuda":
+        if not torch.cuda.is_available():
+            raise DeviceError(f"{name}: {device!r} asked, but no CUDA device is available here; use 'cpu'")
+        if dev.index is not None and dev.index >= torch.cuda.device_count():
+            raise DeviceError(f"{name}: {device!r} asked, but only {torch.cuda.device_count()} CUDA device(s) exist")
+    return dev

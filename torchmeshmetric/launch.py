@@ -39,7 +39,7 @@ __all__ = [
 ]
 
 #: The commands that share their work across the processes of a torchrun job.
-SHARDED_COMMANDS = ("evaluate", "compare", "campaign", "ctc")
+SHARDED_COMMANDS = ("evaluate", "compare", "campaign", "ctc", "ctc-campaign")
 
 #: How long a rank waits in a collective for the others (their shares of the work may differ by hours).
 COLLECTIVE_TIMEOUT = datetime.timedelta(days=1)
@@ -62,9 +62,16 @@ def error_line(command: str, exc: BaseException, rank: int | None = None) -> str
         "torchmeshmetric compare: error: method 'b': 2 simplified frames but 3 original frames"
         >>> error_line("compare", ValueError("bad"), rank=1)
         'torchmeshmetric compare: error: rank 1: bad'
+        >>> err = ValueError("bad")
+        >>> err.__notes__ = ["while running frame pair 1 -> 2"]
+        >>> error_line("compare", err)
+        'torchmeshmetric compare: error: bad (while running frame pair 1 -> 2)'
     """
     text = str(exc).strip()
     message = text.splitlines()[0] if text else type(exc).__name__
+    notes = [n for n in getattr(exc, "__notes__", ()) if isinstance(n, str)]  # e.g. the task (tasks.name_task)
+    if notes:
+        message += f" ({'; '.join(notes)})"
     where = "" if rank is None else f"rank {rank}: "
     return f"torchmeshmetric {command}: error: {where}{message}"
 

@@ -20,6 +20,7 @@ from torch import Tensor
 from torchmeshmetric._checks import (
     IndexRangeError,
     ShapeError,
+    check_device,
     check_faces,
     check_finite,
     check_float,
@@ -296,6 +297,8 @@ def as_mesh(
         >>> as_mesh(trimesh.creation.box()).num_faces
         12
     """
+    if device is not None:
+        device = check_device(device)
     if isinstance(mesh, Mesh):
         if device is None and dtype is None:
             return mesh
@@ -351,9 +354,13 @@ def lengths_to_offsets(lengths: Tensor) -> Tensor:
     return torch.cat([lengths.new_zeros(1), lengths.cumsum(0)])
 
 
-def batch_index(lengths: Tensor) -> Tensor:
-    """``(B,)`` lengths → ``(sum lengths,)`` item index of every packed row."""
-    return torch.repeat_interleave(torch.arange(lengths.numel(), device=lengths.device), lengths)
+def batch_index(lengths: Tensor, total: int | None = None) -> Tensor:
+    """``(B,)`` lengths → ``(sum lengths,)`` item index of every packed row.
+
+    ``total`` (``sum lengths``, when the caller knows it from a shape) spares a device-to-host read of the sum on
+    CUDA (``repeat_interleave``'s ``output_size``).
+    """
+    return torch.repeat_interleave(torch.arange(lengths.numel(), device=lengths.device), lengths, output_size=total)
 
 
 def pack_points(points: Sequence[Any] | Tensor, lengths: Tensor | None = None, name: str = "points") -> PackedPoints:

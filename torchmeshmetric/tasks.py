@@ -129,6 +129,25 @@ def _to_cpu(obj: Any) -> Any:
     return obj
 
 
+def name_task(exc: BaseException, task: str) -> None:
+    """Add ``while running <task>`` to an exception's notes (``add_note``), keeping its type; once per task.
+
+    Example:
+        >>> err = ValueError("bad frame")
+        >>> name_task(err, "frame pair 1 -> 2")
+        >>> err.__notes__
+        ['while running frame pair 1 -> 2']
+    """
+    note = f"while running {task}"
+    notes = list(getattr(exc, "__notes__", []))
+    if note in notes:
+        return
+    if hasattr(exc, "add_note"):
+        exc.add_note(note)
+    else:  # pragma: no cover (Python 3.10: no add_note, the same attribute)
+        exc.__notes__ = [*notes, note]
+
+
 def _one_line(exc: BaseException) -> str:
     text = str(exc).strip()
     return f"{type(exc).__name__}: {text.splitlines()[0]}" if text else type(exc).__name__
@@ -237,6 +256,8 @@ def run_tasks(
 
     Raises:
         RankFailedError: on every rank, when a task raised on some rank or a rank died.
+        Exception: with one rank (or none), a task's own exception, its task added to its notes
+            (:func:`name_task`; the command line's error line shows them).
 
     Example:
         >>> run_tasks(lambda x: x * x, [1, 2, 3], describe=str)
@@ -253,7 +274,11 @@ def run_tasks(
         for n, i in enumerate(shard(len(tasks), rank, world_size), start=1):
             board.post(describe(tasks[i]))
             if world_size == 1:
-                mine.append((i, fn(tasks[i])))
+                try:
+                    mine.append((i, fn(tasks[i])))
+                except Exception as exc:  # its own type, the task named as two ranks name it
+                    name_task(exc, describe(tasks[i]))
+                    raise
             else:
                 try:
                     mine.append((i, _to_cpu(fn(tasks[i]))))

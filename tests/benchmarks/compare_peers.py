@@ -139,18 +139,11 @@ def test_fcpw(timed, size, query):
 
 
 def _warp_kernel():
-    wp = pytest.importorskip("warp")
-    wp.config.quiet = True
-    wp.init()
+    pytest.importorskip("warp")
+    from tests.benchmarks.warp_kernels import kernels  # Warp 1.2 cannot parse kernels of this module (annotations)
 
-    @wp.kernel
-    def closest(mesh: wp.uint64, pts: wp.array(dtype=wp.vec3), out: wp.array(dtype=float)):
-        i = wp.tid()
-        q = wp.mesh_query_point_no_sign(mesh, pts[i], 1.0e10)
-        if q.result:
-            out[i] = wp.length(pts[i] - wp.mesh_eval_position(mesh, q.face, q.u, q.v))
-
-    return wp, closest
+    k = kernels()
+    return k.wp, k.query_distance
 
 
 @pytest.mark.parametrize("query", QUERIES)

@@ -38,7 +38,10 @@ from torchmeshmetric import Mesh
 from torchmeshmetric.metrics import TemporalConsistencyLoss, temporal_consistency_loss
 
 DEVICES = [d for d in os.environ.get("TMM_BENCH_DEVICES", "cpu").split(",") if d]
-PAIRS = 8
+PAIRS = int(os.environ.get("TMM_BENCH_PAIRS", "8"))
+# Smaller cases for dry runs (tests/benchmarks/gpu_check.py --dry-run); the benchmark's figures use the defaults.
+RESOLUTION = int(os.environ.get("TMM_BENCH_RESOLUTION", "160"))
+SIMPLIFIED_FACES = int(os.environ.get("TMM_BENCH_SIMPLIFIED_FACES", "20000"))
 if os.environ.get("TMM_BENCH_THREADS"):
     torch.set_num_threads(int(os.environ["TMM_BENCH_THREADS"]))
 STEP = 1e-5  # vertex motion per step (a fraction of the ~2-unit figure): an optimiser's step
@@ -50,8 +53,8 @@ def case() -> dict[str, Any]:
     from torchmeshmetric.registration import RegistrationWarp, register_nonrigid
     from torchmeshmetric.simplification import simplify_qem
 
-    frames = demo_sequence(PAIRS + 1, resolution=160).frames
-    simplified = [simplify_qem(f, 20000) for f in frames]
+    frames = demo_sequence(PAIRS + 1, resolution=RESOLUTION).frames
+    simplified = [simplify_qem(f, SIMPLIFIED_FACES) for f in frames]
     warp = RegistrationWarp.from_registration(register_nonrigid(frames[0], frames[1]), frames[1])
     return {
         "originals": [Mesh(f.verts.float(), f.faces) for f in frames],
@@ -142,44 +145,11 @@ class WarpPeer:
     """The same loss with Warp's ``mesh_query_point_no_sign`` and its tape (see the module docstring)."""
 
     def __init__(self, device: str) -> None:
-        import warp as wp
+        from tests.benchmarks.warp_kernels import kernels
 
-        wp.config.quiet = True
-        wp.init()
+        k = kernels()
+        wp, query, distance = k.wp, k.closest_face, k.distance
         self.wp, self.device = wp, device
-
-        @wp.kernel
-        def query(
-            mesh: wp.uint64,
-            points: wp.array(dtype=wp.vec3),
-            face: wp.array(dtype=wp.int32),
-            bu: wp.array(dtype=wp.float32),
-            bv: wp.array(dtype=wp.float32),
-        ):
-            i = wp.tid()
-            q = wp.mesh_query_point_no_sign(mesh, points[i], 1.0e6)
-            face[i] = q.face
-            bu[i] = q.u
-            bv[i] = q.v
-
-        @wp.kernel
-        def distance(
-            points: wp.array(dtype=wp.vec3),
-            mesh_points: wp.array(dtype=wp.vec3),
-            indices: wp.array(dtype=wp.int32),
-            face: wp.array(dtype=wp.int32),
-            bu: wp.array(dtype=wp.float32),
-            bv: wp.array(dtype=wp.float32),
-            out: wp.array(dtype=wp.float32),
-        ):
-            i = wp.tid()
-            f = face[i]
-            a = mesh_points[indices[3 * f]]
-            b = mesh_points[indices[3 * f + 1]]
-            c = mesh_points[indices[3 * f + 2]]
-            closest = bu[i] * a + bv[i] * b + (1.0 - bu[i] - bv[i]) * c
-            out[i] = wp.length(points[i] - closest)
-
         self.query, self.distance = query, distance
         self.meshes: dict[Any, Any] = {}
         peer = self

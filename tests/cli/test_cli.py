@@ -128,9 +128,12 @@ def test_help_explains_every_option():
         "mpeg",
         "sample",
         "ctc",
+        "ctc-campaign",
+        "ctc-face-errors",
         "bdrate",
         "build",
         "validate",
+        "report",
         "temporal",
     }
     for name, sub in subparsers.items():

@@ -3,7 +3,9 @@ import json
 
 import pytest
 
+from torchmeshmetric._format import format_number
 from torchmeshmetric.cli import build_parser, main
+from torchmeshmetric.evaluation.reports import COLUMN_FORMATS
 
 pytestmark = pytest.mark.skipif(
     importlib.util.find_spec("torchmeshmetric.simplification") is None,
@@ -66,6 +68,10 @@ def _printed_tables(stdout):
     return tables
 
 
+def _printed(value, column):
+    return float(format_number(value, COLUMN_FORMATS[column]))
+
+
 def _check_tables_equal_report(stdout, report):
     tables = _printed_tables(stdout)
     assert set(tables) == set(_TABLES)
@@ -76,12 +82,11 @@ def _check_tables_equal_report(stdout, report):
             stats = body["aggregate"] if part == "aggregate" else body["pairs"][body["best_pair"]["index"]]
             for mesh, name in zip(("(k-1)-th", "k-th", "flicker"), sets, strict=False):
                 printed = tables[title][(method, mesh)]
-                expected = [stats[name][c] for c in _COLUMNS]
-                # printed with 4 significant digits
-                assert printed == pytest.approx(expected, rel=6e-4, abs=0), (title, method, mesh)
+                expected = [_printed(stats[name][c], c) for c in _COLUMNS]
+                assert printed == expected, (title, method, mesh)  # the report's digits (COLUMN_FORMATS)
             for what, label in (("residual", "residual to k"), ("error", "error to truth")):
-                expected = [float(stats["registration"][what][c]) for c in _COLUMNS]  # "inf" -> inf
-                assert tables[title][("Registration", label)] == pytest.approx(expected, rel=6e-4, abs=0)
+                expected = [_printed(float(stats["registration"][what][c]), c) for c in _COLUMNS]  # "inf" -> inf
+                assert tables[title][("Registration", label)] == expected
 
 
 def test_demo_printed_tables_equal_json_report(capsys, tmp_path, known_registration):

@@ -3,6 +3,7 @@ import math
 import pytest
 import torch
 
+from tests.cpu_personalities import OTHER_CPUS, run_as
 from torchmeshmetric import IndexRangeError, Mesh, point_mesh_distance
 from torchmeshmetric.data import BONE_NAMES, DemoSequence, demo_sequence
 
@@ -128,3 +129,42 @@ def test_bad_arguments(seq):
         seq.transfer(seq.frames[0].verts[:2], 0, 6)
     with pytest.raises(TypeError, match="src"):
         seq.transfer(seq.frames[0].verts[:2], 0.5, 1)
+
+
+_DIGEST = """
+import hashlib
+import torch
+from torchmeshmetric.data import demo_sequence
+
+seq = demo_sequence(3, resolution=24, seed=1, frames_per_cycle=5)
+h = hashlib.sha256()
+for f in seq.frames:
+    h.update(f.verts.numpy().tobytes())
+    h.update(f.faces.numpy().tobytes())
+x = seq.frames[0].verts[::7].double()
+for t in (seq.rotations, seq.translations, seq.sdf(x, 1), seq.skinning_weights(x, 2), seq.transfer(x, 0, 2)):
+    h.update(t.numpy().tobytes())
+print(h.hexdigest())
+"""
+
+
+@pytest.mark.pinned
+@pytest.mark.parametrize("personality", sorted(OTHER_CPUS))
+def test_same_bits_on_every_cpu(personality):
+    """The built-in sequence (frames, motion, field, skinning) is the same bits under every CPU personality (issue 38).
+
+    Before, numpy's per-instruction-set float32 exp/log and BLAS moved 3 to 5 vertices a frame by float32 ulps.
+    """
+    assert run_as(OTHER_CPUS[personality], _DIGEST) == run_as({}, _DIGEST)
+
+
+@pytest.mark.pinned
+def test_float64_frames_round_to_the_float32_frames():
+    a = demo_sequence(2, resolution=24)
+    b = demo_sequence(2, resolution=24, dtype=torch.float64)
+    for fa, fb in zip(a.frames, b.frames, strict=True):
+        assert fb.dtype == torch.float64 and torch.equal(fb.faces, fa.faces)
+        assert torch.equal(fb.verts.float(), fa.verts)  # one rounding apart
+        assert not torch.equal(fb.verts, fa.verts.double())
+    with pytest.raises(TypeError, match="dtype"):
+        demo_sequence(1, resolution=16, dtype=torch.int64)

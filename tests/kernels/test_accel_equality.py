@@ -287,6 +287,7 @@ def test_bvh_ready_reflects_the_compiled_extension():
     assert try_load("bvh") is not None and ready("bvh")
 
 
+@pytest.mark.cuda
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_cuda_matches_cpu_bruteforce(backend):

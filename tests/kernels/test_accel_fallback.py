@@ -33,7 +33,7 @@ def test_compile_failure_warns_once_and_falls_back(monkeypatch):
     ref = point_mesh_distance(points, verts, faces, backend="bruteforce")
     assert torch.equal(got.face_idx, ref.face_idx) and torch.equal(again.face_idx, ref.face_idx)
     assert torch.equal(got.dists, ref.dists)
-    with pytest.raises(loader.NativeBuildError, match=r"'bvh' could not be built \(RuntimeError: no C\+\+ compiler"):
+    with pytest.raises(loader.NativeBuildError, match=r"'bvh' could not be built: RuntimeError: no C\+\+ compiler"):
         loader.load("bvh")  # the outcome is kept for the process: no second attempt, the same error
 
 

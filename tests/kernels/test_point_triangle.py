@@ -245,6 +245,7 @@ def test_gradient_value_matches_analytic() -> None:
     torch.testing.assert_close(p.grad, torch.tensor([[0.0, 0.0, 1.0]], dtype=torch.float64))
 
 
+@pytest.mark.cuda
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA")
 def test_cpu_and_cuda_agree() -> None:
     m = _icosphere(3, torch.float32)
@@ -327,6 +328,7 @@ class TestBadInput:
     def test_errors_subclass_builtins(self) -> None:
         assert issubclass(ShapeError, ValueError) and issubclass(DTypeError, TypeError)
 
+    @pytest.mark.cuda
     @pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA")
     def test_mixed_devices(self) -> None:
         with pytest.raises(DeviceError, match="points on cpu"):

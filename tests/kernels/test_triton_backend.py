@@ -34,7 +34,14 @@ from torchmeshmetric.kernels.point_triangle import point_mesh_distance  # noqa: 
 
 DTYPES = [torch.float32, torch.float64]
 ROOT = Path(__file__).resolve().parents[2]
-CUDA = pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+_NEEDS_CUDA = pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
+
+
+def CUDA(test):  # noqa: N802  (a decorator named as the marks it applies)
+    """Selected by ``pytest -m cuda`` and skipped without a CUDA device."""
+    return pytest.mark.cuda(_NEEDS_CUDA(test))
+
+
 INTERPRETING = triton_traversal.interpreting()
 interpreted = pytest.mark.skipif(
     not INTERPRETING, reason="needs TRITON_INTERPRET=1 before triton's import: run by test_interpreter_suite"

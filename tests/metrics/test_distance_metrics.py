@@ -209,6 +209,7 @@ def test_to_device_cpu_and_dtype_kept(frames):
     assert m.compute()["ave"].dtype == torch.float64
 
 
+@pytest.mark.cuda
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA")
 def test_cuda_matches_cpu(frames):
     simps, refs = frames

@@ -118,8 +118,13 @@ def test_misfit_indexes_are_refused(frames, distance_sets):
         distance_sets(simp, ref, reference_index=IndexCache())
     with pytest.raises(ValueError, match="reference_index: expected an index built with referenced_only=True"):
         distance_sets(simp, ref, reference_index=MeshIndex(ref, referenced_only=False))
-    with pytest.raises(DTypeError, match=r"reference_index: .* dtype torch\.float64 .*found torch\.float32"):
+    narrower = r"{}: expected an index of dtype torch\.float64 .*found one of dtype torch\.float32.*MeshIndex\(mesh\.to"
+    with pytest.raises(DTypeError, match=narrower.format("reference_index")):
         distance_sets(simp, ref, reference_index=MeshIndex(ref.to(dtype=torch.float32)))
+    # The reverse direction follows the same rule: float64 reference vertices on a float32 simplified index.
+    simp32 = simp.to(dtype=torch.float32)
+    with pytest.raises(DTypeError, match=narrower.format("simplified_index")):
+        distance_sets(simp32, ref, two_sided=True, simplified_index=MeshIndex(simp32))
 
 
 def test_nearest_vertex_reference_index_needs_mesh_references(frames):
@@ -135,14 +140,26 @@ def test_sampled_surface_mode_refuses_an_index(frames):
         mesh_surface_distance_sets(simps[0], refs[0], surface_samples=100, reference_index=MeshIndex(refs[0]))
 
 
-def test_a_wider_index_measures_narrower_points():
+@pytest.mark.parametrize("distance_sets", SETS)
+def test_a_wider_index_measures_narrower_points(distance_sets):
     sphere = trimesh.creation.icosphere(subdivisions=2)
     points = torch.tensor([[0.0, 0.0, 2.0]])  # float32
     index = MeshIndex(sphere)  # float64
-    for distance_sets in SETS:
-        sets = distance_sets(points, sphere, reference_index=index)
-        assert sets.forward.dtype == torch.float64
-        assert torch.equal(sets.forward, distance_sets(points, sphere).forward)
+    sets = distance_sets(points, sphere, reference_index=index)
+    assert sets.forward.dtype == torch.float64
+    assert torch.equal(sets.forward, distance_sets(points, sphere).forward)
+
+
+@pytest.mark.parametrize("distance_sets", SETS)
+def test_indexes_in_the_promoted_dtype_answer_both_directions_of_a_mixed_pair(frames, distance_sets):
+    """float32 simplified, float64 reference: indexes built in float64 (the promoted dtype) serve both directions."""
+    simps, refs = frames
+    simp, ref = as_mesh(simps[0]).to(dtype=torch.float32), as_mesh(refs[0])
+    options = {"reference_index": MeshIndex(ref), "simplified_index": MeshIndex(simp.to(dtype=torch.float64))}
+    indexed = distance_sets(simp, ref, two_sided=True, **options)
+    plain = distance_sets(simp, ref, two_sided=True)
+    assert indexed.forward.dtype == indexed.reverse.dtype == torch.float64
+    assert torch.equal(indexed.forward, plain.forward) and torch.equal(indexed.reverse, plain.reverse)
 
 
 @pytest.mark.parametrize("distance_sets", SETS)

@@ -7,10 +7,10 @@ from pathlib import Path
 
 import pytest
 
-from tests.mpeg.conftest import MM, MPEG_REF
+from tests.mpeg.conftest import MM, MM_TESTS
 from torchmeshmetric.cli import main
 
-TESTS = MPEG_REF / "mmetric-tests"
+TESTS = MM_TESTS
 
 
 def _body(path: Path) -> list[str]:

@@ -11,7 +11,6 @@ printed figures are the oracle. mmetric prints 9 significant digits; on every se
 from __future__ import annotations
 
 import math
-import os
 import re
 import subprocess
 from pathlib import Path
@@ -20,7 +19,7 @@ import numpy as np
 import pytest
 import torch
 
-from tests.mpeg.conftest import REPO
+from tests.mpeg.conftest import MM, MPEG_REF
 from torchmeshmetric.mpeg import grid_sampling as gs
 from torchmeshmetric.mpeg.ctc import CTC_COLUMNS, CtcSequence, ctc_mean, ctc_sequence
 from torchmeshmetric.mpeg.dequantize import dequantize_positions, dequantize_uvs, position_scale
@@ -28,10 +27,7 @@ from torchmeshmetric.mpeg.reindex import oriented_reindex
 from torchmeshmetric.mpeg.textured_mesh import TexturedMesh, load_textured_mesh
 from torchmeshmetric.structures import Mesh
 
-# ../shared beside the checkout; TORCHMESHMETRIC_SHARED points elsewhere (a git worktree one level deeper)
-SHARED = Path(os.environ.get("TORCHMESHMETRIC_SHARED", str(REPO.parent / "shared")))
-MM_BIN = SHARED / "tools" / "mmetric" / "mm"
-MPEG_REF = SHARED / "reference" / "mpeg"
+MM_BIN = MM
 needs_mm = pytest.mark.skipif(not MM_BIN.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")
 TOL_DB = 1e-6
 

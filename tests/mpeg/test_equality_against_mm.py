@@ -12,13 +12,13 @@ import pytest
 import torch
 import trimesh
 
-from tests.mpeg.conftest import MM, MPEG_REF
+from tests.mpeg.conftest import MM, MM_TESTS
 from torchmeshmetric.mpeg import TexturedMesh, load_textured_mesh, mesh_equality
 from torchmeshmetric.structures import Mesh
 
 pytestmark = pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")
 
-TESTS = MPEG_REF / "mmetric-tests"
+TESTS = MM_TESTS
 # plane_multi_map uses two textures (the library refuses it: one texture per mesh)
 NAMES = sorted(p.stem for p in TESTS.glob("*.obj") if p.stem != "plane_multi_map")
 _LABELS = ("meshes are", "triangle number", "Position differences")

@@ -10,13 +10,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.mpeg.conftest import MM, MPEG_REF
+from tests.mpeg.conftest import MM, MM_TESTS
 from torchmeshmetric.mpeg import TexturedMesh, face_sample, load_textured_mesh
 from torchmeshmetric.structures import Mesh
 
 pytestmark = pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")
 
-TESTS = MPEG_REF / "mmetric-tests"
+TESTS = MM_TESTS
 
 
 def _read_ply(path: Path) -> np.ndarray:

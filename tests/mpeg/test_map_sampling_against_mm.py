@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 import torch
 
-from tests.mpeg.conftest import MM, MPEG_REF
+from tests.mpeg.conftest import MM, MM_TESTS, MPEG_REF
 from torchmeshmetric.mpeg import TexturedMesh, load_textured_mesh, map_sample
 from torchmeshmetric.structures import Mesh
 
 pytestmark = pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")
 
-TESTS = MPEG_REF / "mmetric-tests"
+TESTS = MM_TESTS
 
 
 def _check(obj: Path, texture: Path, tmp_path: Path) -> int:

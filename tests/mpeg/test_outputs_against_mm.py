@@ -13,12 +13,12 @@ from pathlib import Path
 
 import pytest
 
-from tests.mpeg.conftest import MM, MPEG_REF
+from tests.mpeg.conftest import MM, MM_TESTS
 from torchmeshmetric.cli import main
 
 pytestmark = pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")
 
-T = MPEG_REF / "mmetric-tests"
+T = MM_TESTS
 
 
 def _mm(*args: str) -> None:

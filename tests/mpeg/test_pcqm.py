@@ -10,13 +10,12 @@ import numpy as np
 import pytest
 import torch
 
-from tests.mpeg.conftest import MPEG_REF
+from tests.mpeg.conftest import MM_TESTS
 from torchmeshmetric._checks import EmptyInputError
 from torchmeshmetric.cli import main
 from torchmeshmetric.mpeg import PointCloud, load_model_cloud, mpeg_pcqm, pcqm_lightness, vertex_sample
 
-TESTS = MPEG_REF / "mmetric-tests"
-needs_tests = pytest.mark.skipif(not TESTS.is_dir(), reason="../shared/reference/mpeg/mmetric-tests absent")
+TESTS = MM_TESTS
 
 
 def _first_two(capsys: pytest.CaptureFixture[str], args: list[str]) -> list[str]:
@@ -24,7 +23,6 @@ def _first_two(capsys: pytest.CaptureFixture[str], args: list[str]) -> list[str]
     return capsys.readouterr().out.splitlines()[:2]
 
 
-@needs_tests
 def test_mmetric_scripts_assertions(capsys: pytest.CaptureFixture[str]) -> None:
     """mmetric's test-compare-pcqm.sh asserts PCQM-PSNR=inf for these two (plane with itself, sphere vs qp8)."""
     plane, tex = str(TESTS / "plane.obj"), str(TESTS / "plane.png")
@@ -33,7 +31,6 @@ def test_mmetric_scripts_assertions(capsys: pytest.CaptureFixture[str]) -> None:
     assert _first_two(capsys, [str(TESTS / "sphere.obj"), str(TESTS / "sphere_qp8.obj")])[1] == "PCQM-PSNR=inf"
 
 
-@needs_tests
 @pytest.mark.parametrize(
     ("a", "b", "extra", "printed"),
     [

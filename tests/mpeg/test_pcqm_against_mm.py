@@ -15,12 +15,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.mpeg.conftest import MM, MPEG_REF
+from tests.mpeg.conftest import MM, MM_TESTS
 from torchmeshmetric.cli import main
 
 pytestmark = pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")
 
-TESTS = MPEG_REF / "mmetric-tests"
+TESTS = MM_TESTS
 _OPTS = {"radius_curvature": "--radiusCurvature", "knn": "--thresholdKnnSearch", "radius_factor": "--radiusFactor"}
 _CLI = {"radius_curvature": "--radius-curvature", "knn": "--threshold-knn-search", "radius_factor": "--radius-factor"}
 
@@ -93,6 +93,10 @@ def test_sampled_textured_plane_clouds(dis: str, tmp_path: Path, capsys: pytest.
         ("plane.obj", "plane_irregular.obj", ("plane.png", "plane.png"), {"radius_curvature": 0.2, "knn": 8}),
         ("plane_shifted.obj", "plane_reorder.obj", ("plane_16_16.png", "plane_10_10.png"), {"radius_curvature": 0.1}),
         ("pyramid.obj", "triangles.obj", None, {"radius_curvature": 0.3}),
+        # extremes mm prints a figure for (issue 41): a radius whose square overflows, more neighbours than points
+        ("sphere.obj", "sphere_qp8.obj", None, {"radius_curvature": 1e200}),
+        ("plane.obj", "plane_irregular.obj", ("plane.png", "plane.png"), {"radius_curvature": 1e200}),
+        ("pyramid.obj", "triangles.obj", None, {"radius_curvature": 0.3, "knn": 5000}),
     ],
 )
 def test_meshes_sampled_as_mm(

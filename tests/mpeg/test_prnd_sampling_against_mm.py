@@ -10,12 +10,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.mpeg.conftest import MM, MPEG_REF
+from tests.mpeg.conftest import MM, MM_TESTS
 from torchmeshmetric.mpeg import TexturedMesh, load_textured_mesh, prnd_sample
 
 pytestmark = pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")
 
-TESTS = MPEG_REF / "mmetric-tests"
+TESTS = MM_TESTS
 
 
 def _check(obj: Path, texture: Path | None, n: int, tmp_path: Path, *extra: str) -> int:

@@ -9,12 +9,12 @@ from pathlib import Path
 import pytest
 import torch
 
-from tests.mpeg.conftest import MM, MPEG_REF
+from tests.mpeg.conftest import MM, MM_TESTS
 from torchmeshmetric.cli import main
 from torchmeshmetric.mpeg import PointCloud
 from torchmeshmetric.mpeg.sample_count_search import search_sample_count
 
-T = MPEG_REF / "mmetric-tests"
+T = MM_TESTS
 _needs_mm = pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")
 
 CASES = [

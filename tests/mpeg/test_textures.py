@@ -143,11 +143,9 @@ def test_material_numbering_follows_mmetric(tmp_path: Path) -> None:
 
 
 def test_mmetric_test_meshes(tmp_path: Path) -> None:
-    from tests.mpeg.conftest import MPEG_REF
+    from tests.mpeg.conftest import MM_TESTS
 
-    folder = MPEG_REF / "mmetric-tests"
-    if not folder.is_dir():
-        pytest.skip("mmetric's test meshes absent (../shared/reference/mpeg/mmetric-tests)")
+    folder = MM_TESTS
     t = load_textured_mesh(folder / "plane.obj")
     assert t.has_color and t.texture is not None and t.uvs is not None
     with pytest.raises(MeshFileError, match=r"different textures \('material0000' \(plane\.png\), 'material0001'"):

@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 import trimesh
 
-from tests.mpeg.conftest import MM, MPEG_REF
+from tests.mpeg.conftest import MM, MM_TESTS
 from torchmeshmetric.cli import main
 from torchmeshmetric.mpeg import TfanMesh, load_tfan_mesh, tfan_equality
 
-T = MPEG_REF / "mmetric-tests"
+T = MM_TESTS
 _needs_mm = pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")
 _LABELS = ("meshes are", " meshes are", "the geometry", "the texture", "Position differences", "UV coords differences")
 _LABELS += ("Colors differences", "Normals differences")

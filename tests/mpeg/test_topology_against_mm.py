@@ -15,12 +15,12 @@ import pytest
 import torch
 import trimesh
 
-from tests.mpeg.conftest import MM, MPEG_REF
+from tests.mpeg.conftest import MM, MM_TESTS
 from torchmeshmetric.mpeg import TopologyMapError, load_textured_mesh, topology_equivalence
 
 pytestmark = pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")
 
-TESTS = MPEG_REF / "mmetric-tests"
+TESTS = MM_TESTS
 
 
 def _mm(a: Path, b: Path, faces: Path, verts: Path) -> tuple[str, str]:

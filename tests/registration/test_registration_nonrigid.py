@@ -170,6 +170,7 @@ def test_nonrigid_bad_inputs():
         register_nonrigid((v, f), (v, f), correspondence_every=0)
 
 
+@pytest.mark.cuda
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs a CUDA device")
 def test_nonrigid_cpu_cuda_agree():
     m = trimesh.creation.icosphere(subdivisions=2)

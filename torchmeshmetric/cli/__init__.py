@@ -4,12 +4,16 @@ Commands:
   evaluate  evaluate one simplified sequence against its original frames (the paper's Fig. 2)
   compare   evaluate several simplification methods on one original sequence (Tables I-IV side by side)
   campaign  evaluate several sequences, each with several methods, listed in a TOML manifest
+  report    an existing report as one offline HTML page (tables, curves, 3D viewer); --html on the commands above
   simplify  simplify every frame of a sequence with QEM, Registered QEM or tracking (Anchored QEM + slide)
   register  register one mesh (frame k-1) onto another (frame k), rigid then non-rigid
   demo      the main job: built-in sequence -> QEM and Registered QEM -> evaluation, tables, report and plots
   mpeg      MPEG D1/D2 (and colour) PSNR of one mesh pair, equal to mmetric's figures
   sample    a mesh to the point cloud mmetric's mm sample writes (face, sdiv, ediv, prnd, map)
   ctc       the V-DMC CTC metric step on a decoded sequence (grid D1/D2/colour and IBSM, mmetric's chain)
+  ctc-campaign  a whole V-DMC CTC campaign: every sequence, rate and frame of a test codec and an anchor, the
+            test model's CSV and the CTC sheet's summary (BD-rates, bpif, ratios), resumable
+  ctc-face-errors  a decoded frame's CTC grid-sample errors per face (D1, D2, colour) as PLY/CSV
   bdrate    BD-rate of a test codec against an anchor, per metric (the CTC spreadsheet's bdRateExtend)
   validate  which distance sets respond to which controlled distortion (noise, offsets, flicker, registration)
   temporal  KG, KSO and STED of a distorted sequence (registered forms when the connectivity changes)
@@ -18,8 +22,9 @@ Commands:
 Errors (missing or corrupt files, frame-count mismatch, unwritable output) end with a one-line message on stderr
 and exit code 1; reports are written atomically and never half-written. Set TORCHMESHMETRIC_DEBUG=1 for tracebacks.
 
-evaluate, compare and campaign also run under torchrun (torchrun --nproc-per-node N -m torchmeshmetric ...): the
-processes share the work and rank 0 prints and writes the same report as one process (docs/scaling.md).
+evaluate, compare, campaign, ctc and ctc-campaign also run under torchrun (torchrun --nproc-per-node N -m
+torchmeshmetric ...): the processes share the work and rank 0 prints and writes the same report as one process
+(docs/scaling.md).
 """
 
 # How the command line is built (docs/architecture.md): COMMANDS below is the one table of commands, as pip's
@@ -74,6 +79,11 @@ COMMANDS: dict[str, CommandInfo] = {
         "add_campaign_command",
         "evaluate a test campaign: several sequences, each with several methods (TOML manifest)",
     ),
+    "report": CommandInfo(
+        "torchmeshmetric.cli.report",
+        "add_report_command",
+        "an existing report (REPORT.json + REPORT.md) as one offline HTML page",
+    ),
     "simplify": CommandInfo(
         "torchmeshmetric.cli.simplify",
         "add_simplify_command",
@@ -103,6 +113,16 @@ COMMANDS: dict[str, CommandInfo] = {
         "torchmeshmetric.cli.ctc",
         "add_ctc_command",
         "the V-DMC CTC metric step on a decoded sequence (mmetric's sequence chain: grid D1/D2/colour, IBSM)",
+    ),
+    "ctc-campaign": CommandInfo(
+        "torchmeshmetric.cli.ctc_campaign",
+        "add_ctc_campaign_command",
+        "a whole V-DMC CTC campaign (TOML manifest): every sequence, rate and frame, the CTC sheet's summary",
+    ),
+    "ctc-face-errors": CommandInfo(
+        "torchmeshmetric.cli.ctc_face_errors",
+        "add_ctc_face_errors_command",
+        "a decoded frame's CTC errors per face (D1, D2, colour; mean and max) as PLY and CSV",
     ),
     "bdrate": CommandInfo(
         "torchmeshmetric.cli.bdrate",

@@ -8,13 +8,13 @@ from __future__ import annotations
 
 import contextlib
 import os
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 from torchmeshmetric._atomic import atomic_file_set, blocking_file
 
-__all__ = ["CLIError", "check_folder", "check_writable", "make_folder", "output_set"]
+__all__ = ["CLIError", "check_folder", "check_writable", "folder_inputs", "make_folder", "output_set"]
 
 
 class CLIError(Exception):
@@ -54,14 +54,81 @@ def output_set(what: str) -> Iterator[Any]:
         raise CLIError(f"could not write {what}: {reason}{where}; none of its files was written") from exc
 
 
-def check_writable(paths: Sequence[Path], overwrite: bool) -> None:
-    """Fail before any computation when an output cannot be written."""
-    for path in paths:
+def _identity(path: Path) -> tuple[object, ...]:
+    """What makes two paths one file: an existing file's device and inode (any spelling or link), else its path."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return ("path", os.path.normcase(os.path.realpath(path)))
+    return ("inode", st.st_dev, st.st_ino)
+
+
+def folder_inputs(option: str, folder: str | os.PathLike[str] | None) -> list[tuple[str, Path]]:
+    """The frames of an input folder, as :func:`check_writable` inputs (none where it is no folder)."""
+    if folder is None or not Path(folder).is_dir():
+        return []
+    from torchmeshmetric.data.frames import list_frames
+
+    return [(option, p) for p in list_frames(folder)]
+
+
+def _labels(what: str | Sequence[str], n: int) -> list[str]:
+    return [what] * n if isinstance(what, str) else list(what)
+
+
+def check_writable(
+    paths: Sequence[Path],
+    overwrite: bool,
+    *,
+    inputs: Iterable[tuple[str, str | os.PathLike[str] | None]],
+    what: str | Sequence[str] = "output",
+    appended: Sequence[tuple[str, Path]] = (),
+) -> None:
+    """The one check of a command's output set, made before any computation (every command that writes calls it).
+
+    In this order: no output is one of the command's input files (the same file under any spelling, symbolic or
+    hard link: ``--overwrite`` replaces earlier outputs, never inputs); the outputs are distinct files (two options
+    naming one file would lose one of them); each output's folder exists and is writable, the output is not a
+    folder, and it exists only with ``overwrite``. Files in ``appended`` (a CSV mmetric appends rows to) take part
+    in the first two checks and may exist.
+
+    Args:
+        paths: the files the command replaces or creates.
+        overwrite: ``--overwrite`` was given.
+        inputs: ``(option, path)`` of every file the command reads (``None`` paths are skipped); a folder's files
+            are listed by the caller.
+        what: the option naming every path, or one option per path (for messages).
+        appended: ``(option, path)`` of files the command appends to.
+
+    Raises:
+        CLIError: naming the option(s) and the file.
+    """
+    labelled = [*zip(_labels(what, len(paths)), paths, strict=True), *appended]
+    read: dict[tuple[object, ...], tuple[str, str]] = {}
+    for option, path in inputs:
+        if path is not None:
+            read.setdefault(_identity(Path(path)), (option, str(path)))
+    seen: dict[tuple[object, ...], tuple[str, Path]] = {}
+    for option, path in labelled:
+        key = _identity(path)
+        if key in read:
+            source, given = read[key]
+            raise CLIError(
+                f"{option} {str(path)!r} is the input {source} {given!r}: a command never writes its inputs "
+                "(--overwrite replaces earlier outputs only); choose another output file"
+            )
+        if key in seen:
+            other, first = seen[key]
+            raise CLIError(
+                f"{option} {str(path)!r} is also {other} {str(first)!r}: the outputs of one run must be distinct files"
+            )
+        seen[key] = (option, path)
+    for (option, path), replace in zip(labelled, [overwrite] * len(paths) + [True] * len(appended), strict=True):
         folder = path.parent if str(path.parent) else Path(".")
         check_folder(folder, "output folder")
         if not os.access(folder, os.W_OK):
             raise CLIError(f"output folder {str(folder)!r} is not writable")
         if path.is_dir():
-            raise CLIError(f"output {str(path)!r} is a directory, expected a file")
-        if path.exists() and not overwrite:
-            raise CLIError(f"output {str(path)!r} already exists (pass --overwrite to replace it)")
+            raise CLIError(f"{option} {str(path)!r} is a directory, expected a file")
+        if path.exists() and not replace:
+            raise CLIError(f"{option} {str(path)!r} already exists (pass --overwrite to replace it)")

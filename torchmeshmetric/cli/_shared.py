@@ -27,7 +27,7 @@ from torchmeshmetric.mpeg.sequence import mpeg_csv, mpeg_markdown, mpeg_sequence
 from torchmeshmetric.registration.cache import RegistrationCache
 from torchmeshmetric.registration.options import DEFAULT_SCHEDULE
 from torchmeshmetric.tasks import is_distributed, rank_and_world_size
-from torchmeshmetric.viz.plots import plot_mpeg_curves
+from torchmeshmetric.viz.plots import mpeg_figure, png_bytes
 
 __all__ = [
     "device_of",
@@ -36,11 +36,13 @@ __all__ = [
     "evaluate_method",
     "evaluate_methods",
     "fast_registration_options",
+    "html_layers",
     "load_frames",
     "parse_methods",
     "progress",
     "report_paths",
     "simplify_frames",
+    "temporal_methods",
     "write_reports",
 ]
 
@@ -65,12 +67,16 @@ def device_of(args: argparse.Namespace) -> str:
     return str(args.device)
 
 
-def report_paths(out: str | None, mpeg: bool = False) -> dict[str, Path]:
-    """The report files of ``--out REPORT.json``: ``.json``, ``.md``, ``.csv`` (and the ``--mpeg`` ones)."""
+def report_paths(out: str | None, mpeg: bool = False, html: bool = False) -> dict[str, Path]:
+    """The report files of ``--out REPORT.json``: ``.json``, ``.md``, ``.csv`` (and the ``--mpeg``, ``--html`` ones)."""
     if out is None:
+        if html:
+            raise CLIError("--html: the page is written beside the report, so it needs --out REPORT.json")
         return {}
     json_path = Path(out)
     paths = {"json": json_path, "md": json_path.with_suffix(".md"), "csv": json_path.with_suffix(".csv")}
+    if html:
+        paths["html"] = json_path.with_suffix(".html")
     if mpeg:
         paths.update(mpeg_csv=json_path.with_suffix(".mpeg.csv"), mpeg_png=json_path.with_suffix(".mpeg.png"))
     return paths
@@ -102,8 +108,12 @@ def write_reports(
     mpeg: dict[str, Any] | None = None,
     comparisons: dict[str, Any] | None = None,
     temporal: dict[str, Any] | None = None,
+    meshes: Sequence[Any] = (),
 ) -> None:
-    """Write the JSON, Markdown and CSV reports (and the --mpeg ones) as one set; nothing when no --out."""
+    """Write the JSON, Markdown and CSV reports (and the --mpeg, --html ones) as one set; nothing when no --out.
+
+    ``meshes``: the layers of the ``--html`` page's viewer (:func:`html_layers`).
+    """
     if not paths:
         return
     report = report_dict(methods, settings=settings, comparisons=comparisons)
@@ -121,10 +131,57 @@ def write_reports(
         write_json(paths["json"], report, overwrite=overwrite)
         write_markdown(paths["md"], methods, overwrite=overwrite, extra=extra, comparisons=comparisons)
         write_csv(paths["csv"], methods, overwrite=overwrite)
+        figures: list[tuple[str, bytes]] = []  # the --html page's PNGs besides its own
         if mpeg:
             written.append(atomic_write(paths["mpeg_csv"], mpeg_csv(mpeg), overwrite=overwrite))
-            written.append(plot_mpeg_curves(mpeg, paths["mpeg_png"], overwrite=overwrite))
+            mpeg_png = png_bytes(mpeg_figure(mpeg))
+            written.append(atomic_write(paths["mpeg_png"], mpeg_png, overwrite=overwrite))
+            figures.append(("MPEG PSNR per frame", mpeg_png))
+        if "html" in paths:
+            written.append(_write_html_report(paths, report, methods, extra, comparisons, figures, meshes, overwrite))
     print("wrote " + ", ".join(str(p) for p in written), file=sys.stderr)
+
+
+def _write_html_report(
+    paths: dict[str, Path],
+    report: dict[str, Any],
+    methods: dict[str, Any],
+    extra: str,
+    comparisons: dict[str, Any] | None,
+    figures: list[tuple[str, bytes]],
+    meshes: Sequence[Any],
+    overwrite: bool,
+) -> Path:
+    """The ``--html`` page of a report: its Markdown, curves, the best pair's histograms, ``figures``, the meshes."""
+    from torchmeshmetric.evaluation.reports import markdown_report
+    from torchmeshmetric.viz.html_report import report_page, write_html
+    from torchmeshmetric.viz.plots import histogram_figure
+
+    best = next(iter(methods.values())).best_pair_index()
+    histograms = png_bytes(histogram_figure({n: r.pairs[best] for n, r in methods.items()}))
+    figures = [("distance sets of the best pair", histograms), *figures]
+    markdown = markdown_report(methods, extra=extra, comparisons=comparisons)
+    page = report_page(
+        report, markdown, title=f"torchmeshmetric report: {paths['json'].stem}", figures=figures, meshes=meshes
+    )
+    return write_html(paths["html"], page, overwrite=overwrite)
+
+
+def html_layers(
+    results: dict[str, Any], original: list[Any], methods: dict[str, list[Any]], cache: RegistrationCache, args: Any
+) -> list[Any]:
+    """The ``--html`` viewer's meshes of the best pair; its registration taken from ``cache`` (computed if absent)."""
+    from torchmeshmetric.evaluation.pipeline import register_pairs
+    from torchmeshmetric.viz.html_report import best_pair_layers
+
+    if not getattr(args, "html", False) or not results:
+        return []
+    first = next(iter(results.values()))
+    k = first.pairs[first.best_pair_index()].frame
+    (registration,) = register_pairs(
+        original[k - 1 : k + 1], registration_cache=cache, device=device_of(args), backend=args.backend
+    )
+    return best_pair_layers(results, original, methods, registration.registered_mesh(original[k - 1]))
 
 
 def mpeg_methods(original: list[Any], methods: dict[str, list[Any]], args: argparse.Namespace) -> dict[str, Any]:
@@ -207,12 +264,14 @@ def evaluate_methods(
     device: str,
     *,
     registration_options: dict[str, Any] | None = None,
+    cache: RegistrationCache | None = None,
 ) -> dict[str, Any] | None:
     """Every method evaluated against the original frames, sharing the registrations; ``None`` on torchrun ranks > 0.
 
     ``registration_options``: options of the default registration, the same on the local and the torchrun path.
+    ``cache``: the registration cache (default: one on ``--cache-dir``), kept by a caller that reuses it.
     """
-    cache = RegistrationCache(args.cache_dir)
+    cache = RegistrationCache(args.cache_dir) if cache is None else cache
     check_methods(original, methods)  # every method's count before any work
     if is_distributed():  # shared by the ranks of the torchrun job
         return evaluate_across_ranks(

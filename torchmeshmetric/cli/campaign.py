@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from torchmeshmetric.cli.options import add_cache_dir, add_command, add_temporal, common_options
+from torchmeshmetric.cli.options import add_cache_dir, add_command, add_html, add_temporal, common_options
 
 __all__ = ["add_campaign_command", "run"]
 
@@ -21,7 +21,7 @@ def run(args: argparse.Namespace) -> int:
     campaign.json/.md/.csv and one report per sequence (<sequence>.json/.md/.csv). Under torchrun the work is shared
     by all processes.
     """
-    from torchmeshmetric.cli._outputs import check_writable, make_folder, output_set
+    from torchmeshmetric.cli._outputs import CLIError, check_writable, folder_inputs, make_folder, output_set
     from torchmeshmetric.cli._shared import (
         device_of,
         dtype_of,
@@ -46,13 +46,21 @@ def run(args: argparse.Namespace) -> int:
     from torchmeshmetric.evaluation.reports import write_json
     from torchmeshmetric.registration.cache import RegistrationCache
 
+    if args.html and args.out_dir is None:
+        raise CLIError("--html: the pages are written beside the reports, so it needs --out-dir")
     device = device_of(args)
     campaign = load_campaign(args.manifest)
     out = None if args.out_dir is None else Path(args.out_dir)
     stems = [COMBINED] + [report_name(s.name) for s in campaign.sequences]
     if out is not None:
-        targets = [out / f"{stem}.{ext}" for stem in stems for ext in ("json", "md", "csv")]
-        check_writable(targets if out.is_dir() else [out], args.overwrite)
+        exts = ("json", "md", "csv", "html") if args.html else ("json", "md", "csv")
+        targets = [out / f"{stem}.{ext}" for stem in stems for ext in exts]
+        inputs: list[tuple[str, Any]] = [("MANIFEST", args.manifest)]
+        for seq in campaign.sequences:
+            inputs += folder_inputs(f"sequence {seq.name!r}: original", seq.original)
+            for m, d in seq.methods.items():
+                inputs += folder_inputs(f"sequence {seq.name!r}: method {m!r}", d)
+        check_writable(targets if out.is_dir() else [out], args.overwrite, inputs=inputs, what="--out-dir")
     sequences = []
     for seq in campaign.sequences:
         original = load_frames(str(seq.original), f"sequence {seq.name!r}: original", dtype_of(args))
@@ -81,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
         for name, original, methods in sequences
     }
     if out is None:
-        return 0
+        return 0  # (--html without --out-dir was refused before any work)
     settings: dict[str, Any] = {
         "campaign": str(campaign.path),
         "two_sided": campaign.two_sided,
@@ -94,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
         for seq, stem in zip(campaign.sequences, stems[1:], strict=True):
             folders = {m: str(d) for m, d in seq.methods.items()}
             sequence_settings = {**settings, "sequence": seq.name, "original": str(seq.original), "methods": folders}
-            paths = report_paths(str(out / f"{stem}.json"))
+            paths = report_paths(str(out / f"{stem}.json"), html=args.html)
             # The same comparisons `compare` writes for these methods (default margin; none for a single method).
             comparisons = compare_methods(results[seq.name]) if len(results[seq.name]) >= 2 else None
             write_reports(
@@ -109,6 +117,14 @@ def run(args: argparse.Namespace) -> int:
         write_json(out / f"{COMBINED}.json", combined, overwrite=args.overwrite)
         write_campaign_markdown(out / f"{COMBINED}.md", results, overwrite=args.overwrite)
         write_campaign_csv(out / f"{COMBINED}.csv", results, overwrite=args.overwrite)
+        if args.html:
+            from torchmeshmetric.evaluation.campaign import campaign_markdown
+            from torchmeshmetric.viz.html_report import report_page, write_html
+
+            page = report_page(
+                combined, campaign_markdown(results), title=f"torchmeshmetric campaign: {campaign.path.name}"
+            )
+            write_html(out / f"{COMBINED}.html", page, overwrite=args.overwrite)
     print(f"wrote {out / COMBINED}.json/.md/.csv and one report per sequence", file=sys.stderr)
     return 0
 
@@ -126,3 +142,4 @@ def add_campaign_command(sub: Any) -> None:
     add_cache_dir(p, "registration cache folder (overrides the manifest's cache_dir); a rerun resumes from it")
     add_temporal(p)
     p.add_argument("--overwrite", action="store_true", help="replace existing reports in --out-dir")
+    add_html(p, "also write every report as one offline page (.html): tables, curves (per sequence)")

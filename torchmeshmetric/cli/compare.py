@@ -19,11 +19,12 @@ def run(args: argparse.Namespace) -> int:
     'inconclusive': the interval contains 0, or the difference is below the registration's noise floor (k-1 and
     flicker sets) or the relative margin), in the report's 'comparisons' and as verdict tables.
     """
-    from torchmeshmetric.cli._outputs import check_writable
+    from torchmeshmetric.cli._outputs import check_writable, folder_inputs
     from torchmeshmetric.cli._shared import (
         device_of,
         dtype_of,
         evaluate_methods,
+        html_layers,
         load_frames,
         mpeg_methods,
         parse_methods,
@@ -33,19 +34,24 @@ def run(args: argparse.Namespace) -> int:
     )
     from torchmeshmetric.evaluation.comparison import compare_methods, comparison_markdown
     from torchmeshmetric.evaluation.reports import paper_tables
+    from torchmeshmetric.registration.cache import RegistrationCache
 
     device = device_of(args)
     specs = parse_methods(args.method)
-    paths = report_paths(args.out, args.mpeg)
-    check_writable(list(paths.values()), args.overwrite)
+    paths = report_paths(args.out, args.mpeg, args.html)
+    inputs = folder_inputs("--original", args.original)
+    for spec in args.method:
+        inputs += folder_inputs("--method", spec.partition("=")[2])
+    check_writable(list(paths.values()), args.overwrite, inputs=inputs, what="--out")
     original = load_frames(args.original, "--original", dtype_of(args))
     frames = {name: load_frames(d, f"--method {name}", dtype_of(args)) for name, d in specs.items()}
-    results = evaluate_methods(original, frames, args, device)
+    cache = RegistrationCache(args.cache_dir)  # kept: the --html page shows the best pair's registration
+    results = evaluate_methods(original, frames, args, device, cache=cache)
     if results is None:  # a torchrun rank other than 0: rank 0 reports
         return 0
     print(paper_tables(results))
     mpeg = mpeg_methods(original, frames, args)
-    temporal = temporal_methods(original, frames, args, device)
+    temporal = temporal_methods(original, frames, args, device, cache=cache)
     comparisons = None
     if len(results) >= 2:
         comparisons = compare_methods(results, relative_margin=args.relative_margin)
@@ -57,7 +63,8 @@ def run(args: argparse.Namespace) -> int:
         "relative_margin": args.relative_margin,
         "dtype": args.dtype,
     }
-    write_reports(paths, results, settings, args.overwrite, mpeg, comparisons, temporal)
+    meshes = html_layers(results, original, frames, cache, args) if paths else []
+    write_reports(paths, results, settings, args.overwrite, mpeg, comparisons, temporal, meshes=meshes)
     return 0
 
 

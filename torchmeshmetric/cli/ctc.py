@@ -12,7 +12,6 @@ import csv
 import io
 import json
 import math
-import re
 import sys
 import time
 from pathlib import Path
@@ -20,26 +19,9 @@ from typing import Any
 
 from torchmeshmetric._format import format_number, json_safe
 from torchmeshmetric.cli.options import corner
+from torchmeshmetric.mpeg.frame_pattern import frame_path
 
 __all__ = ["add_ctc_command", "frame_path"]
-
-_FIELD = re.compile(r"%[-+ #0]*\d*[diu]")
-
-
-def frame_path(pattern: str, frame: int, option: str = "PATTERN") -> str:
-    """One frame's file name from a printf frame pattern such as ``dec_%04d.obj`` (mmetric's convention).
-
-    Raises:
-        ValueError: the pattern has no integer field, or more than one conversion.
-
-    Example:
-        >>> frame_path("dec_%04d.obj", 7)
-        'dec_0007.obj'
-    """
-    fields = _FIELD.findall(pattern.replace("%%", ""))
-    if len(fields) != 1 or pattern.replace("%%", "").count("%") != 1:
-        raise ValueError(f"{option}: expected one printf integer field such as dec_%04d.obj, found {pattern!r}")
-    return pattern % frame
 
 
 def _fmt(x: Any) -> str:
@@ -128,10 +110,20 @@ def _check_colour(args: argparse.Namespace, k: int, ref: Any, dis: Any, first: d
 def _run_ctc(args: argparse.Namespace) -> int:
     lo, hi = _check_options(args)
     files = _frame_files(args)
-    outputs = [] if args.out is None else [Path(f"{args.out}.{ext}") for ext in ("json", "csv", "md")]
+    if args.html and args.out is None:
+        raise ValueError("--html: the page is written beside the report, so it needs --out REPORT")
+    exts = ("json", "csv", "md", "html") if args.html else ("json", "csv", "md")
+    outputs = [] if args.out is None else [Path(f"{args.out}.{ext}") for ext in exts]
     from torchmeshmetric.cli._outputs import check_writable
 
-    check_writable(outputs, args.overwrite)  # folder present and writable, no file replaced without --overwrite
+    inputs = [
+        (option, p)
+        for frame in files
+        for option, p in zip(
+            ("--reference", "--decoded", "--reference-texture", "--decoded-texture"), frame[1:], strict=True
+        )
+    ]
+    check_writable(outputs, args.overwrite, inputs=inputs, what="--out")  # never an input, distinct, writable
     from torchmeshmetric.mpeg.ctc import CTC_COLUMNS, CtcSequence
 
     done = _compute(args, files, lo, hi)
@@ -218,6 +210,12 @@ def _report(args: argparse.Namespace, seq: Any, lo: list[float], hi: list[float]
                          overwrite=args.overwrite)  # fmt: skip
             atomic_write(outputs[1], _csv(d, columns), overwrite=args.overwrite)
             atomic_write(outputs[2], _markdown(d, columns, settings), overwrite=args.overwrite)
+            if args.html:
+                from torchmeshmetric.viz.html_report import report_page, write_html
+
+                page = report_page(json_safe({**d, "settings": settings}), _markdown(d, columns, settings),
+                                   title=f"V-DMC CTC metrics: {Path(args.out).name}")  # fmt: skip
+                write_html(outputs[3], page, overwrite=args.overwrite)
     if args.json:
         print(json.dumps(json_safe(d), indent=1))
     else:
@@ -264,6 +262,7 @@ def add_ctc_command(sub: Any) -> None:
     p.add_argument("--json", action="store_true", help='print {"frames": [...], "mean": {...}} (non-finite: "inf")')
     p.add_argument("--out", default=None, metavar="REPORT", help="write REPORT.json, REPORT.csv, REPORT.md")
     p.add_argument("--overwrite", action="store_true", help="replace existing --out files")
+    p.add_argument("--html", action="store_true", help="also write REPORT.html: the report as one offline page")
     p.add_argument(
         "--verbose", action="store_true", help="seconds per stage (read, dequantize, grid, pcc, ibsm) on stderr"
     )

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 from torchmeshmetric.cli.options import (
     add_command,
+    add_html,
     add_target,
     add_weight,
     common_options,
@@ -155,7 +156,8 @@ def _write_demo(
         "dtype": args.dtype,
     }
     with output_set("the demo's outputs") as files:
-        write_json(out_dir / "report.json", report_dict(results, settings=settings), overwrite=True)
+        report = report_dict(results, settings=settings)
+        write_json(out_dir / "report.json", report, overwrite=True)
         write_markdown(out_dir / "report.md", results, overwrite=True)
         write_csv(out_dir / "report.csv", results, overwrite=True)
         written = ["report.json", "report.md", "report.csv"]
@@ -166,8 +168,11 @@ def _write_demo(
                 for k, mesh in enumerate(simp):
                     save_mesh(mesh, out_dir / slug / f"frame_{k:03d}.ply", overwrite=True)
             written.append("<method>/frame_*.ply")
+        figures: list[tuple[str, bytes]] = []
         if not args.no_plots:
-            written += _demo_plots(out_dir, results, simplified)
+            written += _demo_plots(out_dir, results, simplified, figures)
+        if args.html:
+            written.append(_demo_html(out_dir, frames, results, simplified, registrations, report, figures))
         if args.weights:
             written += _demo_sweep(out_dir, frames, registrations, args, device, ground_truth, not args.no_plots)
     return written
@@ -203,17 +208,59 @@ def _demo_sweep(
     return written
 
 
-def _demo_plots(out_dir: Path, results: dict[str, Any], simplified: dict[str, list[Any]]) -> list[str]:
-    """Histograms and curves (PNG), and each method's best frame coloured by its error (PLY, one colour scale).
-
-    The colour is the distance of each simplified vertex to the registered frame k-1 (temporal consistency).
-    """
-    from torchmeshmetric.viz.colors import write_error_ply
-    from torchmeshmetric.viz.plots import plot_frame_curves, plot_histograms
+def _demo_html(
+    out_dir: Path,
+    frames: list[Any],
+    results: dict[str, Any],
+    simplified: dict[str, list[Any]],
+    registrations: list[Any],
+    report: dict[str, Any],
+    figures: list[tuple[str, bytes]],
+) -> str:
+    """``report.html``: the report's page with the PNGs of --plots (or, with --no-plots, drawn for the page)."""
+    from torchmeshmetric.evaluation.reports import markdown_report
+    from torchmeshmetric.viz.html_report import best_pair_layers, report_page, write_html
+    from torchmeshmetric.viz.plots import histogram_figure, png_bytes
 
     best = next(iter(results.values())).best_pair_index()
-    plot_histograms({n: r.pairs[best] for n, r in results.items()}, out_dir / "histograms.png", overwrite=True)
-    plot_frame_curves(results, out_dir / "frame_curves.png", overwrite=True)
+    draw_curves = not figures  # with plots, `figures` holds the PNGs just written (curves, histograms): not redrawn
+    if not figures:
+        pairs = {n: r.pairs[best] for n, r in results.items()}
+        figures = [("distance sets of the best pair", png_bytes(histogram_figure(pairs)))]
+    k = next(iter(results.values())).pairs[best].frame
+    registered = registrations[k - 1].registered_mesh(frames[k - 1])
+    # the built-in performer is ~1.9 units tall (data.demo): its distances are in those units
+    meshes = best_pair_layers(results, frames, simplified, registered, unit="units (performer ~1.9 tall)")
+    page = report_page(
+        report,
+        markdown_report(results),
+        title="torchmeshmetric demo: QEM vs Registered QEM",
+        figures=figures,
+        meshes=meshes,
+        curves=draw_curves,
+    )
+    return write_html(out_dir / "report.html", page, overwrite=True).name
+
+
+def _demo_plots(
+    out_dir: Path, results: dict[str, Any], simplified: dict[str, list[Any]], figures: list[tuple[str, bytes]]
+) -> list[str]:
+    """Histograms and curves (PNG), and each method's best frame coloured by its error (PLY, one colour scale).
+
+    The colour is the distance of each simplified vertex to the registered frame k-1 (temporal consistency). The
+    PNGs are appended to ``figures`` (for the --html page, which shows them as they are).
+    """
+    from torchmeshmetric._atomic import atomic_write
+    from torchmeshmetric.viz.colors import write_error_ply
+    from torchmeshmetric.viz.html_report import CURVES_CAPTION
+    from torchmeshmetric.viz.plots import frame_curves_figure, histogram_figure, png_bytes
+
+    best = next(iter(results.values())).best_pair_index()
+    curves = png_bytes(frame_curves_figure({n: [p.as_dict() for p in r.pairs] for n, r in results.items()}))
+    histograms = png_bytes(histogram_figure({n: r.pairs[best] for n, r in results.items()}))
+    atomic_write(out_dir / "frame_curves.png", curves, overwrite=True)
+    atomic_write(out_dir / "histograms.png", histograms, overwrite=True)
+    figures += [(CURVES_CAPTION, curves), ("distance sets of the best pair", histograms)]
     written = ["histograms.png", "frame_curves.png"]
     vmax = max(float(r.pairs[best].distances["surface_k_minus_1"].max()) for r in results.values())
     for name, result in results.items():
@@ -266,3 +313,4 @@ def add_demo_command(sub: Any) -> None:
     p.add_argument("--overwrite", action="store_true", help="write into --out-dir even if another tool made it")
     p.add_argument("--no-plots", action="store_true", help="skip PNG plots and coloured PLY files")
     p.add_argument("--save-meshes", action="store_true", help="also save the simplified frames as PLY")
+    add_html(p, "also write report.html: the report as one offline page (tables, curves, 3D error viewer)")

@@ -19,11 +19,12 @@ def run(args: argparse.Namespace) -> int:
     k-1), print the paper's Tables I-IV and optionally write a report. Frames are matched by natural sort order of
     the file names in each folder; the counts must be equal.
     """
-    from torchmeshmetric.cli._outputs import check_writable
+    from torchmeshmetric.cli._outputs import check_writable, folder_inputs
     from torchmeshmetric.cli._shared import (
         device_of,
         dtype_of,
         evaluate_methods,
+        html_layers,
         load_frames,
         mpeg_methods,
         report_paths,
@@ -31,26 +32,30 @@ def run(args: argparse.Namespace) -> int:
         write_reports,
     )
     from torchmeshmetric.evaluation.reports import paper_tables
+    from torchmeshmetric.registration.cache import RegistrationCache
 
     device = device_of(args)
-    paths = report_paths(args.out, args.mpeg)
-    check_writable(list(paths.values()), args.overwrite)
+    paths = report_paths(args.out, args.mpeg, args.html)
+    inputs = folder_inputs("--original", args.original) + folder_inputs("--simplified", args.simplified)
+    check_writable(list(paths.values()), args.overwrite, inputs=inputs, what="--out")
     original = load_frames(args.original, "--original", dtype_of(args))
     simplified = load_frames(args.simplified, "--simplified", dtype_of(args))
     name = args.name or Path(args.simplified).resolve().name
-    results = evaluate_methods(original, {name: simplified}, args, device)
+    cache = RegistrationCache(args.cache_dir)  # kept: the --html page shows the best pair's registration
+    results = evaluate_methods(original, {name: simplified}, args, device, cache=cache)
     if results is None:  # a torchrun rank other than 0: rank 0 reports
         return 0
     print(paper_tables(results))
     mpeg = mpeg_methods(original, {name: simplified}, args)
-    temporal = temporal_methods(original, {name: simplified}, args, device)
+    temporal = temporal_methods(original, {name: simplified}, args, device, cache=cache)
     settings = {
         "original": args.original,
         "methods": {name: args.simplified},
         "two_sided": not args.one_sided,
         "dtype": args.dtype,
     }
-    write_reports(paths, results, settings, args.overwrite, mpeg, temporal=temporal)
+    meshes = html_layers(results, original, {name: simplified}, cache, args) if paths else []
+    write_reports(paths, results, settings, args.overwrite, mpeg, temporal=temporal, meshes=meshes)
     return 0
 
 

@@ -7,7 +7,7 @@ import json
 from typing import Any
 
 from torchmeshmetric._format import format_number, json_safe
-from torchmeshmetric.cli.options import corner
+from torchmeshmetric.cli.options import as_option_error, corner
 
 __all__ = ["add_mpeg_command"]
 
@@ -48,6 +48,13 @@ def _run_equality(args: argparse.Namespace) -> int:
     return 0 if result.equal else 1
 
 
+_PCQM_OPTIONS = {
+    "radius_curvature": "--radius-curvature",
+    "knn": "--threshold-knn-search",
+    "radius_factor": "--radius-factor",
+}
+
+
 def _run_pcqm(args: argparse.Namespace) -> int:
     """``--mode pcqm``: mm compare --mode pcqm's printed figures (or JSON)."""
     from torchmeshmetric.mpeg.model_cloud import load_model_cloud
@@ -55,13 +62,16 @@ def _run_pcqm(args: argparse.Namespace) -> int:
 
     ref = load_model_cloud(args.ref, args.ref_texture, name=f"REF {args.ref!r}")
     dis = load_model_cloud(args.dis, args.dis_texture, name=f"DIS {args.dis!r}")
-    result = mpeg_pcqm(
-        ref,
-        dis,
-        radius_curvature=args.radius_curvature,
-        knn=args.threshold_knn_search,
-        radius_factor=args.radius_factor,
-    )
+    try:
+        result = mpeg_pcqm(
+            ref,
+            dis,
+            radius_curvature=args.radius_curvature,
+            knn=args.threshold_knn_search,
+            radius_factor=args.radius_factor,
+        )
+    except ValueError as exc:
+        raise as_option_error(exc, _PCQM_OPTIONS) from exc
     print(json.dumps(json_safe(result.to_dict()), indent=1) if args.json else result.report())
     return 0
 

@@ -3,17 +3,21 @@
 ``--output-model-ref/--output-model-dis`` (mmetric's ``--outputModelA/B``): in pcc mode the two point clouds
 compared (the grid samples, or the mesh-mode subdivision of the reordered mesh), as PLY; in ibsm mode the two
 meshes after mmetric's oriented reordering, as PLY or OBJ. ``--output-csv`` (``--outputCsv``): one row appended
-per run, the header first in a new or empty file. Models are written atomically (never over an existing file
-without ``--overwrite``); the CSV is only ever appended to.
+per run, the header first in a new or empty file. The files are checked before any computation (never an input,
+distinct, a CSV with this mode's header) and written as one set: the models appear once the CSV row is appended
+(never over an existing file without ``--overwrite``); the CSV is only ever appended to.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import time
 from pathlib import Path
 from typing import Any
+
+from torchmeshmetric._atomic import atomic_write
 
 __all__ = ["add_output_options", "check_outputs", "run_ibsm", "write_pcc_outputs"]
 
@@ -38,41 +42,70 @@ def add_output_options(p: Any) -> None:
     p.add_argument("--ibsm-cameras", type=int, default=16, metavar="N", help="ibsm mode: camera count (16)")
 
 
+def _inputs(args: argparse.Namespace) -> list[tuple[str, Any]]:
+    """Every file the ``mpeg`` command reads: the meshes, their textures (given or from the MTL) and the maps."""
+    from torchmeshmetric.mpeg.csv_rows import mmetric_texture_url
+
+    files: list[tuple[str, Any]] = [("REF", args.ref), ("DIS", args.dis)]
+    for name, mesh, texture in (("REF", args.ref, args.ref_texture), ("DIS", args.dis, args.dis_texture)):
+        option = f"--{name.lower()}-texture" if texture else f"{name}'s texture"
+        with contextlib.suppress(OSError, ValueError):  # an unreadable mesh is reported by its reader
+            files.append((option, mmetric_texture_url(mesh, texture) or None))
+    return [*files, ("--face-map", args.face_map), ("--vertex-map", args.vertex_map)]
+
+
 def check_outputs(args: argparse.Namespace) -> None:
-    """Refuse, before any computation, output options the mode does not write or files that cannot be written."""
+    """Refuse, before any computation, output options the mode does not write or files that cannot be written.
+
+    The models and the CSV are the output set of :func:`torchmeshmetric.cli._outputs.check_writable` (never an input,
+    distinct, writable), and a CSV that starts with another header is refused here, before the comparison.
+    """
     from torchmeshmetric.cli._outputs import CLIError, check_writable
 
-    models = [Path(m) for m in (args.output_model_ref, args.output_model_dis) if m is not None]
-    if (models or args.output_csv is not None) and args.mode not in ("pcc", "ibsm"):
+    named = [(o, Path(m)) for o, m in (("--output-model-ref", args.output_model_ref),
+                                         ("--output-model-dis", args.output_model_dis)) if m is not None]  # fmt: skip
+    if (named or args.output_csv is not None) and args.mode not in ("pcc", "ibsm"):
         raise CLIError(f"--output-csv / --output-model-*: written in pcc and ibsm modes, not in {args.mode} mode")
     allowed = (".ply",) if args.mode == "pcc" else (".ply", ".obj")
-    for m in models:
+    for option, m in named:
         if m.suffix.lower() not in allowed:
-            raise CLIError(f"--output-model-*: {str(m)!r} must end with {' or '.join(allowed)} in {args.mode} mode")
-    check_writable(models, args.overwrite)
-    if args.output_csv is not None:
-        csv = Path(args.output_csv)
-        check_writable([csv], True)  # appended to, never replaced
+            raise CLIError(f"{option}: {str(m)!r} must end with {' or '.join(allowed)} in {args.mode} mode")
+    csv = [] if args.output_csv is None else [("--output-csv", Path(args.output_csv))]
+    if not named and not csv:
+        return
+    check_writable(
+        [m for _, m in named], args.overwrite, inputs=_inputs(args), what=[o for o, _ in named], appended=csv
+    )
+    if csv:
+        from torchmeshmetric.mpeg.csv_rows import IBSM_CSV_HEADER, PCC_CSV_HEADER, CsvHeaderError, check_csv_header
+
+        try:
+            check_csv_header(csv[0][1], PCC_CSV_HEADER if args.mode == "pcc" else IBSM_CSV_HEADER)
+        except CsvHeaderError as exc:
+            raise CLIError(f"--output-csv: {exc}") from exc
 
 
-def _write_models(args: argparse.Namespace, texts: tuple[str, str]) -> None:
-    from torchmeshmetric._atomic import atomic_file_set, atomic_write
+def _write(args: argparse.Namespace, texts: tuple[str, str], header: str, row: str) -> None:
+    """The models and the CSV row as one set: the models appear only once the row is appended."""
+    from torchmeshmetric.cli._outputs import output_set
+    from torchmeshmetric.mpeg.csv_rows import append_csv_row
 
-    with atomic_file_set():
+    with output_set("the output models and CSV row"):
         for path, text in zip((args.output_model_ref, args.output_model_dis), texts, strict=True):
             if path is not None:
                 atomic_write(path, text, overwrite=args.overwrite)
+        if args.output_csv is not None:
+            append_csv_row(args.output_csv, header, [row])  # last: a failure before it keeps no model
 
 
 def write_pcc_outputs(args: argparse.Namespace, clouds: Any, result: Any) -> None:
     """The pcc mode's output models and CSV row."""
-    from torchmeshmetric.mpeg.csv_rows import PCC_CSV_HEADER, append_csv_row, mmetric_texture_url, pcc_csv_row
+    from torchmeshmetric.mpeg.csv_rows import PCC_CSV_HEADER, mmetric_texture_url, pcc_csv_row
     from torchmeshmetric.mpeg.model_files import point_cloud_ply_text
 
-    if args.output_model_ref is not None or args.output_model_dis is not None:
-        ref = point_cloud_ply_text(clouds.ref) if args.output_model_ref is not None else ""
-        dis = point_cloud_ply_text(clouds.dis) if args.output_model_dis is not None else ""
-        _write_models(args, (ref, dis))
+    ref = point_cloud_ply_text(clouds.ref) if args.output_model_ref is not None else ""
+    dis = point_cloud_ply_text(clouds.dis) if args.output_model_dis is not None else ""
+    row = ""
     if args.output_csv is not None:
         given = args.peak if args.sampling == "mesh" else result.peak  # the grid chain passes the peak to mm
         row = pcc_csv_row(
@@ -83,7 +116,7 @@ def write_pcc_outputs(args: argparse.Namespace, clouds: Any, result: Any) -> Non
             map_b=mmetric_texture_url(args.dis, args.dis_texture),
             resolution=0.0 if given is None else given,
         )
-        append_csv_row(args.output_csv, PCC_CSV_HEADER, [row])
+    _write(args, (ref, dis), PCC_CSV_HEADER, row)
 
 
 def _ibsm_lines(r: Any) -> str:
@@ -99,7 +132,7 @@ def run_ibsm(args: argparse.Namespace) -> int:
     from dataclasses import asdict
 
     from torchmeshmetric._format import json_safe
-    from torchmeshmetric.mpeg.csv_rows import IBSM_CSV_HEADER, append_csv_row, ibsm_csv_row, mmetric_texture_url
+    from torchmeshmetric.mpeg.csv_rows import IBSM_CSV_HEADER, ibsm_csv_row, mmetric_texture_url
     from torchmeshmetric.mpeg.ibsm import ibsm
     from torchmeshmetric.mpeg.model_files import obj_header, textured_mesh_text
     from torchmeshmetric.mpeg.reindex import oriented_reindex
@@ -116,8 +149,7 @@ def run_ibsm(args: argparse.Namespace) -> int:
     for path, mesh, name in ((args.output_model_ref, ref, args.ref), (args.output_model_dis, dis, args.dis)):
         text = "" if path is None else textured_mesh_text(oriented_reindex(mesh), Path(path).suffix, obj_header(name))
         texts.append(text)
-    if args.output_model_ref is not None or args.output_model_dis is not None:
-        _write_models(args, (texts[0], texts[1]))
+    row = ""
     if args.output_csv is not None:
         row = ibsm_csv_row(
             result,
@@ -129,5 +161,5 @@ def run_ibsm(args: argparse.Namespace) -> int:
             resolution=args.ibsm_resolution,
             seconds=seconds,
         )
-        append_csv_row(args.output_csv, IBSM_CSV_HEADER, [row])
+    _write(args, (texts[0], texts[1]), IBSM_CSV_HEADER, row)
     return 0

@@ -15,6 +15,7 @@ from typing import Any
 
 __all__ = [
     "add_cache_dir",
+    "as_option_error",
     "corner",
     "add_command",
     "add_target",
@@ -138,7 +139,7 @@ def add_temporal(p: argparse.ArgumentParser) -> None:
         "--temporal",
         action="store_true",
         help="also report KG, KSO, STED_s, STED_t and STED of every method (registered forms when the connectivity "
-        "changes, docs/temporal.md; the registrations come from --cache-dir when given, else are computed again)",
+        "changes, docs/temporal.md; on the evaluation's registrations)",
     )
 
 
@@ -153,7 +154,13 @@ def report_options() -> argparse.ArgumentParser:
         "(default: print the tables only)",
     )
     output.add_argument("--overwrite", action="store_true", help="replace existing output files")
+    add_html(output, "also write REPORT.html: the report as one offline page (tables, curves, 3D error viewer)")
     return output
+
+
+def add_html(p: argparse.ArgumentParser, help_text: str) -> None:
+    """Add ``--html`` (also write the report as one self-contained page) with the command's own help."""
+    p.add_argument("--html", action="store_true", help=help_text)
 
 
 def add_cache_dir(p: argparse.ArgumentParser, help_text: str) -> None:
@@ -216,3 +223,24 @@ def corner(text: str, option: str) -> list[float]:
     if len(values) != 3 or not all(math.isfinite(v) for v in values):
         raise ValueError(f'{option}: expected three finite numbers such as "-1 -1 -1", found {text!r}')
     return values
+
+
+def as_option_error(exc: ValueError, options: dict[str, str]) -> Exception:
+    """A library error about an argument (``knn: ...``) retold about the option that set it (``--knn-...: ...``).
+
+    Args:
+        exc: the library's error, whose message starts with the argument's name and a colon.
+        options: argument name -> command-line option.
+
+    Returns:
+        A ``CLIError`` naming the option (chained to ``exc``), or ``exc`` itself when it names no listed argument.
+    """
+    from torchmeshmetric.cli._outputs import CLIError
+
+    head, sep, rest = str(exc).partition(": ")
+    names = [n.strip() for n in head.split(",")]
+    if not sep or not all(n in options for n in names):
+        return exc
+    err = CLIError(f"{', '.join(options[n] for n in names)}: {rest}")
+    err.__cause__ = exc
+    return err

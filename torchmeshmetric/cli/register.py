@@ -24,7 +24,8 @@ def run(args: argparse.Namespace) -> int:
     from torchmeshmetric.stats.statistics import distance_statistics
 
     device = device_of(args)
-    check_writable([Path(args.out)], args.overwrite)
+    inputs = [("--source", args.source), ("--target", args.target)]
+    check_writable([Path(args.out)], args.overwrite, inputs=inputs, what="--out")
     dtype = dtype_of(args)
     meshes = []
     for flag, path in (("--source", args.source), ("--target", args.target)):

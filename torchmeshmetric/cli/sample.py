@@ -8,11 +8,22 @@ from typing import Any, Literal
 __all__ = ["add_sample_command"]
 
 
+_OPTIONS = {
+    "resolution": "--resolution",
+    "thickness": "--thickness",
+    "num_samples": "--num-samples",
+    "length_threshold": "--length-threshold",
+    "area_threshold": "--area-threshold",
+    "max_depth": "--max-depth",
+}
+
+
 def _run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from torchmeshmetric._atomic import atomic_write
     from torchmeshmetric.cli._outputs import CLIError, check_writable
+    from torchmeshmetric.cli.options import as_option_error
     from torchmeshmetric.mpeg.edge_sampling import edge_sample
     from torchmeshmetric.mpeg.face_sampling import face_sample
     from torchmeshmetric.mpeg.map_sampling import map_sample
@@ -22,7 +33,14 @@ def _run(args: argparse.Namespace) -> int:
     from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
 
     out = Path(args.output)
-    check_writable([out], args.overwrite)
+    from torchmeshmetric.mpeg.csv_rows import mmetric_texture_url
+
+    try:
+        texture = mmetric_texture_url(args.mesh, args.texture) or None
+    except (OSError, ValueError):  # an unreadable mesh is reported by its reader
+        texture = None
+    inputs = [("MESH", args.mesh), ("--texture" if args.texture else "MESH's texture", texture)]
+    check_writable([out], args.overwrite, inputs=inputs, what="OUT")
     mesh = load_textured_mesh(args.mesh, args.texture)
 
     def sample(value: float | None = None) -> Any:
@@ -59,7 +77,15 @@ def _run(args: argparse.Namespace) -> int:
             pc = type(pc)(pc.points, pc.normals)
         print(f"Computed {kind} {found.value:.9g} after {found.iterations} iterations")
     else:
-        pc = sample()
+        try:
+            pc = sample()
+        except ValueError as exc:
+            raise as_option_error(exc, _OPTIONS) from exc
+        except MemoryError as exc:  # beyond the free memory, below the physical memory the checks refuse at
+            option = {"prnd": "--num-samples", "sdiv": "--area-threshold", "map": "MESH's texture"}.get(
+                args.mode, "--length-threshold" if args.mode == "ediv" and args.length_threshold else "--resolution"
+            )
+            raise CLIError(f"{option}: the {args.mode} sampling needs more memory than is free here ({exc})") from exc
     atomic_write(out, point_cloud_ply_text(pc), overwrite=args.overwrite)
     print(f"Generated {pc.num_points} points -> {out}")
     return 0
@@ -110,5 +136,5 @@ def add_sample_command(sub: Any) -> None:
     p.add_argument("--max-iterations", type=int, default=10, help="mm --maxIterations of the search (10)")
     p.add_argument("--bilinear", action="store_true", help="bilinear texture filtering (default nearest, as mm)")
     p.add_argument("--texture", default=None, metavar="IMG", help="texture of MESH (overrides its MTL)")
-    p.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")
+    p.add_argument("--overwrite", action="store_true", help="replace OUT if it exists (never MESH nor its texture)")
     p.set_defaults(func=_run)

@@ -19,7 +19,13 @@ def run(args: argparse.Namespace) -> int:
     original frame registered onto the current one; 'tracking' (Anchored QEM with the learned slide) makes each frame
     follow the previous simplified frame moved by that registration; frame 0 is simplified with QEM.
     """
-    from torchmeshmetric.cli._outputs import check_folder, check_writable, make_folder, output_set
+    from torchmeshmetric.cli._outputs import (
+        check_folder,
+        check_writable,
+        folder_inputs,
+        make_folder,
+        output_set,
+    )
     from torchmeshmetric.cli._shared import (
         device_of,
         dtype_of,
@@ -38,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     targets = [out_dir / n for n in names]
     check_folder(out_dir, "--output", may_create=True)
     if out_dir.is_dir():
-        check_writable(targets, args.overwrite)
+        check_writable(targets, args.overwrite, inputs=folder_inputs("--input", args.input), what="--output")
     registrations = None
     if args.method in ("rqem", "tracking"):
         cache = RegistrationCache(args.cache_dir)

@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
             out_dir.mkdir(parents=True)
         except OSError as exc:
             raise CLIError(f"--out-dir {str(out_dir)!r}: cannot create ({exc.strerror})") from exc
-    check_writable(paths, args.overwrite)
+    check_writable(paths, args.overwrite, inputs=[], what="--out-dir")
     start = time.perf_counter()
     result = run_validation(
         seed=args.seed,

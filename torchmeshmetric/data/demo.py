@@ -30,7 +30,8 @@ import torch
 from skimage.measure import marching_cubes
 from torch import Tensor
 
-from torchmeshmetric._checks import IndexRangeError, check_finite, check_float, check_shape
+from torchmeshmetric._checks import DTypeError, IndexRangeError, check_finite, check_float, check_shape
+from torchmeshmetric.data._portable_math import cos_deg, dot3, exp, log, matmul3, matvec3, sin_deg
 from torchmeshmetric.structures import Mesh
 
 __all__ = ["BONE_NAMES", "DemoSequence", "demo_sequence"]
@@ -155,13 +156,13 @@ _KEYS: tuple[tuple[float, float, float, dict[str, tuple[float, float, float]]], 
 
 def _euler(deg: np.ndarray) -> np.ndarray:
     """``(..., 3)`` Euler angles in degrees -> ``(..., 3, 3)`` rotation ``Rz @ Ry @ Rx``."""
-    a, b, c = np.deg2rad(deg[..., 0]), np.deg2rad(deg[..., 1]), np.deg2rad(deg[..., 2])
-    ca, sa, cb, sb, cc, sc = np.cos(a), np.sin(a), np.cos(b), np.sin(b), np.cos(c), np.sin(c)
+    a, b, c = deg[..., 0], deg[..., 1], deg[..., 2]
+    ca, sa, cb, sb, cc, sc = cos_deg(a), sin_deg(a), cos_deg(b), sin_deg(b), cos_deg(c), sin_deg(c)
     one, zero = np.ones_like(a), np.zeros_like(a)
     rx = np.stack([one, zero, zero, zero, ca, -sa, zero, sa, ca], -1).reshape(*a.shape, 3, 3)
     ry = np.stack([cb, zero, sb, zero, one, zero, -sb, zero, cb], -1).reshape(*a.shape, 3, 3)
     rz = np.stack([cc, -sc, zero, sc, cc, zero, zero, zero, one], -1).reshape(*a.shape, 3, 3)
-    return rz @ ry @ rx
+    return matmul3(matmul3(rz, ry), rx)
 
 
 def _key_arrays() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -193,12 +194,12 @@ def _pose_at(phase: float, joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     for b in range(num_bones):
         p = _PARENT[b]
         if p < 0:
-            rot[b] = _euler(np.array([0.0, root_yaw, 0.0])) @ local[b]
+            rot[b] = matmul3(_euler(np.array([0.0, root_yaw, 0.0])), local[b])
             pos[b] = joints[b] + np.array([0.0, root_y, 0.0])
         else:
-            rot[b] = rot[p] @ local[b]
-            pos[b] = rot[p] @ (joints[b] - joints[p]) + pos[p]
-    trans = pos - np.einsum("bij,bj->bi", rot, joints)
+            rot[b] = matmul3(rot[p], local[b])
+            pos[b] = matvec3(rot[p], joints[b] - joints[p]) + pos[p]
+    trans = pos - matvec3(rot, joints)
     return rot, trans
 
 
@@ -208,17 +209,27 @@ def _capsule_dists(x: np.ndarray, a: np.ndarray, b: np.ndarray, r: np.ndarray) -
     for m in range(a.shape[0]):
         ab = b[m] - a[m]
         ax = x - a[m]
-        denom = float(ab @ ab)
-        t = np.clip(ax @ ab / denom, 0.0, 1.0) if denom > 0 else np.zeros(x.shape[0], dtype=x.dtype)
+        denom = float(dot3(ab, ab))
+        t = np.clip(dot3(ax, ab) / denom, 0.0, 1.0) if denom > 0 else np.zeros(x.shape[0], dtype=x.dtype)
         d = ax - t[:, None] * ab
-        out[:, m] = np.sqrt(np.einsum("ij,ij->i", d, d)) - r[m]
+        out[:, m] = np.sqrt(dot3(d, d)) - r[m]
     return out
+
+
+def _soft_min_terms(d: np.ndarray, k: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``min_i d_i``, the terms ``exp(-(d_i - min) / k)`` and their sum (summed in primitive order)."""
+    dmin = d.min(axis=1)
+    terms = exp(-(d - dmin[:, None]) / k)
+    total = terms[:, 0].copy()
+    for m in range(1, terms.shape[1]):  # a fixed order: numpy's reductions may vectorise it per CPU
+        total += terms[:, m]
+    return dmin, terms, total
 
 
 def _smooth_union(d: np.ndarray, k: float) -> np.ndarray:
     """Exponential smooth minimum over the last axis, ``-k log sum exp(-d/k)`` (stable)."""
-    dmin = d.min(axis=1)
-    return dmin - k * np.log(np.exp(-(d - dmin[:, None]) / k).sum(axis=1))
+    dmin, _, total = _soft_min_terms(d, k)
+    return dmin - k * log(total)
 
 
 @dataclass(frozen=True, eq=False)
@@ -266,8 +277,8 @@ class DemoSequence:
         rot = self.rotations[k].numpy()
         tr = self.translations[k].numpy()
         bone = self.prim_bone.numpy()
-        a = np.einsum("mij,mj->mi", rot[bone], self.prim_a.numpy()) + tr[bone]
-        b = np.einsum("mij,mj->mi", rot[bone], self.prim_b.numpy()) + tr[bone]
+        a = matvec3(rot[bone], self.prim_a.numpy()) + tr[bone]
+        b = matvec3(rot[bone], self.prim_b.numpy()) + tr[bone]
         return _capsule_dists(points, a, b, self.prim_radius.numpy())
 
     def _points(self, points: Tensor) -> np.ndarray:
@@ -288,11 +299,11 @@ class DemoSequence:
     def skinning_weights(self, points: Tensor, frame: int) -> Tensor:
         """Soft-min skinning weights ``(P, B)`` of ``points`` posed as in ``frame`` (rows sum to 1)."""
         k = self._check_frame(frame, "frame")
-        d = self._prim_dists(self._points(points), k)
-        w = np.exp(-(d - d.min(axis=1, keepdims=True)) / self.blend)
-        w /= w.sum(axis=1, keepdims=True)
+        _, w, total = _soft_min_terms(self._prim_dists(self._points(points), k), self.blend)
+        w /= total[:, None]
         out = np.zeros((w.shape[0], len(self.bone_names)))
-        np.add.at(out.T, self.prim_bone.numpy(), w.T)
+        for m, b in enumerate(self.prim_bone.tolist()):  # in primitive order, as the field sums them
+            out[:, b] += w[:, m]
         return torch.from_numpy(out).to(points)
 
     def transfer(self, points: Tensor, src: int, dst: int) -> Tensor:
@@ -319,10 +330,12 @@ class DemoSequence:
         w = self.skinning_weights(points.detach().cpu().double(), s).numpy()
         rs, ts = self.rotations[s].numpy(), self.translations[s].numpy()
         rd, td = self.rotations[t].numpy(), self.translations[t].numpy()
-        rel = rd @ rs.transpose(0, 2, 1)  # (B, 3, 3)
-        off = td - np.einsum("bij,bj->bi", rel, ts)  # (B, 3)
-        moved = np.einsum("bij,pj->pbi", rel, x) + off[None]  # (P, B, 3)
-        out = np.einsum("pb,pbi->pi", w, moved)
+        rel = matmul3(rd, rs.transpose(0, 2, 1))  # (B, 3, 3)
+        off = td - matvec3(rel, ts)  # (B, 3)
+        moved = matvec3(rel[None], x[:, None, :]) + off[None]  # (P, B, 3)
+        out = w[:, 0, None] * moved[:, 0]
+        for b in range(1, w.shape[1]):  # summed in bone order (see _soft_min_terms)
+            out += w[:, b, None] * moved[:, b]
         return torch.from_numpy(out).to(points)
 
 
@@ -333,6 +346,7 @@ def _mesh_frame(
     h: float,
     blend: float,
     offset: np.ndarray,
+    dtype: torch.dtype,
 ) -> Mesh:
     """Marching cubes of the smooth-union field, evaluated on a narrow band found coarse-to-fine.
 
@@ -342,15 +356,13 @@ def _mesh_frame(
     grid takes the (correctly signed) value of its smallest evaluated enclosing block.
     """
     bone, pa, pb, rad = prims
-    a = (np.einsum("mij,mj->mi", rot[bone], pa) + trans[bone]).astype(np.float32)
-    b = (np.einsum("mij,mj->mi", rot[bone], pb) + trans[bone]).astype(np.float32)
-    r32 = rad.astype(np.float32)
+    a = matvec3(rot[bone], pa) + trans[bone]
+    b = matvec3(rot[bone], pb) + trans[bone]
     lo = np.minimum(a, b).min(0) - rad.max() - 3 * h - offset
     hi = np.maximum(a, b).max(0) + rad.max() + 3 * h
 
     def field(idx: np.ndarray, size: int) -> np.ndarray:
-        centres = (lo + (idx + 0.5 * size) * h).astype(np.float32)
-        return _smooth_union(_capsule_dists(centres, a, b, r32), blend)
+        return _smooth_union(_capsule_dists(lo + (idx + 0.5 * size) * h, a, b, rad), blend)
 
     top = 8
     nb = np.ceil((hi - lo) / (h * top)).astype(int)
@@ -378,7 +390,7 @@ def _mesh_frame(
     pts = (blocks[:, None, :] + off[None]).reshape(-1, 3)
     mask[pts[:, 0], pts[:, 1], pts[:, 2]] = True
     fine = np.stack(np.nonzero(mask), -1)
-    vol[mask] = _smooth_union(_capsule_dists((lo + fine * h).astype(np.float32), a, b, r32), blend)
+    vol[mask] = _smooth_union(_capsule_dists(lo + fine * h, a, b, rad), blend)  # float64, rounded once
     # Marching cubes only in cubes whose 8 corners were evaluated exactly.
     cube = mask[:-1, :-1, :-1].copy()
     for dx, dy, dz in child[1:]:
@@ -389,10 +401,10 @@ def _mesh_frame(
     verts = verts.astype(np.float64) + lo
     faces = faces.astype(np.int64)
     tri = verts[faces]
-    signed_volume = np.einsum("ij,ij->i", tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum()
+    signed_volume = dot3(tri[:, 0], np.cross(tri[:, 1], tri[:, 2])).sum()
     if signed_volume < 0:  # outward normals
         faces = faces[:, ::-1].copy()
-    return Mesh(torch.from_numpy(verts).float(), torch.from_numpy(faces), validate=False)
+    return Mesh(torch.from_numpy(verts).to(dtype), torch.from_numpy(faces), validate=False)
 
 
 def demo_sequence(
@@ -403,12 +415,15 @@ def demo_sequence(
     frames_per_cycle: int = 24,
     start_phase: float = 0.0,
     blend: float = 0.02,
+    dtype: torch.dtype = torch.float32,
 ) -> DemoSequence:
     """Generate the built-in volumetric-video-like sequence (a performer doing kicks, punches and turns).
 
     Each frame is meshed independently with marching cubes, so vertex count and connectivity differ per frame. The
     default (``resolution=160``) gives about 20k vertices / 40k faces per frame; face count grows with
-    ``resolution ** 2``. Deterministic: the same arguments give identical tensors.
+    ``resolution ** 2``. Deterministic: the same arguments give identical tensors, on every CPU — the field and the
+    motion are computed with operations IEEE 754 defines to the bit (:mod:`torchmeshmetric.data._portable_math`),
+    never with the per-instruction-set ``exp``/``sin`` kernels or BLAS, and rounded once to ``dtype``.
 
     Args:
         num_frames: number of frames ``K >= 1``.
@@ -418,6 +433,9 @@ def demo_sequence(
             turning 360 degrees); ``>= 2``. The default 6 frames show a right straight punch.
         start_phase: phase of frame 0 in ``[0, 1)``.
         blend: smooth-union radius ``k`` (> 0) of the field.
+        dtype: the frames' vertex dtype: ``torch.float32`` (the default) as captured frames are stored, or
+            ``torch.float64`` for the same positions before that rounding (how much a figure depends on the input's
+            precision: docs/statistics.md).
 
     Returns:
         :class:`DemoSequence` with the frames and their ground-truth motion.
@@ -442,6 +460,8 @@ def demo_sequence(
         raise ValueError(f"start_phase: expected a finite float, found {start_phase!r}")
     if not (np.isfinite(blend) and blend > 0):
         raise ValueError(f"blend: expected a float > 0, found {blend!r}")
+    if dtype not in (torch.float32, torch.float64):
+        raise DTypeError(f"dtype: expected torch.float32 or torch.float64, found {dtype!r}")
     rng = np.random.default_rng(seed)
     scale = 1.0 + 0.05 * (2 * rng.random(len(BONE_NAMES)) - 1)  # per-bone length scale
     rscale = 1.0 + 0.05 * (2 * rng.random(len(_PRIMS)) - 1)  # per-primitive radius scale
@@ -462,7 +482,7 @@ def demo_sequence(
     for i in range(num_frames):
         rot, tr = _pose_at(float(phases[i]), joints)
         offset = rng.random(3) * h
-        frames.append(_mesh_frame(rot, tr, (bone, pa, pb, rad), h, blend, offset))
+        frames.append(_mesh_frame(rot, tr, (bone, pa, pb, rad), h, blend, offset, dtype))
         rots.append(rot)
         trs.append(tr)
     return DemoSequence(

@@ -113,8 +113,8 @@ def parse_obj(p: Path, data: bytes, *, uvs: bool = True) -> ObjData:
 
     Raises:
         MeshFileError: binary data, a line that is no OBJ statement, a vertex with a wrong number of coordinates
-            or non-numbers, NaN/Inf coordinates or UVs, a face with fewer than 3 corners, an index 0, a negative
-            index counting back past the first element, an index past the last element.
+            or non-numbers, NaN/Inf coordinates, colours or UVs, a face with fewer than 3 corners, an index 0, a
+            negative index counting back past the first element, an index past the last element.
 
     Example:
         >>> d = parse_obj(Path("t.obj"), b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 -1/1\n")
@@ -146,6 +146,14 @@ def _check_finite(p: Path, d: ObjData) -> None:
             f"path: mesh file '{p}' vertex {i} (line {int(d.vert_lines[i])}) has non-finite coordinates "
             f"{d.verts[i].tolist()} ({int(bad.sum())} such vertices)"
         )
+    if d.vert_colors is not None:
+        bad = ~np.isfinite(d.vert_colors).all(axis=1)
+        if bad.any():
+            i = int(np.nonzero(bad)[0][0])
+            raise MeshFileError(
+                f"path: mesh file '{p}' vertex {i} (line {int(d.vert_lines[i])}) has a non-finite colour "
+                f"{d.vert_colors[i].tolist()} ({int(bad.sum())} such vertices)"
+            )
     bad = ~np.isfinite(d.uvs).all(axis=1)
     if bad.any():
         i = int(np.nonzero(bad)[0][0])

@@ -30,8 +30,8 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from torchmeshmetric._atomic import atomic_write
-from torchmeshmetric._format import format_number, json_safe
-from torchmeshmetric.evaluation.reports import COLUMNS, report_dict
+from torchmeshmetric._format import json_safe
+from torchmeshmetric.evaluation.reports import COLUMNS, report_dict, statistic_cells
 from torchmeshmetric.evaluation.results import SequenceEvaluation
 
 if sys.version_info >= (3, 11):
@@ -51,6 +51,7 @@ __all__ = [
     "report_name",
     "write_campaign_csv",
     "write_campaign_markdown",
+    "campaign_markdown",
 ]
 
 #: File name stem of the combined report (``campaign.json/.md/.csv``); sequences' reports are ``<name>.json/...``.
@@ -268,7 +269,7 @@ def _rows(results: Mapping[str, Mapping[str, SequenceEvaluation]], kind: str, pa
 
 
 def campaign_tables(results: Mapping[str, Mapping[str, SequenceEvaluation]]) -> str:
-    """The combined tables as Markdown: per sequence and overall (mean over sequences), 4 significant digits."""
+    """The combined tables as Markdown: per sequence and overall (mean over sequences), the report's digits."""
     header = "| Sequence | Algorithm | Mesh | " + " | ".join(h for _, h in COLUMNS) + " |"
     rule = "|" + "---|" * (len(COLUMNS) + 3)
     out = []
@@ -278,7 +279,7 @@ def campaign_tables(results: Mapping[str, Mapping[str, SequenceEvaluation]]) -> 
             continue
         out += [f"### {title}", "", header, rule]
         for scope, method, label, _, stats in rows:
-            cells = " | ".join(format_number(stats[k]) for k, _ in COLUMNS)
+            cells = " | ".join(statistic_cells(stats))
             out.append(f"| {scope} | {method} | {label} | {cells} |")
         out.append("")
     out.append(
@@ -311,5 +312,10 @@ def write_campaign_csv(
 def write_campaign_markdown(
     path: str | os.PathLike[str], results: Mapping[str, Mapping[str, SequenceEvaluation]], *, overwrite: bool = False
 ) -> Path:
-    """Write :func:`campaign_tables` to a Markdown file, atomically."""
-    return atomic_write(path, "# torchmeshmetric campaign\n\n" + campaign_tables(results), overwrite=overwrite)
+    """Write :func:`campaign_markdown` to a file, atomically."""
+    return atomic_write(path, campaign_markdown(results), overwrite=overwrite)
+
+
+def campaign_markdown(results: Mapping[str, Mapping[str, SequenceEvaluation]]) -> str:
+    """The text of ``campaign.md``: a title and :func:`campaign_tables`."""
+    return "# torchmeshmetric campaign\n\n" + campaign_tables(results)

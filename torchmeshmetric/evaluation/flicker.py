@@ -26,6 +26,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
+from torchmeshmetric._checks import common_dtype
 from torchmeshmetric.kernels import point_mesh_distance, vertex_set
 from torchmeshmetric.registration.warp import Warp
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
@@ -65,7 +66,8 @@ def flicker_distances(
         two_sided: also measure from the moved frame ``k-1`` to frame ``k``.
 
     Returns:
-        :class:`FlickerDistances` (computed without gradient, on ``simplified_k``'s device and dtype).
+        :class:`FlickerDistances` (computed without gradient, on ``simplified_k``'s device, in the promoted dtype
+        of the two frames).
 
     Example:
         >>> import torch, trimesh
@@ -77,7 +79,9 @@ def flicker_distances(
         (True, True)
     """
     s_k = as_mesh(simplified_k, name="simplified_k")
-    s_km1 = as_mesh(simplified_k_minus_1, name="simplified_k_minus_1").to(s_k.device, s_k.dtype)
+    s_km1 = as_mesh(simplified_k_minus_1, name="simplified_k_minus_1")
+    dtype = common_dtype(s_k.dtype, s_km1.dtype)  # the dtype rule (docs/concepts.md, Precision)
+    s_k, s_km1 = s_k.to(dtype=dtype), s_km1.to(s_k.device, dtype)
     with torch.no_grad():
         moved_verts = warp(s_km1.verts.detach())
         moved = Mesh(moved_verts.to(s_k.device, s_k.dtype), s_km1.faces, validate=False)

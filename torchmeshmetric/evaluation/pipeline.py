@@ -18,7 +18,7 @@ from typing import Any, NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import ShapeError
+from torchmeshmetric._checks import ShapeError, common_dtype
 from torchmeshmetric.evaluation.flicker import FLICKER, flicker_distances
 from torchmeshmetric.evaluation.results import SET_NAMES, PairEvaluation, SequenceEvaluation
 from torchmeshmetric.kernels import IndexCache, MeshIndex, point_mesh_distance
@@ -324,9 +324,11 @@ def evaluate_pair(
     """
     simp = as_mesh(simplified_k)
     dev = torch.device(device) if device is not None else simp.device
-    simp = simp.to(dev)
-    orig_k = as_mesh(original_k).to(dev, simp.dtype)
-    orig_km1 = as_mesh(original_k_minus_1).to(dev, simp.dtype)
+    orig_k, orig_km1 = as_mesh(original_k), as_mesh(original_k_minus_1)
+    # The dtype rule (docs/concepts.md, Precision): the three frames in their promoted dtype (a float32 model's
+    # output against float64 originals is measured in float64, nothing rounded).
+    dtype = common_dtype(simp.dtype, orig_k.dtype, orig_km1.dtype)
+    simp, orig_k, orig_km1 = simp.to(dev, dtype), orig_k.to(dev, dtype), orig_km1.to(dev, dtype)
     if precomputed_registration is not None:
         reg, cached, seconds = _registration_from(precomputed_registration, orig_km1, orig_k), True, 0.0
     else:

@@ -32,9 +32,12 @@ from torchmeshmetric.evaluation.results import BEST_PAIR_RULE, SET_NAMES, Sequen
 
 __all__ = [
     "COLUMNS",
+    "COLUMN_FORMATS",
     "REGISTRATION_ROW",
+    "markdown_report",
     "paper_tables",
     "report_dict",
+    "statistic_cells",
     "table_rows",
     "write_csv",
     "write_json",
@@ -53,17 +56,35 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("psnr", "PSNR (dB)"),
 )
 
+#: Printed format of each column: only the digits the input determines. Measured (tests/evaluation/
+#: report_determinacy.py, docs/statistics.md): rounding the paper's size of frame (the demo at resolution 160, ~20k
+#: vertices) from float64 to float32, as frames are stored, moves Ave, Var, STD, MSE, RMSE, Median and P95 by up to
+#: 2e-3 to 5e-3 relative (the simplifiers' discrete choices and the registration amplify the input's rounding), so
+#: their third significant digit is not determined; Max moves by 5e-5 (three digits hold) and PSNR by 0.014 dB. The
+#: full values stay in report.json / report.csv (data, for frames stored in float64).
+COLUMN_FORMATS: dict[str, str] = {
+    "ave": "#.2g",
+    "var": "#.2g",
+    "std": "#.2g",
+    "mse": "#.2g",
+    "rmse": "#.2g",
+    "max": "#.3g",
+    "p95": "#.2g",
+    "psnr": ".1f",
+}
+
 _MESH_LABELS = {"k_minus_1": "(k-1)-th", "k": "k-th"}
 #: Algorithm cell of the registration's rows, and their mesh cells.
 REGISTRATION_ROW = "Registration"
 STABILITY_NOTE = (
-    "moving the original frames by one ulp moves the (k-1)-th and flicker statistics by at most ~1e-11 (relative), "
-    "by 1e-9 at most ~1e-5 (measured, docs/registration.md), so their 4 printed digits are determined by the input; "
-    "a change of 1e-6 in the input (float32 storage, six-decimal files) can move them by up to ~1e-3, so compare "
-    "them between methods to about 2 significant digits unless the frames are stored in float64."
+    "the tables print only the digits that the input determines: rounding frames of ~20k vertices from float64 to "
+    "float32 moves Ave, Var, STD, MSE, RMSE and P95 by up to 5e-3 (relative), Max by 5e-5 and PSNR by 0.014 dB "
+    "(measured, docs/statistics.md), hence 2 significant digits, 3 for Max and one decimal for PSNR; frames "
+    "stored with 6 decimals or with capture defects are determined to about 1 digit. Compare methods to those "
+    "digits; report.json keeps the full values."
 )
-"""What the registration's stability (``tests/benchmarks/test_registration_stability.py``) says about the digits of
-the sets built on it; printed under the report's tables."""
+"""What the measured determinacy of the figures (``tests/evaluation/report_determinacy.py``) says about their
+digits; printed under the report's tables."""
 _REGISTRATION_LABELS = {"residual": "residual to k", "error": "error to truth"}
 _TITLES = {
     "I": "Table I: best pair, mesh surface distance",
@@ -137,8 +158,19 @@ def _rows(methods: Mapping[str, SequenceEvaluation], table: str) -> list[tuple[s
     return rows
 
 
+def statistic_cells(stats: Mapping[str, float]) -> list[str]:
+    """The table cells of one row of statistics, in :data:`COLUMNS` order and :data:`COLUMN_FORMATS`.
+
+    Example:
+        >>> statistic_cells({"ave": 0.0123456, "var": 1e-4, "std": 0.01, "mse": 2.5e-4, "rmse": 0.0158,
+        ...                  "max": 0.08594, "p95": 0.0315, "psnr": 42.41})
+        ['0.012', '0.00010', '0.010', '0.00025', '0.016', '0.0859', '0.032', '42.4']
+    """
+    return [format_number(stats[k], COLUMN_FORMATS[k]) for k, _ in COLUMNS]
+
+
 def paper_tables(methods: Mapping[str, SequenceEvaluation], *, reverse: bool = True) -> str:
-    """The paper's Tables I-IV (plus the two-sided check) as Markdown, 4 significant digits.
+    """The paper's Tables I-IV (plus the two-sided check) as Markdown, the digits of :data:`COLUMN_FORMATS`.
 
     Args:
         methods: method name → sequence evaluation; all on the same original sequence.
@@ -159,7 +191,7 @@ def paper_tables(methods: Mapping[str, SequenceEvaluation], *, reverse: bool = T
         title = _TITLES[table] + (f" (frames {frame - 1} -> {frame})" if table in ("I", "II") else "")
         out += [f"### {title}", "", header, rule]
         for name, mesh, stats in rows:
-            out.append(f"| {name} | {mesh} | " + " | ".join(format_number(stats[k]) for k, _ in COLUMNS) + " |")
+            out.append(f"| {name} | {mesh} | " + " | ".join(statistic_cells(stats)) + " |")
         out.append("")
     out.append(f"Best pair rule: {BEST_PAIR_RULE}. Averages: mean over pairs of each per-pair statistic.")
     out.append("")
@@ -212,7 +244,14 @@ def write_markdown(
     extra: str = "",
     comparisons: Mapping[str, Any] | None = None,
 ) -> Path:
-    """Write :func:`paper_tables`, ``comparisons``' verdict tables and ``extra`` Markdown to a file, atomically.
+    """Write :func:`markdown_report` to a file, atomically."""
+    return atomic_write(path, markdown_report(methods, extra=extra, comparisons=comparisons), overwrite=overwrite)
+
+
+def markdown_report(
+    methods: Mapping[str, SequenceEvaluation], *, extra: str = "", comparisons: Mapping[str, Any] | None = None
+) -> str:
+    """The text of ``report.md``: :func:`paper_tables`, ``comparisons``' verdict tables and ``extra`` Markdown.
 
     ``extra`` is e.g. the MPEG section of ``--mpeg``.
     """
@@ -221,7 +260,7 @@ def write_markdown(
         text += "\n## Comparisons with confidence\n\n" + comparison_markdown(comparisons)
     if extra:
         text += "\n" + extra
-    return atomic_write(path, text, overwrite=overwrite)
+    return text
 
 
 def write_csv(

@@ -10,8 +10,9 @@ from torchmetrics import Metric
 
 from torchmeshmetric.evaluation.flicker import FLICKER
 from torchmeshmetric.evaluation.pipeline import RegisterFn, RegistrationOptions, evaluate_pair, registration_keywords
-from torchmeshmetric.evaluation.results import SET_NAMES
+from torchmeshmetric.evaluation.results import SET_NAMES, flatten_statistics
 from torchmeshmetric.kernels import IndexCache
+from torchmeshmetric.metrics._plot import StatisticsPlot
 from torchmeshmetric.metrics.distance_states import DistanceStates
 from torchmeshmetric.registration.cache import RegistrationCache
 from torchmeshmetric.structures import MeshLike
@@ -36,7 +37,7 @@ _REVERSE_STATES: dict[str, DistanceStates] = {
 }
 
 
-class TemporalConsistency(Metric):
+class TemporalConsistency(StatisticsPlot, Metric):
     """Temporal consistency of simplified frames (paper Fig. 2) accumulated over validation steps.
 
     Each :meth:`update` evaluates one simplified frame ``k`` against original frames ``k`` and ``k-1`` with
@@ -174,6 +175,14 @@ class TemporalConsistency(Metric):
 
     def _statistics(self, states: DistanceStates, what: str) -> dict[str, Tensor]:
         return states.compute(self, sketch=None, what=what, peak=float(self.peak)).as_tensors()
+
+    def _plot_result(self, result: Any) -> dict[str, Tensor]:
+        """``plot()`` draws the nested result flattened: ``"surface_k/rmse"``, ``"reverse/vertex_k/max"``."""
+        return flatten_statistics(result)  # type: ignore[return-value]
+
+    def _plot_keys(self, result: dict[str, Tensor]) -> list[str]:
+        """``plot()`` draws every set's RMSE by default (the others on request, e.g. ``keys=["flicker/max"]``)."""
+        return [k for k in result if k.endswith("/rmse")]
 
     def compute(self) -> dict[str, Any]:
         """Pooled statistics: ``{set_name: {statistic: 0-dim tensor}}`` (+ ``"reverse"`` when two-sided).

@@ -68,20 +68,30 @@ def item_rows(lengths: Tensor, num_rows: int, centers: Tensor) -> tuple[Tensor, 
     """
     if centers.shape[0] == 1:
         return torch.zeros(num_rows, dtype=torch.long, device=centers.device), centers
-    batch = batch_index(lengths)
+    batch = batch_index(lengths, num_rows)
     return batch, centers[batch]
 
 
 def centred(x: Tensor, lengths: Tensor) -> tuple[Tensor, Tensor, Tensor]:
     """Per-item bounding-box centring of packed rows: ``(centres (B, 3), row centres (1 or N, 3), batch (N,))``."""
     num_items = int(lengths.numel())
-    batch = torch.zeros(x.shape[0], dtype=torch.long, device=x.device) if num_items == 1 else batch_index(lengths)
+    batch = (
+        torch.zeros(x.shape[0], dtype=torch.long, device=x.device)
+        if num_items == 1
+        else batch_index(lengths, int(x.shape[0]))
+    )
     centers = item_centers(x, batch, num_items)
     return centers, (centers if num_items == 1 else centers[batch]), batch
 
 
 def check_queries(
-    points: Tensor, points_lengths: Tensor, prim_lengths: Tensor, *, count_error: str, lacking_error: str
+    points: Tensor,
+    points_lengths: Tensor,
+    prim_lengths: Tensor,
+    *,
+    count_error: str,
+    lacking_error: str,
+    prims_everywhere: bool = False,
 ) -> None:
     """Raise unless the query points fit the items they are measured against.
 
@@ -92,6 +102,8 @@ def check_queries(
         count_error: ``ValueError`` message when ``B' != B``, formatted with ``items`` (``B``) and ``sets`` (``B'``).
         lacking_error: ``EmptyInputError`` message for an item with points but no primitive, formatted with
             ``item`` and ``points``.
+        prims_everywhere: the caller knows every item has primitives (a kept index, checked once): the check
+            that reads ``prim_lengths`` back from the device is skipped.
 
     Raises:
         ValueError: when there is not one point set per item.
@@ -102,7 +114,9 @@ def check_queries(
         raise ValueError(count_error.format(items=num_items, sets=num_sets))
     if points.shape[0] == 0:
         raise EmptyInputError("points: expected at least one point, found an empty point set")
-    if num_items and int(prim_lengths.min()) > 0:  # the usual case, one reduction: every item has primitives
+    if prims_everywhere or (
+        num_items and int(prim_lengths.min()) > 0
+    ):  # the usual case, one reduction: every item has primitives
         return
     lacking = (points_lengths > 0) & (prim_lengths == 0)
     if bool(lacking.any()):

@@ -14,6 +14,7 @@ than returning a wrong Hessian-vector product.
 
 from __future__ import annotations
 
+import itertools
 from typing import Any
 
 import torch
@@ -127,7 +128,7 @@ def mesh_surface_distances(
     if len(meshes) == 1:
         verts, faces = meshes[0].verts, meshes[0].faces
     else:
-        offsets = torch.tensor([0] + [m.num_verts for m in meshes[:-1]], device=meshes[0].faces.device).cumsum(0)
+        offsets = itertools.accumulate([m.num_verts for m in meshes[:-1]], initial=0)  # ints: no device read
         verts = torch.cat([m.verts for m in meshes])
-        faces = torch.cat([m.faces + int(o) for m, o in zip(meshes, offsets, strict=True)])
+        faces = torch.cat([m.faces + o for m, o in zip(meshes, offsets, strict=True)])
     return surface_distances(points, verts.to(index.dtype), faces, index, lengths, owner=owner)

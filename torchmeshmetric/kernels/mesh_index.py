@@ -22,6 +22,7 @@ from torchmeshmetric._checks import (
     StaleIndexError,
     check_finite,
     check_float,
+    check_index_dtype,
     check_shape,
 )
 from torchmeshmetric.kernels._common import (
@@ -233,6 +234,7 @@ class MeshIndex:
         self._faces: Selector | None = None
         self._nearest: _NearestIndex | None = None
         self._origin: MeshIndex | None = None  # the index a `with_verts` copy shares its structures with
+        self._faces_everywhere: bool | None = None  # every item has faces (read once, at the first query)
         self._set_verts(packed.verts)
         self._verts_sources = _sources([("verts", packed.verts)])
         self._faces_sources = _sources([("faces", packed.faces)])
@@ -305,13 +307,15 @@ class MeshIndex:
         return PackedPoints(ref, lengths)
 
     def _check_points(self, points: Tensor | Sequence[Tensor], points_lengths: Tensor | None) -> PackedPoints:
+        """The points packed and in the index's dtype (the dtype rule: narrower points are cast up, exactly)."""
         for i, p in enumerate([points] if isinstance(points, Tensor) else points):
             name = "points" if isinstance(points, Tensor) else f"points[{i}]"
             if isinstance(p, Tensor) and p.device != self.device:
                 raise DeviceError(f"{name}: expected a tensor on the index's device {self.device}, found {p.device}")
-            if isinstance(p, Tensor) and p.dtype != self.dtype:
-                raise DTypeError(f"{name}: expected the index's dtype {self.dtype}, found {p.dtype}")
-        return pack_points(points, points_lengths)
+            if isinstance(p, Tensor) and p.is_floating_point():
+                check_index_dtype(self.dtype, p.dtype, name)
+        pts = pack_points(points, points_lengths)
+        return pts._replace(points=pts.points.to(self.dtype))
 
     def point_mesh_distance(
         self, points: Tensor | Sequence[Tensor], *, points_lengths: Tensor | None = None
@@ -326,7 +330,9 @@ class MeshIndex:
             :class:`~torchmeshmetric.PointMeshResult` ``(dists, face_idx, bary, closest)``.
 
         Raises:
-            DeviceError, DTypeError: when the points are not on the index's device or of its dtype.
+            DeviceError: when the points are not on the index's device.
+            DTypeError: when the points are wider than the index (float64 points, float32 index): they would be
+                rounded (narrower points are cast up: the answer is in the index's dtype).
             ShapeError, NonFiniteError, EmptyInputError, ValueError: on bad points.
             StaleIndexError: a tensor the index was built from changed in place since it was built or refitted.
         """
@@ -344,12 +350,16 @@ class MeshIndex:
             As :meth:`point_mesh_distance`.
         """
         self._check_current()
+        if getattr(self, "_faces_everywhere", None) is None:
+            # Once per index (its faces cannot change): then no query reads the face counts back from the device.
+            self._faces_everywhere = bool((self.faces_lengths > 0).all())
         check_queries(
             points,
             points_lengths,
             self.faces_lengths,
             count_error="points_lengths: expected {items} point sets (one per mesh), found {sets}",
             lacking_error="faces: mesh {item} has no faces but {points} query points",
+            prims_everywhere=bool(self._faces_everywhere),
         )
         point_batch, point_center = item_rows(points_lengths, points.shape[0], self._centers)
         points_c = points - point_center
@@ -399,7 +409,9 @@ class MeshIndex:
             :class:`~torchmeshmetric.NearestVertexResult` ``(dists, idx)``, ``idx`` a row of :attr:`ref_points`.
 
         Raises:
-            DeviceError, DTypeError: when the points are not on the index's device or of its dtype.
+            DeviceError: when the points are not on the index's device.
+            DTypeError: when the points are wider than the index (float64 points, float32 index): they would be
+                rounded (narrower points are cast up: the answer is in the index's dtype).
             ShapeError, NonFiniteError, EmptyInputError, ValueError: on bad points.
             StaleIndexError: a tensor the index was built from changed in place since it was built or refitted.
         """

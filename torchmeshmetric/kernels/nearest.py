@@ -9,7 +9,14 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import EmptyInputError, check_finite, check_float, check_same_device, check_shape
+from torchmeshmetric._checks import (
+    EmptyInputError,
+    check_finite,
+    check_float,
+    check_same_device,
+    check_shape,
+    common_dtype,
+)
 from torchmeshmetric.kernels._common import (
     DEFAULT_MAX_MEMORY,
     centred,
@@ -124,10 +131,10 @@ def nearest_vertex_distance(
         backend: ``"auto"``, ``"bvh"``, ``"triton"``, ``"pruned"`` or ``"bruteforce"``.
 
     Returns:
-        :class:`NearestVertexResult` ``(dists, idx)``; ``dists`` is **not squared** and differentiable
-        w.r.t. both point sets (gradient 0 at zero distance). The nearest point is the one with the smallest
-        computed squared distance (bounding-box centred coordinates), the lowest index among equal ones; every
-        backend returns the same index.
+        :class:`NearestVertexResult` ``(dists, idx)``; ``dists``, in the promoted dtype of the two point sets
+        (float64 if either is), is **not squared** and differentiable w.r.t. both point sets (gradient 0 at zero
+        distance). The nearest point is the one with the smallest computed squared distance (bounding-box centred
+        coordinates), the lowest index among equal ones; every backend returns the same index.
 
     Example:
         >>> import torch
@@ -147,7 +154,7 @@ def nearest_vertex_distance(
             f"found {ref.lengths.numel()}"
         )
     check_backend(backend)
-    dtype = torch.promote_types(pts.points.dtype, ref.points.dtype)
+    dtype = common_dtype(pts.points.dtype, ref.points.dtype)  # the dtype rule (docs/concepts.md, Precision)
     return _query_once(pts.points.to(dtype), pts.lengths, ref.points.to(dtype), ref.lengths, backend, max_memory)
 
 
@@ -184,7 +191,7 @@ def _nearest_single(points: Tensor, ref_points: Tensor, max_memory: int, backend
     check_same_device({"points": points, "ref_points": ref_points})
     check_backend(backend)
     num_p, num_r = points.shape[0], ref_points.shape[0]
-    dtype = torch.promote_types(points.dtype, ref_points.dtype)
+    dtype = common_dtype(points.dtype, ref_points.dtype)
     p, r = points.to(dtype), ref_points.to(dtype)
     fused = bool(num_p and num_r) and not (p.requires_grad or r.requires_grad)
     if fused and resolve_backend(backend, points.device, dtype, num_p * num_r).name == "bvh":

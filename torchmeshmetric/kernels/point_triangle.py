@@ -9,10 +9,9 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import check_same_device
+from torchmeshmetric._checks import check_same_device, common_dtype
 from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY
 from torchmeshmetric.kernels.mesh_index import MeshIndex, PointMeshResult, pack_mesh_args
 from torchmeshmetric.structures import MeshLike, pack_points
@@ -55,8 +54,9 @@ def point_mesh_distance(
             ``"bruteforce"``. To query the same mesh many times, build a :class:`~torchmeshmetric.MeshIndex` once.
 
     Returns:
-        :class:`PointMeshResult` ``(dists, face_idx, bary, closest)``. ``dists`` is the plain Euclidean
-        distance, **not squared**. ``face_idx`` indexes the rows of the (packed) ``faces`` tensor; among
+        :class:`PointMeshResult` ``(dists, face_idx, bary, closest)``, in the promoted dtype of ``points`` and
+        ``verts`` (float64 if either is; gradients come back in each input's own dtype). ``dists`` is the plain
+        Euclidean distance, **not squared**. ``face_idx`` indexes the rows of the (packed) ``faces`` tensor; among
         equidistant faces the lowest index wins.
 
     Raises:
@@ -73,7 +73,7 @@ def point_mesh_distance(
     packed = pack_mesh_args(verts, faces, verts_lengths, faces_lengths)
     pts = pack_points(points, points_lengths)
     check_same_device({"points": pts.points, "verts": packed.verts})
-    dtype = torch.promote_types(pts.points.dtype, packed.verts.dtype)
+    dtype = common_dtype(pts.points.dtype, packed.verts.dtype)  # the dtype rule (docs/concepts.md, Precision)
     # MeshIndex scales extreme coordinates exactly itself and raises when distances overflow the dtype.
     index = MeshIndex.from_packed(packed._replace(verts=packed.verts.to(dtype)), backend, max_memory, tree="morton")
     return index.point_mesh_distance_unchecked(pts.points.to(dtype), pts.lengths)

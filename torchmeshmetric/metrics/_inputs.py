@@ -6,12 +6,13 @@ from collections.abc import Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
+import torch
 from torch import Tensor
 
 from torchmeshmetric.kernels.sampling import vertex_set
 from torchmeshmetric.structures import Mesh, as_mesh, as_points, is_mesh_like
 
-__all__ = ["PointSource", "as_point_sources", "as_reference_meshes", "check_surface_samples"]
+__all__ = ["PointSource", "as_point_sources", "as_reference_meshes", "cast_sources", "check_surface_samples"]
 
 
 class PointSource(NamedTuple):
@@ -50,6 +51,25 @@ def as_point_sources(x: Any, name: str = "simplified") -> list[PointSource]:
             out.append(PointSource(vertex_set(m), m))
         else:
             out.append(PointSource(as_points(it, nm), None))
+    return out
+
+
+def cast_sources(sources: Sequence[PointSource], dtype: torch.dtype) -> list[PointSource]:
+    """The items in ``dtype`` (the set's :func:`~torchmeshmetric._checks.common_dtype`), cast once at the door.
+
+    A mesh item is cast as a whole and its points taken again from the cast mesh, so that its vertices reach the
+    computation through one cast: autograd sums their gradient from every use (query points, measured-to surface)
+    in ``dtype`` and rounds it once to the vertices' own dtype. Items already in ``dtype`` are returned as they are.
+    """
+    out = []
+    for s in sources:
+        if s.points.dtype == dtype:
+            out.append(s)
+        elif s.mesh is None:
+            out.append(PointSource(s.points.to(dtype), None))
+        else:
+            mesh = s.mesh.to(dtype=dtype)
+            out.append(PointSource(vertex_set(mesh), mesh))
     return out
 
 

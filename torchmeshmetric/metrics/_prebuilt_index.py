@@ -7,7 +7,7 @@ from collections.abc import Sequence
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import DeviceError, DTypeError, ShapeError
+from torchmeshmetric._checks import DeviceError, ShapeError, check_index_dtype
 from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.structures import Mesh
@@ -54,23 +54,41 @@ def bound_to(index: MeshIndex | None, meshes: Sequence[Mesh]) -> MeshIndex | Non
 
 
 def index_of(
-    meshes: list[Mesh], given: MeshIndex | None, indexes: IndexCache | None, dtype: torch.dtype, backend: str
+    meshes: list[Mesh],
+    given: MeshIndex | None,
+    indexes: IndexCache | None,
+    dtype: torch.dtype,
+    backend: str,
+    name: str,
+    build: bool = False,
 ) -> MeshIndex | None:
-    """``given``, else the cached index of ``meshes`` (one entry per batch; dtype: ``dtype`` promoted with theirs)."""
-    if given is not None or indexes is None:
+    """The index of ``meshes`` for queries computed in ``dtype`` (:func:`~torchmeshmetric._checks.common_dtype`).
+
+    ``given`` (a prebuilt index: refused when narrower than ``dtype``, used as it is otherwise), else the entry
+    ``indexes`` holds for the meshes in ``dtype``, else, with ``build``, a one-off index of the meshes (detached) in
+    ``dtype``, else ``None``. Every index a set is measured on is chosen here, so the dtype rule holds in both
+    directions and for every source of index.
+
+    Raises:
+        DTypeError: ``given`` is narrower than ``dtype`` (see :func:`~torchmeshmetric._checks.check_index_dtype`).
+    """
+    if given is not None:
+        check_index_dtype(given.dtype, dtype, name)
         return given
-    for m in meshes:
-        dtype = torch.promote_types(dtype, m.dtype)
-    return indexes.get([m.to(dtype=dtype) for m in meshes], backend=backend)
+    if indexes is not None:
+        return indexes.get([m.to(dtype=dtype) for m in meshes], backend=backend)
+    if build:
+        detached = [m.detach().to(dtype=dtype) for m in meshes]
+        return MeshIndex(detached if len(detached) > 1 else detached[0], backend=backend)
+    return None
 
 
 def query_points(index: MeshIndex, points: Tensor, name: str) -> Tensor:
-    """``points`` ready for the index's trusted queries: on its device, in its dtype (never rounded to a narrower one).
+    """``points`` ready for the index's trusted queries: on its device, in its dtype (never narrower than theirs).
 
-    The points themselves are the callers' validated vertex sets or point sets: they are not checked again.
+    The index's dtype was chosen by :func:`index_of`. The points themselves are the callers' validated vertex sets
+    or point sets: they are not checked again.
     """
     if points.device != index.device:
         raise DeviceError(f"{name}: expected an index on the points' device {points.device}, found {index.device}")
-    if torch.promote_types(points.dtype, index.dtype) != index.dtype:
-        raise DTypeError(f"{name}: expected an index of dtype {points.dtype} (that of the points), found {index.dtype}")
     return points.to(index.dtype)

@@ -18,6 +18,7 @@ from torch import Tensor
 from torchmetrics import Metric, MetricCollection
 
 from torchmeshmetric._checks import check_shape
+from torchmeshmetric.metrics._plot import StatisticsPlot
 from torchmeshmetric.metrics.directed_distances import DirectedDistances
 from torchmeshmetric.metrics.distance_states import DistanceStates
 from torchmeshmetric.metrics.selected_statistic import SelectedStatistic
@@ -29,11 +30,14 @@ __all__ = ["DistanceStatisticsBase", "DistanceStatisticsMetric", "MeasuredDistan
 _SYMMETRIC = ("symmetric_ave", "hausdorff", "symmetric_mse", "symmetric_rmse", "symmetric_psnr")
 
 
-class DistanceStatisticsBase(Metric):
+class DistanceStatisticsBase(StatisticsPlot, Metric):
     """Base class: accumulates distances of one or two directions and computes :class:`DistanceStatistics`.
 
     A subclass declares the names of its states as class constants ``_forward_states`` and ``_reverse_states``
     (:class:`~torchmeshmetric.metrics.distance_states.DistanceStates`), names no other metric class uses.
+
+    ``plot()`` draws ``compute()``'s statistics as bars, or a list of results as curves (see
+    :class:`~torchmeshmetric.metrics._plot.StatisticsPlot`).
 
     Args:
         two_sided: accumulate and report the reverse direction and symmetric combinations too.

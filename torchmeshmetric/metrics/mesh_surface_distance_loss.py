@@ -50,7 +50,8 @@ def mesh_surface_distance_loss(
             (an :class:`~torchmeshmetric.IndexCache` for the references; :class:`MeshSurfaceDistanceLoss` keeps one).
 
     Returns:
-        A 0-dim loss, or ``(P [+ R],)`` per-point terms for ``reduction="none"``.
+        A 0-dim loss, or ``(P [+ R],)`` per-point terms for ``reduction="none"``, in the promoted dtype of the
+        inputs (float64 if either is; each input's gradient in its own dtype: ``docs/concepts.md``, *Precision*).
 
     Raises:
         EmptyInputError: ``reduction="mean"`` on a batch without any point (``"sum"`` gives 0, ``"none"`` an

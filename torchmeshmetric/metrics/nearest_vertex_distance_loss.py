@@ -40,7 +40,8 @@ def nearest_vertex_distance_loss(
             ``detach_reference`` (cut the gradient to the reference points, default ``True``), ``backend``.
 
     Returns:
-        A 0-dim loss, or the per-point terms for ``reduction="none"``.
+        A 0-dim loss, or the per-point terms for ``reduction="none"``, in the promoted dtype of the inputs (float64
+        if either is; each input's gradient in its own dtype: ``docs/concepts.md``, *Precision*).
 
     Raises:
         EmptyInputError: ``reduction="mean"`` on a batch without any point (``"sum"`` gives 0, ``"none"`` an

@@ -14,6 +14,8 @@ from typing import Any, Protocol
 from torch import Tensor
 from torchmetrics import Metric
 
+from torchmeshmetric.metrics._plot import StatisticsPlot
+
 __all__ = ["SelectedStatistic", "StatisticSource"]
 
 
@@ -38,7 +40,7 @@ class StatisticSource(Protocol):
         ...
 
 
-class SelectedStatistic(Metric):
+class SelectedStatistic(StatisticsPlot, Metric):
     """The 0-dim tensor ``source.compute()[key]``, as a metric that Lightning can log and reset.
 
     Made by :meth:`DistanceStatisticsBase.statistic` (or, for several keys at once, by
@@ -46,7 +48,8 @@ class SelectedStatistic(Metric):
     batch), then compute or log the views. ``compute()`` is not cached, so it always reflects the source's current
     state; the source caches its own result until its next ``update``/``reset``. ``reset()`` resets the source
     (Lightning resets every logged metric at the end of an epoch; resetting a shared source several times is
-    harmless). ``update()`` is not supported (it would be ambiguous which of several views feeds the source).
+    harmless). ``plot()`` draws the value (or a list of values, one a step) as torchmetrics draws a scalar
+    metric. ``update()`` is not supported (it would be ambiguous which of several views feeds the source).
 
     Args:
         source: the metric whose statistic is reported.
@@ -108,6 +111,10 @@ class SelectedStatistic(Metric):
         """Reset the source metric (and this view's bookkeeping)."""
         self.source.reset()
         super().reset()
+
+    def _plot_higher_is_better(self) -> bool:
+        """A PSNR is better higher, a distance lower (``plot()``'s optimal-value mark)."""
+        return "psnr" in self.key
 
     def extra_repr(self) -> str:
         """The selected key (shown in ``repr``)."""

@@ -11,6 +11,7 @@ from typing import Any, TypedDict
 import torch
 from torch import Tensor
 
+from torchmeshmetric._checks import common_dtype
 from torchmeshmetric.kernels.danskin import mesh_surface_distances
 from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.kernels.mesh_index import MeshIndex
@@ -20,6 +21,7 @@ from torchmeshmetric.kernels.sampling import sample_surface, vertex_set
 from torchmeshmetric.metrics._inputs import (
     as_point_sources,
     as_reference_meshes,
+    cast_sources,
     check_surface_samples,
     require_meshes,
 )
@@ -62,20 +64,20 @@ def _to_surface(
     ``indexes`` holds for ``meshes``, else computed by :func:`~torchmeshmetric.point_mesh_distance`.
     """
     p = packed(points)
+    dtype = common_dtype(p.dtype, *(m.dtype for m in meshes))  # the dtype rule: both directions, every index
     if p.shape[0] == 0:  # an empty update: nothing to measure
-        return p.new_zeros(0)
+        return p.new_zeros(0, dtype=dtype)
     if surface_samples is None:
-        index = index_of(meshes, index, indexes, p.dtype, backend)
+        # A loss differentiates every surface distance by Danskin's theorem, on an index (one built for this call
+        # when none is given or cached).
         differentiable = torch.is_grad_enabled() and (p.requires_grad or any(m.verts.requires_grad for m in meshes))
-        if index is None and differentiable:  # a loss: every surface loss differentiates by Danskin's theorem
-            index = MeshIndex([m.detach() for m in meshes] if len(meshes) > 1 else meshes[0].detach(), backend=backend)
+        index = index_of(meshes, index, indexes, dtype, backend, index_name, build=differentiable)
         if index is None:
             return point_mesh_distance(p, meshes, points_lengths=lengths_of(points), backend=backend).dists
         q = query_points(index, p, index_name)
         return mesh_surface_distances(q, lengths_of(points), meshes, index, owner="mesh_surface_distance_loss")
     gen = torch.Generator(device=meshes[0].device).manual_seed(seed)
     s = sample_surface(meshes, n=surface_samples, generator=gen)
-    dtype = torch.promote_types(p.dtype, s.points.dtype)
     return nearest_vertex_distance(
         p.to(dtype), s.points.to(dtype), points_lengths=lengths_of(points), ref_lengths=s.lengths, backend=backend
     ).dists
@@ -159,12 +161,13 @@ def mesh_surface_distance_sets(
         simplified_index: the :class:`~torchmeshmetric.MeshIndex` of the simplified meshes, for the reverse set.
 
     Returns:
-        :class:`~torchmeshmetric.metrics.DirectedDistances`; ``forward`` is differentiable w.r.t. the simplified
+        :class:`~torchmeshmetric.metrics.DirectedDistances` in the promoted dtype of the inputs and of any index
+        given (``docs/concepts.md``, *Precision*); ``forward`` is differentiable w.r.t. the simplified
         vertices (and the reference when not detached).
 
     Raises:
-        ShapeError, DeviceError, DTypeError: an index whose vertex counts, device or (narrower) dtype do not fit
-            its meshes.
+        ShapeError, DeviceError: an index whose vertex counts or device do not fit its meshes.
+        DTypeError: an index narrower than the promoted dtype of the inputs (it would round them).
         ValueError: an index with ``surface_samples`` (the sampled mode measures to samples, not to a surface).
 
     Example:
@@ -189,6 +192,11 @@ def mesh_surface_distance_sets(
     refs = as_reference_meshes(reference, len(sources), "reference")
     check_index(reference_index, refs, "reference_index")
     check_index(simplified_index, [s.mesh for s in sources], "simplified_index")
+    # The dtype rule, at the door: everything in the promoted dtype of the inputs (a given index stands for its
+    # mesh); a prebuilt index narrower than that is refused where it is used (index_of).
+    given = [i.dtype for i in (reference_index, simplified_index) if i is not None]
+    dtype = common_dtype(*(s.points.dtype for s in sources), *(m.dtype for m in refs), *given)
+    sources, refs = cast_sources(sources, dtype), [m.to(dtype=dtype) for m in refs]
     simp_meshes = None
     if two_sided:
         simp_meshes = require_meshes(sources, "simplified", "two_sided=True measures reference → simplified surface")

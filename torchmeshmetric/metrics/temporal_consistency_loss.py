@@ -35,11 +35,10 @@ from typing import Any
 import torch
 from torch import Tensor, nn
 
-from torchmeshmetric._checks import EmptyInputError, NonFiniteError, ShapeError
+from torchmeshmetric._checks import EmptyInputError, NonFiniteError, ShapeError, common_dtype
 from torchmeshmetric.kernels.danskin import mesh_surface_distances
 from torchmeshmetric.kernels.index_cache import IndexCache
-from torchmeshmetric.kernels.mesh_index import MeshIndex
-from torchmeshmetric.kernels.sampling import vertex_set
+from torchmeshmetric.kernels.mesh_index import MeshIndex, _version
 from torchmeshmetric.metrics._loss import check_loss_args, reduce_directed
 from torchmeshmetric.metrics.directed_distances import DirectedDistances
 from torchmeshmetric.registration.cache import (
@@ -51,7 +50,7 @@ from torchmeshmetric.registration.cache import (
 )
 from torchmeshmetric.registration.options import NonRigidOptions
 from torchmeshmetric.registration.warp import RegistrationWarp, Warp, as_warp
-from torchmeshmetric.structures import Mesh, as_mesh, is_mesh_like
+from torchmeshmetric.structures import Mesh, as_mesh, is_mesh_like, vertex_set_mask
 
 __all__ = ["TemporalConsistencyLoss", "TemporalLossCache", "temporal_consistency_loss"]
 
@@ -62,24 +61,37 @@ class _KeptIndex:
     def __init__(self) -> None:
         self.faces: list[Tensor] | None = None
         self.index: MeshIndex | None = None
+        # The caller's faces tensors of the last call and their versions: the same tensors, unmodified, are the same
+        # faces without comparing values (a comparison reads a bool back from the device: a sync per mesh on CUDA).
+        self.sources: list[tuple[Tensor, int]] = []
+        self.num_verts: list[int] = []
+
+    def _same_faces(self, meshes: list[Mesh]) -> bool:
+        if self.faces is None or len(self.faces) != len(meshes):
+            return False
+        if len(self.sources) == len(meshes) and all(
+            t is m.faces and v >= 0 and v == _version(m.faces) for (t, v), m in zip(self.sources, meshes, strict=True)
+        ):
+            return True
+        if not all(
+            f.shape == m.faces.shape and f.device == m.faces.device for f, m in zip(self.faces, meshes, strict=True)
+        ):
+            return False
+        # One device read for the whole batch.
+        return bool(torch.stack([(f == m.faces).all() for f, m in zip(self.faces, meshes, strict=True)]).all())
 
     def get(self, meshes: list[Mesh], backend: str) -> MeshIndex:
         verts = torch.cat([m.verts for m in meshes]).detach()
         same = (
             self.index is not None
-            and self.faces is not None
-            and len(self.faces) == len(meshes)
-            and all(
-                f.shape == m.faces.shape and f.device == m.faces.device and torch.equal(f, m.faces)
-                for f, m in zip(self.faces, meshes, strict=True)
-            )
             and self.index.dtype == verts.dtype
             and self.index.device == verts.device
-            and int(self.index.verts.shape[0]) == int(verts.shape[0])
-            and [int(x) for x in self.index.verts_lengths] == [m.num_verts for m in meshes]
+            and self.num_verts == [m.num_verts for m in meshes]
+            and self._same_faces(meshes)
         )
         if same and self.index is not None:
-            self.index.refit(verts)
+            self.index.refit_unchecked(verts)  # validated at the door (as_mesh) or by _check_moved
+            self.sources = [(m.faces, _version(m.faces)) for m in meshes]
             return self.index
         detached = [Mesh(m.verts.detach(), m.faces, validate=False) for m in meshes]
         index = MeshIndex(detached if len(detached) > 1 else detached[0], backend=backend)
@@ -93,7 +105,38 @@ class _KeptIndex:
             with torch.no_grad():
                 mesh_surface_distances(verts[:1].to(index.dtype), lengths, detached, index)
         self.index, self.faces = index, [m.faces.clone() for m in meshes]
+        self.sources = [(m.faces, _version(m.faces)) for m in meshes]
+        self.num_verts = [m.num_verts for m in meshes]
         return index
+
+
+class _VertexRows:
+    """The rows of :func:`~torchmeshmetric.vertex_set` per faces tensor, kept between calls.
+
+    A training step's meshes keep their faces, and finding their referenced vertices again would read a mask back
+    from the device (two syncs a mesh on CUDA).
+    """
+
+    def __init__(self, max_entries: int) -> None:
+        self.max_entries = max_entries
+        self._rows: OrderedDict[int, tuple[Tensor, int, int, Tensor | None]] = OrderedDict()
+
+    def __call__(self, mesh: Mesh) -> Tensor:
+        """``vertex_set(mesh)``: the same values in the same order, differentiable w.r.t. ``mesh.verts``."""
+        key, version = id(mesh.faces), _version(mesh.faces)
+        found = self._rows.get(key)
+        if found is not None and found[0] is mesh.faces and version >= 0 and found[1:3] == (version, mesh.num_verts):
+            self._rows.move_to_end(key)
+            rows = found[3]
+        else:
+            used = vertex_set_mask(mesh.faces, mesh.num_verts)
+            if not bool(used.any()):
+                raise EmptyInputError("mesh: no vertex is referenced by a face")
+            rows = None if bool(used.all()) else used.nonzero().squeeze(1)
+            self._rows[key] = (mesh.faces, version, mesh.num_verts, rows)
+            if len(self._rows) > self.max_entries:
+                self._rows.popitem(last=False)
+        return mesh.verts if rows is None else mesh.verts.index_select(0, rows)
 
 
 class TemporalLossCache:
@@ -142,7 +185,7 @@ class TemporalLossCache:
         self.indexes = IndexCache(max_entries=max_indexes)
         self._simplified = _KeptIndex()
         self._moved = _KeptIndex()
-        self._frame_simplified = _KeptIndex()  # the simplified frames in a wider dtype, for the original vertices
+        self._vertex_rows = _VertexRows(4 * max_warps)  # simplified k, moved k-1 and original k of each pair
 
     @property
     def num_warps(self) -> int:
@@ -182,7 +225,7 @@ class TemporalLossCache:
         registrations = RegistrationCache(self.registrations.directory, max_entries=self.registrations.max_entries)
         return {"max_warps": self.max_warps, "registrations": registrations, "_warps": OrderedDict(),
                 "indexes": self.indexes, "_simplified": _KeptIndex(), "_moved": _KeptIndex(),
-                "_frame_simplified": _KeptIndex()}  # fmt: skip
+                "_vertex_rows": _VertexRows(4 * self.max_warps)}  # fmt: skip
 
 
 def _to_surface(points: list[Tensor], meshes: list[Mesh], index: MeshIndex) -> Tensor:
@@ -251,12 +294,20 @@ def _moved(warp: Warp, simplified_k_minus_1: Mesh, like: Mesh, name: str) -> Mes
             f"{name}: the warp must map (P, 3) points to (P, 3) points; it mapped "
             f"{tuple(simplified_k_minus_1.verts.shape)} to {found}"
         )
-    if not bool(torch.isfinite(moved).all()):
-        bad = int((~torch.isfinite(moved)).any(dim=1).sum())
-        raise NonFiniteError(
-            f"{name}: the warp moved {bad} vertices of simplified_k_minus_1 to non-finite positions (NaN/Inf)"
-        )
     return Mesh(moved.to(like.device, like.dtype), simplified_k_minus_1.faces.to(like.device), validate=False)
+
+
+def _check_moved(moved: list[Mesh], names: list[str]) -> None:
+    """Require every moved vertex finite: one device read for the whole batch (a sync on CUDA), not one per pair."""
+    finite = [torch.isfinite(m.verts).all() for m in moved]
+    if bool(torch.stack(finite).all()):
+        return
+    for m, ok, name in zip(moved, finite, names, strict=True):
+        if not bool(ok):
+            bad = int((~torch.isfinite(m.verts)).any(dim=1).sum())
+            raise NonFiniteError(
+                f"{name}: the warp moved {bad} vertices of simplified_k_minus_1 to non-finite positions (NaN/Inf)"
+            )
 
 
 def _options(given: Mapping[str, Any] | NonRigidOptions | None) -> NonRigidOptions:
@@ -332,7 +383,8 @@ def temporal_consistency_loss(
             registers every pair again.
 
     Returns:
-        A 0-dim loss, or the per-point terms (``reduction="none"``).
+        A 0-dim loss, or the per-point terms (``reduction="none"``), in the promoted dtype of the four frames (each
+        frame's gradient in its own dtype: ``docs/concepts.md``, *Precision*).
 
     Raises:
         TypeError: an argument that is not a mesh or list of meshes, a registration of an unknown kind.
@@ -370,41 +422,40 @@ def temporal_consistency_loss(
     given = _registration_items(registration, len(s_k))
     options = _options(registration_options)
     work = cache if cache is not None else TemporalLossCache(max_warps=max(1, len(s_k)))
-    moved = []
+    # The dtype rule (docs/concepts.md, Precision): every term in the promoted dtype of all the frames; the casts
+    # are differentiable, so each frame's gradient comes back in its own dtype. The registrations stay in the
+    # originals' dtype (their cache keys are the evaluation's); the warps promote the points they move.
+    dtype = common_dtype(*(m.dtype for m in (*s_k, *s_km1, *o_k, *o_km1)))
+    s_k = [m.to(dtype=dtype) for m in s_k]
+    moved, names = [], []
     for i, (g, ok, okm1, skm1, sk) in enumerate(zip(given, o_k, o_km1, s_km1, s_k, strict=True)):
         name = "registration" if len(s_k) == 1 else f"registration[{i}]"
         warp = work.warp(ok, okm1, options, backend) if g is None else as_warp(g, ok, okm1, name=name)
-        moved.append(_moved(warp, skm1, sk, name))
+        moved.append(_moved(warp, skm1.to(dtype=dtype), sk, name))
+        names.append(name)
+    _check_moved(moved, names)
     # One index per role for the whole batch: the moved frames k-1 (measured to) and the simplified frames k
     # (measured to by both reverse directions), refitted across calls while their faces stay the same; the
     # original frames k found again by content. Every index holds detached vertices: the gradient to the vertices
     # comes from Danskin's backward (kernels.danskin), to the meshes given here.
-    k_points = [vertex_set(m) for m in s_k]
+    k_points = [work._vertex_rows(m) for m in s_k]
     simplified_index = work._simplified.get(s_k, backend) if two_sided else None
     moved_index = work._moved.get(moved, backend)
     flicker = _directed(
         k_points,
         moved,
         moved_index,
-        ([vertex_set(m) for m in moved], s_k, simplified_index) if simplified_index is not None else None,
+        ([work._vertex_rows(m) for m in moved], s_k, simplified_index) if simplified_index is not None else None,
     )
     total = reduce_directed(flicker, power, reduction)
     if frame_weight == 0:
         return total
-    dtype = s_k[0].dtype
-    for m in o_k:
-        dtype = torch.promote_types(dtype, m.dtype)
     originals = [m.detach().to(dtype=dtype) for m in o_k]
     original_index = work.indexes.get(originals if len(originals) > 1 else originals[0], backend=backend)
     reverse = None
-    if two_sided:
-        # The reverse frame term queries the original vertices on the simplified index when it has their dtype.
-        shared = simplified_index
-        if shared is not None and shared.dtype != dtype:
-            shared = work._frame_simplified.get([m.to(dtype=dtype) for m in s_k], backend)
-        assert shared is not None
-        reverse = ([vertex_set(m) for m in originals], [m.to(dtype=dtype) for m in s_k], shared)
-    frame = _directed([q.to(dtype) for q in k_points], originals, original_index, reverse)
+    if simplified_index is not None:  # two-sided: the original vertices are queried on the simplified index too
+        reverse = ([work._vertex_rows(m) for m in originals], s_k, simplified_index)
+    frame = _directed(k_points, originals, original_index, reverse)
     frame_term = reduce_directed(frame, power, reduction)
     if reduction == "none":
         return torch.cat([total, frame_weight * frame_term])

@@ -11,10 +11,11 @@ from typing import Any, TypedDict
 import torch
 from torch import Tensor
 
+from torchmeshmetric._checks import common_dtype
 from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance
-from torchmeshmetric.metrics._inputs import as_point_sources
+from torchmeshmetric.metrics._inputs import as_point_sources, cast_sources
 from torchmeshmetric.metrics._prebuilt_index import bound_to, check_index, index_of, query_points
 from torchmeshmetric.metrics.directed_distances import DirectedDistances, lengths_of, packed
 from torchmeshmetric.structures import Mesh
@@ -52,14 +53,13 @@ def _cloud_to_cloud(
     :func:`~torchmeshmetric.nearest_vertex_distance`.
     """
     p = packed(points)
+    dtype = common_dtype(p.dtype, *(q.dtype for q in refs))  # the dtype rule: both directions, every index
     if p.shape[0] == 0:  # an empty update: nothing to measure
-        return p.new_zeros(0)
-    if ref_meshes is not None:
-        index = index_of(ref_meshes, index, indexes, p.dtype, backend)
+        return p.new_zeros(0, dtype=dtype)
+    index = index_of(ref_meshes or [], index, indexes if ref_meshes is not None else None, dtype, backend, index_name)
     if index is not None:
         return index.nearest_vertex_distance_unchecked(query_points(index, p, index_name), lengths_of(points)).dists
     r = packed(refs)
-    dtype = torch.promote_types(p.dtype, r.dtype)
     return nearest_vertex_distance(
         p.to(dtype), r.to(dtype), points_lengths=lengths_of(points), ref_lengths=lengths_of(refs), backend=backend
     ).dists
@@ -135,13 +135,14 @@ def nearest_vertex_distance_sets(
         simplified_index: the :class:`~torchmeshmetric.MeshIndex` of the simplified meshes, for the reverse set.
 
     Returns:
-        :class:`~torchmeshmetric.metrics.DirectedDistances` (``peak``: bounding-box diagonal of each reference
+        :class:`~torchmeshmetric.metrics.DirectedDistances` in the promoted dtype of the inputs and of any index
+        given (``docs/concepts.md``, *Precision*; ``peak``: bounding-box diagonal of each reference
         vertex set).
 
     Raises:
         TypeError: an index given with point-set items.
-        ShapeError, DeviceError, DTypeError: an index whose vertex counts, device or (narrower) dtype do not fit
-            its meshes.
+        ShapeError, DeviceError: an index whose vertex counts or device do not fit its meshes.
+        DTypeError: an index narrower than the promoted dtype of the inputs (it would round them).
 
     Example:
         >>> import torch, trimesh
@@ -164,6 +165,11 @@ def nearest_vertex_distance_sets(
         )
     check_index(reference_index, [s.mesh for s in ref_sources], "reference_index")
     check_index(simplified_index, [s.mesh for s in sources], "simplified_index")
+    # The dtype rule, at the door: everything in the promoted dtype of the inputs (a given index stands for its
+    # mesh); a prebuilt index narrower than that is refused where it is used (index_of).
+    given = [i.dtype for i in (reference_index, simplified_index) if i is not None]
+    dtype = common_dtype(*(s.points.dtype for s in (*sources, *ref_sources)), *given)
+    sources, ref_sources = cast_sources(sources, dtype), cast_sources(ref_sources, dtype)
     ref_meshes = [s.mesh for s in ref_sources if s.mesh is not None]
     if detach_reference:
         ref_meshes = [m.detach() for m in ref_meshes]

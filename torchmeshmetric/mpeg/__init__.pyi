@@ -6,8 +6,12 @@
 # The public submodules (attributes of the package, as after a normal import).
 from . import colour as colour
 from . import comparison as comparison
+from . import ctc_campaign as ctc_campaign
+from . import ctc_manifest as ctc_manifest
+from . import ctc_sheet as ctc_sheet
 from . import edge_sampling as edge_sampling
 from . import equality as equality
+from . import face_errors as face_errors
 from . import face_sampling as face_sampling
 from . import grid_sampling as grid_sampling
 from . import losses as losses
@@ -28,19 +32,33 @@ from . import topology as topology
 from . import vertex_sampling as vertex_sampling
 from .bd_rate import bd_rate
 from .colour import rgb_to_ycbcr
-from .comparison import MpegDirection, MpegResult, bbox_diagonal, mpeg_compare
+from .comparison import (
+    MpegDirection,
+    MpegPointErrors,
+    MpegResult,
+    PointErrors,
+    bbox_diagonal,
+    mpeg_compare,
+    mpeg_point_errors,
+)
 from .ctc import CTC_COLUMNS, CtcFrame, CtcSequence, ctc_frame, ctc_mean, ctc_sequence
+from .ctc_campaign import CampaignResult, run_ctc_campaign
+from .ctc_manifest import CtcCampaign, CtcManifestError, load_ctc_campaign
+from .ctc_sheet import RatePoint, ctc_summary, read_test_model_csv
 from .dequantize import dequantize_positions, dequantize_uvs
 from .edge_sampling import edge_sample
 from .equality import MeshEquality, mesh_equality
+from .face_errors import FaceErrors, ctc_face_errors
 from .face_sampling import face_sample
 from .grid_sampling import (
     BoxError,
     GridHits,
+    GridSamples,
     GridTooLargeError,
     check_box,
     grid_hits,
     grid_sample,
+    grid_sample_faces,
     mesh_box,
     unique_vertex_rows,
 )
@@ -75,6 +93,16 @@ __all__ = [
     "CTC_COLUMNS",
     "CtcFrame",
     "CtcSequence",
+    "CampaignResult",
+    "FaceErrors",
+    "ctc_face_errors",
+    "CtcCampaign",
+    "CtcManifestError",
+    "RatePoint",
+    "ctc_summary",
+    "load_ctc_campaign",
+    "read_test_model_csv",
+    "run_ctc_campaign",
     "GridTooLargeError",
     "IbsmNoOverlapWarning",
     "IbsmResult",
@@ -90,6 +118,11 @@ __all__ = [
     "read_texture",
     "BoxError",
     "GridHits",
+    "GridSamples",
+    "MpegPointErrors",
+    "PointErrors",
+    "grid_sample_faces",
+    "mpeg_point_errors",
     "MeshEquality",
     "MpegGeometryLoss",
     "MpegPSNR",

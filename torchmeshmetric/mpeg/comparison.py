@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -30,7 +31,7 @@ from torchmeshmetric.mpeg.neighbours import NeighbourTies, nearest_with_ties_bot
 from torchmeshmetric.mpeg.point_cloud import PointCloud, merge_duplicate_points
 from torchmeshmetric.mpeg.psnr import mpeg_psnr
 
-__all__ = ["MpegDirection", "MpegResult", "mpeg_compare"]
+__all__ = ["MpegDirection", "MpegPointErrors", "MpegResult", "PointErrors", "mpeg_compare", "mpeg_point_errors"]
 
 _DBL_MIN = 2.2250738585072014e-308  # dmetric starts its running maxima at numeric_limits<double>::min()
 
@@ -210,14 +211,26 @@ def _per_point_d2(qp: np.ndarray, tp: np.ndarray, nrm: np.ndarray, rows: np.ndar
     return per
 
 
-def _direction(
-    query: PointCloud,
-    target: PointCloud,
-    target_normals: np.ndarray | None,
-    ties: NeighbourTies,
-    peak: float,
-    with_color: bool,
-) -> MpegDirection:
+class PointErrors(NamedTuple):
+    """Each point's errors in one direction of the comparison (the terms of :class:`MpegDirection`'s means).
+
+    Attributes:
+        d1: ``(N,)`` squared distance of each query point to its nearest target point.
+        d2: ``(N,)`` squared point-to-plane error (the mean over equally near neighbours), or ``None`` without
+            target normals.
+        color: ``(N, 3)`` squared Y, Cb, Cr error (colours in ``[0, 1]``), or ``None`` without colours.
+        rgb: ``(N, 3)`` squared R, G, B difference (0..255 units) to the neighbours' averaged colour, or ``None``.
+    """
+
+    d1: np.ndarray
+    d2: np.ndarray | None
+    color: np.ndarray | None
+    rgb: np.ndarray | None
+
+
+def _point_errors(
+    query: PointCloud, target: PointCloud, target_normals: np.ndarray | None, ties: NeighbourTies, with_color: bool
+) -> PointErrors:
     # Every query averages over its chain of equally near neighbours; almost all chains hold the nearest point
     # alone, so the figures are computed for the nearest first and recomputed for the few tie rows. The sums start
     # at 0.0 and run in chain order, as dmetric's (0.0 + x is x, so a single neighbour's term is unchanged).
@@ -225,20 +238,15 @@ def _direction(
     tp = target.points.numpy()
     n = qp.shape[0]
     all_rows = np.arange(n)
-    d1 = ties.sq_dist
-    d1_mse = float(np.sum(d1)) / n
-    d1_h = max(_DBL_MIN, float(d1.max()))
     t_rows, t_cols, t_pos = _tie_rows(ties)
     t_counts = np.bincount(t_pos, minlength=ties.rows.shape[0])
-    d2_mse = d2_h = math.nan
+    d2 = None
     if target_normals is not None:
         d2 = 0.0 + _per_point_d2(qp, tp, target_normals, all_rows, ties.nearest)
         if ties.rows.size:
             per = _per_point_d2(qp, tp, target_normals, t_rows, t_cols)
             d2[ties.rows] = np.bincount(t_pos, weights=per, minlength=ties.rows.shape[0]) / t_counts
-        d2_mse = float(np.sum(d2)) / n
-        d2_h = max(_DBL_MIN, float(d2.max()))
-    color_mse = color_psnr = rgb_h = rgb_h_psnr = None
+    sq = rgb_sq = None
     if with_color and query.colors is not None and target.colors is not None:
         tc = target.colors.numpy().astype(np.int64)
         mean = tc[ties.nearest].astype(np.float64)  # floor(x + 0.5) of an integer is the integer
@@ -250,12 +258,35 @@ def _direction(
         yuv_t = rgb_to_ycbcr(mean)
         e = yuv_q - yuv_t
         sq = (e * e).astype(np.float64)
-        cm = tuple(float(v) for v in sq.sum(axis=0) / n)
+        # dmetric's RGB Hausdorff: integer differences squared
+        rgb_err = query.colors.numpy().astype(np.float64) - mean
+        rgb_sq = rgb_err * rgb_err
+    return PointErrors(ties.sq_dist, d2, sq, rgb_sq)
+
+
+def _direction(
+    query: PointCloud,
+    target: PointCloud,
+    target_normals: np.ndarray | None,
+    ties: NeighbourTies,
+    peak: float,
+    with_color: bool,
+) -> MpegDirection:
+    e = _point_errors(query, target, target_normals, ties, with_color)
+    n = e.d1.shape[0]
+    d1_mse = float(np.sum(e.d1)) / n
+    d1_h = max(_DBL_MIN, float(e.d1.max()))
+    d2_mse = d2_h = math.nan
+    if e.d2 is not None:
+        d2_mse = float(np.sum(e.d2)) / n
+        d2_h = max(_DBL_MIN, float(e.d2.max()))
+    color_mse = color_psnr = rgb_h = rgb_h_psnr = None
+    if e.color is not None and e.rgb is not None:
+        cm = tuple(float(v) for v in e.color.sum(axis=0) / n)
         color_mse = (cm[0], cm[1], cm[2])
         color_psnr = (mpeg_psnr(cm[0], 1.0, 1.0), mpeg_psnr(cm[1], 1.0, 1.0), mpeg_psnr(cm[2], 1.0, 1.0))
-        # dmetric's RGB Hausdorff: integer differences squared, the running maximum starting at DBL_MIN
-        rgb_err = query.colors.numpy().astype(np.float64) - mean
-        hm = np.maximum((rgb_err * rgb_err).max(axis=0), _DBL_MIN)
+        # the running maximum starts at DBL_MIN, as dmetric's
+        hm = np.maximum(e.rgb.max(axis=0), _DBL_MIN)
         rgb_h = (float(hm[0]), float(hm[1]), float(hm[2]))
         rgb_h_psnr = (mpeg_psnr(rgb_h[0], 255.0, 1.0), mpeg_psnr(rgb_h[1], 255.0, 1.0), mpeg_psnr(rgb_h[2], 255.0, 1.0))
     return MpegDirection(
@@ -307,13 +338,36 @@ def mpeg_compare(ref: PointCloud, dis: PointCloud, *, peak: float | None = None)
         >>> round(r.symmetric.d1_mse, 6), round(r.symmetric.d2_mse, 6)
         (0.005, 0.005)
     """
+    if peak is None:
+        peak = bbox_diagonal(ref.points.detach().cpu().numpy().astype(np.float32))
+    peak = float(np.float32(peak))
+    m = _matched(ref, dis)
+    return MpegResult(
+        peak=peak,
+        points_ref=m.ref.num_points,
+        points_dis=m.dis.num_points,
+        ref_to_dis=_direction(m.ref, m.dis, m.dis_normals, m.ref_ties, peak, m.with_color),
+        dis_to_ref=_direction(m.dis, m.ref, m.ref_normals, m.dis_ties, peak, m.with_color),
+    )
+
+
+class _Matched(NamedTuple):
+    """Both clouds merged, their nearest neighbours with ties, and the normals each direction projects on."""
+
+    ref: PointCloud
+    dis: PointCloud
+    ref_ties: NeighbourTies
+    dis_ties: NeighbourTies
+    ref_normals: np.ndarray | None
+    dis_normals: np.ndarray | None
+    with_color: bool
+
+
+def _matched(ref: PointCloud, dis: PointCloud) -> _Matched:
     a = merge_duplicate_points(ref, "ref")
     b = merge_duplicate_points(dis, "dis")
     ap = a.points.numpy()
     bp = b.points.numpy()
-    if peak is None:
-        peak = bbox_diagonal(ref.points.detach().cpu().numpy().astype(np.float32))
-    peak = float(np.float32(peak))
     ab, ba = nearest_with_ties_both(ap, bp)
     na = a.normals.numpy() if a.normals is not None else None
     nb: np.ndarray | None = None
@@ -321,11 +375,43 @@ def mpeg_compare(ref: PointCloud, dis: PointCloud, *, peak: float | None = None)
         # mmetric enables dmetric's normalCalcModificationEnable: the distorted cloud's own normals when it has them,
         # otherwise normals transferred from the reference.
         nb = b.normals.numpy() if b.normals is not None else _transfer_normals(na, bp.shape[0], ab, ba)
-    with_color = a.colors is not None and b.colors is not None
-    return MpegResult(
-        peak=peak,
-        points_ref=ap.shape[0],
-        points_dis=bp.shape[0],
-        ref_to_dis=_direction(a, b, nb, ab, peak, with_color),
-        dis_to_ref=_direction(b, a, na, ba, peak, with_color),
+    return _Matched(a, b, ab, ba, na, nb, a.colors is not None and b.colors is not None)
+
+
+class MpegPointErrors(NamedTuple):
+    """The per-point errors behind :func:`mpeg_compare`'s figures (mmetric's per-point output, m69466).
+
+    Attributes:
+        ref: the reference cloud after duplicate merging (sorted by position): the points of ``ref_to_dis``.
+        dis: the distorted cloud after merging: the points of ``dis_to_ref``.
+        ref_to_dis: each reference point's errors against the distorted cloud.
+        dis_to_ref: each distorted point's errors against the reference.
+    """
+
+    ref: PointCloud
+    dis: PointCloud
+    ref_to_dis: PointErrors
+    dis_to_ref: PointErrors
+
+
+def mpeg_point_errors(ref: PointCloud, dis: PointCloud) -> MpegPointErrors:
+    """Every point's D1, D2 and colour errors of ``mm compare --mode pcc``, both directions.
+
+    The means of these arrays (in their order, float64) are the MSEs of :func:`mpeg_compare`, so a per-point view
+    (a per-face map, a histogram) adds up to the reported figures.
+
+    Example:
+        >>> import torch
+        >>> ref = PointCloud(torch.tensor([[0.0, 0, 0], [1, 0, 0]]), normals=torch.tensor([[0.0, 1, 0]] * 2))
+        >>> dis = PointCloud(torch.tensor([[0.0, 0.1, 0], [1, 0, 0]]))
+        >>> e = mpeg_point_errors(ref, dis)
+        >>> e.dis_to_ref.d1.round(6).tolist(), float(e.dis_to_ref.d1.mean()) == mpeg_compare(ref, dis).dis_to_ref.d1_mse
+        ([0.01, 0.0], True)
+    """
+    m = _matched(ref, dis)
+    return MpegPointErrors(
+        m.ref,
+        m.dis,
+        _point_errors(m.ref, m.dis, m.dis_normals, m.ref_ties, m.with_color),
+        _point_errors(m.dis, m.ref, m.ref_normals, m.dis_ties, m.with_color),
     )

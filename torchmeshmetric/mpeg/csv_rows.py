@@ -31,6 +31,7 @@ __all__ = [
     "PCC_CSV_HEADER",
     "CsvHeaderError",
     "append_csv_row",
+    "check_csv_header",
     "ibsm_csv_row",
     "mmetric_texture_url",
     "pcc_csv_row",
@@ -192,6 +193,42 @@ def mmetric_texture_url(model: str, texture: str | None = None) -> str:
     return maps[0] if maps else ""
 
 
+def _check_first_line(p: Path, first: bytes, header: str) -> None:
+    found = first.rstrip(b"\r\n").decode("utf-8", "replace")
+    if found != header:
+        raise CsvHeaderError(
+            f"output CSV '{p}': its first line is {found[:120]!r}, not this mode's header {header[:60]!r}...; "
+            "rows of another kind would be appended under it: use another file"
+        )
+
+
+def check_csv_header(path: str | os.PathLike, header: str) -> None:
+    r"""Refuse, before any work, a statistics file :func:`append_csv_row` would refuse (another first line).
+
+    Args:
+        path: the CSV file (missing or empty: accepted).
+        header: :data:`PCC_CSV_HEADER` or :data:`IBSM_CSV_HEADER`.
+
+    Raises:
+        CsvHeaderError: the file is not empty and its first line is not ``header``.
+
+    Example:
+        >>> import tempfile, pathlib
+        >>> p = pathlib.Path(tempfile.mkdtemp()) / "stats.csv"
+        >>> check_csv_header(p, "a;b")  # missing: accepted
+        >>> _ = p.write_text("x;y\n")
+        >>> try:
+        ...     check_csv_header(p, "a;b")
+        ... except CsvHeaderError:
+        ...     print("refused")
+        refused
+    """
+    p = Path(path)
+    if p.is_file() and p.stat().st_size:
+        with open(p, "rb") as fh:
+            _check_first_line(p, fh.readline(), header)
+
+
 @contextlib.contextmanager
 def _locked(path: Path) -> Iterator[BinaryIO]:
     with open(path, "a+b") as fh:
@@ -241,12 +278,7 @@ def append_csv_row(path: str | os.PathLike, header: str, rows: Sequence[str]) ->
         if size == 0:
             out = header + "\n"
         else:
-            found = first.rstrip(b"\r\n").decode("utf-8", "replace")
-            if found != header:
-                raise CsvHeaderError(
-                    f"output CSV '{p}': its first line is {found[:120]!r}, not this mode's header {header[:60]!r}...; "
-                    "rows of another kind would be appended under it: use another file"
-                )
+            _check_first_line(p, first, header)
             fh.seek(size - 1)
             if fh.read(1) != b"\n":
                 out = "\n"

@@ -13,13 +13,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from torchmeshmetric._checks import EmptyInputError
+from torchmeshmetric._checks import EmptyInputError, check_allocation
 from torchmeshmetric.mpeg import _float32 as f32
 from torchmeshmetric.mpeg.grid_sampling import mesh_arrays
 from torchmeshmetric.mpeg.point_cloud import PointCloud
 from torchmeshmetric.mpeg.subdivision_sampling import builder_cloud, corner_attributes
-from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
+from torchmeshmetric.mpeg.textured_mesh import TexturedMesh, as_textured_mesh
 from torchmeshmetric.mpeg.vertex_sampling import zero_area_message
+from torchmeshmetric.structures import MeshLike
 
 __all__ = ["edge_sample"]
 
@@ -43,7 +44,7 @@ def _length(mesh: TexturedMesh, verts: np.ndarray, length_threshold: float, reso
         raise ValueError(f"length_threshold: expected a finite value >= 0, found {length_threshold!r}")
     if length_threshold > 0:
         return np.float32(length_threshold)
-    if isinstance(resolution, bool) or not isinstance(resolution, int) or resolution < 1:
+    if isinstance(resolution, bool) or not isinstance(resolution, (int, np.integer)) or resolution < 1:
         raise ValueError(f"resolution: expected an integer >= 1 (length_threshold is 0), found {resolution!r}")
     size = np.max(verts.max(axis=0) - verts.min(axis=0))
     length = np.float32(np.float32(size) / np.float32(resolution))
@@ -53,7 +54,7 @@ def _length(mesh: TexturedMesh, verts: np.ndarray, length_threshold: float, reso
 
 
 def edge_sample(
-    mesh: TexturedMesh,
+    mesh: TexturedMesh | MeshLike,
     *,
     length_threshold: float = 0.0,
     resolution: int = 1024,
@@ -83,6 +84,7 @@ def edge_sample(
         >>> edge_sample(TexturedMesh(tri), length_threshold=1.0).num_points  # corners + 3 midpoints, then stop
         6
     """
+    mesh = as_textured_mesh(mesh, name)  # a Mesh, (V, F) or trimesh too: no colour
     verts, faces = mesh_arrays(mesh.mesh)
     length = _length(mesh, verts, length_threshold, resolution)
     attr = corner_attributes(mesh, faces)
@@ -91,6 +93,11 @@ def edge_sample(
     if not keep.any():
         raise EmptyInputError(zero_area_message(name, faces.shape[0]))
     p, attr = p[keep], attr[keep]
+    # every triangle left has edges below 2 * length, so at most sqrt(3) * length^2 of area: at least a quarter of
+    # the area over length^2 points (a float32 position and normal each), refused before the loop when that cannot fit
+    count = float(f32.area(p[:, 0], p[:, 1], p[:, 2]).astype(np.float64).sum()) / float(length) ** 2 / 4
+    option = ("length_threshold", length_threshold) if length_threshold > 0 else ("resolution", resolution)
+    check_allocation(count, 24, option[0], option[1], f"points of {name}")
     normal = f32.normalize(f32.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]))
     out_pos, out_att = [p.reshape(-1, 3)], [attr.reshape(3 * attr.shape[0], attr.shape[2])]
     out_nrm = [np.repeat(normal, 3, axis=0)]

@@ -18,7 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
+from torchmeshmetric._checks import EmptyInputError
+from torchmeshmetric.mpeg.textured_mesh import TexturedMesh, as_textured_mesh
+from torchmeshmetric.structures import MeshLike
 
 __all__ = ["MeshEquality", "mesh_equality"]
 
@@ -128,7 +130,7 @@ def _position_differences(a: TexturedMesh, b: TexturedMesh) -> int:
     return abs(len(pa) - len(pb)) + int(np.any(pa[:n] != pb[:n], axis=1).sum())
 
 
-def mesh_equality(a: TexturedMesh, b: TexturedMesh, unoriented: bool = False) -> MeshEquality:
+def mesh_equality(a: TexturedMesh | MeshLike, b: TexturedMesh | MeshLike, unoriented: bool = False) -> MeshEquality:
     """Whether two meshes have the same triangles in any order, as mmetric's ``compare --mode equ`` decides.
 
     Corners are compared by position, and by UV (resp. colour) when both meshes have UVs (resp. per-vertex
@@ -139,6 +141,9 @@ def mesh_equality(a: TexturedMesh, b: TexturedMesh, unoriented: bool = False) ->
         a: reference mesh (mmetric's ``--inputModelA``), e.g. from :func:`load_textured_mesh`.
         b: distorted mesh (``--inputModelB``).
         unoriented: mmetric's ``--unoriented``: a triangle also equals its reversed copy.
+
+    Raises:
+        EmptyInputError: a mesh without triangles.
 
     Returns:
         :class:`MeshEquality` (the verdict, counts and mmetric's message through ``report()``).
@@ -155,6 +160,13 @@ def mesh_equality(a: TexturedMesh, b: TexturedMesh, unoriented: bool = False) ->
         meshes are not equal, early return.
         triangle number 0 from A has no equivalent in B
     """
+    a, b = as_textured_mesh(a, "a"), as_textured_mesh(b, "b")
+    for name, m in (("a", a), ("b", b)):
+        if m.mesh.faces.shape[0] == 0:  # no triangle to compare: "equal" would say nothing about the vertices
+            raise EmptyInputError(
+                f"{name}: expected a mesh with triangles, found {m.mesh.verts.shape[0]} vertices and no face (mm "
+                "compares vertex-only models by their vertex lists instead: compare a.mesh.verts and b.mesh.verts)"
+            )
     fa, fb = int(a.mesh.faces.shape[0]), int(b.mesh.faces.shape[0])
     textures = _texture_status(a, b)
     positions = _position_differences(a, b)

@@ -16,13 +16,14 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from torchmeshmetric._checks import EmptyInputError
+from torchmeshmetric._checks import EmptyInputError, check_allocation
 from torchmeshmetric.mpeg import _float32 as f32
 from torchmeshmetric.mpeg.grid_sampling import mesh_arrays, unique_vertex_rows
 from torchmeshmetric.mpeg.point_cloud import PointCloud
 from torchmeshmetric.mpeg.texture import sample_texture
-from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
+from torchmeshmetric.mpeg.textured_mesh import TexturedMesh, as_textured_mesh
 from torchmeshmetric.mpeg.vertex_sampling import zero_area_message
+from torchmeshmetric.structures import MeshLike
 
 __all__ = ["face_sample"]
 
@@ -53,15 +54,25 @@ def _normal_offsets(step: np.float32, thickness: float) -> np.ndarray:
     return np.array(out, dtype=np.float32)
 
 
+def _normal_offsets_count(step: np.float32, thickness: float) -> float:
+    """About how many offsets :func:`_normal_offsets` makes (``2 * thickness / step + 1``), without making them."""
+    return 2.0 * float(thickness) / float(step) + 1.0
+
+
 def _check(resolution: int, thickness: float) -> None:
-    if isinstance(resolution, bool) or not isinstance(resolution, int) or resolution < 1:
+    if isinstance(resolution, bool) or not isinstance(resolution, (int, np.integer)) or resolution < 1:
         raise ValueError(f"resolution: expected an integer >= 1, found {resolution!r}")
     if not np.isfinite(thickness) or thickness < 0:
         raise ValueError(f"thickness: expected a finite value >= 0, found {thickness!r}")
 
 
 def face_sample(
-    mesh: TexturedMesh, *, resolution: int = 1024, thickness: float = 0.0, bilinear: bool = False, name: str = "mesh"
+    mesh: TexturedMesh | MeshLike,
+    *,
+    resolution: int = 1024,
+    thickness: float = 0.0,
+    bilinear: bool = False,
+    name: str = "mesh",
 ) -> PointCloud:
     """Sample a mesh as ``mm sample --mode face --resolution R [--thickness T] [--bilinear]`` does.
 
@@ -87,7 +98,9 @@ def face_sample(
         >>> face_sample(TexturedMesh(tri), resolution=2).num_points  # s in {0, .5, 1}: 1 + 2 + 3 points
         6
     """
+    mesh = as_textured_mesh(mesh, name)  # a Mesh, (V, F) or trimesh too: no colour
     _check(resolution, thickness)
+    resolution = int(resolution)  # a numpy integer too
     verts, faces = mesh_arrays(mesh.mesh)
     size = np.max(verts.max(axis=0) - verts.min(axis=0)) if verts.size else np.float32(0)
     step = np.float32(np.float32(size) / np.float32(resolution))
@@ -102,6 +115,14 @@ def face_sample(
     d12, d23 = p2 - p1, p3 - p2
     l12, l23 = np.sqrt(f32.dot(d12, d12)), np.sqrt(f32.dot(d23, d23))
     e12, e23 = d12 / l12[:, None], d23 / l23[:, None]
+    # the rows below hold about (l12 / step + 1) * (l23 / step + 1) / 2 points a face, at least a float32 position and
+    # normal each: refused before any allocation (or the float32 loop of steps) when that cannot fit
+    per_face = (l12.astype(np.float64) / step + 1) * (l23.astype(np.float64) / step + 1) / 2
+    count = float(per_face.sum()) * _normal_offsets_count(step, thickness)
+    if thickness == 0:
+        check_allocation(count, 24, "resolution", resolution, f"points of {name}")
+    else:
+        check_allocation(count, 24, "resolution, thickness", (resolution, thickness), f"points of {name}")
     steps = _float32_steps(step, float(max(l12.max(), l23.max())))
     # rows (face, i): s = steps[i] <= l12; then (face, i, j): t = steps[j] <= s / l12 * l23
     n12 = np.searchsorted(steps, l12, side="right")

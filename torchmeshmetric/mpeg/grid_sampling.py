@@ -20,12 +20,14 @@ from torchmeshmetric.structures import MeshLike, as_mesh
 __all__ = [
     "BoxError",
     "GridHits",
+    "GridSamples",
     "GridTooLargeError",
     "check_box",
     "fixed_point_box",
     "fixed_point_ceil",
     "grid_hits",
     "grid_sample",
+    "grid_sample_faces",
     "mesh_arrays",
     "mesh_box",
     "unique_vertex_rows",
@@ -171,6 +173,56 @@ def grid_sample(
         >>> grid_sample(tri, 3, box=([0, 0, 0], [1, 1, 1])).num_points
         6
     """
+    return _grid_samples(mesh, grid_size, use_normal, box, texture, uvs, colors, bilinear, use_fixed_point).cloud
+
+
+class GridSamples(NamedTuple):
+    """A grid sampling's cloud and the face each of its points lies on (:func:`grid_sample_faces`).
+
+    Attributes:
+        cloud: what :func:`grid_sample` returns.
+        face_idx: ``(N,)`` the face of every point of ``cloud`` (index into the mesh's faces; a point that several
+            faces produced keeps the first, in mmetric's push order).
+    """
+
+    cloud: PointCloud
+    face_idx: np.ndarray
+
+
+def grid_sample_faces(
+    mesh: MeshLike,
+    grid_size: int = 1024,
+    *,
+    use_normal: bool = True,
+    box: tuple[Sequence[float] | np.ndarray | Tensor, Sequence[float] | np.ndarray | Tensor] | None = None,
+    texture: Any = None,
+    uvs: Tensor | np.ndarray | None = None,
+    colors: Tensor | np.ndarray | None = None,
+    bilinear: bool = True,
+    use_fixed_point: bool = False,
+) -> GridSamples:
+    """:func:`grid_sample` (the same arguments and cloud) with the face of every point, for per-face maps.
+
+    Example:
+        >>> import torch
+        >>> tri = (torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]]))
+        >>> grid_sample_faces(tri, 3, box=([0, 0, 0], [1, 1, 1])).face_idx.tolist()
+        [0, 0, 0, 0, 0, 0]
+    """
+    return _grid_samples(mesh, grid_size, use_normal, box, texture, uvs, colors, bilinear, use_fixed_point)
+
+
+def _grid_samples(
+    mesh: MeshLike,
+    grid_size: int,
+    use_normal: bool,
+    box: Any,
+    texture: Any,
+    uvs: Any,
+    colors: Any,
+    bilinear: bool,
+    use_fixed_point: bool,
+) -> GridSamples:
     from torchmeshmetric.mpeg.texture import sample_texture
 
     hits = grid_hits(mesh, grid_size, use_normal=use_normal, box=box, use_fixed_point=use_fixed_point)
@@ -190,11 +242,12 @@ def grid_sample(
         w = (np.float32(1.0) - u) - v
         col = (fc[:, 0] * w[:, None] + fc[:, 1] * u[:, None]) + fc[:, 2] * v[:, None]
     kept = unique_vertex_rows(pos, nrm, col)
-    return PointCloud(
+    cloud = PointCloud(
         torch.from_numpy(np.ascontiguousarray(pos[kept])),
         torch.from_numpy(np.ascontiguousarray(nrm[kept])),
         None if col is None else torch.from_numpy(np.ascontiguousarray(col[kept], dtype=np.float32)),
     )
+    return GridSamples(cloud, face[kept])
 
 
 class GridHits(NamedTuple):

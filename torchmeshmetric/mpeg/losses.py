@@ -16,7 +16,14 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from torchmeshmetric._checks import check_finite, check_float, check_non_empty, check_same_device, check_shape
+from torchmeshmetric._checks import (
+    check_finite,
+    check_float,
+    check_non_empty,
+    check_same_device,
+    check_shape,
+    common_dtype,
+)
 from torchmeshmetric.kernels import nearest_vertex_distance
 from torchmeshmetric.mpeg.grid_sampling import grid_hits, unique_vertex_rows
 from torchmeshmetric.stats.statistics import psnr_from_mse
@@ -129,7 +136,7 @@ def mpeg_geometry_loss(
         reduction: ``"max"`` (MPEG) or ``"mean"``.
 
     Returns:
-        Scalar tensor.
+        Scalar tensor, in the promoted dtype of the two clouds (each cloud's gradient in its own dtype).
 
     Raises:
         ValueError: D2 without the normals it needs, or an unknown term / reduction.
@@ -143,6 +150,12 @@ def mpeg_geometry_loss(
         >>> round(loss.item(), 6), dis.grad[0].tolist()
         (0.005, [0.0, 0.10000000149011612, 0.0])
     """
+    # The dtype rule (docs/concepts.md, Precision): both clouds in their promoted dtype, each cast once, so that a
+    # point used by both directions gets its gradient summed in that dtype and rounded once to its own.
+    _check_points(dis_points, "dis_points")
+    _check_points(ref_points, "ref_points")
+    dtype = common_dtype(dis_points.dtype, ref_points.dtype)
+    dis_points, ref_points = dis_points.to(dtype), ref_points.to(dtype)
     if term == "d1":
         a = point_to_point_mse(ref_points, dis_points)
         b = point_to_point_mse(dis_points, ref_points)

@@ -18,8 +18,9 @@ from torchmeshmetric.mpeg import _float32 as f32
 from torchmeshmetric.mpeg.grid_sampling import mesh_arrays, unique_vertex_rows
 from torchmeshmetric.mpeg.point_cloud import PointCloud
 from torchmeshmetric.mpeg.texture import sample_texture
-from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
+from torchmeshmetric.mpeg.textured_mesh import TexturedMesh, as_textured_mesh
 from torchmeshmetric.mpeg.vertex_sampling import zero_area_message
+from torchmeshmetric.structures import MeshLike
 
 __all__ = ["map_sample"]
 
@@ -35,7 +36,7 @@ def _texel_boxes(uv: np.ndarray, w: int, h: int) -> tuple[np.ndarray, np.ndarray
     return lo[:, 0], lo[:, 1], count[:, 0], count[:, 1]
 
 
-def map_sample(mesh: TexturedMesh, *, name: str = "mesh") -> PointCloud:
+def map_sample(mesh: TexturedMesh | MeshLike, *, name: str = "mesh") -> PointCloud:
     """Sample a textured mesh as ``mm sample --mode map`` does.
 
     Args:
@@ -57,6 +58,7 @@ def map_sample(mesh: TexturedMesh, *, name: str = "mesh") -> PointCloud:
         >>> map_sample(TexturedMesh(tri, uvs, np.zeros((4, 4, 3), np.uint8))).num_points  # 4 + 3 + 2 + 1 texels
         10
     """
+    mesh = as_textured_mesh(mesh, name)  # a Mesh, (V, F) or trimesh too: no colour
     if mesh.uvs is None or mesh.texture is None:
         raise ValueError(
             f"{name}: map sampling needs UVs and a texture; found {'no UVs' if mesh.uvs is None else 'no texture'}"

@@ -10,6 +10,7 @@ from torch import Tensor
 from torchmetrics import Metric
 
 from torchmeshmetric._checks import EmptyInputError
+from torchmeshmetric.metrics._plot import StatisticsPlot
 from torchmeshmetric.mpeg.mpeg_metrics import Sampling, mpeg_metrics
 from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
 from torchmeshmetric.structures import MeshLike
@@ -19,7 +20,7 @@ __all__ = ["MpegPSNR"]
 _KEYS = ("d1_psnr", "d2_psnr")
 
 
-class MpegPSNR(Metric):
+class MpegPSNR(StatisticsPlot, Metric):
     """Mean per-frame MPEG D1 and D2 PSNR (mmetric's figures) over every mesh pair seen, DDP-synchronised.
 
     Each :meth:`update` compares one distorted mesh (``preds``) with its reference (``target``) by
@@ -44,6 +45,10 @@ class MpegPSNR(Metric):
 
     full_state_update = False
     higher_is_better = True
+
+    def _plot_keys(self, result: dict[str, Tensor]) -> list[str]:
+        """``plot()`` draws the two PSNRs (dB) as bars (the ``*_inf_frames`` counts on request)."""
+        return list(_KEYS)
 
     def __init__(self, sampling: Sampling = "grid", grid_size: int = 1024, **kwargs: Any) -> None:
         super().__init__(**kwargs)

@@ -9,36 +9,13 @@ import numpy as np
 import torch
 
 from torchmeshmetric._checks import EmptyInputError
+from torchmeshmetric.data.mesh_file import check_dtype_range, existing_mesh_file
+from torchmeshmetric.data.ply import read_ply_points
 from torchmeshmetric.mpeg.point_cloud import PointCloud
 from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
 from torchmeshmetric.mpeg.vertex_sampling import vertex_sample
 
 __all__ = ["load_model_cloud"]
-
-
-def _ply_faces(path: Path) -> int:
-    """The face count a PLY header declares (0 without a face element)."""
-    with open(path, "rb") as fh:
-        for raw in fh:
-            line = raw.decode("ascii", "replace").split()
-            if line[:2] == ["element", "face"] and len(line) > 2:
-                return int(line[2])
-            if line[:1] == ["end_header"]:
-                break
-    return 0
-
-
-def _ply_points(path: Path) -> PointCloud:
-    """A PLY point cloud (``mm sample``'s output): float32 positions and 8-bit colours when present."""
-    import trimesh
-
-    cloud = trimesh.load(path, process=False)
-    pts = np.asarray(getattr(cloud, "vertices", np.zeros((0, 3))), dtype=np.float32).reshape(-1, 3)
-    colors = getattr(cloud, "colors", None)
-    rgb = None
-    if colors is not None and len(colors) == pts.shape[0] and pts.shape[0] > 0:
-        rgb = torch.from_numpy(np.asarray(colors)[:, :3].astype(np.float32))
-    return PointCloud(torch.from_numpy(pts), colors=rgb)
 
 
 def load_model_cloud(
@@ -59,7 +36,8 @@ def load_model_cloud(
         :class:`PointCloud` (colours when the model has any).
 
     Raises:
-        MeshFileError: an unreadable file.
+        MeshFileError: an unreadable file (a point-cloud PLY through the one PLY reader: header, count and
+            coordinates checked, the message naming the file and line or vertex).
         EmptyInputError: a model without points.
 
     Example:
@@ -70,8 +48,12 @@ def load_model_cloud(
         15
     """
     p = Path(path)
-    if p.suffix.lower() == ".ply" and _ply_faces(p) == 0:
-        cloud = _ply_points(p)
+    points = read_ply_points(existing_mesh_file(p)) if p.suffix.lower() == ".ply" else None
+    if points is not None:  # a point cloud: checked by the one PLY reader, used as it is
+        verts, colors = points
+        check_dtype_range(p, verts, torch.float32, None, "mmetric reads coordinates as float32")
+        rgb = None if colors is None else torch.from_numpy(colors.astype(np.float32))
+        cloud = PointCloud(torch.from_numpy(verts.astype(np.float32)), colors=rgb)
     else:
         model = load_textured_mesh(p, texture)
         if model.mesh.faces.shape[0] > 0:

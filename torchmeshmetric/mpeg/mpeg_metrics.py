@@ -14,9 +14,9 @@ from torchmeshmetric.mpeg import _float32 as f32
 from torchmeshmetric.mpeg.comparison import MpegResult, mpeg_compare
 from torchmeshmetric.mpeg.grid_sampling import check_box, grid_sample, mesh_arrays, mesh_box
 from torchmeshmetric.mpeg.point_cloud import PointCloud
-from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
+from torchmeshmetric.mpeg.textured_mesh import TexturedMesh, as_textured_mesh
 from torchmeshmetric.mpeg.vertex_sampling import _DBL_EPSILON, vertex_sample, zero_area_message
-from torchmeshmetric.structures import MeshLike, as_mesh
+from torchmeshmetric.structures import MeshLike
 
 __all__ = ["MpegClouds", "Sampling", "mpeg_metrics", "mpeg_point_cloud", "mpeg_point_clouds"]
 
@@ -26,7 +26,7 @@ BoxLike = tuple[Corner, Corner]
 
 
 def _parts(m: MeshLike | TexturedMesh, name: str = "mesh") -> TexturedMesh:
-    t = m if isinstance(m, TexturedMesh) else TexturedMesh(as_mesh(m))
+    t = as_textured_mesh(m, name)
     if t.mesh.verts.shape[0] == 0:
         raise EmptyInputError(f"{name}: expected a mesh with vertices and faces, found an empty mesh")
     if t.mesh.faces.shape[0] == 0:

@@ -34,7 +34,7 @@ import numpy as np
 import torch
 
 from torchmeshmetric import native
-from torchmeshmetric._checks import EmptyInputError, check_finite
+from torchmeshmetric._checks import EmptyInputError, check_allocation, check_finite
 from torchmeshmetric.mpeg.comparison import bbox_diagonal
 from torchmeshmetric.mpeg.pcqm_lightness import pcqm_lightness
 from torchmeshmetric.mpeg.point_cloud import PointCloud
@@ -183,11 +183,15 @@ def mpeg_pcqm(
     lb = np.broadcast_to(lb, (b.shape[0],)).copy()
     max_dim = _max_dim(a.numpy())
     radius = radius_curvature * max_dim
-    if (radius * radius_factor) ** 2 == 0.0:  # no point would be its own neighbour: PCQM's means would be 0/0
+    pooling = radius * radius_factor  # squared as a product (not **): an overflow is inf there, as in mm
+    if pooling * pooling == 0.0:  # no point would be its own neighbour: PCQM's means would be 0/0
         raise ValueError(
             f"ref: PCQM's box measure (largest |min| + |max| over the axes) is {max_dim!r}, so the pooling radius "
             f"{radius * radius_factor!r} squares to 0; a cloud at the origin has no PCQM"
         )
+    # each thread fits its quadrics over knn neighbour slots (index, distance and a 6-column row: 64 bytes each);
+    # PCQM pads the neighbours a cloud lacks with its point 0, so a knn above the points is valid, up to memory
+    check_allocation(float(knn) * torch.get_num_threads(), 64, "knn", knn, "neighbour slots (knn per thread)")
     ext = native.load("pcqm")
     _, sums = ext.pcqm_fields(a, b, torch.from_numpy(la), torch.from_numpy(lb), radius, max_dim, int(knn),
                               float(radius_factor))  # fmt: skip

@@ -13,13 +13,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from torchmeshmetric._checks import EmptyInputError
+from torchmeshmetric._checks import EmptyInputError, check_allocation
 from torchmeshmetric.mpeg import _float32 as f32
 from torchmeshmetric.mpeg.grid_sampling import mesh_arrays
 from torchmeshmetric.mpeg.point_cloud import PointCloud
 from torchmeshmetric.mpeg.subdivision_sampling import builder_cloud, corner_attributes
-from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
+from torchmeshmetric.mpeg.textured_mesh import TexturedMesh, as_textured_mesh
 from torchmeshmetric.mpeg.vertex_sampling import zero_area_message
+from torchmeshmetric.structures import MeshLike
 
 __all__ = ["prnd_sample"]
 
@@ -41,7 +42,7 @@ def _origin_and_edges(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray
 
 
 def prnd_sample(
-    mesh: TexturedMesh, *, num_samples: int = 2000000, bilinear: bool = False, name: str = "mesh"
+    mesh: TexturedMesh | MeshLike, *, num_samples: int = 2000000, bilinear: bool = False, name: str = "mesh"
 ) -> PointCloud:
     """Sample a mesh as ``mm sample --mode prnd --nbSamples N [--bilinear]`` does.
 
@@ -65,8 +66,11 @@ def prnd_sample(
         >>> prnd_sample(TexturedMesh(tri), num_samples=10).num_points  # 3 corners + 9 inner points
         12
     """
-    if isinstance(num_samples, bool) or not isinstance(num_samples, int) or num_samples < 1:
+    mesh = as_textured_mesh(mesh, name)  # a Mesh, (V, F) or trimesh too: no colour
+    if isinstance(num_samples, bool) or not isinstance(num_samples, (int, np.integer)) or num_samples < 1:
         raise ValueError(f"num_samples: expected an integer >= 1, found {num_samples!r}")
+    num_samples = int(num_samples)  # a numpy integer too
+    check_allocation(num_samples, 24, "num_samples", num_samples, "points")  # before any int64 count can wrap
     verts, faces = mesh_arrays(mesh.mesh)
     attr = corner_attributes(mesh, faces)
     p = verts[faces]

@@ -13,14 +13,15 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from torchmeshmetric._checks import EmptyInputError
+from torchmeshmetric._checks import EmptyInputError, check_allocation
 from torchmeshmetric.mpeg import _float32 as f32
 from torchmeshmetric.mpeg.grid_sampling import mesh_arrays, unique_vertex_rows
 from torchmeshmetric.mpeg.point_cloud import PointCloud
 from torchmeshmetric.mpeg.subdivision_rows import subdivision_rows
 from torchmeshmetric.mpeg.texture import sample_texture
-from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
+from torchmeshmetric.mpeg.textured_mesh import TexturedMesh, as_textured_mesh
 from torchmeshmetric.mpeg.vertex_sampling import zero_area_message
+from torchmeshmetric.structures import MeshLike
 
 __all__ = ["builder_cloud", "corner_attributes", "subdivision_sample"]
 
@@ -37,7 +38,7 @@ def corner_attributes(mesh: TexturedMesh, faces: np.ndarray) -> np.ndarray:
 
 
 def subdivision_sample(
-    mesh: TexturedMesh,
+    mesh: TexturedMesh | MeshLike,
     *,
     max_depth: int = 100,
     area_threshold: float = 1.0,
@@ -71,7 +72,8 @@ def subdivision_sample(
         >>> subdivision_sample(TexturedMesh(tri), max_depth=3, area_threshold=2.0).num_points  # area 8, then 2
         15
     """
-    if isinstance(max_depth, bool) or not isinstance(max_depth, int) or max_depth < 1:
+    mesh = as_textured_mesh(mesh, name)  # a Mesh, (V, F) or trimesh too: no colour
+    if isinstance(max_depth, bool) or not isinstance(max_depth, (int, np.integer)) or max_depth < 1:
         raise ValueError(f"max_depth: expected an integer >= 1, found {max_depth!r}")
     if not (np.isfinite(area_threshold) and area_threshold > 0):
         raise ValueError(f"area_threshold: expected a finite value > 0, found {area_threshold!r}")
@@ -82,6 +84,11 @@ def subdivision_sample(
     if not keep.any():
         raise EmptyInputError(zero_area_message(name, faces.shape[0]))
     p, attr = p[keep], attr[keep]
+    # each face is split until its parts are below area_threshold (or max_depth levels of 4): refused before the
+    # split when that many points (a float32 position and normal each) cannot fit
+    area = f32.area(p[:, 0], p[:, 1], p[:, 2]).astype(np.float64)
+    count = min(float(area.sum()) / float(area_threshold), p.shape[0] * 4.0 ** min(int(max_depth), 500))
+    check_allocation(count, 24, "area_threshold", area_threshold, f"points of {name}")
     texels = None
     if map_threshold and mesh.texture is not None and mesh.uvs is not None:
         texels = (int(mesh.texture.shape[1]), int(mesh.texture.shape[0]))

@@ -10,12 +10,13 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from torchmeshmetric._checks import DTypeError, ShapeError, check_finite, check_float, check_shape
 from torchmeshmetric.data.io import read_mesh_arrays
 from torchmeshmetric.data.mesh_file import MeshFileError, check_dtype_range, check_mesh, existing_mesh_file, to_tensor
 from torchmeshmetric.data.obj import MtlMaterial, ObjData, parse_mtl, parse_obj
-from torchmeshmetric.structures import Mesh
+from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
-__all__ = ["TexturedMesh", "load_textured_mesh", "read_texture"]
+__all__ = ["TexturedMesh", "as_textured_mesh", "load_textured_mesh", "read_texture"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -40,10 +41,57 @@ class TexturedMesh:
     texture: np.ndarray | None = None
     colors: Tensor | None = None
 
+    def __post_init__(self) -> None:
+        """Check the colour against the mesh when built (shapes, dtypes, finite values), naming the field."""
+        if not isinstance(self.mesh, Mesh):
+            raise TypeError(
+                f"mesh: expected a Mesh, found {type(self.mesh).__name__} (as_textured_mesh takes (V, F) and trimesh)"
+            )
+        nv, nf = int(self.mesh.verts.shape[0]), int(self.mesh.faces.shape[0])
+        if self.uvs is not None:
+            check_shape(self.uvs, (nf, 3, 2), "uvs")
+            check_float(self.uvs, "uvs")
+            check_finite(self.uvs, "uvs")
+        if self.colors is not None:
+            check_shape(self.colors, (nv, 3), "colors")
+            check_float(self.colors, "colors")
+            check_finite(self.colors, "colors")
+        if self.texture is not None:
+            if not isinstance(self.texture, np.ndarray) or self.texture.dtype != np.uint8:
+                found = self.texture.dtype if hasattr(self.texture, "dtype") else type(self.texture).__name__
+                raise DTypeError(
+                    f"texture: expected an (H, W, 3) uint8 numpy image (as read_texture gives), found {found}"
+                )
+            if self.texture.ndim != 3 or self.texture.shape[2] != 3 or 0 in self.texture.shape:
+                raise ShapeError(f"texture: expected shape (H, W, 3) with H, W >= 1, found {self.texture.shape}")
+
     @property
     def has_color(self) -> bool:
         """Whether samples of this mesh carry a colour (a texture with UVs, or per-vertex colours)."""
         return (self.texture is not None and self.uvs is not None) or self.colors is not None
+
+
+def as_textured_mesh(mesh: TexturedMesh | MeshLike, name: str = "mesh") -> TexturedMesh:
+    """A :class:`TexturedMesh` as it is; any other mesh form (a :class:`Mesh`, ``(V, F)``, trimesh) without colour.
+
+    Args:
+        mesh: the mesh.
+        name: its name in error messages.
+
+    Returns:
+        :class:`TexturedMesh`.
+
+    Raises:
+        TypeError, ShapeError, DTypeError, IndexRangeError, NonFiniteError: as :func:`~torchmeshmetric.as_mesh`.
+
+    Example:
+        >>> import torch
+        >>> as_textured_mesh((torch.eye(3), torch.tensor([[0, 1, 2]]))).has_color
+        False
+    """
+    if isinstance(mesh, TexturedMesh):
+        return mesh
+    return TexturedMesh(as_mesh(mesh, name=name))
 
 
 def read_texture(path: str | os.PathLike, where: str = "texture") -> np.ndarray:

@@ -23,6 +23,9 @@ import re
 from dataclasses import dataclass, field
 
 import numpy as np
+from torch import Tensor
+
+from torchmeshmetric._checks import DTypeError, IndexRangeError, NonFiniteError, ShapeError
 
 __all__ = ["TfanMesh", "TfanUndefinedError", "load_tfan_mesh", "tfan_equality"]
 
@@ -31,7 +34,7 @@ class TfanUndefinedError(RuntimeError):
     """mmetric's TFAN comparison reads past the end of one of its lists on these meshes: its result is undefined."""
 
 
-@dataclass
+@dataclass(frozen=True)
 class TfanMesh:
     """A mesh as mmetric's model holds it: index tables into position and UV lists, as in the file.
 
@@ -50,6 +53,54 @@ class TfanMesh:
     triangles_uv: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.int64))
     colors: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.float32))
     normals: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.float32))
+
+    def __post_init__(self) -> None:
+        """Check every table when built: shapes, dtypes, finite values, indices inside their lists."""
+        pos = _table("positions", self.positions, 3, integer=False)
+        tri = _table("triangles", self.triangles, 3, integer=True, indexes=("positions", pos.shape[0]))
+        uvs = _table("uvs", self.uvs, 2, integer=False)
+        tuv = _table("triangles_uv", self.triangles_uv, 3, integer=True, indexes=("uvs", uvs.shape[0]))
+        if tuv.shape[0] not in (0, tri.shape[0]):
+            raise ShapeError(f"TfanMesh.triangles_uv: expected 0 or {tri.shape[0]} rows (one per triangle), found "
+                             f"{tuv.shape[0]}")  # fmt: skip
+        col = _table("colors", self.colors, 3, integer=False)
+        if col.shape[0] not in (0, pos.shape[0]):
+            raise ShapeError(f"TfanMesh.colors: expected 0 or {pos.shape[0]} rows (one per position), found "
+                             f"{col.shape[0]}")  # fmt: skip
+        normals = _table("normals", self.normals, 3, integer=False)
+        for name, value in (("positions", pos), ("triangles", tri), ("uvs", uvs), ("triangles_uv", tuv),
+                            ("colors", col), ("normals", normals)):  # fmt: skip
+            object.__setattr__(self, name, value)
+
+
+def _table(name: str, value: object, cols: int, *, integer: bool, indexes: tuple[str, int] | None = None) -> np.ndarray:
+    """One :class:`TfanMesh` table as a ``(N, cols)`` array: integer indices inside ``indexes``, or finite float32."""
+    where = f"TfanMesh.{name}"
+    arr = np.asarray(value.detach().cpu().numpy() if isinstance(value, Tensor) else value)
+    if arr.size == 0 and arr.ndim < 2:
+        arr = arr.reshape(0, cols)
+    if arr.ndim != 2 or arr.shape[1] != cols:
+        raise ShapeError(f"{where}: expected shape (N, {cols}), found {tuple(arr.shape)}")
+    if integer:
+        if arr.size and (arr.dtype == np.bool_ or arr.dtype.kind not in "iu"):
+            raise DTypeError(f"{where}: expected integer indices, found dtype {arr.dtype}")
+        arr = arr.astype(np.int64, copy=False)
+        assert indexes is not None
+        of, n = indexes
+        if arr.size and (int(arr.min()) < 0 or int(arr.max()) >= n):
+            raise IndexRangeError(
+                f"{where}: expected indices of {of} in [0, {n - 1}], found values in [{int(arr.min())}, "
+                f"{int(arr.max())}]"
+            )
+        return arr
+    if arr.size and (arr.dtype == np.bool_ or arr.dtype.kind not in "iuf"):
+        raise DTypeError(f"{where}: expected numbers, found dtype {arr.dtype}")
+    arr = arr.astype(np.float32, copy=False)
+    if arr.size and not np.isfinite(arr).all():
+        raise NonFiniteError(
+            f"{where}: expected finite values, found {int((~np.isfinite(arr)).sum())} NaN/Inf value(s)"
+        )
+    return arr
 
 
 _VN = re.compile(rb"^[ \t]*vn[ \t]+(\S+)[ \t]+(\S+)[ \t]+(\S+)", re.MULTILINE)

@@ -31,6 +31,7 @@ from typing import Literal, Union
 import numpy as np
 from torch import Tensor
 
+from torchmeshmetric._checks import DTypeError
 from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
 from torchmeshmetric.structures import MeshLike, as_mesh
 
@@ -172,7 +173,10 @@ def _map_array(m: MapLike, count: int, kind: Literal["face", "vertex"]) -> tuple
     """A map from a file (read as mmetric does) or an array of A's indices (``-1`` = none); and how to name it."""
     if isinstance(m, (str, os.PathLike)):
         return read_topology_map(m, count, kind), f"{kind} map file '{m}'"
-    arr = (m.detach().cpu().numpy() if isinstance(m, Tensor) else np.asarray(m)).astype(np.int64, copy=False)
+    raw = m.detach().cpu().numpy() if isinstance(m, Tensor) else np.asarray(m)
+    if raw.size and (raw.dtype == np.bool_ or raw.dtype.kind not in "iu"):  # never cast: 0.4 would become face 0
+        raise DTypeError(f"{kind}_map: expected an integer array of indices, found dtype {raw.dtype}")
+    arr = raw.astype(np.int64, copy=False)
     if arr.shape != (count,) or (arr.size and (arr.min() < -1 or arr.max() >= count)):
         found = f"shape {tuple(arr.shape)}" if arr.shape != (count,) else f"values in [{arr.min()}, {arr.max()}]"
         raise TopologyMapError(

@@ -3,23 +3,29 @@
 Each extension (:data:`EXTENSIONS`) is compiled with :func:`torch.utils.cpp_extension.load` into torch's extensions
 directory (``$TORCH_EXTENSIONS_DIR``, by default ``~/.cache/torch_extensions``) under a name that carries a hash of
 its sources and flags, so an edited source is rebuilt instead of a stale build reused. A finished build is imported
-directly (no ninja run, no build lock). A build prints one progress line to stderr when it starts and one when it
-ends, and the caller waits for it: no computation runs another formulation meanwhile. Where a build is impossible
-(no C++ compiler, no ninja) :func:`load` raises :class:`NativeBuildError` and :func:`try_load` warns once and
-returns ``None``; either outcome is kept for the whole process, so one process never mixes formulations.
+directly (no ninja run, no build lock). One process builds an extension at a time (the others wait, told by whom);
+a build that was killed leaves nothing that blocks the next one (:func:`_build_lock`). A build prints one progress
+line to stderr when it starts and one when it ends, and the caller waits for it: no computation runs another
+formulation meanwhile. Where a build is impossible (no C++ compiler, no ninja) :func:`load` raises
+:class:`NativeBuildError`, whose first line gives the reason (``/bin/sh: 1: c++: not found``), and :func:`try_load`
+warns once and returns ``None``; either outcome is kept for the whole process, so one process never mixes
+formulations.
 
 Build everything ahead of first use with ``torchmeshmetric build`` or ``python -m torchmeshmetric.native``.
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import importlib.util
+import os
+import re
 import sys
 import threading
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
@@ -124,24 +130,131 @@ def _import_built(module_name: str) -> ModuleType | None:
         return None
 
 
+_TORCH_LOCK = "lock"  # torch.utils.cpp_extension's FileBaton in the build folder: a bare file, no owner recorded
+_OWN_LOCK = "torchmeshmetric.lock"  # ours beside it: flock'ed by the building process, holding its id
+
+
+@contextlib.contextmanager
+def _build_lock(name: str, build_dir: Path) -> Iterator[None]:
+    """Hold the build of one extension against every other process; a killed build never blocks the next one.
+
+    torch's own lock is a bare file that a killed build leaves behind, and torch then waits on it forever. This lock
+    is an advisory ``flock`` beside it, which the kernel releases when its holder dies however it dies; while it is
+    held, no live build of this extension exists, so a torch lock file found then is stale and is removed (with one
+    line on stderr saying so). A live build by another process is waited for, with one line naming its process id.
+    """
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover (not POSIX: torch's lock alone)
+        yield
+        return
+    build_dir.mkdir(parents=True, exist_ok=True)
+    with open(build_dir / _OWN_LOCK, "a+") as fh:
+        try:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            fh.seek(0)
+            holder = fh.read().strip() or "?"
+            print(
+                f"torchmeshmetric: waiting for the build of {name!r} by process {holder}...",
+                file=sys.stderr,
+                flush=True,
+            )
+            fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
+        try:
+            fh.seek(0)
+            fh.truncate()
+            fh.write(f"{os.getpid()}\n")
+            fh.flush()
+            _clear_torch_lock(name, build_dir / _TORCH_LOCK)
+            yield
+        finally:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
+
+
+def _lock_holders(path: Path) -> list[int] | None:
+    """The processes that have ``path`` open (a live torch build keeps its lock file open), ``None`` without /proc."""
+    proc = Path("/proc")
+    if not (proc / "self" / "fd").is_dir():
+        return None
+    target = os.path.realpath(path)
+    holders = []
+    for pid in (d for d in os.listdir(proc) if d.isdigit()):
+        with contextlib.suppress(OSError):
+            fds = os.listdir(proc / pid / "fd")
+            if any(os.path.realpath(proc / pid / "fd" / fd) == target for fd in fds):
+                holders.append(int(pid))
+    return holders
+
+
+def _clear_torch_lock(name: str, lock: Path) -> None:
+    """Remove torch's lock file when no process holds it (its build was killed); wait while one does.
+
+    A build through this loader holds :data:`_OWN_LOCK` too, so a torch lock found while holding it was left by a
+    killed build, or is held by a process building the same sources without this lock (another copy of the
+    package): those keep the file open, and are waited for.
+    """
+    announced = False
+    while lock.exists():
+        holders = _lock_holders(lock)
+        if not holders:
+            lock.unlink(missing_ok=True)
+            print(
+                f"torchmeshmetric: removed the stale build lock {str(lock)!r} of {name!r} (the process that "
+                "took it is gone: its build was killed); building again",
+                file=sys.stderr,
+                flush=True,
+            )
+            return
+        if not announced:
+            who = ", ".join(str(h) for h in holders)
+            print(
+                f"torchmeshmetric: waiting for the build of {name!r} by process {who}...", file=sys.stderr, flush=True
+            )
+            announced = True
+        time.sleep(0.2)
+
+
+def _reason(err: BaseException) -> str:
+    """The lines of a failed build that say why (``/bin/sh: 1: c++: not found``, a compiler's ``error:``), as one line.
+
+    torch's message starts with the compile command, which says nothing; the reason comes after it.
+    """
+    lines = [ln.strip() for ln in str(err).splitlines()[1:] if ln.strip()]
+    kept = [
+        ln
+        for ln in lines
+        if not ln.startswith(("[", "FAILED:", "ninja: build stopped")) and not (" -c " in ln and " -o " in ln)
+    ]
+    why = [ln for ln in kept if re.search(r"not found|no such file|error|fatal|cannot|denied", ln, re.IGNORECASE)]
+    picked = (why or kept)[:3]
+    first = str(err).strip().splitlines()[0] if str(err).strip() else ""
+    return "; ".join(picked) if picked else f"{type(err).__name__}: {first}"
+
+
 def _compile(name: str, ext: NativeExtension, module_name: str) -> ModuleType:
     """Build (or finish another process's build of) the extension, with a progress line on stderr."""
+    from torch.utils.cpp_extension import _get_build_directory
     from torch.utils.cpp_extension import load as torch_load
 
-    print(
-        f"torchmeshmetric: building the C++ extension {name!r} ({', '.join(ext.sources)}) once for this machine...",
-        file=sys.stderr,
-        flush=True,
-    )
-    start = time.perf_counter()
-    module = torch_load(
-        name=module_name,
-        sources=[str(HOME / s) for s in ext.sources],
-        extra_cflags=list(ext.cflags),
-        extra_ldflags=list(ext.ldflags),
-        extra_include_paths=[str(HOME)],
-        verbose=False,
-    )
+    with _build_lock(name, Path(_get_build_directory(module_name, verbose=False))):
+        done = _import_built(module_name)  # another process finished it while this one waited
+        if done is not None:
+            return done
+        print(
+            f"torchmeshmetric: building the C++ extension {name!r} ({', '.join(ext.sources)}) once for this machine...",
+            file=sys.stderr,
+            flush=True,
+        )
+        start = time.perf_counter()
+        module = torch_load(
+            name=module_name,
+            sources=[str(HOME / s) for s in ext.sources],
+            extra_cflags=list(ext.cflags),
+            extra_ldflags=list(ext.ldflags),
+            extra_include_paths=[str(HOME)],
+            verbose=False,
+        )
     print(f"torchmeshmetric: built {name!r} in {time.perf_counter() - start:.1f} s", file=sys.stderr, flush=True)
     return module
 
@@ -194,7 +307,8 @@ def load(name: str) -> ModuleType:
                 state = _import_built(module_name) or _compile(name, ext, module_name)
             except Exception as err:  # no compiler, no ninja, read-only cache, ...
                 state = NativeBuildError(
-                    f"native: the C++ extension {name!r} could not be built ({type(err).__name__}: {err})"
+                    f"native: the C++ extension {name!r} could not be built: {_reason(err)}\n"
+                    f"{type(err).__name__}: {err}"
                 )
                 state.__cause__ = err
             _STATE[name] = state
@@ -225,7 +339,8 @@ def try_load(name: str) -> ModuleType | None:
         if name not in _WARNED:
             _WARNED.add(name)
             warnings.warn(
-                f"torchmeshmetric: {err}; falling back to the exact pure formulation, which is slower on the CPU.",
+                f"torchmeshmetric: {str(err).splitlines()[0]}; falling back to the exact pure formulation, which is "
+                "slower on the CPU.",
                 RuntimeWarning,
                 stacklevel=2,
             )

@@ -31,6 +31,7 @@ from typing import Any, NamedTuple
 import torch
 from torch import Tensor
 
+from torchmeshmetric._checks import check_device
 from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.kernels.sampling import sample_surface
@@ -193,6 +194,7 @@ def register_nonrigid(
     if num_threads is not None and num_threads != previous_threads:
         torch.set_num_threads(num_threads)
     try:
+        device = None if device is None else check_device(device)
         return _register(source, target, opts, device=device, generator=generator, warn=warn, backend=backend)
     finally:
         if torch.get_num_threads() != previous_threads:

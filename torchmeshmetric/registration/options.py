@@ -23,7 +23,7 @@ from typing import Any, NamedTuple
 
 import torch
 
-from torchmeshmetric.registration.rigid import register_rigid
+from torchmeshmetric.registration.rigid import check_rigid_options, register_rigid
 
 __all__ = ["DEFAULT_SCHEDULE", "RUN_ARGUMENTS", "NonRigidOptions", "Stage"]
 
@@ -142,6 +142,7 @@ def _rigid_options(value: Mapping[str, Any] | None) -> Mapping[str, Any]:
     unknown = sorted(str(k) for k in value if k not in defaults)
     if unknown:
         raise TypeError(f"rigid_options: expected keywords of register_rigid among {sorted(defaults)}, found {unknown}")
+    check_rigid_options(value, "rigid_options: ")
     return MappingProxyType({**defaults, **value})
 
 

@@ -11,8 +11,12 @@ step instead and projects the rotation back onto SO(3) with the exponential map.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+import math
+import numbers
+from collections.abc import Mapping
+from typing import Any, NamedTuple
 
+import numpy as np
 import torch
 from kornia.geometry.conversions import axis_angle_to_rotation_matrix
 from torch import Tensor
@@ -22,7 +26,14 @@ from torchmeshmetric.kernels.mesh_index import MeshIndex, PointMeshResult
 from torchmeshmetric.registration._common import one_thread, validate_pair
 from torchmeshmetric.structures import Mesh, MeshLike
 
-__all__ = ["RigidRegistration", "SimilarityTransform", "kabsch_umeyama", "register_rigid", "transform_matrix"]
+__all__ = [
+    "RigidRegistration",
+    "SimilarityTransform",
+    "check_rigid_options",
+    "kabsch_umeyama",
+    "register_rigid",
+    "transform_matrix",
+]
 
 
 class SimilarityTransform(NamedTuple):
@@ -170,6 +181,54 @@ def _point_to_plane_step(p: Tensor, q: Tensor, n: Tensor, w: Tensor, scale: bool
     return SimilarityTransform(R, t, s)
 
 
+_RIGID_FLAGS = ("point_to_plane", "scale", "align_centroids")
+
+
+def check_rigid_options(options: Mapping[str, Any], where: str = "") -> None:
+    """The checks of :func:`register_rigid`'s keywords (types and ranges), each named ``{where}{keyword}``.
+
+    One implementation for :func:`register_rigid` and for ``NonRigidOptions(rigid_options=...)``, which validates
+    them when built. Unknown keywords are left to the caller.
+
+    Raises:
+        TypeError: a value of the wrong type (``max_iterations='ten'``).
+        ValueError: a value out of its range (``trim=5.0``, ``max_iterations=-3``).
+
+    Example:
+        >>> check_rigid_options({"trim": 0.5, "max_iterations": 10})
+        >>> check_rigid_options({"trim": 5.0}, "rigid_options: ")
+        Traceback (most recent call last):
+        ...
+        ValueError: rigid_options: trim: expected a fraction in (0, 1], found 5.0
+    """
+    for key, value in options.items():
+        name = f"{where}{key}"
+        if key in _RIGID_FLAGS:
+            if not isinstance(value, (bool, np.bool_)):
+                raise TypeError(f"{name}: expected a bool, found {type(value).__name__} {value!r}")
+        elif key in ("max_iterations", "num_samples"):
+            if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
+                raise TypeError(f"{name}: expected an int, found {type(value).__name__} {value!r}")
+            if key == "max_iterations" and value < 0:
+                raise ValueError(f"{name}: expected a non-negative int, found {value}")
+            if key == "num_samples" and value < 3:
+                raise ValueError(f"{name}: expected at least 3, found {value}")
+        elif key in ("trim", "robust_scale", "tolerance"):
+            if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+                raise TypeError(f"{name}: expected a float, found {type(value).__name__} {value!r}")
+            value = float(value)
+            if key == "trim" and not 0.0 < value <= 1.0:
+                raise ValueError(f"{name}: expected a fraction in (0, 1], found {value}")
+            if key == "robust_scale" and not value > 0:  # inf disables the kernel; NaN never passes
+                raise ValueError(f"{name}: expected a float > 0 (inf: no robust kernel), found {value}")
+            if key == "tolerance" and not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name}: expected a finite float >= 0, found {value}")
+        elif key == "init" and value is not None:
+            if not isinstance(value, Tensor):
+                raise TypeError(f"{name}: expected None or a (4, 4) tensor, found {type(value).__name__}")
+            check_shape(value, (4, 4), name)
+
+
 def register_rigid(
     source: MeshLike,
     target: MeshLike,
@@ -224,12 +283,19 @@ def register_rigid(
         >>> r.converged, round(float(r.rmse), 6)
         (True, 0.0)
     """
-    if not 0.0 < trim <= 1.0:
-        raise ValueError(f"trim: expected a fraction in (0, 1], found {trim}")
-    if max_iterations < 0:
-        raise ValueError(f"max_iterations: expected a non-negative int, found {max_iterations}")
-    if num_samples < 3:
-        raise ValueError(f"num_samples: expected at least 3, found {num_samples}")
+    check_rigid_options(
+        {
+            "max_iterations": max_iterations,
+            "point_to_plane": point_to_plane,
+            "scale": scale,
+            "trim": trim,
+            "robust_scale": robust_scale,
+            "tolerance": tolerance,
+            "num_samples": num_samples,
+            "align_centroids": align_centroids,
+            "init": init,
+        }
+    )
     src, tgt = validate_pair(source, target)
     dtype, device = src.verts.dtype, src.verts.device
     used = src.surface_vertex_mask()

@@ -23,6 +23,8 @@ accepts no per-vertex quadric.
 
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
 import torch
 from torch import Tensor
@@ -55,7 +57,7 @@ def _anchor_weights(weight: float | Tensor, num: int) -> np.ndarray:
     if isinstance(weight, Tensor):
         check_shape(weight, (num,), "weight")
         w = weight.detach().cpu().double().numpy()
-    elif isinstance(weight, (int, float)) and not isinstance(weight, bool):
+    elif isinstance(weight, numbers.Real) and not isinstance(weight, (bool, np.bool_)):  # numpy scalars too
         w = np.full(num, float(weight))
     else:
         raise TypeError(f"weight: expected a float or a (A,) tensor, found {type(weight).__name__}")

@@ -19,6 +19,7 @@ valid together). Boundary and non-manifold edges and their vertices are kept fix
 
 from __future__ import annotations
 
+import numbers
 import warnings
 from typing import NamedTuple
 
@@ -169,7 +170,7 @@ def simplify_registered_qem(
     mk = as_mesh(mesh_k, name="mesh_k")
     if mk.num_faces == 0:
         raise EmptyInputError("mesh_k: expected at least one face, found 0")
-    if not (isinstance(weight, (int, float)) and np.isfinite(weight) and weight >= 0):
+    if not (isinstance(weight, numbers.Real) and not isinstance(weight, bool) and np.isfinite(weight) and weight >= 0):
         raise ValueError(f"weight: expected a finite float >= 0, found {weight!r}")
     if max_distance is not None and not (max_distance > 0):
         raise ValueError(f"max_distance: expected a float > 0 or None, found {max_distance!r}")

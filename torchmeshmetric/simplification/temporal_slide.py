@@ -24,11 +24,15 @@ the loss trains it end to end through a chain of frames.
 
 from __future__ import annotations
 
+import numbers
+
+import numpy as np
 import torch
 from torch import Tensor, nn
 
+from torchmeshmetric._checks import DTypeError, EmptyInputError, check_same_device
 from torchmeshmetric.kernels.point_triangle import point_mesh_distance
-from torchmeshmetric.structures import Mesh
+from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
 __all__ = ["TemporalSlide", "vertex_normals_and_scale"]
 
@@ -78,13 +82,16 @@ class TemporalSlide(nn.Module):
     def __init__(self, hidden: int = 32, initial_gate: float = 0.01, across: bool = False) -> None:
         super().__init__()
         self.across = across
+        if isinstance(hidden, (bool, np.bool_)) or not isinstance(hidden, numbers.Integral) or hidden < 1:
+            raise ValueError(f"hidden: expected an int >= 1 (the hidden layers' width), found {hidden!r}")
+        width = int(hidden)
         if not 0.0 < initial_gate < 1.0:
             raise ValueError(f"initial_gate: expected a float in (0, 1), found {initial_gate!r}")
-        last = nn.Linear(hidden, 2 if across else 1)
+        last = nn.Linear(width, 2 if across else 1)
         nn.init.zeros_(last.weight)
         nn.init.constant_(last.bias, float(torch.logit(torch.tensor(initial_gate))))
-        hidden_layers = [nn.Linear(_NUM_FEATURES, hidden), nn.SiLU(), nn.Linear(hidden, hidden), nn.SiLU()]
-        self.net = nn.Sequential(*hidden_layers, last)
+        hidden_layers = [nn.Linear(_NUM_FEATURES, width), nn.SiLU(), nn.Linear(width, width), nn.SiLU()]
+        self.net: nn.Sequential = nn.Sequential(*hidden_layers, last)
 
     @property
     def dtype(self) -> torch.dtype:
@@ -95,13 +102,24 @@ class TemporalSlide(nn.Module):
         """``(V, 2)`` tangential and normal gates in ``(0, 1)`` of ``features (V, 4)`` (``(V, 1)``: tangential only)."""
         return torch.sigmoid(self.net(features.to(self.dtype)))
 
-    def forward(self, simplified_k: Mesh, warped_previous: Mesh) -> Tensor:
+    def forward(self, simplified_k: Mesh | MeshLike, warped_previous: Mesh | MeshLike) -> Tensor:
         """``(V, 3)`` slid vertices of ``simplified_k`` (its faces unchanged).
 
         Args:
             simplified_k: the simplified frame ``k`` (``V`` vertices).
             warped_previous: the simplified frame ``k-1`` moved onto frame ``k`` (its vertices may carry gradients).
         """
+        simplified_k = as_mesh(simplified_k, name="simplified_k")
+        warped_previous = as_mesh(warped_previous, name="warped_previous")
+        for name, m in (("simplified_k", simplified_k), ("warped_previous", warped_previous)):
+            if m.num_faces == 0:
+                raise EmptyInputError(f"{name}: expected a mesh with faces, found {m.num_verts} vertices and none")
+        check_same_device({"simplified_k": simplified_k.verts, "warped_previous": warped_previous.verts})
+        if warped_previous.verts.dtype != simplified_k.verts.dtype:
+            raise DTypeError(
+                f"warped_previous: expected simplified_k's dtype {simplified_k.verts.dtype}, found "
+                f"{warped_previous.verts.dtype}"
+            )
         x = simplified_k.verts
         hit = point_mesh_distance(x, warped_previous.verts, warped_previous.faces)
         d = hit.closest - x

@@ -14,6 +14,7 @@ from typing import Any
 
 import torch
 
+from torchmeshmetric._checks import EmptyInputError
 from torchmeshmetric.registration.warp import SurfaceWarp, Warp
 from torchmeshmetric.simplification.anchored_qem import DEFAULT_ANCHOR_WEIGHT, simplify_anchored_qem
 from torchmeshmetric.simplification.qem import simplify_qem
@@ -39,6 +40,8 @@ def registration_warp(registration: Any, original_k_minus_1: MeshLike) -> Warp:
 
 
 def _check_lengths(frames: Sequence[Any], registrations: Sequence[Any]) -> None:
+    if len(frames) == 0:
+        raise EmptyInputError("frames: expected at least one frame, found none")
     if len(registrations) != len(frames) - 1:
         raise ValueError(f"registrations: expected {len(frames) - 1} (one per frame pair), found {len(registrations)}")
 

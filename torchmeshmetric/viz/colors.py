@@ -15,10 +15,10 @@ from torchmeshmetric._checks import ShapeError
 from torchmeshmetric.kernels.sampling import vertex_set_mask
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
-__all__ = ["error_colors", "write_error_ply"]
+__all__ = ["ERROR_COLOR_ANCHORS", "error_colors", "per_vertex_errors", "write_error_ply"]
 
-# Viridis-like anchors (dark blue = no error → yellow = vmax), linear in between.
-_ANCHORS = np.array(
+#: Viridis-like anchors (dark blue = no error → yellow = vmax), linear in between (RGB, 0..255).
+ERROR_COLOR_ANCHORS = np.array(
     [[68, 1, 84], [59, 82, 139], [33, 145, 140], [94, 201, 98], [253, 231, 37]],
     dtype=np.float64,
 )
@@ -46,12 +46,45 @@ def error_colors(dists: Tensor, vmax: float | None = None) -> Tensor:
     if vmax is None:
         vmax = float(np.quantile(d, 0.95)) if d.size else 1.0
     t = np.clip(d / vmax, 0.0, 1.0) if vmax > 0 else np.zeros_like(d)
-    pos = t * (len(_ANCHORS) - 1)
-    lo = np.minimum(np.floor(pos).astype(np.int64), len(_ANCHORS) - 2)
+    pos = t * (len(ERROR_COLOR_ANCHORS) - 1)
+    lo = np.minimum(np.floor(pos).astype(np.int64), len(ERROR_COLOR_ANCHORS) - 2)
     frac = (pos - lo)[:, None]
-    rgb = _ANCHORS[lo] * (1 - frac) + _ANCHORS[lo + 1] * frac
+    rgb = ERROR_COLOR_ANCHORS[lo] * (1 - frac) + ERROR_COLOR_ANCHORS[lo + 1] * frac
     rgba = np.concatenate([np.rint(rgb), np.full((d.size, 1), 255.0)], axis=1).astype(np.uint8)
     return torch.from_numpy(rgba)
+
+
+def per_vertex_errors(mesh: MeshLike, dists: Tensor) -> tuple[Mesh, Tensor]:
+    """``mesh`` and ``dists`` with one distance per vertex, in order.
+
+    Args:
+        mesh: the mesh whose vertices carry the errors.
+        dists: ``(V,)`` one distance per vertex of ``mesh``, or one per *referenced* vertex (the paper's vertex set,
+            as in :class:`~torchmeshmetric.evaluation.PairEvaluation`): the unreferenced vertices are then dropped
+            from the returned mesh.
+
+    Returns:
+        ``(mesh, dists)`` with ``dists`` of shape ``(V',)``, ``V'`` the returned mesh's vertex count.
+
+    Raises:
+        ShapeError: when ``dists`` has neither one value per vertex nor one per referenced vertex.
+
+    Example:
+        >>> import torch
+        >>> m = Mesh(torch.eye(4, 3, dtype=torch.float64), torch.tensor([[0, 1, 2]]))  # vertex 3 unreferenced
+        >>> kept, d = per_vertex_errors(m, torch.tensor([0.1, 0.2, 0.3]))
+        >>> kept.num_verts, d.tolist()
+        (3, [0.1, 0.2, 0.3])
+    """
+    m = as_mesh(mesh)
+    used = vertex_set_mask(m.faces, m.num_verts)
+    if dists.ndim == 1 and dists.shape[0] == int(used.sum()) != m.num_verts:
+        # distances of the vertex set (referenced vertices only, paper Eq. 3): drop the unreferenced vertices
+        remap = torch.cumsum(used.long(), 0) - 1
+        m = Mesh(m.verts[used], remap[m.faces], validate=False)
+    if tuple(dists.shape) != (m.num_verts,):
+        raise ShapeError(f"dists: expected shape ({m.num_verts},) (one per vertex of mesh), found {tuple(dists.shape)}")
+    return m, dists
 
 
 def write_error_ply(
@@ -79,14 +112,7 @@ def write_error_ply(
     """
     import trimesh  # ~0.3 s to import: on use only, `import torchmeshmetric` never loads it
 
-    m = as_mesh(mesh)
-    used = vertex_set_mask(m.faces, m.num_verts)
-    if dists.ndim == 1 and dists.shape[0] == int(used.sum()) != m.num_verts:
-        # distances of the vertex set (referenced vertices only, paper Eq. 3): drop the unreferenced vertices
-        remap = torch.cumsum(used.long(), 0) - 1
-        m = Mesh(m.verts[used], remap[m.faces], validate=False)
-    if tuple(dists.shape) != (m.num_verts,):
-        raise ShapeError(f"dists: expected shape ({m.num_verts},) (one per vertex of mesh), found {tuple(dists.shape)}")
+    m, dists = per_vertex_errors(mesh, dists)
     tm = trimesh.Trimesh(
         m.verts.detach().cpu().double().numpy(),
         m.faces.cpu().numpy(),

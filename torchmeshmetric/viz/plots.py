@@ -11,9 +11,19 @@ from typing import Any
 import numpy as np
 
 from torchmeshmetric._atomic import atomic_write
+from torchmeshmetric.evaluation.flicker import FLICKER
 from torchmeshmetric.evaluation.results import SET_NAMES, PairEvaluation, SequenceEvaluation
 
-__all__ = ["histogram_figure", "log_bins", "plot_frame_curves", "plot_histograms", "plot_mpeg_curves"]
+__all__ = [
+    "frame_curves_figure",
+    "histogram_figure",
+    "log_bins",
+    "mpeg_figure",
+    "plot_frame_curves",
+    "plot_histograms",
+    "plot_mpeg_curves",
+    "png_bytes",
+]
 
 _LABELS = {
     "surface_k_minus_1": "surface distance to registered k-1",
@@ -42,10 +52,15 @@ def _figure() -> Any:
     return Figure
 
 
-def _save(fig: Any, path: str | os.PathLike[str], overwrite: bool) -> Path:
+def png_bytes(fig: Any) -> bytes:
+    """A figure as the PNG bytes every plot of the package is written as (110 dpi)."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
-    return atomic_write(path, buf.getvalue(), overwrite=overwrite)
+    return buf.getvalue()
+
+
+def _save(fig: Any, path: str | os.PathLike[str], overwrite: bool) -> Path:
+    return atomic_write(path, png_bytes(fig), overwrite=overwrite)
 
 
 def log_bins(values: Sequence[Any], bins: int, *, decades: float = 6.0) -> Any:
@@ -139,25 +154,40 @@ def plot_frame_curves(
         statistic: a field of :class:`~torchmeshmetric.stats.DistanceStatistics` (default ``"rmse"``).
         overwrite: replace an existing file.
     """
+    pairs = {m: [p.as_dict() for p in seq.pairs] for m, seq in methods.items()}
+    return _save(frame_curves_figure(pairs, statistic=statistic), path, overwrite)
+
+
+def frame_curves_figure(pairs: Mapping[str, Sequence[Mapping[str, Any]]], *, statistic: str = "rmse") -> Any:
+    """The figure of :func:`plot_frame_curves`, from the pairs as a report holds them.
+
+    Args:
+        pairs: method name → its pairs in frame order, each as :meth:`PairEvaluation.as_dict` writes it (the
+            ``"pairs"`` of a method in ``report.json``).
+        statistic: a statistic of the sets (default ``"rmse"``).
+
+    Returns:
+        A ``matplotlib.figure.Figure``: one panel a set (and the registration's residual when flicker is measured).
+    """
     Figure = _figure()
-    fig = Figure(figsize=(10, 7), layout="constrained")
     from matplotlib.ticker import MaxNLocator  # matplotlib on use only (see _figure)
 
-    names, grid = _panels(min((seq.set_names for seq in methods.values()), key=len))
-    fig.set_size_inches(5 * grid[1], 7)
+    measured = [tuple(n for n in (*SET_NAMES, FLICKER) if all(n in p for p in ps)) for ps in pairs.values()]
+    names, grid = _panels(min(measured, key=len))
+    fig = Figure(figsize=(5 * grid[1], 7), layout="constrained")
     axes = fig.subplots(*grid, sharex=True)
+    label = statistic.upper() if statistic in ("mse", "rmse") else statistic
     for ax, name in zip(axes.ravel(), names, strict=True):
-        for m, seq in methods.items():
-            frames = [p.frame for p in seq.pairs]
-            stats = [p.registration_statistics if name == "registration" else p.statistics[name] for p in seq.pairs]
-            ax.plot(frames, [float(getattr(st, statistic)) for st in stats], marker="o", label=m)
+        for m, ps in pairs.items():
+            stats = [p["registration"]["residual"] if name == "registration" else p[name] for p in ps]
+            ax.plot([p["frame"] for p in ps], [float(st[statistic]) for st in stats], marker="o", label=m)
         ax.set_title(_LABELS[name], fontsize=10)
         ax.set_xlabel("frame k (pair k-1, k)")
-        ax.set_ylabel(statistic.upper() if statistic in ("mse", "rmse") else statistic)
+        ax.set_ylabel(label)
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # frames are integers
         ax.legend(fontsize=8)
-    fig.suptitle(f"{statistic.upper() if statistic in ('mse', 'rmse') else statistic} per frame pair")
-    return _save(fig, path, overwrite)
+    fig.suptitle(f"{label} per frame pair")
+    return fig
 
 
 def plot_mpeg_curves(methods: Mapping[str, Any], path: str | os.PathLike[str], *, overwrite: bool = False) -> Path:
@@ -168,6 +198,11 @@ def plot_mpeg_curves(methods: Mapping[str, Any], path: str | os.PathLike[str], *
         path: destination ``.png``.
         overwrite: replace an existing file.
     """
+    return _save(mpeg_figure(methods), path, overwrite)
+
+
+def mpeg_figure(methods: Mapping[str, Any]) -> Any:
+    """The figure of :func:`plot_mpeg_curves` (a ``matplotlib.figure.Figure``)."""
     Figure = _figure()
     from matplotlib.ticker import MaxNLocator  # matplotlib on use only (see _figure)
 
@@ -189,4 +224,4 @@ def plot_mpeg_curves(methods: Mapping[str, Any], path: str | os.PathLike[str], *
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.legend(fontsize=8)
     fig.suptitle("MPEG (mmetric) PSNR per frame")
-    return _save(fig, path, overwrite)
+    return fig

@@ -1,0 +1,211 @@
+"""The HTML report: one offline page per report (--html on every report-writing command, and ``report``).
+
+Every page is opened in headless Chromium where it is installed (Debian's ``chromium``; skipped elsewhere): no
+console error, the viewer's canvas drawn (pixels of the error colours in a screenshot), every table of the report's
+Markdown present and sortable.
+"""
+
+from __future__ import annotations
+
+import base64
+import importlib.util
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+import trimesh
+
+from tests.cli.cli_helpers import write_frames
+from tests.viz.browser import CHROMIUM, drawn_pixels, open_page
+from torchmeshmetric.cli import main
+from torchmeshmetric.viz.colors import error_colors
+from torchmeshmetric.viz.error_mesh import error_mesh
+from torchmeshmetric.viz.html_report import file_layer, markdown_html
+
+needs_chromium = pytest.mark.skipif(
+    CHROMIUM is None, reason="headless Chromium not installed (apt-get install chromium)"
+)
+SMALL = ["--frames", "3", "--resolution", "24", "--target", "0.5", "--weights", "none"]
+
+
+def _md_tables(markdown: str) -> list[list[list[str]]]:
+    """The pipe tables of a Markdown text: rows of cells (header included, rule left out)."""
+    tables, rows = [], []
+    for line in [*markdown.splitlines(), ""]:
+        if line.startswith("|"):
+            if not re.match(r"^\|[\s:|-]+\|?\s*$", line):
+                rows.append([c.strip().replace("**", "") for c in line.strip().strip("|").split("|")])
+        elif rows:
+            tables.append(rows)
+            rows = []
+    return tables
+
+
+def _html_tables(page: str) -> list[list[list[str]]]:
+    out = []
+    for table in re.findall(r"<table.*?</table>", page, flags=re.S):
+        rows = re.findall(r"<tr>(.*?)</tr>", table, flags=re.S)
+        out.append([[re.sub(r"<[^>]+>", "", c).strip() for c in re.findall(r"<t[hd]>(.*?)</t[hd]>", r)] for r in rows])
+    return out
+
+
+def _assert_self_contained(page: str) -> None:
+    """Nothing loaded from anywhere: every src/href is a data: URL or an anchor; no fetch of a file or the net."""
+    links = re.findall(r'(?:src|href)\s*=\s*"([^"]*)"', page)
+    assert links and all(link.startswith(("data:", "#")) for link in links), links[:5]
+    assert not re.search(r"<script[^>]+src=|<link[^>]+stylesheet|@import|fetch\(|XMLHttpRequest|https?://", page)
+
+
+def _check_in_browser(page: Path, tmp_path: Path, *, meshes: bool) -> None:
+    if CHROMIUM is None:
+        return
+    markdown = page.with_suffix(".md").read_text()
+    opened = open_page(page, tmp_path)
+    assert opened.errors == [] and opened.console == []
+    assert len(_html_tables(opened.dom)) == len(_md_tables(markdown))  # every table of the report is on the page
+    assert opened.sorted_column is not None
+    numbers = [float(c) for c in opened.sorted_column if re.match(r"^-?[\d.]+(e[-+]?\d+)?$", c)]
+    assert numbers == sorted(numbers) and len(numbers) >= 2
+    if meshes:
+        drawn = drawn_pixels(opened)
+        _, _, width, height = opened.canvas  # type: ignore[misc]
+        assert len(drawn) > 0.03 * width * height  # the meshes cover a good part of the canvas
+        # the darkest colour of the error scale (no error), lit: blue well above red and green
+        purple = (drawn[:, 2].astype(int) > drawn[:, 1].astype(int) + 20) & (drawn[:, 0] < 120)
+        assert purple.sum() > 100
+    else:
+        assert opened.canvas is None
+
+
+def test_markdown_tables_are_the_reports_cells():
+    markdown = (
+        "# Title\n\n### Table I: x\n\n| Algorithm | Mesh | Ave |\n|---|---|---|\n| A | k-th | **1.5e-05** |\n"
+        "| B | k-th | 2 |\n\n- a `note`\n- b\n\nText\nmore <text>.\n"
+    )
+    page = markdown_html(markdown)
+    assert _html_tables(page) == _md_tables(markdown)
+    assert '<h3 id="table-i-x">Table I: x</h3>' in page
+    assert "<ul><li>a <code>note</code></li><li>b</li></ul>" in page
+    assert "<p>Text more &lt;text&gt;.</p>" in page
+
+
+def test_error_mesh_decimated_for_display_keeps_the_errors():
+    sphere = trimesh.creation.icosphere(subdivisions=4)  # 5120 faces
+    d = torch.from_numpy(np.abs(sphere.vertices[:, 2]))
+    whole = error_mesh("s", sphere, d, what="z", vmax=1.0)
+    small = error_mesh("s", sphere, d, what="z", vmax=1.0, max_faces=1000)
+    assert whole.decimated_from is None and small.decimated_from == 5120
+    assert len(small.faces) <= 1000
+    # each kept vertex has the colour of the error of its nearest original vertex (of one of them, where the float32
+    # positions shown cannot tell two apart)
+    dist = np.sqrt(((small.verts[:, None, :].astype(np.float64) - sphere.vertices[None]) ** 2).sum(-1))
+    colours = error_colors(d, 1.0).numpy()[:, :3]
+    for i, row in enumerate(dist):
+        nearest = np.flatnonzero(row <= row.min() + 1e-6)
+        assert any(np.array_equal(small.colors[i], colours[j]) for j in nearest), i
+
+
+def test_demo_html_page(capsys, tmp_path, known_registration):
+    out = tmp_path / "demo"
+    assert main(["demo", *SMALL, "--out-dir", str(out), "--html"]) == 0
+    capsys.readouterr()
+    page_path = out / "report.html"
+    page = page_path.read_text()
+    _assert_self_contained(page)
+    assert page_path.stat().st_size < 10 * 2**20
+    assert _html_tables(page) == _md_tables((out / "report.md").read_text())
+    layers = json.loads(re.search(r'id="tmm-meshes">(.*?)</script>', page, flags=re.S).group(1))
+    names = [layer["name"] for layer in layers]
+    k = json.loads((out / "report.json").read_text())["methods"]["Reg QEM"]["best_pair"]["frame"]
+    assert names == [
+        f"original frame {k}",
+        f"original frame {k - 1} registered onto {k}",
+        f"Orig QEM: simplified frame {k}",
+        f"Reg QEM: simplified frame {k}",
+        f"original frame {k} against Orig QEM",  # the reverse sets (two-sided by default)
+        f"original frame {k} against Reg QEM",
+    ]
+    assert page.count("<img alt=") == 2  # RMSE per frame pair (frame_curves.png), histograms of the best pair
+    _check_in_browser(page_path, tmp_path, meshes=True)
+    # the same report as a page again, from its files, with the demo's error PLYs in their own colours
+    plys = sorted(out.glob("error_*.ply"))
+    assert (
+        main(["report", str(out / "report.json"), "--out", str(tmp_path / "again.html"), "--mesh", str(plys[0])]) == 0
+    )
+    again = (tmp_path / "again.html").read_text()
+    assert _html_tables(again) == _html_tables(page)
+    layer = file_layer(plys[0])
+    read = trimesh.load(plys[0], process=False)
+    assert np.array_equal(layer.colors, read.visual.vertex_colors[:, :3])
+    (tmp_path / "again.md").write_text((out / "report.md").read_text())
+    _check_in_browser(tmp_path / "again.html", tmp_path, meshes=True)
+
+
+def test_evaluate_and_compare_pages(capsys, tmp_path, known_registration):
+    orig, simp = write_frames(tmp_path / "orig", 2), write_frames(tmp_path / "simp", 1)
+    rep = tmp_path / "eval.json"
+    args = ["evaluate", "--original", str(orig), "--simplified", str(simp), "--out", str(rep), "--html"]
+    assert main([*args, "--mpeg", "--mpeg-sampling", "mesh"]) == 0
+    assert known_registration.calls == 2  # the page's registered frame came from the evaluation's cache
+    page = rep.with_suffix(".html").read_text()
+    _assert_self_contained(page)
+    assert _html_tables(page) == _md_tables(rep.with_suffix(".md").read_text())
+    assert page.count("simplified frame") >= 1 and "registered onto" in page
+    # curves, histograms, and the --mpeg plot: the bytes of REPORT.mpeg.png, drawn once
+    assert page.count("<img alt=") == 3
+    assert base64.b64encode(rep.with_suffix(".mpeg.png").read_bytes()).decode() in page
+    _check_in_browser(rep.with_suffix(".html"), tmp_path, meshes=True)
+    cmp = tmp_path / "cmp.json"
+    args = ["compare", "--original", str(orig), "--method", f"a={simp}", "--method", f"b={orig}", "--out", str(cmp)]
+    assert main([*args, "--html"]) == 0
+    page = cmp.with_suffix(".html").read_text()
+    assert _html_tables(page) == _md_tables(cmp.with_suffix(".md").read_text())
+    assert "Comparisons with confidence" in page
+    _check_in_browser(cmp.with_suffix(".html"), tmp_path, meshes=True)
+    capsys.readouterr()
+    assert main(["evaluate", "--original", str(orig), "--simplified", str(simp), "--html"]) == 1
+    assert "--html: the page is written beside the report, so it needs --out" in capsys.readouterr().err
+
+
+def test_report_command_refuses_what_it_cannot_read(capsys, tmp_path):
+    (tmp_path / "r.json").write_text("[1, 2]")
+    assert main(["report", str(tmp_path / "r.json")]) == 1
+    assert "its Markdown (the tables)" in capsys.readouterr().err
+    (tmp_path / "r.md").write_text("# r\n")
+    assert main(["report", str(tmp_path / "r.json")]) == 1
+    assert "expected a JSON object, found list" in capsys.readouterr().err
+    (tmp_path / "r.json").write_text("{")
+    assert main(["report", str(tmp_path / "r.json")]) == 1
+    assert "not a JSON report" in capsys.readouterr().err
+
+
+def test_campaign_pages(capsys, tmp_path, known_registration):
+    a, b = write_frames(tmp_path / "a", 2), write_frames(tmp_path / "b", 1)
+    manifest = tmp_path / "c.toml"
+    manifest.write_text(f'[[sequences]]\nname = "one"\noriginal = "{a}"\nmethods = {{ m = "{b}", n = "{a}" }}\n')
+    out = tmp_path / "out"
+    assert main(["campaign", str(manifest), "--out-dir", str(out), "--html"]) == 0
+    for stem in ("campaign", "one"):
+        page = (out / f"{stem}.html").read_text()
+        _assert_self_contained(page)
+        assert _html_tables(page) == _md_tables((out / f"{stem}.md").read_text())
+    _check_in_browser(out / "campaign.html", tmp_path, meshes=False)
+    capsys.readouterr()
+    assert main(["campaign", str(manifest), "--html"]) == 1
+    assert "needs --out-dir" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(importlib.util.find_spec("torchmeshmetric.mpeg") is None, reason="needs the mpeg package")
+def test_ctc_page(capsys, tmp_path):
+    from tests.mpeg.test_cli_ctc import _sequence
+
+    args = _sequence(tmp_path)
+    assert main([*args, "--out", str(tmp_path / "rep"), "--html"]) == 0
+    page = (tmp_path / "rep.html").read_text()
+    _assert_self_contained(page)
+    assert _html_tables(page) == _md_tables((tmp_path / "rep.md").read_text())
+    assert page.count('<img alt="per frame"') == 1
+    _check_in_browser(tmp_path / "rep.html", tmp_path, meshes=False)

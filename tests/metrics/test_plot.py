@@ -1,0 +1,164 @@
+"""``plot()`` of every metric class (torchmetrics' convention: ``fig, ax = metric.plot()``), rendered to files."""
+
+from __future__ import annotations
+
+import inspect
+
+import pytest
+import torch
+import trimesh
+from torchmetrics import Metric
+
+pytest.importorskip("matplotlib")
+
+import matplotlib.pyplot as plt
+
+import torchmeshmetric.metrics as metrics
+from torchmeshmetric.metrics import (
+    DistanceStatisticsMetric,
+    MeshSurfaceDistance,
+    NearestVertexDistance,
+    SelectedStatistic,
+)
+from torchmeshmetric.metrics._plot import length_keys
+
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+def _metric_classes() -> list[type]:
+    """Every public ``torchmetrics.Metric`` class of ``torchmeshmetric.metrics``."""
+    found = [getattr(metrics, n) for n in metrics.__all__]
+    return [c for c in found if inspect.isclass(c) and issubclass(c, Metric)]
+
+
+def _updated(cls: type, two_sided: bool = False) -> Metric:
+    sphere = trimesh.creation.icosphere(subdivisions=2)
+    points = torch.tensor([[0.0, 0.0, 2.0], [0.0, 3.0, 0.0], [0.5, 0.0, 0.0]])
+    if cls is DistanceStatisticsMetric:
+        m = DistanceStatisticsMetric(two_sided=two_sided)
+        m.update(torch.tensor([1.0, 2.0, 6.0]), torch.tensor([0.5, 0.25]) if two_sided else None)
+        return m
+    if cls is SelectedStatistic:
+        source = _updated(MeshSurfaceDistance)
+        return source.statistic("rmse")
+    if cls.__name__ == "DistanceStatisticsBase":
+        return _updated(DistanceStatisticsMetric, two_sided)
+    m = cls(two_sided=two_sided)
+    m.update(points if not two_sided else trimesh.creation.icosphere(subdivisions=1), sphere)
+    return m
+
+
+def _saved(fig, tmp_path, name: str) -> bytes:
+    path = tmp_path / f"{name}.png"
+    fig.savefig(path)
+    plt.close(fig)
+    return path.read_bytes()
+
+
+def test_every_metric_class_is_covered():
+    names = {c.__name__ for c in _metric_classes()}
+    assert names == {
+        "DistanceStatisticsBase",
+        "DistanceStatisticsMetric",
+        "MeshSurfaceDistance",
+        "NearestVertexDistance",
+        "SelectedStatistic",
+    }
+
+
+@pytest.mark.parametrize("cls", _metric_classes(), ids=lambda c: c.__name__)
+def test_plot_draws_the_computed_values(cls, tmp_path):
+    metric = _updated(cls)
+    fig, ax = metric.plot()
+    out = metric.compute()
+    if isinstance(out, dict):  # one bar a statistic in the unit of the distances, the height the value
+        keys = length_keys(list(out))
+        assert [t.get_text() for t in ax.get_xticklabels()] == keys
+        assert [p.get_height() for p in ax.patches] == pytest.approx([float(out[k]) for k in keys], rel=1e-12)
+        assert "var" not in keys and "psnr" not in keys and "count" not in keys
+    else:  # a scalar: torchmetrics' own drawing, one point
+        (line,) = ax.get_lines()[:1]
+        assert list(line.get_ydata()) == pytest.approx([float(out)], rel=1e-12)
+    assert ax.get_ylabel() == cls.__name__ if cls.__name__ != "DistanceStatisticsBase" else True
+    assert _saved(fig, tmp_path, cls.__name__)[:8] == PNG
+
+
+@pytest.mark.parametrize("cls", [MeshSurfaceDistance, NearestVertexDistance, DistanceStatisticsMetric])
+def test_two_sided_bars_name_both_directions(cls):
+    metric = _updated(cls, two_sided=True)
+    fig, ax = metric.plot()
+    labels = [t.get_text() for t in ax.get_xticklabels()]
+    assert "reverse_rmse" in labels and "symmetric_rmse" in labels and "hausdorff" in labels
+    out = metric.compute()
+    assert [p.get_height() for p in ax.patches] == pytest.approx([float(out[k]) for k in labels], rel=1e-12)
+    # forward, reverse and symmetric bars in three colours
+    colours = {tuple(p.get_facecolor()) for p in ax.patches}
+    assert len(colours) == 3
+    plt.close(fig)
+
+
+def test_steps_are_curves_and_keys_select(tmp_path):
+    metric = DistanceStatisticsMetric()
+    steps = []
+    for batch in ([1.0, 2.0], [3.0, 5.0], [0.5]):
+        metric.update(torch.tensor(batch))
+        steps.append(metric.compute())
+    fig, ax = metric.plot(steps, keys=["ave", "max"])
+    lines = {
+        line.get_label(): list(line.get_ydata()) for line in ax.get_lines() if not line.get_label().startswith("_")
+    }
+    assert lines["ave"] == pytest.approx([1.5, 2.75, 2.3])
+    assert lines["max"] == pytest.approx([2.0, 5.0, 5.0])
+    assert ax.get_xlabel() == "Step"
+    assert _saved(fig, tmp_path, "steps")[:8] == PNG
+
+
+def test_given_axes_are_drawn_into():
+    metric = _updated(MeshSurfaceDistance)
+    fig, ax = plt.subplots()
+    f, a = metric.plot(ax=ax, keys=["psnr"])
+    assert f is None and a is ax
+    assert ax.patches[0].get_height() == pytest.approx(float(metric.compute()["psnr"]), rel=1e-12)
+    plt.close(fig)
+
+
+def test_selected_statistic_marks_its_direction():
+    source = _updated(MeshSurfaceDistance)
+    fig, ax = source.statistic("psnr").plot([source.compute()["psnr"], source.compute()["psnr"] + 1])
+    assert [float(v) for v in ax.get_lines()[0].get_ydata()] == pytest.approx(
+        [float(source.compute()["psnr"]), float(source.compute()["psnr"]) + 1]
+    )
+    plt.close(fig)
+
+
+def test_bad_requests_are_refused():
+    metric = _updated(DistanceStatisticsMetric)
+    with pytest.raises(KeyError, match="keys: \\['nope'\\] not in the result"):
+        metric.plot(keys=["nope"])
+    with pytest.raises(ValueError, match="empty list"):
+        metric.plot([])
+
+
+def test_the_metrics_beyond_torchmeshmetric_metrics_plot_too(tmp_path):
+    """``TemporalConsistency`` (nested result: every set's RMSE) and ``MpegPSNR`` (its two PSNRs)."""
+    from tests.evaluation.eval_helpers import TranslationRegister, sphere
+    from torchmeshmetric.evaluation import TemporalConsistency
+    from torchmeshmetric.mpeg.metric import MpegPSNR
+
+    tc = TemporalConsistency(registration_fn=TranslationRegister())
+    tc.update(sphere(1, offset=(0.1, 0, 0)), sphere(2, offset=(0.1, 0, 0)), sphere(2))
+    fig, ax = tc.plot()
+    out = tc.compute()
+    labels = [t.get_text() for t in ax.get_xticklabels()]
+    assert labels[:4] == ["surface_k_minus_1/rmse", "surface_k/rmse", "vertex_k_minus_1/rmse", "vertex_k/rmse"]
+    assert "reverse/surface_k/rmse" in labels
+    assert ax.patches[1].get_height() == pytest.approx(float(out["surface_k"]["rmse"]), rel=1e-12)
+    assert _saved(fig, tmp_path, "tc")[:8] == PNG
+
+    mpeg = MpegPSNR(sampling="mesh")
+    a = trimesh.creation.icosphere(2)
+    mpeg.update(a.copy().apply_scale(1.01), a)
+    fig, ax = mpeg.plot()
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["d1_psnr", "d2_psnr"]
+    assert ax.patches[0].get_height() == pytest.approx(float(mpeg.compute()["d1_psnr"]), rel=1e-12)
+    assert _saved(fig, tmp_path, "mpeg")[:8] == PNG

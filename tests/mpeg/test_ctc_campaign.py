@@ -1,0 +1,270 @@
+"""``torchmeshmetric ctc-campaign``: every figure equal to ``mm sequence``'s, resumable, checks first, typed errors.
+
+The campaign is examples/ctc_campaign.toml on the data examples/make_ctc_campaign_data.py makes (2 textured sequences
+x 2 rates x 5 frames, a test codec and an anchor; grid 128, IBSM 128 x 4). The oracle is the test model's chain in
+``mm sequence`` (tests/mpeg/test_ctc.py's ``_mm_chain``, run on each point's frames through links named as it
+expects), tolerance one unit of the 9th digit mmetric prints (1e-6 dB, tests/mpeg/test_ctc.py).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import shutil
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tests.mpeg.test_ctc import MM_BIN, TOL_DB, _mm_chain, _parse
+from torchmeshmetric.cli import main
+from torchmeshmetric.mpeg import ctc_campaign
+from torchmeshmetric.mpeg.ctc_campaign import FrameTask
+from torchmeshmetric.mpeg.ctc_manifest import CtcManifestError, load_ctc_campaign
+
+REPO = Path(__file__).resolve().parents[2]
+FRAMES, RATES, CODECS = 5, (1, 2), ("anchor", "test")
+SEQUENCES = ("sphere", "ellipsoid")
+
+
+def _make(root: Path) -> Path:
+    """The example's manifest and data in ``root``; returns the manifest."""
+    sys.path.insert(0, str(REPO / "examples"))
+    try:
+        import make_ctc_campaign_data
+    finally:
+        sys.path.pop(0)
+    make_ctc_campaign_data.make(root / "ctc-campaign-data")
+    manifest = root / "ctc_campaign.toml"
+    shutil.copy(REPO / "examples" / "ctc_campaign.toml", manifest)
+    return manifest
+
+
+@pytest.fixture(scope="module")
+def campaign(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """(manifest, output folder of one complete run with a fresh cache)."""
+    root = tmp_path_factory.mktemp("ctc_campaign")
+    manifest = _make(root)
+    assert main(["ctc-campaign", str(manifest), "--out-dir", str(root / "out")]) == 0
+    return manifest, root / "out"
+
+
+def _frames(out: Path) -> dict[tuple[str, str, int, int], dict[str, str]]:
+    with (out / "frames.csv").open() as fh:
+        return {(r["codec"], r["sequence"], int(r["rate"]), int(r["frame"])): r for r in csv.DictReader(fh)}
+
+
+@pytest.mark.skipif(not MM_BIN.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")
+def test_every_figure_equals_mm_sequence(campaign: tuple[Path, Path], tmp_path: Path) -> None:
+    """Per frame and per point (the test model's CSV), every figure of both codecs equals mm sequence's."""
+    manifest, out = campaign
+    data = manifest.parent / "ctc-campaign-data"
+    frames = _frames(out)
+    for codec in CODECS:
+        with (out / f"{codec}.csv").open() as fh:
+            rows = {(int(r["SeqId"]), int(r["RateId"])): r for r in csv.DictReader(fh)}
+        for seq_id, seq in enumerate(SEQUENCES, start=1):
+            for rate in RATES:
+                d = tmp_path / f"{codec}_{seq}_{rate}"
+                d.mkdir()
+                for k in range(FRAMES):  # the names _mm_chain runs mm on
+                    for ext in ("obj", "png"):
+                        (d / f"src_{k:04d}.{ext}").symlink_to(data / seq / "src" / f"src_{k:04d}.{ext}")
+                        (d / f"dec_{k:04d}.{ext}").symlink_to(data / seq / codec / f"r{rate}" / f"dec_{k:04d}.{ext}")
+                box = (np.array([-1, -1, -1], np.float32), np.array([1, 1, 1], np.float32))
+                log = _mm_chain(d, FRAMES, 10, 8, box, 2.0, 128, textured=True, ibsm=(128, 4))
+                mm_frames, mm_means = _parse(log)
+                assert len(mm_frames) == FRAMES
+                for k, f_mm in enumerate(mm_frames):
+                    ours = frames[codec, seq, rate, k]
+                    assert set(f_mm) == {c for c in f_mm if ours[c] != ""} and len(f_mm) == 7
+                    for c, v in f_mm.items():
+                        assert abs(float(ours[c]) - v) <= TOL_DB, (codec, seq, rate, k, c, ours[c], v)
+                row = rows[seq_id, rate]
+                for c, v in mm_means.items():
+                    assert abs(float(row[c]) - v) <= TOL_DB, (codec, seq, rate, c, row[c], v)
+                    assert row[c] == format(v, ".9g")  # the CSV holds what the test model's collection holds
+
+
+def test_outputs_and_summary(campaign: tuple[Path, Path]) -> None:
+    """The test model's CSVs (bits, faces, times from the anchor's CSV and the test's points), summary, plots."""
+    _, out = campaign
+    with (out / "anchor.csv").open() as fh:
+        anchor = list(csv.DictReader(fh))
+    assert [(r["SeqId"], r["CondId"], r["RateId"]) for r in anchor] == [
+        ("1", "1", "1"),
+        ("1", "1", "2"),
+        ("2", "1", "1"),
+        ("2", "1", "2"),
+    ]
+    assert anchor[0]["TotalBitstreamBits"] == "41000" and anchor[0]["UserEncoderRuntime"] == "12"
+    with (out / "test.csv").open() as fh:
+        test = list(csv.DictReader(fh))
+    assert test[1]["TotalBitstreamBits"] == "81900" and test[1]["NbOutputFaces"] == str(5 * 320)  # counted
+    report = json.loads((out / "summary.json").read_text())
+    cond = report["conditions"][0]
+    assert [s["name"] for s in cond["sequences"]] == list(SEQUENCES)
+    assert [c["class"] for c in cond["classes"]] == ["cat1-A", "cat1-B"]
+    assert all(v < 0 for v in cond["overall"]["bd_rate"].values())  # the test codec is the cleaner one
+    assert cond["overall"]["component_ratios"]["mesh_inter"] == 0.0  # IF(B = 0, 0, ...)
+    assert cond["sequences"][0]["bpif"]["anchor"] == pytest.approx((41000 / 1600 + 91000 / 1600) / 2, rel=1e-15)
+    for seq in SEQUENCES:
+        assert (out / f"rd_c1_{seq}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_resume_computes_only_missing_frames(
+    campaign: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Interrupted after 7 frames, a rerun computes the 33 others and writes the uninterrupted run's files."""
+    manifest, reference = campaign
+    calls: list[str] = []
+    real = ctc_campaign._compute
+
+    def counting(campaign, task, key, *rest):  # type: ignore[no-untyped-def]
+        record = real(campaign, task, key, *rest)
+        calls.append(key)
+        if len(calls) == 7 and stop:
+            raise KeyboardInterrupt
+        return record
+
+    monkeypatch.setattr(ctc_campaign, "_compute", counting)
+    args = ["ctc-campaign", str(manifest), "--out-dir", str(tmp_path / "out"), "--cache-dir", str(tmp_path / "c")]
+    stop = True
+    assert main(args) == 130
+    assert not (tmp_path / "out").exists()
+    first = list(calls)
+    stop, calls[:] = False, []
+    assert main([*args, "--no-plots"]) == 0
+    assert len(calls) == 2 * 2 * 2 * FRAMES - 7 and not set(calls) & set(first)
+    for name in ("anchor.csv", "test.csv", "frames.csv", "summary.csv", "summary.md"):
+        assert (tmp_path / "out" / name).read_bytes() == (reference / name).read_bytes(), name
+    calls[:] = []
+    assert main([*args, "--no-plots", "--overwrite"]) == 0
+    assert calls == []  # everything from the cache
+
+
+def test_checks_before_any_frame(campaign: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """A missing decoded frame, or a point without bits: one error line, naming the point, before any frame."""
+    manifest, _ = campaign
+    data = manifest.parent / "ctc-campaign-data"
+    text = manifest.read_text().replace("ctc-campaign-data/", str(data) + "/")
+    bad = tmp_path / "m.toml"
+    bad.write_text(text.replace("test/r{rate_id}/dec_%04d.obj", "test/r{rate_id}/missing_%04d.obj"))
+    out = ["--out-dir", str(tmp_path / "out"), "--cache-dir", str(tmp_path / "c")]
+    assert main(["ctc-campaign", str(bad), *out]) == 1
+    err = capsys.readouterr().err
+    assert "test sequence 'sphere' condition 1 rate 1 frame 0: file" in err and "missing_0000.obj' not found" in err
+    bad.write_text(text.replace("total_bits = 36900\n", ""))
+    assert main(["ctc-campaign", str(bad), *out]) == 1
+    err = capsys.readouterr().err
+    assert "test: sequence 'sphere' condition 1 rate 1: no bitstream size" in err
+    assert "ctc-campaign: anchor" not in err and not (tmp_path / "c").exists()
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (("qp = 10", "qp = 3"), r"sequence 'sphere': 'qp' must be an integer in 7\.\.31, found 3"),
+        (("rates = [1, 2]", "rates = [1, 1]"), r"condition 1: 'rates' repeats a RateId"),
+        (("frame_count = 5", "frame_count = 5\ncolour = 1"), r"sequences\[0\]: unknown key 'colour'"),
+        (("src_%04d.obj", "src.obj"), r"sequence 'sphere': source: expected one printf integer field"),
+        (("r{rate_id}/dec", "r{rate}/dec"), r"'decoded': unknown field 'rate'"),
+        (('sequence = "sphere"', 'sequence = "cube"'), r"\[anchor\]\.points\[0\]: 'sequence' 'cube' is not"),
+        (("max_pos = [1, 1, 1]", "max_pos = [1, 1, -1]"), r"'max_pos' \[1\.0, 1\.0, -1\.0\] must be above"),
+    ],
+)
+def test_manifest_errors_name_the_key(tmp_path: Path, edit: tuple[str, str], message: str) -> None:
+    text = (REPO / "examples" / "ctc_campaign.toml").read_text()
+    assert edit[0] in text
+    p = tmp_path / "m.toml"
+    p.write_text(text.replace(edit[0], edit[1], 1))
+    with pytest.raises(CtcManifestError, match=message):
+        load_ctc_campaign(p)
+
+
+def test_example_manifest_reads() -> None:
+    c = load_ctc_campaign(REPO / "examples" / "ctc_campaign.toml")
+    assert [s.name for s in c.sequences] == list(SEQUENCES) and c.conditions[0].rates == RATES
+    assert c.anchor.csv is not None and c.test.points[1, 1, 2]["total_bits"] == 81900
+    assert c.sequences[0].resolution == 2.0 and not math.isnan(c.sequences[1].fps)
+
+
+def test_point_means_and_the_lossless_rule() -> None:
+    """A point's row: mmetric's clipped means at 9 digits; lossless and identical grid samples: inf everywhere."""
+    same = {"figures": {"GridD1": math.inf, "GridD2": math.inf, "IbsmGeom": 99.99}, "faces_dis": 10}
+    off = {"figures": {"GridD1": 70.123456789, "GridD2": math.inf, "IbsmGeom": 60.0}, "faces_dis": 12}
+    p = ctc_campaign._point([same, same], {"total_bits": 8.0}, (1, 0, 0), True, "x")
+    assert p.figures == {"GridD1": math.inf, "GridD2": math.inf, "IbsmGeom": math.inf} and p.output_faces == 20
+    p = ctc_campaign._point([same, off], {"total_bits": 8.0, "output_faces": 5}, (1, 0, 0), True, "x")
+    assert p.figures == {"GridD1": 85.0567284, "GridD2": 99.99, "IbsmGeom": 79.995} and p.output_faces == 5
+    with pytest.raises(ValueError, match=r"x: GridLuma is computed on 1 of 2 frames"):
+        ctc_campaign._point(
+            [same, {"figures": {**off["figures"], "GridLuma": 30.0}}], {"total_bits": 8.0}, (1, 1, 1), False, "x"
+        )
+
+
+def test_a_second_codec_reuses_the_anchors_frames(
+    campaign: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Another test codec against the same anchor (same cache): only its frames whose files differ are computed."""
+    manifest, reference = campaign
+    data = manifest.parent / "ctc-campaign-data"
+    for seq in SEQUENCES:  # a copy of the test codec's files in another folder, one frame changed
+        shutil.copytree(data / seq / "test", data / seq / "test2", dirs_exist_ok=True)
+    changed = data / "sphere" / "test2" / "r1" / "dec_0003.obj"
+    lines = changed.read_text().splitlines()
+    lines[0] = "v " + " ".join(str(int(x) + 1) for x in lines[0].split()[1:])
+    changed.write_text("\n".join(lines) + "\n")
+    second = manifest.parent / "second.toml"
+    second.write_text(manifest.read_text().replace("/test/r{rate_id}", "/test2/r{rate_id}"))
+    calls: list[FrameTask] = []
+    real = ctc_campaign._compute
+
+    def counting(campaign, task, *rest):  # type: ignore[no-untyped-def]
+        calls.append(task)
+        return real(campaign, task, *rest)
+
+    monkeypatch.setattr(ctc_campaign, "_compute", counting)
+    assert main(["ctc-campaign", str(second), "--out-dir", str(tmp_path / "out"), "--no-plots"]) == 0
+    assert [(t.codec, t.seq.name, t.rate_id, t.frame) for t in calls] == [("test", "sphere", 1, 3)]
+    assert (tmp_path / "out" / "anchor.csv").read_bytes() == (reference / "anchor.csv").read_bytes()
+    assert (tmp_path / "out" / "test.csv").read_bytes() != (reference / "test.csv").read_bytes()
+
+
+def test_bits_runtimes_and_memory_from_the_codecs_files(tmp_path: Path) -> None:
+    """As collect_results.sh: bits = bitstream size * 8, the logs' 4th fields (memory / 1024); manifest points win."""
+    from torchmeshmetric.mpeg.ctc_manifest import CtcCampaignSequence, CtcCodec
+
+    seq = CtcCampaignSequence("ball", 3, "cat1-B", "s_%04d.obj", None, 0, 2, 30.0, 10, 8, (0, 0, 0), (1, 1, 1), 1.0)
+    folder = tmp_path / "s3c1r2_ball"
+    folder.mkdir()
+    (folder / "out.vmesh").write_bytes(b"\0" * 1234)
+    (folder / "encoder.log").write_text(
+        "Sequence face count 6400\nSequence processing time 12.5 s\nSequence peak memory 20480 KB\n"
+    )
+    (folder / "decoder.log").write_text("Sequence processing time 1.25 s\nSequence peak memory 10240 KB\n")
+    t = str(tmp_path / "s{seq_id}c{cond_id}r{rate_id}_{sequence}")
+    codec = CtcCodec(
+        "test",
+        "d_%04d.obj",
+        bitstream=t + "/out.vmesh",
+        encoder_log=t + "/encoder.log",
+        decoder_log=t + "/decoder.log",
+        points={(3, 1, 2): {"decoder_seconds": 2.0}},
+    )
+    v = ctc_campaign._codec_values(codec, seq, 1, 2, {})
+    assert v == {
+        "total_bits": 1234 * 8,
+        "output_faces": 6400.0,
+        "encoder_seconds": 12.5,
+        "encoder_memory": 20.0,
+        "decoder_seconds": 2.0,
+        "decoder_memory": 10.0,
+    }
+    (folder / "decoder.log").write_text("Sequence processing time n/a\n")
+    with pytest.raises(ValueError, match=r"decoder.log:1: expected a number as the 4th field"):
+        ctc_campaign._codec_values(codec, seq, 1, 2, {})
+    with pytest.raises(ValueError, match=r"test: sequence 'ball' condition 1 rate 1: bitstream .* not found"):
+        ctc_campaign._codec_values(codec, seq, 1, 1, {})

@@ -1,0 +1,151 @@
+"""The ``torchmeshmetric ctc-campaign MANIFEST`` command: a whole V-DMC CTC campaign and the CTC sheet's summary.
+
+Only the standard library is imported here (``--help`` stays fast); the campaign loads the metrics when it runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from torchmeshmetric.cli.options import add_command
+
+__all__ = ["add_ctc_campaign_command", "run"]
+
+#: The files written in --out-dir besides the RD plots.
+_TABLES = ("anchor.csv", "test.csv", "frames.csv", "summary.csv", "summary.md", "summary.json")
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", text).strip("_") or "x"
+
+
+def _plot_name(cond_id: int, sequence: str) -> str:
+    return f"rd_c{cond_id}_{_slug(sequence)}.png"
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run a V-DMC CTC campaign: every sequence, condition, rate and frame of a test codec and an anchor.
+
+    Reads a TOML manifest (examples/ctc_campaign.toml, docs/ctc.md): sequences (quantised source frames, box, bit
+    depths, frame rate, class), conditions and rates, and for the anchor and the test codec their decoded frames and
+    bitstream figures (the test model's CSV, bitstream files, encoder and decoder logs, or values in the manifest).
+    Runs mmetric's CTC chain (the ctc command's) on every frame not in the cache folder yet (a rerun resumes; a
+    second codec reuses the anchor's frames), then writes in --out-dir: anchor.csv and test.csv (the test model's
+    CSV, as collect_results.sh collects it from mmetric), frames.csv (every frame's figures), summary.csv/.md/.json
+    (the CTC spreadsheet's summary: BD-rate per metric, BD-TotGeoRate, BD-AttrRate, bpif, component ratios, time
+    and memory ratios; class and overall averages) and one RD-curve PNG per sequence and lossy condition. Under
+    torchrun the frames are shared by all processes and rank 0 writes the same files.
+    """
+    from torchmeshmetric.cli._outputs import check_writable, make_folder, output_set
+    from torchmeshmetric.mpeg.ctc_manifest import load_ctc_campaign
+
+    start = time.perf_counter()
+    campaign = load_ctc_campaign(args.manifest)
+    out = Path(args.out_dir)
+    names = list(_TABLES)
+    if not args.no_plots:
+        names += [
+            _plot_name(c.cond_id, s.name)
+            for c in campaign.conditions
+            if not c.lossless and len(c.rates) > 1
+            for s in campaign.sequences
+        ]
+    check_writable(
+        [out / n for n in names] if out.is_dir() else [out],
+        args.overwrite,
+        inputs=campaign.input_files(),
+        what="--out-dir",
+    )
+    cache = Path(args.cache_dir) if args.cache_dir else None
+    if cache is not None or campaign.cache_dir is not None:
+        from torchmeshmetric.cli._outputs import check_folder
+
+        check_folder(cache or campaign.cache_dir, "cache folder", may_create=True)  # type: ignore[arg-type]
+    from torchmeshmetric.mpeg.ctc_campaign import run_ctc_campaign
+
+    def progress(task: Any, record: dict[str, Any]) -> None:
+        figs = "  ".join(f"{c} {v:.4f}" for c, v in record["figures"].items())
+        print(f"ctc-campaign: {task.describe()}: {figs}  [{record['seconds']:.2f} s]", file=sys.stderr, flush=True)
+
+    result = run_ctc_campaign(campaign, cache_dir=cache, progress=progress)
+    if result is None:  # a torchrun rank other than 0: rank 0 reports
+        return 0
+    from torchmeshmetric._atomic import atomic_write
+    from torchmeshmetric._format import json_safe
+    from torchmeshmetric._version import __version__
+    from torchmeshmetric.mpeg.ctc_campaign import frame_rows_csv
+    from torchmeshmetric.mpeg.ctc_sheet import ctc_summary, format_test_model_csv, summary_csv, summary_markdown
+
+    summary = ctc_summary(
+        result.sequences, result.conditions, result.points["anchor"], result.points["test"], names=result.names
+    )
+    settings = {
+        "manifest": str(campaign.path),
+        "grid_size": campaign.grid_size,
+        "ibsm": None
+        if campaign.ibsm_resolution is None
+        else {"resolution": campaign.ibsm_resolution, "cameras": campaign.ibsm_cameras},
+    }
+    report = {"tool": "torchmeshmetric", "version": __version__, "settings": settings, **summary}
+    with output_set("the campaign's reports") as files:
+        if not out.is_dir():
+            make_folder(out, "--out-dir", files)
+        for codec in ("anchor", "test"):
+            rows = [result.points[codec][k] for k in sorted(result.points[codec])]
+            atomic_write(out / f"{codec}.csv", format_test_model_csv(rows), overwrite=args.overwrite)
+        atomic_write(out / "frames.csv", frame_rows_csv(result.frames), overwrite=args.overwrite)
+        atomic_write(out / "summary.csv", summary_csv(summary), overwrite=args.overwrite)
+        atomic_write(out / "summary.md", summary_markdown(summary), overwrite=args.overwrite)
+        atomic_write(out / "summary.json", json.dumps(json_safe(report), indent=1) + "\n", overwrite=args.overwrite)
+        if not args.no_plots:
+            from torchmeshmetric.viz.rd_curves import plot_rd_curves
+
+            for cond in summary["conditions"]:
+                if cond["lossless"]:
+                    continue
+                for seq in cond["sequences"]:
+                    if len(seq["rates"]) > 1:
+                        plot_rd_curves(
+                            seq,
+                            out / _plot_name(cond["id"], seq["name"]),
+                            names=result.names,
+                            title=f"{seq['name']} - {cond['name']}",
+                            overwrite=args.overwrite,
+                        )
+    print(summary_markdown(summary))
+    wall = time.perf_counter() - start
+    chains = result.chain_seconds
+    line = (
+        f"ctc-campaign: {len(result.frames)} frames, {result.computed} computed ({chains:.2f} s of chains), "
+        f"{len(result.frames) - result.computed} from the cache; {wall:.2f} s in all"
+    )
+    if chains > 0:
+        line += f" (campaign overhead {100 * (wall - chains) / chains:+.1f} % of the chains)"
+    print(line + f"; wrote {out}/", file=sys.stderr)
+    return 0
+
+
+def add_ctc_campaign_command(sub: Any) -> None:
+    """Add the ``ctc-campaign`` subcommand to the CLI's subparsers."""
+    p = add_command(sub, "ctc-campaign", run)
+    p.add_argument("manifest", metavar="MANIFEST", help="the campaign manifest (TOML); paths relative to it")
+    p.add_argument(
+        "--out-dir",
+        required=True,
+        metavar="DIR",
+        help="write the CSVs, the summary and the RD plots there (created; its parent must exist)",
+    )
+    p.add_argument(
+        "--cache-dir",
+        default=None,
+        metavar="DIR",
+        help="per-frame cache folder (overrides the manifest's cache_dir); a rerun resumes from it",
+    )
+    p.add_argument("--no-plots", action="store_true", help="write no RD-curve PNGs")
+    p.add_argument("--overwrite", action="store_true", help="replace existing files in --out-dir")

@@ -1,0 +1,68 @@
+"""The ``report`` command: an existing report (REPORT.json and its REPORT.md) as one self-contained HTML page."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from torchmeshmetric.cli.options import add_command
+
+__all__ = ["add_report_command", "run"]
+
+
+def run(args: argparse.Namespace) -> int:
+    """Write an existing report as one offline HTML page.
+
+    Reads REPORT.json and the Markdown written beside it (REPORT.md: the tables), and writes REPORT.html (or --out):
+    the tables (sortable), the per-frame curves drawn from the JSON, and, with --mesh, an interactive 3D viewer of
+    error-coloured PLY files (e.g. the demo's error_*.ply) in their own colours. Works for the reports of evaluate,
+    compare, demo, campaign (and its sequences) and ctc. The histograms and the error scale need the per-vertex
+    distances, which a report does not keep: the commands' own --html writes them.
+    """
+    from torchmeshmetric.cli._outputs import CLIError, check_writable
+
+    source = Path(args.report)
+    markdown_path = source.with_suffix(".md")
+    out = Path(args.out) if args.out else source.with_suffix(".html")
+    for path, what in ((source, "REPORT"), (markdown_path, "its Markdown (the tables)")):
+        if not path.is_file():
+            raise CLIError(f"{what} {str(path)!r}: no such file")
+    meshes = [Path(m) for m in args.mesh]
+    for m in meshes:
+        if not m.is_file():
+            raise CLIError(f"--mesh {str(m)!r}: no such file")
+    inputs = [("REPORT", source), ("its Markdown", markdown_path), *(("--mesh", m) for m in meshes)]
+    check_writable([out], args.overwrite, inputs=inputs, what="--out")
+    try:
+        report = json.loads(source.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise CLIError(f"REPORT {str(source)!r}: not a JSON report ({exc})") from exc
+    if not isinstance(report, dict):
+        raise CLIError(f"REPORT {str(source)!r}: expected a JSON object, found {type(report).__name__}")
+    from torchmeshmetric.viz.html_report import file_layer, report_page, write_html
+
+    layers: list[Any] = [file_layer(m) for m in meshes]
+    page = report_page(
+        report, markdown_path.read_text(encoding="utf-8"), title=f"torchmeshmetric report: {source.stem}", meshes=layers
+    )
+    write_html(out, page, overwrite=args.overwrite)
+    print(f"wrote {out}", file=sys.stderr)
+    return 0
+
+
+def add_report_command(sub: Any) -> None:
+    """Add the ``report`` subcommand to the CLI's subparsers."""
+    p = add_command(sub, "report", run)
+    p.add_argument("report", metavar="REPORT.json", help="a report written by evaluate, compare, demo, campaign or ctc")
+    p.add_argument("--out", default=None, metavar="PAGE.html", help="the page (default: REPORT.html beside REPORT)")
+    p.add_argument(
+        "--mesh",
+        action="append",
+        default=[],
+        metavar="FILE.ply",
+        help="an error-coloured mesh for the 3D viewer (e.g. the demo's error_*.ply), in its own colours; repeat",
+    )
+    p.add_argument("--overwrite", action="store_true", help="replace an existing page")

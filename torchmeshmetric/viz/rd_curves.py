@@ -1,0 +1,61 @@
+"""Rate-distortion curves of a CTC campaign: anchor and test codec, one panel per metric (PNG)."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from torchmeshmetric.viz.plots import _figure, _save
+
+__all__ = ["plot_rd_curves"]
+
+_METRICS = ("GridD1", "GridD2", "GridLuma", "GridChromaCb", "GridChromaCr", "IbsmGeom", "IbsmLuma")
+
+
+def plot_rd_curves(
+    sequence: Mapping[str, Any],
+    path: str | os.PathLike[str],
+    *,
+    names: tuple[str, str] = ("anchor", "test"),
+    title: str = "",
+    overwrite: bool = False,
+) -> Path:
+    """One sequence's RD curves: rate (Mbps) against each metric's PSNR, anchor and test codec, as a PNG.
+
+    Args:
+        sequence: a sequence of :func:`~torchmeshmetric.mpeg.ctc_sheet.ctc_summary` (its ``rates`` rows, and its
+            ``bd_rate`` figures, shown in each panel's title).
+        path: destination ``.png``.
+        names: the two codecs' names (legend).
+        title: the figure's title.
+        overwrite: replace an existing file.
+
+    Returns:
+        The path written.
+    """
+    Figure = _figure()
+    rows = sequence["rates"]
+    metrics = [m for m in _METRICS if all(m in r["anchor"] and m in r["test"] for r in rows)]
+    cols = min(4, max(1, len(metrics)))
+    nrows = max(1, -(-len(metrics) // cols))
+    fig = Figure(figsize=(4 * cols, 3.4 * nrows))  # fixed margins: a constrained layout costs seconds per figure
+    axes = fig.subplots(nrows, cols, squeeze=False).ravel()
+    for ax, m in zip(axes, metrics, strict=False):
+        for side, label, marker in (("anchor", names[0], "o"), ("test", names[1], "s")):
+            pts = sorted((r[side]["rate_mbps"], r[side][m]) for r in rows)
+            ax.plot([x for x, _ in pts], [y for _, y in pts], marker=marker, label=label)
+        bd = sequence.get("bd_rate", {}).get(m)
+        ax.set_title(m + ("" if bd is None else f"  (BD-rate {bd:+.2f} %)"), fontsize=9)
+        ax.set_xlabel("rate (Mbps)")
+        ax.set_ylabel("PSNR (dB)")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7)
+    for ax in axes[len(metrics) :]:
+        ax.set_visible(False)
+    if title:
+        fig.suptitle(title)
+    h, w = 3.4 * nrows, 4.0 * cols  # margins in inches: 0.55 below, 0.65 above, 0.7 left
+    fig.subplots_adjust(left=0.7 / w, right=1 - 0.15 / w, bottom=0.55 / h, top=1 - 0.65 / h, wspace=0.35, hspace=0.5)
+    return _save(fig, path, overwrite)
