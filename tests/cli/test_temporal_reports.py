@@ -13,6 +13,7 @@ def test_evaluate_and_compare_report_the_temporal_figures(capsys, tmp_path, sequ
     out = tmp_path / "report.json"
     assert main(["evaluate", "--original", str(orig), "--simplified", str(simp), "--out", str(out), "--temporal"]) == 0
     printed = capsys.readouterr().out
+    assert known_registration.calls == 2  # the 2 original pairs, registered once for the tables and the figures
     want = temporal_figures(load_sequence(str(orig)), load_sequence(str(simp)), registration_fn=Counting())
     got = json.loads(out.read_text())["temporal"]["simp"]
     assert got == want.as_dict() and got["registered"] is True
