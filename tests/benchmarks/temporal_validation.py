@@ -1,6 +1,6 @@
 """Validation of the registered temporal metrics against the exact ones on real fixed-connectivity animations.
 
-Run (once; minutes): ``python -m tests.benchmarks.temporal_validation MODEL_DIR [MODEL_DIR ...] --frames 8
+Run (once; minutes): ``python -m tests.benchmarks.temporal_validation MODEL_DIR [MODEL_DIR ...] --frames 4
 --out /tmp/temporal-validation.json``, each MODEL_DIR a folder of OBJ frames with one connectivity (e.g.
 ``models/horse-gallop`` and ``models/samba`` of CraGL/Hyperspectral-Inverse-Skinning: use them from a scratch
 folder, never commit them). For each animation ``A``:
