@@ -268,8 +268,9 @@ void prepare(const MeshView& m, const Camera& cam, int width, int height, bool c
         bmax[j] = std::min(clampv[j], std::max(bmax[j], corner[k]->p2[j]));
       }
     // the rectangle scanned is [int(bmin), int(bmax)] on each axis (bmin >= 0 and bmax <= the last pixel, NaN
-    // corners aside); it is empty where bmin lies past the last pixel or bmax at or below -1
-    if (!(bmin[0] <= clampv[0] && bmin[1] <= clampv[1] && bmax[0] > -1.0F && bmax[1] > -1.0F)) continue;
+    // corners aside); it is empty where bmin lies a pixel or more past the last pixel or bmax at or below -1 (and
+    // converting such a bound to int could overflow)
+    if (!(bmin[0] < clampv[0] + 1.0F && bmin[1] < clampv[1] + 1.0F && bmax[0] > -1.0F && bmax[1] > -1.0F)) continue;
     const Scan sc = {t, static_cast<int>(bmin[0]), static_cast<int>(bmax[0]), static_cast<int>(bmin[1]),
                      static_cast<int>(bmax[1])};
     if (sc.xs > sc.xe || sc.ys > sc.ye) continue;
