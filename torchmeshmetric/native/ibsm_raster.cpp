@@ -22,8 +22,6 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
-#include <memory>
-#include <mutex>
 #include <vector>
 
 namespace {
@@ -193,77 +191,57 @@ struct Rect {
   }
 };
 
-// Buffers of one rendering, cleared (depth -FLT_MAX, RGBA 0) once; `drawn` is what the last rendering wrote, the
-// only part the next one must clear. A performer covers a small part of the 2048^2 view: clearing and comparing only
-// the drawn rectangle saves most of the memory traffic, and pixels outside it are empty in both renderings (they add
-// nothing to any sum, so the sums and their order are unchanged).
+// Buffers of a band of rows [y0, y0 + rows) of one rendering, cleared (depth -FLT_MAX, RGBA 0) once; `drawn` is
+// what the last band drawn wrote (full-image coordinates), the only part the next band must clear.
 struct Target {
   std::vector<float> z;
   std::vector<uint8_t> rgba;
   Rect drawn;
-  int w, h;
-  Target(int w_, int h_)
-      : z(size_t(w_) * h_, -std::numeric_limits<float>::max()), rgba(size_t(w_) * h_ * 4, uint8_t(0)), w(w_), h(h_) {}
-};
-
-// Targets of the last resolution kept for the next call, cleared but for their drawn rectangle: a new one costs a
-// page fault per 4 kB and a full clear (32 MB at 2048 x 2048), a kept one the clear of what it last drew. At most
-// KEEP are kept (two per camera worker on two cores: 128 MB at 2048 x 2048).
-class TargetPool {
- public:
-  std::unique_ptr<Target> take(int w, int h) {
-    std::lock_guard<std::mutex> lock(mu_);
-    if (w != w_ || h != h_) {
-      free_.clear();
-      w_ = w;
-      h_ = h;
+  int w, rows, y0 = 0;  // the rows held: [y0, y0 + rows)
+  Target(int w_, int rows_)
+      : z(size_t(w_) * rows_, -std::numeric_limits<float>::max()), rgba(size_t(w_) * rows_ * 4, uint8_t(0)), w(w_),
+        rows(rows_) {}
+  // cleared and moved to the rows [first, first + n) (n <= the rows allocated)
+  void start(int first, int n) {
+    for (int y = drawn.y0; y <= drawn.y1; ++y) {
+      const size_t row = size_t(y - y0) * w;
+      std::fill(z.begin() + row + drawn.x0, z.begin() + row + drawn.x1 + 1, -std::numeric_limits<float>::max());
+      std::fill(rgba.begin() + (row + drawn.x0) * 4, rgba.begin() + (row + drawn.x1 + 1) * 4, uint8_t(0));
     }
-    if (free_.empty()) return std::make_unique<Target>(w, h);
-    std::unique_ptr<Target> t = std::move(free_.back());
-    free_.pop_back();
-    return t;
+    drawn = Rect();
+    y0 = first;
+    rows = n;
   }
-  void give(std::unique_ptr<Target> t) {
-    std::lock_guard<std::mutex> lock(mu_);
-    if (t->w == w_ && t->h == h_ && free_.size() < KEEP) free_.push_back(std::move(t));
-  }
-
- private:
-  static constexpr size_t KEEP = 4;
-  std::mutex mu_;
-  std::vector<std::unique_ptr<Target>> free_;
-  int w_ = -1, h_ = -1;
 };
 
-TargetPool& target_pool() {
-  static TargetPool pool;
-  return pool;
-}
+// A vertex seen by the camera: clip position and viewport position, with its screen position p2.
+struct Shot {
+  V4 clip, pts;
+  float p2[2];
+};
 
-// One rendering: depth (float, cleared to -FLT_MAX) and RGBA (alpha 255 where a face is drawn, 0 elsewhere).
-void render(const MeshView& m, const Camera& cam, int width, int height, bool cull, Target& target) {
-  std::vector<float>& zbuf = target.z;
-  std::vector<uint8_t>& fbuf = target.rgba;
-  const Rect old = target.drawn;
-  for (int y = old.y0; y <= old.y1; ++y) {
-    const size_t row = size_t(y) * width;
-    std::fill(zbuf.begin() + row + old.x0, zbuf.begin() + row + old.x1 + 1, -std::numeric_limits<float>::max());
-    std::fill(fbuf.begin() + (row + old.x0) * 4, fbuf.begin() + (row + old.x1 + 1) * 4, uint8_t(0));
-  }
-  Rect drawn;
-  std::vector<uint8_t> keep(static_cast<size_t>(width) + 1);
+// A face that may draw a pixel: its index and the pixel rectangle [xs, xe] x [ys, ye] it scans.
+struct Scan {
+  int64_t t;
+  int xs, xe, ys, ye;
+};
+
+// One mesh seen by one camera: every vertex transformed once (a face's corners repeat the same operations on the
+// same vertex), the faces that may draw kept in order with their pixel rectangles, and binned by band of rows.
+struct Raster {
+  std::vector<Shot> shot;
+  std::vector<Scan> scans;
+  std::vector<int64_t> band_start, band_scans;  // the scans of band k: band_scans[band_start[k] : band_start[k + 1]]
+};
+
+// Vertices projected and faces set up and binned into bands of `band_rows` rows, in face order within a band.
+void prepare(const MeshView& m, const Camera& cam, int width, int height, bool cull, int band_rows, Raster& out) {
   const float hw = static_cast<float>(width / 2.), hh = static_cast<float>(height / 2.);
-  const bool textured = m.uvs != nullptr && m.tex != nullptr;
-  // every vertex transformed once, with its viewport position (a face's corners repeat the same operations on the
-  // same vertex); viewport = glm columns (w/2, 0, w/2, 0), (0, h/2, h/2, 0), (0, 0, 1, 0), (0, 0, 0, 1)
-  struct Shot {
-    V4 clip, pts;
-    float p2[2];
-  };
-  std::vector<Shot> shot(static_cast<size_t>(m.num_verts));
+  // viewport = glm columns (w/2, 0, w/2, 0), (0, h/2, h/2, 0), (0, 0, 1, 0), (0, 0, 0, 1)
+  out.shot.resize(static_cast<size_t>(m.num_verts));
   for (int64_t v = 0; v < m.num_verts; ++v) {
     const float* p = m.verts + v * 3;
-    Shot& o = shot[v];
+    Shot& o = out.shot[v];
     const V4 c = o.clip = mv(cam.mvp, {p[0], p[1], p[2], 1.0F});
     o.pts.x = (hw * c.x + 0.0F * c.y) + (0.0F * c.z + 0.0F * c.w);
     o.pts.y = (0.0F * c.x + hh * c.y) + (0.0F * c.z + 0.0F * c.w);
@@ -272,26 +250,61 @@ void render(const MeshView& m, const Camera& cam, int width, int height, bool cu
     o.p2[0] = o.pts.x / o.pts.w;
     o.p2[1] = o.pts.y / o.pts.w;
   }
+  out.scans.clear();
+  const float clampv[2] = {static_cast<float>(width - 1), static_cast<float>(height - 1)};
   for (int64_t t = 0; t < m.num_faces; ++t) {
-    const Shot* corner[3] = {&shot[m.faces[t * 3]], &shot[m.faces[t * 3 + 1]], &shot[m.faces[t * 3 + 2]]};
-    const V4 clip[3] = {corner[0]->clip, corner[1]->clip, corner[2]->clip};
+    const Shot* corner[3] = {&out.shot[m.faces[t * 3]], &out.shot[m.faces[t * 3 + 1]], &out.shot[m.faces[t * 3 + 2]]};
     if (cull) {
-      const V3 e1 = {clip[1].x - clip[0].x, clip[1].y - clip[0].y, clip[1].z - clip[0].z};
-      const V3 e2 = {clip[2].x - clip[0].x, clip[2].y - clip[0].y, clip[2].z - clip[0].z};
+      const V4 &c0 = corner[0]->clip, &c1 = corner[1]->clip, &c2 = corner[2]->clip;
+      const V3 e1 = {c1.x - c0.x, c1.y - c0.y, c1.z - c0.z};
+      const V3 e2 = {c2.x - c0.x, c2.y - c0.y, c2.z - c0.z};
       if (cross(e1, e2).z <= 0) continue;  // clockwise culling, mmetric's default
     }
-    const V4 pts[3] = {corner[0]->pts, corner[1]->pts, corner[2]->pts};
-    const float p2[3][2] = {{corner[0]->p2[0], corner[0]->p2[1]},
-                            {corner[1]->p2[0], corner[1]->p2[1]},
-                            {corner[2]->p2[0], corner[2]->p2[1]}};
     float bmin[2] = {std::numeric_limits<float>::infinity(), std::numeric_limits<float>::infinity()};
     float bmax[2] = {-std::numeric_limits<float>::infinity(), -std::numeric_limits<float>::infinity()};
-    const float clampv[2] = {static_cast<float>(width - 1), static_cast<float>(height - 1)};
     for (int k = 0; k < 3; ++k)
       for (int j = 0; j < 2; ++j) {
-        bmin[j] = std::max(0.0F, std::min(bmin[j], p2[k][j]));
-        bmax[j] = std::min(clampv[j], std::max(bmax[j], p2[k][j]));
+        bmin[j] = std::max(0.0F, std::min(bmin[j], corner[k]->p2[j]));
+        bmax[j] = std::min(clampv[j], std::max(bmax[j], corner[k]->p2[j]));
       }
+    // the rectangle scanned is [int(bmin), int(bmax)] on each axis (bmin >= 0 and bmax <= the last pixel, NaN
+    // corners aside); it is empty where bmin lies a pixel or more past the last pixel or bmax at or below -1 (and
+    // converting such a bound to int could overflow)
+    if (!(bmin[0] < clampv[0] + 1.0F && bmin[1] < clampv[1] + 1.0F && bmax[0] > -1.0F && bmax[1] > -1.0F)) continue;
+    const Scan sc = {t, static_cast<int>(bmin[0]), static_cast<int>(bmax[0]), static_cast<int>(bmin[1]),
+                     static_cast<int>(bmax[1])};
+    if (sc.xs > sc.xe || sc.ys > sc.ye) continue;
+    out.scans.push_back(sc);
+  }
+  const int64_t bands = (height + band_rows - 1) / band_rows;
+  out.band_start.assign(static_cast<size_t>(bands + 1), 0);
+  for (const Scan& sc : out.scans)
+    for (int64_t k = sc.ys / band_rows; k <= sc.ye / band_rows; ++k) ++out.band_start[k + 1];
+  for (int64_t k = 0; k < bands; ++k) out.band_start[k + 1] += out.band_start[k];
+  out.band_scans.resize(static_cast<size_t>(out.band_start[bands]));
+  std::vector<int64_t> fill(out.band_start.begin(), out.band_start.end() - 1);
+  for (int64_t s = 0; s < static_cast<int64_t>(out.scans.size()); ++s)
+    for (int64_t k = out.scans[s].ys / band_rows; k <= out.scans[s].ye / band_rows; ++k) out.band_scans[fill[k]++] = s;
+}
+
+// The rows [y0, y0 + target.rows) of a rendering: depth (float, -FLT_MAX where empty) and RGBA (alpha 255 where a
+// face is drawn, 0 elsewhere), the faces of band k drawn in face order into a target started on those rows. Every pixel
+// sees the faces covering it in face order, as in a rendering of the whole image at once (greater depth is nearer;
+// ties keep the first face).
+void draw_band(const MeshView& m, const Raster& r, int width, int64_t band, Target& target) {
+  std::vector<float>& zbuf = target.z;
+  std::vector<uint8_t>& fbuf = target.rgba;
+  const int y0 = target.y0, y_end = target.y0 + target.rows;
+  Rect drawn;
+  std::vector<uint8_t> keep(static_cast<size_t>(width) + 1);
+  uint8_t* kp = keep.data();
+  const bool textured = m.uvs != nullptr && m.tex != nullptr;
+  for (int64_t b = r.band_start[band]; b < r.band_start[band + 1]; ++b) {
+    const Scan& sc = r.scans[r.band_scans[b]];
+    const int64_t t = sc.t;
+    const Shot* corner[3] = {&r.shot[m.faces[t * 3]], &r.shot[m.faces[t * 3 + 1]], &r.shot[m.faces[t * 3 + 2]]};
+    const V4 clip[3] = {corner[0]->clip, corner[1]->clip, corner[2]->clip};
+    const V4 pts[3] = {corner[0]->pts, corner[1]->pts, corner[2]->pts};
     const float* uv = textured ? m.uvs + t * 6 : nullptr;
     // Row by row (a face writes each pixel once, so the order within a face changes nothing but memory locality).
     // u = cross(a, b) below, with a = (A, B, p0.x - x) and b = (C, D, p0.y - y): its z is the face's constant, its
@@ -303,38 +316,39 @@ void render(const MeshView& m, const Camera& cam, int width, int height, bool cu
     const float C = pts[2].y - pts[0].y, D = pts[1].y - pts[0].y;
     const float uz = A * D - C * B;
     const bool exits = std::isfinite(uz), negative = std::signbit(uz);
-    const int xs = static_cast<int>(bmin[0]), xe = static_cast<int>(bmax[0]);
-    for (int y = static_cast<int>(bmin[1]); y <= static_cast<int>(bmax[1]); ++y) {
+    // a finite vertex's w is 1 (the camera is orthographic: the last row of its matrices is (0, 0, 0, 1)), and a
+    // division by 1 is exact: bc = bs
+    const bool unit_w = pts[0].w == 1.0F && pts[1].w == 1.0F && pts[2].w == 1.0F;
+    const int xs = sc.xs, n = sc.xe - sc.xs + 1;
+    for (int y = std::max(sc.ys, y0); y <= std::min(sc.ye, y_end - 1); ++y) {
       const float bz = pts[0].y - static_cast<float>(y);
       const float Bbz = B * bz, bzA = bz * A;
-      const int n = xe - xs + 1;
-      if (n <= 0) break;
       if (!exits) {
-        std::fill(keep.begin(), keep.begin() + n, uint8_t(1));
+        std::fill(kp, kp + n, uint8_t(1));
       } else if (!negative) {
         for (int k = 0; k < n; ++k) {
           const float az = pts[0].x - static_cast<float>(xs + k);
           const float ux = Bbz - D * az, uy = az * C - bzA;
-          keep[k] = static_cast<uint8_t>(!(ux < 0.0F) & !(uy < 0.0F));
+          kp[k] = static_cast<uint8_t>(!(ux < 0.0F) & !(uy < 0.0F));
         }
       } else {
         for (int k = 0; k < n; ++k) {
           const float az = pts[0].x - static_cast<float>(xs + k);
           const float ux = Bbz - D * az, uy = az * C - bzA;
-          keep[k] = static_cast<uint8_t>((ux <= 0.0F) & (uy <= 0.0F));
+          kp[k] = static_cast<uint8_t>((ux <= 0.0F) & (uy <= 0.0F));
         }
       }
       for (int k = 0; k < n; ++k) {
-        if (!keep[k]) continue;
+        if (!kp[k]) continue;
         const int x = xs + k;
         const V3 a = {A, B, pts[0].x - static_cast<float>(x)};
         const V3 b = {C, D, bz};
         const V3 u = cross(a, b);
         const V3 bs = {1.0F - (u.x + u.y) / u.z, u.y / u.z, u.x / u.z};
-        const V3 bc = {bs.x / pts[0].w, bs.y / pts[1].w, bs.z / pts[2].w};
+        const V3 bc = unit_w ? bs : V3{bs.x / pts[0].w, bs.y / pts[1].w, bs.z / pts[2].w};
         const float depth = dot({clip[0].z, clip[1].z, clip[2].z}, bc);
         if (std::isnan(depth)) continue;
-        const int64_t i = x + static_cast<int64_t>(y) * width;
+        const int64_t i = x + static_cast<int64_t>(y - y0) * width;
         if (bs.x < 0 || bs.y < 0 || bs.z < 0 || depth <= zbuf[i]) continue;
         float rgb[3];
         if (textured) {
@@ -399,9 +413,15 @@ V3 up_for(V3 d) {
 
 }  // namespace
 
+// Rows of a band: 16 rows of 2048 pixels are 256 kB of depth and colour per rendering, so that both renderings of a
+// band stay in cache from the first face drawn to the comparison.
+constexpr int BAND_ROWS = 16;
+
 // Per-camera sums of the IBSM comparison of meshes A and B: a (cameras, 11) float64 tensor with columns
 // [both covered, one covered, R, G, B, Y, U, V squared-error sums, depth squared-error sum (rescaled to 255 by the
-// depth range), colour NaN count, depth NaN count]. Cameras run in parallel on torch's threads.
+// depth range), colour NaN count, depth NaN count]. Cameras run in parallel on torch's threads. Each camera renders
+// and compares band after band of rows, top to bottom: the pixels are summed in the order of a comparison of the
+// whole images (row after row), and pixels empty in both renderings add nothing to any sum.
 torch::Tensor ibsm_sums(torch::Tensor va, torch::Tensor fa, torch::Tensor uva, torch::Tensor texa, torch::Tensor cola,
                         torch::Tensor vb, torch::Tensor fb, torch::Tensor uvb, torch::Tensor texb, torch::Tensor colb,
                         torch::Tensor box, int64_t cameras, int64_t resolution, bool cull) {
@@ -416,57 +436,62 @@ torch::Tensor ibsm_sums(torch::Tensor va, torch::Tensor fa, torch::Tensor uva, t
   {
     pybind11::gil_scoped_release release;
     tmm::chunked_for(cameras, 1, [&](int64_t begin, int64_t end) {
-      std::unique_ptr<Target> pa = target_pool().take(w, h), pb = target_pool().take(w, h);
-      Target &ta = *pa, &tb = *pb;
+      Target ta(w, BAND_ROWS), tb(w, BAND_ROWS);
       const std::vector<float>&za = ta.z, &zb = tb.z;
       const std::vector<uint8_t>&ca = ta.rgba, &cb = tb.rgba;
+      Raster sa, sb;
       for (int64_t k = begin; k < end; ++k) {
         const Camera cam = make_camera(dirs[k], up_for(dirs[k]), bmin, bmax, w, h);
-        render(A, cam, w, h, cull, ta);
-        render(B, cam, w, h, cull, tb);
+        prepare(A, cam, w, h, cull, BAND_ROWS, sa);
+        prepare(B, cam, w, h, cull, BAND_ROWS, sb);
         double* r = o + k * 11;
         const double sig = cam.depth_range;
-        const Rect u = ta.drawn.join(tb.drawn);
-        for (int y = u.y0; y <= u.y1; ++y)
-          for (size_t i = size_t(y) * w + u.x0; i <= size_t(y) * w + u.x1; ++i) {
-          const bool ma = ca[i * 4 + 3] != 0, mb = cb[i * 4 + 3] != 0;
-          if (!(ma && mb)) {
-            if (ma || mb) r[1] += 1;
-            continue;
-          }
-          r[0] += 1;
-          const float ra = ca[i * 4], ga = ca[i * 4 + 1], ba = ca[i * 4 + 2];
-          const float rb = cb[i * 4], gb = cb[i * 4 + 1], bb = cb[i * 4 + 2];
-          const float ya[3] = {0.2126F * ra + 0.7152F * ga + 0.0722F * ba,
-                               -0.1146F * ra - 0.3854F * ga + 0.5000F * ba + 128.0F,
-                               0.5000F * ra - 0.4542F * ga - 0.0458F * ba + 128.0F};
-          const float yb[3] = {0.2126F * rb + 0.7152F * gb + 0.0722F * bb,
-                               -0.1146F * rb - 0.3854F * gb + 0.5000F * bb + 128.0F,
-                               0.5000F * rb - 0.4542F * gb - 0.0458F * bb + 128.0F};
-          const float pa[3] = {ra, ga, ba}, pb[3] = {rb, gb, bb};
-          for (int c = 0; c < 3; ++c) {
-            double e = static_cast<double>(pa[c]) - static_cast<double>(pb[c]);
-            double f = static_cast<double>(ya[c]) - static_cast<double>(yb[c]);
-            e = e * e;
-            f = f * f;
-            if (std::isnan(e) || std::isnan(f)) {
-              e = f = 0.0;
-              r[9] += 1;
+        for (int64_t band = 0; band * BAND_ROWS < h; ++band) {
+          const int first = static_cast<int>(band * BAND_ROWS);
+          ta.start(first, std::min(BAND_ROWS, h - first));
+          tb.start(first, std::min(BAND_ROWS, h - first));
+          draw_band(A, sa, w, band, ta);
+          draw_band(B, sb, w, band, tb);
+          const Rect u = ta.drawn.join(tb.drawn);
+          for (int y = u.y0; y <= u.y1; ++y)
+            for (size_t i = size_t(y - ta.y0) * w + u.x0; i <= size_t(y - ta.y0) * w + u.x1; ++i) {
+              const bool ma = ca[i * 4 + 3] != 0, mb = cb[i * 4 + 3] != 0;
+              if (!(ma && mb)) {
+                if (ma || mb) r[1] += 1;
+                continue;
+              }
+              r[0] += 1;
+              const float ra = ca[i * 4], ga = ca[i * 4 + 1], ba = ca[i * 4 + 2];
+              const float rb = cb[i * 4], gb = cb[i * 4 + 1], bb = cb[i * 4 + 2];
+              const float ya[3] = {0.2126F * ra + 0.7152F * ga + 0.0722F * ba,
+                                   -0.1146F * ra - 0.3854F * ga + 0.5000F * ba + 128.0F,
+                                   0.5000F * ra - 0.4542F * ga - 0.0458F * ba + 128.0F};
+              const float yb[3] = {0.2126F * rb + 0.7152F * gb + 0.0722F * bb,
+                                   -0.1146F * rb - 0.3854F * gb + 0.5000F * bb + 128.0F,
+                                   0.5000F * rb - 0.4542F * gb - 0.0458F * bb + 128.0F};
+              const float pa[3] = {ra, ga, ba}, pb[3] = {rb, gb, bb};
+              for (int c = 0; c < 3; ++c) {
+                double e = static_cast<double>(pa[c]) - static_cast<double>(pb[c]);
+                double f = static_cast<double>(ya[c]) - static_cast<double>(yb[c]);
+                e = e * e;
+                f = f * f;
+                if (std::isnan(e) || std::isnan(f)) {
+                  e = f = 0.0;
+                  r[9] += 1;
+                }
+                r[2 + c] += e;
+                r[5 + c] += f;
+              }
+              double g = (static_cast<double>(za[i]) - static_cast<double>(zb[i])) * 255.0 / sig;
+              g = g * g;
+              if (std::isnan(g)) {
+                g = 0.0;
+                r[10] += 1;
+              }
+              r[8] += g;
             }
-            r[2 + c] += e;
-            r[5 + c] += f;
-          }
-          double g = (static_cast<double>(za[i]) - static_cast<double>(zb[i])) * 255.0 / sig;
-          g = g * g;
-          if (std::isnan(g)) {
-            g = 0.0;
-            r[10] += 1;
-          }
-          r[8] += g;
         }
       }
-      target_pool().give(std::move(pa));
-      target_pool().give(std::move(pb));
     });
   }
   return out;
@@ -482,12 +507,12 @@ std::vector<torch::Tensor> ibsm_render(torch::Tensor v, torch::Tensor f, torch::
   const int w = static_cast<int>(resolution);
   const V3 vd = {d[0], d[1], d[2]};
   const Camera cam = make_camera(vd, up_for(vd), {bx[0], bx[1], bx[2]}, {bx[3], bx[4], bx[5]}, w, w);
+  Raster r;
+  prepare(M, cam, w, w, cull, w, r);  // one band: the whole image
   Target target(w, w);
-  render(M, cam, w, w, cull, target);
-  std::vector<float>& z = target.z;
-  std::vector<uint8_t>& c = target.rgba;
-  auto zt = torch::from_blob(z.data(), {w, w}, torch::kFloat32).clone();
-  auto ct = torch::from_blob(c.data(), {w, w, 4}, torch::kUInt8).clone();
+  draw_band(M, r, w, 0, target);
+  auto zt = torch::from_blob(target.z.data(), {w, w}, torch::kFloat32).clone();
+  auto ct = torch::from_blob(target.rgba.data(), {w, w, 4}, torch::kUInt8).clone();
   return {zt, ct, torch::tensor({cam.depth_range})};
 }
 

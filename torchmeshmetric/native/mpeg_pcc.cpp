@@ -509,6 +509,11 @@ std::vector<torch::Tensor> nearest_ties(const torch::Tensor& query, const torch:
   bool* tie = tie_t.data_ptr<bool>();
   const double h = 1.0 / grid.inv_h, r_max = 2 * h;
   const std::vector<int64_t> qorder = column_order(grid, qp, Q, nullptr);
+  std::vector<float> qs(static_cast<size_t>(3 * Q));  // the queries in that order, read in sequence
+  at::parallel_for(0, Q, 1 << 14, [&](int64_t b, int64_t e) {
+    for (int64_t s = b; s < e; ++s)
+      for (int a = 0; a < 3; ++a) qs[3 * s + a] = qp[3 * qorder[s] + a];
+  });
   // The nearest and the second by rank, searched only as far as a tie could reach: all points within 1e-20 of the
   // nearest are visited, so the second is exact whenever it is a tie, and a farther second is no tie either way.
   const auto tie_bound = [](const Best& b) {
@@ -518,9 +523,10 @@ std::vector<torch::Tensor> nearest_ties(const torch::Tensor& query, const torch:
   tmm::chunked_for(Q, GRAIN, [&](int64_t s0, int64_t e) {
     int64_t prev = -1;
     bool far = false;  // the previous answer lay beyond the grid's reach: go to the kd-tree at once
+    double dprev = 0;  // the previous query's nearest distance
     for (int64_t s = s0; s < e; ++s) {
       const int64_t i = qorder[s];
-      const float* q = qp + 3 * i;
+      const float* q = qs.data() + 3 * s;
       Best best{2};
       // the previous query's nearest point bounds the radius when it is near (most queries: the next point of the
       // same column); a column's first query starts from one column side
@@ -528,6 +534,11 @@ std::vector<torch::Tensor> nearest_ties(const torch::Tensor& query, const torch:
       if (prev >= 0) {
         const float* t = tp + 3 * prev;
         r0 = std::min(h, std::sqrt((mpeg_sq(q[0], q[1], q[2], t[0], t[1], t[2]) + SIMILAR) * WIDEN) * (1 + 1e-6));
+        // and within that, twice the previous query's nearest distance (the points of a sampled surface lie about as
+        // far from the other cloud as their neighbours; a query whose answer lies farther widens its radius: search),
+        // at least an eighth of a column side. The points visited grow with the square of the radius: this one
+        // visits about half as many as the distance to the previous nearest point alone.
+        r0 = std::min(r0, std::max(2 * dprev, h / 8));
       }
       if (far || !search(grid, q, prev, tp, r0, r_max, best, tie_bound)) {
         best.n = 0;
@@ -542,6 +553,7 @@ std::vector<torch::Tensor> nearest_ties(const torch::Tensor& query, const torch:
       tie[i] = best.n == 2 && best.sq[1] - best.sq[0] < SIMILAR;
       far = best.sq[0] > r_max * r_max;
       prev = best.idx[0];
+      dprev = std::sqrt(best.sq[0]);
     }
   });
   auto rows_t = torch::nonzero(tie_t).reshape({-1}).contiguous();
