@@ -29,7 +29,7 @@ def _stub(package: str) -> ast.Module:
 
 
 def test_every_package_but_the_cli_is_lazy():
-    assert len(PACKAGES) == 13  # the root and its twelve subpackages with stubs (native and temporal included)
+    assert len(PACKAGES) == 17  # the root and its 16 subpackages with stubs (native, temporal, mpeg's four rooms)
     for package in PACKAGES:
         assert (PACKAGE.parent / package.replace(".", "/") / "__init__.pyi").is_file(), package
 
@@ -68,10 +68,12 @@ def test_the_root_serves_the_whole_data_kernel_and_metric_packages():
 
 
 def test_a_function_named_like_its_module_stays_the_function():
-    # mpeg/mpeg_metrics.py defines mpeg_metrics; importing the module must not replace the package's function.
-    importlib.import_module("torchmeshmetric.mpeg.mpeg_metrics")
-    module = sys.modules["torchmeshmetric.mpeg.mpeg_metrics"]
-    assert callable(torchmeshmetric.mpeg.mpeg_metrics) and torchmeshmetric.mpeg.mpeg_metrics is module.mpeg_metrics
+    # mpeg/comparison/mpeg_metrics.py defines mpeg_metrics; importing the module must not replace the function of
+    # its room (mpeg.comparison) nor of mpeg.
+    importlib.import_module("torchmeshmetric.mpeg.comparison.mpeg_metrics")
+    module = sys.modules["torchmeshmetric.mpeg.comparison.mpeg_metrics"]
+    for package in (torchmeshmetric.mpeg, torchmeshmetric.mpeg.comparison):
+        assert callable(package.mpeg_metrics) and package.mpeg_metrics is module.mpeg_metrics, package.__name__
     assert torchmeshmetric.metrics.mesh_surface_distance_loss.__name__ == "mesh_surface_distance_loss"
 
 

@@ -34,7 +34,7 @@ class _Package(types.ModuleType):
     names the stub takes from that submodule are bound then, to the objects it holds at that moment. Without that,
     a name would be bound on its first access, and see whatever the submodule holds by then (a test's patch of
     ``pipeline.default_register`` would leak into ``evaluation.default_register`` and outlive the test). A function
-    named like its own module (``mpeg.mpeg_metrics``) keeps the name: the submodule does not replace it.
+    named like its own module (``mpeg.comparison.mpeg_metrics``) keeps the name: the submodule does not replace it.
     """
 
     def __setattr__(self, name: str, value: Any) -> None:

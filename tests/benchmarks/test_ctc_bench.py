@@ -27,8 +27,8 @@ import numpy as np
 import pytest
 
 from tests.mpeg.test_ctc import MM_BIN, _box_args, _mm, _mm_chain, _write_obj
-from torchmeshmetric.mpeg.ctc import CtcSequence, ctc_sequence
-from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
+from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
+from torchmeshmetric.mpeg.ctc.chain import CtcSequence, ctc_sequence
 
 FRAMES = 3
 

@@ -96,7 +96,7 @@ def test_mpeg_models_are_not_kept_when_the_csv_row_cannot_be_appended(tmp_path, 
     def full_disk(*args: object, **kwargs: object) -> None:
         raise OSError(28, "No space left on device", str(tmp_path / "s.csv"))
 
-    monkeypatch.setattr("torchmeshmetric.mpeg.csv_rows.append_csv_row", full_disk)
+    monkeypatch.setattr("torchmeshmetric.mpeg.comparison.csv_rows.append_csv_row", full_disk)
     before = _snapshot(tmp_path)
     models = ["--output-model-ref", str(tmp_path / "a.ply"), "--output-model-dis", str(tmp_path / "b.ply")]
     argv = ["mpeg", str(ref), str(dis), "--sampling", "mesh", *models, "--output-csv", str(tmp_path / "s.csv")]

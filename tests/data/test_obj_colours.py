@@ -10,8 +10,8 @@ import pytest
 from torchmeshmetric.cli import main
 from torchmeshmetric.data import load_mesh
 from torchmeshmetric.data.mesh_file import MeshFileError
-from torchmeshmetric.mpeg.model_cloud import load_model_cloud
-from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
+from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
+from torchmeshmetric.mpeg.sampling.model_cloud import load_model_cloud
 
 ROWS = ["v 0 0 0 1 0 0", "v 1 0 0 0 1 0", "v 1 1 0 0 0 1", "v 0 1 0 1 1 1", "f 1 2 3", "f 1 3 4"]
 

@@ -18,7 +18,7 @@ from torchmeshmetric.data.io import load_mesh, read_mesh_arrays
 from torchmeshmetric.data.mesh_file import MeshFileError
 from torchmeshmetric.data.obj import _parse_fast, _parse_slow, parse_obj
 from torchmeshmetric.data.off import _parse_off_slow
-from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
+from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
 
 _FORMS = ("{v}", "{v}/{t}", "{v}/{t}/{n}", "{v}//{n}")
 

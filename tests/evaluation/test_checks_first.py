@@ -83,7 +83,7 @@ def test_evaluate_sequences_refuses_wrong_registration_counts_first():
 @pytest.mark.parametrize("distorted", [0, 1, 3])
 def test_mpeg_sequence_refuses_a_wrong_count_before_any_frame(monkeypatch, distorted):
     calls = []
-    monkeypatch.setattr("torchmeshmetric.mpeg.sequence.mpeg_metrics", lambda *a, **k: calls.append(1))
+    monkeypatch.setattr("torchmeshmetric.mpeg.comparison.sequence.mpeg_metrics", lambda *a, **k: calls.append(1))
     with pytest.raises(ValueError, match=r"^distorted: expected as many frames as the reference \(2, at least 1\)"):
         mpeg_sequence([_SPHERE] * 2, [_SPHERE] * distorted, sampling="mesh")
     assert calls == []

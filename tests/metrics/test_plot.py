@@ -143,7 +143,7 @@ def test_the_metrics_beyond_torchmeshmetric_metrics_plot_too(tmp_path):
     """``TemporalConsistency`` (nested result: every set's RMSE) and ``MpegPSNR`` (its two PSNRs)."""
     from tests.evaluation.eval_helpers import TranslationRegister, sphere
     from torchmeshmetric.evaluation import TemporalConsistency
-    from torchmeshmetric.mpeg.metric import MpegPSNR
+    from torchmeshmetric.mpeg.comparison.metric import MpegPSNR
 
     tc = TemporalConsistency(registration_fn=TranslationRegister())
     tc.update(sphere(1, offset=(0.1, 0, 0)), sphere(2, offset=(0.1, 0, 0)), sphere(2))

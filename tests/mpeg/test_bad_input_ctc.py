@@ -15,9 +15,9 @@ import torch
 
 from tests.mpeg.test_cli_ctc import _sequence
 from torchmeshmetric.cli import main
-from torchmeshmetric.mpeg.bd_rate import bd_rate
-from torchmeshmetric.mpeg.ctc import ctc_frame, ctc_mean
-from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
+from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh
+from torchmeshmetric.mpeg.ctc.bd_rate import bd_rate
+from torchmeshmetric.mpeg.ctc.chain import ctc_frame, ctc_mean
 from torchmeshmetric.structures import Mesh
 
 
@@ -157,7 +157,7 @@ def test_bdrate_accepts_bom_and_needs_no_torch(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("which", ["positions", "uvs"])
 def test_dequantize_refuses_non_finite_and_complex(which: str) -> None:
-    from torchmeshmetric.mpeg.dequantize import dequantize_positions, dequantize_uvs
+    from torchmeshmetric.mpeg.ctc.dequantize import dequantize_positions, dequantize_uvs
 
     def call(x: np.ndarray) -> object:
         if which == "positions":
@@ -174,7 +174,7 @@ def test_dequantize_refuses_non_finite_and_complex(which: str) -> None:
 
 
 def test_ibsm_of_meshes_that_never_overlap_keeps_99_99_and_warns() -> None:
-    from torchmeshmetric.mpeg.ibsm import IbsmNoOverlapWarning, ibsm
+    from torchmeshmetric.mpeg.comparison.ibsm import IbsmNoOverlapWarning, ibsm
 
     tri = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
     f = torch.tensor([[0, 1, 2]])

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy.interpolate import CubicHermiteSpline, PchipInterpolator
 
-from torchmeshmetric.mpeg.bd_rate import bd_rate
+from torchmeshmetric.mpeg.ctc.bd_rate import bd_rate
 
 TOL = 1e-9  # percent
 

@@ -11,9 +11,9 @@ import pytest
 
 from torchmeshmetric.cli import main
 from torchmeshmetric.cli.ctc import frame_path
-from torchmeshmetric.mpeg.bd_rate import bd_rate
-from torchmeshmetric.mpeg.ctc import ctc_sequence
-from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
+from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
+from torchmeshmetric.mpeg.ctc.bd_rate import bd_rate
+from torchmeshmetric.mpeg.ctc.chain import ctc_sequence
 
 
 def _sequence(tmp_path: Path, n: int = 2) -> list[str]:

@@ -20,11 +20,11 @@ import pytest
 import torch
 
 from tests.mpeg.conftest import MM, MPEG_REF
-from torchmeshmetric.mpeg import grid_sampling as gs
-from torchmeshmetric.mpeg.ctc import CTC_COLUMNS, CtcSequence, ctc_mean, ctc_sequence
-from torchmeshmetric.mpeg.dequantize import dequantize_positions, dequantize_uvs, position_scale
-from torchmeshmetric.mpeg.reindex import oriented_reindex
-from torchmeshmetric.mpeg.textured_mesh import TexturedMesh, load_textured_mesh
+from torchmeshmetric.mpeg.core.reindex import oriented_reindex
+from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh, load_textured_mesh
+from torchmeshmetric.mpeg.ctc.chain import CTC_COLUMNS, CtcSequence, ctc_mean, ctc_sequence
+from torchmeshmetric.mpeg.ctc.dequantize import dequantize_positions, dequantize_uvs, position_scale
+from torchmeshmetric.mpeg.sampling import grid_sampling as gs
 from torchmeshmetric.structures import Mesh
 
 MM_BIN = MM
@@ -293,7 +293,7 @@ def _unique_based(corner_keys: np.ndarray) -> np.ndarray:
 
 def test_oriented_faces_equals_the_unique_based_reorder() -> None:
     """The lexsort reorder equals an np.unique one (validated against mm), -0.0 and repeats too."""
-    from torchmeshmetric.mpeg.reindex import oriented_faces
+    from torchmeshmetric.mpeg.core.reindex import oriented_faces
 
     rng = np.random.default_rng(0)
     for trial in range(200):

@@ -20,9 +20,9 @@ import pytest
 
 from tests.mpeg.test_ctc import MM_BIN, TOL_DB, _mm_chain, _parse
 from torchmeshmetric.cli import main
-from torchmeshmetric.mpeg import ctc_campaign
-from torchmeshmetric.mpeg.ctc_campaign import FrameTask
-from torchmeshmetric.mpeg.ctc_manifest import CtcManifestError, load_ctc_campaign
+from torchmeshmetric.mpeg.ctc import campaign as ctc_campaign
+from torchmeshmetric.mpeg.ctc.campaign import FrameTask
+from torchmeshmetric.mpeg.ctc.manifest import CtcManifestError, load_ctc_campaign
 
 REPO = Path(__file__).resolve().parents[2]
 FRAMES, RATES, CODECS = 5, (1, 2), ("anchor", "test")
@@ -235,7 +235,7 @@ def test_a_second_codec_reuses_the_anchors_frames(
 
 def test_bits_runtimes_and_memory_from_the_codecs_files(tmp_path: Path) -> None:
     """As collect_results.sh: bits = bitstream size * 8, the logs' 4th fields (memory / 1024); manifest points win."""
-    from torchmeshmetric.mpeg.ctc_manifest import CtcCampaignSequence, CtcCodec
+    from torchmeshmetric.mpeg.ctc.manifest import CtcCampaignSequence, CtcCodec
 
     seq = CtcCampaignSequence("ball", 3, "cat1-B", "s_%04d.obj", None, 0, 2, 30.0, 10, 8, (0, 0, 0), (1, 1, 1), 1.0)
     folder = tmp_path / "s3c1r2_ball"

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from torchmeshmetric.mpeg.ctc_sheet import (
+from torchmeshmetric.mpeg.ctc.sheet import (
     TEST_MODEL_COLUMNS,
     RatePoint,
     SheetCondition,

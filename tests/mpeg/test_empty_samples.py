@@ -19,10 +19,10 @@ from hypothesis import strategies as st
 from torchmeshmetric._checks import EmptyInputError
 from torchmeshmetric.cli import main
 from torchmeshmetric.mpeg import mpeg_metrics, mpeg_sequence
-from torchmeshmetric.mpeg.comparison import mpeg_compare
-from torchmeshmetric.mpeg.metric import MpegPSNR
-from torchmeshmetric.mpeg.point_cloud import PointCloud
-from torchmeshmetric.mpeg.vertex_sampling import vertex_sample
+from torchmeshmetric.mpeg.comparison.metric import MpegPSNR
+from torchmeshmetric.mpeg.comparison.pcc import mpeg_compare
+from torchmeshmetric.mpeg.core.point_cloud import PointCloud
+from torchmeshmetric.mpeg.sampling.vertex_sampling import vertex_sample
 
 GOOD = (torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]), torch.tensor([[0, 1, 2], [0, 1, 3], [0, 2, 3]]))
 

@@ -15,14 +15,14 @@ from torchmeshmetric._checks import (
     NonFiniteError,
     ShapeError,
 )
-from torchmeshmetric.mpeg.edge_sampling import edge_sample
-from torchmeshmetric.mpeg.equality import mesh_equality
-from torchmeshmetric.mpeg.face_sampling import face_sample
-from torchmeshmetric.mpeg.prnd_sampling import prnd_sample
-from torchmeshmetric.mpeg.subdivision_sampling import subdivision_sample
-from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
-from torchmeshmetric.mpeg.tfan_comparison import TfanMesh, tfan_equality
-from torchmeshmetric.mpeg.topology import topology_equivalence
+from torchmeshmetric.mpeg.comparison.equality import mesh_equality
+from torchmeshmetric.mpeg.comparison.tfan_comparison import TfanMesh, tfan_equality
+from torchmeshmetric.mpeg.comparison.topology import topology_equivalence
+from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh
+from torchmeshmetric.mpeg.sampling.edge_sampling import edge_sample
+from torchmeshmetric.mpeg.sampling.face_sampling import face_sample
+from torchmeshmetric.mpeg.sampling.prnd_sampling import prnd_sample
+from torchmeshmetric.mpeg.sampling.subdivision_sampling import subdivision_sample
 from torchmeshmetric.structures import Mesh, as_mesh
 
 V = torch.tensor([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])

@@ -13,12 +13,12 @@ import torch
 from torchmeshmetric._checks import SizeLimitError
 from torchmeshmetric.cli import main
 from torchmeshmetric.mpeg import PointCloud
-from torchmeshmetric.mpeg.edge_sampling import edge_sample
-from torchmeshmetric.mpeg.face_sampling import face_sample
-from torchmeshmetric.mpeg.pcqm import mpeg_pcqm
-from torchmeshmetric.mpeg.prnd_sampling import prnd_sample
-from torchmeshmetric.mpeg.subdivision_sampling import subdivision_sample
-from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
+from torchmeshmetric.mpeg.comparison.pcqm import mpeg_pcqm
+from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh
+from torchmeshmetric.mpeg.sampling.edge_sampling import edge_sample
+from torchmeshmetric.mpeg.sampling.face_sampling import face_sample
+from torchmeshmetric.mpeg.sampling.prnd_sampling import prnd_sample
+from torchmeshmetric.mpeg.sampling.subdivision_sampling import subdivision_sample
 from torchmeshmetric.simplification import simplify_anchored_qem
 from torchmeshmetric.structures import Mesh
 
@@ -112,7 +112,7 @@ def test_an_allocation_that_fails_below_the_physical_memory_names_the_option(tmp
     def no_memory(*args: object, **kwargs: object) -> None:
         raise MemoryError("Unable to allocate 232. GiB for an array with shape (10400000000, 3) and data type float64")
 
-    monkeypatch.setattr("torchmeshmetric.mpeg.face_sampling.face_sample", no_memory)
+    monkeypatch.setattr("torchmeshmetric.mpeg.sampling.face_sampling.face_sample", no_memory)
     mesh = tmp_path / "q.obj"
     mesh.write_text(QUAD)
     assert main(["sample", str(mesh), str(tmp_path / "o.ply"), "--resolution", "100000"]) == 1

@@ -10,12 +10,12 @@ import pytest
 import torch
 
 from torchmeshmetric.cli import main
-from torchmeshmetric.mpeg.ctc import _dequantized
-from torchmeshmetric.mpeg.face_errors import ctc_face_errors, write_face_errors_csv, write_face_errors_ply
-from torchmeshmetric.mpeg.grid_sampling import grid_sample, grid_sample_faces
-from torchmeshmetric.mpeg.point_cloud import merge_duplicate_points
-from torchmeshmetric.mpeg.reindex import oriented_reindex
-from torchmeshmetric.mpeg.textured_mesh import TexturedMesh
+from torchmeshmetric.mpeg.core.point_cloud import merge_duplicate_points
+from torchmeshmetric.mpeg.core.reindex import oriented_reindex
+from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh
+from torchmeshmetric.mpeg.ctc.chain import _dequantized
+from torchmeshmetric.mpeg.ctc.face_errors import ctc_face_errors, write_face_errors_csv, write_face_errors_ply
+from torchmeshmetric.mpeg.sampling.grid_sampling import grid_sample, grid_sample_faces
 from torchmeshmetric.structures import Mesh
 
 BOX = ([-1.0, -1.0, -1.0], [1.0, 1.0, 1.0])

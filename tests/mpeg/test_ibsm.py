@@ -15,8 +15,8 @@ import pytest
 import torch
 
 from tests.mpeg.test_ctc import MM_BIN, MPEG_REF, needs_mm
-from torchmeshmetric.mpeg.ibsm import IbsmNoOverlapWarning, IbsmResult, ibsm, ibsm_render
-from torchmeshmetric.mpeg.textured_mesh import TexturedMesh, load_textured_mesh
+from torchmeshmetric.mpeg.comparison.ibsm import IbsmNoOverlapWarning, IbsmResult, ibsm, ibsm_render
+from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh, load_textured_mesh
 from torchmeshmetric.structures import Mesh
 
 
@@ -137,8 +137,8 @@ def test_read_only_texture_gives_no_torch_warning() -> None:
 
     code = (
         "import numpy as np, torch, trimesh\n"
-        "from torchmeshmetric.mpeg.ibsm import ibsm\n"
-        "from torchmeshmetric.mpeg.textured_mesh import TexturedMesh\n"
+        "from torchmeshmetric.mpeg.comparison.ibsm import ibsm\n"
+        "from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh\n"
         "from torchmeshmetric.structures import Mesh\n"
         "tex = np.full((4, 4, 3), 200, np.uint8); tex.setflags(write=False)\n"
         "s = trimesh.creation.icosphere(1)\n"

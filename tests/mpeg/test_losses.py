@@ -7,7 +7,7 @@ import torch
 import trimesh
 
 from torchmeshmetric.mpeg import PointCloud, grid_sample, mpeg_compare
-from torchmeshmetric.mpeg.losses import (
+from torchmeshmetric.mpeg.comparison.losses import (
     MpegGeometryLoss,
     differentiable_grid_sample,
     mpeg_geometry_loss,

@@ -11,14 +11,14 @@ import torch
 
 from torchmeshmetric.cli import main
 from torchmeshmetric.mpeg import PointCloud, mpeg_compare
-from torchmeshmetric.mpeg.csv_rows import (
+from torchmeshmetric.mpeg.comparison.csv_rows import (
     PCC_CSV_HEADER,
     CsvHeaderError,
     append_csv_row,
     mmetric_texture_url,
     pcc_csv_row,
 )
-from torchmeshmetric.mpeg.subdivision_rows import subdivision_rows
+from torchmeshmetric.mpeg.sampling.subdivision_rows import subdivision_rows
 
 QUAD = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nf 1 3 4\n"
 

@@ -9,8 +9,8 @@ import pytest
 import torch
 
 from torchmeshmetric import native
-from torchmeshmetric.mpeg.comparison import mpeg_compare
-from torchmeshmetric.mpeg.point_cloud import PointCloud
+from torchmeshmetric.mpeg.comparison.pcc import mpeg_compare
+from torchmeshmetric.mpeg.core.point_cloud import PointCloud
 
 
 def _cloud(rng: np.random.Generator, n: int, nan_normals: bool) -> PointCloud:

@@ -8,8 +8,8 @@ import pytest
 
 from torchmeshmetric import native
 from torchmeshmetric.mpeg import k_nearest, mpeg_sq_dists, nearest_with_ties
-from torchmeshmetric.mpeg import neighbours as nb
-from torchmeshmetric.mpeg.neighbours import NeighbourTies, nearest_with_ties_both
+from torchmeshmetric.mpeg.comparison import neighbours as nb
+from torchmeshmetric.mpeg.comparison.neighbours import NeighbourTies, nearest_with_ties_both
 
 
 def _reference(query: np.ndarray, target: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:

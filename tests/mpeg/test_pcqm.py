@@ -127,7 +127,7 @@ def test_cli_bad_option_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixtur
     obj = tmp_path / "t.obj"
     obj.write_text("v 0 0 0\nv 4 0 0\nv 0 4 0\nf 1 2 3\n")
     assert main(["mpeg", str(obj), str(obj), "--mode", "pcqm", "--threshold-knn-search", "0"]) == 1
-    assert "knn: expected an integer >= 1, found 0" in capsys.readouterr().err
+    assert "--threshold-knn-search: expected an integer >= 1, found 0" in capsys.readouterr().err  # the option
 
 
 def test_fewer_points_than_knn() -> None:

@@ -133,7 +133,7 @@ def test_demo_frame_pair(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> 
 
 def test_mesh_samples_in_mm_order(tmp_path: Path) -> None:
     """The sampled mesh comes in mm's order (the k-d tree's choice among equidistant points depends on it)."""
-    from torchmeshmetric.mpeg.model_cloud import load_model_cloud
+    from torchmeshmetric.mpeg.sampling.model_cloud import load_model_cloud
 
     out = tmp_path / "b.obj"
     args = [str(MM), "compare", "--mode", "pcqm", "--inputModelA", str(TESTS / "plane.obj"), "--inputModelB",

@@ -11,7 +11,7 @@ import pytest
 
 from torchmeshmetric.cli import main
 from torchmeshmetric.data.mesh_file import MeshFileError
-from torchmeshmetric.mpeg.model_cloud import load_model_cloud
+from torchmeshmetric.mpeg.sampling.model_cloud import load_model_cloud
 
 HEAD = "ply\nformat {fmt} 1.0\nelement vertex {n}\nproperty float x\nproperty float y\nproperty float z\n"
 COLOUR = "property uchar red\nproperty uchar green\nproperty uchar blue\n"

@@ -12,7 +12,7 @@ import torch
 from tests.mpeg.conftest import MM, MM_TESTS
 from torchmeshmetric.cli import main
 from torchmeshmetric.mpeg import PointCloud
-from torchmeshmetric.mpeg.sample_count_search import search_sample_count
+from torchmeshmetric.mpeg.sampling.sample_count_search import search_sample_count
 
 T = MM_TESTS
 _needs_mm = pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")

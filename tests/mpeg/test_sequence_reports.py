@@ -14,7 +14,7 @@ from tests.cli.cli_helpers import Counting, write_frames
 from torchmeshmetric.cli import main
 from torchmeshmetric.data import load_sequence
 from torchmeshmetric.mpeg import mpeg_metrics
-from torchmeshmetric.mpeg.sequence import mean_psnr, mpeg_sequence
+from torchmeshmetric.mpeg.comparison.sequence import mean_psnr, mpeg_sequence
 
 
 @pytest.fixture

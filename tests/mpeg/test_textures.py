@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 
 from torchmeshmetric.data.mesh_file import MeshFileError
 from torchmeshmetric.data.obj import parse_mtl
-from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh, read_texture
+from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh, read_texture
 
 OBJ = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl skin\nf 1/1 2/2 3/3\n"
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from torchmeshmetric.mpeg import grid_sampling as gs
+from torchmeshmetric.mpeg.sampling import grid_sampling as gs
 
 
 @pytest.mark.parametrize("colour_width", [0, 3, 5])  # none, a colour, UV + colour (map and sdiv sampling)
@@ -33,7 +33,7 @@ def test_merge_native_equals_numpy(monkeypatch: pytest.MonkeyPatch) -> None:
     """The C++ merge equals the numpy one bit for bit: stable (x, y, z) order (-0.0 == 0.0), runs, sums in run order."""
     import torch
 
-    from torchmeshmetric.mpeg import point_cloud as pc
+    from torchmeshmetric.mpeg.core import point_cloud as pc
 
     rng = np.random.default_rng(9)
     pos = (np.round(rng.random((4000, 3)) * 5) / 5).astype(np.float32)

@@ -23,7 +23,7 @@ from torchmeshmetric.evaluation.pipeline import check_methods, evaluate_sequence
 from torchmeshmetric.evaluation.reports import report_dict, write_csv, write_json, write_markdown
 from torchmeshmetric.evaluation.results import SequenceEvaluation
 from torchmeshmetric.kernels.index_cache import IndexCache
-from torchmeshmetric.mpeg.sequence import mpeg_csv, mpeg_markdown, mpeg_sequence
+from torchmeshmetric.mpeg.comparison.sequence import mpeg_csv, mpeg_markdown, mpeg_sequence
 from torchmeshmetric.registration.cache import RegistrationCache
 from torchmeshmetric.registration.options import DEFAULT_SCHEDULE
 from torchmeshmetric.tasks import is_distributed, rank_and_world_size

@@ -75,7 +75,7 @@ def read_curve(path: str) -> dict[str, list[float]]:
 
 
 def _run_bdrate(args: argparse.Namespace) -> int:
-    from torchmeshmetric.mpeg.bd_rate import bd_rate
+    from torchmeshmetric.mpeg.ctc.bd_rate import bd_rate
 
     a, b = read_curve(args.anchor), read_curve(args.test)
     metrics = [k for k in a if k != "rate" and k in b]

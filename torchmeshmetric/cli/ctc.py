@@ -19,7 +19,7 @@ from typing import Any
 
 from torchmeshmetric._format import format_number, json_safe
 from torchmeshmetric.cli.options import corner
-from torchmeshmetric.mpeg.frame_pattern import frame_path
+from torchmeshmetric.mpeg.ctc.frame_pattern import frame_path
 
 __all__ = ["add_ctc_command", "frame_path"]
 
@@ -124,7 +124,7 @@ def _run_ctc(args: argparse.Namespace) -> int:
         )
     ]
     check_writable(outputs, args.overwrite, inputs=inputs, what="--out")  # never an input, distinct, writable
-    from torchmeshmetric.mpeg.ctc import CTC_COLUMNS, CtcSequence
+    from torchmeshmetric.mpeg.ctc.chain import CTC_COLUMNS, CtcSequence
 
     done = _compute(args, files, lo, hi)
     if done is None:
@@ -137,8 +137,8 @@ def _run_ctc(args: argparse.Namespace) -> int:
 def _compute(args: argparse.Namespace, files: list[Any], lo: list[float], hi: list[float]) -> list[Any] | None:
     """Every frame's figures (on rank 0 under torchrun, ``None`` on the others); frames read one pair ahead."""
     from torchmeshmetric.data.sequence import Prefetcher
-    from torchmeshmetric.mpeg.ctc import CTC_COLUMNS, CtcFrame, ctc_frame
-    from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
+    from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
+    from torchmeshmetric.mpeg.ctc.chain import CTC_COLUMNS, CtcFrame, ctc_frame
     from torchmeshmetric.tasks import rank_and_world_size, run_tasks, shard
 
     start = time.perf_counter()

@@ -43,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
     torchrun the frames are shared by all processes and rank 0 writes the same files.
     """
     from torchmeshmetric.cli._outputs import check_writable, make_folder, output_set
-    from torchmeshmetric.mpeg.ctc_manifest import load_ctc_campaign
+    from torchmeshmetric.mpeg.ctc.manifest import load_ctc_campaign
 
     start = time.perf_counter()
     campaign = load_ctc_campaign(args.manifest)
@@ -67,7 +67,7 @@ def run(args: argparse.Namespace) -> int:
         from torchmeshmetric.cli._outputs import check_folder
 
         check_folder(cache or campaign.cache_dir, "cache folder", may_create=True)  # type: ignore[arg-type]
-    from torchmeshmetric.mpeg.ctc_campaign import run_ctc_campaign
+    from torchmeshmetric.mpeg.ctc.campaign import run_ctc_campaign
 
     def progress(task: Any, record: dict[str, Any]) -> None:
         figs = "  ".join(f"{c} {v:.4f}" for c, v in record["figures"].items())
@@ -79,8 +79,8 @@ def run(args: argparse.Namespace) -> int:
     from torchmeshmetric._atomic import atomic_write
     from torchmeshmetric._format import json_safe
     from torchmeshmetric._version import __version__
-    from torchmeshmetric.mpeg.ctc_campaign import frame_rows_csv
-    from torchmeshmetric.mpeg.ctc_sheet import ctc_summary, format_test_model_csv, summary_csv, summary_markdown
+    from torchmeshmetric.mpeg.ctc.campaign import frame_rows_csv
+    from torchmeshmetric.mpeg.ctc.sheet import ctc_summary, format_test_model_csv, summary_csv, summary_markdown
 
     summary = ctc_summary(
         result.sequences, result.conditions, result.points["anchor"], result.points["test"], names=result.names

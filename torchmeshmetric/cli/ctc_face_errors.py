@@ -52,8 +52,8 @@ def run(args: argparse.Namespace) -> int:
     ]
     check_writable(outputs, args.overwrite, inputs=inputs, what="--out")
     from torchmeshmetric.cli._outputs import output_set
-    from torchmeshmetric.mpeg.face_errors import ctc_face_errors, write_face_errors_csv, write_face_errors_ply
-    from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
+    from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
+    from torchmeshmetric.mpeg.ctc.face_errors import ctc_face_errors, write_face_errors_csv, write_face_errors_ply
 
     ref = load_textured_mesh(args.reference, args.reference_texture)
     dis = load_textured_mesh(args.decoded, args.decoded_texture)

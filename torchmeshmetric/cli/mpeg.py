@@ -18,7 +18,7 @@ def _fmt_small(x: Any) -> str:
 
 def _table(d: dict[str, Any]) -> str:
     rows = [("", "symmetric", "ref->dis", "dis->ref")]
-    from torchmeshmetric.mpeg.sequence import FRAME_KEYS
+    from torchmeshmetric.mpeg.comparison.sequence import FRAME_KEYS
 
     keys = [k for k in (*FRAME_KEYS, "y_mse", "cb_mse", "cr_mse") if k in d]
     for k in keys:
@@ -35,8 +35,8 @@ def _run_equality(args: argparse.Namespace) -> int:
     """``--mode equ``: mmetric's verdict in its words (or JSON); exit status 0 when equal, 1 otherwise."""
     from dataclasses import asdict
 
-    from torchmeshmetric.mpeg.equality import mesh_equality
-    from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
+    from torchmeshmetric.mpeg.comparison.equality import mesh_equality
+    from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
 
     ref = load_textured_mesh(args.ref, args.ref_texture)
     dis = load_textured_mesh(args.dis, args.dis_texture)
@@ -57,8 +57,8 @@ _PCQM_OPTIONS = {
 
 def _run_pcqm(args: argparse.Namespace) -> int:
     """``--mode pcqm``: mm compare --mode pcqm's printed figures (or JSON)."""
-    from torchmeshmetric.mpeg.model_cloud import load_model_cloud
-    from torchmeshmetric.mpeg.pcqm import mpeg_pcqm
+    from torchmeshmetric.mpeg.comparison.pcqm import mpeg_pcqm
+    from torchmeshmetric.mpeg.sampling.model_cloud import load_model_cloud
 
     ref = load_model_cloud(args.ref, args.ref_texture, name=f"REF {args.ref!r}")
     dis = load_model_cloud(args.dis, args.dis_texture, name=f"DIS {args.dis!r}")
@@ -81,8 +81,8 @@ def _run_topology(args: argparse.Namespace) -> int:
     from dataclasses import asdict
 
     from torchmeshmetric.cli._outputs import CLIError
-    from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
-    from torchmeshmetric.mpeg.topology import topology_equivalence
+    from torchmeshmetric.mpeg.comparison.topology import topology_equivalence
+    from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
 
     if args.face_map is None or args.vertex_map is None:
         raise CLIError(
@@ -97,7 +97,7 @@ def _run_topology(args: argparse.Namespace) -> int:
 
 def _run_tfan(args: argparse.Namespace) -> int:
     """``--mode eqTFAN``: mmetric's TFAN connectivity verdict in its words; exit status 0 when equal, 1 otherwise."""
-    from torchmeshmetric.mpeg.tfan_comparison import load_tfan_mesh, tfan_equality
+    from torchmeshmetric.mpeg.comparison.tfan_comparison import load_tfan_mesh, tfan_equality
 
     report = tfan_equality(load_tfan_mesh(args.ref), load_tfan_mesh(args.dis), early_return=not args.all_differences)
     print(json.dumps({"equal": report.endswith(" meshes are equal"), "report": report}) if args.json else report)
@@ -106,9 +106,9 @@ def _run_tfan(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace) -> int:
     from torchmeshmetric.cli.mpeg_outputs import check_outputs, run_ibsm, write_pcc_outputs
-    from torchmeshmetric.mpeg.comparison import mpeg_compare
-    from torchmeshmetric.mpeg.mpeg_metrics import mpeg_point_clouds
-    from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
+    from torchmeshmetric.mpeg.comparison.mpeg_metrics import mpeg_point_clouds
+    from torchmeshmetric.mpeg.comparison.pcc import mpeg_compare
+    from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
 
     check_outputs(args)
     if args.mode == "equ":

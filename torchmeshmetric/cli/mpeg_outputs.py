@@ -44,7 +44,7 @@ def add_output_options(p: Any) -> None:
 
 def _inputs(args: argparse.Namespace) -> list[tuple[str, Any]]:
     """Every file the ``mpeg`` command reads: the meshes, their textures (given or from the MTL) and the maps."""
-    from torchmeshmetric.mpeg.csv_rows import mmetric_texture_url
+    from torchmeshmetric.mpeg.comparison.csv_rows import mmetric_texture_url
 
     files: list[tuple[str, Any]] = [("REF", args.ref), ("DIS", args.dis)]
     for name, mesh, texture in (("REF", args.ref, args.ref_texture), ("DIS", args.dis, args.dis_texture)):
@@ -77,7 +77,12 @@ def check_outputs(args: argparse.Namespace) -> None:
         [m for _, m in named], args.overwrite, inputs=_inputs(args), what=[o for o, _ in named], appended=csv
     )
     if csv:
-        from torchmeshmetric.mpeg.csv_rows import IBSM_CSV_HEADER, PCC_CSV_HEADER, CsvHeaderError, check_csv_header
+        from torchmeshmetric.mpeg.comparison.csv_rows import (
+            IBSM_CSV_HEADER,
+            PCC_CSV_HEADER,
+            CsvHeaderError,
+            check_csv_header,
+        )
 
         try:
             check_csv_header(csv[0][1], PCC_CSV_HEADER if args.mode == "pcc" else IBSM_CSV_HEADER)
@@ -88,7 +93,7 @@ def check_outputs(args: argparse.Namespace) -> None:
 def _write(args: argparse.Namespace, texts: tuple[str, str], header: str, row: str) -> None:
     """The models and the CSV row as one set: the models appear only once the row is appended."""
     from torchmeshmetric.cli._outputs import output_set
-    from torchmeshmetric.mpeg.csv_rows import append_csv_row
+    from torchmeshmetric.mpeg.comparison.csv_rows import append_csv_row
 
     with output_set("the output models and CSV row"):
         for path, text in zip((args.output_model_ref, args.output_model_dis), texts, strict=True):
@@ -100,8 +105,8 @@ def _write(args: argparse.Namespace, texts: tuple[str, str], header: str, row: s
 
 def write_pcc_outputs(args: argparse.Namespace, clouds: Any, result: Any) -> None:
     """The pcc mode's output models and CSV row."""
-    from torchmeshmetric.mpeg.csv_rows import PCC_CSV_HEADER, mmetric_texture_url, pcc_csv_row
-    from torchmeshmetric.mpeg.model_files import point_cloud_ply_text
+    from torchmeshmetric.mpeg.comparison.csv_rows import PCC_CSV_HEADER, mmetric_texture_url, pcc_csv_row
+    from torchmeshmetric.mpeg.core.model_files import point_cloud_ply_text
 
     ref = point_cloud_ply_text(clouds.ref) if args.output_model_ref is not None else ""
     dis = point_cloud_ply_text(clouds.dis) if args.output_model_dis is not None else ""
@@ -132,11 +137,11 @@ def run_ibsm(args: argparse.Namespace) -> int:
     from dataclasses import asdict
 
     from torchmeshmetric._format import json_safe
-    from torchmeshmetric.mpeg.csv_rows import IBSM_CSV_HEADER, ibsm_csv_row, mmetric_texture_url
-    from torchmeshmetric.mpeg.ibsm import ibsm
-    from torchmeshmetric.mpeg.model_files import obj_header, textured_mesh_text
-    from torchmeshmetric.mpeg.reindex import oriented_reindex
-    from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
+    from torchmeshmetric.mpeg.comparison.csv_rows import IBSM_CSV_HEADER, ibsm_csv_row, mmetric_texture_url
+    from torchmeshmetric.mpeg.comparison.ibsm import ibsm
+    from torchmeshmetric.mpeg.core.model_files import obj_header, textured_mesh_text
+    from torchmeshmetric.mpeg.core.reindex import oriented_reindex
+    from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
 
     check_outputs(args)
     ref = load_textured_mesh(args.ref, args.ref_texture)

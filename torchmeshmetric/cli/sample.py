@@ -24,16 +24,16 @@ def _run(args: argparse.Namespace) -> int:
     from torchmeshmetric._atomic import atomic_write
     from torchmeshmetric.cli._outputs import CLIError, check_writable
     from torchmeshmetric.cli.options import as_option_error
-    from torchmeshmetric.mpeg.edge_sampling import edge_sample
-    from torchmeshmetric.mpeg.face_sampling import face_sample
-    from torchmeshmetric.mpeg.map_sampling import map_sample
-    from torchmeshmetric.mpeg.model_files import point_cloud_ply_text
-    from torchmeshmetric.mpeg.prnd_sampling import prnd_sample
-    from torchmeshmetric.mpeg.subdivision_sampling import subdivision_sample
-    from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
+    from torchmeshmetric.mpeg.core.model_files import point_cloud_ply_text
+    from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
+    from torchmeshmetric.mpeg.sampling.edge_sampling import edge_sample
+    from torchmeshmetric.mpeg.sampling.face_sampling import face_sample
+    from torchmeshmetric.mpeg.sampling.map_sampling import map_sample
+    from torchmeshmetric.mpeg.sampling.prnd_sampling import prnd_sample
+    from torchmeshmetric.mpeg.sampling.subdivision_sampling import subdivision_sample
 
     out = Path(args.output)
-    from torchmeshmetric.mpeg.csv_rows import mmetric_texture_url
+    from torchmeshmetric.mpeg.comparison.csv_rows import mmetric_texture_url
 
     try:
         texture = mmetric_texture_url(args.mesh, args.texture) or None
@@ -64,7 +64,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.num_samples_min:
         if args.mode not in ("face", "sdiv", "ediv"):
             raise CLIError(f"--num-samples-min: a search of face, sdiv and ediv modes, not of {args.mode} mode")
-        from torchmeshmetric.mpeg.sample_count_search import search_sample_count
+        from torchmeshmetric.mpeg.sampling.sample_count_search import search_sample_count
 
         kind: Literal["resolution", "threshold"] = "resolution" if args.mode == "face" else "threshold"
         try:

@@ -56,7 +56,7 @@ def file_layer(path: str | os.PathLike[str], *, max_faces: int = DISPLAY_FACES) 
     Raises:
         ValueError: the file cannot be read, or has no vertex colours.
     """
-    from torchmeshmetric.mpeg.textured_mesh import load_textured_mesh
+    from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
 
     p = Path(path)
     loaded = load_textured_mesh(p)  # the package's reader of meshes with colour

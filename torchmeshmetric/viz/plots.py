@@ -194,7 +194,7 @@ def plot_mpeg_curves(methods: Mapping[str, Any], path: str | os.PathLike[str], *
     """Per-frame MPEG D1 and D2 PSNR (and Luma PSNR when present), one line per method, as PNG.
 
     Args:
-        methods: method name → its :class:`~torchmeshmetric.mpeg.sequence.MpegSequence`.
+        methods: method name → its :class:`~torchmeshmetric.mpeg.comparison.sequence.MpegSequence`.
         path: destination ``.png``.
         overwrite: replace an existing file.
     """

@@ -25,7 +25,7 @@ def plot_rd_curves(
     """One sequence's RD curves: rate (Mbps) against each metric's PSNR, anchor and test codec, as a PNG.
 
     Args:
-        sequence: a sequence of :func:`~torchmeshmetric.mpeg.ctc_sheet.ctc_summary` (its ``rates`` rows, and its
+        sequence: a sequence of :func:`~torchmeshmetric.mpeg.ctc.sheet.ctc_summary` (its ``rates`` rows, and its
             ``bd_rate`` figures, shown in each panel's title).
         path: destination ``.png``.
         names: the two codecs' names (legend).

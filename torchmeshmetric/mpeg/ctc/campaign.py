@@ -1,0 +1,523 @@
+"""A whole V-DMC CTC campaign: the CTC chain on every (codec, sequence, condition, rate, frame), cached and shared.
+
+:func:`run_ctc_campaign` plans every frame of a :class:`~torchmeshmetric.mpeg.ctc.manifest.CtcCampaign` (the anchor's
+and the test codec's decoded frames against the quantised source), checks every file and every bitstream figure
+before any work, and computes the frames :func:`~torchmeshmetric.mpeg.ctc.chain.ctc_frame` has not computed yet:
+
+* **Cache.** Each frame's figures are kept as one JSON file in the cache folder, named by a SHA-256 key of the
+  frame's inputs (the bytes of the source and decoded files, their textures and MTLs) and of the chain's settings
+  (bit depths, box, PSNR peak, grid and IBSM settings, the library's version). A rerun after an interruption
+  computes only the frames without a file; a second test codec against the same anchor finds the anchor's frames;
+  equal inputs anywhere in the campaign are computed once.
+* **Processes.** Under ``torchrun`` the files are hashed and the missing frames computed round robin by the ranks
+  (:func:`~torchmeshmetric.tasks.run_tasks`); rank 0 reads the cache and returns the result, the others ``None``.
+
+The result holds each codec's rows of the test model's CSV (:class:`~torchmeshmetric.mpeg.ctc.sheet.RatePoint`:
+sequence means as mmetric prints them, bits, runtimes and memory from the codec's CSV, files and manifest points),
+from which :func:`~torchmeshmetric.mpeg.ctc.sheet.ctc_summary` computes the CTC sheet's summary.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import json
+import math
+import re
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, NamedTuple
+
+from torchmeshmetric._atomic import atomic_write
+from torchmeshmetric._format import json_safe
+from torchmeshmetric.mpeg.ctc.frame_pattern import frame_path
+from torchmeshmetric.mpeg.ctc.manifest import CtcCampaign, CtcCampaignSequence, CtcCodec, codec_path
+from torchmeshmetric.mpeg.ctc.sheet import COMPONENTS, RatePoint, SheetCondition, SheetSequence, read_test_model_csv
+
+__all__ = ["CampaignResult", "FrameTask", "frame_rows_csv", "plan_frames", "run_ctc_campaign"]
+
+_COLUMNS = ("GridD1", "GridD2", "GridLuma", "GridChromaCb", "GridChromaCr", "IbsmGeom", "IbsmLuma")
+_CODECS = ("anchor", "test")
+
+
+class FrameTask(NamedTuple):
+    """One frame of one codec's point: its files and its place in the campaign.
+
+    Attributes:
+        codec: ``"anchor"`` or ``"test"``.
+        seq: the sequence.
+        cond_id, rate_id, frame: the point and the frame number.
+        ref, ref_texture: the quantised source frame and its texture (``None``: the MTL's).
+        dis, dis_texture: the decoded frame and its texture.
+        decoded_qt: the decoded frame's UV bit depth.
+    """
+
+    codec: str
+    seq: CtcCampaignSequence
+    cond_id: int
+    rate_id: int
+    frame: int
+    ref: str
+    ref_texture: str | None
+    dis: str
+    dis_texture: str | None
+    decoded_qt: int
+
+    def describe(self) -> str:
+        """The task's name in messages."""
+        return (
+            f"{self.codec} sequence {self.seq.name!r} condition {self.cond_id} rate {self.rate_id} frame {self.frame}"
+        )
+
+
+@dataclass(frozen=True)
+class CampaignResult:
+    """What a campaign computed (rank 0).
+
+    Attributes:
+        points: codec (``"anchor"``, ``"test"``) -> ``(seq_id, cond_id, rate_id)`` -> its row of the test model's CSV.
+        sequences: the sheet's view of the sequences (input faces counted when not given).
+        conditions: the sheet's conditions.
+        frames: one record per planned frame, in plan order: the task's place (``codec``, ``sequence``,
+            ``condition``, ``rate``, ``frame``) and ``figures`` (column -> PSNR, ``inf`` for identical frames).
+        computed: frames computed by this run (the others came from the cache).
+        chain_seconds: the wall seconds of the frames computed by this run, summed (each frame's read and chain).
+        names: the two codecs' names.
+    """
+
+    points: dict[str, dict[tuple[int, int, int], RatePoint]]
+    sequences: list[SheetSequence]
+    conditions: list[SheetCondition]
+    frames: list[dict[str, Any]]
+    computed: int
+    chain_seconds: float
+    names: tuple[str, str]
+
+
+def plan_frames(campaign: CtcCampaign) -> list[FrameTask]:
+    """Every frame of the campaign (anchor first, then test; sequences, conditions, rates, frames in manifest order).
+
+    Raises:
+        ValueError: a frame file or texture is missing, a directory or empty (naming the task and the file).
+    """
+    tasks = []
+    for name in _CODECS:
+        codec: CtcCodec = getattr(campaign, name)
+        for seq in campaign.sequences:
+            for cond in campaign.conditions:
+                for rate in cond.rates:
+                    dec = codec_path(codec.decoded, seq, cond.cond_id, rate)
+                    tex = (
+                        None
+                        if codec.decoded_texture is None
+                        else codec_path(codec.decoded_texture, seq, cond.cond_id, rate)
+                    )
+                    for k in seq.frames:
+                        files = (
+                            frame_path(seq.source, k),
+                            None if seq.source_texture is None else frame_path(seq.source_texture, k),
+                            frame_path(dec, k),
+                            None if tex is None else frame_path(tex, k),
+                        )
+                        task = FrameTask(
+                            name, seq, cond.cond_id, rate, k, *files[:2], files[2], files[3], codec.decoded_qt
+                        )
+                        for f in files:
+                            if f is not None:
+                                _check_file(f, task)
+                        tasks.append(task)
+    return tasks
+
+
+def _check_file(path: str, task: FrameTask) -> None:
+    p = Path(path)
+    if p.is_dir():
+        raise ValueError(f"{task.describe()}: {path!r} is a directory, expected a file")
+    if not p.is_file():
+        raise ValueError(f"{task.describe()}: file {path!r} not found")
+    if p.stat().st_size == 0:
+        raise ValueError(f"{task.describe()}: file {path!r} is empty")
+
+
+_MTLLIB = re.compile(rb"^[ \t]*mtllib[ \t]+(.+?)[ \t]*\r?$", re.M)
+_MAP_KD = re.compile(rb"^[ \t]*map_Kd[ \t]+(.+?)[ \t]*\r?$", re.M)
+
+
+def _digest(item: tuple[str, bool]) -> str:
+    """SHA-256 of a file; for an OBJ whose texture comes from its MTL, of the MTL and its ``map_Kd`` files too."""
+    path, with_materials = item
+    p = Path(path)
+    h = hashlib.sha256()
+    data = p.read_bytes()
+    h.update(data)
+    if with_materials and p.suffix.lower() == ".obj":
+        for m in _MTLLIB.finditer(data):
+            mtl = p.parent / m.group(1).decode("utf-8", "replace")
+            if mtl.is_file():
+                text = mtl.read_bytes()
+                h.update(b"\0mtl\0" + text)
+                for t in _MAP_KD.finditer(text):
+                    tex = mtl.parent / t.group(1).decode("utf-8", "replace").split()[-1]
+                    if tex.is_file():
+                        h.update(b"\0map\0" + tex.read_bytes())
+    return h.hexdigest()
+
+
+def _settings(campaign: CtcCampaign, task: FrameTask) -> dict[str, Any]:
+    from torchmeshmetric._version import __version__
+
+    s = task.seq
+    return {
+        "qp": s.qp,
+        "qt": s.qt,
+        "decoded_qt": task.decoded_qt,
+        "min_pos": list(s.min_pos),
+        "max_pos": list(s.max_pos),
+        "resolution": s.resolution,
+        "grid_size": campaign.grid_size,
+        "ibsm_resolution": campaign.ibsm_resolution,
+        "ibsm_cameras": campaign.ibsm_cameras,
+        "version": __version__,
+    }
+
+
+def _key(campaign: CtcCampaign, task: FrameTask, digests: dict[tuple[str, bool], str]) -> str:
+    inputs = {
+        "ref": digests[task.ref, task.ref_texture is None],
+        "ref_texture": None if task.ref_texture is None else digests[task.ref_texture, False],
+        "dis": digests[task.dis, task.dis_texture is None],
+        "dis_texture": None if task.dis_texture is None else digests[task.dis_texture, False],
+        **_settings(campaign, task),
+    }
+    return hashlib.sha256(json.dumps(inputs, sort_keys=True).encode()).hexdigest()
+
+
+def _cache_file(folder: Path, key: str) -> Path:
+    return folder / key[:2] / f"{key}.json"
+
+
+def _read_cached(folder: Path, key: str) -> dict[str, Any] | None:
+    """A frame's cached record; ``None`` when absent or unreadable (then it is computed again)."""
+    try:
+        record = json.loads(_cache_file(folder, key).read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(record, dict) or record.get("key") != key or not isinstance(record.get("figures"), dict):
+        return None
+    record["figures"] = {k: float(v) for k, v in record["figures"].items()}  # "inf" -> inf
+    return record
+
+
+def _load(item: tuple[str, FrameTask]) -> tuple[Any, Any, float]:
+    """A frame's source and decoded meshes and the seconds reading took (run ahead in a background thread)."""
+    from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
+
+    task = item[1]
+    t0 = time.perf_counter()
+    try:
+        return (
+            load_textured_mesh(task.ref, task.ref_texture),
+            load_textured_mesh(task.dis, task.dis_texture),
+            (time.perf_counter() - t0),
+        )
+    except ValueError as exc:
+        raise ValueError(f"{task.describe()}: {exc}") from exc
+
+
+def _compute(
+    campaign: CtcCampaign, task: FrameTask, key: str, folder: Path | None, loaded: tuple[Any, Any, float]
+) -> dict[str, Any]:
+    """One frame through the chain; its record written to the cache at once (atomically)."""
+    from torchmeshmetric.mpeg.ctc.chain import ctc_frame
+
+    ref, dis, read_seconds = loaded
+    t0 = time.perf_counter() - read_seconds  # the frame's seconds: its reading (ahead of time) and its chain
+    s = task.seq
+    f = ctc_frame(
+        ref,
+        dis,
+        qp=s.qp,
+        qt=s.qt,
+        min_pos=s.min_pos,
+        max_pos=s.max_pos,
+        resolution=s.resolution,
+        decoded_qt=task.decoded_qt,
+        grid_size=campaign.grid_size,
+        ibsm_resolution=campaign.ibsm_resolution,
+        ibsm_cameras=campaign.ibsm_cameras,
+        frame=task.frame,
+    )
+    record = {
+        "key": key,
+        "figures": dict(f.figures),
+        "points_ref": f.points_ref,
+        "points_dis": f.points_dis,
+        "faces_ref": int(ref.mesh.faces.shape[0]),
+        "faces_dis": int(dis.mesh.faces.shape[0]),
+        "seconds": time.perf_counter() - t0,
+        "stages": f.seconds,
+        "inputs": {"ref": task.ref, "ref_texture": task.ref_texture, "dis": task.dis, "dis_texture": task.dis_texture},
+        "settings": _settings(campaign, task),
+    }
+    if folder is not None:
+        _cache_file(folder, key).parent.mkdir(parents=True, exist_ok=True)
+        atomic_write(
+            _cache_file(folder, key),
+            json.dumps(json_safe(record), indent=1) + "\n",
+            overwrite=True,
+            join_file_set=False,
+        )
+    return record
+
+
+def _log_value(path: str, label: str, what: str) -> float | None:
+    """The 4th field of the log's line holding ``label`` (what ``collect_results.sh`` greps with awk)."""
+    p = Path(path)
+    if not p.is_file():
+        raise ValueError(f"{what}: log {path!r} not found")
+    for n, line in enumerate(p.read_text(errors="replace").splitlines(), start=1):
+        if label in line:
+            fields = line.split()
+            try:
+                return float(fields[3])
+            except (IndexError, ValueError):
+                raise ValueError(f"{path}:{n}: expected a number as the 4th field of {line.strip()!r}") from None
+    return None
+
+
+def _codec_values(
+    codec: CtcCodec, seq: CtcCampaignSequence, cond_id: int, rate_id: int, rows: dict[tuple[int, int, int], RatePoint]
+) -> dict[str, Any]:
+    """Bits, faces, runtimes, memory and components of one point: the CSV's, then the files', then the manifest's."""
+    key = (seq.seq_id, cond_id, rate_id)
+    what = f"{codec.name}: sequence {seq.name!r} condition {cond_id} rate {rate_id}"
+    v: dict[str, Any] = {}
+    row = rows.get(key)
+    if row is not None:
+        v.update(
+            {
+                k: getattr(row, k)
+                for k in (
+                    "total_bits",
+                    "output_faces",
+                    "encoder_seconds",
+                    "decoder_seconds",
+                    "encoder_memory",
+                    "decoder_memory",
+                )
+            }
+        )
+        v = {k: x for k, x in v.items() if x is not None and not (isinstance(x, float) and math.isnan(x))}
+    if codec.bitstream is not None:
+        bits = Path(codec_path(codec.bitstream, seq, cond_id, rate_id))
+        if not bits.is_file():
+            raise ValueError(f"{what}: bitstream {str(bits)!r} not found")
+        v["total_bits"] = bits.stat().st_size * 8
+    for log, side in ((codec.encoder_log, "encoder"), (codec.decoder_log, "decoder")):
+        if log is None:
+            continue
+        path = codec_path(log, seq, cond_id, rate_id)
+        found = {
+            f"{side}_seconds": _log_value(path, "Sequence processing time", what),
+            f"{side}_memory": _log_value(path, "Sequence peak memory", what),
+        }
+        if side == "encoder":
+            found["output_faces"] = _log_value(path, "Sequence face count", what)
+        memory = found[f"{side}_memory"]
+        if memory is not None:
+            found[f"{side}_memory"] = memory / 1024.0  # KB -> MB, as the script
+        v.update({k: x for k, x in found.items() if x is not None})
+    v.update(codec.points.get(key, {}))
+    if "total_bits" not in v:
+        raise ValueError(
+            f"{what}: no bitstream size (give the codec's 'csv', its 'bitstream' files, or "
+            "'total_bits' in its [[points]])"
+        )
+    return v
+
+
+def _mm_printed(x: float) -> float:
+    """The value as mmetric prints it (9 significant digits), which the test model's CSV holds."""
+    return x if math.isinf(x) else float(format(x, ".9g"))
+
+
+def _point(
+    task_frames: list[dict[str, Any]], values: dict[str, Any], key: tuple[int, int, int], lossless: bool, what: str
+) -> RatePoint:
+    """One CSV row: each metric's mmetric mean over the point's frames.
+
+    A lossless point whose frames all sample exactly as their sources (every grid figure infinite) gets ``inf`` in
+    every column, as ``collect_results.sh`` writes when mmetric finds the meshes and textures equal.
+    """
+    from torchmeshmetric.mpeg.ctc.chain import ctc_mean
+
+    grid = [v for f in task_frames for c, v in f["figures"].items() if c.startswith("Grid")]
+    identical = lossless and bool(grid) and all(math.isinf(v) and v > 0 for v in grid)
+    figures = {}
+    for c in _COLUMNS:
+        vals = [f["figures"][c] for f in task_frames if c in f["figures"]]
+        if vals and len(vals) != len(task_frames):
+            raise ValueError(
+                f"{what}: {c} is computed on {len(vals)} of {len(task_frames)} frames (colour or "
+                "texture missing on some frames); the sequence mean needs every frame"
+            )
+        if vals:
+            figures[c] = math.inf if identical else _mm_printed(ctc_mean(vals))
+    faces = values.get("output_faces")
+    return RatePoint(
+        *key,
+        total_bits=float(values["total_bits"]),
+        figures=figures,
+        output_faces=int(faces) if faces is not None else sum(f["faces_dis"] for f in task_frames),
+        encoder_seconds=values.get("encoder_seconds"),
+        decoder_seconds=values.get("decoder_seconds"),
+        encoder_memory=values.get("encoder_memory"),
+        decoder_memory=values.get("decoder_memory"),
+        components={c: float(x) for c, x in values.get("components", {}).items() if c in COMPONENTS},
+    )
+
+
+def run_ctc_campaign(
+    campaign: CtcCampaign,
+    *,
+    cache_dir: Path | None = None,
+    progress: Callable[[FrameTask, dict[str, Any]], None] | None = None,
+) -> CampaignResult | None:
+    """Run a campaign (see the module): every frame not cached yet, then every codec's CSV rows.
+
+    Every rank of a torchrun job must call it (a collective); the frames are shared by the ranks.
+
+    Args:
+        campaign: the parsed manifest (:func:`~torchmeshmetric.mpeg.ctc.manifest.load_ctc_campaign`).
+        cache_dir: the per-frame cache folder (default the manifest's ``cache_dir``; ``None`` in both: no cache,
+            every frame computed).
+        progress: called with each frame computed here, and its record (on the rank that computed it).
+
+    Returns:
+        :class:`CampaignResult` on rank 0, ``None`` on the others.
+
+    Raises:
+        ValueError: a missing or empty frame file, a point without a bitstream size, a CSV or log that cannot be
+            read, a metric present on some frames of a point only; all but the last found before any frame is
+            computed.
+        RankFailedError: under torchrun, a frame failed on some rank (naming the rank and the frame).
+    """
+    from torchmeshmetric.tasks import exchange, rank_and_world_size, run_tasks, shard
+
+    rank, world = rank_and_world_size()
+    folder = cache_dir if cache_dir is not None else campaign.cache_dir
+    tasks = plan_frames(campaign)
+    rows = {
+        name: read_test_model_csv(getattr(campaign, name).csv) if getattr(campaign, name).csv is not None else {}
+        for name in _CODECS
+    }
+    values = {
+        (name, s.seq_id, c.cond_id, r): _codec_values(getattr(campaign, name), s, c.cond_id, r, rows[name])
+        for name in _CODECS
+        for s in campaign.sequences
+        for c in campaign.conditions
+        for r in c.rates
+    }
+    files = sorted(
+        {(t.ref, t.ref_texture is None) for t in tasks}
+        | {(t.dis, t.dis_texture is None) for t in tasks}
+        | {(x, False) for t in tasks for x in (t.ref_texture, t.dis_texture) if x is not None}
+    )
+    hashed = run_tasks(_digest, files, describe=lambda f: f"hashing {f[0]!r}", to=None)
+    assert hashed is not None
+    digests = dict(zip(files, hashed, strict=True))
+    keys = [_key(campaign, t, digests) for t in tasks]
+    unique: dict[str, FrameTask] = {}
+    for k, t in zip(keys, tasks, strict=True):
+        unique.setdefault(k, t)
+    cached: dict[str, dict[str, Any]] = {}
+    if rank == 0 and folder is not None:
+        cached = {k: r for k in unique if (r := _read_cached(folder, k)) is not None}
+    done = set(exchange(sorted(cached) if rank == 0 else None, what="the list of cached frames")[0])
+    missing = [(k, t) for k, t in unique.items() if k not in done]
+
+    from torchmeshmetric.data.sequence import Prefetcher
+
+    # the next frame is read in a background thread while this one is computed (run_tasks takes this rank's tasks
+    # in the prefetcher's order, as the ctc command)
+    ahead = Prefetcher([missing[i] for i in shard(len(missing), rank, world)], load=_load, ahead=1)
+
+    def one(item: tuple[str, FrameTask]) -> dict[str, Any]:
+        record = _compute(campaign, item[1], item[0], folder, next(ahead))
+        if progress is not None:
+            progress(item[1], record)
+        return record
+
+    with ahead:
+        computed = run_tasks(one, missing, describe=lambda item: item[1].describe(), to=0)
+    if rank != 0 or computed is None:
+        return None
+    records = {**cached, **{k: r for (k, _), r in zip(missing, computed, strict=True)}}
+    return _result(campaign, tasks, keys, records, values, computed)
+
+
+def _result(
+    campaign: CtcCampaign,
+    tasks: list[FrameTask],
+    keys: list[str],
+    records: dict[str, dict[str, Any]],
+    values: dict[tuple[str, int, int, int], dict[str, Any]],
+    computed: list[dict[str, Any]],
+) -> CampaignResult:
+    frames: list[dict[str, Any]] = []
+    by_point: dict[tuple[str, int, int, int], list[dict[str, Any]]] = {}
+    input_faces: dict[int, dict[int, int]] = {}
+    for t, k in zip(tasks, keys, strict=True):
+        r = records[k]
+        frames.append(
+            {
+                "codec": t.codec,
+                "sequence": t.seq.name,
+                "condition": t.cond_id,
+                "rate": t.rate_id,
+                "frame": t.frame,
+                "figures": r["figures"],
+                "points_ref": r["points_ref"],
+                "points_dis": r["points_dis"],
+            }
+        )
+        by_point.setdefault((t.codec, t.seq.seq_id, t.cond_id, t.rate_id), []).append(r)
+        input_faces.setdefault(t.seq.seq_id, {})[t.frame] = r["faces_ref"]
+    lossless = {c.cond_id: c.lossless for c in campaign.conditions}
+    points: dict[str, dict[tuple[int, int, int], RatePoint]] = {name: {} for name in _CODECS}
+    for (codec, seq_id, cond_id, rate_id), recs in by_point.items():
+        what = f"{codec} sequence {seq_id} condition {cond_id} rate {rate_id}"
+        key = (seq_id, cond_id, rate_id)
+        points[codec][key] = _point(recs, values[(codec, *key)], key, lossless[cond_id], what)
+    sequences = [
+        SheetSequence(
+            s.seq_id, s.name, s.cls, s.frame_count, s.fps, s.input_faces or sum(input_faces[s.seq_id].values())
+        )
+        for s in campaign.sequences
+    ]
+    conditions = [SheetCondition(c.cond_id, c.name, c.lossless) for c in campaign.conditions]
+    return CampaignResult(
+        points,
+        sequences,
+        conditions,
+        frames,
+        len(computed),
+        math.fsum(r["seconds"] for r in computed),
+        (campaign.anchor.name, campaign.test.name),
+    )
+
+
+def frame_rows_csv(frames: list[dict[str, Any]]) -> str:
+    """Every frame's figures as CSV: ``codec, sequence, condition, rate, frame``, the CTC columns (full precision)."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["codec", "sequence", "condition", "rate", "frame", *_COLUMNS, "points_ref", "points_dis"])
+    for f in frames:
+        figs = ["" if c not in f["figures"] else repr(float(f["figures"][c])) for c in _COLUMNS]
+        w.writerow(
+            [f["codec"], f["sequence"], f["condition"], f["rate"], f["frame"], *figs, f["points_ref"], f["points_dis"]]
+        )
+    return buf.getvalue()
