@@ -531,7 +531,7 @@ torch::Tensor fibonacci_sphere(int64_t n) {
 
 // ---------------------------------------------------------------------------------------------------------------
 // mmetric's `sample --mode grid` ray casting (Sample::meshToPcGrid), the same float32 operations as the numpy path of
-// torchmeshmetric.mpeg.grid_sampling (which documents each step); hits come out in mmetric's push order: faces in
+// torchmeshmetric.mpeg.sampling.grid_sampling (which documents each step); hits come out in mmetric's push order: faces in
 // order, their axes in order, rays i (second axis) then j (third axis). Faces are cut into chunks cast in parallel,
 // each chunk's hits kept in order and the chunks concatenated in order.
 struct GridHitsC {

@@ -73,7 +73,7 @@ EXTENSIONS: dict[str, NativeExtension] = {
         cflags=(*_EXACT, "-fopenmp"),
         ldflags=("-fopenmp",),
     ),
-    # mmetric's IBSM rasterizer and its grid sampling's ray caster (mpeg.ibsm, mpeg.grid_sampling).
+    # mmetric's IBSM rasterizer and its grid sampling's ray caster (mpeg.comparison.ibsm, mpeg.sampling.grid_sampling).
     "ibsm": NativeExtension(
         sources=("ibsm_raster.cpp",), headers=("parallel.h",), cflags=(*_EXACT, "-fopenmp"), ldflags=("-fopenmp",)
     ),
