@@ -29,7 +29,7 @@ def test_single_process_commands_refuse_torchrun(monkeypatch, capsys, command):
     assert main(command) == 1
     err = capsys.readouterr().err.strip()
     assert err == (f"torchmeshmetric {command[0]}: error: {command[0]} runs in one process; under torchrun use "
-                   "evaluate, compare, campaign, ctc (WORLD_SIZE is 2)")  # fmt: skip
+                   "evaluate, compare, campaign, ctc, ctc-campaign (WORLD_SIZE is 2)")  # fmt: skip
 
 
 def test_threads_option(capsys, tmp_path):

@@ -72,7 +72,7 @@ def per_vertex_errors(mesh: MeshLike, dists: Tensor) -> tuple[Mesh, Tensor]:
     Example:
         >>> import torch
         >>> m = Mesh(torch.eye(4, 3, dtype=torch.float64), torch.tensor([[0, 1, 2]]))  # vertex 3 unreferenced
-        >>> kept, d = per_vertex_errors(m, torch.tensor([0.1, 0.2, 0.3]))
+        >>> kept, d = per_vertex_errors(m, torch.tensor([0.1, 0.2, 0.3], dtype=torch.float64))
         >>> kept.num_verts, d.tolist()
         (3, [0.1, 0.2, 0.3])
     """
