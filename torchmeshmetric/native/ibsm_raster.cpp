@@ -292,8 +292,9 @@ void prepare(const MeshView& m, const Camera& cam, int width, int height, bool c
 // sees the faces covering it in face order, as in a rendering of the whole image at once (greater depth is nearer;
 // ties keep the first face).
 void draw_band(const MeshView& m, const Raster& r, int width, int64_t band, Target& target) {
-  std::vector<float>& zbuf = target.z;
-  std::vector<uint8_t>& fbuf = target.rgba;
+  // raw pointers: the uint8 stores below may alias anything, and would make the vectors' data pointers reload
+  float* const zbuf = target.z.data();
+  uint8_t* const fbuf = target.rgba.data();
   const int y0 = target.y0, y_end = target.y0 + target.rows;
   Rect drawn;
   std::vector<uint8_t> keep(static_cast<size_t>(width) + 1);
@@ -444,7 +445,9 @@ torch::Tensor ibsm_sums(torch::Tensor va, torch::Tensor fa, torch::Tensor uva, t
         const Camera cam = make_camera(dirs[k], up_for(dirs[k]), bmin, bmax, w, h);
         prepare(A, cam, w, h, cull, BAND_ROWS, sa);
         prepare(B, cam, w, h, cull, BAND_ROWS, sb);
-        double* r = o + k * 11;
+        // the sums in locals (a uint8 load may alias a store through a pointer, which would keep them in memory),
+        // added in the same order and stored once
+        double r[11] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
         const double sig = cam.depth_range;
         for (int64_t band = 0; band * BAND_ROWS < h; ++band) {
           const int first = static_cast<int>(band * BAND_ROWS);
@@ -491,6 +494,7 @@ torch::Tensor ibsm_sums(torch::Tensor va, torch::Tensor fa, torch::Tensor uva, t
               r[8] += g;
             }
         }
+        std::copy(r, r + 11, o + k * 11);
       }
     });
   }
