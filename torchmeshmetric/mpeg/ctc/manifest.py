@@ -60,6 +60,7 @@ from pathlib import Path
 from typing import Any
 
 from torchmeshmetric.mpeg.ctc.frame_pattern import frame_path
+from torchmeshmetric.mpeg.ctc.settings import CtcSettings, box_longest_side
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -185,6 +186,20 @@ class CtcCampaign:
     ibsm_resolution: int | None
     ibsm_cameras: int
     path: Path
+
+    def settings(self, seq: CtcCampaignSequence, decoded_qt: int) -> CtcSettings:
+        """The chain's settings of a sequence's frames decoded with UV bit depth ``decoded_qt``."""
+        return CtcSettings(
+            qp=seq.qp,
+            qt=seq.qt,
+            min_pos=seq.min_pos,
+            max_pos=seq.max_pos,
+            resolution=seq.resolution,
+            decoded_qt=decoded_qt,
+            grid_size=self.grid_size,
+            ibsm_resolution=self.ibsm_resolution,
+            ibsm_cameras=self.ibsm_cameras,
+        )
 
     def input_files(self) -> list[tuple[str, str | Path | None]]:
         """``(what, path)`` of every file the campaign reads (the output check refuses an output among them).
@@ -353,7 +368,7 @@ def _sequence(entry: Any, where: str, base: Path) -> CtcCampaignSequence:
         qt=t.int_in("qt", 0, 31),
         min_pos=lo,
         max_pos=hi,
-        resolution=t.number("resolution", max(h - lo_ for lo_, h in zip(lo, hi, strict=True))),
+        resolution=t.number("resolution", box_longest_side(lo, hi)),
         input_faces=faces,
     )
 
