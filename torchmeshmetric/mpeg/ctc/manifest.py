@@ -54,18 +54,13 @@ Paths are relative to the manifest; ``{sequence}``, ``{seq_id}``, ``{cond_id}``,
 from __future__ import annotations
 
 import math
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from torchmeshmetric._toml import read_manifest
 from torchmeshmetric.mpeg.ctc.frame_pattern import frame_path
 from torchmeshmetric.mpeg.ctc.settings import CtcSettings, box_longest_side
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10 installs tomli (pyproject's dependencies)
-    import tomli as tomllib
 
 __all__ = [
     "CtcCampaign",
@@ -207,8 +202,6 @@ class CtcCampaign:
         The manifest, the codecs' CSVs, and per sequence, condition, rate and frame the source and decoded frames,
         their textures, bitstreams and logs.
         """
-        from torchmeshmetric.mpeg.ctc.frame_pattern import frame_path
-
         files: list[tuple[str, str | Path | None]] = [("MANIFEST", self.path)]
         for codec in (self.anchor, self.test):
             files.append((f"{codec.name} csv", codec.csv))
@@ -485,12 +478,7 @@ def load_ctc_campaign(path: str | Path) -> CtcCampaign:
         (1023.0, (1, 2), 'anchor', True)
     """
     file = Path(path)
-    try:
-        data = tomllib.loads(file.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise CtcManifestError(f"CTC campaign manifest {str(file)!r}: no such file") from None
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise CtcManifestError(f"CTC campaign manifest {str(file)!r}: {exc}") from None
+    data = read_manifest(file, "CTC campaign manifest", CtcManifestError)
     where = f"CTC campaign manifest {str(file)!r}"
     top = _Table(data, where, ("options", "sequences", "conditions", "anchor", "test"))
     base = file.parent
