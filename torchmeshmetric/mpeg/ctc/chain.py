@@ -25,7 +25,7 @@ import time
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from torchmeshmetric.mpeg.comparison.ibsm import IbsmResult, ibsm
 from torchmeshmetric.mpeg.comparison.pcc import mpeg_compare
@@ -33,9 +33,12 @@ from torchmeshmetric.mpeg.core.point_cloud import PointCloud
 from torchmeshmetric.mpeg.core.reindex import oriented_reindex
 from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh
 from torchmeshmetric.mpeg.ctc.dequantize import dequantize_positions, dequantize_uvs
-from torchmeshmetric.mpeg.ctc.settings import Corner, CtcSettings, resolve_settings
+from torchmeshmetric.mpeg.ctc.settings import Corner, CtcKeywords, CtcSettings, resolve_settings
 from torchmeshmetric.mpeg.sampling.grid_sampling import grid_sample
 from torchmeshmetric.structures import Mesh
+
+if TYPE_CHECKING:  # typing.Unpack needs Python 3.11; annotations are not evaluated at run time
+    from typing_extensions import Unpack
 
 __all__ = [
     "CTC_CLIP",
@@ -175,16 +178,8 @@ def ctc_frame(
     dis: TexturedMesh,
     settings: CtcSettings | None = None,
     *,
-    qp: int | None = None,
-    qt: int | None = None,
-    min_pos: Corner | None = None,
-    max_pos: Corner | None = None,
-    resolution: float | None = None,
-    decoded_qt: int = 0,
-    grid_size: int = 1024,
-    ibsm_resolution: int | None = 2048,
-    ibsm_cameras: int = 16,
     frame: int = 0,
+    **keywords: Unpack[CtcKeywords],
 ) -> CtcFrame:
     """The grid figures of one frame pair, as the CTC's ``mm sequence`` chain computes them (see the module).
 
@@ -193,24 +188,20 @@ def ctc_frame(
         dis: the decoded frame (integer positions over the same box; UVs already in ``[0, 1]`` unless
             ``decoded_qt >= 7``).
         settings: the chain's settings (:class:`~torchmeshmetric.mpeg.ctc.settings.CtcSettings`), or ``None`` to
-            give them as the keywords below (the same names and defaults; not both).
-        qp: geometry bit depth of both (``--qp``).
-        qt: UV bit depth of the source (``--qt``).
-        min_pos: ``(3,)`` the sequence box's min corner (``--minPos``).
-        max_pos: ``(3,)`` its max corner (``--maxPos``).
-        resolution: PSNR peak (``compare --resolution``); ``None``: the box's longest side, as the test model does.
-        decoded_qt: UV bit depth of the decoded frame (the test model: 0).
-        grid_size: ``--gridSize`` (1024).
-        ibsm_resolution: IBSM's buffer side (``--ibsmResolution``, 2048); ``None`` leaves IBSM out.
-        ibsm_cameras: IBSM's camera count (``--ibsmCameraCount``, 16).
+            give them as keywords (not both).
         frame: frame number stored in the result.
+        **keywords: the settings as separate keywords, the fields of
+            :class:`~torchmeshmetric.mpeg.ctc.settings.CtcSettings` with their defaults: ``qp``, ``qt`` (bit depths
+            of the positions and the source's UVs), ``min_pos``, ``max_pos`` (the sequence's box), ``resolution``
+            (PSNR peak, default the box's longest side), ``decoded_qt`` (0), ``grid_size`` (1024),
+            ``ibsm_resolution`` (2048; ``None``: no IBSM), ``ibsm_cameras`` (16).
 
     Returns:
         :class:`CtcFrame` with ``GridD1``, ``GridD2``, ``IbsmGeom``, ``IbsmLuma`` and, when both carry colour,
         ``GridLuma``, ``GridChromaCb``, ``GridChromaCr``.
 
     Example:
-        >>> import torch, trimesh
+        >>> import numpy as np, torch, trimesh
         >>> s = trimesh.creation.icosphere(2)
         >>> q = TexturedMesh(Mesh(torch.tensor(np.round((s.vertices + 1) * 511.5)), torch.tensor(s.faces)))
         >>> r = ctc_frame(q, q, qp=10, qt=0, min_pos=[-1, -1, -1], max_pos=[1, 1, 1], resolution=2.0, grid_size=64,
@@ -218,9 +209,7 @@ def ctc_frame(
         >>> r.figures["GridD1"], r.figures["IbsmGeom"]
         (inf, 99.99)
     """
-    cs = resolve_settings(settings, qp=qp, qt=qt, min_pos=min_pos, max_pos=max_pos, resolution=resolution,
-                          decoded_qt=decoded_qt, grid_size=grid_size, ibsm_resolution=ibsm_resolution,
-                          ibsm_cameras=ibsm_cameras)  # fmt: skip
+    cs = resolve_settings(settings, **keywords)
     box, grid_size, ibsm_resolution = cs.box, cs.grid_size, cs.ibsm_resolution
     t0 = time.perf_counter()
     r, d = dequantized_pair(ref, dis, cs)
@@ -250,16 +239,8 @@ def ctc_sequence(
     pairs: Iterable[tuple[int, TexturedMesh, TexturedMesh]],
     settings: CtcSettings | None = None,
     *,
-    qp: int | None = None,
-    qt: int | None = None,
-    min_pos: Corner | None = None,
-    max_pos: Corner | None = None,
-    resolution: float | None = None,
-    decoded_qt: int = 0,
-    grid_size: int = 1024,
-    ibsm_resolution: int | None = 2048,
-    ibsm_cameras: int = 16,
     progress: Callable[[CtcFrame], None] | None = None,
+    **keywords: Unpack[CtcKeywords],
 ) -> CtcSequence:
     """The CTC figures of a decoded sequence: :func:`ctc_frame` on every ``(frame, source, decoded)`` pair.
 
@@ -267,7 +248,7 @@ def ctc_sequence(
     ``settings`` or the keywords, as for :func:`ctc_frame`; ``progress`` is called with each frame's result.
 
     Example:
-        >>> import torch, trimesh
+        >>> import numpy as np, torch, trimesh
         >>> s = trimesh.creation.icosphere(2)
         >>> q = TexturedMesh(Mesh(torch.tensor(np.round((s.vertices + 1) * 511.5)), torch.tensor(s.faces)))
         >>> seq = ctc_sequence([(0, q, q)], qp=10, qt=0, min_pos=[-1] * 3, max_pos=[1] * 3, resolution=2.0,
@@ -275,9 +256,7 @@ def ctc_sequence(
         >>> seq.mean()["GridD1"]
         99.99
     """
-    cs = resolve_settings(settings, qp=qp, qt=qt, min_pos=min_pos, max_pos=max_pos, resolution=resolution,
-                          decoded_qt=decoded_qt, grid_size=grid_size, ibsm_resolution=ibsm_resolution,
-                          ibsm_cameras=ibsm_cameras)  # fmt: skip
+    cs = resolve_settings(settings, **keywords)
     frames = []
     for k, ref, dis in pairs:
         f = ctc_frame(ref, dis, cs, frame=k)

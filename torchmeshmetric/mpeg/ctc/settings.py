@@ -11,12 +11,12 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import MISSING, dataclass, fields
-from typing import Any, Union
+from typing import Any, TypedDict, Union
 
 import numpy as np
 from torch import Tensor
 
-__all__ = ["Corner", "CtcSettings", "box_longest_side", "resolve_settings"]
+__all__ = ["Corner", "CtcKeywords", "CtcSettings", "box_longest_side", "resolve_settings"]
 
 Corner = Union[Sequence[float], np.ndarray, Tensor]  # noqa: UP007 (a runtime alias)
 
@@ -79,6 +79,20 @@ class CtcSettings:
         if self.resolution is not None:
             return self.resolution
         return box_longest_side(self.min_pos, self.max_pos)
+
+
+class CtcKeywords(TypedDict, total=False):
+    """The fields of :class:`CtcSettings` as separate keywords (``**keywords: Unpack[CtcKeywords]``), all optional."""
+
+    qp: int
+    qt: int
+    min_pos: Corner
+    max_pos: Corner
+    resolution: float | None
+    decoded_qt: int
+    grid_size: int
+    ibsm_resolution: int | None
+    ibsm_cameras: int
 
 
 def box_longest_side(min_pos: Corner, max_pos: Corner) -> float:
