@@ -6,14 +6,10 @@ package root.
 
 from __future__ import annotations
 
-import sys
 from importlib import metadata
 from pathlib import Path
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
+from torchmeshmetric._toml import tomllib
 
 __all__ = ["__version__"]
 

@@ -4,14 +4,13 @@ its 8-bit colours, on mmetric's own test meshes (the cases of its test-sample-fa
 
 from __future__ import annotations
 
-import subprocess
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from tests.mpeg.conftest import MM, MM_TESTS
-from torchmeshmetric.mpeg import TexturedMesh, face_sample, load_textured_mesh
+from tests.mpeg.mm_sampling import assert_same_rows_in_order, demo_frame_obj, library_mesh, mm_sample
+from torchmeshmetric.mpeg import TexturedMesh, face_sample
 from torchmeshmetric.structures import Mesh
 
 pytestmark = pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")
@@ -19,34 +18,12 @@ pytestmark = pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary ab
 TESTS = MM_TESTS
 
 
-def _read_ply(path: Path) -> np.ndarray:
-    with open(path) as fh:
-        for line in fh:
-            if line.startswith("end_header"):
-                break
-        return np.loadtxt(fh, dtype=np.float64, ndmin=2)
-
-
 def _check(obj: Path, texture: Path | None, resolution: int, tmp_path: Path, *extra: str) -> int:
-    out = tmp_path / "mm.ply"
-    args = [str(MM), "sample", "--mode", "face", "--resolution", str(resolution), "-i", str(obj), "-o", str(out)]
-    args += ["--hideProgress", "-m", str(texture) if texture else "", *extra]
-    subprocess.run(args, capture_output=True, text=True, timeout=300, check=True)
-    theirs = _read_ply(out)
-    mesh = load_textured_mesh(obj, texture)
-    if texture is None:  # mm is given no map: only per-vertex colours count
-        mesh = TexturedMesh(mesh.mesh, None, None, mesh.colors)
+    theirs = mm_sample(obj, texture, tmp_path, "face", "--resolution", str(resolution), *extra)
     thickness = float(extra[extra.index("--thickness") + 1]) if "--thickness" in extra else 0.0
+    mesh = library_mesh(obj, texture)
     pc = face_sample(mesh, resolution=resolution, thickness=thickness, bilinear="--bilinear" in extra)
-    ours = np.concatenate([pc.points.numpy(), pc.normals.numpy()], axis=1)
-    assert ours.shape == theirs[:, :6].shape
-    np.testing.assert_array_equal(ours, theirs[:, :6].astype(np.float32))  # same points, same order
-    if pc.colors is not None:
-        assert theirs.shape[1] == 9
-        np.testing.assert_array_equal(np.floor(pc.colors.numpy() + 0.5), theirs[:, 6:])  # mm writes roundf(c)
-    else:
-        assert theirs.shape[1] == 6
-    return ours.shape[0]
+    return assert_same_rows_in_order(pc, theirs)
 
 
 @pytest.mark.parametrize(
@@ -71,14 +48,8 @@ def test_mmetric_test_meshes(
 
 
 def test_demo_frame(tmp_path: Path) -> None:
-    from torchmeshmetric.data import demo_sequence
-
-    frame = demo_sequence(1, resolution=48).frames[0]
-    v, f = frame.verts.float().numpy(), frame.faces.numpy()
-    obj = tmp_path / "frame.obj"
-    lines = [f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in v] + [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in f]
-    obj.write_text("\n".join(lines) + "\n")
-    assert _check(obj, None, 256, tmp_path) > 10 * len(f)
+    obj, _num_verts, num_faces = demo_frame_obj(tmp_path)
+    assert _check(obj, None, 256, tmp_path) > 10 * num_faces
 
 
 def test_bad_arguments() -> None:

@@ -4,14 +4,13 @@ test-sample-map.sh) and the textured reference frame of ../shared/reference/mpeg
 
 from __future__ import annotations
 
-import subprocess
 from pathlib import Path
 
-import numpy as np
 import pytest
 import torch
 
 from tests.mpeg.conftest import MM, MM_TESTS, MPEG_REF
+from tests.mpeg.mm_sampling import assert_same_rows_in_order, mm_sample
 from torchmeshmetric.mpeg import TexturedMesh, load_textured_mesh, map_sample
 from torchmeshmetric.structures import Mesh
 
@@ -21,21 +20,10 @@ TESTS = MM_TESTS
 
 
 def _check(obj: Path, texture: Path, tmp_path: Path) -> int:
-    out = tmp_path / "mm.ply"
-    args = [str(MM), "sample", "--mode", "map", "-i", str(obj), "-m", str(texture), "-o", str(out), "--hideProgress"]
-    subprocess.run(args, capture_output=True, text=True, timeout=300, check=True)
-    with open(out) as fh:
-        for line in fh:
-            if line.startswith("end_header"):
-                break
-        theirs = np.loadtxt(fh, dtype=np.float64, ndmin=2)
+    theirs = mm_sample(obj, texture, tmp_path, "map")
     pc = map_sample(load_textured_mesh(obj, texture))
     assert pc.colors is not None
-    ours = np.concatenate([pc.points.numpy(), pc.normals.numpy()], axis=1)
-    assert ours.shape == theirs[:, :6].shape
-    np.testing.assert_array_equal(ours, theirs[:, :6].astype(np.float32))  # same points, same order
-    np.testing.assert_array_equal(np.floor(pc.colors.numpy() + 0.5), theirs[:, 6:])  # mm writes roundf(c)
-    return ours.shape[0]
+    return assert_same_rows_in_order(pc, theirs)
 
 
 @pytest.mark.parametrize(

@@ -4,14 +4,13 @@ for bit, with mm's colour bytes, on mmetric's test meshes (the cases of its test
 
 from __future__ import annotations
 
-import subprocess
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from tests.mpeg.conftest import MM, MM_TESTS
-from torchmeshmetric.mpeg import TexturedMesh, load_textured_mesh, prnd_sample
+from tests.mpeg.mm_sampling import assert_same_rows_in_order, demo_frame_obj, library_mesh, mm_sample
+from torchmeshmetric.mpeg import load_textured_mesh, prnd_sample
 
 pytestmark = pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")
 
@@ -19,27 +18,9 @@ TESTS = MM_TESTS
 
 
 def _check(obj: Path, texture: Path | None, n: int, tmp_path: Path, *extra: str) -> int:
-    out = tmp_path / "mm.ply"
-    args = [str(MM), "sample", "--mode", "prnd", "--nbSamples", str(n), "-i", str(obj), "-o", str(out)]
-    args += ["--hideProgress", "-m", str(texture) if texture else "", *extra]
-    subprocess.run(args, capture_output=True, text=True, timeout=300, check=True)
-    with open(out) as fh:
-        for line in fh:
-            if line.startswith("end_header"):
-                break
-        theirs = np.loadtxt(fh, dtype=np.float64, ndmin=2)
-    mesh = load_textured_mesh(obj, texture)
-    if texture is None:  # mm is given no map: only per-vertex colours count
-        mesh = TexturedMesh(mesh.mesh, None, None, mesh.colors)
-    pc = prnd_sample(mesh, num_samples=n, bilinear="--bilinear" in extra)
-    ours = np.concatenate([pc.points.numpy(), pc.normals.numpy()], axis=1)
-    assert ours.shape == theirs[:, :6].shape
-    np.testing.assert_array_equal(ours, theirs[:, :6].astype(np.float32))  # same points, same order
-    if pc.colors is not None:
-        np.testing.assert_array_equal(np.floor(pc.colors.numpy() + 0.5), theirs[:, 6:])  # mm writes roundf(c)
-    else:
-        assert theirs.shape[1] == 6
-    return ours.shape[0]
+    theirs = mm_sample(obj, texture, tmp_path, "prnd", "--nbSamples", str(n), *extra)
+    pc = prnd_sample(library_mesh(obj, texture), num_samples=n, bilinear="--bilinear" in extra)
+    return assert_same_rows_in_order(pc, theirs)
 
 
 @pytest.mark.parametrize(
@@ -60,13 +41,7 @@ def test_mmetric_test_meshes(name: str, texture: str | None, n: int, extra: tupl
 
 
 def test_demo_frame(tmp_path: Path) -> None:
-    from torchmeshmetric.data import demo_sequence
-
-    frame = demo_sequence(1, resolution=48).frames[0]
-    v, f = frame.verts.float().numpy(), frame.faces.numpy()
-    obj = tmp_path / "frame.obj"
-    lines = [f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in v] + [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in f]
-    obj.write_text("\n".join(lines) + "\n")
+    obj, _num_verts, _num_faces = demo_frame_obj(tmp_path)
     assert _check(obj, None, 200000, tmp_path) >= 200000
 
 

@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from torchmeshmetric._format import format_number, json_safe
-from torchmeshmetric.cli.options import corner
+from torchmeshmetric.cli.options import ctc_options
 from torchmeshmetric.mpeg.ctc.frame_pattern import frame_path
 
 __all__ = ["add_ctc_command", "frame_path"]
@@ -58,16 +58,9 @@ def _check_options(args: argparse.Namespace) -> tuple[list[float], list[float]]:
         raise ValueError(f"--last-frame: {args.last_frame} is before --first-frame {args.first_frame}")
     if not math.isfinite(args.resolution) or args.resolution <= 0:
         raise ValueError(f"--resolution: expected a positive number (the box's longest side), found {args.resolution}")
-    ranges = (("--qp", args.qp, 7, 31), ("--qt", args.qt, 0, 31), ("--decoded-qt", args.decoded_qt, 0, 31),
-              ("--grid-size", args.grid_size, 1, 1 << 20), ("--ibsm-resolution", args.ibsm_resolution, 1, 1 << 15),
-              ("--ibsm-cameras", args.ibsm_cameras, 2, 4096))  # fmt: skip
-    for option, value, low, high in ranges:
-        if not low <= value <= high:
-            raise ValueError(f"{option}: expected an integer in {low}..{high}, found {value}")
-    lo, hi = corner(args.min_pos, "--min-pos"), corner(args.max_pos, "--max-pos")
-    if any(h < lo_ for lo_, h in zip(lo, hi, strict=True)):
-        raise ValueError(f"--max-pos: {hi} is below --min-pos {lo}")
-    return lo, hi
+    return ctc_options(args, (("--grid-size", args.grid_size, 1, 1 << 20),
+                              ("--ibsm-resolution", args.ibsm_resolution, 1, 1 << 15),
+                              ("--ibsm-cameras", args.ibsm_cameras, 2, 4096)))  # fmt: skip
 
 
 def _frame_files(args: argparse.Namespace) -> list[tuple[int, Path, Path, Path | None, Path | None]]:
@@ -139,6 +132,7 @@ def _compute(args: argparse.Namespace, files: list[Any], lo: list[float], hi: li
     from torchmeshmetric.data.sequence import Prefetcher
     from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
     from torchmeshmetric.mpeg.ctc.chain import CTC_COLUMNS, CtcFrame, ctc_frame
+    from torchmeshmetric.mpeg.ctc.settings import CtcSettings
     from torchmeshmetric.tasks import rank_and_world_size, run_tasks, shard
 
     start = time.perf_counter()
@@ -152,6 +146,10 @@ def _compute(args: argparse.Namespace, files: list[Any], lo: list[float], hi: li
         except ValueError as exc:
             raise ValueError(f"frame {k}: {exc}") from exc
 
+    settings = CtcSettings(qp=args.qp, qt=args.qt, min_pos=lo, max_pos=hi, resolution=args.resolution,
+                           decoded_qt=args.decoded_qt, grid_size=args.grid_size,
+                           ibsm_resolution=None if args.no_ibsm else args.ibsm_resolution,
+                           ibsm_cameras=args.ibsm_cameras)  # fmt: skip
     ahead = Prefetcher([files[i] for i in shard(len(files), rank, world)], load=load, ahead=1)
     totals = dict.fromkeys(_STAGES, 0.0)
     colour: dict[str, bool] = {}
@@ -160,10 +158,7 @@ def _compute(args: argparse.Namespace, files: list[Any], lo: list[float], hi: li
         k = task[0]
         r, d, read_s = next(ahead)  # run_tasks takes this rank's tasks in the prefetcher's order
         _check_colour(args, k, r, d, colour)
-        f = ctc_frame(r, d, qp=args.qp, qt=args.qt, min_pos=lo, max_pos=hi, resolution=args.resolution,
-                      decoded_qt=args.decoded_qt, grid_size=args.grid_size,
-                      ibsm_resolution=None if args.no_ibsm else args.ibsm_resolution, ibsm_cameras=args.ibsm_cameras,
-                      frame=k)  # fmt: skip
+        f = ctc_frame(r, d, settings, frame=k)
         seconds = {"read": read_s, **f.seconds}
         figs = "  ".join(f"{c} {_fmt(f.figures[c])}" for c in CTC_COLUMNS if c in f.figures)
         line = f"ctc: frame {k}: {figs}  [{time.perf_counter() - start:.1f} s]"

@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from torchmeshmetric.cli.options import add_command, corner
+from torchmeshmetric.cli.options import add_command, ctc_options
 
 __all__ = ["add_ctc_face_errors_command", "run"]
 
@@ -30,17 +30,7 @@ def run(args: argparse.Namespace) -> int:
     """
     from torchmeshmetric.cli._outputs import CLIError, check_writable
 
-    lo, hi = corner(args.min_pos, "--min-pos"), corner(args.max_pos, "--max-pos")
-    if any(h < lo_ for lo_, h in zip(lo, hi, strict=True)):
-        raise ValueError(f"--max-pos: {hi} is below --min-pos {lo}")
-    for option, value, low, high in (
-        ("--qp", args.qp, 7, 31),
-        ("--qt", args.qt, 0, 31),
-        ("--decoded-qt", args.decoded_qt, 0, 31),
-        ("--grid-size", args.grid_size, 2, 1 << 20),
-    ):
-        if not low <= value <= high:
-            raise ValueError(f"{option}: expected an integer in {low}..{high}, found {value}")
+    lo, hi = ctc_options(args, [("--grid-size", args.grid_size, 2, 1 << 20)])
     if args.color_by not in _COLOR_BY:
         raise CLIError(f"--color-by: expected one of {', '.join(_COLOR_BY)}, found {args.color_by!r}")
     outputs = [Path(f"{args.out}.ply"), Path(f"{args.out}.csv")]
@@ -54,20 +44,13 @@ def run(args: argparse.Namespace) -> int:
     from torchmeshmetric.cli._outputs import output_set
     from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
     from torchmeshmetric.mpeg.ctc.face_errors import ctc_face_errors, write_face_errors_csv, write_face_errors_ply
+    from torchmeshmetric.mpeg.ctc.settings import CtcSettings
 
     ref = load_textured_mesh(args.reference, args.reference_texture)
     dis = load_textured_mesh(args.decoded, args.decoded_texture)
-    errors = ctc_face_errors(
-        ref,
-        dis,
-        qp=args.qp,
-        qt=args.qt,
-        min_pos=lo,
-        max_pos=hi,
-        decoded_qt=args.decoded_qt,
-        grid_size=args.grid_size,
-        side=args.side,
-    )
+    settings = CtcSettings(qp=args.qp, qt=args.qt, min_pos=lo, max_pos=hi, decoded_qt=args.decoded_qt,
+                           grid_size=args.grid_size)  # fmt: skip
+    errors = ctc_face_errors(ref, dis, settings, side=args.side)
     if args.color_by[:2] in ("y_", "cb", "cr") and errors.color_mean is None:
         raise ValueError(f"--color-by {args.color_by}: the frames have no colour (texture or vertex colours)")
     with output_set("the per-face errors"):

@@ -225,6 +225,40 @@ def corner(text: str, option: str) -> list[float]:
     return values
 
 
+def ctc_options(
+    args: argparse.Namespace, ranges: Sequence[tuple[str, int, int, int]]
+) -> tuple[list[float], list[float]]:
+    """The CTC commands' chain options, checked by name before any file is read; the sequence box.
+
+    Checks ``--qp`` (7..31), ``--qt`` and ``--decoded-qt`` (0..31), then each ``(option, value, low, high)`` of
+    ``ranges``, then the box ``--min-pos`` / ``--max-pos``.
+
+    Args:
+        args: the parsed options (``qp``, ``qt``, ``decoded_qt``, ``min_pos``, ``max_pos``).
+        ranges: the command's other integer options and their inclusive bounds.
+
+    Returns:
+        ``(min_pos, max_pos)``, three floats each.
+
+    Raises:
+        ValueError: an option out of its range, a corner that is not three finite numbers, ``--max-pos`` below
+            ``--min-pos`` on an axis; each names the option.
+
+    Example:
+        >>> a = argparse.Namespace(qp=10, qt=12, decoded_qt=0, min_pos="0 0 0", max_pos="1 1 1")
+        >>> ctc_options(a, [("--grid-size", 1024, 2, 1 << 20)])
+        ([0.0, 0.0, 0.0], [1.0, 1.0, 1.0])
+    """
+    common = (("--qp", args.qp, 7, 31), ("--qt", args.qt, 0, 31), ("--decoded-qt", args.decoded_qt, 0, 31))
+    for option, value, low, high in (*common, *ranges):
+        if not low <= value <= high:
+            raise ValueError(f"{option}: expected an integer in {low}..{high}, found {value}")
+    lo, hi = corner(args.min_pos, "--min-pos"), corner(args.max_pos, "--max-pos")
+    if any(h < lo_ for lo_, h in zip(lo, hi, strict=True)):
+        raise ValueError(f"--max-pos: {hi} is below --min-pos {lo}")
+    return lo, hi
+
+
 def as_option_error(exc: ValueError, options: dict[str, str]) -> Exception:
     """A library error about an argument (``knn: ...``) retold about the option that set it (``--knn-...: ...``).
 

@@ -455,14 +455,8 @@ class _Statements:
                 f"path: '{self.p}' line {at}: vertex {len(self.verts)} has {n} coordinate(s); expected 'v x y z' "
                 "(optionally w, or r g b [a])"
             )
-        try:
-            self.verts.append([float(t) for t in tokens[1:4]])
-            self.colors.append([float(t) for t in tokens[4:7]] if n >= 6 else None)
-        except ValueError:
-            raise MeshFileError(
-                f"path: '{self.p}' line {at}: vertex coordinates "
-                f"{b' '.join(tokens[1 : n + 1]).decode('latin-1')!r} are not numbers"
-            ) from None
+        self.verts.append(self.line_floats(at, tokens, 1, 4, "vertex coordinates"))
+        self.colors.append(self.line_floats(at, tokens, 4, 7, "vertex coordinates") if n >= 6 else None)
         self.vert_lines.append(at)
 
     def uv(self, at: int, tokens: list[bytes]) -> None:
@@ -472,14 +466,17 @@ class _Statements:
                 f"path: '{self.p}' line {at}: texture coordinate {len(self.uvs)} has {n} value(s); expected "
                 "'vt u v' (optionally w)"
             )
+        self.uvs.append(self.line_floats(at, tokens, 1, 3, "texture coordinates"))
+        self.uv_lines.append(at)
+
+    def line_floats(self, at: int, tokens: list[bytes], start: int, stop: int, what: str) -> list[float]:
+        """``tokens[start:stop]`` as floats; an error quotes the line's values (``what``: whose)."""
         try:
-            self.uvs.append([float(t) for t in tokens[1:3]])
+            return [float(t) for t in tokens[start:stop]]
         except ValueError:
             raise MeshFileError(
-                f"path: '{self.p}' line {at}: texture coordinates "
-                f"{b' '.join(tokens[1:]).decode('latin-1')!r} are not numbers"
+                f"path: '{self.p}' line {at}: {what} {b' '.join(tokens[1:]).decode('latin-1')!r} are not numbers"
             ) from None
-        self.uv_lines.append(at)
 
     def face(self, at: int, tokens: list[bytes]) -> None:
         n = len(tokens) - 1

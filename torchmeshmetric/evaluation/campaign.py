@@ -24,20 +24,15 @@ import io
 import math
 import os
 import re
-import sys
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
 
 from torchmeshmetric._atomic import atomic_write
 from torchmeshmetric._format import json_safe
+from torchmeshmetric._toml import read_manifest
 from torchmeshmetric.evaluation.reports import COLUMNS, report_dict, statistic_cells
 from torchmeshmetric.evaluation.results import SequenceEvaluation
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10 installs tomli (pyproject's dependencies)
-    import tomli as tomllib
 
 __all__ = [
     "COMBINED",
@@ -132,12 +127,7 @@ def load_campaign(path: str | os.PathLike[str]) -> Campaign:
         ('a', 'a/qem', 'full')
     """
     file = Path(path)
-    try:
-        data = tomllib.loads(file.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ManifestError(f"campaign manifest {str(file)!r}: no such file") from None
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise ManifestError(f"campaign manifest {str(file)!r}: {exc}") from None
+    data = read_manifest(file, "campaign manifest", ManifestError)
     where = f"campaign manifest {str(file)!r}"
     unknown = sorted(set(data) - {"options", "sequences"})
     if unknown:

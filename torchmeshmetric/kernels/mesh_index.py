@@ -409,11 +409,8 @@ class MeshIndex:
             :class:`~torchmeshmetric.NearestVertexResult` ``(dists, idx)``, ``idx`` a row of :attr:`ref_points`.
 
         Raises:
-            DeviceError: when the points are not on the index's device.
-            DTypeError: when the points are wider than the index (float64 points, float32 index): they would be
-                rounded (narrower points are cast up: the answer is in the index's dtype).
-            ShapeError, NonFiniteError, EmptyInputError, ValueError: on bad points.
-            StaleIndexError: a tensor the index was built from changed in place since it was built or refitted.
+            DeviceError, DTypeError, ShapeError, NonFiniteError, EmptyInputError, ValueError, StaleIndexError: as
+                :meth:`point_mesh_distance` (bad points, points wider than the index, a stale index).
         """
         pts = self._check_points(points, points_lengths)
         return self.nearest_vertex_distance_unchecked(pts.points, pts.lengths)

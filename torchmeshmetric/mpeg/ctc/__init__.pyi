@@ -10,6 +10,7 @@ from . import dequantize as dequantize
 from . import face_errors as face_errors
 from . import frame_pattern as frame_pattern
 from . import manifest as manifest
+from . import settings as settings
 from . import sheet as sheet
 from .bd_rate import bd_rate
 from .campaign import CampaignResult, run_ctc_campaign
@@ -17,6 +18,7 @@ from .chain import CTC_COLUMNS, CtcFrame, CtcSequence, ctc_frame, ctc_mean, ctc_
 from .dequantize import dequantize_positions, dequantize_uvs
 from .face_errors import FaceErrors, ctc_face_errors
 from .manifest import CtcCampaign, CtcManifestError, load_ctc_campaign
+from .settings import CtcSettings
 from .sheet import RatePoint, ctc_summary, read_test_model_csv
 
 __all__ = [
@@ -27,6 +29,7 @@ __all__ = [
     "ctc_frame",
     "ctc_mean",
     "ctc_sequence",
+    "CtcSettings",
     "CampaignResult",
     "run_ctc_campaign",
     "CtcCampaign",

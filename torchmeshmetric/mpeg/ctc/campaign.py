@@ -235,21 +235,7 @@ def _compute(
 
     ref, dis, read_seconds = loaded
     t0 = time.perf_counter() - read_seconds  # the frame's seconds: its reading (ahead of time) and its chain
-    s = task.seq
-    f = ctc_frame(
-        ref,
-        dis,
-        qp=s.qp,
-        qt=s.qt,
-        min_pos=s.min_pos,
-        max_pos=s.max_pos,
-        resolution=s.resolution,
-        decoded_qt=task.decoded_qt,
-        grid_size=campaign.grid_size,
-        ibsm_resolution=campaign.ibsm_resolution,
-        ibsm_cameras=campaign.ibsm_cameras,
-        frame=task.frame,
-    )
+    f = ctc_frame(ref, dis, campaign.settings(task.seq, task.decoded_qt), frame=task.frame)
     record = {
         "key": key,
         "figures": dict(f.figures),

@@ -25,10 +25,7 @@ import time
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
-from typing import Any, Union
-
-import numpy as np
-from torch import Tensor
+from typing import TYPE_CHECKING, Any
 
 from torchmeshmetric.mpeg.comparison.ibsm import IbsmResult, ibsm
 from torchmeshmetric.mpeg.comparison.pcc import mpeg_compare
@@ -36,8 +33,12 @@ from torchmeshmetric.mpeg.core.point_cloud import PointCloud
 from torchmeshmetric.mpeg.core.reindex import oriented_reindex
 from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh
 from torchmeshmetric.mpeg.ctc.dequantize import dequantize_positions, dequantize_uvs
+from torchmeshmetric.mpeg.ctc.settings import Corner, CtcKeywords, CtcSettings, resolve_settings
 from torchmeshmetric.mpeg.sampling.grid_sampling import grid_sample
 from torchmeshmetric.structures import Mesh
+
+if TYPE_CHECKING:  # typing.Unpack needs Python 3.11; annotations are not evaluated at run time
+    from typing_extensions import Unpack
 
 __all__ = [
     "CTC_CLIP",
@@ -48,8 +49,6 @@ __all__ = [
     "ctc_mean",
     "ctc_sequence",
 ]
-
-Corner = Union[Sequence[float], np.ndarray, Tensor]  # noqa: UP007 (a runtime alias)
 
 CTC_COLUMNS = ("GridD1", "GridD2", "GridLuma", "GridChromaCb", "GridChromaCr", "IbsmGeom", "IbsmLuma")
 """The CTC spreadsheet's metric columns, in its order."""
@@ -142,6 +141,17 @@ def _dequantized(mesh: TexturedMesh, qp: int, qt: int, box: tuple[Corner, Corner
     return TexturedMesh(Mesh(verts, mesh.mesh.faces), uvs, mesh.texture, mesh.colors)
 
 
+def dequantized_pair(ref: TexturedMesh, dis: TexturedMesh, cs: CtcSettings) -> tuple[TexturedMesh, TexturedMesh]:
+    """Both frames dequantised over the sequence's box and reindexed (``reindex --sort oriented``).
+
+    Both mmetric steps reindex the dequantised meshes with the same oriented reorder (the grid chain's reindex
+    command, IBSM's own reordering): done once here, and IBSM told not to redo it.
+    """
+    r = oriented_reindex(_dequantized(ref, cs.qp, cs.qt, cs.box, "ref", "qt"))
+    d = oriented_reindex(_dequantized(dis, cs.qp, cs.decoded_qt, cs.box, "dis", "decoded_qt"))
+    return r, d
+
+
 def _grid_cloud(m: TexturedMesh, grid_size: int, box: tuple[Corner, Corner]) -> PointCloud:
     return grid_sample(
         m.mesh,
@@ -166,17 +176,10 @@ def _timed_ibsm(r: TexturedMesh, d: TexturedMesh, resolution: int, cameras: int)
 def ctc_frame(
     ref: TexturedMesh,
     dis: TexturedMesh,
+    settings: CtcSettings | None = None,
     *,
-    qp: int,
-    qt: int,
-    min_pos: Corner,
-    max_pos: Corner,
-    resolution: float,
-    decoded_qt: int = 0,
-    grid_size: int = 1024,
-    ibsm_resolution: int | None = 2048,
-    ibsm_cameras: int = 16,
     frame: int = 0,
+    **keywords: Unpack[CtcKeywords],
 ) -> CtcFrame:
     """The grid figures of one frame pair, as the CTC's ``mm sequence`` chain computes them (see the module).
 
@@ -184,23 +187,21 @@ def ctc_frame(
         ref: the *quantised* source frame (integer positions, quantised UVs) with its texture.
         dis: the decoded frame (integer positions over the same box; UVs already in ``[0, 1]`` unless
             ``decoded_qt >= 7``).
-        qp: geometry bit depth of both (``--qp``).
-        qt: UV bit depth of the source (``--qt``); ``decoded_qt`` that of the decoded frame (the test model: 0).
-        min_pos: ``(3,)`` the sequence box's min corner (``--minPos``).
-        max_pos: ``(3,)`` its max corner (``--maxPos``).
-        resolution: PSNR peak (``compare --resolution``; the test model: the box's longest side).
-        decoded_qt: UV bit depth of the decoded frame.
-        grid_size: ``--gridSize`` (1024).
-        ibsm_resolution: IBSM's buffer side (``--ibsmResolution``, 2048); ``None`` leaves IBSM out.
-        ibsm_cameras: IBSM's camera count (``--ibsmCameraCount``, 16).
+        settings: the chain's settings (:class:`~torchmeshmetric.mpeg.ctc.settings.CtcSettings`), or ``None`` to
+            give them as keywords (not both).
         frame: frame number stored in the result.
+        **keywords: the settings as separate keywords, the fields of
+            :class:`~torchmeshmetric.mpeg.ctc.settings.CtcSettings` with their defaults: ``qp``, ``qt`` (bit depths
+            of the positions and the source's UVs), ``min_pos``, ``max_pos`` (the sequence's box), ``resolution``
+            (PSNR peak, default the box's longest side), ``decoded_qt`` (0), ``grid_size`` (1024),
+            ``ibsm_resolution`` (2048; ``None``: no IBSM), ``ibsm_cameras`` (16).
 
     Returns:
         :class:`CtcFrame` with ``GridD1``, ``GridD2``, ``IbsmGeom``, ``IbsmLuma`` and, when both carry colour,
         ``GridLuma``, ``GridChromaCb``, ``GridChromaCr``.
 
     Example:
-        >>> import torch, trimesh
+        >>> import numpy as np, torch, trimesh
         >>> s = trimesh.creation.icosphere(2)
         >>> q = TexturedMesh(Mesh(torch.tensor(np.round((s.vertices + 1) * 511.5)), torch.tensor(s.faces)))
         >>> r = ctc_frame(q, q, qp=10, qt=0, min_pos=[-1, -1, -1], max_pos=[1, 1, 1], resolution=2.0, grid_size=64,
@@ -208,28 +209,20 @@ def ctc_frame(
         >>> r.figures["GridD1"], r.figures["IbsmGeom"]
         (inf, 99.99)
     """
-    if isinstance(resolution, bool) or not isinstance(resolution, (int, float, np.integer, np.floating)):
-        raise TypeError(f"resolution: expected a real number, found {type(resolution).__name__}")
-    if not (math.isfinite(resolution) and resolution > 0):
-        raise ValueError(
-            f"resolution: expected a positive finite PSNR peak (the box's longest side), found {resolution}"
-        )
-    box = (min_pos, max_pos)
+    cs = resolve_settings(settings, **keywords)
+    box, grid_size, ibsm_resolution = cs.box, cs.grid_size, cs.ibsm_resolution
     t0 = time.perf_counter()
-    # both mmetric steps reindex the dequantised meshes with the same oriented reorder (the grid chain's reindex
-    # command, IBSM's own reordering): done once here, and IBSM told not to redo it
-    r = oriented_reindex(_dequantized(ref, qp, qt, box, "ref", "qt"))
-    d = oriented_reindex(_dequantized(dis, qp, decoded_qt, box, "dis", "decoded_qt"))
+    r, d = dequantized_pair(ref, dis, cs)
     t1 = time.perf_counter()
     # IBSM, the two samplings and then the comparison release the GIL in their C++ and numpy work: IBSM runs beside
     # the grid chain, so that one's single-threaded parts fill the core the other leaves
     with ThreadPoolExecutor(max_workers=3) as pool:
-        ib_job = None if ibsm_resolution is None else pool.submit(_timed_ibsm, r, d, ibsm_resolution, ibsm_cameras)
+        ib_job = None if ibsm_resolution is None else pool.submit(_timed_ibsm, r, d, ibsm_resolution, cs.ibsm_cameras)
         rc = pool.submit(_grid_cloud, r, grid_size, box)
         dc = pool.submit(_grid_cloud, d, grid_size, box)
         ref_cloud, dis_cloud = rc.result(), dc.result()
         t2 = time.perf_counter()
-        res = mpeg_compare(ref_cloud, dis_cloud, peak=resolution)
+        res = mpeg_compare(ref_cloud, dis_cloud, peak=cs.peak)
         t3 = time.perf_counter()
         ib, ibsm_seconds = (None, 0.0) if ib_job is None else ib_job.result()
     figures = {"GridD1": res.symmetric.d1_psnr, "GridD2": res.symmetric.d2_psnr}
@@ -244,24 +237,18 @@ def ctc_frame(
 
 def ctc_sequence(
     pairs: Iterable[tuple[int, TexturedMesh, TexturedMesh]],
+    settings: CtcSettings | None = None,
     *,
-    qp: int,
-    qt: int,
-    min_pos: Corner,
-    max_pos: Corner,
-    resolution: float,
-    decoded_qt: int = 0,
-    grid_size: int = 1024,
-    ibsm_resolution: int | None = 2048,
-    ibsm_cameras: int = 16,
     progress: Callable[[CtcFrame], None] | None = None,
+    **keywords: Unpack[CtcKeywords],
 ) -> CtcSequence:
     """The CTC figures of a decoded sequence: :func:`ctc_frame` on every ``(frame, source, decoded)`` pair.
 
-    ``pairs`` may be a generator that reads the frames lazily (one pair in memory at a time).
+    ``pairs`` may be a generator that reads the frames lazily (one pair in memory at a time). The settings are
+    ``settings`` or the keywords, as for :func:`ctc_frame`; ``progress`` is called with each frame's result.
 
     Example:
-        >>> import torch, trimesh
+        >>> import numpy as np, torch, trimesh
         >>> s = trimesh.creation.icosphere(2)
         >>> q = TexturedMesh(Mesh(torch.tensor(np.round((s.vertices + 1) * 511.5)), torch.tensor(s.faces)))
         >>> seq = ctc_sequence([(0, q, q)], qp=10, qt=0, min_pos=[-1] * 3, max_pos=[1] * 3, resolution=2.0,
@@ -269,11 +256,10 @@ def ctc_sequence(
         >>> seq.mean()["GridD1"]
         99.99
     """
+    cs = resolve_settings(settings, **keywords)
     frames = []
     for k, ref, dis in pairs:
-        f = ctc_frame(ref, dis, qp=qp, qt=qt, min_pos=min_pos, max_pos=max_pos, resolution=resolution,
-                      decoded_qt=decoded_qt, grid_size=grid_size, ibsm_resolution=ibsm_resolution,
-                      ibsm_cameras=ibsm_cameras, frame=k)  # fmt: skip
+        f = ctc_frame(ref, dis, cs, frame=k)
         frames.append(f)
         if progress is not None:
             progress(f)

@@ -22,9 +22,9 @@ import numpy as np
 
 from torchmeshmetric._atomic import atomic_write
 from torchmeshmetric.mpeg.comparison.pcc import mpeg_point_errors
-from torchmeshmetric.mpeg.core.reindex import oriented_reindex
 from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh
-from torchmeshmetric.mpeg.ctc.chain import Corner, _dequantized
+from torchmeshmetric.mpeg.ctc.chain import dequantized_pair
+from torchmeshmetric.mpeg.ctc.settings import Corner, CtcSettings, resolve_settings
 from torchmeshmetric.mpeg.sampling.grid_sampling import grid_sample_faces
 from torchmeshmetric.structures import Mesh
 
@@ -81,11 +81,12 @@ def _per_face(values: np.ndarray, face: np.ndarray, num_faces: int) -> tuple[np.
 def ctc_face_errors(
     ref: TexturedMesh,
     dis: TexturedMesh,
+    settings: CtcSettings | None = None,
     *,
-    qp: int,
-    qt: int,
-    min_pos: Corner,
-    max_pos: Corner,
+    qp: int | None = None,
+    qt: int | None = None,
+    min_pos: Corner | None = None,
+    max_pos: Corner | None = None,
     decoded_qt: int = 0,
     grid_size: int = 1024,
     side: str = "decoded",
@@ -95,6 +96,8 @@ def ctc_face_errors(
     Args:
         ref: the quantised source frame with its texture.
         dis: the decoded frame.
+        settings: the chain's settings (:class:`~torchmeshmetric.mpeg.ctc.settings.CtcSettings`; its PSNR peak and
+            IBSM settings are not used), or ``None`` to give them as the keywords below (not both).
         qp: geometry bit depth of both frames.
         qt: UV bit depth of the source.
         min_pos: ``(3,)`` the sequence box's min corner.
@@ -120,14 +123,14 @@ def ctc_face_errors(
     """
     if side not in _SIDES:
         raise ValueError(f"side: expected 'decoded' or 'source', found {side!r}")
-    box = (min_pos, max_pos)
-    r = oriented_reindex(_dequantized(ref, qp, qt, box, "ref", "qt"))
-    d = oriented_reindex(_dequantized(dis, qp, decoded_qt, box, "dis", "decoded_qt"))
+    cs = resolve_settings(settings, qp=qp, qt=qt, min_pos=min_pos, max_pos=max_pos, decoded_qt=decoded_qt,
+                          grid_size=grid_size)  # fmt: skip
+    r, d = dequantized_pair(ref, dis, cs)
     sampled = [
         grid_sample_faces(
             m.mesh,
-            grid_size,
-            box=box,
+            cs.grid_size,
+            box=cs.box,
             texture=m.texture,
             uvs=m.uvs,
             colors=m.colors,

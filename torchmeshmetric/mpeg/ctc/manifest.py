@@ -54,17 +54,13 @@ Paths are relative to the manifest; ``{sequence}``, ``{seq_id}``, ``{cond_id}``,
 from __future__ import annotations
 
 import math
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from torchmeshmetric._toml import read_manifest
 from torchmeshmetric.mpeg.ctc.frame_pattern import frame_path
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10 installs tomli (pyproject's dependencies)
-    import tomli as tomllib
+from torchmeshmetric.mpeg.ctc.settings import CtcSettings, box_longest_side
 
 __all__ = [
     "CtcCampaign",
@@ -186,14 +182,26 @@ class CtcCampaign:
     ibsm_cameras: int
     path: Path
 
+    def settings(self, seq: CtcCampaignSequence, decoded_qt: int) -> CtcSettings:
+        """The chain's settings of a sequence's frames decoded with UV bit depth ``decoded_qt``."""
+        return CtcSettings(
+            qp=seq.qp,
+            qt=seq.qt,
+            min_pos=seq.min_pos,
+            max_pos=seq.max_pos,
+            resolution=seq.resolution,
+            decoded_qt=decoded_qt,
+            grid_size=self.grid_size,
+            ibsm_resolution=self.ibsm_resolution,
+            ibsm_cameras=self.ibsm_cameras,
+        )
+
     def input_files(self) -> list[tuple[str, str | Path | None]]:
         """``(what, path)`` of every file the campaign reads (the output check refuses an output among them).
 
         The manifest, the codecs' CSVs, and per sequence, condition, rate and frame the source and decoded frames,
         their textures, bitstreams and logs.
         """
-        from torchmeshmetric.mpeg.ctc.frame_pattern import frame_path
-
         files: list[tuple[str, str | Path | None]] = [("MANIFEST", self.path)]
         for codec in (self.anchor, self.test):
             files.append((f"{codec.name} csv", codec.csv))
@@ -353,7 +361,7 @@ def _sequence(entry: Any, where: str, base: Path) -> CtcCampaignSequence:
         qt=t.int_in("qt", 0, 31),
         min_pos=lo,
         max_pos=hi,
-        resolution=t.number("resolution", max(h - lo_ for lo_, h in zip(lo, hi, strict=True))),
+        resolution=t.number("resolution", box_longest_side(lo, hi)),
         input_faces=faces,
     )
 
@@ -470,12 +478,7 @@ def load_ctc_campaign(path: str | Path) -> CtcCampaign:
         (1023.0, (1, 2), 'anchor', True)
     """
     file = Path(path)
-    try:
-        data = tomllib.loads(file.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise CtcManifestError(f"CTC campaign manifest {str(file)!r}: no such file") from None
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise CtcManifestError(f"CTC campaign manifest {str(file)!r}: {exc}") from None
+    data = read_manifest(file, "CTC campaign manifest", CtcManifestError)
     where = f"CTC campaign manifest {str(file)!r}"
     top = _Table(data, where, ("options", "sequences", "conditions", "anchor", "test"))
     base = file.parent

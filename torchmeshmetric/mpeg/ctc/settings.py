@@ -1,0 +1,146 @@
+"""The CTC chain's settings: one frozen record of what ``mm sequence`` is told for a sequence and condition.
+
+:func:`~torchmeshmetric.mpeg.ctc.chain.ctc_frame`, :func:`~torchmeshmetric.mpeg.ctc.chain.ctc_sequence`,
+:func:`~torchmeshmetric.mpeg.ctc.face_errors.ctc_face_errors`, the campaign runner and the ``ctc`` command all take
+the chain's settings as one :class:`CtcSettings`; the functions still accept the settings as separate keywords, which
+:func:`resolve_settings` turns into one record (the only place that does).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import MISSING, dataclass, fields
+from typing import Any, TypedDict, Union
+
+import numpy as np
+from torch import Tensor
+
+__all__ = ["Corner", "CtcKeywords", "CtcSettings", "box_longest_side", "resolve_settings"]
+
+Corner = Union[Sequence[float], np.ndarray, Tensor]  # noqa: UP007 (a runtime alias)
+
+_REQUIRED = ("qp", "qt", "min_pos", "max_pos")
+
+
+@dataclass(frozen=True)
+class CtcSettings:
+    """The settings of the CTC chain for one sequence and condition (mmetric's options in brackets).
+
+    Attributes:
+        qp: geometry bit depth of the source and decoded frames (``dequantize --qp``).
+        qt: UV bit depth of the source (``--qt``).
+        min_pos: ``(3,)`` the sequence box's min corner (``--minPos``).
+        max_pos: ``(3,)`` its max corner (``--maxPos``).
+        resolution: PSNR peak (``compare --resolution``); ``None``: the box's longest side, as the test model does.
+        decoded_qt: UV bit depth of the decoded frames (the test model: 0).
+        grid_size: ``sample --gridSize`` (1024).
+        ibsm_resolution: IBSM's buffer side (``--ibsmResolution``, 2048); ``None`` leaves IBSM out.
+        ibsm_cameras: IBSM's camera count (``--ibsmCameraCount``, 16).
+
+    Raises:
+        TypeError: a ``resolution`` that is not a real number.
+        ValueError: a ``resolution`` that is not positive and finite.
+
+    Example:
+        >>> s = CtcSettings(qp=10, qt=12, min_pos=[-1, -1, -1], max_pos=[1, 1, 3])
+        >>> s.peak, s.grid_size, s.ibsm_resolution
+        (4.0, 1024, 2048)
+    """
+
+    qp: int
+    qt: int
+    min_pos: Corner
+    max_pos: Corner
+    resolution: float | None = None
+    decoded_qt: int = 0
+    grid_size: int = 1024
+    ibsm_resolution: int | None = 2048
+    ibsm_cameras: int = 16
+
+    def __post_init__(self) -> None:
+        """Check the PSNR peak (the bit depths and the box are checked where they are used: dequantisation)."""
+        r = self.resolution
+        if r is None:
+            return
+        if isinstance(r, bool) or not isinstance(r, (int, float, np.integer, np.floating)):
+            raise TypeError(f"resolution: expected a real number, found {type(r).__name__}")
+        if not (math.isfinite(r) and r > 0):
+            raise ValueError(f"resolution: expected a positive finite PSNR peak (the box's longest side), found {r}")
+
+    @property
+    def box(self) -> tuple[Corner, Corner]:
+        """``(min_pos, max_pos)``."""
+        return (self.min_pos, self.max_pos)
+
+    @property
+    def peak(self) -> float:
+        """The PSNR peak: ``resolution``, or the box's longest side when it is ``None``."""
+        if self.resolution is not None:
+            return self.resolution
+        return box_longest_side(self.min_pos, self.max_pos)
+
+
+class CtcKeywords(TypedDict, total=False):
+    """The fields of :class:`CtcSettings` as separate keywords (``**keywords: Unpack[CtcKeywords]``), all optional."""
+
+    qp: int
+    qt: int
+    min_pos: Corner
+    max_pos: Corner
+    resolution: float | None
+    decoded_qt: int
+    grid_size: int
+    ibsm_resolution: int | None
+    ibsm_cameras: int
+
+
+def box_longest_side(min_pos: Corner, max_pos: Corner) -> float:
+    """The longest side of the box ``min_pos..max_pos`` (the test model's PSNR peak).
+
+    Example:
+        >>> box_longest_side([0, 0, 0], [1, 2, 0.5])
+        2.0
+    """
+    return float(max(float(h) - float(lo) for lo, h in zip(min_pos, max_pos, strict=True)))
+
+
+def _is_default(name: str, value: Any) -> bool:
+    default = _DEFAULTS[name]
+    return value is None if default is None else (value is not None and value == default)
+
+
+def resolve_settings(settings: CtcSettings | None, **keywords: Any) -> CtcSettings:
+    """``settings``, or a :class:`CtcSettings` built from the functions' separate keywords.
+
+    A keyword at its field's default (``None`` for ``qp``, ``qt``, ``min_pos``, ``max_pos``, ``resolution``) counts as
+    not given, so that ``ibsm_resolution=None`` (no IBSM) is a setting and ``ibsm_resolution=2048`` is the default.
+
+    Args:
+        settings: the chain's settings, or ``None`` to build them from ``keywords``.
+        **keywords: the functions' separate keywords (``qp``, ``qt``, ``min_pos``, ``max_pos``, ...).
+
+    Raises:
+        TypeError: ``settings`` is not a :class:`CtcSettings`; both ``settings`` and a keyword are given; without
+            ``settings``, a required keyword (``qp``, ``qt``, ``min_pos``, ``max_pos``) is missing.
+
+    Example:
+        >>> s = resolve_settings(None, qp=10, qt=0, min_pos=[0] * 3, max_pos=[1] * 3, ibsm_resolution=None)
+        >>> s.grid_size, s.ibsm_resolution
+        (1024, None)
+    """
+    given = {k: v for k, v in keywords.items() if not _is_default(k, v)}
+    if settings is not None:
+        if not isinstance(settings, CtcSettings):
+            raise TypeError(f"settings: expected a CtcSettings, found {type(settings).__name__}")
+        if given:
+            name = next(iter(given))
+            raise TypeError(f"{name}: give the chain's settings either as settings= or as keywords, not both")
+        return settings
+    for name in _REQUIRED:
+        if name not in given:
+            raise TypeError(f"{name}: required (or pass settings=CtcSettings(...))")
+    return CtcSettings(**given)
+
+
+_DEFAULTS = {f.name: (None if f.default is MISSING else f.default) for f in fields(CtcSettings)}
