@@ -73,6 +73,7 @@ def test_compare_two_identical_method_folders_every_verdict_inconclusive(
     ("case", "message"),
     [
         ("missing", "no such directory"),
+        ("file", "is a file; expected a folder of frames"),
         ("count", "2 simplified frames but 3 original frames"),
         ("corrupt", "frame_01.ply"),
         ("unwritable", "does not exist"),
@@ -84,6 +85,8 @@ def test_errors_are_one_line_no_traceback_no_report(capsys, tmp_path, sequence, 
     out = tmp_path / "report.json"
     if case == "missing":
         simp = tmp_path / "nope"
+    elif case == "file":
+        simp = simp / "frame_01.ply"
     elif case == "count":
         (simp / "frame_02.ply").unlink()
     elif case == "corrupt":

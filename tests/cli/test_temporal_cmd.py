@@ -46,6 +46,8 @@ def test_bad_input_is_one_line(tmp_path, capsys):
     assert "the counts must be equal" in capsys.readouterr().err
     assert main(["temporal", str(orig), str(tmp_path / "none")]) == 1
     assert "no such directory" in capsys.readouterr().err
+    assert main(["temporal", str(next(orig.iterdir())), str(orig)]) == 1
+    assert "is a file; expected a folder of frames" in capsys.readouterr().err
     assert main(["temporal", str(orig / "g_%04d.ply"), str(orig)]) == 1
     assert "no frame file" in capsys.readouterr().err
 

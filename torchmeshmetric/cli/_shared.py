@@ -89,6 +89,8 @@ def dtype_of(args: argparse.Namespace) -> Any:
 
 def load_frames(directory: str, what: str, dtype: Any) -> list[Any]:
     """The frames of a folder (natural order), or a one-line error naming the option and the folder."""
+    if Path(directory).is_file():
+        raise CLIError(f"{what} {directory!r} is a file; expected a folder of frames")
     if not Path(directory).is_dir():
         raise CLIError(f"{what} {directory!r}: no such directory")
     try:

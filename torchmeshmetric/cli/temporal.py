@@ -63,6 +63,10 @@ def run(args: argparse.Namespace) -> int:
     sequences = []
     for what, spec in (("ORIGINAL", args.original), ("DISTORTED", args.distorted)):
         paths = frame_files(spec, what, args.first_frame, args.last_frame)
+        if isinstance(paths, str) and Path(paths).is_file():
+            raise CLIError(
+                f"{what} {spec!r} is a file; expected a folder of frames or a printf pattern such as dec_%04d.obj"
+            )
         if isinstance(paths, str) and not Path(paths).is_dir():
             raise CLIError(f"{what} {spec!r}: no such directory (or a printf pattern such as dec_%04d.obj)")
         try:
