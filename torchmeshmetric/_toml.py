@@ -15,7 +15,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10 installs tomli (pyproject's dependencies)
     import tomli as tomllib
 
-__all__ = ["read_manifest", "tomllib"]
+__all__ = ["kind_name", "read_manifest", "tomllib"]
 
 
 def read_manifest(path: str | os.PathLike[str], what: str, error: type[ValueError]) -> dict[str, Any]:
@@ -42,3 +42,25 @@ def read_manifest(path: str | os.PathLike[str], what: str, error: type[ValueErro
         raise error(f"{what} {str(file)!r}: no such file") from None
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise error(f"{what} {str(file)!r}: {exc}") from None
+
+
+#: How messages name the TOML value types a manifest key may hold.
+_KIND_NAMES = {
+    bool: "true or false",
+    int: "an integer",
+    float: "a number",
+    str: "a string",
+    list: "a list",
+    dict: "a table",
+}
+
+
+def kind_name(kinds: type | tuple[type, ...]) -> str:
+    """The TOML value type(s) ``kinds`` in words, for "'key' must be ..." messages.
+
+    Example:
+        >>> kind_name((int, float))
+        'an integer or a number'
+    """
+    kinds = kinds if isinstance(kinds, tuple) else (kinds,)
+    return " or ".join(_KIND_NAMES.get(k, f"a {k.__name__}") for k in kinds)

@@ -167,6 +167,8 @@ def test_checks_before_any_frame(campaign: tuple[Path, Path], tmp_path: Path, ca
     ("edit", "message"),
     [
         (("qp = 10", "qp = 3"), r"sequence 'sphere': 'qp' must be an integer in 7\.\.31, found 3"),
+        (("qp = 10", 'qp = "ten"'), r"sequence 'sphere': 'qp' must be an integer, found 'ten'"),
+        (("qp = 10", "qp = true"), r"sequence 'sphere': 'qp' must be an integer, found True"),
         (("rates = [1, 2]", "rates = [1, 1]"), r"condition 1: 'rates' repeats a RateId"),
         (("frame_count = 5", "frame_count = 5\ncolour = 1"), r"sequences\[0\]: unknown key 'colour'"),
         (("src_%04d.obj", "src.obj"), r"sequence 'sphere': source: expected one printf integer field"),

@@ -30,7 +30,7 @@ from typing import Any, NamedTuple
 
 from torchmeshmetric._atomic import atomic_write
 from torchmeshmetric._format import json_safe
-from torchmeshmetric._toml import read_manifest
+from torchmeshmetric._toml import kind_name, read_manifest
 from torchmeshmetric.evaluation.reports import COLUMNS, report_dict, statistic_cells
 from torchmeshmetric.evaluation.results import SequenceEvaluation
 
@@ -139,7 +139,7 @@ def load_campaign(path: str | os.PathLike[str]) -> Campaign:
         if key not in _OPTIONS:
             raise ManifestError(f"{where}: unknown option {key!r} (expected one of {sorted(_OPTIONS)})")
         if not isinstance(value, _OPTIONS[key]):
-            raise ManifestError(f"{where}: option {key!r} must be a {_OPTIONS[key].__name__}, found {value!r}")
+            raise ManifestError(f"{where}: option {key!r} must be {kind_name(_OPTIONS[key])}, found {value!r}")
     registration = options.get("registration", "full")
     if registration not in _REGISTRATIONS:
         raise ManifestError(f"{where}: option 'registration' must be 'full' or 'fast', found {registration!r}")

@@ -58,7 +58,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from torchmeshmetric._toml import read_manifest
+from torchmeshmetric._toml import kind_name, read_manifest
 from torchmeshmetric.mpeg.ctc.frame_pattern import frame_path
 from torchmeshmetric.mpeg.ctc.settings import CtcSettings, box_longest_side
 
@@ -255,8 +255,7 @@ class _Table:
         value = self.data[key]
         kinds = kind if isinstance(kind, tuple) else (kind,)
         if (isinstance(value, bool) and bool not in kinds) or not isinstance(value, kinds):
-            names = " or ".join(k.__name__ for k in kinds)
-            raise CtcManifestError(f"{self.where}: {key!r} must be a {names}, found {value!r}")
+            raise CtcManifestError(f"{self.where}: {key!r} must be {kind_name(kinds)}, found {value!r}")
         return value
 
     def int_in(self, key: str, low: int, high: int, default: Any = ...) -> Any:
