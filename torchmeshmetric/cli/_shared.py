@@ -111,14 +111,18 @@ def write_reports(
     comparisons: dict[str, Any] | None = None,
     temporal: dict[str, Any] | None = None,
     meshes: Sequence[Any] = (),
+    determinacy: Any = None,
 ) -> None:
     """Write the JSON, Markdown and CSV reports (and the --mpeg, --html ones) as one set; nothing when no --out.
 
-    ``meshes``: the layers of the ``--html`` page's viewer (:func:`html_layers`).
+    ``meshes``: the layers of the ``--html`` page's viewer (:func:`html_layers`); ``determinacy``: the
+    ``--determinacy`` measurement (the tables' digits, and ``"determinacy"`` in the JSON).
     """
     if not paths:
         return
     report = report_dict(methods, settings=settings, comparisons=comparisons)
+    if determinacy is not None:
+        report["determinacy"] = json_safe(determinacy.as_dict())
     extra = ""
     if mpeg:
         report["mpeg"] = json_safe({name: seq.as_dict() for name, seq in mpeg.items()})
@@ -131,7 +135,9 @@ def write_reports(
     written = [paths["json"], paths["md"], paths["csv"]]
     with output_set("the report"):
         write_json(paths["json"], report, overwrite=overwrite)
-        write_markdown(paths["md"], methods, overwrite=overwrite, extra=extra, comparisons=comparisons)
+        write_markdown(
+            paths["md"], methods, overwrite=overwrite, extra=extra, comparisons=comparisons, determinacy=determinacy
+        )
         write_csv(paths["csv"], methods, overwrite=overwrite)
         figures: list[tuple[str, bytes]] = []  # the --html page's PNGs besides its own
         if mpeg:
@@ -140,7 +146,9 @@ def write_reports(
             written.append(atomic_write(paths["mpeg_png"], mpeg_png, overwrite=overwrite))
             figures.append(("MPEG PSNR per frame", mpeg_png))
         if "html" in paths:
-            written.append(_write_html_report(paths, report, methods, extra, comparisons, figures, meshes, overwrite))
+            written.append(
+                _write_html_report(paths, report, methods, extra, comparisons, figures, meshes, overwrite, determinacy)
+            )
     print("wrote " + ", ".join(str(p) for p in written), file=sys.stderr)
 
 
@@ -153,6 +161,7 @@ def _write_html_report(
     figures: list[tuple[str, bytes]],
     meshes: Sequence[Any],
     overwrite: bool,
+    determinacy: Any = None,
 ) -> Path:
     """The ``--html`` page of a report: its Markdown, curves, the best pair's histograms, ``figures``, the meshes."""
     from torchmeshmetric.evaluation.reports import markdown_report
@@ -162,7 +171,7 @@ def _write_html_report(
     best = next(iter(methods.values())).best_pair_index()
     histograms = png_bytes(histogram_figure({n: r.pairs[best] for n, r in methods.items()}))
     figures = [("distance sets of the best pair", histograms), *figures]
-    markdown = markdown_report(methods, extra=extra, comparisons=comparisons)
+    markdown = markdown_report(methods, extra=extra, comparisons=comparisons, determinacy=determinacy)
     page = report_page(
         report, markdown, title=f"torchmeshmetric report: {paths['json'].stem}", figures=figures, meshes=meshes
     )
@@ -298,6 +307,32 @@ def evaluate_methods(
         )
         for name, frames in methods.items()
     }
+
+
+def determinacy_of(
+    original: list[Any],
+    methods: dict[str, list[Any]],
+    results: dict[str, Any] | None,
+    args: argparse.Namespace,
+    device: str,
+) -> Any:
+    """``--determinacy``: the same evaluation on nudged frames, compared with ``results``; ``None`` without it.
+
+    Every rank of a torchrun job runs it (the second evaluation is sharded like the first); rank 0 gets the
+    :class:`~torchmeshmetric.evaluation.determinacy.Determinacy`. The nudged run's registrations stay in memory:
+    they are not the input's, and must not enter ``--cache-dir``.
+    """
+    if getattr(args, "determinacy", None) is None:
+        return None
+    from torchmeshmetric.evaluation.determinacy import measure_determinacy, nudge_frames
+
+    print(f"--determinacy {args.determinacy}: evaluating again on nudged frames", file=sys.stderr)
+    nudged_original = nudge_frames(original, args.determinacy, seed=0)
+    nudged = {name: nudge_frames(f, args.determinacy, seed=1 + i) for i, (name, f) in enumerate(methods.items())}
+    again = evaluate_methods(nudged_original, nudged, args, device, cache=RegistrationCache())
+    if results is None or again is None:
+        return None
+    return measure_determinacy(results, again, args.determinacy)
 
 
 def evaluate_across_ranks(

@@ -21,6 +21,7 @@ def run(args: argparse.Namespace) -> int:
     """
     from torchmeshmetric.cli._outputs import check_writable, folder_inputs
     from torchmeshmetric.cli._shared import (
+        determinacy_of,
         device_of,
         dtype_of,
         evaluate_methods,
@@ -47,9 +48,10 @@ def run(args: argparse.Namespace) -> int:
     frames = {name: load_frames(d, f"--method {name}", dtype_of(args)) for name, d in specs.items()}
     cache = RegistrationCache(args.cache_dir)  # kept: the --html page shows the best pair's registration
     results = evaluate_methods(original, frames, args, device, cache=cache)
+    determinacy = determinacy_of(original, frames, results, args, device)
     if results is None:  # a torchrun rank other than 0: rank 0 reports
         return 0
-    print(paper_tables(results))
+    print(paper_tables(results, determinacy=determinacy))
     mpeg = mpeg_methods(original, frames, args)
     temporal = temporal_methods(original, frames, args, device, cache=cache)
     comparisons = None
@@ -62,9 +64,12 @@ def run(args: argparse.Namespace) -> int:
         "two_sided": not args.one_sided,
         "relative_margin": args.relative_margin,
         "dtype": args.dtype,
+        "determinacy": args.determinacy,
     }
     meshes = html_layers(results, original, frames, cache, args) if paths else []
-    write_reports(paths, results, settings, args.overwrite, mpeg, comparisons, temporal, meshes=meshes)
+    write_reports(
+        paths, results, settings, args.overwrite, mpeg, comparisons, temporal, meshes=meshes, determinacy=determinacy
+    )
     return 0
 
 

@@ -21,6 +21,7 @@ def run(args: argparse.Namespace) -> int:
     """
     from torchmeshmetric.cli._outputs import check_writable, folder_inputs
     from torchmeshmetric.cli._shared import (
+        determinacy_of,
         device_of,
         dtype_of,
         evaluate_methods,
@@ -43,9 +44,10 @@ def run(args: argparse.Namespace) -> int:
     name = args.name or Path(args.simplified).resolve().name
     cache = RegistrationCache(args.cache_dir)  # kept: the --html page shows the best pair's registration
     results = evaluate_methods(original, {name: simplified}, args, device, cache=cache)
+    determinacy = determinacy_of(original, {name: simplified}, results, args, device)
     if results is None:  # a torchrun rank other than 0: rank 0 reports
         return 0
-    print(paper_tables(results))
+    print(paper_tables(results, determinacy=determinacy))
     mpeg = mpeg_methods(original, {name: simplified}, args)
     temporal = temporal_methods(original, {name: simplified}, args, device, cache=cache)
     settings = {
@@ -53,9 +55,12 @@ def run(args: argparse.Namespace) -> int:
         "methods": {name: args.simplified},
         "two_sided": not args.one_sided,
         "dtype": args.dtype,
+        "determinacy": args.determinacy,
     }
     meshes = html_layers(results, original, {name: simplified}, cache, args) if paths else []
-    write_reports(paths, results, settings, args.overwrite, mpeg, temporal=temporal, meshes=meshes)
+    write_reports(
+        paths, results, settings, args.overwrite, mpeg, temporal=temporal, meshes=meshes, determinacy=determinacy
+    )
     return 0
 
 

@@ -155,7 +155,27 @@ def report_options() -> argparse.ArgumentParser:
     )
     output.add_argument("--overwrite", action="store_true", help="replace existing output files")
     add_html(output, "also write REPORT.html: the report as one offline page (tables, curves, 3D error viewer)")
+    output.add_argument(
+        "--determinacy",
+        default=None,
+        metavar="ROUNDING",
+        type=parse_rounding,
+        help="measure which digits this run's input determines: evaluate again with every coordinate moved by up "
+        "to one unit of the frames' storage ('float32', or N for a text file's N decimals) and print only the digits "
+        "both runs share (twice the time; docs/statistics.md)",
+    )
     return output
+
+
+def parse_rounding(text: str) -> str:
+    """``--determinacy``'s value, checked: ``"float32"`` or a number of decimals (0..15)."""
+    from torchmeshmetric.evaluation.determinacy import storage_unit
+
+    try:
+        storage_unit(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"expected 'float32' or a number of decimals 0..15, found {text!r}") from exc
+    return text
 
 
 def add_html(p: argparse.ArgumentParser, help_text: str) -> None:

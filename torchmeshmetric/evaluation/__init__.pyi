@@ -6,6 +6,7 @@
 # The public submodules (attributes of the package, as after a normal import).
 from . import campaign as campaign
 from . import comparison as comparison
+from . import determinacy as determinacy
 from . import distortions as distortions
 from . import distributed as distributed
 from . import flicker as flicker
@@ -16,6 +17,7 @@ from . import sweep as sweep
 from . import temporal_consistency as temporal_consistency
 from . import validation as validation
 from .comparison import DEFAULT_COMPARISON_STATISTICS, compare_methods, comparison_markdown, paired_t_interval
+from .determinacy import Determinacy, measure_determinacy, nudge_frames
 from .flicker import FLICKER, FlickerDistances, flicker_distances
 from .pipeline import (
     check_methods,
@@ -46,6 +48,7 @@ __all__ = [
     "FLICKER",
     "FLOOR_SET_NAMES",
     "SET_NAMES",
+    "Determinacy",
     "FlickerDistances",
     "PairEvaluation",
     "SequenceEvaluation",
@@ -59,6 +62,8 @@ __all__ = [
     "flatten_statistics",
     "flicker_distances",
     "mean_statistics",
+    "measure_determinacy",
+    "nudge_frames",
     "paired_t_interval",
     "paper_tables",
     "register_pairs",

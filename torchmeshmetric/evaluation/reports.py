@@ -21,7 +21,7 @@ import json
 import os
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from torchmeshmetric._atomic import atomic_write
 from torchmeshmetric._format import format_number, json_safe
@@ -30,11 +30,15 @@ from torchmeshmetric.evaluation.comparison import comparison_markdown
 from torchmeshmetric.evaluation.flicker import FLICKER
 from torchmeshmetric.evaluation.results import BEST_PAIR_RULE, SET_NAMES, SequenceEvaluation
 
+if TYPE_CHECKING:
+    from torchmeshmetric.evaluation.determinacy import Determinacy
+
 __all__ = [
     "COLUMNS",
     "COLUMN_FORMATS",
     "REGISTRATION_ROW",
     "markdown_report",
+    "determinacy_note",
     "paper_tables",
     "report_dict",
     "statistic_cells",
@@ -110,7 +114,9 @@ def _best_index(methods: Mapping[str, SequenceEvaluation]) -> int:
     return first.best_pair_index()
 
 
-def table_rows(methods: Mapping[str, SequenceEvaluation], table: str) -> list[tuple[str, str, dict[str, float]]]:
+def table_rows(
+    methods: Mapping[str, SequenceEvaluation], table: str, *, best: int | None = None
+) -> list[tuple[str, str, dict[str, float]]]:
     """Rows ``(algorithm, mesh, statistics)`` of one table.
 
     Per algorithm the ``(k-1)-th`` and ``k-th`` rows (and ``flicker`` in the surface tables when measured), then
@@ -120,17 +126,20 @@ def table_rows(methods: Mapping[str, SequenceEvaluation], table: str) -> list[tu
     Args:
         methods: method name → its sequence evaluation (same original sequence).
         table: ``"I"``, ``"II"``, ``"III"``, ``"IV"``, ``"III-reverse"`` or ``"IV-reverse"``.
+        best: the pair of Tables I/II (index into the pairs); default the best pair (:data:`BEST_PAIR_RULE`).
     """
-    return [row[:3] for row in _rows(methods, table)]
+    return [row[:3] for row in _rows(methods, table, best)]
 
 
-def _rows(methods: Mapping[str, SequenceEvaluation], table: str) -> list[tuple[str, str, dict[str, float], str]]:
+def _rows(
+    methods: Mapping[str, SequenceEvaluation], table: str, best: int | None = None
+) -> list[tuple[str, str, dict[str, float], str]]:
     """:func:`table_rows` with the set key of each row (``registration:residual`` for a registration row)."""
     if table not in _TITLES:
         raise ValueError(f"table: expected one of {list(_TITLES)}, found {table!r}")
     kind = _KIND[table]
     rows: list[tuple[str, str, dict[str, float], str]] = []
-    best = _best_index(methods)
+    best = _best_index(methods) if best is None else best
     for name, seq in methods.items():
         if table in ("I", "II"):
             stats = {k: s.as_dict() for k, s in seq.pairs[best].statistics.items()}
@@ -169,12 +178,17 @@ def statistic_cells(stats: Mapping[str, float]) -> list[str]:
     return [format_number(stats[k], COLUMN_FORMATS[k]) for k, _ in COLUMNS]
 
 
-def paper_tables(methods: Mapping[str, SequenceEvaluation], *, reverse: bool = True) -> str:
+def paper_tables(
+    methods: Mapping[str, SequenceEvaluation], *, reverse: bool = True, determinacy: Determinacy | None = None
+) -> str:
     """The paper's Tables I-IV (plus the two-sided check) as Markdown, the digits of :data:`COLUMN_FORMATS`.
 
     Args:
         methods: method name → sequence evaluation; all on the same original sequence.
         reverse: add the two reverse tables when the evaluations are two-sided.
+        determinacy: this run's measured determinacy (:func:`~torchmeshmetric.evaluation.determinacy.
+            measure_determinacy`): each cell then prints only the digits a second run on nudged frames left in
+            place, at most those of :data:`COLUMN_FORMATS`.
     """
     if not methods:
         raise ValueError("methods: expected at least one method, found none")
@@ -190,8 +204,12 @@ def paper_tables(methods: Mapping[str, SequenceEvaluation], *, reverse: bool = T
             continue
         title = _TITLES[table] + (f" (frames {frame - 1} -> {frame})" if table in ("I", "II") else "")
         out += [f"### {title}", "", header, rule]
-        for name, mesh, stats in rows:
-            out.append(f"| {name} | {mesh} | " + " | ".join(statistic_cells(stats)) + " |")
+        for i, (name, mesh, stats) in enumerate(rows):
+            if determinacy is None:
+                cells = statistic_cells(stats)
+            else:
+                cells = [determinacy.cell(table, i, k, stats[k], COLUMN_FORMATS[k]) for k, _ in COLUMNS]
+            out.append(f"| {name} | {mesh} | " + " | ".join(cells) + " |")
         out.append("")
     out.append(f"Best pair rule: {BEST_PAIR_RULE}. Averages: mean over pairs of each per-pair statistic.")
     out.append("")
@@ -200,9 +218,20 @@ def paper_tables(methods: Mapping[str, SequenceEvaluation], *, reverse: bool = T
         f"{REGISTRATION_ROW} rows (the same for every algorithm): the registration of original k-1 onto k, its "
         "residual (registered vertices to the surface of frame k) and, when the true motion is known, its error; "
         "differences between algorithms on the (k-1)-th and flicker rows smaller than these are not meaningful. "
-        f"Stability: {STABILITY_NOTE}"
+        f"Stability: {STABILITY_NOTE if determinacy is None else determinacy_note(determinacy)}"
     )
     return "\n".join(out) + "\n"
+
+
+def determinacy_note(determinacy: Determinacy) -> str:
+    """The note under the tables of a run with a measured determinacy (instead of :data:`STABILITY_NOTE`)."""
+    return (
+        "the tables print only the digits this run's input determines: the evaluation was repeated on the frames with "
+        f"every coordinate moved by up to one unit of its storage ({determinacy.rounding}, seed {determinacy.seed}), "
+        "and each cell keeps the digits both runs share (at most 2 significant digits, 3 for Max, one decimal for "
+        "PSNR); '~' marks a figure whose first digit moved. report.json keeps the full values and, under "
+        "'determinacy', each cell's change."
+    )
 
 
 def report_dict(
@@ -243,19 +272,25 @@ def write_markdown(
     overwrite: bool = False,
     extra: str = "",
     comparisons: Mapping[str, Any] | None = None,
+    determinacy: Determinacy | None = None,
 ) -> Path:
     """Write :func:`markdown_report` to a file, atomically."""
-    return atomic_write(path, markdown_report(methods, extra=extra, comparisons=comparisons), overwrite=overwrite)
+    text = markdown_report(methods, extra=extra, comparisons=comparisons, determinacy=determinacy)
+    return atomic_write(path, text, overwrite=overwrite)
 
 
 def markdown_report(
-    methods: Mapping[str, SequenceEvaluation], *, extra: str = "", comparisons: Mapping[str, Any] | None = None
+    methods: Mapping[str, SequenceEvaluation],
+    *,
+    extra: str = "",
+    comparisons: Mapping[str, Any] | None = None,
+    determinacy: Determinacy | None = None,
 ) -> str:
     """The text of ``report.md``: :func:`paper_tables`, ``comparisons``' verdict tables and ``extra`` Markdown.
 
-    ``extra`` is e.g. the MPEG section of ``--mpeg``.
+    ``extra`` is e.g. the MPEG section of ``--mpeg``; ``determinacy`` as in :func:`paper_tables`.
     """
-    text = "# torchmeshmetric evaluation\n\n" + paper_tables(methods)
+    text = "# torchmeshmetric evaluation\n\n" + paper_tables(methods, determinacy=determinacy)
     if comparisons:
         text += "\n## Comparisons with confidence\n\n" + comparison_markdown(comparisons)
     if extra:

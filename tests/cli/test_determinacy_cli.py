@@ -1,0 +1,85 @@
+"""``--determinacy`` on evaluate and compare: a second run on nudged frames decides the tables' digits."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from torchmeshmetric.cli import main
+
+
+def _row(markdown: str, table: str, mesh: str) -> list[str]:
+    """The cells of one row (``mesh``: ``(k-1)-th``, ``k-th``, ``flicker``) of the table titled ``table``."""
+    section = markdown.split(f"{table}\n")[1].split("\n\n")[0]
+    line = next(line for line in section.splitlines() if line.startswith(f"| simp | {mesh} |"))
+    return line.strip("| ").split(" | ")[2:]
+
+
+REVERSE_SURFACE = "reference -> simplified, mesh surface distance"
+REVERSE_VERTEX = "reference -> simplified, nearest vertex distance"
+
+
+def test_evaluate_determinacy_float32(capsys, tmp_path, sequence, known_registration):
+    orig, simp = sequence
+    plain, nudged = tmp_path / "plain.json", tmp_path / "nudged.json"
+    assert main(["evaluate", "--original", str(orig), "--simplified", str(simp), "--out", str(plain)]) == 0
+    calls = known_registration.calls
+    argv = ["evaluate", "--original", str(orig), "--simplified", str(simp), "--out", str(nudged)]
+    assert main([*argv, "--determinacy", "float32"]) == 0
+    err = capsys.readouterr().err
+    assert "--determinacy float32: evaluating again on nudged frames" in err
+    assert known_registration.calls == 3 * calls  # the run, then the run and its nudged twin
+    report = json.loads(nudged.read_text())
+    assert report["settings"]["determinacy"] == "float32"
+    determinacy = report["determinacy"]
+    assert determinacy["rounding"] == "float32" and determinacy["seed"] == 0
+    changes = determinacy["changes"]
+    assert [len(changes[t]) for t in ("I", "II", "III", "IV", "III-reverse", "IV-reverse")] == [4, 3, 4, 3, 4, 3]
+    # The spheres' reverse distances (~0.03) move by 2.7e-7 (relative) under a float32 nudge (measured,
+    # 2026-12-05): every digit holds, the row is the plain run's.
+    assert 0 < changes["III-reverse"][1]["ave"] < 1e-5
+    md, plain_md = nudged.with_suffix(".md").read_text(), plain.with_suffix(".md").read_text()
+    assert _row(md, REVERSE_SURFACE, "k-th") == _row(plain_md, REVERSE_SURFACE, "k-th")
+    assert not any(cell.startswith("~") for cell in _row(md, REVERSE_SURFACE, "k-th"))
+    # The simplified vertices lie on the original frame k: their distances are 0 in the run and ~1e-8 in its twin,
+    # so not even their first digit is the input's.
+    assert changes["III"][1]["ave"] == 1.0
+    assert all(
+        cell.startswith("~") for cell in _row(md, "Table III: average over pairs, mesh surface distance", "k-th")
+    )
+    assert "this run's input determines" in md and "this run's input determines" not in plain_md
+
+
+def test_coarse_rounding_leaves_fewer_digits(capsys, tmp_path, sequence, known_registration):
+    orig, simp = sequence
+    out = tmp_path / "r.json"
+    argv = ["evaluate", "--original", str(orig), "--simplified", str(simp), "--out", str(out), "--determinacy", "1"]
+    assert main(argv) == 0
+    changes = json.loads(out.read_text())["determinacy"]["changes"]
+    md = out.with_suffix(".md").read_text()
+    # A nudge of up to 0.1 on spheres of radius 1 (measured, 2026-12-05): the reverse surface distances' average
+    # moves by 0.53 (no digit holds), the reverse nearest-vertex one by 0.049 (one digit).
+    assert 0.1 < changes["III-reverse"][1]["ave"] < 1
+    assert _row(md, REVERSE_SURFACE, "k-th")[0].startswith("~")
+    assert 0.01 < changes["IV-reverse"][1]["ave"] < 0.1
+    ave = _row(md, REVERSE_VERTEX, "k-th")[0]
+    assert not ave.startswith("~") and len(ave.replace("0.", "").lstrip("0")) == 1
+
+
+def test_compare_determinacy(capsys, tmp_path, sequence, known_registration):
+    orig, simp = sequence
+    argv = ["compare", "--original", str(orig), "--method", f"A={simp}", "--method", f"B={simp}"]
+    assert main([*argv, "--determinacy", "6"]) == 0
+    out = capsys.readouterr().out
+    assert known_registration.calls == 4 and "this run's input determines" in out
+
+
+@pytest.mark.parametrize("bad", ["float16", "-2", "16", "x"])
+def test_bad_rounding_is_an_argument_error(capsys, sequence, bad):
+    orig, simp = sequence
+    with pytest.raises(SystemExit) as exit_info:
+        main(["evaluate", "--original", str(orig), "--simplified", str(simp), f"--determinacy={bad}"])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert "--determinacy: expected 'float32' or a number of decimals 0..15" in err and repr(bad) in err

@@ -1,0 +1,161 @@
+"""The per-run determinacy (``--determinacy``): the nudge, the digits kept, the comparison of two runs."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+import torch
+
+from torchmeshmetric import Mesh
+from torchmeshmetric.evaluation.determinacy import Determinacy, measure_determinacy, nudge_frames, storage_unit
+from torchmeshmetric.evaluation.reports import COLUMN_FORMATS, COLUMNS
+
+
+def _frame(dtype: torch.dtype) -> Mesh:
+    g = torch.Generator().manual_seed(3)
+    verts = (torch.rand(500, 3, generator=g, dtype=torch.float64) - 0.5) * 4
+    verts[:7, 1] = 0.0  # exact zeros: a float32 storage holds them exactly
+    faces = torch.randint(0, 500, (300, 3), generator=g)
+    return Mesh(verts.to(dtype), faces, validate=False)
+
+
+def test_float32_nudge_moves_coordinates_to_a_neighbour_at_most():
+    frame = _frame(torch.float32)
+    (moved,) = nudge_frames([frame], "float32")
+    assert moved.verts.dtype == torch.float32 and moved.faces is frame.faces
+    up = torch.nextafter(frame.verts, torch.full_like(frame.verts, math.inf))
+    down = torch.nextafter(frame.verts, torch.full_like(frame.verts, -math.inf))
+    v = moved.verts
+    assert bool(((v == frame.verts) | (v == up) | (v == down)).all())
+    # A uniform move of up to one spacing rounds to a neighbour for half of the coordinates (|step| > 1/2 ulp).
+    share = (v != frame.verts).double().mean().item()
+    assert 0.4 < share < 0.6, share
+    assert bool((v[:7, 1] == 0).all())
+
+
+def test_float64_nudge_is_continuous_and_within_one_float32_unit():
+    frame = _frame(torch.float64)
+    (moved,) = nudge_frames([frame], "float32", seed=5)
+    step = (moved.verts - frame.verts).abs()
+    _, exponent = torch.frexp(frame.verts.float().double())
+    unit = torch.ldexp(torch.ones_like(frame.verts), exponent - 24)
+    nonzero = frame.verts != 0
+    assert bool((step[nonzero] <= unit[nonzero]).all()) and bool((step[~nonzero] == 0).all())
+    assert (step[nonzero] > 0).double().mean().item() == 1.0
+    # Uniform in (-1, 1) units: the mean |step| is half a unit (1500 draws: within 0.05 of it, ~4 sigma).
+    assert abs((step[nonzero] / unit[nonzero]).mean().item() - 0.5) < 0.05
+
+
+def test_decimal_nudge_and_seeds():
+    frame = _frame(torch.float64)
+    a, b = nudge_frames([frame, frame], 3, seed=1)
+    again = nudge_frames([frame], "3", seed=1)[0]
+    other = nudge_frames([frame], 3, seed=2)[0]
+    assert float((a.verts - frame.verts).abs().max()) <= 1e-3
+    assert float((a.verts - frame.verts).abs().max()) > 0.9e-3  # 1500 uniform draws reach near the bound
+    assert torch.equal(a.verts, again.verts) and not torch.equal(a.verts, b.verts)
+    assert not torch.equal(a.verts, other.verts)
+
+
+@pytest.mark.parametrize("bad", ["float16", "-1", 16, True, 2.5, ""])
+def test_storage_unit_rejects_other_roundings(bad):
+    with pytest.raises(ValueError, match=r"rounding: expected 'float32' or a number of decimals 0\.\.15"):
+        storage_unit(bad)
+
+
+@pytest.mark.parametrize(
+    ("change", "value", "key", "cell"),
+    [
+        (0.0, 0.0123456, "ave", "0.012"),
+        (2e-3, 0.0123456, "ave", "0.012"),  # floor(-log10(2e-3)) = 2 digits
+        (0.013, 0.0123456, "ave", "0.01"),
+        (0.13, 0.0123456, "ave", "~0.01"),
+        (math.inf, 0.0123456, "ave", "~0.01"),
+        (1e-4, 0.0859412, "max", "0.0859"),
+        (5e-3, 0.0859412, "max", "0.086"),
+        (0.05, 2.2e-7, "var", "2e-07"),
+        (0.014, 61.274, "psnr", "61.3"),
+        (0.3, 61.274, "psnr", "61"),
+        (2.0, 61.274, "psnr", "~61"),
+        (0.0, math.inf, "psnr", "inf"),
+    ],
+)
+def test_cells_keep_the_determined_digits(change, value, key, cell):
+    d = Determinacy("float32", 0, {"III": [{key: change}]})
+    assert d.cell("III", 0, key, value, COLUMN_FORMATS[key]) == cell
+
+
+def _stats(scale: float) -> dict[str, float]:
+    return {k: scale * (i + 1) * 1e-3 for i, (k, _) in enumerate(COLUMNS)} | {"psnr": 60.0 * scale}
+
+
+class _Stats:
+    def __init__(self, scale: float):
+        self.scale = scale
+
+    def as_dict(self) -> dict[str, float]:
+        return _stats(self.scale)
+
+
+_SETS = [f"{kind}_{m}" for kind in ("surface", "vertex") for m in ("k", "k_minus_1")]
+
+
+class _Pair:
+    def __init__(self, frame, scale):
+        self.frame, self.motion = frame, 0.1 * frame
+        self.statistics = {name: _Stats(scale) for name in _SETS}
+        self.registration_statistics = _Stats(scale)
+        self.registration_error_statistics = None
+
+
+class _Sequence:
+    """The part of SequenceEvaluation that table_rows reads, with statistics scaled by ``scale``."""
+
+    def __init__(self, scale: float, frames=(1, 2)):
+        self.pairs = [_Pair(k, scale) for k in frames]
+        self.scale = scale
+
+    def best_pair_index(self):
+        return 0
+
+    def aggregate(self):
+        return {name: _stats(self.scale) for name in _SETS}
+
+    def aggregate_reverse(self):
+        return {}
+
+    def aggregate_registration(self):
+        return {"residual": _stats(self.scale)}
+
+
+def test_measure_determinacy_compares_every_cell():
+    d = measure_determinacy({"A": _Sequence(1.0)}, {"A": _Sequence(1.001)}, "float32")  # type: ignore[dict-item]
+    assert set(d.changes) == {"I", "II", "III", "IV", "III-reverse", "IV-reverse"}
+    rows = d.changes["III"]
+    assert len(rows) == 3  # (k-1)-th, k-th, the registration's residual
+    for row in rows:
+        assert row["ave"] == pytest.approx(0.001 / 1.001, rel=1e-12)
+        assert row["psnr"] == pytest.approx(0.06, rel=1e-9)  # absolute, in dB
+    assert d.as_dict()["rounding"] == "float32" and d.as_dict()["changes"]["III"] == rows
+
+
+def test_measure_determinacy_needs_the_same_pairs():
+    with pytest.raises(ValueError, match="nudged: expected the same methods and frame pairs"):
+        measure_determinacy({"A": _Sequence(1.0)}, {"B": _Sequence(1.0)}, "float32")  # type: ignore[dict-item]
+    with pytest.raises(ValueError, match="nudged: expected the same methods and frame pairs"):
+        measure_determinacy({"A": _Sequence(1.0)}, {"A": _Sequence(1.0, (1, 3))}, "float32")  # type: ignore[dict-item]
+
+
+def test_paper_tables_print_the_determined_digits():
+    from torchmeshmetric.evaluation.reports import markdown_report, paper_tables
+
+    methods = {"A": _Sequence(1.0)}
+    d = measure_determinacy(methods, {"A": _Sequence(1.05)}, "6")  # type: ignore[dict-item]
+    text = paper_tables(methods, determinacy=d)  # type: ignore[arg-type]
+    # Ave 1e-3 moved by 0.05/1.05 (relative): one digit; PSNR 60 dB moved by 3 dB: not even the units.
+    assert "| A | k-th | 0.001 | 0.002 |" in text and "| ~60 |" in text
+    assert "one unit of its storage (6 decimals, seed 0)" in text
+    plain = paper_tables(methods)  # type: ignore[arg-type]
+    assert "| A | k-th | 0.0010 | 0.0020 |" in plain and "| 60.0 |" in plain
+    assert "(6 decimals, seed 0)" in markdown_report(methods, determinacy=d)  # type: ignore[arg-type]

@@ -1,0 +1,188 @@
+"""Which digits of a report the input determines, measured per run: a second evaluation on nudged frames.
+
+A frame stored in float32, or in a text file with 6 decimals, is its true self rounded; the report's figures are
+computed through discrete choices (the registration's, a simplifier's) that can turn that rounding into a change
+far larger than itself (docs/statistics.md, "Which digits the input determines"). The tables' fixed digits
+(:data:`~torchmeshmetric.evaluation.reports.COLUMN_FORMATS`) come from a measurement on the library's own frames;
+this module measures the run at hand instead: every input frame (originals and simplified) is moved by up to one unit
+of its storage, the evaluation is repeated, and each table cell prints only the digits both runs share.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import torch
+
+from torchmeshmetric._format import format_number
+from torchmeshmetric.evaluation.results import SequenceEvaluation
+from torchmeshmetric.structures import Mesh
+
+__all__ = ["Determinacy", "measure_determinacy", "nudge_frames", "storage_unit"]
+
+#: The tables compared (those of :func:`~torchmeshmetric.evaluation.reports.paper_tables`).
+_TABLES = ("I", "II", "III", "IV", "III-reverse", "IV-reverse")
+
+
+def storage_unit(rounding: str | int) -> str:
+    """The canonical name of a storage rounding: ``"float32"`` or ``"<d> decimals"`` (``"1 decimal"``).
+
+    Args:
+        rounding: ``"float32"`` (frames stored as float32: one unit is the float32 spacing at each coordinate) or
+            the number of decimals ``d`` of a text file (one unit is ``10**-d``), as an int or a digit string.
+
+    Raises:
+        ValueError: anything else, naming ``rounding``.
+
+    Example:
+        >>> storage_unit("float32"), storage_unit(6), storage_unit("1")
+        ('float32', '6 decimals', '1 decimal')
+    """
+    if rounding == "float32":
+        return "float32"
+    if isinstance(rounding, str) and rounding.isdigit():
+        rounding = int(rounding)
+    if isinstance(rounding, int) and not isinstance(rounding, bool) and 0 <= rounding <= 15:
+        return f"{rounding} decimal{'' if rounding == 1 else 's'}"
+    raise ValueError(f"rounding: expected 'float32' or a number of decimals 0..15, found {rounding!r}")
+
+
+def nudge_frames(frames: Sequence[Mesh], rounding: str | int, *, seed: int = 0) -> list[Mesh]:
+    """The frames with every vertex coordinate moved by up to one unit of its storage, uniformly at random.
+
+    The move is drawn in float64 (a seeded CPU generator: the same draws on every machine) and the result rounded
+    to each frame's dtype, so float32 frames nudged by float32 units land on the coordinate or one of its two
+    neighbours, and float64 frames move continuously. Zero coordinates stay zero under ``"float32"`` (their
+    storage is exact). Faces are shared, not copied.
+
+    Args:
+        frames: the meshes, any length.
+        rounding: see :func:`storage_unit`.
+        seed: the generator's seed.
+
+    Returns:
+        One new :class:`Mesh` per frame: ``(V, 3)`` vertices of the frame's dtype and device, the same faces.
+
+    Example:
+        >>> mesh = Mesh(torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]]))
+        >>> moved = nudge_frames([mesh], 3)[0].verts
+        >>> bool(((moved - mesh.verts).abs() <= 1e-3).all())
+        True
+    """
+    unit_name = storage_unit(rounding)
+    generator = torch.Generator().manual_seed(seed)
+    out = []
+    for frame in frames:
+        v = frame.verts.detach().to("cpu", torch.float64)
+        if unit_name == "float32":
+            _, exponent = torch.frexp(v.to(torch.float32).to(torch.float64))
+            unit = torch.ldexp(torch.ones_like(v), exponent - 24)  # float32's spacing at |v| (24-bit significand)
+            unit = torch.where(v == 0, torch.zeros_like(v), unit)
+        else:
+            unit = torch.full_like(v, 10.0 ** -int(unit_name.split()[0]))
+        step = (torch.rand(v.shape, generator=generator, dtype=torch.float64) * 2 - 1) * unit
+        moved = (v + step).to(device=frame.verts.device, dtype=frame.verts.dtype)
+        out.append(Mesh(moved, frame.faces, validate=False))
+    return out
+
+
+def _change(a: float, b: float, relative: bool) -> float:
+    """How far ``b`` is from ``a``: relative to the larger magnitude, or absolute; 0 for equal values."""
+    if a == b or (math.isnan(a) and math.isnan(b)):
+        return 0.0
+    if not (math.isfinite(a) and math.isfinite(b)):
+        return math.inf
+    return abs(a - b) / max(abs(a), abs(b)) if relative else abs(a - b)
+
+
+@dataclass(frozen=True)
+class Determinacy:
+    """The change of every table cell between a run and a second run on nudged frames.
+
+    Attributes:
+        rounding: the storage unit the frames were nudged by (:func:`storage_unit`).
+        seed: the nudge's seed.
+        changes: per table (``"I"`` .. ``"IV-reverse"``), per row in the table's order, per statistic: the change,
+            relative to the larger magnitude for every statistic but ``psnr`` (absolute, dB).
+    """
+
+    rounding: str
+    seed: int
+    changes: Mapping[str, list[dict[str, float]]]
+
+    def cell(self, table: str, row: int, key: str, value: Any, spec: str) -> str:
+        """The cell of ``value`` with only the digits the nudge left in place (at most those of ``spec``).
+
+        A significant-digit ``spec`` (``"#.2g"``) keeps ``floor(-log10(relative change))`` digits, at least one; a
+        fixed-point one (``".1f"``) keeps ``floor(-log10(absolute change))`` decimals, at least none. A cell
+        whose first printed digit moved is prefixed with ``~``.
+
+        Example:
+            >>> d = Determinacy("float32", 0, {"III": [{"ave": 0.013, "psnr": 0.3}]})
+            >>> d.cell("III", 0, "ave", 0.0123456, "#.2g"), d.cell("III", 0, "psnr", 61.27, ".1f")
+            ('0.01', '61')
+            >>> Determinacy("float32", 0, {"III": [{"ave": 0.2}]}).cell("III", 0, "ave", 0.0123456, "#.2g")
+            '~0.01'
+            >>> Determinacy("float32", 0, {"III": [{"var": 0.05}]}).cell("III", 0, "var", 2.2e-7, "#.2g")
+            '2e-07'
+        """
+        change = self.changes[table][row][key]
+        most = int(spec.rstrip("fg").split(".")[-1])
+        digits = most if change == 0 else min(most, math.floor(-math.log10(change)) if math.isfinite(change) else -1)
+        if spec.endswith("g"):
+            # '#' keeps a significant trailing zero (0.010); with one digit it leaves a bare point ("2.e-07", "3.").
+            text = format_number(value, f"#.{max(digits, 1)}g").replace(".e", "e").rstrip(".")
+            return text if digits >= 1 else f"~{text}"
+        text = format_number(value, f".{max(digits, 0)}f")
+        return text if digits >= 0 else f"~{text}"
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready: ``{"rounding", "seed", "changes": {table: [row: {statistic: change}]}}``."""
+        return {"rounding": self.rounding, "seed": self.seed, "changes": {t: list(r) for t, r in self.changes.items()}}
+
+
+def measure_determinacy(
+    methods: Mapping[str, SequenceEvaluation],
+    nudged: Mapping[str, SequenceEvaluation],
+    rounding: str | int,
+    *,
+    seed: int = 0,
+) -> Determinacy:
+    """Compare a run's tables with those of the same evaluation on :func:`nudge_frames`' frames.
+
+    Args:
+        methods: the run's evaluations (method name → sequence evaluation).
+        nudged: the same methods evaluated on the nudged original and simplified frames (same settings).
+        rounding: the nudge's storage unit (:func:`storage_unit`).
+        seed: the nudge's seed.
+
+    Returns:
+        :class:`Determinacy` over every table of :func:`~torchmeshmetric.evaluation.reports.paper_tables`; the
+        best pair (Tables I/II) is the run's, in both.
+
+    Raises:
+        ValueError: the two runs hold other methods or other frame pairs.
+
+    Example:
+        >>> from torchmeshmetric.cli._shared import evaluate_methods  # doctest: +SKIP
+        >>> d = measure_determinacy(results, nudged_results, "float32")  # doctest: +SKIP
+        >>> paper_tables(results, determinacy=d)  # doctest: +SKIP
+    """
+    from torchmeshmetric.evaluation.reports import COLUMNS, table_rows
+
+    if list(methods) != list(nudged) or any(
+        [p.frame for p in methods[m].pairs] != [p.frame for p in nudged[m].pairs] for m in methods
+    ):
+        raise ValueError("nudged: expected the same methods and frame pairs as methods")
+    best = next(iter(methods.values())).best_pair_index() if methods else 0
+    changes: dict[str, list[dict[str, float]]] = {}
+    for table in _TABLES:
+        rows, again = table_rows(methods, table, best=best), table_rows(nudged, table, best=best)
+        changes[table] = [
+            {key: _change(float(a[2][key]), float(b[2][key]), key != "psnr") for key, _ in COLUMNS}
+            for a, b in zip(rows, again, strict=True)
+        ]
+    return Determinacy(storage_unit(rounding), seed, changes)
