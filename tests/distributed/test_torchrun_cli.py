@@ -64,6 +64,17 @@ def test_two_processes_write_the_single_process_report(tmp_path, frames, exact_r
     ]
 
 
+def test_determinacy_under_torchrun_is_the_single_process_one(tmp_path, frames, exact_registration, capsys):
+    extra = ("--determinacy", "float32")
+    assert main(_compare_args(frames, tmp_path / "single.json", "--threads", "1", *extra)) == 0
+    capsys.readouterr()
+    code, stdout, stderr = finish(torchrun(MODULE, *_compare_args(frames, tmp_path / "dist.json", *extra)))
+    assert code == 0, stderr
+    same_report_set(tmp_path / "single.json", tmp_path / "dist.json")  # the nudged run too: the same draws
+    assert "determinacy" in json.loads((tmp_path / "dist.json").read_text())
+    assert stdout.count("Table I:") == 1 and "this run's input determines" in stdout
+
+
 @pytest.mark.parametrize("fault", ["kill", "raise"])
 def test_a_failing_rank_fails_the_run_names_rank_and_pair_writes_nothing_and_rerun_resumes(
     tmp_path, frames, exact_registration, fault
