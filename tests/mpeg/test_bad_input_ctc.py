@@ -195,5 +195,5 @@ def test_ctc_frame_errors_name_ref_and_dis() -> None:
     with pytest.raises(TypeError, match=r"^ref: expected a TexturedMesh"):
         ctc_frame(q.mesh, q, **kw)  # type: ignore[arg-type]
     uv = TexturedMesh(q.mesh, torch.zeros(1, 3, 2), np.zeros((2, 2, 3), np.uint8))
-    with pytest.raises(ValueError, match=r"^dis: decoded_qt: expected an integer bit depth"):
+    with pytest.raises(ValueError, match=r"^decoded_qt: expected an integer bit depth"):  # a setting, named so
         ctc_frame(q, uv, decoded_qt=40, **kw)  # type: ignore[arg-type]

@@ -44,6 +44,33 @@ def test_resolution_type() -> None:
         CtcSettings(qp=10, qt=12, resolution="2", **BOX)  # type: ignore[arg-type]
 
 
+@pytest.mark.parametrize(
+    ("field", "value", "message"),
+    [
+        ("qp", 32, r"^qp: expected an integer bit depth in 0\.\.31, found 32"),
+        ("qp", 10.5, r"^qp: expected an integer bit depth in 0\.\.31, found 10\.5"),
+        ("qt", -1, r"^qt: expected an integer bit depth in 0\.\.31, found -1"),
+        ("decoded_qt", True, r"^decoded_qt: expected an integer bit depth in 0\.\.31, found True"),
+        ("min_pos", [0, 0], r"^min_pos: expected 3 finite numbers, found \[0, 0\]"),
+        ("max_pos", [1, float("inf"), 1], r"^max_pos: expected 3 finite numbers"),
+        ("max_pos", [1, -2, 1], r"^max_pos: \[1\.0, -2\.0, 1\.0\] is below min_pos \[-1\.0, -1\.0, -1\.0\]"),
+        ("grid_size", 1, r"^grid_size: expected an integer >= 2, found 1"),
+        ("grid_size", 1024.0, r"^grid_size: expected an integer >= 2, found 1024\.0"),
+        ("ibsm_resolution", 0, r"^ibsm_resolution: expected an integer >= 1 \(or None: no IBSM\), found 0"),
+        ("ibsm_cameras", 1, r"^ibsm_cameras: expected an integer >= 2 \(mmetric's Fibonacci sphere\), found 1"),
+    ],
+)
+def test_every_field_checked_by_name(field: str, value: object, message: str) -> None:
+    """At construction, under the field's own name (the chain's inner checks name their own arguments)."""
+    with pytest.raises(ValueError, match=message):
+        CtcSettings(**{"qp": 10, "qt": 12, **BOX, field: value})  # type: ignore[arg-type]
+
+
+def test_numpy_and_tensor_fields_accepted() -> None:
+    s = CtcSettings(qp=np.int64(10), qt=12, min_pos=torch.zeros(3), max_pos=np.ones(3), grid_size=np.int32(16))
+    assert s.peak == 1.0 and s.grid_size == 16
+
+
 def test_resolve_keywords() -> None:
     s = resolve_settings(None, qp=10, qt=0, ibsm_resolution=None, grid_size=1024, **BOX)
     assert s == CtcSettings(qp=10, qt=0, ibsm_resolution=None, **BOX)

@@ -16,6 +16,8 @@ from typing import Any, TypedDict, Union
 import numpy as np
 from torch import Tensor
 
+from torchmeshmetric.mpeg.ctc.dequantize import _bits, _corner
+
 __all__ = ["Corner", "CtcKeywords", "CtcSettings", "box_longest_side", "resolve_settings"]
 
 Corner = Union[Sequence[float], np.ndarray, Tensor]  # noqa: UP007 (a runtime alias)
@@ -40,7 +42,9 @@ class CtcSettings:
 
     Raises:
         TypeError: a ``resolution`` that is not a real number.
-        ValueError: a ``resolution`` that is not positive and finite.
+        ValueError: a ``resolution`` that is not positive and finite; a bit depth (``qp``, ``qt``, ``decoded_qt``)
+            outside 0..31; a corner that is not 3 finite numbers, or ``max_pos`` below ``min_pos``; ``grid_size``
+            below 2, ``ibsm_resolution`` below 1 or ``ibsm_cameras`` below 2 (or not integers). Each names the field.
 
     Example:
         >>> s = CtcSettings(qp=10, qt=12, min_pos=[-1, -1, -1], max_pos=[1, 1, 3])
@@ -59,7 +63,16 @@ class CtcSettings:
     ibsm_cameras: int = 16
 
     def __post_init__(self) -> None:
-        """Check the PSNR peak (the bit depths and the box are checked where they are used: dequantisation)."""
+        """Check every field here, where the caller named it, not deep in the chain under another name."""
+        for name in ("qp", "qt", "decoded_qt"):
+            _bits(getattr(self, name), name)
+        lo, hi = _corner(self.min_pos, "min_pos", 3), _corner(self.max_pos, "max_pos", 3)
+        if (hi < lo).any():
+            raise ValueError(f"max_pos: {hi.tolist()} is below min_pos {lo.tolist()}")
+        _at_least(self.grid_size, "grid_size", 2)
+        if self.ibsm_resolution is not None:
+            _at_least(self.ibsm_resolution, "ibsm_resolution", 1, "(or None: no IBSM)")
+        _at_least(self.ibsm_cameras, "ibsm_cameras", 2, "(mmetric's Fibonacci sphere)")
         r = self.resolution
         if r is None:
             return
@@ -93,6 +106,11 @@ class CtcKeywords(TypedDict, total=False):
     grid_size: int
     ibsm_resolution: int | None
     ibsm_cameras: int
+
+
+def _at_least(value: Any, name: str, low: int, note: str = "") -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+        raise ValueError(f"{name}: expected an integer >= {low}{' ' + note if note else ''}, found {value!r}")
 
 
 def box_longest_side(min_pos: Corner, max_pos: Corner) -> float:
