@@ -145,7 +145,12 @@ def spearman(x: list[float], y: list[float]) -> float:
 
 
 def validate(
-    folder: Path, num_frames: int, log: Callable[[str], None], remesher: str = "exact", keep_first: bool = False
+    folder: Path,
+    num_frames: int,
+    log: Callable[[str], None],
+    remesher: str = "exact",
+    keep_first: bool = False,
+    true_correspondence: bool = False,
 ) -> dict[str, object]:
     frames = load_sequence(folder, dtype=torch.float64)[:num_frames]
     faces = frames[0].faces
@@ -157,7 +162,12 @@ def validate(
     if keep_first:  # the tracked set is A's own frame 0 (its vertices and edges), as when the original is captured
         remeshed[0] = Mesh(a[0], faces)
     t0 = time.perf_counter()
-    tracking = track_original(remeshed)
+    registrations = None
+    if true_correspondence:  # the ceiling of any tracking: each remeshed point at its barycentric place on A
+        from tests.temporal.test_exact_remesh import _true_registrations  # (that module imports this one)
+
+        registrations = _true_registrations(a, faces, remeshed)
+    tracking = track_original(remeshed, registrations=registrations)
     seconds = time.perf_counter() - t0
     log(f"{folder.name}: {a.shape[1]} vertices, {a.shape[0]} frames; registrations + tracking {seconds:.1f} s")
     rows = []
@@ -192,6 +202,7 @@ def validate(
         "frames": int(a.shape[0]),
         "remesh": remesher,
         "keep_first": keep_first,
+        "true_correspondence": true_correspondence,
         "rows": rows,
     }
 
@@ -269,6 +280,11 @@ def main() -> None:
     parser.add_argument(
         "--keep-first", action="store_true", help="original frame 0 not remeshed: the tracked set is A's own frame 0"
     )
+    parser.add_argument(
+        "--true-correspondence",
+        action="store_true",
+        help="track by the true correspondence instead of the registration (--remesh exact): any tracking's ceiling",
+    )
     parser.add_argument("--out", type=Path, default=Path("/tmp/temporal-validation.json"))
     parser.add_argument("--markdown", action="store_true", help="print the tables of --out (written before) and stop")
     args = parser.parse_args()
@@ -277,7 +293,10 @@ def main() -> None:
         return
     results = []
     for folder in args.models:
-        result = validate(folder, args.frames, lambda s: print(s, flush=True), args.remesh, args.keep_first)
+        if args.true_correspondence and args.remesh != "exact":
+            parser.error("--true-correspondence needs --remesh exact (the remeshed points on A's surface)")
+        log = lambda s: print(s, flush=True)  # noqa: E731
+        result = validate(folder, args.frames, log, args.remesh, args.keep_first, args.true_correspondence)
         result["summary"] = summary(result)
         print(json.dumps(result["summary"], indent=1), flush=True)
         results.append(result)
