@@ -116,14 +116,15 @@ def embedded_deformation(
 class DeformationGraph(nn.Module):
     """Embedded deformation graph over a source mesh (Sumner et al. 2007), parameters at the identity.
 
-    Nodes are chosen by farthest-point sampling among the referenced vertices (vertices of positive-area faces)
-    so that every surface vertex is within ``node_spacing * diagonal`` of a node. All vertices, unreferenced ones
-    included, are skinned to their ``num_neighbors`` nearest nodes (Euclidean; see the module docstring).
+    Nodes are chosen by farthest-point sampling among the referenced vertices (the vertices of any face, zero-area
+    ones included) so that every one of them is within ``node_spacing * diagonal`` of a node. All vertices,
+    unreferenced ones included, are skinned to their ``num_neighbors`` nearest nodes (Euclidean; see the module
+    docstring).
     Two nodes are graph neighbours when they influence a common vertex (Sumner's rule).
 
     Args:
         verts: ``(V, 3)`` source vertices (rest pose).
-        faces: ``(F, 3)`` source faces (used to find the referenced vertices).
+        faces: ``(F, 3)`` source faces (used to find the referenced vertices; at least one of positive area).
         node_spacing: node covering radius relative to the bounding-box diagonal of the referenced vertices.
         num_neighbors: nodes per vertex ``K``.
 
@@ -157,10 +158,13 @@ class DeformationGraph(nn.Module):
         if num_neighbors < 1:
             raise ValueError(f"num_neighbors: expected at least 1, found {num_neighbors}")
         verts = verts.detach()
-        used = Mesh(verts, faces, validate=False).surface_vertex_mask()
-        if not bool(used.any()):
+        mesh = Mesh(verts, faces, validate=False)
+        if not bool(mesh.surface_face_mask().any()):
             raise EmptyInputError("faces: expected at least one face of positive area, found none")
-        cand = verts[used]
+        # The candidates are the vertices of every face, zero-area ones included (they lie on the surface too): whether
+        # a collinear face has a normal depends on the input's rounding (float32 rounding gives it one), and its
+        # midpoint vertex would otherwise join or leave the candidates, and could become a node (docs/statistics.md).
+        cand = verts[mesh.referenced_vertex_mask()]
         diag = float((cand.amax(0) - cand.amin(0)).norm())
         nodes = cand[farthest_point_nodes(cand, node_spacing * diag)]
         idx, w = skinning_weights(verts, nodes, num_neighbors)

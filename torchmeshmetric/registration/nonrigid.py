@@ -136,9 +136,10 @@ def register_nonrigid(
     """Register ``source`` (frame k-1) non-rigidly onto ``target`` (frame k), keeping the source's topology.
 
     Works on frames as they come out of capture — duplicate and unreferenced vertices, zero-length edges,
-    zero-area faces — without cleaning: nodes and data points come from vertices of positive-area faces only,
-    unreferenced vertices still move with the graph's skinning, zero-area faces carry no normal so they skip the
-    point-to-plane term, and the closest-point kernel is exact on degenerate triangles.
+    zero-area faces — without cleaning: data points come from vertices of positive-area faces only (nodes and the
+    rigid stage's points from the vertices of any face), unreferenced vertices still move with the graph's skinning,
+    zero-area faces carry no normal so they skip the point-to-plane term, and the closest-point kernel is exact on
+    degenerate triangles.
 
     What is computed is set by ``options`` and ``keywords`` (any field of :class:`NonRigidOptions`, e.g.
     ``num_points=1000``, ``schedule=DEFAULT_SCHEDULE[:2]``; a keyword overrides the same field of ``options``).
@@ -319,8 +320,9 @@ class _Fit:
         src, tgt = frame.source, frame.target
         dev = src.device
         self.frame, self.opts, self.backend, self.timings = frame, opts, backend, timings
+        # Node candidates from every source face, not only those with a normal (see DeformationGraph).
         self.graph = DeformationGraph(
-            src.verts, src.faces, node_spacing=opts.node_spacing, num_neighbors=opts.num_neighbors
+            src.verts, frame.faces, node_spacing=opts.node_spacing, num_neighbors=opts.num_neighbors
         ).to(dev)
         # The data points and the target samples are drawn over every vertex and every face, not over the surface
         # ones only: a rounding of the input that makes a face degenerate (6 decimals did on 2 of the demo's 40k faces)

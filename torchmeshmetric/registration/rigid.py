@@ -262,7 +262,9 @@ def register_rigid(
         trim: fraction of matches kept per iteration, in ``(0, 1]``.
         robust_scale: Geman-McClure scale relative to the target diagonal (``inf`` disables the kernel).
         tolerance: stopping threshold on the samples' RMS motion per iteration, relative to the diagonal.
-        num_samples: maximum number of source vertices used per iteration (a fixed random subset).
+        num_samples: maximum number of source vertices used per iteration (a fixed random subset of the vertices of
+            any face: drawn among those of faces with a normal, a rounding that gives a zero-area face one would
+            renumber the list and redraw every point).
         align_centroids: start by translating the source's vertex centroid onto the target's.
         init: optional ``(4, 4)`` initial transform (replaces ``align_centroids``).
         generator: optional ``torch.Generator`` for the sample subset.
@@ -298,7 +300,9 @@ def register_rigid(
     )
     src, tgt = validate_pair(source, target)
     dtype, device = src.verts.dtype, src.verts.device
-    used = src.surface_vertex_mask()
+    # The vertices of any face (topology only), not of faces with a normal: which zero-area faces have a computed
+    # normal depends on the input's rounding (docs/registration.md, "Stability", item 7).
+    used = src.referenced_vertex_mask()
     pts_all = src.verts[used]
     if pts_all.shape[0] > num_samples:
         perm = torch.randperm(pts_all.shape[0], generator=generator, device="cpu")[:num_samples].to(device)
@@ -350,7 +354,7 @@ def _initial_transform(
     """``(R, t, s)`` ICP starts from.
 
     ``init`` (projected onto a rotation unless ``scale``), else the identity, translated so that the centroids of the
-    surface vertices meet when ``align_centroids``.
+    referenced vertices (of any face) meet when ``align_centroids``.
     """
     dtype, device = src.dtype, src.device
     if init is not None:
@@ -367,7 +371,7 @@ def _initial_transform(
     s = torch.ones((), dtype=dtype, device=device)
     t = torch.zeros(3, dtype=dtype, device=device)
     if align_centroids:
-        t = tgt.verts[tgt.surface_vertex_mask()].mean(0) - pts_all.mean(0)
+        t = tgt.verts[tgt.referenced_vertex_mask()].mean(0) - pts_all.mean(0)
     return R, t, s
 
 
