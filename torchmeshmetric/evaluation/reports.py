@@ -84,8 +84,8 @@ STABILITY_NOTE = (
     "the tables print only the digits that the input determines: rounding frames of ~20k vertices from float64 to "
     "float32 moves Ave, Var, STD, MSE, RMSE and P95 by up to 5e-3 (relative), Max by 5e-5 and PSNR by 0.014 dB "
     "(measured, docs/statistics.md), hence 2 significant digits, 3 for Max and one decimal for PSNR; frames "
-    "stored with 6 decimals or with capture defects are determined to about 1 digit. Compare methods to those "
-    "digits; report.json keeps the full values."
+    "stored with 6 decimals or with capture defects may hold fewer: --determinacy measures this run's digits. "
+    "Compare methods to those digits; report.json keeps the full values."
 )
 """What the measured determinacy of the figures (``tests/evaluation/report_determinacy.py``) says about their
 digits; printed under the report's tables."""
