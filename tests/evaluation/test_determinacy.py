@@ -54,8 +54,23 @@ def test_decimal_nudge_and_seeds():
     other = nudge_frames([frame], 3, seed=2)[0]
     assert float((a.verts - frame.verts).abs().max()) <= 1e-3
     assert float((a.verts - frame.verts).abs().max()) > 0.9e-3  # 1500 uniform draws reach near the bound
-    assert torch.equal(a.verts, again.verts) and not torch.equal(a.verts, b.verts)
+    assert torch.equal(a.verts, again.verts) and torch.equal(a.verts, b.verts)  # a function of the values
     assert not torch.equal(a.verts, other.verts)
+
+
+def test_nudge_keeps_coincidences_as_storage_does():
+    """Equal coordinates move alike, whatever their vertex, mesh or order; the axes move independently."""
+    frame = _frame(torch.float32)
+    perm = torch.randperm(500, generator=torch.Generator().manual_seed(1))
+    doubled = Mesh(torch.cat([frame.verts, frame.verts[perm]]), frame.faces, validate=False)
+    (moved,) = nudge_frames([doubled], "float32")
+    assert torch.equal(moved.verts[500:], moved.verts[:500][perm])  # duplicates stay duplicates
+    subset = Mesh(frame.verts[::7].clone(), frame.faces[:1] % 72, validate=False)  # kept positions of a "simplified"
+    a, b = nudge_frames([frame, subset], "float32")
+    assert torch.equal(b.verts, a.verts[::7])
+    diagonal = Mesh(torch.full((1, 3), 0.7, dtype=torch.float64), torch.zeros(1, 3, dtype=torch.int64), validate=False)
+    step = nudge_frames([diagonal], 6)[0].verts - 0.7
+    assert len(set(step.flatten().tolist())) == 3  # not along the diagonal only
 
 
 @pytest.mark.parametrize("bad", ["float16", "-1", 16, True, 2.5, ""])

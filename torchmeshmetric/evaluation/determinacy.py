@@ -15,6 +15,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 import torch
 
 from torchmeshmetric._format import format_number
@@ -51,17 +52,21 @@ def storage_unit(rounding: str | int) -> str:
 
 
 def nudge_frames(frames: Sequence[Mesh], rounding: str | int, *, seed: int = 0) -> list[Mesh]:
-    """The frames with every vertex coordinate moved by up to one unit of its storage, uniformly at random.
+    """The frames with every vertex coordinate moved by up to one unit of its storage, as a function of its value.
 
-    The move is drawn in float64 (a seeded CPU generator: the same draws on every machine) and the result rounded
-    to each frame's dtype, so float32 frames nudged by float32 units land on the coordinate or one of its two
-    neighbours, and float64 frames move continuously. Zero coordinates stay zero under ``"float32"`` (their
-    storage is exact). Faces are shared, not copied.
+    Each coordinate ``x`` (of axis ``a``) moves by ``u * unit(x)`` with ``u`` in ``[-1, 1)`` drawn from a hash of
+    ``(x, a, seed)`` (splitmix64 of the float64 bits: the same on every machine, whatever the vertex order). Like
+    the storage's own rounding, the nudge is a function of the stored value: equal coordinates move alike, so
+    coincident vertices (a captured frame's duplicates, a simplified vertex kept at an original's position) stay
+    coincident, where independent draws would pull them apart and measure a change the storage cannot make. The
+    move is computed in float64 and the result rounded to each frame's dtype, so float32 frames nudged by float32
+    units land on the coordinate or one of its two neighbours, and float64 frames move continuously. Zero
+    coordinates stay zero under ``"float32"`` (their storage is exact). Faces are shared, not copied.
 
     Args:
-        frames: the meshes, any length.
+        frames: the meshes, any length (nudge the originals and the simplified frames with the same ``seed``).
         rounding: see :func:`storage_unit`.
-        seed: the generator's seed.
+        seed: mixed into the hash: another seed, another nudge.
 
     Returns:
         One new :class:`Mesh` per frame: ``(V, 3)`` vertices of the frame's dtype and device, the same faces.
@@ -73,7 +78,6 @@ def nudge_frames(frames: Sequence[Mesh], rounding: str | int, *, seed: int = 0) 
         True
     """
     unit_name = storage_unit(rounding)
-    generator = torch.Generator().manual_seed(seed)
     out = []
     for frame in frames:
         v = frame.verts.detach().to("cpu", torch.float64)
@@ -83,10 +87,28 @@ def nudge_frames(frames: Sequence[Mesh], rounding: str | int, *, seed: int = 0) 
             unit = torch.where(v == 0, torch.zeros_like(v), unit)
         else:
             unit = torch.full_like(v, 10.0 ** -int(unit_name.split()[0]))
-        step = (torch.rand(v.shape, generator=generator, dtype=torch.float64) * 2 - 1) * unit
+        step = torch.from_numpy(_hashed_uniform(v.numpy(), seed)) * unit
         moved = (v + step).to(device=frame.verts.device, dtype=frame.verts.dtype)
         out.append(Mesh(moved, frame.faces, validate=False))
     return out
+
+
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+
+
+def _hashed_uniform(values: np.ndarray, seed: int) -> np.ndarray:
+    """``(V, 3)`` uniform numbers in ``[-1, 1)``, each a function of its value's float64 bits, its axis and ``seed``.
+
+    splitmix64 (Steele, Lea and Flood, 2014) in numpy's wrapping uint64 arithmetic; ``-0.0`` counts as ``0.0``.
+    """
+    bits = np.ascontiguousarray(values + 0.0, dtype=np.float64).view(np.uint64)
+    axis = np.arange(values.shape[-1], dtype=np.uint64) * np.uint64(0xD1B54A32D192ED03)
+    salt = np.full(1, seed & 0xFFFFFFFFFFFFFFFF, dtype=np.uint64) * _GOLDEN  # an array: wraps without a warning
+    z = (bits ^ axis ^ salt) + _GOLDEN
+    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    z = z ^ (z >> np.uint64(31))
+    return (z >> np.uint64(11)).astype(np.float64) * 2.0**-52 - 1.0
 
 
 def _change(a: float, b: float, relative: bool) -> float:
