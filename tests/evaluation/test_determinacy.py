@@ -174,3 +174,13 @@ def test_paper_tables_print_the_determined_digits():
     plain = paper_tables(methods)  # type: ignore[arg-type]
     assert "| A | k-th | 0.0010 | 0.0020 |" in plain and "| 60.0 |" in plain
     assert "(6 decimals, seed 0)" in markdown_report(methods, determinacy=d)  # type: ignore[arg-type]
+
+
+@pytest.mark.pinned
+def test_nudge_is_the_same_bits_on_every_machine():
+    """Integer hashing and IEEE-exact float steps only: the nudge (hence --determinacy's report) is pinned."""
+    mesh = Mesh(torch.tensor([[0.25, -1.5, 3.0]], dtype=torch.float64), torch.zeros(1, 3, dtype=torch.int64))
+    moved = [x.hex() for x in nudge_frames([mesh], "float32")[0].verts.flatten().tolist()]
+    assert moved == ["0x1.fffffd5d91647p-3", "-0x1.8000013405ec8p+0", "0x1.800000f9b5064p+1"]
+    moved = [x.hex() for x in nudge_frames([mesh], 6, seed=7)[0].verts.flatten().tolist()]
+    assert moved == ["0x1.0000060cef8b3p-2", "-0x1.80000dfbdcf97p+0", "0x1.800000e2963fap+1"]
