@@ -220,10 +220,16 @@ struct Shot {
   float p2[2];
 };
 
-// A face that may draw a pixel: its index and the pixel rectangle [xs, xe] x [ys, ye] it scans.
-struct Scan {
+// A face that may draw a pixel: its index, the pixel rectangle [xs, xe] x [ys, ye] it scans and what draw_band
+// reads of its corners (the screen edges A = p2.x - p0.x, B = p1.x - p0.x, C = p2.y - p0.y, D = p1.y - p0.y, corner 0's
+// screen position, the clip depths, whether every w is 1), set up once per face rather than once per band and read
+// as one cache line: the corners' vertices lie anywhere in memory.
+struct alignas(64) Scan {
   int64_t t;
   int xs, xe, ys, ye;
+  float A, B, C, D, x0, y0;
+  float z[3];
+  bool unit_w;
 };
 
 // One mesh seen by one camera: every vertex transformed once (a face's corners repeat the same operations on the
@@ -271,9 +277,24 @@ void prepare(const MeshView& m, const Camera& cam, int width, int height, bool c
     // corners aside); it is empty where bmin lies a pixel or more past the last pixel or bmax at or below -1 (and
     // converting such a bound to int could overflow)
     if (!(bmin[0] < clampv[0] + 1.0F && bmin[1] < clampv[1] + 1.0F && bmax[0] > -1.0F && bmax[1] > -1.0F)) continue;
-    const Scan sc = {t, static_cast<int>(bmin[0]), static_cast<int>(bmax[0]), static_cast<int>(bmin[1]),
-                     static_cast<int>(bmax[1])};
+    Scan sc;
+    sc.t = t;
+    sc.xs = static_cast<int>(bmin[0]);
+    sc.xe = static_cast<int>(bmax[0]);
+    sc.ys = static_cast<int>(bmin[1]);
+    sc.ye = static_cast<int>(bmax[1]);
     if (sc.xs > sc.xe || sc.ys > sc.ye) continue;
+    const V4 &p0 = corner[0]->pts, &p1 = corner[1]->pts, &p2 = corner[2]->pts;
+    sc.A = p2.x - p0.x;
+    sc.B = p1.x - p0.x;
+    sc.C = p2.y - p0.y;
+    sc.D = p1.y - p0.y;
+    sc.x0 = p0.x;
+    sc.y0 = p0.y;
+    for (int k = 0; k < 3; ++k) sc.z[k] = corner[k]->clip.z;
+    // a finite vertex's w is 1 (the camera is orthographic: the last row of its matrices is (0, 0, 0, 1)), and a
+    // division by 1 is exact: draw_band then skips it
+    sc.unit_w = p0.w == 1.0F && p1.w == 1.0F && p2.w == 1.0F;
     out.scans.push_back(sc);
   }
   const int64_t bands = (height + band_rows - 1) / band_rows;
@@ -303,9 +324,6 @@ void draw_band(const MeshView& m, const Raster& r, int width, int64_t band, Targ
   for (int64_t b = r.band_start[band]; b < r.band_start[band + 1]; ++b) {
     const Scan& sc = r.scans[r.band_scans[b]];
     const int64_t t = sc.t;
-    const Shot* corner[3] = {&r.shot[m.faces[t * 3]], &r.shot[m.faces[t * 3 + 1]], &r.shot[m.faces[t * 3 + 2]]};
-    const V4 clip[3] = {corner[0]->clip, corner[1]->clip, corner[2]->clip};
-    const V4 pts[3] = {corner[0]->pts, corner[1]->pts, corner[2]->pts};
     const float* uv = textured ? m.uvs + t * 6 : nullptr;
     // Row by row (a face writes each pixel once, so the order within a face changes nothing but memory locality).
     // u = cross(a, b) below, with a = (A, B, p0.x - x) and b = (C, D, p0.y - y): its z is the face's constant, its
@@ -313,41 +331,42 @@ void draw_band(const MeshView& m, const Raster& r, int width, int64_t band, Targ
     // lane), which keeps only the pixels past the exact early exit: u.y / u.z and u.x / u.z are negative exactly when
     // the numerator is non-zero and the signs differ (finite values; no quotient of pixel-scale values underflows
     // to -0), i.e. u < 0 for u.z >= +0, !(u <= 0) for u.z <= -0; no exit when u.z is not finite.
-    const float A = pts[2].x - pts[0].x, B = pts[1].x - pts[0].x;
-    const float C = pts[2].y - pts[0].y, D = pts[1].y - pts[0].y;
+    const float A = sc.A, B = sc.B, C = sc.C, D = sc.D, x0 = sc.x0;
     const float uz = A * D - C * B;
     const bool exits = std::isfinite(uz), negative = std::signbit(uz);
-    // a finite vertex's w is 1 (the camera is orthographic: the last row of its matrices is (0, 0, 0, 1)), and a
-    // division by 1 is exact: bc = bs
-    const bool unit_w = pts[0].w == 1.0F && pts[1].w == 1.0F && pts[2].w == 1.0F;
+    // w = 1 at every corner: bc = bs (prepare); otherwise the corners' w
+    const bool unit_w = sc.unit_w;
+    float w[3] = {1.0F, 1.0F, 1.0F};
+    if (!unit_w)
+      for (int k = 0; k < 3; ++k) w[k] = r.shot[m.faces[t * 3 + k]].pts.w;
     const int xs = sc.xs, n = sc.xe - sc.xs + 1;
     for (int y = std::max(sc.ys, y0); y <= std::min(sc.ye, y_end - 1); ++y) {
-      const float bz = pts[0].y - static_cast<float>(y);
+      const float bz = sc.y0 - static_cast<float>(y);
       const float Bbz = B * bz, bzA = bz * A;
       if (!exits) {
         std::fill(kp, kp + n, uint8_t(1));
       } else if (!negative) {
         for (int k = 0; k < n; ++k) {
-          const float az = pts[0].x - static_cast<float>(xs + k);
+          const float az = x0 - static_cast<float>(xs + k);
           const float ux = Bbz - D * az, uy = az * C - bzA;
-          kp[k] = static_cast<uint8_t>(!(ux < 0.0F) & !(uy < 0.0F));
+          kp[k] = static_cast<uint8_t>(!(ux < 0.0F) & !(uy < 0.0F) & !(ux + uy > uz));
         }
       } else {
         for (int k = 0; k < n; ++k) {
-          const float az = pts[0].x - static_cast<float>(xs + k);
+          const float az = x0 - static_cast<float>(xs + k);
           const float ux = Bbz - D * az, uy = az * C - bzA;
-          kp[k] = static_cast<uint8_t>((ux <= 0.0F) & (uy <= 0.0F));
+          kp[k] = static_cast<uint8_t>((ux <= 0.0F) & (uy <= 0.0F) & !(ux + uy < uz));
         }
       }
       for (int k = 0; k < n; ++k) {
         if (!kp[k]) continue;
         const int x = xs + k;
-        const V3 a = {A, B, pts[0].x - static_cast<float>(x)};
+        const V3 a = {A, B, x0 - static_cast<float>(x)};
         const V3 b = {C, D, bz};
         const V3 u = cross(a, b);
         const V3 bs = {1.0F - (u.x + u.y) / u.z, u.y / u.z, u.x / u.z};
-        const V3 bc = unit_w ? bs : V3{bs.x / pts[0].w, bs.y / pts[1].w, bs.z / pts[2].w};
-        const float depth = dot({clip[0].z, clip[1].z, clip[2].z}, bc);
+        const V3 bc = unit_w ? bs : V3{bs.x / w[0], bs.y / w[1], bs.z / w[2]};
+        const float depth = dot({sc.z[0], sc.z[1], sc.z[2]}, bc);
         if (std::isnan(depth)) continue;
         const int64_t i = x + static_cast<int64_t>(y - y0) * width;
         if (bs.x < 0 || bs.y < 0 || bs.z < 0 || depth <= zbuf[i]) continue;
@@ -464,6 +483,19 @@ torch::Tensor ibsm_sums(torch::Tensor va, torch::Tensor fa, torch::Tensor uva, t
                 continue;
               }
               r[0] += 1;
+              // equal colours add +0 to every colour sum and count no NaN (the same bytes give the same floats,
+              // whose differences are +0); a sum is never -0 (it starts at +0 and adds squares), so adding +0
+              // leaves it unchanged: skipped
+              if (ca[i * 4] == cb[i * 4] && ca[i * 4 + 1] == cb[i * 4 + 1] && ca[i * 4 + 2] == cb[i * 4 + 2]) {
+                double g = (static_cast<double>(za[i]) - static_cast<double>(zb[i])) * 255.0 / sig;
+                g = g * g;
+                if (std::isnan(g)) {
+                  g = 0.0;
+                  r[10] += 1;
+                }
+                r[8] += g;
+                continue;
+              }
               const float ra = ca[i * 4], ga = ca[i * 4 + 1], ba = ca[i * 4 + 2];
               const float rb = cb[i * 4], gb = cb[i * 4 + 1], bb = cb[i * 4 + 2];
               const float ya[3] = {0.2126F * ra + 0.7152F * ga + 0.0722F * ba,

@@ -342,7 +342,15 @@ void visit(const ColumnGrid& g, const float* q, double r, Best& best) {
       const float* first = zs + g.start[col];
       const float* last = zs + g.start[col + 1];
       if (first == last) continue;
-      const float* it = std::lower_bound(first, last, zlo, [](float z, double v) { return z < v; });
+      // std::lower_bound's answer (the first z >= zlo) without its unpredictable branches: the range holding the
+      // answer halved by a conditional move
+      const float* it = first;
+      for (int64_t len = last - first; len > 1;) {
+        const int64_t half = len / 2;
+        it = it[half - 1] < zlo ? it + half : it;
+        len -= half;
+      }
+      if (it != last && *it < zlo) ++it;
       for (; it != last && *it <= zhi; ++it) {
         const int64_t s = it - zs;
         const double sq = mpeg_sq(q[0], q[1], q[2], xs[s], ys[s], ws[s]);
