@@ -543,9 +543,10 @@ def _row_hashes(keys: list[np.ndarray]) -> np.ndarray:
 def unique_vertex_rows(pos: np.ndarray, nrm: np.ndarray, col: np.ndarray | None) -> np.ndarray:
     """Rows mmetric's ``ModelBuilder`` keeps: the first of the points equal in position, normal and colour (sorted).
 
-    Equal rows are found through a 64-bit hash of their values, sorted (in C++ for float32 keys, otherwise in
-    numpy): one integer sort instead of a lexicographic sort of six to nine keys. Rows with equal hashes are compared
-    value by value (in numpy, a collision falls back to the lexicographic sort), so the result is exact either way.
+    Equal rows are found through a 64-bit hash of their values: in C++ for float32 keys (the rows in order through a
+    hash table of the rows kept so far), otherwise in numpy (the hashes sorted: one integer sort instead of a
+    lexicographic sort of six to nine keys). Rows with equal hashes are compared value by value (in numpy, a collision
+    falls back to the lexicographic sort), so the result is exact either way.
 
     Example:
         >>> p = np.array([[0, 0, 0], [0, 0, 0], [1, 0, 0]], np.float32)
@@ -555,7 +556,7 @@ def unique_vertex_rows(pos: np.ndarray, nrm: np.ndarray, col: np.ndarray | None)
     keys = [pos, nrm] if col is None else [pos, nrm, col]
     ext = _native()
     if ext is not None and all(k.dtype == np.float32 and k.ndim == 2 for k in keys):
-        # the same rows through a sort of hashed rows in C++ (float32 keys: compared as the values they are)
+        # the same rows through a hash table in C++ (float32 keys: compared as the values they are)
         return ext.unique_rows([torch.from_numpy(np.ascontiguousarray(k)) for k in keys]).numpy()
     h = _row_hashes(keys)
     order = np.argsort(h, kind="stable")  # equal hashes stay in index order: the first of a run is the one kept
