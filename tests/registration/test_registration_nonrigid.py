@@ -105,6 +105,24 @@ def test_failed_registration_is_reported():
     assert not r.converged and r.reason
 
 
+def test_uncovered_target_part_is_reported_at_one_percent():
+    # A target part the registered source does not reach: the footprint of a limb registered onto another limb (on
+    # horse-gallop 3 -> 4, 2.4 % of the target samples farther than 2 % of the diagonal while the residuals stay
+    # small; docs/registration.md, "Known failure"). Here a far sphere with 3.8 % of the target's area: the default
+    # max_outlier_fraction (10 %) passes it, the 1 % that docs/registration.md suggests reports it (4.3 % of the
+    # samples, measured).
+    big = trimesh.creation.icosphere(subdivisions=3)
+    small = trimesh.creation.icosphere(subdivisions=2, radius=0.2)
+    small.vertices += [3.0, 0.0, 0.0]
+    tgt = trimesh.util.concatenate([big, small])
+    quick = {"schedule": DEFAULT_SCHEDULE[-2:]}  # each call draws with a fresh generator seeded with 0
+    assert register_nonrigid(big, tgt, **quick).converged
+    with pytest.warns(RegistrationWarning, match=r"0\.0% of source vertices and 4\.3% of target samples"):
+        r = register_nonrigid(big, tgt, max_outlier_fraction=0.01, **quick)
+    assert not r.converged and r.reason.startswith("implausible fit")
+    assert float(r.residual.max()) < 0.02 * float(torch.tensor(tgt.extents).norm())  # the residual does not see it
+
+
 def test_divergence_is_detected():
     src = trimesh.creation.icosphere(subdivisions=2)
     tgt = trimesh.creation.icosphere(subdivisions=2)
