@@ -468,6 +468,16 @@ torch::Tensor ibsm_sums(torch::Tensor va, torch::Tensor fa, torch::Tensor uva, t
         // added in the same order and stored once
         double r[11] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
         const double sig = cam.depth_range;
+        // the depth term of a pixel covered in both renderings (NaN counted and left out)
+        const auto add_depth = [&](size_t i) {
+          double g = (static_cast<double>(za[i]) - static_cast<double>(zb[i])) * 255.0 / sig;
+          g = g * g;
+          if (std::isnan(g)) {
+            g = 0.0;
+            r[10] += 1;
+          }
+          r[8] += g;
+        };
         for (int64_t band = 0; band * BAND_ROWS < h; ++band) {
           const int first = static_cast<int>(band * BAND_ROWS);
           ta.start(first, std::min(BAND_ROWS, h - first));
@@ -487,13 +497,7 @@ torch::Tensor ibsm_sums(torch::Tensor va, torch::Tensor fa, torch::Tensor uva, t
               // whose differences are +0); a sum is never -0 (it starts at +0 and adds squares), so adding +0
               // leaves it unchanged: skipped
               if (ca[i * 4] == cb[i * 4] && ca[i * 4 + 1] == cb[i * 4 + 1] && ca[i * 4 + 2] == cb[i * 4 + 2]) {
-                double g = (static_cast<double>(za[i]) - static_cast<double>(zb[i])) * 255.0 / sig;
-                g = g * g;
-                if (std::isnan(g)) {
-                  g = 0.0;
-                  r[10] += 1;
-                }
-                r[8] += g;
+                add_depth(i);
                 continue;
               }
               const float ra = ca[i * 4], ga = ca[i * 4 + 1], ba = ca[i * 4 + 2];
@@ -517,13 +521,7 @@ torch::Tensor ibsm_sums(torch::Tensor va, torch::Tensor fa, torch::Tensor uva, t
                 r[2 + c] += e;
                 r[5 + c] += f;
               }
-              double g = (static_cast<double>(za[i]) - static_cast<double>(zb[i])) * 255.0 / sig;
-              g = g * g;
-              if (std::isnan(g)) {
-                g = 0.0;
-                r[10] += 1;
-              }
-              r[8] += g;
+              add_depth(i);
             }
         }
         std::copy(r, r + 11, o + k * 11);
