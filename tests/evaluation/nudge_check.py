@@ -11,7 +11,6 @@ both and how many table cells print the same digits (docs/statistics.md, "Per ru
 
 from __future__ import annotations
 
-import math
 import sys
 import time
 
@@ -21,7 +20,7 @@ from torchmeshmetric import Mesh
 from torchmeshmetric.cli._shared import simplify_frames
 from torchmeshmetric.data import add_capture_defects
 from torchmeshmetric.data.demo import demo_sequence
-from torchmeshmetric.evaluation.determinacy import Determinacy, measure_determinacy, nudge_frames
+from torchmeshmetric.evaluation.determinacy import Determinacy, determined_digits, measure_determinacy, nudge_frames
 from torchmeshmetric.evaluation.pipeline import evaluate_sequence
 from torchmeshmetric.evaluation.reports import COLUMN_FORMATS
 
@@ -29,12 +28,6 @@ from torchmeshmetric.evaluation.reports import COLUMN_FORMATS
 def _store(verts: torch.Tensor, rounding: str) -> torch.Tensor:
     """``verts`` as a float32 file or a file with ``rounding`` decimals holds them (back in float64)."""
     return verts.float().double() if rounding == "float32" else torch.round(verts, decimals=int(rounding))
-
-
-def _digits(change: float, key: str) -> int:
-    """The digits :meth:`Determinacy.cell` keeps for ``change`` (at most the fixed format's)."""
-    most = int(COLUMN_FORMATS[key].rstrip("fg").split(".")[-1])
-    return most if change == 0 else min(most, math.floor(-math.log10(change)) if math.isfinite(change) else -1)
 
 
 def main(argv: list[str]) -> None:
@@ -63,7 +56,10 @@ def main(argv: list[str]) -> None:
     for table, rows in truth.changes.items():
         for row_truth, row_seen in zip(rows, seen.changes[table], strict=True):
             for key, change in row_truth.items():
-                want, got = _digits(change, key), _digits(row_seen[key], key)
+                want, got = (
+                    determined_digits(change, COLUMN_FORMATS[key]),
+                    determined_digits(row_seen[key], COLUMN_FORMATS[key]),
+                )
                 total, alike, too_many = total + 1, alike + (want == got), too_many + (got > want)
                 pair = largest.setdefault(key, [0.0, 0.0])
                 pair[0], pair[1] = max(pair[0], change), max(pair[1], row_seen[key])

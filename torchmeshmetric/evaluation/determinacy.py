@@ -22,7 +22,7 @@ from torchmeshmetric._format import format_number
 from torchmeshmetric.evaluation.results import SequenceEvaluation
 from torchmeshmetric.structures import Mesh
 
-__all__ = ["Determinacy", "measure_determinacy", "nudge_frames", "storage_unit"]
+__all__ = ["Determinacy", "determined_digits", "measure_determinacy", "nudge_frames", "storage_unit"]
 
 #: The tables compared (those of :func:`~torchmeshmetric.evaluation.reports.paper_tables`).
 _TABLES = ("I", "II", "III", "IV", "III-reverse", "IV-reverse")
@@ -120,6 +120,19 @@ def _change(a: float, b: float, relative: bool) -> float:
     return abs(a - b) / max(abs(a), abs(b)) if relative else abs(a - b)
 
 
+def determined_digits(change: float, spec: str) -> int:
+    """The digits of format ``spec`` that a change leaves: significant (``"#.2g"``) or decimals (``".1f"``).
+
+    ``floor(-log10(change))``, at most the format's own; below 1 (below 0 for decimals) when even the first moved.
+
+    Example:
+        >>> determined_digits(2e-3, "#.2g"), determined_digits(0.0, "#.3g"), determined_digits(2.0, ".1f")
+        (2, 3, -1)
+    """
+    most = int(spec.rstrip("fg").split(".")[-1])
+    return most if change == 0 else min(most, math.floor(-math.log10(change)) if math.isfinite(change) else -1)
+
+
 @dataclass(frozen=True)
 class Determinacy:
     """The change of every table cell between a run and a second run on nudged frames.
@@ -151,9 +164,7 @@ class Determinacy:
             >>> Determinacy("float32", 0, {"III": [{"var": 0.05}]}).cell("III", 0, "var", 2.2e-7, "#.2g")
             '2e-07'
         """
-        change = self.changes[table][row][key]
-        most = int(spec.rstrip("fg").split(".")[-1])
-        digits = most if change == 0 else min(most, math.floor(-math.log10(change)) if math.isfinite(change) else -1)
+        digits = determined_digits(self.changes[table][row][key], spec)
         if spec.endswith("g"):
             # '#' keeps a significant trailing zero (0.010); with one digit it leaves a bare point ("2.e-07", "3.").
             text = format_number(value, f"#.{max(digits, 1)}g").replace(".e", "e").rstrip(".")
