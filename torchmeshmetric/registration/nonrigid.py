@@ -324,9 +324,9 @@ def _target_samples(verts: Tensor, faces: Tensor, n: int, generator: torch.Gener
     metrics and the MPEG samplers need (it equals mmetric): a rounding of the input moves the CDF's steps, and a draw
     between the old and the new step goes to the next face *in the list*, which on captured frames (faces in any
     order) is anywhere (under float32 rounding of captured-like frames a sample jumped by 0.26 to 0.46 of the
-    diagonal; docs/registration.md, "Stability", item 8). Here which face a draw takes depends on the face count and the generator only; the input
-    moves the points and the weights continuously, and a face that rounding makes degenerate keeps its samples at
-    weight ~0 (an exactly degenerate one at 0) instead of renumbering the others.
+    diagonal; docs/registration.md, "Stability", item 8). Here which face a draw takes depends on the face count and
+    the generator only; the input moves the points and the weights continuously, and a face that rounding makes
+    degenerate keeps its samples at weight ~0 (an exactly degenerate one at 0) instead of renumbering the others.
 
     Args:
         verts: ``(V, 3)`` vertices.
