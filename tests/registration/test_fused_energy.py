@@ -66,7 +66,10 @@ def _problem(dtype: torch.dtype = torch.float64, subdivisions: int = 2, spacing:
     points = tv[torch.randint(0, tv.shape[0], (samples,), generator=g)] * 1.02
     rev_face_idx = torch.randint(0, sf.shape[0], (samples,), generator=g)
     rev_faces = sf[rev_face_idx]
+    # Acceptance weights (zeros and ones) times area weights (the registration draws target samples by face index and
+    # weights each by its face's area over the mean face area: values above 1 too).
     rev_w = (torch.rand(samples, generator=g, dtype=dtype) > 0.2).to(dtype)
+    rev_w = rev_w * torch.rand(samples, generator=g, dtype=dtype).mul(3.0)
     rev_bary = torch.rand(samples, 3, generator=g, dtype=dtype)
     rev_bary = rev_bary / rev_bary.sum(-1, keepdim=True)
     rev_normals = interpolated_normals(Mesh(sv, sf, validate=False).vertex_normals(), sf, rev_face_idx, rev_bary)

@@ -109,15 +109,16 @@ def test_uncovered_target_part_is_reported_at_one_percent():
     # A target part the registered source does not reach: the footprint of a limb registered onto another limb (on
     # horse-gallop 3 -> 4, 2.4 % of the target samples farther than 2 % of the diagonal while the residuals stay
     # small; docs/registration.md, "Known failure"). Here a far sphere with 3.8 % of the target's area: the default
-    # max_outlier_fraction (10 %) passes it, the 1 % that docs/registration.md suggests reports it (4.3 % of the
-    # samples, measured).
+    # max_outlier_fraction (10 %) passes it, the 1 % that docs/registration.md suggests reports it: 3.8 % of the
+    # target samples, area-weighted (the sphere's share of the area, 3.79 %; drawn through the inverse CDF over the
+    # areas and counted unweighted, the samples said 4.3 %).
     big = trimesh.creation.icosphere(subdivisions=3)
     small = trimesh.creation.icosphere(subdivisions=2, radius=0.2)
     small.vertices += [3.0, 0.0, 0.0]
     tgt = trimesh.util.concatenate([big, small])
     quick = {"schedule": DEFAULT_SCHEDULE[-2:]}  # each call draws with a fresh generator seeded with 0
     assert register_nonrigid(big, tgt, **quick).converged
-    with pytest.warns(RegistrationWarning, match=r"0\.0% of source vertices and 4\.3% of target samples"):
+    with pytest.warns(RegistrationWarning, match=r"0\.0% of source vertices and 3\.8% of target samples"):
         r = register_nonrigid(big, tgt, max_outlier_fraction=0.01, **quick)
     assert not r.converged and r.reason.startswith("implausible fit")
     assert float(r.residual.max()) < 0.02 * float(torch.tensor(tgt.extents).norm())  # the residual does not see it
@@ -158,17 +159,25 @@ def test_exact_and_near_exact_pairs_are_not_made_worse():
         assert float((r.verts - torch.tensor(src.vertices)).norm(dim=1).max()) <= 1e-14 * diag
         assert len(r.loss_history) == len(DEFAULT_SCHEDULE)  # one evaluation per stage
         # A target stretched by 1e-5 (start error 2.9e-6 of the diagonal) used to end at Adam's noise floor of the
-        # last stage (measured 7.8e-4); the stage now returns its best iterate, here the start.
+        # last stage (measured 7.8e-4, 270x its start error; without the residual cap on the step size, annealing
+        # alone, 138x). Now the step size is at most the start's residual, so the stage leaves the pair about where
+        # it was: how far above or below depends on the draw (the data points and target samples), so the property
+        # is stated for every one of eight draws. Measured end / start error over seeds 0-7 (2026-12-05): target
+        # samples drawn by face index (kept) 0.97-1.12 (median 0.98; 1.12 at seed 0), the inverse CDF over the areas
+        # 0.97-1.04 (median 1.00). A bound of 1.25 holds every draw of both with a margin of 1.1x and fails a
+        # regression to Adam's noise floor by 80x (without the cap: 102-156x at seeds 0-7, and not converged).
         tgt = src.copy()
         tgt.vertices = tgt.vertices * [1 + 1e-5, 1, 1 - 1e-5]
         gt = torch.tensor(tgt.vertices)
         start = float((torch.tensor(src.vertices) - gt).norm(dim=1).max())
-        r = register_nonrigid(
-            src, tgt, rigid_init=False, schedule=DEFAULT_SCHEDULE[-1:], generator=torch.Generator().manual_seed(0)
-        )
-    assert r.converged, r.reason
-    # measured 2.89e-6 -> 2.89e-6 of the diagonal (+ the normalisation's rounding)
-    assert float((r.verts - gt).norm(dim=1).max()) <= start + 1e-14 * diag
+        ratios, reasons = [], []
+        for seed in range(8):
+            gen = torch.Generator().manual_seed(seed)
+            r = register_nonrigid(src, tgt, rigid_init=False, schedule=DEFAULT_SCHEDULE[-1:], generator=gen)
+            ratios.append(float((r.verts - gt).norm(dim=1).max()) / start)
+            reasons.append(r.reason)
+    assert max(ratios) <= 1.25, ratios
+    assert reasons == [""] * 8, reasons
 
 
 def test_nonrigid_bad_inputs():

@@ -289,7 +289,8 @@ class EnergyTerms(NamedTuple):
         data_weights: ``(S,)`` acceptance weights.
         samples: ``(Q, 3)`` target samples of the reverse term.
         rev_faces: ``(Q, 3)`` int64 rows of ``need`` of the corners of each sample's assigned source face.
-        rev_weights: ``(Q,)`` acceptance weights.
+        rev_weights: ``(Q,)`` acceptance weights, times each sample's area weight in the registration (its samples
+            are drawn by face index, each weighted by its face's area).
         rev_bary: ``(Q, 3)`` the fixed barycentric coordinates of each sample's point on that face.
         rev_normals: ``(Q, 3)`` the source's interpolated unit normal there at the refresh.
     """

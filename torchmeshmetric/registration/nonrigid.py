@@ -34,7 +34,6 @@ from torch import Tensor
 from torchmeshmetric._checks import check_device
 from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY
 from torchmeshmetric.kernels.mesh_index import MeshIndex
-from torchmeshmetric.kernels.sampling import sample_surface
 from torchmeshmetric.registration._common import normalisation, validate_pair, welded_faces
 from torchmeshmetric.registration.adam import Adam
 from torchmeshmetric.registration.deformation_graph import DeformationGraph
@@ -304,6 +303,53 @@ class _Terms(NamedTuple):
     fused: FusedStep | None  # the energy laid out for the C++ pass (CPU), else None (torch formulation)
 
 
+class _TargetSamples(NamedTuple):
+    """The reverse term's target samples (:func:`_target_samples`)."""
+
+    points: Tensor  # (Q, 3)
+    face_idx: Tensor  # (Q,) int64 rows of the faces they were drawn on
+    weights: Tensor  # (Q,) their faces' areas over the mean face area
+
+
+def _target_samples(verts: Tensor, faces: Tensor, n: int, generator: torch.Generator) -> _TargetSamples:
+    """``n`` points on the surface ``(verts, faces)``: faces drawn by index, a uniform point in each, area weights.
+
+    The faces are a random permutation of the face indices (repeated when ``n`` exceeds the face count, so every face
+    gets ``n // F`` or ``n // F + 1`` samples); each point is placed with the square-root barycentric map (uniform on
+    its triangle) and weighted by its face's area over the mean face area. A weighted sum
+    ``sum_k w_k g(s_k)`` then has the expectation ``n / A * integral of g`` (``A`` the total area), the same as an
+    unweighted sum over area-proportional draws (:func:`~torchmeshmetric.kernels.sampling.sample_surface`).
+
+    Not :func:`~torchmeshmetric.kernels.sampling.sample_surface`, whose inverse CDF over the faces' areas is what the
+    metrics and the MPEG samplers need (it equals mmetric): a rounding of the input moves the CDF's steps, and a draw
+    between the old and the new step goes to the next face *in the list*, which on captured frames (faces in any
+    order) is anywhere (under float32 rounding of captured-like frames a sample jumped by 0.26 to 0.46 of the
+    diagonal; docs/registration.md, "Stability", item 8). Here which face a draw takes depends on the face count and
+    the generator only; the input moves the points and the weights continuously, and a face that rounding makes
+    degenerate keeps its samples at weight ~0 (an exactly degenerate one at 0) instead of renumbering the others.
+
+    Args:
+        verts: ``(V, 3)`` vertices.
+        faces: ``(F, 3)`` faces (``F >= 1``, positive total area).
+        n: number of samples (``>= 0``).
+        generator: CPU generator of the draws.
+
+    Returns:
+        :class:`_TargetSamples` on the device of ``verts``.
+    """
+    num_faces = faces.shape[0]
+    with torch.no_grad():
+        perms = [torch.randperm(num_faces, generator=generator) for _ in range(-(-n // num_faces))]
+        face_idx = torch.cat(perms)[:n].to(verts.device) if perms else faces.new_zeros(0)
+        r = torch.rand(n, 2, dtype=verts.dtype, generator=generator).to(verts.device)
+        s1 = r[:, 0].sqrt()
+        bary = torch.stack([1 - s1, s1 * (1 - r[:, 1]), s1 * r[:, 1]], dim=-1)
+        points = (bary[:, :, None] * verts[faces[face_idx]]).sum(1)
+        area = Mesh(verts, faces, validate=False).face_areas()
+        weights = area[face_idx] / (area.sum() / num_faces).clamp_min(torch.finfo(verts.dtype).tiny)
+    return _TargetSamples(points, face_idx, weights)
+
+
 class _Fit:
     """The deformation graph being fitted, and what every stage reuses.
 
@@ -328,7 +374,7 @@ class _Fit:
         # ones only: a rounding of the input that makes a face degenerate (6 decimals did on 2 of the demo's 40k faces)
         # would otherwise renumber the surface list, and the same random draws would pick other vertices and faces
         # everywhere (the residual's average moved by 6 %, its max by 34 %; docs/statistics.md). Drawn over all of
-        # them, such a face only loses its own (area-proportional, so ~0) share.
+        # them, such a face only loses its own share (its samples' area weights, ~0; see _target_samples).
         used = src.surface_vertex_mask()
         surf = used.nonzero()[:, 0]
         if surf.numel() > opts.num_points:
@@ -337,11 +383,12 @@ class _Fit:
         self.surf = surf
         self.samples: Tensor | None = None
         self.sample_normals = tgt.verts[:0]
+        self.sample_weights = tgt.verts.new_zeros(0)  # area weights, mean 1 over the faces (see _target_samples)
         if opts.num_target_samples > 0:
             whole = Mesh(tgt.verts, frame.target_all_faces, validate=False)
-            samples = sample_surface(whole.verts.cpu(), whole.faces.cpu(), n=opts.num_target_samples, generator=gen)
-            self.samples = samples.points.to(dev)
-            self.sample_normals = whole.face_normals()[samples.face_idx.to(dev)]
+            drawn = _target_samples(whole.verts, whole.faces, opts.num_target_samples, gen)
+            self.samples, self.sample_weights = drawn.points, drawn.weights
+            self.sample_normals = whole.face_normals()[drawn.face_idx]
         timings["graph"] = time.perf_counter() - t0
         packed = PackedMeshes(tgt.verts, tgt.faces, _lengths(tgt.verts), _lengths(tgt.faces))
         self.target_index = MeshIndex.from_packed(packed, backend, DEFAULT_MAX_MEMORY)
@@ -489,6 +536,9 @@ class _Fit:
                     self.samples, self.sample_normals, dv, sf, index=self._source_index(dv),
                     vertex_normals=source_normals, **thresholds,
                 )  # fmt: skip
+                # Each sample counts with its face's area (drawn by face index, not by area): the torch formulation
+                # and the fused C++ pass both take the product as the sample's weight.
+                reverse = reverse._replace(weights=reverse.weights * self.sample_weights)
         self.timings["correspondences"] += time.perf_counter() - t0
         return self._terms(forward, reverse)
 
@@ -583,7 +633,10 @@ class _Fit:
             if self.samples is not None and self.source_index is not None:
                 self.source_index.refit_unchecked(dv)
                 far = self.source_index.point_mesh_distance_unchecked(self.samples, _lengths(self.samples)).dists
-                frac_tgt = float((far > opts.outlier_distance).to(dtype).mean())
+                # Area-weighted: the fraction of the target's area, as the samples are drawn by face, not by area.
+                w = self.sample_weights
+                far_w = (w * (far > opts.outlier_distance).to(dtype)).sum()
+                frac_tgt = float(far_w / w.sum().clamp_min(torch.finfo(dtype).tiny))
         reason = ""
         if frac_src > opts.max_outlier_fraction or frac_tgt > opts.max_outlier_fraction:
             reason = (
