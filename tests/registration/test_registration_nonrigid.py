@@ -156,10 +156,11 @@ def test_coarse_correct_pairs_are_not_called_uncovered():
     assert r.converged, r.reason
     with pytest.warns(RegistrationWarning, match="a target part is left uncovered"):
         fixed = register_nonrigid(seq.frames[2], seq.frames[3], outlier_edge_factor=0.0)
-    assert _reported(fixed.reason, r"([\d.]+)% of target samples are farther than 2\.0% of the diagonal") > 5.0  # 6.2
+    # 6.2 % of the 2000 samples (5.2 % of the area, from 20,000 denser ones): above 3 % whatever the draw (3 sd: 1.5 %).
+    assert _reported(fixed.reason, r"([\d.]+)% of target samples are farther than 2\.0% of the diagonal") > 3.0
     worst = demo_sequence(3, resolution=16, seed=3).frames[1:]
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RegistrationWarning)  # this pair ends 0.00043 short of `tolerance`: not ours
+        warnings.simplefilter("ignore", RegistrationWarning)  # its loss ends changing by 4.3e-4, over `tolerance` 4e-4
         r = register_nonrigid(*worst, max_uncovered_fraction=0.0)  # a single sample beyond 4 edges would report it
         assert "uncovered" not in r.reason, r.reason
         tight = register_nonrigid(*worst, outlier_edge_factor=3.0, max_uncovered_fraction=0.0)
