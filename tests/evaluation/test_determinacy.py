@@ -122,6 +122,7 @@ class _Pair:
         self.statistics = {name: _Stats(scale) for name in _SETS}
         self.registration_statistics = _Stats(scale)
         self.registration_error_statistics = None
+        self.registration_converged = True
 
 
 class _Sequence:

@@ -13,6 +13,7 @@ from torchmeshmetric.evaluation import (
     write_json,
     write_markdown,
 )
+from torchmeshmetric.evaluation.campaign import campaign_tables
 
 
 @pytest.fixture
@@ -93,3 +94,57 @@ def test_failed_write_keeps_old_file(methods, tmp_path):
         write_json(target, {"x": object()}, overwrite=True)  # not serialisable: fails before writing
     assert target.read_text() == "old"
     assert [p.name for p in tmp_path.iterdir()] == ["r.json"]
+
+
+class _Failing:
+    """A registration result: the exact translation, flagged not converged (as ``register_nonrigid`` flags one)."""
+
+    def __init__(self, mesh, converged: bool) -> None:
+        self.verts, self.converged = mesh.verts, converged
+
+
+def _flagged(moving_spheres, failing):
+    """Two methods evaluated with the exact registration, flagged not converged on the frames ``failing``."""
+    original, simplified = moving_spheres
+    register = TranslationRegister()
+
+    def flagged(source, target):
+        k = round(float(target.verts[:, 0].mean()) / 0.1)  # frame k is the unit sphere moved by 0.1 k along x
+        return _Failing(register(source, target), converged=k not in failing)
+
+    return {
+        "a": evaluate_sequence(original, simplified, registration_fn=flagged),
+        "b": evaluate_sequence(original, original, registration_fn=flagged),
+    }
+
+
+@pytest.mark.parametrize(
+    ("failing", "said"),
+    [
+        ((), None),
+        ((2,), "Registration not converged for frame pair 1 -> 2 ("),
+        ((1, 3), "Registration not converged for frame pairs 0 -> 1, 2 -> 3 ("),
+    ],
+)
+def test_tables_name_the_pairs_whose_registration_failed(moving_spheres, failing, said):
+    # A failed registration's warning is printed once, when it is computed (not on a cache hit): the tables that
+    # average its pair in must say so themselves.
+    methods = _flagged(moving_spheres, failing)
+    assert [p.registration_converged for p in methods["a"].pairs] == [k not in failing for k in (1, 2, 3)]
+    text = paper_tables(methods)
+    if said is None:
+        assert "not converged" not in text
+    else:
+        # Once, after the tables, whatever the number of methods.
+        assert text.count("Registration not converged") == 1
+        assert said in text.split("Table IV")[1]
+        assert ("those pairs" if len(failing) > 1 else "that pair") in text
+
+
+def test_campaign_tables_name_the_sequence_and_pairs_whose_registration_failed(moving_spheres):
+    results = {"walk": _flagged(moving_spheres, ()), "run": _flagged(moving_spheres, (3,))}
+    text = campaign_tables(results)
+    assert text.count("Registration not converged") == 1
+    assert "Registration not converged for frame pair run 2 -> 3 (" in text
+    assert "walk" not in text.split("Registration not converged")[1]
+    assert "not converged" not in campaign_tables({"walk": results["walk"]})

@@ -31,7 +31,13 @@ from typing import Any, NamedTuple
 from torchmeshmetric._atomic import atomic_write
 from torchmeshmetric._format import json_safe
 from torchmeshmetric._toml import kind_name, read_manifest
-from torchmeshmetric.evaluation.reports import COLUMNS, report_dict, statistic_cells
+from torchmeshmetric.evaluation.reports import (
+    COLUMNS,
+    report_dict,
+    statistic_cells,
+    unconverged_frames,
+    unconverged_note,
+)
 from torchmeshmetric.evaluation.results import SequenceEvaluation
 
 __all__ = [
@@ -276,6 +282,11 @@ def campaign_tables(results: Mapping[str, Mapping[str, SequenceEvaluation]]) -> 
         "Per sequence: mean over its pairs of each per-pair statistic. Overall: mean over the sequences of those "
         "means (each sequence weighs the same)."
     )
+    unconverged = [
+        f"{name} {k - 1} -> {k}" for name, by_method in results.items() for k in unconverged_frames(by_method)
+    ]
+    if unconverged:
+        out += ["", unconverged_note(unconverged)]
     return "\n".join(out) + "\n"
 
 

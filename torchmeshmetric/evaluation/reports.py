@@ -19,7 +19,7 @@ import csv
 import io
 import json
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -220,7 +220,34 @@ def paper_tables(
         "differences between algorithms on the (k-1)-th and flicker rows smaller than these are not meaningful. "
         f"Stability: {STABILITY_NOTE if determinacy is None else determinacy_note(determinacy)}"
     )
+    unconverged = [f"{k - 1} -> {k}" for k in unconverged_frames(methods)]
+    if unconverged:
+        out += ["", unconverged_note(unconverged)]
     return "\n".join(out) + "\n"
+
+
+def unconverged_frames(methods: Mapping[str, SequenceEvaluation]) -> list[int]:
+    """Frames ``k`` whose registration of original ``k-1`` onto ``k`` says ``converged=False``, in any method.
+
+    The methods share the registrations of the original pairs, so one list serves every method's rows.
+    """
+    return sorted({p.frame for seq in methods.values() for p in seq.pairs if not p.registration_converged})
+
+
+def unconverged_note(pairs: Sequence[str]) -> str:
+    """The line under the tables that names the frame pairs (``"1 -> 2"``, ...) whose registration is not trusted.
+
+    The registration's own warning (``RegistrationWarning``) says why when it is computed, but not when the
+    registration comes from a cache, and it scrolls away in a long run: tables built on such a pair must say so
+    where their figures are read (:func:`paper_tables`, the campaign's tables).
+    """
+    several = len(pairs) > 1
+    return (
+        f"Registration not converged for frame pair{'s' if several else ''} {', '.join(pairs)} (report.json: "
+        "'registration' -> 'converged'; the RegistrationWarning printed when it was computed says why): the "
+        f"(k-1)-th and flicker figures of {'those pairs' if several else 'that pair'}, and the averages over pairs, "
+        "rest on a registration that did not meet its convergence or plausibility checks (docs/registration.md)."
+    )
 
 
 def determinacy_note(determinacy: Determinacy) -> str:
