@@ -63,3 +63,18 @@ def test_registered_forms_with_the_library_registration(tmp_path, capsys):
     # The distorted frames are the originals: what remains is the registration's residual, projected away along the
     # normals (measured: KG 0.0 to 1e-3 on this sphere).
     assert got["registered"] is True and got["kg"] < 0.05
+
+
+def test_a_failed_registration_of_the_original_is_named(tmp_path, capsys, monkeypatch):
+    # The command prints what temporal_figures reports of the tracking's registrations (tested there with a flagged
+    # registration); here the line itself, from figures that name frame 2.
+    import torchmeshmetric.temporal.figures as figures_module
+
+    real = figures_module.temporal_figures
+    monkeypatch.setattr(figures_module, "temporal_figures", lambda *a, **k: real(*a, **k)._replace(unconverged=(2,)))
+    a, faces = animated_sphere(num_frames=3)
+    orig = _write(tmp_path / "orig", a, faces)
+    assert main(["temporal", str(orig), str(orig)]) == 0
+    assert capsys.readouterr().out.splitlines()[-1].startswith("Registration not converged for frame pair 1 -> 2")
+    assert main(["temporal", str(orig), str(orig), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["unconverged"] == [2]

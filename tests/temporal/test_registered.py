@@ -129,3 +129,23 @@ def test_figures_choose_their_form() -> None:
         temporal_figures(frames, _meshes(b, faces)[:2])
     with pytest.raises(ShapeError, match="registrations: expected 2"):
         temporal_figures(frames, _meshes(b, faces), registered=True, registrations=_true_registrations(frames)[:1])
+
+
+def test_figures_name_the_original_pairs_whose_registration_failed() -> None:
+    # The registered forms follow frame 0 through the original's registrations; one flagged not converged (as
+    # register_nonrigid flags a failed fit) is named in the figures, the JSON and the report's section.
+    from torchmeshmetric.temporal import temporal_markdown
+
+    a, faces = _performer(4)
+    frames = _meshes(a, faces)
+    truth = _true_registrations(frames)
+    flagged = [r._replace(converged=k != 1) for k, r in enumerate(truth)]  # frame 1 onto frame 2 failed
+    good = temporal_figures(frames, frames, registered=True, registrations=truth)
+    bad = temporal_figures(frames, frames, registered=True, registrations=flagged)
+    assert good.unconverged == () and bad.unconverged == (2,)
+    assert bad.as_dict()["unconverged"] == [2] and good.as_dict()["unconverged"] == []
+    assert bad.kg == good.kg  # the flag reports; it changes no figure
+    assert "not converged" not in temporal_markdown({"m": good})
+    note = temporal_markdown({"m": bad, "n": bad}).split("\n\n")[-1]
+    assert note.startswith("Registration not converged for frame pair 1 -> 2 of the original:")
+    assert temporal_figures(frames, frames).unconverged == ()  # the exact forms use no registration

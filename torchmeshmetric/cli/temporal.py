@@ -58,6 +58,7 @@ def run(args: argparse.Namespace) -> int:
     from torchmeshmetric.data.sequence import load_sequence
     from torchmeshmetric.registration.cache import RegistrationCache
     from torchmeshmetric.temporal.figures import FIGURE_NAMES, temporal_figures
+    from torchmeshmetric.temporal.report import unconverged_tracking_note
 
     device = device_of(args)
     sequences = []
@@ -97,6 +98,8 @@ def run(args: argparse.Namespace) -> int:
     values: dict[str, Any] = figures.as_dict()
     for name in FIGURE_NAMES:
         print(f"{labels[name]:<12} {values[name]:.6g}")
+    if figures.unconverged:
+        print(unconverged_tracking_note(figures.unconverged))
     return 0
 
 

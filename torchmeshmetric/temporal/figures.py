@@ -37,6 +37,8 @@ class TemporalFigures(NamedTuple):
         registered: ``True`` when measured with the registered form (the frames' connectivity differs).
         num_frames: frames compared.
         num_verts: vertices followed (the original's, or the tracked frame 0's).
+        unconverged: frames ``k`` of the original whose registration of ``k-1`` onto ``k`` (the registered forms'
+            tracking) says ``converged=False``; empty for the exact forms.
     """
 
     kg: float
@@ -47,10 +49,11 @@ class TemporalFigures(NamedTuple):
     registered: bool
     num_frames: int
     num_verts: int
+    unconverged: tuple[int, ...] = ()
 
-    def as_dict(self) -> dict[str, float | bool | int]:
+    def as_dict(self) -> dict[str, float | bool | int | list[int]]:
         """The figures as a plain dict (for JSON reports)."""
-        return dict(self._asdict())
+        return {**self._asdict(), "unconverged": list(self.unconverged)}
 
 
 def same_connectivity(original: Sequence[Mesh], distorted: Sequence[Mesh]) -> bool:
@@ -140,7 +143,9 @@ def temporal_figures(
             backend=backend,
         )
         a, b, faces = pair.original.detach(), pair.distorted.detach(), pair.faces
+        unconverged = tuple(k for k, r in enumerate(pair.tracking.registrations, 1) if not r.converged)
     else:
+        unconverged = ()
         dev = torch.device(device) if device is not None else originals[0].device
         a = torch.stack([m.verts.detach().to(dev, torch.float64) for m in originals])
         b = torch.stack([m.verts.detach().to(dev, torch.float64) for m in distorteds])
@@ -155,4 +160,5 @@ def temporal_figures(
         registered=use_registered,
         num_frames=int(a.shape[0]),
         num_verts=int(a.shape[1]),
+        unconverged=unconverged,
     )

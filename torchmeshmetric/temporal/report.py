@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from torchmeshmetric.temporal.figures import FIGURE_NAMES, TemporalFigures
@@ -39,7 +39,25 @@ def temporal_markdown(figures: Mapping[str, TemporalFigures]) -> str:
         "|---|" + "---:|" * len(FIGURE_NAMES) + "---|",
     ]
     for name, f in figures.items():
-        values = f.as_dict()
-        cells = " | ".join(f"{float(values[k]):.6g}" for k in FIGURE_NAMES)
+        cells = " | ".join(f"{float(getattr(f, k)):.6g}" for k in FIGURE_NAMES)
         lines.append(f"| {name} | {cells} | {'registered' if f.registered else 'exact'} |")
+    # The methods share the original's tracking, hence its registrations.
+    unconverged = sorted({k for f in figures.values() for k in f.unconverged})
+    if unconverged:
+        lines += ["", unconverged_tracking_note(unconverged)]
     return "\n".join(lines) + "\n"
+
+
+def unconverged_tracking_note(frames: Sequence[int]) -> str:
+    """The line that names the original's frame pairs whose registration, which the tracking follows, failed.
+
+    Example:
+        >>> unconverged_tracking_note([2])[:60]
+        'Registration not converged for frame pair 1 -> 2 of the orig'
+    """
+    pairs = ", ".join(f"{k - 1} -> {k}" for k in frames)
+    several = len(frames) > 1
+    return (
+        f"Registration not converged for frame pair{'s' if several else ''} {pairs} of the original: the registered "
+        f"forms follow frame 0 through {'them' if several else 'it'} (docs/registration.md)."
+    )
