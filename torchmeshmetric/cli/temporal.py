@@ -58,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
     from torchmeshmetric.data.sequence import load_sequence
     from torchmeshmetric.registration.cache import RegistrationCache
     from torchmeshmetric.temporal.figures import FIGURE_NAMES, temporal_figures
-    from torchmeshmetric.temporal.report import unconverged_tracking_note
+    from torchmeshmetric.temporal.report import FIGURE_LABELS, unconverged_tracking_note
 
     device = device_of(args)
     sequences = []
@@ -94,10 +94,9 @@ def run(args: argparse.Namespace) -> int:
     if figures.registered and args.registered:
         form = "registered (--registered)"
     print(f"{figures.num_frames} frames, {figures.num_verts} vertices followed; {form}")
-    labels = {"kg": "KG (%)", "kso": "KSO (E_RMS)", "sted_s": "STED_s", "sted_t": "STED_t", "sted": "STED"}
     values: dict[str, Any] = figures.as_dict()
     for name in FIGURE_NAMES:
-        print(f"{labels[name]:<12} {values[name]:.6g}")
+        print(f"{FIGURE_LABELS[name]:<12} {values[name]:.6g}")
     if figures.unconverged:
         print(unconverged_tracking_note(figures.unconverged))
     return 0

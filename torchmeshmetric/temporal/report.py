@@ -7,9 +7,10 @@ from typing import Any
 
 from torchmeshmetric.temporal.figures import FIGURE_NAMES, TemporalFigures
 
-__all__ = ["temporal_markdown", "temporal_report"]
+__all__ = ["FIGURE_LABELS", "temporal_markdown", "temporal_report"]
 
-_LABELS = {"kg": "KG (%)", "kso": "KSO (E_RMS)", "sted_s": "STED_s", "sted_t": "STED_t", "sted": "STED"}
+#: How the tables and the ``temporal`` command label each of :data:`FIGURE_NAMES`.
+FIGURE_LABELS = {"kg": "KG (%)", "kso": "KSO (E_RMS)", "sted_s": "STED_s", "sted_t": "STED_t", "sted": "STED"}
 
 
 def temporal_report(figures: Mapping[str, TemporalFigures]) -> dict[str, dict[str, Any]]:
@@ -35,7 +36,7 @@ def temporal_markdown(figures: Mapping[str, TemporalFigures]) -> str:
     lines = [
         "## Temporal metrics (KG, KSO, STED; docs/temporal.md)",
         "",
-        "| method | " + " | ".join(_LABELS[k] for k in FIGURE_NAMES) + " | form |",
+        "| method | " + " | ".join(FIGURE_LABELS[k] for k in FIGURE_NAMES) + " | form |",
         "|---|" + "---:|" * len(FIGURE_NAMES) + "---|",
     ]
     for name, f in figures.items():
