@@ -10,8 +10,8 @@ pairs, consecutive CraGL frames, QEM-simplified sources onto the next original f
 horse-gallop 3 -> 4, a far sphere, an extra part added to the target) it registers with the default options (the
 campaign's ``fast`` ones where the campaign uses them) and records, in units of the target's diagonal:
 
-* the distance of each of the fit's own target samples (those :meth:`_Fit.plausibility` judges) to the registered
-  source, and of 20,000 denser area-uniform target samples;
+* the distance of each of the fit's own target samples (those :meth:`_Fit.plausibility` judges, with its area
+  weights) to the registered source, and of 20,000 denser area-uniform target samples;
 * each surface vertex's residual (distance of the registered source to the target);
 * the scales a threshold could be relative to: mean and median edge length of target and source, the graph's node
   spacing (median distance of a node to its nearest node);
@@ -237,7 +237,13 @@ def measure(pair: Pair, dense: int = 20000) -> dict[str, Any]:
         out = original(self)
         with torch.no_grad():
             far = self.source_index.point_mesh_distance_unchecked(self.samples, nonrigid_module._lengths(self.samples))
-            seen["fit_target"] = far.dists.numpy().copy()
+            # Sorted by distance, with the area weights plausibility averages them with (drawn by face, not by area).
+            order = far.dists.argsort()
+            seen["fit_target"] = far.dists[order].numpy().copy()
+            seen["fit_weights"] = self.sample_weights[order].numpy().copy()
+            # The library's h (mean edge of the finer mesh, per face, in diagonals), not this script's unique edges.
+            frame = self.frame
+            seen["finer_edge"] = min(nonrigid_module._mean_edge_length(m) for m in (frame.source, frame.target))
             nodes = self.graph.nodes
             d = torch.cdist(nodes, nodes)
             d.fill_diagonal_(math.inf)
@@ -275,7 +281,9 @@ def measure(pair: Pair, dense: int = 20000) -> dict[str, Any]:
         "source_edge_mean": float(e_s.mean()),
         "source_edge_median": float(np.median(e_s)),
         "node_spacing": seen["node_spacing"],
-        "fit_target": np.sort(seen["fit_target"]).tolist(),
+        "fit_target": seen["fit_target"].tolist(),
+        "fit_weights": seen["fit_weights"].tolist(),
+        "finer_edge": seen["finer_edge"],
         "dense_target": np.sort(dense_d).tolist(),
         "source": np.sort(residual[seen["surface"]] if seen["surface"].shape == residual.shape else residual).tolist(),
         "residual_max": float(residual.max()),
@@ -287,14 +295,14 @@ def measure(pair: Pair, dense: int = 20000) -> dict[str, Any]:
     return out
 
 
-def beyond(sorted_d: list[float], t: float) -> float:
-    """Fraction of the sorted distances that are > ``t``."""
+def beyond(sorted_d: list[float], t: float, weights: list[float] | None = None) -> float:
+    """Fraction of the sorted distances that are > ``t`` (weighted by ``weights``, in the same order, when given)."""
     a = np.asarray(sorted_d)
-    return float(1.0 - np.searchsorted(a, t, side="right") / max(a.size, 1))
-
-
-def _finer_edge(m: dict[str, Any]) -> float:
-    return min(m["target_edge_mean"], m["source_edge_mean"])
+    i = int(np.searchsorted(a, t, side="right"))
+    if weights is None:
+        return float(1.0 - i / max(a.size, 1))
+    w = np.asarray(weights)
+    return float(w[i:].sum() / max(w.sum(), np.finfo(np.float64).tiny))
 
 
 CANDIDATES: dict[str, Callable[[dict[str, Any]], float]] = {
@@ -304,7 +312,7 @@ CANDIDATES: dict[str, Callable[[dict[str, Any]], float]] = {
     "1x node spacing": lambda m: m["node_spacing"],
     "2x mean tgt edge": lambda m: 2 * m["target_edge_mean"],
     "2x median tgt edge": lambda m: 2 * m["target_edge_median"],
-    **{f"max(2%, {k:g}x finer edge)": (lambda m, k=k: max(0.02, k * _finer_edge(m))) for k in (2, 2.5, 3, 3.5, 4)},
+    **{f"max(2%, {k:g}x finer edge)": (lambda m, k=k: max(0.02, k * m["finer_edge"])) for k in (2, 2.5, 3, 3.5, 4)},
 }
 """Candidate distances (diagonals); ``max(2%, 4x finer edge)`` is the default uncovered distance."""
 
@@ -316,7 +324,8 @@ def report(results: dict[str, dict[str, Any]]) -> None:
         print(f"--- fraction beyond, {side} (the fit's own 2000 target samples, 20,000 denser ones, surface vertices)")
         worst: dict[str, dict[str, tuple[float, str]]] = {"correct": {}, "failure": {}}
         for name, m in results.items():
-            fr = {c: beyond(m[side], fn(m)) for c, fn in CANDIDATES.items()}
+            weights = m["fit_weights"] if side == "fit_target" else None
+            fr = {c: beyond(m[side], fn(m), weights) for c, fn in CANDIDATES.items()}
             truth = f"{m['truth_max']:.3f}" if "truth_max" in m else "-"
             print(f"{name:44s} {m['label']:8s} {m['num_source_verts']:6d} {m['target_edge_mean']:7.4f} "
                   f"{m['source_edge_mean']:7.4f} {m['node_spacing']:6.3f} {truth:>9s} {m['converged']!s:5s} "
