@@ -243,10 +243,10 @@ def unconverged_note(pairs: Sequence[str]) -> str:
     """
     several = len(pairs) > 1
     return (
-        f"Registration not converged for frame pair{'s' if several else ''} {', '.join(pairs)} (report.json: "
-        "'registration' -> 'converged'; the RegistrationWarning printed when it was computed says why): the "
-        f"(k-1)-th and flicker figures of {'those pairs' if several else 'that pair'}, and the averages over pairs, "
-        "rest on a registration that did not meet its convergence or plausibility checks (docs/registration.md)."
+        f"Registration not converged for frame pair{'s' if several else ''} {', '.join(pairs)} (the JSON report: "
+        "each pair's 'registration' -> 'converged'; the RegistrationWarning printed when it was computed says why): "
+        f"the (k-1)-th and flicker figures of {'those pairs' if several else 'that pair'}, and the averages over "
+        "pairs, rest on a registration that did not meet its convergence or plausibility checks (docs/registration.md)."
     )
 
 
