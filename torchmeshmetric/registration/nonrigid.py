@@ -368,7 +368,11 @@ def _target_samples(verts: Tensor, faces: Tensor, n: int, generator: torch.Gener
         bary = torch.stack([1 - s1, s1 * (1 - r[:, 1]), s1 * r[:, 1]], dim=-1)
         points = (bary[:, :, None] * verts[faces[face_idx]]).sum(1)
         area = Mesh(verts, faces, validate=False).face_areas()
-        weights = area[face_idx] / (area.sum() / num_faces).clamp_min(torch.finfo(verts.dtype).tiny)
+        # The mean area as an exactly rounded sum: torch's sum splits a long reduction by thread (the weights then
+        # differed in the last bit between 1 and 2 threads, and with them every registration of > 32k faces);
+        # fsum's is the same for any thread count, order and CPU.
+        mean = math.fsum(area.tolist()) / num_faces
+        weights = area[face_idx] / max(mean, torch.finfo(verts.dtype).tiny)
     return _TargetSamples(points, face_idx, weights)
 
 
