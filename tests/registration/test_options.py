@@ -76,6 +76,7 @@ def test_different_settings_never_share_a_key():
         NonRigidOptions(outlier_distance=0.03),
         NonRigidOptions(max_uncovered_fraction=0.01),
         NonRigidOptions(outlier_edge_factor=3.0),
+        NonRigidOptions(node_edge_factor=1.0),
         NonRigidOptions(rigid_options={"point_to_plane": False}),
         NonRigidOptions(rigid_options={"init": torch.eye(4)}),
         NonRigidOptions(rigid_options={"init": 2 * torch.eye(4)}),
@@ -86,7 +87,7 @@ def test_different_settings_never_share_a_key():
         changed = DEFAULT_SCHEDULE[2]._replace(**{field: value * 0.5 if field == "lr_decay" else value + 1})
         variants.append(NonRigidOptions(schedule=(*DEFAULT_SCHEDULE[:2], changed, DEFAULT_SCHEDULE[3])))
     assert {f.name for f in dataclasses.fields(NonRigidOptions)} <= {
-        name for v in variants[1:19] for name, x in v.canonical().items() if x != NonRigidOptions().canonical()[name]
+        name for v in variants[1:20] for name, x in v.canonical().items() if x != NonRigidOptions().canonical()[name]
     }  # every field is varied above
     keys = [registration_key(m, m, o) for o in variants]
     assert len(set(keys)) == len(keys)
@@ -127,6 +128,8 @@ def test_canonical_form_is_json_and_exact():
         ({"max_uncovered_fraction": -0.1}, ValueError, r"^max_uncovered_fraction: expected a float in \[0, 1\]"),
         ({"outlier_edge_factor": math.inf}, ValueError, r"^outlier_edge_factor: expected a finite float"),
         ({"outlier_edge_factor": -1.0}, ValueError, r"^outlier_edge_factor: expected a float in \[0, inf\]"),
+        ({"node_edge_factor": math.nan}, ValueError, r"^node_edge_factor: expected a float in \[0, inf\], found nan"),
+        ({"node_edge_factor": "1"}, TypeError, r"^node_edge_factor: expected a float, found str"),
         ({"schedule": []}, ValueError, r"^schedule: expected at least one stage, found none"),
         ({"schedule": "stages"}, TypeError, r"^schedule: expected a sequence of Stage"),
         ({"schedule": [tuple(DEFAULT_SCHEDULE[0])]}, TypeError, r"^schedule\[0\]: expected a Stage, found tuple"),

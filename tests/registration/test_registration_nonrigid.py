@@ -99,12 +99,15 @@ def test_nonrigid_on_capture_defects_without_cleaning():
 
 
 def test_failed_registration_is_reported():
-    src = trimesh.creation.icosphere(subdivisions=2)
+    # 642 vertices: the outlier distance is 4 of the sphere's edges (15 % of the box's diagonal; with 162 vertices it
+    # would be 31 %, more than the sphere's 20-25 % gap to the box, and only "not converged" would report the fit).
+    src = trimesh.creation.icosphere(subdivisions=3)
     tgt = trimesh.creation.box(extents=(4.0, 0.2, 0.2))  # unreachable under a strong prior and one short stage
     stage = DEFAULT_SCHEDULE[0]._replace(max_steps=5)
     with pytest.warns(RegistrationWarning, match="implausible"):
         r = register_nonrigid(src, tgt, schedule=[stage])
-    assert not r.converged and r.reason
+    assert not r.converged
+    assert _reported(r.reason, r"([0-9.]+)% of source vertices are farther than 15\.0% of the diagonal") > 10
 
 
 def _reported(reason: str, pattern: str) -> float:
@@ -153,23 +156,35 @@ def test_coarse_correct_pairs_are_not_called_uncovered():
     # ground-truth, captured-like, CraGL and simplified pairs; tests/benchmarks/coverage_margins.py, float64): the
     # most beyond 3 edges was 0.85 % of the samples (0.60 % of 20,000 denser ones), on demo-16 seed 3, 1 -> 2, below.
     seq = demo_sequence(4, resolution=16)
-    with warnings.catch_warnings():
-        # Only the uncovered-target check is under test: the convergence criterion (the loss's last window against
-        # `tolerance`) is near its limit on these coarse pairs, either side of it with another target draw.
-        warnings.simplefilter("ignore", RegistrationWarning)
-        r = register_nonrigid(seq.frames[2], seq.frames[3])  # every vertex within 0.089 of its true place: < 2 edges
-    assert "implausible" not in r.reason, r.reason
+    r = register_nonrigid(seq.frames[2], seq.frames[3])  # every vertex within 0.089 of its true place: < 2 edges
+    assert r.converged, r.reason
     with pytest.warns(RegistrationWarning, match="a target part is left uncovered"):
         fixed = register_nonrigid(seq.frames[2], seq.frames[3], outlier_edge_factor=0.0)
     # 6.2 % of the 2000 samples (5.2 % of the area, from 20,000 denser ones): above 3 % whatever the draw (3 sd: 1.5 %).
     assert _reported(fixed.reason, r"([\d.]+)% of target samples are farther than 2\.0% of the diagonal") > 3.0
     worst = demo_sequence(3, resolution=16, seed=3).frames[1:]
+    r = register_nonrigid(*worst, max_uncovered_fraction=0.0)  # a single sample beyond 4 edges would report it
+    assert r.converged, r.reason
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RegistrationWarning)  # as above
-        r = register_nonrigid(*worst, max_uncovered_fraction=0.0)  # a single sample beyond 4 edges would report it
-        assert "uncovered" not in r.reason, r.reason
+        warnings.simplefilter("ignore", RegistrationWarning)
         tight = register_nonrigid(*worst, outlier_edge_factor=3.0, max_uncovered_fraction=0.0)
     assert _reported(tight.reason, r"([\d.]+)% of target samples are farther than 16\.0%") > 0.0  # 0.9 %, float32
+
+
+@pytest.mark.parametrize(("resolution", "pair"), [(16, 3), (16, 4), (24, 1)])
+def test_coarse_correct_pairs_converge(resolution: int, pair: int) -> None:
+    # Below ~1000 vertices, before the evening of 2026-12-05: 7 of 40 draws of the demo at resolution 16 had 10-14 %
+    # of the source's vertices beyond 2 % of the diagonal ("implausible", with the ground-truth error of the others:
+    # 2.8-3.5 %), and 10-30 % of the draws at resolutions 16 and 24 ended "not converged", half of them by the jump of
+    # the final correspondence refresh alone (up to 9e-4 of the loss). Now the outlier distance is 4 edges on both
+    # sides, the graph is no finer than 1.25 edges and the criterion reads the last window's fixed correspondences:
+    # over seeds 0-7 and pairs 0 -> 1 ... 4 -> 5 (these float32 frames, one thread, 2026-12-05) the criterion's figure
+    # is at most 2.4e-4 at resolution 16 and 1.9e-4 at 24, median 1.2e-4 (tolerance 4e-4; float64: 2.1e-4 and
+    # 1.8e-4, docs/registration.md, "Coarse meshes"). These are the pairs and seeds that failed before.
+    seq = demo_sequence(pair + 2, resolution=resolution)
+    for seed in range(4):
+        r = register_nonrigid(seq.frames[pair], seq.frames[pair + 1], generator=torch.Generator().manual_seed(seed))
+        assert r.converged, (seed, r.reason)
 
 
 def test_divergence_is_detected():

@@ -378,8 +378,9 @@ def fast_registration_options() -> dict[str, Any]:
 
     The last stage keeps its 80 annealed steps: cut to 30, it ends still changing its loss by 1.2-1.4e-3 of itself
     per window and is reported not converged (measured 2026-12-03 on the built-in sequence at resolutions 24 and 80;
-    with 80 steps it converges at resolution 48 and above, ~0.1 s more per pair). Below ~500 vertices (resolutions 16
-    and 24) 10-35 % of the draws still end just above the tolerance (docs/registration.md, "Convergence").
+    with 80 steps it converges at resolution 48 and above, ~0.1 s more per pair). At resolutions 16 and 24 (150-460
+    vertices) it ends at 1.4-1.6e-4 (median; at most 2.5e-4) over generator seeds 0-7 since the criterion reads fixed
+    correspondences and the graph follows the mesh's resolution (docs/registration.md, "Coarse meshes").
 
     Measured 2026-11-22 on the built-in sequence at resolution 80 (2-core x86-64 CPU sandbox): 3 frame pairs in
     6.1 s, mean residual to frame k 5.7-6.0e-4 (units of the ~1.9-unit-tall performer); the full registration at the

@@ -170,7 +170,16 @@ class NonRigidOptions:
 
     Args:
         rigid_init: run rigid ICP first.
-        node_spacing: deformation-graph node spacing (> 0).
+        node_spacing: deformation-graph node spacing (> 0); raised to ``node_edge_factor * h`` for coarse meshes.
+        node_edge_factor: the node spacing is at least this many ``h`` (finite, >= 0; ``h`` the mean edge length of
+            the finer of the two meshes, as a fraction of the diagonal; 0 leaves ``node_spacing`` alone). A graph as
+            fine as the mesh (below ~1000 vertices 0.03 of the diagonal is about one edge: a node for every two
+            vertices) fits the chords of each frame's coarse surface instead of the motion, and converges slowly.
+            Measured (docs/registration.md, "Coarse meshes"): at 1.25 the ground-truth RMSE of the demo at
+            resolution 24 (420 vertices) falls from 1.17 to 0.98 % of the diagonal and at resolution 16 from 3.3 to
+            2.4 %, and of the ground-truth pairs at 314 and 162 vertices by 4-27 % at every motion level; 2 failed on
+            the large motion. Meshes with ``h`` below 0.024 (the demo at resolution 48 and above, the paper's
+            sizes) keep ``node_spacing``.
         num_neighbors: nodes per vertex (>= 1).
         num_points: source vertices (random subset of the surface vertices) in the data term (>= 1).
         num_target_samples: target surface samples in the reverse term (target → deformed source; >= 0).
@@ -184,28 +193,32 @@ class NonRigidOptions:
             whose gradient is rounding-level would move by the step size in a direction the input's last bits set;
             with ``eps`` relative, components far below the largest move in proportion to their gradient. 1e-4 keeps
             the ground-truth accuracy (docs/registration.md, "Stability"); 1e-3 cost 4 % of it, 1e-2 cost 25 %.
-        tolerance: convergence criterion (>= 0): the fit is reported as not converged when the last stage's loss
-            still changes, between its last correspondence refresh and its end (correspondences refreshed at the
-            final parameters), by more than this fraction of that final loss (or of the loss of residuals of 1e-5 of
-            the diagonal, when larger: an exact fit's loss is rounding). It decides no iterate: every stage
-            runs its steps (or stops at a stationary point). Measured (docs/registration.md, "Convergence"): the
-            default schedule ends at 0.7e-4 to 1.2e-4, schedules cut after stage 1, 2 or 3 at 1.6e-3 to 2.2e-2.
+        tolerance: convergence criterion (>= 0): the fit is reported as not converged when the last stage's loss, on
+            the correspondences of its last refresh, still changes between that refresh and its end by more than this
+            fraction of its final value (or of the loss of residuals of 1e-5 of the diagonal, when larger: an exact
+            fit's loss is rounding). It decides no iterate: every stage runs its steps (or stops at a stationary
+            point). Measured (docs/registration.md, "Convergence"): the default schedule ends at 0.7e-4 to 1.0e-4 at
+            the paper's sizes and at most 2.5e-4 below 500 vertices, schedules cut after stage 1, 2 or 3 at 1.4e-3 to
+            2.6e-2.
         max_outlier_fraction: the fit is reported as failed when more than this fraction (in ``[0, 1]``) of the
-            source's surface vertices lies farther than ``outlier_distance`` from the target. (Before 2026-12-05 it
-            bounded the target samples too; ``max_uncovered_fraction`` does now.)
+            source's surface vertices lies farther than ``max(outlier_distance, outlier_edge_factor * h)`` from the
+            target. (Before 2026-12-05 it bounded the target samples too, which ``max_uncovered_fraction`` does now;
+            later that day its distance became resolution-aware: ``outlier_distance`` alone called 7 of 40 correct
+            fits of the demo at resolution 16 failed.)
         max_uncovered_fraction: the fit is reported as failed when more than this fraction (in ``[0, 1]``) of the
             target samples lies farther than ``max(outlier_distance, outlier_edge_factor * h)`` from the registered
             source: a part of the target left uncovered, the footprint of a limb registered onto another limb, which
             the residual does not see (an area-weighted fraction). Measured (docs/registration.md, "Known failure";
             beyond the default distance, with the per-face target draw): none on 59 correct pairs of 150 to 10k
             vertices; horse-gallop 3 -> 4 1.1 %, 7 -> 9 3.4 %, 5 of 6 CraGL cow pose pairs 0.8-3.8 %.
-        outlier_distance: distance (>= 0) beyond which a source vertex is an outlier; the floor of the distance
-            beyond which a target sample is uncovered.
-        outlier_edge_factor: the uncovered distance's part relative to the meshes' resolution (finite, >= 0): ``h``
-            is the mean edge length of the finer of the two meshes, as a fraction of the diagonal. A correct fit of
-            coarse meshes leaves gaps of a few edges (chords across curved parts, limbs a few edges thick: on the
-            demo at resolution 16, edges of 0.055 of the diagonal, up to 9.8 % of the target lay beyond 0.02, 0.85 %
-            beyond 3 edges, none beyond 4); 0 leaves ``outlier_distance`` alone.
+        outlier_distance: the floor (>= 0) of the distance beyond which a source vertex is an outlier and a target
+            sample uncovered.
+        outlier_edge_factor: that distance's part relative to the meshes' resolution (finite, >= 0): ``h`` is the
+            mean edge length of the finer of the two meshes, as a fraction of the diagonal. A correct fit of coarse
+            meshes leaves gaps of a few edges (chords across curved parts, limbs a few edges thick: on the demo at
+            resolution 16, edges of 0.053 of the diagonal, up to 9.8 % of the target lay beyond 0.02, 0.85 % beyond 3
+            edges, none beyond 4; up to 14 % of the source's vertices beyond 0.02, none beyond 2.4 edges); 0 leaves
+            ``outlier_distance`` alone.
         rigid_options: keyword arguments of :func:`register_rigid` (not ``generator``); kept with its defaults
             filled in, ``point_to_plane=True`` unless given.
 
@@ -227,6 +240,7 @@ class NonRigidOptions:
 
     rigid_init: bool = True
     node_spacing: float = 0.03
+    node_edge_factor: float = 1.25
     num_neighbors: int = 4
     num_points: int = 2000
     num_target_samples: int = 2000
@@ -251,6 +265,7 @@ class NonRigidOptions:
         checked = {
             "rigid_init": _flag("rigid_init", self.rigid_init),
             "node_spacing": _finite("node_spacing", self.node_spacing, 0.0, open_low=True),
+            "node_edge_factor": _finite("node_edge_factor", self.node_edge_factor, 0.0),
             "num_neighbors": _int("num_neighbors", self.num_neighbors, 1),
             "num_points": _int("num_points", self.num_points, 1),
             "num_target_samples": _int("num_target_samples", self.num_target_samples, 0),
