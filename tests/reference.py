@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from fractions import Fraction
 
 import numpy as np
@@ -121,3 +122,59 @@ def nearest_vertex(points: np.ndarray, ref: np.ndarray) -> tuple[np.ndarray, np.
     d = np.sqrt(((points[:, None, :] - ref[None, :, :]) ** 2).sum(-1))
     idx = d.argmin(1)
     return d[np.arange(len(points)), idx], idx
+
+
+def round_to_binary(q: Fraction, dtype: np.dtype | type) -> float:
+    """``q`` rounded once, to nearest even, to ``dtype`` (float32 or float64; normal numbers), as a Python float.
+
+    ``float(q)`` rounds to float64 correctly, but float64 then float32 would round twice.
+    """
+    bits = np.finfo(dtype).nmant + 1
+    if q == 0:
+        return 0.0
+    sign, q = (-1.0 if q < 0 else 1.0), abs(q)
+    e = q.numerator.bit_length() - q.denominator.bit_length()
+    scaled = q * Fraction(2) ** (bits - 1 - e)
+    while scaled >= 2**bits:
+        e, scaled = e + 1, scaled / 2
+    while scaled < 2 ** (bits - 1):
+        e, scaled = e - 1, scaled * 2
+    whole, rest = divmod(scaled.numerator, scaled.denominator)
+    if 2 * rest > scaled.denominator or (2 * rest == scaled.denominator and whole % 2 == 1):
+        whole += 1
+    return sign * float(whole) * 2.0 ** (e - bits + 1)
+
+
+def fma(a: float, b: float, c: float, dtype: np.dtype | type) -> float:
+    """``a * b + c`` rounded once to ``dtype`` (IEEE 754 fusedMultiplyAdd, as ``std::fma``)."""
+    return round_to_binary(Fraction(a) * Fraction(b) + Fraction(c), dtype)
+
+
+def fused_unit_vertex_normals(verts: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Area-weighted unit vertex normals ``(V, 3)`` in ``verts``' dtype, rounded as IEEE 754 defines every step.
+
+    Face cross products ``(b - a) x (c - a)`` as ``fma(u1, v2, -(u2 v1))`` per component, summed per vertex in (corner,
+    face) order, divided by ``sqrt(fma(z, z, fma(y, y, x x)))`` (correctly rounded; zero where that is zero): the C++
+    ``deform_normals``'s operations, each rounded once as IEEE 754 defines, with no library kernel in between, so the
+    same bits on every CPU. Slow (exact rational fma): a few thousand faces.
+    """
+    dt = verts.dtype.type
+    a, b, c = (verts[faces[:, i]] for i in range(3))
+    u, v = (b - a).tolist(), (c - a).tolist()
+    cross = np.array(
+        [
+            [fma(p[j], q[k], -float(dt(p[k]) * dt(q[j])), dt) for j, k in ((1, 2), (2, 0), (0, 1))]
+            for p, q in zip(u, v, strict=True)
+        ],
+        dtype=dt,
+    ).reshape(-1, 3)
+    acc = np.zeros_like(verts)
+    for corner in range(3):
+        np.add.at(acc, faces[:, corner], cross)  # unbuffered: in index order
+    out = np.zeros_like(verts)
+    for i, (x, y, z) in enumerate(acc.tolist()):
+        s = fma(z, z, fma(y, y, float(dt(x) * dt(x)), dt), dt)
+        norm = dt(math.sqrt(s))  # sqrt in float64 then float32 is correctly rounded (53 >= 2 * 24 + 2)
+        if norm > 0:
+            out[i] = acc[i] / norm
+    return out

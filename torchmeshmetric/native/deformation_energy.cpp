@@ -625,7 +625,8 @@ inline void unit(const T* x, T* out) {
 
 // Every vertex deformed by the graph (rotations from axis-angle), and the area-weighted unit vertex normals of the
 // deformed mesh at the vertices `at` (Mesh.vertex_normals: face cross products summed per vertex in (corner, face)
-// order, the order of its three index_add passes; `inc_ptr` / `inc_items` from incident_faces).
+// order, the order of its three index_add passes; `inc_ptr` / `inc_items` from incident_faces). std::fma and
+// std::sqrt round once: the same bits on every CPU, and torch's on its AVX2 / AVX-512 kernels (not its scalar ones).
 template <typename T>
 std::vector<torch::Tensor> deform_normals_impl(const torch::Tensor& axis, const torch::Tensor& t,
                                                const torch::Tensor& g, const torch::Tensor& rest,
