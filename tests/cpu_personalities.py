@@ -41,12 +41,20 @@ def run_as(personality: dict[str, str], code: str, *, timeout: float = 600) -> s
 
 
 def main(argv: list[str]) -> int:
-    """``python -m tests.cpu_personalities COMMAND...``: run the command under each of :data:`OTHER_CPUS`.
+    """``python -m tests.cpu_personalities [--only NAME] COMMAND...``: run the command under each of :data:`OTHER_CPUS`.
 
-    Returns the first non-zero exit status, else 0 (``.ci/run`` runs the ``pinned`` tests this way).
+    ``--only NAME`` runs it under that personality alone. Returns the first non-zero exit status, else 0
+    (``.ci/run`` runs the ``pinned`` tests this way, and the whole suite under ``--only scalar``).
     """
+    names = list(OTHER_CPUS)
+    if argv[:1] == ["--only"]:
+        if len(argv) < 3 or argv[1] not in OTHER_CPUS:
+            found = argv[1] if len(argv) > 1 else "nothing"
+            raise SystemExit(f"cpu_personalities: --only takes one of {names} and a command; found {found!r}")
+        names, argv = [argv[1]], argv[2:]
     status = 0
-    for name, personality in OTHER_CPUS.items():
+    for name in names:
+        personality = OTHER_CPUS[name]
         settings = " ".join(f"{k}={v}" for k, v in personality.items())
         print(f"\n=== CPU personality '{name}': {settings} ===", flush=True)
         code = subprocess.run(argv, env={**os.environ, **personality}, cwd=REPO).returncode

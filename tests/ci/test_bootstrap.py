@@ -93,8 +93,11 @@ def test_ci_run_gives_every_run_a_fresh_empty_extension_cache(tmp_path):
         subprocess.run(["bash", str(repo / ".ci" / "run")], check=True, env=env, cwd=tmp_path)
     seen = [line.split(" ", 3) for line in log.read_text().splitlines()]
     # Per run: the pinned tests as other CPUs meet the new cache empty (the first build, as on a new machine), then
-    # the README command in the same cache (the extensions built once per run).
+    # the README command and the whole suite as the scalar CPU in the same cache (the extensions built once per run).
     pinned = "python -m tests.cpu_personalities python -m pytest -m pinned -n 2 -q"
-    assert [s[1:] for s in seen] == [["dir", "0", pinned], ["dir", "1", "python -m pytest -n 2"]] * 2
-    assert seen[0][0] == seen[1][0] != seen[2][0] == seen[3][0] and all(Path(s[0]).parent == tmp_path for s in seen)
+    scalar = "python -m tests.cpu_personalities --only scalar python -m pytest -n 2 -q"
+    run = [["dir", "0", pinned], ["dir", "1", "python -m pytest -n 2"], ["dir", "1", scalar]]
+    assert [s[1:] for s in seen] == run * 2
+    assert seen[0][0] == seen[1][0] == seen[2][0] != seen[3][0] == seen[4][0] == seen[5][0]
+    assert all(Path(s[0]).parent == tmp_path for s in seen)
     assert not any(Path(s[0]).exists() for s in seen)  # removed after each run
