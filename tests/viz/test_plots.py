@@ -79,3 +79,33 @@ def test_plots_have_a_flicker_and_a_registration_panel_when_flicker_was_measured
     four = plot_histograms({"a": alone}, tmp_path / "four.png")
     assert (width(six), width(four)) == (1650, 1100)  # 3 x 5 in and 2 x 5 in at 110 dpi
     assert width(plot_frame_curves({"a": seq}, tmp_path / "curves.png")) == 1650
+
+
+def test_panels_of_equal_or_zero_distances_span_their_bins_without_a_warning(tmp_path):
+    """Frame k-1 given as its own registration: the coarse sphere's vertices are vertices of the fine one, so every
+    nearest-vertex distance to k is 0 (no bar) and to k-1 is the translation 0.1 (two values one ulp apart). Each
+    panel spans its bins on the log axis; before, the ulp-wide bins made matplotlib warn of identical limits."""
+    import warnings
+
+    import numpy as np
+
+    from torchmeshmetric.evaluation import evaluate_pair
+    from torchmeshmetric.viz.plots import histogram_figure, log_bins
+
+    original = [sphere(1, offset=(0.1 * k, 0, 0)) for k in range(2)]
+    pair = evaluate_pair(sphere(0, offset=(0.1, 0, 0)), original[1], original[0], precomputed_registration=original[0])
+    zeros, tenths = pair.distances["vertex_k"].numpy(), pair.distances["vertex_k_minus_1"].numpy()
+    assert zeros.max() == 0 and 0 < tenths.max() - tenths.min() <= 2 * np.spacing(0.1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fig = histogram_figure({"a": pair})
+        plot_histograms({"a": pair}, tmp_path / "h.png")
+    panels = {ax.get_title(): ax for ax in fig.axes}
+    empty, equal = panels["nearest vertex distance to k"], panels["nearest vertex distance to registered k-1"]
+    assert empty.get_xscale() == "log" and empty.get_xlim() == pytest.approx((1e-6, 1.0), rel=1e-12)
+    assert all(bar.get_height() == 0 for bar in empty.patches)  # every vertex is below the lowest edge
+    assert "100.0% of vertices below 1e-06" in empty.get_legend().get_texts()[0].get_text()
+    assert equal.get_xlim() == pytest.approx((tenths.max() / 10, tenths.max()), rel=1e-12)
+    assert sum(bar.get_height() for bar in equal.patches) == len(tenths)  # every vertex in the top bin
+    # a spread of a millionth or more is shown as it is
+    assert log_bins([np.array([1.0, 1.0 + 1e-5])], 2).tolist() == pytest.approx([1.0, 1.0 + 5e-6, 1.0 + 1e-5])

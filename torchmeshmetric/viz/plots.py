@@ -77,7 +77,8 @@ def log_bins(values: Sequence[Any], bins: int, *, decades: float = 6.0) -> Any:
         decades: widest span of the axis, in powers of ten.
 
     Returns:
-        ``(bins + 1,)`` increasing edges (a unit range when every distance is zero).
+        ``(bins + 1,)`` increasing edges (a unit range when every distance is zero; the decade below the largest
+        distance when all positive ones are equal to within a millionth).
 
     Example:
         >>> import numpy as np
@@ -89,7 +90,9 @@ def log_bins(values: Sequence[Any], bins: int, *, decades: float = 6.0) -> Any:
     if hi <= 0 or not positive:
         return np.geomspace(1e-6, 1.0, bins + 1)
     lo = max(float(min(positive)), hi * 10.0**-decades)
-    if lo >= hi:
+    if lo >= hi * (1.0 - 1e-6):
+        # Equal distances, or equal but for rounding (a translation's nearest-vertex distances: 0.1 and one ulp
+        # below): no spread to show, and edges one ulp apart made the axis' limits identical. A decade below.
         lo = hi / 10.0
     return np.geomspace(lo, hi, bins + 1)
 
@@ -112,6 +115,9 @@ def histogram_figure(methods: Mapping[str, PairEvaluation], *, bins: int = 50) -
             below = float(np.mean(v < edges[0])) if len(v) else 0.0
             label = f"{m} (RMSE {np.sqrt(np.mean(v * v)):.3g}; {below:.1%} of vertices below {edges[0]:.2g})"
             ax.hist(v[v >= edges[0]], bins=edges, alpha=0.55, label=label)
+        # The axis spans the bins even when no bar is drawn (every distance below the lowest edge, e.g. an exact
+        # registration's residual): matplotlib's default limits of an empty panel are not valid on a log scale.
+        ax.set_xlim(edges[0], edges[-1])
         ax.set_xscale("log")
         ax.set_title(_LABELS[name], fontsize=10)
         ax.set_xlabel("distance (log scale)")
