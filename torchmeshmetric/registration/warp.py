@@ -68,11 +68,13 @@ class RegistrationWarp(NamedTuple):
 
     Example:
         >>> import torch, trimesh
-        >>> from torchmeshmetric.registration import register_nonrigid, DEFAULT_SCHEDULE
+        >>> from torchmeshmetric.registration import register_nonrigid
         >>> src = trimesh.creation.icosphere(subdivisions=1)
         >>> tgt = trimesh.creation.icosphere(subdivisions=2)
         >>> tgt.vertices *= [1.1, 1.0, 0.9]
-        >>> r = register_nonrigid(src, tgt, schedule=[DEFAULT_SCHEDULE[0]._replace(max_steps=10)])
+        >>> r = register_nonrigid(src, tgt)  # 42 -> 162 vertices: ~0.2 s
+        >>> r.converged
+        True
         >>> warp = RegistrationWarp.from_registration(r, tgt)
         >>> bool(torch.allclose(warp(torch.tensor(src.vertices)), r.verts, atol=1e-12))
         True
