@@ -40,7 +40,7 @@ def test_graph_rotation_gradient_matches_finite_difference_at_identity():
 
     def f(rot):
         g.rotations.data.copy_(rot)
-        return float((g() * w).sum())
+        return float((g() * w).sum().detach())
 
     rot0 = torch.zeros_like(g.rotations)
     g.rotations.data.zero_()
