@@ -408,11 +408,11 @@ class _Fit:
         self.edge = _finer_edge(src, tgt)
         # Never finer than the meshes: at 0.03 of the diagonal a ~400-vertex mesh gets a node for every two vertices,
         # which fits each frame's chords rather than the motion (see NonRigidOptions.node_edge_factor). The data terms
-        # are in units of this spacing, as the regularisation's edges.
-        self.node_spacing = max(opts.node_spacing, opts.node_edge_factor * self.edge)
+        # are in units of this spacing (self.graph.node_spacing), as the regularisation's edges.
+        spacing = max(opts.node_spacing, opts.node_edge_factor * self.edge)
         # Node candidates from every source face, not only those with a normal (see DeformationGraph).
         self.graph = DeformationGraph(
-            src.verts, frame.faces, node_spacing=self.node_spacing, num_neighbors=opts.num_neighbors
+            src.verts, frame.faces, node_spacing=spacing, num_neighbors=opts.num_neighbors
         ).to(dev)
         # The data points and the target samples are drawn over every vertex and every face, not over the surface
         # ones only: a rounding of the input that makes a face degenerate (6 decimals did on 2 of the demo's 40k faces)
@@ -539,7 +539,7 @@ class _Fit:
         final, _ = self._evaluate(self.last_stage, self.last_terms, gradient=False)
         # Below the loss of residuals of 1e-5 of the diagonal (in node spacings) the fit is as good as exact, and a
         # relative change of its tiny loss is rounding (a 1e-5 stretch ends at a loss of 7e-11, changing by 2e-13).
-        floor = (1e-5 / self.node_spacing) ** 2
+        floor = (1e-5 / self.graph.node_spacing) ** 2
         change = abs(final - h[-1]) / max(abs(final), floor)
         if change <= self.opts.tolerance:
             return ""
@@ -639,7 +639,7 @@ class _Fit:
         """
         opts, graph = self.opts, self.graph
         weights = {"plane_weight": opts.plane_weight, "point_weight": opts.point_weight}
-        data_scale = 1.0 / (self.node_spacing * self.node_spacing)
+        data_scale = 1.0 / (self.graph.node_spacing * self.graph.node_spacing)
         if terms.fused is not None:
             scalars = [stage.robust_scale, opts.plane_weight, opts.point_weight, opts.reverse_weight, data_scale,
                        stage.regularization]  # fmt: skip
@@ -656,7 +656,7 @@ class _Fit:
                 loss = loss + opts.reverse_weight * reverse_term(
                     self.samples, dsub, terms.faces_loc, terms.reverse, sigma=stage.robust_scale, **weights
                 )
-            loss = loss / (self.node_spacing * self.node_spacing)
+            loss = loss / (self.graph.node_spacing * self.graph.node_spacing)
             loss = loss + stage.regularization * embedded_deformation_regularizer(graph)
         value = float(loss.detach())
         if not gradient:
