@@ -16,7 +16,6 @@ import contextlib
 import datetime
 import os
 import signal
-import sys
 from collections.abc import Callable, Mapping
 from types import FrameType
 from typing import Any, NamedTuple
@@ -24,6 +23,7 @@ from typing import Any, NamedTuple
 import torch
 import torch.distributed as dist
 
+from torchmeshmetric._console import say
 from torchmeshmetric.tasks import RankFailedError, default_store, in_flight
 
 __all__ = [
@@ -115,7 +115,7 @@ def report_error(launch: Launch, command: str, exc: BaseException) -> int:
     else:
         line = error_line(command, exc, rank=launch.rank)
     _post(store, _SAID_KEY, line)  # the ranks torchrun then stops stay silent: the job's error is said
-    print(line, file=sys.stderr)
+    say(line)
     return 1
 
 
@@ -249,7 +249,7 @@ def run_command(command: Callable[[Any], int], args: Any) -> int:
         if _said(default_store()):
             return 1  # a rank failed and said why; torchrun stopped the others
         if launch.rank == min(set(range(launch.world_size)) - {r for r, _ in busy}):  # one line, from one survivor
-            print(f"torchmeshmetric {args.command}: error: {_stopped_message(busy)}", file=sys.stderr)
+            say(f"torchmeshmetric {args.command}: error: {_stopped_message(busy)}")
         return 1
     finally:
         signal.signal(signal.SIGTERM, previous)

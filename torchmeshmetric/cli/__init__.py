@@ -41,6 +41,7 @@ import sys
 from collections.abc import Collection, Sequence
 from typing import NamedTuple
 
+from torchmeshmetric._console import say
 from torchmeshmetric.cli import _interrupts
 
 __all__ = ["COMMANDS", "CommandInfo", "build_parser", "main"]
@@ -180,13 +181,11 @@ def _error(command: str, exc: Exception) -> int:
         raise exc
     if "torchmeshmetric.launch" not in sys.modules:  # the command ran without torch: the same line, torch not loaded
         text = str(exc).strip()
-        print(
-            f"torchmeshmetric {command}: error: {text.splitlines()[0] if text else type(exc).__name__}", file=sys.stderr
-        )
+        say(f"torchmeshmetric {command}: error: {text.splitlines()[0] if text else type(exc).__name__}")
         return 1
     from torchmeshmetric.launch import error_line  # under torchrun: once, by rank 0 (or by the rank that failed)
 
-    print(error_line(command, exc), file=sys.stderr)
+    say(error_line(command, exc))
     return 1
 
 

@@ -27,6 +27,8 @@ from collections.abc import Iterator
 from types import FrameType
 from typing import NoReturn
 
+from torchmeshmetric._console import say
+
 __all__ = ["EXIT_CODE", "MESSAGE", "exit_now", "handled", "interrupted"]
 
 MESSAGE = "torchmeshmetric: interrupted"
@@ -45,7 +47,7 @@ def interrupted(*, raw: bool = False) -> int:
             with contextlib.suppress(OSError):
                 os.write(2, (MESSAGE + "\n").encode())
         else:
-            print(MESSAGE, file=sys.stderr, flush=True)
+            say(MESSAGE)
     return EXIT_CODE
 
 

@@ -6,7 +6,6 @@ Imported by a command's ``run`` only (it imports torch and the evaluation system
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -15,6 +14,7 @@ from typing import Any
 import torch
 
 from torchmeshmetric._atomic import atomic_write
+from torchmeshmetric._console import say
 from torchmeshmetric._format import json_safe
 from torchmeshmetric.cli._outputs import CLIError, output_set
 from torchmeshmetric.data.sequence import load_sequence
@@ -55,7 +55,7 @@ def progress(label: str) -> Callable[[int, int], None]:
         width = 20
         done = int(width * k / total)
         bar = "#" * done + "." * (width - done)
-        print(f"{label} [{bar}] frame pair {k}/{total} ({time.perf_counter() - start:.1f} s)", file=sys.stderr)
+        say(f"{label} [{bar}] frame pair {k}/{total} ({time.perf_counter() - start:.1f} s)")
 
     return report
 
@@ -149,7 +149,7 @@ def write_reports(
             written.append(
                 _write_html_report(paths, report, methods, extra, comparisons, figures, meshes, overwrite, determinacy)
             )
-    print("wrote " + ", ".join(str(p) for p in written), file=sys.stderr)
+    say("wrote " + ", ".join(str(p) for p in written))
 
 
 def _write_html_report(
@@ -326,7 +326,7 @@ def determinacy_of(
         return None
     from torchmeshmetric.evaluation.determinacy import measure_determinacy, nudge_frames
 
-    print(f"--determinacy {args.determinacy}: evaluating again on nudged frames", file=sys.stderr)
+    say(f"--determinacy {args.determinacy}: evaluating again on nudged frames")
     # One seed for every frame: a coordinate moves by a function of its value, in the originals as in the simplified.
     nudged_original = nudge_frames(original, args.determinacy)
     nudged = {name: nudge_frames(frames, args.determinacy) for name, frames in methods.items()}

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from typing import Any
 
+from torchmeshmetric._console import say
 from torchmeshmetric.cli.options import add_command
 
 __all__ = ["add_build_command", "run"]
@@ -30,7 +30,7 @@ def run(args: argparse.Namespace) -> int:
     except native.NativeBuildError as err:
         raise CLIError(str(err)) from err
     for name, path in paths.items():
-        print(f"{name}: {path}", file=sys.stderr)
+        say(f"{name}: {path}")
     return 0
 
 

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 from typing import Any
 
+from torchmeshmetric._console import say
 from torchmeshmetric.cli.options import add_cache_dir, add_command, add_html, add_temporal, common_options
 
 __all__ = ["add_campaign_command", "run"]
@@ -125,7 +125,7 @@ def run(args: argparse.Namespace) -> int:
                 combined, campaign_markdown(results), title=f"torchmeshmetric campaign: {campaign.path.name}"
             )
             write_html(out / f"{COMBINED}.html", page, overwrite=args.overwrite)
-    print(f"wrote {out / COMBINED}.json/.md/.csv and one report per sequence", file=sys.stderr)
+    say(f"wrote {out / COMBINED}.json/.md/.csv and one report per sequence")
     return 0
 
 

@@ -12,11 +12,11 @@ import csv
 import io
 import json
 import math
-import sys
 import time
 from pathlib import Path
 from typing import Any
 
+from torchmeshmetric._console import say
 from torchmeshmetric._format import format_number, json_safe
 from torchmeshmetric.cli.options import ctc_options
 from torchmeshmetric.mpeg.ctc.frame_pattern import frame_path
@@ -166,7 +166,7 @@ def _compute(args: argparse.Namespace, files: list[Any], lo: list[float], hi: li
             for s in _STAGES:
                 totals[s] += seconds.get(s, 0.0)
             line += "  " + " ".join(f"{s} {seconds.get(s, 0.0):.2f}" for s in _STAGES)
-        print(line, file=sys.stderr, flush=True)
+        say(line)
         return f
 
     with ahead:
@@ -175,7 +175,7 @@ def _compute(args: argparse.Namespace, files: list[Any], lo: list[float], hi: li
     if args.verbose:
         wall = time.perf_counter() - start
         parts = " ".join(f"{s} {totals[s]:.2f}" for s in _STAGES)
-        print(f"ctc: {len(files)} frames in {wall:.2f} s (reading overlapped); stage seconds: {parts}", file=sys.stderr)
+        say(f"ctc: {len(files)} frames in {wall:.2f} s (reading overlapped); stage seconds: {parts}")
     if done is None or rank != 0:
         return None
     return done

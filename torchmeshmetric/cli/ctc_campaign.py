@@ -8,11 +8,11 @@ from __future__ import annotations
 import argparse
 import json
 import re
-import sys
 import time
 from pathlib import Path
 from typing import Any
 
+from torchmeshmetric._console import say
 from torchmeshmetric.cli.options import add_command
 
 __all__ = ["add_ctc_campaign_command", "run"]
@@ -71,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
 
     def progress(task: Any, record: dict[str, Any]) -> None:
         figs = "  ".join(f"{c} {v:.4f}" for c, v in record["figures"].items())
-        print(f"ctc-campaign: {task.describe()}: {figs}  [{record['seconds']:.2f} s]", file=sys.stderr, flush=True)
+        say(f"ctc-campaign: {task.describe()}: {figs}  [{record['seconds']:.2f} s]")
 
     result = run_ctc_campaign(campaign, cache_dir=cache, progress=progress)
     if result is None:  # a torchrun rank other than 0: rank 0 reports
@@ -127,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
     )
     if chains > 0:
         line += f" (campaign overhead {100 * (wall - chains) / chains:+.1f} % of the chains)"
-    print(line + f"; wrote {out}/", file=sys.stderr)
+    say(line + f"; wrote {out}/")
     return 0
 
 

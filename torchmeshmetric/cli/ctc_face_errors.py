@@ -6,10 +6,10 @@ Only the standard library is imported here (``--help`` stays fast); the metrics 
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 from typing import Any
 
+from torchmeshmetric._console import say
 from torchmeshmetric.cli.options import add_command, ctc_options
 
 __all__ = ["add_ctc_face_errors_command", "run"]
@@ -57,10 +57,9 @@ def run(args: argparse.Namespace) -> int:
         write_face_errors_ply(outputs[0], errors, color_by=args.color_by, overwrite=args.overwrite)
         write_face_errors_csv(outputs[1], errors, overwrite=args.overwrite)
     sampled = int((errors.samples > 0).sum())
-    print(
+    say(
         f"{errors.samples.shape[0]} faces ({sampled} with samples, {int(errors.samples.sum())} samples); "
-        f"wrote {outputs[0]}, {outputs[1]}",
-        file=sys.stderr,
+        f"wrote {outputs[0]}, {outputs[1]}"
     )
     return 0
 

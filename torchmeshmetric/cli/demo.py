@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from torchmeshmetric._console import say
 from torchmeshmetric.cli.options import (
     add_command,
     add_html,
@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
     seq = demo_sequence(args.frames, **kwargs)
     frames = [f.to(dtype=dtype_of(args)) for f in seq.frames]
     sizes = ", ".join(f"{f.num_verts}v/{f.num_faces}f" for f in frames)
-    print(f"demo sequence: {len(frames)} frames ({sizes}) in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
+    say(f"demo sequence: {len(frames)} frames ({sizes}) in {time.perf_counter() - t0:.1f} s")
 
     t0 = time.perf_counter()
     registrations = register_pairs(
@@ -77,10 +77,9 @@ def run(args: argparse.Namespace) -> int:
         backend=args.backend,
     )
     residual = ", ".join(f"{float(r.residual.mean()):.2e}" for r in registrations)
-    print(
+    say(
         f"registered {len(registrations)} original frame pairs ({args.registration}) in "
-        f"{time.perf_counter() - t0:.1f} s; mean residual to frame k: {residual}",
-        file=sys.stderr,
+        f"{time.perf_counter() - t0:.1f} s; mean residual to frame k: {residual}"
     )
 
     t0 = time.perf_counter()
@@ -88,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
         "Orig QEM": simplify_frames(frames, "qem", args.target, None),
         "Reg QEM": simplify_frames(frames, "rqem", args.target, registrations, args.weight),
     }
-    print(f"simplified with QEM and Registered QEM in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
+    say(f"simplified with QEM and Registered QEM in {time.perf_counter() - t0:.1f} s")
 
     indexes = IndexCache(max_entries=2 * len(frames))  # each original frame's index built once for both methods
     results = {
@@ -107,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
     }
     print(paper_tables(results))
     written = _write_demo(out_dir, frames, results, simplified, registrations, args, device, seq.transfer)
-    print(f"wrote to {out_dir}: {', '.join(written)}", file=sys.stderr)
+    say(f"wrote to {out_dir}: {', '.join(written)}")
     return 0
 
 
@@ -196,7 +195,7 @@ def _demo_sweep(
     sweep = registered_qem_sweep(
         frames, registrations, args.target, args.weights, device=device, ground_truth=ground_truth
     )
-    print(f"weight sweep ({len(args.weights)} weights + QEM) in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
+    say(f"weight sweep ({len(args.weights)} weights + QEM) in {time.perf_counter() - t0:.1f} s")
     table = sweep.markdown()
     print("### Registered QEM weight sweep (mean over pairs of the per-pair Ave)\n\n" + table)
     atomic_write(out_dir / "weight_sweep.md", "# Registered QEM weight sweep\n\n" + table, overwrite=True)

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
+from torchmeshmetric._console import say
 from torchmeshmetric.cli.options import add_command
 
 __all__ = ["add_report_command", "run"]
@@ -49,7 +49,7 @@ def run(args: argparse.Namespace) -> int:
         report, markdown_path.read_text(encoding="utf-8"), title=f"torchmeshmetric report: {source.stem}", meshes=layers
     )
     write_html(out, page, overwrite=args.overwrite)
-    print(f"wrote {out}", file=sys.stderr)
+    say(f"wrote {out}")
     return 0
 
 

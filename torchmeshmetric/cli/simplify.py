@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 from typing import Any
 
+from torchmeshmetric._console import say
 from torchmeshmetric.cli.options import add_cache_dir, add_command, add_target, add_weight, common_options
 
 __all__ = ["add_simplify_command", "run"]
@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
         for path, mesh in zip(targets, simplified, strict=True):
             save_mesh(mesh, path, overwrite=args.overwrite)
     for path, mesh, frame in zip(targets, simplified, frames, strict=True):
-        print(f"{path}: {frame.num_faces} -> {mesh.num_faces} faces", file=sys.stderr)
+        say(f"{path}: {frame.num_faces} -> {mesh.num_faces} faces")
     return 0
 
 

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 from typing import Any
 
+from torchmeshmetric._console import say
 from torchmeshmetric.cli.options import add_command
 
 __all__ = ["add_validate_command", "run"]
@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
     result = run_validation(
         seed=args.seed,
         distortions=names,
-        progress=lambda n: print(f"validate: {n} done ({time.perf_counter() - start:.1f} s)", file=sys.stderr),
+        progress=lambda n: say(f"validate: {n} done ({time.perf_counter() - start:.1f} s)"),
         **preset,
     )
     settings = result.settings
@@ -72,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
     atomic_write(paths[1], title + text, overwrite=args.overwrite)
     if not args.no_plots:
         plot_validation(result, paths[2], overwrite=args.overwrite)
-    print(f"wrote {', '.join(str(p) for p in paths)}", file=sys.stderr)
+    say(f"wrote {', '.join(str(p) for p in paths)}")
     return 0
 
 

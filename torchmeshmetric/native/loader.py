@@ -21,7 +21,6 @@ import hashlib
 import importlib.util
 import os
 import re
-import sys
 import threading
 import time
 import warnings
@@ -29,6 +28,8 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
+
+from torchmeshmetric._console import say
 
 __all__ = ["EXTENSIONS", "HOME", "NativeBuildError", "NativeExtension", "build", "load", "ready", "try_load"]
 
@@ -155,11 +156,7 @@ def _build_lock(name: str, build_dir: Path) -> Iterator[None]:
         except BlockingIOError:
             fh.seek(0)
             holder = fh.read().strip() or "?"
-            print(
-                f"torchmeshmetric: waiting for the build of {name!r} by process {holder}...",
-                file=sys.stderr,
-                flush=True,
-            )
+            say(f"torchmeshmetric: waiting for the build of {name!r} by process {holder}...")
             fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
         try:
             fh.seek(0)
@@ -199,18 +196,14 @@ def _clear_torch_lock(name: str, lock: Path) -> None:
         holders = _lock_holders(lock)
         if not holders:
             lock.unlink(missing_ok=True)
-            print(
+            say(
                 f"torchmeshmetric: removed the stale build lock {str(lock)!r} of {name!r} (the process that "
-                "took it is gone: its build was killed); building again",
-                file=sys.stderr,
-                flush=True,
+                "took it is gone: its build was killed); building again"
             )
             return
         if not announced:
             who = ", ".join(str(h) for h in holders)
-            print(
-                f"torchmeshmetric: waiting for the build of {name!r} by process {who}...", file=sys.stderr, flush=True
-            )
+            say(f"torchmeshmetric: waiting for the build of {name!r} by process {who}...")
             announced = True
         time.sleep(0.2)
 
@@ -241,11 +234,7 @@ def _compile(name: str, ext: NativeExtension, module_name: str) -> ModuleType:
         done = _import_built(module_name)  # another process finished it while this one waited
         if done is not None:
             return done
-        print(
-            f"torchmeshmetric: building the C++ extension {name!r} ({', '.join(ext.sources)}) once for this machine...",
-            file=sys.stderr,
-            flush=True,
-        )
+        say(f"torchmeshmetric: building the C++ extension {name!r} ({', '.join(ext.sources)}) once for this machine...")
         start = time.perf_counter()
         module = torch_load(
             name=module_name,
@@ -255,7 +244,7 @@ def _compile(name: str, ext: NativeExtension, module_name: str) -> ModuleType:
             extra_include_paths=[str(HOME)],
             verbose=False,
         )
-    print(f"torchmeshmetric: built {name!r} in {time.perf_counter() - start:.1f} s", file=sys.stderr, flush=True)
+    say(f"torchmeshmetric: built {name!r} in {time.perf_counter() - start:.1f} s")
     return module
 
 
