@@ -5,7 +5,7 @@ from __future__ import annotations
 from fractions import Fraction
 
 import numpy as np
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tests.reference import fma, round_to_binary
@@ -16,12 +16,14 @@ finite64 = st.floats(min_value=-1e100, max_value=1e100, allow_nan=False, allow_i
 finite32 = st.floats(min_value=-1e10, max_value=1e10, width=32).filter(lambda x: x == 0 or abs(x) > 1e-10)
 
 
+@settings(max_examples=200, deadline=None)  # no timing limit: CI's 2 cores are shared (as every test here)
 @given(finite64, finite64, finite64)
 def test_float64_rounding_is_pythons_correctly_rounded_fraction(a: float, b: float, c: float) -> None:
     q = Fraction(a) * Fraction(b) + Fraction(c)
     assert round_to_binary(q, np.float64) == float(q)  # int / int true division rounds correctly (CPython)
 
 
+@settings(max_examples=200, deadline=None)
 @given(finite32, finite32, finite32)
 def test_float32_rounding_is_the_nearest_float32(a: float, b: float, c: float) -> None:
     q = Fraction(a) * Fraction(b) + Fraction(c)
