@@ -177,6 +177,9 @@ def test_approximate_quantiles_mode(frames):
         assert abs(float(a[k]) - float(e[k])) <= 0.01 * float(e[k]) * (1 + 1e-9)
 
 
+@pytest.mark.filterwarnings(
+    "ignore:The ``compute`` method of metric MeshSurfaceDistance was called before:UserWarning"
+)  # after reset: on purpose
 def test_metric_collection_state_dict_pickle_reset(frames):
     simps, refs = frames
     coll = MetricCollection({"surf": MeshSurfaceDistance(), "vert": NearestVertexDistance(two_sided=True)})

@@ -60,7 +60,7 @@ def test_the_slide_chain_is_differentiable_and_a_step_lowers_the_loss(frames):
         loss.backward()
         assert all(bool(torch.isfinite(p.grad).all()) for p in slide.parameters())
         opt.step()
-        losses.append(float(loss))
+        losses.append(loss.item())
     assert losses[-1] < losses[0]
     detached = simplify_tracking(frames, 400, regs, slide=slide)
     assert all(not m.verts.requires_grad and m.dtype == torch.float64 for m in detached)

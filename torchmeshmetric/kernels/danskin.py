@@ -91,7 +91,7 @@ def surface_distances(
         >>> p = torch.tensor([[0.0, 0.0, 3.0]], dtype=torch.float64, requires_grad=True)
         >>> d = surface_distances(p, v, f, index, torch.tensor([1]))
         >>> d.sum().backward()
-        >>> round(float(d), 4), [round(g, 4) for g in p.grad[0].tolist()], round(float(v.grad.sum(0)[2]), 4)
+        >>> round(d.item(), 4), [round(g, 4) for g in p.grad[0].tolist()], round(float(v.grad.sum(0)[2]), 4)
         (2.0, [0.0, 0.0, 1.0], -1.0)
     """
     out: Tensor = _DanskinDistance.apply(points, verts, faces, index, lengths, owner)

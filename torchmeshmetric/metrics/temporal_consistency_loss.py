@@ -406,7 +406,7 @@ def temporal_consistency_loss(
         >>> identity = lambda p: p  # the frames do not move
         >>> loss = temporal_consistency_loss((v, f), (v, f), sphere, sphere, identity, frame_weight=0.0)
         >>> loss.backward()
-        >>> float(loss), float(v.grad.abs().max())  # the same simplification twice: no flicker, zero gradient
+        >>> loss.item(), float(v.grad.abs().max())  # the same simplification twice: no flicker, zero gradient
         (0.0, 0.0)
     """
     _check_arguments(frame_weight, two_sided, reduction, power)
