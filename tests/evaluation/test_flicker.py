@@ -6,6 +6,7 @@ import pytest
 import torch
 
 from tests.evaluation.eval_helpers import TranslationRegister, sphere
+from tests.registration.expected_warnings import expects_not_converged
 from torchmeshmetric import Mesh
 from torchmeshmetric.evaluation import (
     TemporalConsistency,
@@ -66,8 +67,7 @@ def test_stable_simplification_has_no_flicker_and_alternating_scale_has_exactly_
     assert one_sided.reverse is None
 
 
-# a short schedule on purpose (speed): its "not converged" warning is expected (convergence has its own tests)
-@pytest.mark.filterwarnings("ignore:register_nonrigid. not converged:torchmeshmetric.registration.RegistrationWarning")
+@expects_not_converged
 def test_flicker_of_the_original_frame_k_minus_1_is_the_papers_k_minus_1_surface_set():
     """With the original k-1 as 'simplified k-1', moving it by the warp gives the registered mesh: flicker ==
     surface_k_minus_1, for a registration given as a mesh (SurfaceWarp) and as a NonRigidRegistration (graph)."""
@@ -82,8 +82,7 @@ def test_flicker_of_the_original_frame_k_minus_1_is_the_papers_k_minus_1_surface
         )
 
 
-# a short schedule on purpose (speed): its "not converged" warning is expected (convergence has its own tests)
-@pytest.mark.filterwarnings("ignore:register_nonrigid. not converged:torchmeshmetric.registration.RegistrationWarning")
+@expects_not_converged
 def test_graph_warp_reproduces_the_registration_and_composes_rigid_normalisation_and_graph():
     src, dst = sphere(3), sphere(3)
     dst = Mesh(dst.verts * torch.tensor([1.1, 1.0, 0.9], dtype=dst.dtype), dst.faces)

@@ -8,6 +8,8 @@ from pathlib import Path
 import pytest
 import torch
 
+from tests.registration.expected_warnings import expects_not_converged
+
 pytest.importorskip("lightning")
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "train_temporal_simplifier.py"
@@ -26,8 +28,7 @@ def example():
         del sys.modules[spec.name]
 
 
-# a short schedule on purpose (speed): its "not converged" warning is expected (convergence has its own tests)
-@pytest.mark.filterwarnings("ignore:register_nonrigid. not converged:torchmeshmetric.registration.RegistrationWarning")
+@expects_not_converged
 def test_a_few_steps_decrease_the_loss_and_report_every_method(example, tmp_path):
     setup = example.Setup.quick()
     setup.steps, setup.validate_every, setup.lr, setup.anchor_weights = 3, 2, 3e-2, (0.3,)

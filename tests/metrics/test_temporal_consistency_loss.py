@@ -7,6 +7,7 @@ import pytest
 import torch
 import trimesh
 
+from tests.registration.expected_warnings import expects_not_converged
 from torchmeshmetric import Mesh
 from torchmeshmetric._checks import EmptyInputError, ShapeError
 from torchmeshmetric.evaluation import register_pairs
@@ -237,8 +238,7 @@ def test_module_equals_function_and_refits_its_kept_indexes(frames):
     assert "frame_weight=0.7" in repr(module)
 
 
-# a short schedule on purpose (speed): its "not converged" warning is expected (convergence has its own tests)
-@pytest.mark.filterwarnings("ignore:register_nonrigid. not converged:torchmeshmetric.registration.RegistrationWarning")
+@expects_not_converged
 def test_default_registration_is_computed_once_per_original_pair(monkeypatch):
     src = trimesh.creation.icosphere(subdivisions=2)
     tgt = trimesh.creation.icosphere(subdivisions=2)
@@ -265,8 +265,7 @@ def test_default_registration_is_computed_once_per_original_pair(monkeypatch):
     torch.testing.assert_close(explicit, first, rtol=1e-12, atol=0)
 
 
-# a short schedule on purpose (speed): its "not converged" warning is expected (convergence has its own tests)
-@pytest.mark.filterwarnings("ignore:register_nonrigid. not converged:torchmeshmetric.registration.RegistrationWarning")
+@expects_not_converged
 def test_loss_and_evaluation_share_registrations():
     # One cache, one key: a registration computed by the evaluation is a hit for the loss, and the other way round.
     src = trimesh.creation.icosphere(subdivisions=2)

@@ -13,6 +13,7 @@ import pytest
 import torch
 import trimesh
 
+from tests.registration.expected_warnings import expects_not_converged
 from torchmeshmetric import Mesh
 from torchmeshmetric.registration import DEFAULT_SCHEDULE, NonRigidOptions, Stage, register_nonrigid, registration_key
 from torchmeshmetric.registration.options import RUN_ARGUMENTS
@@ -161,8 +162,7 @@ def test_run_arguments_are_the_keywords_of_register_nonrigid():
     assert not RUN_ARGUMENTS & {f.name for f in dataclasses.fields(NonRigidOptions)}
 
 
-# a short schedule on purpose (speed): its "not converged" warning is expected (convergence has its own tests)
-@pytest.mark.filterwarnings("ignore:register_nonrigid. not converged:torchmeshmetric.registration.RegistrationWarning")
+@expects_not_converged
 def test_options_and_keywords_give_the_same_registration():
     src = trimesh.creation.icosphere(subdivisions=2)
     tgt = trimesh.creation.icosphere(subdivisions=2)

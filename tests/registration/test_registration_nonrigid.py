@@ -7,6 +7,7 @@ import pytest
 import torch
 import trimesh
 
+from tests.registration.expected_warnings import expects_not_converged
 from tests.registration.gt_pairs import make_pair, torch_threads
 from torchmeshmetric import EmptyInputError, NonFiniteError, ShapeError
 from torchmeshmetric.data import add_capture_defects, demo_sequence
@@ -281,8 +282,7 @@ def _short_pair() -> tuple:
     return src, tgt
 
 
-# a short schedule on purpose (speed): its "not converged" warning is expected (convergence has its own tests)
-@pytest.mark.filterwarnings("ignore:register_nonrigid. not converged:torchmeshmetric.registration.RegistrationWarning")
+@expects_not_converged
 def test_thread_count_does_not_change_the_registration():
     # Every sum keeps one order whatever the thread count (the fused passes gather in a fixed order, ICP's small
     # algebra runs on one thread), so two threads give the one-thread registration bit for bit.
@@ -295,8 +295,7 @@ def test_thread_count_does_not_change_the_registration():
     assert one.loss_history == two.loss_history
 
 
-# a short schedule on purpose (speed): its "not converged" warning is expected (convergence has its own tests)
-@pytest.mark.filterwarnings("ignore:register_nonrigid. not converged:torchmeshmetric.registration.RegistrationWarning")
+@expects_not_converged
 def test_cpp_loop_equals_the_torch_formulation(monkeypatch: pytest.MonkeyPatch):
     # The CPU loop's C++ passes (refresh geometry, terms, fused energy) against the torch formulation used off the CPU:
     # the same correspondences and energy (first loss equal to rounding); Adam then amplifies the gradients' last
