@@ -35,7 +35,9 @@ def test_exact_figures_of_folders_and_patterns(tmp_path, capsys):
     assert (got["sted_s"], got["sted_t"], got["sted"]) == (want.spatial.item(), want.temporal.item(), want.sted.item())
     assert main(["temporal", str(orig / "f_%04d.ply"), str(dist / "f_%04d.ply"), "--dtype", "float64"]) == 0
     text = capsys.readouterr().out
-    assert "exact (same connectivity)" in text and f"{got['kg']:.6g}" in text
+    # Only the digits the input determines (FIGURE_FORMATS: 6 significant for the exact KG, 3 for its STED).
+    assert "exact (same connectivity)" in text and f"KG (%)       {got['kg']:#.6g}\n" in text
+    assert f"STED         {got['sted']:#.3g}\n" in text and "--json keeps every digit" in text
 
 
 def test_bad_input_is_one_line(tmp_path, capsys):

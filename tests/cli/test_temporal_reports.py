@@ -6,6 +6,7 @@ from tests.cli.cli_helpers import Counting, write_frames
 from torchmeshmetric.cli import main
 from torchmeshmetric.data.sequence import load_sequence
 from torchmeshmetric.temporal import temporal_figures
+from torchmeshmetric.temporal.report import FIGURE_DIGITS_NOTE
 
 
 def test_evaluate_and_compare_report_the_temporal_figures(capsys, tmp_path, sequence, known_registration):
@@ -19,7 +20,10 @@ def test_evaluate_and_compare_report_the_temporal_figures(capsys, tmp_path, sequ
     assert got == want.as_dict() and got["registered"] is True
     markdown = (tmp_path / "report.md").read_text()
     for text in (printed, markdown):
-        assert "## Temporal metrics (KG, KSO, STED" in text and f"| simp | {want.kg:.6g} |" in text
+        # The registered form's digits (FIGURE_FORMATS: 3 significant for KG, 2 for STED_s), and why.
+        digits = (("kg", 3), ("kso", 3), ("sted_s", 2), ("sted_t", 3), ("sted", 2))
+        row = "| simp | " + " | ".join(format(getattr(want, k), f"#.{n}g") for k, n in digits) + " |"
+        assert "## Temporal metrics (KG, KSO, STED" in text and row in text and FIGURE_DIGITS_NOTE in text
     other = write_frames(tmp_path / "other", 0)
     out2 = tmp_path / "compare.json"
     argv = ["compare", "--original", str(orig), "--method", f"A={simp}", "--method", f"B={other}", "--out", str(out2)]

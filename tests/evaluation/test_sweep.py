@@ -5,7 +5,7 @@ import torch
 
 from tests.evaluation.eval_helpers import TranslationRegister, sphere
 from torchmeshmetric.evaluation import evaluate_sequence, registered_qem_sweep
-from torchmeshmetric.evaluation.sweep import pareto_front
+from torchmeshmetric.evaluation.sweep import SWEEP_DIGITS_NOTE, pareto_front
 from torchmeshmetric.simplification import simplify_sequence
 
 
@@ -34,6 +34,15 @@ def test_sweep_rows_are_the_evaluations_of_each_weight_and_of_plain_qem(spheres,
     assert rows[-1]["surface_k"] == qem["surface_k"]["ave"]
     table = sweep.markdown()
     assert table.count("| Registered QEM |") == 2 and "| QEM (fast-simplification) |" in table
+    # Only the digits the input determines, as in the paper's tables (COLUMN_FORMATS: 2 significant for Ave).
+    for line, row in zip(table.splitlines()[2:5], rows, strict=True):
+        cells = [c.strip() for c in line.strip("|").split("|")][2:]
+        assert cells == [format(row[s], "#.2g") for s in ("surface_k", "surface_k_minus_1", "flicker")]
+    assert table.rstrip().endswith(SWEEP_DIGITS_NOTE)
+    rmse_first = sweep.markdown("rmse").splitlines()[2]
+    assert format(sweep.rows("rmse")[0]["flicker"], "#.2g") in rmse_first and "(rmse)" in sweep.markdown("rmse")
+    with pytest.raises(ValueError, match=r"statistic: .*found 'min'"):
+        sweep.markdown("min")
     assert set(sweep.as_dict()) == {"weights", "ave", "rmse", "registration"}
     pytest.importorskip("matplotlib")
     from torchmeshmetric.viz import plot_weight_sweep

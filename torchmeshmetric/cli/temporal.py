@@ -58,7 +58,12 @@ def run(args: argparse.Namespace) -> int:
     from torchmeshmetric.data.sequence import load_sequence
     from torchmeshmetric.registration.cache import RegistrationCache
     from torchmeshmetric.temporal.figures import FIGURE_NAMES, temporal_figures
-    from torchmeshmetric.temporal.report import FIGURE_LABELS, unconverged_tracking_note
+    from torchmeshmetric.temporal.report import (
+        FIGURE_DIGITS_NOTE,
+        FIGURE_LABELS,
+        format_figure,
+        unconverged_tracking_note,
+    )
 
     device = device_of(args)
     sequences = []
@@ -96,7 +101,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"{figures.num_frames} frames, {figures.num_verts} vertices followed; {form}")
     values: dict[str, Any] = figures.as_dict()
     for name in FIGURE_NAMES:
-        print(f"{FIGURE_LABELS[name]:<12} {values[name]:.6g}")
+        print(f"{FIGURE_LABELS[name]:<12} {format_figure(name, values[name], registered=figures.registered)}")
+    print(FIGURE_DIGITS_NOTE.replace("the JSON keeps", "--json keeps"))
     if figures.unconverged:
         print(unconverged_tracking_note(figures.unconverged))
     return 0

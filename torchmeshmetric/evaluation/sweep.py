@@ -16,17 +16,26 @@ from typing import Any, NamedTuple
 import torch
 from torch import Tensor
 
+from torchmeshmetric._format import format_number
 from torchmeshmetric.evaluation.pipeline import evaluate_sequence
+from torchmeshmetric.evaluation.reports import COLUMN_FORMATS
 from torchmeshmetric.evaluation.results import SequenceEvaluation
 from torchmeshmetric.simplification import simplify_sequence
 from torchmeshmetric.structures import MeshLike, as_mesh
 
-__all__ = ["DEFAULT_SWEEP_WEIGHTS", "WeightSweep", "pareto_front", "registered_qem_sweep"]
+__all__ = ["DEFAULT_SWEEP_WEIGHTS", "SWEEP_DIGITS_NOTE", "WeightSweep", "pareto_front", "registered_qem_sweep"]
 
 #: Weights swept by default (0 is the Registered QEM code without the previous frame).
 DEFAULT_SWEEP_WEIGHTS: tuple[float, ...] = (0.0, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0)
 
 _SWEEP_SETS = ("surface_k", "surface_k_minus_1", "flicker")
+
+#: Printed under the sweep's table: why weights can read alike.
+SWEEP_DIGITS_NOTE = (
+    "Digits as in the report's tables: only those the input determines (docs/statistics.md). Weights that read "
+    "alike differ by less than rounding the frames to float32 moves the figure (up to 5e-3 relative at ~20k "
+    "vertices); the sweep's JSON (weight_sweep.json) keeps every digit."
+)
 
 
 class WeightSweep(NamedTuple):
@@ -68,7 +77,24 @@ class WeightSweep(NamedTuple):
         }
 
     def markdown(self, statistic: str = "ave") -> str:
-        """The sweep as a Markdown table (4 significant digits; the baseline row is ``QEM``)."""
+        """The sweep as a Markdown table (the baseline row is ``QEM``), with the report tables' digits.
+
+        Each cell prints only the digits the input determines, as the paper's tables do
+        (:data:`~torchmeshmetric.evaluation.reports.COLUMN_FORMATS`: 2 significant digits for the averages), so
+        weights whose figures differ below the input's storage read alike; :meth:`as_dict` keeps every digit.
+
+        Args:
+            statistic: one of the printed statistics (``"ave"``, ``"var"``, ``"std"``, ``"mse"``, ``"rmse"``,
+                ``"max"``, ``"p95"``, ``"psnr"``).
+
+        Raises:
+            ValueError: another ``statistic`` (``"min"``, ``"median"``: no table prints them).
+        """
+        if statistic not in COLUMN_FORMATS:
+            raise ValueError(
+                f"statistic: expected one of {', '.join(map(repr, COLUMN_FORMATS))} (the tables' statistics), "
+                f"found {statistic!r}"
+            )
         lines = [
             f"| method | weight | frame k ({statistic}) | registered k-1 ({statistic}) | flicker ({statistic}) |",
             "|---|---|---|---|---|",
@@ -76,8 +102,9 @@ class WeightSweep(NamedTuple):
         for row in self.rows(statistic):
             name = "QEM (fast-simplification)" if row["weight"] is None else "Registered QEM"
             weight = "" if row["weight"] is None else f"{row['weight']:g}"
-            cells = " | ".join(f"{row[s]:.4g}" for s in _SWEEP_SETS)
+            cells = " | ".join(format_number(row[s], COLUMN_FORMATS[statistic]) for s in _SWEEP_SETS)
             lines.append(f"| {name} | {weight} | {cells} |")
+        lines += ["", SWEEP_DIGITS_NOTE]
         return "\n".join(lines) + "\n"
 
 

@@ -5,12 +5,59 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+from torchmeshmetric._format import format_number
 from torchmeshmetric.temporal.figures import FIGURE_NAMES, TemporalFigures
 
-__all__ = ["FIGURE_LABELS", "temporal_markdown", "temporal_report"]
+__all__ = [
+    "FIGURE_DIGITS_NOTE",
+    "FIGURE_FORMATS",
+    "FIGURE_LABELS",
+    "format_figure",
+    "temporal_markdown",
+    "temporal_report",
+]
 
 #: How the tables and the ``temporal`` command label each of :data:`FIGURE_NAMES`.
 FIGURE_LABELS = {"kg": "KG (%)", "kso": "KSO (E_RMS)", "sted_s": "STED_s", "sted_t": "STED_t", "sted": "STED"}
+
+#: Printed format of each figure, by form (``False``: exact, ``True``: registered): only the digits the input
+#: determines. Measured (tests/temporal/temporal_determinacy.py, docs/temporal.md "Which digits the input
+#: determines"): rounding the built-in frames (~20k vertices, 4 to 10 frames) from float64 to float32 moves the
+#: exact forms' KG, KSO and STED_t by at most 2.4e-7 (relative) and their STED_s by 3.9e-4 (the relative length
+#: changes of very short edges); the registered forms' KG, KSO and STED_t by up to 3.8e-4 and their STED_s by 1.2e-3
+#: (the registrations and the tracking amplify the rounding, as they do the paper's statistics). Hence 6 / 3 and
+#: 3 / 2 significant digits (``floor(-log10(change))``, the tables' rule); the JSON keeps every digit.
+FIGURE_FORMATS: dict[bool, dict[str, str]] = {
+    False: {"kg": "#.6g", "kso": "#.6g", "sted_s": "#.3g", "sted_t": "#.6g", "sted": "#.3g"},
+    True: {"kg": "#.3g", "kso": "#.3g", "sted_s": "#.2g", "sted_t": "#.3g", "sted": "#.2g"},
+}
+
+#: Printed under the temporal figures: which digits they show, and why.
+FIGURE_DIGITS_NOTE = (
+    "Digits: only those the input determines (docs/temporal.md): rounding ~20k-vertex frames to float32 moves the "
+    "exact forms' KG, KSO and STED_t by up to 2.4e-7 and their STED and STED_s by 4e-4 (relative), the registered "
+    "forms' KG, KSO and STED_t by 4e-4 and their STED and STED_s by 1.2e-3: 6 and 3 significant digits for the exact "
+    "forms, 3 and 2 for the registered. Frames stored with 6 decimals can hold fewer (the exact STED_s of a mesh "
+    "with very short edges: one digit); the JSON keeps every digit."
+)
+
+
+def format_figure(name: str, value: float, *, registered: bool) -> str:
+    """One temporal figure as the tables print it: the digits of :data:`FIGURE_FORMATS` for its form.
+
+    Args:
+        name: one of :data:`~torchmeshmetric.temporal.figures.FIGURE_NAMES`.
+        value: the figure.
+        registered: whether it came from the registered form.
+
+    Raises:
+        KeyError: another ``name``.
+
+    Example:
+        >>> format_figure("kg", 0.0750344025, registered=True), format_figure("kg", 0.0750344025, registered=False)
+        ('0.0750', '0.0750344')
+    """
+    return format_number(value, FIGURE_FORMATS[bool(registered)][name])
 
 
 def temporal_report(figures: Mapping[str, TemporalFigures]) -> dict[str, dict[str, Any]]:
@@ -28,10 +75,13 @@ def temporal_report(figures: Mapping[str, TemporalFigures]) -> dict[str, dict[st
 def temporal_markdown(figures: Mapping[str, TemporalFigures]) -> str:
     """A Markdown section with one row per method: KG, KSO, STED_s, STED_t, STED and the form used.
 
+    Each figure prints the digits its form determines (:func:`format_figure`), and :data:`FIGURE_DIGITS_NOTE` follows
+    the table.
+
     Example:
         >>> f = TemporalFigures(1.0, 2.0, 0.1, 0.2, 0.1, True, 3, 100)
         >>> print(temporal_markdown({"qem": f}).splitlines()[4])
-        | qem | 1 | 2 | 0.1 | 0.2 | 0.1 | registered |
+        | qem | 1.00 | 2.00 | 0.10 | 0.200 | 0.10 | registered |
     """
     lines = [
         "## Temporal metrics (KG, KSO, STED; docs/temporal.md)",
@@ -40,8 +90,9 @@ def temporal_markdown(figures: Mapping[str, TemporalFigures]) -> str:
         "|---|" + "---:|" * len(FIGURE_NAMES) + "---|",
     ]
     for name, f in figures.items():
-        cells = " | ".join(f"{float(getattr(f, k)):.6g}" for k in FIGURE_NAMES)
+        cells = " | ".join(format_figure(k, float(getattr(f, k)), registered=f.registered) for k in FIGURE_NAMES)
         lines.append(f"| {name} | {cells} | {'registered' if f.registered else 'exact'} |")
+    lines += ["", FIGURE_DIGITS_NOTE]
     # The methods share the original's tracking, hence its registrations.
     unconverged = sorted({k for f in figures.values() for k in f.unconverged})
     if unconverged:
