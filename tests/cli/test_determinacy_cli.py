@@ -5,8 +5,11 @@ from __future__ import annotations
 import json
 
 import pytest
+import torch
 
+from tests.cli.cli_helpers import Counting
 from torchmeshmetric.cli import main
+from torchmeshmetric.data.sequence import load_sequence
 
 
 def _row(markdown: str, table: str, mesh: str) -> list[str]:
@@ -85,3 +88,34 @@ def test_bad_rounding_is_an_argument_error(capsys, sequence, bad):
     assert exit_info.value.code == 2
     err = capsys.readouterr().err
     assert "--determinacy: expected 'float32' or a number of decimals 0..15" in err and repr(bad) in err
+
+
+def test_temporal_section_keeps_the_digits_both_runs_share(capsys, tmp_path, sequence, known_registration):
+    from torchmeshmetric.evaluation.determinacy import Determinacy, nudge_frames
+    from torchmeshmetric.temporal.figures import FIGURE_NAMES, temporal_figures
+    from torchmeshmetric.temporal.report import FIGURE_DIGITS_NOTE, FIGURE_FORMATS, format_figure
+
+    orig, simp = sequence
+    out = tmp_path / "r.json"
+    argv = ["evaluate", "--original", str(orig), "--simplified", str(simp), "--out", str(out), "--temporal"]
+    assert main([*argv, "--determinacy", "float32"]) == 0
+    printed = capsys.readouterr().out
+    # The temporal figures of both runs reuse their runs' registrations: 2 pairs, twice.
+    assert known_registration.calls == 4
+    report = json.loads(out.read_text())
+    figures, (changes,) = report["temporal"]["simp"], report["determinacy"]["changes"]["temporal"]
+    load = [load_sequence(str(d), dtype=torch.float32) for d in (orig, simp)]
+    again = temporal_figures(*(nudge_frames(frames, "float32") for frames in load), registration_fn=Counting())
+    for name in FIGURE_NAMES:
+        a, b = figures[name], getattr(again, name)
+        assert changes[name] == abs(a - b) / max(abs(a), abs(b))  # the same frames and registrations: the same bits
+    determinacy = Determinacy("float32", 0, {"temporal": [changes]})
+    want = [determinacy.cell("temporal", 0, k, figures[k], FIGURE_FORMATS[True][k]) for k in FIGURE_NAMES]
+    for text in (printed, out.with_suffix(".md").read_text()):
+        line = next(line for line in text.split("## Temporal metrics")[1].splitlines() if line.startswith("| simp |"))
+        assert line.strip("| ").split(" | ")[1:-1] == want
+        assert "this run's input determines: the figures were computed again" in text and FIGURE_DIGITS_NOTE not in text
+    # KG of the translated spheres moves by ~2.5e-7 (measured, 2026-12-06): its 3 registered digits hold; STED_t is
+    # the exact translation's rounding (~8e-8) and moves by 0.55: not one of its digits is the input's.
+    assert changes["kg"] < 1e-5 and want[0] == format_figure("kg", figures["kg"], registered=True)
+    assert changes["sted_t"] > 0.1 and want[FIGURE_NAMES.index("sted_t")].startswith("~")

@@ -185,3 +185,28 @@ def test_nudge_is_the_same_bits_on_every_machine():
     assert moved == ["0x1.fffffd5d91647p-3", "-0x1.8000013405ec8p+0", "0x1.800000f9b5064p+1"]
     moved = [x.hex() for x in nudge_frames([mesh], 6, seed=7)[0].verts.flatten().tolist()]
     assert moved == ["0x1.0000060cef8b3p-2", "-0x1.80000dfbdcf97p+0", "0x1.800000e2963fap+1"]
+
+
+def test_temporal_changes_join_the_tables_changes():
+    from torchmeshmetric.evaluation.determinacy import with_temporal_changes
+    from torchmeshmetric.temporal.figures import TemporalFigures
+    from torchmeshmetric.temporal.report import FIGURE_DIGITS_NOTE, temporal_markdown
+
+    tables = Determinacy("float32", 3, {"III": [{"ave": 0.01}]})
+    figures = {"a": {"kg": 2.0, "sted": 0.5}, "b": {"kg": 1.0, "sted": 0.25}}
+    nudged = {"a": {"kg": 2.0, "sted": 0.6}, "b": {"kg": 1.01, "sted": 0.25}}
+    d = with_temporal_changes(tables, figures, nudged, ["kg", "sted"])
+    assert (d.rounding, d.seed, d.changes["III"]) == ("float32", 3, [{"ave": 0.01}])
+    assert d.changes["temporal"] == [
+        {"kg": 0.0, "sted": abs(0.5 - 0.6) / 0.6},
+        {"kg": abs(1.0 - 1.01) / 1.01, "sted": 0.0},
+    ]
+    with pytest.raises(ValueError, match=r"nudged: expected the methods \['a', 'b'\], found \['b', 'a'\]"):
+        with_temporal_changes(tables, figures, dict(reversed(nudged.items())), ["kg"])
+    # Without a "temporal" table (the tables' measurement alone), the section prints the measured fixed digits.
+    f = TemporalFigures(1.23456789, 2.0, 0.1, 0.2, 0.1, False, 3, 100)
+    assert temporal_markdown({"m": f}, determinacy=tables) == temporal_markdown({"m": f})
+    assert FIGURE_DIGITS_NOTE in temporal_markdown({"m": f})
+    measured = Determinacy("float32", 0, {"temporal": [{"kg": 2e-3, "kso": 0, "sted_s": 0, "sted_t": 0, "sted": 0.5}]})
+    row = temporal_markdown({"m": f}, determinacy=measured).splitlines()[4]
+    assert row == "| m | 1.2 | 2.00000 | 0.100 | 0.200000 | ~0.1 | exact |"  # STED moved by half: "~"

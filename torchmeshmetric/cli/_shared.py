@@ -9,7 +9,7 @@ import argparse
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import torch
 
@@ -30,6 +30,8 @@ from torchmeshmetric.tasks import is_distributed, rank_and_world_size
 from torchmeshmetric.viz.plots import mpeg_figure, png_bytes
 
 __all__ = [
+    "NudgedRun",
+    "determinacy_of",
     "device_of",
     "dtype_of",
     "evaluate_across_ranks",
@@ -131,7 +133,8 @@ def write_reports(
         from torchmeshmetric.temporal.report import temporal_markdown, temporal_report
 
         report["temporal"] = json_safe(temporal_report(temporal))
-        extra = f"{extra}\n{temporal_markdown(temporal)}" if extra else temporal_markdown(temporal)
+        section = temporal_markdown(temporal, determinacy=determinacy)
+        extra = f"{extra}\n{section}" if extra else section
     written = [paths["json"], paths["md"], paths["csv"]]
     with output_set("the report"):
         write_json(paths["json"], report, overwrite=overwrite)
@@ -223,27 +226,49 @@ def temporal_methods(
     *,
     cache: RegistrationCache | None = None,
     registration_options: dict[str, Any] | None = None,
-) -> dict[str, Any]:
-    """KG, KSO and STED of every method (``--temporal``; docs/temporal.md); printed as a Markdown table."""
+    determinacy: Any = None,
+    nudged: NudgedRun | None = None,
+) -> tuple[dict[str, Any], Any]:
+    """KG, KSO and STED of every method (``--temporal``; docs/temporal.md), printed as a Markdown table.
+
+    With ``--determinacy`` (``determinacy`` and the ``nudged`` run of :func:`determinacy_of`), the figures are
+    computed again on the nudged frames, on that run's registrations, and the returned determinacy holds their
+    changes (its ``"temporal"`` table), so the section prints only the digits both runs share.
+
+    Returns:
+        ``(figures, determinacy)``: method name → :class:`~torchmeshmetric.temporal.TemporalFigures` (empty
+        without ``--temporal``), and ``determinacy`` (with the temporal changes when measured).
+    """
     if not getattr(args, "temporal", False):
-        return {}
-    from torchmeshmetric.temporal.figures import temporal_figures
+        return {}, determinacy
+    from torchmeshmetric.evaluation.determinacy import with_temporal_changes
+    from torchmeshmetric.temporal.figures import FIGURE_NAMES, temporal_figures
     from torchmeshmetric.temporal.report import temporal_markdown
 
-    cache = RegistrationCache(args.cache_dir) if cache is None else cache
-    out = {
-        name: temporal_figures(
-            original,
-            frames,
-            registration_cache=cache,
-            registration_options=registration_options,
-            device=device,
-            backend=args.backend,
+    def figures_of(first: list[Any], each: dict[str, list[Any]], registrations: RegistrationCache) -> dict[str, Any]:
+        return {
+            name: temporal_figures(
+                first,
+                frames,
+                registration_cache=registrations,
+                registration_options=registration_options,
+                device=device,
+                backend=args.backend,
+            )
+            for name, frames in each.items()
+        }
+
+    out = figures_of(original, methods, RegistrationCache(args.cache_dir) if cache is None else cache)
+    if determinacy is not None and nudged is not None:
+        again = figures_of(nudged.original, nudged.methods, nudged.cache)
+        determinacy = with_temporal_changes(
+            determinacy,
+            {name: f.as_dict() for name, f in out.items()},
+            {name: f.as_dict() for name, f in again.items()},
+            FIGURE_NAMES,
         )
-        for name, frames in methods.items()
-    }
-    print(temporal_markdown(out))
-    return out
+    print(temporal_markdown(out, determinacy=determinacy))
+    return out, determinacy
 
 
 def evaluate_method(
@@ -309,31 +334,43 @@ def evaluate_methods(
     }
 
 
+class NudgedRun(NamedTuple):
+    """The frames of ``--determinacy``'s second run and its registrations (in memory: not the input's)."""
+
+    original: list[Any]
+    methods: dict[str, list[Any]]
+    cache: RegistrationCache
+
+
 def determinacy_of(
     original: list[Any],
     methods: dict[str, list[Any]],
     results: dict[str, Any] | None,
     args: argparse.Namespace,
     device: str,
-) -> Any:
-    """``--determinacy``: the same evaluation on nudged frames, compared with ``results``; ``None`` without it.
+) -> tuple[Any, NudgedRun | None]:
+    """``--determinacy``: the same evaluation on nudged frames, compared with ``results``; ``(None, None)`` without.
 
     Every rank of a torchrun job runs it (the second evaluation is sharded like the first); rank 0 gets the
-    :class:`~torchmeshmetric.evaluation.determinacy.Determinacy`. The nudged run's registrations stay in memory:
-    they are not the input's, and must not enter ``--cache-dir``.
+    :class:`~torchmeshmetric.evaluation.determinacy.Determinacy` and the :class:`NudgedRun` (for
+    :func:`temporal_methods`). The nudged run's registrations stay in memory: they are not the input's, and must not
+    enter ``--cache-dir``.
     """
     if getattr(args, "determinacy", None) is None:
-        return None
+        return None, None
     from torchmeshmetric.evaluation.determinacy import measure_determinacy, nudge_frames
 
     say(f"--determinacy {args.determinacy}: evaluating again on nudged frames")
     # One seed for every frame: a coordinate moves by a function of its value, in the originals as in the simplified.
-    nudged_original = nudge_frames(original, args.determinacy)
-    nudged = {name: nudge_frames(frames, args.determinacy) for name, frames in methods.items()}
-    again = evaluate_methods(nudged_original, nudged, args, device, cache=RegistrationCache())
+    nudged = NudgedRun(
+        nudge_frames(original, args.determinacy),
+        {name: nudge_frames(frames, args.determinacy) for name, frames in methods.items()},
+        RegistrationCache(),
+    )
+    again = evaluate_methods(nudged.original, nudged.methods, args, device, cache=nudged.cache)
     if results is None or again is None:
-        return None
-    return measure_determinacy(results, again, args.determinacy)
+        return None, None
+    return measure_determinacy(results, again, args.determinacy), nudged
 
 
 def evaluate_across_ranks(

@@ -85,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
     print(campaign_tables(results))
     options = fast_registration_options() if campaign.registration == "fast" else None
     temporal = {  # --temporal: KG, KSO, STED per sequence and method, on the campaign's registrations (its cache)
-        name: temporal_methods(original, methods, args, device, cache=cache, registration_options=options)
+        name: temporal_methods(original, methods, args, device, cache=cache, registration_options=options)[0]
         for name, original, methods in sequences
     }
     if out is None:

@@ -48,12 +48,14 @@ def run(args: argparse.Namespace) -> int:
     frames = {name: load_frames(d, f"--method {name}", dtype_of(args)) for name, d in specs.items()}
     cache = RegistrationCache(args.cache_dir)  # kept: the --html page shows the best pair's registration
     results = evaluate_methods(original, frames, args, device, cache=cache)
-    determinacy = determinacy_of(original, frames, results, args, device)
+    determinacy, nudged = determinacy_of(original, frames, results, args, device)
     if results is None:  # a torchrun rank other than 0: rank 0 reports
         return 0
     print(paper_tables(results, determinacy=determinacy))
     mpeg = mpeg_methods(original, frames, args)
-    temporal = temporal_methods(original, frames, args, device, cache=cache)
+    temporal, determinacy = temporal_methods(
+        original, frames, args, device, cache=cache, determinacy=determinacy, nudged=nudged
+    )
     comparisons = None
     if len(results) >= 2:
         comparisons = compare_methods(results, relative_margin=args.relative_margin)

@@ -44,12 +44,14 @@ def run(args: argparse.Namespace) -> int:
     name = args.name or Path(args.simplified).resolve().name
     cache = RegistrationCache(args.cache_dir)  # kept: the --html page shows the best pair's registration
     results = evaluate_methods(original, {name: simplified}, args, device, cache=cache)
-    determinacy = determinacy_of(original, {name: simplified}, results, args, device)
+    determinacy, nudged = determinacy_of(original, {name: simplified}, results, args, device)
     if results is None:  # a torchrun rank other than 0: rank 0 reports
         return 0
     print(paper_tables(results, determinacy=determinacy))
     mpeg = mpeg_methods(original, {name: simplified}, args)
-    temporal = temporal_methods(original, {name: simplified}, args, device, cache=cache)
+    temporal, determinacy = temporal_methods(
+        original, {name: simplified}, args, device, cache=cache, determinacy=determinacy, nudged=nudged
+    )
     settings = {
         "original": args.original,
         "methods": {name: args.simplified},

@@ -22,7 +22,14 @@ from torchmeshmetric._format import format_number
 from torchmeshmetric.evaluation.results import SequenceEvaluation
 from torchmeshmetric.structures import Mesh
 
-__all__ = ["Determinacy", "determined_digits", "measure_determinacy", "nudge_frames", "storage_unit"]
+__all__ = [
+    "Determinacy",
+    "determined_digits",
+    "measure_determinacy",
+    "nudge_frames",
+    "storage_unit",
+    "with_temporal_changes",
+]
 
 #: The tables compared (those of :func:`~torchmeshmetric.evaluation.reports.paper_tables`).
 _TABLES = ("I", "II", "III", "IV", "III-reverse", "IV-reverse")
@@ -219,3 +226,34 @@ def measure_determinacy(
             for a, b in zip(rows, again, strict=True)
         ]
     return Determinacy(storage_unit(rounding), seed, changes)
+
+
+def with_temporal_changes(
+    determinacy: Determinacy,
+    figures: Mapping[str, Mapping[str, Any]],
+    nudged: Mapping[str, Mapping[str, Any]],
+    names: Sequence[str],
+) -> Determinacy:
+    """``determinacy`` with a ``"temporal"`` table: the relative change of each temporal figure per method.
+
+    The temporal section's counterpart of :func:`measure_determinacy` (``--temporal`` with ``--determinacy``): the
+    run's figures against those of the same frames nudged as the tables' were.
+
+    Args:
+        determinacy: the tables' measurement.
+        figures: method name → the run's figures (a dict holding each of ``names``; the methods in table order).
+        nudged: the same methods' figures on the nudged frames.
+        names: the figures compared (``FIGURE_NAMES``).
+
+    Raises:
+        ValueError: ``nudged`` holds other methods.
+
+    Example:
+        >>> d = with_temporal_changes(Determinacy("float32", 0, {}), {"a": {"kg": 2.0}}, {"a": {"kg": 2.5}}, ["kg"])
+        >>> d.changes["temporal"]  # relative to the larger magnitude, as the tables' changes
+        [{'kg': 0.2}]
+    """
+    if list(figures) != list(nudged):
+        raise ValueError(f"nudged: expected the methods {list(figures)}, found {list(nudged)}")
+    rows = [{k: _change(float(figures[m][k]), float(nudged[m][k]), relative=True) for k in names} for m in figures]
+    return Determinacy(determinacy.rounding, determinacy.seed, {**determinacy.changes, "temporal": rows})

@@ -3,16 +3,20 @@
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from torchmeshmetric._format import format_number
 from torchmeshmetric.temporal.figures import FIGURE_NAMES, TemporalFigures
+
+if TYPE_CHECKING:
+    from torchmeshmetric.evaluation.determinacy import Determinacy
 
 __all__ = [
     "FIGURE_DIGITS_NOTE",
     "FIGURE_FORMATS",
     "FIGURE_LABELS",
     "format_figure",
+    "temporal_determinacy_note",
     "temporal_markdown",
     "temporal_report",
 ]
@@ -72,32 +76,60 @@ def temporal_report(figures: Mapping[str, TemporalFigures]) -> dict[str, dict[st
     return {name: f.as_dict() for name, f in figures.items()}
 
 
-def temporal_markdown(figures: Mapping[str, TemporalFigures]) -> str:
+def temporal_markdown(figures: Mapping[str, TemporalFigures], *, determinacy: Determinacy | None = None) -> str:
     """A Markdown section with one row per method: KG, KSO, STED_s, STED_t, STED and the form used.
 
     Each figure prints the digits its form determines (:func:`format_figure`), and :data:`FIGURE_DIGITS_NOTE` follows
     the table.
+
+    Args:
+        figures: method name → its figures.
+        determinacy: this run's measured determinacy with its ``"temporal"`` table
+            (:func:`~torchmeshmetric.evaluation.determinacy.with_temporal_changes`, ``--determinacy``): each figure
+            then keeps only the digits a second run on nudged frames left in place, at most those of
+            :data:`FIGURE_FORMATS`. Without that table, the measured digits of :data:`FIGURE_FORMATS`.
 
     Example:
         >>> f = TemporalFigures(1.0, 2.0, 0.1, 0.2, 0.1, True, 3, 100)
         >>> print(temporal_markdown({"qem": f}).splitlines()[4])
         | qem | 1.00 | 2.00 | 0.10 | 0.200 | 0.10 | registered |
     """
+    measured = determinacy is not None and "temporal" in determinacy.changes
     lines = [
         "## Temporal metrics (KG, KSO, STED; docs/temporal.md)",
         "",
         "| method | " + " | ".join(FIGURE_LABELS[k] for k in FIGURE_NAMES) + " | form |",
         "|---|" + "---:|" * len(FIGURE_NAMES) + "---|",
     ]
-    for name, f in figures.items():
-        cells = " | ".join(format_figure(k, float(getattr(f, k)), registered=f.registered) for k in FIGURE_NAMES)
-        lines.append(f"| {name} | {cells} | {'registered' if f.registered else 'exact'} |")
-    lines += ["", FIGURE_DIGITS_NOTE]
+    for i, (name, f) in enumerate(figures.items()):
+        if measured:
+            assert determinacy is not None
+            specs = FIGURE_FORMATS[bool(f.registered)]
+            texts = [determinacy.cell("temporal", i, k, float(getattr(f, k)), specs[k]) for k in FIGURE_NAMES]
+        else:
+            texts = [format_figure(k, float(getattr(f, k)), registered=f.registered) for k in FIGURE_NAMES]
+        lines.append(f"| {name} | {' | '.join(texts)} | {'registered' if f.registered else 'exact'} |")
+    if measured:
+        assert determinacy is not None
+        lines += ["", temporal_determinacy_note(determinacy)]
+    else:
+        lines += ["", FIGURE_DIGITS_NOTE]
     # The methods share the original's tracking, hence its registrations.
     unconverged = sorted({k for f in figures.values() for k in f.unconverged})
     if unconverged:
         lines += ["", unconverged_tracking_note(unconverged)]
     return "\n".join(lines) + "\n"
+
+
+def temporal_determinacy_note(determinacy: Determinacy) -> str:
+    """The note under the temporal figures of a run with a measured determinacy (instead of the measured digits)."""
+    return (
+        "Digits: only those this run's input determines: the figures were computed again on the frames with every "
+        f"coordinate moved by up to one unit of its storage ({determinacy.rounding}, seed {determinacy.seed}), and "
+        "each keeps the digits both runs share (at most 6 and 3 significant digits for the exact forms, 3 and 2 for "
+        "the registered: docs/temporal.md); '~' marks a figure whose first digit moved. The JSON keeps every digit "
+        "and, under 'determinacy' -> 'changes' -> 'temporal', each figure's change."
+    )
 
 
 def unconverged_tracking_note(frames: Sequence[int]) -> str:
