@@ -24,6 +24,10 @@ def test_register_writes_source_topology_on_target_shape(capsys, tmp_path):
     _, dist, _ = trimesh.proximity.closest_point(target, registered.vertices)
     assert dist.max() < 0.02 * target.scale
     assert "converged: True" in stdout
+    # The residual's figures with the report tables' digits (2 significant, 3 for Max: those the input determines).
+    figures = stdout.split("residual to target surface: ")[1].split("; wrote")[0].split(", ")
+    digits = {f.split()[0]: len(f.split()[1].split("e")[0].replace(".", "").lstrip("0")) for f in figures}
+    assert digits == {"ave": 2, "rmse": 2, "max": 3}
     # never overwrite unasked
     assert (
         main(["register", "--source", str(tmp_path / "a.ply"), "--target", str(tmp_path / "b.ply"), "--out", str(out)])

@@ -45,7 +45,10 @@ def test_histograms_show_the_distribution_on_a_log_axis():
         assert heights.sum() == moved.numel()  # the moved vertices, resolved over the bins
         assert (heights > 0).sum() >= 25
         assert heights.max() <= 0.1 * moved.numel()
-    assert f"{(n - moved.numel()) / n:.1%} of vertices below" in fig.axes[0].get_legend().get_texts()[0].get_text()
+    legend = fig.axes[0].get_legend().get_texts()[0].get_text()
+    assert f"{(n - moved.numel()) / n:.1%} of vertices below" in legend
+    # The RMSE with the report tables' digits (COLUMN_FORMATS: 2 significant, those the input determines).
+    assert f"m (RMSE {np.sqrt(np.mean(values * values)):#.2g};" in legend
     edges = log_bins([values], 40)
     assert edges[0] == pytest.approx(values[values > 0].min()) and edges[-1] == pytest.approx(values.max())
 
