@@ -7,7 +7,7 @@ import json
 import pytest
 import torch
 
-from tests.cli.cli_helpers import Counting
+from tests.cli.cli_helpers import Counting, write_frames
 from torchmeshmetric.cli import main
 from torchmeshmetric.data.sequence import load_sequence
 
@@ -78,6 +78,33 @@ def test_compare_determinacy(capsys, tmp_path, sequence, known_registration):
     assert main([*argv, "--determinacy", "6"]) == 0
     out = capsys.readouterr().out
     assert known_registration.calls == 4 and "this run's input determines" in out
+    # Identical methods: every verdict "inconclusive", on the nudged frames too.
+    note = out.split("Verdicts on the frames nudged by --determinacy: ")[1].split("\n")[0]
+    total = int(note.split(" of ")[1].split()[0])
+    assert note == f"{total} of {total} the same." and total > 10
+
+
+def test_compare_marks_verdicts_the_nudge_changes(capsys, tmp_path, known_registration):
+    orig = write_frames(tmp_path / "orig", 3)
+    a, b = write_frames(tmp_path / "a", 1), write_frames(tmp_path / "b", 2)
+    out = tmp_path / "c.json"
+    argv = ["compare", "--original", str(orig), "--method", f"A={a}", "--method", f"B={b}", "--out", str(out)]
+    assert main([*argv, "--determinacy", "1"]) == 0
+    entries = json.loads(out.read_text())["comparisons"]["A vs B"]
+    verdicts = {(s, st): (e["verdict"], e["nudged_verdict"]) for s, es in entries.items() for st, e in es.items()}
+    changed = {key for key, (run, nudged) in verdicts.items() if run != nudged}
+    # A nudge of up to 0.1 on unit spheres moves the reverse distances by tens of percent (measured, 2026-12-06:
+    # 11 of 50 verdicts change, among them every called reverse surface_k one).
+    assert changed and len(changed) < len(verdicts)
+    md = out.with_suffix(".md").read_text()
+    table = md.split("### A vs B")[1].split("\n\n")[1].splitlines()
+    header = [c.strip() for c in table[0].strip("|").split("|")][1:]
+    marked = set()
+    for line in table[2:]:
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        marked |= {(cells[0].removesuffix(" *"), st) for st, c in zip(header, cells[1:], strict=True) if c[:1] == "~"}
+    assert marked == changed
+    assert f"Verdicts on the frames nudged by --determinacy: {len(verdicts) - len(changed)} of {len(verdicts)}" in md
 
 
 @pytest.mark.parametrize("bad", ["float16", "-2", "16", "x"])

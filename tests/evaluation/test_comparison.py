@@ -129,3 +129,23 @@ def test_identical_methods_every_verdict_inconclusive_every_difference_zero(trac
     assert len(entries) >= 10 * 4 and any(k.startswith("reverse:") for k in out)
     assert all(e["verdict"] == "inconclusive" and e["difference"] == 0.0 for e in entries)
     assert all(e["ci95"] == [0.0, 0.0] for e in entries)
+
+
+def test_verdicts_on_nudged_frames_mark_the_cells_they_change():
+    from torchmeshmetric.evaluation.comparison import with_nudged_verdicts
+
+    def table(ave: str, rmse: str) -> dict:
+        entry = {"difference": -0.5, "ci95": [-0.75, -0.25]}
+        return {"A vs B": {"surface_k": {"ave": {**entry, "verdict": ave}, "rmse": {**entry, "verdict": rmse}}}}
+
+    run, again = table("A better", "A better"), table("inconclusive", "A better")
+    marked = with_nudged_verdicts(run, again)
+    assert marked["A vs B"]["surface_k"]["ave"]["nudged_verdict"] == "inconclusive"
+    assert "nudged_verdict" not in run["A vs B"]["surface_k"]["ave"]  # a copy: the run's own dict is untouched
+    text = comparison_markdown(marked)
+    assert "| surface_k | ~A: -0.5 ± 0.25 | A: -0.5 ± 0.25 |" in text
+    assert "Verdicts on the frames nudged by --determinacy: 1 of 2 the same; ~ marks a verdict" in text
+    plain = comparison_markdown(run)
+    assert "~" not in plain and "nudged" not in plain
+    # An entry the nudged run lacks keeps no nudged verdict and is not marked.
+    assert "nudged_verdict" not in with_nudged_verdicts(run, {"A vs B": {}})["A vs B"]["surface_k"]["ave"]

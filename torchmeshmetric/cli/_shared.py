@@ -335,11 +335,12 @@ def evaluate_methods(
 
 
 class NudgedRun(NamedTuple):
-    """The frames of ``--determinacy``'s second run and its registrations (in memory: not the input's)."""
+    """``--determinacy``'s second run: its frames, registrations (in memory: not the input's) and evaluations."""
 
     original: list[Any]
     methods: dict[str, list[Any]]
     cache: RegistrationCache
+    results: dict[str, Any] | None = None
 
 
 def determinacy_of(
@@ -370,7 +371,7 @@ def determinacy_of(
     again = evaluate_methods(nudged.original, nudged.methods, args, device, cache=nudged.cache)
     if results is None or again is None:
         return None, None
-    return measure_determinacy(results, again, args.determinacy), nudged
+    return measure_determinacy(results, again, args.determinacy), nudged._replace(results=again)
 
 
 def evaluate_across_ranks(

@@ -33,7 +33,7 @@ def run(args: argparse.Namespace) -> int:
         temporal_methods,
         write_reports,
     )
-    from torchmeshmetric.evaluation.comparison import compare_methods, comparison_markdown
+    from torchmeshmetric.evaluation.comparison import compare_methods, comparison_markdown, with_nudged_verdicts
     from torchmeshmetric.evaluation.reports import paper_tables
     from torchmeshmetric.registration.cache import RegistrationCache
 
@@ -59,6 +59,9 @@ def run(args: argparse.Namespace) -> int:
     comparisons = None
     if len(results) >= 2:
         comparisons = compare_methods(results, relative_margin=args.relative_margin)
+        if nudged is not None and nudged.results is not None:  # --determinacy: is each verdict the input's?
+            again = compare_methods(nudged.results, relative_margin=args.relative_margin)
+            comparisons = with_nudged_verdicts(comparisons, again)
         print("## Comparisons with confidence\n\n" + comparison_markdown(comparisons))
     settings = {
         "original": args.original,

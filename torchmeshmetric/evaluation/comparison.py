@@ -60,6 +60,7 @@ __all__ = [
     "DEFAULT_COMPARISON_STATISTICS",
     "comparison_markdown",
     "compare_methods",
+    "with_nudged_verdicts",
     "paired_t_interval",
     "t_quantile",
 ]
@@ -318,6 +319,46 @@ def _floor(
     return 20.0 * math.log10((r + f) / r)
 
 
+def with_nudged_verdicts(
+    comparisons: Mapping[str, Mapping[str, Mapping[str, Mapping[str, Any]]]],
+    nudged: Mapping[str, Mapping[str, Mapping[str, Mapping[str, Any]]]],
+) -> dict[str, dict[str, dict[str, dict[str, Any]]]]:
+    """``comparisons`` with each entry's ``"nudged_verdict"``: its verdict on the frames ``--determinacy`` nudged.
+
+    A verdict is a property of the methods only if the input's storage cannot change it: the same comparison on
+    frames moved by up to one unit of their storage (:func:`~torchmeshmetric.evaluation.determinacy.nudge_frames`)
+    must reach it too. :func:`comparison_markdown` marks a cell whose two verdicts differ with ``~``.
+
+    Args:
+        comparisons: :func:`compare_methods` of the run.
+        nudged: :func:`compare_methods` of the same methods evaluated on the nudged frames.
+
+    Returns:
+        A copy of ``comparisons``; an entry missing from ``nudged`` gets no ``"nudged_verdict"``.
+
+    Example:
+        >>> run = {"A vs B": {"surface_k": {"ave": {"verdict": "A better"}}}}
+        >>> again = {"A vs B": {"surface_k": {"ave": {"verdict": "inconclusive"}}}}
+        >>> with_nudged_verdicts(run, again)["A vs B"]["surface_k"]["ave"]
+        {'verdict': 'A better', 'nudged_verdict': 'inconclusive'}
+    """
+    out: dict[str, dict[str, dict[str, dict[str, Any]]]] = {}
+    for title, sets in comparisons.items():
+        out[title] = {}
+        for set_name, entries in sets.items():
+            out[title][set_name] = {}
+            for stat, entry in entries.items():
+                other = nudged.get(title, {}).get(set_name, {}).get(stat)
+                extra = {} if other is None else {"nudged_verdict": other["verdict"]}
+                out[title][set_name][stat] = {**entry, **extra}
+    return out
+
+
+def _undetermined(entry: Mapping[str, Any]) -> bool:
+    """Whether the nudged frames reached another verdict (:func:`with_nudged_verdicts`)."""
+    return entry.get("nudged_verdict", entry["verdict"]) != entry["verdict"]
+
+
 def _cell(x: float) -> str:
     return format_number(x, ".3g")  # 3 significant digits: a verdict cell holds two numbers
 
@@ -327,7 +368,9 @@ def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapp
 
     Rows are sets, columns statistics; a cell reads ``<winner>: difference ± half-width`` or
     ``≈ difference ± half-width`` when inconclusive (the difference is ``A - B``). Sets with a registration noise
-    floor are marked ``*`` and their floor is listed under the table.
+    floor are marked ``*`` and their floor is listed under the table. With the verdicts on nudged frames
+    (:func:`with_nudged_verdicts`), a cell whose verdict they change starts with ``~``, and the note under the
+    tables counts them.
     """
     out = []
     for title, sets in comparisons.items():
@@ -347,7 +390,8 @@ def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapp
                 lo, hi = e["ci95"]
                 half = (hi - lo) / 2 if math.isfinite(hi - lo) else math.inf
                 winner = e["verdict"].removesuffix(" better") if e["verdict"] != "inconclusive" else "≈"
-                cells.append(f"{winner}: {_cell(e['difference'])} ± {_cell(half)}")
+                mark = "~" if _undetermined(e) else ""
+                cells.append(f"{mark}{winner}: {_cell(e['difference'])} ± {_cell(half)}")
             marked = f"{set_name} *" if any("noise_floor" in e for e in entries.values()) else set_name
             out.append(f"| {marked} | " + " | ".join(cells) + " |")
             if any("noise_floor" in e for e in entries.values()):
@@ -359,4 +403,16 @@ def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapp
         "≈: inconclusive (the interval contains 0, or the difference is below the noise floor or the relative "
         "margin). Units: frame pairs; see docs/statistics.md."
     )
+    nudged = [e for sets in comparisons.values() for entries in sets.values() for e in entries.values()]
+    if any("nudged_verdict" in e for e in nudged):
+        changed = sum(_undetermined(e) for e in nudged)
+        out[-1] += (
+            f" Verdicts on the frames nudged by --determinacy: {len(nudged) - changed} of {len(nudged)} the same"
+            + (
+                "; ~ marks a verdict the nudge changed (the JSON's 'nudged_verdict'): the input's storage decides "
+                "it, not the methods."
+                if changed
+                else "."
+            )
+        )
     return "\n".join(out) + "\n"
