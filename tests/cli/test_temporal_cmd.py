@@ -80,3 +80,35 @@ def test_a_failed_registration_of_the_original_is_named(tmp_path, capsys, monkey
     assert capsys.readouterr().out.splitlines()[-1].startswith("Registration not converged for frame pair 1 -> 2")
     assert main(["temporal", str(orig), str(orig), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["unconverged"] == [2]
+
+
+def test_determinacy_prints_the_digits_both_runs_share(tmp_path, capsys):
+    from torchmeshmetric.evaluation.determinacy import Determinacy, nudge_frames
+    from torchmeshmetric.temporal.figures import FIGURE_NAMES
+    from torchmeshmetric.temporal.report import FIGURE_FORMATS
+
+    a, faces = animated_sphere(num_frames=4)
+    b = a + 0.01 * torch.randn(a.shape, dtype=a.dtype, generator=torch.Generator().manual_seed(0))
+    orig, dist = _write(tmp_path / "orig", a, faces), _write(tmp_path / "dist", b, faces)
+    cache = tmp_path / "cache"
+    argv = ["temporal", str(orig), str(dist), "--dtype", "float64", "--determinacy", "4", "--cache-dir", str(cache)]
+    assert main([*argv, "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    changes = got["determinacy"]["changes"]["temporal"][0]
+    assert got["determinacy"]["rounding"] == "4 decimals" and set(changes) == set(FIGURE_NAMES)
+    # The changes are those of the exact figures of the frames as read back and nudged by up to 0.01.
+    read = [torch.stack([m.verts for m in load_sequence(d, dtype=torch.float64)]) for d in (orig, dist)]
+    ra, rb = (torch.stack([m.verts for m in nudge_frames([Mesh(v, faces) for v in x], 4)]) for x in read)
+    again = {"kg": kg_error(ra, rb).item(), "kso": kso_error(ra, rb).item()}
+    for name, value in again.items():
+        assert changes[name] == abs(got[name] - value) / max(abs(got[name]), abs(value))
+    # A nudge of up to 1e-4 against noise of 1e-2 (measured, 2026-12-06): KG moves by 1.8e-4, 3 of its 6 digits hold.
+    assert 1e-4 < changes["kg"] < 1e-3
+    assert main(argv) == 0
+    lines = capsys.readouterr().out.splitlines()
+    det = Determinacy("4 decimals", 0, {"temporal": [changes]})
+    for name, line in zip(FIGURE_NAMES, lines[1:6], strict=True):
+        assert line.split()[-1] == det.cell("temporal", 0, name, got[name], FIGURE_FORMATS[False][name])
+    assert lines[1] == f"KG (%)       {got['kg']:#.3g}"
+    assert "this run's input determines" in lines[6] and "(4 decimals, seed 0)" in lines[6]
+    assert not cache.exists() or not any(cache.iterdir())  # exact forms: nothing registered, nothing cached

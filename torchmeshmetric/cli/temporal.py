@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from torchmeshmetric.cli.options import add_cache_dir, add_command, common_options
+from torchmeshmetric.cli.options import add_cache_dir, add_command, common_options, parse_rounding
 
 __all__ = ["add_temporal_command", "frame_files", "run"]
 
@@ -53,15 +53,19 @@ def run(args: argparse.Namespace) -> int:
     through the frames by the registration of each original frame onto the next, the distorted frames carried onto
     it along its normals (docs/temporal.md).
     """
+    from torchmeshmetric._format import json_safe
     from torchmeshmetric.cli._outputs import CLIError
     from torchmeshmetric.cli._shared import device_of, dtype_of
     from torchmeshmetric.data.sequence import load_sequence
+    from torchmeshmetric.evaluation.determinacy import storage_unit
     from torchmeshmetric.registration.cache import RegistrationCache
     from torchmeshmetric.temporal.figures import FIGURE_NAMES, temporal_figures
     from torchmeshmetric.temporal.report import (
         FIGURE_DIGITS_NOTE,
+        FIGURE_FORMATS,
         FIGURE_LABELS,
         format_figure,
+        temporal_determinacy_note,
         unconverged_tracking_note,
     )
 
@@ -84,25 +88,50 @@ def run(args: argparse.Namespace) -> int:
         raise CLIError(f"DISTORTED: {len(distorted)} frames, ORIGINAL: {len(original)}; the counts must be equal")
     if len(original) < 2:
         raise CLIError(f"ORIGINAL: {len(original)} frame; the temporal metrics need at least 2")
-    figures = temporal_figures(
-        original,
-        distorted,
-        registered=True if args.registered else None,
-        registration_cache=RegistrationCache(args.cache_dir) if args.cache_dir else RegistrationCache(),
-        device=device,
-        backend=args.backend,
-    )
+
+    def figures_of(first: list[Any], second: list[Any], cache: RegistrationCache) -> Any:
+        return temporal_figures(
+            first,
+            second,
+            registered=True if args.registered else None,
+            registration_cache=cache,
+            device=device,
+            backend=args.backend,
+        )
+
+    cache = RegistrationCache(args.cache_dir) if args.cache_dir else RegistrationCache()
+    figures = figures_of(original, distorted, cache)
+    values: dict[str, Any] = figures.as_dict()
+    determinacy = None
+    if args.determinacy is not None:
+        from torchmeshmetric._console import say
+        from torchmeshmetric.evaluation.determinacy import Determinacy, nudge_frames, with_temporal_changes
+
+        say(f"--determinacy {args.determinacy}: computing the figures again on nudged frames")
+        # The nudged frames' registrations stay in memory: they are not the input's, and must not enter --cache-dir.
+        again = figures_of(
+            nudge_frames(original, args.determinacy), nudge_frames(distorted, args.determinacy), RegistrationCache()
+        ).as_dict()
+        determinacy = with_temporal_changes(
+            Determinacy(storage_unit(args.determinacy), 0, {}), {"": values}, {"": again}, FIGURE_NAMES
+        )
+        values["determinacy"] = determinacy.as_dict()
     if args.json:
-        print(json.dumps(figures.as_dict(), indent=2))
+        print(json.dumps(json_safe(values), indent=2))
         return 0
     form = "registered (connectivity differs)" if figures.registered else "exact (same connectivity)"
     if figures.registered and args.registered:
         form = "registered (--registered)"
     print(f"{figures.num_frames} frames, {figures.num_verts} vertices followed; {form}")
-    values: dict[str, Any] = figures.as_dict()
+    specs = FIGURE_FORMATS[bool(figures.registered)]
     for name in FIGURE_NAMES:
-        print(f"{FIGURE_LABELS[name]:<12} {format_figure(name, values[name], registered=figures.registered)}")
-    print(FIGURE_DIGITS_NOTE.replace("the JSON keeps", "--json keeps"))
+        if determinacy is None:
+            text = format_figure(name, values[name], registered=figures.registered)
+        else:
+            text = determinacy.cell("temporal", 0, name, values[name], specs[name])
+        print(f"{FIGURE_LABELS[name]:<12} {text}")
+    note = FIGURE_DIGITS_NOTE if determinacy is None else temporal_determinacy_note(determinacy)
+    print(note.replace("The JSON keeps", "--json keeps").replace("the JSON keeps", "--json keeps"))
     if figures.unconverged:
         print(unconverged_tracking_note(figures.unconverged))
     return 0
@@ -122,3 +151,12 @@ def add_temporal_command(sub: Any) -> None:
     p.add_argument("--first-frame", type=int, default=None, metavar="F", help="patterns: first frame number")
     p.add_argument("--last-frame", type=int, default=None, metavar="L", help="patterns: last frame number (included)")
     add_cache_dir(p, "registration cache folder (registered forms)")
+    p.add_argument(
+        "--determinacy",
+        default=None,
+        metavar="ROUNDING",
+        type=parse_rounding,
+        help="measure which digits this run's input determines: compute the figures again with every coordinate "
+        "moved by up to one unit of the frames' storage ('float32', or N for a text file's N decimals) and print "
+        "only the digits both runs share (twice the time; docs/temporal.md)",
+    )
