@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 from torchmeshmetric.evaluation import evaluate_sequence, paper_tables, report_dict, write_json
+from torchmeshmetric.evaluation.reports import COLUMN_FORMATS
 
 
 def main() -> int:
@@ -34,11 +35,12 @@ def main() -> int:
     )
     name = Path(args.simplified).name
     print(paper_tables({name: result}))
+    digits = COLUMN_FORMATS["rmse"]  # the tables' digits: only those the input determines (docs/statistics.md)
     for pair in result.pairs:  # per-frame temporal consistency and the registration's own quality
         s = pair.statistics["surface_k_minus_1"]
         print(
-            f"frame {pair.frame}: surface_k_minus_1 rmse {s.rmse:.4g}, "
-            f"registration residual rmse {pair.registration_statistics.rmse:.4g}"
+            f"frame {pair.frame}: surface_k_minus_1 rmse {float(s.rmse):{digits}}, "
+            f"registration residual rmse {float(pair.registration_statistics.rmse):{digits}}"
         )
     if args.out:
         write_json(args.out, report_dict({name: result}))
