@@ -339,7 +339,8 @@ def with_nudged_verdicts(
     Example:
         >>> run = {"A vs B": {"surface_k": {"ave": {"verdict": "A better"}}}}
         >>> again = {"A vs B": {"surface_k": {"ave": {"verdict": "inconclusive"}}}}
-        >>> with_nudged_verdicts(run, again)["A vs B"]["surface_k"]["ave"]
+        >>> marked = with_nudged_verdicts(run, again)
+        >>> marked["A vs B"].get("surface_k").get("ave")
         {'verdict': 'A better', 'nudged_verdict': 'inconclusive'}
     """
     out: dict[str, dict[str, dict[str, dict[str, Any]]]] = {}
