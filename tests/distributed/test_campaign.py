@@ -10,6 +10,7 @@ from tests.cli.cli_helpers import write_frames
 from tests.distributed.helpers import without_timings
 from torchmeshmetric.cli import main
 from torchmeshmetric.evaluation.campaign import ManifestError, load_campaign
+from torchmeshmetric.evaluation.determinacy import determined_digits
 
 MANIFEST = """
 [options]
@@ -119,3 +120,56 @@ def test_campaign_errors_are_one_line_before_any_work(tmp_path, campaign, capsys
     campaign.write_text(MANIFEST.format(extra="").replace('"run/orig"', '"run/missing"'))
     assert main(["campaign", str(campaign)]) == 1
     assert "sequence 'run fast': original" in capsys.readouterr().err
+
+
+def _cells(markdown: str, title: str, first: str) -> dict[tuple[str, str], list[str]]:
+    """The rows of the table titled ``title`` whose first cell is ``first``: (algorithm, mesh) -> statistic cells."""
+    section = markdown.split(f"### {title}\n\n")[1].split("\n\n")[0]
+    rows = [[c.strip() for c in line.strip("|").split("|")] for line in section.splitlines()[2:]]
+    return {(r[1], r[2]): r[3:] for r in rows if r[0] == first}
+
+
+def test_determinacy_digits_are_each_sequence_reports_digits(tmp_path, campaign, capsys):
+    out = tmp_path / "report"
+    assert main(["campaign", str(campaign), "--out-dir", str(out), "--determinacy", "1"]) == 0
+    stdout, err = capsys.readouterr()
+    assert "--determinacy 1: evaluating again on nudged frames" in err
+    combined = json.loads((out / "campaign.json").read_text())
+    assert combined["settings"]["determinacy"] == "1"
+    changes = combined["determinacy"]["changes"]
+    assert combined["determinacy"]["rounding"] == "1 decimal"
+    # rows: per sequence (walk: 2 methods, run fast: 1) and overall (2 methods), each (k-1)-th and k-th
+    assert {t: len(rows) for t, rows in changes.items()} == {"III": 10, "IV": 10, "III-reverse": 10, "IV-reverse": 10}
+    # A nudge of up to 0.1 on unit spheres moves the reverse surface distances by tens of percent (measured on the
+    # compare command's spheres, tests/cli/test_determinacy_cli.py): some first digits move, and are marked.
+    assert max(row["ave"] for row in changes["III-reverse"]) > 0.1
+    md = (out / "campaign.md").read_text()
+    assert stdout.count("| ~") == md.count("| ~") > 0
+    assert "this run's input determines" in md and "campaign.json keeps the full values" in md
+    # each sequence's report is compare --determinacy's for it, and its Table III cells are the combined ones
+    walk = tmp_path / "walk"
+    argv = ["compare", "--original", str(walk / "orig"), "--method", f"fine={walk / 'fine'}", "--method",
+            f"coarse={walk / 'coarse'}", "--out", str(tmp_path / "compare.json"), "--determinacy", "1"]  # fmt: skip
+    assert main(argv) == 0
+    got, want = (json.loads(p.read_text()) for p in (out / "walk.json", tmp_path / "compare.json"))
+    assert got["determinacy"] == want["determinacy"]
+    assert (out / "walk.md").read_text() == (tmp_path / "compare.md").read_text()
+    sequence_md = (out / "walk.md").read_text()
+    table_iii = "Table III: average over pairs, mesh surface distance"
+    walk_rows = _cells(md, "Average over pairs, mesh surface distance (Table III)", "walk")
+    assert list(walk_rows) == [("fine", "(k-1)-th"), ("fine", "k-th"), ("coarse", "(k-1)-th"), ("coarse", "k-th")]
+    for (method, mesh), cells in walk_rows.items():
+        line = next(r for r in sequence_md.split(table_iii)[1].splitlines() if r.startswith(f"| {method} | {mesh} |"))
+        assert cells == [c.strip() for c in line.strip("|").split("|")][2:]
+    # the overall rows: their own change, not their sequences'
+    reverse = "Two-sided check: average over pairs, reference -> simplified, mesh surface distance"
+    overall = _cells(md, reverse, "overall")
+    assert list(overall) == list(walk_rows)
+    for i, cells in enumerate(overall.values(), start=6):
+        change = changes["III-reverse"][i]["ave"]
+        digits = determined_digits(change, "#.2g")
+        assert cells[0].startswith("~") == (digits < 1), (cells[0], change)
+    capsys.readouterr()
+    assert main(["campaign", str(campaign)]) == 0
+    plain = capsys.readouterr().out
+    assert "campaign.json keeps the full values" in plain and "this run's input determines" not in plain

@@ -75,6 +75,25 @@ def test_determinacy_under_torchrun_is_the_single_process_one(tmp_path, frames, 
     assert stdout.count("Table I:") == 1 and "this run's input determines" in stdout
 
 
+def test_campaign_determinacy_under_torchrun_is_the_single_process_one(tmp_path, frames, exact_registration, capsys):
+    orig, a, b = frames
+    manifest = tmp_path / "campaign.toml"
+    manifest.write_text(
+        f'[[sequences]]\nname = "one"\noriginal = "{orig.name}"\nmethods = {{ A = "{a.name}", B = "{b.name}" }}\n'
+        f'[[sequences]]\nname = "two"\noriginal = "{orig.name}"\nmethods = {{ B = "{b.name}" }}\n'
+    )
+    argv = ["campaign", str(manifest), "--determinacy", "1", "--out-dir"]
+    assert main([*argv, str(tmp_path / "single"), "--threads", "1"]) == 0
+    capsys.readouterr()
+    (tmp_path / "dist").mkdir()
+    code, stdout, stderr = finish(torchrun(MODULE, *argv, str(tmp_path / "dist")))
+    assert code == 0, stderr
+    for stem in ("campaign", "one", "two"):  # the nudged run is sharded like the first, with the same draws
+        same_report_set(tmp_path / "single" / f"{stem}.json", tmp_path / "dist" / f"{stem}.json")
+    assert "determinacy" in json.loads((tmp_path / "dist" / "campaign.json").read_text())
+    assert stdout.count("(Table III)") == 1 and "this run's input determines" in stdout
+
+
 @pytest.mark.parametrize("fault", ["kill", "raise"])
 def test_a_failing_rank_fails_the_run_names_rank_and_pair_writes_nothing_and_rerun_resumes(
     tmp_path, frames, exact_registration, fault

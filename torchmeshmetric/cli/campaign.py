@@ -7,7 +7,14 @@ from pathlib import Path
 from typing import Any
 
 from torchmeshmetric._console import say
-from torchmeshmetric.cli.options import add_cache_dir, add_command, add_html, add_temporal, common_options
+from torchmeshmetric.cli.options import (
+    add_cache_dir,
+    add_command,
+    add_determinacy,
+    add_html,
+    add_temporal,
+    common_options,
+)
 
 __all__ = ["add_campaign_command", "run"]
 
@@ -19,10 +26,12 @@ def run(args: argparse.Namespace) -> int:
     docs/scaling.md); registrations of each sequence's original pairs are computed once and shared by its methods.
     Prints the combined tables (per sequence and overall: mean over sequences); with --out-dir writes
     campaign.json/.md/.csv and one report per sequence (<sequence>.json/.md/.csv). Under torchrun the work is shared
-    by all processes.
+    by all processes. With --determinacy, every sequence is evaluated again on nudged frames, and every table (the
+    combined ones and each sequence's) prints only the digits both runs share.
     """
     from torchmeshmetric.cli._outputs import CLIError, check_writable, folder_inputs, make_folder, output_set
     from torchmeshmetric.cli._shared import (
+        NudgedRun,
         device_of,
         dtype_of,
         evaluate_across_ranks,
@@ -37,11 +46,13 @@ def run(args: argparse.Namespace) -> int:
         campaign_report_dict,
         campaign_tables,
         load_campaign,
+        measure_campaign_determinacy,
         report_name,
         write_campaign_csv,
         write_campaign_markdown,
     )
-    from torchmeshmetric.evaluation.comparison import compare_methods
+    from torchmeshmetric.evaluation.comparison import compare_methods, with_nudged_verdicts
+    from torchmeshmetric.evaluation.determinacy import measure_determinacy, nudge_frames
     from torchmeshmetric.evaluation.pipeline import check_methods
     from torchmeshmetric.evaluation.reports import write_json
     from torchmeshmetric.registration.cache import RegistrationCache
@@ -71,23 +82,59 @@ def run(args: argparse.Namespace) -> int:
         check_methods(original, methods, sequence=seq.name)
         sequences.append((seq.name, original, methods))
     cache = RegistrationCache(args.cache_dir or campaign.cache_dir)
-    evaluated = evaluate_across_ranks(
-        sequences,
-        cache,
-        two_sided=campaign.two_sided,
-        device=device,
-        backend=args.backend,
-        registration_options=fast_registration_options() if campaign.registration == "fast" else None,
-    )
+    options = fast_registration_options() if campaign.registration == "fast" else None
+
+    def evaluate(each: list[tuple[str, list[Any], dict[str, list[Any]]]], registrations: RegistrationCache) -> Any:
+        return evaluate_across_ranks(
+            each,
+            registrations,
+            two_sided=campaign.two_sided,
+            device=device,
+            backend=args.backend,
+            registration_options=options,
+        )
+
+    evaluated = evaluate(sequences, cache)
+    nudged: list[NudgedRun] = []
+    if args.determinacy is not None:  # every rank: the second run is sharded like the first
+        say(f"--determinacy {args.determinacy}: evaluating again on nudged frames")
+        # One seed for every frame, as evaluate's; the nudged registrations stay in memory (not the input's).
+        nudged_cache = RegistrationCache()
+        nudged = [
+            NudgedRun(
+                nudge_frames(original, args.determinacy),
+                {m: nudge_frames(frames, args.determinacy) for m, frames in methods.items()},
+                nudged_cache,
+            )
+            for _, original, methods in sequences
+        ]
+        work = [(name, run.original, run.methods) for (name, _, _), run in zip(sequences, nudged, strict=True)]
+        again = evaluate(work, nudged_cache)
+        nudged = [n._replace(results=r) for n, r in zip(nudged, again, strict=True)]
     if evaluated[0] is None:  # a torchrun rank other than 0: rank 0 reports
         return 0
     results = {seq.name: methods for seq, methods in zip(campaign.sequences, evaluated, strict=True)}
-    print(campaign_tables(results))
-    options = fast_registration_options() if campaign.registration == "fast" else None
-    temporal = {  # --temporal: KG, KSO, STED per sequence and method, on the campaign's registrations (its cache)
-        name: temporal_methods(original, methods, args, device, cache=cache, registration_options=options)[0]
-        for name, original, methods in sequences
-    }
+    nudged_runs = dict(zip(results, nudged, strict=True)) if nudged else {}
+    determinacy = None  # of the combined tables; each sequence's own below
+    determinacies: dict[str, Any] = dict.fromkeys(results)
+    if nudged_runs:
+        again_results = {name: run.results for name, run in nudged_runs.items()}
+        determinacy = measure_campaign_determinacy(results, again_results, args.determinacy)
+        for name in results:
+            determinacies[name] = measure_determinacy(results[name], again_results[name], args.determinacy)
+    print(campaign_tables(results, determinacy=determinacy))
+    temporal = {}  # --temporal: KG, KSO, STED per sequence and method, on the campaign's registrations (its cache)
+    for name, original, methods in sequences:
+        temporal[name], determinacies[name] = temporal_methods(
+            original,
+            methods,
+            args,
+            device,
+            cache=cache,
+            registration_options=options,
+            determinacy=determinacies[name],
+            nudged=nudged_runs.get(name),
+        )
     if out is None:
         return 0  # (--html without --out-dir was refused before any work)
     settings: dict[str, Any] = {
@@ -95,6 +142,7 @@ def run(args: argparse.Namespace) -> int:
         "two_sided": campaign.two_sided,
         "registration": campaign.registration,
         "dtype": args.dtype,
+        "determinacy": args.determinacy,
     }
     with output_set("the campaign's reports") as files:
         if not out.is_dir():
@@ -105,6 +153,9 @@ def run(args: argparse.Namespace) -> int:
             paths = report_paths(str(out / f"{stem}.json"), html=args.html)
             # The same comparisons `compare` writes for these methods (default margin; none for a single method).
             comparisons = compare_methods(results[seq.name]) if len(results[seq.name]) >= 2 else None
+            if comparisons is not None and seq.name in nudged_runs:  # --determinacy: is each verdict the input's?
+                again = compare_methods(nudged_runs[seq.name].results or {})
+                comparisons = with_nudged_verdicts(comparisons, again)
             write_reports(
                 paths,
                 results[seq.name],
@@ -112,18 +163,18 @@ def run(args: argparse.Namespace) -> int:
                 args.overwrite,
                 comparisons=comparisons,
                 temporal=temporal[seq.name],
+                determinacy=determinacies[seq.name],
             )
-        combined = campaign_report_dict(results, settings=settings)
+        combined = campaign_report_dict(results, settings=settings, determinacy=determinacy)
         write_json(out / f"{COMBINED}.json", combined, overwrite=args.overwrite)
-        write_campaign_markdown(out / f"{COMBINED}.md", results, overwrite=args.overwrite)
+        write_campaign_markdown(out / f"{COMBINED}.md", results, overwrite=args.overwrite, determinacy=determinacy)
         write_campaign_csv(out / f"{COMBINED}.csv", results, overwrite=args.overwrite)
         if args.html:
             from torchmeshmetric.evaluation.campaign import campaign_markdown
             from torchmeshmetric.viz.html_report import report_page, write_html
 
-            page = report_page(
-                combined, campaign_markdown(results), title=f"torchmeshmetric campaign: {campaign.path.name}"
-            )
+            title = f"torchmeshmetric campaign: {campaign.path.name}"
+            page = report_page(combined, campaign_markdown(results, determinacy=determinacy), title=title)
             write_html(out / f"{COMBINED}.html", page, overwrite=args.overwrite)
     say(f"wrote {out / COMBINED}.json/.md/.csv and one report per sequence")
     return 0
@@ -141,5 +192,6 @@ def add_campaign_command(sub: Any) -> None:
     )
     add_cache_dir(p, "registration cache folder (overrides the manifest's cache_dir); a rerun resumes from it")
     add_temporal(p)
+    add_determinacy(p, "evaluate every sequence again", "docs/statistics.md")
     p.add_argument("--overwrite", action="store_true", help="replace existing reports in --out-dir")
     add_html(p, "also write every report as one offline page (.html): tables, curves (per sequence)")

@@ -18,6 +18,7 @@ __all__ = [
     "as_option_error",
     "corner",
     "add_command",
+    "add_determinacy",
     "add_target",
     "add_weight",
     "common_options",
@@ -155,16 +156,21 @@ def report_options() -> argparse.ArgumentParser:
     )
     output.add_argument("--overwrite", action="store_true", help="replace existing output files")
     add_html(output, "also write REPORT.html: the report as one offline page (tables, curves, 3D error viewer)")
-    output.add_argument(
+    add_determinacy(output, "evaluate again", "docs/statistics.md")
+    return output
+
+
+def add_determinacy(p: argparse.ArgumentParser, again: str, docs: str) -> None:
+    """Add ``--determinacy ROUNDING``; ``again``: what the command repeats on the nudged frames; ``docs``: its page."""
+    p.add_argument(
         "--determinacy",
         default=None,
         metavar="ROUNDING",
         type=parse_rounding,
-        help="measure which digits this run's input determines: evaluate again with every coordinate moved by up "
-        "to one unit of the frames' storage ('float32', or N for a text file's N decimals) and print only the digits "
-        "both runs share (twice the time; docs/statistics.md)",
+        help=f"measure which digits this run's input determines: {again} with every coordinate moved by up to one "
+        "unit of the frames' storage ('float32', or N for a text file's N decimals) and print only the digits both "
+        f"runs share (twice the time; {docs})",
     )
-    return output
 
 
 def parse_rounding(text: str) -> str:

@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from torchmeshmetric.cli.options import add_cache_dir, add_command, common_options, parse_rounding
+from torchmeshmetric.cli.options import add_cache_dir, add_command, add_determinacy, common_options
 
 __all__ = ["add_temporal_command", "frame_files", "run"]
 
@@ -151,12 +151,4 @@ def add_temporal_command(sub: Any) -> None:
     p.add_argument("--first-frame", type=int, default=None, metavar="F", help="patterns: first frame number")
     p.add_argument("--last-frame", type=int, default=None, metavar="L", help="patterns: last frame number (included)")
     add_cache_dir(p, "registration cache folder (registered forms)")
-    p.add_argument(
-        "--determinacy",
-        default=None,
-        metavar="ROUNDING",
-        type=parse_rounding,
-        help="measure which digits this run's input determines: compute the figures again with every coordinate "
-        "moved by up to one unit of the frames' storage ('float32', or N for a text file's N decimals) and print "
-        "only the digits both runs share (twice the time; docs/temporal.md)",
-    )
+    add_determinacy(p, "compute the figures again", "docs/temporal.md")

@@ -26,18 +26,23 @@ import os
 import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 from torchmeshmetric._atomic import atomic_write
 from torchmeshmetric._format import json_safe
 from torchmeshmetric._toml import kind_name, read_manifest
 from torchmeshmetric.evaluation.reports import (
+    COLUMN_FORMATS,
     COLUMNS,
     report_dict,
+    stability_note,
     statistic_cells,
     unconverged_frames,
     unconverged_note,
 )
+
+if TYPE_CHECKING:
+    from torchmeshmetric.evaluation.determinacy import Determinacy
 from torchmeshmetric.evaluation.results import SequenceEvaluation
 
 __all__ = [
@@ -48,6 +53,7 @@ __all__ = [
     "campaign_report_dict",
     "campaign_tables",
     "load_campaign",
+    "measure_campaign_determinacy",
     "overall",
     "report_name",
     "write_campaign_csv",
@@ -224,12 +230,16 @@ def overall(results: Mapping[str, Mapping[str, SequenceEvaluation]]) -> dict[str
 
 
 def campaign_report_dict(
-    results: Mapping[str, Mapping[str, SequenceEvaluation]], *, settings: Mapping[str, Any] | None = None
+    results: Mapping[str, Mapping[str, SequenceEvaluation]],
+    *,
+    settings: Mapping[str, Any] | None = None,
+    determinacy: Determinacy | None = None,
 ) -> dict[str, Any]:
     """JSON-ready combined report: per sequence and method the averages, and ``overall`` per method.
 
     ``{"tool", "version", "settings", "sequences": {name: {"report": stem, "methods": {method: {"aggregate",
-    "best_pair"}}}}, "overall": {method: ...}}``; each sequence's own report (``<stem>.json``) has every pair.
+    "best_pair"}}}}, "overall": {method: ...}}``; each sequence's own report (``<stem>.json``) has every pair. With
+    ``determinacy`` (:func:`measure_campaign_determinacy`), also ``"determinacy"``: each combined cell's change.
     """
     per_sequence = {}
     for name, by_method in results.items():
@@ -244,6 +254,8 @@ def campaign_report_dict(
     report.pop("methods")
     report["sequences"] = per_sequence
     report["overall"] = json_safe(overall(results))
+    if determinacy is not None:
+        report["determinacy"] = json_safe(determinacy.as_dict())
     return report
 
 
@@ -264,8 +276,66 @@ def _rows(results: Mapping[str, Mapping[str, SequenceEvaluation]], kind: str, pa
     return rows
 
 
-def campaign_tables(results: Mapping[str, Mapping[str, SequenceEvaluation]]) -> str:
-    """The combined tables as Markdown: per sequence and overall (mean over sequences), the report's digits."""
+def _table_name(kind: str, part: str) -> str:
+    """The name of a combined table, as the CSV's ``table`` column and :func:`measure_campaign_determinacy` say it."""
+    return ("III" if kind == "surface" else "IV") + ("-reverse" if part else "")
+
+
+def measure_campaign_determinacy(
+    results: Mapping[str, Mapping[str, SequenceEvaluation]],
+    nudged: Mapping[str, Mapping[str, SequenceEvaluation]],
+    rounding: str | int,
+    *,
+    seed: int = 0,
+) -> Determinacy:
+    """The change of every cell of the combined tables between a campaign and its run on nudged frames.
+
+    The campaign's counterpart of :func:`~torchmeshmetric.evaluation.determinacy.measure_determinacy`
+    (``campaign --determinacy``): the ``overall`` rows are compared as printed (means over the sequences of both
+    runs), not bounded by their sequences' changes.
+
+    Args:
+        results: sequence name → method name → the campaign's evaluation.
+        nudged: the same, evaluated on the frames of
+            :func:`~torchmeshmetric.evaluation.determinacy.nudge_frames` (same settings).
+        rounding: the nudge's storage unit (:func:`~torchmeshmetric.evaluation.determinacy.storage_unit`).
+        seed: the nudge's seed.
+
+    Returns:
+        A :class:`~torchmeshmetric.evaluation.determinacy.Determinacy` whose tables are ``"III"``, ``"IV"``,
+        ``"III-reverse"`` and ``"IV-reverse"``, with rows in :func:`campaign_tables`' order.
+
+    Raises:
+        ValueError: the two runs hold other sequences or methods.
+
+    Example:
+        >>> d = measure_campaign_determinacy(results, nudged_results, "float32")  # doctest: +SKIP
+        >>> campaign_tables(results, determinacy=d)  # doctest: +SKIP
+    """
+    from torchmeshmetric.evaluation.determinacy import Determinacy, row_changes, storage_unit
+
+    if [(s, list(m)) for s, m in results.items()] != [(s, list(m)) for s, m in nudged.items()]:
+        raise ValueError("nudged: expected the same sequences and methods as results")
+    changes = {
+        _table_name(kind, part): row_changes(
+            [row[4] for row in _rows(results, kind, part)], [row[4] for row in _rows(nudged, kind, part)]
+        )
+        for kind, part, _ in _TABLES
+    }
+    return Determinacy(storage_unit(rounding), seed, changes)
+
+
+def campaign_tables(
+    results: Mapping[str, Mapping[str, SequenceEvaluation]], *, determinacy: Determinacy | None = None
+) -> str:
+    """The combined tables as Markdown: per sequence and overall (mean over sequences), the report's digits.
+
+    Args:
+        results: sequence name → method name → its evaluation.
+        determinacy: this campaign's measured determinacy (:func:`measure_campaign_determinacy`): each cell then
+            prints only the digits a second run on nudged frames left in place, at most those of
+            :data:`~torchmeshmetric.evaluation.reports.COLUMN_FORMATS`.
+    """
     header = "| Sequence | Algorithm | Mesh | " + " | ".join(h for _, h in COLUMNS) + " |"
     rule = "|" + "---|" * (len(COLUMNS) + 3)
     out = []
@@ -274,13 +344,18 @@ def campaign_tables(results: Mapping[str, Mapping[str, SequenceEvaluation]]) -> 
         if not rows:
             continue
         out += [f"### {title}", "", header, rule]
-        for scope, method, label, _, stats in rows:
-            cells = " | ".join(statistic_cells(stats))
+        for i, (scope, method, label, _, stats) in enumerate(rows):
+            if determinacy is None:
+                cells = " | ".join(statistic_cells(stats))
+            else:
+                table = _table_name(kind, part)
+                cells = " | ".join(determinacy.cell(table, i, k, stats[k], COLUMN_FORMATS[k]) for k, _ in COLUMNS)
             out.append(f"| {scope} | {method} | {label} | {cells} |")
         out.append("")
     out.append(
         "Per sequence: mean over its pairs of each per-pair statistic. Overall: mean over the sequences of those "
-        "means (each sequence weighs the same)."
+        "means (each sequence weighs the same). "
+        f"Stability: {stability_note(determinacy, json_file=f'{COMBINED}.json')}"
     )
     unconverged = [
         f"{name} {k - 1} -> {k}" for name, by_method in results.items() for k in unconverged_frames(by_method)
@@ -303,7 +378,7 @@ def write_campaign_csv(
     keys = [k for k, _ in COLUMNS]
     writer.writerow(["table", "sequence", "algorithm", "set", *keys])
     for kind, part, _ in _TABLES:
-        table = ("III" if kind == "surface" else "IV") + ("-reverse" if part else "")
+        table = _table_name(kind, part)
         for scope, method, _, set_name, stats in _rows(results, kind, part):
             set_name = f"reverse:{set_name}" if part else set_name
             writer.writerow([table, scope, method, set_name, *(repr(float(stats[k])) for k in keys)])
@@ -311,12 +386,18 @@ def write_campaign_csv(
 
 
 def write_campaign_markdown(
-    path: str | os.PathLike[str], results: Mapping[str, Mapping[str, SequenceEvaluation]], *, overwrite: bool = False
+    path: str | os.PathLike[str],
+    results: Mapping[str, Mapping[str, SequenceEvaluation]],
+    *,
+    overwrite: bool = False,
+    determinacy: Determinacy | None = None,
 ) -> Path:
     """Write :func:`campaign_markdown` to a file, atomically."""
-    return atomic_write(path, campaign_markdown(results), overwrite=overwrite)
+    return atomic_write(path, campaign_markdown(results, determinacy=determinacy), overwrite=overwrite)
 
 
-def campaign_markdown(results: Mapping[str, Mapping[str, SequenceEvaluation]]) -> str:
-    """The text of ``campaign.md``: a title and :func:`campaign_tables`."""
-    return "# torchmeshmetric campaign\n\n" + campaign_tables(results)
+def campaign_markdown(
+    results: Mapping[str, Mapping[str, SequenceEvaluation]], *, determinacy: Determinacy | None = None
+) -> str:
+    """The text of ``campaign.md``: a title and :func:`campaign_tables` (``determinacy`` as there)."""
+    return "# torchmeshmetric campaign\n\n" + campaign_tables(results, determinacy=determinacy)

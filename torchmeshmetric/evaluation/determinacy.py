@@ -27,6 +27,7 @@ __all__ = [
     "determined_digits",
     "measure_determinacy",
     "nudge_frames",
+    "row_changes",
     "storage_unit",
     "with_temporal_changes",
 ]
@@ -211,7 +212,7 @@ def measure_determinacy(
         >>> d = measure_determinacy(results, nudged_results, "float32")  # doctest: +SKIP
         >>> paper_tables(results, determinacy=d)  # doctest: +SKIP
     """
-    from torchmeshmetric.evaluation.reports import COLUMNS, table_rows
+    from torchmeshmetric.evaluation.reports import table_rows
 
     if list(methods) != list(nudged) or any(
         [p.frame for p in methods[m].pairs] != [p.frame for p in nudged[m].pairs] for m in methods
@@ -221,11 +222,37 @@ def measure_determinacy(
     changes: dict[str, list[dict[str, float]]] = {}
     for table in _TABLES:
         rows, again = table_rows(methods, table, best=best), table_rows(nudged, table, best=best)
-        changes[table] = [
-            {key: _change(float(a[2][key]), float(b[2][key]), key != "psnr") for key, _ in COLUMNS}
-            for a, b in zip(rows, again, strict=True)
-        ]
+        changes[table] = row_changes([r[2] for r in rows], [r[2] for r in again])
     return Determinacy(storage_unit(rounding), seed, changes)
+
+
+def row_changes(rows: Sequence[Mapping[str, Any]], again: Sequence[Mapping[str, Any]]) -> list[dict[str, float]]:
+    """The change of each statistic of a table's rows between two runs, as :attr:`Determinacy.changes` holds it.
+
+    Relative to the larger magnitude for every statistic but ``psnr`` (absolute, dB); 0 where both are equal (two
+    NaNs included), infinite where only one is finite.
+
+    Args:
+        rows: the run's rows, each ``{statistic: value}`` holding every statistic of the tables' columns.
+        again: the same rows of the second run, in the same order.
+
+    Raises:
+        ValueError: the two runs hold a different number of rows.
+
+    Example:
+        >>> stats = {"ave": 2.0, "var": 1.0, "std": 1.0, "mse": 5.0, "rmse": 2.2, "max": 4.0, "p95": 3.0, "psnr": 40.0}
+        >>> change = row_changes([stats], [{**stats, "ave": 2.5, "psnr": 40.25}]).pop()
+        >>> change.get("ave"), change.get("psnr"), change.get("max")
+        (0.2, 0.25, 0.0)
+    """
+    from torchmeshmetric.evaluation.reports import COLUMNS
+
+    if len(rows) != len(again):
+        raise ValueError(f"again: expected {len(rows)} rows as in rows, found {len(again)}")
+    return [
+        {key: _change(float(a[key]), float(b[key]), key != "psnr") for key, _ in COLUMNS}
+        for a, b in zip(rows, again, strict=True)
+    ]
 
 
 def with_temporal_changes(

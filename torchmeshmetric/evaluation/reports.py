@@ -41,6 +41,7 @@ __all__ = [
     "determinacy_note",
     "paper_tables",
     "report_dict",
+    "stability_note",
     "statistic_cells",
     "table_rows",
     "write_csv",
@@ -218,7 +219,7 @@ def paper_tables(
         f"{REGISTRATION_ROW} rows (the same for every algorithm): the registration of original k-1 onto k, its "
         "residual (registered vertices to the surface of frame k) and, when the true motion is known, its error; "
         "differences between algorithms on the (k-1)-th and flicker rows smaller than these are not meaningful. "
-        f"Stability: {STABILITY_NOTE if determinacy is None else determinacy_note(determinacy)}"
+        f"Stability: {stability_note(determinacy)}"
     )
     unconverged = [f"{k - 1} -> {k}" for k in unconverged_frames(methods)]
     if unconverged:
@@ -248,6 +249,17 @@ def unconverged_note(pairs: Sequence[str]) -> str:
         f"the (k-1)-th and flicker figures of {'those pairs' if several else 'that pair'}, and the averages over "
         "pairs, rest on a registration that did not meet its convergence or plausibility checks (docs/registration.md)."
     )
+
+
+def stability_note(determinacy: Determinacy | None = None, *, json_file: str = "report.json") -> str:
+    """What the tables' digits mean: :data:`STABILITY_NOTE`, or :func:`determinacy_note` of a measured run.
+
+    Args:
+        determinacy: the run's measured determinacy, if any.
+        json_file: the report file that keeps the full values (``campaign.json`` for a campaign's tables).
+    """
+    note = STABILITY_NOTE if determinacy is None else determinacy_note(determinacy)
+    return note.replace("report.json", json_file)
 
 
 def determinacy_note(determinacy: Determinacy) -> str:
