@@ -131,7 +131,7 @@ def _cells(markdown: str, title: str, first: str) -> dict[tuple[str, str], list[
 
 def test_determinacy_digits_are_each_sequence_reports_digits(tmp_path, campaign, capsys):
     out = tmp_path / "report"
-    assert main(["campaign", str(campaign), "--out-dir", str(out), "--determinacy", "1"]) == 0
+    assert main(["campaign", str(campaign), "--out-dir", str(out), "--determinacy", "1", "--temporal"]) == 0
     stdout, err = capsys.readouterr()
     assert "--determinacy 1: evaluating again on nudged frames" in err
     combined = json.loads((out / "campaign.json").read_text())
@@ -144,15 +144,16 @@ def test_determinacy_digits_are_each_sequence_reports_digits(tmp_path, campaign,
     # compare command's spheres, tests/cli/test_determinacy_cli.py): some first digits move, and are marked.
     assert max(row["ave"] for row in changes["III-reverse"]) > 0.1
     md = (out / "campaign.md").read_text()
-    assert stdout.count("| ~") == md.count("| ~") > 0
+    assert stdout.split("## Temporal")[0].count("| ~") == md.count("| ~") > 0
     assert "this run's input determines" in md and "campaign.json keeps the full values" in md
     # each sequence's report is compare --determinacy's for it, and its Table III cells are the combined ones
     walk = tmp_path / "walk"
     argv = ["compare", "--original", str(walk / "orig"), "--method", f"fine={walk / 'fine'}", "--method",
-            f"coarse={walk / 'coarse'}", "--out", str(tmp_path / "compare.json"), "--determinacy", "1"]  # fmt: skip
+            f"coarse={walk / 'coarse'}", "--out", str(tmp_path / "compare.json"), "--determinacy", "1",
+            "--temporal"]  # fmt: skip
     assert main(argv) == 0
     got, want = (json.loads(p.read_text()) for p in (out / "walk.json", tmp_path / "compare.json"))
-    assert got["determinacy"] == want["determinacy"]
+    assert got["determinacy"] == want["determinacy"] and len(got["determinacy"]["changes"]["temporal"]) == 2
     assert (out / "walk.md").read_text() == (tmp_path / "compare.md").read_text()
     sequence_md = (out / "walk.md").read_text()
     table_iii = "Table III: average over pairs, mesh surface distance"
