@@ -134,16 +134,20 @@ def test_identical_methods_every_verdict_inconclusive_every_difference_zero(trac
 def test_verdicts_on_nudged_frames_mark_the_cells_they_change():
     from torchmeshmetric.evaluation.comparison import with_nudged_verdicts
 
-    def table(ave: str, rmse: str) -> dict:
+    def table(ave: str, rmse: str, rmse_difference: float = -0.5) -> dict:
         entry = {"difference": -0.5, "ci95": [-0.75, -0.25]}
-        return {"A vs B": {"surface_k": {"ave": {**entry, "verdict": ave}, "rmse": {**entry, "verdict": rmse}}}}
+        rmse_entry = {"difference": rmse_difference, "ci95": [rmse_difference - 0.25, rmse_difference + 0.25]}
+        return {"A vs B": {"surface_k": {"ave": {**entry, "verdict": ave}, "rmse": {**rmse_entry, "verdict": rmse}}}}
 
-    run, again = table("A better", "A better"), table("inconclusive", "A better")
+    run, again = table("A better", "A better"), table("inconclusive", "A better", rmse_difference=-0.45)
     marked = with_nudged_verdicts(run, again)
     assert marked["A vs B"]["surface_k"]["ave"]["nudged_verdict"] == "inconclusive"
+    assert marked["A vs B"]["surface_k"]["rmse"]["nudged_difference"] == -0.45
     assert "nudged_verdict" not in run["A vs B"]["surface_k"]["ave"]  # a copy: the run's own dict is untouched
     text = comparison_markdown(marked)
-    assert "| surface_k | ~A: -0.5 ± 0.25 | A: -0.5 ± 0.25 |" in text
+    # ave: the same numbers in both runs, every digit of the format holds; rmse: the difference moved by 10 %
+    # (one digit holds), the half-width not at all.
+    assert "| surface_k | ~A: -0.500 ± 0.250 | A: -0.5 ± 0.250 |" in text
     assert "Verdicts on the frames nudged by --determinacy: 1 of 2 the same; ~ marks a verdict" in text
     plain = comparison_markdown(run)
     assert "~" not in plain and "nudged" not in plain

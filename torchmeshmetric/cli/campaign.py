@@ -118,7 +118,8 @@ def run(args: argparse.Namespace) -> int:
     determinacy = None  # of the combined tables; each sequence's own below
     determinacies: dict[str, Any] = dict.fromkeys(results)
     if nudged_runs:
-        again_results = {name: run.results for name, run in nudged_runs.items()}
+        # rank 0 (the others returned above) holds every sequence's second run, as it holds the first
+        again_results: dict[str, Any] = {name: run.results for name, run in nudged_runs.items()}
         determinacy = measure_campaign_determinacy(results, again_results, args.determinacy)
         for name in results:
             determinacies[name] = measure_determinacy(results[name], again_results[name], args.determinacy)

@@ -54,6 +54,7 @@ from typing import Any
 import numpy as np
 
 from torchmeshmetric._format import format_number
+from torchmeshmetric.evaluation.determinacy import determined_cell, relative_change
 from torchmeshmetric.evaluation.results import FLOOR_SET_NAMES, SequenceEvaluation
 
 __all__ = [
@@ -323,25 +324,29 @@ def with_nudged_verdicts(
     comparisons: Mapping[str, Mapping[str, Mapping[str, Mapping[str, Any]]]],
     nudged: Mapping[str, Mapping[str, Mapping[str, Mapping[str, Any]]]],
 ) -> dict[str, dict[str, dict[str, dict[str, Any]]]]:
-    """``comparisons`` with each entry's ``"nudged_verdict"``: its verdict on the frames ``--determinacy`` nudged.
+    """``comparisons`` with each entry's verdict, difference and interval on the frames ``--determinacy`` nudged.
 
     A verdict is a property of the methods only if the input's storage cannot change it: the same comparison on
     frames moved by up to one unit of their storage (:func:`~torchmeshmetric.evaluation.determinacy.nudge_frames`)
-    must reach it too. :func:`comparison_markdown` marks a cell whose two verdicts differ with ``~``.
+    must reach it too. :func:`comparison_markdown` marks a cell whose two verdicts differ with ``~`` before the
+    winner, and prints the difference and the interval's half-width with only the digits both runs share.
 
     Args:
         comparisons: :func:`compare_methods` of the run.
         nudged: :func:`compare_methods` of the same methods evaluated on the nudged frames.
 
     Returns:
-        A copy of ``comparisons``; an entry missing from ``nudged`` gets no ``"nudged_verdict"``.
+        A copy of ``comparisons`` whose entries hold ``"nudged_verdict"``, ``"nudged_difference"`` and
+        ``"nudged_ci95"``; an entry missing from ``nudged`` gets none of them.
 
     Example:
-        >>> run = {"A vs B": {"surface_k": {"ave": {"verdict": "A better"}}}}
-        >>> again = {"A vs B": {"surface_k": {"ave": {"verdict": "inconclusive"}}}}
+        >>> run = {"A vs B": {"surface_k": {"ave": {"difference": 0.2, "ci95": [0.1, 0.3], "verdict": "A better"}}}}
+        >>> ave = {"difference": 0.1, "ci95": [-0.1, 0.3], "verdict": "inconclusive"}
+        >>> again = {"A vs B": {"surface_k": {"ave": ave}}}
         >>> marked = with_nudged_verdicts(run, again)
-        >>> marked["A vs B"].get("surface_k").get("ave")
-        {'verdict': 'A better', 'nudged_verdict': 'inconclusive'}
+        >>> entry = marked["A vs B"].get("surface_k").get("ave")
+        >>> entry["nudged_verdict"], entry["nudged_difference"], entry["nudged_ci95"]
+        ('inconclusive', 0.1, [-0.1, 0.3])
     """
     out: dict[str, dict[str, dict[str, dict[str, Any]]]] = {}
     for title, sets in comparisons.items():
@@ -350,7 +355,7 @@ def with_nudged_verdicts(
             out[title][set_name] = {}
             for stat, entry in entries.items():
                 other = nudged.get(title, {}).get(set_name, {}).get(stat)
-                extra = {} if other is None else {"nudged_verdict": other["verdict"]}
+                extra = {} if other is None else {f"nudged_{k}": other[k] for k in ("verdict", "difference", "ci95")}
                 out[title][set_name][stat] = {**entry, **extra}
     return out
 
@@ -364,14 +369,30 @@ def _cell(x: float) -> str:
     return format_number(x, ".3g")  # 3 significant digits: a verdict cell holds two numbers
 
 
+def _half_width(ci95: Sequence[float]) -> float:
+    lo, hi = ci95
+    return (hi - lo) / 2 if math.isfinite(hi - lo) else math.inf
+
+
+def _numbers(entry: Mapping[str, Any]) -> tuple[str, str]:
+    """The difference and the half-width of a verdict cell; with the nudged run's, only the digits both share."""
+    difference, half = entry["difference"], _half_width(entry["ci95"])
+    if "nudged_difference" not in entry:
+        return _cell(difference), _cell(half)
+    again = relative_change(difference, entry["nudged_difference"])
+    again_half = relative_change(half, _half_width(entry["nudged_ci95"]))
+    return determined_cell(difference, again, "#.3g"), determined_cell(half, again_half, "#.3g")
+
+
 def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapping[str, Any]]]]) -> str:
     """Compact verdict tables (one per pair of methods) as Markdown.
 
     Rows are sets, columns statistics; a cell reads ``<winner>: difference ± half-width`` or
     ``≈ difference ± half-width`` when inconclusive (the difference is ``A - B``). Sets with a registration noise
     floor are marked ``*`` and their floor is listed under the table. With the verdicts on nudged frames
-    (:func:`with_nudged_verdicts`), a cell whose verdict they change starts with ``~``, and the note under the
-    tables counts them.
+    (:func:`with_nudged_verdicts`), a cell whose verdict they change starts with ``~``, the note under the tables
+    counts them, and each number keeps only the digits both runs share (``~`` before a number whose first digit
+    moved).
     """
     out = []
     for title, sets in comparisons.items():
@@ -388,11 +409,10 @@ def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapp
                 if e is None:
                     cells.append("")
                     continue
-                lo, hi = e["ci95"]
-                half = (hi - lo) / 2 if math.isfinite(hi - lo) else math.inf
                 winner = e["verdict"].removesuffix(" better") if e["verdict"] != "inconclusive" else "≈"
                 mark = "~" if _undetermined(e) else ""
-                cells.append(f"{mark}{winner}: {_cell(e['difference'])} ± {_cell(half)}")
+                difference, half = _numbers(e)
+                cells.append(f"{mark}{winner}: {difference} ± {half}")
             marked = f"{set_name} *" if any("noise_floor" in e for e in entries.values()) else set_name
             out.append(f"| {marked} | " + " | ".join(cells) + " |")
             if any("noise_floor" in e for e in entries.values()):
@@ -415,5 +435,7 @@ def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapp
                 if changed
                 else "."
             )
+            + " Differences and half-widths keep the digits both runs share ('~' before a number: its first digit "
+            "moved)."
         )
     return "\n".join(out) + "\n"

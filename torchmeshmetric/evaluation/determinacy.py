@@ -24,9 +24,11 @@ from torchmeshmetric.structures import Mesh
 
 __all__ = [
     "Determinacy",
+    "determined_cell",
     "determined_digits",
     "measure_determinacy",
     "nudge_frames",
+    "relative_change",
     "row_changes",
     "storage_unit",
     "with_temporal_changes",
@@ -141,6 +143,37 @@ def determined_digits(change: float, spec: str) -> int:
     return most if change == 0 else min(most, math.floor(-math.log10(change)) if math.isfinite(change) else -1)
 
 
+def determined_cell(value: Any, change: float, spec: str) -> str:
+    """``value`` printed with the digits of ``spec`` that ``change`` leaves (:func:`determined_digits`).
+
+    A significant-digit ``spec`` (``"#.2g"``) takes the relative change, a fixed-point one (``".1f"``) the absolute
+    one; at least one significant digit (no decimal) is printed, prefixed with ``~`` when even it moved.
+
+    Example:
+        >>> determined_cell(0.0123456, 0.013, "#.2g"), determined_cell(0.0123456, 0.2, "#.2g")
+        ('0.01', '~0.01')
+        >>> determined_cell(-0.10612, 0.0, "#.3g"), determined_cell(61.27, 0.3, ".1f")
+        ('-0.106', '61')
+    """
+    digits = determined_digits(change, spec)
+    if spec.endswith("g"):
+        # '#' keeps a significant trailing zero (0.010); with one digit it leaves a bare point ("2.e-07", "3.").
+        text = format_number(value, f"#.{max(digits, 1)}g").replace(".e", "e").rstrip(".")
+        return text if digits >= 1 else f"~{text}"
+    text = format_number(value, f".{max(digits, 0)}f")
+    return text if digits >= 0 else f"~{text}"
+
+
+def relative_change(a: float, b: float) -> float:
+    """How far ``b`` is from ``a``, relative to the larger magnitude (0 for equal values, two NaNs included).
+
+    Example:
+        >>> relative_change(2.0, 2.5), relative_change(float("nan"), float("nan")), relative_change(1.0, float("inf"))
+        (0.2, 0.0, inf)
+    """
+    return _change(a, b, relative=True)
+
+
 @dataclass(frozen=True)
 class Determinacy:
     """The change of every table cell between a run and a second run on nudged frames.
@@ -172,13 +205,7 @@ class Determinacy:
             >>> Determinacy("float32", 0, {"III": [{"var": 0.05}]}).cell("III", 0, "var", 2.2e-7, "#.2g")
             '2e-07'
         """
-        digits = determined_digits(self.changes[table][row][key], spec)
-        if spec.endswith("g"):
-            # '#' keeps a significant trailing zero (0.010); with one digit it leaves a bare point ("2.e-07", "3.").
-            text = format_number(value, f"#.{max(digits, 1)}g").replace(".e", "e").rstrip(".")
-            return text if digits >= 1 else f"~{text}"
-        text = format_number(value, f".{max(digits, 0)}f")
-        return text if digits >= 0 else f"~{text}"
+        return determined_cell(value, self.changes[table][row][key], spec)
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready: ``{"rounding", "seed", "changes": {table: [row: {statistic: change}]}}``."""
