@@ -153,3 +153,18 @@ def test_verdicts_on_nudged_frames_mark_the_cells_they_change():
     assert "~" not in plain and "nudged" not in plain
     # An entry the nudged run lacks keeps no nudged verdict and is not marked.
     assert "nudged_verdict" not in with_nudged_verdicts(run, {"A vs B": {}})["A vs B"]["surface_k"]["ave"]
+
+
+def test_nudged_psnr_difference_keeps_decimals_as_the_tables_psnr():
+    from torchmeshmetric.evaluation.comparison import with_nudged_verdicts
+
+    def table(difference: float) -> dict:
+        entry = {"difference": difference, "ci95": [difference - 2e-5, difference + 2e-5], "verdict": "B better"}
+        return {"A vs B": {"reverse:surface_k": {"psnr": entry}}}
+
+    # dB: the difference moved by 0.04 dB keeps one decimal (an absolute change, as the tables' PSNR), not the
+    # "~-1e+01" a relative rule would print; the half-width is the same in both runs and keeps 3 digits.
+    text = comparison_markdown(with_nudged_verdicts(table(-12.93), table(-12.89)))
+    assert "| reverse:surface_k | B: -12.9 ± 2.00e-05 |" in text
+    text = comparison_markdown(with_nudged_verdicts(table(-12.93), table(-11.5)))
+    assert "| reverse:surface_k | B: ~-13 ± 2.00e-05 |" in text

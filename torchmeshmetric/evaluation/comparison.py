@@ -54,7 +54,7 @@ from typing import Any
 import numpy as np
 
 from torchmeshmetric._format import format_number
-from torchmeshmetric.evaluation.determinacy import determined_cell, relative_change
+from torchmeshmetric.evaluation.determinacy import determined_cell, value_change
 from torchmeshmetric.evaluation.results import FLOOR_SET_NAMES, SequenceEvaluation
 
 __all__ = [
@@ -374,14 +374,19 @@ def _half_width(ci95: Sequence[float]) -> float:
     return (hi - lo) / 2 if math.isfinite(hi - lo) else math.inf
 
 
-def _numbers(entry: Mapping[str, Any]) -> tuple[str, str]:
-    """The difference and the half-width of a verdict cell; with the nudged run's, only the digits both share."""
+def _numbers(entry: Mapping[str, Any], statistic: str) -> tuple[str, str]:
+    """The difference and the half-width of a verdict cell; with the nudged run's, only the digits both share.
+
+    A PSNR difference is in dB, as the tables' PSNR: its digits are decimals (absolute change, at most one, the
+    tables' rule); every other number keeps significant digits by its relative change.
+    """
     difference, half = entry["difference"], _half_width(entry["ci95"])
     if "nudged_difference" not in entry:
         return _cell(difference), _cell(half)
-    again = relative_change(difference, entry["nudged_difference"])
-    again_half = relative_change(half, _half_width(entry["nudged_ci95"]))
-    return determined_cell(difference, again, "#.3g"), determined_cell(half, again_half, "#.3g")
+    decibels = _higher_is_better(statistic)
+    moved = value_change(difference, entry["nudged_difference"], relative=not decibels)
+    text = determined_cell(difference, moved, ".1f" if decibels else "#.3g")
+    return text, determined_cell(half, value_change(half, _half_width(entry["nudged_ci95"])), "#.3g")
 
 
 def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapping[str, Any]]]]) -> str:
@@ -411,7 +416,7 @@ def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapp
                     continue
                 winner = e["verdict"].removesuffix(" better") if e["verdict"] != "inconclusive" else "≈"
                 mark = "~" if _undetermined(e) else ""
-                difference, half = _numbers(e)
+                difference, half = _numbers(e, stat)
                 cells.append(f"{mark}{winner}: {difference} ± {half}")
             marked = f"{set_name} *" if any("noise_floor" in e for e in entries.values()) else set_name
             out.append(f"| {marked} | " + " | ".join(cells) + " |")

@@ -28,9 +28,9 @@ __all__ = [
     "determined_digits",
     "measure_determinacy",
     "nudge_frames",
-    "relative_change",
     "row_changes",
     "storage_unit",
+    "value_change",
     "with_temporal_changes",
 ]
 
@@ -164,14 +164,18 @@ def determined_cell(value: Any, change: float, spec: str) -> str:
     return text if digits >= 0 else f"~{text}"
 
 
-def relative_change(a: float, b: float) -> float:
-    """How far ``b`` is from ``a``, relative to the larger magnitude (0 for equal values, two NaNs included).
+def value_change(a: float, b: float, *, relative: bool = True) -> float:
+    """How far ``b`` is from ``a``: relative to the larger magnitude, or absolute; 0 for equal values (two NaNs too).
+
+    The change :attr:`Determinacy.changes` holds, for a figure printed outside the tables.
 
     Example:
-        >>> relative_change(2.0, 2.5), relative_change(float("nan"), float("nan")), relative_change(1.0, float("inf"))
+        >>> value_change(2.0, 2.5), value_change(float("nan"), float("nan")), value_change(1.0, float("inf"))
         (0.2, 0.0, inf)
+        >>> value_change(-12.5, -12.0, relative=False)
+        0.5
     """
-    return _change(a, b, relative=True)
+    return _change(a, b, relative)
 
 
 @dataclass(frozen=True)
