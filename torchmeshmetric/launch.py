@@ -16,6 +16,7 @@ import contextlib
 import datetime
 import os
 import signal
+import time
 from collections.abc import Callable, Mapping
 from types import FrameType
 from typing import Any, NamedTuple
@@ -210,6 +211,27 @@ def _stopped_message(busy: list[tuple[int, str]]) -> str:
     return "stopped by torchrun: another rank exited"
 
 
+def _join(launch: Launch, wait: datetime.timedelta | None = None) -> None:
+    """Join the job's process group; a rank that cannot waits for torchrun to stop it before it says so.
+
+    A rank that is slow to start (a loaded machine) can still be connecting its peers when the others have already
+    failed alike (a missing folder), said so once and exited: its connection then breaks ("Gloo connectFullMesh
+    failed ... Connection closed by peer"), a second line for one error, about the wrong cause (seen 2026-12-06 in
+    CI, 3 ranks on 2 cores). Such a failure comes just before torchrun's SIGTERM (1.3 s there): waiting for it
+    (:class:`Stopped`, silent) up to ``wait`` (default :data:`ERROR_WAIT`) leaves the job one line; a failure that
+    no SIGTERM follows (a rank alone that cannot reach the others) is raised, and printed with the rank.
+
+    Raises:
+        Stopped: torchrun stopped this rank while it was joining, or right after it failed to.
+        RuntimeError: the group could not be joined and no other rank ended the job.
+    """
+    try:
+        dist.init_process_group("gloo", timeout=COLLECTIVE_TIMEOUT)
+    except Exception as exc:
+        time.sleep((ERROR_WAIT if wait is None else wait).total_seconds())  # SIGTERM raises Stopped in here
+        raise RuntimeError(f"rank {launch.rank}: could not join the job's process group: {exc}") from exc
+
+
 def run_command(command: Callable[[Any], int], args: Any) -> int:
     """Run a CLI command, inside a process group when torchrun started this process.
 
@@ -231,7 +253,14 @@ def run_command(command: Callable[[Any], int], args: Any) -> int:
             f"{launch.world_size})"
         )
     previous = signal.signal(signal.SIGTERM, _stop)
-    dist.init_process_group("gloo", timeout=COLLECTIVE_TIMEOUT)
+    try:
+        _join(launch)
+    except Stopped:
+        signal.signal(signal.SIGTERM, previous)
+        return 1  # another rank exited while this one was joining: it (or rank 0) said why
+    except BaseException:
+        signal.signal(signal.SIGTERM, previous)
+        raise
     try:
         if getattr(args, "device", "cpu") == "cuda":  # in the group: a device missing on some ranks is said once
             args.device = _cuda_device(launch)

@@ -45,3 +45,47 @@ def test_threads_option(capsys, tmp_path):
 def test_cuda_without_a_gpu_is_a_clear_error():
     with pytest.raises(RuntimeError, match="--device cuda: no CUDA device is available"):
         _cuda_device(Launch(0, 2, 0, 2))
+
+
+def _failed_join(*args, **kwargs):
+    raise RuntimeError("Gloo connectFullMesh failed with ... Connection closed by peer [127.0.0.1]:28810")
+
+
+def test_a_rank_that_cannot_join_because_the_others_exited_stays_silent(monkeypatch, capsys, tmp_path):
+    """The CI failure of 2026-12-06: a slow rank's join broke when the others, failing alike, had exited."""
+    import os
+    import signal
+    import threading
+
+    import torchmeshmetric.launch as launch
+
+    for key, value in {"WORLD_SIZE": "3", "RANK": "1", "LOCAL_RANK": "1", "LOCAL_WORLD_SIZE": "3"}.items():
+        monkeypatch.setenv(key, value)
+    monkeypatch.setattr(launch.dist, "init_process_group", _failed_join)
+    argv = ["compare", "--original", str(tmp_path / "nope"), "--method", f"A={tmp_path / 'nope'}"]
+    # torchrun stops the remaining ranks (SIGTERM) once one exits with its error: here 0.2 s after the failure.
+    timer = threading.Timer(0.2, os.kill, (os.getpid(), signal.SIGTERM))
+    timer.start()
+    try:
+        assert main(argv) == 1
+    finally:
+        timer.cancel()
+    assert capsys.readouterr().err == ""
+    assert signal.getsignal(signal.SIGTERM) is not launch._stop  # the handler is restored
+
+
+def test_a_rank_that_cannot_join_and_is_not_stopped_says_why_with_its_rank(monkeypatch, capsys, tmp_path):
+    import datetime
+
+    import torchmeshmetric.launch as launch
+
+    for key, value in {"WORLD_SIZE": "2", "RANK": "1", "LOCAL_RANK": "1", "LOCAL_WORLD_SIZE": "2"}.items():
+        monkeypatch.setenv(key, value)
+    monkeypatch.setattr(launch.dist, "init_process_group", _failed_join)
+    monkeypatch.setattr(launch, "ERROR_WAIT", datetime.timedelta(seconds=0.1))
+    argv = ["compare", "--original", str(tmp_path / "nope"), "--method", f"A={tmp_path / 'nope'}"]
+    assert main(argv) == 1
+    assert capsys.readouterr().err.strip() == (
+        "torchmeshmetric compare: error: rank 1: could not join the job's process group: Gloo connectFullMesh failed "
+        "with ... Connection closed by peer [127.0.0.1]:28810"
+    )
