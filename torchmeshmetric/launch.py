@@ -211,14 +211,14 @@ def _stopped_message(busy: list[tuple[int, str]]) -> str:
     return "stopped by torchrun: another rank exited"
 
 
-def _join(launch: Launch, wait: datetime.timedelta | None = None) -> None:
+def _join(launch: Launch) -> None:
     """Join the job's process group; a rank that cannot waits for torchrun to stop it before it says so.
 
     A rank that is slow to start (a loaded machine) can still be connecting its peers when the others have already
     failed alike (a missing folder), said so once and exited: its connection then breaks ("Gloo connectFullMesh
     failed ... Connection closed by peer"), a second line for one error, about the wrong cause (seen 2026-12-06 in
     CI, 3 ranks on 2 cores). Such a failure comes just before torchrun's SIGTERM (1.3 s there): waiting for it
-    (:class:`Stopped`, silent) up to ``wait`` (default :data:`ERROR_WAIT`) leaves the job one line; a failure that
+    (:class:`Stopped`, silent) up to :data:`ERROR_WAIT` leaves the job one line; a failure that
     no SIGTERM follows (a rank alone that cannot reach the others) is raised, and printed with the rank.
 
     Raises:
@@ -228,7 +228,7 @@ def _join(launch: Launch, wait: datetime.timedelta | None = None) -> None:
     try:
         dist.init_process_group("gloo", timeout=COLLECTIVE_TIMEOUT)
     except Exception as exc:
-        time.sleep((ERROR_WAIT if wait is None else wait).total_seconds())  # SIGTERM raises Stopped in here
+        time.sleep(ERROR_WAIT.total_seconds())  # SIGTERM raises Stopped in here
         raise RuntimeError(f"rank {launch.rank}: could not join the job's process group: {exc}") from exc
 
 
@@ -255,11 +255,10 @@ def run_command(command: Callable[[Any], int], args: Any) -> int:
     previous = signal.signal(signal.SIGTERM, _stop)
     try:
         _join(launch)
-    except Stopped:
+    except BaseException as exc:  # no group to leave: only the handler to restore
         signal.signal(signal.SIGTERM, previous)
-        return 1  # another rank exited while this one was joining: it (or rank 0) said why
-    except BaseException:
-        signal.signal(signal.SIGTERM, previous)
+        if isinstance(exc, Stopped):
+            return 1  # another rank exited while this one was joining: it (or rank 0) said why
         raise
     try:
         if getattr(args, "device", "cpu") == "cuda":  # in the group: a device missing on some ranks is said once

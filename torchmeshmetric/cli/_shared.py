@@ -32,6 +32,7 @@ from torchmeshmetric.viz.plots import mpeg_figure, png_bytes
 __all__ = [
     "NudgedRun",
     "determinacy_of",
+    "nudged_run",
     "device_of",
     "dtype_of",
     "evaluate_across_ranks",
@@ -343,6 +344,21 @@ class NudgedRun(NamedTuple):
     results: dict[str, Any] | None = None
 
 
+def nudged_run(
+    original: list[Any], methods: dict[str, list[Any]], rounding: str, cache: RegistrationCache
+) -> NudgedRun:
+    """``--determinacy``'s frames: the original and every method's moved by up to one unit of their storage.
+
+    One seed for every frame: a coordinate moves by a function of its value, in the originals as in the simplified.
+    ``cache``: the second run's registrations, in memory (not the input's: they must not enter ``--cache-dir``).
+    """
+    from torchmeshmetric.evaluation.determinacy import nudge_frames
+
+    return NudgedRun(
+        nudge_frames(original, rounding), {name: nudge_frames(f, rounding) for name, f in methods.items()}, cache
+    )
+
+
 def determinacy_of(
     original: list[Any],
     methods: dict[str, list[Any]],
@@ -359,15 +375,10 @@ def determinacy_of(
     """
     if getattr(args, "determinacy", None) is None:
         return None, None
-    from torchmeshmetric.evaluation.determinacy import measure_determinacy, nudge_frames
+    from torchmeshmetric.evaluation.determinacy import measure_determinacy
 
     say(f"--determinacy {args.determinacy}: evaluating again on nudged frames")
-    # One seed for every frame: a coordinate moves by a function of its value, in the originals as in the simplified.
-    nudged = NudgedRun(
-        nudge_frames(original, args.determinacy),
-        {name: nudge_frames(frames, args.determinacy) for name, frames in methods.items()},
-        RegistrationCache(),
-    )
+    nudged = nudged_run(original, methods, args.determinacy, RegistrationCache())
     again = evaluate_methods(nudged.original, nudged.methods, args, device, cache=nudged.cache)
     if results is None or again is None:
         return None, None

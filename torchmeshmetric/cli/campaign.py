@@ -37,6 +37,7 @@ def run(args: argparse.Namespace) -> int:
         evaluate_across_ranks,
         fast_registration_options,
         load_frames,
+        nudged_run,
         report_paths,
         temporal_methods,
         write_reports,
@@ -52,7 +53,7 @@ def run(args: argparse.Namespace) -> int:
         write_campaign_markdown,
     )
     from torchmeshmetric.evaluation.comparison import compare_methods, with_nudged_verdicts
-    from torchmeshmetric.evaluation.determinacy import measure_determinacy, nudge_frames
+    from torchmeshmetric.evaluation.determinacy import measure_determinacy
     from torchmeshmetric.evaluation.pipeline import check_methods
     from torchmeshmetric.evaluation.reports import write_json
     from torchmeshmetric.registration.cache import RegistrationCache
@@ -98,16 +99,8 @@ def run(args: argparse.Namespace) -> int:
     nudged: list[NudgedRun] = []
     if args.determinacy is not None:  # every rank: the second run is sharded like the first
         say(f"--determinacy {args.determinacy}: evaluating again on nudged frames")
-        # One seed for every frame, as evaluate's; the nudged registrations stay in memory (not the input's).
-        nudged_cache = RegistrationCache()
-        nudged = [
-            NudgedRun(
-                nudge_frames(original, args.determinacy),
-                {m: nudge_frames(frames, args.determinacy) for m, frames in methods.items()},
-                nudged_cache,
-            )
-            for _, original, methods in sequences
-        ]
+        nudged_cache = RegistrationCache()  # shared by the sequences, as the run's cache is
+        nudged = [nudged_run(original, methods, args.determinacy, nudged_cache) for _, original, methods in sequences]
         work = [(name, run.original, run.methods) for (name, _, _), run in zip(sequences, nudged, strict=True)]
         again = evaluate(work, nudged_cache)
         nudged = [n._replace(results=r) for n, r in zip(nudged, again, strict=True)]
@@ -115,11 +108,11 @@ def run(args: argparse.Namespace) -> int:
         return 0
     results = {seq.name: methods for seq, methods in zip(campaign.sequences, evaluated, strict=True)}
     nudged_runs = dict(zip(results, nudged, strict=True)) if nudged else {}
+    # rank 0 (the others returned above) holds every sequence's second run, as it holds the first
+    again_results: dict[str, Any] = {name: run.results for name, run in nudged_runs.items()}
     determinacy = None  # of the combined tables; each sequence's own below
     determinacies: dict[str, Any] = dict.fromkeys(results)
-    if nudged_runs:
-        # rank 0 (the others returned above) holds every sequence's second run, as it holds the first
-        again_results: dict[str, Any] = {name: run.results for name, run in nudged_runs.items()}
+    if again_results:
         determinacy = measure_campaign_determinacy(results, again_results, args.determinacy)
         for name in results:
             determinacies[name] = measure_determinacy(results[name], again_results[name], args.determinacy)
@@ -154,9 +147,8 @@ def run(args: argparse.Namespace) -> int:
             paths = report_paths(str(out / f"{stem}.json"), html=args.html)
             # The same comparisons `compare` writes for these methods (default margin; none for a single method).
             comparisons = compare_methods(results[seq.name]) if len(results[seq.name]) >= 2 else None
-            if comparisons is not None and seq.name in nudged_runs:  # --determinacy: is each verdict the input's?
-                again = compare_methods(nudged_runs[seq.name].results or {})
-                comparisons = with_nudged_verdicts(comparisons, again)
+            if comparisons is not None and seq.name in again_results:  # --determinacy: is each verdict the input's?
+                comparisons = with_nudged_verdicts(comparisons, compare_methods(again_results[seq.name]))
             write_reports(
                 paths,
                 results[seq.name],

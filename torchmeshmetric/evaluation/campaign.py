@@ -40,10 +40,10 @@ from torchmeshmetric.evaluation.reports import (
     unconverged_frames,
     unconverged_note,
 )
+from torchmeshmetric.evaluation.results import SequenceEvaluation
 
 if TYPE_CHECKING:
     from torchmeshmetric.evaluation.determinacy import Determinacy
-from torchmeshmetric.evaluation.results import SequenceEvaluation
 
 __all__ = [
     "COMBINED",

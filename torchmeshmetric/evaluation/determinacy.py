@@ -121,15 +121,6 @@ def _hashed_uniform(values: np.ndarray, seed: int) -> np.ndarray:
     return (z >> np.uint64(11)).astype(np.float64) * 2.0**-52 - 1.0
 
 
-def _change(a: float, b: float, relative: bool) -> float:
-    """How far ``b`` is from ``a``: relative to the larger magnitude, or absolute; 0 for equal values."""
-    if a == b or (math.isnan(a) and math.isnan(b)):
-        return 0.0
-    if not (math.isfinite(a) and math.isfinite(b)):
-        return math.inf
-    return abs(a - b) / max(abs(a), abs(b)) if relative else abs(a - b)
-
-
 def determined_digits(change: float, spec: str) -> int:
     """The digits of format ``spec`` that a change leaves: significant (``"#.2g"``) or decimals (``".1f"``).
 
@@ -167,7 +158,8 @@ def determined_cell(value: Any, change: float, spec: str) -> str:
 def value_change(a: float, b: float, *, relative: bool = True) -> float:
     """How far ``b`` is from ``a``: relative to the larger magnitude, or absolute; 0 for equal values (two NaNs too).
 
-    The change :attr:`Determinacy.changes` holds, for a figure printed outside the tables.
+    The change :attr:`Determinacy.changes` holds (relative for every statistic but ``psnr``), and that of a figure
+    printed outside the tables.
 
     Example:
         >>> value_change(2.0, 2.5), value_change(float("nan"), float("nan")), value_change(1.0, float("inf"))
@@ -175,7 +167,11 @@ def value_change(a: float, b: float, *, relative: bool = True) -> float:
         >>> value_change(-12.5, -12.0, relative=False)
         0.5
     """
-    return _change(a, b, relative)
+    if a == b or (math.isnan(a) and math.isnan(b)):
+        return 0.0
+    if not (math.isfinite(a) and math.isfinite(b)):
+        return math.inf
+    return abs(a - b) / max(abs(a), abs(b)) if relative else abs(a - b)
 
 
 @dataclass(frozen=True)
@@ -281,7 +277,7 @@ def row_changes(rows: Sequence[Mapping[str, Any]], again: Sequence[Mapping[str, 
     if len(rows) != len(again):
         raise ValueError(f"again: expected {len(rows)} rows as in rows, found {len(again)}")
     return [
-        {key: _change(float(a[key]), float(b[key]), key != "psnr") for key, _ in COLUMNS}
+        {key: value_change(float(a[key]), float(b[key]), relative=key != "psnr") for key, _ in COLUMNS}
         for a, b in zip(rows, again, strict=True)
     ]
 
@@ -313,5 +309,5 @@ def with_temporal_changes(
     """
     if list(figures) != list(nudged):
         raise ValueError(f"nudged: expected the methods {list(figures)}, found {list(nudged)}")
-    rows = [{k: _change(float(figures[m][k]), float(nudged[m][k]), relative=True) for k in names} for m in figures]
+    rows = [{k: value_change(float(figures[m][k]), float(nudged[m][k])) for k in names} for m in figures]
     return Determinacy(determinacy.rounding, determinacy.seed, {**determinacy.changes, "temporal": rows})
