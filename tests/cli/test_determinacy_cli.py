@@ -81,7 +81,9 @@ def test_compare_determinacy(capsys, tmp_path, sequence, known_registration):
     # Identical methods: every verdict "inconclusive", on the nudged frames too.
     note = out.split("Verdicts on the frames nudged by --determinacy: ")[1].split("\n")[0]
     total = int(note.split(" of ")[1].split()[0])
-    assert note.startswith(f"{total} of {total} the same. Differences and half-widths keep") and total > 10
+    assert (
+        note.startswith(f"{total} of {total} the same. Differences, half-widths and noise floors keep") and total > 10
+    )
 
 
 def test_compare_marks_verdicts_the_nudge_changes(capsys, tmp_path, known_registration):
@@ -105,6 +107,19 @@ def test_compare_marks_verdicts_the_nudge_changes(capsys, tmp_path, known_regist
         marked |= {(cells[0].removesuffix(" *"), st) for st, c in zip(header, cells[1:], strict=True) if c[:1] == "~"}
     assert marked == changed
     assert f"Verdicts on the frames nudged by --determinacy: {len(verdicts) - len(changed)} of {len(verdicts)}" in md
+    # The noise floors (registration residuals: other fits on the nudged frames) are kept from both runs, and the
+    # list under the table prints each with the digits the two share.
+    from torchmeshmetric.evaluation.determinacy import determined_cell, value_change
+
+    floored = {s: es for s, es in entries.items() if any("noise_floor" in e for e in es.values())}
+    assert floored and all("nudged_noise_floor" in e for es in floored.values() for e in es.values())
+    floors = md.split("\\* noise floor (registration residual, or its error when known): ")[1].split("\n")[0]
+    for set_name, es in floored.items():
+        cells = ", ".join(
+            f"{st} {determined_cell(e['noise_floor'], value_change(e['noise_floor'], e['nudged_noise_floor']), '#.3g')}"
+            for st, e in es.items()
+        )
+        assert f"{set_name}: {cells}" in floors
 
 
 @pytest.mark.parametrize("bad", ["float16", "-2", "16", "x"])

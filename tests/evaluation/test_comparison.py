@@ -151,6 +151,8 @@ def test_verdicts_on_nudged_frames_mark_the_cells_they_change():
     assert "Verdicts on the frames nudged by --determinacy: 1 of 2 the same; ~ marks a verdict" in text
     plain = comparison_markdown(run)
     assert "~" not in plain and "nudged" not in plain
+    # No noise floor in either run: none is listed, and no entry gets a nudged one.
+    assert "noise floor (" not in text and "nudged_noise_floor" not in marked["A vs B"]["surface_k"]["ave"]
     # An entry the nudged run lacks keeps no nudged verdict and is not marked.
     assert "nudged_verdict" not in with_nudged_verdicts(run, {"A vs B": {}})["A vs B"]["surface_k"]["ave"]
 
@@ -168,3 +170,32 @@ def test_nudged_psnr_difference_keeps_decimals_as_the_tables_psnr():
     assert "| reverse:surface_k | B: -12.9 ± 2.00e-05 |" in text
     text = comparison_markdown(with_nudged_verdicts(table(-12.93), table(-11.5)))
     assert "| reverse:surface_k | B: ~-13 ± 2.00e-05 |" in text
+
+
+def test_nudged_noise_floor_keeps_the_digits_both_runs_share():
+    from torchmeshmetric.evaluation.comparison import with_nudged_verdicts
+
+    def table(floor: float, psnr_floor: float) -> dict:
+        entry = {"difference": -0.5, "ci95": [-0.75, -0.25], "verdict": "A better"}
+        return {
+            "A vs B": {
+                "surface_k_minus_1": {
+                    "rmse": {**entry, "noise_floor": floor},
+                    "psnr": {**entry, "difference": 0.5, "ci95": [0.25, 0.75], "noise_floor": psnr_floor},
+                }
+            }
+        }
+
+    # The residual floor moved by 2 % (one digit holds), the PSNR one (a few thousandths of a dB) not at all: a
+    # floor is a threshold, so it keeps significant digits by its relative change, the dB one too.
+    marked = with_nudged_verdicts(table(0.0123456, 0.00312), table(0.0126, 0.00312))
+    entry = marked["A vs B"]["surface_k_minus_1"]["rmse"]
+    assert entry["noise_floor"] == 0.0123456 and entry["nudged_noise_floor"] == 0.0126
+    text = comparison_markdown(marked)
+    assert "surface_k_minus_1: rmse 0.01, psnr 0.00312" in text
+    assert "Differences, half-widths and noise floors keep the digits both runs share" in text
+    # A floor whose first digit moved is marked; without a nudged run, 3 significant digits as before.
+    assert "surface_k_minus_1: rmse ~0.01," in comparison_markdown(
+        with_nudged_verdicts(table(0.0123, 0.00312), table(0.0223, 0.00312))
+    )
+    assert "surface_k_minus_1: rmse 0.0123, psnr 0.00312" in comparison_markdown(table(0.0123456, 0.00312))

@@ -329,7 +329,8 @@ def with_nudged_verdicts(
     A verdict is a property of the methods only if the input's storage cannot change it: the same comparison on
     frames moved by up to one unit of their storage (:func:`~torchmeshmetric.evaluation.determinacy.nudge_frames`)
     must reach it too. :func:`comparison_markdown` marks a cell whose two verdicts differ with ``~`` before the
-    winner, and prints the difference and the interval's half-width with only the digits both runs share.
+    winner, and prints the difference, the interval's half-width and the noise floor with only the digits both runs
+    share.
 
     Args:
         comparisons: :func:`compare_methods` of the run.
@@ -337,7 +338,8 @@ def with_nudged_verdicts(
 
     Returns:
         A copy of ``comparisons`` whose entries hold ``"nudged_verdict"``, ``"nudged_difference"`` and
-        ``"nudged_ci95"``; an entry missing from ``nudged`` gets none of them.
+        ``"nudged_ci95"`` (and ``"nudged_noise_floor"`` where the entry has a noise floor); an entry missing from
+        ``nudged`` gets none of them.
 
     Example:
         >>> run = {"A vs B": {"surface_k": {"ave": {"difference": 0.2, "ci95": [0.1, 0.3], "verdict": "A better"}}}}
@@ -355,7 +357,8 @@ def with_nudged_verdicts(
             out[title][set_name] = {}
             for stat, entry in entries.items():
                 other = nudged.get(title, {}).get(set_name, {}).get(stat)
-                extra = {} if other is None else {f"nudged_{k}": other[k] for k in ("verdict", "difference", "ci95")}
+                keys = ("verdict", "difference", "ci95", "noise_floor")
+                extra = {} if other is None else {f"nudged_{k}": other[k] for k in keys if k in other}
                 out[title][set_name][stat] = {**entry, **extra}
     return out
 
@@ -389,6 +392,19 @@ def _numbers(entry: Mapping[str, Any], statistic: str) -> tuple[str, str]:
     return text, determined_cell(half, value_change(half, _half_width(entry["nudged_ci95"])), "#.3g")
 
 
+def _floor_cell(entry: Mapping[str, Any]) -> str:
+    """The noise floor of a verdict cell; with the nudged run's, only the digits both share.
+
+    A floor is a registration residual (for PSNR, the dB it is worth): the registrations on the nudged frames are
+    other fits, so its digits are measured like the difference's. It is a threshold, not a level, so every floor
+    keeps significant digits by its relative change (a PSNR floor of a few thousandths of a dB keeps them too).
+    """
+    floor = entry["noise_floor"]
+    if "nudged_noise_floor" not in entry:
+        return _cell(floor)
+    return determined_cell(floor, value_change(floor, entry["nudged_noise_floor"]), "#.3g")
+
+
 def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapping[str, Any]]]]) -> str:
     """Compact verdict tables (one per pair of methods) as Markdown.
 
@@ -396,8 +412,8 @@ def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapp
     ``≈ difference ± half-width`` when inconclusive (the difference is ``A - B``). Sets with a registration noise
     floor are marked ``*`` and their floor is listed under the table. With the verdicts on nudged frames
     (:func:`with_nudged_verdicts`), a cell whose verdict they change starts with ``~``, the note under the tables
-    counts them, and each number keeps only the digits both runs share (``~`` before a number whose first digit
-    moved).
+    counts them, and each number (the noise floors too) keeps only the digits both runs share (``~`` before a number
+    whose first digit moved).
     """
     out = []
     for title, sets in comparisons.items():
@@ -421,7 +437,7 @@ def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapp
             marked = f"{set_name} *" if any("noise_floor" in e for e in entries.values()) else set_name
             out.append(f"| {marked} | " + " | ".join(cells) + " |")
             if any("noise_floor" in e for e in entries.values()):
-                floors.append(f"{set_name}: " + ", ".join(f"{s} {_cell(e['noise_floor'])}" for s, e in entries.items()))
+                floors.append(f"{set_name}: " + ", ".join(f"{s} {_floor_cell(e)}" for s, e in entries.items()))
         out.append("")
         if floors:
             out += ["\\* noise floor (registration residual, or its error when known): " + "; ".join(floors), ""]
@@ -440,7 +456,7 @@ def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapp
                 if changed
                 else "."
             )
-            + " Differences and half-widths keep the digits both runs share ('~' before a number: its first digit "
-            "moved)."
+            + " Differences, half-widths and noise floors keep the digits both runs share ('~' before a number: its "
+            "first digit moved)."
         )
     return "\n".join(out) + "\n"
