@@ -1,5 +1,6 @@
 """The command line on bad frames and with --dtype: a broken frame stops the run naming the file; float64 end to end."""
 
+import argparse
 import json
 
 import pytest
@@ -64,3 +65,57 @@ def test_dtype_rejects_half(capsys):
         main(["evaluate", "--original", "a", "--simplified", "b", "--dtype", "float16"])
     assert info.value.code == 2
     assert "invalid choice: 'float16'" in capsys.readouterr().err
+
+
+#: The metavars of the arguments that name a file, folder or file pattern (every command's).
+PATH_METAVARS = {
+    "DIR", "FILE", "FILE.ply", "REPORT", "REPORT.json", "PAGE.html", "MANIFEST", "REF", "DIS", "IMG", "MESH", "OUT",
+    "PATTERN", "OBJ", "PNG", "ANCHOR.csv", "TEST.csv", "ORIGINAL", "DISTORTED",
+}  # fmt: skip
+
+
+def _path_arguments() -> list[tuple[str, argparse.Action]]:
+    from torchmeshmetric.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    return [(name, a) for name, p in sub.choices.items() for a in p._actions if a.metavar in PATH_METAVARS]
+
+
+def test_every_path_argument_refuses_an_empty_path():
+    from torchmeshmetric.cli.options import cache_folder, path_argument
+
+    arguments = _path_arguments()
+    # every command that reads or writes files has some (bdrate's CSVs, mpeg's meshes, ...): the list is complete
+    assert len(arguments) >= 50 and {n for n, _ in arguments} >= {"evaluate", "ctc", "bdrate", "temporal", "report"}
+    for name, action in arguments:
+        assert action.type in (path_argument, cache_folder), (name, action.dest)
+    with pytest.raises(argparse.ArgumentTypeError, match="expected a path, found ''"):
+        path_argument("")
+    with pytest.raises(argparse.ArgumentTypeError, match="expected a path, found ' '"):
+        cache_folder(" ")
+
+
+@pytest.mark.parametrize("option", ["--original", "--simplified", "--cache-dir", "--out"])
+def test_an_empty_path_is_a_usage_error_not_the_current_folder(capsys, tmp_path, sequence, known_registration, option):
+    # Path("") is ".": an unset shell variable would read the current folder's meshes or write the cache there.
+    orig, simp = sequence
+    given = {"--original": str(orig), "--simplified": str(simp), "--cache-dir": str(tmp_path / "c"), "--out": "r.json"}
+    argv = ["evaluate"] + [x for k, v in {**given, option: ""}.items() for x in (k, v)]
+    with pytest.raises(SystemExit) as exit_info:
+        main(argv)
+    assert exit_info.value.code == 2 and known_registration.calls == 0
+    assert f"argument {option}: expected a path, found ''" in capsys.readouterr().err
+
+
+def test_a_cache_folder_that_is_a_file_is_refused_before_any_registration(
+    capsys, tmp_path, sequence, known_registration
+):
+    orig, simp = sequence
+    cache = tmp_path / "cache"
+    cache.write_text("not a folder")
+    with pytest.raises(SystemExit) as exit_info:
+        main(["evaluate", "--original", str(orig), "--simplified", str(simp), "--cache-dir", str(cache)])
+    assert exit_info.value.code == 2 and known_registration.calls == 0
+    err = capsys.readouterr().err
+    assert f"argument --cache-dir: expected a folder (created when needed), found the file {str(cache)!r}" in err
+    assert cache.read_text() == "not a folder"

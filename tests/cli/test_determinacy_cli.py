@@ -161,3 +161,17 @@ def test_temporal_section_keeps_the_digits_both_runs_share(capsys, tmp_path, seq
     # the exact translation's rounding (~8e-8) and moves by 0.55: not one of its digits is the input's.
     assert changes["kg"] < 1e-5 and want[0] == format_figure("kg", figures["kg"], registered=True)
     assert changes["sted_t"] > 0.1 and want[FIGURE_NAMES.index("sted_t")].startswith("~")
+
+
+def test_a_rerun_resumes_the_nudged_registrations_apart_from_the_inputs(capsys, tmp_path, sequence, known_registration):
+    orig, simp = sequence
+    cache = tmp_path / "cache"
+    argv = ["evaluate", "--original", str(orig), "--simplified", str(simp), "--cache-dir", str(cache)]
+    assert main([*argv, "--determinacy", "float32", "--out", str(tmp_path / "a.json")]) == 0
+    # 2 original pairs, registered on the input's frames and on the nudged ones (cache/determinacy)
+    assert known_registration.calls == 4
+    assert len(list(cache.glob("*.pt"))) == 2 and len(list((cache / "determinacy").glob("*.pt"))) == 2
+    assert main([*argv, "--determinacy", "float32", "--out", str(tmp_path / "b.json")]) == 0
+    assert known_registration.calls == 4  # both runs resumed from the cache
+    assert (tmp_path / "a.md").read_text() == (tmp_path / "b.md").read_text()
+    assert main(argv) == 0 and known_registration.calls == 4  # without --determinacy: the input's entries alone

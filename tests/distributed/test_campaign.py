@@ -2,6 +2,7 @@
 
 import json
 import math
+import re
 
 import pytest
 
@@ -174,3 +175,25 @@ def test_determinacy_digits_are_each_sequence_reports_digits(tmp_path, campaign,
     assert main(["campaign", str(campaign)]) == 0
     plain = capsys.readouterr().out
     assert "campaign.json keeps the full values" in plain and "this run's input determines" not in plain
+
+
+def test_determinacy_rerun_resumes_the_nudged_registrations_from_the_cache(tmp_path, campaign, capsys, monkeypatch):
+    calls = tmp_path / "calls"
+    calls.mkdir()
+    monkeypatch.setenv("TMM_TEST_CALLS", str(calls))  # one file per registration run
+    cache = tmp_path / "cache"
+    argv = ["campaign", str(campaign), "--cache-dir", str(cache), "--determinacy", "1"]
+    assert main([*argv, "--out-dir", str(tmp_path / "first")]) == 0
+    # walk: 3 original pairs, run: 2, the same frames as walk's first 2 (one cache: 3 registrations); each registered
+    # on the input's frames and on the nudged ones, which go to their own folder: the cache's entries stay the input's.
+    assert len(list(calls.iterdir())) == 6
+    assert len(list(cache.glob("*.pt"))) == 3 and len(list((cache / "determinacy").glob("*.pt"))) == 3
+    assert main([*argv, "--out-dir", str(tmp_path / "again")]) == 0
+    assert len(list(calls.iterdir())) == 6  # a rerun resumes both runs: nothing registered again
+    for name in ("campaign", "walk", "run_fast"):
+        first, again = ((tmp_path / d / f"{name}.json").read_text() for d in ("first", "again"))
+        # the same report but for the cache's word: the rerun's registrations were all found there
+        assert '"cached": false' not in again
+        first, again = (json.loads(re.sub('"cached": (true|false)', '"cached": null', t)) for t in (first, again))
+        assert without_timings(first) == without_timings(again), name
+        assert (tmp_path / "first" / f"{name}.md").read_text() == (tmp_path / "again" / f"{name}.md").read_text()

@@ -123,3 +123,13 @@ def test_memory_bound_drops_the_least_recently_used(tmp_path):
     for bad in (0, -1, True, 2.0):
         with pytest.raises(ValueError, match="max_entries"):
             RegistrationCache(max_entries=bad)  # type: ignore[arg-type]
+
+
+def test_a_cache_directory_that_is_a_file_is_refused_at_once(tmp_path):
+    # Checked when the cache is made: an entry is stored only after its registration ran.
+    path = tmp_path / "cache"
+    path.write_text("kept")
+    with pytest.raises(ValueError, match="directory: expected a folder for the cache's entries, found the file"):
+        RegistrationCache(path)
+    assert path.read_text() == "kept"
+    assert RegistrationCache(tmp_path / "new").directory == tmp_path / "new"  # a missing folder: made when needed

@@ -6,6 +6,7 @@ Imported by a command's ``run`` only (it imports torch and the evaluation system
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -32,6 +33,8 @@ from torchmeshmetric.viz.plots import mpeg_figure, png_bytes
 __all__ = [
     "NudgedRun",
     "determinacy_of",
+    "NUDGED_CACHE",
+    "nudged_cache",
     "nudged_run",
     "device_of",
     "dtype_of",
@@ -335,8 +338,19 @@ def evaluate_methods(
     }
 
 
+#: The folder under ``--cache-dir`` (or a campaign's cache folder) where ``--determinacy`` keeps the registrations
+#: of the nudged frames: a rerun resumes the second run as it resumes the first, and the folder's own entries stay
+#: those of the input (the nudged frames are not the input; content keys keep the two apart anyway).
+NUDGED_CACHE = "determinacy"
+
+
+def nudged_cache(directory: str | os.PathLike[str] | None) -> RegistrationCache:
+    """The registration cache of ``--determinacy``'s second run: ``directory/determinacy`` or, without, memory."""
+    return RegistrationCache(None if directory is None else Path(directory) / NUDGED_CACHE)
+
+
 class NudgedRun(NamedTuple):
-    """``--determinacy``'s second run: its frames, registrations (in memory: not the input's) and evaluations."""
+    """``--determinacy``'s second run: its frames, registrations (:func:`nudged_cache`) and evaluations."""
 
     original: list[Any]
     methods: dict[str, list[Any]]
@@ -350,7 +364,7 @@ def nudged_run(
     """``--determinacy``'s frames: the original and every method's moved by up to one unit of their storage.
 
     One seed for every frame: a coordinate moves by a function of its value, in the originals as in the simplified.
-    ``cache``: the second run's registrations, in memory (not the input's: they must not enter ``--cache-dir``).
+    ``cache``: the second run's registrations (:func:`nudged_cache`: apart from the input's).
     """
     from torchmeshmetric.evaluation.determinacy import nudge_frames
 
@@ -370,15 +384,15 @@ def determinacy_of(
 
     Every rank of a torchrun job runs it (the second evaluation is sharded like the first); rank 0 gets the
     :class:`~torchmeshmetric.evaluation.determinacy.Determinacy` and the :class:`NudgedRun` (for
-    :func:`temporal_methods`). The nudged run's registrations stay in memory: they are not the input's, and must not
-    enter ``--cache-dir``.
+    :func:`temporal_methods`). The nudged run's registrations go to :func:`nudged_cache` of ``--cache-dir``: a
+    rerun resumes them, apart from the input's.
     """
     if getattr(args, "determinacy", None) is None:
         return None, None
     from torchmeshmetric.evaluation.determinacy import measure_determinacy
 
     say(f"--determinacy {args.determinacy}: evaluating again on nudged frames")
-    nudged = nudged_run(original, methods, args.determinacy, RegistrationCache())
+    nudged = nudged_run(original, methods, args.determinacy, nudged_cache(args.cache_dir))
     again = evaluate_methods(nudged.original, nudged.methods, args, device, cache=nudged.cache)
     if results is None or again is None:
         return None, None

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from torchmeshmetric._format import json_safe
+from torchmeshmetric.cli.options import path_argument
 
 __all__ = ["add_bdrate_command", "read_curve"]
 
@@ -102,7 +103,7 @@ def add_bdrate_command(sub: Any) -> None:
         "integrated exactly over the overlapping PSNR range; +-100 when the curves do not overlap. Negative = TEST "
         "needs less rate for the same quality.",
     )
-    p.add_argument("anchor", metavar="ANCHOR.csv", help="the anchor's rate points")
-    p.add_argument("test", metavar="TEST.csv", help="the tested codec's rate points")
+    p.add_argument("anchor", type=path_argument, metavar="ANCHOR.csv", help="the anchor's rate points")
+    p.add_argument("test", type=path_argument, metavar="TEST.csv", help="the tested codec's rate points")
     p.add_argument("--json", action="store_true", help='print {"bd_rate": {"GridD1": percent, ...}}')
     p.set_defaults(func=_run_bdrate, without_torch=True)

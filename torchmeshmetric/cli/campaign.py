@@ -14,6 +14,7 @@ from torchmeshmetric.cli.options import (
     add_html,
     add_temporal,
     common_options,
+    path_argument,
 )
 
 __all__ = ["add_campaign_command", "run"]
@@ -37,6 +38,7 @@ def run(args: argparse.Namespace) -> int:
         evaluate_across_ranks,
         fast_registration_options,
         load_frames,
+        nudged_cache,
         nudged_run,
         report_paths,
         temporal_methods,
@@ -99,10 +101,10 @@ def run(args: argparse.Namespace) -> int:
     nudged: list[NudgedRun] = []
     if args.determinacy is not None:  # every rank: the second run is sharded like the first
         say(f"--determinacy {args.determinacy}: evaluating again on nudged frames")
-        nudged_cache = RegistrationCache()  # shared by the sequences, as the run's cache is
-        nudged = [nudged_run(original, methods, args.determinacy, nudged_cache) for _, original, methods in sequences]
+        second = nudged_cache(args.cache_dir or campaign.cache_dir)  # shared by the sequences, as the run's cache is
+        nudged = [nudged_run(original, methods, args.determinacy, second) for _, original, methods in sequences]
         work = [(name, run.original, run.methods) for (name, _, _), run in zip(sequences, nudged, strict=True)]
-        again = evaluate(work, nudged_cache)
+        again = evaluate(work, second)
         nudged = [n._replace(results=r) for n, r in zip(nudged, again, strict=True)]
     if evaluated[0] is None:  # a torchrun rank other than 0: rank 0 reports
         return 0
@@ -176,9 +178,12 @@ def run(args: argparse.Namespace) -> int:
 def add_campaign_command(sub: Any) -> None:
     """Add the ``campaign`` subcommand to the CLI's subparsers."""
     p = add_command(sub, "campaign", run, [common_options()])
-    p.add_argument("manifest", metavar="MANIFEST", help="the campaign manifest (TOML); folders relative to it")
+    p.add_argument(
+        "manifest", type=path_argument, metavar="MANIFEST", help="the campaign manifest (TOML); folders relative to it"
+    )
     p.add_argument(
         "--out-dir",
+        type=path_argument,
         default=None,
         metavar="DIR",
         help="write the combined report and the per-sequence reports there (created; its parent must exist)",

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from torchmeshmetric.cli.options import add_command, common_options, evaluation_options, report_options
+from torchmeshmetric.cli.options import add_command, common_options, evaluation_options, path_argument, report_options
 
 __all__ = ["add_compare_command", "run"]
 
@@ -81,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
 def add_compare_command(sub: Any) -> None:
     """Add the ``compare`` subcommand to the CLI's subparsers."""
     p = add_command(sub, "compare", run, [common_options(), evaluation_options(), report_options()])
-    p.add_argument("--original", required=True, metavar="DIR", help="folder of the original frames")
+    p.add_argument("--original", type=path_argument, required=True, metavar="DIR", help="folder of the original frames")
     p.add_argument(
         "--method",
         required=True,

@@ -18,7 +18,7 @@ from typing import Any
 
 from torchmeshmetric._console import say
 from torchmeshmetric._format import format_number, json_safe
-from torchmeshmetric.cli.options import ctc_options
+from torchmeshmetric.cli.options import ctc_options, path_argument
 from torchmeshmetric.mpeg.ctc.frame_pattern import frame_path
 
 __all__ = ["add_ctc_command", "frame_path"]
@@ -236,8 +236,16 @@ def add_ctc_command(sub: Any) -> None:
         "(IBSM GEO PSNR), IbsmLuma (IBSM Y PSNR), each the mean over frames of the per-frame PSNR clipped at 99.99 "
         "(mmetric's statistics). Frames are read one pair at a time; progress per frame goes to stderr.",
     )
-    p.add_argument("--reference", required=True, metavar="PATTERN", help="quantised source frames, e.g. src_%%04d.obj")
-    p.add_argument("--decoded", required=True, metavar="PATTERN", help="decoded frames, e.g. dec_%%04d.obj")
+    p.add_argument(
+        "--reference",
+        type=path_argument,
+        required=True,
+        metavar="PATTERN",
+        help="quantised source frames, e.g. src_%%04d.obj",
+    )
+    p.add_argument(
+        "--decoded", type=path_argument, required=True, metavar="PATTERN", help="decoded frames, e.g. dec_%%04d.obj"
+    )
     p.add_argument("--first-frame", type=int, required=True, metavar="F", help="first frame number (included)")
     p.add_argument("--last-frame", type=int, required=True, metavar="L", help="last frame number (included)")
     p.add_argument("--qp", type=int, required=True, help="geometry bit depth (mm dequantize --qp)")
@@ -248,14 +256,24 @@ def add_ctc_command(sub: Any) -> None:
     p.add_argument("--resolution", type=float, required=True, metavar="R",
                    help="PSNR peak of the grid figures (compare --resolution; CTC: the box's longest side)",
                    )  # fmt: skip
-    p.add_argument("--reference-texture", default=None, metavar="PATTERN", help="source textures (default: MTL)")
-    p.add_argument("--decoded-texture", default=None, metavar="PATTERN", help="decoded textures (default: MTL)")
+    p.add_argument(
+        "--reference-texture",
+        type=path_argument,
+        default=None,
+        metavar="PATTERN",
+        help="source textures (default: MTL)",
+    )
+    p.add_argument(
+        "--decoded-texture", type=path_argument, default=None, metavar="PATTERN", help="decoded textures (default: MTL)"
+    )
     p.add_argument("--grid-size", type=int, default=1024, metavar="N", help="sample --gridSize (default 1024)")
     p.add_argument("--ibsm-resolution", type=int, default=2048, metavar="N", help="--ibsmResolution (2048)")
     p.add_argument("--ibsm-cameras", type=int, default=16, metavar="N", help="--ibsmCameraCount (16)")
     p.add_argument("--no-ibsm", action="store_true", help="leave IBSM (IbsmGeom, IbsmLuma) out")
     p.add_argument("--json", action="store_true", help='print {"frames": [...], "mean": {...}} (non-finite: "inf")')
-    p.add_argument("--out", default=None, metavar="REPORT", help="write REPORT.json, REPORT.csv, REPORT.md")
+    p.add_argument(
+        "--out", type=path_argument, default=None, metavar="REPORT", help="write REPORT.json, REPORT.csv, REPORT.md"
+    )
     p.add_argument("--overwrite", action="store_true", help="replace existing --out files")
     p.add_argument("--html", action="store_true", help="also write REPORT.html: the report as one offline page")
     p.add_argument(

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from torchmeshmetric._console import say
-from torchmeshmetric.cli.options import add_command
+from torchmeshmetric.cli.options import add_command, cache_folder, path_argument
 
 __all__ = ["add_ctc_campaign_command", "run"]
 
@@ -134,15 +134,19 @@ def run(args: argparse.Namespace) -> int:
 def add_ctc_campaign_command(sub: Any) -> None:
     """Add the ``ctc-campaign`` subcommand to the CLI's subparsers."""
     p = add_command(sub, "ctc-campaign", run)
-    p.add_argument("manifest", metavar="MANIFEST", help="the campaign manifest (TOML); paths relative to it")
+    p.add_argument(
+        "manifest", type=path_argument, metavar="MANIFEST", help="the campaign manifest (TOML); paths relative to it"
+    )
     p.add_argument(
         "--out-dir",
+        type=path_argument,
         required=True,
         metavar="DIR",
         help="write the CSVs, the summary and the RD plots there (created; its parent must exist)",
     )
     p.add_argument(
         "--cache-dir",
+        type=cache_folder,
         default=None,
         metavar="DIR",
         help="per-frame cache folder (overrides the manifest's cache_dir); a rerun resumes from it",

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from torchmeshmetric._console import say
-from torchmeshmetric.cli.options import add_command, ctc_options
+from torchmeshmetric.cli.options import add_command, ctc_options, path_argument
 
 __all__ = ["add_ctc_face_errors_command", "run"]
 
@@ -67,15 +67,19 @@ def run(args: argparse.Namespace) -> int:
 def add_ctc_face_errors_command(sub: Any) -> None:
     """Add the ``ctc-face-errors`` subcommand to the CLI's subparsers."""
     p = add_command(sub, "ctc-face-errors", run)
-    p.add_argument("--reference", required=True, metavar="OBJ", help="the quantised source frame")
-    p.add_argument("--decoded", required=True, metavar="OBJ", help="the decoded frame")
+    p.add_argument("--reference", type=path_argument, required=True, metavar="OBJ", help="the quantised source frame")
+    p.add_argument("--decoded", type=path_argument, required=True, metavar="OBJ", help="the decoded frame")
     p.add_argument("--qp", type=int, required=True, help="geometry bit depth (mm dequantize --qp)")
     p.add_argument("--qt", type=int, required=True, help="UV bit depth of the source (mm dequantize --qt)")
     p.add_argument("--decoded-qt", type=int, default=0, help="UV bit depth of the decoded frame (test model: 0)")
     p.add_argument("--min-pos", required=True, metavar='"X Y Z"', help="the sequence box's min corner (--minPos)")
     p.add_argument("--max-pos", required=True, metavar='"X Y Z"', help="the sequence box's max corner (--maxPos)")
-    p.add_argument("--reference-texture", default=None, metavar="PNG", help="source texture (default: MTL)")
-    p.add_argument("--decoded-texture", default=None, metavar="PNG", help="decoded texture (default: MTL)")
+    p.add_argument(
+        "--reference-texture", type=path_argument, default=None, metavar="PNG", help="source texture (default: MTL)"
+    )
+    p.add_argument(
+        "--decoded-texture", type=path_argument, default=None, metavar="PNG", help="decoded texture (default: MTL)"
+    )
     p.add_argument("--grid-size", type=int, default=1024, metavar="N", help="sample --gridSize (default 1024)")
     p.add_argument(
         "--side",
@@ -89,5 +93,5 @@ def add_ctc_face_errors_command(sub: Any) -> None:
         metavar="ERROR",
         help=f"the PLY's face colour: one of {', '.join(_COLOR_BY)} (default d1_mean)",
     )
-    p.add_argument("--out", required=True, metavar="OUT", help="write OUT.ply and OUT.csv")
+    p.add_argument("--out", type=path_argument, required=True, metavar="OUT", help="write OUT.ply and OUT.csv")
     p.add_argument("--overwrite", action="store_true", help="replace existing OUT.ply / OUT.csv")

@@ -17,6 +17,7 @@ from torchmeshmetric.cli.options import (
     common_options,
     evaluation_options,
     parse_weights,
+    path_argument,
 )
 
 if TYPE_CHECKING:
@@ -308,7 +309,7 @@ def add_demo_command(sub: Any) -> None:
         help="also run Registered QEM at each of these weights beside plain QEM and write weight_sweep.md/.json "
         f"and the Pareto plot weight_sweep.png (default {','.join(f'{w:g}' for w in DEMO_WEIGHTS)}; 'none' skips)",
     )
-    p.add_argument("--out-dir", default="torchmeshmetric-demo", metavar="DIR", help="output folder")
+    p.add_argument("--out-dir", type=path_argument, default="torchmeshmetric-demo", metavar="DIR", help="output folder")
     p.add_argument("--overwrite", action="store_true", help="write into --out-dir even if another tool made it")
     p.add_argument("--no-plots", action="store_true", help="skip PNG plots and coloured PLY files")
     p.add_argument("--save-meshes", action="store_true", help="also save the simplified frames as PLY")

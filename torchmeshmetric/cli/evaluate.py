@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from torchmeshmetric.cli.options import add_command, common_options, evaluation_options, report_options
+from torchmeshmetric.cli.options import add_command, common_options, evaluation_options, path_argument, report_options
 
 __all__ = ["add_evaluate_command", "run"]
 
@@ -70,7 +70,17 @@ def add_evaluate_command(sub: Any) -> None:
     """Add the ``evaluate`` subcommand to the CLI's subparsers."""
     p = add_command(sub, "evaluate", run, [common_options(), evaluation_options(), report_options()])
     p.add_argument(
-        "--original", required=True, metavar="DIR", help="folder of the original frames (OBJ/PLY/OFF/STL/GLB)"
+        "--original",
+        type=path_argument,
+        required=True,
+        metavar="DIR",
+        help="folder of the original frames (OBJ/PLY/OFF/STL/GLB)",
     )
-    p.add_argument("--simplified", required=True, metavar="DIR", help="folder of the simplified frames, same count")
+    p.add_argument(
+        "--simplified",
+        type=path_argument,
+        required=True,
+        metavar="DIR",
+        help="folder of the simplified frames, same count",
+    )
     p.add_argument("--name", default=None, help="method name in the tables (default: the simplified folder's name)")

@@ -7,7 +7,7 @@ import json
 from typing import Any
 
 from torchmeshmetric._format import format_number, json_safe
-from torchmeshmetric.cli.options import as_option_error, corner
+from torchmeshmetric.cli.options import as_option_error, corner, path_argument
 
 __all__ = ["add_mpeg_command"]
 
@@ -167,8 +167,10 @@ def add_mpeg_command(sub: Any) -> None:
         "(exit status 0 when equal, 1 otherwise). --mode topo is mm compare --mode topo: is DIS the connectivity of "
         "REF under --face-map and --vertex-map (exit status 0 when matching, 1 otherwise).",
     )
-    p.add_argument("ref", metavar="REF", help="reference mesh (OBJ/PLY; OBJ with MTL + texture for colour)")
-    p.add_argument("dis", metavar="DIS", help="distorted mesh")
+    p.add_argument(
+        "ref", type=path_argument, metavar="REF", help="reference mesh (OBJ/PLY; OBJ with MTL + texture for colour)"
+    )
+    p.add_argument("dis", type=path_argument, metavar="DIS", help="distorted mesh")
     p.add_argument(
         "--sampling", choices=("grid", "mesh"), default="grid", help="grid (mm sample --mode grid, default) or mesh"
     )
@@ -188,8 +190,12 @@ def add_mpeg_command(sub: Any) -> None:
         help="PSNR peak, mm compare --resolution (default: the box diagonal; the V-DMC test model passes the "
         "sequence box's longest side)",
     )
-    p.add_argument("--ref-texture", default=None, metavar="IMG", help="texture of REF (overrides its MTL)")
-    p.add_argument("--dis-texture", default=None, metavar="IMG", help="texture of DIS (overrides its MTL)")
+    p.add_argument(
+        "--ref-texture", type=path_argument, default=None, metavar="IMG", help="texture of REF (overrides its MTL)"
+    )
+    p.add_argument(
+        "--dis-texture", type=path_argument, default=None, metavar="IMG", help="texture of DIS (overrides its MTL)"
+    )
     p.add_argument("--nearest", action="store_true", help="nearest texture filtering in grid mode (default bilinear)")
     p.add_argument("--json", action="store_true", help='print one JSON object (non-finite values as "inf")')
     p.add_argument(
@@ -204,12 +210,14 @@ def add_mpeg_command(sub: Any) -> None:
     )
     p.add_argument(
         "--face-map",
+        type=path_argument,
         default=None,
         metavar="FILE",
         help="topo mode: text file of 'b a' lines, face b of DIS is face a of REF (mm --faceMapFile)",
     )
     p.add_argument(
         "--vertex-map",
+        type=path_argument,
         default=None,
         metavar="FILE",
         help="topo mode: text file of 'b a' lines, vertex b of DIS is vertex a of REF (mm --vertexMapFile)",

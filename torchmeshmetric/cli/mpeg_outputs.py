@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from torchmeshmetric._atomic import atomic_write
+from torchmeshmetric.cli.options import path_argument
 
 __all__ = ["add_output_options", "check_outputs", "run_ibsm", "write_pcc_outputs"]
 
@@ -26,17 +27,21 @@ def add_output_options(p: Any) -> None:
     """The ``mpeg`` command's output-file options."""
     p.add_argument(
         "--output-csv",
+        type=path_argument,
         default=None,
         metavar="FILE",
         help="pcc/ibsm modes: append mmetric's --outputCsv row (header first in a new or empty file)",
     )
     p.add_argument(
         "--output-model-ref",
+        type=path_argument,
         default=None,
         metavar="FILE",
         help="pcc mode: REF's sampled cloud (.ply); ibsm mode: REF reordered (.ply/.obj) -- mm's --outputModelA",
     )
-    p.add_argument("--output-model-dis", default=None, metavar="FILE", help="the same for DIS (--outputModelB)")
+    p.add_argument(
+        "--output-model-dis", type=path_argument, default=None, metavar="FILE", help="the same for DIS (--outputModelB)"
+    )
     p.add_argument("--overwrite", action="store_true", help="replace existing --output-model-* files")
     p.add_argument("--ibsm-resolution", type=int, default=2048, metavar="N", help="ibsm mode: buffer side (2048)")
     p.add_argument("--ibsm-cameras", type=int, default=16, metavar="N", help="ibsm mode: camera count (16)")

@@ -16,6 +16,7 @@ from typing import Any
 __all__ = [
     "add_cache_dir",
     "as_option_error",
+    "cache_folder",
     "corner",
     "add_command",
     "add_determinacy",
@@ -24,11 +25,23 @@ __all__ = [
     "common_options",
     "evaluation_options",
     "parse_target",
+    "path_argument",
     "parse_weight",
     "parse_weights",
     "positive_int",
     "report_options",
 ]
+
+
+def path_argument(text: str) -> str:
+    """An argument that names a file, folder or file pattern: not empty (``Path("")`` is the current folder).
+
+    An empty value (an unset shell variable, ``--cache-dir ""``) would otherwise read the meshes of the current
+    folder or write there.
+    """
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"expected a path, found {text!r}")
+    return text
 
 
 def positive_int(text: str) -> int:
@@ -149,6 +162,7 @@ def report_options() -> argparse.ArgumentParser:
     output = argparse.ArgumentParser(add_help=False)
     output.add_argument(
         "--out",
+        type=path_argument,
         default=None,
         metavar="REPORT.json",
         help="write the JSON report there, and the paper's tables beside it as REPORT.md and REPORT.csv "
@@ -189,9 +203,21 @@ def add_html(p: argparse.ArgumentParser, help_text: str) -> None:
     p.add_argument("--html", action="store_true", help=help_text)
 
 
+def cache_folder(text: str) -> str:
+    """A ``--cache-dir``: a path (:func:`path_argument`) that is not an existing file.
+
+    Checked when the command line is read: the cache stores an entry only after its registration ran.
+    """
+    from pathlib import Path
+
+    if Path(path_argument(text)).is_file():
+        raise argparse.ArgumentTypeError(f"expected a folder (created when needed), found the file {text!r}")
+    return text
+
+
 def add_cache_dir(p: argparse.ArgumentParser, help_text: str) -> None:
     """Add ``--cache-dir DIR`` (a registration cache folder) with the command's own help."""
-    p.add_argument("--cache-dir", default=None, metavar="DIR", help=help_text)
+    p.add_argument("--cache-dir", type=cache_folder, default=None, metavar="DIR", help=help_text)
 
 
 def add_target(p: argparse.ArgumentParser, default: float | int, help_text: str) -> None:

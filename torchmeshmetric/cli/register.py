@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from torchmeshmetric.cli.options import add_command, common_options
+from torchmeshmetric.cli.options import add_command, common_options, path_argument
 
 __all__ = ["add_register_command", "run"]
 
@@ -53,7 +53,9 @@ def run(args: argparse.Namespace) -> int:
 def add_register_command(sub: Any) -> None:
     """Add the ``register`` subcommand to the CLI's subparsers."""
     p = add_command(sub, "register", run, [common_options()])
-    p.add_argument("--source", required=True, metavar="FILE", help="mesh to move (frame k-1)")
-    p.add_argument("--target", required=True, metavar="FILE", help="mesh to align to (frame k)")
-    p.add_argument("--out", required=True, metavar="FILE", help="registered mesh (e.g. registered.ply)")
+    p.add_argument("--source", type=path_argument, required=True, metavar="FILE", help="mesh to move (frame k-1)")
+    p.add_argument("--target", type=path_argument, required=True, metavar="FILE", help="mesh to align to (frame k)")
+    p.add_argument(
+        "--out", type=path_argument, required=True, metavar="FILE", help="registered mesh (e.g. registered.ply)"
+    )
     p.add_argument("--overwrite", action="store_true", help="replace --out if it exists")

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from torchmeshmetric._console import say
-from torchmeshmetric.cli.options import add_command
+from torchmeshmetric.cli.options import add_command, path_argument
 
 __all__ = ["add_report_command", "run"]
 
@@ -56,10 +56,22 @@ def run(args: argparse.Namespace) -> int:
 def add_report_command(sub: Any) -> None:
     """Add the ``report`` subcommand to the CLI's subparsers."""
     p = add_command(sub, "report", run)
-    p.add_argument("report", metavar="REPORT.json", help="a report written by evaluate, compare, demo, campaign or ctc")
-    p.add_argument("--out", default=None, metavar="PAGE.html", help="the page (default: REPORT.html beside REPORT)")
+    p.add_argument(
+        "report",
+        type=path_argument,
+        metavar="REPORT.json",
+        help="a report written by evaluate, compare, demo, campaign or ctc",
+    )
+    p.add_argument(
+        "--out",
+        type=path_argument,
+        default=None,
+        metavar="PAGE.html",
+        help="the page (default: REPORT.html beside REPORT)",
+    )
     p.add_argument(
         "--mesh",
+        type=path_argument,
         action="append",
         default=[],
         metavar="FILE.ply",

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from typing import Any, Literal
 
+from torchmeshmetric.cli.options import path_argument
+
 __all__ = ["add_sample_command"]
 
 
@@ -100,8 +102,12 @@ def add_sample_command(sub: Any) -> None:
         "(byte for byte as mm writes it, except ediv, whose points come in another order). The grid "
         "sampling of the CTC is inside the 'mpeg' and 'ctc' commands.",
     )
-    p.add_argument("mesh", metavar="MESH", help="mesh to sample (OBJ/PLY; OBJ with MTL + texture for colour)")
-    p.add_argument("output", metavar="OUT", help="PLY file to write (never overwritten unless --overwrite)")
+    p.add_argument(
+        "mesh", type=path_argument, metavar="MESH", help="mesh to sample (OBJ/PLY; OBJ with MTL + texture for colour)"
+    )
+    p.add_argument(
+        "output", type=path_argument, metavar="OUT", help="PLY file to write (never overwritten unless --overwrite)"
+    )
     p.add_argument(
         "--mode",
         choices=("face", "sdiv", "ediv", "prnd", "map"),
@@ -135,6 +141,8 @@ def add_sample_command(sub: Any) -> None:
     p.add_argument("--num-samples-max", type=int, default=0, metavar="MAX", help="mm --nbSamplesMax (> N)")
     p.add_argument("--max-iterations", type=int, default=10, help="mm --maxIterations of the search (10)")
     p.add_argument("--bilinear", action="store_true", help="bilinear texture filtering (default nearest, as mm)")
-    p.add_argument("--texture", default=None, metavar="IMG", help="texture of MESH (overrides its MTL)")
+    p.add_argument(
+        "--texture", type=path_argument, default=None, metavar="IMG", help="texture of MESH (overrides its MTL)"
+    )
     p.add_argument("--overwrite", action="store_true", help="replace OUT if it exists (never MESH nor its texture)")
     p.set_defaults(func=_run)

@@ -7,7 +7,14 @@ from pathlib import Path
 from typing import Any
 
 from torchmeshmetric._console import say
-from torchmeshmetric.cli.options import add_cache_dir, add_command, add_target, add_weight, common_options
+from torchmeshmetric.cli.options import (
+    add_cache_dir,
+    add_command,
+    add_target,
+    add_weight,
+    common_options,
+    path_argument,
+)
 
 __all__ = ["add_simplify_command", "run"]
 
@@ -62,8 +69,10 @@ def run(args: argparse.Namespace) -> int:
 def add_simplify_command(sub: Any) -> None:
     """Add the ``simplify`` subcommand to the CLI's subparsers."""
     p = add_command(sub, "simplify", run, [common_options()])
-    p.add_argument("--input", required=True, metavar="DIR", help="folder of the original frames")
-    p.add_argument("--output", required=True, metavar="DIR", help="folder for the simplified frames (created)")
+    p.add_argument("--input", type=path_argument, required=True, metavar="DIR", help="folder of the original frames")
+    p.add_argument(
+        "--output", type=path_argument, required=True, metavar="DIR", help="folder for the simplified frames (created)"
+    )
     p.add_argument(
         "--method",
         choices=("qem", "rqem", "tracking"),

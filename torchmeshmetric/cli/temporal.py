@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-from torchmeshmetric.cli.options import add_cache_dir, add_command, add_determinacy, common_options
+from torchmeshmetric.cli.options import add_cache_dir, add_command, add_determinacy, common_options, path_argument
 
 __all__ = ["add_temporal_command", "frame_files", "run"]
 
@@ -105,12 +105,14 @@ def run(args: argparse.Namespace) -> int:
     determinacy = None
     if args.determinacy is not None:
         from torchmeshmetric._console import say
+        from torchmeshmetric.cli._shared import nudged_cache
         from torchmeshmetric.evaluation.determinacy import Determinacy, nudge_frames, with_temporal_changes
 
         say(f"--determinacy {args.determinacy}: computing the figures again on nudged frames")
-        # The nudged frames' registrations stay in memory: they are not the input's, and must not enter --cache-dir.
         again = figures_of(
-            nudge_frames(original, args.determinacy), nudge_frames(distorted, args.determinacy), RegistrationCache()
+            nudge_frames(original, args.determinacy),
+            nudge_frames(distorted, args.determinacy),
+            nudged_cache(args.cache_dir),  # apart from the input's registrations; a rerun resumes them
         ).as_dict()
         determinacy = with_temporal_changes(
             Determinacy(storage_unit(args.determinacy), 0, {}), {"": values}, {"": again}, FIGURE_NAMES
@@ -140,8 +142,15 @@ def run(args: argparse.Namespace) -> int:
 def add_temporal_command(sub: Any) -> None:
     """Add the ``temporal`` subcommand to the CLI's subparsers."""
     p = add_command(sub, "temporal", run, [common_options()])
-    p.add_argument("original", metavar="ORIGINAL", help="original frames: a folder or a pattern such as src_%%04d.obj")
-    p.add_argument("distorted", metavar="DISTORTED", help="distorted frames: a folder or a pattern, same count")
+    p.add_argument(
+        "original",
+        type=path_argument,
+        metavar="ORIGINAL",
+        help="original frames: a folder or a pattern such as src_%%04d.obj",
+    )
+    p.add_argument(
+        "distorted", type=path_argument, metavar="DISTORTED", help="distorted frames: a folder or a pattern, same count"
+    )
     p.add_argument("--json", action="store_true", help="print the figures as JSON")
     p.add_argument(
         "--registered",

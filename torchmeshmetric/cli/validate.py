@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from torchmeshmetric._console import say
-from torchmeshmetric.cli.options import add_command
+from torchmeshmetric.cli.options import add_command, path_argument
 
 __all__ = ["add_validate_command", "run"]
 
@@ -87,6 +87,8 @@ def add_validate_command(sub: Any) -> None:
     )
     p.add_argument("--seed", type=int, default=0, help="seed of the sequence and the distortions (default 0)")
     p.add_argument("--distortions", default=None, metavar="A,B,...", help="only these distortions (default all)")
-    p.add_argument("--out-dir", default="torchmeshmetric-validation", metavar="DIR", help="output folder")
+    p.add_argument(
+        "--out-dir", type=path_argument, default="torchmeshmetric-validation", metavar="DIR", help="output folder"
+    )
     p.add_argument("--overwrite", action="store_true", help="replace existing output files")
     p.add_argument("--no-plots", action="store_true", help="skip validation.png")

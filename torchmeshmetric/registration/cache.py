@@ -228,7 +228,8 @@ class RegistrationCache:
             disk, where a later lookup finds it again). ``None``: unbounded.
 
     Raises:
-        ValueError: ``max_entries`` not a positive int or ``None``.
+        ValueError: ``max_entries`` not a positive int or ``None``, or ``directory`` an existing file (checked here:
+            an entry is stored only after its registration ran, too late to learn it cannot be).
 
     Attributes:
         hits: number of lookups answered from memory or disk.
@@ -250,6 +251,8 @@ class RegistrationCache:
         ):
             raise ValueError(f"max_entries: expected a positive int or None, found {max_entries!r}")
         self.directory = None if directory is None else Path(directory)
+        if self.directory is not None and self.directory.exists() and not self.directory.is_dir():
+            raise ValueError(f"directory: expected a folder for the cache's entries, found the file {str(directory)!r}")
         self.max_entries = max_entries
         self._memory: OrderedDict[str, CachedRegistration] = OrderedDict()
         self.hits = 0
