@@ -51,7 +51,7 @@ def test_natural_order(tmp_path: Path) -> None:
     assert sorted(["a10b2", "a2b10", "a2b9"], key=natural_key) == ["a2b9", "a2b10", "a10b2"]
 
 
-def test_missing_and_empty_inputs(tmp_path: Path) -> None:
+def test_missing_and_empty_inputs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     with pytest.raises(MeshFileError, match="does not exist"):
         load_mesh(tmp_path / "nope.obj")
     with pytest.raises(MeshFileError, match="does not exist"):
@@ -62,6 +62,14 @@ def test_missing_and_empty_inputs(tmp_path: Path) -> None:
         list_frames(str(tmp_path / "*.ply"))
     with pytest.raises(MeshFileError, match="empty"):
         list_frames([])
+    # An empty name (an unset variable) is not the current folder, even where that folder holds meshes.
+    (tmp_path / "frame0.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    monkeypatch.chdir(tmp_path)
+    for empty in ("", " "):
+        with pytest.raises(
+            MeshFileError, match=f"paths: expected a directory, a glob pattern or a mesh file, found {empty!r}"
+        ):
+            list_frames(empty)
     (tmp_path / "empty.obj").write_text("")
     with pytest.raises(MeshFileError, match=r"empty.obj.*empty"):
         load_mesh(tmp_path / "empty.obj")

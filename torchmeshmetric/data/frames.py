@@ -35,7 +35,7 @@ def list_frames(paths: PathsLike) -> list[Path]:
     in the given order (an explicit order is respected).
 
     Raises:
-        MeshFileError: nothing matches, or a listed file does not exist.
+        MeshFileError: an empty path, nothing matches, or a listed file does not exist.
 
     Example:
         >>> import tempfile, pathlib
@@ -46,6 +46,8 @@ def list_frames(paths: PathsLike) -> list[Path]:
         'frame1.obj frame2.obj frame10.obj'
     """
     if isinstance(paths, (str, os.PathLike)):
+        if not os.fspath(paths).strip():  # Path("") is the current folder: never read it for an unset name
+            raise MeshFileError(f"paths: expected a directory, a glob pattern or a mesh file, found {paths!r}")
         p = Path(paths)
         if p.is_dir():
             found = [q for q in p.iterdir() if q.is_file() and q.suffix.lower() in MESH_SUFFIXES]
