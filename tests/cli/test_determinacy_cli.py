@@ -167,11 +167,36 @@ def test_a_rerun_resumes_the_nudged_registrations_apart_from_the_inputs(capsys, 
     orig, simp = sequence
     cache = tmp_path / "cache"
     argv = ["evaluate", "--original", str(orig), "--simplified", str(simp), "--cache-dir", str(cache)]
-    assert main([*argv, "--determinacy", "float32", "--out", str(tmp_path / "a.json")]) == 0
+    (tmp_path / "a").mkdir(), (tmp_path / "b").mkdir()
+    assert main([*argv, "--determinacy", "float32", "--out", str(tmp_path / "a" / "r.json")]) == 0
     # 2 original pairs, registered on the input's frames and on the nudged ones (cache/determinacy)
     assert known_registration.calls == 4
     assert len(list(cache.glob("*.pt"))) == 2 and len(list((cache / "determinacy").glob("*.pt"))) == 2
-    assert main([*argv, "--determinacy", "float32", "--out", str(tmp_path / "b.json")]) == 0
+    assert main([*argv, "--determinacy", "float32", "--out", str(tmp_path / "b" / "r.json")]) == 0
     assert known_registration.calls == 4  # both runs resumed from the cache
-    assert (tmp_path / "a.md").read_text() == (tmp_path / "b.md").read_text()
+    assert (tmp_path / "a" / "r.md").read_text() == (tmp_path / "b" / "r.md").read_text()
     assert main(argv) == 0 and known_registration.calls == 4  # without --determinacy: the input's entries alone
+
+
+def test_a_unit_finer_than_the_frames_dtype_is_said(capsys, sequence, known_registration):
+    orig, simp = sequence
+    argv = ["evaluate", "--original", str(orig), "--simplified", str(simp)]
+    # unit spheres in float32: spacing 6e-8 to 1.2e-7, finer than 9 decimals but for the exact zeros
+    assert main([*argv, "--determinacy", "9"]) == 0
+    err = capsys.readouterr().err
+    assert "--determinacy 9: one unit is finer than the float32 frames hold at " in err
+    assert "those move by one float32 unit instead (--dtype float64 to measure the file's decimals)" in err
+    for quiet in (["--determinacy", "float32"], ["--determinacy", "9", "--dtype", "float64"]):
+        assert main([*argv, *quiet]) == 0
+        assert "is finer than" not in capsys.readouterr().err
+
+
+def test_the_note_names_the_json_that_keeps_the_full_values(capsys, tmp_path, sequence, known_registration):
+    orig, simp = sequence
+    argv = ["evaluate", "--original", str(orig), "--simplified", str(simp)]
+    assert main(argv) == 0  # printed, no JSON written: the note says which option writes it
+    assert "Compare methods to those digits; the JSON report (--out) keeps the full values." in capsys.readouterr().out
+    assert main([*argv, "--out", str(tmp_path / "walk.json"), "--determinacy", "float32"]) == 0
+    printed, md = capsys.readouterr().out, (tmp_path / "walk.md").read_text()
+    for text in (printed, md):
+        assert "walk.json keeps the full values and, under 'determinacy'" in text and "report.json" not in text

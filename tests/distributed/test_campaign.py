@@ -56,14 +56,15 @@ def test_campaign_writes_combined_and_per_sequence_reports_equal_to_compare(tmp_
     assert "| overall | coarse | k-th |" in stdout and "| run fast | fine | (k-1)-th |" in stdout
     names = sorted(p.name for p in out.iterdir())
     assert names == sorted(f"{s}.{e}" for s in ("campaign", "walk", "run_fast") for e in ("json", "md", "csv"))
-    # each sequence's report is the compare command's report for it
+    # each sequence's report is the compare command's report for it (of the same name: the note names its JSON)
     walk = tmp_path / "walk"
+    (tmp_path / "compare").mkdir()
     assert main(["compare", "--original", str(walk / "orig"), "--method", f"fine={walk / 'fine'}", "--method",
-                 f"coarse={walk / 'coarse'}", "--out", str(tmp_path / "compare.json")]) == 0  # fmt: skip
-    got, want = (json.loads(p.read_text()) for p in (out / "walk.json", tmp_path / "compare.json"))
+                 f"coarse={walk / 'coarse'}", "--out", str(tmp_path / "compare" / "walk.json")]) == 0  # fmt: skip
+    got, want = (json.loads(p.read_text()) for p in (out / "walk.json", tmp_path / "compare" / "walk.json"))
     assert without_timings(got["methods"]) == without_timings(want["methods"])
     for ext in ("md", "csv"):
-        assert (out / f"walk.{ext}").read_text() == (tmp_path / f"compare.{ext}").read_text()
+        assert (out / f"walk.{ext}").read_text() == (tmp_path / "compare" / f"walk.{ext}").read_text()
     # overall: per method, the mean over the sequences it ran on of each sequence's average
     combined = json.loads((out / "campaign.json").read_text())
     seq = {
@@ -149,13 +150,14 @@ def test_determinacy_digits_are_each_sequence_reports_digits(tmp_path, campaign,
     assert "this run's input determines" in md and "campaign.json keeps the full values" in md
     # each sequence's report is compare --determinacy's for it, and its Table III cells are the combined ones
     walk = tmp_path / "walk"
+    (tmp_path / "compare").mkdir()
     argv = ["compare", "--original", str(walk / "orig"), "--method", f"fine={walk / 'fine'}", "--method",
-            f"coarse={walk / 'coarse'}", "--out", str(tmp_path / "compare.json"), "--determinacy", "1",
+            f"coarse={walk / 'coarse'}", "--out", str(tmp_path / "compare" / "walk.json"), "--determinacy", "1",
             "--temporal"]  # fmt: skip
     assert main(argv) == 0
-    got, want = (json.loads(p.read_text()) for p in (out / "walk.json", tmp_path / "compare.json"))
+    got, want = (json.loads(p.read_text()) for p in (out / "walk.json", tmp_path / "compare" / "walk.json"))
     assert got["determinacy"] == want["determinacy"] and len(got["determinacy"]["changes"]["temporal"]) == 2
-    assert (out / "walk.md").read_text() == (tmp_path / "compare.md").read_text()
+    assert (out / "walk.md").read_text() == (tmp_path / "compare" / "walk.md").read_text()
     sequence_md = (out / "walk.md").read_text()
     table_iii = "Table III: average over pairs, mesh surface distance"
     walk_rows = _cells(md, "Average over pairs, mesh surface distance (Table III)", "walk")
@@ -174,7 +176,7 @@ def test_determinacy_digits_are_each_sequence_reports_digits(tmp_path, campaign,
     capsys.readouterr()
     assert main(["campaign", str(campaign)]) == 0
     plain = capsys.readouterr().out
-    assert "campaign.json keeps the full values" in plain and "this run's input determines" not in plain
+    assert "campaign.json (--out-dir) keeps the full values" in plain and "this run's input determines" not in plain
 
 
 def test_determinacy_rerun_resumes_the_nudged_registrations_from_the_cache(tmp_path, campaign, capsys, monkeypatch):

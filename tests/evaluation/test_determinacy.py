@@ -73,6 +73,25 @@ def test_nudge_keeps_coincidences_as_storage_does():
     assert len(set(step.flatten().tolist())) == 3  # not along the diagonal only
 
 
+def test_a_unit_finer_than_the_frames_dtype_is_raised_to_it():
+    from torchmeshmetric.evaluation.determinacy import raised_fraction
+
+    # Coordinates in millimetres (|x| ~ 50-200): float32's spacing there is 3.8e-6 to 1.5e-5, so 9 decimals of a
+    # float32 frame would round away entirely; the nudge moves them by float32 units instead, as "float32" does.
+    frame = _frame(torch.float32)
+    mm = Mesh((frame.verts.double() * 50 + 100).float(), frame.faces, validate=False)
+    (moved,) = nudge_frames([mm], 9)
+    assert torch.equal(moved.verts, nudge_frames([mm], "float32")[0].verts)
+    assert 0.4 < (moved.verts != mm.verts).double().mean().item() < 0.6
+    assert raised_fraction([mm], 9) == 1.0 and raised_fraction([mm], 4) == 0.0 and raised_fraction([mm], "float32") == 0
+    # float64 frames hold 9 decimals at that scale: the nudge stays the decimal one, within 1e-9.
+    mm64 = Mesh(mm.verts.double(), mm.faces, validate=False)
+    step = (nudge_frames([mm64], 9)[0].verts - mm64.verts).abs()
+    assert float(step.max()) <= 1e-9 and float(step.max()) > 0.9e-9 and raised_fraction([mm64], 9) == 0.0
+    # Exact zeros: a decimal unit moves them (a file's 0.000000 is a rounding too), the dtype's spacing is none.
+    assert raised_fraction([frame], 15) == pytest.approx(1 - 7 / 1500)
+
+
 @pytest.mark.parametrize("bad", ["float16", "-1", 16, True, 2.5, ""])
 def test_storage_unit_rejects_other_roundings(bad):
     with pytest.raises(ValueError, match=r"rounding: expected 'float32' or a number of decimals 0\.\.15"):

@@ -36,8 +36,10 @@ __all__ = [
     "NUDGED_CACHE",
     "nudged_cache",
     "nudged_run",
+    "say_dtype_floor",
     "device_of",
     "dtype_of",
+    "kept_by",
     "evaluate_across_ranks",
     "evaluate_method",
     "evaluate_methods",
@@ -86,6 +88,11 @@ def report_paths(out: str | None, mpeg: bool = False, html: bool = False) -> dic
     if mpeg:
         paths.update(mpeg_csv=json_path.with_suffix(".mpeg.csv"), mpeg_png=json_path.with_suffix(".mpeg.png"))
     return paths
+
+
+def kept_by(out: str | None, option: str = "--out") -> str:
+    """What keeps the full values, for the note under printed tables: ``--out``'s file name, or the option."""
+    return Path(out).name if out else f"the JSON report ({option})"
 
 
 def dtype_of(args: argparse.Namespace) -> Any:
@@ -143,7 +150,13 @@ def write_reports(
     with output_set("the report"):
         write_json(paths["json"], report, overwrite=overwrite)
         write_markdown(
-            paths["md"], methods, overwrite=overwrite, extra=extra, comparisons=comparisons, determinacy=determinacy
+            paths["md"],
+            methods,
+            overwrite=overwrite,
+            extra=extra,
+            comparisons=comparisons,
+            determinacy=determinacy,
+            json_file=paths["json"].name,
         )
         write_csv(paths["csv"], methods, overwrite=overwrite)
         figures: list[tuple[str, bytes]] = []  # the --html page's PNGs besides its own
@@ -178,7 +191,9 @@ def _write_html_report(
     best = next(iter(methods.values())).best_pair_index()
     histograms = png_bytes(histogram_figure({n: r.pairs[best] for n, r in methods.items()}))
     figures = [("distance sets of the best pair", histograms), *figures]
-    markdown = markdown_report(methods, extra=extra, comparisons=comparisons, determinacy=determinacy)
+    markdown = markdown_report(
+        methods, extra=extra, comparisons=comparisons, determinacy=determinacy, json_file=paths["json"].name
+    )
     page = report_page(
         report, markdown, title=f"torchmeshmetric report: {paths['json'].stem}", figures=figures, meshes=meshes
     )
@@ -368,9 +383,28 @@ def nudged_run(
     """
     from torchmeshmetric.evaluation.determinacy import nudge_frames
 
+    say_dtype_floor(rounding, [original, *methods.values()])
     return NudgedRun(
         nudge_frames(original, rounding), {name: nudge_frames(f, rounding) for name, f in methods.items()}, cache
     )
+
+
+def say_dtype_floor(rounding: str, sequences: Sequence[Sequence[Any]]) -> None:
+    """Say when ``--determinacy``'s unit is finer than the frames' dtype, which then sets the nudge (most places).
+
+    A user who asks for 9 decimals of float32 frames in millimetres would otherwise read the dtype's digits as the
+    file's (:func:`~torchmeshmetric.evaluation.determinacy.raised_fraction`).
+    """
+    from torchmeshmetric.evaluation.determinacy import raised_fraction
+
+    frames = [f for frames in sequences for f in frames]
+    share = raised_fraction(frames, rounding)
+    if share > 0:
+        dtype = str(frames[0].verts.dtype).removeprefix("torch.")
+        say(
+            f"--determinacy {rounding}: one unit is finer than the {dtype} frames hold at {share:.0%} of the "
+            f"coordinates; those move by one {dtype} unit instead (--dtype float64 to measure the file's decimals)"
+        )
 
 
 def determinacy_of(

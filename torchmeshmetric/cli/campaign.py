@@ -118,7 +118,8 @@ def run(args: argparse.Namespace) -> int:
         determinacy = measure_campaign_determinacy(results, again_results, args.determinacy)
         for name in results:
             determinacies[name] = measure_determinacy(results[name], again_results[name], args.determinacy)
-    print(campaign_tables(results, determinacy=determinacy))
+    kept = f"{COMBINED}.json" + ("" if out is not None else " (--out-dir)")
+    print(campaign_tables(results, determinacy=determinacy, json_file=kept))
     temporal = {}  # --temporal: KG, KSO, STED per sequence and method, on the campaign's registrations (its cache)
     for name, original, methods in sequences:
         temporal[name], determinacies[name] = temporal_methods(

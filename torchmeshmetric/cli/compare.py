@@ -26,6 +26,7 @@ def run(args: argparse.Namespace) -> int:
         dtype_of,
         evaluate_methods,
         html_layers,
+        kept_by,
         load_frames,
         mpeg_methods,
         parse_methods,
@@ -51,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     determinacy, nudged = determinacy_of(original, frames, results, args, device)
     if results is None:  # a torchrun rank other than 0: rank 0 reports
         return 0
-    print(paper_tables(results, determinacy=determinacy))
+    print(paper_tables(results, determinacy=determinacy, json_file=kept_by(args.out)))
     mpeg = mpeg_methods(original, frames, args)
     temporal, determinacy = temporal_methods(
         original, frames, args, device, cache=cache, determinacy=determinacy, nudged=nudged

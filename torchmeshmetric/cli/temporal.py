@@ -105,10 +105,11 @@ def run(args: argparse.Namespace) -> int:
     determinacy = None
     if args.determinacy is not None:
         from torchmeshmetric._console import say
-        from torchmeshmetric.cli._shared import nudged_cache
+        from torchmeshmetric.cli._shared import nudged_cache, say_dtype_floor
         from torchmeshmetric.evaluation.determinacy import Determinacy, nudge_frames, with_temporal_changes
 
         say(f"--determinacy {args.determinacy}: computing the figures again on nudged frames")
+        say_dtype_floor(args.determinacy, [original, distorted])
         again = figures_of(
             nudge_frames(original, args.determinacy),
             nudge_frames(distorted, args.determinacy),

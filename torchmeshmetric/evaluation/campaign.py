@@ -326,7 +326,10 @@ def measure_campaign_determinacy(
 
 
 def campaign_tables(
-    results: Mapping[str, Mapping[str, SequenceEvaluation]], *, determinacy: Determinacy | None = None
+    results: Mapping[str, Mapping[str, SequenceEvaluation]],
+    *,
+    determinacy: Determinacy | None = None,
+    json_file: str = f"{COMBINED}.json",
 ) -> str:
     """The combined tables as Markdown: per sequence and overall (mean over sequences), the report's digits.
 
@@ -335,6 +338,8 @@ def campaign_tables(
         determinacy: this campaign's measured determinacy (:func:`measure_campaign_determinacy`): each cell then
             prints only the digits a second run on nudged frames left in place, at most those of
             :data:`~torchmeshmetric.evaluation.reports.COLUMN_FORMATS`.
+        json_file: what the note under the tables names as keeping the full values (the combined report's file,
+            or e.g. ``"campaign.json (--out-dir)"`` for tables printed without one).
     """
     header = "| Sequence | Algorithm | Mesh | " + " | ".join(h for _, h in COLUMNS) + " |"
     rule = "|" + "---|" * (len(COLUMNS) + 3)
@@ -355,7 +360,7 @@ def campaign_tables(
     out.append(
         "Per sequence: mean over its pairs of each per-pair statistic. Overall: mean over the sequences of those "
         "means (each sequence weighs the same). "
-        f"Stability: {stability_note(determinacy, json_file=f'{COMBINED}.json')}"
+        f"Stability: {stability_note(determinacy, json_file=json_file)}"
     )
     unconverged = [
         f"{name} {k - 1} -> {k}" for name, by_method in results.items() for k in unconverged_frames(by_method)

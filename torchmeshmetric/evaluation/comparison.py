@@ -413,7 +413,7 @@ def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapp
     floor are marked ``*`` and their floor is listed under the table. With the verdicts on nudged frames
     (:func:`with_nudged_verdicts`), a cell whose verdict they change starts with ``~``, the note under the tables
     counts them, and each number (the noise floors too) keeps only the digits both runs share (``~`` before a number
-    whose first digit moved).
+    none of whose digits held).
     """
     out = []
     for title, sets in comparisons.items():
@@ -456,7 +456,7 @@ def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapp
                 if changed
                 else "."
             )
-            + " Differences, half-widths and noise floors keep the digits both runs share ('~' before a number: its "
-            "first digit moved)."
+            + " Differences, half-widths and noise floors keep the digits both runs share ('~' before a number: none "
+            "of its digits held; a PSNR difference: it moved by 1 dB or more)."
         )
     return "\n".join(out) + "\n"

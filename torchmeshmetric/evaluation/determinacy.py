@@ -28,6 +28,7 @@ __all__ = [
     "determined_digits",
     "measure_determinacy",
     "nudge_frames",
+    "raised_fraction",
     "row_changes",
     "storage_unit",
     "value_change",
@@ -71,7 +72,10 @@ def nudge_frames(frames: Sequence[Mesh], rounding: str | int, *, seed: int = 0) 
     coincident, where independent draws would pull them apart and measure a change the storage cannot make. The
     move is computed in float64 and the result rounded to each frame's dtype, so float32 frames nudged by float32
     units land on the coordinate or one of its two neighbours, and float64 frames move continuously. Zero
-    coordinates stay zero under ``"float32"`` (their storage is exact). Faces are shared, not copied.
+    coordinates stay zero under ``"float32"`` (their storage is exact). A unit finer than the frame's own dtype at a
+    coordinate (``9`` decimals of a float32 frame of coordinates ~100) is raised to that dtype's spacing there: the
+    run holds the frame at its dtype, itself a rounding of the file, and a finer step would round away
+    (:func:`raised_fraction` says how many). Faces are shared, not copied.
 
     Args:
         frames: the meshes, any length (nudge the originals and the simplified frames with the same ``seed``).
@@ -87,20 +91,56 @@ def nudge_frames(frames: Sequence[Mesh], rounding: str | int, *, seed: int = 0) 
         >>> bool(((moved - mesh.verts).abs() <= 1e-3).all())
         True
     """
-    unit_name = storage_unit(rounding)
     out = []
     for frame in frames:
         v = frame.verts.detach().to("cpu", torch.float64)
-        if unit_name == "float32":
-            _, exponent = torch.frexp(v.to(torch.float32).to(torch.float64))
-            unit = torch.ldexp(torch.ones_like(v), exponent - 24)  # float32's spacing at |v| (24-bit significand)
-            unit = torch.where(v == 0, torch.zeros_like(v), unit)
-        else:
-            unit = torch.full_like(v, 10.0 ** -int(unit_name.split()[0]))
+        unit = _units(v, rounding, frame.verts.dtype)[0]
         step = torch.from_numpy(_hashed_uniform(v.numpy(), seed)) * unit
         moved = (v + step).to(device=frame.verts.device, dtype=frame.verts.dtype)
         out.append(Mesh(moved, frame.faces, validate=False))
     return out
+
+
+def raised_fraction(frames: Sequence[Mesh], rounding: str | int) -> float:
+    """The share of the frames' coordinates whose storage unit is finer than their own dtype holds.
+
+    :func:`nudge_frames` moves those by one unit of the frame's dtype instead (``--determinacy 9`` on float32
+    frames in millimetres: nearly all of them); a caller says so, as the measured digits are then the dtype's.
+
+    Example:
+        >>> mesh = Mesh(torch.tensor([[100.0, 0, 0], [0, 100, 0], [0, 0, 100]]), torch.tensor([[0, 1, 2]]))
+        >>> raised_fraction([mesh], 9), raised_fraction([mesh], 3)
+        (0.3333333333333333, 0.0)
+    """
+    raised = total = 0
+    for frame in frames:
+        _, finer = _units(frame.verts.detach().to("cpu", torch.float64), rounding, frame.verts.dtype)
+        raised, total = raised + int(finer.sum()), total + finer.numel()
+    return raised / total if total else 0.0
+
+
+def _spacing(v: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
+    """The spacing of ``dtype``'s numbers at each of ``v`` (float64, rounded to ``dtype`` first); 0 at zero."""
+    significand = round(1 - math.log2(torch.finfo(dtype).eps))  # 24 bits for float32, 53 for float64
+    _, exponent = torch.frexp(v.to(dtype).to(torch.float64))
+    unit = torch.ldexp(torch.ones_like(v), exponent - significand)
+    return torch.where(v == 0, torch.zeros_like(v), unit)
+
+
+def _units(v: torch.Tensor, rounding: str | int, dtype: torch.dtype) -> tuple[torch.Tensor, torch.Tensor]:
+    """One storage unit at each coordinate of ``v`` (float64), at least ``dtype``'s spacing; and where it was less.
+
+    A frame held at ``dtype`` cannot move by less than its spacing: a finer step rounds away (often entirely), and
+    the run would measure nothing. The dtype is itself a rounding of the stored file, so its unit is the one the run
+    is sensitive to there.
+    """
+    unit_name = storage_unit(rounding)
+    if unit_name == "float32":
+        unit = _spacing(v, torch.float32)
+    else:
+        unit = torch.full_like(v, 10.0 ** -int(unit_name.split()[0]))
+    own = _spacing(v, dtype)
+    return torch.maximum(unit, own), unit < own
 
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)

@@ -180,7 +180,11 @@ def statistic_cells(stats: Mapping[str, float]) -> list[str]:
 
 
 def paper_tables(
-    methods: Mapping[str, SequenceEvaluation], *, reverse: bool = True, determinacy: Determinacy | None = None
+    methods: Mapping[str, SequenceEvaluation],
+    *,
+    reverse: bool = True,
+    determinacy: Determinacy | None = None,
+    json_file: str = "report.json",
 ) -> str:
     """The paper's Tables I-IV (plus the two-sided check) as Markdown, the digits of :data:`COLUMN_FORMATS`.
 
@@ -190,6 +194,8 @@ def paper_tables(
         determinacy: this run's measured determinacy (:func:`~torchmeshmetric.evaluation.determinacy.
             measure_determinacy`): each cell then prints only the digits a second run on nudged frames left in
             place, at most those of :data:`COLUMN_FORMATS`.
+        json_file: what the note under the tables names as keeping the full values: the JSON report's file name,
+            or e.g. ``"the JSON report (--out)"`` for tables printed without one.
     """
     if not methods:
         raise ValueError("methods: expected at least one method, found none")
@@ -219,7 +225,7 @@ def paper_tables(
         f"{REGISTRATION_ROW} rows (the same for every algorithm): the registration of original k-1 onto k, its "
         "residual (registered vertices to the surface of frame k) and, when the true motion is known, its error; "
         "differences between algorithms on the (k-1)-th and flicker rows smaller than these are not meaningful. "
-        f"Stability: {stability_note(determinacy)}"
+        f"Stability: {stability_note(determinacy, json_file=json_file)}"
     )
     unconverged = [f"{k - 1} -> {k}" for k in unconverged_frames(methods)]
     if unconverged:
@@ -256,7 +262,8 @@ def stability_note(determinacy: Determinacy | None = None, *, json_file: str = "
 
     Args:
         determinacy: the run's measured determinacy, if any.
-        json_file: the report file that keeps the full values (``campaign.json`` for a campaign's tables).
+        json_file: what keeps the full values: the report's file (``campaign.json`` for a campaign's tables), or
+            e.g. ``"the JSON report (--out)"`` for tables printed without one.
     """
     note = STABILITY_NOTE if determinacy is None else determinacy_note(determinacy)
     return note.replace("report.json", json_file)
@@ -268,7 +275,8 @@ def determinacy_note(determinacy: Determinacy) -> str:
         "the tables print only the digits this run's input determines: the evaluation was repeated on the frames with "
         f"every coordinate moved by up to one unit of its storage ({determinacy.rounding}, seed {determinacy.seed}), "
         "and each cell keeps the digits both runs share (at most 2 significant digits, 3 for Max, one decimal for "
-        "PSNR); '~' marks a figure whose first digit moved. report.json keeps the full values and, under "
+        "PSNR); '~' marks a figure none of whose digits held (PSNR: a change of 1 dB or more). report.json keeps "
+        "the full values and, under "
         "'determinacy', each cell's change."
     )
 
@@ -312,9 +320,10 @@ def write_markdown(
     extra: str = "",
     comparisons: Mapping[str, Any] | None = None,
     determinacy: Determinacy | None = None,
+    json_file: str = "report.json",
 ) -> Path:
     """Write :func:`markdown_report` to a file, atomically."""
-    text = markdown_report(methods, extra=extra, comparisons=comparisons, determinacy=determinacy)
+    text = markdown_report(methods, extra=extra, comparisons=comparisons, determinacy=determinacy, json_file=json_file)
     return atomic_write(path, text, overwrite=overwrite)
 
 
@@ -324,12 +333,13 @@ def markdown_report(
     extra: str = "",
     comparisons: Mapping[str, Any] | None = None,
     determinacy: Determinacy | None = None,
+    json_file: str = "report.json",
 ) -> str:
     """The text of ``report.md``: :func:`paper_tables`, ``comparisons``' verdict tables and ``extra`` Markdown.
 
-    ``extra`` is e.g. the MPEG section of ``--mpeg``; ``determinacy`` as in :func:`paper_tables`.
+    ``extra`` is e.g. the MPEG section of ``--mpeg``; ``determinacy`` and ``json_file`` as in :func:`paper_tables`.
     """
-    text = "# torchmeshmetric evaluation\n\n" + paper_tables(methods, determinacy=determinacy)
+    text = "# torchmeshmetric evaluation\n\n" + paper_tables(methods, determinacy=determinacy, json_file=json_file)
     if comparisons:
         text += "\n## Comparisons with confidence\n\n" + comparison_markdown(comparisons)
     if extra:
