@@ -199,3 +199,42 @@ def test_determinacy_rerun_resumes_the_nudged_registrations_from_the_cache(tmp_p
         first, again = (json.loads(re.sub('"cached": (true|false)', '"cached": null', t)) for t in (first, again))
         assert without_timings(first) == without_timings(again), name
         assert (tmp_path / "first" / f"{name}.md").read_text() == (tmp_path / "again" / f"{name}.md").read_text()
+
+
+def test_an_out_dir_that_is_a_file_is_refused_before_any_evaluation(tmp_path, campaign, capsys, monkeypatch):
+    calls = tmp_path / "calls"
+    calls.mkdir()
+    monkeypatch.setenv("TMM_TEST_CALLS", str(calls))
+    notes = tmp_path / "notes.txt"
+    notes.write_text("mine")
+    for extra in ([], ["--overwrite"]):  # --overwrite replaces reports in the folder, never a file in its place
+        assert main(["campaign", str(campaign), "--out-dir", str(notes), "--determinacy", "float32", *extra]) == 1
+        err = capsys.readouterr().err
+        assert f"--out-dir {str(notes)!r}: {str(notes)!r} is a file, not a folder" in err, err
+    assert notes.read_text() == "mine" and not any(calls.iterdir())
+
+
+def test_a_cache_folder_that_is_a_file_is_refused_before_any_evaluation(tmp_path, campaign, capsys, monkeypatch):
+    calls = tmp_path / "calls"
+    calls.mkdir()
+    monkeypatch.setenv("TMM_TEST_CALLS", str(calls))
+    (tmp_path / "regs").write_text("mine")
+    text = campaign.read_text().replace("two_sided = true", 'two_sided = true\ncache_dir = "regs"')
+    campaign.write_text(text)
+    with pytest.raises(ManifestError, match=r"option 'cache_dir' must be a folder, found the file '.*regs'"):
+        load_campaign(campaign)
+    # --determinacy's folder in a cache given on the command line, or in the manifest's cache folder
+    campaign.write_text(text.replace('"regs"', '"cache"'))
+    (tmp_path / "cache").mkdir()
+    (tmp_path / "cache" / "determinacy").write_text("mine")
+    argv = ["campaign", str(campaign), "--determinacy", "float32"]
+    assert main(argv) == 1
+    assert "found the file" in capsys.readouterr().err and not any(calls.iterdir())
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "determinacy").write_text("mine")
+    with pytest.raises(SystemExit):
+        main([*argv, "--cache-dir", str(tmp_path / "other")])
+    err = capsys.readouterr().err
+    blocker = str(tmp_path / "other" / "determinacy")
+    assert f"argument --cache-dir: expected a folder (created when needed), found the file {blocker!r}" in err
+    assert not any(calls.iterdir())

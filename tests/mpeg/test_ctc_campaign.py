@@ -163,6 +163,22 @@ def test_checks_before_any_frame(campaign: tuple[Path, Path], tmp_path: Path, ca
     assert "ctc-campaign: anchor" not in err and not (tmp_path / "c").exists()
 
 
+def test_an_out_dir_that_is_a_file_is_refused_before_any_frame(
+    campaign: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    # With --overwrite too: that option replaces reports in the folder, never a file standing for the folder.
+    manifest, _ = campaign
+    notes = tmp_path / "notes.txt"
+    notes.write_text("mine")
+    for extra in ([], ["--overwrite"]):
+        argv = ["ctc-campaign", str(manifest), "--out-dir", str(notes), "--cache-dir", str(tmp_path / "c"), *extra]
+        assert main(argv) == 1
+        err = capsys.readouterr().err
+        assert f"--out-dir {str(notes)!r}: {str(notes)!r} is a file, not a folder" in err, err
+        assert "ctc-campaign: anchor" not in err and not (tmp_path / "c").exists()
+    assert notes.read_text() == "mine"
+
+
 @pytest.mark.parametrize(
     ("edit", "message"),
     [

@@ -18,6 +18,7 @@ from torchmeshmetric._atomic import atomic_write
 from torchmeshmetric._console import say
 from torchmeshmetric._format import json_safe
 from torchmeshmetric.cli._outputs import CLIError, output_set
+from torchmeshmetric.cli.options import NUDGED_CACHE
 from torchmeshmetric.data.sequence import load_sequence
 from torchmeshmetric.evaluation.distributed import SequenceWork, evaluate_sequences
 from torchmeshmetric.evaluation.pipeline import check_methods, evaluate_sequence
@@ -33,7 +34,6 @@ from torchmeshmetric.viz.plots import mpeg_figure, png_bytes
 __all__ = [
     "NudgedRun",
     "determinacy_of",
-    "NUDGED_CACHE",
     "nudged_cache",
     "nudged_run",
     "say_dtype_floor",
@@ -353,14 +353,11 @@ def evaluate_methods(
     }
 
 
-#: The folder under ``--cache-dir`` (or a campaign's cache folder) where ``--determinacy`` keeps the registrations
-#: of the nudged frames: a rerun resumes the second run as it resumes the first, and the folder's own entries stay
-#: those of the input (the nudged frames are not the input; content keys keep the two apart anyway).
-NUDGED_CACHE = "determinacy"
-
-
 def nudged_cache(directory: str | os.PathLike[str] | None) -> RegistrationCache:
-    """The registration cache of ``--determinacy``'s second run: ``directory/determinacy`` or, without, memory."""
+    """The registration cache of ``--determinacy``'s second run: ``directory/determinacy`` or, without, memory.
+
+    The folder's name is :data:`~torchmeshmetric.cli.options.NUDGED_CACHE`.
+    """
     return RegistrationCache(None if directory is None else Path(directory) / NUDGED_CACHE)
 
 

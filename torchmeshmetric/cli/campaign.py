@@ -30,7 +30,14 @@ def run(args: argparse.Namespace) -> int:
     by all processes. With --determinacy, every sequence is evaluated again on nudged frames, and every table (the
     combined ones and each sequence's) prints only the digits both runs share.
     """
-    from torchmeshmetric.cli._outputs import CLIError, check_writable, folder_inputs, make_folder, output_set
+    from torchmeshmetric.cli._outputs import (
+        CLIError,
+        check_folder,
+        check_writable,
+        folder_inputs,
+        make_folder,
+        output_set,
+    )
     from torchmeshmetric.cli._shared import (
         NudgedRun,
         device_of,
@@ -74,6 +81,7 @@ def run(args: argparse.Namespace) -> int:
             inputs += folder_inputs(f"sequence {seq.name!r}: original", seq.original)
             for m, d in seq.methods.items():
                 inputs += folder_inputs(f"sequence {seq.name!r}: method {m!r}", d)
+        check_folder(out, "--out-dir", may_create=True)  # a file there is refused now, not after the campaign ran
         check_writable(targets if out.is_dir() else [out], args.overwrite, inputs=inputs, what="--out-dir")
     sequences = []
     for seq in campaign.sequences:
@@ -85,6 +93,8 @@ def run(args: argparse.Namespace) -> int:
         check_methods(original, methods, sequence=seq.name)
         sequences.append((seq.name, original, methods))
     cache = RegistrationCache(args.cache_dir or campaign.cache_dir)
+    # --determinacy's own, made now: a file in the way of its folder is refused before the first run, not after
+    second = None if args.determinacy is None else nudged_cache(args.cache_dir or campaign.cache_dir)
     options = fast_registration_options() if campaign.registration == "fast" else None
 
     def evaluate(each: list[tuple[str, list[Any], dict[str, list[Any]]]], registrations: RegistrationCache) -> Any:
@@ -99,9 +109,8 @@ def run(args: argparse.Namespace) -> int:
 
     evaluated = evaluate(sequences, cache)
     nudged: list[NudgedRun] = []
-    if args.determinacy is not None:  # every rank: the second run is sharded like the first
+    if second is not None:  # --determinacy, every rank: the second run is sharded like the first
         say(f"--determinacy {args.determinacy}: evaluating again on nudged frames")
-        second = nudged_cache(args.cache_dir or campaign.cache_dir)  # shared by the sequences, as the run's cache is
         nudged = [nudged_run(original, methods, args.determinacy, second) for _, original, methods in sequences]
         work = [(name, run.original, run.methods) for (name, _, _), run in zip(sequences, nudged, strict=True)]
         again = evaluate(work, second)

@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     and memory ratios; class and overall averages) and one RD-curve PNG per sequence and lossy condition. Under
     torchrun the frames are shared by all processes and rank 0 writes the same files.
     """
-    from torchmeshmetric.cli._outputs import check_writable, make_folder, output_set
+    from torchmeshmetric.cli._outputs import check_folder, check_writable, make_folder, output_set
     from torchmeshmetric.mpeg.ctc.manifest import load_ctc_campaign
 
     start = time.perf_counter()
@@ -56,6 +56,7 @@ def run(args: argparse.Namespace) -> int:
             if not c.lossless and len(c.rates) > 1
             for s in campaign.sequences
         ]
+    check_folder(out, "--out-dir", may_create=True)  # a file there is refused now, not after the campaign ran
     check_writable(
         [out / n for n in names] if out.is_dir() else [out],
         args.overwrite,
@@ -64,8 +65,6 @@ def run(args: argparse.Namespace) -> int:
     )
     cache = Path(args.cache_dir) if args.cache_dir else None
     if cache is not None or campaign.cache_dir is not None:
-        from torchmeshmetric.cli._outputs import check_folder
-
         check_folder(cache or campaign.cache_dir, "cache folder", may_create=True)  # type: ignore[arg-type]
     from torchmeshmetric.mpeg.ctc.campaign import run_ctc_campaign
 

@@ -15,6 +15,7 @@ from typing import Any
 
 __all__ = [
     "add_cache_dir",
+    "NUDGED_CACHE",
     "as_option_error",
     "cache_folder",
     "corner",
@@ -203,15 +204,22 @@ def add_html(p: argparse.ArgumentParser, help_text: str) -> None:
     p.add_argument("--html", action="store_true", help=help_text)
 
 
+#: The folder under ``--cache-dir`` (or a campaign's cache folder) where ``--determinacy`` keeps the registrations
+#: of the nudged frames: a rerun resumes the second run as it resumes the first, and the folder's own entries stay
+#: those of the input (the nudged frames are not the input; content keys keep the two apart anyway).
+NUDGED_CACHE = "determinacy"
+
+
 def cache_folder(text: str) -> str:
-    """A ``--cache-dir``: a path (:func:`path_argument`) that is not an existing file.
+    """A ``--cache-dir``: a path (:func:`path_argument`) that is not an existing file, nor its :data:`NUDGED_CACHE`.
 
     Checked when the command line is read: the cache stores an entry only after its registration ran.
     """
     from pathlib import Path
 
-    if Path(path_argument(text)).is_file():
-        raise argparse.ArgumentTypeError(f"expected a folder (created when needed), found the file {text!r}")
+    for folder in (Path(path_argument(text)), Path(text) / NUDGED_CACHE):
+        if folder.is_file():
+            raise argparse.ArgumentTypeError(f"expected a folder (created when needed), found the file {str(folder)!r}")
     return text
 
 

@@ -187,6 +187,8 @@ def load_campaign(path: str | os.PathLike[str]) -> Campaign:
         slugs[slug] = name
         sequences.append(CampaignSequence(name, base / original, {m: base / f for m, f in methods.items()}))
     cache_dir = options.get("cache_dir", "")
+    if cache_dir and (base / cache_dir).is_file():  # refused now: the cache stores entries after they were computed
+        raise ManifestError(f"{where}: option 'cache_dir' must be a folder, found the file {str(base / cache_dir)!r}")
     return Campaign(
         sequences, options.get("two_sided", True), registration, base / cache_dir if cache_dir else None, file
     )
