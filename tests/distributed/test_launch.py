@@ -89,3 +89,23 @@ def test_a_rank_that_cannot_join_and_is_not_stopped_says_why_with_its_rank(monke
         "torchmeshmetric compare: error: rank 1: could not join the job's process group: Gloo connectFullMesh failed "
         "with ... Connection closed by peer [127.0.0.1]:28810"
     )
+
+
+@pytest.mark.parametrize("rank", ["0", "1"])
+def test_a_usage_error_or_help_is_printed_by_rank_0_alone(monkeypatch, capsys, rank):
+    # Every rank reads the same command line: one message for the job, every rank exiting with argparse's code.
+    monkeypatch.setenv("WORLD_SIZE", "2")
+    monkeypatch.setenv("RANK", rank)
+    with pytest.raises(SystemExit) as info:
+        main(["compare", "--original", "o", "--method", "A=a", "--method", "B=b", "--determinacy", "400"])
+    out, err = capsys.readouterr()
+    assert info.value.code == 2 and out == ""
+    assert ("argument --determinacy: expected 'float32' or a number of decimals 0..15, found '400'" in err) == (
+        rank == "0"
+    )
+    assert (err == "") == (rank == "1")
+    with pytest.raises(SystemExit) as info:
+        main(["evaluate", "--help"])
+    out, err = capsys.readouterr()
+    assert info.value.code == 0 and err == "" and ("--determinacy" in out) == (rank == "0")
+    assert (out == "") == (rank == "1")

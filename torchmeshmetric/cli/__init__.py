@@ -35,10 +35,11 @@ torchmeshmetric ...): the processes share the work and rank 0 prints and writes 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
 import sys
-from collections.abc import Collection, Sequence
+from collections.abc import Collection, Iterator, Sequence
 from typing import NamedTuple
 
 from torchmeshmetric._console import say
@@ -201,6 +202,20 @@ def _run(args: argparse.Namespace) -> int:
         return _error(args.command, exc)
 
 
+@contextlib.contextmanager
+def _silent_unless_rank_0() -> Iterator[None]:
+    """Under torchrun, a rank other than 0 prints nothing while the command line is read.
+
+    Every rank reads the same arguments, so a usage error (or ``--help``) is printed once for the job, by rank 0,
+    and every rank exits with its code (2), as the errors of a running command (docs/scaling.md).
+    """
+    if os.environ.get("RANK", "0") == "0" or os.environ.get("WORLD_SIZE", "1") == "1":
+        yield
+        return
+    with open(os.devnull, "w") as sink, contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
+        yield
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code.
 
@@ -215,7 +230,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     with _interrupts.handled(own_process=argv is None):
         try:
             arguments = sys.argv[1:] if argv is None else list(argv)
-            args = _parser(_named_command(arguments)).parse_args(arguments)
+            parser = _parser(_named_command(arguments))
+            with _silent_unless_rank_0():
+                args = parser.parse_args(arguments)
             return _run(args)
         except KeyboardInterrupt:
             return _interrupts.interrupted()
