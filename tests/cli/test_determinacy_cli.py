@@ -122,7 +122,7 @@ def test_compare_marks_verdicts_the_nudge_changes(capsys, tmp_path, known_regist
         assert f"{set_name}: {cells}" in floors
 
 
-@pytest.mark.parametrize("bad", ["float16", "-2", "16", "x"])
+@pytest.mark.parametrize("bad", ["float16", "-2", "16", "x", "\u0663", "\u00b2"])  # Arabic-Indic 3, superscript 2
 def test_bad_rounding_is_an_argument_error(capsys, sequence, bad):
     orig, simp = sequence
     with pytest.raises(SystemExit) as exit_info:
@@ -200,3 +200,12 @@ def test_the_note_names_the_json_that_keeps_the_full_values(capsys, tmp_path, se
     printed, md = capsys.readouterr().out, (tmp_path / "walk.md").read_text()
     for text in (printed, md):
         assert "walk.json keeps the full values and, under 'determinacy'" in text and "report.json" not in text
+
+
+def test_the_rounding_is_recorded_canonically(tmp_path, sequence, known_registration):
+    orig, simp = sequence
+    out = tmp_path / "r.json"
+    argv = ["evaluate", "--original", str(orig), "--simplified", str(simp), "--out", str(out), "--determinacy", "015"]
+    assert main(argv) == 0
+    report = json.loads(out.read_text())
+    assert report["settings"]["determinacy"] == "15" and report["determinacy"]["rounding"] == "15 decimals"

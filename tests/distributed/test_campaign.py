@@ -136,6 +136,11 @@ def test_determinacy_digits_are_each_sequence_reports_digits(tmp_path, campaign,
     assert main(["campaign", str(campaign), "--out-dir", str(out), "--determinacy", "1", "--temporal"]) == 0
     stdout, err = capsys.readouterr()
     assert "--determinacy 1: evaluating again on nudged frames" in err
+    # one temporal section per sequence, each named; one line for the files, once the whole set is written
+    assert "## Temporal metrics of sequence 'walk'" in stdout and "## Temporal metrics of sequence 'run fast'" in stdout
+    assert [line for line in err.splitlines() if line.startswith("wrote")] == [
+        f"wrote {out / 'campaign'}.json/.md/.csv and one report per sequence"
+    ]
     combined = json.loads((out / "campaign.json").read_text())
     assert combined["settings"]["determinacy"] == "1"
     changes = combined["determinacy"]["changes"]

@@ -92,7 +92,7 @@ def test_a_unit_finer_than_the_frames_dtype_is_raised_to_it():
     assert raised_fraction([frame], 15) == pytest.approx(1 - 7 / 1500)
 
 
-@pytest.mark.parametrize("bad", ["float16", "-1", 16, True, 2.5, ""])
+@pytest.mark.parametrize("bad", ["float16", "-1", 16, True, 2.5, "", "\u0663"])
 def test_storage_unit_rejects_other_roundings(bad):
     with pytest.raises(ValueError, match=r"rounding: expected 'float32' or a number of decimals 0\.\.15"):
         storage_unit(bad)

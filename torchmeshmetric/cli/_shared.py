@@ -125,11 +125,13 @@ def write_reports(
     temporal: dict[str, Any] | None = None,
     meshes: Sequence[Any] = (),
     determinacy: Any = None,
+    say_written: bool = True,
 ) -> None:
     """Write the JSON, Markdown and CSV reports (and the --mpeg, --html ones) as one set; nothing when no --out.
 
     ``meshes``: the layers of the ``--html`` page's viewer (:func:`html_layers`); ``determinacy``: the
-    ``--determinacy`` measurement (the tables' digits, and ``"determinacy"`` in the JSON).
+    ``--determinacy`` measurement (the tables' digits, and ``"determinacy"`` in the JSON); ``say_written``:
+    ``False`` inside a caller's larger set (a campaign's), which says what it wrote once the whole set is.
     """
     if not paths:
         return
@@ -169,7 +171,8 @@ def write_reports(
             written.append(
                 _write_html_report(paths, report, methods, extra, comparisons, figures, meshes, overwrite, determinacy)
             )
-    say("wrote " + ", ".join(str(p) for p in written))
+    if say_written:
+        say("wrote " + ", ".join(str(p) for p in written))
 
 
 def _write_html_report(
@@ -247,8 +250,11 @@ def temporal_methods(
     registration_options: dict[str, Any] | None = None,
     determinacy: Any = None,
     nudged: NudgedRun | None = None,
+    sequence: str | None = None,
 ) -> tuple[dict[str, Any], Any]:
     """KG, KSO and STED of every method (``--temporal``; docs/temporal.md), printed as a Markdown table.
+
+    ``sequence``: a campaign's sequence, named in the printed section's title (a campaign prints one per sequence).
 
     With ``--determinacy`` (``determinacy`` and the ``nudged`` run of :func:`determinacy_of`), the figures are
     computed again on the nudged frames, on that run's registrations, and the returned determinacy holds their
@@ -286,7 +292,10 @@ def temporal_methods(
             {name: f.as_dict() for name, f in again.items()},
             FIGURE_NAMES,
         )
-    print(temporal_markdown(out, determinacy=determinacy))
+    section = temporal_markdown(out, determinacy=determinacy)
+    if sequence is not None:
+        section = section.replace("## Temporal metrics", f"## Temporal metrics of sequence {sequence!r}", 1)
+    print(section)
     return out, determinacy
 
 

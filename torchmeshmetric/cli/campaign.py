@@ -140,6 +140,7 @@ def run(args: argparse.Namespace) -> int:
             registration_options=options,
             determinacy=determinacies[name],
             nudged=nudged_runs.get(name),
+            sequence=name,
         )
     if out is None:
         return 0  # (--html without --out-dir was refused before any work)
@@ -169,6 +170,7 @@ def run(args: argparse.Namespace) -> int:
                 comparisons=comparisons,
                 temporal=temporal[seq.name],
                 determinacy=determinacies[seq.name],
+                say_written=False,  # not yet: the campaign's set is written as a whole, or not at all
             )
         combined = campaign_report_dict(results, settings=settings, determinacy=determinacy)
         write_json(out / f"{COMBINED}.json", combined, overwrite=args.overwrite)

@@ -189,14 +189,17 @@ def add_determinacy(p: argparse.ArgumentParser, again: str, docs: str) -> None:
 
 
 def parse_rounding(text: str) -> str:
-    """``--determinacy``'s value, checked: ``"float32"`` or a number of decimals (0..15)."""
+    """``--determinacy``'s value, checked and canonical: ``"float32"`` or a number of decimals 0..15 (``"015"``: 15).
+
+    The canonical text is what the messages and the report's settings say.
+    """
     from torchmeshmetric.evaluation.determinacy import storage_unit
 
     try:
         storage_unit(text)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(f"expected 'float32' or a number of decimals 0..15, found {text!r}") from exc
-    return text
+    return text if text == "float32" else str(int(text))
 
 
 def add_html(p: argparse.ArgumentParser, help_text: str) -> None:

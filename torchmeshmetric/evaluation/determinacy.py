@@ -55,7 +55,7 @@ def storage_unit(rounding: str | int) -> str:
     """
     if rounding == "float32":
         return "float32"
-    if isinstance(rounding, str) and rounding.isdigit():
+    if isinstance(rounding, str) and rounding.isascii() and rounding.isdigit():  # not "٣" nor "²"
         rounding = int(rounding)
     if isinstance(rounding, int) and not isinstance(rounding, bool) and 0 <= rounding <= 15:
         return f"{rounding} decimal{'' if rounding == 1 else 's'}"
