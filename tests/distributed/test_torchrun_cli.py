@@ -49,29 +49,33 @@ def exact_registration(monkeypatch, tmp_path):
     return lambda: sorted(int(p.name.split("-")[0]) for p in calls.iterdir())
 
 
+def _report_folders(tmp_path):
+    """Two folders for reports of one name (the note under the tables names its JSON)."""
+    (tmp_path / "single").mkdir(), (tmp_path / "dist").mkdir()
+    return tmp_path / "single" / "r.json", tmp_path / "dist" / "r.json"
+
+
 def test_two_processes_write_the_single_process_report(tmp_path, frames, exact_registration, capsys):
-    assert main(_compare_args(frames, tmp_path / "single.json", "--threads", "1")) == 0
+    single, dist = _report_folders(tmp_path)
+    assert main(_compare_args(frames, single, "--threads", "1")) == 0
     capsys.readouterr()
-    code, stdout, stderr = finish(torchrun(MODULE, *_compare_args(frames, tmp_path / "dist.json")))
+    code, stdout, stderr = finish(torchrun(MODULE, *_compare_args(frames, dist)))
     assert code == 0, stderr
-    same_report_set(tmp_path / "single.json", tmp_path / "dist.json")
+    same_report_set(single, dist)
     assert stdout.count("Table I:") == 1  # rank 0 alone prints the tables
     assert "frame pair 8/8" in stderr  # one display counting both methods' pairs on both ranks
-    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith("dist")) == [
-        "dist.csv",
-        "dist.json",
-        "dist.md",
-    ]
+    assert sorted(p.name for p in dist.parent.iterdir()) == ["r.csv", "r.json", "r.md"]
 
 
 def test_determinacy_under_torchrun_is_the_single_process_one(tmp_path, frames, exact_registration, capsys):
     extra = ("--determinacy", "float32")
-    assert main(_compare_args(frames, tmp_path / "single.json", "--threads", "1", *extra)) == 0
+    single, dist = _report_folders(tmp_path)
+    assert main(_compare_args(frames, single, "--threads", "1", *extra)) == 0
     capsys.readouterr()
-    code, stdout, stderr = finish(torchrun(MODULE, *_compare_args(frames, tmp_path / "dist.json", *extra)))
+    code, stdout, stderr = finish(torchrun(MODULE, *_compare_args(frames, dist, *extra)))
     assert code == 0, stderr
-    same_report_set(tmp_path / "single.json", tmp_path / "dist.json")  # the nudged run too: the same draws
-    assert "determinacy" in json.loads((tmp_path / "dist.json").read_text())
+    same_report_set(single, dist)  # the nudged run too: the same draws
+    assert "determinacy" in json.loads(dist.read_text())
     assert stdout.count("Table I:") == 1 and "this run's input determines" in stdout
 
 
