@@ -209,3 +209,27 @@ def test_ctc_page(capsys, tmp_path):
     assert _html_tables(page) == _md_tables((tmp_path / "rep.md").read_text())
     assert page.count('<img alt="per frame"') == 1
     _check_in_browser(tmp_path / "rep.html", tmp_path, meshes=False)
+
+
+def test_layer_names_cannot_break_the_pages_script_block(tmp_path):
+    # "<!--" then "<script" inside a script block put HTML's parser in its double-escaped state, where "</script>"
+    # no longer ends the block: the tables and the page's own script became its text (found by review).
+    from torchmeshmetric.viz.html_report import html_page
+
+    sphere = trimesh.creation.icosphere(subdivisions=1)
+    errors = torch.from_numpy(np.abs(sphere.vertices[:, 2]))
+    names = ["x<!--", "<script> y", "</script><b>z"]
+    layers = [error_mesh(name, sphere, errors, what="z", vmax=1.0) for name in names]
+    markdown = "### Table\n\n| a | b | c | d |\n|---|---|---|---|\n| 1 | 2 | 3 | 2.5 |\n| 4 | 5 | 6 | 1.5 |\n"
+    page = html_page("names", markdown, meshes=layers)
+    block = re.search(r'id="tmm-meshes">(.*?)</script>', page, flags=re.S).group(1)
+    assert "<" not in block and [layer["name"] for layer in json.loads(block)] == names
+    assert page.count("<table") == 1 and "&lt;!--" in page  # the names shown escaped in the layer list
+    path = tmp_path / "names.html"
+    path.write_text(page, encoding="utf-8")
+    if CHROMIUM is not None:
+        opened = open_page(path, tmp_path)
+        assert opened.errors == [] and opened.console == []
+        # the table is live (sorted by a click on its header: the page's script ran) and the viewer drew; before
+        # the fix the click sorted nothing, the serialized DOM still showing the swallowed table as text
+        assert opened.sorted_column == ["1.5", "2.5"] and len(drawn_pixels(opened)) > 0

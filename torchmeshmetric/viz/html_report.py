@@ -342,7 +342,9 @@ def html_page(
     parts += [f'<p class="note">{_inline(n)}</p>' for n in notes]
     if meshes:
         items = "".join(_layer_item(i, layer) for i, layer in enumerate(meshes))
-        data = json.dumps([_layer_json(layer) for layer in meshes]).replace("</", "<\\/")
+        # No "<" in the block: "</script" would end it, and "<!--" then "<script" would make the parser run past
+        # its end (HTML's double-escaped script state), swallowing the page. JSON reads \u003c as "<".
+        data = json.dumps([_layer_json(layer) for layer in meshes]).replace("<", "\\u003c")
         parts.append(
             '<section id="viewer"><h2>Error-coloured meshes</h2><div class="viewer">'
             '<canvas id="tmm-canvas" width="960" height="560"></canvas>'
