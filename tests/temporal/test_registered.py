@@ -127,6 +127,15 @@ def test_figures_choose_their_form() -> None:
         temporal_figures(frames, _subdivided(b, faces), registered=False)
     with pytest.raises(ShapeError, match="distorted: expected 3 frames"):
         temporal_figures(frames, _meshes(b, faces)[:2])
+    # The same distorted surfaces with their vertices numbered otherwise: same counts, other triangles. The exact
+    # forms would compare unrelated vertices (found by review: KG 146 where the surfaces are equal); not exact.
+    perm = torch.randperm(a.shape[1], generator=torch.Generator().manual_seed(0))
+    renumbered = [Mesh(v[perm], torch.argsort(perm)[faces]) for v in b]
+    with pytest.raises(ShapeError, match="registered=False"):
+        temporal_figures(frames, renumbered, registered=False)
+    # reordered faces and rotated indices within them keep every vertex: still the exact forms, the same figures
+    reordered = [Mesh(v, faces.flip(0).roll(1, dims=1)) for v in b]
+    assert temporal_figures(frames, reordered) == exact
     with pytest.raises(ShapeError, match="registrations: expected 2"):
         temporal_figures(frames, _meshes(b, faces), registered=True, registrations=_true_registrations(frames)[:1])
 

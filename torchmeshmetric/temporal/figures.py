@@ -10,6 +10,7 @@ from collections.abc import Sequence
 from typing import NamedTuple
 
 import torch
+from torch import Tensor
 
 from torchmeshmetric._checks import ShapeError
 from torchmeshmetric.evaluation.pipeline import RegisterFn, RegistrationOptions
@@ -59,12 +60,30 @@ class TemporalFigures(NamedTuple):
 def same_connectivity(original: Sequence[Mesh], distorted: Sequence[Mesh]) -> bool:
     """Whether the exact forms apply to two sequences of meshes.
 
-    They do when every frame of both has the original frame 0's vertex count and every original frame its faces.
+    They do when every frame of both has the original frame 0's vertex count and its triangles: the same vertex
+    triples, in any face order and any order within a face. The exact forms compare vertex ``i`` of both, so the
+    distorted frames' faces are the evidence that their vertex ``i`` is the original's: the same surfaces with their
+    vertices numbered otherwise have the same counts and other triples (measured by the registered forms instead).
+
+    Example:
+        >>> import trimesh
+        >>> sphere = as_mesh(trimesh.creation.icosphere(subdivisions=1))
+        >>> flipped = Mesh(sphere.verts, sphere.faces.flip(0).roll(1, dims=1))  # other order, same triangles
+        >>> renumbered = Mesh(sphere.verts.flip(0), sphere.num_verts - 1 - sphere.faces)
+        >>> same_connectivity([sphere, sphere], [flipped, sphere]), same_connectivity([sphere], [renumbered])
+        (True, False)
     """
     first = original[0]
+    triangles = _triangles(first.faces)
     return all(m.num_verts == first.num_verts for m in (*original, *distorted)) and all(
-        m.faces.shape == first.faces.shape and bool(torch.equal(m.faces.cpu(), first.faces.cpu())) for m in original
+        m.faces.shape == first.faces.shape and bool(torch.equal(_triangles(m.faces), triangles))
+        for m in (*original[1:], *distorted)
     )
+
+
+def _triangles(faces: Tensor) -> Tensor:
+    """``faces`` as a set: each face's indices sorted, then the faces sorted (duplicates kept once)."""
+    return torch.unique(faces.detach().cpu().sort(dim=1).values, dim=0)
 
 
 def temporal_figures(
@@ -128,7 +147,7 @@ def temporal_figures(
     if registered is False and not exact:
         raise ShapeError(
             "registered=False: the exact forms need every frame of both sequences to have the original frame 0's "
-            "vertices and every original frame its faces; these differ (use the registered forms)"
+            "vertex count and triangles (the same vertex triples); these differ (use the registered forms)"
         )
     use_registered = not exact if registered is None else registered
     if use_registered:
