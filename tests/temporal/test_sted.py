@@ -1,5 +1,7 @@
 from __future__ import annotations
 
+import math
+
 import pytest
 import torch
 
@@ -82,3 +84,40 @@ def test_bad_input_is_named(sphere_animation: tuple[torch.Tensor, torch.Tensor])
         sted(a, a, faces, dt=0.0)
     with pytest.raises(ValueError, match="window"):
         sted(a, a, faces, window=-1)
+
+
+@pytest.mark.parametrize("dt", [math.inf, math.nan, 1e200, 1e-200, -1.0])
+def test_a_step_whose_square_is_no_finite_positive_float_is_refused(sphere_animation, dt) -> None:
+    # STED squares dt: 1e200 overflowed and inf gave a NaN STED_t, which the final root then reported as STED 0.
+    a, faces = sphere_animation
+    with pytest.raises(ValueError, match=r"dt: expected a float > 0 whose square is a finite float > 0"):
+        sted(a, a * 1.1, faces, dt=dt)
+
+
+@pytest.mark.parametrize("bad", [None, "a", True])
+def test_weights_that_are_not_numbers_are_named(sphere_animation, bad) -> None:
+    a, faces = sphere_animation
+    for name in ("dt", "c"):
+        with pytest.raises(TypeError, match=f"{name}: expected a float, found"):
+            sted(a, a, faces, **{name: bad})
+
+
+def test_faces_without_an_edge_and_empty_batches(sphere_animation) -> None:
+    a, faces = sphere_animation
+    # a face of one repeated vertex has no edge: STED_s and STED_t were NaN and STED read 0
+    with pytest.raises(ValueError, match="faces: no face has two distinct vertices"):
+        sted(a, a * 1.1, torch.zeros(1, 3, dtype=torch.int64))
+    nothing = a.new_zeros(0, *a.shape)  # a batch of no sequence, (0, F, V, 3): empty figures, as kg_error gives
+    assert all(x.shape == (0,) for x in sted(nothing, nothing, faces))
+    with pytest.raises(ShapeError, match=r"points: expected \(\.\.\., V, 3\) with V >= 1, found \(0, 3\)"):
+        largest_vertex_distance(torch.zeros(0, 3))
+
+
+def test_the_root_keeps_a_nan() -> None:
+    from torchmeshmetric.temporal.sted import _safe_sqrt
+
+    x = torch.tensor([4.0, 0.0, math.nan], dtype=torch.float64, requires_grad=True)
+    y = _safe_sqrt(x)
+    assert y[0].item() == 2.0 and y[1].item() == 0.0 and math.isnan(y[2].item())
+    y[:2].sum().backward()
+    assert x.grad is not None and x.grad[:2].tolist() == [0.25, 0.0]

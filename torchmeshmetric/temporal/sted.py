@@ -32,11 +32,13 @@ at all has a local error of zero.
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import torch
 from torch import Tensor
 
+from torchmeshmetric._checks import ShapeError
 from torchmeshmetric.temporal.sequences import check_faces_of, check_sequence_pair
 from torchmeshmetric.temporal.topology import Neighbourhoods, neighbourhoods
 
@@ -72,9 +74,10 @@ class StedResult(NamedTuple):
 
 
 def _safe_sqrt(x: Tensor) -> Tensor:
-    """``sqrt(x)`` for ``x >= 0`` with a finite (zero) gradient at zero."""
+    """``sqrt(x)`` for ``x >= 0`` with a finite (zero) gradient at zero; NaN stays NaN (never a silent 0)."""
     positive = x > 0
-    return torch.where(positive, torch.where(positive, x, torch.ones_like(x)).sqrt(), torch.zeros_like(x))
+    zero_or_nan = torch.where(torch.isnan(x), x, torch.zeros_like(x))
+    return torch.where(positive, torch.where(positive, x, torch.ones_like(x)).sqrt(), zero_or_nan)
 
 
 def _lengths(verts: Tensor, edges: Tensor) -> Tensor:
@@ -124,6 +127,10 @@ def largest_vertex_distance(points: Tensor) -> Tensor:
         >>> largest_vertex_distance(torch.tensor([[0.0, 0, 0], [3.0, 4.0, 0], [1.0, 1.0, 0]])).item()
         5.0
     """
+    if points.ndim < 2 or points.shape[-1] != 3 or points.shape[-2] == 0:
+        raise ShapeError(f"points: expected (..., V, 3) with V >= 1, found {tuple(points.shape)}")
+    if points.numel() == 0:  # an empty batch: no distance to compute
+        return points.new_zeros(points.shape[:-2])
     flat = points.reshape(-1, *points.shape[-2:])
     out = []
     for x in flat:
@@ -168,6 +175,19 @@ def _temporal(original: Tensor, distorted: Tensor, referenced: Tensor, dt: float
     return rel[..., referenced].mean(dim=(-1, -2))
 
 
+def _check_weight(name: str, value: object, *, zero: bool) -> None:
+    """``dt`` and ``c``: real numbers whose square is a finite float, positive (``dt``) or >= 0 (``c``).
+
+    STED uses their squares: ``dt = 1e200`` overflows (then STED_t is NaN) and ``dt = 1e-200`` underflows to zero.
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise TypeError(f"{name}: expected a float, found {type(value).__name__} {value!r}")
+    square = float(value) * float(value)
+    if not (math.isfinite(square) and (square > 0 or (zero and value == 0)) and value >= 0):
+        bound = ">= 0" if zero else "> 0"
+        raise ValueError(f"{name}: expected a float {bound} whose square is a finite float {bound}, found {value!r}")
+
+
 def sted(
     original: Tensor,
     distorted: Tensor,
@@ -195,8 +215,9 @@ def sted(
         ShapeError, DTypeError, NonFiniteError, DeviceError: see
             :func:`~torchmeshmetric.temporal.sequences.check_sequence_pair` (and fewer than 2 frames).
         IndexRangeError: faces outside the vertices.
-        ValueError: ``dt`` not positive, ``window`` negative, ``c`` negative, or an original whose frame 0 is a
-            single point.
+        ValueError: ``dt`` not positive, ``window`` negative, ``c`` negative (or a square that overflows or
+            underflows), faces without an edge, or an original whose frame 0 is a single point.
+        TypeError: ``dt`` or ``c`` not a number.
 
     Example:
         >>> import trimesh
@@ -210,13 +231,13 @@ def sted(
     """
     a, b = check_sequence_pair(original, distorted, min_frames=2)
     f = check_faces_of(faces, a.shape[-2]).to(a.device)
-    if not dt > 0:
-        raise ValueError(f"dt: expected a positive float, found {dt!r}")
+    _check_weight("dt", dt, zero=False)
     if not isinstance(window, int) or isinstance(window, bool) or window < 0:
         raise ValueError(f"window: expected an int >= 0, found {window!r}")
-    if not c >= 0:
-        raise ValueError(f"c: expected a float >= 0, found {c!r}")
+    _check_weight("c", c, zero=True)
     nb = neighbourhoods(f, a.shape[-2])
+    if nb.edges.shape[0] == 0:
+        raise ValueError("faces: no face has two distinct vertices: no edge, nothing for STED to measure")
     referenced = torch.zeros(a.shape[-2], dtype=torch.bool, device=a.device)
     referenced[nb.edges.flatten()] = True
     spatial = _spatial(a, b, nb, referenced)
