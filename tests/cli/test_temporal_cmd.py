@@ -52,6 +52,18 @@ def test_bad_input_is_one_line(tmp_path, capsys):
     assert "is a file; expected a folder of frames" in capsys.readouterr().err
     assert main(["temporal", str(orig / "g_%04d.ply"), str(orig)]) == 1
     assert "no frame file" in capsys.readouterr().err
+    # a frame range selects a pattern's frames; a folder's frames have no numbers to select by
+    assert main(["temporal", str(orig), str(orig), "--first-frame", "1", "--last-frame", "1"]) == 1
+    assert f"--first-frame/--last-frame: they select a printf pattern's frames; ORIGINAL {str(orig)!r} is a folder" in (
+        capsys.readouterr().err
+    )
+
+
+def test_a_folder_with_a_percent_sign_is_a_folder(tmp_path, capsys):
+    a, faces = animated_sphere(num_frames=3)
+    orig = _write(tmp_path / "100%_q", a, faces)  # was read as a printf pattern: "expected one printf integer field"
+    assert main(["temporal", str(orig), str(orig), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["kg"] == 0.0
 
 
 @pytest.mark.slow

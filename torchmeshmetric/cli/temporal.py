@@ -16,15 +16,22 @@ def frame_files(spec: str, what: str, first_frame: int | None, last_frame: int |
     """The frames a command-line argument names: a folder (returned as is), or a printf pattern's existing files.
 
     A pattern such as ``dec_%04d.obj`` runs from ``first_frame`` (default: 0, or 1 when frame 0 does not exist) to
-    ``last_frame`` (default: the last consecutive file that exists).
+    ``last_frame`` (default: the last consecutive file that exists). An existing folder is a folder, a ``%`` in
+    its name too (``runs/100%_q``).
 
     Raises:
-        CLIError: the pattern is malformed or names no file.
+        CLIError: the pattern is malformed or names no file, or a frame range given for a folder (its frames have
+            no numbers to select by).
     """
     from torchmeshmetric.cli._outputs import CLIError
     from torchmeshmetric.cli.ctc import frame_path
 
-    if "%" not in spec:
+    if "%" not in spec or Path(spec).is_dir():
+        if (first_frame is not None or last_frame is not None) and Path(spec).is_dir():
+            raise CLIError(
+                f"--first-frame/--last-frame: they select a printf pattern's frames; {what} {spec!r} is a folder "
+                "(every frame of it is read)"
+            )
         return spec
     try:
         start = first_frame
@@ -48,10 +55,10 @@ def run(args: argparse.Namespace) -> int:
     """KG, KSO, STED_s, STED_t and STED of a distorted sequence against its original.
 
     ORIGINAL and DISTORTED are folders (frames in natural order) or printf patterns such as dec_%04d.obj. When every
-    frame of both has the same vertices and every original frame the same faces, the figures are the exact
-    same-connectivity ones; otherwise (or with --registered) the registered forms: frame 0 of the original followed
-    through the frames by the registration of each original frame onto the next, the distorted frames carried onto
-    it along its normals (docs/temporal.md).
+    frame of both has the original's vertex count and triangles, the figures are the exact same-connectivity ones;
+    otherwise (or with --registered) the registered forms: frame 0 of the original followed through the frames by
+    the registration of each original frame onto the next, the distorted frames carried onto it along its normals
+    (docs/temporal.md).
     """
     from torchmeshmetric._format import json_safe
     from torchmeshmetric.cli._outputs import CLIError
