@@ -182,6 +182,43 @@ def test_report_command_refuses_what_it_cannot_read(capsys, tmp_path):
     assert "not a JSON report" in capsys.readouterr().err
 
 
+def _pair(frame: int, rmse: object = 0.5) -> dict:
+    return {
+        "frame": frame,
+        **{s: {"rmse": rmse} for s in ("surface_k", "surface_k_minus_1", "vertex_k", "vertex_k_minus_1")},
+    }
+
+
+@pytest.mark.parametrize(
+    ("report", "message"),
+    [
+        ({"name": "pkg", "version": "1"}, "expected a report with one of the keys ['methods', 'sequences', 'frames']"),
+        ({"methods": {}}, "methods: expected a non-empty object of methods"),
+        ({"methods": {"A": {"pairs": [_pair(1), _pair(2)]}, "B": {"pairs": [_pair(1)]}}},
+         "methods -> 'B' -> pairs: frames [1], the first method's [1, 2] (must match)"),
+        ({"methods": {"A": {"pairs": [{"surface_k": {"rmse": 1}}]}}},
+         "methods -> 'A' -> pairs[0]: expected an object with an integer 'frame'"),
+        ({"methods": {"A": {"pairs": [_pair(1, "banana")]}}},
+         "methods -> 'A' -> pairs[0] -> surface_k_minus_1 -> rmse: expected a number (or 'nan', 'inf'), found "
+         "'banana'"),
+        ({"methods": {"A": {"pairs": [{"frame": 1}]}}}, "methods -> 'A' -> pairs[0]: no distance set"),
+        ({"frames": [{"frame": 0}]}, "frames[0]: expected an object with a 'frame' and its figures"),
+        ({"frames": "abc"}, "frames: expected a non-empty list"),
+    ],
+)  # fmt: skip
+def test_report_command_names_what_does_not_fit(capsys, tmp_path, report, message):
+    # Each of these stopped deep inside the plotting with a message naming neither the file nor the key (review).
+    (tmp_path / "r.json").write_text(json.dumps(report))
+    (tmp_path / "r.md").write_text("# r\n")
+    assert main(["report", str(tmp_path / "r.json")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"torchmeshmetric report: error: REPORT {str(tmp_path / 'r.json')!r}: not a report this")
+    assert message in err and len(err.splitlines()) == 1, err
+    assert not (tmp_path / "r.html").exists()
+    (tmp_path / "r.json").write_text(json.dumps({"methods": {"A": {"pairs": [_pair(1), _pair(2, "inf")]}}}))
+    assert main(["report", str(tmp_path / "r.json")]) == 0  # the shape it reads, non-finite figures as written
+
+
 def test_campaign_pages(capsys, tmp_path, known_registration):
     a, b = write_frames(tmp_path / "a", 2), write_frames(tmp_path / "b", 1)
     manifest = tmp_path / "c.toml"

@@ -42,8 +42,12 @@ def run(args: argparse.Namespace) -> int:
         raise CLIError(f"REPORT {str(source)!r}: not a JSON report ({exc})") from exc
     if not isinstance(report, dict):
         raise CLIError(f"REPORT {str(source)!r}: expected a JSON object, found {type(report).__name__}")
-    from torchmeshmetric.viz.html_report import file_layer, report_page, write_html
+    from torchmeshmetric.viz.html_report import check_report, file_layer, report_page, write_html
 
+    try:
+        check_report(report)
+    except ValueError as exc:
+        raise CLIError(f"REPORT {str(source)!r}: not a report this command reads: {exc}") from exc
     layers: list[Any] = [file_layer(m) for m in meshes]
     page = report_page(
         report, markdown_path.read_text(encoding="utf-8"), title=f"torchmeshmetric report: {source.stem}", meshes=layers

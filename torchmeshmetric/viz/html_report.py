@@ -169,6 +169,86 @@ def report_page(
     return html_page(title, markdown, figures=[*drawn, *figures], meshes=meshes, notes=notes)
 
 
+#: The top-level keys by which a JSON report is recognised: a sequence report's ``"methods"``, a campaign's
+#: ``"sequences"``, a CTC report's ``"frames"``.
+REPORT_KEYS = ("methods", "sequences", "frames")
+_NON_FINITE = ("nan", "inf", "-inf")  # how a report writes non-finite numbers (json_safe)
+
+
+def _number(value: object, where: str) -> None:
+    """A report's number: a JSON number, or a non-finite one as the report writes it."""
+    if isinstance(value, bool) or not (isinstance(value, (int, float)) or value in _NON_FINITE):
+        raise ValueError(f"{where}: expected a number (or 'nan', 'inf'), found {value!r}")
+
+
+def check_report(report: Mapping[str, Any]) -> None:
+    """Check that a JSON report has the shape :func:`report_figures` and :func:`report_page` read.
+
+    A sequence report: ``"methods"``, each with its ``"pairs"`` (the same frames in every method, each pair a
+    ``"frame"`` and its sets' ``"rmse"``; with ``"flicker"`` the registration's residual too); a campaign's
+    combined report: ``"sequences"``; a CTC report: ``"frames"``, each a ``"frame"`` and its figures.
+
+    Raises:
+        ValueError: naming the first key (as a path such as ``methods -> 'A' -> pairs[2] -> frame``) whose value
+            does not fit, or the report's keys when it is none of these.
+    """
+    from torchmeshmetric.evaluation.results import FLICKER, SET_NAMES
+
+    if not any(key in report for key in REPORT_KEYS):
+        raise ValueError(
+            f"expected a report with one of the keys {list(REPORT_KEYS)}, found the keys {list(report)[:8]}"
+        )
+    methods = report.get("methods")
+    if methods is not None:
+        if not isinstance(methods, Mapping) or not methods:
+            raise ValueError(f"methods: expected a non-empty object of methods, found {methods!r:.80}")
+        frames: list[object] | None = None
+        for name, method in methods.items():
+            at = f"methods -> {name!r}"
+            if not isinstance(method, Mapping):
+                raise ValueError(f"{at}: expected an object, found {method!r:.80}")
+            pairs = method.get("pairs")
+            if pairs is None:
+                continue
+            if not isinstance(pairs, list) or not pairs:
+                raise ValueError(f"{at} -> pairs: expected a non-empty list, found {pairs!r:.80}")
+            for i, pair in enumerate(pairs):
+                if (
+                    not isinstance(pair, Mapping)
+                    or isinstance(pair.get("frame"), bool)
+                    or not isinstance(pair.get("frame"), int)
+                ):
+                    raise ValueError(
+                        f"{at} -> pairs[{i}]: expected an object with an integer 'frame', found {pair!r:.80}"
+                    )
+                sets = [s for s in (*SET_NAMES, FLICKER) if s in pair]
+                if not sets:
+                    raise ValueError(f"{at} -> pairs[{i}]: no distance set (expected some of {list(SET_NAMES)})")
+                for s in sets:
+                    _number(
+                        pair[s].get("rmse") if isinstance(pair[s], Mapping) else pair[s],
+                        f"{at} -> pairs[{i}] -> {s} -> rmse",
+                    )
+                if FLICKER in pair:
+                    residual = pair.get("registration", {})
+                    residual = residual.get("residual", {}) if isinstance(residual, Mapping) else residual
+                    value = residual.get("rmse") if isinstance(residual, Mapping) else residual
+                    _number(value, f"{at} -> pairs[{i}] -> registration -> residual -> rmse")
+            these = [p["frame"] for p in pairs]
+            if frames is not None and these != frames:
+                raise ValueError(f"{at} -> pairs: frames {these}, the first method's {frames} (must match)")
+            frames = these
+    rows = report.get("frames")
+    if rows is not None:
+        if not isinstance(rows, list) or not rows:
+            raise ValueError(f"frames: expected a non-empty list, found {rows!r:.80}")
+        for i, row in enumerate(rows):
+            if not isinstance(row, Mapping) or len(row) < 2:
+                raise ValueError(f"frames[{i}]: expected an object with a 'frame' and its figures, found {row!r:.80}")
+            for key, value in row.items():
+                _number(value, f"frames[{i}] -> {key}")
+
+
 def report_figures(report: Mapping[str, Any]) -> list[tuple[str, bytes]]:
     """The figures a JSON report's data give, as ``(caption, PNG bytes)``.
 
@@ -178,9 +258,13 @@ def report_figures(report: Mapping[str, Any]) -> list[tuple[str, bytes]]:
 
     Args:
         report: the JSON report (as written, non-finite numbers as strings).
+
+    Raises:
+        ValueError: a report of another shape (:func:`check_report`).
     """
     from torchmeshmetric.viz.plots import _figure, frame_curves_figure, png_bytes
 
+    check_report(report)
     figures = []
     methods = report.get("methods")
     if isinstance(methods, Mapping) and all(isinstance(m, Mapping) and "pairs" in m for m in methods.values()):
