@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-__all__ = ["format_number", "json_safe"]
+__all__ = ["format_number", "json_safe", "markdown_cell"]
 
 
 def format_number(value: Any, spec: str = ".4g", *, small_spec: str | None = None) -> str:
@@ -50,3 +50,15 @@ def json_safe(value: Any) -> Any:
     if isinstance(value, (list, tuple)):
         return [json_safe(v) for v in value]
     return value
+
+
+def markdown_cell(text: object) -> str:
+    r"""A user's name (a method's, a sequence's) as a Markdown table cell: ``|`` escaped, line breaks as spaces.
+
+    A ``|`` in a name otherwise splits its row into one cell more than the header has.
+
+    Example:
+        >>> markdown_cell("QEM | 50 %"), markdown_cell("a\nb")
+        ('QEM \\| 50 %', 'a b')
+    """
+    return " ".join(str(text).replace("|", "\\|").splitlines())

@@ -270,3 +270,23 @@ def test_layer_names_cannot_break_the_pages_script_block(tmp_path):
         # the table is live (sorted by a click on its header: the page's script ran) and the viewer drew; before
         # the fix the click sorted nothing, the serialized DOM still showing the swallowed table as text
         assert opened.sorted_column == ["1.5", "2.5"] and len(drawn_pixels(opened)) > 0
+
+
+def test_a_pipe_in_a_name_keeps_its_row():
+    # "QEM | 50 %" split its row into one cell more than the header had, in the .md and on the page (review).
+    from torchmeshmetric.evaluation import evaluate_sequence
+    from torchmeshmetric.evaluation.reports import paper_tables
+    from torchmeshmetric.temporal import TemporalFigures
+    from torchmeshmetric.temporal.report import temporal_markdown
+    from torchmeshmetric.viz.html_report import _cells
+
+    frames = [trimesh.creation.icosphere(subdivisions=2) for _ in range(2)]
+    coarse = [trimesh.creation.icosphere(subdivisions=1) for _ in range(2)]
+    name = "QEM | 50 %"
+    result = evaluate_sequence(frames, coarse, registration_fn=lambda src, dst: src)
+    figures = TemporalFigures(1.0, 2.0, 0.1, 0.2, 0.1, True, 3, 100)
+    for markdown in (paper_tables({name: result}), temporal_markdown({name: figures})):
+        rows = [line for line in markdown.splitlines() if line.startswith("|") and not line.startswith("|---")]
+        header = _cells(rows[0])
+        assert all(len(_cells(r)) == len(header) for r in rows[1:]) and _cells(rows[1])[0] == name
+        assert _html_tables(markdown_html(markdown))[0][1][0] == name  # the page shows the name itself

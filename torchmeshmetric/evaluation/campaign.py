@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 from torchmeshmetric._atomic import atomic_write
-from torchmeshmetric._format import json_safe
+from torchmeshmetric._format import json_safe, markdown_cell
 from torchmeshmetric._toml import kind_name, read_manifest
 from torchmeshmetric.evaluation.reports import (
     COLUMN_FORMATS,
@@ -357,7 +357,7 @@ def campaign_tables(
             else:
                 table = _table_name(kind, part)
                 cells = " | ".join(determinacy.cell(table, i, k, stats[k], COLUMN_FORMATS[k]) for k, _ in COLUMNS)
-            out.append(f"| {scope} | {method} | {label} | {cells} |")
+            out.append(f"| {markdown_cell(scope)} | {markdown_cell(method)} | {label} | {cells} |")
         out.append("")
     out.append(
         "Per sequence: mean over its pairs of each per-pair statistic. Overall: mean over the sequences of those "

@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from torchmeshmetric._atomic import atomic_write
-from torchmeshmetric._format import format_number, json_safe
+from torchmeshmetric._format import format_number, json_safe, markdown_cell
 from torchmeshmetric._version import __version__
 from torchmeshmetric.evaluation.comparison import comparison_markdown
 from torchmeshmetric.evaluation.flicker import FLICKER
@@ -216,7 +216,7 @@ def paper_tables(
                 cells = statistic_cells(stats)
             else:
                 cells = [determinacy.cell(table, i, k, stats[k], COLUMN_FORMATS[k]) for k, _ in COLUMNS]
-            out.append(f"| {name} | {mesh} | " + " | ".join(cells) + " |")
+            out.append(f"| {markdown_cell(name)} | {mesh} | " + " | ".join(cells) + " |")
         out.append("")
     out.append(f"Best pair rule: {BEST_PAIR_RULE}. Averages: mean over pairs of each per-pair statistic.")
     out.append("")

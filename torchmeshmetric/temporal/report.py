@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
-from torchmeshmetric._format import format_number
+from torchmeshmetric._format import format_number, markdown_cell
 from torchmeshmetric.temporal.figures import FIGURE_NAMES, TemporalFigures
 
 if TYPE_CHECKING:
@@ -108,7 +108,7 @@ def temporal_markdown(figures: Mapping[str, TemporalFigures], *, determinacy: De
             texts = [determinacy.cell("temporal", i, k, float(getattr(f, k)), specs[k]) for k in FIGURE_NAMES]
         else:
             texts = [format_figure(k, float(getattr(f, k)), registered=f.registered) for k in FIGURE_NAMES]
-        lines.append(f"| {name} | {' | '.join(texts)} | {'registered' if f.registered else 'exact'} |")
+        lines.append(f"| {markdown_cell(name)} | {' | '.join(texts)} | {'registered' if f.registered else 'exact'} |")
     if measured:
         assert determinacy is not None
         lines += ["", temporal_determinacy_note(determinacy)]

@@ -301,7 +301,9 @@ def _inline(text: str) -> str:
 
 
 def _cells(line: str) -> list[str]:
-    return [c.strip() for c in line.strip().strip("|").split("|")]
+    r"""A table row's cells: split at each ``|`` that is not escaped (``\|`` in a name, :func:`markdown_cell`)."""
+    cells = re.split(r"(?<!\\)\|", line.strip().removeprefix("|").removesuffix("|"))
+    return [c.strip().replace("\\|", "|") for c in cells]
 
 
 def markdown_html(text: str) -> str:

@@ -17,6 +17,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from torchmeshmetric._format import markdown_cell
 from torchmeshmetric.mpeg.comparison.mpeg_metrics import BoxLike, Sampling, mpeg_metrics
 from torchmeshmetric.mpeg.comparison.pcc import MpegResult
 from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh
@@ -181,10 +182,12 @@ def mpeg_markdown(methods: Mapping[str, MpegSequence]) -> str:
     for name, seq in methods.items():
         for row in seq.frame_rows():
             out.append(
-                f"| {name} | {int(row['frame'])} | " + " | ".join(_fmt(row.get(k, math.nan)) for k in keys) + " |"
+                f"| {markdown_cell(name)} | {int(row['frame'])} | "
+                + " | ".join(_fmt(row.get(k, math.nan)) for k in keys)
+                + " |"
             )
         avg = seq.average()
-        out.append(f"| {name} | mean | " + " | ".join(_fmt(avg.get(k, math.nan)) for k in keys) + " |")
+        out.append(f"| {markdown_cell(name)} | mean | " + " | ".join(_fmt(avg.get(k, math.nan)) for k in keys) + " |")
     out += ["", f"Averages: {AVERAGING_RULE}.", ""]
     return "\n".join(out)
 
