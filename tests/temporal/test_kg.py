@@ -80,3 +80,9 @@ def test_bad_input_is_named() -> None:
         kg_error(a.numpy(), r)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="single point"):
         kg_error(torch.zeros(2, 1, 3), torch.ones(2, 1, 3))
+
+
+def test_scale_is_a_bool() -> None:
+    a = torch.rand(2, 5, 3, dtype=torch.float64)
+    with pytest.raises(TypeError, match="scale: expected a bool, found 'no'"):  # a truthy string scaled
+        kso_error(a, a, scale="no")  # type: ignore[arg-type]

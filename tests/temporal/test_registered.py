@@ -158,3 +158,28 @@ def test_figures_name_the_original_pairs_whose_registration_failed() -> None:
     note = temporal_markdown({"m": bad, "n": bad}).split("\n\n")[-1]
     assert note.startswith("Registration not converged for frame pair 1 -> 2 of the original:")
     assert temporal_figures(frames, frames).unconverged == ()  # the exact forms use no registration
+
+
+def test_figures_check_their_arguments_before_any_registration() -> None:
+    from torchmeshmetric._checks import EmptyInputError
+
+    a, faces = _performer(3)
+    frames = _meshes(a, faces)
+    calls = []
+
+    def register(source, target, **options):
+        calls.append(1)
+        raise AssertionError("no registration before the arguments are checked")
+
+    other = _subdivided(a, faces)  # registered forms: the bad parameters were found after the registrations
+    for bad in (0, "no"):  # 0 skipped the exact forms' check, "no" chose the registered forms
+        with pytest.raises(TypeError, match=f"registered: expected None, True or False, found {bad!r}"):
+            temporal_figures(frames, other, registered=bad, registration_fn=register)
+    with pytest.raises(ValueError, match="dt: expected a float > 0"):
+        temporal_figures(frames, other, dt=float("inf"), registration_fn=register)
+    with pytest.raises(ValueError, match="window: expected an int >= 0"):
+        temporal_figures(frames, other, window=-1, registration_fn=register)
+    empty = Mesh(torch.zeros(0, 3, dtype=a.dtype), torch.zeros(0, 3, dtype=torch.int64), validate=False)
+    with pytest.raises(EmptyInputError, match=r"distorted\[2\]: expected a mesh, found 0 vertices and 0 faces"):
+        temporal_figures(frames, [*other[:2], empty], registration_fn=register)  # was named "mesh 0"
+    assert calls == []

@@ -12,13 +12,13 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import ShapeError
+from torchmeshmetric._checks import EmptyInputError, ShapeError
 from torchmeshmetric.evaluation.pipeline import RegisterFn, RegistrationOptions
 from torchmeshmetric.registration.cache import CachedRegistration, RegistrationCache
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 from torchmeshmetric.temporal.kg import kg_error, kso_error
 from torchmeshmetric.temporal.registered import registered_pair
-from torchmeshmetric.temporal.sted import DEFAULT_C, DEFAULT_DT, DEFAULT_WINDOW, sted
+from torchmeshmetric.temporal.sted import DEFAULT_C, DEFAULT_DT, DEFAULT_WINDOW, check_sted_parameters, sted
 
 __all__ = ["FIGURE_NAMES", "TemporalFigures", "same_connectivity", "temporal_figures"]
 
@@ -124,6 +124,9 @@ def temporal_figures(
     Raises:
         ShapeError: frame counts that differ, fewer than 2 frames, or ``registered=False`` on frames whose
             connectivity differs.
+        EmptyInputError: a frame without vertices or faces (named).
+        TypeError, ValueError: ``registered`` not ``None`` or a bool; ``dt``, ``window``, ``c`` as :func:`sted`
+            checks them (before any registration).
 
     Example:
         >>> import trimesh
@@ -143,6 +146,15 @@ def temporal_figures(
         raise ShapeError(f"distorted: expected {len(originals)} frames (those of original), found {len(distorteds)}")
     if len(originals) < 2:
         raise ShapeError(f"original: expected at least 2 frames, found {len(originals)}")
+    if registered is not None and not isinstance(registered, bool):  # 0 or "no" would pick a form silently
+        raise TypeError(f"registered: expected None, True or False, found {registered!r}")
+    for name, meshes in (("original", originals), ("distorted", distorteds)):
+        for k, m in enumerate(meshes):
+            if m.num_verts == 0 or m.num_faces == 0:
+                raise EmptyInputError(
+                    f"{name}[{k}]: expected a mesh, found {m.num_verts} vertices and {m.num_faces} faces"
+                )
+    check_sted_parameters(dt, window, c)  # now, not after the registered forms' registrations
     exact = same_connectivity(originals, distorteds)
     if registered is False and not exact:
         raise ShapeError(

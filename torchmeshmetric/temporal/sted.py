@@ -175,6 +175,20 @@ def _temporal(original: Tensor, distorted: Tensor, referenced: Tensor, dt: float
     return rel[..., referenced].mean(dim=(-1, -2))
 
 
+def check_sted_parameters(dt: object, window: object, c: object) -> None:
+    """:func:`sted`'s ``dt``, ``window`` and ``c``, checked (before any work that leads to it).
+
+    Raises:
+        TypeError: ``dt`` or ``c`` not a number.
+        ValueError: ``dt`` not > 0 or ``c`` not >= 0 (or a square that overflows or underflows), ``window`` not an
+            int >= 0.
+    """
+    _check_weight("dt", dt, zero=False)
+    if not isinstance(window, int) or isinstance(window, bool) or window < 0:
+        raise ValueError(f"window: expected an int >= 0, found {window!r}")
+    _check_weight("c", c, zero=True)
+
+
 def _check_weight(name: str, value: object, *, zero: bool) -> None:
     """``dt`` and ``c``: real numbers whose square is a finite float, positive (``dt``) or >= 0 (``c``).
 
@@ -231,10 +245,7 @@ def sted(
     """
     a, b = check_sequence_pair(original, distorted, min_frames=2)
     f = check_faces_of(faces, a.shape[-2]).to(a.device)
-    _check_weight("dt", dt, zero=False)
-    if not isinstance(window, int) or isinstance(window, bool) or window < 0:
-        raise ValueError(f"window: expected an int >= 0, found {window!r}")
-    _check_weight("c", c, zero=True)
+    check_sted_parameters(dt, window, c)
     nb = neighbourhoods(f, a.shape[-2])
     if nb.edges.shape[0] == 0:
         raise ValueError("faces: no face has two distinct vertices: no edge, nothing for STED to measure")
