@@ -290,3 +290,14 @@ def test_a_pipe_in_a_name_keeps_its_row():
         header = _cells(rows[0])
         assert all(len(_cells(r)) == len(header) for r in rows[1:]) and _cells(rows[1])[0] == name
         assert _html_tables(markdown_html(markdown))[0][1][0] == name  # the page shows the name itself
+
+
+def test_a_mesh_the_viewer_cannot_show_is_named_by_its_option(capsys, tmp_path):
+    (tmp_path / "r.json").write_text(json.dumps({"frames": [{"frame": 0, "GridD1": 60.0}]}))
+    (tmp_path / "r.md").write_text("# r\n")
+    plain = tmp_path / "plain.ply"
+    trimesh.creation.icosphere(subdivisions=1).export(plain)  # no vertex colours
+    for mesh, message in ((tmp_path / "r.md", "has unsupported suffix '.md'"), (plain, "one colour per vertex")):
+        assert main(["report", str(tmp_path / "r.json"), "--mesh", str(mesh)]) == 1
+        err = capsys.readouterr().err
+        assert err.startswith(f"torchmeshmetric report: error: --mesh {str(mesh)!r}: ") and message in err, err

@@ -137,6 +137,13 @@ def test_bad_requests_are_refused():
         metric.plot(keys=["nope"])
     with pytest.raises(ValueError, match="empty list"):
         metric.plot([])
+    with pytest.raises(
+        TypeError, match=r"keys: expected a list of statistic names, found the string 'ave' \(write \['ave'\]\)"
+    ):
+        metric.plot(keys="ave")  # type: ignore[arg-type]  # was drawn as the keys "a", "v", "e"
+    first = metric.compute()
+    with pytest.raises(KeyError, match=r"val\[1\]: \['ave'\] not in this step's result"):
+        metric.plot([first, {k: v for k, v in first.items() if k != "ave"}], keys=["ave"])
 
 
 def test_the_metrics_beyond_torchmeshmetric_metrics_plot_too(tmp_path):

@@ -48,7 +48,12 @@ def run(args: argparse.Namespace) -> int:
         check_report(report)
     except ValueError as exc:
         raise CLIError(f"REPORT {str(source)!r}: not a report this command reads: {exc}") from exc
-    layers: list[Any] = [file_layer(m) for m in meshes]
+    layers: list[Any] = []
+    for m in meshes:
+        try:
+            layers.append(file_layer(m))
+        except (ValueError, OSError) as exc:  # the reader names its own argument ("path: ..."): name the option
+            raise CLIError(f"--mesh {str(m)!r}: {exc}") from exc
     page = report_page(
         report, markdown_path.read_text(encoding="utf-8"), title=f"torchmeshmetric report: {source.stem}", meshes=layers
     )

@@ -92,7 +92,8 @@ class StatisticsPlot:
 
         Raises:
             ModuleNotFoundError: matplotlib is not installed.
-            KeyError: a key of ``keys`` is not in the result.
+            KeyError: a key of ``keys`` is not in the result (or, for a list of results, in one of them).
+            TypeError: ``keys`` is a string, not a list of names.
             ValueError: ``val`` is none of the accepted forms, or an empty list.
 
         Example:
@@ -117,10 +118,15 @@ class StatisticsPlot:
         if isinstance(val, Sequence) and isinstance(val[0], dict):
             steps = [self._plot_result(step) for step in val]
             chosen = self._chosen(steps[0], keys)
+            for i, step in enumerate(steps[1:], start=1):
+                if missing := [k for k in chosen if k not in step]:
+                    raise KeyError(f"val[{i}]: {missing} not in this step's result, whose keys are {list(step)}")
             return _curves([{k: step[k] for k in chosen} for step in steps], ax, name, None)
         return _curves(val, ax, name, self._plot_higher_is_better())
 
     def _chosen(self, result: dict[str, Tensor], keys: Sequence[str] | None) -> list[str]:
+        if isinstance(keys, str):  # list("ave") would be ["a", "v", "e"]
+            raise TypeError(f"keys: expected a list of statistic names, found the string {keys!r} (write [{keys!r}])")
         chosen = self._plot_keys(result) if keys is None else list(keys)
         missing = [k for k in chosen if k not in result]
         if missing:
