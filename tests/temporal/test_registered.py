@@ -183,3 +183,26 @@ def test_figures_check_their_arguments_before_any_registration() -> None:
     with pytest.raises(EmptyInputError, match=r"distorted\[2\]: expected a mesh, found 0 vertices and 0 faces"):
         temporal_figures(frames, [*other[:2], empty], registration_fn=register)  # was named "mesh 0"
     assert calls == []
+
+
+def test_tracking_and_carrying_check_their_arguments() -> None:
+    from torchmeshmetric._checks import IndexRangeError
+    from torchmeshmetric.temporal.registered import weld_short_edges
+
+    a, faces = _performer(3)
+    frames = _meshes(a, faces)
+
+    def register(source, target, **options):
+        raise AssertionError("no registration before the arguments are checked")
+
+    for weld, error in ((float("inf"), ValueError), (1.0, ValueError), (-0.1, ValueError), ("a", TypeError)):
+        with pytest.raises(error, match="weld: expected a fraction of the median edge length"):
+            registered_pair(frames, frames, weld=weld, registration_fn=register)
+        with pytest.raises(error, match="weld"):
+            weld_short_edges(frames[0], weld)  # type: ignore[arg-type]
+    with pytest.raises(IndexRangeError, match="faces"):
+        carry_onto(frames, a, faces + a.shape[1])  # was an IndexError from inside the normals
+    with pytest.raises(TypeError, match="distorted: expected a sequence of meshes, found NoneType"):
+        carry_onto(None, a)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="normal_steps: expected an int >= 0, found True"):
+        carry_onto(frames, a, faces, normal_steps=True)

@@ -33,6 +33,7 @@ from torchmeshmetric.kernels import MeshIndex, PointMeshResult
 from torchmeshmetric.registration.cache import CachedRegistration, RegistrationCache
 from torchmeshmetric.registration.warp import as_warp
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh, vertex_set_mask
+from torchmeshmetric.temporal.sequences import check_faces_of
 from torchmeshmetric.temporal.topology import mesh_edges
 
 __all__ = [
@@ -106,6 +107,19 @@ def _compact(mesh: Mesh) -> Mesh:
     return Mesh(mesh.verts[used], new_index[mesh.faces], validate=False)
 
 
+def check_weld(fraction: object) -> None:
+    """A weld fraction: a number in ``[0, 1)`` (at 1 half the mesh's edges, those below the median, would weld).
+
+    Raises:
+        TypeError: not a number.
+        ValueError: outside ``[0, 1)`` (NaN and infinities too).
+    """
+    if isinstance(fraction, bool) or not isinstance(fraction, (int, float)):
+        raise TypeError(f"weld: expected a fraction of the median edge length, found {type(fraction).__name__}")
+    if not 0 <= fraction < 1:
+        raise ValueError(f"weld: expected a fraction of the median edge length in [0, 1), found {fraction!r}")
+
+
 def weld_short_edges(mesh: Mesh, fraction: float, *, backend: str = "auto") -> Mesh:
     """``mesh`` with every edge shorter than ``fraction`` of the median edge length welded to one vertex.
 
@@ -116,7 +130,8 @@ def weld_short_edges(mesh: Mesh, fraction: float, *, backend: str = "auto") -> M
 
     Args:
         mesh: the mesh (float64).
-        fraction: edges shorter than ``fraction`` times the median edge length are welded; ``0`` welds nothing.
+        fraction: edges shorter than ``fraction`` times the median edge length are welded, in ``[0, 1)``; ``0``
+            welds nothing.
         backend: kernel backend of the closest-point query.
 
     Returns:
@@ -128,7 +143,8 @@ def weld_short_edges(mesh: Mesh, fraction: float, *, backend: str = "auto") -> M
         >>> weld_short_edges(Mesh(v, f), 0.05).faces.tolist()  # vertices 2 and 3 become one
         [[0, 1, 2], [1, 3, 2]]
     """
-    if fraction <= 0:
+    check_weld(fraction)
+    if fraction == 0:
         return mesh
     edges = mesh_edges(mesh.faces, mesh.num_verts)
     lengths = (mesh.verts[edges[:, 0]] - mesh.verts[edges[:, 1]]).norm(dim=-1)
@@ -196,6 +212,7 @@ def track_original(
         (torch.Size([2, 162, 3]), True)
     """
     meshes = _frames(frames, "frames")
+    check_weld(weld)  # now, not after the registrations
     if registrations is None:
         registrations = register_pairs(
             meshes,
@@ -311,7 +328,8 @@ def carry_onto(
 
     Raises:
         ShapeError: a frame count other than ``tracked``'s.
-        ValueError: a negative ``normal_steps``.
+        TypeError: ``distorted`` not a sequence.
+        ValueError: a negative ``normal_steps``; ``faces`` outside the tracked vertices (``IndexRangeError``).
 
     Example:
         >>> import trimesh
@@ -324,10 +342,14 @@ def carry_onto(
     if not isinstance(tracked, Tensor) or tracked.dim() != 3 or tracked.shape[-1] != 3:
         found = tuple(tracked.shape) if isinstance(tracked, Tensor) else type(tracked).__name__
         raise ShapeError(f"tracked: expected a tensor of shape (F, V, 3), found {found}")
+    if isinstance(distorted, (str, bytes)) or not isinstance(distorted, Sequence):
+        raise TypeError(f"distorted: expected a sequence of meshes, found {type(distorted).__name__}")
     if len(distorted) != tracked.shape[0]:
         raise ShapeError(f"distorted: expected {tracked.shape[0]} frames (those of tracked), found {len(distorted)}")
-    if not isinstance(normal_steps, int) or normal_steps < 0:
+    if not isinstance(normal_steps, int) or isinstance(normal_steps, bool) or normal_steps < 0:
         raise ValueError(f"normal_steps: expected an int >= 0, found {normal_steps!r}")
+    if faces is not None:
+        faces = check_faces_of(faces, tracked.shape[1])
     out = []
     for k, frame in enumerate(distorted):
         mesh = as_mesh(frame, name=f"distorted[{k}]")
