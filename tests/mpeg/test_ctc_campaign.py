@@ -286,3 +286,18 @@ def test_bits_runtimes_and_memory_from_the_codecs_files(tmp_path: Path) -> None:
         ctc_campaign._codec_values(codec, seq, 1, 2, {})
     with pytest.raises(ValueError, match=r"test: sequence 'ball' condition 1 rate 1: bitstream .* not found"):
         ctc_campaign._codec_values(codec, seq, 1, 1, {})
+
+
+@pytest.mark.parametrize("statement", ["map_Kd my tex.png", "map_Kd -s 1 1 1 my tex.png", "map_Kd my_tex.png"])
+def test_a_frames_key_holds_its_texture_whatever_its_name(tmp_path: Path, statement: str) -> None:
+    # The key read the map_Kd line's last word: "my tex.png" was no file, the texture was left out of the key, and
+    # a changed texture reused the cached figures (found by review: GridLuma 31.14 from the cache, 8.97 computed).
+    frame = tmp_path / "f.obj"
+    frame.write_text("mtllib m.mtl\nusemtl a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n")
+    (tmp_path / "m.mtl").write_text(f"newmtl a\n{statement}\n")
+    texture = tmp_path / statement.split(" 1 1 1 ")[-1].removeprefix("map_Kd ")
+    texture.write_bytes(b"first texture")
+    first, alone = ctc_campaign._digest((str(frame), True)), ctc_campaign._digest((str(frame), False))
+    texture.write_bytes(b"another texture")
+    assert ctc_campaign._digest((str(frame), True)) != first
+    assert ctc_campaign._digest((str(frame), False)) == alone  # a texture given apart is keyed by its own file

@@ -33,6 +33,7 @@ from typing import Any, NamedTuple
 
 from torchmeshmetric._atomic import atomic_write
 from torchmeshmetric._format import json_safe
+from torchmeshmetric.data.obj import parse_mtl
 from torchmeshmetric.mpeg.ctc.frame_pattern import frame_path
 from torchmeshmetric.mpeg.ctc.manifest import CtcCampaign, CtcCampaignSequence, CtcCodec, codec_path
 from torchmeshmetric.mpeg.ctc.sheet import COMPONENTS, RatePoint, SheetCondition, SheetSequence, read_test_model_csv
@@ -143,7 +144,6 @@ def _check_file(path: str, task: FrameTask) -> None:
 
 
 _MTLLIB = re.compile(rb"^[ \t]*mtllib[ \t]+(.+?)[ \t]*\r?$", re.M)
-_MAP_KD = re.compile(rb"^[ \t]*map_Kd[ \t]+(.+?)[ \t]*\r?$", re.M)
 
 
 def _digest(item: tuple[str, bool]) -> str:
@@ -157,11 +157,12 @@ def _digest(item: tuple[str, bool]) -> str:
         for m in _MTLLIB.finditer(data):
             mtl = p.parent / m.group(1).decode("utf-8", "replace")
             if mtl.is_file():
-                text = mtl.read_bytes()
-                h.update(b"\0mtl\0" + text)
-                for t in _MAP_KD.finditer(text):
-                    tex = mtl.parent / t.group(1).decode("utf-8", "replace").split()[-1]
-                    if tex.is_file():
+                h.update(b"\0mtl\0" + mtl.read_bytes())
+                # the package's MTL reader: a texture name may hold spaces, after options (-s 1 1 1 my tex.png);
+                # the last word alone left such a texture out of the key, and a changed one reused stale figures
+                for material in parse_mtl(mtl):
+                    tex = None if material.map_kd is None else mtl.parent / material.map_kd
+                    if tex is not None and tex.is_file():
                         h.update(b"\0map\0" + tex.read_bytes())
     return h.hexdigest()
 
