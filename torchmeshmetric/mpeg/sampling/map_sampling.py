@@ -36,6 +36,52 @@ def _texel_boxes(uv: np.ndarray, w: int, h: int) -> tuple[np.ndarray, np.ndarray
     return lo[:, 0], lo[:, 1], count[:, 0], count[:, 1]
 
 
+#: Candidate texels per run of faces (:func:`map_sample`): ~400 MB of arrays at a time.
+_CHUNK = 1 << 22
+
+
+def _runs(count: np.ndarray, budget: int) -> list[tuple[int, int]]:
+    """Consecutive face ranges ``[a, b)`` of at most ``budget`` candidates each (a face above it: alone)."""
+    ends = np.cumsum(count)
+    out, a = [], 0
+    while a < count.size:
+        before = ends[a - 1] if a else 0
+        b = max(int(np.searchsorted(ends, before + budget, side="right")), a + 1)
+        out.append((a, b))
+        a = b
+    return out
+
+
+def _face_texels(
+    p: np.ndarray, uv: np.ndarray, normal: np.ndarray, boxes: list[np.ndarray], w: int, h: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The points, normals and texel centres (UVs) of faces ``p`` whose texel centres lie in their UV triangles."""
+    i0, j0, ni, nj = boxes
+    count = ni * nj
+    face = np.repeat(np.arange(p.shape[0]), count)
+    local = np.arange(face.size) - np.repeat(np.cumsum(count) - count, count)
+    i = i0[face] + local // nj[face]  # i outer, j inner, as mmetric loops
+    j = j0[face] + local % nj[face]
+    t = np.stack(
+        [
+            (np.float32(0.5) + i.astype(np.float32)) / np.float32(w),
+            (np.float32(0.5) + j.astype(np.float32)) / np.float32(h),
+        ],
+        axis=1,
+    )
+    a, b, c = uv[face, 0], uv[face, 1], uv[face, 2]
+    v0, v1, v2 = b - a, c - a, t - a
+    den = v0[:, 0] * v1[:, 1] - v1[:, 0] * v0[:, 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = (v2[:, 0] * v1[:, 1] - v1[:, 0] * v2[:, 1]) / den
+        v = (v0[:, 0] * v2[:, 1] - v2[:, 0] * v0[:, 1]) / den
+    one = np.float32(1.0)
+    inside = (u >= 0) & (u <= 1) & (v >= 0) & (v <= 1) & (u + v <= 1)
+    face, t, u, v = face[inside], t[inside], u[inside, None], v[inside, None]
+    pf = p[face]
+    return (pf[:, 0] * ((one - u) - v) + pf[:, 1] * u) + pf[:, 2] * v, normal[face], t
+
+
 def map_sample(mesh: TexturedMesh | MeshLike, *, name: str = "mesh") -> PointCloud:
     """Sample a textured mesh as ``mm sample --mode map`` does.
 
@@ -71,31 +117,16 @@ def map_sample(mesh: TexturedMesh | MeshLike, *, name: str = "mesh") -> PointClo
     p, uv = p[keep], uv[keep]
     normal = f32.normalize(f32.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]))
     h, w = mesh.texture.shape[:2]
-    i0, j0, ni, nj = _texel_boxes(uv, w, h)
-    count = ni * nj
-    face = np.repeat(np.arange(p.shape[0]), count)
-    local = np.arange(face.size) - np.repeat(np.cumsum(count) - count, count)
-    i = i0[face] + local // nj[face]  # i outer, j inner, as mmetric loops
-    j = j0[face] + local % nj[face]
-    t = np.stack(
-        [
-            (np.float32(0.5) + i.astype(np.float32)) / np.float32(w),
-            (np.float32(0.5) + j.astype(np.float32)) / np.float32(h),
-        ],
-        axis=1,
-    )
-    a, b, c = uv[face, 0], uv[face, 1], uv[face, 2]
-    v0, v1, v2 = b - a, c - a, t - a
-    den = v0[:, 0] * v1[:, 1] - v1[:, 0] * v0[:, 1]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        u = (v2[:, 0] * v1[:, 1] - v1[:, 0] * v2[:, 1]) / den
-        v = (v0[:, 0] * v2[:, 1] - v2[:, 0] * v0[:, 1]) / den
-    one = np.float32(1.0)
-    inside = (u >= 0) & (u <= 1) & (v >= 0) & (v <= 1) & (u + v <= 1)
-    face, t, u, v = face[inside], t[inside], u[inside, None], v[inside, None]
-    pf = p[face]
-    points = (pf[:, 0] * ((one - u) - v) + pf[:, 1] * u) + pf[:, 2] * v
-    normals = normal[face]
+    boxes = _texel_boxes(uv, w, h)
+    # The candidate texels (each face's UV box) in runs of faces of at most _CHUNK candidates: the arrays of one run
+    # take ~100 bytes a candidate, so UV boxes of hundreds of millions of texels (UVs not in [0, 1]) stay within
+    # memory; the runs are in face order, so the points are mmetric's, in its order.
+    runs = [
+        _face_texels(p[a:b], uv[a:b], normal[a:b], [x[a:b] for x in boxes], w, h)
+        for a, b in _runs(boxes[2] * boxes[3], _CHUNK)
+    ]
+    points, normals, t = (np.concatenate([r[k] for r in runs]) for k in range(3))
+    del runs  # the runs' arrays, copied above: not held through the deduplication
     colours = sample_texture(mesh.texture, t, bilinear=False)
     kept = unique_vertex_rows(points, normals, np.concatenate([t, colours], axis=1))
     return PointCloud(
