@@ -119,3 +119,15 @@ def test_a_cache_folder_that_is_a_file_is_refused_before_any_registration(
     err = capsys.readouterr().err
     assert f"argument --cache-dir: expected a folder (created when needed), found the file {str(cache)!r}" in err
     assert cache.read_text() == "not a folder"
+
+
+def test_target_is_read_as_the_library_reads_it():
+    from torchmeshmetric.cli.options import parse_target
+
+    # "1.0" was a count of one face; as in the library, a number with a point is a ratio in (0, 1]
+    assert parse_target("1.0") == 1.0 and isinstance(parse_target("1.0"), float)
+    assert parse_target("1") == 1 and isinstance(parse_target("1"), int)
+    assert parse_target("2e-1") == 0.2 and parse_target("1200") == 1200
+    for bad in ("0", "-3", "0.0", "1.5", "2.0", "nan", "x"):
+        with pytest.raises(argparse.ArgumentTypeError, match="expected a face count"):
+            parse_target(bad)

@@ -51,3 +51,13 @@ def test_resolve_target():
 def test_empty_mesh():
     with pytest.raises(EmptyInputError, match="mesh"):
         simplify_qem(Mesh(torch.zeros(3, 3), torch.zeros(0, 3, dtype=torch.long)), 0.5)
+
+
+@pytest.mark.parametrize("target", [1, 0.01])
+def test_a_target_that_leaves_no_face_is_an_error(target):
+    # A closed icosphere asked for 1 face collapses whole: the result had 0 faces and failed later, at the write or
+    # in the tracking ("warped_previous: expected a mesh with faces"), found by review.
+    small = as_mesh(trimesh.creation.icosphere(subdivisions=1))
+    with pytest.raises(EmptyInputError, match=rf"target: {target!r} \(1 of 80 faces\) left no face"):
+        simplify_qem(small, target)
+    assert simplify_qem(small, 4).num_faces == 4  # 4 faces: a tetrahedron, kept

@@ -290,7 +290,7 @@ def add_demo_command(sub: Any) -> None:
     add_target(
         p,
         DEMO_TARGET,
-        f"faces to keep per frame: a count or a ratio in (0, 1) (default {DEMO_TARGET}: the paper removes 3%% "
+        f"faces to keep per frame: a count or a ratio in (0, 1] (default {DEMO_TARGET}: the paper removes 3%% "
         "of the triangles)",
     )
     p.add_argument(

@@ -57,16 +57,30 @@ def positive_int(text: str) -> int:
 
 
 def parse_target(text: str) -> float | int:
-    """A ``--target``: a face count (an integer >= 1) or a ratio in (0, 1) of each frame's faces."""
+    """A ``--target``, read as the library reads ``target``: a face count, or a ratio of faces to keep.
+
+    An integer is a face count (>= 1); a number with a point or an exponent is a ratio of each frame's faces to keep,
+    in (0, 1] (``1.0`` keeps every face; it was read as a count of 1 face).
+
+    Example:
+        >>> parse_target("500"), parse_target("0.25"), parse_target("1.0")
+        (500, 0.25, 1.0)
+    """
     try:
-        value = float(text)
+        value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a face count or a ratio in (0, 1), found {text!r}") from None
-    if value >= 1 and value.is_integer():
-        return int(value)
-    if 0 < value < 1:
+        pass
+    else:
+        if value < 1:
+            raise argparse.ArgumentTypeError(f"expected a face count (>= 1) or a ratio in (0, 1], found {text!r}")
         return value
-    raise argparse.ArgumentTypeError(f"expected a face count (>= 1) or a ratio in (0, 1), found {text!r}")
+    try:
+        ratio = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a face count or a ratio in (0, 1], found {text!r}") from None
+    if not 0 < ratio <= 1:  # NaN too
+        raise argparse.ArgumentTypeError(f"expected a face count (>= 1) or a ratio in (0, 1], found {text!r}")
+    return ratio
 
 
 def parse_weight(text: str) -> float:

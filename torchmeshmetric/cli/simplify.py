@@ -80,7 +80,7 @@ def add_simplify_command(sub: Any) -> None:
         help="qem (default), rqem (Registered QEM) or tracking (Anchored QEM with the learned slide: each frame "
         "follows the previous one's tessellation, docs/training.md)",
     )
-    add_target(p, 0.5, "faces to keep: a count (>= 1) or a ratio in (0, 1) of each frame's faces (default 0.5)")
+    add_target(p, 0.5, "faces to keep: a count (>= 1) or a ratio in (0, 1] of each frame's faces (default 0.5)")
     add_weight(
         p,
         "rqem: weight of the registered previous frame's quadrics (default: the library's DEFAULT_WEIGHT, "

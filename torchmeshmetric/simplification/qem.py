@@ -33,7 +33,7 @@ def simplify_qem(mesh: MeshLike, target: int | float, *, preserve_border: bool =
 
     Raises:
         TypeError, ValueError: bad ``target``.
-        EmptyInputError: the mesh has no faces.
+        EmptyInputError: the mesh has no faces, or the simplification left none (a target of 1 face).
 
     Example:
         >>> import trimesh
@@ -52,6 +52,11 @@ def simplify_qem(mesh: MeshLike, target: int | float, *, preserve_border: bool =
     out_v, out_f = fast_simplification.simplify(
         verts, faces, target_count=count, agg=agg, preserve_border=preserve_border
     )
+    if len(out_f) == 0:  # a closed mesh asked for 1 or 2 faces collapses whole: never return an empty "simplification"
+        raise EmptyInputError(
+            f"target: {target!r} ({count} of {m.num_faces} faces) left no face: every face collapsed; ask for more "
+            "faces"
+        )
     return Mesh(
         torch.from_numpy(np.ascontiguousarray(out_v)).to(device=m.device, dtype=m.dtype),
         torch.from_numpy(np.ascontiguousarray(out_f).astype(np.int64)).to(m.device),
