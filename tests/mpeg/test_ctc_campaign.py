@@ -301,3 +301,18 @@ def test_a_frames_key_holds_its_texture_whatever_its_name(tmp_path: Path, statem
     texture.write_bytes(b"another texture")
     assert ctc_campaign._digest((str(frame), True)) != first
     assert ctc_campaign._digest((str(frame), False)) == alone  # a texture given apart is keyed by its own file
+
+
+def test_sequences_whose_plots_share_a_file_name_are_refused(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    # "sphere a" and "sphere_a" both drew rd_c1_sphere_a.png: one plot written over the other (found by review).
+    manifest = _make(tmp_path)
+    data = tmp_path / "ctc-campaign-data"
+    (data / "sphere_a").symlink_to(data / "sphere", target_is_directory=True)
+    (data / "sphere a").symlink_to(data / "ellipsoid", target_is_directory=True)
+    text = manifest.read_text().replace('"sphere"', '"sphere_a"').replace('"ellipsoid"', '"sphere a"')
+    manifest.write_text(text)
+    out = tmp_path / "out"
+    assert main(["ctc-campaign", str(manifest), "--out-dir", str(out), "--cache-dir", str(tmp_path / "c")]) == 1
+    err = capsys.readouterr().err
+    assert "sequences 'sphere_a' and 'sphere a' would write the same RD plots (rd_c<condition>_sphere_a.png)" in err
+    assert not out.exists() and not (tmp_path / "c").exists()  # refused before any frame

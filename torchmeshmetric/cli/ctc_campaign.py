@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     and memory ratios; class and overall averages) and one RD-curve PNG per sequence and lossy condition. Under
     torchrun the frames are shared by all processes and rank 0 writes the same files.
     """
-    from torchmeshmetric.cli._outputs import check_folder, check_writable, make_folder, output_set
+    from torchmeshmetric.cli._outputs import CLIError, check_folder, check_writable, make_folder, output_set
     from torchmeshmetric.mpeg.ctc.manifest import load_ctc_campaign
 
     start = time.perf_counter()
@@ -50,6 +50,13 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out_dir)
     names = list(_TABLES)
     if not args.no_plots:
+        slugs: dict[str, str] = {}
+        for s in campaign.sequences:  # "sphere a" and "sphere_a": one plot file, the second written over the first
+            if (other := slugs.setdefault(_slug(s.name), s.name)) != s.name:
+                raise CLIError(
+                    f"sequences {other!r} and {s.name!r} would write the same RD plots (rd_c<condition>_"
+                    f"{_slug(s.name)}.png): rename one, or pass --no-plots"
+                )
         names += [
             _plot_name(c.cond_id, s.name)
             for c in campaign.conditions
