@@ -8,6 +8,7 @@ import trimesh
 from torchmetrics import MetricCollection
 
 from torchmeshmetric import EmptyInputError, Mesh, nearest_vertex_distance, point_mesh_distance, sample_surface
+from torchmeshmetric._checks import NonFiniteError
 from torchmeshmetric.metrics import (
     DistanceStatisticsMetric,
     MeshSurfaceDistance,
@@ -244,3 +245,36 @@ def test_batch_size_mismatch_and_bad_args(frames):
         nearest_vertex_distance_sets(simps[:2], refs[:3])
     with pytest.raises(ValueError, match="ddof"):
         NearestVertexDistance(ddof=-1)
+
+
+def test_a_refused_update_changes_nothing():
+    # A bad reverse set once left the forward distances counted and the reverse ones not (forward 2, reverse 1).
+    m = DistanceStatisticsMetric(two_sided=True)
+    m.update(torch.tensor([1.0]), torch.tensor([2.0]))
+    with pytest.raises(NonFiniteError, match="reverse_dists"):
+        m.update(torch.tensor([3.0]), torch.tensor([math.nan]))
+    with pytest.raises(ValueError, match=r"peak: expected finite values > 0, found \[nan\]"):
+        m.update(torch.tensor([3.0]), torch.tensor([4.0]), peak=math.nan)  # a NaN peak stuck for good
+    out = m.compute()
+    assert out["count"].item() == 1.0 and out["reverse_count"].item() == 1.0 and out["ave"].item() == 1.0
+
+
+BAD_PEAKS = [(-3.0, ValueError), (0.0, ValueError), (math.inf, ValueError), ("3", TypeError), (True, TypeError)]
+
+
+@pytest.mark.parametrize(("peak", "error"), [*BAD_PEAKS, (torch.tensor([]), TypeError)])
+def test_peaks_are_checked(peak, error):
+    m = DistanceStatisticsMetric()
+    with pytest.raises(error, match="peak"):
+        m.update(torch.tensor([1.0]), peak=peak)  # -3 was dropped in silence, "3" a raw torch error
+    m.update(torch.tensor([1.0]), peak=torch.tensor([2.0, 4.0]))
+    assert m.compute()["psnr"].item() == pytest.approx(10 * math.log10(16.0))
+
+
+def test_the_sketch_refuses_negative_distances():
+    # Log buckets: the median of [-5, -4, -3] came out -3. Exact quantiles take any sign.
+    with pytest.raises(ValueError, match=r"dists: the quantile sketch takes distances >= 0, found -5.0"):
+        DistanceStatisticsMetric(exact_quantiles=False).update(torch.tensor([-5.0, -4.0, -3.0]))
+    exact = DistanceStatisticsMetric()
+    exact.update(torch.tensor([-5.0, -4.0, -3.0]))
+    assert exact.compute()["median"].item() == -4.0

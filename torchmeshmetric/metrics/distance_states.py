@@ -85,8 +85,15 @@ class DistanceStates(NamedTuple):
                 :func:`~torchmeshmetric.stats.statistics.distance_statistics_update`.
         """
         moments, quantile_data = distance_statistics_update(dists, sketch, name)
-        if dists.numel() == 0:
-            return
+        if dists.numel():
+            self.add(metric, moments, quantile_data, sketch)
+
+    def add(self, metric: Metric, moments: Moments, quantile_data: Tensor, sketch: QuantileSketch | None) -> None:
+        """Add what :func:`~torchmeshmetric.stats.statistics.distance_statistics_update` returned for a set.
+
+        Apart from :meth:`update` so that a metric taking several sets checks them all before it adds any. An
+        empty set is not added (its caller knows its size without a device sync).
+        """
         rows: Tensor = getattr(metric, self.moments)
         setattr(metric, self.moments, merge_into_row(rows, moments))
         if sketch is None:

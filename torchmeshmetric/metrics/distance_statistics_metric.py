@@ -23,7 +23,7 @@ from torchmeshmetric.metrics.directed_distances import DirectedDistances
 from torchmeshmetric.metrics.distance_states import DistanceStates
 from torchmeshmetric.metrics.selected_statistic import SelectedStatistic
 from torchmeshmetric.stats.sketch import QuantileSketch
-from torchmeshmetric.stats.statistics import DistanceStatistics, psnr_from_mse
+from torchmeshmetric.stats.statistics import DistanceStatistics, distance_statistics_update, psnr_from_mse
 
 __all__ = ["DistanceStatisticsBase", "DistanceStatisticsMetric", "MeasuredDistanceBase"]
 
@@ -200,6 +200,22 @@ class DistanceStatisticsBase(StatisticsPlot, Metric):
         return out
 
 
+def _checked_peak(peak: object) -> Tensor:
+    """``update``'s ``peak`` (a number, or a tensor of them): the largest, once every one is finite and > 0.
+
+    A NaN peak stuck for good (the running maximum of NaN stays NaN) and a negative one was dropped in silence.
+    """
+    if isinstance(peak, bool) or not isinstance(peak, (int, float, Tensor)):
+        raise TypeError(f"peak: expected a number or a tensor of them, found {type(peak).__name__} {peak!r}")
+    p = torch.as_tensor(peak).detach()
+    if p.dtype == torch.bool or p.is_complex() or p.numel() == 0:
+        raise TypeError(f"peak: expected real numbers, found a {p.dtype} tensor of {p.numel()} values")
+    p = p.to(torch.float64)
+    if not bool((torch.isfinite(p) & (p > 0)).all()):
+        raise ValueError(f"peak: expected finite values > 0, found {p.flatten()[:4].tolist()}")
+    return p.max()
+
+
 class DistanceStatisticsMetric(DistanceStatisticsBase):
     """Statistics of precomputed distances, accumulated over batches and processes (no geometry).
 
@@ -221,17 +237,32 @@ class DistanceStatisticsMetric(DistanceStatisticsBase):
     _peak_from_updates = False
 
     def update(self, dists: Tensor, reverse_dists: Tensor | None = None, *, peak: float | Tensor | None = None) -> None:
-        """Accumulate ``(N,)`` forward distances (and ``(R,)`` reverse ones when ``two_sided``)."""
-        self._forward_states.update(self, dists, self._sketch)
-        if self.two_sided:
-            if reverse_dists is None:
-                raise TypeError("reverse_dists: expected a (R,) tensor because two_sided=True, found None")
-            check_shape(reverse_dists, ("R",), "reverse_dists")
-            self._reverse_states.update(self, reverse_dists, self._sketch, "reverse_dists")
-        elif reverse_dists is not None:
+        """Accumulate ``(N,)`` forward distances (and ``(R,)`` reverse ones when ``two_sided``).
+
+        Every argument is checked before any state changes: a refused update leaves the metric as it was (a bad
+        ``reverse_dists`` once left the forward distances counted and the reverse ones not).
+
+        Raises:
+            TypeError: ``reverse_dists`` given one-sided or missing two-sided; ``peak`` not a number.
+            ValueError: ``peak`` not finite and > 0; bad distances (see
+                :func:`~torchmeshmetric.stats.distance_statistics_update`).
+        """
+        if self.two_sided and reverse_dists is None:
+            raise TypeError("reverse_dists: expected a (R,) tensor because two_sided=True, found None")
+        if not self.two_sided and reverse_dists is not None:
             raise TypeError("reverse_dists: only valid with two_sided=True")
         if peak is not None:
-            self._update_peak(torch.as_tensor(peak, dtype=torch.float64).max())
+            peak = _checked_peak(peak)
+        updates = [(self._forward_states, dists, distance_statistics_update(dists, self._sketch, "dists"))]
+        if reverse_dists is not None:
+            check_shape(reverse_dists, ("R",), "reverse_dists")
+            reverse = distance_statistics_update(reverse_dists, self._sketch, "reverse_dists")
+            updates.append((self._reverse_states, reverse_dists, reverse))
+        for states, values, (moments, quantile_data) in updates:  # all checked above: none added without the others
+            if values.numel():
+                states.add(self, moments, quantile_data, self._sketch)
+        if peak is not None:
+            self._update_peak(peak)
 
 
 class MeasuredDistanceBase(DistanceStatisticsBase):

@@ -314,10 +314,13 @@ def distance_statistics_update(
         ShapeError: ``dists`` is not 1-D.
         TypeError: ``dists`` is not real.
         NonFiniteError: a distance is NaN or Inf.
+        ValueError: a negative distance with a ``sketch`` (its quantiles would be wrong; exact ones take any sign).
     """
     check_shape(dists, ("N",), name)
     _check_distances(dists, name)
     d = dists.detach().to(torch.float64)
+    if sketch is not None and d.numel() and float(d.min()) < 0:  # log buckets: a negative value lands in the wrong one
+        raise ValueError(f"{name}: the quantile sketch takes distances >= 0, found {float(d.min())!r}")
     return moments_of(d), d if sketch is None else sketch.counts(d)
 
 
