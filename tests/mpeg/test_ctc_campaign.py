@@ -191,6 +191,8 @@ def test_an_out_dir_that_is_a_file_is_refused_before_any_frame(
         (("r{rate_id}/dec", "r{rate}/dec"), r"'decoded': unknown field 'rate'"),
         (('sequence = "sphere"', 'sequence = "cube"'), r"\[anchor\]\.points\[0\]: 'sequence' 'cube' is not"),
         (("max_pos = [1, 1, 1]", "max_pos = [1, 1, -1]"), r"'max_pos' \[1\.0, 1\.0, -1\.0\] must be above"),
+        # 0 bits made the point's BD-rates vanish from the summary without a word (found by review)
+        (("total_bits = 36900", "total_bits = 0"), r"points\[0\]: 'total_bits' must be > 0"),
     ],
 )
 def test_manifest_errors_name_the_key(tmp_path: Path, edit: tuple[str, str], message: str) -> None:

@@ -417,6 +417,8 @@ def _codec(entry: Any, where: str, base: Path, seq_ids: dict[str, int], conds: d
         for k, v in values.items():
             if v < 0:
                 raise CtcManifestError(f"{p.where}: {k!r} must be >= 0, found {v}")
+        if values.get("total_bits") == 0:  # a coded point has bits: 0 made its BD-rates vanish from the summary
+            raise CtcManifestError(f"{p.where}: 'total_bits' must be > 0 (a coded point's bitstream), found 0")
         comps = p.get("components", dict, None)
         if comps is not None:
             c = _Table(comps, f"{p.where}.components", _COMPONENTS)
