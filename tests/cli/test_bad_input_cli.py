@@ -131,3 +131,12 @@ def test_target_is_read_as_the_library_reads_it():
     for bad in ("0", "-3", "0.0", "1.5", "2.0", "nan", "x"):
         with pytest.raises(argparse.ArgumentTypeError, match="expected a face count"):
             parse_target(bad)
+
+
+def test_a_weight_for_plain_qem_is_refused(capsys, tmp_path, sequence, known_registration):
+    # plain QEM has no weight: --weight was ignored without a word (found by review)
+    argv = ["simplify", "--input", str(sequence[0]), "--output", str(tmp_path / "out"), "--method", "qem"]
+    assert main([*argv, "--weight", "0.5"]) == 1
+    assert "--weight: applies to --method rqem and tracking, not qem" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists() and known_registration.calls == 0
+    assert main(argv) == 0

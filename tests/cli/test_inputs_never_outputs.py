@@ -60,11 +60,12 @@ def test_sample_never_writes_its_mesh(tmp_path, meshes, capsys, overwrite, spell
 
 
 def test_sample_never_writes_the_texture_of_its_mtl(tmp_path, capsys):
-    (tmp_path / "m.mtl").write_text("newmtl a\nmap_Kd t.png\n")
+    # the texture named with OUT's suffix (.ply): the output's own suffix check passes, the input check refuses
+    (tmp_path / "m.mtl").write_text("newmtl a\nmap_Kd t.ply\n")
     (tmp_path / "m.obj").write_text("mtllib m.mtl\nusemtl a\n" + QUAD)
-    (tmp_path / "t.png").write_bytes(b"not really a png")
+    (tmp_path / "t.ply").write_bytes(b"not really a texture")
     before = _snapshot(tmp_path)
-    _refused(capsys, ["sample", str(tmp_path / "m.obj"), str(tmp_path / "t.png"), "--overwrite"], "MESH's texture")
+    _refused(capsys, ["sample", str(tmp_path / "m.obj"), str(tmp_path / "t.ply"), "--overwrite"], "MESH's texture")
     assert _snapshot(tmp_path) == before
 
 

@@ -35,6 +35,8 @@ def _run(args: argparse.Namespace) -> int:
     from torchmeshmetric.mpeg.sampling.subdivision_sampling import subdivision_sample
 
     out = Path(args.output)
+    if out.suffix.lower() != ".ply":  # the cloud is written as PLY text: another name would hide what the file is
+        raise CLIError(f"OUT: {str(out)!r} must end with .ply (the cloud is written as PLY)")
     from torchmeshmetric.mpeg.comparison.csv_rows import mmetric_texture_url
 
     try:

@@ -27,6 +27,7 @@ def run(args: argparse.Namespace) -> int:
     follow the previous simplified frame moved by that registration; frame 0 is simplified with QEM.
     """
     from torchmeshmetric.cli._outputs import (
+        CLIError,
         check_folder,
         check_writable,
         folder_inputs,
@@ -44,6 +45,8 @@ def run(args: argparse.Namespace) -> int:
     from torchmeshmetric.evaluation.pipeline import register_pairs
     from torchmeshmetric.registration.cache import RegistrationCache
 
+    if args.weight is not None and args.method == "qem":  # plain QEM has no weight: it was ignored in silence
+        raise CLIError("--weight: applies to --method rqem and tracking, not qem")
     device = device_of(args)
     frames = load_frames(args.input, "--input", dtype_of(args))
     names = [Path(p).name for p in list_frames(args.input)]
