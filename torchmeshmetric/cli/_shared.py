@@ -292,10 +292,7 @@ def temporal_methods(
             {name: f.as_dict() for name, f in again.items()},
             FIGURE_NAMES,
         )
-    section = temporal_markdown(out, determinacy=determinacy)
-    if sequence is not None:
-        section = section.replace("## Temporal metrics", f"## Temporal metrics of sequence {sequence!r}", 1)
-    print(section)
+    print(temporal_markdown(out, determinacy=determinacy, sequence=sequence))
     return out, determinacy
 
 

@@ -76,7 +76,9 @@ def temporal_report(figures: Mapping[str, TemporalFigures]) -> dict[str, dict[st
     return {name: f.as_dict() for name, f in figures.items()}
 
 
-def temporal_markdown(figures: Mapping[str, TemporalFigures], *, determinacy: Determinacy | None = None) -> str:
+def temporal_markdown(
+    figures: Mapping[str, TemporalFigures], *, determinacy: Determinacy | None = None, sequence: str | None = None
+) -> str:
     """A Markdown section with one row per method: KG, KSO, STED_s, STED_t, STED and the form used.
 
     Each figure prints the digits its form determines (:func:`format_figure`), and :data:`FIGURE_DIGITS_NOTE` follows
@@ -88,6 +90,8 @@ def temporal_markdown(figures: Mapping[str, TemporalFigures], *, determinacy: De
             (:func:`~torchmeshmetric.evaluation.determinacy.with_temporal_changes`, ``--determinacy``): each figure
             then keeps only the digits a second run on nudged frames left in place, at most those of
             :data:`FIGURE_FORMATS`. Without that table, the measured digits of :data:`FIGURE_FORMATS`.
+        sequence: the sequence the figures are of, named in the section's title (a campaign prints one section per
+            sequence).
 
     Example:
         >>> f = TemporalFigures(1.0, 2.0, 0.1, 0.2, 0.1, True, 3, 100)
@@ -96,7 +100,8 @@ def temporal_markdown(figures: Mapping[str, TemporalFigures], *, determinacy: De
     """
     measured = determinacy is not None and "temporal" in determinacy.changes
     lines = [
-        "## Temporal metrics (KG, KSO, STED; docs/temporal.md)",
+        "## Temporal metrics" + ("" if sequence is None else f" of sequence {sequence!r}") + " (KG, KSO, STED; "
+        "docs/temporal.md)",
         "",
         "| method | " + " | ".join(FIGURE_LABELS[k] for k in FIGURE_NAMES) + " | form |",
         "|---|" + "---:|" * len(FIGURE_NAMES) + "---|",
