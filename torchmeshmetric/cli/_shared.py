@@ -90,9 +90,9 @@ def report_paths(out: str | None, mpeg: bool = False, html: bool = False) -> dic
     return paths
 
 
-def kept_by(out: str | None, option: str = "--out") -> str:
+def kept_by(out: str | None) -> str:
     """What keeps the full values, for the note under printed tables: ``--out``'s file name, or the option."""
-    return Path(out).name if out else f"the JSON report ({option})"
+    return Path(out).name if out else "the JSON report (--out)"
 
 
 def dtype_of(args: argparse.Namespace) -> Any:
