@@ -193,6 +193,8 @@ def test_an_out_dir_that_is_a_file_is_refused_before_any_frame(
         (("max_pos = [1, 1, 1]", "max_pos = [1, 1, -1]"), r"'max_pos' \[1\.0, 1\.0, -1\.0\] must be above"),
         # 0 bits made the point's BD-rates vanish from the summary without a word (found by review)
         (("total_bits = 36900", "total_bits = 0"), r"points\[0\]: 'total_bits' must be > 0"),
+        # a test codec named as the anchor gave a summary and RD legends whose two codecs read the same
+        (('name = "test"', 'name = "anchor"'), r"\[test\] name 'anchor' is the anchor's name too"),
     ],
 )
 def test_manifest_errors_name_the_key(tmp_path: Path, edit: tuple[str, str], message: str) -> None:
@@ -288,6 +290,9 @@ def test_bits_runtimes_and_memory_from_the_codecs_files(tmp_path: Path) -> None:
         ctc_campaign._codec_values(codec, seq, 1, 2, {})
     with pytest.raises(ValueError, match=r"test: sequence 'ball' condition 1 rate 1: bitstream .* not found"):
         ctc_campaign._codec_values(codec, seq, 1, 1, {})
+    (folder / "out.vmesh").write_bytes(b"")  # a failed encode: no point at 0 bits (its BD figures would vanish)
+    with pytest.raises(ValueError, match=r"test: sequence 'ball' condition 1 rate 2: bitstream .* is empty"):
+        ctc_campaign._codec_values(codec, seq, 1, 2, {})
 
 
 @pytest.mark.parametrize("statement", ["map_Kd my tex.png", "map_Kd -s 1 1 1 my tex.png", "map_Kd my_tex.png"])

@@ -180,6 +180,12 @@ def test_reports_and_csv_round_trip(tmp_path: Path) -> None:
     p.write_text(text.replace("\n1,1,1,1000,", "\n1,x,1,1000,", 1))
     with pytest.raises(ValueError, match=r"anchor.csv:2: column 'CondId': expected a number, found 'x'"):
         read_test_model_csv(p)
+    # 0 bits gave the sequence no BD figure without a word (bd_rate's log of 0 was read as "not computable")
+    row = text.splitlines()[1].split(",")
+    row[4] = "0"
+    p.write_text(text.replace(text.splitlines()[1], ",".join(row), 1))
+    with pytest.raises(ValueError, match=r"anchor.csv:2: column 'TotalBitstreamBits': a coded point has bits, found 0"):
+        read_test_model_csv(p)
     summary = ctc_summary(SEQS, [COND], ANCHOR, TEST)
     lines = summary_csv(summary).splitlines()
     assert [r.split(",")[1:3] for r in lines[1:]] == [

@@ -303,6 +303,8 @@ def _codec_values(
         if not bits.is_file():
             raise ValueError(f"{what}: bitstream {str(bits)!r} not found")
         v["total_bits"] = bits.stat().st_size * 8
+        if v["total_bits"] == 0:  # an empty file is a failed encode, not a point at 0 bits
+            raise ValueError(f"{what}: bitstream {str(bits)!r} is empty (0 bytes)")
     for log, side in ((codec.encoder_log, "encoder"), (codec.decoder_log, "decoder")):
         if log is None:
             continue

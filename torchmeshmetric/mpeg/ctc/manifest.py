@@ -513,6 +513,11 @@ def load_ctc_campaign(path: str | Path) -> CtcCampaign:
     test = _codec(
         top.get("test", dict, what="the tested codec's [test] table"), f"{where}: [test]", base, seq_ids, conds
     )
+    if test.name == anchor.name:  # the summary's columns and the RD plots' legends are labelled by these names
+        raise CtcManifestError(
+            f"{where}: [test] name {test.name!r} is the anchor's name too: the reports could not tell the codecs "
+            "apart (give one of them another 'name')"
+        )
     ibsm = opt.int_in("ibsm_resolution", 0, 1 << 15, 2048)
     return CtcCampaign(
         sequences=sequences,

@@ -251,6 +251,8 @@ def read_test_model_csv(path: str | Path) -> dict[tuple[int, int, int], RatePoin
             seq, cond, rate = (int(_field(str(p), line, row, c, required=True) or 0) for c in TEST_MODEL_COLUMNS[:3])
             v = {c: _field(str(p), line, row, c, required=False) if c in row else None for c in TEST_MODEL_COLUMNS[3:]}
             known = {c: x for c, x in v.items() if x is not None and x >= 0}
+            if known.get("TotalBitstreamBits") == 0:  # a coded point has bits; 0 would drop its BD figures silently
+                raise ValueError(f"{path}:{line}: column 'TotalBitstreamBits': a coded point has bits, found 0")
             figures = {m: known[m] for m in _METRICS if known.get(m, 0) != 0}
             faces = known.get("NbOutputFaces")
             point = RatePoint(
