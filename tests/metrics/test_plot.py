@@ -169,3 +169,23 @@ def test_the_metrics_beyond_torchmeshmetric_metrics_plot_too(tmp_path):
     assert [t.get_text() for t in ax.get_xticklabels()] == ["d1_psnr", "d2_psnr"]
     assert ax.patches[0].get_height() == pytest.approx(float(mpeg.compute()["d1_psnr"]), rel=1e-12)
     assert _saved(fig, tmp_path, "mpeg")[:8] == PNG
+
+
+def test_values_that_are_not_finite_are_labelled_and_named(tmp_path):
+    # matplotlib drew a NaN bar with no label at all and left NaN / inf points off the curves without a word.
+    metric = DistanceStatisticsMetric()
+    result = {"ave": torch.tensor(float("nan")), "rmse": torch.tensor(2.0), "max": torch.tensor(float("inf"))}
+    named = r"DistanceStatisticsMetric.plot: ave=nan, max=inf not finite: each is a label over no bar"
+    with pytest.warns(UserWarning, match=named):
+        fig, ax = metric.plot(result)
+    assert [t.get_text() for t in ax.texts] == ["nan", "2", "inf"]
+    assert [p.get_height() for p in ax.patches] == [0.0, 2.0, 0.0] and ax.get_ylim()[0] == 0.0
+    assert _saved(fig, tmp_path, "bars")[:8] == PNG
+    steps = [{"ave": torch.tensor(1.0)}, {"ave": torch.tensor(float("inf"))}]
+    with pytest.warns(UserWarning, match=r"ave\[1\]=inf not finite: the curves have no point there"):
+        metric.plot(steps, keys=["ave"])
+    with pytest.warns(UserWarning, match=r"val\[0\]=nan not finite"):
+        metric.plot([torch.tensor(float("nan")), torch.tensor(1.0)])
+    with pytest.warns(UserWarning, match=r": val=-inf not finite"):
+        metric.plot(torch.tensor(float("-inf")))
+    plt.close("all")

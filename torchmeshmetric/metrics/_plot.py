@@ -11,13 +11,20 @@ metric class, draws
 * several results (a list of dicts, one a step or epoch) as curves, one a statistic, with torchmetrics'
   ``plot_single_or_multi_val``;
 * a scalar (a tensor, or a list of them) exactly as torchmetrics draws a scalar metric.
+
+A value that is not finite (a NaN, a PSNR of ``inf`` between equal meshes) cannot be drawn: a bar's label shows it
+over no bar, a curve has no point there, and a ``UserWarning`` names each such value (matplotlib alone drops them
+without a word).
 """
 
 from __future__ import annotations
 
+import math
+import warnings
 from collections.abc import Callable, Sequence
 from typing import Any
 
+import torch
 from torch import Tensor
 
 __all__ = ["LENGTH_STATISTICS", "StatisticsPlot", "length_keys"]
@@ -136,10 +143,30 @@ class StatisticsPlot:
         return chosen
 
 
+def _warn_not_finite(name: str, found: list[str], drawn: str) -> None:
+    """Say which values cannot be drawn (matplotlib leaves a NaN out and an infinity off the axes without a word)."""
+    if found:
+        shown = ", ".join(found[:5]) + (f" and {len(found) - 5} more" if len(found) > 5 else "")
+        warnings.warn(f"{name}.plot: {shown} not finite: {drawn}", UserWarning, stacklevel=4)  # the caller of plot
+
+
+def _not_finite_steps(val: Any) -> list[str]:
+    """``"key[step]=value"`` (or ``"[step]=value"``) of every non-finite value of a result, or of a list of them."""
+    steps = val if isinstance(val, Sequence) else [val]
+    out = []
+    for i, step in enumerate(steps):
+        for key, v in step.items() if isinstance(step, dict) else [("val", step)]:
+            x = v.detach().double().reshape(-1) if isinstance(v, Tensor) else torch.tensor([float(v)])
+            where = f"[{i}]" if steps is val else ""
+            out += [f"{key}{where}={float(x[j]):g}" for j in torch.nonzero(~torch.isfinite(x)).reshape(-1).tolist()]
+    return out
+
+
 def _curves(val: Any, ax: Any, name: str, higher_is_better: bool | None) -> tuple[Any, Any]:
     """Draw with torchmetrics' own helper of a scalar, a list of scalars or a list of dicts (curves over steps)."""
     from torchmetrics.utilities.plot import plot_single_or_multi_val
 
+    _warn_not_finite(name, _not_finite_steps(val), "the curves have no point there")
     lower = None if higher_is_better else 0.0  # distances are >= 0; a PSNR has no lower bound
     fig, ax = plot_single_or_multi_val(val, ax=ax, higher_is_better=higher_is_better, lower_bound=lower, name=name)
     return fig, ax
@@ -150,13 +177,16 @@ def _bars(result: dict[str, Tensor], ax: Any, chosen: list[str], name: str) -> t
     import matplotlib.pyplot as plt
 
     values = [float(result[k]) for k in chosen]
+    finite = [v if math.isfinite(v) else 0.0 for v in values]  # a NaN bar had no label at all, an inf one no height
+    odd = [f"{k}={v:g}" for k, v in zip(chosen, values, strict=True) if not math.isfinite(v)]
+    _warn_not_finite(name, odd, "each is a label over no bar")
     fig, ax = plt.subplots(figsize=(max(4.0, 0.6 * len(chosen) + 1.5), 3.5)) if ax is None else (None, ax)
-    bars = ax.bar(range(len(chosen)), values, color=[f"C{_direction(k)}" for k in chosen])
+    bars = ax.bar(range(len(chosen)), finite, color=[f"C{_direction(k)}" for k in chosen])
     ax.bar_label(bars, labels=[f"{v:.3g}" for v in values], fontsize=7)
     tilted = len(chosen) > 8
     ax.set_xticks(range(len(chosen)), chosen, rotation=45 if tilted else 0, ha="right" if tilted else "center")
     ax.set_ylabel(name)
-    if min(values) >= 0:
+    if min(finite) >= 0:
         ax.set_ylim(bottom=0.0)  # distances: the bars start at their lower bound
     ax.grid(True, axis="y")
     return fig, ax
