@@ -69,11 +69,19 @@ def test_identical_meshes_json_inf_and_table(tmp_path: Path, capsys: pytest.Capt
         (TRI, "v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", [], "dis.obj' vertex 0 (line 1) has non-finite coordinates"),
         (TRI, "v 0 0 1e39\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", [], "dis.obj' line 1: vertex 0 has coordinates up to 1e+39"),
         (TRI, TRI.replace("f 1 2 3", "vt nan nan\nf 1/1 2/1 3/1"), [], "texture coordinate 0 (line 4) is not finite"),
-        (TRI, TRI, ["--grid-size", "0"], "grid_size: expected an integer >= 2, found 0"),
+        (TRI, TRI, ["--grid-size", "0"], "error: --grid-size: expected an integer >= 2, found 0"),
         (TRI, TRI, ["--box", "0 0 0", "0.5 0.5 0.5"], "does not contain the reference mesh"),
         (TRI, TRI, ["--box", "0 0", "1 1 1"], "--box MIN: expected three finite numbers"),
         (TRI, TRI, ["--box", "1 1 1", "0 0 0"], "max corner [0.0, 0.0, 0.0] is below min corner"),
-        (TRI, TRI, ["--peak", "0"], "peak: expected a positive finite number, found 0.0"),
+        (TRI, TRI, ["--peak", "0"], "error: --peak: expected a positive finite number, found 0.0"),
+        # the library's argument names (path, texture, resolution) were printed for the command's (found by review)
+        (TRI, TRI.replace("f 1 2 3", "f 1 2 4"), [], "error: DIS: '"),
+        (TRI, TRI, ["--ref-texture", "none.png"], "error: --ref-texture: texture file "),
+        (TRI, TRI, ["--mode", "ibsm", "--ibsm-resolution", "0"], "error: --ibsm-resolution: expected a positive"),
+        (TRI, TRI, ["--mode", "ibsm", "--ibsm-cameras", "1"], "error: --ibsm-cameras: expected an integer >= 2"),
+        (TRI.replace("f 1 2 3", "f 1 2 4"), TRI, ["--mode", "pcqm"], "error: REF: '"),
+        (TRI, TRI.replace("f 1 2 3", "f 1 2 4"), ["--mode", "eqTFAN"], "error: DIS: '"),
+        (TRI.replace("f 1 2 3", "f 1 2 4"), TRI, ["--mode", "equ"], "error: REF: '"),
     ],
 )
 def test_bad_input_is_one_clear_line(

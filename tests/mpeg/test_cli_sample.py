@@ -90,3 +90,20 @@ def test_map_same_body_as_mm(tmp_path: Path) -> None:
     args = [str(MM), "sample", "--mode", "map", "-i", str(obj), "-o", str(theirs), "--hideProgress", "-m", tex]
     subprocess.run(args, capture_output=True, timeout=120, check=True)
     assert _body(ours) == _body(theirs)
+
+
+def test_errors_name_the_commands_arguments(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # The library's argument names (path, mesh, texture) were printed for the command's (found by review).
+    obj = tmp_path / "t.obj"
+    obj.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    bad = tmp_path / "bad.obj"
+    bad.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n")
+    out = str(tmp_path / "o.ply")
+    for argv, message in [
+        ([str(bad), out], f"error: MESH: {str(bad)!r} line 4: face 0: vertex index 4 is out of range"),
+        ([str(obj), out, "--mode", "map"], f"error: MESH {str(obj)!r}: map sampling needs UVs and a texture"),
+        ([str(obj), out, "--texture", str(tmp_path / "no.png")], "error: --texture: texture file "),
+    ]:
+        assert main(["sample", *argv]) == 1
+        assert message in capsys.readouterr().err
+    assert not (tmp_path / "o.ply").exists()

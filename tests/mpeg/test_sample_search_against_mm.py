@@ -91,4 +91,7 @@ def test_cli_search_refusals(tmp_path: Path, capsys: pytest.CaptureFixture[str])
     assert main(["sample", str(mesh), str(tmp_path / "o.ply"), "--mode", "prnd", "--num-samples-min", "5"]) == 1
     assert "not of prnd mode" in capsys.readouterr().err
     assert main(["sample", str(mesh), str(tmp_path / "o.ply"), "--num-samples-min", "5", "--num-samples-max", "5"]) == 1
-    assert "expected 1 <= min < max" in capsys.readouterr().err
+    assert "error: --num-samples-min, --num-samples-max: expected 1 <= min < max" in capsys.readouterr().err
+    argv = ["sample", str(mesh), str(tmp_path / "o.ply"), "--num-samples-min", "5", "--num-samples-max", "9"]
+    assert main([*argv, "--max-iterations", "-1"]) == 1
+    assert "error: --max-iterations: expected >= 0, found -1" in capsys.readouterr().err

@@ -35,11 +35,10 @@ def _run_equality(args: argparse.Namespace) -> int:
     """``--mode equ``: mmetric's verdict in its words (or JSON); exit status 0 when equal, 1 otherwise."""
     from dataclasses import asdict
 
+    from torchmeshmetric.cli.mpeg_outputs import load_pair
     from torchmeshmetric.mpeg.comparison.equality import mesh_equality
-    from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
 
-    ref = load_textured_mesh(args.ref, args.ref_texture)
-    dis = load_textured_mesh(args.dis, args.dis_texture)
+    ref, dis = load_pair(args)
     result = mesh_equality(ref, dis, unoriented=args.unoriented)
     if args.json:
         print(json.dumps(asdict(result), indent=1))
@@ -57,11 +56,11 @@ _PCQM_OPTIONS = {
 
 def _run_pcqm(args: argparse.Namespace) -> int:
     """``--mode pcqm``: mm compare --mode pcqm's printed figures (or JSON)."""
+    from torchmeshmetric.cli.mpeg_outputs import load_pair
     from torchmeshmetric.mpeg.comparison.pcqm import mpeg_pcqm
     from torchmeshmetric.mpeg.sampling.model_cloud import load_model_cloud
 
-    ref = load_model_cloud(args.ref, args.ref_texture, name=f"REF {args.ref!r}")
-    dis = load_model_cloud(args.dis, args.dis_texture, name=f"DIS {args.dis!r}")
+    ref, dis = load_pair(args, lambda side, path, texture: load_model_cloud(path, texture, name=f"{side} {path!r}"))
     try:
         result = mpeg_pcqm(
             ref,
@@ -81,15 +80,14 @@ def _run_topology(args: argparse.Namespace) -> int:
     from dataclasses import asdict
 
     from torchmeshmetric.cli._outputs import CLIError
+    from torchmeshmetric.cli.mpeg_outputs import load_pair
     from torchmeshmetric.mpeg.comparison.topology import topology_equivalence
-    from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
 
     if args.face_map is None or args.vertex_map is None:
         raise CLIError(
             "--mode topo needs --face-map FILE and --vertex-map FILE (mmetric's --faceMapFile/--vertexMapFile)"
         )
-    ref = load_textured_mesh(args.ref, args.ref_texture)
-    dis = load_textured_mesh(args.dis, args.dis_texture)
+    ref, dis = load_pair(args)
     result = topology_equivalence(ref, dis, args.face_map, args.vertex_map)
     print(json.dumps(asdict(result), indent=1) if args.json else result.report())
     return 0 if result.matching else 1
@@ -97,18 +95,19 @@ def _run_topology(args: argparse.Namespace) -> int:
 
 def _run_tfan(args: argparse.Namespace) -> int:
     """``--mode eqTFAN``: mmetric's TFAN connectivity verdict in its words; exit status 0 when equal, 1 otherwise."""
+    from torchmeshmetric.cli.mpeg_outputs import load_pair
     from torchmeshmetric.mpeg.comparison.tfan_comparison import load_tfan_mesh, tfan_equality
 
-    report = tfan_equality(load_tfan_mesh(args.ref), load_tfan_mesh(args.dis), early_return=not args.all_differences)
+    ref, dis = load_pair(args, lambda side, path, texture: load_tfan_mesh(path))
+    report = tfan_equality(ref, dis, early_return=not args.all_differences)
     print(json.dumps({"equal": report.endswith(" meshes are equal"), "report": report}) if args.json else report)
     return 0 if report.endswith(" meshes are equal") else 1
 
 
 def _run(args: argparse.Namespace) -> int:
-    from torchmeshmetric.cli.mpeg_outputs import check_outputs, run_ibsm, write_pcc_outputs
+    from torchmeshmetric.cli.mpeg_outputs import check_outputs, load_pair, run_ibsm, write_pcc_outputs
     from torchmeshmetric.mpeg.comparison.mpeg_metrics import mpeg_point_clouds
     from torchmeshmetric.mpeg.comparison.pcc import mpeg_compare
-    from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
 
     check_outputs(args)
     if args.mode == "equ":
@@ -125,18 +124,20 @@ def _run(args: argparse.Namespace) -> int:
     box = None
     if args.box is not None:
         box = (corner(args.box[0], "--box MIN"), corner(args.box[1], "--box MAX"))
-    ref = load_textured_mesh(args.ref, args.ref_texture)
-    dis = load_textured_mesh(args.dis, args.dis_texture)
-    clouds = mpeg_point_clouds(
-        ref,
-        dis,
-        sampling=args.sampling,
-        grid_size=args.grid_size,
-        box=box,
-        peak=args.peak,
-        bilinear=not args.nearest,
-        names=(f"REF {args.ref!r}", f"DIS {args.dis!r}"),
-    )
+    ref, dis = load_pair(args)
+    try:
+        clouds = mpeg_point_clouds(
+            ref,
+            dis,
+            sampling=args.sampling,
+            grid_size=args.grid_size,
+            box=box,
+            peak=args.peak,
+            bilinear=not args.nearest,
+            names=(f"REF {args.ref!r}", f"DIS {args.dis!r}"),
+        )
+    except ValueError as exc:
+        raise as_option_error(exc, {"grid_size": "--grid-size", "peak": "--peak", "box": "--box"}) from exc
     result = mpeg_compare(clouds.ref, clouds.dis, peak=clouds.peak)
     write_pcc_outputs(args, clouds, result)
     d = result.to_dict()

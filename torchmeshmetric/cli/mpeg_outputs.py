@@ -14,6 +14,7 @@ import argparse
 import contextlib
 import json
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -137,22 +138,45 @@ def _ibsm_lines(r: Any) -> str:
     return "\n".join([*lines, f"GEO PSNR = {r.geo_psnr:.9g}"])
 
 
+def load_pair(args: argparse.Namespace, load: Callable[[str, str, str | None], Any] | None = None) -> tuple[Any, Any]:
+    """REF and DIS, a library error retold about the argument that gave the file (``REF``, ``--dis-texture``).
+
+    Args:
+        args: the command's arguments (``ref``, ``dis``, ``ref_texture``, ``dis_texture``).
+        load: ``(side, path, texture) -> mesh`` (default: the textured mesh, ``load_textured_mesh``).
+    """
+    from torchmeshmetric.cli.options import as_option_error
+    from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
+
+    meshes = []
+    for side, path, texture in (("REF", args.ref, args.ref_texture), ("DIS", args.dis, args.dis_texture)):
+        options = {"path": side, "mesh": f"{side} {path!r}"}
+        options["texture"] = f"--{side.lower()}-texture" if texture else f"{side}'s texture"
+        try:
+            meshes.append(load_textured_mesh(path, texture) if load is None else load(side, path, texture))
+        except ValueError as exc:
+            raise as_option_error(exc, options) from exc
+    return meshes[0], meshes[1]
+
+
 def run_ibsm(args: argparse.Namespace) -> int:
     """``--mode ibsm``: mmetric's IBSM figures of DIS against REF, and its output files."""
     from dataclasses import asdict
 
     from torchmeshmetric._format import json_safe
+    from torchmeshmetric.cli.options import as_option_error
     from torchmeshmetric.mpeg.comparison.csv_rows import IBSM_CSV_HEADER, ibsm_csv_row, mmetric_texture_url
     from torchmeshmetric.mpeg.comparison.ibsm import ibsm
     from torchmeshmetric.mpeg.core.model_files import obj_header, textured_mesh_text
     from torchmeshmetric.mpeg.core.reindex import oriented_reindex
-    from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
 
     check_outputs(args)
-    ref = load_textured_mesh(args.ref, args.ref_texture)
-    dis = load_textured_mesh(args.dis, args.dis_texture)
+    ref, dis = load_pair(args)
     start = time.process_time()
-    result = ibsm(ref, dis, resolution=args.ibsm_resolution, cameras=args.ibsm_cameras)
+    try:
+        result = ibsm(ref, dis, resolution=args.ibsm_resolution, cameras=args.ibsm_cameras)
+    except ValueError as exc:
+        raise as_option_error(exc, {"resolution": "--ibsm-resolution", "cameras": "--ibsm-cameras"}) from exc
     seconds = time.process_time() - start
     print(json.dumps(json_safe(asdict(result)), indent=1) if args.json else _ibsm_lines(result))
     texts = []

@@ -17,6 +17,9 @@ _OPTIONS = {
     "length_threshold": "--length-threshold",
     "area_threshold": "--area-threshold",
     "max_depth": "--max-depth",
+    "num_samples_min": "--num-samples-min",
+    "num_samples_max": "--num-samples-max",
+    "max_iterations": "--max-iterations",
 }
 
 
@@ -45,7 +48,13 @@ def _run(args: argparse.Namespace) -> int:
         texture = None
     inputs = [("MESH", args.mesh), ("--texture" if args.texture else "MESH's texture", texture)]
     check_writable([out], args.overwrite, inputs=inputs, what="OUT")
-    mesh = load_textured_mesh(args.mesh, args.texture)
+    # the library's errors name its arguments (mesh, texture, num_samples_min...): retold with the command's names
+    options = {**_OPTIONS, "path": "MESH", "mesh": f"MESH {args.mesh!r}"}
+    options["texture"] = "--texture" if args.texture else "MESH's texture"
+    try:
+        mesh = load_textured_mesh(args.mesh, args.texture)
+    except ValueError as exc:
+        raise as_option_error(exc, options) from exc
 
     def sample(value: float | None = None) -> Any:
         """The mode's sampling; ``value`` replaces the resolution (face) or threshold (sdiv, ediv) when searched."""
@@ -74,7 +83,7 @@ def _run(args: argparse.Namespace) -> int:
         try:
             found = search_sample_count(sample, kind, args.num_samples_min, args.num_samples_max, args.max_iterations)
         except ValueError as exc:
-            raise CLIError(f"--num-samples-min/--num-samples-max: {exc}") from exc
+            raise as_option_error(exc, options) from exc
         pc = found.cloud
         if found.earlier_points and pc.colors is not None:
             # mmetric's Model::reset keeps the earlier samplings' colours: its file then has none (see CountSearch)
@@ -84,7 +93,7 @@ def _run(args: argparse.Namespace) -> int:
         try:
             pc = sample()
         except ValueError as exc:
-            raise as_option_error(exc, _OPTIONS) from exc
+            raise as_option_error(exc, options) from exc
         except MemoryError as exc:  # beyond the free memory, below the physical memory the checks refuse at
             option = {"prnd": "--num-samples", "sdiv": "--area-threshold", "map": "MESH's texture"}.get(
                 args.mode, "--length-threshold" if args.mode == "ediv" and args.length_threshold else "--resolution"
