@@ -8,6 +8,7 @@ Every check raises an error that names the argument, what was found and what was
 from __future__ import annotations
 
 import functools
+import numbers
 from collections.abc import Sequence
 
 import torch
@@ -166,6 +167,32 @@ def check_finite(x: Tensor, name: str) -> None:
     if x.numel() and not all_finite(x):
         n_bad = int((~torch.isfinite(x)).sum())
         raise NonFiniteError(f"{name}: expected finite values, found {n_bad} NaN/Inf value(s)")
+
+
+def check_flag(value: object, name: str) -> bool:
+    """Require a bool: ``"no"`` or ``1`` taken for ``True`` turned a two-sided loss on, a gradient off, in silence.
+
+    Example:
+        >>> check_flag(False, "two_sided")
+        False
+    """
+    if not isinstance(value, bool):
+        raise TypeError(f"{name}: expected a bool, found {type(value).__name__} {value!r}")
+    return value
+
+
+def check_int(value: object, name: str, low: int | None = None) -> int:
+    """Require an int (not a bool, not a float that ``int()`` would truncate), at least ``low`` when given.
+
+    Example:
+        >>> check_int(3, "seed")
+        3
+    """
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise TypeError(f"{name}: expected an int, found {type(value).__name__} {value!r}")
+    if low is not None and value < low:
+        raise ValueError(f"{name}: expected an int >= {low}, found {value!r}")
+    return int(value)
 
 
 def check_non_empty(x: Tensor, name: str) -> None:

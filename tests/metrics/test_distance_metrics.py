@@ -278,3 +278,62 @@ def test_the_sketch_refuses_negative_distances():
     exact = DistanceStatisticsMetric()
     exact.update(torch.tensor([-5.0, -4.0, -3.0]))
     assert exact.compute()["median"].item() == -4.0
+
+
+@pytest.mark.parametrize("bad", ["batch", "reverse"])
+def test_a_refused_forward_keeps_what_was_accumulated(bad):
+    # forward() resets the states to compute the batch's value: an empty batch (or a NaN in reverse_dists) lost every
+    # earlier update (found by review: compute() then raised "nothing accumulated").
+    m = DistanceStatisticsMetric(two_sided=True)
+    m(torch.tensor([1.0, 2.0]), torch.tensor([3.0]))
+    m.update(torch.tensor([4.0]), torch.tensor([5.0]))
+    with pytest.raises(EmptyInputError if bad == "batch" else NonFiniteError):
+        if bad == "batch":
+            m(torch.zeros(0), torch.zeros(0))
+        else:
+            m(torch.tensor([6.0]), torch.tensor([math.nan]))
+    out = m.compute()
+    assert out["count"].item() == 3.0 and out["ave"].item() == pytest.approx(7.0 / 3.0, rel=1e-15)
+    assert out["reverse_count"].item() == 2.0 and m._update_count == 2
+    assert m(torch.tensor([9.0]), torch.tensor([1.0]))["ave"].item() == 9.0  # forward still works after
+    assert m.compute()["count"].item() == 4.0
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "message"),
+    [
+        ({"two_sided": "no"}, TypeError, r"two_sided: expected a bool, found str 'no'"),  # was two-sided
+        ({"exact_quantiles": 0}, TypeError, r"exact_quantiles: expected a bool, found int 0"),
+        ({"ddof": True}, TypeError, r"ddof: expected an int, found bool True"),  # was ddof 1
+        ({"peak": 0}, ValueError, r"peak: expected finite values > 0, found \[0\.0\]"),  # psnr was -inf
+        ({"peak": math.inf}, ValueError, r"peak: expected finite values > 0"),
+        ({"peak": "3"}, TypeError, r"peak: expected a number"),
+        ({"peak": True}, TypeError, r"peak: expected a number"),
+    ],
+)
+def test_constructor_arguments_are_checked_as_update_checks_them(kwargs, error, message):
+    for cls in (DistanceStatisticsMetric, MeshSurfaceDistance, NearestVertexDistance):
+        with pytest.raises(error, match=message):
+            cls(**kwargs)
+
+
+def test_loss_and_distance_options_are_checked():
+    # detach_reference="False" detached the reference (no gradient reached it), two_sided="no" was two-sided,
+    # surface_samples=True was 1 sample, seed=1.7 was seed 1 (found by review).
+    from torchmeshmetric.metrics import MeshSurfaceDistanceLoss, NearestVertexDistanceLoss, mesh_surface_distance_sets
+
+    for cls, key, value in [
+        (MeshSurfaceDistanceLoss, "detach_reference", "False"),
+        (MeshSurfaceDistanceLoss, "two_sided", "no"),
+        (NearestVertexDistanceLoss, "two_sided", 1),
+        (MeshSurfaceDistanceLoss, "seed", 1.7),
+    ]:
+        with pytest.raises(TypeError, match=rf"{key}: expected an? (bool|int), found"):
+            cls(**{key: value})
+    with pytest.raises(ValueError, match=r"surface_samples: expected None or a positive int, found True"):
+        MeshSurfaceDistance(surface_samples=True)
+    sphere = trimesh.creation.icosphere(subdivisions=1)
+    with pytest.raises(TypeError, match=r"detach_reference: expected a bool, found str 'False'"):
+        mesh_surface_distance_sets(torch.zeros(1, 3), sphere, detach_reference="False")
+    with pytest.raises(TypeError, match=r"two_sided: expected a bool"):
+        nearest_vertex_distance_sets(torch.zeros(1, 3), sphere, two_sided="yes")

@@ -84,5 +84,5 @@ def test_bad_input_is_named() -> None:
 
 def test_scale_is_a_bool() -> None:
     a = torch.rand(2, 5, 3, dtype=torch.float64)
-    with pytest.raises(TypeError, match="scale: expected a bool, found 'no'"):  # a truthy string scaled
+    with pytest.raises(TypeError, match="scale: expected a bool, found str 'no'"):  # a truthy string scaled
         kso_error(a, a, scale="no")  # type: ignore[arg-type]

@@ -6,14 +6,14 @@ from typing import Any
 
 import torch
 from torch import Tensor
-from torchmetrics import Metric
 
+from torchmeshmetric._checks import check_flag
 from torchmeshmetric.evaluation.flicker import FLICKER
 from torchmeshmetric.evaluation.pipeline import RegisterFn, RegistrationOptions, evaluate_pair, registration_keywords
 from torchmeshmetric.evaluation.results import SET_NAMES, flatten_statistics
 from torchmeshmetric.kernels import IndexCache
 from torchmeshmetric.metrics._plot import StatisticsPlot
-from torchmeshmetric.metrics.distance_states import DistanceStates
+from torchmeshmetric.metrics.distance_states import DistanceStates, DistanceStatesMetric
 from torchmeshmetric.registration.cache import RegistrationCache
 from torchmeshmetric.structures import MeshLike
 
@@ -37,7 +37,7 @@ _REVERSE_STATES: dict[str, DistanceStates] = {
 }
 
 
-class TemporalConsistency(StatisticsPlot, Metric):
+class TemporalConsistency(StatisticsPlot, DistanceStatesMetric):
     """Temporal consistency of simplified frames (paper Fig. 2) accumulated over validation steps.
 
     Each :meth:`update` evaluates one simplified frame ``k`` against original frames ``k`` and ``k-1`` with
@@ -101,9 +101,8 @@ class TemporalConsistency(StatisticsPlot, Metric):
         **kwargs: Any,
     ) -> None:
         super().__init__(**kwargs)
-        for name, flag in (("two_sided", two_sided), ("flicker", flicker)):
-            if not isinstance(flag, bool):
-                raise TypeError(f"{name}: expected a bool, found {type(flag).__name__}")
+        check_flag(two_sided, "two_sided")
+        check_flag(flicker, "flicker")
         if registration_fn is not None and not callable(registration_fn):
             raise TypeError(f"registration_fn: expected a callable or None, found {type(registration_fn).__name__}")
         self.two_sided = two_sided

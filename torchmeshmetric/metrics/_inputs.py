@@ -98,5 +98,7 @@ def require_meshes(sources: Sequence[PointSource], name: str, why: str) -> list[
 
 def check_surface_samples(surface_samples: object) -> None:
     """Validate the ``surface_samples`` argument: ``None`` (exact surface) or a positive int."""
-    if surface_samples is not None and (not isinstance(surface_samples, int) or surface_samples <= 0):
+    if surface_samples is not None and (
+        isinstance(surface_samples, bool) or not isinstance(surface_samples, int) or surface_samples <= 0
+    ):  # True was 1 sample
         raise ValueError(f"surface_samples: expected None or a positive int, found {surface_samples!r}")

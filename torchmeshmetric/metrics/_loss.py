@@ -9,7 +9,7 @@ from typing import Any
 import torch
 from torch import Tensor, nn
 
-from torchmeshmetric._checks import EmptyInputError
+from torchmeshmetric._checks import EmptyInputError, check_flag, check_int
 from torchmeshmetric.metrics.directed_distances import DirectedDistances
 
 REDUCTIONS = ("mean", "sum", "none")
@@ -31,6 +31,13 @@ def check_options(options: Mapping[str, Any], allowed: type, owner: str) -> None
     unknown = sorted(set(options) - set(allowed.__annotations__))
     if unknown:
         raise TypeError(f"{owner}: unexpected option(s) {unknown}, expected some of {sorted(allowed.__annotations__)}")
+    for key, value in options.items():  # detach_reference="False" cut the gradient to the reference, in silence
+        hint = allowed.__annotations__[key]  # a ForwardRef (postponed annotations), a string, or the type
+        kind = getattr(hint, "__forward_arg__", getattr(hint, "__name__", hint))
+        if kind == "bool":
+            check_flag(value, key)
+        elif kind == "int":
+            check_int(value, key)
 
 
 def reduce_directed(r: DirectedDistances, power: float, reduction: str) -> Tensor:

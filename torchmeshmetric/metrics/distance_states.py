@@ -3,28 +3,34 @@
 A metric declares, per distance set it accumulates, a :class:`DistanceStates` naming its states; the states hold
 what :func:`~torchmeshmetric.stats.statistics.distance_statistics_update` returns for every batch:
 
-- ``moments``: ``(R, 6)`` float64 rows of partial :class:`~torchmeshmetric.stats.moments.Moments`
-  (``dist_reduce_fx="cat"``). Every update merges its batch into one row (Chan et al. 1979); a DDP sync gathers one
-  row per process and a ``forward()`` one row per call, and ``compute`` merges the rows with the same formula. This
-  is exact: no state is averaged, and no ``E[d^2] - E[d]^2`` appears.
+- ``moments``: one ``(1, 6)`` float64 row of :class:`~torchmeshmetric.stats.moments.Moments` (an empty set's row
+  before any update), reduced by :func:`merge_moment_rows`. Every update merges its batch into the row (Chan et al.
+  1979); a DDP sync, a ``forward()`` and ``merge_state`` merge the rows they meet with the same formula, so the state
+  has the same shape on every process (torchmetrics stacks what it gathers: rows of ``cat`` states counted per
+  update, 2 on one process and 0 on another, stopped the sync). This is exact: no state is averaged, and no
+  ``E[d^2] - E[d]^2`` appears.
 - ``values``: the distances themselves (a list state, ``"cat"``), for exact quantiles; or
 - ``sketch``: the ``(num_bins,)`` counts of a :class:`~torchmeshmetric.stats.sketch.QuantileSketch` (``"sum"``),
   for quantiles within a relative error in constant memory.
 
-All states are float64 (``Metric.half()``/``.float()`` leave them alone unless ``set_dtype`` is used).
+All states are float64 (``Metric.half()``/``.float()`` leave them alone unless ``set_dtype`` is used). A metric
+holding such states derives from :class:`DistanceStatesMetric`, which keeps them whole where torchmetrics would not
+(a process that saw no distance, a ``forward()`` whose batch is refused).
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from collections.abc import Callable
+from typing import Any, NamedTuple
 
 import torch
 from torch import Tensor
 from torchmetrics import Metric
 from torchmetrics.utilities.data import dim_zero_cat
+from torchmetrics.utilities.distributed import gather_all_tensors
 
 from torchmeshmetric._checks import EmptyInputError
-from torchmeshmetric.stats.moments import Moments, merge_into_row, merge_rows
+from torchmeshmetric.stats.moments import Moments, merge_into_row, merge_rows, moments_rows
 from torchmeshmetric.stats.sketch import QuantileSketch
 from torchmeshmetric.stats.statistics import (
     DistanceStatistics,
@@ -32,7 +38,23 @@ from torchmeshmetric.stats.statistics import (
     distance_statistics_update,
 )
 
-__all__ = ["DistanceStates"]
+__all__ = ["DistanceStates", "DistanceStatesMetric", "merge_moment_rows"]
+
+_EMPTY_ROW = moments_rows(merge_rows(torch.zeros(0, len(Moments._fields), dtype=torch.float64)))
+
+
+def merge_moment_rows(rows: Tensor) -> Tensor:
+    """The ``(1, 6)`` row of moments rows of any leading shape (``(K, 1, 6)`` as torchmetrics stacks them).
+
+    The ``dist_reduce_fx`` of a moments state: the exact merge of :func:`~torchmeshmetric.stats.moments.merge_rows`.
+
+    Example:
+        >>> from torchmeshmetric.stats.moments import moments_of, moments_rows
+        >>> a, b = moments_rows(moments_of(torch.tensor([1.0, 2.0]))), moments_rows(moments_of(torch.tensor([6.0])))
+        >>> merge_moment_rows(torch.stack([a, b]))[0, :2].tolist()
+        [3.0, 3.0]
+    """
+    return moments_rows(merge_rows(rows.reshape(-1, len(Moments._fields))))
 
 
 class DistanceStates(NamedTuple):
@@ -41,7 +63,7 @@ class DistanceStates(NamedTuple):
     Declared as class constants by each metric, so that every state name is written out once in the source.
 
     Attributes:
-        moments: the ``(R, 6)`` moments rows state.
+        moments: the ``(1, 6)`` moments row state.
         values: the list-of-distances state (exact quantiles).
         sketch: the sketch-counts state (sketched quantiles); ``None`` where the metric has no sketch mode.
 
@@ -71,7 +93,7 @@ class DistanceStates(NamedTuple):
     def add_to(self, metric: Metric, sketch: QuantileSketch | None) -> None:
         """Declare the states on ``metric`` (in its ``__init__``): values for ``sketch=None``, else sketch counts."""
         f64 = torch.float64
-        metric.add_state(self.moments, default=torch.zeros(0, len(Moments._fields), dtype=f64), dist_reduce_fx="cat")
+        metric.add_state(self.moments, default=_EMPTY_ROW.clone(), dist_reduce_fx=merge_moment_rows)
         if sketch is None:
             metric.add_state(self.values, default=[], dist_reduce_fx="cat")
         else:
@@ -143,3 +165,33 @@ class DistanceStates(NamedTuple):
         if self.sketch is None:
             raise TypeError(f"{self.moments}: this metric declares no sketch state (exact quantiles only)")
         return self.sketch
+
+
+class DistanceStatesMetric(Metric):
+    """A ``torchmetrics.Metric`` whose states are :class:`DistanceStates`: kept whole where torchmetrics would not.
+
+    - ``forward()`` whose batch is refused or empty (its batch ``compute`` raises) leaves the accumulated states as
+      they were: torchmetrics resets them to compute the batch's value, and an error lost every earlier update.
+    - A DDP sync from a process that accumulated no distance sends an empty float64 list of values: torchmetrics
+      sent one of the metric's default dtype (float32), and gloo aborted the process on the size mismatch.
+    """
+
+    def forward(self, *args: Any, **kwargs: Any) -> Any:
+        """``Metric.forward`` (the batch's value, accumulated), with the states restored when it raises."""
+        # reset() empties list states in place and replaces tensors: a shallow copy of each list keeps them all
+        saved = {k: list(v) if isinstance(v, list) else v for k, v in ((k, getattr(self, k)) for k in self._defaults)}
+        context = (self._update_count, self._computed, self._to_sync, self._should_unsync, self.compute_on_cpu)
+        try:
+            return super().forward(*args, **kwargs)
+        except BaseException:
+            for k, v in saved.items():
+                setattr(self, k, v)
+            self._update_count, self._computed, self._to_sync, self._should_unsync, self.compute_on_cpu = context
+            self._enable_grad = False
+            raise
+
+    def _sync_dist(self, dist_sync_fn: Callable = gather_all_tensors, process_group: Any | None = None) -> None:
+        for name, default in self._defaults.items():  # the lists are the distances: float64, like every state here
+            if isinstance(default, list) and not getattr(self, name):
+                setattr(self, name, [torch.zeros(0, dtype=torch.float64, device=self.device)])
+        super()._sync_dist(dist_sync_fn, process_group)

@@ -15,12 +15,12 @@ from typing import Any
 
 import torch
 from torch import Tensor
-from torchmetrics import Metric, MetricCollection
+from torchmetrics import MetricCollection
 
-from torchmeshmetric._checks import check_shape
+from torchmeshmetric._checks import check_flag, check_int, check_shape
 from torchmeshmetric.metrics._plot import StatisticsPlot
 from torchmeshmetric.metrics.directed_distances import DirectedDistances
-from torchmeshmetric.metrics.distance_states import DistanceStates
+from torchmeshmetric.metrics.distance_states import DistanceStates, DistanceStatesMetric
 from torchmeshmetric.metrics.selected_statistic import SelectedStatistic
 from torchmeshmetric.stats.sketch import QuantileSketch
 from torchmeshmetric.stats.statistics import DistanceStatistics, distance_statistics_update, psnr_from_mse
@@ -30,7 +30,7 @@ __all__ = ["DistanceStatisticsBase", "DistanceStatisticsMetric", "MeasuredDistan
 _SYMMETRIC = ("symmetric_ave", "hausdorff", "symmetric_mse", "symmetric_rmse", "symmetric_psnr")
 
 
-class DistanceStatisticsBase(StatisticsPlot, Metric):
+class DistanceStatisticsBase(StatisticsPlot, DistanceStatesMetric):
     """Base class: accumulates distances of one or two directions and computes :class:`DistanceStatistics`.
 
     A subclass declares the names of its states as class constants ``_forward_states`` and ``_reverse_states``
@@ -41,7 +41,8 @@ class DistanceStatisticsBase(StatisticsPlot, Metric):
 
     Args:
         two_sided: accumulate and report the reverse direction and symmetric combinations too.
-        peak: fixed PSNR peak; ``None`` uses the largest peak passed to updates (reference bbox diagonals).
+        peak: fixed PSNR peak (finite, > 0); ``None`` uses the largest peak passed to updates (reference bbox
+            diagonals).
         ddof: delta degrees of freedom of ``var``/``std`` (0: population, the default).
         exact_quantiles: keep all values for exact quantiles (default), or a fixed-size sketch whose quantiles are
             within relative error ``relative_accuracy`` (constant memory, cheap DDP sync).
@@ -71,14 +72,11 @@ class DistanceStatisticsBase(StatisticsPlot, Metric):
         **kwargs: Any,
     ) -> None:
         super().__init__(**kwargs)
-        if not isinstance(ddof, int) or ddof < 0:
-            raise ValueError(f"ddof: expected a non-negative int, found {ddof!r}")
-        if peak is not None and not (float(peak) >= 0):
-            raise ValueError(f"peak: expected None or a non-negative number, found {peak!r}")
-        self.two_sided = bool(two_sided)
-        self.fixed_peak = None if peak is None else float(peak)
-        self.ddof = ddof
-        self.exact_quantiles = bool(exact_quantiles)
+        # as update(peak=) checks it: peak=0 gave a PSNR of -inf, and "no" for a flag was taken as True
+        self.fixed_peak = None if peak is None else float(_checked_peak(peak))
+        self.two_sided = check_flag(two_sided, "two_sided")
+        self.ddof = check_int(ddof, "ddof", 0)
+        self.exact_quantiles = check_flag(exact_quantiles, "exact_quantiles")
         self.sketch = QuantileSketch(relative_accuracy)
         self._forward_states.add_to(self, self._sketch)
         if self.two_sided:

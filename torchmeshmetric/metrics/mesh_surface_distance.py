@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from torchmeshmetric._checks import check_int
 from torchmeshmetric.metrics._inputs import check_surface_samples
 from torchmeshmetric.metrics.distance_states import DistanceStates
 from torchmeshmetric.metrics.distance_statistics_metric import MeasuredDistanceBase
@@ -59,6 +60,6 @@ class MeshSurfaceDistance(MeasuredDistanceBase):
         check_surface_samples(surface_samples)
         super().__init__(**kwargs)
         self.surface_samples = surface_samples
-        self.seed = int(seed)
+        self.seed = check_int(seed, "seed")
         self.backend = backend
         self._options = {"surface_samples": surface_samples, "seed": self.seed, "backend": backend}

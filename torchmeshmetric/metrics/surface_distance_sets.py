@@ -11,7 +11,7 @@ from typing import Any, TypedDict
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import common_dtype
+from torchmeshmetric._checks import check_flag, check_int, common_dtype
 from torchmeshmetric.kernels.danskin import mesh_surface_distances
 from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.kernels.mesh_index import MeshIndex
@@ -186,6 +186,9 @@ def mesh_surface_distance_sets(
         (torch.Size([42]), torch.Size([162]), 0.049)
     """
     check_surface_samples(surface_samples)
+    check_flag(two_sided, "two_sided")
+    check_flag(detach_reference, "detach_reference")
+    check_int(seed, "seed")
     if surface_samples is not None and (reference_index is not None or simplified_index is not None):
         raise ValueError("reference_index, simplified_index: only with surface_samples=None (the exact surface)")
     sources = as_point_sources(simplified, "simplified")

@@ -35,7 +35,7 @@ from typing import Any
 import torch
 from torch import Tensor, nn
 
-from torchmeshmetric._checks import EmptyInputError, NonFiniteError, ShapeError, common_dtype
+from torchmeshmetric._checks import EmptyInputError, NonFiniteError, ShapeError, check_flag, common_dtype
 from torchmeshmetric.kernels.danskin import mesh_surface_distances
 from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.kernels.mesh_index import MeshIndex, _version
@@ -324,8 +324,7 @@ def _check_arguments(frame_weight: float, two_sided: bool, reduction: str, power
         or not 0 <= frame_weight < math.inf  # NaN fails both comparisons
     ):
         raise ValueError(f"frame_weight: expected a finite number >= 0, found {frame_weight!r}")
-    if not isinstance(two_sided, bool):
-        raise TypeError(f"two_sided: expected a bool, found {type(two_sided).__name__}")
+    check_flag(two_sided, "two_sided")
 
 
 def temporal_consistency_loss(

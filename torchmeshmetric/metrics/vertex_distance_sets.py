@@ -11,7 +11,7 @@ from typing import Any, TypedDict
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import common_dtype
+from torchmeshmetric._checks import check_flag, common_dtype
 from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance
@@ -157,6 +157,8 @@ def nearest_vertex_distance_sets(
         >>> r.forward.shape, float(r.forward.max()) < 1e-12, r.reverse.shape, round(float(r.reverse.max()), 3)
         (torch.Size([42]), True, torch.Size([162]), 0.313)
     """
+    check_flag(two_sided, "two_sided")
+    check_flag(detach_reference, "detach_reference")
     sources = as_point_sources(simplified, "simplified")
     ref_sources = as_point_sources(reference, "reference")
     if len(ref_sources) != len(sources):

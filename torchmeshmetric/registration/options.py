@@ -23,6 +23,7 @@ from typing import Any, NamedTuple
 
 import torch
 
+from torchmeshmetric._checks import check_flag, check_int
 from torchmeshmetric.registration.rigid import check_rigid_options, register_rigid
 
 __all__ = ["DEFAULT_SCHEDULE", "RUN_ARGUMENTS", "NonRigidOptions", "Stage"]
@@ -95,20 +96,6 @@ def _finite(name: str, value: Any, low: float, *, open_low: bool = False) -> flo
     return x
 
 
-def _int(name: str, value: Any, low: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-        raise TypeError(f"{name}: expected an int, found {type(value).__name__} {value!r}")
-    if value < low:
-        raise ValueError(f"{name}: expected an int >= {low}, found {value!r}")
-    return int(value)
-
-
-def _flag(name: str, value: Any) -> bool:
-    if not isinstance(value, bool):
-        raise TypeError(f"{name}: expected a bool, found {type(value).__name__} {value!r}")
-    return value
-
-
 def _stage(name: str, stage: Any) -> Stage:
     """A validated :class:`Stage` with float fields as floats (so ``lr=1`` and ``lr=1.0`` are one stage)."""
     if not isinstance(stage, Stage):
@@ -119,7 +106,7 @@ def _stage(name: str, stage: Any) -> Stage:
         max_distance=_real(f"{name}.max_distance", stage.max_distance, 0.0, open_low=True),
         max_normal_angle=_real(f"{name}.max_normal_angle", stage.max_normal_angle, 0.0, open_low=True, high=180.0),
         lr=_finite(f"{name}.lr", stage.lr, 0.0, open_low=True),
-        max_steps=_int(f"{name}.max_steps", stage.max_steps, 0),
+        max_steps=check_int(stage.max_steps, f"{name}.max_steps", 0),
         lr_decay=_real(f"{name}.lr_decay", stage.lr_decay, 0.0, open_low=True, high=1.0),
     )
 
@@ -263,13 +250,13 @@ class NonRigidOptions:
         if not self.schedule:
             raise ValueError("schedule: expected at least one stage, found none")
         checked = {
-            "rigid_init": _flag("rigid_init", self.rigid_init),
+            "rigid_init": check_flag(self.rigid_init, "rigid_init"),
             "node_spacing": _finite("node_spacing", self.node_spacing, 0.0, open_low=True),
             "node_edge_factor": _finite("node_edge_factor", self.node_edge_factor, 0.0),
-            "num_neighbors": _int("num_neighbors", self.num_neighbors, 1),
-            "num_points": _int("num_points", self.num_points, 1),
-            "num_target_samples": _int("num_target_samples", self.num_target_samples, 0),
-            "correspondence_every": _int("correspondence_every", self.correspondence_every, 1),
+            "num_neighbors": check_int(self.num_neighbors, "num_neighbors", 1),
+            "num_points": check_int(self.num_points, "num_points", 1),
+            "num_target_samples": check_int(self.num_target_samples, "num_target_samples", 0),
+            "correspondence_every": check_int(self.correspondence_every, "correspondence_every", 1),
             "schedule": tuple(_stage(f"schedule[{i}]", s) for i, s in enumerate(self.schedule)),
             "plane_weight": _finite("plane_weight", self.plane_weight, 0.0),
             "point_weight": _finite("point_weight", self.point_weight, 0.0),

@@ -21,6 +21,7 @@ import math
 import torch
 from torch import Tensor
 
+from torchmeshmetric._checks import check_flag
 from torchmeshmetric.temporal.sequences import check_sequence_pair
 
 __all__ = ["kg_error", "kso_error"]
@@ -85,8 +86,7 @@ def kso_error(original: Tensor, distorted: Tensor, *, scale: bool = False) -> Te
     """
     a, b = check_sequence_pair(original, distorted)
     diff = _centred(a) - _centred(b)
-    if not isinstance(scale, bool):  # "no" would scale
-        raise TypeError(f"scale: expected a bool, found {scale!r}")
+    check_flag(scale, "scale")  # "no" would scale
     if scale:
         first = a[..., 0, :, :]
         half_diagonal = 0.5 * torch.linalg.vector_norm(first.amax(dim=-2) - first.amin(dim=-2), dim=-1)
