@@ -12,7 +12,7 @@ correspondence (docs/temporal.md argues each choice):
 2. **Carry the distorted frames onto it.** Each tracked vertex of frame ``k`` takes the point where its normal line
    meets the distorted frame ``k``, found from its exact closest point (:class:`~torchmeshmetric.kernels.MeshIndex`)
    by a few steps along the normal (:func:`carry_onto`), written as the barycentric blend of the distorted face's
-   vertices, so gradients reach the distorted vertices.
+   vertices, so gradients reach the distorted vertices (those of the intersection, :func:`carry_onto`).
 3. **The same metrics** on the two ``(F, V_0, 3)`` sequences, with frame 0's faces.
 
 What it sees is what a surface can show: a displacement along the normal moves the closest point; a vertex sliding
@@ -254,11 +254,15 @@ def _edge_scale(x: Tensor, faces: Tensor) -> Tensor:
 
 def _along_normal(
     index: MeshIndex, x: Tensor, normal: Tensor, scale: Tensor, hit: PointMeshResult, steps: int
-) -> PointMeshResult:
+) -> tuple[PointMeshResult, Tensor, Tensor]:
     """Secant steps towards the root of ``g(t) = (q - cp(q)) . n`` on the line ``q = x + t n`` (see carry_onto).
 
     Only the points whose line has not met the surface yet (``|g|`` above ``1e-10`` of the coordinates' size) are
     queried again, so a step costs what remains to be found.
+
+    Returns:
+        The closest points kept, the ``(V, 3)`` line points ``q`` they are the closest points of, and the ``(V,)``
+        mask of the lines that met the surface (``|g|`` within the tolerance).
     """
     tol = 1e-10 * float(x.abs().max())
     # The line is followed within the larger of _REACH times the closest point's distance and the local edge length:
@@ -269,6 +273,7 @@ def _along_normal(
     g0 = ((x - hit.closest) * normal).sum(-1)
     t1 = -g0
     best = PointMeshResult(*(a.clone() for a in hit))
+    best_q = x.clone()
     best_g = g0.abs()
     active = torch.nonzero(best_g > tol).flatten()
     for _ in range(steps):
@@ -281,6 +286,7 @@ def _along_normal(
         chosen = active[better]
         for field, value in zip(best, h, strict=True):
             field[chosen] = value[better]
+        best_q[chosen] = q[better]
         best_g[chosen] = g1.abs()[better]
         slope = g1 - g0[active]
         dt = t1[active] - t0[active]
@@ -291,7 +297,47 @@ def _along_normal(
         t_next = torch.maximum(torch.minimum(t_next, reach[active]), -reach[active])
         t0[active], g0[active], t1[active] = t1[active], g1, t_next
         active = active[(best_g[active] > tol) & moving]
-    return best
+    return best, best_q, best_g <= tol
+
+
+def _carried_point(q: Tensor, corners: Tensor, bary: Tensor, normal: Tensor | None, on_line: Tensor) -> Tensor:
+    """The carried points as functions of the distorted face's corners, for their derivative (see carry_onto).
+
+    Where the line met the face's interior (``on_line``, every barycentric coordinate > 0), the line-plane
+    intersection ``q + n ((a - q) . N) / (n . N)``; elsewhere the closest point of ``q`` in the region the exact
+    query found: the plane's projection (interior), the edge line's (one coordinate 0), the vertex (two). A face too
+    thin for its plane or line (the denominators vanish) keeps the barycentric blend.
+
+    Args:
+        q: ``(V, 3)`` the query points (detached).
+        corners: ``(V, 3, 3)`` the corners of each point's face (differentiable).
+        bary: ``(V, 3)`` the exact query's barycentric coordinates.
+        normal: ``(V, 3)`` the unit normals of the lines, or ``None`` (closest points only).
+        on_line: ``(V,)`` the points whose line met the surface.
+    """
+    blend = (bary[..., None] * corners).sum(1)
+    a, b, c = corners.unbind(1)
+    plane = torch.linalg.cross(b - a, c - a, dim=-1)
+    area2 = (plane * plane).sum(-1)
+    size2 = torch.maximum((b - a).square().sum(-1), (c - a).square().sum(-1)).detach()
+    flat = area2 > 1e-24 * size2 * size2  # the plane is defined (torch.where needs finite values on both sides)
+    safe_area2 = torch.where(flat, area2, torch.ones_like(area2))
+    projected = q - ((q - a) * plane).sum(-1, keepdim=True) * plane / safe_area2[:, None]
+    point = torch.where(flat[:, None], projected, blend)
+    if normal is not None:
+        across = (normal * plane).sum(-1)
+        meets = on_line & (bary > 0).all(-1) & flat & (across.abs() > 1e-6 * safe_area2.sqrt()).detach()
+        safe_across = torch.where(meets, across, torch.ones_like(across))
+        crossing = q + normal * (((a - q) * plane).sum(-1) / safe_across)[:, None]
+        point = torch.where(meets[:, None], crossing, point)
+    zeros = (bary == 0).sum(-1)
+    for k in range(3):  # the edge opposite corner k, where the query landed on it
+        u, v = corners[:, (k + 1) % 3], corners[:, (k + 2) % 3]
+        length2 = (v - u).square().sum(-1)
+        on_edge = (zeros == 1) & (bary[:, k] == 0) & (length2 > 0).detach()
+        s_ = ((q - u) * (v - u)).sum(-1) / torch.where(on_edge, length2, torch.ones_like(length2))
+        point = torch.where(on_edge[:, None], u + s_[:, None] * (v - u), point)
+    return torch.where((zeros >= 2)[:, None], blend, point)
 
 
 def carry_onto(
@@ -323,8 +369,10 @@ def carry_onto(
         backend: kernel backend of the closest-point queries.
 
     Returns:
-        ``(F, V, 3)`` carried points, in ``tracked``'s dtype, as barycentric blends of the distorted vertices (the
-        gradient reaches them; the face and the barycentric coordinates are held fixed, Danskin's rule).
+        ``(F, V, 3)`` carried points, in ``tracked``'s dtype, as barycentric blends of the distorted vertices. Their
+        gradient reaches the distorted vertices, as the derivative of the point the definition names with the face
+        held fixed: the intersection of the normal line with the face's plane where the line met the surface, else
+        the closest point of the last line point in its region of the face (plane, edge or vertex).
 
     Raises:
         ShapeError: a frame count other than ``tracked``'s.
@@ -356,15 +404,24 @@ def carry_onto(
         verts = mesh.verts.to(tracked.device, tracked.dtype)
         mesh_faces = mesh.faces.to(tracked.device)
         x = tracked[k].detach()
+        normal, q, on_line = None, x, torch.zeros_like(x[:, 0], dtype=torch.bool)
         with torch.no_grad():
             index = MeshIndex(verts.detach(), mesh_faces, backend=backend, tree="morton")  # a few queries: cheap build
             hit = index.point_mesh_distance(x)
             if faces is not None and normal_steps:
                 tracked_faces = faces.to(tracked.device)
                 normal = Mesh(x, tracked_faces, validate=False).vertex_normals()
-                hit = _along_normal(index, x, normal, _edge_scale(x, tracked_faces), hit, normal_steps)
+                hit, q, on_line = _along_normal(index, x, normal, _edge_scale(x, tracked_faces), hit, normal_steps)
         corners = verts[mesh_faces[hit.face_idx]]  # (V, 3, 3)
-        out.append((hit.bary.to(verts.dtype)[..., None] * corners).sum(1))
+        blend = (hit.bary.to(verts.dtype)[..., None] * corners).sum(1)
+        if not (torch.is_grad_enabled() and verts.requires_grad):
+            out.append(blend)
+            continue
+        # The value is the exact query's; its derivative that of the point the definition names. The blend with its
+        # barycentric coordinates held fixed moved the point with the face's vertices along the surface too: its
+        # gradient was off by up to 2x (found by review: STED_s 1.4x, KG 0.34x, against finite differences).
+        point = _carried_point(q, corners, hit.bary.to(verts.dtype), normal, on_line)
+        out.append(blend.detach() + (point - point.detach()))
     return torch.stack(out)
 
 
