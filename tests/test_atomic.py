@@ -1,5 +1,6 @@
 """atomic_file_set: several files appear together or not at all (full disk, failed rename, caller's error)."""
 
+import contextlib
 import errno
 import os
 import stat
@@ -133,3 +134,62 @@ def test_a_file_in_the_way_of_the_folder_is_named(tmp_path):
     with pytest.raises(NotADirectoryError, match="is a file, not a folder"):
         atomic_write(tmp_path / "notes.txt" / "out" / "report.json", "{}")
     assert isinstance(missing_folder_error(tmp_path / "nope" / "out"), FileNotFoundError)
+
+
+# Found by review: a symbolic link given as the destination was replaced by a regular file. A dangling link was
+# written without overwrite (exists() follows the link and says False), and with overwrite a link to a file became
+# a regular file while the file it pointed to kept its old content.
+@pytest.mark.parametrize("in_set", [False, True])
+def test_a_link_is_an_existing_file_and_overwrite_replaces_the_file_it_points_to(tmp_path, in_set):
+    target = tmp_path / "data" / "out.ply"
+    target.parent.mkdir()
+    target.write_text("old")
+    os.chmod(target, 0o640)
+    link = tmp_path / "link.ply"
+    link.symlink_to(target)
+    dangling = tmp_path / "dangling.ply"
+    dangling.symlink_to(tmp_path / "data" / "new.ply")
+    for path in (link, dangling):
+        with pytest.raises(FileExistsError, match="already exists"):
+            atomic_write(path, "x")
+    assert not (tmp_path / "data" / "new.ply").exists()
+    with atomic_file_set() if in_set else contextlib.nullcontext():
+        assert atomic_write(link, "new", overwrite=True) == link
+        assert atomic_write(dangling, "created", overwrite=True) == dangling
+    assert link.is_symlink() and os.readlink(link) == str(target)
+    assert target.read_text() == "new" and stat.S_IMODE(target.stat().st_mode) == 0o640
+    assert dangling.is_symlink() and (tmp_path / "data" / "new.ply").read_text() == "created"
+    assert sorted(os.listdir(tmp_path / "data")) == ["new.ply", "out.ply"]  # no temporary file left
+    assert sorted(os.listdir(tmp_path)) == ["dangling.ply", "data", "link.ply"]
+
+
+def test_a_dangling_link_into_a_missing_folder_is_named_and_nothing_is_written(tmp_path):
+    link = tmp_path / "lk.ply"
+    link.symlink_to(tmp_path / "nowhere" / "x.ply")
+    with pytest.raises(FileNotFoundError, match=r"lk.ply' is a symbolic link to '.*nowhere/x.ply', whose folder"):
+        atomic_write(link, "x", overwrite=True)
+    assert link.is_symlink() and os.listdir(tmp_path) == ["lk.ply"]
+
+
+# Found by review: the temporary name was the output name plus ~14 characters (and the backup name when replacing
+# plus ~18), so an output name of 242..255 bytes, legal, failed after the computation with "File name too long".
+@pytest.mark.parametrize("name", ["a" * 246 + ".ply", "é" * 125 + ".ply", "b" * 255])
+def test_the_longest_legal_names_are_written_and_replaced_in_a_set(tmp_path, name):
+    assert len(os.fsencode(name)) <= 255
+    atomic_write(tmp_path / name, "one")
+    with atomic_file_set():
+        atomic_write(tmp_path / name, "two", overwrite=True)  # temporary file, then a backup of "one"
+        atomic_write(tmp_path / "other.txt", "x")
+    assert (tmp_path / name).read_text() == "two"
+    assert sorted(os.listdir(tmp_path)) == sorted([name, "other.txt"])
+
+
+def test_temporary_names_are_hidden_siblings_within_the_name_limit(tmp_path):
+    from torchmeshmetric._atomic import _sibling
+
+    for name in ("r.json", "a" * 255, "é" * 127):
+        sibling = _sibling(tmp_path / name, "tmp")
+        assert sibling.parent == tmp_path and sibling.name.startswith(".") and sibling.name.endswith(".tmp")
+        assert len(os.fsencode(sibling.name)) <= 255
+        assert sibling.name[1:].startswith(name[:10])
+        sibling.name.encode("utf-8")  # cut at a character boundary, not in the middle of "é"

@@ -8,27 +8,98 @@ none appears, files that existed before keep their content, and folders the set 
 
 Every file gets the permissions a plain ``open(path, "w")`` would give it (``0o666`` minus the umask), or keeps
 those of the file it replaces.
+
+A destination that is a symbolic link counts as an existing file, dangling or not (refused without ``overwrite``).
+With ``overwrite`` the file the link points to is replaced and the link is kept, as ``open(link, "w")`` would do
+(a dangling link: its target is created when the target's folder exists). The temporary and backup files are hidden
+siblings of that file, ``.NAME.RANDOM.tmp`` / ``.NAME.RANDOM.bak`` with ``NAME`` shortened so that they stay within
+the folder's file-name limit (255 bytes) even for the longest legal output name.
 """
 
 from __future__ import annotations
 
 import contextlib
 import contextvars
+import errno
 import os
 import secrets
 import shutil
-import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import BinaryIO
 
-__all__ = ["AtomicFileSet", "atomic_file_set", "atomic_write", "atomic_write_with", "discard_pending"]
+__all__ = [
+    "AtomicFileSet",
+    "atomic_file_set",
+    "atomic_write",
+    "atomic_write_with",
+    "discard_pending",
+    "resolve_destination",
+]
 
 
 def _umask() -> int:
     mask = os.umask(0o022)
     os.umask(mask)
     return mask
+
+
+def _name_max(folder: Path) -> int:
+    """The longest file name (bytes) ``folder``'s filesystem takes (255 on ext4, xfs, btrfs, APFS, NTFS)."""
+    try:
+        return int(os.pathconf(folder, "PC_NAME_MAX"))
+    except (OSError, ValueError, AttributeError):  # no pathconf (Windows) or no answer from the filesystem
+        return 255
+
+
+def _sibling(dest: Path, kind: str) -> Path:
+    """A fresh hidden name beside ``dest``: ``.NAME.RANDOM.KIND``, ``NAME`` cut to fit the file-name limit.
+
+    The output name plus a prefix and a suffix would exceed the limit for a legal name of 240-odd bytes
+    (``[Errno 36] File name too long`` after the whole computation); the name is cut at a character boundary.
+    """
+    tail = f".{secrets.token_hex(6)}.{kind}"
+    room = _name_max(dest.parent) - 1 - len(tail)
+    head, size = "", 0
+    for ch in dest.name:
+        size += len(os.fsencode(ch))
+        if size > room:
+            break
+        head += ch
+    return dest.parent / f".{head}{tail}"
+
+
+def _create_sibling(dest: Path, kind: str) -> tuple[int, str]:
+    """Create and open a new hidden file beside ``dest`` (as :func:`tempfile.mkstemp`: ``0o600``, exclusive)."""
+    flags = os.O_RDWR | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_BINARY", 0)
+    for _ in range(100):
+        path = _sibling(dest, kind)
+        try:
+            return os.open(path, flags | getattr(os, "O_CLOEXEC", 0), 0o600), str(path)
+        except FileExistsError:
+            continue  # 48 random bits taken already: draw again
+    raise FileExistsError(errno.EEXIST, "no free temporary file name", str(dest.parent))
+
+
+def resolve_destination(dest: Path) -> Path:
+    """The file a write to ``dest`` replaces: ``dest``, or the file its symbolic link (chain) points to.
+
+    Replacing the link itself would turn it into a regular file and leave the file it points to unchanged; a
+    careful user who made ``out.ply -> /data/run3/out.ply`` expects the latter to be written, as ``open`` does.
+
+    Raises:
+        FileNotFoundError: ``dest`` is a dangling link whose target's folder does not exist.
+        OSError: ``dest`` is a link loop.
+    """
+    if not dest.is_symlink():
+        return dest
+    target = Path(os.path.realpath(dest))
+    if target.is_symlink():  # realpath stops at a loop
+        raise OSError(f"path: {str(dest)!r} is a symbolic link loop")
+    if not target.parent.is_dir():
+        where = f"is a symbolic link to {str(target)!r}, whose folder does not exist"
+        raise FileNotFoundError(f"path: {str(dest)!r} {where}")
+    return target
 
 
 class AtomicFileSet:
@@ -75,7 +146,7 @@ class AtomicFileSet:
             for dest, tmp in self._staged.items():
                 backup = None
                 if dest.exists():
-                    backup = str(dest.parent / f".{dest.name}.{secrets.token_hex(6)}.bak")
+                    backup = str(_sibling(dest, "bak"))
                     try:
                         os.link(dest, backup)  # the old file stays visible until the replace
                     except OSError:
@@ -190,22 +261,25 @@ def atomic_write_with(
             at once (e.g. a cache entry that is worth keeping whatever happens to the outputs).
 
     Returns:
-        The destination path.
+        The destination path, as given (a symbolic link stays one: the file it points to is replaced).
 
     Raises:
-        FileExistsError: ``path`` exists and ``overwrite`` is ``False``.
+        FileExistsError: ``path`` exists (or is a symbolic link, dangling or not) and ``overwrite`` is ``False``.
         FileNotFoundError, NotADirectoryError, PermissionError, IsADirectoryError: the destination folder is
-            missing, a file, or unwritable, or ``path`` is a folder.
+            missing, a file, or unwritable, or ``path`` is a folder; ``path`` is a dangling link whose target's
+            folder is missing.
     """
-    dest = Path(path)
-    if dest.is_dir():
-        raise IsADirectoryError(f"path: {str(dest)!r} is a directory, expected a file path")
-    if dest.exists() and not overwrite:
-        raise FileExistsError(f"path: {str(dest)!r} already exists (pass overwrite=True / --overwrite to replace it)")
+    given = Path(path)
+    if given.is_dir():
+        raise IsADirectoryError(f"path: {str(given)!r} is a directory, expected a file path")
+    # A link counts as an existing file even when it dangles (exists() follows it and says False).
+    if (given.exists() or given.is_symlink()) and not overwrite:
+        raise FileExistsError(f"path: {str(given)!r} already exists (pass overwrite=True / --overwrite to replace it)")
+    dest = resolve_destination(given)
     folder = dest.parent if str(dest.parent) else Path(".")
     if not folder.is_dir():
         raise missing_folder_error(folder)
-    fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp", dir=folder)
+    fd, tmp = _create_sibling(folder / dest.name, "tmp")
     _WRITING.add(tmp)
     try:
         os.chmod(tmp, dest.stat().st_mode & 0o777 if dest.exists() else 0o666 & ~_umask())
@@ -223,7 +297,7 @@ def atomic_write_with(
         raise
     finally:
         _WRITING.discard(tmp)
-    return dest
+    return given
 
 
 def blocking_file(folder: Path) -> Path | None:

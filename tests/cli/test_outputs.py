@@ -115,3 +115,45 @@ def test_an_output_below_a_regular_file_says_it_is_a_file(capsys, tmp_path, sequ
 def test_a_missing_folder_still_says_it_does_not_exist(capsys, tmp_path, sequence, known_registration):
     assert _evaluate(tmp_path, sequence, "--out", str(tmp_path / "nope" / "r.json")) == 1
     assert "does not exist" in capsys.readouterr().err
+
+
+def _register(sequence, out, *extra):
+    a, b = sorted(sequence[0].iterdir())[:2]
+    return main(["register", "--source", str(a), "--target", str(b), "--out", str(out), *extra])
+
+
+# Found by review: an output that is a symbolic link was replaced by a regular file; a dangling one was even written
+# without --overwrite (exists() follows the link), and with --overwrite the file the link points to kept its content.
+def test_an_output_link_counts_as_existing_and_overwrite_writes_the_file_it_points_to(
+    capsys, tmp_path, sequence, known_registration
+):
+    (tmp_path / "lk").mkdir()
+    dangling = tmp_path / "lk" / "dangling.ply"
+    dangling.symlink_to(tmp_path / "runs" / "r.ply")
+    assert _register(sequence, dangling) == 1
+    assert f"--out '{dangling}' already exists (pass --overwrite to replace it)" in capsys.readouterr().err
+    assert _register(sequence, dangling, "--overwrite") == 1
+    err = capsys.readouterr().err
+    assert f"--out '{dangling}' is a symbolic link to '{tmp_path / 'runs' / 'r.ply'}', whose folder does not" in err
+    assert known_registration.calls == 0 and dangling.is_symlink()  # refused before any work, the link kept
+    (tmp_path / "runs").mkdir()
+    assert _register(sequence, dangling, "--overwrite") == 0
+    assert dangling.is_symlink() and (tmp_path / "runs" / "r.ply").stat().st_size > 0
+    target = tmp_path / "runs" / "previous.ply"
+    target.write_text("previous")
+    link = tmp_path / "link.ply"
+    link.symlink_to(target)
+    assert _register(sequence, link, "--overwrite") == 0
+    assert link.is_symlink() and os.readlink(link) == str(target) and target.read_bytes().startswith(b"ply")
+    assert sorted(os.listdir(tmp_path / "runs")) == ["previous.ply", "r.ply"]
+
+
+# Found by review: a long but legal output name failed after the computation: its temporary name (the output name
+# plus ~14 characters) was over the 255-byte limit ("[Errno 36] File name too long").
+def test_the_longest_legal_output_name_is_written_and_replaced(capsys, tmp_path, sequence, known_registration):
+    out = tmp_path / ("a" * 246 + ".ply")
+    assert _register(sequence, out) == 0, capsys.readouterr().err
+    assert _register(sequence, out, "--overwrite") == 0, capsys.readouterr().err
+    assert _evaluate(tmp_path, sequence, "--out", str(tmp_path / ("r" * 250 + ".json"))) == 0
+    assert sorted(p for p in os.listdir(tmp_path) if p.startswith(".")) == []
+    assert out.stat().st_size > 0 and (tmp_path / ("r" * 250 + ".md")).exists()

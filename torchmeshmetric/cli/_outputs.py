@@ -12,7 +12,7 @@ from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
-from torchmeshmetric._atomic import atomic_file_set, blocking_file
+from torchmeshmetric._atomic import atomic_file_set, blocking_file, resolve_destination
 
 __all__ = ["CLIError", "check_folder", "check_writable", "folder_inputs", "make_folder", "output_set"]
 
@@ -89,8 +89,9 @@ def check_writable(
     In this order: no output is one of the command's input files (the same file under any spelling, symbolic or
     hard link: ``--overwrite`` replaces earlier outputs, never inputs); the outputs are distinct files (two options
     naming one file would lose one of them); each output's folder exists and is writable, the output is not a
-    folder, and it exists only with ``overwrite``. Files in ``appended`` (a CSV mmetric appends rows to) take part
-    in the first two checks and may exist.
+    folder, and it exists only with ``overwrite``. A symbolic link counts as an existing output, dangling or not;
+    with ``overwrite`` the file it points to is replaced (the link is kept), so that file's folder must exist and be
+    writable. Files in ``appended`` (a CSV mmetric appends rows to) take part in the first two checks and may exist.
 
     Args:
         paths: the files the command replaces or creates.
@@ -126,9 +127,22 @@ def check_writable(
     for (option, path), replace in zip(labelled, [overwrite] * len(paths) + [True] * len(appended), strict=True):
         folder = path.parent if str(path.parent) else Path(".")
         check_folder(folder, "output folder")
-        if not os.access(folder, os.W_OK):
-            raise CLIError(f"output folder {str(folder)!r} is not writable")
         if path.is_dir():
             raise CLIError(f"{option} {str(path)!r} is a directory, expected a file")
-        if path.exists() and not replace:
+        # A symbolic link is an existing output even when it dangles (exists() follows it and says False).
+        if (path.exists() or path.is_symlink()) and not replace:
             raise CLIError(f"{option} {str(path)!r} already exists (pass --overwrite to replace it)")
+        if path.is_symlink():
+            folder = _link_folder(option, path)  # the file it points to is replaced, in that file's folder
+        if not os.access(folder, os.W_OK):
+            raise CLIError(f"output folder {str(folder)!r} is not writable")
+
+
+def _link_folder(option: str, path: Path) -> Path:
+    """The folder of the file an output link points to (written there, the link kept), or an error naming it."""
+    try:
+        target = resolve_destination(path)
+    except OSError as exc:
+        _, _, why = str(exc).partition(": ")
+        raise CLIError(f"{option} {why}") from exc
+    return target.parent
