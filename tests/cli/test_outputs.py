@@ -157,3 +157,48 @@ def test_the_longest_legal_output_name_is_written_and_replaced(capsys, tmp_path,
     assert _evaluate(tmp_path, sequence, "--out", str(tmp_path / ("r" * 250 + ".json"))) == 0
     assert sorted(p for p in os.listdir(tmp_path) if p.startswith(".")) == []
     assert out.stat().st_size > 0 and (tmp_path / ("r" * 250 + ".md")).exists()
+
+
+# Found by review: a mesh output in a format save_mesh cannot write (register --out r.txt or r.gltf; simplify of
+# .gltf frames, whose file names the outputs keep) was refused only after the registration and the simplification.
+@pytest.mark.parametrize("name", ["r.txt", "r.gltf", "r.GLTF", "r"])
+def test_register_refuses_an_unwritable_mesh_format_before_any_work(
+    capsys, tmp_path, sequence, known_registration, name
+):
+    (tmp_path / "out").mkdir()
+    assert _register(sequence, tmp_path / "out" / name) == 1
+    err = capsys.readouterr().err
+    why = "no mesh suffix" if name == "r" else f"cannot write a mesh as '{name[1:]}'"
+    assert f"--out '{tmp_path / 'out' / name}': {why}; writable formats: .obj, .ply, .off, .stl, .glb" in err
+    assert known_registration.calls == 0 and os.listdir(tmp_path / "out") == []
+
+
+def test_simplify_refuses_frames_it_cannot_write_before_any_work(capsys, tmp_path, known_registration):
+    import trimesh
+
+    frames = tmp_path / "gl"
+    frames.mkdir()
+    for k in range(3):
+        trimesh.creation.icosphere(subdivisions=1).apply_translation([0.1 * k, 0, 0]).export(frames / f"f{k}.gltf")
+    out = tmp_path / "glout"
+    assert main(["simplify", "--input", str(frames), "--output", str(out), "--method", "rqem"]) == 1
+    err = capsys.readouterr().err
+    assert f"--output '{out}': the frame 'f0.gltf': cannot write a mesh as '.gltf' (the simplified frames keep" in err
+    assert "the file names of --input); writable formats: .obj, .ply, .off, .stl, .glb" in err
+    assert known_registration.calls == 0 and not out.exists()
+
+
+def test_the_writable_suffixes_are_those_save_mesh_writes(tmp_path):
+    import torch
+
+    from torchmeshmetric import Mesh
+    from torchmeshmetric.data.io import WRITABLE_MESH_SUFFIXES, save_mesh
+    from torchmeshmetric.data.mesh_file import MESH_SUFFIXES, MeshFileError
+
+    tri = Mesh(torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]]))
+    for suffix in MESH_SUFFIXES:
+        if suffix in WRITABLE_MESH_SUFFIXES:
+            assert save_mesh(tri, tmp_path / f"m{suffix}").stat().st_size > 0
+        else:
+            with pytest.raises(MeshFileError, match="unsupported suffix"):
+                save_mesh(tri, tmp_path / f"m{suffix}")

@@ -14,7 +14,15 @@ from typing import Any
 
 from torchmeshmetric._atomic import atomic_file_set, blocking_file, resolve_destination
 
-__all__ = ["CLIError", "check_folder", "check_writable", "folder_inputs", "make_folder", "output_set"]
+__all__ = [
+    "CLIError",
+    "check_folder",
+    "check_mesh_suffixes",
+    "check_writable",
+    "folder_inputs",
+    "make_folder",
+    "output_set",
+]
 
 
 class CLIError(Exception):
@@ -52,6 +60,33 @@ def output_set(what: str) -> Iterator[Any]:
         reason = exc.strerror or str(exc)
         where = f" ({exc.filename})" if exc.filename else ""
         raise CLIError(f"could not write {what}: {reason}{where}; none of its files was written") from exc
+
+
+def check_mesh_suffixes(paths: Sequence[Path], option: str, *, names_from: str | None = None) -> None:
+    """Mesh outputs: each suffix one :func:`~torchmeshmetric.data.io.save_mesh` writes (checked before any work).
+
+    Args:
+        paths: the mesh files the command writes.
+        option: the option that names them (``--out``), or their folder (``--output``).
+        names_from: the option whose file names the outputs keep (``simplify``'s ``--input``), for the message.
+
+    Raises:
+        CLIError: naming the option, the file and the writable formats.
+    """
+    from torchmeshmetric.data.io import WRITABLE_MESH_SUFFIXES  # torch: only the commands that write meshes
+
+    formats = ", ".join(WRITABLE_MESH_SUFFIXES)
+    for path in paths:
+        suffix = path.suffix
+        if suffix.lower() in WRITABLE_MESH_SUFFIXES:
+            continue
+        what = f"cannot write a mesh as {suffix!r}" if suffix else "no mesh suffix"
+        if names_from is None:
+            raise CLIError(f"{option} {str(path)!r}: {what}; writable formats: {formats}")
+        raise CLIError(
+            f"{option} {str(path.parent)!r}: the frame {path.name!r}: {what} (the simplified frames keep the file "
+            f"names of {names_from}); writable formats: {formats}"
+        )
 
 
 def _identity(path: Path) -> tuple[object, ...]:

@@ -18,7 +18,7 @@ def run(args: argparse.Namespace) -> int:
     registered mesh. Exit code 3 when the registration did not converge.
     """
     from torchmeshmetric._format import format_number
-    from torchmeshmetric.cli._outputs import CLIError, check_writable
+    from torchmeshmetric.cli._outputs import CLIError, check_mesh_suffixes, check_writable
     from torchmeshmetric.cli._shared import device_of, dtype_of
     from torchmeshmetric.data.io import load_mesh, save_mesh
     from torchmeshmetric.evaluation.pipeline import register_pairs
@@ -27,6 +27,7 @@ def run(args: argparse.Namespace) -> int:
 
     device = device_of(args)
     inputs = [("--source", args.source), ("--target", args.target)]
+    check_mesh_suffixes([Path(args.out)], "--out")
     check_writable([Path(args.out)], args.overwrite, inputs=inputs, what="--out")
     dtype = dtype_of(args)
     meshes = []

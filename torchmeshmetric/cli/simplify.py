@@ -29,6 +29,7 @@ def run(args: argparse.Namespace) -> int:
     from torchmeshmetric.cli._outputs import (
         CLIError,
         check_folder,
+        check_mesh_suffixes,
         check_writable,
         folder_inputs,
         make_folder,
@@ -52,6 +53,7 @@ def run(args: argparse.Namespace) -> int:
     names = [Path(p).name for p in list_frames(args.input)]
     out_dir = Path(args.output)
     targets = [out_dir / n for n in names]
+    check_mesh_suffixes(targets, "--output", names_from="--input")
     check_folder(out_dir, "--output", may_create=True)
     if out_dir.is_dir():
         check_writable(targets, args.overwrite, inputs=folder_inputs("--input", args.input), what="--output")

@@ -18,7 +18,6 @@ import torch
 from torchmeshmetric._atomic import atomic_write, missing_folder_error
 from torchmeshmetric._checks import EmptyInputError, ShapeError
 from torchmeshmetric.data.mesh_file import (
-    MESH_SUFFIXES,
     MeshFileError,
     check_dtype_range,
     check_mesh,
@@ -31,7 +30,10 @@ from torchmeshmetric.data.ply import read_plain_ply
 from torchmeshmetric.data.trimesh_formats import read_with_trimesh
 from torchmeshmetric.structures import Mesh
 
-__all__ = ["load_mesh", "read_mesh_arrays", "save_mesh"]
+__all__ = ["WRITABLE_MESH_SUFFIXES", "load_mesh", "read_mesh_arrays", "save_mesh"]
+
+WRITABLE_MESH_SUFFIXES: tuple[str, ...] = (".obj", ".ply", ".off", ".stl", ".glb")
+"""Suffixes :func:`save_mesh` writes (case-insensitive); ``.gltf`` is read only (written, it is several files)."""
 
 
 def load_mesh(path: str | os.PathLike, *, dtype: torch.dtype = torch.float32) -> Mesh:
@@ -125,8 +127,9 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False) -
     """
     p = Path(path)
     suffix = p.suffix.lower()
-    if suffix not in MESH_SUFFIXES or suffix == ".gltf":
-        raise MeshFileError(f"path: cannot write '{p}': unsupported suffix '{p.suffix}' (use .obj/.ply/.off/.stl/.glb)")
+    if suffix not in WRITABLE_MESH_SUFFIXES:
+        use = "/".join(WRITABLE_MESH_SUFFIXES)
+        raise MeshFileError(f"path: cannot write '{p}': unsupported suffix '{p.suffix}' (use {use})")
     if not p.parent.is_dir():
         raise MeshFileError(str(missing_folder_error(p.parent)))
     if p.exists() and not overwrite:
