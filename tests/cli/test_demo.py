@@ -131,3 +131,34 @@ def test_demo_weights_option(capsys, tmp_path, known_registration):
 def test_demo_defaults_are_the_papers_sizes():
     args = build_parser().parse_args(["demo"])
     assert (args.frames, args.resolution, args.registration, args.target) == (6, 160, "full", 0.97)
+
+
+TINY = ["--resolution", "24"]
+
+
+# Found by review: the demo made its --out-dir (with its marker) before checking its options, so each of these left
+# that folder behind, and the messages named the library's arguments (num_frames, original_frames, resolution, target).
+@pytest.mark.parametrize(
+    ("argv", "message", "registered"),
+    [
+        (["--frames", "0"], "--frames: expected at least 2 frames (one frame pair), found 0", False),
+        (["--frames", "1"], "--frames: expected at least 2 frames (one frame pair), found 1", False),
+        (["--resolution", "3"], "--resolution: expected an int >= 16, found 3", False),
+        (
+            ["--frames", "2", "--resolution", "24", "--target", "100000"],
+            "--target: expected a face count in [1, ",
+            False,
+        ),
+        (
+            ["--frames", "2", "--resolution", "24", "--target", "1"],
+            "--target: 1 (1 of ",
+            True,
+        ),  # found when simplifying
+    ],
+)
+def test_demo_refuses_bad_options_and_leaves_no_folder(capsys, tmp_path, known_registration, argv, message, registered):
+    out = tmp_path / "dm"
+    assert main(["demo", *argv, "--out-dir", str(out), "--weights", "none", "--no-plots"]) == 1
+    assert f"torchmeshmetric demo: error: {message}" in capsys.readouterr().err
+    assert not out.exists()
+    assert (known_registration.calls > 0) == registered

@@ -14,6 +14,7 @@ from torchmeshmetric.cli.options import (
     add_html,
     add_target,
     add_weight,
+    as_option_error,
     common_options,
     evaluation_options,
     parse_weights,
@@ -45,6 +46,7 @@ def run(args: argparse.Namespace) -> int:
     cores; the first run on a machine first builds the C++ extension once, with a progress line (minutes on 2
     cores; `torchmeshmetric build` does it ahead). --resolution 80 --registration fast is a ~15 s preview.
     """
+    from torchmeshmetric.cli._outputs import CLIError
     from torchmeshmetric.cli._shared import (
         device_of,
         dtype_of,
@@ -57,15 +59,26 @@ def run(args: argparse.Namespace) -> int:
     from torchmeshmetric.evaluation.reports import paper_tables
     from torchmeshmetric.kernels.index_cache import IndexCache
     from torchmeshmetric.registration.cache import RegistrationCache
+    from torchmeshmetric.simplification._target import resolve_target
 
     device = device_of(args)
+    if args.frames < 2:  # checked here, not by register_pairs after the sequence is made
+        raise CLIError(f"--frames: expected at least 2 frames (one frame pair), found {args.frames}")
     out_dir = _demo_out_dir(args)
     t0 = time.perf_counter()
     kwargs: dict[str, Any] = {"seed": args.seed}
     if args.resolution is not None:
         kwargs["resolution"] = args.resolution
-    seq = demo_sequence(args.frames, **kwargs)
+    try:  # its arguments are checked before the sequence is made
+        seq = demo_sequence(args.frames, **kwargs)
+    except ValueError as exc:
+        raise as_option_error(exc, {"num_frames": "--frames", "resolution": "--resolution"}) from None
     frames = [f.to(dtype=dtype_of(args)) for f in seq.frames]
+    for f in frames:  # a face count above a frame's faces: refused before the registration, not after it
+        try:
+            resolve_target(args.target, f.num_faces, "--target")
+        except ValueError as exc:
+            raise CLIError(str(exc)) from exc
     sizes = ", ".join(f"{f.num_verts}v/{f.num_faces}f" for f in frames)
     say(f"demo sequence: {len(frames)} frames ({sizes}) in {time.perf_counter() - t0:.1f} s")
 
@@ -84,10 +97,13 @@ def run(args: argparse.Namespace) -> int:
     )
 
     t0 = time.perf_counter()
-    simplified = {
-        "Orig QEM": simplify_frames(frames, "qem", args.target, None),
-        "Reg QEM": simplify_frames(frames, "rqem", args.target, registrations, args.weight),
-    }
+    try:
+        simplified = {
+            "Orig QEM": simplify_frames(frames, "qem", args.target, None),
+            "Reg QEM": simplify_frames(frames, "rqem", args.target, registrations, args.weight),
+        }
+    except ValueError as exc:  # a target that leaves no face (--target 1)
+        raise as_option_error(exc, {"target": "--target"}) from None
     say(f"simplified with QEM and Registered QEM in {time.perf_counter() - t0:.1f} s")
 
     indexes = IndexCache(max_entries=2 * len(frames))  # each original frame's index built once for both methods
@@ -112,18 +128,17 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _demo_out_dir(args: argparse.Namespace) -> Path:
-    """The demo's output folder, created and marked as the demo's (another tool's non-empty one: --overwrite)."""
+    """The demo's output folder, checked (created with the outputs; another tool's non-empty one: --overwrite)."""
+    import os
+
     from torchmeshmetric.cli._outputs import CLIError, check_folder
 
     out_dir = Path(args.out_dir)
     check_folder(out_dir, "--out-dir", may_create=True)
     if out_dir.exists() and not (out_dir / _DEMO_MARKER).exists() and any(out_dir.iterdir()) and not args.overwrite:
         raise CLIError(f"--out-dir {str(out_dir)!r} exists and was not written by the demo (pass --overwrite)")
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-        (out_dir / _DEMO_MARKER).touch()
-    except OSError as exc:
-        raise CLIError(f"--out-dir {str(out_dir)!r}: cannot write ({exc.strerror})") from exc
+    if out_dir.is_dir() and not os.access(out_dir, os.W_OK):
+        raise CLIError(f"--out-dir {str(out_dir)!r} is not writable")
     return out_dir
 
 
@@ -138,7 +153,8 @@ def _write_demo(
     ground_truth: Any,
 ) -> list[str]:
     """The demo's report, meshes, plots and weight sweep, written as one set; the names written."""
-    from torchmeshmetric.cli._outputs import output_set
+    from torchmeshmetric._atomic import atomic_write
+    from torchmeshmetric.cli._outputs import make_folder, output_set
     from torchmeshmetric.data.io import save_mesh
     from torchmeshmetric.evaluation.reports import report_dict, write_csv, write_json, write_markdown
 
@@ -156,6 +172,9 @@ def _write_demo(
         "dtype": args.dtype,
     }
     with output_set("the demo's outputs") as files:
+        # The folder and its marker are part of the set: a run that fails (or a bad option) leaves neither
+        make_folder(out_dir, "--out-dir", files)
+        atomic_write(out_dir / _DEMO_MARKER, "", overwrite=True)
         report = report_dict(results, settings=settings)
         write_json(out_dir / "report.json", report, overwrite=True)
         write_markdown(out_dir / "report.md", results, overwrite=True)
