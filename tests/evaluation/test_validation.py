@@ -1,6 +1,7 @@
 """The validation study: rank correlation, and the issue's goals on the flicker set at the reduced size."""
 
 import json
+import os
 
 import pytest
 
@@ -51,3 +52,51 @@ def test_validate_command_reduced_size(capsys, tmp_path):
     assert (out / "validation.png").read_bytes()[:4] == b"\x89PNG"
     assert main(["validate", "--out-dir", str(out), "--distortions", "noise"]) == 1  # exists: never overwritten
     assert "--overwrite" in capsys.readouterr().err
+
+
+# Found by review: validate made its --out-dir before checking its options (an invalid one left an empty folder),
+# named the library's arguments (--keep 0 gave "target: ..."), ran --frames 100000 for minutes, and wrote its three
+# files one by one.
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--frames", "2"], "--frames: expected 3 (two frame pairs) to 24 frames (one motion cycle"),
+        (["--frames", "100000"], "--frames: expected 3 (two frame pairs) to 24 frames"),
+        (["--resolution", "3"], "--resolution: expected an int >= 16, found 3"),
+        (["--keep", "0"], "--keep: expected a ratio of faces to keep in (0, 1], found 0.0"),
+        (["--keep", "1.5"], "--keep: expected a ratio of faces to keep in (0, 1], found 1.5"),
+    ],
+)
+def test_validate_checks_its_options_before_the_folder_and_any_work(capsys, tmp_path, monkeypatch, argv, message):
+    import torchmeshmetric.evaluation.validation as validation
+
+    monkeypatch.setattr(validation, "demo_sequence", lambda *a, **k: pytest.fail("the work started"))
+    out = tmp_path / "new" / "v"
+    assert main(["validate", *argv, "--out-dir", str(out)]) == 1
+    assert f"torchmeshmetric validate: error: {message}" in capsys.readouterr().err
+    assert not (tmp_path / "new").exists()
+
+
+def test_the_frame_cap_is_one_motion_cycle_of_the_built_in_sequence():
+    import inspect
+
+    from torchmeshmetric.data import demo_sequence
+    from torchmeshmetric.evaluation.validation import MAX_FRAMES
+
+    assert inspect.signature(demo_sequence).parameters["frames_per_cycle"].default == MAX_FRAMES
+
+
+def test_validate_writes_its_files_as_one_set(capsys, tmp_path, monkeypatch):
+    from tests.test_atomic import DiskFull
+
+    out = tmp_path / "new" / "v"
+    argv = ["validate", "--frames", "3", "--resolution", "16", "--distortions", "alternating_offset"]
+    with monkeypatch.context() as m:
+        DiskFull(m, 3)  # the PNG, after the JSON and the Markdown
+        assert main([*argv, "--out-dir", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "validate: 1 distortions x 6 strengths, each an evaluation of 2 frame pairs at resolution 16" in err
+    assert "could not write the validation study: No space left on device; none of its files was written" in err
+    assert not (tmp_path / "new").exists()
+    assert main([*argv, "--out-dir", str(out)]) == 0
+    assert sorted(os.listdir(out)) == ["validation.json", "validation.md", "validation.png"]

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from torchmeshmetric._console import say
-from torchmeshmetric.cli.options import add_command, path_argument
+from torchmeshmetric.cli.options import add_command, as_option_error, path_argument
 
 __all__ = ["add_validate_command", "run"]
 
@@ -26,8 +26,15 @@ def run(args: argparse.Namespace) -> int:
     """
     from torchmeshmetric._atomic import atomic_write
     from torchmeshmetric._format import json_safe
-    from torchmeshmetric.cli._outputs import CLIError, check_writable
-    from torchmeshmetric.evaluation.validation import DISTORTIONS, FULL, REDUCED, run_validation
+    from torchmeshmetric.cli._outputs import CLIError, check_folder, check_writable, make_folder, output_set
+    from torchmeshmetric.evaluation.validation import (
+        DISTORTIONS,
+        FULL,
+        REDUCED,
+        STRENGTHS,
+        check_validation_arguments,
+        run_validation,
+    )
     from torchmeshmetric.viz.validation import plot_validation
 
     preset = dict(FULL if args.full else REDUCED)
@@ -40,16 +47,24 @@ def run(args: argparse.Namespace) -> int:
         unknown = [n for n in names if n not in DISTORTIONS]
         if unknown:
             raise CLIError(f"--distortions: unknown {unknown}; expected names from {list(DISTORTIONS)}")
+    try:  # every option before the folder is made and before any work (the library names its arguments)
+        names = check_validation_arguments(
+            frames=preset["frames"], resolution=preset["resolution"], keep=preset["keep"], distortions=names
+        )
+    except ValueError as exc:
+        raise as_option_error(exc, {"frames": "--frames", "resolution": "--resolution", "keep": "--keep"}) from None
     out_dir = Path(args.out_dir)
     paths = [out_dir / "validation.json", out_dir / "validation.md"] + (
         [] if args.no_plots else [out_dir / "validation.png"]
     )
-    if not out_dir.is_dir():
-        try:
-            out_dir.mkdir(parents=True)
-        except OSError as exc:
-            raise CLIError(f"--out-dir {str(out_dir)!r}: cannot create ({exc.strerror})") from exc
-    check_writable(paths, args.overwrite, inputs=[], what="--out-dir")
+    check_folder(out_dir, "--out-dir", may_create=True)  # created with the files, so a failed run leaves none
+    if out_dir.is_dir():
+        check_writable(paths, args.overwrite, inputs=[], what="--out-dir")
+    # The time is linear in both: say what was asked for before minutes of work
+    say(
+        f"validate: {len(names)} distortions x {STRENGTHS} strengths, each an evaluation of {preset['frames'] - 1} "
+        f"frame pairs at resolution {preset['resolution']}"
+    )
     start = time.perf_counter()
     result = run_validation(
         seed=args.seed,
@@ -66,12 +81,13 @@ def run(args: argparse.Namespace) -> int:
     )
     text = result.markdown()
     print(title + text)
-    atomic_write(
-        paths[0], json.dumps(json_safe(result.as_dict()), indent=2, allow_nan=False) + "\n", overwrite=args.overwrite
-    )
-    atomic_write(paths[1], title + text, overwrite=args.overwrite)
-    if not args.no_plots:
-        plot_validation(result, paths[2], overwrite=args.overwrite)
+    with output_set("the validation study") as files:  # all three files or none
+        make_folder(out_dir, "--out-dir", files)
+        report = json.dumps(json_safe(result.as_dict()), indent=2, allow_nan=False) + "\n"
+        atomic_write(paths[0], report, overwrite=args.overwrite)
+        atomic_write(paths[1], title + text, overwrite=args.overwrite)
+        if not args.no_plots:
+            plot_validation(result, paths[2], overwrite=args.overwrite)
     say(f"wrote {', '.join(str(p) for p in paths)}")
     return 0
 
@@ -80,10 +96,15 @@ def add_validate_command(sub: Any) -> None:
     """Add the ``validate`` subcommand to the CLI's subparsers."""
     p = add_command(sub, "validate", run)
     p.add_argument("--full", action="store_true", help="6 frames at resolution 160 (~40k faces), two-sided")
-    p.add_argument("--frames", type=int, default=None, help="frames of the built-in sequence (reduced default 4)")
-    p.add_argument("--resolution", type=int, default=None, help="mesh resolution (reduced default 48)")
     p.add_argument(
-        "--keep", type=float, default=None, help="fraction of faces the tracked simplification keeps (default 0.5)"
+        "--frames", type=int, default=None, help="frames of the built-in sequence, 3 to 24 (reduced default 4)"
+    )
+    p.add_argument("--resolution", type=int, default=None, help="mesh resolution, >= 16 (reduced default 48)")
+    p.add_argument(
+        "--keep",
+        type=float,
+        default=None,
+        help="fraction of faces the tracked simplification keeps, in (0, 1] (default 0.5)",
     )
     p.add_argument("--seed", type=int, default=0, help="seed of the sequence and the distortions (default 0)")
     p.add_argument("--distortions", default=None, metavar="A,B,...", help="only these distortions (default all)")

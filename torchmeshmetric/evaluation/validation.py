@@ -51,7 +51,10 @@ __all__ = [
     "DISTORTIONS",
     "REDUCED",
     "FULL",
+    "MAX_FRAMES",
+    "STRENGTHS",
     "ValidationResult",
+    "check_validation_arguments",
     "run_validation",
     "spearman",
 ]
@@ -77,7 +80,52 @@ REDUCED: dict[str, Any] = {"frames": 4, "resolution": 48, "keep": 0.5, "two_side
 #: The full study (``validate --full``): the paper's frame size.
 FULL: dict[str, Any] = {"frames": 6, "resolution": 160, "keep": 0.5, "two_sided": True}
 
+#: Strengths at which each distortion is evaluated (one sequence evaluation each).
+STRENGTHS = len(_LEVELS)
+#: Most frames of the study: one motion cycle of the built-in sequence (``demo_sequence``'s ``frames_per_cycle``,
+#: 24); more frames repeat its poses, so they add time (linear in the frames) but no new motion to respond to.
+MAX_FRAMES = 24
+# demo_sequence's lowest resolution, checked here with the other arguments before any work.
+_MIN_RESOLUTION = 16
+
 _STATISTICS = ("ave", "rmse", "p95", "max")
+
+
+def check_validation_arguments(
+    *, frames: int, resolution: int, keep: float, distortions: Sequence[str] | None = None
+) -> list[str]:
+    """Check :func:`run_validation`'s sizes before any work; the distortions to run.
+
+    Args:
+        frames: frames of the built-in sequence, 3 (two frame pairs) to :data:`MAX_FRAMES`.
+        resolution: its mesh resolution, >= 16.
+        keep: fraction of faces the tracked simplification keeps, in (0, 1].
+        distortions: names from :data:`DISTORTIONS` (default: all).
+
+    Returns:
+        The names of the distortions to run, in the order given.
+
+    Raises:
+        ValueError: an argument out of range, named (``frames: ...``).
+
+    Example:
+        >>> check_validation_arguments(frames=3, resolution=24, keep=0.5, distortions=["noise"])
+        ['noise']
+    """
+    names = list(DISTORTIONS) if distortions is None else list(distortions)
+    unknown = [n for n in names if n not in DISTORTIONS]
+    if unknown:
+        raise ValueError(f"distortions: unknown {unknown}, expected names from {list(DISTORTIONS)}")
+    if isinstance(frames, bool) or not isinstance(frames, int) or not 3 <= frames <= MAX_FRAMES:
+        raise ValueError(
+            f"frames: expected 3 (two frame pairs) to {MAX_FRAMES} frames (one motion cycle of the built-in "
+            f"sequence; more repeat its poses), found {frames!r}"
+        )
+    if isinstance(resolution, bool) or not isinstance(resolution, int) or resolution < _MIN_RESOLUTION:
+        raise ValueError(f"resolution: expected an int >= {_MIN_RESOLUTION}, found {resolution!r}")
+    if not (isinstance(keep, (int, float)) and 0 < keep <= 1):  # NaN too
+        raise ValueError(f"keep: expected a ratio of faces to keep in (0, 1], found {keep!r}")
+    return names
 
 
 def spearman(x: Sequence[float], y: Sequence[float]) -> float:
@@ -207,9 +255,9 @@ def run_validation(
     """Run the validation study on the built-in sequence (see the module docstring).
 
     Args:
-        frames: frames of the built-in sequence (>= 3: two frame pairs at least).
-        resolution: its mesh resolution (48: ~3.5k faces per frame; 160: the paper's ~40k).
-        keep: fraction of faces the tracked simplification keeps.
+        frames: frames of the built-in sequence, 3 (two frame pairs) to :data:`MAX_FRAMES` (one motion cycle).
+        resolution: its mesh resolution, >= 16 (48: ~3.5k faces per frame; 160: the paper's ~40k).
+        keep: fraction of faces the tracked simplification keeps, in (0, 1].
         two_sided: also evaluate the reverse sets.
         seed: seed of the sequence and of the random distortions.
         distortions: names from :data:`DISTORTIONS` (default: all).
@@ -226,12 +274,7 @@ def run_validation(
         >>> round(flicker["ave"], 2), len(d["strengths"])
         (1.0, 6)
     """
-    names = list(DISTORTIONS) if distortions is None else list(distortions)
-    unknown = [n for n in names if n not in DISTORTIONS]
-    if unknown:
-        raise ValueError(f"distortions: unknown {unknown}, expected names from {list(DISTORTIONS)}")
-    if frames < 3:
-        raise ValueError(f"frames: expected at least 3 frames (two frame pairs), found {frames}")
+    names = check_validation_arguments(frames=frames, resolution=resolution, keep=keep, distortions=distortions)
     start = time.perf_counter()
     seq = demo_sequence(frames, resolution=resolution, seed=seed)
     originals = [f.to(dtype=torch.float64) for f in seq.frames]
