@@ -337,3 +337,42 @@ def test_loss_and_distance_options_are_checked():
         mesh_surface_distance_sets(torch.zeros(1, 3), sphere, detach_reference="False")
     with pytest.raises(TypeError, match=r"two_sided: expected a bool"):
         nearest_vertex_distance_sets(torch.zeros(1, 3), sphere, two_sided="yes")
+
+
+def test_merge_state_refuses_other_states():
+    # Sketches of two accuracies were added bin by bin: a raw "size of tensor a (27633) must match ... (2765)"
+    # (found by review); DistanceAccumulator.merge already refused the same mistake in words.
+    a = DistanceStatisticsMetric(exact_quantiles=False, relative_accuracy=0.01)
+    a.update(torch.tensor([1.0, 2.0]))
+    for other, shown in [
+        (DistanceStatisticsMetric(exact_quantiles=False, relative_accuracy=0.001), "relative_accuracy=0.001"),
+        (DistanceStatisticsMetric(), "exact_quantiles=True"),
+        (DistanceStatisticsMetric(exact_quantiles=False, relative_accuracy=0.01, two_sided=True), "two_sided=True"),
+    ]:
+        with pytest.raises(ValueError, match=rf"incoming_state: DistanceStatisticsMetric\(.*{shown}.*\) cannot merge"):
+            a.merge_state(other)
+    with pytest.raises(ValueError, match=r"incoming_state: state 'forward_sketch' .* expected shape \(\d+,\), found"):
+        a.merge_state({**a.metric_state, "forward_sketch": torch.zeros(3, dtype=torch.float64)})
+    same = DistanceStatisticsMetric(exact_quantiles=False, relative_accuracy=0.01)
+    same.update(torch.tensor([6.0]))
+    a.merge_state(same)
+    assert a.compute()["count"].item() == 3.0 and a.compute()["ave"].item() == 3.0
+
+
+def test_meshes_without_faces_are_named():
+    # "faces: mesh 0 has no faces" and "mesh: no vertex is referenced by a face" named neither argument (review).
+    sphere = trimesh.creation.icosphere(subdivisions=1)
+    bare = Mesh(torch.rand(5, 3), torch.zeros(0, 3, dtype=torch.long), validate=False)
+    with pytest.raises(EmptyInputError, match=r"^reference: expected a surface to measure to, found 5 vertices and no"):
+        MeshSurfaceDistance().update(torch.rand(5, 3), bare)
+    with pytest.raises(EmptyInputError, match=r"^reference\[1\]: expected a surface"):
+        MeshSurfaceDistance().update([torch.rand(5, 3), torch.rand(2, 3)], [sphere, bare])
+    with pytest.raises(EmptyInputError, match=r"^reference: no vertex is referenced by a face \(5 vertices, 0 faces\)"):
+        NearestVertexDistance().update(torch.rand(5, 3), bare)
+    with pytest.raises(EmptyInputError, match=r"^simplified: no vertex is referenced by a face"):
+        MeshSurfaceDistance(two_sided=True).update(bare, sphere)
+    m = DistanceStatisticsMetric()
+    m.update(torch.tensor([3, 4], dtype=torch.int16))  # every integer dtype is exact (int16 was refused, int32 taken)
+    assert m.compute()["ave"].item() == 3.5
+    with pytest.raises(TypeError, match=r"dists: expected a float or integer tensor, found dtype torch.bool"):
+        m.update(torch.tensor([True]))

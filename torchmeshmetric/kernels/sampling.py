@@ -100,13 +100,14 @@ def sample_surface(
     return SurfaceSamples(points, face_idx, bary, counts)
 
 
-def vertex_set(mesh: MeshLike, *, referenced_only: bool = True) -> Tensor:
+def vertex_set(mesh: MeshLike, *, referenced_only: bool = True, name: str = "mesh") -> Tensor:
     """The vertex set of a mesh (paper Eq. 3), the points from which the paper measures distances.
 
     Args:
         mesh: any mesh-like.
         referenced_only: drop vertices that no face references (real captured frames contain some; they are
             not part of the surface). Duplicated vertices are kept: each is a vertex of the simplified mesh.
+        name: the argument's name in errors.
 
     Returns:
         ``(V', 3)`` vertex positions, in their original order, differentiable w.r.t. ``mesh.verts``.
@@ -117,10 +118,13 @@ def vertex_set(mesh: MeshLike, *, referenced_only: bool = True) -> Tensor:
         >>> vertex_set((v, torch.tensor([[0, 1, 2]]))).shape
         torch.Size([3, 3])
     """
-    m = as_mesh(mesh)
+    m = as_mesh(mesh, name=name)
     if not referenced_only:
         return m.verts
     used = vertex_set_mask(m.faces, m.num_verts)
     if not bool(used.any()):
-        raise EmptyInputError("mesh: no vertex is referenced by a face")
+        raise EmptyInputError(
+            f"{name}: no vertex is referenced by a face ({m.num_verts} vertices, {m.faces.shape[0]} faces); give a "
+            "(P, 3) tensor to measure points without faces"
+        )
     return m.verts[used]

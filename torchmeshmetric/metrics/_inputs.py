@@ -9,6 +9,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from torchmeshmetric._checks import EmptyInputError
 from torchmeshmetric.kernels.sampling import vertex_set
 from torchmeshmetric.structures import Mesh, as_mesh, as_points, is_mesh_like
 
@@ -48,7 +49,7 @@ def as_point_sources(x: Any, name: str = "simplified") -> list[PointSource]:
         nm = name if len(items) == 1 else f"{name}[{i}]"
         if is_mesh_like(it):
             m = as_mesh(it, name=nm)
-            out.append(PointSource(vertex_set(m), m))
+            out.append(PointSource(vertex_set(m, name=nm), m))
         else:
             out.append(PointSource(as_points(it, nm), None))
     return out
@@ -76,8 +77,12 @@ def cast_sources(sources: Sequence[PointSource], dtype: torch.dtype) -> list[Poi
 def as_reference_meshes(x: Any, num_items: int, name: str = "reference") -> list[Mesh]:
     """Reference meshes, one per item (a single mesh-like is used for a batch of one only)."""
     items = [x] if is_mesh_like(x) else list(x) if isinstance(x, (list, tuple)) else [x]
-    meshes = [as_mesh(m, name=name if len(items) == 1 else f"{name}[{i}]") for i, m in enumerate(items)]
+    names = [name if len(items) == 1 else f"{name}[{i}]" for i in range(len(items))]
+    meshes = [as_mesh(m, name=nm) for m, nm in zip(items, names, strict=True)]
     _check_count(len(meshes), num_items, name)
+    for m, nm in zip(meshes, names, strict=True):
+        if m.faces.shape[0] == 0:  # the kernel's message named "faces: mesh 0", neither the argument nor the item
+            raise EmptyInputError(f"{nm}: expected a surface to measure to, found {m.num_verts} vertices and no face")
     return meshes
 
 

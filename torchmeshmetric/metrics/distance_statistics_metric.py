@@ -15,7 +15,7 @@ from typing import Any
 
 import torch
 from torch import Tensor
-from torchmetrics import MetricCollection
+from torchmetrics import Metric, MetricCollection
 
 from torchmeshmetric._checks import check_flag, check_int, check_shape
 from torchmeshmetric.metrics._plot import StatisticsPlot
@@ -82,6 +82,36 @@ class DistanceStatisticsBase(StatisticsPlot, DistanceStatesMetric):
         if self.two_sided:
             self._reverse_states.add_to(self, self._sketch)
         self.add_state("reference_peak", default=torch.tensor(float("-inf"), dtype=torch.float64), dist_reduce_fx="max")
+
+    def _settings(self) -> str:
+        """What two metrics must share to merge: their class, directions and quantile mode (for messages)."""
+        mode = "exact_quantiles=True" if self.exact_quantiles else f"relative_accuracy={self.sketch.relative_accuracy}"
+        return f"{type(self).__name__}(two_sided={self.two_sided}, {mode})"
+
+    def merge_state(self, incoming_state: dict[str, Any] | Metric) -> None:
+        """Torchmetrics' ``merge_state``, after checking that the two hold the same states.
+
+        Raises:
+            ValueError: a metric of another class, directions or quantile mode (sketches of two accuracies were
+                added bin by bin: a raw size mismatch, or a wrong figure had they the same size), or a dict
+                whose states are not this metric's.
+        """
+        if isinstance(incoming_state, DistanceStatisticsBase):
+            if incoming_state._settings() != self._settings():
+                raise ValueError(
+                    f"incoming_state: {incoming_state._settings()} cannot merge into {self._settings()}: the two "
+                    "must measure the same directions with the same quantiles"
+                )
+        elif isinstance(incoming_state, dict):
+            for name, default in self._defaults.items():
+                found = incoming_state.get(name)
+                if isinstance(default, Tensor) and not (isinstance(found, Tensor) and found.shape == default.shape):
+                    shape = tuple(found.shape) if isinstance(found, Tensor) else type(found).__name__
+                    raise ValueError(
+                        f"incoming_state: state {name!r} of {self._settings()} expected shape "
+                        f"{tuple(default.shape)}, found {shape}"
+                    )
+        super().merge_state(incoming_state)
 
     @property
     def _sketch(self) -> QuantileSketch | None:

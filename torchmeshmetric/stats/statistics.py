@@ -284,9 +284,9 @@ def distance_statistics(
 
 
 def _check_distances(dists: Tensor, name: str) -> None:
-    """Require real (float or int) and finite distances."""
-    if dists.is_complex() or not (dists.is_floating_point() or dists.dtype in (torch.int32, torch.int64)):
-        raise TypeError(f"{name}: expected a real tensor, found dtype {dists.dtype}")
+    """Require real (float or integer) and finite distances: every integer dtype is exact in float64."""
+    if dists.is_complex() or dists.dtype == torch.bool:  # int16 was refused as "not a real tensor", int32 taken
+        raise TypeError(f"{name}: expected a float or integer tensor, found dtype {dists.dtype}")
     check_finite(dists, name)
 
 
