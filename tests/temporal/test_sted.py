@@ -121,3 +121,19 @@ def test_the_root_keeps_a_nan() -> None:
     assert y[0].item() == 2.0 and y[1].item() == 0.0 and math.isnan(y[2].item())
     y[:2].sum().backward()
     assert x.grad is not None and x.grad[:2].tolist() == [0.25, 0.0]
+
+
+@pytest.mark.parametrize("exponent", [-100, -70, 70, 100])
+def test_float32_at_any_scale(sphere_animation: tuple[torch.Tensor, torch.Tensor], exponent: int) -> None:
+    # Squares of float32 coordinates above ~1.8e19 overflowed (KG and STED NaN) and below ~1e-19 underflowed (KG
+    # refused the original as "a single point"). Scaled by a power of two the inputs hold the same float32 values,
+    # so the figures are the same bits (power_of_two_scale divides exactly).
+    from torchmeshmetric.temporal import kg_error, kso_error
+
+    a64, faces = sphere_animation
+    a, b = a64.float(), _distort(a64).float()
+    s = 2.0**exponent
+    assert torch.equal(sted(a * s, b * s, faces).sted, sted(a, b, faces).sted)
+    assert torch.equal(kg_error(a * s, b * s), kg_error(a, b))
+    assert torch.equal(kso_error(a * s, b * s), kso_error(a, b) * s)
+    assert torch.equal(kso_error(a * s, b * s, scale=True), kso_error(a, b, scale=True))

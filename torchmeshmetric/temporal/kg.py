@@ -22,7 +22,7 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric._checks import check_flag
-from torchmeshmetric.temporal.sequences import check_sequence_pair
+from torchmeshmetric.temporal.sequences import check_sequence_pair, power_of_two_scale
 
 __all__ = ["kg_error", "kso_error"]
 
@@ -59,6 +59,8 @@ def kg_error(original: Tensor, distorted: Tensor) -> Tensor:
         10.0
     """
     a, b = check_sequence_pair(original, distorted)
+    scale = power_of_two_scale(a, b)  # KG is a ratio: the same figure, without overflow (see power_of_two_scale)
+    a, b = a / scale, b / scale
     bottom = _frobenius(_centred(a))
     if bool((bottom == 0).any()):
         raise ValueError("original: every frame is a single point (||A - E(A)|| = 0), the KG error is undefined")
@@ -85,12 +87,15 @@ def kso_error(original: Tensor, distorted: Tensor, *, scale: bool = False) -> Te
         173.205080756888
     """
     a, b = check_sequence_pair(original, distorted)
-    diff = _centred(a) - _centred(b)
     check_flag(scale, "scale")  # "no" would scale
+    unit = power_of_two_scale(a, b)  # squares without overflow; the figure is multiplied back below
+    a, b = a / unit, b / unit
+    diff = _centred(a) - _centred(b)
     if scale:
         first = a[..., 0, :, :]
         half_diagonal = 0.5 * torch.linalg.vector_norm(first.amax(dim=-2) - first.amin(dim=-2), dim=-1)
         if bool((half_diagonal == 0).any()):
             raise ValueError("original: frame 0 is a single point, its bounding box gives no scale")
         diff = diff / half_diagonal[..., None, None, None]
-    return 1000.0 * _frobenius(diff) / math.sqrt(3 * a.shape[-2] * a.shape[-3])
+    norm = _frobenius(diff) if scale else _frobenius(diff) * unit.reshape(unit.shape[:-3])  # exact: a power of two
+    return 1000.0 * norm / math.sqrt(3 * a.shape[-2] * a.shape[-3])

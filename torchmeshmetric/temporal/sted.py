@@ -39,7 +39,7 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric._checks import ShapeError
-from torchmeshmetric.temporal.sequences import check_faces_of, check_sequence_pair
+from torchmeshmetric.temporal.sequences import check_faces_of, check_sequence_pair, power_of_two_scale
 from torchmeshmetric.temporal.topology import Neighbourhoods, neighbourhoods
 
 __all__ = [
@@ -244,6 +244,8 @@ def sted(
         (True, True)
     """
     a, b = check_sequence_pair(original, distorted, min_frames=2)
+    scale = power_of_two_scale(a, b)  # STED is scale-free: the same figures, without overflow (power_of_two_scale)
+    a, b = a / scale, b / scale
     f = check_faces_of(faces, a.shape[-2]).to(a.device)
     check_sted_parameters(dt, window, c)
     nb = neighbourhoods(f, a.shape[-2])
