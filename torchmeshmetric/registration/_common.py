@@ -9,13 +9,37 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric._checks import EmptyInputError, check_same_device
+from torchmeshmetric.kernels._common import range_scale
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
 
-def validate_pair(source: MeshLike, target: MeshLike) -> tuple[Mesh, Mesh]:
+def coordinate_scale(*verts: Tensor) -> float:
+    """Power of two that brings the largest ``|coordinate|`` of ``verts`` into ``[0.5, 1)``, or 1.0 where not needed.
+
+    The registration computes areas, normals, squared distances and robust weights: products of up to four
+    coordinates (``|ab x ac|^2``), which overflow or underflow float32 for meshes beyond ~6e4 or below ~2e-5 units
+    (found by review: float32 icospheres of 1e20 units failed in :func:`normalisation`, of 1e-20 units were called
+    zero-area). Scaling by a power of two is exact, so the registration runs on scaled coordinates and its lengths are
+    divided back; where no scaling is needed (1.0) nothing is multiplied and the result is the same bit for bit.
+    The largest ``|coordinate|``, not the extent: :meth:`~torchmeshmetric.Mesh.surface_face_mask` compares areas
+    with rounding relative to it.
+    """
+    dtype = verts[0].dtype
+    extent = max(float(v.abs().amax()) if v.numel() else 0.0 for v in verts)
+    scale = range_scale(extent, dtype, 4)
+    return 1.0 if scale is None else scale
+
+
+def validate_pair(source: MeshLike, target: MeshLike) -> tuple[Mesh, Mesh, float]:
     """Validate both meshes (typed errors), require one device and faces with positive total area.
 
-    Vertices are promoted to a common floating dtype (at least float32).
+    Vertices are promoted to a common floating dtype (at least float32) and multiplied by ``scale``, the exact power of
+    two of :func:`coordinate_scale` (1.0, no multiplication, within the dtype's comfortable range), so that areas and
+    squared distances neither overflow nor underflow; lengths computed on them are divided by ``scale`` to return to
+    the input's units.
+
+    Returns:
+        ``(source, target, scale)``.
     """
     src = as_mesh(source, name="source")
     tgt = as_mesh(target, name="target")
@@ -25,10 +49,17 @@ def validate_pair(source: MeshLike, target: MeshLike) -> tuple[Mesh, Mesh]:
             raise EmptyInputError(f"{name}: expected at least one vertex, found an empty mesh")
         if m.num_faces == 0:
             raise EmptyInputError(f"{name}: expected at least one face, found none")
+    dtype = torch.promote_types(torch.promote_types(src.dtype, tgt.dtype), torch.float32)
+    src, tgt = src.to(dtype=dtype), tgt.to(dtype=dtype)
+    scale = coordinate_scale(src.verts, tgt.verts)
+    if scale != 1.0:
+        src = Mesh(src.verts * scale, src.faces, validate=False)
+        tgt = Mesh(tgt.verts * scale, tgt.faces, validate=False)
+    for name, m in (("source", src), ("target", tgt)):
+        # On the scaled vertices: float32 areas of a 1e-20-unit mesh underflow to 0 (found by review).
         if not bool(m.face_areas().sum() > 0):
             raise EmptyInputError(f"{name}: expected a surface with positive area, found only zero-area faces")
-    dtype = torch.promote_types(torch.promote_types(src.dtype, tgt.dtype), torch.float32)
-    return src.to(dtype=dtype), tgt.to(dtype=dtype)
+    return src, tgt, scale
 
 
 def welded_faces(verts: Tensor, faces: Tensor) -> Tensor:
@@ -60,10 +91,18 @@ def normalisation(mesh: Mesh) -> tuple[Tensor, Tensor]:
     """``(center (3,), diagonal (0-dim))`` of the bounding box of the surface vertices: the registration's frame.
 
     The non-rigid registration works on ``(x - center) / diagonal`` so that its thresholds are fractions of the
-    target's diagonal.
+    target's diagonal. The surface mask and the norm are computed on coordinates scaled by :func:`coordinate_scale`
+    (float32 areas overflow beyond ~1e19 units and underflow below ~1e-19; found by review); the scaling is exact,
+    so both values are those of the input, and computed as before where no scaling is needed.
     """
+    scale = coordinate_scale(mesh.verts)
+    if scale != 1.0:
+        mesh = Mesh(mesh.verts * scale, mesh.faces, validate=False)
     ref = mesh.verts[mesh.surface_vertex_mask()]
-    return 0.5 * (ref.amin(0) + ref.amax(0)), (ref.amax(0) - ref.amin(0)).norm()
+    center, diagonal = 0.5 * (ref.amin(0) + ref.amax(0)), (ref.amax(0) - ref.amin(0)).norm()
+    if scale != 1.0:
+        center, diagonal = center / scale, diagonal / scale
+    return center, diagonal
 
 
 @contextlib.contextmanager

@@ -49,7 +49,7 @@ from torchmeshmetric.registration.energies import (
     reverse_term,
 )
 from torchmeshmetric.registration.options import DEFAULT_SCHEDULE, NonRigidOptions, Stage
-from torchmeshmetric.registration.rigid import RigidRegistration, register_rigid
+from torchmeshmetric.registration.rigid import RigidRegistration, register_rigid, transform_matrix
 from torchmeshmetric.structures import Mesh, MeshLike, PackedMeshes
 
 __all__ = [
@@ -224,6 +224,10 @@ def _register(
     timings["optimisation"] = time.perf_counter() - t_opt - timings["correspondences"]
     t0 = time.perf_counter()
     verts, residual, implausible = fit.plausibility()
+    rigid = frame.rigid
+    if frame.unit != 1.0:
+        # Back to the input's units (an exact division by a power of two); the graph stays in the normalised frame.
+        verts, residual, rigid = verts / frame.unit, residual / frame.unit, _unscaled_rigid(rigid, frame.unit)
     timings["residual"] = time.perf_counter() - t0
     reason = fit.reason or implausible or fit.convergence()
     if not reason and not all(math.isfinite(h) for h in fit.history):
@@ -240,7 +244,18 @@ def _register(
         reason=reason,
         timings=timings,
         graph=fit.graph,
-        rigid=frame.rigid,
+        rigid=rigid,
+    )
+
+
+def _unscaled_rigid(rigid: RigidRegistration, unit: float) -> RigidRegistration:
+    """``rigid``, computed on coordinates multiplied by ``unit``, in the input's units (lengths divided by it)."""
+    translation = rigid.translation / unit
+    return rigid._replace(
+        translation=translation,
+        transform=transform_matrix(rigid.rotation, translation, rigid.scale),
+        verts=rigid.verts / unit,
+        rmse=rigid.rmse / unit,
     )
 
 
@@ -295,6 +310,7 @@ class _Frame(NamedTuple):
     rigid: RigidRegistration
     faces: Tensor  # every source face (the registered mesh's)
     target_all_faces: Tensor  # every target face, welded: where the target samples are drawn
+    unit: float  # the exact power of two the input was multiplied by (validate_pair); 1.0 for none
 
 
 def _normalise(
@@ -306,7 +322,7 @@ def _normalise(
     timings: dict[str, float],
 ) -> _Frame:
     """Validate both meshes, run the rigid stage (or not) and move both into the normalised frame."""
-    src, tgt = validate_pair(source, target)
+    src, tgt, unit = validate_pair(source, target)
     if device is not None:
         src, tgt = src.to(device=device), tgt.to(device=device)
     center, diag = normalisation(tgt)
@@ -323,7 +339,7 @@ def _normalise(
     target_faces = welded_faces(tgt.verts, tgt.faces[tgt.surface_face_mask()])
     source_n = Mesh((moved - center) / diag, source_faces, validate=False)
     target_n = Mesh((tgt.verts - center) / diag, target_faces, validate=False)
-    return _Frame(center, diag, source_n, target_n, rigid, src.faces, welded_faces(tgt.verts, tgt.faces))
+    return _Frame(center, diag, source_n, target_n, rigid, src.faces, welded_faces(tgt.verts, tgt.faces), unit)
 
 
 class _Terms(NamedTuple):

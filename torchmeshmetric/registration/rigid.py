@@ -298,8 +298,13 @@ def register_rigid(
             "init": init,
         }
     )
-    src, tgt = validate_pair(source, target)
+    # On coordinates scaled by an exact power of two where float32's range would overflow or underflow (scale 1.0,
+    # no multiplication, otherwise); the lengths of the result are divided back.
+    src, tgt, unit = validate_pair(source, target)
     dtype, device = src.verts.dtype, src.verts.device
+    if init is not None and unit != 1.0:
+        init = init.to(device=device, dtype=dtype).clone()
+        init[:3, 3] *= unit
     # The vertices of any face (topology only), not of faces with a normal: which zero-area faces have a computed
     # normal depends on the input's rounding (docs/registration.md, "Stability", item 7).
     used = src.referenced_vertex_mask()
@@ -335,12 +340,15 @@ def register_rigid(
     w = _robust_trimmed_weights(res.dists, trim, float("inf"))
     keep = w > 0
     rmse = (res.dists[keep] ** 2).mean().sqrt()
+    verts = s * src.verts @ R.T + t
+    if unit != 1.0:
+        t, verts, rmse = t / unit, verts / unit, rmse / unit
     return RigidRegistration(
         rotation=R,
         translation=t,
         scale=s,
         transform=transform_matrix(R, t, s),
-        verts=s * src.verts @ R.T + t,
+        verts=verts,
         rmse=rmse,
         inlier_fraction=keep.to(dtype).mean(),
         converged=converged or max_iterations == 0,
@@ -388,7 +396,9 @@ def _match_normals(cur: Tensor, res: PointMeshResult, tgt: Mesh) -> Tensor:
     if bool(no_n.any()):
         diff = cur - res.closest
         dn = diff.norm(dim=-1, keepdim=True)
-        n = torch.where(no_n[:, None] & (dn > 0), diff / dn.clamp_min(1e-30), n)
+        # The clamp only keeps the branch not taken (dn == 0) finite; an absolute 1e-30 shrank the normals of a mesh
+        # of 1e-30 units (found by review).
+        n = torch.where(no_n[:, None] & (dn > 0), diff / dn.clamp_min(torch.finfo(dn.dtype).tiny), n)
     return n
 
 
