@@ -1,5 +1,6 @@
 """Mesh files are checked against what they declare and what their format allows; errors name file and line."""
 
+import re
 import struct
 
 import numpy as np
@@ -149,6 +150,45 @@ def test_truncated_off_is_refused_naming_the_declared_counts(tmp_path_factory, c
 )
 def test_malformed_off_names_file_line_and_problem(tmp_path, content, message):
     _assert_load_error_names_file(_write(tmp_path, "frame.off", content), message)
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        # a 4-value vertex line made up for a 2-value one: the total matched
+        ("OFF\n3 1 0\n0 0 0 0\n1 0\n0 1 0\n3 0 1 2\n", r"line 4: vertex 1 has 2 coordinate\(s\); expected 3"),
+        # a 5-value face line made up for a 3-value one: 2 triangles loaded
+        ("OFF\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2 3\n1 3 2\n", r"line 8 has a face with 1 corners"),
+        # Python's float and int read "1_0" as 10
+        ("OFF\n3 1 0\n0 0 0\n1_0 0 0\n0 1 0\n3 0 1 2\n", r"line 4: vertex 1 coordinates are not numbers"),
+        ("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 0_2\n", r"line 6: face 0 is not a list of vertex indices"),
+        ("OFF\n1_0 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", r"line 2: expected the counts"),
+    ],
+)
+def test_off_fast_pass_refuses_what_the_line_by_line_pass_refuses(tmp_path, content, message):
+    """Found by review: the vectorised pass checked only the total count of values, so the first two loaded as
+    other geometry (after a comment line, the line-by-line pass refused them); and that pass, with Python's float
+    and int, read "1_0" as 10. Both passes now refuse all of them, with the same message."""
+    _assert_load_error_names_file(_write(tmp_path, "frame.off", content), message)
+    plain = str(_load_error(_write(tmp_path, "frame.off", content)))
+    # a comment line sends the file to the line-by-line pass; its lines are one further down
+    slow = str(_load_error(_write(tmp_path, "frame.off", content.replace("OFF\n", "OFF\n# a comment\n", 1))))
+    assert re.sub(r"line (\d+)", lambda m: f"line {int(m[1]) - 1}", slow) == plain
+
+
+def _load_error(path):
+    with pytest.raises(MeshFileError) as info:
+        load_mesh(path)
+    return info.value
+
+
+def test_truncated_off_does_not_count_face_lines_as_vertices(tmp_path):
+    # found by review: a header declaring 3e9 vertices over 3 vertex lines and 1 face line said "the file holds
+    # 4 vertices and 0 faces"
+    p = _write(tmp_path, "cut.off", "OFF\n3000000000 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    _assert_load_error_names_file(
+        p, r"declares 3000000000 vertices and 1 faces, the file holds 4 lines after it, fewer than its vertices"
+    )
 
 
 @pytest.mark.parametrize(

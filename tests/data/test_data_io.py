@@ -1,6 +1,7 @@
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
 import torch
 import trimesh
@@ -27,6 +28,23 @@ def test_round_trip(tmp_path: Path, suffix: str) -> None:
         assert torch.equal(back.faces, m.faces)
         tol = 0 if suffix == ".obj" else 1e-6  # OBJ is written at full precision; others store float32
         torch.testing.assert_close(back.verts, m.verts, atol=tol, rtol=0)
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_off_round_trips_bit_for_bit(tmp_path: Path, dtype: torch.dtype) -> None:
+    """Found by review: OFF was written by trimesh with 10 decimals, so coordinates of ~3e-11 were saved as zeros
+    and float32 meshes did not round-trip exactly (OBJ and PLY did)."""
+    rng = np.random.default_rng(0)
+    scale = np.repeat([1e-11, 3e-11, 1.0, 1e30], 300)[:, None]
+    verts = torch.from_numpy(rng.normal(size=(1200, 3)) * scale).to(dtype)
+    verts[0] = torch.tensor([-0.0, 0.1, 1 / 3], dtype=dtype)
+    faces = torch.from_numpy(rng.integers(0, 1200, size=(500, 3)))
+    back = load_mesh(save_mesh(Mesh(verts, faces), tmp_path / "m.off"), dtype=dtype)
+    bits = torch.int32 if dtype == torch.float32 else torch.int64
+    assert torch.equal(back.verts.view(bits), verts.view(bits))  # bit for bit: -0.0 too
+    assert torch.equal(back.faces, faces)
+    tiny = Mesh(torch.tensor([[3e-11, 0, 0], [0, 3e-11, 0], [0, 0, 3e-11]], dtype=dtype), faces[:1] % 3)
+    assert load_mesh(save_mesh(tiny, tmp_path / "tiny.off"), dtype=dtype).verts.abs().max() > 0
 
 
 def test_vertex_order_and_duplicates_survive(tmp_path: Path) -> None:

@@ -25,7 +25,7 @@ from torchmeshmetric.data.mesh_file import (
     to_tensor,
 )
 from torchmeshmetric.data.obj import obj_bytes, read_obj_triangles
-from torchmeshmetric.data.off import parse_off
+from torchmeshmetric.data.off import off_bytes, parse_off
 from torchmeshmetric.data.ply import read_plain_ply
 from torchmeshmetric.data.trimesh_formats import read_with_trimesh
 from torchmeshmetric.structures import Mesh
@@ -104,7 +104,8 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False) -
 
     Inside :func:`~torchmeshmetric._atomic.atomic_file_set` the file joins the set (all files or none appear).
 
-    The format follows the suffix (OBJ, PLY, OFF, STL, GLB). Vertices are written in their order, unmerged.
+    The format follows the suffix (OBJ, PLY, OFF, STL, GLB). Vertices are written in their order, unmerged. OBJ, PLY
+    and OFF read back bit for bit (OFF: each coordinate's shortest decimal for the mesh's dtype); STL stores float32.
 
     Args:
         mesh: the mesh to write.
@@ -142,6 +143,8 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False) -
         raise ShapeError(f"mesh.faces: expected shape (F, 3), found {tuple(mesh.faces.shape)}")
     if suffix == ".obj":
         data = obj_bytes(mesh)
+    elif suffix == ".off":
+        data = off_bytes(mesh)  # trimesh's OFF has 10 decimals: 3e-11 became 0
     else:
         exported = mesh.to_trimesh().export(file_type=suffix[1:])
         data = exported.encode() if isinstance(exported, str) else bytes(exported)
