@@ -231,6 +231,76 @@ def test_ply_with_polygons_is_refused_not_triangulated(tmp_path):
         load_mesh(p)
 
 
+_XYZ = "property float x\nproperty float y\nproperty float z\n"
+_RGB = "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+
+
+def _ply(body, nv=3, nf=1, props=_XYZ, fmt="ascii"):
+    header = f"ply\nformat {fmt} 1.0\nelement vertex {nv}\n{props}"
+    header += f"element face {nf}\nproperty list uchar int vertex_indices\nend_header\n"
+    return header.encode("latin-1") + (body.encode() if isinstance(body, str) else body)
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        # found by review: each line's values were not counted, only their total, so these loaded as other geometry
+        (
+            _ply("0 0 0 0\n1 0\n0 1 0\n3 0 1 2\n"),
+            r"line 10: vertex 0 has 4 value\(s\); its header declares 3 \(x y z\)",
+        ),
+        (
+            _ply("0 0 0\n1 0 0\n0 1 0\n1 1 0\n3 0 1 2 3\n1 3 2\n", nv=4, nf=2),
+            r"line 14: face 0 declares 3 corners but lists 4",
+        ),
+        # found by review: values were cast to the declared type unchecked (300 as uchar is 44, -1 is 255, 0.7 as
+        # int is 0, a face index 2.5 is 2)
+        (
+            _ply("0 0 0 300 0 0\n1 0 0 0 0 0\n0 1 0 0 0 0\n3 0 1 2\n", props=_XYZ + _RGB),
+            r"line 13: vertex 0 property 'red' is 300, which its declared type uchar cannot hold \(outside \[0, 255\]",
+        ),
+        (
+            _ply("0 0 0 0 0 0\n1 0 0 0 -1 0\n0 1 0 0 0 0\n3 0 1 2\n", props=_XYZ + _RGB),
+            r"line 14: vertex 1 property 'green' is -1, which its declared type uchar cannot hold",
+        ),
+        (
+            _ply("0 0 0 0\n1 0 0 0.7\n0 1 0 0\n3 0 1 2\n", props=_XYZ + "property int quality\n"),
+            r"line 12: vertex 1 property 'quality' is 0.7, which its declared type int cannot hold \(not an integer\)",
+        ),
+        (_ply("0 0 0\n1 0 0\n0 1 0\n3 0 1 2.5\n"), r"line 13: face 0 vertex index is 2.5, which its declared type int"),
+        (_ply("0 0 0\n1 0 1e39\n0 1 0\n3 0 1 2\n"), r"line 11: vertex 1 property 'z' is 1e39, .* \(beyond the range"),
+        # found by review: a property named twice gave numpy's ValueError (binary) or the last column (ASCII)
+        (
+            _ply("0 0 0 0\n1 0 0 1\n0 1 0 2\n3 0 1 2\n", props=_XYZ + "property float x\n"),
+            r"line 7: property 'x' is declared twice in its element \(first at line 4\)",
+        ),
+        (
+            _ply(
+                struct.pack("<12f", *range(12)) + struct.pack("<B3i", 3, 0, 1, 2),
+                props=_XYZ + "property float x\n",
+                fmt="binary_little_endian",
+            ),
+            r"line 7: property 'x' is declared twice in its element \(first at line 4\)",
+        ),
+        # found by review: "²" (Latin-1 \xb2) passed str.isdigit(), then int() raised a bare ValueError
+        (
+            _ply("0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", nv="\xb2"),
+            r"line 3: 'element vertex \xb2' is not 'element NAME COUNT'",
+        ),
+    ],
+)
+def test_ply_values_and_header_are_checked(tmp_path, content, message):
+    _assert_load_error_names_file(_write(tmp_path, "frame.ply", content), message)
+
+
+def test_end_header_in_a_ply_comment_is_no_end_of_header(tmp_path):
+    # found by review: the first "end_header" in the file, a comment's, was taken for the end of the header
+    data = _ply("0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n").replace(b"ply\n", b"ply\ncomment edited before end_header\n", 1)
+    assert load_mesh(_write(tmp_path, "c.ply", data)).faces.tolist() == [[0, 1, 2]]
+    trimesh_path = data.replace(b"element face", b"element edge 0\nproperty int a\nelement face")  # not plain
+    assert load_mesh(_write(tmp_path, "t.ply", trimesh_path)).faces.tolist() == [[0, 1, 2]]
+
+
 @pytest.mark.parametrize("missing", [1, 20, 50, 3000])
 def test_truncated_binary_stl_is_refused(tmp_path, missing):
     data = trimesh.creation.icosphere(subdivisions=1).export(file_type="stl")

@@ -253,3 +253,20 @@ def test_integer_coordinates_are_read_exactly(values, sign) -> None:
     np.testing.assert_array_equal(d.verts, np.array([float(x) for x in values]).reshape(-1, 3))
     z = parse_obj(Path("x.obj"), b"v -0 0 -00\nf 1 1 1\n").verts
     assert np.signbit(z).tolist() == [[True, False, True]]  # as Python's float("-0")
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    lines=st.lists(st.lists(st.sampled_from(["0", "-1.5", "1e3", "x"]), max_size=6), min_size=1, max_size=30),
+    gaps=st.sampled_from([" ", "  ", "\t", " \r"]),
+    chunk=st.integers(1, 64),
+)
+def test_values_per_line_counts_each_lines_values(lines, gaps, chunk) -> None:
+    """The per-line count the OFF and ASCII PLY fast passes check, in runs of lines of any size."""
+    from torchmeshmetric.data.mesh_file import values_per_line
+
+    text = "".join(gaps.join(ln) + gaps + "\n" for ln in lines).encode()
+    buf = np.frombuffer(text, dtype=np.uint8)
+    nl = np.flatnonzero(buf == 10)
+    counts = values_per_line(buf, np.concatenate(([0], nl[:-1] + 1)), chunk=chunk)
+    assert counts.tolist() == [len(ln) for ln in lines]

@@ -64,3 +64,24 @@ def test_bad_point_cloud_files_are_refused_naming_the_file(tmp_path, capsys, wri
     line = capsys.readouterr().err.splitlines()[-1]
     assert line.startswith("torchmeshmetric mpeg: error:") and str(p) in line, line
     assert os.path.getsize(good) > 0
+
+
+@pytest.mark.parametrize(
+    ("rows", "n", "pattern"),
+    [
+        # found by review: colours were cast to uchar unchecked, "300 -5 2.7" became [44, 251, 2]
+        (["0 0 0 300 -5 2.7"], None, r"line 11: vertex 0 property 'red' is 300, .* uchar cannot hold \(outside"),
+        (["0 0 0 30 -5 2.7"], None, r"line 11: vertex 0 property 'green' is -5, .* uchar cannot hold \(outside"),
+        (["0 0 0 30 5 2.7"], None, r"line 11: vertex 0 property 'blue' is 2.7, .* uchar cannot hold \(not an integer"),
+        # found by review: only the total count of values was checked, so a long line made up for a short one
+        (["0 0 0 1 2 3 4", "1 1 1 1 2"], None, r"line 11: vertex 0 has 7 value\(s\); its header declares 6"),
+        (["0 0 0 1 2 3 1 1 1 1 2 3"], 2, r"line 11: vertex 0 has 12 value\(s\); its header declares 6"),
+        # Python's float (the old parser here) read "1_0" as 10
+        (["0 0 0 1 2 3", "1_0 1 1 1 2 3"], None, r"holds a value that is not a number after its header"),
+    ],
+)
+def test_point_cloud_values_fit_their_lines_and_types(tmp_path, rows, n, pattern):
+    p = _ascii(tmp_path / "c.ply", rows, n=n, colour=True)
+    with pytest.raises(MeshFileError, match=pattern) as info:
+        load_model_cloud(p)
+    assert str(p) in str(info.value)

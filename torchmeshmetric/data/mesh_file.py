@@ -25,6 +25,7 @@ __all__ = [
     "not_a_mesh",
     "text_lines",
     "to_tensor",
+    "values_per_line",
 ]
 
 
@@ -58,6 +59,26 @@ def check_text(p: Path, data: bytes) -> None:
     if control is not None:
         line = data.count(b"\n", 0, control.start()) + 1
         raise not_a_mesh(p, f"binary data at line {line}, byte {control.start()}")
+
+
+def values_per_line(buf: np.ndarray, starts: np.ndarray, *, chunk: int = 1 << 20) -> np.ndarray:
+    """How many whitespace-separated values each line holds, vectorised (a few passes over the bytes).
+
+    ``buf`` holds text whose every line ends with its newline (control bytes other than whitespace refused, so
+    ``<= 32`` is whitespace); ``starts`` is each line's first byte. A value starts where text follows a space.
+    Runs of whole lines of about ``chunk`` bytes keep the temporaries in the cache: twice as fast as one pass over
+    an 80 MB file.
+    """
+    out = np.empty(starts.shape[0], dtype=np.int32)
+    cuts = np.unique(np.append(np.searchsorted(starts, np.arange(0, buf.shape[0], chunk)), starts.shape[0]))
+    for a, b in zip(cuts[:-1].tolist(), cuts[1:].tolist(), strict=True):
+        lo, hi = int(starts[a]), int(starts[b]) if b < starts.shape[0] else buf.shape[0]
+        space = buf[lo:hi] <= 32
+        rise = np.empty(hi - lo, dtype=bool)
+        rise[0] = not space[0]
+        np.greater(space[:-1], space[1:], out=rise[1:])
+        out[a:b] = np.add.reduceat(rise, starts[a:b] - lo, dtype=np.int32)
+    return out
 
 
 def existing_mesh_file(path: str | os.PathLike) -> Path:

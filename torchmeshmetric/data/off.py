@@ -15,7 +15,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 import torch
 
-from torchmeshmetric.data.mesh_file import MeshFileError, check_text, check_vertices, not_a_mesh, text_lines
+from torchmeshmetric.data.mesh_file import (
+    MeshFileError,
+    check_text,
+    check_vertices,
+    not_a_mesh,
+    text_lines,
+    values_per_line,
+)
 
 if TYPE_CHECKING:
     from torchmeshmetric.structures import Mesh
@@ -54,14 +61,7 @@ def _parse_off_fast(data: bytes) -> tuple[np.ndarray, np.ndarray] | None:
     nl = np.flatnonzero(np.frombuffer(body, dtype=np.uint8) == 10)
     if nl.size != nv + nf or body.startswith(b"\n") or (np.diff(nl) == 1).any():
         return None  # truncated, more than declared or blank lines: the slow pass says which
-    # Values per line: space-to-text transitions summed over each line (control bytes other than whitespace were
-    # refused, so "<= 32" is whitespace, and each line's segment ends with its newline).
-    buf = np.frombuffer(body, dtype=np.uint8)
-    space = buf <= 32
-    rise = np.empty(buf.shape[0], dtype=bool)
-    rise[0] = not space[0]
-    np.greater(space[:-1], space[1:], out=rise[1:])
-    per_line = np.add.reduceat(rise, np.concatenate(([0], nl[:-1] + 1)), dtype=np.int32)
+    per_line = values_per_line(np.frombuffer(body, dtype=np.uint8), np.concatenate(([0], nl[:-1] + 1)))
     if (per_line[:nv] != 3).any() or (per_line[nv:] != 4).any():
         return None  # colours, polygons or bad rows: the slow pass takes or names them
     v_end = int(nl[nv - 1]) + 1 if nv else 0

@@ -6,12 +6,15 @@ Anything else (other elements, polygons, truncation, trailing bytes) is left to
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["read_plain_ply", "read_ply_points"]
+from torchmeshmetric.data.mesh_file import MeshFileError, values_per_line
+
+__all__ = ["declared_counts", "header_end", "read_plain_ply", "read_ply_points"]
 
 
 _PLY_TYPES = {
@@ -34,6 +37,15 @@ _PLY_TYPES = {
 }
 
 
+_END_HEADER = re.compile(rb"^end_header[ \t\r]*$", re.MULTILINE)
+
+
+def header_end(data: bytes) -> int:
+    """Where a PLY's ``end_header`` line starts, or -1: that line itself, never the words in a comment."""
+    m = _END_HEADER.search(data)
+    return -1 if m is None else m.start()
+
+
 def read_plain_ply(p: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None] | None:
     """A plain PLY (a ``vertex`` then a triangle ``face`` element, nothing else) read with numpy, else ``None``.
 
@@ -43,11 +55,11 @@ def read_plain_ply(p: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None] 
     Returns ``(verts, faces, colors)``, colours from ``uchar`` ``red green blue`` properties.
     """
     data = p.read_bytes()
+    declared_counts(p, data)
     header = _plain_header(data)
     if header is None:
         return None
-    read = _read_ascii if header.fmt == "ascii" else _read_binary
-    table = read(header)
+    table = _read_ascii(p, header) if header.fmt == "ascii" else _read_binary(header)
     if table is None:
         return None
     cols, faces = table
@@ -72,11 +84,12 @@ class _Header(NamedTuple):
     count_t: str  # the face list's count type
     index_t: str  # the face list's index type
     body: bytes  # what follows the header
+    first_line: int  # the file's line number of the body's first line
 
 
 def _plain_header(data: bytes, *, points: bool = False) -> _Header | None:
     """The header of a plain PLY (see :func:`read_plain_ply`; ``points``: a lone ``vertex`` element), else ``None``."""
-    end = data.find(b"end_header")
+    end = header_end(data)
     if not data.startswith(b"ply") or end < 0:
         return None
     stop = data.find(b"\n", end)
@@ -90,7 +103,7 @@ def _plain_header(data: bytes, *, points: bool = False) -> _Header | None:
             continue
         if t[0] == "format" and len(t) >= 2:
             fmt = t[1]
-        elif t[0] == "element" and len(t) == 3 and t[2].isdigit():
+        elif t[0] == "element" and len(t) == 3 and t[2].isascii() and t[2].isdigit():
             elements.append((t[1], int(t[2]), []))
         elif t[0] == "property" and elements:
             elements[-1][2].append(tuple(t[1:]))
@@ -118,25 +131,144 @@ def _plain_header(data: bytes, *, points: bool = False) -> _Header | None:
     count_t, index_t = lists[0][1], lists[0][2]
     if count_t not in _PLY_TYPES or index_t not in _PLY_TYPES or _PLY_TYPES[index_t][0] == "f":
         return None
-    return _Header(fmt, nv, nf, vprops, count_t, index_t, data[stop + 1 :])
+    first_line = data.count(b"\n", 0, stop + 1) + 1
+    return _Header(fmt, nv, nf, vprops, count_t, index_t, data[stop + 1 :], first_line)
 
 
-def _read_ascii(h: _Header) -> tuple[dict[str, np.ndarray], np.ndarray] | None:
-    """``(vertex property columns, faces)`` of an ASCII body, else ``None``."""
+class _Body(NamedTuple):
+    """The non-blank lines of an ASCII PLY body: how many values each holds, where it is, its line in the file."""
+
+    counts: np.ndarray
+    starts: np.ndarray  # first byte of each line in the body
+    ends: np.ndarray  # its newline
+    lines: np.ndarray
+
+
+def _ascii_body(h: _Header) -> _Body:
+    """Count the values of every line of an ASCII body, vectorised (a few passes over its bytes)."""
+    body = h.body if h.body.endswith(b"\n") else h.body + b"\n"
+    buf = np.frombuffer(body, dtype=np.uint8)
+    nl = np.flatnonzero(buf == 10)
+    starts = np.concatenate(([0], nl[:-1] + 1))
+    counts = values_per_line(buf, starts)  # a control byte, which no number holds, counts as a space
+    keep = np.flatnonzero(counts)
+    return _Body(counts[keep], starts[keep], nl[keep], keep + h.first_line)
+
+
+def _token(h: _Header, b: _Body, row: int, col: int) -> str:
+    """The text of value ``col`` of non-blank body line ``row`` (for messages)."""
+    return h.body[int(b.starts[row]) : int(b.ends[row])].split()[col].decode("latin-1")
+
+
+def _check_vertex_lines(p: Path, h: _Header, b: _Body) -> None:
+    """Every vertex line holds one value per vertex property (a total alone lets a long line make up for a short)."""
+    k = len(h.vprops)
+    bad = np.flatnonzero(b.counts[: h.nv] != k)
+    if bad.size:
+        i = int(bad[0])
+        names = " ".join(pr[1] for pr in h.vprops)
+        raise MeshFileError(
+            f"path: '{p}' line {int(b.lines[i])}: vertex {i} has {int(b.counts[i])} value(s); its header declares "
+            f"{k} ({names})"
+        )
+
+
+def _unfit(values: np.ndarray, code: str) -> np.ndarray:
+    """Which ``values`` a PLY type cannot hold: out of its range, or (an integer type) not an integer."""
+    if code[0] == "f":
+        with np.errstate(over="ignore"):
+            return np.isinf(values.astype(code)) & np.isfinite(values)
+    info = np.iinfo(code)
+    return ~((values == np.floor(values)) & (values >= info.min) & (values <= info.max))  # NaN: unfit
+
+
+def _check_type(
+    p: Path, h: _Header, b: _Body, values: np.ndarray, ply_type: str, what: tuple[str, str], first: int, col0: int
+) -> None:
+    """Refuse the first of ``values`` that its declared type cannot hold (a uchar 300 or -1, an int 0.7).
+
+    Casting would wrap or truncate it silently (300 as uchar is 44; found by review). ``values`` is
+    ``(rows, columns)``, row ``r`` on non-blank body line ``first + r``, column ``c`` its line's value ``col0 + c``;
+    the message names ``what[0] r what[1]`` (``("vertex", " property 'red'")``) and quotes the value as written.
+    """
+    code = _PLY_TYPES[ply_type]
+    if code == "f8" or values.size == 0:
+        return
+    with np.errstate(invalid="ignore"):  # NaN: the mask below decides
+        if code == "f4":
+            fits = float(np.abs(values).max()) <= float(np.finfo(code).max)
+        else:  # reductions first: no temporary array for a file that is right
+            lo, hi = np.iinfo(code).min, np.iinfo(code).max
+            fits = lo <= float(values.min()) and float(values.max()) <= hi and bool((np.floor(values) == values).all())
+    if fits:
+        return
+    bad = _unfit(values, code)
+    if not bad.any():
+        return
+    row, col = (int(x) for x in np.argwhere(bad)[0])
+    text = _token(h, b, row + first, col0 + col)
+    if code[0] == "f":
+        why = f"beyond the range of {ply_type} (max {float(np.finfo(code).max):.3g})"
+    elif values[row, col] != np.floor(values[row, col]):
+        why = "not an integer"
+    else:
+        why = f"outside [{np.iinfo(code).min}, {np.iinfo(code).max}]"
+    raise MeshFileError(
+        f"path: '{p}' line {int(b.lines[row + first])}: {what[0]} {row}{what[1]} is {text}, which its declared type "
+        f"{ply_type} cannot hold ({why})"
+    )
+
+
+def _vertex_columns(p: Path, h: _Header, b: _Body, table: np.ndarray) -> dict[str, np.ndarray]:
+    """Each vertex property's column as its declared type holds it, every value checked to fit that type."""
+    cols = {}
+    for i, (ply_type, name) in enumerate(h.vprops):
+        column = table[:, i : i + 1]
+        _check_type(p, h, b, column, ply_type, ("vertex", f" property '{name}'"), 0, i)
+        # a "float" property is float32, as trimesh and mmetric read it
+        cols[name] = column[:, 0].astype(_PLY_TYPES[ply_type])
+    return cols
+
+
+def _read_ascii(p: Path, h: _Header) -> tuple[dict[str, np.ndarray], np.ndarray] | None:
+    """``(vertex property columns, faces)`` of an ASCII body, else ``None``.
+
+    ``None`` for polygons, or lines other in number than the header declares (truncation, trailing lines): trimesh
+    then names which. Each line's values are counted (a total alone let a long line make up for a short one).
+
+    Raises:
+        MeshFileError: a line without the values its element declares, or a value its type cannot hold (naming the
+            file, line and value).
+    """
+    b = _ascii_body(h)
+    nv, nf, k = h.nv, h.nf, len(h.vprops)
+    if b.counts.size != nv + nf:
+        return None
+    _check_vertex_lines(p, h, b)
     try:
         flat = np.fromstring(h.body, dtype=np.float64, sep=" ")
     except ValueError:
         return None
-    k = len(h.vprops)
-    if flat.size != h.nv * k + h.nf * 4:
+    if flat.size != int(b.counts.sum()):
         return None
-    table = flat[: h.nv * k].reshape(h.nv, k)
-    # each value as its declared type holds it (a "float" property is float32, as trimesh and mmetric read it)
-    cols = {pr[1]: table[:, i].astype(_PLY_TYPES[pr[0]]) for i, pr in enumerate(h.vprops)}
-    fl = flat[h.nv * k :].reshape(h.nf, 4)
-    if (fl[:, 0] != 3).any() or (fl[:, 1:] != np.round(fl[:, 1:])).any():
-        return None
-    return cols, fl[:, 1:].astype(np.int64)
+    cols = _vertex_columns(p, h, b, flat[: nv * k].reshape(nv, k))
+    fcounts = b.counts[nv:]
+    # triangles, as usual: no offsets to sum
+    corners = flat[nv * k :: 4] if (fcounts == 4).all() else flat[nv * k + np.cumsum(fcounts) - fcounts]
+    _check_type(p, h, b, corners[:, None], h.count_t, ("face", " corner count"), nv, 0)
+    listed = fcounts - 1
+    bad = np.flatnonzero(listed != corners)
+    if bad.size:
+        j = int(bad[0])
+        raise MeshFileError(
+            f"path: '{p}' line {int(b.lines[nv + j])}: face {j} declares {int(corners[j])} corners but lists "
+            f"{int(listed[j])}"
+        )
+    if (corners != 3).any():
+        return None  # polygons: refused by trimesh's count check, naming them
+    fl = flat[nv * k :].reshape(nf, 4)[:, 1:]
+    _check_type(p, h, b, fl, h.index_t, ("face", " vertex index"), nv, 1)
+    return cols, fl.astype(np.int64)
 
 
 def _read_binary(h: _Header) -> tuple[dict[str, np.ndarray], np.ndarray] | None:
@@ -164,22 +296,41 @@ def _read_binary(h: _Header) -> tuple[dict[str, np.ndarray], np.ndarray] | None:
     return cols, faces
 
 
-def _declared(p: Path, data: bytes) -> dict[str, int]:
-    """The element counts of a PLY header, checked line by line (``path: 'f.ply' line 4: ...``)."""
-    from torchmeshmetric.data.mesh_file import MeshFileError, not_a_mesh, text_lines
+def declared_counts(p: Path, data: bytes) -> dict[str, int]:
+    """The element counts of a PLY header, checked line by line (``path: 'f.ply' line 4: ...``).
+
+    Every PLY the library reads passes this check: element counts of ASCII digits, no property named twice in one
+    element (binary numpy said ``field 'x' occurs more than once``, ASCII used the last column; found by review).
+
+    Raises:
+        MeshFileError: not a PLY, no ``end_header`` line, binary data in the header, a bad ``element`` line or a
+            property declared twice (naming the file and line).
+    """
+    from torchmeshmetric.data.mesh_file import not_a_mesh, text_lines
 
     if not data.startswith(b"ply"):
         raise not_a_mesh(p, "a PLY file starts with 'ply'")
-    end = data.find(b"end_header")
+    end = header_end(data)
     if end < 0:
         raise MeshFileError(f"path: '{p}' has a PLY header without 'end_header'")
     declared: dict[str, int] = {}
+    properties: dict[str, int] = {}  # the current element's property names and their lines
     for i, raw in enumerate(text_lines(p, data[:end]), start=1):
         t = raw.decode("latin-1").split()
-        if t[:1] == ["element"] and (len(t) != 3 or not t[2].isdigit()):
+        # ASCII digits only: str.isdigit() takes "²", which int() refuses
+        if t[:1] == ["element"] and (len(t) != 3 or not (t[2].isascii() and t[2].isdigit())):
             raise MeshFileError(f"path: '{p}' line {i}: {' '.join(t)!r} is not 'element NAME COUNT'")
         if t[:1] == ["element"]:
             declared[t[1]] = int(t[2])
+            properties = {}
+        elif t[:1] == ["property"] and len(t) >= 3:
+            name = t[-1]  # the name ends the line, after the type (or "list COUNT_TYPE INDEX_TYPE")
+            if name in properties:
+                raise MeshFileError(
+                    f"path: '{p}' line {i}: property '{name}' is declared twice in its element (first at line "
+                    f"{properties[name]}); which of the two is meant cannot be told"
+                )
+            properties[name] = i
     return declared
 
 
@@ -202,11 +353,11 @@ def read_ply_points(p: Path) -> tuple[np.ndarray, np.ndarray | None] | None:
         >>> read_ply_points(f)[0].tolist()
         [[0.0, 0.0, 0.0], [1.0, 2.0, 3.0]]
     """
-    from torchmeshmetric.data.mesh_file import MeshFileError, check_vertices, existing_mesh_file
+    from torchmeshmetric.data.mesh_file import check_vertices, existing_mesh_file
 
     p = existing_mesh_file(p)
     data = p.read_bytes()
-    declared = _declared(p, data)
+    declared = declared_counts(p, data)
     if declared.get("face", 0) > 0:
         return None
     nv = declared.get("vertex", 0)
@@ -216,20 +367,23 @@ def read_ply_points(p: Path) -> tuple[np.ndarray, np.ndarray | None] | None:
     k = len(h.vprops)
     lines = None
     if h.fmt == "ascii":
-        flat = np.array(h.body.split(), dtype=object)
-        try:
-            values = flat.astype(np.float64)
-        except ValueError:
-            raise MeshFileError(f"path: '{p}' holds a value that is not a number after its header") from None
-        if values.size != nv * k:
+        b = _ascii_body(h)
+        total = int(b.counts.sum())
+        if b.counts.size != nv and total != nv * k:
             raise MeshFileError(
-                f"path: '{p}' declares {nv} vertex elements of {k} values but holds {values.size} values "
-                f"({values.size / k:g} vertices): truncated or malformed"
+                f"path: '{p}' declares {nv} vertex elements of {k} values but holds {total} values "
+                f"({total / k:g} vertices): truncated or malformed"
             )
-        first = data[: data.find(b"end_header")].count(b"\n") + 2  # the line of the first vertex
-        lines = np.arange(nv) + first
-        table = values.reshape(nv, k)
-        cols = {pr[1]: table[:, i].astype(_PLY_TYPES[pr[0]]) for i, pr in enumerate(h.vprops)}
+        # the values of its vertices on other lines than theirs: the first line that is wrong is among the first nv
+        _check_vertex_lines(p, h, b)
+        try:
+            values = np.fromstring(h.body, dtype=np.float64, sep=" ")
+        except ValueError:
+            values = np.zeros(0)
+        if values.size != total:  # numpy's parser, not Python's float: "1_0" is no number
+            raise MeshFileError(f"path: '{p}' holds a value that is not a number after its header") from None
+        lines = b.lines
+        cols = _vertex_columns(p, h, b, values.reshape(nv, k))
     else:
         read = _read_binary(h)
         if read is None:
@@ -254,7 +408,7 @@ def _trimesh_points(p: Path, nv: int) -> tuple[np.ndarray, np.ndarray | None]:
     """A point-cloud PLY outside the plain form, through trimesh, its vertex count and coordinates checked."""
     import trimesh
 
-    from torchmeshmetric.data.mesh_file import MeshFileError, check_vertices
+    from torchmeshmetric.data.mesh_file import check_vertices
 
     try:
         cloud = trimesh.load(p, file_type="ply", process=False)

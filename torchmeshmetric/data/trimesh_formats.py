@@ -7,13 +7,13 @@ from __future__ import annotations
 
 import io
 import os
-import re
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from torchmeshmetric.data.mesh_file import MeshFileError, not_a_mesh, text_lines
+from torchmeshmetric.data.ply import declared_counts, header_end
 
 __all__ = ["read_with_trimesh"]
 
@@ -38,15 +38,11 @@ def read_with_trimesh(p: Path, suffix: str) -> tuple[np.ndarray, np.ndarray, np.
     source: Any = os.fspath(p)
     if suffix == ".ply":
         data = p.read_bytes()
-        if not data.startswith(b"ply"):
-            raise not_a_mesh(p, "a PLY file starts with 'ply'")
-        end = data.find(b"end_header")
-        if end < 0:
-            raise MeshFileError(f"path: '{p}' has a PLY header without 'end_header'")
-        header = data[:end]
-        text_lines(p, header)
-        declared = {m[1].decode(): int(m[2]) for m in re.finditer(rb"element\s+(\w+)\s+(\d+)", header)}
-        source = io.BytesIO(_utf8(header) + data[end:])
+        declared = declared_counts(p, data)  # the header checked line by line, as for every PLY
+        end = header_end(data)
+        # without its comments: trimesh takes the first "end_header" in the file, a comment's too, for the end
+        head = b"".join(ln for ln in data[:end].splitlines(keepends=True) if ln.split()[:1] != [b"comment"])
+        source = io.BytesIO(_utf8(head) + data[end:])
     elif suffix == ".stl":
         data = p.read_bytes()
         n = int.from_bytes(data[80:84], "little") if len(data) >= 84 else -1
