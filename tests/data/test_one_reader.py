@@ -172,6 +172,11 @@ def test_every_path_gives_the_same_file_line_error(tmp_path: Path, content: str,
         (TRI + "vt 0\nf 1/1 2/1 3/1\n", r"line 4: texture coordinate 0 has 1 value\(s\); expected 'vt u v'"),
         (TRI + "vt 0 a\nf 1/1 2/1 3/1\n", r"line 4: texture coordinates '0 a' are not numbers"),
         (TRI + "vt 0 0\nf 1/1 2/1 3/1\nf 1 2 3\n", r"frame.obj:6: this face has no texture index"),
+        # found by review: "uvs: expected finite values" (no file, no line) and a numpy overflow warning
+        (
+            TRI + "vt 0 0\nvt 1e300 0\nf 1/1 2/2 3/1\n",
+            r"line 5: texture coordinate 1 has values up to 1e\+300, beyond the range of torch.float32 .*; mmetric",
+        ),
     ],
 )
 def test_bad_uvs_are_refused_with_file_and_line(tmp_path: Path, content: str, message: str) -> None:

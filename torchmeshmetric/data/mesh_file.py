@@ -139,9 +139,19 @@ def check_vertices(p: Path, verts: np.ndarray, what: str, lines: np.ndarray | No
 
 
 def check_dtype_range(
-    p: Path, verts: np.ndarray, dtype: torch.dtype, lines: np.ndarray | None = None, hint: str | None = None
+    p: Path,
+    verts: np.ndarray,
+    dtype: torch.dtype,
+    lines: np.ndarray | None = None,
+    hint: str | None = None,
+    *,
+    what: tuple[str, str, str] = ("vertex", "coordinates", "vertices"),
 ) -> None:
-    """Refuse coordinates that ``dtype`` cannot hold (they would become Inf), naming the first one and its line."""
+    """Refuse coordinates that ``dtype`` cannot hold (they would become Inf), naming the first one and its line.
+
+    ``what`` names a row, its values and the rows in the message: ``("texture coordinate", "values", "'vt' lines")``
+    for UVs.
+    """
     finfo_max = torch.finfo(dtype).max
     if verts.size == 0 or float(np.abs(verts).max()) <= finfo_max:
         return
@@ -149,9 +159,9 @@ def check_dtype_range(
     i = int(np.nonzero(big)[0][0])
     where = f" line {int(lines[i])}:" if lines is not None else ""
     raise MeshFileError(
-        f"path: mesh file '{p}'{where} vertex {i} has coordinates up to "
+        f"path: mesh file '{p}'{where} {what[0]} {i} has {what[1]} up to "
         f"{float(np.abs(verts).max()):.3g}, beyond the range of {dtype} (max {finfo_max:.3g}; "
-        f"{int(big.sum())} such vertices); {hint or 'load it with dtype=torch.float64'}"
+        f"{int(big.sum())} such {what[2]}); {hint or 'load it with dtype=torch.float64'}"
     )
 
 

@@ -253,6 +253,9 @@ def load_textured_mesh(path: str | os.PathLike, texture: str | os.PathLike | Non
     faces, face_uvs = d.triangles()
     check_mesh(p, d.verts, faces, d.vert_lines)
     check_dtype_range(p, d.verts, torch.float32, d.vert_lines, hint)
+    # found by review: "vt 1e300 0" became Inf in float32, refused as "uvs: expected finite values" (no file, no line)
+    uv_hint = "mmetric reads texture coordinates as float32"
+    check_dtype_range(p, d.uvs, torch.float32, d.uv_lines, uv_hint, what=("texture coordinate", "values", "'vt' lines"))
     corner_uv = None
     has_uv = face_uvs >= 0
     if d.uvs.shape[0] and has_uv.any():
