@@ -69,6 +69,29 @@ def test_natural_order(tmp_path: Path) -> None:
     assert sorted(["a10b2", "a2b10", "a2b9"], key=natural_key) == ["a2b9", "a2b10", "a10b2"]
 
 
+def test_a_broken_link_among_the_frames_is_refused(tmp_path: Path) -> None:
+    """Found by review: a folder's dangling symlink was dropped silently (f0, f1 -> /nonexistent, f2 listed as
+    [f0, f2]), so every frame after the hole took the number of the one before; a glob dropped it too."""
+    for n in (0, 2):
+        (tmp_path / f"f{n}.obj").write_text(TRI)
+    (tmp_path / "f1.obj").symlink_to(tmp_path / "nonexistent.obj")
+    for paths in (tmp_path, str(tmp_path / "f*.obj"), [tmp_path / "f0.obj", tmp_path / "f1.obj"]):
+        with pytest.raises(MeshFileError, match=r"frame '.*f1\.obj' is a broken symbolic link \(to '.*nonexistent"):
+            list_frames(paths)
+    (tmp_path / "f1.obj").unlink()
+    (tmp_path / "f1.obj").symlink_to(tmp_path / "f2.obj")  # a link to a file is a frame like any other
+    assert [q.name for q in list_frames(tmp_path)] == ["f0.obj", "f1.obj", "f2.obj"]
+
+
+def test_a_folder_leaves_hidden_files_out_as_a_glob_does(tmp_path: Path) -> None:
+    # found by review: a folder listed ".hidden.obj" (an editor's or a sync tool's copy) where "*.obj" does not
+    for name in ("f0.obj", "f1.obj", ".hidden.obj"):
+        (tmp_path / name).write_text(TRI)
+    (tmp_path / ".gone.obj").symlink_to(tmp_path / "nonexistent.obj")  # hidden: not a frame, even broken
+    assert [q.name for q in list_frames(tmp_path)] == ["f0.obj", "f1.obj"]
+    assert list_frames(tmp_path) == list_frames(str(tmp_path / "*.obj"))
+
+
 def test_missing_and_empty_inputs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     with pytest.raises(MeshFileError, match="does not exist"):
         load_mesh(tmp_path / "nope.obj")

@@ -31,11 +31,14 @@ def natural_key(path: str | os.PathLike) -> tuple[object, ...]:
 def list_frames(paths: PathsLike) -> list[Path]:
     r"""Resolve a directory, glob pattern, single file or list of files into frame paths in natural order.
 
-    A directory yields its files with a mesh suffix (:data:`MESH_SUFFIXES`); a glob yields its matches; a list is kept
-    in the given order (an explicit order is respected).
+    A directory yields its files with a mesh suffix (:data:`MESH_SUFFIXES`), leaving hidden files (names starting
+    with ``.``, such as an editor's ``.frame1.obj``) out, as a glob pattern does; a glob yields its matches; a list is
+    kept in the given order (an explicit order is respected). A broken symbolic link among the frames is refused:
+    leaving it out would give every frame after it the number of the one before.
 
     Raises:
-        MeshFileError: an empty path, nothing matches, or a listed file does not exist.
+        MeshFileError: an empty path, nothing matches, a listed file does not exist, or a frame is a broken
+            symbolic link.
 
     Example:
         >>> import tempfile, pathlib
@@ -50,14 +53,18 @@ def list_frames(paths: PathsLike) -> list[Path]:
             raise MeshFileError(f"paths: expected a directory, a glob pattern or a mesh file, found {paths!r}")
         p = Path(paths)
         if p.is_dir():
-            found = [q for q in p.iterdir() if q.is_file() and q.suffix.lower() in MESH_SUFFIXES]
+            named = [q for q in p.iterdir() if q.suffix.lower() in MESH_SUFFIXES and not q.name.startswith(".")]
+            _refuse_broken_links(named)
+            found = [q for q in named if q.is_file()]
             if not found:
                 raise MeshFileError(f"paths: directory '{p}' holds no mesh files (suffixes {', '.join(MESH_SUFFIXES)})")
             return sorted(found, key=natural_key)
         if p.is_file():
             return [p]
         if _glob.has_magic(os.fspath(p)):
-            matches = [Path(m) for m in _glob.glob(os.fspath(p)) if Path(m).is_file()]
+            matched = [Path(m) for m in _glob.glob(os.fspath(p))]
+            _refuse_broken_links(matched)
+            matches = [q for q in matched if q.is_file()]
             if not matches:
                 raise MeshFileError(f"paths: glob pattern '{p}' matches no files")
             return sorted(matches, key=natural_key)
@@ -68,6 +75,17 @@ def list_frames(paths: PathsLike) -> list[Path]:
     for q in out:
         if q.is_dir():
             raise MeshFileError(f"paths: '{q}' is a directory, not a mesh file")
+        _refuse_broken_links([q])
         if not q.is_file():
             raise MeshFileError(f"paths: file '{q}' does not exist")
     return out
+
+
+def _refuse_broken_links(paths: list[Path]) -> None:
+    """Refuse a frame that is a symbolic link to nothing (``is_file()`` is false for it, so it would be dropped)."""
+    for q in sorted(paths, key=natural_key):
+        if q.is_symlink() and not q.exists():
+            raise MeshFileError(
+                f"paths: frame '{q}' is a broken symbolic link (to '{os.readlink(q)}'); leaving it out would "
+                "renumber the frames after it: restore its target or remove the link"
+            )
