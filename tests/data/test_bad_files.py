@@ -49,6 +49,9 @@ def _assert_load_error_names_file(path, message):
         ("# only a comment\n", r"is not a mesh file \(no OBJ statement"),
         (TRI + "f 1 2 3\n\x00\x01\x02", r"is not a mesh file \(binary data at line 5"),
         ("v 0 0 1e39\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", r"coordinates up to 1e\+39, beyond the range of torch.float32"),
+        # found by review: Python's float and int (the line-by-line pass) read "1_0" as 10
+        ("v 1_0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", r"line 1: vertex coordinates '1_0 0 0' are not numbers"),
+        (TRI + "f 1 2 0_3\n", r"line 4: face corner '0_3' is not a vertex index"),
     ],
 )
 def test_malformed_obj_names_file_line_and_problem(tmp_path, content, message):

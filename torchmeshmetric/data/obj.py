@@ -472,6 +472,8 @@ class _Statements:
     def line_floats(self, at: int, tokens: list[bytes], start: int, stop: int, what: str) -> list[float]:
         """``tokens[start:stop]`` as floats; an error quotes the line's values (``what``: whose)."""
         try:
+            if any(b"_" in t for t in tokens[start:stop]):
+                raise ValueError  # Python's float reads "1_0" as 10; numpy's parser (the fast pass) refuses it
             return [float(t) for t in tokens[start:stop]]
         except ValueError:
             raise MeshFileError(
@@ -574,6 +576,8 @@ def _index(p: Path, at: int, text: bytes, defined: int, what: str, corner: bytes
     """A 0-based index from an OBJ corner field (1-based, or negative counting back from the last defined)."""
     things = "vertex" if what == "vertex" else "'vt'"
     try:
+        if b"_" in text:
+            raise ValueError  # Python's int reads "1_0" as 10
         idx = int(text)
     except ValueError:
         raise MeshFileError(
