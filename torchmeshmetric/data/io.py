@@ -104,8 +104,9 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False) -
 
     Inside :func:`~torchmeshmetric._atomic.atomic_file_set` the file joins the set (all files or none appear).
 
-    The format follows the suffix (OBJ, PLY, OFF, STL, GLB). Vertices are written in their order, unmerged. OBJ, PLY
-    and OFF read back bit for bit (OFF: each coordinate's shortest decimal for the mesh's dtype); STL stores float32.
+    The format follows the suffix (OBJ, PLY, OFF, STL, GLB). Vertices are written in their order, unmerged. OBJ and
+    OFF read back bit for bit in the mesh's dtype (OFF: each coordinate's shortest decimal for that dtype); PLY
+    (written by trimesh), STL and GLB store float32, bit for bit for a float32 mesh only.
 
     Args:
         mesh: the mesh to write.
