@@ -26,20 +26,22 @@ def test_round_trip(tmp_path: Path, suffix: str) -> None:
         torch.testing.assert_close(back.verts[back.faces], m.verts[m.faces].to(back.verts), atol=1e-6, rtol=0)
     else:
         assert torch.equal(back.faces, m.faces)
-        tol = 0 if suffix in (".obj", ".off") else 1e-6  # bit for bit; PLY and GLB store float32 (this mesh: float64)
+        tol = 0 if suffix in (".obj", ".off", ".ply") else 1e-6  # bit for bit; GLB stores float32 (this mesh: float64)
         torch.testing.assert_close(back.verts, m.verts, atol=tol, rtol=0)
 
 
+@pytest.mark.parametrize("suffix", [".off", ".ply"])
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
-def test_off_round_trips_bit_for_bit(tmp_path: Path, dtype: torch.dtype) -> None:
+def test_off_and_ply_round_trip_bit_for_bit(tmp_path: Path, dtype: torch.dtype, suffix: str) -> None:
     """Found by review: OFF was written by trimesh with 10 decimals, so coordinates of ~3e-11 were saved as zeros
-    and float32 meshes did not round-trip exactly (OBJ and PLY did)."""
+    and float32 meshes did not round-trip exactly; PLY, written by trimesh too, stored float64 meshes as float32 (up
+    to 2.6e-8 lost on a unit sphere)."""
     rng = np.random.default_rng(0)
     scale = np.repeat([1e-11, 3e-11, 1.0, 1e30], 300)[:, None]
     verts = torch.from_numpy(rng.normal(size=(1200, 3)) * scale).to(dtype)
     verts[0] = torch.tensor([-0.0, 0.1, 1 / 3], dtype=dtype)
     faces = torch.from_numpy(rng.integers(0, 1200, size=(500, 3)))
-    back = load_mesh(save_mesh(Mesh(verts, faces), tmp_path / "m.off"), dtype=dtype)
+    back = load_mesh(save_mesh(Mesh(verts, faces), tmp_path / f"m{suffix}"), dtype=dtype)
     bits = torch.int32 if dtype == torch.float32 else torch.int64
     assert torch.equal(back.verts.view(bits), verts.view(bits))  # bit for bit: -0.0 too
     assert torch.equal(back.faces, faces)

@@ -26,7 +26,7 @@ from torchmeshmetric.data.mesh_file import (
 )
 from torchmeshmetric.data.obj import obj_bytes, read_obj_triangles
 from torchmeshmetric.data.off import off_bytes, parse_off
-from torchmeshmetric.data.ply import read_plain_ply
+from torchmeshmetric.data.ply import ply_bytes, read_plain_ply
 from torchmeshmetric.data.trimesh_formats import read_with_trimesh
 from torchmeshmetric.structures import Mesh
 
@@ -104,9 +104,10 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False) -
 
     Inside :func:`~torchmeshmetric._atomic.atomic_file_set` the file joins the set (all files or none appear).
 
-    The format follows the suffix (OBJ, PLY, OFF, STL, GLB). Vertices are written in their order, unmerged. OBJ and
-    OFF read back bit for bit in the mesh's dtype (OFF: each coordinate's shortest decimal for that dtype); PLY
-    (written by trimesh), STL and GLB store float32, bit for bit for a float32 mesh only.
+    The format follows the suffix (OBJ, PLY, OFF, STL, GLB). Vertices are written in their order, unmerged. OBJ, OFF
+    and PLY read back bit for bit in the mesh's dtype (OFF: each coordinate's shortest decimal for that dtype; PLY:
+    binary, ``double`` properties for a float64 mesh, ``float`` otherwise); STL and GLB store float32, bit for bit
+    for a float32 mesh only.
 
     Args:
         mesh: the mesh to write.
@@ -146,6 +147,9 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False) -
         data = obj_bytes(mesh)
     elif suffix == ".off":
         data = off_bytes(mesh)  # trimesh's OFF has 10 decimals: 3e-11 became 0
+    elif suffix == ".ply":  # trimesh's PLY is float32 whatever the mesh: a float64 mesh lost its low bits
+        v = mesh.verts.detach().cpu()
+        data = ply_bytes(v.numpy() if v.dtype == torch.float64 else v.float().numpy(), mesh.faces.cpu().numpy())
     else:
         exported = mesh.to_trimesh().export(file_type=suffix[1:])
         data = exported.encode() if isinstance(exported, str) else bytes(exported)
