@@ -131,3 +131,17 @@ def test_mesh_derived_values_keep_autograd_fresh() -> None:
     with torch.inference_mode():
         frozen = Mesh(torch.tensor(tm.vertices), torch.tensor(tm.faces))
         torch.testing.assert_close(frozen.face_areas(), m.face_areas().detach(), rtol=0, atol=0)
+
+
+@pytest.mark.parametrize("exponent", [-70, -40, 40, 70])
+def test_normals_of_float32_meshes_at_any_scale(exponent: int) -> None:
+    # float32 squared areas overflowed beyond ~1e9 units and underflowed below ~1e-9: every normal came out 0 (found
+    # by review). The crosses are taken on edges divided by a power of two, exactly: the same bits at any scale.
+    sphere = trimesh.creation.icosphere(subdivisions=2)
+    verts = torch.as_tensor(sphere.vertices, dtype=torch.float32)
+    verts = verts + 0.05 * torch.randn(verts.shape, generator=torch.Generator().manual_seed(0))
+    faces = torch.as_tensor(sphere.faces)
+    unit, scaled = Mesh(verts, faces), Mesh(verts * 2.0**exponent, faces)
+    assert torch.equal(scaled.vertex_normals(), unit.vertex_normals())
+    assert torch.equal(scaled.face_normals(), unit.face_normals())
+    assert bool((unit.vertex_normals().norm(dim=-1) > 0.99).all())

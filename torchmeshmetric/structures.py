@@ -184,15 +184,38 @@ class Mesh:
         """``(F,)`` triangle areas (cached, see the class docstring)."""
         return self._cached("face_areas", lambda: 0.5 * self._face_cross_norm()[:, 0])
 
+    def _normal_cross(self) -> Tensor:
+        """``(F, 3)`` :meth:`_face_cross` of the edges divided by a power of two near the longest edge component.
+
+        The directions the normals need, without overflow: float32 squared areas overflowed for coordinates beyond
+        ~1e9 (and underflowed below ~1e-9), so every normal came out 0 (found by review: ``carry_onto`` then fell back
+        to closest points). The division is exact, so the normals are the same bits wherever nothing overflowed.
+        """
+
+        def compute() -> Tensor:
+            tri = self.verts[self.faces]
+            e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+            largest = torch.maximum(e1.detach().abs().amax(), e2.detach().abs().amax()) if len(tri) else tri.sum()
+            _, exponent = torch.frexp(largest)  # 0 (no edge) gives exponent 0: no scaling
+            unit = torch.ldexp(torch.ones_like(largest), exponent)
+            return torch.linalg.cross(e1 / unit, e2 / unit, dim=-1)
+
+        return self._cached("normal_cross", compute)
+
     def face_normals(self) -> Tensor:
         """``(F, 3)`` unit face normals (right-hand rule); exactly zero for zero-area faces, which have none."""
-        return self._cached("face_normals", lambda: _unit(self._face_cross(), self._face_cross_norm()))
+
+        def compute() -> Tensor:
+            n = self._normal_cross()
+            return _unit(n, n.norm(dim=-1, keepdim=True))
+
+        return self._cached("face_normals", compute)
 
     def vertex_normals(self) -> Tensor:
         """``(V, 3)`` area-weighted unit vertex normals; exactly zero where no face of positive area touches."""
 
         def compute() -> Tensor:
-            n, f = self._face_cross(), self.faces
+            n, f = self._normal_cross(), self.faces
             acc = torch.zeros_like(self.verts).index_add(0, f[:, 0], n).index_add(0, f[:, 1], n)
             acc = acc.index_add(0, f[:, 2], n)
             return _unit(acc, acc.norm(dim=-1, keepdim=True))

@@ -297,7 +297,10 @@ def _along_normal(
         t_next = torch.maximum(torch.minimum(t_next, reach[active]), -reach[active])
         t0[active], g0[active], t1[active] = t1[active], g1, t_next
         active = active[(best_g[active] > tol) & moving]
-    return best, best_q, best_g <= tol
+    # The derivative's choice, not the iteration's stop: a float32 line has met the surface within its rounding, which
+    # 1e-10 of the coordinates is below (found by review: 176 of 642 lines counted in float32, 642 in float64).
+    met = max(tol, 64 * torch.finfo(x.dtype).eps * float(x.abs().max()))
+    return best, best_q, best_g <= met
 
 
 def _carried_point(q: Tensor, corners: Tensor, bary: Tensor, normal: Tensor | None, on_line: Tensor) -> Tensor:
@@ -308,6 +311,11 @@ def _carried_point(q: Tensor, corners: Tensor, bary: Tensor, normal: Tensor | No
     query found: the plane's projection (interior), the edge line's (one coordinate 0), the vertex (two). A face too
     thin for its plane or line (the denominators vanish) keeps the barycentric blend.
 
+    Each point is computed from its face's first corner ``a``, in units of a power of two near the largest of
+    ``q - a``, ``b - a``, ``c - a`` (exact): squared areas of float32 coordinates beyond ~1e9 overflowed and below
+    ~1e-8 underflowed, and the NaN reached the value or the gradient (found by review); a mesh far from the origin
+    keeps its faces' own size.
+
     Args:
         q: ``(V, 3)`` the query points (detached).
         corners: ``(V, 3, 3)`` the corners of each point's face (differentiable).
@@ -316,27 +324,32 @@ def _carried_point(q: Tensor, corners: Tensor, bary: Tensor, normal: Tensor | No
         on_line: ``(V,)`` the points whose line met the surface.
     """
     blend = (bary[..., None] * corners).sum(1)
-    a, b, c = corners.unbind(1)
-    plane = torch.linalg.cross(b - a, c - a, dim=-1)
+    a = corners[:, 0]
+    local = torch.stack([q - a, corners[:, 1] - a, corners[:, 2] - a], dim=1)  # (V, 3, 3): q, b, c from a
+    _, exponent = torch.frexp(local.detach().abs().amax(dim=(1, 2)))
+    unit = torch.ldexp(torch.ones_like(exponent, dtype=q.dtype), exponent)[:, None]  # (V, 1); 1 where all is 0
+    ql, bl, cl = (local / unit[:, :, None]).unbind(1)
+    plane = torch.linalg.cross(bl, cl, dim=-1)
     area2 = (plane * plane).sum(-1)
-    size2 = torch.maximum((b - a).square().sum(-1), (c - a).square().sum(-1)).detach()
+    size2 = torch.maximum(bl.square().sum(-1), cl.square().sum(-1)).detach()
     flat = area2 > 1e-24 * size2 * size2  # the plane is defined (torch.where needs finite values on both sides)
     safe_area2 = torch.where(flat, area2, torch.ones_like(area2))
-    projected = q - ((q - a) * plane).sum(-1, keepdim=True) * plane / safe_area2[:, None]
-    point = torch.where(flat[:, None], projected, blend)
+    projected = ql - (ql * plane).sum(-1, keepdim=True) * plane / safe_area2[:, None]
+    point = torch.where(flat[:, None], a + projected * unit, blend)
     if normal is not None:
         across = (normal * plane).sum(-1)
         meets = on_line & (bary > 0).all(-1) & flat & (across.abs() > 1e-6 * safe_area2.sqrt()).detach()
         safe_across = torch.where(meets, across, torch.ones_like(across))
-        crossing = q + normal * (((a - q) * plane).sum(-1) / safe_across)[:, None]
-        point = torch.where(meets[:, None], crossing, point)
+        crossing = ql - normal * ((ql * plane).sum(-1) / safe_across)[:, None]
+        point = torch.where(meets[:, None], a + crossing * unit, point)
     zeros = (bary == 0).sum(-1)
+    ends = torch.stack([torch.zeros_like(bl), bl, cl], dim=1)  # the corners from a, in units
     for k in range(3):  # the edge opposite corner k, where the query landed on it
-        u, v = corners[:, (k + 1) % 3], corners[:, (k + 2) % 3]
+        u, v = ends[:, (k + 1) % 3], ends[:, (k + 2) % 3]
         length2 = (v - u).square().sum(-1)
         on_edge = (zeros == 1) & (bary[:, k] == 0) & (length2 > 0).detach()
-        s_ = ((q - u) * (v - u)).sum(-1) / torch.where(on_edge, length2, torch.ones_like(length2))
-        point = torch.where(on_edge[:, None], u + s_[:, None] * (v - u), point)
+        s_ = ((ql - u) * (v - u)).sum(-1) / torch.where(on_edge, length2, torch.ones_like(length2))
+        point = torch.where(on_edge[:, None], a + (u + s_[:, None] * (v - u)) * unit, point)
     return torch.where((zeros >= 2)[:, None], blend, point)
 
 
