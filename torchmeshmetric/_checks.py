@@ -176,9 +176,13 @@ def check_flag(value: object, name: str) -> bool:
         >>> check_flag(False, "two_sided")
         False
     """
-    if not isinstance(value, bool):
-        raise TypeError(f"{name}: expected a bool, found {type(value).__name__} {value!r}")
-    return value
+    if isinstance(value, bool):
+        return value
+    import numpy as np  # loaded with torch already
+
+    if isinstance(value, np.bool_) or (isinstance(value, Tensor) and value.dtype == torch.bool and value.numel() == 1):
+        return bool(value)  # numpy's and torch's booleans are booleans too
+    raise TypeError(f"{name}: expected a bool, found {type(value).__name__} {value!r}")
 
 
 def check_int(value: object, name: str, low: int | None = None) -> int:
@@ -188,7 +192,9 @@ def check_int(value: object, name: str, low: int | None = None) -> int:
         >>> check_int(3, "seed")
         3
     """
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+    if isinstance(value, Tensor) and value.numel() == 1 and not (value.is_floating_point() or value.is_complex()):
+        value = value.item() if value.dtype != torch.bool else value  # a one-element integer tensor is an int
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):  # numpy's integers are Integral
         raise TypeError(f"{name}: expected an int, found {type(value).__name__} {value!r}")
     if low is not None and value < low:
         raise ValueError(f"{name}: expected an int >= {low}, found {value!r}")

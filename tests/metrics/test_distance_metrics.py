@@ -376,3 +376,50 @@ def test_meshes_without_faces_are_named():
     assert m.compute()["ave"].item() == 3.5
     with pytest.raises(TypeError, match=r"dists: expected a float or integer tensor, found dtype torch.bool"):
         m.update(torch.tensor([True]))
+
+
+def test_old_checkpoints_of_several_moments_rows_still_merge():
+    # Checkpoints written before the moments became one row hold one row per forward() call: loaded, they then
+    # failed a merge_state or a sync with "stack expects each tensor to be equal size" (found by review).
+    from torchmeshmetric.stats.moments import moments_of, moments_rows
+
+    parts = [torch.tensor([1.0, 2.0]), torch.tensor([6.0])]
+    rows = torch.cat([moments_rows(moments_of(p)) for p in parts])
+    old = DistanceStatisticsMetric()
+    old.persistent(True)
+    state = old.state_dict()
+    state["forward_moments"] = rows
+    state["forward_values"] = [p.double() for p in parts]
+    m = DistanceStatisticsMetric()
+    m.persistent(True)
+    m.load_state_dict(state)
+    m._update_count = 1  # a loaded state counts no update (as in test_metric_collection_and_state_dict)
+    assert m.forward_moments.shape == (1, 6)
+    other = DistanceStatisticsMetric()
+    other.update(torch.tensor([3.0]))
+    m.merge_state(other)
+    assert m.compute()["count"].item() == 4.0 and m.compute()["ave"].item() == 3.0
+    fresh = DistanceStatisticsMetric()
+    fresh.update(torch.tensor([3.0]))
+    fresh.merge_state(
+        {
+            "forward_moments": rows,
+            "forward_values": [torch.tensor([1.0, 2.0, 6.0], dtype=torch.float64)],
+            "reference_peak": torch.tensor(float("-inf"), dtype=torch.float64),
+        }
+    )
+    assert fresh.compute()["count"].item() == 4.0 and fresh.compute()["ave"].item() == 3.0
+
+
+def test_numpy_and_torch_scalars_are_taken_for_flags_counts_and_peaks():
+    # The checks of 2026-12-07 refused np.float32 peaks, np.bool_ flags and one-element integer tensors that worked
+    # before (found by review); str and float stay refused.
+    from torchmeshmetric.metrics import MeshSurfaceDistanceLoss
+
+    m = DistanceStatisticsMetric(peak=np.float32(10), two_sided=np.True_, exact_quantiles=np.bool_(True))
+    assert m.fixed_peak == 10.0 and m.two_sided is True
+    assert DistanceStatisticsMetric(peak=np.int64(4), ddof=np.int64(1)).ddof == 1
+    MeshSurfaceDistanceLoss(detach_reference=np.False_, seed=np.int32(3), two_sided=torch.tensor(True))
+    assert MeshSurfaceDistance(seed=torch.tensor(5)).seed == 5
+    with pytest.raises(TypeError, match=r"seed: expected an int, found float 1.5"):
+        MeshSurfaceDistance(seed=1.5)

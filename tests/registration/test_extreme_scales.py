@@ -66,3 +66,16 @@ def test_float32_power_of_two_scales_give_the_same_registration() -> None:
     assert torch.equal(a.residual * 2.0**-100, b.residual * 2.0**100)
     assert torch.equal(a.rigid.transform[:3, 3] * 2.0**-100, b.rigid.transform[:3, 3] * 2.0**100)
     assert a.loss_history == b.loss_history and a.converged and b.converged
+
+
+def test_a_float32_mesh_too_small_for_its_distance_from_the_origin_is_refused_in_words() -> None:
+    # A unit ellipsoid 1e5 units from the origin in float32: its coordinates hold ~7 bits of its size, every face's
+    # area is rounding noise, and normalisation stopped with "amin(): Expected reduction dim 0 to have non-zero size"
+    # (found by review). float64 registers it.
+    (sv, sf), (tv, tf) = _pair(torch.float64, 1.0)
+    shift = torch.tensor([1e5, -5e4, 0.0], dtype=torch.float64)
+    with pytest.raises(ValueError, match=r"source: every face is smaller than the rounding of its float32 coordinates"):
+        register_nonrigid(((sv + shift).float(), sf), ((tv + shift).float(), tf))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert register_nonrigid((sv + shift, sf), (tv + shift, tf)).verts.dtype == torch.float64

@@ -190,6 +190,43 @@ class DistanceStatesMetric(Metric):
             self._enable_grad = False
             raise
 
+    def _one_row(self, states: dict[str, Any]) -> dict[str, Any]:
+        """``states`` with every moments state of several rows merged into one.
+
+        Checkpoints written before 2026-12-07 kept one row per ``forward()`` call and per DDP process, which a sync
+        or a merge can no longer stack.
+        """
+        merged = dict(states)
+        for name, reduce in self._reductions.items():
+            value = merged.get(name)
+            if reduce is merge_moment_rows and isinstance(value, Tensor) and value.dim() == 2 and value.shape[0] != 1:
+                merged[name] = merge_moment_rows(value.to(torch.float64))
+        return merged
+
+    def _load_from_state_dict(
+        self,
+        state_dict: dict,
+        prefix: str,
+        local_metadata: dict,
+        strict: bool,
+        missing_keys: list[str],
+        unexpected_keys: list[str],
+        error_msgs: list[str],
+    ) -> None:
+        super()._load_from_state_dict(
+            state_dict, prefix, local_metadata, strict, missing_keys, unexpected_keys, error_msgs
+        )
+        for name, value in self._one_row({k: getattr(self, k) for k in self._defaults}).items():
+            setattr(self, name, value)
+
+    def merge_state(self, incoming_state: dict[str, Any] | Metric) -> None:
+        """Torchmetrics' ``merge_state``, an incoming dict's moments (and this metric's) merged to one row first."""
+        for name, value in self._one_row({k: getattr(self, k) for k in self._defaults}).items():
+            setattr(self, name, value)
+        if isinstance(incoming_state, dict):
+            incoming_state = self._one_row(incoming_state)
+        super().merge_state(incoming_state)
+
     def _sync_dist(self, dist_sync_fn: Callable = gather_all_tensors, process_group: Any | None = None) -> None:
         for name, default in self._defaults.items():  # the lists are the distances: float64, like every state here
             if isinstance(default, list) and not getattr(self, name):

@@ -10,6 +10,7 @@ default PSNR peak.
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -96,6 +97,8 @@ class DistanceStatisticsBase(StatisticsPlot, DistanceStatesMetric):
                 added bin by bin: a raw size mismatch, or a wrong figure had they the same size), or a dict
                 whose states are not this metric's.
         """
+        if isinstance(incoming_state, dict):
+            incoming_state = self._one_row(incoming_state)  # a checkpoint's moments of several rows
         if isinstance(incoming_state, DistanceStatisticsBase):
             if incoming_state._settings() != self._settings():
                 raise ValueError(
@@ -233,7 +236,7 @@ def _checked_peak(peak: object) -> Tensor:
 
     A NaN peak stuck for good (the running maximum of NaN stays NaN) and a negative one was dropped in silence.
     """
-    if isinstance(peak, bool) or not isinstance(peak, (int, float, Tensor)):
+    if isinstance(peak, bool) or not isinstance(peak, (numbers.Real, Tensor)):  # numpy's numbers are Real
         raise TypeError(f"peak: expected a number or a tensor of them, found {type(peak).__name__} {peak!r}")
     p = torch.as_tensor(peak).detach()
     if p.dtype == torch.bool or p.is_complex() or p.numel() == 0:

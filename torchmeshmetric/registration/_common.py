@@ -59,6 +59,13 @@ def validate_pair(source: MeshLike, target: MeshLike) -> tuple[Mesh, Mesh, float
         # On the scaled vertices: float32 areas of a 1e-20-unit mesh underflow to 0 (found by review).
         if not bool(m.face_areas().sum() > 0):
             raise EmptyInputError(f"{name}: expected a surface with positive area, found only zero-area faces")
+        if not bool(m.surface_face_mask().any()):  # every area is rounding noise: the normals point anywhere
+            largest = float(m.verts.detach().abs().amax()) / scale
+            raise EmptyInputError(
+                f"{name}: every face is smaller than the rounding of its {str(dtype).removeprefix('torch.')} "
+                f"coordinates (up to {largest:.3g} from the origin); register in float64 (--dtype float64) or "
+                "move the mesh nearer the origin"
+            )
     return src, tgt, scale
 
 

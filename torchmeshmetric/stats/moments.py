@@ -122,7 +122,7 @@ def moments_rows(moments: Moments) -> Tensor:
     """``(R, 6)`` float64 rows of :class:`Moments` with ``(R,)`` fields (``(1, 6)`` for 0-dim fields).
 
     Columns follow the field order ``count, mean, m2, sumsq, min, max``: the form in which a ``torchmetrics`` state
-    (``dist_reduce_fx="cat"``) holds partial moments, one row per update, ``forward()`` call or process.
+    holds partial moments (one row, reduced by :func:`~torchmeshmetric.metrics.distance_states.merge_moment_rows`).
 
     Example:
         >>> import torch
