@@ -65,8 +65,12 @@ def test_compare_two_identical_method_folders_every_verdict_inconclusive(
     assert all(e["verdict"] == "inconclusive" and e["difference"] == 0.0 for e in entries)
     assert "Comparisons with confidence" in stdout and "| flicker * |" in stdout
     assert "Comparisons with confidence" in out.with_suffix(".md").read_text()
-    assert _run(capsys, "compare", "--original", str(orig), "--method", f"A={simp}", "--method", f"B={simp}",
-                "--relative-margin", "-1")[0] == 1  # fmt: skip
+    # Refused when parsed, naming the option: it was refused after the whole registration and evaluation (review).
+    with pytest.raises(SystemExit) as exit_:
+        main(["compare", "--original", str(orig), "--method", f"A={simp}", "--method", f"B={simp}",
+              "--relative-margin", "-1"])  # fmt: skip
+    assert exit_.value.code == 2
+    assert "argument --relative-margin: expected a finite fraction >= 0, found '-1'" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(

@@ -49,3 +49,14 @@ def test_tracking_is_anchored_qem_with_the_learned_slide(tmp_path):
     # The slide moved frame 1 towards frame 0's tessellation: it differs from Anchored QEM alone.
     anchored = simplify_tracking(originals, 0.5, registrations, weight=DEFAULT_ANCHOR_WEIGHT)
     assert not torch.equal(anchored[1].verts, want[1].verts)
+
+
+def test_a_target_above_a_frames_faces_is_refused_before_any_registration(tmp_path, capsys):
+    # It was "target: expected a face count in [1, 1548], found 1560", after the registrations of rqem (review).
+    frames = _write_frames(tmp_path / "in", n=2)
+    cache = tmp_path / "cache"
+    argv = ["simplify", "--input", str(frames), "--output", str(tmp_path / "out"), "--method", "rqem"]
+    assert main([*argv, "--target", "5000", "--cache-dir", str(cache)]) == 1
+    err = capsys.readouterr().err
+    assert "--target: frame 'frame_00.ply': expected a face count in [1, 1280], found 5000" in err
+    assert not cache.exists() and not (tmp_path / "out").exists()

@@ -83,6 +83,21 @@ def test_generic_over_the_statistics_a_pair_carries_psnr_is_higher_better():
     assert "| mpeg:d1 |" in text and "A: " in text
 
 
+def test_a_perfect_method_wins_the_psnr_comparison():
+    # A PSNR of inf on a pair (no error) gave "nan ± inf" and "inconclusive" while Ave said the same method won
+    # (found by review). One sign on every pair is a verdict; both infinite on a pair is no difference there.
+    def mpeg(values):
+        return lambda k: {"mpeg": {"d1": {"d1_psnr": values[k - 1], "d1_mse": 1.0}}}
+
+    a = _method([1.0] * 4, extra=mpeg([math.inf, math.inf, 70.0, math.inf]))
+    b = _method([1.0] * 4, extra=mpeg([60.0, math.inf, 61.0, 62.0]))
+    entry = compare_methods({"A": a, "B": b})["A vs B"]["mpeg:d1"]["d1_psnr"]
+    assert entry == {"difference": math.inf, "ci95": [0.0, math.inf], "verdict": "A better"}
+    assert compare_methods({"B": b, "A": a})["B vs A"]["mpeg:d1"]["d1_psnr"]["verdict"] == "A better"
+    mixed = _method([1.0] * 4, extra=mpeg([50.0, math.inf, 80.0, 62.0]))  # worse on one pair, better on another
+    assert compare_methods({"A": a, "M": mixed})["A vs M"]["mpeg:d1"]["d1_psnr"]["verdict"] == "inconclusive"
+
+
 def test_methods_must_share_frame_pairs():
     with pytest.raises(ValueError, match="frame pairs"):
         compare_methods({"A": _method([1.0, 2.0]), "B": _method([1.0, 2.0, 3.0])})

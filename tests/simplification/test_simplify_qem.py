@@ -61,3 +61,20 @@ def test_a_target_that_leaves_no_face_is_an_error(target):
     with pytest.raises(EmptyInputError, match=rf"target: {target!r} \(1 of 80 faces\) left no face"):
         simplify_qem(small, target)
     assert simplify_qem(small, 4).num_faces == 4  # 4 faces: a tetrahedron, kept
+
+
+def test_soups_bad_aggressiveness_and_missed_targets_are_said(sphere):
+    # A soup (STL's form) lost half its surface: every edge is a border, so whole triangles went (area 6.19 of 12.57
+    # at 50 %); agg NaN or -1 and a small agg missed the target without a word (found by review).
+    m = as_mesh(sphere)
+    soup = Mesh(m.verts[m.faces.reshape(-1)], torch.arange(m.num_faces * 3).reshape(-1, 3))
+    with pytest.raises(ValueError, match=r"mesh: a triangle soup \(\d+ faces, no vertex shared .*merge_vertices"):
+        simplify_qem(soup, 0.5)
+    for agg in (float("nan"), -1.0, 0, True, "7"):
+        with pytest.raises(ValueError, match=r"agg: expected a finite number > 0"):
+            simplify_qem(m, 0.5, agg=agg)  # type: ignore[arg-type]
+    from torchmeshmetric.data import demo_sequence
+
+    frame = demo_sequence(1, resolution=32).frames[0]  # 1548 faces; agg 2.0 stops at 1222 of 774 (measured)
+    with pytest.warns(UserWarning, match=r"simplify_qem: stopped at \d+ faces, above the target 774 \(agg=2.0"):
+        simplify_qem(frame, 774, agg=2.0)

@@ -5,7 +5,14 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from torchmeshmetric.cli.options import add_command, common_options, evaluation_options, path_argument, report_options
+from torchmeshmetric.cli.options import (
+    add_command,
+    common_options,
+    evaluation_options,
+    parse_fraction,
+    path_argument,
+    report_options,
+)
 
 __all__ = ["add_compare_command", "run"]
 
@@ -92,7 +99,7 @@ def add_compare_command(sub: Any) -> None:
     )
     p.add_argument(
         "--relative-margin",
-        type=float,
+        type=parse_fraction,  # -1 or nan was refused after the whole registration and evaluation (found by review)
         default=0.02,
         metavar="FRACTION",
         help="differences below this fraction of the better method's value are 'inconclusive' (default 0.02; "

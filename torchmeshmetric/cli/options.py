@@ -94,6 +94,17 @@ def parse_weight(text: str) -> float:
     return value
 
 
+def parse_fraction(text: str) -> float:
+    """A fraction >= 0 (``--relative-margin``): checked when parsed, not after the evaluation it qualifies."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a fraction >= 0, found {text!r}") from None
+    if not (value >= 0 and value != float("inf")):
+        raise argparse.ArgumentTypeError(f"expected a finite fraction >= 0, found {text!r}")
+    return value
+
+
 def parse_weights(text: str) -> tuple[float, ...]:
     """A comma-separated list of weights, or ``none`` (no weight: an empty tuple)."""
     if text.strip().lower() == "none":

@@ -57,6 +57,13 @@ def run(args: argparse.Namespace) -> int:
     check_folder(out_dir, "--output", may_create=True)
     if out_dir.is_dir():
         check_writable(targets, args.overwrite, inputs=folder_inputs("--input", args.input), what="--output")
+    from torchmeshmetric.simplification._target import resolve_target
+
+    for name, frame in zip(names, frames, strict=True):  # before the registrations, naming the option and the frame
+        try:
+            resolve_target(args.target, frame.num_faces)
+        except (TypeError, ValueError) as exc:
+            raise CLIError(f"--target: frame {name!r}: {str(exc).removeprefix('target: ')}") from exc
     registrations = None
     if args.method in ("rqem", "tracking"):
         cache = RegistrationCache(args.cache_dir)

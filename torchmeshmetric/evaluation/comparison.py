@@ -200,8 +200,19 @@ def _compare_values(
 ) -> dict[str, Any]:
     if all(x == y for x, y in zip(a, b, strict=True)):  # identical (infinities included): no difference at all
         return {"difference": 0.0, "ci95": [0.0, 0.0], "verdict": "inconclusive"}
-    diffs = [x - y for x, y in zip(a, b, strict=True)]
+    diffs = [0.0 if x == y else x - y for x, y in zip(a, b, strict=True)]  # both perfect (PSNR inf): no difference
     if not all(math.isfinite(d) for d in diffs):
+        # A PSNR of inf (a pair measured without error) leaves no mean nor interval: it gave "nan ± inf" and
+        # "inconclusive" where one method won on every pair (found by review). One sign on every pair is a verdict.
+        higher = _higher_is_better(statistic)
+        if not any(math.isnan(d) for d in diffs) and (all(d >= 0 for d in diffs) or all(d <= 0 for d in diffs)):
+            a_wins = (max(diffs) > 0) == higher
+            mean = math.inf if max(diffs) > 0 else -math.inf
+            return {
+                "difference": mean,
+                "ci95": [min(diffs), max(diffs)],
+                "verdict": f"{names[0 if a_wins else 1]} better",
+            }
         return {"difference": math.nan, "ci95": [-math.inf, math.inf], "verdict": "inconclusive"}
     mean, lo, hi = paired_t_interval(diffs, confidence)
     mean_a, mean_b = float(np.mean(a)), float(np.mean(b))

@@ -16,6 +16,7 @@ import torch
 
 from torchmeshmetric._checks import EmptyInputError
 from torchmeshmetric.registration.warp import SurfaceWarp, Warp
+from torchmeshmetric.simplification._target import resolve_target
 from torchmeshmetric.simplification.anchored_qem import DEFAULT_ANCHOR_WEIGHT, simplify_anchored_qem
 from torchmeshmetric.simplification.qem import simplify_qem
 from torchmeshmetric.simplification.temporal_slide import TemporalSlide
@@ -130,7 +131,9 @@ def simplify_tracking(
         slide: a trained :class:`TemporalSlide`, or ``None`` for Anchored QEM alone.
 
     Returns:
-        The ``N`` simplified frames, detached, in the dtype of ``frames[0]``.
+        The ``N`` simplified frames, detached, in the dtype of ``frames[0]``. A target that keeps every face of every
+        frame returns the frames themselves (as :func:`simplify_qem` does): nothing is simplified, so nothing is
+        carried or slid (the slide moved vertices up to 0.5 % of the diagonal off the surface at ``1.0``).
 
     Example:
         >>> import trimesh
@@ -138,6 +141,9 @@ def simplify_tracking(
         >>> tuple(m.num_faces for m in simplify_tracking(frames, 0.5, [lambda points: points]))
         (160, 160)
     """
+    meshes = [as_mesh(f, name=f"frames[{k}]") for k, f in enumerate(frames)]
+    if meshes and all(resolve_target(target, m.num_faces) == m.num_faces for m in meshes):
+        return [Mesh(m.verts.detach().to(meshes[0].dtype), m.faces, validate=False) for m in meshes]
     anchored = anchored_sequence(frames, target, registrations, weight=weight)
     if slide is None:
         return anchored
