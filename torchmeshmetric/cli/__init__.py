@@ -198,6 +198,13 @@ def _run(args: argparse.Namespace) -> int:
         from torchmeshmetric.launch import run_command  # torch: imported once a command is run, not for --help
 
         return int(run_command(args.func, args))
+    except BrokenPipeError:
+        # The reader of stdout went away (`torchmeshmetric mpeg A B | head -3`): nothing left to say to it, and
+        # "error: [Errno 32] Broken pipe" was noise. Later writes (the interpreter's flush at exit) go nowhere, as
+        # Python's documentation advises; exit code 1, as for SIGPIPE's default handling's non-zero end.
+        with contextlib.suppress(OSError, ValueError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
     except Exception as exc:
         return _error(args.command, exc)
 
