@@ -151,9 +151,14 @@ def range_scale(extent: float, dtype: torch.dtype, degree: int) -> float | None:
 
 
 def check_representable(dists: Tensor, name: str) -> None:
-    """Raise when finite inputs gave non-finite distances: the dtype cannot hold them (e.g. float32 beyond ~1e19)."""
+    """Raise when finite inputs gave non-finite distances: the dtype cannot hold them (e.g. float32 beyond ~1e19).
+
+    Inputs are checked where they enter; a ``Mesh(..., validate=False)`` is not, so a NaN there ends here too, and
+    the message names that cause as well (it spoke of overflow alone).
+    """
     if dists.numel() and not all_finite(dists):
         raise NonFiniteError(
             f"{name}: the distances overflow {dists.dtype} (coordinates too large for its range, "
-            f"max {torch.finfo(dists.dtype).max:.3g}); compute in float64"
+            f"max {torch.finfo(dists.dtype).max:.3g}); compute in float64 (or, for NaN coordinates, check the mesh: "
+            "one built with validate=False is not checked)"
         )
