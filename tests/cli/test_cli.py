@@ -78,7 +78,7 @@ def test_compare_two_identical_method_folders_every_verdict_inconclusive(
     [
         ("missing", "no such directory"),
         ("file", "is a file; expected a folder of frames"),
-        ("count", "2 simplified frames but 3 original frames"),
+        ("count", "--simplified"),  # named by the options since 2026-12-07 (it said "method 'simp'": no option)
         ("corrupt", "frame_01.ply"),
         ("unwritable", "does not exist"),
         ("exists", "already exists"),
@@ -103,6 +103,8 @@ def test_errors_are_one_line_no_traceback_no_report(capsys, tmp_path, sequence, 
     assert code == 1
     lines = [line for line in stderr.splitlines() if "frame pair" not in line]
     assert len(lines) == 1 and "error:" in lines[0] and message in lines[0], stderr
+    if case == "count":
+        assert f"2 frames but --original {str(orig)!r} has 3 (must match)" in lines[0]
     assert "Traceback" not in stderr
     if case == "exists":
         assert out.read_text() == "keep me"

@@ -50,6 +50,13 @@ def test_sweep_rows_are_the_evaluations_of_each_weight_and_of_plain_qem(spheres,
     assert plot_weight_sweep(sweep, tmp_path / "s.png").read_bytes()[:4] == b"\x89PNG"
     with pytest.raises(ValueError, match="weights"):
         registered_qem_sweep(frames, regs, 0.3, [])
+    # "1" ran over its characters, and a bad weight in the middle failed after the earlier ones (found by review)
+    with pytest.raises(TypeError, match=r"weights: expected a sequence of numbers, found str '1'"):
+        registered_qem_sweep(frames, regs, 0.3, "1")  # type: ignore[arg-type]
+    seen = []
+    with pytest.raises(ValueError, match=r"weights\[1\]: expected a finite number >= 0, found -1.0"):
+        registered_qem_sweep(frames, regs, 0.3, [0.0, -1.0], progress=seen.append)
+    assert seen == []
 
 
 def test_pareto_front():

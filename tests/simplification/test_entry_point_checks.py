@@ -38,3 +38,17 @@ def test_temporal_slide_takes_numpy_width_and_names_its_meshes():
         slide("mesh", mesh)
     with pytest.raises(ValueError, match=r"^warped_previous.faces: expected vertex indices in \[0, 3\]"):
         slide(mesh, (V, F + 2))
+
+
+def test_registered_qem_names_its_arguments():
+    # max_distance="1" gave Python's bare "'>' not supported between instances of 'str' and 'int'"; a scalar tensor
+    # weight was refused while simplify_anchored_qem takes it (found by review).
+    import trimesh
+
+    from torchmeshmetric.simplification import simplify_registered_qem
+
+    sphere = trimesh.creation.icosphere(subdivisions=2)
+    for key, value in (("max_distance", "1"), ("candidate_fraction", "0.5")):
+        with pytest.raises(TypeError, match=rf"{key}: expected a float, found str"):
+            simplify_registered_qem(sphere, sphere, 0.5, **{key: value})
+    assert simplify_registered_qem(sphere, sphere, 0.5, weight=torch.tensor(1.0)).num_faces == 160

@@ -42,6 +42,13 @@ def run(args: argparse.Namespace) -> int:
     check_writable(list(paths.values()), args.overwrite, inputs=inputs, what="--out")
     original = load_frames(args.original, "--original", dtype_of(args))
     simplified = load_frames(args.simplified, "--simplified", dtype_of(args))
+    if len(simplified) != len(original):  # named by the options: "method 'two'" named no option of this command
+        from torchmeshmetric.cli._outputs import CLIError
+
+        raise CLIError(
+            f"--simplified {args.simplified!r}: {len(simplified)} frames but --original {args.original!r} has "
+            f"{len(original)} (must match)"
+        )
     name = args.name or Path(args.simplified).resolve().name
     cache = RegistrationCache(args.cache_dir)  # kept: the --html page shows the best pair's registration
     results = evaluate_methods(original, {name: simplified}, args, device, cache=cache)

@@ -10,6 +10,8 @@ weight chosen from data.
 
 from __future__ import annotations
 
+import math
+import numbers
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any, NamedTuple
 
@@ -142,8 +144,13 @@ def registered_qem_sweep(
         >>> tuple(row["weight"] for row in sweep.rows())
         (0.0, 1.0)
     """
+    if isinstance(weights, (str, bytes)) or not isinstance(weights, Sequence):  # "1" ran over its characters
+        raise TypeError(f"weights: expected a sequence of numbers, found {type(weights).__name__} {weights!r}")
     if not weights:
         raise ValueError("weights: expected at least one weight, found none")
+    for i, w in enumerate(weights):  # all checked before the first weight's simplification, named as this argument
+        if isinstance(w, bool) or not isinstance(w, numbers.Real) or not (0 <= w < math.inf):
+            raise ValueError(f"weights[{i}]: expected a finite number >= 0, found {w!r}")
     regs = [r if hasattr(r, "verts") else as_mesh(r) for r in registrations]
     results = []
 

@@ -170,8 +170,14 @@ def simplify_registered_qem(
     mk = as_mesh(mesh_k, name="mesh_k")
     if mk.num_faces == 0:
         raise EmptyInputError("mesh_k: expected at least one face, found 0")
+    if isinstance(weight, torch.Tensor) and weight.numel() == 1 and weight.is_floating_point():
+        weight = float(weight)  # as simplify_anchored_qem takes it (a scalar tensor was refused here only)
     if not (isinstance(weight, numbers.Real) and not isinstance(weight, bool) and np.isfinite(weight) and weight >= 0):
         raise ValueError(f"weight: expected a finite float >= 0, found {weight!r}")
+    for name, value in (("max_distance", max_distance), ("candidate_fraction", candidate_fraction)):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, numbers.Real)):
+            # "1" gave Python's bare "'>' not supported between instances of 'str' and 'int'" (found by review)
+            raise TypeError(f"{name}: expected a float, found {type(value).__name__} {value!r}")
     if max_distance is not None and not (max_distance > 0):
         raise ValueError(f"max_distance: expected a float > 0 or None, found {max_distance!r}")
     if not 0.0 < candidate_fraction <= 1.0:
