@@ -83,26 +83,25 @@ def parse_target(text: str) -> float | int:
     return ratio
 
 
-def parse_weight(text: str) -> float:
-    """A Registered QEM weight: finite and >= 0."""
+def _finite_non_negative(text: str, noun: str) -> float:
+    """A number finite and >= 0, the message naming what it is (``weight``, ``fraction``)."""
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a weight >= 0, found {text!r}") from None
+        raise argparse.ArgumentTypeError(f"expected a {noun} >= 0, found {text!r}") from None
     if not (value >= 0 and value != float("inf")):
-        raise argparse.ArgumentTypeError(f"expected a finite weight >= 0, found {text!r}")
+        raise argparse.ArgumentTypeError(f"expected a finite {noun} >= 0, found {text!r}")
     return value
+
+
+def parse_weight(text: str) -> float:
+    """A Registered QEM weight: finite and >= 0."""
+    return _finite_non_negative(text, "weight")
 
 
 def parse_fraction(text: str) -> float:
     """A fraction >= 0 (``--relative-margin``): checked when parsed, not after the evaluation it qualifies."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a fraction >= 0, found {text!r}") from None
-    if not (value >= 0 and value != float("inf")):
-        raise argparse.ArgumentTypeError(f"expected a finite fraction >= 0, found {text!r}")
-    return value
+    return _finite_non_negative(text, "fraction")
 
 
 def parse_weights(text: str) -> tuple[float, ...]:
