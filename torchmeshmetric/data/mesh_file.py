@@ -23,6 +23,8 @@ __all__ = [
     "check_vertices",
     "existing_mesh_file",
     "not_a_mesh",
+    "plain_float",
+    "plain_int",
     "text_lines",
     "to_tensor",
     "values_per_line",
@@ -59,6 +61,24 @@ def check_text(p: Path, data: bytes) -> None:
     if control is not None:
         line = data.count(b"\n", 0, control.start()) + 1
         raise not_a_mesh(p, f"binary data at line {line}, byte {control.start()}")
+
+
+def plain_float(token: bytes) -> float:
+    """``float(token)``, never with an underscore: Python reads ``1_0`` as 10, numpy's parser and others refuse it.
+
+    Raises:
+        ValueError: not a number (the caller names the file and line).
+    """
+    if b"_" in token:
+        raise ValueError(token)
+    return float(token)
+
+
+def plain_int(token: bytes) -> int:
+    """``int(token)``, never with an underscore (see :func:`plain_float`)."""
+    if b"_" in token:
+        raise ValueError(token)
+    return int(token)
 
 
 def values_per_line(buf: np.ndarray, starts: np.ndarray, *, chunk: int = 1 << 20) -> np.ndarray:

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from torchmeshmetric.data.mesh_file import MeshFileError, check_text, not_a_mesh
+from torchmeshmetric.data.mesh_file import MeshFileError, check_text, not_a_mesh, plain_float, plain_int
 
 if TYPE_CHECKING:
     from torchmeshmetric.structures import Mesh
@@ -472,9 +472,7 @@ class _Statements:
     def line_floats(self, at: int, tokens: list[bytes], start: int, stop: int, what: str) -> list[float]:
         """``tokens[start:stop]`` as floats; an error quotes the line's values (``what``: whose)."""
         try:
-            if any(b"_" in t for t in tokens[start:stop]):
-                raise ValueError  # Python's float reads "1_0" as 10; numpy's parser (the fast pass) refuses it
-            return [float(t) for t in tokens[start:stop]]
+            return [plain_float(t) for t in tokens[start:stop]]  # "1_0" is no number, as for the fast pass
         except ValueError:
             raise MeshFileError(
                 f"path: '{self.p}' line {at}: {what} {b' '.join(tokens[1:]).decode('latin-1')!r} are not numbers"
@@ -576,9 +574,7 @@ def _index(p: Path, at: int, text: bytes, defined: int, what: str, corner: bytes
     """A 0-based index from an OBJ corner field (1-based, or negative counting back from the last defined)."""
     things = "vertex" if what == "vertex" else "'vt'"
     try:
-        if b"_" in text:
-            raise ValueError  # Python's int reads "1_0" as 10
-        idx = int(text)
+        idx = plain_int(text)
     except ValueError:
         raise MeshFileError(
             f"path: '{p}' line {at}: face corner {corner.decode('latin-1')!r} is not a {what} index"

@@ -20,6 +20,8 @@ from torchmeshmetric.data.mesh_file import (
     check_text,
     check_vertices,
     not_a_mesh,
+    plain_float,
+    plain_int,
     text_lines,
     values_per_line,
 )
@@ -51,7 +53,7 @@ def _parse_off_fast(data: bytes) -> tuple[np.ndarray, np.ndarray] | None:
     if len(head) < 3:
         return None
     try:
-        counts = [_int(t) for t in head[1].split()]
+        counts = [plain_int(t) for t in head[1].split()]
     except ValueError:
         return None
     if len(counts) not in (2, 3) or counts[0] < 0 or counts[1] < 0:
@@ -99,7 +101,7 @@ def _parse_off_slow(p: Path, data: bytes) -> tuple[np.ndarray, np.ndarray]:
         rest, body = body[0][1], body[1:]
     count_line = lines[0][0] if lines[0][1][1:] else lines[1][0]
     try:
-        nv, nf = _int(rest[0]), _int(rest[1])
+        nv, nf = plain_int(rest[0]), plain_int(rest[1])
     except (ValueError, IndexError):
         raise MeshFileError(
             f"path: '{p}' line {count_line}: expected the counts 'vertices faces edges', found "
@@ -128,15 +130,15 @@ def _parse_off_slow(p: Path, data: bytes) -> tuple[np.ndarray, np.ndarray]:
         if len(t) < 3:
             raise MeshFileError(f"path: '{p}' line {n}: vertex {i} has {len(t)} coordinate(s); expected 3")
         try:
-            verts[i] = [_float(x) for x in t[:3]]
+            verts[i] = [plain_float(x) for x in t[:3]]
         except ValueError:
             raise MeshFileError(f"path: '{p}' line {n}: vertex {i} coordinates are not numbers") from None
     check_vertices(p, verts, "vertex", np.array([n for n, _ in body[:nv]]))
     faces = np.empty((nf, 3), dtype=np.int64)
     for j, (n, t) in enumerate(body[nv:]):
         try:
-            corners = _int(t[0])
-            idx = [_int(x) for x in t[1 : 1 + corners]]
+            corners = plain_int(t[0])
+            idx = [plain_int(x) for x in t[1 : 1 + corners]]
         except ValueError:
             raise MeshFileError(f"path: '{p}' line {n}: face {j} is not a list of vertex indices") from None
         if corners != 3:
@@ -149,23 +151,6 @@ def _parse_off_slow(p: Path, data: bytes) -> tuple[np.ndarray, np.ndarray]:
             )
         faces[j] = idx
     return verts, faces
-
-
-def _float(token: bytes) -> float:
-    """``float(token)``, never with an underscore.
-
-    Python reads ``1_0`` as 10; numpy's parser (the fast pass) and other readers refuse it: malformed (found by review).
-    """
-    if b"_" in token:
-        raise ValueError(token)
-    return float(token)
-
-
-def _int(token: bytes) -> int:
-    """``int(token)``, never with an underscore (see :func:`_float`)."""
-    if b"_" in token:
-        raise ValueError(token)
-    return int(token)
 
 
 def off_bytes(mesh: Mesh) -> bytes:
