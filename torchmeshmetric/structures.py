@@ -45,8 +45,24 @@ __all__ = [
     "looks_like_pair",
     "pack_meshes",
     "pack_points",
+    "power_of_two_above",
     "vertex_set_mask",
 ]
+
+
+def power_of_two_above(largest: Tensor) -> Tensor:
+    """Elementwise, the power of two ``2**e`` with ``largest / 2**e`` in ``[0.5, 1)`` (1 where ``largest`` is 0).
+
+    Dividing coordinates by it is exact (only exponents change): the one way the library keeps squared lengths and
+    areas of float32 coordinates from overflowing (beyond ~1e19, ~1e9 for areas) or underflowing, bit for bit the
+    same figures wherever nothing overflowed. ``largest`` is detached by the caller (a constant of the inputs).
+
+    Example:
+        >>> power_of_two_above(torch.tensor([5.0, 0.3, 0.0])).tolist()
+        [8.0, 0.5, 1.0]
+    """
+    _, exponent = torch.frexp(largest)
+    return torch.ldexp(torch.ones_like(largest), exponent)
 
 
 def vertex_set_mask(faces: Tensor, num_verts: int) -> Tensor:
@@ -196,8 +212,7 @@ class Mesh:
             tri = self.verts[self.faces]
             e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
             largest = torch.maximum(e1.detach().abs().amax(), e2.detach().abs().amax()) if len(tri) else tri.sum()
-            _, exponent = torch.frexp(largest)  # 0 (no edge) gives exponent 0: no scaling
-            unit = torch.ldexp(torch.ones_like(largest), exponent)
+            unit = power_of_two_above(largest)
             return torch.linalg.cross(e1 / unit, e2 / unit, dim=-1)
 
         return self._cached("normal_cross", compute)

@@ -32,7 +32,7 @@ from torchmeshmetric.evaluation.pipeline import RegisterFn, RegistrationOptions,
 from torchmeshmetric.kernels import MeshIndex, PointMeshResult
 from torchmeshmetric.registration.cache import CachedRegistration, RegistrationCache
 from torchmeshmetric.registration.warp import as_warp
-from torchmeshmetric.structures import Mesh, MeshLike, as_mesh, vertex_set_mask
+from torchmeshmetric.structures import Mesh, MeshLike, as_mesh, power_of_two_above, vertex_set_mask
 from torchmeshmetric.temporal.sequences import check_faces_of
 from torchmeshmetric.temporal.topology import mesh_edges
 
@@ -326,8 +326,7 @@ def _carried_point(q: Tensor, corners: Tensor, bary: Tensor, normal: Tensor | No
     blend = (bary[..., None] * corners).sum(1)
     a = corners[:, 0]
     local = torch.stack([q - a, corners[:, 1] - a, corners[:, 2] - a], dim=1)  # (V, 3, 3): q, b, c from a
-    _, exponent = torch.frexp(local.detach().abs().amax(dim=(1, 2)))
-    unit = torch.ldexp(torch.ones_like(exponent, dtype=q.dtype), exponent)[:, None]  # (V, 1); 1 where all is 0
+    unit = power_of_two_above(local.detach().abs().amax(dim=(1, 2)))[:, None]  # (V, 1); 1 where all is 0
     ql, bl, cl = (local / unit[:, :, None]).unbind(1)
     plane = torch.linalg.cross(bl, cl, dim=-1)
     area2 = (plane * plane).sum(-1)

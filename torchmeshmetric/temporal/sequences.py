@@ -6,6 +6,7 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric._checks import ShapeError, check_faces, check_finite, check_float, check_same_device
+from torchmeshmetric.structures import power_of_two_above
 
 __all__ = ["check_faces_of", "check_sequence_pair", "power_of_two_scale"]
 
@@ -77,5 +78,4 @@ def power_of_two_scale(*sequences: Tensor) -> Tensor:
         [8.0]
     """
     largest = torch.stack([s.detach().abs().amax(dim=(-3, -2, -1)) for s in sequences]).amax(0)
-    _, exponent = torch.frexp(largest)  # largest = m * 2**exponent, m in [0.5, 1); 0 gives exponent 0: scale 1
-    return torch.ldexp(torch.ones_like(largest), exponent)[..., None, None, None]
+    return power_of_two_above(largest)[..., None, None, None]
