@@ -220,12 +220,20 @@ class DistanceStatesMetric(Metric):
             setattr(self, name, value)
 
     def merge_state(self, incoming_state: dict[str, Any] | Metric) -> None:
-        """Torchmetrics' ``merge_state``, an incoming dict's moments (and this metric's) merged to one row first."""
+        """Torchmetrics' ``merge_state``, an incoming dict's moments (and this metric's) merged to one row first.
+
+        Raises:
+            ValueError: what :meth:`_check_incoming` refuses.
+        """
         for name, value in self._one_row({k: getattr(self, k) for k in self._defaults}).items():
             setattr(self, name, value)
         if isinstance(incoming_state, dict):
             incoming_state = self._one_row(incoming_state)
+        self._check_incoming(incoming_state)
         super().merge_state(incoming_state)
+
+    def _check_incoming(self, incoming_state: dict[str, Any] | Metric) -> None:
+        """Refuse a state this metric cannot merge (its moments already one row); a subclass says what it needs."""
 
     def _sync_dist(self, dist_sync_fn: Callable = gather_all_tensors, process_group: Any | None = None) -> None:
         for name, default in self._defaults.items():  # the lists are the distances: float64, like every state here

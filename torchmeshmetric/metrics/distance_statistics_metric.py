@@ -89,16 +89,14 @@ class DistanceStatisticsBase(StatisticsPlot, DistanceStatesMetric):
         mode = "exact_quantiles=True" if self.exact_quantiles else f"relative_accuracy={self.sketch.relative_accuracy}"
         return f"{type(self).__name__}(two_sided={self.two_sided}, {mode})"
 
-    def merge_state(self, incoming_state: dict[str, Any] | Metric) -> None:
-        """Torchmetrics' ``merge_state``, after checking that the two hold the same states.
+    def _check_incoming(self, incoming_state: dict[str, Any] | Metric) -> None:
+        """``merge_state``'s check that the two hold the same states.
 
         Raises:
             ValueError: a metric of another class, directions or quantile mode (sketches of two accuracies were
                 added bin by bin: a raw size mismatch, or a wrong figure had they the same size), or a dict
                 whose states are not this metric's.
         """
-        if isinstance(incoming_state, dict):
-            incoming_state = self._one_row(incoming_state)  # a checkpoint's moments of several rows
         if isinstance(incoming_state, DistanceStatisticsBase):
             if incoming_state._settings() != self._settings():
                 raise ValueError(
@@ -114,7 +112,6 @@ class DistanceStatisticsBase(StatisticsPlot, DistanceStatesMetric):
                         f"incoming_state: state {name!r} of {self._settings()} expected shape "
                         f"{tuple(default.shape)}, found {shape}"
                     )
-        super().merge_state(incoming_state)
 
     @property
     def _sketch(self) -> QuantileSketch | None:
