@@ -14,7 +14,7 @@ import fast_simplification
 import numpy as np
 import torch
 
-from torchmeshmetric._checks import EmptyInputError
+from torchmeshmetric._checks import EmptyInputError, check_finite
 from torchmeshmetric.simplification._target import resolve_target
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
@@ -33,13 +33,17 @@ def simplify_qem(mesh: MeshLike, target: int | float, *, preserve_border: bool =
             stopped at 1222.
 
     Returns:
-        The simplified mesh (same dtype and device as the input). fast-simplification reaches the count to within
-        about one face (each collapse removes two faces); it may stop above it on meshes with few collapsible edges.
+        The simplified mesh (same dtype and device as the input, detached). fast-simplification reaches the count
+        to within about one face (each collapse removes two faces); it may stop above it on meshes with few
+        collapsible edges. A target of every face returns ``mesh`` itself (as a :class:`Mesh`), nothing collapsed.
+        Faces with a repeated corner in the input (a capture defect, ``[a, a, b]``) are never collapsed and pass
+        through: the output keeps them, as it keeps every other defect of the input.
 
     Raises:
         TypeError, ValueError: bad ``target`` or ``agg``; a triangle soup (no vertex shared by two faces, as STL
             stores meshes), whose edges all look like borders to the collapse.
         EmptyInputError: the mesh has no faces, or the simplification left none (a target of 1 face).
+        NonFiniteError: a vertex is NaN or infinite (possible only in a ``Mesh`` built with ``validate=False``).
 
     Warns:
         UserWarning: the simplification stopped above the target (more than one face above it).
@@ -53,6 +57,8 @@ def simplify_qem(mesh: MeshLike, target: int | float, *, preserve_border: bool =
     m = as_mesh(mesh)
     if m.num_faces == 0:
         raise EmptyInputError("mesh: expected at least one face, found 0")
+    # A Mesh built with validate=False skipped this; fast-simplification turned NaN into NaN vertices silently.
+    check_finite(m.verts, "mesh.verts")
     count = resolve_target(target, m.num_faces)
     if isinstance(agg, bool) or not isinstance(agg, (int, float)) or not (0 < agg < math.inf):
         raise ValueError(f"agg: expected a finite number > 0, found {agg!r}")  # NaN or -1 missed the target silently

@@ -26,7 +26,7 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
-from torchmeshmetric._checks import EmptyInputError
+from torchmeshmetric._checks import EmptyInputError, check_finite
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance
 from torchmeshmetric.simplification._target import resolve_target
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
@@ -159,6 +159,8 @@ def simplify_registered_qem(
     Raises:
         TypeError, ValueError: bad ``target``, ``weight``, ``max_distance`` or ``candidate_fraction``.
         EmptyInputError: ``mesh_k`` has no faces.
+        NonFiniteError: a vertex of either mesh is NaN or infinite (possible only in a ``Mesh`` built with
+            ``validate=False``).
 
     Example:
         >>> import trimesh
@@ -170,6 +172,7 @@ def simplify_registered_qem(
     mk = as_mesh(mesh_k, name="mesh_k")
     if mk.num_faces == 0:
         raise EmptyInputError("mesh_k: expected at least one face, found 0")
+    check_finite(mk.verts, "mesh_k.verts")  # a Mesh built with validate=False skipped it (NaN quadrics otherwise)
     if isinstance(weight, torch.Tensor) and weight.numel() == 1 and weight.is_floating_point():
         weight = float(weight)  # as simplify_anchored_qem takes it (a scalar tensor was refused here only)
     if not (isinstance(weight, numbers.Real) and not isinstance(weight, bool) and np.isfinite(weight) and weight >= 0):
@@ -190,6 +193,7 @@ def simplify_registered_qem(
     quad = vertex_quadrics(verts, faces)
     if registered_mesh_k_minus_1 is not None and weight > 0:
         prev = as_mesh(registered_mesh_k_minus_1, name="registered_mesh_k_minus_1")
+        check_finite(prev.verts, "registered_mesh_k_minus_1.verts")
         pv = prev.verts.detach().cpu().double().numpy()
         pf = prev.faces.cpu().numpy().astype(np.int64)
         if pf.shape[0]:
