@@ -143,6 +143,8 @@ class AtomicFileSet:
     def _commit(self) -> None:
         done: list[tuple[Path, str | None]] = []  # (dest, backup of the file it replaced)
         try:
+            if before_commit is not None:
+                before_commit()
             for dest, tmp in self._staged.items():
                 backup = None
                 if dest.exists():
@@ -171,6 +173,10 @@ class AtomicFileSet:
                 Path(backup).unlink(missing_ok=True)
         self._staged.clear()
 
+
+# Called before a file is put in place: the command line's check for a Ctrl-C whose KeyboardInterrupt a finalizer
+# dropped (torchmeshmetric.cli._interrupts.raise_pending); None outside the command line.
+before_commit: Callable[[], None] | None = None
 
 _ACTIVE: contextvars.ContextVar[AtomicFileSet | None] = contextvars.ContextVar("atomic_file_set", default=None)
 # Temporary files being written by atomic_write_with (neither in place, staged nor removed yet), for discard_pending.
@@ -291,6 +297,8 @@ def atomic_write_with(
         if files is not None:
             files._stage(dest, tmp)
         else:
+            if before_commit is not None:
+                before_commit()
             os.replace(tmp, dest)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

@@ -240,7 +240,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             parser = _parser(_named_command(arguments))
             with _silent_unless_rank_0():
                 args = parser.parse_args(arguments)
-            return _run(args)
+            code = _run(args)
+            # a Ctrl-C whose KeyboardInterrupt a finalizer dropped (Python printed "Exception ignored"): the command
+            # went on, but it was interrupted all the same
+            return _interrupts.interrupted() if _interrupts.pending() else code
         except KeyboardInterrupt:
             return _interrupts.interrupted()
 
