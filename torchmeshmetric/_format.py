@@ -1,14 +1,17 @@
 """Numbers as the package writes them: one formatter for tables, one JSON cleaner for reports.
 
+The field-count check of the CSV rows it reads back is here too.
+
 A leaf module (standard library only), used by the reports, the comparisons, the campaign tables and the commands.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from typing import Any
 
-__all__ = ["format_number", "json_safe", "markdown_cell"]
+__all__ = ["check_csv_fields", "format_number", "json_safe", "markdown_cell"]
 
 
 def format_number(value: Any, spec: str = ".4g", *, small_spec: str | None = None) -> str:
@@ -62,3 +65,26 @@ def markdown_cell(text: object) -> str:
         ('QEM \\| 50 %', 'a b')
     """
     return " ".join(str(text).replace("|", "\\|").splitlines())
+
+
+def check_csv_fields(path: object, line: int, row: Mapping[str | None, Any], header: Sequence[str]) -> None:
+    r"""Refuse a ``csv.DictReader`` row whose field count differs from its header's (a truncated or shifted row).
+
+    ``DictReader`` fills a short row's missing fields with ``None`` and keeps a long row's extra fields under the key
+    ``None``: either would otherwise read as empty cells or be dropped without a word.
+
+    Raises:
+        ValueError: ``"<path>:<line>: expected <n> fields (the header's), found <m>"``.
+
+    Example:
+        >>> import csv, io
+        >>> r = csv.DictReader(io.StringIO("a,b,c\n1,2\n"))
+        >>> check_csv_fields("x.csv", 2, next(r), r.fieldnames)
+        Traceback (most recent call last):
+        ...
+        ValueError: x.csv:2: expected 3 fields (the header's), found 2
+    """
+    extra = row.get(None) or []
+    found = sum(1 for k in header if row.get(k) is not None) + len(extra)
+    if found != len(header):
+        raise ValueError(f"{path}:{line}: expected {len(header)} fields (the header's), found {found}")

@@ -127,7 +127,9 @@ def _curve(tmp_path: Path, name: str, text: str, bom: bool = False) -> str:
 @pytest.mark.parametrize(
     ("text", "message"),
     [
-        ("rate,GridD1\n100,30,7\n200,33\n", "b.csv:2: 1 field(s) more than the header's 2 columns"),
+        # the shared field-count check (it was "1 field(s) more than the header's 2 columns"; short rows read as None)
+        ("rate,GridD1\n100,30,7\n200,33\n", "b.csv:2: expected 2 fields (the header's), found 3"),
+        ("rate,GridD1\n100,30\n200\n", "b.csv:3: expected 2 fields (the header's), found 1"),
         ("rate,GridD1\n100,nan\n200,33\n", "b.csv:2: column 'GridD1': expected a finite PSNR"),
         ("rate,GridD1\n0,30\n200,33\n", "b.csv:2: column 'rate': expected a positive finite rate"),
         ("rate,GridD1\n100,30\n-2,33\n", "b.csv:3: column 'rate': expected a positive finite rate"),

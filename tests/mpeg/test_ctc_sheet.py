@@ -198,3 +198,67 @@ def test_reports_and_csv_round_trip(tmp_path: Path) -> None:
     ]
     md = summary_markdown(summary)
     assert "### BD-TotGeoRate [%]" in md and "| **cat1-A average** |" in md and "| **Overall average** |" in md
+
+
+def test_an_average_over_a_cell_not_computable_is_not_computable() -> None:
+    """The sheet's AVERAGE over a range holding an error is an error: a class or overall BD figure, a component or a
+    time ratio whose cells are not all computable is None, and the scope names the cells lacking (review B #1, #3).
+    Before, the mean of the computable cells alone was shown (the sphere's BD-rate as the overall average, the
+    rate-2 metadata ratio for a sequence whose rate-1 ratio is #DIV/0!, a time ratio over the rows with runtimes)."""
+    flat = {  # mitch's D1 curve at 99.99 for both codecs (identical decodes): its BD cell is the sheet's error
+        k: replace(p, figures={**p.figures, "GridD1": 99.99}) if k[0] == 5 else p for k, p in ANCHOR.items()
+    }
+    flat_t = {k: replace(p, figures={**p.figures, "GridD1": 99.99}) if k[0] == 5 else p for k, p in TEST.items()}
+    d = ctc_summary(SEQS, [COND], flat, flat_t)["conditions"][0]
+    assert d["sequences"][2]["bd_rate"]["GridD1"] is None
+    cls = {c["class"]: c for c in d["classes"]}
+    assert abs(cls["cat1-A"]["bd_rate"]["GridD1"] - (_bd("L", "GridD1", 1) + _bd("L", "GridD1", 2)) / 2) < 1e-6
+    assert cls["cat1-B"]["bd_rate"]["GridD1"] is None and cls["cat1-B"]["not_computable"] == {}  # its only cell
+    assert d["overall"]["bd_rate"]["GridD1"] is None  # was the mean of longdress and soldier, -9.9 %
+    assert d["overall"]["not_computable"] == {"bd_rate:GridD1": ["mitch"], "bd_geometry_rate:GridD1": ["mitch"]}
+    assert abs(d["overall"]["bd_rate"]["GridD2"] - sum(_bd("L", "GridD2", s) for s in (1, 2, 5)) / 3) < 1e-6
+    md = summary_markdown(ctc_summary(SEQS, [COND], flat, flat_t))
+    assert "| **Overall average** | · |" in md
+    assert "- **Overall average**, `bd_rate:GridD1`: not computable for mitch" in md
+
+    # longdress: anchor metadata 0 at rate 1 (test 1000: #DIV/0!); test runtimes unknown at rate 2
+    a2 = dict(ANCHOR)
+    a2[1, 1, 1] = replace(ANCHOR[1, 1, 1], components={**ANCHOR[1, 1, 1].components, "metadata": 0.0})
+    t2 = dict(TEST)
+    t2[1, 1, 2] = replace(TEST[1, 1, 2], encoder_seconds=None, decoder_seconds=None)
+    d = ctc_summary(SEQS, [COND], a2, t2)["conditions"][0]
+    s = d["sequences"][0]
+    assert s["rates"][0]["component_ratios"]["metadata"] is None and s["rates"][1]["component_ratios"]["metadata"] == 0
+    assert s["component_ratios"]["metadata"] is None  # was rates 2-3's mean, 0 (+0.00 %)
+    assert s["time_ratios"]["encoder"] is None and s["time_ratios"]["decoder"] is None  # was rates 1 and 3 only
+    assert s["not_computable"] == {
+        "component_ratios:metadata": ["longdress rate 1"],
+        "time_ratios:encoder": ["longdress rate 2"],
+        "time_ratios:decoder": ["longdress rate 2"],
+    }
+    assert _close(s["memory_ratios"]["encoder"], 0.9)  # every row known: computed
+    assert d["overall"]["time_ratios"]["encoder"] is None and d["overall"]["component_ratios"]["metadata"] is None
+    other = d["sequences"][1]  # soldier keeps its figures: SUM(B) / SUM(A) over its three rows
+    enc = [(TEST[2, 1, r].encoder_seconds, ANCHOR[2, 1, r].encoder_seconds) for r in (1, 2, 3)]
+    assert _close(other["time_ratios"]["encoder"], sum(b for b, _ in enc) / sum(a for _, a in enc))  # type: ignore[misc]
+    md = summary_markdown(ctc_summary(SEQS, [COND], a2, t2))
+    assert "- longdress, `time_ratios:encoder`: not computable for longdress rate 2" in md
+
+
+def test_a_row_with_too_few_or_too_many_fields_is_refused(tmp_path: Path) -> None:
+    """A row cut mid-write (an interrupted collect_results.sh) read its missing fields as unknown and a number cut
+    mid-digits as is (review B #2): every row's field count is checked against the header's, naming file:line."""
+    text = format_test_model_csv(ANCHOR.values())
+    p = tmp_path / "anchor.csv"
+    last = text.splitlines()[-1]
+    p.write_text(text[: text.index(last)] + ",".join(last.split(",")[:5])[:-2] + "\n")  # "5,1,3,3000,57" cut
+    with pytest.raises(ValueError, match=r"anchor.csv:10: expected 16 fields \(the header's\), found 5$"):
+        read_test_model_csv(p)
+    p.write_text(text.replace(last, last.rsplit(",", 1)[0]))  # no PeakDecoderMemory
+    with pytest.raises(ValueError, match=r"anchor.csv:10: expected 16 fields \(the header's\), found 15$"):
+        read_test_model_csv(p)
+    p.write_text(text.replace(last, last + ",7"))
+    with pytest.raises(ValueError, match=r"anchor.csv:10: expected 16 fields \(the header's\), found 17$"):
+        read_test_model_csv(p)
+    p.write_text(text + "\n")  # a blank line at the end is no row
+    assert len(read_test_model_csv(p)) == 9

@@ -9,7 +9,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from torchmeshmetric._format import json_safe
+from torchmeshmetric._format import check_csv_fields, json_safe
 from torchmeshmetric.cli.options import path_argument
 
 __all__ = ["add_bdrate_command", "read_curve"]
@@ -22,9 +22,10 @@ def _number(path: str, lineno: int, column: str, text: str | None) -> float:
         raise ValueError(f"{path}:{lineno}: column {column!r}: expected a number, found {text!r}") from None
 
 
-def _check_row(path: str, lineno: int, row: dict[str | None, Any], cols: dict[str, list[float]]) -> None:
-    if None in row:  # csv.DictReader's key for fields past the header
-        raise ValueError(f"{path}:{lineno}: {len(row[None])} field(s) more than the header's {len(cols)} columns")
+def _check_row(
+    path: str, lineno: int, row: dict[str | None, Any], header: list[str], cols: dict[str, list[float]]
+) -> None:
+    check_csv_fields(path, lineno, row, header)
     for k in cols:
         value = _number(path, lineno, k, row[k])
         if k == "rate" and not (math.isfinite(value) and value > 0):
@@ -61,7 +62,7 @@ def read_curve(path: str) -> dict[str, list[float]]:
         cols: dict[str, list[float]] = {k: [] for k in reader.fieldnames if k}
         lines: list[int] = []
         for row in reader:
-            _check_row(path, reader.line_num, row, cols)
+            _check_row(path, reader.line_num, row, list(reader.fieldnames), cols)
             lines.append(reader.line_num)
     if len(lines) < 2:
         raise ValueError(f"{path}: expected at least 2 rate points (rows), found {len(lines)}")

@@ -18,9 +18,11 @@ per sequence (its rate rows, test ``B`` against anchor ``A``; :func:`~torchmeshm
 * per rate row, each component's ratio ``B / A - 1`` (``0`` when ``B`` is 0, as the sheet's ``IF``);
 
 and per class and overall: the mean over sequences of each BD figure, the mean over rate rows of the bpif and of
-the component ratios, and ``sum(B time) / sum(A time)`` for encoder and decoder runtimes. Lossless conditions (one
-rate) give the bpif ratio ``mean B bpif / mean A bpif`` and the mesh-bits ratio ``B / A - 1``. Beyond the sheet:
-the same sum ratio for peak memory, and every ratio at sequence and class scope too.
+the component ratios, and ``sum(B time) / sum(A time)`` for encoder and decoder runtimes. As the sheet's
+``AVERAGE`` over a range that holds an error, a mean (or sum ratio) over cells of which one cannot be computed (a
+BD figure of a flat curve, an anchor component of 0, an unknown runtime) cannot be computed either. Lossless
+conditions (one rate) give the bpif ratio ``mean B bpif / mean A bpif`` and the mesh-bits ratio ``B / A - 1``.
+Beyond the sheet: the same sum ratio for peak memory, and every ratio at sequence and class scope too.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from torchmeshmetric._format import check_csv_fields, markdown_cell
 from torchmeshmetric.mpeg.ctc.bd_rate import bd_rate
 
 __all__ = [
@@ -226,7 +229,8 @@ def read_test_model_csv(path: str | Path) -> dict[tuple[int, int, int], RatePoin
     (mmetric's mean of a figure it did not compute) as absent.
 
     Raises:
-        ValueError: a missing file or column, a non-numeric field, a repeated row (naming file:line).
+        ValueError: a missing file or column, a row with more or fewer fields than the header (a row cut
+            mid-write), a non-numeric field, a repeated row (naming file:line).
 
     Example:
         >>> import tempfile, os
@@ -248,6 +252,7 @@ def read_test_model_csv(path: str | Path) -> dict[tuple[int, int, int], RatePoin
             )
         for row in reader:
             line = reader.line_num
+            check_csv_fields(path, line, row, reader.fieldnames or [])  # a row cut mid-write, or shifted
             seq, cond, rate = (int(_field(str(p), line, row, c, required=True) or 0) for c in TEST_MODEL_COLUMNS[:3])
             v = {c: _field(str(p), line, row, c, required=False) if c in row else None for c in TEST_MODEL_COLUMNS[3:]}
             known = {c: x for c, x in v.items() if x is not None and x >= 0}
@@ -276,17 +281,31 @@ def read_test_model_csv(path: str | Path) -> dict[tuple[int, int, int], RatePoin
 # ------------------------------------------------------------------------------------------------ the summary
 
 
-def _mean(values: Iterable[float | None]) -> float | None:
-    """The sheet's ``AVERAGE``: the mean of the cells that hold a number (``None`` when none does)."""
-    v = [x for x in values if x is not None]
-    return math.fsum(v) / len(v) if v else None
+def _average(cells: Iterable[tuple[str, float | None]]) -> tuple[float | None, list[str]]:
+    """The sheet's ``AVERAGE`` over cells that are all computable, and the labels of those that are not.
+
+    A cell that cannot be computed is the sheet's error (``#DIV/0!``, ``#VALUE!``), and ``AVERAGE`` over a range
+    holding an error is itself an error: the mean is ``None`` as soon as one cell is, never the mean of the others.
+    """
+    cells = list(cells)
+    lacking = [label for label, v in cells if v is None]
+    if lacking or not cells:
+        return None, lacking
+    return math.fsum(v for _, v in cells if v is not None) / len(cells), []
 
 
-def _ratio_of_sums(b: Iterable[float | None], a: Iterable[float | None]) -> float | None:
-    """``SUM(B) / SUM(A)`` over the rows where both are known (``None`` when the anchor's sum is 0)."""
-    pairs = [(x, y) for x, y in zip(b, a, strict=True) if x is not None and y is not None]
-    den = math.fsum(y for _, y in pairs)
-    return math.fsum(x for x, _ in pairs) / den if pairs and den != 0 else None
+def _ratio_of_sums(cells: Iterable[tuple[str, float | None, float | None]]) -> tuple[float | None, list[str]]:
+    """``SUM(B) / SUM(A)`` over ``(label, B, A)`` rows, and the labels of the rows where B or A is unknown.
+
+    A row with an unknown value makes the ratio not computable (``None``): the sheet would read the empty cell as 0
+    and give a ratio of unequal row sets. ``None`` too when the anchor's sum is 0.
+    """
+    cells = list(cells)
+    lacking = [label for label, x, y in cells if x is None or y is None]
+    if lacking or not cells:
+        return None, lacking
+    den = math.fsum(y for _, _, y in cells if y is not None)
+    return (math.fsum(x for _, x, _ in cells if x is not None) / den if den != 0 else None), []
 
 
 def _component_ratio(b: RatePoint, a: RatePoint, name: str) -> float | None:
@@ -340,34 +359,64 @@ def _rows(seq: SheetSequence, a: RatePoint, b: RatePoint) -> dict[str, Any]:
 
 
 def _scope(
-    rows: list[tuple[SheetSequence, RatePoint, RatePoint]], bd: list[dict[str, Any]], lossless: bool
+    rows: list[tuple[SheetSequence, RatePoint, RatePoint]], bd: list[tuple[str, dict[str, Any]]], lossless: bool
 ) -> dict[str, Any]:
-    """The aggregate figures of a set of rate rows (a sequence, a class, the whole condition)."""
-    bpif_a = _mean(a.total_bits / s.input_faces for s, a, _ in rows)
-    bpif_b = _mean(b.total_bits / s.input_faces for s, _, b in rows)
+    """The aggregate figures of a set of rate rows (a sequence, a class, the whole condition).
+
+    ``bd`` holds each sequence's name and BD figures. ``not_computable`` maps a summary column
+    (``bd_rate:GridD1``, ``time_ratios:encoder``...) whose aggregate is ``None`` although some of its cells were
+    computed to the cells that were not (sequence names, or ``<sequence> rate <RateId>`` for per-row figures).
+    """
+    lacking: dict[str, list[str]] = {}
+
+    def keep(column: str, result: tuple[float | None, list[str]], n: int) -> float | None:
+        value, missing = result
+        if missing and len(missing) < n:  # some cells computed, some not: say which are missing
+            lacking[column] = missing
+        return value
+
+    labelled = [(f"{s.name} rate {a.rate_id}", s, a, b) for s, a, b in rows]
+    n = len(labelled)
+    bpif_a, _ = _average((lb, a.total_bits / s.input_faces) for lb, s, a, _ in labelled)
+    bpif_b, _ = _average((lb, b.total_bits / s.input_faces) for lb, s, _, b in labelled)
+
+    def sums(kind: str, attr: str) -> float | None:
+        cells = [(lb, getattr(b, attr), getattr(a, attr)) for lb, _, a, b in labelled]
+        return keep(f"{kind}:{attr.split('_')[0]}", _ratio_of_sums(cells), n)
+
     out: dict[str, Any] = {
         "bpif": {"anchor": bpif_a, "test": bpif_b},
         "bpif_ratio": bpif_b / bpif_a if bpif_a and bpif_b is not None else None,
-        "component_ratios": {c: _mean(_component_ratio(b, a, c) for _, a, b in rows) for c in COMPONENTS},
+        "component_ratios": {
+            c: keep(f"component_ratios:{c}", _average((lb, _component_ratio(b, a, c)) for lb, _, a, b in labelled), n)
+            for c in COMPONENTS
+        },
         "time_ratios": {
-            "encoder": _ratio_of_sums((b.encoder_seconds for *_, b in rows), (a.encoder_seconds for _, a, _ in rows)),
-            "decoder": _ratio_of_sums((b.decoder_seconds for *_, b in rows), (a.decoder_seconds for _, a, _ in rows)),
+            "encoder": sums("time_ratios", "encoder_seconds"),
+            "decoder": sums("time_ratios", "decoder_seconds"),
         },
         "memory_ratios": {
-            "encoder": _ratio_of_sums((b.encoder_memory for *_, b in rows), (a.encoder_memory for _, a, _ in rows)),
-            "decoder": _ratio_of_sums((b.decoder_memory for *_, b in rows), (a.decoder_memory for _, a, _ in rows)),
+            "encoder": sums("memory_ratios", "encoder_memory"),
+            "decoder": sums("memory_ratios", "decoder_memory"),
         },
     }
     if lossless:
         mesh = [
-            (_sum_parts(b, ("mesh_intra", "mesh_inter")), _sum_parts(a, ("mesh_intra", "mesh_inter")))
-            for _, a, b in rows
+            (lb, _sum_parts(b, ("mesh_intra", "mesh_inter")), _sum_parts(a, ("mesh_intra", "mesh_inter")))
+            for lb, _, a, b in labelled
         ]
-        out["mesh_ratio"] = _mean(x / y - 1 if x is not None and y else None for x, y in mesh)
+        out["mesh_ratio"] = keep(
+            "mesh_ratio", _average((lb, x / y - 1 if x is not None and y else None) for lb, x, y in mesh), n
+        )
     else:
         for kind in ("bd_rate", "bd_geometry_rate", "bd_attribute_rate"):
-            keys = {m for d in bd for m in d[kind]}
-            out[kind] = {m: _mean(d[kind].get(m) for d in bd) for m in _METRICS if m in keys}
+            keys = {m for _, d in bd for m in d[kind]}
+            out[kind] = {
+                m: keep(f"{kind}:{m}", _average((name, d[kind].get(m)) for name, d in bd), len(bd))
+                for m in _METRICS
+                if m in keys
+            }
+    out["not_computable"] = lacking
     return out
 
 
@@ -397,8 +446,11 @@ def ctc_summary(
         "rates": [...], <aggregates>}], "classes": [{"class", <aggregates>}], "overall": {<aggregates>}}]}``; the
         aggregates are ``bpif``, ``bpif_ratio``, ``component_ratios``, ``time_ratios``, ``memory_ratios`` and
         ``bd_rate``, ``bd_geometry_rate``, ``bd_attribute_rate`` (metric -> percent) or, lossless, ``mesh_ratio``.
-        Figures that cannot be computed (a missing row, component or metric) are ``None``; rates present in one
-        codec only are left out.
+        Figures that cannot be computed (a missing row, component, runtime or metric) are ``None``; rates present
+        in one codec only are left out. An average or sum ratio over cells of which one cannot be computed is
+        ``None`` too (the sheet's ``AVERAGE`` of a range holding an error is an error), and the scope's
+        ``not_computable`` (column -> the sequences or ``<sequence> rate <id>`` rows lacking it) says which cells
+        lacked it.
 
     Example:
         >>> s = [SheetSequence(1, "a", "cat1-A", 2, 30.0, 1000)]
@@ -414,7 +466,7 @@ def ctc_summary(
     for cond in conditions:
         per_seq = []
         all_rows: list[tuple[SheetSequence, RatePoint, RatePoint]] = []
-        classes: dict[str, tuple[list[Any], list[dict[str, Any]]]] = {}
+        classes: dict[str, tuple[list[Any], list[tuple[str, dict[str, Any]]]]] = {}
         for seq in sequences:
             rate_ids = sorted(
                 {k[2] for k in anchor if k[:2] == (seq.seq_id, cond.cond_id)}
@@ -437,13 +489,13 @@ def ctc_summary(
                     "name": seq.name,
                     "class": seq.cls,
                     "rates": rate_rows,
-                    **_scope(rows, [bd], cond.lossless),
+                    **_scope(rows, [(seq.name, bd)], cond.lossless),
                 }
             )
             all_rows += rows
             cls_rows, cls_bd = classes.setdefault(seq.cls, ([], []))
             cls_rows += rows
-            cls_bd.append(bd)
+            cls_bd.append((seq.name, bd))
         out["conditions"].append(
             {
                 "id": cond.cond_id,
@@ -564,10 +616,18 @@ def summary_markdown(summary: Mapping[str, Any]) -> str:
                 cells.append("·" if v is None else f"{v * 100:.1f} %")
             out.append(f"| {label} | " + " | ".join(cells) + " |")
         out.append("")
+        notes = [
+            f"- {_label(scope, name)}, `{column}`: not computable for " + ", ".join(markdown_cell(x) for x in missing)
+            for scope, name, f in rows
+            for column, missing in f.get("not_computable", {}).items()
+        ]
+        if notes:
+            out += ["· in a row computed from several cells: one of them could not be computed", "", *notes, ""]
     out += [
         "BD figures: the CTC sheet's bdRateExtend (pchip) over the sequence's rate points; class and overall: the "
         "mean over sequences. Component ratios: test / anchor - 1 per rate, averaged over rates; time and memory: "
-        "sum over rates of the test's over the anchor's. · : not computable (missing rows, components or metrics).",
+        "sum over rates of the test's over the anchor's. · : not computable (missing rows, components, runtimes or "
+        "metrics; an average or sum over cells of which one is not computable).",
         "",
     ]
     return "\n".join(out)
