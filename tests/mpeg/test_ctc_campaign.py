@@ -145,6 +145,40 @@ def test_resume_computes_only_missing_frames(
     assert calls == []  # everything from the cache
 
 
+@pytest.mark.parametrize("damage", [math.nan, "nan", "abc", None])
+def test_a_damaged_cache_record_is_computed_again(
+    campaign: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch, damage: object
+) -> None:
+    """A record of the shared cache holding NaN (JSON's NaN or "nan") reached anchor.csv and the summary, and "abc"
+    failed with a bare "could not convert string to float" (review B #4): the record is not used, a warning names
+    its file, the frame is computed again (its record replaced), and the outputs equal the intact run's."""
+    manifest, reference = campaign
+    cache = tmp_path / "c"
+    shutil.copytree(load_ctc_campaign(manifest).cache_dir, cache)  # type: ignore[arg-type]
+    record_file = sorted(cache.rglob("*.json"))[0]
+    record = json.loads(record_file.read_text())
+    record["figures"]["GridD1"] = damage
+    record_file.write_text(json.dumps(record))
+    calls: list[str] = []
+    real = ctc_campaign._compute
+
+    def counting(campaign, task, key, *rest):  # type: ignore[no-untyped-def]
+        calls.append(key)
+        return real(campaign, task, key, *rest)
+
+    monkeypatch.setattr(ctc_campaign, "_compute", counting)
+    args = ["ctc-campaign", str(manifest), "--out-dir", str(tmp_path / "out"), "--cache-dir", str(cache), "--no-plots"]
+    with pytest.warns(UserWarning, match=rf"{record_file.name}: damaged cache record \(GridD1={damage!r}"):
+        assert main(args) == 0
+    assert calls == [record["key"]]
+    for name in ("anchor.csv", "test.csv", "frames.csv", "summary.csv", "summary.md"):
+        assert (tmp_path / "out" / name).read_bytes() == (reference / name).read_bytes(), name
+    assert json.loads(record_file.read_text())["figures"]["GridD1"] == pytest.approx(
+        ctc_campaign._read_cached(cache, record["key"])["figures"]["GridD1"]  # type: ignore[index]
+    )
+    assert math.isfinite(json.loads(record_file.read_text())["figures"]["GridD1"])
+
+
 def test_checks_before_any_frame(campaign: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     """A missing decoded frame, or a point without bits: one error line, naming the point, before any frame."""
     manifest, _ = campaign

@@ -26,6 +26,7 @@ import json
 import math
 import re
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -200,15 +201,49 @@ def _cache_file(folder: Path, key: str) -> Path:
     return folder / key[:2] / f"{key}.json"
 
 
+def _cached_figure(value: Any) -> float | None:
+    """A figure of a cache record: a finite number, or ``"inf"`` (identical frames, as json_safe writes it)."""
+    if value == "inf":
+        return math.inf
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        return None
+    return float(value)
+
+
+def _cached_count(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= 0
+
+
 def _read_cached(folder: Path, key: str) -> dict[str, Any] | None:
-    """A frame's cached record; ``None`` when absent or unreadable (then it is computed again)."""
+    """A frame's cached record; ``None`` when absent or unreadable (then it is computed again).
+
+    The cache folder may be shared by several machines: a record that parses but holds a figure that is not a finite
+    number or ``"inf"`` (``NaN``, a string), or a point or face count that is not a count, is damaged. It is not
+    used (it would reach the CSVs and the summary); a warning names its file, and the frame is computed again.
+    """
+    path = _cache_file(folder, key)
     try:
-        record = json.loads(_cache_file(folder, key).read_text())
+        record = json.loads(path.read_text())
     except (OSError, ValueError):
         return None
     if not isinstance(record, dict) or record.get("key") != key or not isinstance(record.get("figures"), dict):
         return None
-    record["figures"] = {k: float(v) for k, v in record["figures"].items()}  # "inf" -> inf
+    figures = {k: _cached_figure(v) for k, v in record["figures"].items()}
+    bad = [f"{k}={record['figures'][k]!r}" for k, v in figures.items() if v is None or k not in _COLUMNS]
+    bad += [
+        f"{k}={record.get(k)!r}"
+        for k in ("points_ref", "points_dis", "faces_ref", "faces_dis")
+        if not _cached_count(record.get(k))
+    ]
+    if bad:
+        warnings.warn(
+            f"{path}: damaged cache record ({', '.join(bad)}: expected finite numbers or 'inf', and counts); "
+            "not used, the frame is computed again",
+            UserWarning,
+            stacklevel=2,
+        )
+        return None
+    record["figures"] = figures
     return record
 
 
