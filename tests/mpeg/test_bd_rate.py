@@ -92,6 +92,29 @@ def test_hand_checked_values() -> None:
     assert abs(bd_rate(a, q, b, q) - expected) < 1e-10
 
 
+def test_two_points_are_not_pchip() -> None:
+    """Two rate points: the spreadsheet's missing neighbours read as 0 (empty cells), so both end slopes are twice
+    the secant (pchipend(h, 0, d, 0) = 2 d), an S-shaped cubic, not PCHIP's straight line. Measured (review B #5):
+    two straight lines in log-rate give -18.5222 % where PCHIP, scipy and the bjontegaard package give -19.8191 %
+    (10^(log10 0.9 - (0.5 / 3) log10 2) - 1). Reference: scipy's CubicHermiteSpline with slopes 2 d, exactly."""
+    ra, qa, rb, qb = [1000, 2000], [30.0, 33.0], [900, 1800], [30.5, 33.5]
+    lo, hi = 30.5, 33.0
+
+    def spline(r: list[int], q: list[float], k: float) -> CubicHermiteSpline:
+        y = np.log10(np.asarray(r, float))
+        d = (y[1] - y[0]) / (q[1] - q[0])
+        return CubicHermiteSpline(np.asarray(q), y, [k * d, k * d])
+
+    def ref(k: float) -> float:
+        return 100 * (10 ** ((spline(rb, qb, k).integrate(lo, hi) - spline(ra, qa, k).integrate(lo, hi)) / 2.5) - 1)
+
+    ours = bd_rate(ra, qa, rb, qb)
+    assert abs(ours - ref(2.0)) < TOL and abs(ours - (-18.522230687968)) < 1e-9
+    straight = 100 * (10 ** (math.log10(0.9) - (0.5 / 3) * math.log10(2)) - 1)
+    assert abs(ref(1.0) - straight) < TOL and abs(_ref(ra, qa, rb, qb, "pchip") - straight) < TOL  # PCHIP: a line
+    assert abs(ours - straight) > 1.29  # -18.52 % against -19.82 %
+
+
 def test_no_overlap_and_bad_input() -> None:
     """Disjoint PSNR ranges give +-100 %, as bdRateExtend; typed errors name the argument."""
     assert bd_rate([1, 2, 3], [40, 41, 42], [1, 2, 3], [30, 31, 32]) == 100.0

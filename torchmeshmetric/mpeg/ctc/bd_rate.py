@@ -10,8 +10,11 @@ that). Both curves are integrated exactly over the PSNR range where they overlap
 in PSNR) or ``-100``; an average log-rate difference above 10 gives ``+100``. Points with rate and PSNR both 0 are
 ignored (the spreadsheet's empty cells); points are sorted by PSNR and repeated points dropped.
 
-On monotone curves the interpolant equals ``scipy.interpolate.PchipInterpolator`` and the result the ``bjontegaard``
-package's ``bd_rate(..., method="pchip")``.
+On monotone curves of 3 points or more the interpolant equals ``scipy.interpolate.PchipInterpolator`` and the
+result the ``bjontegaard`` package's ``bd_rate(..., method="pchip")``. With 2 points it does not: the spreadsheet's
+missing neighbours read as 0 (empty cells), so both end slopes are twice the secant (an S-shaped cubic where PCHIP
+draws the secant line). Two straight lines in log-rate, ``(1000, 30), (2000, 33)`` against
+``(900, 30.5), (1800, 33.5)``, give -18.5222 % here, as the sheet's formula, and -19.8191 % with PCHIP.
 """
 
 from __future__ import annotations

@@ -624,8 +624,9 @@ def summary_markdown(summary: Mapping[str, Any]) -> str:
         if notes:
             out += ["· in a row computed from several cells: one of them could not be computed", "", *notes, ""]
     out += [
-        "BD figures: the CTC sheet's bdRateExtend (pchip) over the sequence's rate points; class and overall: the "
-        "mean over sequences. Component ratios: test / anchor - 1 per rate, averaged over rates; time and memory: "
+        "BD figures: the CTC sheet's bdRateExtend (pchip from 3 rate points; with 2, end slopes twice the secant) "
+        "over the sequence's rate points; class and overall: the mean over sequences. Component ratios: test / "
+        "anchor - 1 per rate, averaged over rates; time and memory: "
         "sum over rates of the test's over the anchor's. · : not computable (missing rows, components, runtimes or "
         "metrics; an average or sum over cells of which one is not computable).",
         "",
