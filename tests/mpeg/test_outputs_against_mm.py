@@ -51,6 +51,28 @@ PAIRS = [
 ]
 
 
+def test_the_documented_mm_command_names_hausdorff(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """--output-csv is the row of ``mm compare --mode pcc --hausdorff``: the library always computes the Hausdorff
+    figures (p_hausdorff 1). Without --hausdorff mm writes the same figures and 0 in that column, and docs/mpeg.md
+    named the command without it (review B #6)."""
+    a, b = T / "sphere.obj", T / "sphere_qp8.obj"
+    ours = ["mpeg", str(a), str(b), "--sampling", "mesh", "--output-csv", str(tmp_path / "ours.csv")]
+    assert main(ours) == 0
+    rows = {}
+    for flag in ([], ["--hausdorff"]):
+        out = tmp_path / f"mm{len(flag)}.csv"
+        args = ["compare", "--mode", "pcc", *flag, "--inputModelA", str(a), "--inputModelB", str(b)]
+        _mm(*args, "--outputCsv", str(out))
+        rows[len(flag)] = out.read_text().splitlines()[1].split(";")
+    mine = (tmp_path / "ours.csv").read_text().splitlines()[1].split(";")
+    assert mine == rows[1] and mine[5] == "1"
+    assert [k for k, (x, y) in enumerate(zip(mine, rows[0], strict=True)) if x != y] == [5]  # p_hausdorff only
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "mpeg.md").read_text()
+    row = next(line for line in doc.splitlines() if "S.csv` | `torchmeshmetric mpeg A B [--sampling" in line)
+    assert row.startswith("| `mm compare --mode pcc --hausdorff ")
+    capsys.readouterr()
+
+
 @pytest.mark.parametrize("a,b", PAIRS)
 def test_pcc_mesh_mode_files(tmp_path: Path, a: str, b: str, capsys: pytest.CaptureFixture[str]) -> None:
     _pcc_pair(tmp_path, T / f"{a}.obj", T / f"{b}.obj", [], [])
