@@ -179,6 +179,30 @@ def test_a_damaged_cache_record_is_computed_again(
     assert math.isfinite(json.loads(record_file.read_text())["figures"]["GridD1"])
 
 
+def test_an_overwrite_rerun_removes_the_earlier_runs_plots_it_does_not_draw(
+    campaign: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An --overwrite rerun that draws no plots left the earlier run's RD plots (with its BD figures in their titles)
+    beside the new summary (review B #7): the plots the earlier summary.json lists and this run does not draw are
+    removed; a PNG of the user's in the folder is kept."""
+    manifest, reference = campaign
+    out = tmp_path / "out"
+    shutil.copytree(reference, out)
+    plots = sorted(p.name for p in out.glob("rd_*.png"))
+    assert plots == ["rd_c1_ellipsoid.png", "rd_c1_sphere.png"]
+    assert json.loads((out / "summary.json").read_text())["plots"] == ["rd_c1_sphere.png", "rd_c1_ellipsoid.png"]
+    (out / "rd_c1_mine.png").write_bytes(b"the user's")
+    assert main(["ctc-campaign", str(manifest), "--out-dir", str(out), "--overwrite"]) == 0  # the same plots drawn
+    assert sorted(p.name for p in out.glob("rd_*.png")) == ["rd_c1_ellipsoid.png", "rd_c1_mine.png", "rd_c1_sphere.png"]
+    capsys.readouterr()
+    assert main(["ctc-campaign", str(manifest), "--out-dir", str(out), "--overwrite", "--no-plots"]) == 0
+    assert sorted(p.name for p in out.glob("rd_*.png")) == ["rd_c1_mine.png"]
+    assert (out / "rd_c1_mine.png").read_bytes() == b"the user's"
+    assert json.loads((out / "summary.json").read_text())["plots"] == []
+    err = capsys.readouterr().err
+    assert f"ctc-campaign: removed rd_c1_sphere.png, an RD plot of the earlier run in {out}/" in err
+
+
 def test_checks_before_any_frame(campaign: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     """A missing decoded frame, or a point without bits: one error line, naming the point, before any frame."""
     manifest, _ = campaign

@@ -29,6 +29,21 @@ def _plot_name(cond_id: int, sequence: str) -> str:
     return f"rd_c{cond_id}_{_slug(sequence)}.png"
 
 
+_PLOT_NAME = re.compile(r"rd_c\d+_[A-Za-z0-9._-]+\.png")
+
+
+def _earlier_plots(out: Path) -> list[str]:
+    """The RD plots an earlier run of this command wrote in ``out``: those its ``summary.json`` lists."""
+    try:
+        report = json.loads((out / "summary.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return []
+    if not isinstance(report, dict) or report.get("tool") != "torchmeshmetric" or "conditions" not in report:
+        return []
+    plots = report.get("plots")
+    return [p for p in plots if isinstance(p, str) and _PLOT_NAME.fullmatch(p)] if isinstance(plots, list) else []
+
+
 def run(args: argparse.Namespace) -> int:
     """Run a V-DMC CTC campaign: every sequence, condition, rate and frame of a test codec and an anchor.
 
@@ -98,7 +113,29 @@ def run(args: argparse.Namespace) -> int:
         if campaign.ibsm_resolution is None
         else {"resolution": campaign.ibsm_resolution, "cameras": campaign.ibsm_cameras},
     }
-    report = {"tool": "torchmeshmetric", "version": __version__, "settings": settings, **summary}
+    plots = (
+        []
+        if args.no_plots
+        else [
+            (cond, seq, _plot_name(cond["id"], seq["name"]))
+            for cond in summary["conditions"]
+            if not cond["lossless"]
+            for seq in cond["sequences"]
+            if len(seq["rates"]) > 1
+        ]
+    )
+    report = {
+        "tool": "torchmeshmetric",
+        "version": __version__,
+        "settings": settings,
+        "plots": [name for *_, name in plots],
+        **summary,
+    }
+    # an --overwrite rerun: the plots the earlier run wrote (its summary.json lists them) that this run does not draw
+    # would sit beside the new summary with the earlier BD figures in their titles
+    inputs = {Path(p).resolve() for _, p in campaign.input_files() if p is not None}
+    earlier = _earlier_plots(out) if args.overwrite else []
+    stale = [out / n for n in earlier if n not in report["plots"] and (out / n).resolve() not in inputs]
     with output_set("the campaign's reports") as files:
         if not out.is_dir():
             make_folder(out, "--out-dir", files)
@@ -109,21 +146,24 @@ def run(args: argparse.Namespace) -> int:
         atomic_write(out / "summary.csv", summary_csv(summary), overwrite=args.overwrite)
         atomic_write(out / "summary.md", summary_markdown(summary), overwrite=args.overwrite)
         atomic_write(out / "summary.json", json.dumps(json_safe(report), indent=1) + "\n", overwrite=args.overwrite)
-        if not args.no_plots:
+        if plots:
             from torchmeshmetric.viz.rd_curves import plot_rd_curves
 
-            for cond in summary["conditions"]:
-                if cond["lossless"]:
-                    continue
-                for seq in cond["sequences"]:
-                    if len(seq["rates"]) > 1:
-                        plot_rd_curves(
-                            seq,
-                            out / _plot_name(cond["id"], seq["name"]),
-                            names=result.names,
-                            title=f"{seq['name']} - {cond['name']}",
-                            overwrite=args.overwrite,
-                        )
+            for cond, seq, name in plots:
+                plot_rd_curves(
+                    seq,
+                    out / name,
+                    names=result.names,
+                    title=f"{seq['name']} - {cond['name']}",
+                    overwrite=args.overwrite,
+                )
+    for path in stale:
+        if path.is_file() and not path.is_symlink():
+            path.unlink()
+            say(
+                f"ctc-campaign: removed {path.name}, an RD plot of the earlier run in {out}/ that this run does "
+                "not draw"
+            )
     print(summary_markdown(summary))
     wall = time.perf_counter() - start
     chains = result.chain_seconds
