@@ -203,6 +203,36 @@ def test_an_overwrite_rerun_removes_the_earlier_runs_plots_it_does_not_draw(
     assert f"ctc-campaign: removed rd_c1_sphere.png, an RD plot of the earlier run in {out}/" in err
 
 
+def test_reports_another_run_wrote_meanwhile_are_named(
+    campaign: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Two independent runs into one --out-dir: the one finishing second failed with atomic_write's API message
+    ("pass overwrite=True / --overwrite") (review B #8); it now names the situation and the option, and writes none
+    of its files."""
+    manifest, _ = campaign
+    out = tmp_path / "out"
+    out.mkdir()
+    real = ctc_campaign._compute
+
+    def other_run_writes(campaign, task, key, *rest):  # type: ignore[no-untyped-def]
+        (out / "anchor.csv").write_text("the other run's\n")
+        return real(campaign, task, key, *rest)
+
+    monkeypatch.setattr(ctc_campaign, "_compute", other_run_writes)
+    args = ["ctc-campaign", str(manifest), "--out-dir", str(out), "--cache-dir", str(tmp_path / "c"), "--no-plots"]
+    assert main(args) == 1
+    err = capsys.readouterr().err
+    assert (
+        f"--out-dir {str(out)!r}: anchor.csv was written while this campaign ran (another run of the campaign into "
+        "the same folder?); the frames are in the cache folder: rerun with --overwrite to replace that run's files, "
+        "or give another --out-dir; none of this run's files was written"
+    ) in err
+    assert "overwrite=True" not in err
+    assert sorted(p.name for p in out.iterdir()) == ["anchor.csv"] and (out / "anchor.csv").read_text() == (
+        "the other run's\n"
+    )
+
+
 def test_checks_before_any_frame(campaign: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     """A missing decoded frame, or a point without bits: one error line, naming the point, before any frame."""
     manifest, _ = campaign

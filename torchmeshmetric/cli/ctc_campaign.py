@@ -136,6 +136,15 @@ def run(args: argparse.Namespace) -> int:
     inputs = {Path(p).resolve() for _, p in campaign.input_files() if p is not None}
     earlier = _earlier_plots(out) if args.overwrite else []
     stale = [out / n for n in earlier if n not in report["plots"] and (out / n).resolve() not in inputs]
+    if not args.overwrite:  # they were absent when the campaign started: another run wrote them meanwhile
+        appeared = [n for n in [*_TABLES, *report["plots"]] if (out / n).exists() or (out / n).is_symlink()]
+        if appeared:
+            kept = "the frames are in the cache folder: " if cache is not None or campaign.cache_dir else ""
+            raise CLIError(
+                f"--out-dir {str(out)!r}: {appeared[0]} was written while this campaign ran (another run of the "
+                f"campaign into the same folder?); {kept}rerun with --overwrite to replace that run's files, or "
+                "give another --out-dir; none of this run's files was written"
+            )
     with output_set("the campaign's reports") as files:
         if not out.is_dir():
             make_folder(out, "--out-dir", files)
