@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import json
 import math
+import re
+import subprocess
 from pathlib import Path
 
 import pytest
 
-from tests.mpeg.conftest import MPEG_REF
+from tests.mpeg.conftest import MM, MPEG_REF
 from torchmeshmetric.cli import main
 
 TRI = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
@@ -46,6 +48,31 @@ def test_json_colour_keys(capsys: pytest.CaptureFixture[str]) -> None:
     d = json.loads(capsys.readouterr().out)
     for ours, theirs in (("y_psnr", "psnrF_y"), ("cb_psnr", "psnrF_cb"), ("cr_psnr", "psnrF_cr")):
         assert abs(d[ours] - exp[theirs]) <= 0.01
+
+
+@pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")
+@pytest.mark.skipif(not (MPEG_REF / "torus").is_dir(), reason="../shared/reference/mpeg absent")
+def test_table_prints_mmetrics_digits(capsys: pytest.CaptureFixture[str]) -> None:
+    """The table printed MSE and Hausdorff with 4 decimals (d1_mse 0.0062, d1_hausdorff 0.0718) where mmetric prints
+    9 significant digits (review B #9): every symmetric figure is now mm's printed text."""
+    ref, dis = MPEG_REF / "torus" / "ref.obj", MPEG_REF / "torus" / "hole.obj"
+    args = [str(MM), "compare", "--mode", "pcc", "--hausdorff", "--inputModelA", str(ref), "--inputModelB", str(dis)]
+    mm = subprocess.run(args, capture_output=True, text=True, timeout=300, check=True).stdout
+    found = re.findall(r"^\s*(mseF|mseF,PSNR|h\.,PSNR)\s+\((p2point|p2plane)\): (\S+)$", mm, re.M)
+    printed = {(name, kind): value for name, kind, value in found}
+    assert len(printed) == 6
+    assert main(["mpeg", str(ref), str(dis), "--sampling", "mesh"]) == 0
+    table = {line.split()[0]: line.split()[1] for line in capsys.readouterr().out.splitlines()[1:-1]}
+    for ours, theirs in (
+        ("d1_mse", ("mseF", "p2point")),
+        ("d2_mse", ("mseF", "p2plane")),
+        ("d1_psnr", ("mseF,PSNR", "p2point")),
+        ("d2_psnr", ("mseF,PSNR", "p2plane")),
+        ("d1_hausdorff_psnr", ("h.,PSNR", "p2point")),
+        ("d2_hausdorff_psnr", ("h.,PSNR", "p2plane")),
+    ):
+        assert table[ours] == printed[theirs], ours
+    assert table["d1_mse"] == "0.006184389" and table["d1_hausdorff"] == "0.0717588479"
 
 
 def test_identical_meshes_json_inf_and_table(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -12,8 +12,8 @@ from torchmeshmetric.cli.options import as_option_error, corner, path_argument
 __all__ = ["add_mpeg_command"]
 
 
-def _fmt_small(x: Any) -> str:
-    return format_number(x, ".4f", small_spec=".6g")
+def _fmt(x: Any) -> str:
+    return format_number(x, ".9g")  # as mmetric prints its figures (9 significant digits)
 
 
 def _table(d: dict[str, Any]) -> str:
@@ -22,12 +22,10 @@ def _table(d: dict[str, Any]) -> str:
 
     keys = [k for k in (*FRAME_KEYS, "y_mse", "cb_mse", "cr_mse") if k in d]
     for k in keys:
-        rows.append((k, _fmt_small(d[k]), _fmt_small(d["ref_to_dis"][k]), _fmt_small(d["dis_to_ref"][k])))
+        rows.append((k, _fmt(d[k]), _fmt(d["ref_to_dis"][k]), _fmt(d["dis_to_ref"][k])))
     w = [max(len(r[i]) for r in rows) for i in range(4)]
     lines = ["  ".join(c.ljust(w[i]) if i == 0 else c.rjust(w[i]) for i, c in enumerate(r)) for r in rows]
-    lines.append(
-        f"peak {_fmt_small(d['peak'])}  points ref {d['points_ref']}  dis {d['points_dis']}  ({d['sampling']})"
-    )
+    lines.append(f"peak {_fmt(d['peak'])}  points ref {d['points_ref']}  dis {d['points_dis']}  ({d['sampling']})")
     return "\n".join(lines)
 
 
