@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import csv
 import json
 from pathlib import Path
@@ -11,6 +12,7 @@ import pytest
 
 from torchmeshmetric.cli import main
 from torchmeshmetric.cli.ctc import frame_path
+from torchmeshmetric.cli.options import ctc_options
 from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
 from torchmeshmetric.mpeg.ctc.bd_rate import bd_rate
 from torchmeshmetric.mpeg.ctc.chain import ctc_sequence
@@ -87,6 +89,24 @@ def test_ctc_checks_every_frame_first(tmp_path: Path, capsys: pytest.CaptureFixt
     i = args.index("--max-pos")
     assert main([*args[: i + 1], "1 1", *args[i + 2 :]]) == 1
     assert "--max-pos: expected three finite numbers" in capsys.readouterr().err
+
+
+def test_a_single_point_box_is_refused_with_the_options(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """--min-pos equal to --max-pos on every axis was refused only once frame 0 ran ("box: the box is a single point
+    ... (while running frame 0)") (review B #10): it is now an option error, before any frame is read; a box flat on
+    one axis stays accepted."""
+    args = _sequence(tmp_path)
+    i, j = args.index("--min-pos"), args.index("--max-pos")
+    args[i + 1] = args[j + 1] = "1 1 1"
+    assert main(args) == 1
+    err = capsys.readouterr().err
+    assert "--max-pos: [1.0, 1.0, 1.0] equals --min-pos [1.0, 1.0, 1.0] (the box is a single point)" in err
+    assert "frame 0" not in err and "ctc: frame" not in err
+    args[j + 1] = "1.00000001 1 1"  # one float32 corner (the sampler's): still a single point
+    assert main(args) == 1
+    assert "(the box is a single point)" in capsys.readouterr().err
+    a = argparse.Namespace(qp=10, qt=12, decoded_qt=0, min_pos="0 0 0", max_pos="1 0 1")
+    assert ctc_options(a, []) == ([0.0, 0.0, 0.0], [1.0, 0.0, 1.0])  # flat on one axis: a box
 
 
 def test_frame_path() -> None:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import math
 import re
+import struct
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -329,7 +330,8 @@ def ctc_options(
 
     Raises:
         ValueError: an option out of its range, a corner that is not three finite numbers, ``--max-pos`` below
-            ``--min-pos`` on an axis; each names the option.
+            ``--min-pos`` on an axis or equal to it on every axis (a box that is a single point); each names the
+            option.
 
     Example:
         >>> a = argparse.Namespace(qp=10, qt=12, decoded_qt=0, min_pos="0 0 0", max_pos="1 1 1")
@@ -343,7 +345,17 @@ def ctc_options(
     lo, hi = corner(args.min_pos, "--min-pos"), corner(args.max_pos, "--max-pos")
     if any(h < lo_ for lo_, h in zip(lo, hi, strict=True)):
         raise ValueError(f"--max-pos: {hi} is below --min-pos {lo}")
+    if all(_float32(h) == _float32(lo_) for lo_, h in zip(lo, hi, strict=True)):  # the sampler's float32 corners
+        raise ValueError(f"--max-pos: {hi} equals --min-pos {lo} (the box is a single point)")
     return lo, hi
+
+
+def _float32(x: float) -> float:
+    """``x`` rounded to float32 (as the grid sampler reads the box); beyond float32's range, ``x`` itself."""
+    try:
+        return float(struct.unpack("f", struct.pack("f", x))[0])
+    except OverflowError:
+        return x
 
 
 def as_option_error(exc: ValueError, options: dict[str, str]) -> Exception:
