@@ -214,3 +214,21 @@ def test_nudged_noise_floor_keeps_the_digits_both_runs_share():
         with_nudged_verdicts(table(0.0123, 0.00312), table(0.0223, 0.00312))
     )
     assert "surface_k_minus_1: rmse 0.0123, psnr 0.00312" in comparison_markdown(table(0.0123456, 0.00312))
+
+
+def test_a_pipe_in_a_winners_name_keeps_the_verdict_tables_columns():
+    # The winner of a verdict cell was written unescaped: "a|b: -0.2 ± ..." split its row into one cell more than
+    # the header had, and the page showed each statistic under the next one's column (review A, finding 1).
+    from torchmeshmetric.viz.html_report import _cells, markdown_html
+
+    a = _method([1.0, 1.1, 0.9, 1.05, 0.95])
+    b = _method([1.2, 1.31, 1.1, 1.24, 1.16])
+    text = comparison_markdown(compare_methods({"a|b\nx": a, "B": b}))
+    rows = [line for line in text.splitlines() if line.startswith("|") and not line.startswith("|---")]
+    header = _cells(rows[0])
+    assert header == ["set", "ave", "rmse", "max", "p95"]
+    assert all(len(_cells(r)) == len(header) for r in rows[1:])
+    surface_k = next(_cells(r) for r in rows if r.startswith("| surface_k |"))
+    assert surface_k[1] == "a|b x: -0.202 ± 0.0104"  # the ave column holds the ave difference (t interval)
+    assert text.startswith("### a\\|b x vs B (difference")  # the heading: one line
+    assert "<td>a|b x: -0.202 ± 0.0104</td>" in markdown_html(text)

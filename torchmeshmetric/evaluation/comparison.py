@@ -53,7 +53,7 @@ from typing import Any
 
 import numpy as np
 
-from torchmeshmetric._format import format_number
+from torchmeshmetric._format import format_number, markdown_cell
 from torchmeshmetric.evaluation.determinacy import determined_cell, value_change
 from torchmeshmetric.evaluation.results import FLOOR_SET_NAMES, SequenceEvaluation
 
@@ -431,7 +431,8 @@ def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapp
         stats: list[str] = []
         for entries in sets.values():
             stats += [s for s in entries if s not in stats]
-        out += [f"### {title} (difference A - B, 95 % interval over frame pairs)", ""]
+        # a method's name is the user's: one line, its "|" escaped (else a row gets a cell more than its header)
+        out += [f"### {markdown_cell(title)} (difference A - B, 95 % interval over frame pairs)", ""]
         out += ["| set | " + " | ".join(stats) + " |", "|---|" + "---|" * len(stats)]
         floors = []
         for set_name, entries in sets.items():
@@ -444,7 +445,7 @@ def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapp
                 winner = e["verdict"].removesuffix(" better") if e["verdict"] != "inconclusive" else "≈"
                 mark = "~" if _undetermined(e) else ""
                 difference, half = _numbers(e, stat)
-                cells.append(f"{mark}{winner}: {difference} ± {half}")
+                cells.append(f"{mark}{markdown_cell(winner)}: {difference} ± {half}")
             marked = f"{set_name} *" if any("noise_floor" in e for e in entries.values()) else set_name
             out.append(f"| {marked} | " + " | ".join(cells) + " |")
             if any("noise_floor" in e for e in entries.values()):
