@@ -56,15 +56,16 @@ def json_safe(value: Any) -> Any:
 
 
 def markdown_cell(text: object) -> str:
-    r"""A user's name (a method's, a sequence's) as a Markdown table cell: ``|`` escaped, line breaks as spaces.
+    r"""A user's name (a method's, a sequence's) as a Markdown table cell: ``|`` and ``\`` escaped, one line.
 
-    A ``|`` in a name otherwise splits its row into one cell more than the header has.
+    A ``|`` in a name otherwise splits its row into one cell more than the header has, and a backslash would escape
+    the character after it (``\*`` reads as ``*``); line breaks become spaces.
 
     Example:
-        >>> markdown_cell("QEM | 50 %"), markdown_cell("a\nb")
-        ('QEM \\| 50 %', 'a b')
+        >>> markdown_cell("QEM | 50 %"), markdown_cell("a\nb"), markdown_cell("C:\\x")
+        ('QEM \\| 50 %', 'a b', 'C:\\\\x')
     """
-    return " ".join(str(text).replace("|", "\\|").splitlines())
+    return " ".join(str(text).replace("\\", "\\\\").replace("|", "\\|").splitlines())
 
 
 def check_csv_fields(path: object, line: int, row: Mapping[str | None, Any], header: Sequence[str]) -> None:

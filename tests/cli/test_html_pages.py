@@ -301,3 +301,14 @@ def test_a_mesh_the_viewer_cannot_show_is_named_by_its_option(capsys, tmp_path):
         assert main(["report", str(tmp_path / "r.json"), "--mesh", str(mesh)]) == 1
         err = capsys.readouterr().err
         assert err.startswith(f"torchmeshmetric report: error: --mesh {str(mesh)!r}: ") and message in err, err
+
+
+def test_markdown_backslash_escapes_are_shown_as_the_character():
+    # The note under the verdict tables ("\* noise floor ...") showed its backslash on the page (review A, 8); a
+    # name's backslash (escaped by markdown_cell) shows as itself, and escapes no "*" of the name.
+    from torchmeshmetric._format import markdown_cell
+
+    name = "C:\\*b*|c\\"
+    page = markdown_html(f"\\* noise floor: x\n\n| name |\n|---|\n| {markdown_cell(name)} |\n")
+    assert "<p>* noise floor: x</p>" in page
+    assert _html_tables(page) == [[["name"], [name]]]  # the name itself

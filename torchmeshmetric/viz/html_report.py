@@ -293,17 +293,30 @@ _INLINE = (
 )
 
 
+#: A Markdown backslash escape (CommonMark: a backslash before ASCII punctuation stands for that character):
+#: ``\*`` of a footnote mark, ``\|`` and ``\\`` of a name (:func:`~torchmeshmetric._format.markdown_cell`).
+_ESCAPE = re.compile(r"\\([!-/:-@\[-`{-~])")
+_HELD = re.compile("\ue000(\\d+)\ue001")  # a held escaped character (private-use marks around its index)
+
+
 def _inline(text: str) -> str:
-    out = html.escape(text, quote=False)
+    r"""A line of Markdown as HTML: ``code``, **strong** and backslash escapes (``\*`` is a literal ``*``)."""
+    held: list[str] = []
+
+    def hold(match: re.Match[str]) -> str:
+        held.append(match.group(1))
+        return f"\ue000{len(held) - 1}\ue001"
+
+    out = html.escape(_ESCAPE.sub(hold, text), quote=False)  # an escaped character starts no markup
     for pattern, repl in _INLINE:
         out = pattern.sub(repl, out)
-    return out
+    return _HELD.sub(lambda m: html.escape(held[int(m.group(1))], quote=False), out)
 
 
 def _cells(line: str) -> list[str]:
     r"""A table row's cells: split at each ``|`` that is not escaped (``\|`` in a name, :func:`markdown_cell`)."""
     cells = re.split(r"(?<!\\)\|", line.strip().removeprefix("|").removesuffix("|"))
-    return [c.strip().replace("\\|", "|") for c in cells]
+    return [c.strip().replace("\\|", "|") for c in cells]  # its other escapes are read by _inline
 
 
 def markdown_html(text: str) -> str:
