@@ -11,7 +11,7 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-__all__ = ["check_csv_fields", "format_number", "json_safe", "markdown_cell"]
+__all__ = ["check_csv_fields", "format_number", "json_safe", "markdown_cell", "plain_label"]
 
 
 def format_number(value: Any, spec: str = ".4g", *, small_spec: str | None = None) -> str:
@@ -89,3 +89,18 @@ def check_csv_fields(path: object, line: int, row: Mapping[str | None, Any], hea
     found = sum(1 for k in header if row.get(k) is not None) + len(extra)
     if found != len(header):
         raise ValueError(f"{path}:{line}: expected {len(header)} fields (the header's), found {found}")
+
+
+def plain_label(text: object) -> str:
+    r"""A user's name as a matplotlib label (legend, title, axis), drawn as written: every ``$`` escaped.
+
+    Matplotlib parses the text between two unescaped ``$`` as mathtext: ``budget $5 to $10`` was drawn as math
+    italics ``budget 5 to 10``, and ``a_$b_$c`` raised a parse error when the figure was drawn (after a whole
+    evaluation). ``\$`` is a literal dollar, and text without an unescaped ``$`` is never parsed (a backslash
+    already before a ``$`` stays shown: ``\\$`` reads as ``\$``).
+
+    Example:
+        >>> plain_label("budget $5 to $10")
+        'budget \\$5 to \\$10'
+    """
+    return str(text).replace("$", "\\$")

@@ -112,3 +112,52 @@ def test_panels_of_equal_or_zero_distances_span_their_bins_without_a_warning(tmp
     assert sum(bar.get_height() for bar in equal.patches) == len(tenths)  # every vertex in the top bin
     # a spread of a millionth or more is shown as it is
     assert log_bins([np.array([1.0, 1.0 + 1e-5])], 2).tolist() == pytest.approx([1.0, 1.0 + 5e-6, 1.0 + 1e-5])
+
+
+NAMES = ["a_$b_$c", "budget $5 to $10", "$\\frac$", "x\\$y"]  # mathtext errors, math italics, an escaped dollar
+
+
+def _shown(text) -> str:
+    """What matplotlib draws of a Text: its string after mathtext's preprocessing (must not be parsed as math)."""
+    shown, is_math = text._preprocess_math(text.get_text())
+    assert not is_math, text.get_text()
+    return shown
+
+
+def test_user_names_in_figures_are_drawn_as_written_not_as_mathtext():
+    # "a_$b_$c" (a folder name evaluate takes as the method's) made --html fail after the whole evaluation with
+    # "error: b_", and "budget $5 to $10" was drawn as math italics "budget 5 to 10" (review A, finding 2).
+    from types import SimpleNamespace
+
+    from torchmeshmetric.viz.html_report import report_figures
+    from torchmeshmetric.viz.plots import frame_curves_figure, histogram_figure, mpeg_figure, png_bytes
+
+    original = [sphere(1, offset=(0.1 * k, 0, 0)) for k in range(3)]
+    simplified = [sphere(0, offset=(0.1 * k, 0, 0)) for k in range(3)]
+    seq = evaluate_sequence(original, simplified, registration_fn=TranslationRegister())
+    pairs = [p.as_dict() for p in seq.pairs]
+    rows = [{"frame": float(k), "d1_psnr": 60.0 + k, "d2_psnr": 70.0} for k in range(3)]
+    mpeg = SimpleNamespace(frame_rows=lambda: rows)
+    figures = [
+        histogram_figure({n: seq.pairs[0] for n in NAMES}),
+        frame_curves_figure({n: pairs for n in NAMES}),
+        mpeg_figure({n: mpeg for n in NAMES}),
+    ]
+    for fig in figures:
+        assert png_bytes(fig)[:4] == b"\x89PNG"  # drawn: the old labels raised a mathtext ParseException here
+        for ax in fig.axes:
+            shown = [_shown(t) for t in ax.get_legend().get_texts()]
+            assert [s.split(" (RMSE")[0] for s in shown] == NAMES
+    # the page of a report whose methods have such names, and a CTC column's title
+    report = {"methods": {n: {"pairs": pairs} for n in NAMES}}
+    assert len(report_figures(report)) == 1
+    ((_, png),) = report_figures({"frames": [{"frame": 0, "$x_$": 1.0}, {"frame": 1, "$x_$": 2.0}]})
+    assert png[:4] == b"\x89PNG"
+
+
+def test_rd_curves_draw_the_codecs_names_as_written(tmp_path):
+    from torchmeshmetric.viz.rd_curves import plot_rd_curves
+
+    rows = [{side: {"rate_mbps": r, "GridD1": 60.0 + r} for side in ("anchor", "test")} for r in (1.0, 2.0)]
+    path = plot_rd_curves({"rates": rows}, tmp_path / "rd.png", names=("a_$b_$", "$5"), title="seq_$x_$")
+    assert path.read_bytes()[:4] == b"\x89PNG"  # the names were parsed as mathtext: "a_$b_$" failed to draw

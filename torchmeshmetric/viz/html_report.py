@@ -28,6 +28,7 @@ import numpy as np
 import torch
 
 from torchmeshmetric._atomic import atomic_write
+from torchmeshmetric._format import plain_label
 from torchmeshmetric.structures import MeshLike
 from torchmeshmetric.viz.colors import ERROR_COLOR_ANCHORS
 from torchmeshmetric.viz.error_mesh import DISPLAY_FACES, ErrorMesh, error_mesh
@@ -277,7 +278,7 @@ def report_figures(report: Mapping[str, Any]) -> list[tuple[str, bytes]]:
         axes = fig.subplots((len(columns) + 2) // 3, min(len(columns), 3), squeeze=False).ravel()
         for ax, column in zip(axes, columns, strict=False):
             ax.plot([f["frame"] for f in frames], [float(f.get(column, "nan")) for f in frames], marker="o")
-            ax.set_title(column, fontsize=10)
+            ax.set_title(plain_label(column), fontsize=10)
             ax.set_xlabel("frame")
             ax.set_ylabel("dB" if "psnr" in column.lower() or column.startswith(("Grid", "Ibsm")) else "")
         for ax in axes[len(columns) :]:

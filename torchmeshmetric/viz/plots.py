@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from torchmeshmetric._atomic import atomic_write
-from torchmeshmetric._format import format_number
+from torchmeshmetric._format import format_number, plain_label
 from torchmeshmetric.evaluation.flicker import FLICKER
 from torchmeshmetric.evaluation.reports import COLUMN_FORMATS
 from torchmeshmetric.evaluation.results import SET_NAMES, PairEvaluation, SequenceEvaluation
@@ -116,7 +116,7 @@ def histogram_figure(methods: Mapping[str, PairEvaluation], *, bins: int = 50) -
         for m, v in values.items():
             below = float(np.mean(v < edges[0])) if len(v) else 0.0
             rmse = format_number(np.sqrt(np.mean(v * v)), COLUMN_FORMATS["rmse"])  # the tables' determined digits
-            label = f"{m} (RMSE {rmse}; {below:.1%} of vertices below {edges[0]:.2g})"
+            label = f"{plain_label(m)} (RMSE {rmse}; {below:.1%} of vertices below {edges[0]:.2g})"
             ax.hist(v[v >= edges[0]], bins=edges, alpha=0.55, label=label)
         # The axis spans the bins even when no bar is drawn (every distance below the lowest edge, e.g. an exact
         # registration's residual): matplotlib's default limits of an empty panel are not valid on a log scale.
@@ -189,7 +189,7 @@ def frame_curves_figure(pairs: Mapping[str, Sequence[Mapping[str, Any]]], *, sta
     for ax, name in zip(axes.ravel(), names, strict=True):
         for m, ps in pairs.items():
             stats = [p["registration"]["residual"] if name == "registration" else p[name] for p in ps]
-            ax.plot([p["frame"] for p in ps], [float(st[statistic]) for st in stats], marker="o", label=m)
+            ax.plot([p["frame"] for p in ps], [float(st[statistic]) for st in stats], marker="o", label=plain_label(m))
         ax.set_title(_LABELS[name], fontsize=10)
         ax.set_xlabel("frame k (pair k-1, k)")
         ax.set_ylabel(label)
@@ -226,7 +226,7 @@ def mpeg_figure(methods: Mapping[str, Any]) -> Any:
                 [r["frame"] for r in rs],
                 [r[key] if r[key] != float("inf") else float("nan") for r in rs],
                 marker="o",
-                label=m,
+                label=plain_label(m),
             )
         ax.set_title(key.replace("_", " ").upper().replace("PSNR", "PSNR (dB)"), fontsize=10)
         ax.set_xlabel("frame")

@@ -7,6 +7,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from torchmeshmetric._format import plain_label
 from torchmeshmetric.viz.plots import _figure, _save
 
 __all__ = ["plot_rd_curves"]
@@ -45,7 +46,7 @@ def plot_rd_curves(
     for ax, m in zip(axes, metrics, strict=False):
         for side, label, marker in (("anchor", names[0], "o"), ("test", names[1], "s")):
             pts = sorted((r[side]["rate_mbps"], r[side][m]) for r in rows)
-            ax.plot([x for x, _ in pts], [y for _, y in pts], marker=marker, label=label)
+            ax.plot([x for x, _ in pts], [y for _, y in pts], marker=marker, label=plain_label(label))
         bd = sequence.get("bd_rate", {}).get(m)
         ax.set_title(m + ("" if bd is None else f"  (BD-rate {bd:+.2f} %)"), fontsize=9)
         ax.set_xlabel("rate (Mbps)")
@@ -55,7 +56,7 @@ def plot_rd_curves(
     for ax in axes[len(metrics) :]:
         ax.set_visible(False)
     if title:
-        fig.suptitle(title)
+        fig.suptitle(plain_label(title))
     h, w = 3.4 * nrows, 4.0 * cols  # margins in inches: 0.55 below, 0.65 above, 0.7 left
     fig.subplots_adjust(left=0.7 / w, right=1 - 0.15 / w, bottom=0.55 / h, top=1 - 0.65 / h, wspace=0.35, hspace=0.5)
     return _save(fig, path, overwrite)
