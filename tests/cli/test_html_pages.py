@@ -312,3 +312,16 @@ def test_markdown_backslash_escapes_are_shown_as_the_character():
     page = markdown_html(f"\\* noise floor: x\n\n| name |\n|---|\n| {markdown_cell(name)} |\n")
     assert "<p>* noise floor: x</p>" in page
     assert _html_tables(page) == [[["name"], [name]]]  # the name itself
+
+
+def test_viewer_layers_of_a_method_without_error_are_drawn():
+    # vmax 0 is refused now (it coloured every vertex "no error"): a method equal to the original, whose distances
+    # are all 0, takes the default scale instead of a shared scale of 0
+    from torchmeshmetric.evaluation import evaluate_sequence
+    from torchmeshmetric.viz.html_report import best_pair_layers
+
+    frames = [trimesh.creation.icosphere(subdivisions=1) for _ in range(2)]
+    result = evaluate_sequence(frames, frames, registration_fn=lambda src, dst: src)
+    layers = best_pair_layers({"same": result}, frames, {"same": frames})
+    assert len(layers) > 1 and [layer.vmax for layer in layers[1:]] == [1.0] * (len(layers) - 1)
+    assert layers[1].colors.tolist() == [[68, 1, 84]] * len(frames[1].vertices)  # every vertex: no error

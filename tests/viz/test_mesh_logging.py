@@ -139,7 +139,8 @@ def test_other_loggers_get_a_file(pair, tmp_path):
 
     logger = MLFlowLike()
     m = log_error_mesh(logger, "val/mesh", simplified, reference=reference, step=4, file_format="ply")
-    path = tmp_path / "run" / "meshes" / "val_mesh_step000004.ply"
+    # the tag percent-encoded ("val/mesh" was "val_mesh", the file of the tag "val_mesh" too: review A, finding 5)
+    path = tmp_path / "run" / "meshes" / "val%2Fmesh_step000004.ply"
     assert path.read_bytes() == ply_bytes(m)
     assert logger.experiment.artifacts == [("r1", str(path), "meshes")]
     with pytest.raises(TypeError, match="neither TensorBoard, W&B"):
@@ -218,4 +219,105 @@ def test_callback_logs_every_validation_epoch_to_every_logger(pair, tmp_path):
     for step in (2, 4):  # the global step at the end of each epoch (2 batches an epoch)
         assert np.array_equal(events[("val/error_mesh_COLOR", step)][0][0].astype(np.uint8), expected.colors)
     files = sorted(p.name for p in (tmp_path / "csv").rglob("*.glb"))
-    assert files == ["val_error_mesh_step000002.glb", "val_error_mesh_step000004.glb"]
+    # the tag percent-encoded ("val/error_mesh" was "val_error_mesh", also the tag "val_error_mesh"'s file: review A)
+    assert files == ["val%2Ferror_mesh_step000002.glb", "val%2Ferror_mesh_step000004.glb"]
+
+
+@pytest.mark.parametrize(
+    ("vmax", "error"), [(0.0, ValueError), (-1.0, ValueError), (float("nan"), ValueError), (float("inf"), ValueError)]
+)
+def test_every_colouring_entry_refuses_a_bad_vmax(pair, tmp_path, vmax, error):
+    # error_mesh and log_error_mesh took any vmax (the whole mesh then logged as "no error"), the callback took
+    # inf, and vmax="x" gave float()'s message without the argument's name (review A, finding 3)
+    pytest.importorskip("lightning.pytorch")
+    from torchmeshmetric.viz.error_mesh_callback import ErrorMeshCallback
+
+    simplified, reference = pair
+    d = surface_errors(simplified, reference)
+    with pytest.raises(error, match="vmax"):
+        error_mesh("m", simplified, d, what="", vmax=vmax)
+    with pytest.raises(error, match="vmax"):
+        log_error_mesh(tmp_path, "t", simplified, reference=reference, vmax=vmax)
+    with pytest.raises(error, match="vmax"):
+        ErrorMeshCallback(lambda trainer, module: pair, vmax=vmax)
+    assert list(tmp_path.iterdir()) == []  # refused before anything was written
+    with pytest.raises(TypeError, match="vmax: expected None or a positive number, found str 'x'"):
+        ErrorMeshCallback(lambda trainer, module: pair, vmax="x")
+
+
+def test_nan_or_negative_errors_are_refused_not_shown_as_no_error(pair, tmp_path):
+    from torchmeshmetric import NonFiniteError
+
+    simplified, _ = pair
+    d = torch.linspace(0, 1, len(simplified.vertices))
+    d[0] = float("nan")  # one bad vertex made every vertex dark blue, and the logged vmax NaN (review A, 3)
+    with pytest.raises(NonFiniteError, match="dists: expected finite values, found 1 NaN/Inf"):
+        error_mesh("m", simplified, d, what="w")
+    with pytest.raises(NonFiniteError, match="dists"):
+        log_error_mesh(tmp_path, "t", simplified, d)
+    with pytest.raises(ValueError, match="dists: expected distances >= 0"):
+        error_mesh("m", simplified, -torch.linspace(0, 1, len(simplified.vertices)), what="w")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_file_layers_unknown_scale_is_logged_as_strict_json(pair):
+    # an ErrorMesh of file colours has vmax NaN: TensorBoard's config_dict held a bare NaN (not strict JSON)
+    simplified, reference = pair
+    layer = error_mesh("m", simplified, surface_errors(simplified, reference), what="w")._replace(vmax=float("nan"))
+    configs = []
+
+    class Writer:
+        def add_mesh(self, tag, **kwargs):
+            configs.append(kwargs["config_dict"])
+
+    log_error_mesh(Writer(), "t", layer, step=1)
+    assert configs[0]["torchmeshmetric"]["vmax"] == "nan"
+    json.loads(json.dumps(configs[0], allow_nan=False))
+
+
+def test_distinct_tags_write_distinct_files(pair, tmp_path):
+    # "val/mesh" and "val_mesh" (two TensorBoard series) both wrote val_mesh_step000003.glb, the second
+    # overwriting the first without a word (review A, finding 5)
+    simplified, reference = pair
+    tags = ["val/mesh", "val_mesh", "val mesh", "val%2Fmesh", "é/x"]
+    logged = {tag: log_error_mesh(tmp_path, tag, simplified, reference=reference, step=3) for tag in tags}
+    files = {p.name: p.read_bytes() for p in (tmp_path / "meshes").iterdir()}
+    assert sorted(files) == sorted(
+        [
+            "val%2Fmesh_step000003.glb",
+            "val_mesh_step000003.glb",
+            "val%20mesh_step000003.glb",
+            "val%252Fmesh_step000003.glb",
+            "%C3%A9%2Fx_step000003.glb",
+        ]
+    )
+    assert files["val%2Fmesh_step000003.glb"] == glb_bytes(logged["val/mesh"])
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "message"),
+    [
+        ({"step": 1.5}, TypeError, "step: expected an int, found float 1.5"),
+        ({"step": -1}, ValueError, "step: expected an int >= 0, found -1"),
+        ({"tag": None}, TypeError, "tag: expected a string"),
+        ({"tag": ""}, ValueError, "tag: expected a non-blank name"),
+        ({"max_faces": 0}, ValueError, "max_faces: expected an int >= 1, found 0"),
+    ],
+)
+def test_file_logger_arguments_are_named(pair, tmp_path, kwargs, error, message):
+    # step=1.5 gave "Unknown format code 'd'", tag=None "'NoneType' object is not iterable", tag="" wrote
+    # "_step000003.glb", max_faces=0 an error naming simplify_qem's "target" (review A, finding 5)
+    simplified, reference = pair
+    args = {"tag": "t", "step": 3, **kwargs}
+    tag = args.pop("tag")
+    with pytest.raises(error, match=message):
+        log_error_mesh(tmp_path, tag, simplified, reference=reference, **args)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_callback_refuses_a_bad_tag():
+    pytest.importorskip("lightning.pytorch")
+    from torchmeshmetric.viz.error_mesh_callback import ErrorMeshCallback
+
+    with pytest.raises(TypeError, match="tag: expected a string"):
+        ErrorMeshCallback(lambda trainer, module: None, tag=None)

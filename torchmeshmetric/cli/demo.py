@@ -281,7 +281,8 @@ def _demo_plots(
     atomic_write(out_dir / "histograms.png", histograms, overwrite=True)
     figures += [(CURVES_CAPTION, curves), ("distance sets of the best pair", histograms)]
     written = ["histograms.png", "frame_curves.png"]
-    vmax = max(float(r.pairs[best].distances["surface_k_minus_1"].max()) for r in results.values())
+    # one scale for all methods (none when every distance is 0: write_error_ply then takes its default)
+    vmax = max(float(r.pairs[best].distances["surface_k_minus_1"].max()) for r in results.values()) or None
     for name, result in results.items():
         pair = result.pairs[best]
         path = out_dir / f"error_{name.lower().replace(' ', '_')}_frame{pair.frame:03d}.ply"

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import io
+import math
+import numbers
 import os
 from pathlib import Path
 
@@ -11,11 +13,19 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric._atomic import atomic_write
-from torchmeshmetric._checks import ShapeError
+from torchmeshmetric._checks import NonFiniteError, ShapeError, check_finite
 from torchmeshmetric.kernels.sampling import vertex_set_mask
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
-__all__ = ["ERROR_COLOR_ANCHORS", "error_colors", "per_vertex_errors", "write_error_ply"]
+__all__ = [
+    "ERROR_COLOR_ANCHORS",
+    "check_distances",
+    "check_vmax",
+    "default_vmax",
+    "error_colors",
+    "per_vertex_errors",
+    "write_error_ply",
+]
 
 #: Viridis-like anchors (dark blue = no error → yellow = vmax), linear in between (RGB, 0..255).
 ERROR_COLOR_ANCHORS = np.array(
@@ -24,16 +34,81 @@ ERROR_COLOR_ANCHORS = np.array(
 )
 
 
+def check_vmax(vmax: object, name: str = "vmax") -> float | None:
+    """``None``, or ``vmax`` as a float: the distance of the brightest colour must be finite and positive.
+
+    Every place that colours or logs errors checks its ``vmax`` here: a NaN, infinite, zero or negative one made every
+    vertex the colour of "no error", without a word.
+
+    Raises:
+        TypeError: ``vmax`` is not a real number (nor a one-element tensor).
+        NonFiniteError: ``vmax`` is NaN or infinite.
+        ValueError: ``vmax`` is zero or negative.
+
+    Example:
+        >>> check_vmax(0.5), check_vmax(None)
+        (0.5, None)
+    """
+    if vmax is None:
+        return None
+    one = isinstance(vmax, Tensor) and vmax.numel() == 1 and not vmax.dtype.is_complex and vmax.dtype != torch.bool
+    if not (one or (isinstance(vmax, numbers.Real) and not isinstance(vmax, bool))):  # numpy's numbers are Real
+        raise TypeError(f"{name}: expected None or a positive number, found {type(vmax).__name__} {vmax!r}")
+    value = float(vmax)  # type: ignore[arg-type]
+    if not math.isfinite(value):
+        raise NonFiniteError(f"{name}: expected a finite distance for the brightest colour, found {value}")
+    if value <= 0:
+        raise ValueError(f"{name}: expected a distance > 0 for the brightest colour, found {value:g}")
+    return value
+
+
+def check_distances(dists: Tensor, name: str = "dists") -> None:
+    """Require finite, non-negative distances (a NaN was coloured as "no error", a negative one too).
+
+    Raises:
+        NonFiniteError: a distance is NaN or infinite.
+        ValueError: a distance is negative.
+    """
+    check_finite(dists, name)
+    if dists.numel() and float(dists.min()) < 0:
+        n = int((dists < 0).sum())
+        raise ValueError(
+            f"{name}: expected distances >= 0, found {n} negative value(s), the least {float(dists.min()):g}"
+        )
+
+
+def default_vmax(dists: np.ndarray) -> float:
+    """The default distance of the brightest colour: the 95th percentile of ``dists``.
+
+    When that is 0 (most vertices on the reference surface) the largest distance, so that the vertices off the
+    surface still show; 1 when every distance is 0 (all of them the colour of no error) or there is none.
+
+    Example:
+        >>> import numpy as np
+        >>> default_vmax(np.arange(101.0)), default_vmax(np.r_[np.zeros(99), 0.5]), default_vmax(np.zeros(3))
+        (95.0, 0.5, 1.0)
+    """
+    if not dists.size:
+        return 1.0
+    return float(np.quantile(dists, 0.95)) or float(np.max(dists)) or 1.0
+
+
 def error_colors(dists: Tensor, vmax: float | None = None) -> Tensor:
     """Map distances to RGBA colours (``uint8``) on a viridis-like scale from 0 to ``vmax``.
 
     Args:
-        dists: ``(N,)`` non-negative distances.
-        vmax: distance mapped to the brightest colour (default: the 95th percentile of ``dists``, so a few
-            outliers do not wash out the map); larger values are clamped.
+        dists: ``(N,)`` finite non-negative distances.
+        vmax: distance mapped to the brightest colour, finite and positive (default: :func:`default_vmax`, the 95th
+            percentile of ``dists``, so a few outliers do not wash out the map); larger values are clamped.
 
     Returns:
         ``(N, 4)`` ``uint8`` RGBA colours.
+
+    Raises:
+        ShapeError: ``dists`` is not one-dimensional.
+        NonFiniteError: a distance, or ``vmax``, is NaN or infinite.
+        ValueError: a distance is negative, or ``vmax`` is not positive.
+        TypeError: ``vmax`` is not a number.
 
     Example:
         >>> import torch
@@ -42,10 +117,10 @@ def error_colors(dists: Tensor, vmax: float | None = None) -> Tensor:
     """
     if dists.ndim != 1:
         raise ShapeError(f"dists: expected shape (N,), found {tuple(dists.shape)}")
+    check_distances(dists)
     d = dists.detach().double().cpu().numpy()
-    if vmax is None:
-        vmax = float(np.quantile(d, 0.95)) if d.size else 1.0
-    t = np.clip(d / vmax, 0.0, 1.0) if vmax > 0 else np.zeros_like(d)
+    scale = check_vmax(vmax)
+    t = np.clip(d / (default_vmax(d) if scale is None else scale), 0.0, 1.0)
     pos = t * (len(ERROR_COLOR_ANCHORS) - 1)
     lo = np.minimum(np.floor(pos).astype(np.int64), len(ERROR_COLOR_ANCHORS) - 2)
     frac = (pos - lo)[:, None]
@@ -109,6 +184,8 @@ def write_error_ply(
 
     Raises:
         ShapeError: when ``dists`` does not have one value per vertex.
+        NonFiniteError, ValueError, TypeError: a distance is NaN, infinite or negative, or ``vmax`` is not a finite
+            positive number (:func:`error_colors`).
     """
     import trimesh  # ~0.3 s to import: on use only, `import torchmeshmetric` never loads it
 

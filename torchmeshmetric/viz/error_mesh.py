@@ -15,8 +15,9 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from torchmeshmetric._checks import check_int
 from torchmeshmetric.structures import MeshLike
-from torchmeshmetric.viz.colors import error_colors, per_vertex_errors
+from torchmeshmetric.viz.colors import check_distances, check_vmax, default_vmax, error_colors, per_vertex_errors
 
 __all__ = ["DISPLAY_FACES", "ErrorMesh", "error_mesh", "glb_bytes", "ply_bytes"]
 
@@ -66,8 +67,8 @@ def error_mesh(
         dists: ``(V,)`` one distance per vertex, or one per referenced vertex (the paper's vertex set); ``None``
             for a reference shown without error (all vertices at distance 0).
         what: what the distances measure (shown beside the colour scale).
-        vmax: the distance of the brightest colour (default: the 95th percentile, as
-            :func:`~torchmeshmetric.viz.colors.error_colors`); give the same value to layers compared side by side.
+        vmax: the distance of the brightest colour, finite and positive (default: the 95th percentile,
+            :func:`~torchmeshmetric.viz.colors.default_vmax`); give the same value to layers compared side by side.
         unit: the unit of the distances.
         max_faces: above this face count the mesh is decimated for display, each kept vertex coloured by the
             error of its nearest original vertex.
@@ -77,6 +78,9 @@ def error_mesh(
 
     Raises:
         ShapeError: ``dists`` has neither one value per vertex nor one per referenced vertex.
+        NonFiniteError: a distance, or ``vmax``, is NaN or infinite.
+        ValueError: a distance is negative, or ``vmax`` is not positive.
+        TypeError: ``vmax`` is not a number.
 
     Example:
         >>> import trimesh, torch
@@ -87,11 +91,13 @@ def error_mesh(
     """
     from torchmeshmetric.structures import as_mesh
 
+    max_faces = check_int(max_faces, "max_faces", low=1)
     m = as_mesh(mesh)
     d = torch.zeros(m.num_verts, dtype=torch.float64) if dists is None else dists
     m, d = per_vertex_errors(m, d.detach().cpu())
-    if vmax is None:
-        vmax = float(np.quantile(d.double().numpy(), 0.95)) if d.numel() else 1.0
+    check_distances(d)  # before the scale is taken from them: a NaN made every vertex the colour of no error
+    scale = check_vmax(vmax)
+    vmax = default_vmax(d.double().numpy()) if scale is None else scale
     decimated_from = None
     if m.num_faces > max_faces:
         from torchmeshmetric.kernels.nearest import nearest_vertex_distance

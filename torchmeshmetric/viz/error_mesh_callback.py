@@ -8,8 +8,9 @@ from typing import Any, Literal
 from lightning.pytorch import Callback, LightningModule, Trainer
 
 from torchmeshmetric.structures import MeshLike
+from torchmeshmetric.viz.colors import check_vmax
 from torchmeshmetric.viz.error_mesh import error_mesh
-from torchmeshmetric.viz.mesh_logging import log_error_mesh, surface_errors
+from torchmeshmetric.viz.mesh_logging import check_tag, log_error_mesh, surface_errors
 
 __all__ = ["ErrorMeshCallback"]
 
@@ -26,8 +27,8 @@ class ErrorMeshCallback(Callback):
     Args:
         pair: ``(trainer, module) -> (simplified, reference)``.
         tag: the log's name.
-        vmax: the error of the brightest colour, the same at every epoch so that colours compare (default: each
-            mesh's 95th percentile).
+        vmax: the error of the brightest colour, finite and positive, the same at every epoch so that colours
+            compare (default: each mesh's 95th percentile).
         every_n_epochs: log every n-th validation epoch.
         unit: the unit of the distances.
         file_format: the file of the loggers that take files.
@@ -54,11 +55,9 @@ class ErrorMeshCallback(Callback):
             raise TypeError(f"pair: expected a callable (trainer, module) -> (simplified, reference), found {pair!r}")
         if isinstance(every_n_epochs, bool) or not isinstance(every_n_epochs, int) or every_n_epochs < 1:
             raise ValueError(f"every_n_epochs: expected a positive int, found {every_n_epochs!r}")
-        if vmax is not None and not float(vmax) > 0:
-            raise ValueError(f"vmax: expected None or a positive number, found {vmax!r}")
+        self.vmax = check_vmax(vmax)  # refused now, not at the end of the first validation epoch
         self.pair = pair
-        self.tag = tag
-        self.vmax = vmax
+        self.tag = check_tag(tag)
         self.every_n_epochs = every_n_epochs
         self.unit = unit
         self.file_format: Literal["glb", "ply"] = file_format

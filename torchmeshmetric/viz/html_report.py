@@ -113,7 +113,8 @@ def best_pair_layers(
                 max_faces=max_faces,
             )
         )
-    vmax = max(float(p.distances["surface_k_minus_1"].max()) for p in pairs.values())
+    # one scale for all methods (no scale to share when every distance is 0: each layer then takes its default)
+    vmax = max(float(p.distances["surface_k_minus_1"].max()) for p in pairs.values()) or None
     for name, pair in pairs.items():
         layers.append(
             error_mesh(
@@ -127,7 +128,7 @@ def best_pair_layers(
             )
         )
     if all("surface_k" in p.reverse_distances for p in pairs.values()):
-        rmax = max(float(p.reverse_distances["surface_k"].max()) for p in pairs.values())
+        rmax = max(float(p.reverse_distances["surface_k"].max()) for p in pairs.values()) or None
         for name, pair in pairs.items():
             layers.append(
                 error_mesh(

@@ -10,8 +10,9 @@ surface distances it measures) and logs it to whatever it is given:
 * a Weights & Biases run, or Lightning's ``WandbLogger``: ``wandb.Object3D`` of the mesh as GLB (W&B takes meshes
   as glTF), the scale in the caption;
 * any other logger (Lightning's ``CSVLogger``, ``MLFlowLogger``, ...) or a folder: a ``.glb`` (or ``.ply``) file in
-  its ``log_dir`` (``meshes/<tag>_step<step>.glb``), handed to the logger's ``experiment.log_artifact`` when it
-  has one (MLflow).
+  its ``log_dir`` (``meshes/<tag>_step<step>.glb``, the tag percent-encoded as in a URL, ``val/mesh`` as
+  ``val%2Fmesh``, so that distinct tags never share a file), handed to the logger's ``experiment.log_artifact``
+  when it has one (MLflow).
 
 Nothing is imported until it is used: tensorboard and wandb are never imported unless such a logger is given.
 :class:`~torchmeshmetric.viz.error_mesh_callback.ErrorMeshCallback` does it at the end of every validation epoch.
@@ -28,10 +29,13 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric._atomic import atomic_write
+from torchmeshmetric._checks import check_int
+from torchmeshmetric._format import json_safe
 from torchmeshmetric.structures import MeshLike, as_mesh
+from torchmeshmetric.viz.colors import check_vmax
 from torchmeshmetric.viz.error_mesh import DISPLAY_FACES, ErrorMesh, error_mesh, glb_bytes, ply_bytes
 
-__all__ = ["log_error_mesh", "surface_errors"]
+__all__ = ["check_tag", "log_error_mesh", "mesh_file_name", "surface_errors"]
 
 
 def surface_errors(simplified: MeshLike, reference: MeshLike, *, backend: str = "auto") -> Tensor:
@@ -49,6 +53,35 @@ def surface_errors(simplified: MeshLike, reference: MeshLike, *, backend: str = 
     s, r = as_mesh(simplified), as_mesh(reference)
     with torch.no_grad():
         return point_mesh_distance(s.verts.to(r.verts), r, backend=backend).dists
+
+
+def check_tag(tag: object) -> str:
+    """A log's name: a non-empty string (``None`` or ``""`` gave a crash, or a file named ``_step000003.glb``).
+
+    Example:
+        >>> check_tag("val/error_mesh")
+        'val/error_mesh'
+    """
+    if not isinstance(tag, str):
+        raise TypeError(f"tag: expected a string (the log's name, e.g. 'val/error_mesh'), found {type(tag).__name__}")
+    if not tag.strip():
+        raise ValueError(f"tag: expected a non-blank name (e.g. 'val/error_mesh'), found {tag!r}")
+    return tag
+
+
+def mesh_file_name(tag: str, step: int, file_format: str) -> str:
+    """The file of a tag's mesh at a step: ``<tag>_step<step>.<format>``, the tag percent-encoded (as in a URL).
+
+    The encoding is one-to-one, so distinct tags never write one file (``val/mesh`` and ``val_mesh`` both became
+    ``val_mesh_step000003.glb``, the second overwriting the first); letters, digits and ``_.-~`` are kept.
+
+    Example:
+        >>> mesh_file_name("val/mesh", 3, "glb"), mesh_file_name("val_mesh", 3, "glb")
+        ('val%2Fmesh_step000003.glb', 'val_mesh_step000003.glb')
+    """
+    from urllib.parse import quote
+
+    return f"{quote(tag, safe='')}_step{step:06d}.{file_format}"
 
 
 def _is_tensorboard(x: Any) -> bool:
@@ -79,25 +112,29 @@ def log_error_mesh(
 
     Args:
         logger: a ``SummaryWriter``, a W&B run, a Lightning logger, or a folder (``str``/``PathLike``) for files.
-        tag: the log's name (e.g. ``"val/error_mesh"``).
+        tag: the log's name (e.g. ``"val/error_mesh"``); its steps are one series (a file logger writes one file a
+            step, :func:`mesh_file_name`), so give each series its own tag.
         mesh: the mesh (e.g. a model's simplified frame), or an :class:`ErrorMesh` already coloured.
         dists: ``(V,)`` one error per vertex (or per referenced vertex); with ``reference`` instead, the surface
             distance of every vertex to ``reference`` (:func:`surface_errors`).
         reference: the reference mesh whose surface distances colour ``mesh`` (when ``dists`` is not given).
-        step: the training step (``global_step``).
-        vmax: the error of the brightest colour; fix it (e.g. the error of a first model) so that colours of
-            successive steps compare (default: the 95th percentile of each mesh's errors).
+        step: the training step (``global_step``), an int >= 0.
+        vmax: the error of the brightest colour, finite and positive; fix it (e.g. the error of a first model) so
+            that colours of successive steps compare (default: the 95th percentile of each mesh's errors).
         what: what the error measures (logged with the scale).
         unit: the unit of the errors.
         file_format: the file of a file/artifact logger and of W&B's object (W&B takes ``"glb"`` only).
-        max_faces: larger meshes are decimated for the log (each kept vertex keeps its nearest vertex's error).
+        max_faces: larger meshes are decimated for the log (each kept vertex keeps its nearest vertex's error), >= 1.
 
     Returns:
         The :class:`ErrorMesh` logged.
 
     Raises:
-        TypeError: neither ``dists`` nor ``reference`` (nor an ``ErrorMesh``) was given, or both were.
-        ValueError: ``file_format`` is not ``"glb"`` or ``"ply"``.
+        TypeError: neither ``dists`` nor ``reference`` (nor an ``ErrorMesh``) was given, or both were; ``tag`` is not
+            a string, ``step`` or ``max_faces`` not an int, ``vmax`` not a number.
+        ValueError: ``file_format`` is not ``"glb"`` or ``"ply"``; ``tag`` is blank; ``step`` is negative,
+            ``max_faces`` below 1, ``vmax`` not positive or a distance negative.
+        NonFiniteError: ``vmax`` or a distance is NaN or infinite.
 
     Example:
         >>> import tempfile, pathlib, trimesh
@@ -105,10 +142,13 @@ def log_error_mesh(
         >>> folder = tempfile.mkdtemp()
         >>> logged = log_error_mesh(folder, "val/mesh", sphere.copy().apply_scale(1.01), reference=sphere, step=3)
         >>> sorted(p.name for p in (pathlib.Path(folder) / "meshes").iterdir())
-        ['val_mesh_step000003.glb']
+        ['val%2Fmesh_step000003.glb']
     """
     if file_format not in ("glb", "ply"):
         raise ValueError(f"file_format: expected 'glb' or 'ply', found {file_format!r}")
+    check_tag(tag)
+    step = check_int(step, "step", low=0)
+    check_vmax(vmax)  # before the distances are measured
     if isinstance(mesh, ErrorMesh):
         if dists is not None or reference is not None:
             raise TypeError("dists, reference: an ErrorMesh is already coloured; give neither")
@@ -118,7 +158,8 @@ def log_error_mesh(
             raise TypeError("dists, reference: expected exactly one of them (the errors, or the mesh measuring them)")
         errors = surface_errors(mesh, reference) if reference is not None else dists
         coloured = error_mesh(tag, mesh, errors, what=what, vmax=vmax, unit=unit, max_faces=max_faces)
-    scale = {"vmax": coloured.vmax, "unit": coloured.unit, "what": coloured.what, "colormap": "viridis-like"}
+    # strict JSON (a file layer's unknown scale, vmax NaN, is written "nan" as the reports write it)
+    scale = json_safe({"vmax": coloured.vmax, "unit": coloured.unit, "what": coloured.what, "colormap": "viridis-like"})
     writer = logger if _is_tensorboard(logger) else getattr(logger, "experiment", None)
     if not isinstance(logger, str | os.PathLike) and _is_tensorboard(writer):
         writer.add_mesh(  # type: ignore[union-attr]
@@ -143,7 +184,8 @@ def log_error_mesh(
 
 
 def _caption(scale: dict[str, Any]) -> str:
-    return f"{scale['what']}: colours 0 .. {scale['vmax']:.4g} {scale['unit']} ({scale['colormap']})"
+    vmax = scale["vmax"] if isinstance(scale["vmax"], str) else f"{scale['vmax']:.4g}"
+    return f"{scale['what']}: colours 0 .. {vmax} {scale['unit']} ({scale['colormap']})"
 
 
 def _log_file(logger: Any, tag: str, coloured: ErrorMesh, step: int, file_format: str) -> Path:
@@ -158,8 +200,7 @@ def _log_file(logger: Any, tag: str, coloured: ErrorMesh, step: int, file_format
                 "write the mesh file in"
             )
         folder = Path(where)
-    name = "".join(c if c.isalnum() or c in "-_." else "_" for c in tag)
-    path = folder / "meshes" / f"{name}_step{step:06d}.{file_format}"
+    path = folder / "meshes" / mesh_file_name(tag, step, file_format)
     path.parent.mkdir(parents=True, exist_ok=True)
     data = glb_bytes(coloured) if file_format == "glb" else ply_bytes(coloured)
     atomic_write(path, data, overwrite=True)
