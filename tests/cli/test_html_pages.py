@@ -204,6 +204,15 @@ def _pair(frame: int, rmse: object = 0.5) -> dict:
         ({"methods": {"A": {"pairs": [{"frame": 1}]}}}, "methods -> 'A' -> pairs[0]: no distance set"),
         ({"frames": [{"frame": 0}]}, "frames[0]: expected an object with a 'frame' and its figures"),
         ({"frames": "abc"}, "frames: expected a non-empty list"),
+        # review A, finding 4: these passed the check, then crashed the page with a bare Python message
+        ({"methods": {"A": {"pairs": [{**_pair(1), "surface_k": 0.5}]}}},
+         "methods -> 'A' -> pairs[0] -> surface_k: expected an object of statistics (with 'rmse'), found 0.5"),
+        ({"methods": {"A": {"pairs": [{**_pair(1), "flicker": {"rmse": 0.1}, "registration": 0.2}]}}},
+         "methods -> 'A' -> pairs[0] -> registration: expected an object with the 'residual'"),
+        ({"methods": {"A": {"pairs": [{**_pair(1), "flicker": {"rmse": 0.1}, "registration": {"residual": 0.2}}]}}},
+         "methods -> 'A' -> pairs[0] -> registration -> residual: expected an object of statistics"),
+        ({"frames": [{"x": 1, "a": 1}]}, "frames[0]: expected an object with an integer 'frame' and its figures"),
+        ({"frames": [{"frame": "nan", "a": 1}]}, "frames[0]: expected an object with an integer 'frame'"),
     ],
 )  # fmt: skip
 def test_report_command_names_what_does_not_fit(capsys, tmp_path, report, message):

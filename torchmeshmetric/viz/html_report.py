@@ -183,6 +183,20 @@ def _number(value: object, where: str) -> None:
         raise ValueError(f"{where}: expected a number (or 'nan', 'inf'), found {value!r}")
 
 
+def _frame(row: object, where: str, what: str) -> None:
+    """A pair's or a row's ``"frame"``: an integer (the curves' x axis)."""
+    frame = row.get("frame") if isinstance(row, Mapping) else None
+    if isinstance(frame, bool) or not isinstance(frame, int):
+        raise ValueError(f"{where}: expected an object with an integer 'frame'{what}, found {row!r:.80}")
+
+
+def _statistics(value: object, where: str) -> None:
+    """A set's statistics as a report holds them: an object whose ``"rmse"`` is a number (the curves' values)."""
+    if not isinstance(value, Mapping):
+        raise ValueError(f"{where}: expected an object of statistics (with 'rmse'), found {value!r:.80}")
+    _number(value.get("rmse"), f"{where} -> rmse")
+
+
 def check_report(report: Mapping[str, Any]) -> None:
     """Check that a JSON report has the shape :func:`report_figures` and :func:`report_page` read.
 
@@ -215,27 +229,20 @@ def check_report(report: Mapping[str, Any]) -> None:
             if not isinstance(pairs, list) or not pairs:
                 raise ValueError(f"{at} -> pairs: expected a non-empty list, found {pairs!r:.80}")
             for i, pair in enumerate(pairs):
-                if (
-                    not isinstance(pair, Mapping)
-                    or isinstance(pair.get("frame"), bool)
-                    or not isinstance(pair.get("frame"), int)
-                ):
-                    raise ValueError(
-                        f"{at} -> pairs[{i}]: expected an object with an integer 'frame', found {pair!r:.80}"
-                    )
+                _frame(pair, f"{at} -> pairs[{i}]", "")
                 sets = [s for s in (*SET_NAMES, FLICKER) if s in pair]
                 if not sets:
                     raise ValueError(f"{at} -> pairs[{i}]: no distance set (expected some of {list(SET_NAMES)})")
                 for s in sets:
-                    _number(
-                        pair[s].get("rmse") if isinstance(pair[s], Mapping) else pair[s],
-                        f"{at} -> pairs[{i}] -> {s} -> rmse",
-                    )
+                    _statistics(pair[s], f"{at} -> pairs[{i}] -> {s}")  # a bare number crashed the curves
                 if FLICKER in pair:
-                    residual = pair.get("registration", {})
-                    residual = residual.get("residual", {}) if isinstance(residual, Mapping) else residual
-                    value = residual.get("rmse") if isinstance(residual, Mapping) else residual
-                    _number(value, f"{at} -> pairs[{i}] -> registration -> residual -> rmse")
+                    registration = pair.get("registration")
+                    if not isinstance(registration, Mapping):
+                        raise ValueError(
+                            f"{at} -> pairs[{i}] -> registration: expected an object with the 'residual' of a "
+                            f"measured flicker, found {registration!r:.80}"
+                        )
+                    _statistics(registration.get("residual"), f"{at} -> pairs[{i}] -> registration -> residual")
             these = [p["frame"] for p in pairs]
             if frames is not None and these != frames:
                 raise ValueError(f"{at} -> pairs: frames {these}, the first method's {frames} (must match)")
@@ -245,7 +252,8 @@ def check_report(report: Mapping[str, Any]) -> None:
         if not isinstance(rows, list) or not rows:
             raise ValueError(f"frames: expected a non-empty list, found {rows!r:.80}")
         for i, row in enumerate(rows):
-            if not isinstance(row, Mapping) or len(row) < 2:
+            _frame(row, f"frames[{i}]", " and its figures")  # a row without one crashed the page with 'frame'
+            if len(row) < 2:
                 raise ValueError(f"frames[{i}]: expected an object with a 'frame' and its figures, found {row!r:.80}")
             for key, value in row.items():
                 _number(value, f"frames[{i}] -> {key}")
