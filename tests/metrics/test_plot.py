@@ -79,7 +79,9 @@ def test_plot_draws_the_computed_values(cls, tmp_path):
     else:  # a scalar: torchmetrics' own drawing, one point
         (line,) = ax.get_lines()[:1]
         assert list(line.get_ydata()) == pytest.approx([float(out)], rel=1e-12)
-    assert ax.get_ylabel() == cls.__name__ if cls.__name__ != "DistanceStatisticsBase" else True
+    # a view is named by its statistic (every view was labelled "SelectedStatistic": review A, finding 7)
+    expected = metric.key if cls is SelectedStatistic else cls.__name__
+    assert ax.get_ylabel() == expected if cls.__name__ != "DistanceStatisticsBase" else True
     assert _saved(fig, tmp_path, cls.__name__)[:8] == PNG
 
 
@@ -178,7 +180,8 @@ def test_values_that_are_not_finite_are_labelled_and_named(tmp_path):
     named = r"DistanceStatisticsMetric.plot: ave=nan, max=inf not finite: each is a label over no bar"
     with pytest.warns(UserWarning, match=named):
         fig, ax = metric.plot(result)
-    assert [t.get_text() for t in ax.texts] == ["nan", "2", "inf"]
+    # the labels keep the tables' digits: RMSE 2 significant ("2" with the old ".3g": review A, finding 9)
+    assert [t.get_text() for t in ax.texts] == ["nan", "2.0", "inf"]
     assert [p.get_height() for p in ax.patches] == [0.0, 2.0, 0.0] and ax.get_ylim()[0] == 0.0
     assert _saved(fig, tmp_path, "bars")[:8] == PNG
     steps = [{"ave": torch.tensor(1.0)}, {"ave": torch.tensor(float("inf"))}]
@@ -188,4 +191,75 @@ def test_values_that_are_not_finite_are_labelled_and_named(tmp_path):
         metric.plot([torch.tensor(float("nan")), torch.tensor(1.0)])
     with pytest.warns(UserWarning, match=r": val=-inf not finite"):
         metric.plot(torch.tensor(float("-inf")))
+    plt.close("all")
+
+
+def test_bar_labels_print_the_digits_the_reports_call_determined():
+    # every bar was labelled with ".3g" ("1.58"), while the tables print 2 significant digits of Ave/STD/RMSE/P95,
+    # 3 of Max and one decimal of a PSNR (COLUMN_FORMATS) (review A, finding 9)
+    metric = DistanceStatisticsMetric()
+    metric.update(torch.tensor([1.0, 2.0]))
+    fig, ax = metric.plot(keys=["ave", "std", "rmse", "median", "p95", "max", "min"])
+    assert [t.get_text() for t in ax.texts] == ["1.5", "0.50", "1.6", "1.5", "1.9", "2.00", "1.00"]  # p95 1.95
+    plt.close(fig)
+    two = _updated(MeshSurfaceDistance, two_sided=True)
+    out = two.compute()
+    fig, ax = two.plot(keys=["reverse_rmse", "hausdorff", "symmetric_rmse", "psnr", "count"])
+    assert [t.get_text() for t in ax.texts] == [
+        f"{float(out['reverse_rmse']):#.2g}",
+        f"{float(out['hausdorff']):#.3g}",
+        f"{float(out['symmetric_rmse']):#.2g}",
+        f"{float(out['psnr']):.1f}",
+        f"{float(out['count']):.0f}",
+    ]
+    plt.close(fig)
+
+
+def test_views_are_named_by_their_statistic(tmp_path):
+    # the views of statistics() were all labelled "SelectedStatistic", the warning too (review A, finding 7)
+    m = MeshSurfaceDistance(two_sided=True)
+    m.update(trimesh.creation.icosphere(subdivisions=1), trimesh.creation.icosphere(subdivisions=3))
+    drawn = m.statistics(["rmse", "psnr", "hausdorff"], prefix="val/$a_$").plot()  # a "$" drawn as written
+    labels = sorted(ax.get_ylabel() for _, ax in drawn)
+    assert labels == ["val/\\$a_\\$hausdorff", "val/\\$a_\\$psnr", "val/\\$a_\\$rmse"]
+    for fig, _ in drawn:
+        assert _saved(fig, tmp_path, "view")[:8] == PNG
+    assert m.statistic("rmse").plot()[1].get_ylabel() == "rmse"
+    eq = MeshSurfaceDistance()
+    sphere = trimesh.creation.icosphere(subdivisions=1)
+    eq.update(sphere, sphere)
+    with pytest.warns(UserWarning, match=r"^psnr\.plot: val=inf not finite"):
+        eq.statistic("psnr").plot()
+    plt.close("all")
+
+
+@pytest.mark.parametrize(
+    ("val", "message"),
+    [
+        ("abc", r"val: expected a result \(a dict of statistics\), a scalar .* found str 'abc'"),
+        ((x for x in [1.0]), "val: expected a result .* found generator"),
+        ({"ave": torch.tensor([1.0, 2.0]), "max": 1.0},
+         r"val\['ave'\]: expected a number or a one-element tensor, found a tensor of shape \(2,\)"),
+        ([{"ave": 1.0, "max": 1.0}, {"ave": "x", "max": 1.0}],
+         r"val\[1\]\['ave'\]: expected a number or a one-element tensor, found str 'x'"),
+        (torch.ones(2, 2), r"val: expected a number or a one-element tensor, found a tensor of shape \(2, 2\)"),
+        ([torch.tensor(1.0), {"ave": 1.0}], "val: expected a list of results .* found a list mixing both"),
+        ([torch.tensor(1.0), "x"], r"val\[1\]: expected a number or a one-element tensor, found str 'x'"),
+    ],
+)  # fmt: skip
+def test_val_of_no_accepted_form_is_refused_naming_val(val, message):
+    # these reached torchmetrics or matplotlib and failed there, without naming val (review A, finding 6)
+    metric = _updated(DistanceStatisticsMetric)
+    with pytest.raises(ValueError, match=message):
+        metric.plot(val)
+    plt.close("all")
+
+
+def test_numbers_are_accepted_where_tensors_are():
+    # [1.0, 2.0] and [{"ave": 1}, {"ave": 2}] failed in torch.stack, while {"ave": 1.0} was drawn (review A, 6)
+    metric = _updated(DistanceStatisticsMetric)
+    _, ax = metric.plot([1.0, 2.0])
+    assert [float(y) for y in ax.get_lines()[0].get_ydata()] == [1.0, 2.0]
+    _, ax = metric.plot([{"ave": 1}, {"ave": 2}], keys=["ave"])
+    assert [float(y) for y in ax.get_lines()[0].get_ydata()] == [1.0, 2.0]
     plt.close("all")

@@ -7,10 +7,15 @@ for a :class:`~torchmeshmetric.metrics.SelectedStatistic`, one of them), so :cla
 metric class, draws
 
 * one result (``compute()``'s dict) as bars: one bar a statistic, all in the unit of the distances (``var``/``mse``
-  are squared, ``psnr`` is in dB and ``count`` is a number: they are left out unless named in ``keys``);
+  are squared, ``psnr`` is in dB and ``count`` is a number: they are left out unless named in ``keys``), each
+  labelled with the digits the reports print (:func:`bar_label`: 2 significant digits, 3 for a maximum, one decimal
+  of a PSNR);
 * several results (a list of dicts, one a step or epoch) as curves, one a statistic, with torchmetrics'
   ``plot_single_or_multi_val``;
-* a scalar (a tensor, or a list of them) exactly as torchmetrics draws a scalar metric.
+* a scalar (a number or a one-element tensor, or a list of them) exactly as torchmetrics draws a scalar metric,
+  its axis named by the metric (a :class:`~torchmeshmetric.metrics.SelectedStatistic` by its key).
+
+Any other ``val`` is refused with a ``ValueError`` naming ``val`` (and the step or key that does not fit).
 
 A value that is not finite (a NaN, a PSNR of ``inf`` between equal meshes) cannot be drawn: a bar's label shows it
 over no bar, a curve has no point there, and a ``UserWarning`` names each such value (matplotlib alone drops them
@@ -20,6 +25,7 @@ without a word).
 from __future__ import annotations
 
 import math
+import numbers
 import warnings
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -27,7 +33,9 @@ from typing import Any
 import torch
 from torch import Tensor
 
-__all__ = ["LENGTH_STATISTICS", "StatisticsPlot", "length_keys"]
+from torchmeshmetric._format import format_number, plain_label
+
+__all__ = ["LENGTH_STATISTICS", "StatisticsPlot", "bar_label", "length_keys"]
 
 #: Statistics in the unit of the distances (the keys :meth:`StatisticsPlot.plot` draws by default).
 LENGTH_STATISTICS: tuple[str, ...] = ("ave", "std", "rmse", "median", "p95", "p99", "max", "min")
@@ -47,6 +55,72 @@ def length_keys(keys: Sequence[str]) -> list[str]:
 def _base(key: str) -> str:
     """The statistic of a key, without the set of a flattened key (``"surface_k/ave"`` -> ``"ave"``)."""
     return key.rsplit("/", 1)[-1]
+
+
+def bar_label(key: str, value: float) -> str:
+    """A bar's label: ``value`` with the digits the reports print of its statistic (``COLUMN_FORMATS``).
+
+    The tables print 2 significant digits of a mean, spread or quantile (those the input determines), 3 of a
+    maximum (a Hausdorff distance, a minimum: an extreme too) and one decimal of a PSNR; a count is a whole number.
+
+    Example:
+        >>> bar_label("ave", 1.5), bar_label("reverse_std", 0.5), bar_label("hausdorff", 2.0), bar_label("psnr", 61.234)
+        ('1.5', '0.50', '2.00', '61.2')
+    """
+    from torchmeshmetric.evaluation.reports import COLUMN_FORMATS  # on use only (the tables' digits)
+
+    statistic = _base(key).removeprefix("reverse_").removeprefix("symmetric_")
+    if "psnr" in statistic:
+        spec = COLUMN_FORMATS["psnr"]
+    elif statistic in ("max", "min", "hausdorff"):
+        spec = COLUMN_FORMATS["max"]
+    elif statistic == "count":
+        spec = ".0f"
+    else:  # ave, var, std, mse, rmse and the quantiles (median, p95, p99)
+        spec = COLUMN_FORMATS.get(statistic, COLUMN_FORMATS["p95"])
+    return format_number(value, spec)
+
+
+def _scalar(value: object, where: str) -> Tensor:
+    """A value of a result as a 0-dim tensor: a real number or a one-element tensor; else an error naming it."""
+    if isinstance(value, Tensor) and value.numel() == 1 and not value.dtype.is_complex:
+        return value.detach().reshape(())
+    if isinstance(value, numbers.Real) and not isinstance(value, bool):
+        return torch.tensor(float(value), dtype=torch.float64)
+    found = (
+        f"a tensor of shape {tuple(value.shape)}"
+        if isinstance(value, Tensor)
+        else f"{type(value).__name__} {value!r:.40}"
+    )
+    raise ValueError(f"{where}: expected a number or a one-element tensor, found {found}")
+
+
+def _result(value: object, where: str) -> dict[str, Tensor]:
+    """A dict result with every value a 0-dim tensor (``{"ave": tensor([1., 2.])}`` named, not a bare error)."""
+    return {k: _scalar(v, f"{where}[{k!r}]") for k, v in value.items()}  # type: ignore[attr-defined]
+
+
+def _forms(val: object) -> tuple[str, Any]:
+    """``val`` in one of the accepted forms: ``"result"``, ``"results"``, ``"scalar"`` or ``"scalars"``, and its value.
+
+    Anything else is a ``ValueError`` naming ``val``.
+    """
+    if isinstance(val, dict):
+        return "result", val
+    if isinstance(val, Tensor) or (isinstance(val, numbers.Real) and not isinstance(val, bool)):
+        return "scalar", _scalar(val, "val")
+    if isinstance(val, Sequence) and not isinstance(val, (str, bytes)):
+        if len(val) == 0:
+            raise ValueError("val: expected a result or a non-empty list of results, found an empty list")
+        if all(isinstance(step, dict) for step in val):
+            return "results", list(val)
+        if not any(isinstance(step, dict) for step in val):
+            return "scalars", [_scalar(step, f"val[{i}]") for i, step in enumerate(val)]
+        raise ValueError("val: expected a list of results (dicts) or of scalars, found a list mixing both")
+    raise ValueError(
+        "val: expected a result (a dict of statistics), a scalar (a number or a one-element tensor), a non-empty "
+        f"list of either, or None; found {type(val).__name__} {val!r:.40}"
+    )
 
 
 def _direction(key: str) -> int:
@@ -78,6 +152,10 @@ class StatisticsPlot:
         """Whether a larger scalar is better (``None``: unknown), for torchmetrics' "optimal value" mark."""
         return self.higher_is_better
 
+    def _plot_name(self) -> str:
+        """The label of the plot's value axis and of its warnings: the class' name (a view: its statistic)."""
+        return type(self).__name__
+
     def plot(
         self,
         val: Tensor | Sequence[Tensor] | dict[str, Tensor] | Sequence[dict[str, Tensor]] | None = None,
@@ -88,8 +166,8 @@ class StatisticsPlot:
         """Plot a result of the metric (default: ``self.compute()``), or a list of them as curves over steps.
 
         Args:
-            val: a result of ``compute()`` / ``forward()``, a list of them (one per step), or ``None`` to plot
-                ``self.compute()``.
+            val: a result of ``compute()`` / ``forward()`` (a dict of statistics, or a number or one-element tensor
+                for a scalar metric), a list of them (one per step), or ``None`` to plot ``self.compute()``.
             ax: a ``matplotlib.axes.Axes`` to draw into (default: a new figure).
             keys: the statistics of a dict result to draw (default: those in the unit of the distances,
                 :func:`length_keys`).
@@ -115,20 +193,21 @@ class StatisticsPlot:
         from torchmetrics.utilities.plot import _error_on_missing_matplotlib
 
         _error_on_missing_matplotlib()
-        val = self.compute() if val is None else val
-        name = type(self).__name__
-        if isinstance(val, dict):
+        form, val = _forms(self.compute() if val is None else val)
+        name = self._plot_name()
+        if form == "result":
             flat = self._plot_result(val)
-            return _bars(flat, ax, self._chosen(flat, keys), name)
-        if isinstance(val, Sequence) and not isinstance(val, str) and len(val) == 0:
-            raise ValueError("val: expected a result or a non-empty list of results, found an empty list")
-        if isinstance(val, Sequence) and isinstance(val[0], dict):
+            chosen = self._chosen(flat, keys)
+            return _bars(_result({k: flat[k] for k in chosen}, "val"), ax, chosen, name)
+        if form == "results":
             steps = [self._plot_result(step) for step in val]
             chosen = self._chosen(steps[0], keys)
             for i, step in enumerate(steps[1:], start=1):
                 if missing := [k for k in chosen if k not in step]:
                     raise KeyError(f"val[{i}]: {missing} not in this step's result, whose keys are {list(step)}")
-            return _curves([{k: step[k] for k in chosen} for step in steps], ax, name, None)
+            return _curves(
+                [_result({k: s[k] for k in chosen}, f"val[{i}]") for i, s in enumerate(steps)], ax, name, None
+            )
         return _curves(val, ax, name, self._plot_higher_is_better())
 
     def _chosen(self, result: dict[str, Tensor], keys: Sequence[str] | None) -> list[str]:
@@ -168,7 +247,9 @@ def _curves(val: Any, ax: Any, name: str, higher_is_better: bool | None) -> tupl
 
     _warn_not_finite(name, _not_finite_steps(val), "the curves have no point there")
     lower = None if higher_is_better else 0.0  # distances are >= 0; a PSNR has no lower bound
-    fig, ax = plot_single_or_multi_val(val, ax=ax, higher_is_better=higher_is_better, lower_bound=lower, name=name)
+    fig, ax = plot_single_or_multi_val(
+        val, ax=ax, higher_is_better=higher_is_better, lower_bound=lower, name=plain_label(name)
+    )
     return fig, ax
 
 
@@ -182,10 +263,11 @@ def _bars(result: dict[str, Tensor], ax: Any, chosen: list[str], name: str) -> t
     _warn_not_finite(name, odd, "each is a label over no bar")
     fig, ax = plt.subplots(figsize=(max(4.0, 0.6 * len(chosen) + 1.5), 3.5)) if ax is None else (None, ax)
     bars = ax.bar(range(len(chosen)), finite, color=[f"C{_direction(k)}" for k in chosen])
-    ax.bar_label(bars, labels=[f"{v:.3g}" for v in values], fontsize=7)
+    ax.bar_label(bars, labels=[bar_label(k, v) for k, v in zip(chosen, values, strict=True)], fontsize=7)
     tilted = len(chosen) > 8
-    ax.set_xticks(range(len(chosen)), chosen, rotation=45 if tilted else 0, ha="right" if tilted else "center")
-    ax.set_ylabel(name)
+    ticks = [plain_label(k) for k in chosen]
+    ax.set_xticks(range(len(chosen)), ticks, rotation=45 if tilted else 0, ha="right" if tilted else "center")
+    ax.set_ylabel(plain_label(name))
     if min(finite) >= 0:
         ax.set_ylim(bottom=0.0)  # distances: the bars start at their lower bound
     ax.grid(True, axis="y")

@@ -161,17 +161,21 @@ class DistanceStatisticsBase(StatisticsPlot, DistanceStatesMetric):
             return fields
         return fields + tuple("reverse_" + f for f in fields) + tuple(s for s in _SYMMETRIC if psnr or "psnr" not in s)
 
-    def statistic(self, key: str) -> SelectedStatistic:
+    def statistic(self, key: str, *, label: str | None = None) -> SelectedStatistic:
         """A scalar metric reporting ``self.compute()[key]``, for ``self.log(name, metric)`` in Lightning.
 
         The view shares this metric's accumulation: keep calling ``update`` on this metric; logging the view makes
         Lightning compute it at the end of the epoch and reset this metric. See
         :class:`~torchmeshmetric.metrics.SelectedStatistic`.
 
+        Args:
+            key: one of :meth:`statistic_names`.
+            label: the name ``plot()`` gives the value (default ``key``).
+
         Raises:
             ValueError: ``key`` is not one of :meth:`statistic_names`.
         """
-        return SelectedStatistic(self, key)
+        return SelectedStatistic(self, key, label=label)
 
     def statistics(
         self, keys: Sequence[str] | None = None, *, prefix: str | None = None, postfix: str | None = None
@@ -201,9 +205,11 @@ class DistanceStatisticsBase(StatisticsPlot, DistanceStatesMetric):
         keys = self.statistic_names() if keys is None else tuple(keys)
         if len(keys) == 0 or len(set(keys)) != len(keys):
             raise ValueError(f"keys: expected distinct statistic names, found {keys!r}")
-        return MetricCollection(
-            {k: self.statistic(k) for k in keys}, prefix=prefix, postfix=postfix, compute_groups=False
-        )
+        # each view's plot() is named by its key as the collection names it (prefix and postfix included)
+        views: dict[str, Metric | MetricCollection] = {
+            k: self.statistic(k, label=f"{prefix or ''}{k}{postfix or ''}") for k in keys
+        }
+        return MetricCollection(views, prefix=prefix, postfix=postfix, compute_groups=False)
 
     def compute(self) -> dict[str, Tensor]:
         """Dict of 0-dim float64 tensors (``count`` included, as float64, so that every value logs as a float).

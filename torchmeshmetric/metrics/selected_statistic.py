@@ -54,6 +54,9 @@ class SelectedStatistic(StatisticsPlot, Metric):
     Args:
         source: the metric whose statistic is reported.
         key: a key of ``source.compute()`` (one of ``source.statistic_names()``).
+        label: the name ``plot()`` gives the value (its axis label; default ``key``;
+            :meth:`~torchmeshmetric.metrics.DistanceStatisticsBase.statistics` gives the collection's name of it,
+            prefix and postfix included).
 
     Example:
         >>> import torch
@@ -63,6 +66,8 @@ class SelectedStatistic(StatisticsPlot, Metric):
         >>> metric.update(torch.tensor([3.0, 4.0]))
         >>> rmse.compute()
         tensor(3.5355, dtype=torch.float64)
+        >>> rmse.plot()[1].get_ylabel()
+        'rmse'
     """
 
     is_differentiable = False
@@ -70,13 +75,16 @@ class SelectedStatistic(StatisticsPlot, Metric):
     higher_is_better: bool | None = None
     full_state_update = False
 
-    def __init__(self, source: StatisticSource, key: str) -> None:
+    def __init__(self, source: StatisticSource, key: str, *, label: str | None = None) -> None:
         super().__init__(compute_with_cache=False)
         names = source.statistic_names()
         if key not in names:
             raise ValueError(f"key: expected one of {names} for this {type(source).__name__}, found {key!r}")
+        if label is not None and not isinstance(label, str):
+            raise TypeError(f"label: expected a string or None, found {type(label).__name__} {label!r}")
         self.source = source
         self.key = key
+        self.label = key if label is None else label
 
     # The view has no state: its "update count" is the source's, so torchmetrics does not warn that compute() ran
     # before update() when the source was updated.
@@ -115,6 +123,10 @@ class SelectedStatistic(StatisticsPlot, Metric):
     def _plot_higher_is_better(self) -> bool:
         """A PSNR is better higher, a distance lower (``plot()``'s optimal-value mark)."""
         return "psnr" in self.key
+
+    def _plot_name(self) -> str:
+        """The statistic shown (``plot()``'s axis label; every view was labelled ``SelectedStatistic``)."""
+        return self.label
 
     def extra_repr(self) -> str:
         """The selected key (shown in ``repr``)."""
