@@ -11,6 +11,7 @@ import base64
 import importlib.util
 import json
 import re
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -334,3 +335,33 @@ def test_viewer_layers_of_a_method_without_error_are_drawn():
     layers = best_pair_layers({"same": result}, frames, {"same": frames})
     assert len(layers) > 1 and [layer.vmax for layer in layers[1:]] == [1.0] * (len(layers) - 1)
     assert layers[1].colors.tolist() == [[68, 1, 84]] * len(frames[1].vertices)  # every vertex: no error
+
+
+_SORT_HARNESS = """
+var document = {querySelectorAll: function () { return []; }, getElementById: function () { return null; }};
+eval(require("fs").readFileSync(process.argv[1], "utf8"));
+var keyed = JSON.parse(process.argv[2]).map(function (c) { return [sortKey(c), c]; });
+keyed.sort(function (a, b) { return compareKeys(a[0], b[0]); });
+console.log(JSON.stringify(keyed.map(function (p) { return p[1]; })));
+"""
+
+
+@pytest.mark.skipif(shutil.which("node") is None, reason="needs node to run the page's script")
+@pytest.mark.parametrize(
+    ("cells", "expected"),
+    [
+        # "~0.10" (a --determinacy mark) was text: sorted before every number (review A, finding 10)
+        (["0.030", "~0.012", "0.0050", "~0.10", "0.020"], ["0.0050", "~0.012", "0.020", "0.030", "~0.10"]),
+        # a verdict cell sorts by its difference, whatever the winner's name (":" in it too); text after numbers
+        (["≈: -0.000303 ± 0.000863", "a|b x: -0.00115 ± 0.0008", "~B: 0.5 ± 1", "n: a: 2 ± 1", "nan", "inf", "-inf"],
+         ["-inf", "a|b x: -0.00115 ± 0.0008", "≈: -0.000303 ± 0.000863", "~B: 0.5 ± 1", "n: a: 2 ± 1", "inf", "nan"]),
+    ],
+)  # fmt: skip
+def test_the_pages_sort_reads_the_number_after_the_reports_marks(cells, expected):
+    import subprocess
+
+    script = Path(__file__).resolve().parents[2] / "torchmeshmetric" / "viz" / "report_page.js"
+    out = subprocess.run(
+        ["node", "-e", _SORT_HARNESS, str(script), json.dumps(cells)], capture_output=True, text=True, check=True
+    )
+    assert json.loads(out.stdout) == expected

@@ -3,23 +3,33 @@
 // camera). Plain ES5, no library, nothing loaded: the page works from file:// offline.
 
 // Sort a table by a click on a header: numbers (the report's printed digits) as numbers, other cells as text.
+// A cell's number is read after the marks the reports put before it: "~" (digits --determinacy did not hold) and a
+// verdict's "NAME: " or "≈: " ("~A: -0.0003 ± 0.0009" sorts by -0.0003). Numbers come before text, in both orders.
+function sortKey(text) {
+  var t = text.replace(/\*/g, "").trim(), n = t.replace(/^~/, "").replace(/^.*?:\s+(?=~?[-+]?(\d|\.\d|inf))/, "");
+  n = n.replace(/^~/, "");
+  if (/^[-+]?inf\b/.test(n)) return n.charAt(0) === "-" ? -Infinity : Infinity;
+  var x = parseFloat(n);
+  return isNaN(x) ? t : x;
+}
+function compareKeys(x, y) {
+  var nx = typeof x === "number", ny = typeof y === "number";
+  if (nx && ny) return x === y ? 0 : (x < y ? -1 : 1);
+  if (nx !== ny) return nx ? -1 : 1;
+  return String(x).localeCompare(String(y));
+}
 document.querySelectorAll("table.sortable th").forEach(function (th) {
   th.addEventListener("click", function () {
     var table = th.closest("table"), body = table.tBodies[0], col = th.cellIndex;
     var asc = !th.classList.contains("asc");
     table.querySelectorAll("th").forEach(function (h) { h.classList.remove("asc", "desc"); });
     th.classList.add(asc ? "asc" : "desc");
-    var key = function (row) {
-      var t = row.cells[col] ? row.cells[col].textContent.replace(/\*/g, "").trim() : "";
-      var x = parseFloat(t);
-      return isNaN(x) ? (t === "inf" ? Infinity : t) : x;
-    };
-    Array.from(body.rows).sort(function (a, b) {
-      var x = key(a), y = key(b), c;
-      if (typeof x === "number" && typeof y === "number") c = x - y;
-      else c = String(x).localeCompare(String(y));
-      return asc ? c : -c;
-    }).forEach(function (row) { body.appendChild(row); });
+    var key = function (row) { return sortKey(row.cells[col] ? row.cells[col].textContent : ""); };
+    var rows = Array.from(body.rows).map(function (row) { return [key(row), row]; });
+    rows.sort(function (a, b) {
+      var c = compareKeys(a[0], b[0]);
+      return c === 0 ? 0 : (asc ? c : (typeof a[0] === "number") !== (typeof b[0] === "number") ? c : -c);
+    }).forEach(function (pair) { body.appendChild(pair[1]); });
   });
 });
 
