@@ -8,7 +8,7 @@ the colours of :func:`~torchmeshmetric.viz.colors.error_colors` (those of the er
 
 Everything is inside the file: figures as PNG ``data:`` URLs, meshes as base64 binary arrays (float32 positions,
 uint16/uint32 faces, uint8 RGB colours) and a small hand-written WebGL viewer (``report_page.js`` beside this
-module, ~170 lines; why not three.js or model-viewer: docs/report.md). It opens from ``file://`` with no server and
+module; why not three.js or model-viewer: docs/report.md). It opens from ``file://`` with no server and
 loads nothing from the network. Meshes above ``max_faces`` faces are decimated for display (QEM), each kept vertex
 taking the error of its nearest original vertex, so the colours stay the measured ones.
 """
