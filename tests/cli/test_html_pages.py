@@ -377,3 +377,15 @@ def test_the_docs_state_the_viewer_scripts_size():
     assert "lines" not in re.search(
         r"WebGL viewer \(``report_page.js``[^)]*\)", (root / "torchmeshmetric" / "viz" / "html_report.py").read_text()
     ).group(0)
+
+
+def test_report_names_out_when_its_folder_is_missing(capsys, tmp_path):
+    # "error: output folder 'nodir' does not exist" named no option; the other report errors name --out/--mesh
+    (tmp_path / "r.json").write_text(json.dumps({"frames": [{"frame": 0, "GridD1": 60.0}]}))
+    (tmp_path / "r.md").write_text("# r\n")
+    out = tmp_path / "nodir" / "x.html"
+    assert main(["report", str(tmp_path / "r.json"), "--out", str(out)]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err == (
+        f"torchmeshmetric report: error: --out {str(out)!r}: output folder {str(out.parent)!r} does not exist"
+    )

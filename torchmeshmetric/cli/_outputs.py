@@ -161,7 +161,7 @@ def check_writable(
         seen[key] = (option, path)
     for (option, path), replace in zip(labelled, [overwrite] * len(paths) + [True] * len(appended), strict=True):
         folder = path.parent if str(path.parent) else Path(".")
-        check_folder(folder, "output folder")
+        check_folder(folder, f"{option} {str(path)!r}: output folder")  # the option named, as in every message here
         if path.is_dir():
             raise CLIError(f"{option} {str(path)!r} is a directory, expected a file")
         # A symbolic link is an existing output even when it dangles (exists() follows it and says False).
@@ -170,7 +170,7 @@ def check_writable(
         if path.is_symlink():
             folder = _link_folder(option, path)  # the file it points to is replaced, in that file's folder
         if not os.access(folder, os.W_OK):
-            raise CLIError(f"output folder {str(folder)!r} is not writable")
+            raise CLIError(f"{option} {str(path)!r}: output folder {str(folder)!r} is not writable")
 
 
 def _link_folder(option: str, path: Path) -> Path:
