@@ -31,6 +31,7 @@ __all__ = [
     "check_float",
     "check_lengths",
     "check_non_empty",
+    "check_real",
     "check_same_device",
     "check_shape",
     "check_faces",
@@ -104,6 +105,11 @@ def check_float(x: Tensor, name: str) -> None:
         raise DTypeError(
             f"{name}: expected float32 or float64, found dtype {x.dtype}; half precision cannot hold exact distances "
             "(convert with .float(): the gradient still reaches the half-precision tensor)"
+        )
+    if x.is_complex():
+        raise DTypeError(
+            f"{name}: expected a real floating-point tensor (float32 or float64), found dtype {x.dtype}; "
+            "complex coordinates have no distance here (take .real if the imaginary parts are zero)"
         )
     if not x.is_floating_point():
         raise DTypeError(
@@ -199,6 +205,19 @@ def check_int(value: object, name: str, low: int | None = None) -> int:
     if low is not None and value < low:
         raise ValueError(f"{name}: expected an int >= {low}, found {value!r}")
     return int(value)
+
+
+def check_real(value: object, name: str) -> float:
+    """Require a real number: a Python or numpy int or float (not a bool), returned as a float.
+
+    Example:
+        >>> import numpy as np
+        >>> check_real(np.float32(0.5), "dt")
+        0.5
+    """
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):  # numpy's floats and ints are Real
+        raise TypeError(f"{name}: expected a float, found {type(value).__name__} {value!r}")
+    return float(value)
 
 
 def check_non_empty(x: Tensor, name: str) -> None:

@@ -33,7 +33,8 @@ def naive_sted(a: np.ndarray, b: np.ndarray, faces: np.ndarray, dt: float, windo
             sigmas.append(np.sqrt((w * (d - mean) ** 2).sum() / w.sum()))
     spatial = float(np.mean(sigmas))
     first = a[0]
-    diameter = max(float(np.linalg.norm(first[i] - first[j])) for i in range(num_verts) for j in range(num_verts))
+    # D over the vertices the faces use: a vertex no face references takes no part (docs/temporal.md)
+    diameter = max(float(np.linalg.norm(first[i] - first[j])) for i in used for j in used)
     t = np.sqrt((((a[1:] - a[:-1]) / diameter) ** 2).sum(-1) + dt * dt)  # (F-1, V)
     t_hat = np.sqrt((((b[1:] - b[:-1]) / diameter) ** 2).sum(-1) + dt * dt)
     rels = []

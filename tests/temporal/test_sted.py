@@ -137,3 +137,139 @@ def test_float32_at_any_scale(sphere_animation: tuple[torch.Tensor, torch.Tensor
     assert torch.equal(kg_error(a * s, b * s), kg_error(a, b))
     assert torch.equal(kso_error(a * s, b * s), kso_error(a, b) * s)
     assert torch.equal(kso_error(a * s, b * s, scale=True), kso_error(a, b, scale=True))
+
+
+def _brute_force_diameter(x: torch.Tensor) -> float:
+    """The largest distance of ``(V, 3)`` points over all V² pairs, computed as largest_vertex_distance computes it.
+
+    The pair: the first (row-major) largest float64 ``((x_i - x_j) ** 2).sum()``; the distance: that pair's norm in
+    the points' dtype. largest_vertex_distance must give these bits.
+    """
+    y = x.double()
+    d2 = ((y[:, None, :] - y[None, :, :]) ** 2).sum(-1)
+    flat = int(d2.argmax())
+    i, j = flat // y.shape[0], flat % y.shape[0]
+    return torch.linalg.vector_norm(x[i] - x[j]).item()
+
+
+def _symmetric_cases() -> list[torch.Tensor]:
+    """Point sets whose centroid lies on the farthest pair's segment, where the pruning bound is an equality."""
+    import trimesh
+
+    box = torch.as_tensor(trimesh.creation.box().vertices, dtype=torch.float64)  # cube [-0.5, 0.5]^3
+    cases = [
+        box * 0.37 + torch.tensor([0.5, -2.0, 3.0], dtype=torch.float64),  # review: D 0.5233 for 0.6409
+        torch.cat([box + 0.5, torch.tensor([[5.0, 5.0, 5.0]], dtype=torch.float64)]),  # review: D = 0, STED_t NaN
+        torch.tensor([[-1.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1], [10, 0, 0]]).double(),
+    ]
+    for sub in (0, 1, 2):  # review: an icosphere plus one point on an axis or diagonal gave D = 0 in 19 of 90
+        sphere = torch.as_tensor(trimesh.creation.icosphere(subdivisions=sub).vertices, dtype=torch.float64)
+        for distance in (2.0, 3.0, 5.0, 10.0, 100.0, 1e3):
+            for direction in ((1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 0), (1, 1, 1)):
+                u = torch.tensor(direction, dtype=torch.float64)
+                cases.append(torch.cat([sphere, (distance * u / u.norm())[None]]))
+    return cases
+
+
+def test_largest_vertex_distance_is_the_brute_force_maximum_on_symmetric_sets() -> None:
+    # The pruning kept r >= L - max(r) with no margin: on these sets the bound is tight and rounding dropped the true
+    # partner. Every case must give the brute force's bits, in float64 and float32.
+    wrong = []
+    for k, x in enumerate(_symmetric_cases()):
+        for dtype in (torch.float64, torch.float32):
+            y = x.to(dtype)
+            got, want = largest_vertex_distance(y).item(), _brute_force_diameter(y)
+            if got != want:
+                wrong.append((k, dtype, got, want))
+    assert not wrong
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_largest_vertex_distance_is_the_brute_force_maximum_on_random_sets(seed: int) -> None:
+    g = torch.Generator().manual_seed(seed)
+    n = int(torch.randint(2, 400, (1,), generator=g))
+    x = torch.randn(n, 3, dtype=torch.float64, generator=g) * 10.0 ** float(torch.randint(-3, 4, (1,), generator=g))
+    x = x + torch.randn(3, dtype=torch.float64, generator=g) * 1e4  # far from the origin: rounding of x - c
+    cube = torch.tensor([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], dtype=torch.float64)
+    for y in (x, x.round(), torch.cat([x, x.mean(0) + (cube - 0.5) * x.std()])):  # ties, and a box around the centre
+        assert largest_vertex_distance(y).item() == _brute_force_diameter(y)
+
+
+def test_two_distinct_points_never_give_zero_and_coincident_points_give_zero() -> None:
+    x = torch.tensor([[1.0, 2.0, 3.0], [1.0, 2.0, 3.0], [1.0, 2.0, 3.0 + 2**-30]], dtype=torch.float64)
+    assert largest_vertex_distance(x).item() == 2**-30
+    assert largest_vertex_distance(torch.full((5, 3), 7.0)).item() == 0.0
+
+
+def test_sted_of_a_cube_equals_the_naive_reference() -> None:
+    # Review: D 18 % short on this cube, STED_t 0.05972 for the reference's 0.04925 (+21 %).
+    import trimesh
+
+    box = trimesh.creation.box()
+    v0 = torch.as_tensor(box.vertices) * 0.37 + torch.tensor([0.5, -2.0, 3.0], dtype=torch.float64)
+    a = torch.stack([v0 + 1e-4 * k for k in range(3)])
+    b = a.clone()
+    b[1, 0] += 1e-4
+    got = sted(a, b, torch.as_tensor(box.faces))
+    want = naive_sted(a.numpy(), b.numpy(), box.faces, 3e-4, 5, 9.144e-5)
+    # float64 sums in another order: the bound of the reference test above (measured here: <= 1.1e-20 absolute)
+    for g, w in zip(got, want, strict=True):
+        assert abs(g.item() - w) < 1e-13 * max(1.0, abs(w))
+
+
+def test_sted_refuses_a_frame_0_whose_referenced_vertices_coincide(sphere_animation) -> None:
+    # D = 0 divides every temporal edge by zero (STED_t NaN): a clear error, naming what was found.
+    a, faces = sphere_animation
+    flat = a.clone()
+    flat[0] = torch.tensor([1.0, 2.0, 3.0], dtype=torch.float64)
+    flat[0, -1] = 50.0  # a vertex far away, unreferenced: it is no part of the surface, so no scale either
+    used = faces[faces.ne(a.shape[1] - 1).all(1)]
+    with pytest.raises(ValueError, match=r"original: the vertices of frame 0 that faces reference all coincide"):
+        sted(flat, flat * 1.1, used)
+
+
+def test_an_unreferenced_vertex_takes_no_part(sphere_animation) -> None:
+    # Review: a static vertex no face uses moved STED_t through D (0.0224592 against 0.0224443 without it).
+    a, faces = sphere_animation
+    b = _distort(a)
+    stray = torch.tensor([3.0, 2.0, 1.0], dtype=torch.float64).expand(a.shape[0], 1, 3)
+    with_stray = sted(torch.cat([a, stray], 1), torch.cat([b, stray + 0.5], 1), faces)
+    for got, want in zip(with_stray, sted(a, b, faces), strict=True):
+        assert got.item() == want.item()  # the same computations on the same vertices: the same bits
+    a2, b2 = torch.cat([a, stray], 1).numpy(), torch.cat([b, stray], 1).numpy()
+    ref = naive_sted(a2, b2, faces.numpy(), 3e-4, 5, 9.144e-5)
+    assert abs(with_stray.temporal.item() - ref[1]) < 1e-13  # as the reference test above (measured: 0)
+
+
+@pytest.mark.parametrize("bad", ["int", "nan", "complex", "list"])
+def test_largest_vertex_distance_names_bad_points(bad: str) -> None:
+    from torchmeshmetric._checks import DTypeError, NonFiniteError
+
+    x = {
+        "int": torch.tensor([[0, 0, 0], [3, 4, 0]]),
+        "nan": torch.tensor([[0.0, 0, 0], [math.nan, 4, 0]]),
+        "complex": torch.zeros(2, 3, dtype=torch.complex64),
+        "list": [[0.0, 0, 0], [3.0, 4, 0]],
+    }[bad]
+    error, text = {
+        "int": (DTypeError, r"points: expected a floating-point tensor .* found dtype torch.int64"),
+        "nan": (NonFiniteError, r"points: expected finite values, found 1 NaN/Inf"),
+        "complex": (DTypeError, r"points: expected a real floating-point tensor .* found dtype torch.complex64"),
+        "list": (TypeError, r"points: expected a torch.Tensor of shape \(\.\.\., V, 3\), found list"),
+    }[bad]
+    with pytest.raises(error, match=text):
+        largest_vertex_distance(x)  # type: ignore[arg-type]
+
+
+def test_numpy_numbers_are_numbers(sphere_animation) -> None:
+    # window=np.int64(3) was refused with a ValueError and dt=np.float32(3e-4) with "expected a float".
+    np = pytest.importorskip("numpy")
+    a, faces = sphere_animation
+    b = _distort(a)
+    want = sted(a, b, faces, dt=float(np.float32(3e-4)), window=3, c=0.5)
+    got = sted(a, b, faces, dt=np.float32(3e-4), window=np.int64(3), c=np.float64(0.5))
+    assert all(g.item() == w.item() for g, w in zip(got, want, strict=True))
+    with pytest.raises(TypeError, match=r"window: expected an int, found float 1.5"):
+        sted(a, b, faces, window=1.5)
+    with pytest.raises(TypeError, match=r"dt: expected a float, found bool np.True_"):
+        sted(a, b, faces, dt=np.bool_(True))

@@ -19,15 +19,15 @@ ratio, so it costs nothing; a local bump does.
 
 **Temporal part.** The temporal edge of vertex ``v`` between frames ``f`` and ``f+1`` has length
 :math:`t = \sqrt{\lVert \Delta x / D\rVert^2 + \delta t^2}`, with :math:`D` the largest distance between two vertices
-of the original's frame 0 (both sequences use the original's) and :math:`\delta t` = ``dt``. Its relative difference
-:math:`|\hat t - t| / \bar t` is normalised by the mean original temporal edge of ``v`` over the frames within
-``window`` of ``f``, and :math:`\mathrm{STED}_t` is its mean over vertices and temporal edges.
+of the original's frame 0 that faces reference (both sequences use the original's) and :math:`\delta t` = ``dt``.
+Its relative difference :math:`|\hat t - t| / \bar t` is normalised by the mean original temporal edge of ``v`` over
+the frames within ``window`` of ``f``, and :math:`\mathrm{STED}_t` is its mean over vertices and temporal edges.
 
 **Together:** :math:`\mathrm{STED} = \sqrt{\mathrm{STED}_s^2 + c^2\,\mathrm{STED}_t^2}`.
 
-Vertices no face references have no neighbourhood and take no part. An original edge of length zero has weight zero
-in its neighbourhoods (its relative difference is undefined and counts for nothing); a neighbourhood with no length
-at all has a local error of zero.
+Vertices no face references have no neighbourhood and take no part (in :math:`D` neither). An original edge of length
+zero has weight zero in its neighbourhoods (its relative difference is undefined and counts for nothing); a
+neighbourhood with no length at all has a local error of zero.
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import ShapeError
+from torchmeshmetric._checks import ShapeError, check_finite, check_float, check_int, check_real
 from torchmeshmetric.temporal.sequences import check_faces_of, check_sequence_pair, power_of_two_scale
 from torchmeshmetric.temporal.topology import Neighbourhoods, neighbourhoods
 
@@ -87,7 +87,12 @@ def _lengths(verts: Tensor, edges: Tensor) -> Tensor:
 
 
 def _farthest_pair(x: Tensor) -> tuple[int, int]:
-    """Indices of the two farthest of the ``(V, 3)`` points (exact; no gradient)."""
+    """Indices of the two farthest of the ``(V, 3)`` float64 points (no gradient).
+
+    Exact: the pair whose squared distance ``((x_i - x_j) ** 2).sum()``, computed in float64, is the largest, the
+    first in row-major order among ties; the same pair as that brute-force maximum over all ``V²`` pairs (see the
+    pruning's margin below).
+    """
     c = x.mean(0)
     radius = (x - c).norm(dim=1)
     # A lower bound L of the diameter from the extreme points along 13 directions (axes, face and body diagonals).
@@ -101,34 +106,55 @@ def _farthest_pair(x: Tensor) -> tuple[int, int]:
     )
     proj = x @ signs.T
     extremes = torch.unique(torch.cat([proj.argmax(0), proj.argmin(0)]))
-    lower = torch.cdist(x[extremes], x[extremes], compute_mode="donot_use_mm_for_euclid_dist").max()
-    # A pair farther apart than L has r_i + r_j > L (triangle inequality through the centroid), so both of its
-    # points have r >= L - max(r): only those are compared, exactly, in blocks.
-    keep = torch.nonzero(radius >= lower - radius.max()).flatten()
-    y = x[keep]
+    lower = float(torch.cdist(x[extremes], x[extremes], compute_mode="donot_use_mm_for_euclid_dist").max())
+    # A pair farther apart than L has r_i + r_j > L (triangle inequality through any point c, here the centroid), so
+    # both of its points have r >= L - max(r): only those are compared, exactly, in blocks. The bound is an equality
+    # when c lies on the farthest pair's segment (a box, a point on an axis of a sphere), so its rounding decided
+    # which partner survived: boxes lost theirs, D came out 18 % short, or 0 (one point left: STED_t NaN; found by
+    # review). Every quantity here (x - c, the radii, L, the blocks' distances) is float64 with a relative error of
+    # a few ulps of its own size, so the bound loosened by 2^-40 (~1e-12) of (L + max r), thousands of times those
+    # ulps, keeps every pair whose float64 distance can reach the maximum; the extreme points themselves (L's pair)
+    # are kept whatever the rounding.
+    largest = float(radius.max())
+    keep = radius >= lower - largest - 2.0**-40 * (lower + largest)
+    keep[extremes] = True
+    index = torch.nonzero(keep).flatten()
+    y = x[index]
     best, pair = -1.0, (0, 0)
     step = max(1, 2**22 // max(1, y.shape[0]))
     for i in range(0, y.shape[0], step):
         d = ((y[i : i + step, None, :] - y[None, :, :]) ** 2).sum(-1)
-        flat = int(d.argmax())
+        flat = int(d.argmax())  # the first of the block's largest, in row-major order
         value = float(d.flatten()[flat])
         if value > best:
             best, pair = value, (i + flat // y.shape[0], flat % y.shape[0])
-    return int(keep[pair[0]]), int(keep[pair[1]])
+    return int(index[pair[0]]), int(index[pair[1]])
 
 
 def largest_vertex_distance(points: Tensor) -> Tensor:
     """The largest distance between two of the ``(..., V, 3)`` points: ``(...)``, exact, differentiable.
 
     Only the points that can belong to a pair farther apart than a lower bound (the farthest of the extreme points
-    along 13 directions) are compared, pair by pair, exactly; the gradient reaches the two points of the answer.
+    along 13 directions), with a margin far above float64 rounding, are compared, pair by pair, exactly: the pair is
+    the one a float64 brute force over every pair finds. The distance is that pair's, in the points' dtype; the
+    gradient reaches its two points. Points that all coincide give 0.
+
+    Raises:
+        TypeError: ``points`` not a tensor.
+        ShapeError: not ``(..., V, 3)`` with ``V >= 1``.
+        DTypeError: not float32 or float64 (integer, half precision, complex).
+        NonFiniteError: NaN or Inf coordinates.
 
     Example:
         >>> largest_vertex_distance(torch.tensor([[0.0, 0, 0], [3.0, 4.0, 0], [1.0, 1.0, 0]])).item()
         5.0
     """
+    if not isinstance(points, Tensor):
+        raise TypeError(f"points: expected a torch.Tensor of shape (..., V, 3), found {type(points).__name__}")
     if points.ndim < 2 or points.shape[-1] != 3 or points.shape[-2] == 0:
         raise ShapeError(f"points: expected (..., V, 3) with V >= 1, found {tuple(points.shape)}")
+    check_float(points, "points")
+    check_finite(points, "points")
     if points.numel() == 0:  # an empty batch: no distance to compute
         return points.new_zeros(points.shape[:-2])
     flat = points.reshape(-1, *points.shape[-2:])
@@ -156,8 +182,11 @@ def _spatial(original: Tensor, distorted: Tensor, nb: Neighbourhoods, referenced
     return sigma[..., referenced].mean(dim=(-1, -2))
 
 
-def _temporal(original: Tensor, distorted: Tensor, referenced: Tensor, dt: float, window: int) -> Tensor:
-    diameter = largest_vertex_distance(original[..., 0, :, :])[..., None, None, None]
+def _temporal(
+    original: Tensor, distorted: Tensor, diameter: Tensor, referenced: Tensor, dt: float, window: int
+) -> Tensor:
+    """STED_t, with ``diameter`` the ``(...)`` largest vertex distance D of each item's frame 0."""
+    diameter = diameter[..., None, None, None]
     dt2 = dt * dt
 
     def temporal_lengths(x: Tensor) -> Tensor:
@@ -175,31 +204,30 @@ def _temporal(original: Tensor, distorted: Tensor, referenced: Tensor, dt: float
     return rel[..., referenced].mean(dim=(-1, -2))
 
 
-def check_sted_parameters(dt: object, window: object, c: object) -> None:
+def check_sted_parameters(dt: object, window: object, c: object) -> tuple[float, int, float]:
     """:func:`sted`'s ``dt``, ``window`` and ``c``, checked (before any work that leads to it).
 
+    Returns:
+        ``(dt, window, c)`` as a Python float, int and float.
+
     Raises:
-        TypeError: ``dt`` or ``c`` not a number.
-        ValueError: ``dt`` not > 0 or ``c`` not >= 0 (or a square that overflows or underflows), ``window`` not an
-            int >= 0.
+        TypeError: ``dt`` or ``c`` not a real number, ``window`` not an int (numpy's numbers are numbers).
+        ValueError: ``dt`` not > 0 or ``c`` not >= 0 (or a square that overflows or underflows), ``window`` < 0.
     """
-    _check_weight("dt", dt, zero=False)
-    if not isinstance(window, int) or isinstance(window, bool) or window < 0:
-        raise ValueError(f"window: expected an int >= 0, found {window!r}")
-    _check_weight("c", c, zero=True)
+    return _check_weight("dt", dt, zero=False), check_int(window, "window", low=0), _check_weight("c", c, zero=True)
 
 
-def _check_weight(name: str, value: object, *, zero: bool) -> None:
+def _check_weight(name: str, value: object, *, zero: bool) -> float:
     """``dt`` and ``c``: real numbers whose square is a finite float, positive (``dt``) or >= 0 (``c``).
 
     STED uses their squares: ``dt = 1e200`` overflows (then STED_t is NaN) and ``dt = 1e-200`` underflows to zero.
     """
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise TypeError(f"{name}: expected a float, found {type(value).__name__} {value!r}")
-    square = float(value) * float(value)
+    value = check_real(value, name)  # numpy's numbers too
+    square = value * value
     if not (math.isfinite(square) and (square > 0 or (zero and value == 0)) and value >= 0):
         bound = ">= 0" if zero else "> 0"
         raise ValueError(f"{name}: expected a float {bound} whose square is a finite float {bound}, found {value!r}")
+    return value
 
 
 def sted(
@@ -230,7 +258,8 @@ def sted(
             :func:`~torchmeshmetric.temporal.sequences.check_sequence_pair` (and fewer than 2 frames).
         IndexRangeError: faces outside the vertices.
         ValueError: ``dt`` not positive, ``window`` negative, ``c`` negative (or a square that overflows or
-            underflows), faces without an edge, or an original whose frame 0 is a single point.
+            underflows), faces without an edge, or an original whose referenced vertices of frame 0 all coincide
+            (``D = 0``).
         TypeError: ``dt`` or ``c`` not a number.
 
     Example:
@@ -247,15 +276,20 @@ def sted(
     scale = power_of_two_scale(a, b)  # STED is scale-free: the same figures, without overflow (power_of_two_scale)
     a, b = a / scale, b / scale
     f = check_faces_of(faces, a.shape[-2]).to(a.device)
-    check_sted_parameters(dt, window, c)
+    dt, window, c = check_sted_parameters(dt, window, c)
     nb = neighbourhoods(f, a.shape[-2])
     if nb.edges.shape[0] == 0:
         raise ValueError("faces: no face has two distinct vertices: no edge, nothing for STED to measure")
     referenced = torch.zeros(a.shape[-2], dtype=torch.bool, device=a.device)
     referenced[nb.edges.flatten()] = True
     spatial = _spatial(a, b, nb, referenced)
-    first = a[..., 0, :, :].detach()
-    if bool(((first.amax(-2) - first.amin(-2)) == 0).all(-1).any()):
-        raise ValueError("original: frame 0 is a single point, its largest vertex distance gives no scale")
-    temporal = _temporal(a, b, referenced, dt, window)
+    # D over the vertices that take part: a vertex no face uses is not part of the surface (found by review: a stray
+    # vertex moved STED_t, and the registered form, which drops such vertices, disagreed with the exact one).
+    diameter = largest_vertex_distance(a[..., 0, :, :][..., referenced, :])
+    if bool((diameter.detach() == 0).any()):
+        raise ValueError(
+            "original: the vertices of frame 0 that faces reference all coincide (largest vertex distance D = 0), "
+            "D gives STED_t no scale"
+        )
+    temporal = _temporal(a, b, diameter, referenced, dt, window)
     return StedResult(spatial, temporal, _safe_sqrt(spatial * spatial + (c * c) * temporal * temporal))
