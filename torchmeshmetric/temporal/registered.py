@@ -257,14 +257,17 @@ def _along_normal(
 ) -> tuple[PointMeshResult, Tensor, Tensor]:
     """Secant steps towards the root of ``g(t) = (q - cp(q)) . n`` on the line ``q = x + t n`` (see carry_onto).
 
-    Only the points whose line has not met the surface yet (``|g|`` above ``1e-10`` of the coordinates' size) are
-    queried again, so a step costs what remains to be found.
+    Only the points whose line has not met the surface yet (``|g|`` above ``1e-10`` of the points' bounding-box
+    extent) are queried again, so a step costs what remains to be found.
 
     Returns:
         The closest points kept, the ``(V, 3)`` line points ``q`` they are the closest points of, and the ``(V,)``
         mask of the lines that met the surface (``|g|`` within the tolerance).
     """
-    tol = 1e-10 * float(x.abs().max())
+    # The mesh's own size, not its distance to the origin: 1e-10 of max|x| stopped a mesh 1e6 away before its first
+    # step, its points fell back to the plain closest points, and the figures moved with a translation (found by
+    # review: registered KG -6.8e-4 relative at offset 1e6, STED_s +28 % for a 1e-3 mesh).
+    tol = 1e-10 * float((x.amax(0) - x.amin(0)).max())
     # The line is followed within the larger of _REACH times the closest point's distance and the local edge length:
     # farther crossings are another part of the surface (the other side of a thin limb), not this point's
     # displaced surface.
@@ -297,8 +300,9 @@ def _along_normal(
         t_next = torch.maximum(torch.minimum(t_next, reach[active]), -reach[active])
         t0[active], g0[active], t1[active] = t1[active], g1, t_next
         active = active[(best_g[active] > tol) & moving]
-    # The derivative's choice, not the iteration's stop: a float32 line has met the surface within its rounding, which
-    # 1e-10 of the coordinates is below (found by review: 176 of 642 lines counted in float32, 642 in float64).
+    # The derivative's choice, not the iteration's stop: a line has met the surface within the rounding of its
+    # coordinates, absolute (eps of max|x|), which 1e-10 of the extent can be below: float32 (found by review: 176 of
+    # 642 lines counted in float32, 642 in float64), or a mesh far from the origin.
     met = max(tol, 64 * torch.finfo(x.dtype).eps * float(x.abs().max()))
     return best, best_q, best_g <= met
 
