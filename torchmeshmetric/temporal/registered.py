@@ -32,9 +32,9 @@ from torchmeshmetric.evaluation.pipeline import RegisterFn, RegistrationOptions,
 from torchmeshmetric.kernels import MeshIndex, PointMeshResult
 from torchmeshmetric.registration.cache import CachedRegistration, RegistrationCache
 from torchmeshmetric.registration.warp import as_warp
-from torchmeshmetric.structures import Mesh, MeshLike, as_mesh, power_of_two_above, vertex_set_mask
+from torchmeshmetric.structures import Mesh, MeshLike, as_mesh, power_of_two_above
 from torchmeshmetric.temporal.sequences import check_faces_of
-from torchmeshmetric.temporal.topology import mesh_edges
+from torchmeshmetric.temporal.topology import mesh_edges, referenced_vertices
 
 __all__ = [
     "DEFAULT_NORMAL_STEPS",
@@ -100,11 +100,8 @@ def _frames(frames: Sequence[MeshLike], name: str) -> list[Mesh]:
 
 def _compact(mesh: Mesh) -> Mesh:
     """``mesh`` without the vertices no face references (faces renumbered)."""
-    used = vertex_set_mask(mesh.faces, mesh.num_verts)
-    if bool(used.all()):
-        return mesh
-    new_index = torch.cumsum(used.long(), 0) - 1
-    return Mesh(mesh.verts[used], new_index[mesh.faces], validate=False)
+    used, faces = referenced_vertices(mesh.faces, mesh.num_verts)
+    return mesh if bool(used.all()) else Mesh(mesh.verts[used], faces, validate=False)
 
 
 def check_weld(fraction: object) -> None:

@@ -13,7 +13,24 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
+from torchmeshmetric.structures import vertex_set_mask
+
 __all__ = ["Neighbourhoods", "mesh_edges", "neighbourhoods"]
+
+
+def referenced_vertices(faces: Tensor, num_verts: int) -> tuple[Tensor, Tensor]:
+    """The vertices some face references and ``faces`` renumbered onto them: ``(V,)`` bool and ``(T, 3)`` int64.
+
+    A vertex no face uses is not part of the surface: the temporal figures, exact and registered, leave it out (the
+    registered form's tracked frame 0 and the exact forms' sequences alike; docs/temporal.md).
+
+    Example:
+        >>> used, faces = referenced_vertices(torch.tensor([[0, 2, 3]]), 4)
+        >>> used.tolist(), faces.tolist()
+        ([True, False, True, True], [[0, 1, 2]])
+    """
+    used = vertex_set_mask(faces, num_verts)
+    return used, (torch.cumsum(used.long(), 0) - 1)[faces.long()]
 
 
 def mesh_edges(faces: Tensor, num_verts: int) -> Tensor:
