@@ -59,6 +59,29 @@ def test_bad_input_is_one_line(tmp_path, capsys):
     )
 
 
+def test_a_frame_range_that_runs_backwards_is_named(tmp_path, capsys):
+    # Found by review: --first-frame 3 --last-frame 1 said "frame 3 is missing" of a frame that exists.
+    a, faces = animated_sphere(num_frames=4)
+    orig = _write(tmp_path / "orig", a, faces)
+    pattern = str(orig / "f_%04d.ply")
+    assert main(["temporal", pattern, pattern, "--first-frame", "3", "--last-frame", "1"]) == 1
+    err = capsys.readouterr().err
+    assert "--last-frame 1 is before --first-frame 3: no frame to read" in err and "missing" not in err
+    # Without --first-frame the pattern starts at 0, or at 1 when frame 0 does not exist.
+    (orig / "f_0000.ply").unlink()
+    assert main(["temporal", pattern, pattern, "--last-frame", "0"]) == 1
+    assert f"--last-frame 0 is before ORIGINAL {pattern!r}'s first frame, 1" in capsys.readouterr().err
+
+
+def test_dtype_help_says_what_temporal_computes_in(capsys):
+    # The shared help said "precision of the frames and of every computation"; the figures are float64 always.
+    with pytest.raises(SystemExit):
+        main(["temporal", "--help"])
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert "KSO and STED themselves are computed in float64 either way" in help_text
+    assert "of every computation" not in help_text
+
+
 def test_a_folder_with_a_percent_sign_is_a_folder(tmp_path, capsys):
     a, faces = animated_sphere(num_frames=3)
     orig = _write(tmp_path / "100%_q", a, faces)  # was read as a printf pattern: "expected one printf integer field"

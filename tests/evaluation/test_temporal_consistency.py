@@ -75,3 +75,19 @@ def test_states_declared_for_every_set_and_merged_like_a_ddp_gather(moving_spher
 def test_empty_compute_raises():
     with pytest.raises(EmptyInputError, match="no surface_k_minus_1 distances"):
         TemporalConsistency(registration_fn=TranslationRegister()).compute()
+
+
+@pytest.mark.parametrize("position", ["simplified_k", "original_k", "original_k_minus_1", "simplified_k_minus_1"])
+def test_update_names_the_argument_that_is_not_a_mesh(moving_spheres, position):
+    # Found by review: update(None, s, s) said "mesh: expected a Mesh ...", naming none of the three.
+    original, simplified = moving_spheres
+    args = {
+        "simplified_k": simplified[1],
+        "original_k": original[1],
+        "original_k_minus_1": original[0],
+        "simplified_k_minus_1": simplified[0],
+    }
+    args[position] = None if position != "simplified_k_minus_1" else "frame.obj?"
+    metric = TemporalConsistency(registration_fn=TranslationRegister(), flicker=True)
+    with pytest.raises(TypeError, match=rf"^{position}: "):
+        metric.update(**args)

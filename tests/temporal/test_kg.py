@@ -86,3 +86,14 @@ def test_scale_is_a_bool() -> None:
     a = torch.rand(2, 5, 3, dtype=torch.float64)
     with pytest.raises(TypeError, match="scale: expected a bool, found str 'no'"):  # a truthy string scaled
         kso_error(a, a, scale="no")  # type: ignore[arg-type]
+
+
+def test_complex_coordinates_are_named_as_complex() -> None:
+    # Found by review: a complex tensor was told to "convert integer coordinates with .float()".
+    from torchmeshmetric._checks import DTypeError
+
+    x = torch.zeros(2, 4, 3, dtype=torch.complex128)
+    with pytest.raises(
+        DTypeError, match=r"original: expected a real floating-point tensor .* found dtype torch.complex128"
+    ):
+        kg_error(x, x)

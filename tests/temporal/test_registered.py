@@ -164,7 +164,7 @@ def test_figures_choose_their_form() -> None:
     assert not exact.registered and exact.kg == kg_error(a, b).item()
     with pytest.raises(ShapeError, match="registered=False"):
         temporal_figures(frames, _subdivided(b, faces), registered=False)
-    with pytest.raises(ShapeError, match="distorted: expected 3 frames"):
+    with pytest.raises(ShapeError, match=r"distorted: expected 3 frame\(s\)"):  # "frame(s)": "1 frames" read oddly
         temporal_figures(frames, _meshes(b, faces)[:2])
     # The same distorted surfaces with their vertices numbered otherwise: same counts, other triangles. The exact
     # forms would compare unrelated vertices (found by review: KG 146 where the surfaces are equal); not exact.
@@ -243,8 +243,33 @@ def test_tracking_and_carrying_check_their_arguments() -> None:
         carry_onto(frames, a, faces + a.shape[1])  # was an IndexError from inside the normals
     with pytest.raises(TypeError, match="distorted: expected a sequence of meshes, found NoneType"):
         carry_onto(None, a)  # type: ignore[arg-type]
-    with pytest.raises(ValueError, match="normal_steps: expected an int >= 0, found True"):
+    # A bool is no count: a TypeError, as check_int gives every int argument (it was a ValueError of its own check).
+    with pytest.raises(TypeError, match="normal_steps: expected an int, found bool True"):
         carry_onto(frames, a, faces, normal_steps=True)
+    with pytest.raises(ValueError, match="normal_steps: expected an int >= 0, found -1"):
+        carry_onto(frames, a, faces, normal_steps=-1)
+
+
+def test_carry_onto_names_tracked() -> None:
+    # Found by review: tracked's faults were reported as the distorted "verts" (cast to tracked's integer dtype) or
+    # as MeshIndex's "points".
+    from torchmeshmetric._checks import DTypeError, EmptyInputError, NonFiniteError
+
+    sphere = trimesh.creation.icosphere(subdivisions=1)
+    m = Mesh(torch.as_tensor(sphere.vertices), torch.as_tensor(sphere.faces))
+    x = m.verts[None].clone()
+    nan = x.clone()
+    nan[0, 0, 0] = float("nan")
+    with pytest.raises(DTypeError, match=r"tracked: expected a floating-point tensor .* found dtype torch.int64"):
+        carry_onto([m], x.long())
+    with pytest.raises(NonFiniteError, match=r"tracked: expected finite values, found 1 NaN/Inf"):
+        carry_onto([m], nan, m.faces)
+    with pytest.raises(EmptyInputError, match=r"tracked: expected at least one vertex, found shape \(1, 0, 3\)"):
+        carry_onto([m], x[:, :0])
+    with pytest.raises(TypeError, match=r"tracked: expected a torch.Tensor of shape \(F, V, 3\), found list"):
+        carry_onto([m], [[0.0, 0.0, 0.0]])  # type: ignore[arg-type]
+    with pytest.raises(ShapeError, match=r"distorted: expected 1 frame\(s\) \(those of tracked\), found 2"):
+        carry_onto([m, m], x)
 
 
 @pytest.mark.parametrize("scale", [1.0, 1e10, 1e-10, 1e18, 1e-18])

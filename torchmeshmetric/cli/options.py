@@ -115,8 +115,12 @@ def parse_weights(text: str) -> tuple[float, ...]:
     return weights
 
 
-def common_options() -> argparse.ArgumentParser:
-    """Options of every command that computes: device, precision, kernel backend, threads."""
+def common_options(dtype_help: str | None = None) -> argparse.ArgumentParser:
+    """Options of every command that computes: device, precision, kernel backend, threads.
+
+    Args:
+        dtype_help: ``--dtype``'s help where the command uses the precision otherwise than the default text says.
+    """
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument(
         "--device", choices=("cpu", "cuda"), default="cpu", help="where distances and registration run (default cpu)"
@@ -125,7 +129,8 @@ def common_options() -> argparse.ArgumentParser:
         "--dtype",
         choices=("float32", "float64"),
         default="float32",
-        help="precision of the frames and of every computation (default float32: statistics within ~3e-5 "
+        help=dtype_help
+        or "precision of the frames and of every computation (default float32: statistics within ~3e-5 "
         "relative of float64 on a 40k-face pair, see the docs' command-line page; float64 to compare tiny differences)",
     )
     common.add_argument(

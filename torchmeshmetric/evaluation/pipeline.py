@@ -322,9 +322,12 @@ def evaluate_pair(
         >>> round(float(r.reverse_statistics["surface_k"].max), 3)  # fine vertices off the coarse surface
         0.049
     """
-    simp = as_mesh(simplified_k)
+    simp = as_mesh(simplified_k, name="simplified_k")  # each under its own name (it read "mesh": found by review)
     dev = torch.device(device) if device is not None else simp.device
-    orig_k, orig_km1 = as_mesh(original_k), as_mesh(original_k_minus_1)
+    orig_k = as_mesh(original_k, name="original_k")
+    orig_km1 = as_mesh(original_k_minus_1, name="original_k_minus_1")
+    if simplified_k_minus_1 is not None:  # now, not after the registration
+        simplified_k_minus_1 = as_mesh(simplified_k_minus_1, name="simplified_k_minus_1")
     # The dtype rule (docs/concepts.md, Precision): the three frames in their promoted dtype (a float32 model's
     # output against float64 originals is measured in float64, nothing rounded).
     dtype = common_dtype(simp.dtype, orig_k.dtype, orig_km1.dtype)

@@ -155,7 +155,7 @@ def temporal_figures(
     originals = [as_mesh(m, name=f"original[{k}]") for k, m in enumerate(original)]
     distorteds = [as_mesh(m, name=f"distorted[{k}]") for k, m in enumerate(distorted)]
     if len(originals) != len(distorteds):
-        raise ShapeError(f"distorted: expected {len(originals)} frames (those of original), found {len(distorteds)}")
+        raise ShapeError(f"distorted: expected {len(originals)} frame(s) (those of original), found {len(distorteds)}")
     if len(originals) < 2:
         raise ShapeError(f"original: expected at least 2 frames, found {len(originals)}")
     if registered is not None and not isinstance(registered, bool):  # 0 or "no" would pick a form silently

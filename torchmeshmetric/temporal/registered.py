@@ -27,7 +27,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import ShapeError
+from torchmeshmetric._checks import EmptyInputError, ShapeError, check_finite, check_float, check_int
 from torchmeshmetric.evaluation.pipeline import RegisterFn, RegistrationOptions, register_pairs
 from torchmeshmetric.kernels import MeshIndex, PointMeshResult
 from torchmeshmetric.registration.cache import CachedRegistration, RegistrationCache
@@ -388,8 +388,11 @@ def carry_onto(
         the closest point of the last line point in its region of the face (plane, edge or vertex).
 
     Raises:
-        ShapeError: a frame count other than ``tracked``'s.
-        TypeError: ``distorted`` not a sequence.
+        ShapeError: ``tracked`` not ``(F, V, 3)``, or a frame count other than ``tracked``'s.
+        DTypeError: ``tracked`` not float32 or float64.
+        EmptyInputError: ``tracked`` without a vertex.
+        NonFiniteError: NaN or Inf in ``tracked``.
+        TypeError: ``tracked`` not a tensor, ``distorted`` not a sequence, ``normal_steps`` not an int.
         ValueError: a negative ``normal_steps``; ``faces`` outside the tracked vertices (``IndexRangeError``).
 
     Example:
@@ -400,15 +403,21 @@ def carry_onto(
         >>> round(float(onto.norm(dim=-1).max()), 6)  # on the unit sphere's facets
         1.0
     """
-    if not isinstance(tracked, Tensor) or tracked.dim() != 3 or tracked.shape[-1] != 3:
-        found = tuple(tracked.shape) if isinstance(tracked, Tensor) else type(tracked).__name__
-        raise ShapeError(f"tracked: expected a tensor of shape (F, V, 3), found {found}")
+    if not isinstance(tracked, Tensor):
+        raise TypeError(f"tracked: expected a torch.Tensor of shape (F, V, 3), found {type(tracked).__name__}")
+    if tracked.dim() != 3 or tracked.shape[-1] != 3:
+        raise ShapeError(f"tracked: expected a tensor of shape (F, V, 3), found {tuple(tracked.shape)}")
+    # tracked's own faults under its own name: they surfaced as the distorted verts' dtype (cast to tracked's) or as
+    # MeshIndex's "points" (found by review).
+    check_float(tracked, "tracked")
+    if tracked.shape[1] == 0:
+        raise EmptyInputError(f"tracked: expected at least one vertex, found shape {tuple(tracked.shape)}")
+    check_finite(tracked, "tracked")
     if isinstance(distorted, (str, bytes)) or not isinstance(distorted, Sequence):
         raise TypeError(f"distorted: expected a sequence of meshes, found {type(distorted).__name__}")
     if len(distorted) != tracked.shape[0]:
-        raise ShapeError(f"distorted: expected {tracked.shape[0]} frames (those of tracked), found {len(distorted)}")
-    if not isinstance(normal_steps, int) or isinstance(normal_steps, bool) or normal_steps < 0:
-        raise ValueError(f"normal_steps: expected an int >= 0, found {normal_steps!r}")
+        raise ShapeError(f"distorted: expected {tracked.shape[0]} frame(s) (those of tracked), found {len(distorted)}")
+    normal_steps = check_int(normal_steps, "normal_steps", low=0)
     if faces is not None:
         faces = check_faces_of(faces, tracked.shape[1])
     out = []
@@ -484,7 +493,7 @@ def registered_pair(
     originals = _frames(original, "original")
     distorteds = _frames(distorted, "distorted")
     if len(originals) != len(distorteds):
-        raise ShapeError(f"distorted: expected {len(originals)} frames (those of original), found {len(distorteds)}")
+        raise ShapeError(f"distorted: expected {len(originals)} frame(s) (those of original), found {len(distorteds)}")
     tracking = track_original(
         originals,
         registrations=registrations,
