@@ -150,6 +150,20 @@ def range_scale(extent: float, dtype: torch.dtype, degree: int) -> float | None:
     return None if -limit <= exponent <= limit else math.ldexp(1.0, -exponent)
 
 
+ROUNDING_ULPS = 64.0
+"""Rounding allowance of the exact kernels, in ulps of an item's largest centred |coordinate| (and of a distance)."""
+
+
+def rounding_slack(scale: Tensor) -> Tensor:
+    """Absolute rounding level of values computed on centred coordinates of largest magnitude ``scale``.
+
+    :data:`ROUNDING_ULPS` ulps of ``scale`` (``scale``'s dtype): the certified pruning slack of the ``"pruned"``
+    backend and of the C++ BVH (``slack_of_scale`` in ``bvh.cpp``), and the level below which a computed distance
+    cannot be told from 0 (the surface losses' gradient, :mod:`torchmeshmetric.kernels.danskin`).
+    """
+    return ROUNDING_ULPS * torch.finfo(scale.dtype).eps * scale
+
+
 def check_representable(dists: Tensor, name: str) -> None:
     """Raise when finite inputs gave non-finite distances: the dtype cannot hold them (e.g. float32 beyond ~1e19).
 

@@ -128,5 +128,13 @@ def bvh_closest_points(
     ext = native.try_load("bvh")
     if ext is None:
         return None
+    # The C++ loop reads faces[face_idx] unchecked: a selection that broke its contract must not read out of bounds.
+    if face_idx.numel():
+        lo, hi = (int(v) for v in face_idx.aminmax())
+        if lo < 0 or hi >= faces.shape[0]:
+            raise RuntimeError(
+                f"bvh_closest_points: selected face indices outside [0, {faces.shape[0]}) (min {lo}, max {hi}): "
+                "a selection backend broke its contract; please report it"
+            )
     out = ext.closest_points(points.contiguous(), verts.contiguous(), faces.long().contiguous(), face_idx.contiguous())
     return out[0], out[1], out[2]

@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING
 import torch
 from torch import Tensor
 
+from torchmeshmetric.kernels._common import ROUNDING_ULPS, rounding_slack
 from torchmeshmetric.kernels.triangle import region_candidates
 
 if TYPE_CHECKING:
@@ -32,8 +33,6 @@ __all__ = ["pruned_faces", "pruned_nearest", "query_faces", "query_points"]
 
 CLUSTER = 32
 """Primitives per cluster."""
-
-_SLACK_ULPS = 64.0
 
 # (query points (Q, 3), primitive ids (Q, K) with -1 = none) -> squared distances (Q, K), inf for -1.
 PairSqDist = Callable[[Tensor, Tensor], Tensor]
@@ -105,7 +104,7 @@ def _select(
     eps = torch.finfo(dtype).eps
     scale = torch.zeros(num_items, dtype=dtype, device=device)
     scale = scale.scatter_reduce(0, prim_batch, torch.maximum(lo.abs(), hi.abs()).amax(-1), "amax")
-    slack = _SLACK_ULPS * eps * scale
+    slack = rounding_slack(scale)
     num_p, num_c = points.shape[0], members.shape[0]
     out = torch.empty(num_p, dtype=torch.long, device=device)
     # One (chunk, C) lower-bound matrix of ~6 live values per entry, or pairs x CLUSTER x ~40 values.
@@ -120,8 +119,10 @@ def _select(
         lb = lb.masked_fill(pb[:, None] != c_batch[None, c_lo_i:c_hi_i], float("inf"))
         first = lb.argmin(-1) + c_lo_i
         ub = pair_sq(p, members[first]).amin(-1)
-        bound = (ub.sqrt() * (1 + _SLACK_ULPS * eps) + slack[pb]) ** 2
-        q_idx, c_idx = (lb <= bound[:, None]).nonzero(as_tuple=True)
+        bound = (ub.sqrt() * (1 + ROUNDING_ULPS * eps) + slack[pb]) ** 2
+        # Same item only: where squares overflow, ub and the other items' masked bounds are both inf.
+        same = pb[:, None] == c_batch[None, c_lo_i:c_hi_i]
+        q_idx, c_idx = ((lb <= bound[:, None]) & same).nonzero(as_tuple=True)
         c_idx = c_idx + c_lo_i
         key = torch.full((p1 - p0,), float("inf"), dtype=dtype, device=device)
         keys, ids = [], []
@@ -130,14 +131,17 @@ def _select(
             mem = members[c]
             sq = pair_sq(p[q], mem)
             kmin = sq.amin(-1)
-            kid = torch.where(sq == kmin[:, None], mem, torch.full_like(mem, big)).amin(-1)
+            # Padding (-1, squared distance inf) never wins: it would tie with squares that overflowed to inf.
+            kid = torch.where((sq == kmin[:, None]) & (mem >= 0), mem, torch.full_like(mem, big)).amin(-1)
             key = key.scatter_reduce(0, q, kmin, "amin")
             keys.append(kmin)
             ids.append(kid)
         kmin, kid = torch.cat(keys), torch.cat(ids)
         best = torch.full((p1 - p0,), big, dtype=torch.long, device=device)
         best = best.scatter_reduce(0, q_idx, torch.where(kmin == key[q_idx], kid, torch.full_like(kid, big)), "amin")
-        out[p0:p1] = best
+        # A point without a candidate (only where its squares overflow: every lower bound inf) takes its item's
+        # first primitive; its distance is then inf too, and the caller raises NonFiniteError as for any backend.
+        out[p0:p1] = torch.where(best == big, offsets[pb], best)
     return out
 
 
