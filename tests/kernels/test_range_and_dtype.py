@@ -97,8 +97,18 @@ def test_statistics_and_psnr_at_extreme_magnitudes(scale):
 def test_distances_beyond_the_dtype_range_are_an_error_not_inf():
     verts = torch.tensor(SPHERE.vertices, dtype=torch.float32)
     far = torch.tensor([[0.0, 0.0, 3e30]])
+    # Review D, finding 4: this test pinned the refusal of 3e30 by point_mesh_distance, whose scale came from the
+    # mesh alone; 3e30 is representable, and the function now scales for its points too, as nearest_vertex_distance
+    # does. An index's scale is fixed by its mesh: its query's square overflows, and it refuses.
+    got32 = tmm.point_mesh_distance(far, verts, torch.tensor(SPHERE.faces), backend="bruteforce").dists.item()
+    assert got32 == pytest.approx(3e30 - 1, rel=1e-6)
     with pytest.raises(NonFiniteError, match=r"overflow torch.float32 .* compute in float64"):
-        tmm.point_mesh_distance(far, verts, torch.tensor(SPHERE.faces), backend="bruteforce")
+        tmm.MeshIndex(verts, torch.tensor(SPHERE.faces), backend="bruteforce").point_mesh_distance(far)
+    # A distance float32 cannot hold (6e38 > 3.4e38) is refused by the function too.
+    with pytest.raises(NonFiniteError, match=r"overflow torch.float32 .* compute in float64"):
+        tmm.point_mesh_distance(
+            torch.tensor([[0.0, 0.0, 3e38]]), verts - 3e38, torch.tensor(SPHERE.faces), backend="bruteforce"
+        )
     # nearest-vertex distances scale with the points too: 3e30 is representable, so it is the answer
     assert tmm.nearest_vertex_distance(far, verts).dists.item() == pytest.approx(3e30 - 1, rel=1e-6)
     far64 = torch.tensor([[0.0, 0.0, 3e30]], dtype=torch.float64)

@@ -2,10 +2,15 @@ r"""Point-to-surface distances differentiated by Danskin's theorem: the backward
 
 ``d(p, V) = min_{b in simplex} |p - sum_j b_j v_j|``: where the minimiser ``b*`` (the closest point) is unique, the
 gradient of the minimum is the gradient at the fixed minimiser (Danskin 1967): ``dd/dp = (p - c) / d`` and
-``dd/dv_j = -b*_j (p - c) / d`` for the corners of the closest face, 0 at ``d = 0`` (the convention of the kernels'
-``safe_sqrt``). These are the values of autograd through the closest-point formulas (float64: 1e-10 apart), without
-their graph: the forward pass is the index's fused no-autograd query, the backward pass a few ``(P, 3)`` operations
-and one ``index_add_`` (about 5x faster than autograd through the seven-region formulas).
+``dd/dv_j = -b*_j (p - c) / d`` for the corners of the closest face. On the surface (``d`` at or below the rounding
+floor of the centred coordinates, :meth:`~torchmeshmetric.MeshIndex.rounding_floor`: 64 ulps of the item's largest
+centred |coordinate|) the gradient is the subgradient 0, as autograd through
+:func:`~torchmeshmetric.point_mesh_distance` gives there (``d`` is at its minimum; ``(p - c) / d`` would be a unit
+vector in a direction set by rounding, e.g. along the face). ``p - c`` and ``d`` are taken in the centred, scaled
+frame the kernels computed them in, so that float32 gradients keep their accuracy far from the origin. Elsewhere these
+are the values of autograd through the closest-point formulas (float64: 1e-10 apart), without their graph: the
+forward pass is the index's fused no-autograd query, the backward pass a few ``(P, 3)`` operations and one
+``index_add_`` (about 5x faster than autograd through the seven-region formulas).
 
 First order only: the backward pass is not itself differentiable (the closest face and its barycentric coordinates
 are held fixed), so a double backward (``create_graph=True``) is refused with :class:`DoubleBackwardError` rather
@@ -35,8 +40,16 @@ class _DanskinDistance(torch.autograd.Function):
         ctx: Any, points: Tensor, verts: Tensor, faces: Tensor, index: MeshIndex, lengths: Tensor, owner: str
     ) -> Tensor:
         with torch.no_grad():
-            hit = index.point_mesh_distance_unchecked(points.detach(), lengths)
-        ctx.save_for_backward(points.detach() - hit.closest, hit.dists, hit.bary, faces[hit.face_idx])
+            centred = index.point_mesh_distance_centred(points.detach(), lengths)
+            hit = index.to_world(centred)
+            # The direction p - c in the frame the distance was computed in (centred and scaled: a difference of
+            # world coordinates far from the origin has lost the digits of a short distance); only its ratio to
+            # that frame's distance is used, which the scale leaves unchanged.
+            diff = centred.points_c - centred.result.closest
+            dists_c = centred.result.dists
+            # At or below the rounding floor the point is on the surface: its direction is rounding noise.
+            on_surface = dists_c <= index.rounding_floor()[centred.point_batch]
+        ctx.save_for_backward(diff, dists_c, on_surface, hit.bary, faces[hit.face_idx])
         ctx.num_verts = int(verts.shape[0])
         ctx.owner = owner
         return hit.dists
@@ -49,8 +62,9 @@ class _DanskinDistance(torch.autograd.Function):
                 "so a double backward (create_graph=True, Hessian-vector products) would be wrong; differentiate "
                 "once"
             )
-        diff, dists, bary, corners = ctx.saved_tensors
-        scale = torch.where(dists > 0, grad / torch.where(dists > 0, dists, torch.ones_like(dists)), 0.0)
+        diff, dists, on_surface, bary, corners = ctx.saved_tensors
+        off = ~on_surface
+        scale = torch.where(off, grad / torch.where(off, dists, torch.ones_like(dists)), 0.0)
         unit = scale[:, None] * diff  # dL/dp
         grad_verts = None
         if ctx.needs_input_grad[1]:
@@ -77,7 +91,8 @@ def surface_distances(
 
     Returns:
         ``(sum P_b,)`` distances (those of ``index.point_mesh_distance``, bit for bit), differentiable w.r.t.
-        ``points`` and ``verts``; the gradient is 0 where a distance is exactly 0.
+        ``points`` and ``verts``; the gradient is 0 where a distance is at or below the rounding floor (a point on
+        the surface).
 
     Raises:
         DoubleBackwardError: at a backward pass with ``create_graph=True``.

@@ -32,6 +32,7 @@ from torchmeshmetric.kernels._common import (
     check_representable,
     item_rows,
     range_scale,
+    rounding_slack,
     safe_sqrt,
 )
 from torchmeshmetric.kernels.accel.bvh import bvh_closest_points
@@ -69,6 +70,24 @@ class PointMeshResult(NamedTuple):
     face_idx: Tensor
     bary: Tensor
     closest: Tensor
+
+
+class _CentredHit(NamedTuple):
+    """A closest-face query in the frame the kernels computed it in (:meth:`MeshIndex.point_mesh_distance_centred`).
+
+    Attributes:
+        result: distances, faces, barycentrics and closest points of the centred, scaled points.
+        points_c: ``(P, 3)`` the centred, scaled points.
+        point_batch: ``(P,)`` item of each point.
+        point_center: ``(1 or P, 3)`` the centre subtracted from each point.
+        scale: the index's power-of-two scale, ``None`` for 1.
+    """
+
+    result: PointMeshResult
+    points_c: Tensor
+    point_batch: Tensor
+    point_center: Tensor
+    scale: float | None
 
 
 _Source = tuple[str, Tensor, int]
@@ -196,7 +215,15 @@ class MeshIndex:
         )
 
     @classmethod
-    def from_packed(cls, packed: PackedMeshes, backend: str, max_memory: int, tree: str = "morton") -> MeshIndex:
+    def from_packed(
+        cls,
+        packed: PackedMeshes,
+        backend: str,
+        max_memory: int,
+        tree: str = "morton",
+        *,
+        queries: PackedPoints | None = None,
+    ) -> MeshIndex:
         """An index over packed meshes that the caller has already validated: no check is repeated.
 
         The entry of the library's own loops (the registration validates its two meshes once, not at each of its
@@ -207,15 +234,27 @@ class MeshIndex:
             backend: a backend name (``"bvh"``, ``"pruned"``, ...).
             max_memory: the bytes a chunked backend may use.
             tree: ``"morton"`` or ``"sah"``.
+            queries: the packed points of a one-off index's single query (validated, in the index's dtype): the
+                exact power-of-two scaling then covers them too, as :func:`~torchmeshmetric.nearest_vertex_distance`
+                does, so that points far from a tiny mesh are measured, not refused (their distances are
+                representable; with a scale taken from the mesh alone their squares overflow).
 
         Returns:
             The index; it watches ``packed``'s tensors as :class:`MeshIndex` does.
         """
         index = cls.__new__(cls)
-        index._init(packed, backend, max_memory, True, tree)
+        index._init(packed, backend, max_memory, True, tree, queries)
         return index
 
-    def _init(self, packed: PackedMeshes, backend: str, max_memory: int, referenced_only: bool, tree: str) -> None:
+    def _init(
+        self,
+        packed: PackedMeshes,
+        backend: str,
+        max_memory: int,
+        referenced_only: bool,
+        tree: str,
+        queries: PackedPoints | None = None,
+    ) -> None:
         check_backend(backend)
         if tree not in ("sah", "morton"):
             raise ValueError(f"tree: expected 'sah' or 'morton', found {tree!r}")
@@ -235,7 +274,7 @@ class MeshIndex:
         self._nearest: _NearestIndex | None = None
         self._origin: MeshIndex | None = None  # the index a `with_verts` copy shares its structures with
         self._faces_everywhere: bool | None = None  # every item has faces (read once, at the first query)
-        self._set_verts(packed.verts)
+        self._set_verts(packed.verts, queries)
         self._verts_sources = _sources([("verts", packed.verts)])
         self._faces_sources = _sources([("faces", packed.faces)])
 
@@ -265,15 +304,21 @@ class MeshIndex:
                         f"{version}, now {_version(t)}), so the index would answer for a mesh that is gone; {remedy}"
                     )
 
-    def _set_verts(self, verts: Tensor) -> None:
+    def _set_verts(self, verts: Tensor, queries: PackedPoints | None = None) -> None:
         self.verts = verts
         self._centers, self._vert_center, _ = centred(verts, self.verts_lengths)
         verts_c = (verts - self._vert_center).detach()
+        extent = float(verts_c.abs().amax()) if verts_c.numel() else 0.0
+        if queries is not None and queries.points.numel() and queries.lengths.numel() == self.num_items:
+            # A one-off index scales for its one query too (a malformed one is refused by check_queries).
+            _, center = item_rows(queries.lengths, queries.points.shape[0], self._centers)
+            extent = max(extent, float((queries.points.detach() - center).abs().amax()))
         # Exact power-of-two scaling where float arithmetic would overflow or underflow (|ab x ac|^2: degree 4).
-        self._scale = range_scale(float(verts_c.abs().amax()) if verts_c.numel() else 0.0, verts.dtype, 4)
+        self._scale = range_scale(extent, verts.dtype, 4)
         if self._scale is not None:
             verts_c = verts_c * self._scale
         self._faceset = FaceSet(verts_c, self._faces_global, self._face_batch, self._face_offsets)
+        self._rounding_floor: Tensor | None = None  # rounding_floor(), computed on first use
 
     @property
     def dtype(self) -> torch.dtype:
@@ -339,15 +384,18 @@ class MeshIndex:
         pts = self._check_points(points, points_lengths)
         return self.point_mesh_distance_unchecked(pts.points, pts.lengths)
 
-    def point_mesh_distance_unchecked(self, points: Tensor, points_lengths: Tensor) -> PointMeshResult:
-        """:meth:`point_mesh_distance` for points the caller has validated (packed, finite, dtype and device).
+    def point_mesh_distance_centred(self, points: Tensor, points_lengths: Tensor) -> _CentredHit:
+        """:meth:`point_mesh_distance_unchecked` before its move back: the answer in the centred (scaled) frame.
+
+        Distances and closest points are those the kernels computed, on the points minus their item's centre, times
+        the index's power-of-two scale (``None``: 1); :meth:`to_world` divides and moves them back.
 
         Args:
-            points: ``(P, 3)`` packed query points.
+            points: ``(P, 3)`` packed query points (validated, as for :meth:`point_mesh_distance_unchecked`).
             points_lengths: ``(B,)`` points per indexed mesh.
 
         Returns:
-            As :meth:`point_mesh_distance`.
+            A :class:`_CentredHit`.
         """
         self._check_current()
         if getattr(self, "_faces_everywhere", None) is None:
@@ -376,10 +424,47 @@ class MeshIndex:
                 result = PointMeshResult(torch.sqrt(fused[1]), fused[0], fused[2], fused[3])
         if result is None:
             result = self._recompute(points_c, self._faces.select(points_c, point_batch), scale)
+        return _CentredHit(result, points_c, point_batch, point_center, scale)
+
+    def point_mesh_distance_unchecked(self, points: Tensor, points_lengths: Tensor) -> PointMeshResult:
+        """:meth:`point_mesh_distance` for points the caller has validated (packed, finite, dtype and device).
+
+        Args:
+            points: ``(P, 3)`` packed query points.
+            points_lengths: ``(B,)`` points per indexed mesh.
+
+        Returns:
+            As :meth:`point_mesh_distance`.
+        """
+        return self.to_world(self.point_mesh_distance_centred(points, points_lengths))
+
+    @staticmethod
+    def to_world(hit: _CentredHit) -> PointMeshResult:
+        """The answer of :meth:`point_mesh_distance_centred` in the caller's frame, checked for overflow."""
+        result, scale = hit.result, hit.scale
         if scale is not None:
             result = result._replace(dists=result.dists / scale, closest=result.closest / scale)
         check_representable(result.dists, "points")
-        return result._replace(closest=result.closest + point_center)
+        return result._replace(closest=result.closest + hit.point_center)
+
+    def rounding_floor(self) -> Tensor:
+        """``(B,)`` rounding level of distances computed in each item's centred (scaled) frame.
+
+        :func:`~torchmeshmetric.kernels._common.rounding_slack` of the item's largest centred (scaled) |coordinate|:
+        the slack the backends prune with. A computed distance at or below it cannot be told from 0 (a point on the
+        surface): its direction is rounding noise.
+        """
+        floor: Tensor | None = getattr(self, "_rounding_floor", None)
+        if floor is None:
+            verts_c = self._faceset.verts.abs().amax(-1)
+            if self.num_items == 1:
+                extent = verts_c.amax().reshape(1) if verts_c.numel() else verts_c.new_zeros(1)
+            else:
+                extent = verts_c.new_zeros(self.num_items).scatter_reduce(
+                    0, batch_index(self.verts_lengths, int(verts_c.shape[0])), verts_c, "amax"
+                )
+            floor = self._rounding_floor = rounding_slack(extent)
+        return floor
 
     def _recompute(self, points_c: Tensor, face_idx: Tensor, scale: float | None) -> PointMeshResult:
         """Distances, barycentrics and closest points (centred frame) on the selected faces, with autograd."""

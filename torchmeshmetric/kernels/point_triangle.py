@@ -74,6 +74,11 @@ def point_mesh_distance(
     pts = pack_points(points, points_lengths)
     check_same_device({"points": pts.points, "verts": packed.verts})
     dtype = common_dtype(pts.points.dtype, packed.verts.dtype)  # the dtype rule (docs/concepts.md, Precision)
-    # MeshIndex scales extreme coordinates exactly itself and raises when distances overflow the dtype.
-    index = MeshIndex.from_packed(packed._replace(verts=packed.verts.to(dtype)), backend, max_memory, tree="morton")
-    return index.point_mesh_distance_unchecked(pts.points.to(dtype), pts.lengths)
+    # MeshIndex scales extreme coordinates (the mesh's and these points') exactly itself and raises when distances
+    # overflow the dtype.
+    points = pts.points.to(dtype)
+    queries = pts._replace(points=points)
+    index = MeshIndex.from_packed(
+        packed._replace(verts=packed.verts.to(dtype)), backend, max_memory, tree="morton", queries=queries
+    )
+    return index.point_mesh_distance_unchecked(points, pts.lengths)
