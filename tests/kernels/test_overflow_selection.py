@@ -69,3 +69,19 @@ def test_the_cpp_closest_point_step_refuses_an_index_out_of_range():
     # Defensive: no selection may hand the C++ loop (which reads faces[face_idx] unchecked) a face out of range.
     with pytest.raises(RuntimeError, match=r"outside \[0, 1\) \(min -1, max -1\)"):
         bvh_closest_points(torch.zeros(1, 3), TRI_V, TRI_F, torch.tensor([-1]))
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_ties_go_to_the_lowest_computed_square_then_the_lowest_index_as_documented(backend):
+    # Review D, finding 5: faces 0 and 1 are equidistant in exact arithmetic (161/132 squared; face 1 is the
+    # segment v4-v0, an edge of face 0), but face 1's square computes lower: it wins on every backend (the old
+    # docstring said the lowest index wins). Each face alone gives the same rounded distance.
+    verts = torch.tensor(
+        [[1.0, 0, 2], [-1, 3, -3], [-1, -2, -1], [3, -3, -2], [-1, 2, -3], [2, 2, -1]], dtype=torch.float64
+    )
+    faces = torch.tensor([[0, 2, 4], [4, 0, 4]])
+    p = torch.tensor([[0.0, 1.5, 1.0]], dtype=torch.float64)
+    r = point_mesh_distance(p, verts, faces, backend=backend)
+    alone = [point_mesh_distance(p, verts, faces[i : i + 1], backend=backend).dists.item() for i in range(2)]
+    assert r.face_idx.tolist() == [1]
+    assert r.dists.item() == alone[0] == alone[1] == 1.104398917826783

@@ -4,7 +4,8 @@
 structure (a BVH on the CPU) for every call. Registration, ``compare`` and training loops query the *same* mesh
 many times: an index validates and centres the mesh once, builds each structure on its first query and keeps it;
 :meth:`MeshIndex.refit` moves the vertices (same faces) by refitting the bounds instead of rebuilding. Answers and
-gradients are those of the functions, bit for bit (the functions are implemented on this class).
+gradients are those of the functions, bit for bit where no range scaling is involved (the functions are implemented
+on this class; at extreme magnitudes the functions also scale for their query points, see :class:`MeshIndex`).
 """
 
 from __future__ import annotations
@@ -152,7 +153,11 @@ class MeshIndex:
     is built on its first query and kept (CPU: the C++ BVH; CUDA: the Triton implicit BVH, or the pruned scan
     without Triton; see ``docs/acceleration.md``). :meth:`point_mesh_distance` and :meth:`nearest_vertex_distance`
     return what the functions of the same names return for this mesh, bit for bit, with the same gradients
-    (to the points, and to the mesh vertices through the same recomputation on the selected face).
+    (to the points, and to the mesh vertices through the same recomputation on the selected face), except at
+    extreme magnitudes: the index scales coordinates by a power of two chosen from its mesh alone, the functions
+    from the mesh and their points (or, for a single nearest-vertex set, unscaled), so for point sets of size
+    ~1e-15 (float32) the last bits may differ, and a point whose squared distance overflows the index's frame
+    raises :class:`~torchmeshmetric.NonFiniteError` where the function measures it.
     :meth:`refit` moves the vertices (same faces): bounds are refitted, not rebuilt, and answers stay exact.
 
     The index keeps the tensors it was built from (no copy: gradients reach them, e.g. an ``nn.Parameter``) and

@@ -56,8 +56,10 @@ def point_mesh_distance(
     Returns:
         :class:`PointMeshResult` ``(dists, face_idx, bary, closest)``, in the promoted dtype of ``points`` and
         ``verts`` (float64 if either is; gradients come back in each input's own dtype). ``dists`` is the plain
-        Euclidean distance, **not squared**. ``face_idx`` indexes the rows of the (packed) ``faces`` tensor; among
-        equidistant faces the lowest index wins.
+        Euclidean distance, **not squared**. ``face_idx`` indexes the rows of the (packed) ``faces`` tensor: the face
+        of least *computed* squared distance (bounding-box centred coordinates), the lowest index among equal ones;
+        every backend selects the same face. Faces equidistant in exact arithmetic may compute differently in the
+        last bit, and then the lower computed square wins, whatever its index.
 
     Raises:
         ShapeError, DTypeError, NonFiniteError, IndexRangeError, DeviceError, EmptyInputError: on bad input,
