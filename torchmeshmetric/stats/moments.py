@@ -9,13 +9,20 @@ rounding) with Chan et al.'s parallel formula
     n = n_a + n_b,\quad \delta = \bar x_b - \bar x_a,\quad
     \bar x = \bar x_a + \delta\, n_b / n,\quad M_2 = M_{2,a} + M_{2,b} + \delta^2\, n_a n_b / n,
 
-and, for ``K`` parts at once, :math:`\bar x = \sum_k n_k \bar x_k / n`,
+and, for ``K`` parts at once, the same shift form from the largest part ``r``:
+:math:`\bar x = \bar x_r + \sum_k n_k (\bar x_k - \bar x_r) / n`,
 :math:`M_2 = \sum_k M_{2,k} + \sum_k n_k (\bar x_k - \bar x)^2`. Nothing is computed as
-:math:`E[x^2] - E[x]^2`, so float32 distances with large offsets lose no precision to cancellation.
+:math:`E[x^2] - E[x]^2`, so float32 distances with large offsets lose no precision to cancellation. A set's own mean
+is likewise its minimum plus the mean of the shifts from it, so a constant set (or stream, however it is batched)
+has its value as mean and ``m2 = 0`` exactly; a stream of ``U`` merges accumulates about ``sqrt(U)`` roundings of
+the mean (20 000 single-value updates of uniform data: 3e-15 relative). Values so large that a sum of them
+overflows (near 1.7e308) are summed scaled by an exact power of two: the mean and ``m2`` overflow only where their
+true values do.
 """
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import torch
@@ -69,18 +76,42 @@ def moments_of(values: Tensor, lengths: Tensor | None = None) -> Moments:
         if x.numel() == 0:
             z = x.new_zeros(())
             return Moments(n, z, z.clone(), z.clone(), x.new_tensor(float("inf")), x.new_tensor(float("-inf")))
-        mean = x.mean()
-        return Moments(n, mean, ((x - mean) ** 2).sum(), (x * x).sum(), x.min(), x.max())
+        lo, hi = x.aminmax()
+        mean, m2 = _mean_m2(x, lo, n)
+        return Moments(n, mean, m2, (x * x).sum(), lo, hi)
     num = int(lengths.numel())
     b = batch_index(lengths.to(device=x.device, dtype=torch.long))
     n = lengths.to(device=x.device, dtype=torch.float64)
-    s = x.new_zeros(num).index_add_(0, b, x)
-    mean = torch.where(n > 0, s / n.clamp_min(1.0), torch.zeros_like(s))
-    m2 = x.new_zeros(num).index_add_(0, b, (x - mean[b]) ** 2)
-    sumsq = x.new_zeros(num).index_add_(0, b, x * x)
     lo = x.new_full((num,), float("inf")).scatter_reduce(0, b, x, reduce="amin")
     hi = x.new_full((num,), float("-inf")).scatter_reduce(0, b, x, reduce="amax")
+    mean, m2 = _mean_m2(x, lo, n, b)
+    sumsq = x.new_zeros(num).index_add_(0, b, x * x)
     return Moments(n, mean, m2, sumsq, lo, hi)
+
+
+def _mean_m2(x: Tensor, lo: Tensor, n: Tensor, batch: Tensor | None = None) -> tuple[Tensor, Tensor]:
+    """Two-pass ``(mean, m2)`` of the values ``x`` of one set (``batch=None``) or of ``(B,)`` sets, ``lo`` their minima.
+
+    ``mean = lo + sum(x - lo) / n``: exact for a constant set. Where a sum overflows although the values are finite
+    (values near 1.7e308), both passes are redone on ``x`` scaled by an exact power of two (one check of the results;
+    the usual case pays nothing else). Empty sets get ``mean = m2 = 0``.
+    """
+
+    def passes(v: Tensor, low: Tensor) -> tuple[Tensor, Tensor]:
+        if batch is None:
+            mean = low + (v - low).sum() / n
+            return mean, ((v - mean) ** 2).sum()
+        has = n > 0
+        low = torch.where(has, low, torch.zeros_like(low))
+        mean = low + v.new_zeros(n.shape).index_add_(0, batch, v - low[batch]) / n.clamp_min(1.0)
+        return mean, v.new_zeros(n.shape).index_add_(0, batch, (v - mean[batch]) ** 2)
+
+    mean, m2 = passes(x, lo)
+    if bool(torch.isfinite(torch.stack([mean.reshape(-1), m2.reshape(-1)])).all()):
+        return mean, m2
+    scale = math.ldexp(1.0, -math.frexp(float(x.abs().amax()))[1])  # |x| * scale in [0.5, 1): exact
+    mean, m2 = passes(x * scale, lo * scale)
+    return mean / scale, m2 / (scale * scale)
 
 
 def merge_moments(parts: Moments, dim: int = 0) -> Moments:
@@ -113,7 +144,13 @@ def merge_mean_m2(count: Tensor, mean: Tensor, m2: Tensor, dim: int = 0) -> tupl
     """Chan et al. merge of ``(count, mean, m2)`` parts along ``dim``; returns the merged ``(count, mean, m2)``."""
     count, mean, m2 = count.to(torch.float64), mean.to(torch.float64), m2.to(torch.float64)
     n = count.sum(dim)
-    new_mean = torch.where(n > 0, (count * mean).sum(dim) / n.clamp_min(1.0), torch.zeros_like(n))
+    if count.shape[dim] == 0:
+        return n, torch.zeros_like(n), m2.sum(dim)
+    # Shift form from the largest part: equal means (a constant stream) merge exactly, and no n_k * mean_k is formed
+    # (it rounded the whole mean at every merge, and overflowed for means near 1.7e308).
+    ref = mean.gather(dim, count.argmax(dim, keepdim=True))
+    shift = torch.where(count > 0, mean - ref, torch.zeros_like(mean))
+    new_mean = torch.where(n > 0, ref.squeeze(dim) + (count * shift).sum(dim) / n.clamp_min(1.0), torch.zeros_like(n))
     dev = torch.where(count > 0, mean - new_mean.unsqueeze(dim), torch.zeros_like(mean))
     return n, new_mean, m2.sum(dim) + (count * dev * dev).sum(dim)
 

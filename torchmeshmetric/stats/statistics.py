@@ -28,7 +28,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import EmptyInputError, check_finite, check_lengths, check_shape
+from torchmeshmetric._checks import EmptyInputError, check_finite, check_int, check_lengths, check_real, check_shape
 from torchmeshmetric.stats.moments import Moments, moments_of
 from torchmeshmetric.stats.sketch import QuantileSketch
 from torchmeshmetric.structures import batch_index, lengths_to_offsets
@@ -178,8 +178,9 @@ def statistics_from_parts(
 
     Empty sets (``count == 0``) get NaN statistics (``count`` 0); ``var``/``std`` are NaN when ``count <= ddof``.
     """
-    if ddof < 0:
-        raise ValueError(f"ddof: expected a non-negative integer, found {ddof}")
+    ddof = check_int(ddof, "ddof", low=0)
+    if peak is not None:
+        peak = _check_peak(peak)
     n = moments.count.to(torch.float64)
     nan = torch.full_like(n, float("nan"))
     has = n > 0
@@ -203,6 +204,20 @@ def statistics_from_parts(
         count=n.round().long(),
         psnr=psnr,
     )
+
+
+def _check_peak(peak: float | Tensor) -> float | Tensor:
+    """Require a finite, positive PSNR peak (a number or a tensor of them): 0 gave -inf dB, NaN NaN, -1 that of +1."""
+    if isinstance(peak, Tensor):
+        _check_distances(peak, "peak")
+        bad = peak.detach().to(torch.float64) <= 0
+        if bool(bad.any()):
+            raise ValueError(f"peak: expected positive values, found {float(peak.reshape(-1)[bad.reshape(-1)][0])!r}")
+        return peak
+    value = check_real(peak, "peak")
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"peak: expected a finite number > 0, found {value!r}")
+    return value
 
 
 def distance_statistics(
@@ -270,6 +285,8 @@ def distance_statistics(
             raise EmptyInputError("dists: expected at least one distance, found an empty tensor")
         return distance_statistics_compute(moments, quantile_data, sketch=sketch, ddof=ddof, peak=peak)
     _check_distances(d, "dists")
+    if sketch is not None:
+        _check_sketch_input(d, "dists")
     mom = moments_of(d, lengths)
     if sketch is None:
         qv = linear_quantiles(d, QUANTILE_LEVELS, lengths)
@@ -284,10 +301,16 @@ def distance_statistics(
 
 
 def _check_distances(dists: Tensor, name: str) -> None:
-    """Require real (float or integer) and finite distances: every integer dtype is exact in float64."""
+    """Require real (float or integer) and finite distances (computed in float64: integers beyond 2**53 round)."""
     if dists.is_complex() or dists.dtype == torch.bool:  # int16 was refused as "not a real tensor", int32 taken
         raise TypeError(f"{name}: expected a float or integer tensor, found dtype {dists.dtype}")
     check_finite(dists, name)
+
+
+def _check_sketch_input(dists: Tensor, name: str) -> None:
+    """Require distances >= 0 for the quantile sketch: its log buckets put a negative value in the wrong one."""
+    if dists.numel() and float(dists.min()) < 0:
+        raise ValueError(f"{name}: the quantile sketch takes distances >= 0, found {float(dists.min())!r}")
 
 
 def distance_statistics_update(
@@ -319,8 +342,8 @@ def distance_statistics_update(
     check_shape(dists, ("N",), name)
     _check_distances(dists, name)
     d = dists.detach().to(torch.float64)
-    if sketch is not None and d.numel() and float(d.min()) < 0:  # log buckets: a negative value lands in the wrong one
-        raise ValueError(f"{name}: the quantile sketch takes distances >= 0, found {float(d.min())!r}")
+    if sketch is not None:
+        _check_sketch_input(d, name)
     return moments_of(d), d if sketch is None else sketch.counts(d)
 
 

@@ -1,0 +1,89 @@
+"""Review D, findings 6-8 and 13: sketch input on the batched path, peak/ddof checks, stable and exact moments."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from torchmeshmetric.stats import DistanceAccumulator
+from torchmeshmetric.stats.statistics import distance_statistics
+
+
+@pytest.mark.parametrize("batched", [False, True])
+def test_the_sketch_refuses_negative_distances_on_every_path(batched):
+    # The lengths= path skipped the check and returned a median of 0.4995 (exact: 0).
+    kw = {"lengths": torch.tensor([2])} if batched else {}
+    with pytest.raises(ValueError, match=r"dists: the quantile sketch takes distances >= 0, found -1.0"):
+        distance_statistics(torch.tensor([-1.0, 1.0]), exact_quantiles=False, **kw)
+    with pytest.raises(ValueError, match=r"dists: the quantile sketch takes distances >= 0, found -1.0"):
+        distance_statistics([torch.tensor([-1.0, 1.0])], exact_quantiles=False)
+
+
+@pytest.mark.parametrize("peak", [0.0, -1.0, float("nan"), float("inf")])
+def test_a_peak_that_is_not_finite_and_positive_is_refused(peak):
+    # 0 gave psnr -inf, -1 the psnr of +1, NaN a NaN psnr.
+    with pytest.raises(ValueError, match=r"peak: expected a finite number > 0, found"):
+        distance_statistics(torch.tensor([1.0, 2.0]), peak=peak)
+    with pytest.raises(ValueError, match=r"peak: expected a finite number > 0, found"):
+        acc = DistanceAccumulator()
+        acc.update(torch.tensor([1.0]))
+        acc.compute(peak=peak)
+
+
+def test_a_peak_tensor_is_checked_too():
+    with pytest.raises(ValueError, match=r"peak: expected positive values, found 0.0"):
+        distance_statistics([torch.tensor([1.0]), torch.tensor([2.0])], peak=torch.tensor([1.0, 0.0]))
+    with pytest.raises(ValueError, match=r"peak"):
+        distance_statistics(torch.tensor([1.0, 2.0]), peak=torch.tensor(float("nan")))
+    assert float(distance_statistics(torch.tensor([0.1]), peak=torch.tensor(1.0)).psnr) == pytest.approx(20.0)
+
+
+@pytest.mark.parametrize(("ddof", "error"), [(1.5, TypeError), (True, TypeError), (-1, ValueError)])
+def test_ddof_must_be_a_non_negative_int(ddof, error):
+    # 1.5 gave a variance divided by n - 1.5.
+    with pytest.raises(error, match=r"ddof: expected an int"):
+        distance_statistics(torch.tensor([1.0, 2.0, 4.0]), ddof=ddof)
+
+
+def test_a_constant_set_has_its_value_as_mean_and_variance_exactly_0_however_it_is_batched():
+    # Was: one-shot std 8.7e-11, and 2.4e-8 off the mean streamed one value per update.
+    x = torch.full((20000,), 123456.789, dtype=torch.float64)
+    for stats in [distance_statistics(x), distance_statistics(x, lengths=torch.tensor([5000, 15000]))]:
+        assert torch.all(stats.ave == 123456.789) and torch.all(stats.var == 0)
+    for batch in (1, 7, 1000):
+        acc = DistanceAccumulator()
+        for v in x.split(batch):
+            acc.update(v)
+        s = acc.compute()
+        assert float(s.ave) == 123456.789 and float(s.var) == 0.0
+
+
+def test_streamed_moments_do_not_drift_with_the_number_of_updates():
+    # Uniform data in [0, 10), 20 000 values: the relative error of the streamed ave was 2e-13 (batches of 1),
+    # 2e-14 (10), 1e-16 (1000); measured now, against numpy in float64: ave 8.8e-16 / 1.6e-15 / 1.8e-16, var
+    # 6.0e-15 / 2.3e-15 / 4.3e-16 (about sqrt(updates) roundings). Asserted: 1e-14 for both.
+    u = torch.rand(20000, dtype=torch.float64, generator=torch.Generator().manual_seed(0)) * 10
+    mean, var = np.mean(u.numpy()), np.var(u.numpy())
+    for batch in (1, 10, 1000):
+        acc = DistanceAccumulator()
+        for v in u.split(batch):
+            acc.update(v)
+        s = acc.compute()
+        assert abs(float(s.ave) - mean) <= 1e-14 * mean
+        assert abs(float(s.var) - var) <= 1e-14 * var
+
+
+def test_values_near_the_float64_maximum_give_finite_mean_and_variance():
+    # ave and var were inf for [1.7e308, 1.7e308] (the sum overflowed); streaming a constant 1e300 gave var inf.
+    s = distance_statistics(torch.tensor([1.7e308, 1.7e308], dtype=torch.float64))
+    assert float(s.ave) == 1.7e308 and float(s.var) == 0.0
+    s = distance_statistics(torch.tensor([1.7e308, 1.0e308, 1.5e308], dtype=torch.float64))
+    assert float(s.ave) == pytest.approx(1.4e308, rel=1e-15)
+    assert float(s.var) == float("inf")  # its true value, 8.7e614, is beyond float64
+    b = distance_statistics(torch.tensor([1.7e308, 1.7e308, 1.0], dtype=torch.float64), lengths=torch.tensor([2, 0, 1]))
+    assert b.ave[0] == 1.7e308 and b.var[0] == 0 and b.ave[2] == 1.0 and torch.isnan(b.ave[1])
+    acc = DistanceAccumulator()
+    for _ in range(10):
+        acc.update(torch.tensor([1e300], dtype=torch.float64))
+    assert float(acc.compute().ave) == 1e300 and float(acc.compute().var) == 0.0
