@@ -11,7 +11,7 @@ import math
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import EmptyInputError, NonFiniteError, all_finite
+from torchmeshmetric._checks import EmptyInputError, NonFiniteError, all_finite, check_int
 from torchmeshmetric.structures import batch_index
 
 DEFAULT_MAX_MEMORY = 256 * 2**20
@@ -124,10 +124,14 @@ def check_queries(
         raise EmptyInputError(lacking_error.format(item=b, points=int(points_lengths[b])))
 
 
+def check_max_memory(max_memory: object) -> int:
+    """Require a positive int number of bytes for ``max_memory`` (every backend and entry point checks it alike)."""
+    return check_int(max_memory, "max_memory", low=1)
+
+
 def pair_chunks(num_rows: int, num_cols: int, bytes_per_pair: int, max_memory: int) -> tuple[int, int]:
     """Row and column chunk sizes so that ``rows * cols * bytes_per_pair <= max_memory`` (at least 1 x 1)."""
-    if max_memory <= 0:
-        raise ValueError(f"max_memory: expected a positive number of bytes, found {max_memory}")
+    check_max_memory(max_memory)
     pairs = max(1, max_memory // max(1, bytes_per_pair))
     cols = max(1, min(num_cols, pairs // max(1, min(num_rows, 256))))
     rows = max(1, min(num_rows, pairs // cols))

@@ -29,6 +29,7 @@ from torchmeshmetric._checks import (
 from torchmeshmetric.kernels._common import (
     DEFAULT_MAX_MEMORY,
     centred,
+    check_max_memory,
     check_queries,
     check_representable,
     item_rows,
@@ -41,7 +42,7 @@ from torchmeshmetric.kernels.contract import FaceSet
 from torchmeshmetric.kernels.nearest import NearestVertexResult, _NearestIndex
 from torchmeshmetric.kernels.sampling import vertex_set_mask
 from torchmeshmetric.kernels.select import Selector, check_backend
-from torchmeshmetric.kernels.triangle import closest_point_on_triangle
+from torchmeshmetric.kernels.triangle import closest_point_on_triangle_unchecked
 from torchmeshmetric.structures import (
     Mesh,
     MeshLike,
@@ -261,6 +262,7 @@ class MeshIndex:
         queries: PackedPoints | None = None,
     ) -> None:
         check_backend(backend)
+        max_memory = check_max_memory(max_memory)
         if tree not in ("sah", "morton"):
             raise ValueError(f"tree: expected 'sah' or 'morton', found {tree!r}")
         self.backend, self.max_memory, self.referenced_only, self.tree = backend, max_memory, referenced_only, tree
@@ -483,7 +485,7 @@ class MeshIndex:
             if out is not None:
                 return PointMeshResult(torch.sqrt(out[0]), face_idx, out[1], out[2])
         tri = verts_c[self._faces_global[face_idx]]
-        res = closest_point_on_triangle(points_c, tri[:, 0], tri[:, 1], tri[:, 2])
+        res = closest_point_on_triangle_unchecked(points_c, tri[:, 0], tri[:, 1], tri[:, 2])
         return PointMeshResult(safe_sqrt(res.sq_dists), face_idx, res.bary, res.closest)
 
     def nearest_vertex_distance(

@@ -20,6 +20,7 @@ from torchmeshmetric._checks import (
 from torchmeshmetric.kernels._common import (
     DEFAULT_MAX_MEMORY,
     centred,
+    check_max_memory,
     check_queries,
     check_representable,
     dot,
@@ -60,7 +61,7 @@ class _NearestIndex:
         self, ref: Tensor, lengths: Tensor, backend: str, max_memory: int, *, queries: PackedPoints | None = None
     ) -> None:
         self.lengths = lengths
-        self.selector = Selector(backend, self._set(ref, queries), max_memory)
+        self.selector = Selector(backend, self._set(ref, queries), check_max_memory(max_memory))
 
     def _set(self, ref: Tensor, queries: PackedPoints | None = None) -> PointSet:
         """Centre and scale ``ref`` (and keep it for the differentiable distances): the set the backend selects from."""
@@ -190,6 +191,7 @@ def _nearest_single(points: Tensor, ref_points: Tensor, max_memory: int, backend
     check_float(ref_points, "ref_points")
     check_same_device({"points": points, "ref_points": ref_points})
     check_backend(backend)
+    check_max_memory(max_memory)
     num_p, num_r = points.shape[0], ref_points.shape[0]
     dtype = common_dtype(points.dtype, ref_points.dtype)
     p, r = points.to(dtype), ref_points.to(dtype)

@@ -20,7 +20,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import check_float
+from torchmeshmetric._checks import ShapeError, check_finite, check_float
 from torchmeshmetric.kernels._common import cross, dot, safe_div
 
 __all__ = ["ClosestPointOnTriangle", "closest_point_on_triangle", "region_candidates"]
@@ -99,6 +99,10 @@ def closest_point_on_triangle(points: Tensor, a: Tensor, b: Tensor, c: Tensor) -
     Returns:
         :class:`ClosestPointOnTriangle` ``(closest, bary, sq_dists)``; ``sq_dists`` is squared.
 
+    Raises:
+        TypeError, DTypeError, ShapeError, NonFiniteError: an argument that is not a float tensor of shape
+            ``(..., 3)`` with finite values, or shapes that do not broadcast; the error names the argument.
+
     Example:
         >>> import torch
         >>> a, b, c = torch.tensor([0., 0, 0]), torch.tensor([1., 0, 0]), torch.tensor([0., 1, 0])
@@ -106,8 +110,24 @@ def closest_point_on_triangle(points: Tensor, a: Tensor, b: Tensor, c: Tensor) -
         >>> r.closest.tolist(), r.sq_dists.item()
         ([0.25, 0.25, 0.0], 4.0)
     """
-    for name, x in (("points", points), ("a", a), ("b", b), ("c", c)):
+    args = (("points", points), ("a", a), ("b", b), ("c", c))
+    for name, x in args:
+        if not isinstance(x, Tensor):
+            raise TypeError(f"{name}: expected a tensor of shape (..., 3), found {type(x).__name__}")
         check_float(x, name)
+        if x.dim() == 0 or x.shape[-1] != 3:
+            raise ShapeError(f"{name}: expected shape (..., 3), found ({', '.join(map(str, x.shape))})")
+        check_finite(x, name)
+    try:
+        torch.broadcast_shapes(*(x.shape for _, x in args))
+    except RuntimeError:
+        found = ", ".join(f"{n} {tuple(x.shape)}" for n, x in args)
+        raise ShapeError(f"points, a, b, c: expected shapes that broadcast, found {found}") from None
+    return closest_point_on_triangle_unchecked(points, a, b, c)
+
+
+def closest_point_on_triangle_unchecked(points: Tensor, a: Tensor, b: Tensor, c: Tensor) -> ClosestPointOnTriangle:
+    """:func:`closest_point_on_triangle` for inputs the caller has validated (float, finite, ``(..., 3)``)."""
     ab, ac, bc = b - a, c - a, c - b
     ap, bp = points - a, points - b
     t_ab, t_ac, t_bc, v, w, sq = region_candidates(ap, bp, ab, ac, bc)
