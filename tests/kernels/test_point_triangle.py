@@ -333,3 +333,30 @@ class TestBadInput:
     def test_mixed_devices(self) -> None:
         with pytest.raises(DeviceError, match="points on cpu"):
             point_mesh_distance(self.pts, self.verts.cuda(), self.faces.cuda())
+
+
+def test_points_above_an_edge_get_barycentrics_on_the_triangle() -> None:
+    # Found by hypothesis (2026-12-07): the face region's test was v + w <= 1 while the returned u is 1 - v - w,
+    # and the two round differently: a point above edge BC was taken as inside with u = -1.1e-16 (7 % of such points
+    # of random triangles), a closest point off the triangle by rounding. Every backend tests u as computed.
+    p = torch.tensor([-3.945273770120485, 9.937690189904185, 3.372209607946025], dtype=torch.float64)
+    a = torch.tensor([8.414953682439204, 2.900482402455296, 5.822957843606073], dtype=torch.float64)
+    b = torch.tensor([-1.3656812081152214, 5.33282322482351, 0.48245037969146765], dtype=torch.float64)
+    c = torch.tensor([-6.318535550460076, 7.812886404208022, 5.187602572734299], dtype=torch.float64)
+    r = closest_point_on_triangle(p, a, b, c)
+    assert float(r.bary.min()) >= 0.0 and float(r.bary[0]) == 0.0  # on edge BC
+    g = torch.Generator().manual_seed(0)
+    tri = torch.rand(3, 20000, 3, generator=g, dtype=torch.float64) * 20 - 10
+    a, b, c = tri
+    t = torch.rand(20000, 1, generator=g, dtype=torch.float64)
+    n = torch.linalg.cross(b - a, c - a)
+    points = b + t * (c - b) + n * torch.rand(20000, 1, generator=g, dtype=torch.float64) * 0.1
+    r = closest_point_on_triangle(points, a, b, c)
+    assert bool((r.bary >= 0).all())
+    mesh = Mesh(tri.transpose(0, 1).reshape(-1, 3), torch.arange(60000).reshape(-1, 3))
+    for backend in ("bruteforce", "bvh", "pruned"):
+        out = point_mesh_distance(points[:2000], Mesh(mesh.verts[:6000], mesh.faces[:2000]), backend=backend)
+        if backend == "bruteforce":
+            first = out
+        else:  # every backend picks the same face and the same bits
+            assert torch.equal(out.dists, first.dists) and torch.equal(out.face_idx, first.face_idx)

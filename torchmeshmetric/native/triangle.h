@@ -143,7 +143,8 @@ TMM_ALWAYS_INLINE RegionCandidates<S> region_candidates(const FaceData<S>& f, co
   r.w = area ? w : zero;
   S d_f[3];
   for (int k = 0; k < 3; ++k) d_f[k] = (ap[k] - r.v * f.ab[k]) - r.w * f.ac[k];
-  const auto inside = area & (r.v >= zero) & (r.w >= zero) & (r.v + r.w <= one);
+  // u = (1 - v) - w >= 0 as the face's barycentric is computed (kernels/triangle.py: not v + w <= 1).
+  const auto inside = area & (r.v >= zero) & (r.w >= zero) & ((one - r.v) - r.w >= zero);
   r.sq[3] = inside ? dot3(d_f, d_f) : splat<S>(std::numeric_limits<lane_t<S>>::infinity());
   return r;
 }

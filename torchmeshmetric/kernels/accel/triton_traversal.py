@@ -210,7 +210,7 @@ def _tri_sq_dist(f, m, qx, qy, qz, IS_F64: tl.constexpr):  # type: ignore[no-unt
     dy = bpy - t_bc * bcy
     dz = bpz - t_bc * bcz
     sq = tl.minimum(sq, dx * dx + dy * dy + dz * dz)
-    inside = (nn > 0) & (v >= 0) & (w >= 0) & (v + w <= 1)
+    inside = (nn > 0) & (v >= 0) & (w >= 0) & (1 - v - w >= 0)  # as kernels/triangle.py: u >= 0 as computed
     dx = (apx - v * abx) - w * acx
     dy = (apy - v * aby) - w * acy
     dz = (apz - v * abz) - w * acz
