@@ -19,6 +19,7 @@ from torchmeshmetric._console import say
 from torchmeshmetric._format import json_safe
 from torchmeshmetric.cli._outputs import CLIError, output_set
 from torchmeshmetric.cli.options import NUDGED_CACHE
+from torchmeshmetric.data.frames import frame_numbers, list_frames
 from torchmeshmetric.data.sequence import load_sequence
 from torchmeshmetric.evaluation.distributed import SequenceWork, evaluate_sequences
 from torchmeshmetric.evaluation.pipeline import check_methods, evaluate_sequence
@@ -46,6 +47,7 @@ __all__ = [
     "fast_registration_options",
     "html_layers",
     "load_frames",
+    "paired_files",
     "parse_methods",
     "progress",
     "report_paths",
@@ -100,19 +102,58 @@ def dtype_of(args: argparse.Namespace) -> Any:
     return {"float32": torch.float32, "float64": torch.float64}[args.dtype]
 
 
-def load_frames(directory: str, what: str, dtype: Any) -> list[Any]:
-    """The frames of a folder (natural order), or a one-line error naming the option and the folder."""
+def load_frames(directory: str, what: str, dtype: Any, paired_with: tuple[str, str] | None = None) -> list[Any]:
+    """The frames of a folder (natural order), or a one-line error naming the option and the folder.
+
+    ``paired_with``: ``(folder, option)`` of the original frames these are measured against; the frames are then
+    paired with those by frame number (:func:`paired_files`), never by position alone when both folders number them.
+    """
     if Path(directory).is_file():
         raise CLIError(f"{what} {directory!r} is a file; expected a folder of frames")
     if not Path(directory).is_dir():
         raise CLIError(f"{what} {directory!r}: no such directory")
     try:
-        frames = load_sequence(directory, dtype=dtype)
+        files = list_frames(directory)
+        if paired_with is not None:
+            files = paired_files(files, directory, what, *paired_with)
+        frames = load_sequence(files, dtype=dtype)
+    except CLIError:
+        raise
     except Exception as exc:
         raise CLIError(f"{what} {directory!r}: {exc}") from exc
     if len(frames) == 0:
         raise CLIError(f"{what} {directory!r}: no mesh files found")
     return list(frames)
+
+
+def paired_files(files: list[Path], directory: str, what: str, original: str, original_what: str) -> list[Path]:
+    """``files`` (of ``directory``) in the order of the original frames of ``original``, paired by frame number.
+
+    When every file name of both folders carries a frame number (:func:`~torchmeshmetric.data.frames.frame_numbers`),
+    the two sets of numbers must be the same: a missing export or another numbering is refused, naming both folders
+    and the first frame number in one folder only (paired by position, original frame 1 would be measured against
+    simplified frame 2 in silence). Otherwise (a name without a number, a number twice) the frames pair by natural
+    order, as documented. Different counts are left to the count check, which names them.
+    """
+    originals = list_frames(original)
+    numbers, theirs = frame_numbers(originals), frame_numbers(files)
+    if numbers is None or theirs is None or len(files) != len(originals):
+        return files
+    if set(numbers) != set(theirs):
+        first = min(set(numbers) ^ set(theirs))
+        has, lacks = (
+            ((original_what, original), (what, directory))
+            if first in numbers
+            else ((what, directory), (original_what, original))
+        )
+        name = (originals[numbers.index(first)] if first in numbers else files[theirs.index(first)]).name
+        raise CLIError(
+            f"{what} {directory!r} and {original_what} {original!r} number different frames: frame {first} "
+            f"({name!r}) is in {has[0]} {has[1]!r} but not in {lacks[0]} {lacks[1]!r}; frames are paired by their "
+            "numbers (rename or re-export the frames so that both folders hold the same numbers)"
+        )
+    by_number = dict(zip(theirs, files, strict=True))
+    return [by_number[n] for n in numbers]
 
 
 def write_reports(

@@ -87,7 +87,12 @@ def run(args: argparse.Namespace) -> int:
     for seq in campaign.sequences:
         original = load_frames(str(seq.original), f"sequence {seq.name!r}: original", dtype_of(args))
         methods = {
-            m: load_frames(str(d), f"sequence {seq.name!r}: method {m!r}", dtype_of(args))
+            m: load_frames(
+                str(d),
+                f"sequence {seq.name!r}: method {m!r}",
+                dtype_of(args),
+                (str(seq.original), f"sequence {seq.name!r}: original"),
+            )
             for m, d in seq.methods.items()
         }
         check_methods(original, methods, sequence=seq.name)

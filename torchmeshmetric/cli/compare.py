@@ -53,7 +53,10 @@ def run(args: argparse.Namespace) -> int:
         inputs += folder_inputs("--method", spec.partition("=")[2])
     check_writable(list(paths.values()), args.overwrite, inputs=inputs, what="--out")
     original = load_frames(args.original, "--original", dtype_of(args))
-    frames = {name: load_frames(d, f"--method {name}", dtype_of(args)) for name, d in specs.items()}
+    frames = {
+        name: load_frames(d, f"--method {name}", dtype_of(args), (args.original, "--original"))
+        for name, d in specs.items()
+    }
     cache = RegistrationCache(args.cache_dir)  # kept: the --html page shows the best pair's registration
     results = evaluate_methods(original, frames, args, device, cache=cache)
     determinacy, nudged = determinacy_of(original, frames, results, args, device)

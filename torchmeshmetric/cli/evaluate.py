@@ -16,8 +16,9 @@ def run(args: argparse.Namespace) -> int:
 
     For every simplified frame k >= 1: register original frame k-1 onto original frame k, measure the four distance
     sets from the simplified vertices (surface and nearest-vertex distance to frame k and to the registered frame
-    k-1), print the paper's Tables I-IV and optionally write a report. Frames are matched by natural sort order of
-    the file names in each folder; the counts must be equal.
+    k-1), print the paper's Tables I-IV and optionally write a report. Frames are paired by the frame numbers in
+    their file names (the same numbers in both folders), or by natural sort order where a name has none; the counts
+    must be equal.
     """
     from torchmeshmetric.cli._outputs import check_writable, folder_inputs
     from torchmeshmetric.cli._shared import (
@@ -41,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
     inputs = folder_inputs("--original", args.original) + folder_inputs("--simplified", args.simplified)
     check_writable(list(paths.values()), args.overwrite, inputs=inputs, what="--out")
     original = load_frames(args.original, "--original", dtype_of(args))
-    simplified = load_frames(args.simplified, "--simplified", dtype_of(args))
+    simplified = load_frames(args.simplified, "--simplified", dtype_of(args), (args.original, "--original"))
     if len(simplified) != len(original):  # named by the options: "method 'two'" named no option of this command
         from torchmeshmetric.cli._outputs import CLIError
 

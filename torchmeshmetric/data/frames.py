@@ -10,7 +10,7 @@ from pathlib import Path
 
 from torchmeshmetric.data.mesh_file import MESH_SUFFIXES, MeshFileError
 
-__all__ = ["PathsLike", "list_frames", "natural_key"]
+__all__ = ["PathsLike", "frame_numbers", "list_frames", "natural_key"]
 
 
 PathsLike = str | os.PathLike | Sequence[str | os.PathLike]
@@ -26,6 +26,26 @@ def natural_key(path: str | os.PathLike) -> tuple[object, ...]:
     """
     parts = re.split(r"(\d+)", os.fspath(path))
     return tuple((0, int(p), p) if p.isdigit() else (1, 0, p.lower()) for p in parts)
+
+
+def frame_numbers(paths: Sequence[str | os.PathLike]) -> list[int] | None:
+    """The frame number of each file: the last number in its name without the suffix, as :func:`natural_key` reads it.
+
+    ``None`` when a file's name holds no number or two files share one (such frames pair by position only).
+
+    Example:
+        >>> frame_numbers(["frame_000.ply", "frame_002.ply", "take2_frame_010.obj"])
+        [0, 2, 10]
+        >>> frame_numbers(["a.ply", "b.ply"]) is None
+        True
+    """
+    numbers = []
+    for path in paths:
+        found = [part for part in natural_key(Path(path).stem) if isinstance(part, tuple) and part[0] == 0]
+        if not found:
+            return None
+        numbers.append(int(found[-1][1]))
+    return numbers if len(set(numbers)) == len(numbers) else None
 
 
 def list_frames(paths: PathsLike) -> list[Path]:
