@@ -117,6 +117,8 @@ def test_bad_method_spec_and_cuda_without_gpu(capsys, tmp_path, sequence):
     orig, simp = sequence
     code, _, err = _run(capsys, "compare", "--original", str(orig), "--method", str(simp))
     assert code == 1 and "expected NAME=DIR" in err
+    code, _, err = _run(capsys, "compare", "--original", str(orig), "--method", f" ={simp}")  # found by review E
+    assert code == 1 and f"--method ' ={simp}': expected NAME=DIR" in err
     import torch
 
     if not torch.cuda.is_available():

@@ -96,6 +96,19 @@ def test_campaign_writes_combined_and_per_sequence_reports_equal_to_compare(tmp_
         ("[options.more]\nx = 1", "unknown option 'more'"),
         ('[[sequences]]\nname = "walk"\noriginal = "x"\nmethods = { a = "y" }', "same report file name 'walk'"),
         ('[[sequences]]\nname = "campaign"\noriginal = "x"\nmethods = { a = "y" }', "reserved"),
+        # found by review E: "overall" labelled both a sequence's rows and the rows over all sequences
+        ('[[sequences]]\nname = "overall"\noriginal = "x"\nmethods = { a = "y" }', "sequence 'overall': the name"),
+        ('[[sequences]]\nname = " Overall"\noriginal = "x"\nmethods = { a = "y" }', "rows over all sequences"),
+        # found by review E: an empty method name made rows "| s |  | k-th |" and a verdict titled "  vs B"
+        (
+            '[[sequences]]\nname = "z"\noriginal = "x"\nmethods = { "" = "y" }',
+            "sequence 'z': 'methods' has an empty method name ''",
+        ),
+        ('[[sequences]]\nname = "z"\noriginal = "x"\nmethods = { " " = "y" }', "empty method name ' '"),
+        (
+            '[[sequences]]\nname = " "\noriginal = "x"\nmethods = { a = "y" }',
+            "'name' must be a non-empty string, found ' '",
+        ),
         ('[[sequences]]\nname = "z"\noriginal = "x"\nmethods = {}', "'methods' must be a table"),
         ('[[sequences]]\nname = "z"\noriginal = "x"\nmethods = { a = 3 }', "method 'a' must be a folder"),
         ("[[sequences]]\noriginal = 'x'", "'name' must be a non-empty string"),

@@ -506,7 +506,7 @@ def parse_methods(specs: Sequence[str]) -> dict[str, str]:
     methods: dict[str, str] = {}
     for spec in specs:
         name, sep, directory = spec.partition("=")
-        if not sep or not name or not directory:
+        if not sep or not name.strip() or not directory:
             raise CLIError(f"--method {spec!r}: expected NAME=DIR")
         if name in methods:
             raise CLIError(f"--method {spec!r}: method name {name!r} given twice")
