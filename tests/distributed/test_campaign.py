@@ -256,3 +256,12 @@ def test_a_cache_folder_that_is_a_file_is_refused_before_any_evaluation(tmp_path
     blocker = str(tmp_path / "other" / "determinacy")
     assert f"argument --cache-dir: expected a folder (created when needed), found the file {blocker!r}" in err
     assert not any(calls.iterdir())
+
+
+def test_overall_psnr_leaves_a_lossless_sequence_out():
+    # A sequence whose mean PSNR is inf (every pair lossless) made the overall PSNR inf (found by review E): the
+    # library's rule (mean_psnr) is the mean over the finite ones; every other statistic stays the plain mean.
+    from torchmeshmetric.evaluation.campaign import _mean
+
+    out = _mean([{"surface_k": {"psnr": math.inf, "mse": 0.0}}, {"surface_k": {"psnr": 40.0, "mse": 1e-4}}])
+    assert out == {"surface_k": {"psnr": 40.0, "mse": 5e-5}}

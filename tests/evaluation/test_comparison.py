@@ -98,6 +98,23 @@ def test_a_perfect_method_wins_the_psnr_comparison():
     assert compare_methods({"A": a, "M": mixed})["A vs M"]["mpeg:d1"]["d1_psnr"]["verdict"] == "inconclusive"
 
 
+def test_a_psnr_inf_on_a_pair_with_the_sign_changing_is_undefined_never_nan():
+    # Lossless on one pair, worse on another: the difference was nan, printed "≈: nan ± inf" and written "nan" in
+    # the JSON (found by review E). No mean in dB exists: it is undefined, said in words; the rmse still compares.
+    def mpeg(values):
+        return lambda k: {"mpeg": {"d1": {"d1_psnr": values[k - 1], "d1_mse": 1.0}}}
+
+    a = _method([1.0, 1.0, 1.0], extra=mpeg([math.inf, 40.0, 45.0]))
+    b = _method([1.0, 1.0, 1.0], extra=mpeg([60.0, 61.0, 62.0]))
+    out = compare_methods({"A": a, "B": b})
+    entry = out["A vs B"]["mpeg:d1"]["d1_psnr"]
+    assert entry["difference"] is None and entry["ci95"] is None and entry["verdict"] == "inconclusive"
+    assert "no mean difference in dB" in entry["undefined"]
+    text = comparison_markdown(out)
+    assert "| mpeg:d1 |  |  |  |  | ≈: undefined (PSNR inf on a pair) |" in text and "nan" not in text
+    assert "no mean difference in dB exists; compare the rmse" in text
+
+
 def test_methods_must_share_frame_pairs():
     with pytest.raises(ValueError, match="frame pairs"):
         compare_methods({"A": _method([1.0, 2.0]), "B": _method([1.0, 2.0, 3.0])})

@@ -1,3 +1,5 @@
+import math
+
 import numpy as np
 import pytest
 import torch
@@ -147,3 +149,15 @@ def test_sets_are_the_metrics_sets_and_each_reference_index_is_built_once(moving
                 sets = distance_sets(simplified[k], reference, two_sided=True)
                 assert torch.equal(pair.distances[f"{kind}_{name}"], sets.forward)
                 assert torch.equal(pair.reverse_distances[f"{kind}_{name}"], sets.reverse)
+
+
+def test_mean_psnr_over_pairs_leaves_a_lossless_pair_out_never_inf():
+    # One pair measured without error (psnr inf) made the method's Table III/IV mean PSNR inf whatever the other
+    # pairs lost (found by review E); the library's rule (mean_psnr, the MPEG averages'): the mean over finite pairs.
+    lossless = distance_statistics(torch.zeros(4, dtype=torch.float64), peak=2.0)
+    lossy = distance_statistics(torch.tensor([0.0, 0.02, 0.02, 0.0], dtype=torch.float64), peak=2.0)
+    assert lossless.psnr == math.inf
+    mean = mean_statistics([lossless, lossy, lossy])
+    assert mean["psnr"] == pytest.approx(10 * math.log10(4.0 / 2e-4), abs=1e-12)  # 43.01 dB: the lossy pairs'
+    assert mean["mse"] == pytest.approx(2 * 2e-4 / 3, rel=1e-12)  # every other field over every pair, as before
+    assert mean_statistics([lossless, lossless])["psnr"] == math.inf  # inf only when every pair is

@@ -41,6 +41,7 @@ from torchmeshmetric.evaluation.reports import (
     unconverged_note,
 )
 from torchmeshmetric.evaluation.results import SequenceEvaluation
+from torchmeshmetric.stats.statistics import mean_psnr
 
 if TYPE_CHECKING:
     from torchmeshmetric.evaluation.determinacy import Determinacy
@@ -209,13 +210,19 @@ def report_name(sequence: str) -> str:
     return _slug(sequence)
 
 
-def _mean(values: Sequence[Any]) -> Any:
-    """Field-by-field mean of nested dicts of numbers (the aggregates of several sequences)."""
+def _mean(values: Sequence[Any], key: str = "") -> Any:
+    """Field-by-field mean of nested dicts of numbers (the aggregates of several sequences).
+
+    A PSNR (a key containing ``psnr``) follows :func:`~torchmeshmetric.stats.statistics.mean_psnr`: a sequence whose
+    mean PSNR is ``inf`` (every pair measured without error) is left out, as a lossless pair is within a sequence.
+    """
     first = values[0]
     if isinstance(first, dict):
-        return {key: _mean([v[key] for v in values]) for key in first if all(key in v for v in values)}
+        return {k: _mean([v[k] for v in values], k) for k in first if all(k in v for v in values)}
     if isinstance(first, bool) or not isinstance(first, (int, float)):
         return first
+    if "psnr" in key:
+        return mean_psnr([float(v) for v in values])[0]
     return math.fsum(float(v) for v in values) / len(values)
 
 

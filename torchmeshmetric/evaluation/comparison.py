@@ -66,6 +66,12 @@ __all__ = [
     "t_quantile",
 ]
 
+#: Why a PSNR entry has no difference (``"difference": null``): one method measured a pair without error.
+UNDEFINED_PSNR = (
+    "a PSNR is inf (a pair measured without error) on some frame pairs and the difference changes sign: "
+    "no mean difference in dB exists; compare the rmse"
+)
+
 #: Statistics compared by default (plus every statistic whose name contains ``psnr``).
 DEFAULT_COMPARISON_STATISTICS: tuple[str, ...] = ("ave", "rmse", "max", "p95")
 
@@ -213,7 +219,9 @@ def _compare_values(
                 "ci95": [min(diffs), max(diffs)],
                 "verdict": f"{names[0 if a_wins else 1]} better",
             }
-        return {"difference": math.nan, "ci95": [-math.inf, math.inf], "verdict": "inconclusive"}
+        # Lossless (inf) on some pairs and the sign changing: no difference in dB is defined. It gave "nan ± inf"
+        # (JSON "nan"; found by review E): say so in words; the same sets' rmse/ave are compared as usual.
+        return {"difference": None, "ci95": None, "verdict": "inconclusive", "undefined": UNDEFINED_PSNR}
     mean, lo, hi = paired_t_interval(diffs, confidence)
     mean_a, mean_b = float(np.mean(a)), float(np.mean(b))
     higher = _higher_is_better(statistic)
@@ -395,6 +403,8 @@ def _numbers(entry: Mapping[str, Any], statistic: str) -> tuple[str, str]:
     tables' rule); every other number keeps significant digits by its relative change.
     """
     difference, half = entry["difference"], _half_width(entry["ci95"])
+    if entry.get("nudged_difference", 0.0) is None:  # the nudged run's is undefined: none of the digits is shared
+        return f"~{_cell(difference)}", f"~{_cell(half)}"
     if "nudged_difference" not in entry:
         return _cell(difference), _cell(half)
     decibels = _higher_is_better(statistic)
@@ -444,6 +454,9 @@ def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapp
                     continue
                 winner = e["verdict"].removesuffix(" better") if e["verdict"] != "inconclusive" else "≈"
                 mark = "~" if _undetermined(e) else ""
+                if e["difference"] is None:  # a PSNR inf on some pairs, the sign changing (UNDEFINED_PSNR)
+                    cells.append(f"{mark}{markdown_cell(winner)}: undefined (PSNR inf on a pair)")
+                    continue
                 difference, half = _numbers(e, stat)
                 cells.append(f"{mark}{markdown_cell(winner)}: {difference} ± {half}")
             marked = f"{set_name} *" if any("noise_floor" in e for e in entries.values()) else set_name
@@ -458,6 +471,11 @@ def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapp
         "margin). Units: frame pairs; see docs/statistics.md."
     )
     nudged = [e for sets in comparisons.values() for entries in sets.values() for e in entries.values()]
+    if any(e.get("difference", 0.0) is None for e in nudged):
+        out[-1] += (
+            " undefined: a PSNR is inf (a pair measured without error) on some pairs and the difference changes "
+            "sign, so no mean difference in dB exists; compare the rmse."
+        )
     if any("nudged_verdict" in e for e in nudged):
         changed = sum(_undetermined(e) for e in nudged)
         out[-1] += (

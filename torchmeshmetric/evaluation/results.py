@@ -27,6 +27,7 @@ from torch import Tensor
 
 from torchmeshmetric.evaluation.flicker import FLICKER
 from torchmeshmetric.stats import DistanceStatistics
+from torchmeshmetric.stats.statistics import mean_psnr
 
 __all__ = [
     "BEST_PAIR_RULE",
@@ -129,6 +130,9 @@ def mean_statistics(stats: list[DistanceStatistics]) -> dict[str, float]:
     Every field is the arithmetic mean over pairs of that field (so the aggregate ``std`` is the mean of the
     per-pair standard deviations, not the standard deviation of the pooled distances; ``count`` is the mean
     number of values per pair). This is what the paper reports as "the average result in all five mesh pairs".
+    The ``psnr`` follows the library's rule for an infinite PSNR (:func:`~torchmeshmetric.stats.statistics.mean_psnr`):
+    a pair measured without error (``psnr = inf``) is left out of the mean PSNR, which is ``inf`` only when every pair
+    is (before, one lossless pair made a method's mean PSNR ``inf`` whatever its other pairs lost).
 
     Args:
         stats: one :class:`~torchmeshmetric.stats.DistanceStatistics` per pair (non-empty).
@@ -145,7 +149,11 @@ def mean_statistics(stats: list[DistanceStatistics]) -> dict[str, float]:
     if not stats:
         raise ValueError("stats: expected at least one pair, found none")
     fields = stats[0]._fields
-    return {f: sum(float(getattr(s, f)) for s in stats) / len(stats) for f in fields}
+    out = {f: sum(float(getattr(s, f)) for s in stats) / len(stats) for f in fields}
+    for f in fields:
+        if f == "psnr":
+            out[f] = mean_psnr([float(getattr(s, f)) for s in stats])[0]
+    return out
 
 
 class SequenceEvaluation(NamedTuple):

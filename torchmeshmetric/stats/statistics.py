@@ -380,3 +380,25 @@ def distance_statistics_compute(
         q = torch.tensor(QUANTILE_LEVELS, dtype=torch.float64, device=quantile_data.device)
         quantiles = sketch.quantile(quantile_data, q, moments.min, moments.max)
     return statistics_from_parts(moments, quantiles, ddof=ddof, peak=peak)
+
+
+def mean_psnr(values: Sequence[float]) -> tuple[float, int]:
+    """The mean of PSNR values (frames, frame pairs, sequences) and the number of infinite ones left out.
+
+    The library's one rule for an infinite PSNR (a frame measured without error, ``mse == 0``) in a mean: the mean
+    is taken over the finite values and the infinite ones are counted beside it; it is ``inf`` only when every value
+    is. (A mean in dB with one ``inf`` would be ``inf`` and hide every other frame; mmetric, which has no clipping
+    rule here, prints that.) The MPEG sequence averages (``<key>_inf_frames``), Tables III/IV's mean PSNR over
+    frame pairs and a campaign's ``overall`` PSNR follow it; see ``docs/statistics.md``.
+
+    Example:
+        >>> mean_psnr([40.0, 50.0, float("inf")])
+        (45.0, 1)
+        >>> mean_psnr([float("inf")])
+        (inf, 1)
+    """
+    finite = [v for v in values if math.isfinite(v)]
+    infinite = sum(1 for v in values if math.isinf(v) and v > 0)
+    if finite:
+        return sum(finite) / len(finite), infinite
+    return (math.inf if infinite else math.nan), infinite

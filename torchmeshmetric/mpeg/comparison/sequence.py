@@ -21,6 +21,7 @@ from torchmeshmetric._format import markdown_cell
 from torchmeshmetric.mpeg.comparison.mpeg_metrics import BoxLike, Sampling, mpeg_metrics
 from torchmeshmetric.mpeg.comparison.pcc import MpegResult
 from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh
+from torchmeshmetric.stats.statistics import mean_psnr  # the one rule, Tables III/IV's too
 from torchmeshmetric.structures import MeshLike
 
 __all__ = ["AVERAGING_RULE", "FRAME_KEYS", "MpegSequence", "mean_psnr", "mpeg_sequence"]
@@ -42,22 +43,6 @@ FRAME_KEYS = (
     "cb_psnr",
     "cr_psnr",
 )
-
-
-def mean_psnr(values: Sequence[float]) -> tuple[float, int]:
-    """The CTC mean of per-frame PSNR values and the number of infinite ones left out (see the module rule).
-
-    Example:
-        >>> mean_psnr([40.0, 50.0, float("inf")])
-        (45.0, 1)
-        >>> mean_psnr([float("inf")])
-        (inf, 1)
-    """
-    finite = [v for v in values if math.isfinite(v)]
-    infinite = sum(1 for v in values if math.isinf(v) and v > 0)
-    if finite:
-        return sum(finite) / len(finite), infinite
-    return (math.inf if infinite else math.nan), infinite
 
 
 @dataclass(frozen=True)
