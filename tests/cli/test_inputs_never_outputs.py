@@ -129,12 +129,32 @@ def test_a_report_never_replaces_a_frame(tmp_path, sequence, capsys, command):
     args = ["--simplified", str(simp)] if command == "evaluate" else ["--method", f"m={simp}"]
     before = _snapshot(tmp_path)
     argv = [command, "--original", str(orig), *args, "--out", str(frame), "--overwrite"]
-    _refused(capsys, argv, "--out", "is the input --original", "frame_01.ply")
+    # refused by its suffix since review E (before: "is the input --original"); the frame is kept either way
+    _refused(capsys, argv, "--out", "expected a REPORT.json file name, found the suffix '.ply'")
     assert _snapshot(tmp_path) == before
 
 
-def test_a_report_set_of_one_file_twice_is_refused(tmp_path, sequence, capsys):
+@pytest.mark.parametrize("command", ["evaluate", "compare"])
+def test_a_report_is_never_written_into_an_input_frame_folder(tmp_path, sequence, capsys, command):
+    # Found by review E: --out simp/zz_report.ply wrote a JSON named .ply among the frames, and every later run on
+    # that folder failed ("is not a mesh file"); a .json there is refused too (the folder is the user's frames).
     orig, simp = sequence
-    argv = ["evaluate", "--original", str(orig), "--simplified", str(simp), "--out", str(tmp_path / "r.md")]
-    _refused(capsys, argv, "--out", "is also --out", "distinct")
-    assert not (tmp_path / "r.md").exists()
+    args = ["--simplified", str(simp)] if command == "evaluate" else ["--method", f"m={simp}"]
+    before = _snapshot(tmp_path)
+    option = "--simplified" if command == "evaluate" else "--method m"
+    for out in (simp / "zz_report.ply", simp / "zz_report.json"):
+        argv = [command, "--original", str(orig), *args, "--out", str(out)]
+        message = "expected a REPORT.json" if out.suffix == ".ply" else f"lies in the input folder {option}"
+        _refused(capsys, argv, "--out", message)
+    assert _snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize(
+    ("name", "found"), [("r.md", "the suffix '.md'"), ("r.csv", "the suffix '.csv'"), ("r", "no suffix")]
+)
+def test_a_report_not_named_json_is_refused_naming_the_suffix(tmp_path, sequence, capsys, name, found):
+    # `--out r.md` said "--out 'r.md' is also --out 'r.md'" (the .md is derived from --out; found by review E)
+    orig, simp = sequence
+    argv = ["evaluate", "--original", str(orig), "--simplified", str(simp), "--out", str(tmp_path / name)]
+    _refused(capsys, argv, f"--out {str(tmp_path / name)!r}: expected a REPORT.json file name, found {found}")
+    assert not (tmp_path / name).exists()

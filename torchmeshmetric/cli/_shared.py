@@ -77,13 +77,32 @@ def device_of(args: argparse.Namespace) -> str:
     return str(args.device)
 
 
-def report_paths(out: str | None, mpeg: bool = False, html: bool = False) -> dict[str, Path]:
-    """The report files of ``--out REPORT.json``: ``.json``, ``.md``, ``.csv`` (and the ``--mpeg``, ``--html`` ones)."""
+def report_paths(
+    out: str | None, mpeg: bool = False, html: bool = False, folders: Sequence[tuple[str, str]] = ()
+) -> dict[str, Path]:
+    """The report files of ``--out REPORT.json``: ``.json``, ``.md``, ``.csv`` (and the ``--mpeg``, ``--html`` ones).
+
+    ``--out`` must end in ``.json`` (the other files take its stem) and lie outside the input frame ``folders``
+    (``(option, folder)``): a report named ``r.ply`` in a frame folder was read as a frame by every later run, and
+    ``r.md`` was refused as "also --out" (found by review).
+    """
     if out is None:
         if html:
             raise CLIError("--html: the page is written beside the report, so it needs --out REPORT.json")
         return {}
     json_path = Path(out)
+    if json_path.suffix.lower() != ".json":
+        found = f"the suffix {json_path.suffix!r}" if json_path.suffix else "no suffix"
+        raise CLIError(
+            f"--out {out!r}: expected a REPORT.json file name, found {found} (the .md and .csv reports are written "
+            "beside it with its stem)"
+        )
+    for option, folder in folders:
+        if Path(folder).is_dir() and json_path.parent.resolve() == Path(folder).resolve():
+            raise CLIError(
+                f"--out {out!r} lies in the input folder {option} {folder!r}: write the report outside the frame "
+                "folders (a later run would read the folder's files as frames)"
+            )
     paths = {"json": json_path, "md": json_path.with_suffix(".md"), "csv": json_path.with_suffix(".csv")}
     if html:
         paths["html"] = json_path.with_suffix(".html")

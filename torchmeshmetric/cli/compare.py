@@ -47,7 +47,8 @@ def run(args: argparse.Namespace) -> int:
 
     device = device_of(args)
     specs = parse_methods(args.method)
-    paths = report_paths(args.out, args.mpeg, args.html)
+    folders = [("--original", args.original)] + [(f"--method {n}", d) for n, d in specs.items()]
+    paths = report_paths(args.out, args.mpeg, args.html, folders)
     inputs = folder_inputs("--original", args.original)
     for spec in args.method:
         inputs += folder_inputs("--method", spec.partition("=")[2])

@@ -38,7 +38,8 @@ def run(args: argparse.Namespace) -> int:
     from torchmeshmetric.registration.cache import RegistrationCache
 
     device = device_of(args)
-    paths = report_paths(args.out, args.mpeg, args.html)
+    folders = [("--original", args.original), ("--simplified", args.simplified)]
+    paths = report_paths(args.out, args.mpeg, args.html, folders)
     inputs = folder_inputs("--original", args.original) + folder_inputs("--simplified", args.simplified)
     check_writable(list(paths.values()), args.overwrite, inputs=inputs, what="--out")
     original = load_frames(args.original, "--original", dtype_of(args))

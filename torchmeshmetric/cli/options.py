@@ -197,7 +197,7 @@ def report_options() -> argparse.ArgumentParser:
         default=None,
         metavar="REPORT.json",
         help="write the JSON report there, and the paper's tables beside it as REPORT.md and REPORT.csv "
-        "(default: print the tables only)",
+        "(a name ending in .json, outside the input frame folders; default: print the tables only)",
     )
     output.add_argument("--overwrite", action="store_true", help="replace existing output files")
     add_html(output, "also write REPORT.html: the report as one offline page (tables, curves, 3D error viewer)")
