@@ -1,8 +1,9 @@
 """Evaluate a folder of simplified frames against a folder of original frames, without the CLI.
 
-    PYTHONPATH=. python examples/evaluate_folder.py ORIGINAL_DIR SIMPLIFIED_DIR [--out report.json]
+    PYTHONPATH=. python examples/evaluate_folder.py ORIGINAL_DIR SIMPLIFIED_DIR [--out report.json [--overwrite]]
 
-Frames are matched in natural order of their file names. Registrations of the original frames are cached in
+Frames are matched in natural order of their file names (the ``evaluate`` command also pairs them by frame
+number). Registrations of the original frames are cached in
 ORIGINAL_DIR/../.registrations so evaluating another method on the same originals does not repeat them.
 """
 
@@ -20,8 +21,11 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("original")
     parser.add_argument("simplified")
-    parser.add_argument("--out", default=None)
+    parser.add_argument("--out", default=None, help="write the JSON report there")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing --out")
     args = parser.parse_args()
+    if args.out and Path(args.out).exists() and not args.overwrite:  # checked now, not after the whole evaluation
+        parser.error(f"--out {args.out!r} already exists (pass --overwrite to replace it)")
     from torchmeshmetric.data import load_sequence  # frames in natural file-name order
 
     original = load_sequence(args.original)
@@ -34,7 +38,8 @@ def main() -> int:
         progress=lambda k, n: print(f"pair {k}/{n}", file=sys.stderr),
     )
     name = Path(args.simplified).name
-    print(paper_tables({name: result}))
+    kept_by = Path(args.out).name if args.out else "the JSON report (--out)"  # the note names what keeps every digit
+    print(paper_tables({name: result}, json_file=kept_by))
     digits = COLUMN_FORMATS["rmse"]  # the tables' digits: only those the input determines (docs/statistics.md)
     for pair in result.pairs:  # per-frame temporal consistency and the registration's own quality
         s = pair.statistics["surface_k_minus_1"]
@@ -43,7 +48,7 @@ def main() -> int:
             f"registration residual rmse {float(pair.registration_statistics.rmse):{digits}}"
         )
     if args.out:
-        write_json(args.out, report_dict({name: result}))
+        write_json(args.out, report_dict({name: result}), overwrite=args.overwrite)
     return 0
 
 

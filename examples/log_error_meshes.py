@@ -35,7 +35,8 @@ class Offsets(LightningModule):
         self.register_buffer("verts", torch.tensor(coarse.vertices + np.array([0.08, 0.0, 0.0]), dtype=torch.float32))
         self.register_buffer("faces", torch.tensor(coarse.faces))
         self.offsets = torch.nn.Parameter(torch.zeros_like(self.verts))
-        # in the model's dtype (float32), as the loss wants both meshes in one dtype
+        # in the model's dtype (float32): the loss computes in the promoted dtype of its two meshes (docs/concepts.md,
+        # "Precision: one dtype rule"), so a float64 reference would make every step float64
         self.reference = (torch.tensor(reference.vertices, dtype=torch.float32), torch.tensor(reference.faces))
         self.loss = MeshSurfaceDistanceLoss(power=2, two_sided=True)
 

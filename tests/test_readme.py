@@ -3,8 +3,6 @@
 import re
 from pathlib import Path
 
-import pytest
-
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()
 
@@ -18,10 +16,12 @@ def test_quickstart_runs(capsys):
     assert len(code.strip().splitlines()) <= 15
     exec(compile(code, "README.md", "exec"), {})
     out = capsys.readouterr().out.splitlines()
-    assert [line.split()[0] for line in out] == ["surface_k_minus_1", "surface_k", "vertex_k_minus_1", "vertex_k"]
-    # the registration is exact, so the k-1 and k sets agree
+    # the figures the README prints are the ones it computes (it measured an icosphere against a superset of its own
+    # vertices, every figure float64 rounding noise printed to 4 digits; found by review E)
+    (printed,) = _blocks("text")
+    assert out == printed.strip().splitlines()
     ave = {line.split()[0]: float(line.split()[2]) for line in out}
-    assert ave["surface_k"] == pytest.approx(ave["surface_k_minus_1"], rel=1e-3)
+    assert ave["surface_k"] > 1e-3  # a real simplification error, not rounding noise
 
 
 def test_two_commands_match_ci():

@@ -176,6 +176,28 @@ def test_evaluate_folder_prints_the_tables_and_writes_the_report(folder_report: 
     row = re.search(r"\| qem50 \| k-th \| (\S+) \|", out)
     printed = format_number(method["aggregate"]["surface_k"]["ave"], COLUMN_FORMATS["ave"])  # the report's digits
     assert row is not None and row.group(1) == printed
+    # the note names the file it wrote, not a report.json it never writes (found by review E)
+    assert "qem50.json keeps the full values" in out and "report.json" not in out
+
+
+def test_evaluate_folder_refuses_an_existing_out_before_evaluating(campaign_data, capsys, monkeypatch) -> None:
+    # A second run with the same --out died with a FileExistsError traceback after the whole evaluation (review E)
+    root, _ = campaign_data
+    data = root / "campaign-data" / "seed0"
+    out = root / "exists.json"
+    out.write_text("keep me")
+    monkeypatch.setattr("torchmeshmetric.evaluation.evaluate_sequence", _never_called)
+    monkeypatch.setattr(
+        sys, "argv", ["evaluate_folder.py", str(data / "original"), str(data / "qem50"), "--out", str(out)]
+    )
+    with pytest.raises(SystemExit) as info:
+        runpy.run_path(str(EXAMPLES / "evaluate_folder.py"), run_name="__main__")
+    assert info.value.code == 2 and "already exists (pass --overwrite" in capsys.readouterr().err
+    assert out.read_text() == "keep me"
+
+
+def _never_called(*args: object, **kwargs: object) -> None:
+    raise AssertionError("evaluated before --out was checked")
 
 
 def test_campaign_toml_runs_and_agrees_with_evaluate_folder(
