@@ -33,3 +33,14 @@ def test_register_writes_source_topology_on_target_shape(capsys, tmp_path):
         main(["register", "--source", str(tmp_path / "a.ply"), "--target", str(tmp_path / "b.ply"), "--out", str(out)])
         == 1
     )
+
+
+def test_register_source_folder_is_named_as_a_folder(capsys, tmp_path):
+    # `register --source DIR` said "--source 'DIR': no such file" (found by review E)
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    target = tmp_path / "t.ply"
+    trimesh.creation.icosphere(subdivisions=1).export(target)
+    assert main(["register", "--source", str(frames), "--target", str(target), "--out", str(tmp_path / "o.ply")]) == 1
+    err = capsys.readouterr().err
+    assert f"--source {str(frames)!r} is a folder; expected a mesh file" in err, err

@@ -60,11 +60,11 @@ def test_validate_command_reduced_size(capsys, tmp_path):
 @pytest.mark.parametrize(
     ("argv", "message"),
     [
-        (["--frames", "2"], "--frames: expected 3 (two frame pairs) to 24 frames (one motion cycle"),
-        (["--frames", "100000"], "--frames: expected 3 (two frame pairs) to 24 frames"),
-        (["--resolution", "3"], "--resolution: expected an int >= 16, found 3"),
-        (["--keep", "0"], "--keep: expected a ratio of faces to keep in (0, 1], found 0.0"),
-        (["--keep", "1.5"], "--keep: expected a ratio of faces to keep in (0, 1], found 1.5"),
+        (["--frames", "2"], "argument --frames: expected an integer from 3 to 24, found '2'"),
+        (["--frames", "100000"], "argument --frames: expected an integer from 3 to 24, found '100000'"),
+        (["--resolution", "3"], "argument --resolution: expected an integer >= 16, found '3'"),
+        (["--keep", "0"], "argument --keep: expected a ratio in (0, 1], found '0'"),
+        (["--keep", "1.5"], "argument --keep: expected a ratio in (0, 1], found '1.5'"),
     ],
 )
 def test_validate_checks_its_options_before_the_folder_and_any_work(capsys, tmp_path, monkeypatch, argv, message):
@@ -72,7 +72,10 @@ def test_validate_checks_its_options_before_the_folder_and_any_work(capsys, tmp_
 
     monkeypatch.setattr(validation, "demo_sequence", lambda *a, **k: pytest.fail("the work started"))
     out = tmp_path / "new" / "v"
-    assert main(["validate", *argv, "--out-dir", str(out)]) == 1
+    # usage errors since review E (exit 2 with usage, as docs/cli.md says of out-of-range values; they exited 1)
+    with pytest.raises(SystemExit) as info:
+        main(["validate", *argv, "--out-dir", str(out)])
+    assert info.value.code == 2
     assert f"torchmeshmetric validate: error: {message}" in capsys.readouterr().err
     assert not (tmp_path / "new").exists()
 

@@ -17,6 +17,7 @@ from torchmeshmetric.cli.options import (
     as_option_error,
     common_options,
     evaluation_options,
+    int_in_range,
     parse_weights,
     path_argument,
 )
@@ -297,11 +298,14 @@ def add_demo_command(sub: Any) -> None:
     """Add the ``demo`` subcommand to the CLI's subparsers."""
     p = add_command(sub, "demo", run, [common_options(), evaluation_options()])
     p.add_argument(
-        "--frames", type=int, default=DEMO_FRAMES, help=f"frames of the built-in sequence (default {DEMO_FRAMES})"
+        "--frames",
+        type=int_in_range(2),
+        default=DEMO_FRAMES,
+        help=f"frames of the built-in sequence (default {DEMO_FRAMES})",
     )
     p.add_argument(
         "--resolution",
-        type=int,
+        type=int_in_range(16),  # demo_sequence's least resolution, refused when parsed (exit 2) as docs/cli.md says
         default=DEMO_RESOLUTION,
         help=f"mesh resolution of the built-in sequence (default {DEMO_RESOLUTION}: the paper's ~20k vertices / "
         "40k faces per frame; 80 gives about 5k vertices / 10k faces)",

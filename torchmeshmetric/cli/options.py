@@ -57,6 +57,38 @@ def positive_int(text: str) -> int:
     return value
 
 
+def int_in_range(low: int, high: int | None = None) -> Callable[[str], int]:
+    """An argparse type: an integer in ``[low, high]`` (``high=None``: no upper bound), refused when parsed (exit 2).
+
+    Example:
+        >>> int_in_range(3, 24)("5")
+        5
+    """
+
+    def parse(text: str) -> int:
+        span = f">= {low}" if high is None else f"from {low} to {high}"
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer {span}, found {text!r}") from None
+        if value < low or (high is not None and value > high):
+            raise argparse.ArgumentTypeError(f"expected an integer {span}, found {text!r}")
+        return value
+
+    return parse
+
+
+def parse_ratio(text: str) -> float:
+    """A ratio in (0, 1] (``validate --keep``), refused when parsed (exit 2)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a ratio in (0, 1], found {text!r}") from None
+    if not 0 < value <= 1:  # NaN too
+        raise argparse.ArgumentTypeError(f"expected a ratio in (0, 1], found {text!r}")
+    return value
+
+
 def parse_target(text: str) -> float | int:
     """A ``--target``, read as the library reads ``target``: a face count, or a ratio of faces to keep.
 

@@ -32,6 +32,8 @@ def run(args: argparse.Namespace) -> int:
     dtype = dtype_of(args)
     meshes = []
     for flag, path in (("--source", args.source), ("--target", args.target)):
+        if Path(path).is_dir():  # said "no such file" (found by review E)
+            raise CLIError(f"{flag} {path!r} is a folder; expected a mesh file")
         if not Path(path).is_file():
             raise CLIError(f"{flag} {path!r}: no such file")
         try:

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from torchmeshmetric._console import say
-from torchmeshmetric.cli.options import add_command, as_option_error, path_argument
+from torchmeshmetric.cli.options import add_command, as_option_error, int_in_range, parse_ratio, path_argument
 
 __all__ = ["add_validate_command", "run"]
 
@@ -97,12 +97,17 @@ def add_validate_command(sub: Any) -> None:
     p = add_command(sub, "validate", run)
     p.add_argument("--full", action="store_true", help="6 frames at resolution 160 (~40k faces), two-sided")
     p.add_argument(
-        "--frames", type=int, default=None, help="frames of the built-in sequence, 3 to 24 (reduced default 4)"
+        "--frames",
+        type=int_in_range(3, 24),  # validation.MAX_FRAMES; refused when parsed (exit 2), as docs/cli.md says
+        default=None,
+        help="frames of the built-in sequence, 3 to 24 (reduced default 4)",
     )
-    p.add_argument("--resolution", type=int, default=None, help="mesh resolution, >= 16 (reduced default 48)")
+    p.add_argument(
+        "--resolution", type=int_in_range(16), default=None, help="mesh resolution, >= 16 (reduced default 48)"
+    )
     p.add_argument(
         "--keep",
-        type=float,
+        type=parse_ratio,
         default=None,
         help="fraction of faces the tracked simplification keeps, in (0, 1] (default 0.5)",
     )
