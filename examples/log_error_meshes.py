@@ -7,7 +7,7 @@ vertex to the reference surface, one mesh per epoch on one colour scale (``vmax`
 A toy model learns per-vertex offsets that move a coarse, shifted sphere onto a finer one (the surface distance as
 the loss). ``ErrorMeshCallback(pair)`` calls ``pair(trainer, module)`` at the end of every validation epoch and logs
 the error mesh to every logger of the trainer: TensorBoard ``add_mesh`` here, a GLB file for the CSV logger
-(``meshes/val%2Ferror_mesh_step*.glb`` in its folder), ``wandb.Object3D`` (GLB) with ``WandbLogger``.
+(``meshes/val_error_mesh-830a3d9e_step*.glb`` in its folder), ``wandb.Object3D`` (GLB) with ``WandbLogger``.
 ``log_error_mesh(logger, tag, mesh, reference=...)`` does the same from any training loop.
 """
 

@@ -27,8 +27,8 @@ def test_example_logs_one_mesh_an_epoch(tmp_path):
     # training moves the sphere onto the reference: darker colours (green grows with the error on this scale)
     green = [float(np.mean(c[:, 1])) for c in colours]
     assert green[1] < green[0]
-    # the tag percent-encoded, one file per tag and step ("val/error_mesh" was "val_error_mesh": review A, 5)
+    # the tag with its hash, one file per tag and step ("val/error_mesh" was "val_error_mesh": review A, 5)
     assert sorted(p.name for p in tmp_path.rglob("*.glb")) == [
-        "val%2Ferror_mesh_step000010.glb",
-        "val%2Ferror_mesh_step000020.glb",
+        "val_error_mesh-830a3d9e_step000010.glb",
+        "val_error_mesh-830a3d9e_step000020.glb",
     ]

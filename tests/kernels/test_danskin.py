@@ -118,3 +118,25 @@ def test_public_loss_far_from_the_origin_float32_matches_float64():
         mesh_surface_distance_loss((v, faces), (ref.to(dt), faces), two_sided=False, power=1).backward()
         norms[dt] = v.grad.norm(dim=1).double()
     torch.testing.assert_close(norms[torch.float32], norms[torch.float64], rtol=1e-6, atol=0)
+
+
+def test_small_real_distances_keep_their_gradient():
+    # Found by review (2026-12-07): the on-surface floor was 64 ulps of the whole mesh's largest centred coordinate,
+    # so a float32 point 3e-6 above a unit triangle (7.6e-6 floor) and one 2e-4 above a 0.01 triangle beside a
+    # 100-unit plane (4e-4 floor) got gradient 0 where autograd gives the unit normal. The floor is now 8 ulps of
+    # the point's and its face's own coordinates: 9.5e-7 and 1.2e-8 here.
+    tri_v = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    tri_f = torch.tensor([[0, 1, 2]])
+    p = torch.tensor([[0.25, 0.25, 3e-6]])
+    _, gp, _ = _danskin_grads(p, tri_v, tri_f)
+    assert torch.equal(gp, torch.tensor([[0.0, 0.0, 1.0]]))
+    plane_v = torch.tensor([[-100.0, -100, -1], [100, -100, -1], [100, 100, -1], [-100, 100, -1]])
+    small_v = torch.tensor([[0.0, 0, 0], [0.01, 0, 0], [0, 0.01, 0]])
+    verts = torch.cat([plane_v, small_v])
+    faces = torch.tensor([[0, 1, 2], [0, 2, 3], [4, 5, 6]])
+    p = torch.tensor([[0.0025, 0.0025, 2e-4]])
+    d, gp, gv = _danskin_grads(p, verts, faces)
+    assert float(d) == pytest.approx(2e-4, rel=1e-3)
+    torch.testing.assert_close(gp, _autograd_point_grads(p, verts, faces), rtol=0, atol=1e-6)
+    assert float(gp[0, 2]) == pytest.approx(1.0, abs=1e-6)
+    assert float(gv[4:].sum(0)[2]) == pytest.approx(-1.0, abs=1e-6)  # the small face's corners take it all

@@ -262,3 +262,14 @@ def test_a_row_with_too_few_or_too_many_fields_is_refused(tmp_path: Path) -> Non
         read_test_model_csv(p)
     p.write_text(text + "\n")  # a blank line at the end is no row
     assert len(read_test_model_csv(p)) == 9
+
+
+def test_a_header_with_a_trailing_space_is_read(tmp_path: Path) -> None:
+    # The test model's collect_results.sh writes its newer header as "...,PeakDecoderMemory ,...": the column was
+    # never read, so the decoder memory was unknown on every row (found by review, 2026-12-07).
+    text = format_test_model_csv([RatePoint(1, 1, 2, 8000, {"GridD1": 70.5}, decoder_memory=512.0)])
+    header, *rows = text.splitlines()
+    assert "PeakDecoderMemory" in header.split(",")
+    path = tmp_path / "a.csv"
+    path.write_text("\n".join([header.replace("PeakDecoderMemory", "PeakDecoderMemory "), *rows]) + "\n")
+    assert read_test_model_csv(path)[1, 1, 2].decoder_memory == 512.0

@@ -46,6 +46,12 @@ def test_ddof_must_be_a_non_negative_int(ddof, error):
         distance_statistics(torch.tensor([1.0, 2.0, 4.0]), ddof=ddof)
 
 
+def test_an_integral_float_ddof_is_taken_as_before():
+    # ddof=1.0 worked before ddof was checked (found by review of the check): it is 1, as numpy takes it.
+    x = torch.tensor([1.0, 2.0, 4.0], dtype=torch.float64)
+    assert torch.equal(distance_statistics(x, ddof=1.0).var, distance_statistics(x, ddof=1).var)
+
+
 def test_a_constant_set_has_its_value_as_mean_and_variance_exactly_0_however_it_is_batched():
     # Was: one-shot std 8.7e-11, and 2.4e-8 off the mean streamed one value per update.
     x = torch.full((20000,), 123456.789, dtype=torch.float64)

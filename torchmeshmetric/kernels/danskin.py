@@ -1,20 +1,22 @@
 r"""Point-to-surface distances differentiated by Danskin's theorem: the backward pass of every surface loss.
 
 ``d(p, V) = min_{b in simplex} |p - sum_j b_j v_j|``: where the minimiser ``b*`` (the closest point) is unique, the
-gradient of the minimum is the gradient at the fixed minimiser (Danskin 1967): ``dd/dp = (p - c) / d`` and
-``dd/dv_j = -b*_j (p - c) / d`` for the corners of the closest face. On the surface (``d`` at or below the rounding
-floor of the centred coordinates, :meth:`~torchmeshmetric.MeshIndex.rounding_floor`: 64 ulps of the item's largest
-centred |coordinate|) the gradient is the subgradient 0, as autograd through
-:func:`~torchmeshmetric.point_mesh_distance` gives there (``d`` is at its minimum; ``(p - c) / d`` would be a unit
-vector in a direction set by rounding, e.g. along the face). ``p - c`` and ``d`` are taken in the centred, scaled
-frame the kernels computed them in, so that float32 gradients keep their accuracy far from the origin. Elsewhere these
-are the values of autograd through the closest-point formulas (float64: 1e-10 apart), without their graph: the
-forward pass is the index's fused no-autograd query, the backward pass a few ``(P, 3)`` operations and one
-``index_add_`` (about 5x faster than autograd through the seven-region formulas).
+gradient of the minimum is the gradient at the fixed minimiser (Danskin 1967): ``dd/dp = (p - c) / d`` and ``dd/dv_j =
+-b*_j (p - c) / d`` for the corners of the closest face. On the surface (``d`` at or below :data:`GRADIENT_ULPS` ulps of
+the largest centred |coordinate| of the point and of its closest face's corners: the rounding of the computed ``p - c``)
+the gradient is the subgradient 0, as autograd through :func:`~torchmeshmetric.point_mesh_distance` gives at ``d = 0``
+(``(p - c) / d`` would be a unit vector in a direction set by rounding, e.g. along the face). The floor is the point's
+own, not the mesh's: a float32 point 3e-6 above a unit triangle keeps its gradient, as does one 2e-4 above a 0.01
+triangle beside a 100-unit plane (found by review: a floor of 64 ulps of the whole mesh's largest coordinate zeroed
+both). ``p - c`` and ``d`` are taken in the centred, scaled frame the kernels computed them in, so that float32
+gradients keep their accuracy far from the origin. Elsewhere these are the values of autograd through the closest-point
+formulas (float64: 1e-10 apart), without their graph: the forward pass is the index's fused no-autograd query, the
+backward pass a few ``(P, 3)`` operations and one ``index_add_`` (about 5x faster than autograd through the seven-region
+formulas).
 
-First order only: the backward pass is not itself differentiable (the closest face and its barycentric coordinates
-are held fixed), so a double backward (``create_graph=True``) is refused with :class:`DoubleBackwardError` rather
-than returning a wrong Hessian-vector product.
+First order only: the backward pass is not itself differentiable (the closest face and its barycentric coordinates are
+held fixed), so a double backward (``create_graph=True``) is refused with :class:`DoubleBackwardError` rather than
+returning a wrong Hessian-vector product.
 """
 
 from __future__ import annotations
@@ -29,7 +31,12 @@ from torchmeshmetric._checks import DoubleBackwardError
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.structures import Mesh
 
-__all__ = ["mesh_surface_distances", "surface_distances"]
+__all__ = ["GRADIENT_ULPS", "mesh_surface_distances", "surface_distances"]
+
+GRADIENT_ULPS = 8.0
+"""Distances at or below this many ulps of the largest centred |coordinate| of the point and its closest face's
+corners are on the surface: the computed ``p - c`` (rounded to about one ulp of those coordinates per component) has
+no direction there. Points built on the surface by rounding (face centroids, edge midpoints) measure up to ~2 ulps."""
 
 
 class _DanskinDistance(torch.autograd.Function):
@@ -47,8 +54,11 @@ class _DanskinDistance(torch.autograd.Function):
             # that frame's distance is used, which the scale leaves unchanged.
             diff = centred.points_c - centred.result.closest
             dists_c = centred.result.dists
-            # At or below the rounding floor the point is on the surface: its direction is rounding noise.
-            on_surface = dists_c <= index.rounding_floor()[centred.point_batch]
+            # At or below the rounding of p - c (ulps of the point's and its face's own coordinates, not the whole
+            # mesh's) the point is on the surface: its direction is rounding noise.
+            corners_c = index.centred_verts()[faces[hit.face_idx]]  # (P, 3, 3)
+            magnitude = torch.maximum(centred.points_c.abs().amax(-1), corners_c.abs().amax((-2, -1)))
+            on_surface = dists_c <= GRADIENT_ULPS * torch.finfo(dists_c.dtype).eps * magnitude
         ctx.save_for_backward(diff, dists_c, on_surface, hit.bary, faces[hit.face_idx])
         ctx.num_verts = int(verts.shape[0])
         ctx.owner = owner

@@ -34,7 +34,6 @@ from torchmeshmetric.kernels._common import (
     check_representable,
     item_rows,
     range_scale,
-    rounding_slack,
     safe_sqrt,
 )
 from torchmeshmetric.kernels.accel.bvh import bvh_closest_points
@@ -325,7 +324,6 @@ class MeshIndex:
         if self._scale is not None:
             verts_c = verts_c * self._scale
         self._faceset = FaceSet(verts_c, self._faces_global, self._face_batch, self._face_offsets)
-        self._rounding_floor: Tensor | None = None  # rounding_floor(), computed on first use
 
     @property
     def dtype(self) -> torch.dtype:
@@ -454,24 +452,13 @@ class MeshIndex:
         check_representable(result.dists, "points")
         return result._replace(closest=result.closest + hit.point_center)
 
-    def rounding_floor(self) -> Tensor:
-        """``(B,)`` rounding level of distances computed in each item's centred (scaled) frame.
+    def centred_verts(self) -> Tensor:
+        """``(V, 3)`` the packed vertices as the kernels measure them: each item centred (and range-scaled), detached.
 
-        :func:`~torchmeshmetric.kernels._common.rounding_slack` of the item's largest centred (scaled) |coordinate|:
-        the slack the backends prune with. A computed distance at or below it cannot be told from 0 (a point on the
-        surface): its direction is rounding noise.
+        Rows are those of the packed ``verts`` (``faces`` index them), in the frame of
+        :meth:`point_mesh_distance_centred`'s points and closest points.
         """
-        floor: Tensor | None = getattr(self, "_rounding_floor", None)
-        if floor is None:
-            verts_c = self._faceset.verts.abs().amax(-1)
-            if self.num_items == 1:
-                extent = verts_c.amax().reshape(1) if verts_c.numel() else verts_c.new_zeros(1)
-            else:
-                extent = verts_c.new_zeros(self.num_items).scatter_reduce(
-                    0, batch_index(self.verts_lengths, int(verts_c.shape[0])), verts_c, "amax"
-                )
-            floor = self._rounding_floor = rounding_slack(extent)
-        return floor
+        return self._faceset.verts
 
     def _recompute(self, points_c: Tensor, face_idx: Tensor, scale: float | None) -> PointMeshResult:
         """Distances, barycentrics and closest points (centred frame) on the selected faces, with autograd."""

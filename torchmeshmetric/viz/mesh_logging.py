@@ -10,9 +10,9 @@ surface distances it measures) and logs it to whatever it is given:
 * a Weights & Biases run, or Lightning's ``WandbLogger``: ``wandb.Object3D`` of the mesh as GLB (W&B takes meshes
   as glTF), the scale in the caption;
 * any other logger (Lightning's ``CSVLogger``, ``MLFlowLogger``, ...) or a folder: a ``.glb`` (or ``.ply``) file in
-  its ``log_dir`` (``meshes/<tag>_step<step>.glb``, the tag percent-encoded as in a URL, ``val/mesh`` as
-  ``val%2Fmesh``, so that distinct tags never share a file), handed to the logger's ``experiment.log_artifact``
-  when it has one (MLflow).
+  its ``log_dir`` (``meshes/<tag>_step<step>.glb``, the tag as a portable file name, :func:`mesh_file_name`:
+  ``val/mesh`` as ``val_mesh-3b93a422``, so that distinct tags never share a file), handed to the logger's
+  ``experiment.log_artifact`` when it has one (MLflow).
 
 Nothing is imported until it is used: tensorboard and wandb are never imported unless such a logger is given.
 :class:`~torchmeshmetric.viz.error_mesh_callback.ErrorMeshCallback` does it at the end of every validation epoch.
@@ -70,18 +70,26 @@ def check_tag(tag: object) -> str:
 
 
 def mesh_file_name(tag: str, step: int, file_format: str) -> str:
-    """The file of a tag's mesh at a step: ``<tag>_step<step>.<format>``, the tag percent-encoded (as in a URL).
+    """The file of a tag's mesh at a step: ``<name>_step<step>.<format>``, ``name`` the tag as a portable file name.
 
-    The encoding is one-to-one, so distinct tags never write one file (``val/mesh`` and ``val_mesh`` both became
-    ``val_mesh_step000003.glb``, the second overwriting the first); letters, digits and ``_.-~`` are kept.
+    A tag of lower-case letters, digits and ``_.-`` (not starting with ``.``) is its own name. Any other tag is
+    written with each run of other characters as ``_`` (at most 80 characters kept), followed by ``-`` and the first
+    8 hex digits of the tag's SHA-256, so distinct tags never write one file: ``val/mesh`` and ``val_mesh`` both
+    became ``val_mesh`` (the second overwriting the first), and percent-encoding, the first remedy, made names past
+    the 255-byte limit of a 32-character CJK tag, unreadable names, and on case-insensitive file systems (macOS,
+    Windows) one file for ``Val/Mesh`` and ``val/mesh`` (found by review, 2026-12-07).
 
     Example:
         >>> mesh_file_name("val/mesh", 3, "glb"), mesh_file_name("val_mesh", 3, "glb")
-        ('val%2Fmesh_step000003.glb', 'val_mesh_step000003.glb')
+        ('val_mesh-3b93a422_step000003.glb', 'val_mesh_step000003.glb')
     """
-    from urllib.parse import quote
+    import hashlib
+    import re
 
-    return f"{quote(tag, safe='')}_step{step:06d}.{file_format}"
+    slug = re.sub(r"[^A-Za-z0-9_.-]+", "_", tag).lstrip(".")[:80] or "_"
+    if slug != tag or tag != tag.lower():
+        slug = f"{slug}-{hashlib.sha256(tag.encode()).hexdigest()[:8]}"
+    return f"{slug}_step{step:06d}.{file_format}"
 
 
 def _is_tensorboard(x: Any) -> bool:
@@ -142,7 +150,7 @@ def log_error_mesh(
         >>> folder = tempfile.mkdtemp()
         >>> logged = log_error_mesh(folder, "val/mesh", sphere.copy().apply_scale(1.01), reference=sphere, step=3)
         >>> sorted(p.name for p in (pathlib.Path(folder) / "meshes").iterdir())
-        ['val%2Fmesh_step000003.glb']
+        ['val_mesh-3b93a422_step000003.glb']
     """
     if file_format not in ("glb", "ply"):
         raise ValueError(f"file_format: expected 'glb' or 'ply', found {file_format!r}")

@@ -245,6 +245,9 @@ def read_test_model_csv(path: str | Path) -> dict[tuple[int, int, int], RatePoin
     out: dict[tuple[int, int, int], RatePoint] = {}
     with open(p, newline="", encoding="utf-8-sig") as fh:
         reader = csv.DictReader(fh)
+        # The test model's collect_results.sh writes its newer header with a trailing space after
+        # "PeakDecoderMemory": unstripped, that column was never read (decoder memory always unknown).
+        reader.fieldnames = [name.strip() for name in reader.fieldnames or []]
         missing = [c for c in TEST_MODEL_COLUMNS[:5] if c not in (reader.fieldnames or [])]
         if missing:
             raise ValueError(
