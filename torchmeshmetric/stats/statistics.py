@@ -178,9 +178,10 @@ def statistics_from_parts(
 
     Empty sets (``count == 0``) get NaN statistics (``count`` 0); ``var``/``std`` are NaN when ``count <= ddof``.
     """
-    if isinstance(ddof, float) and ddof.is_integer():
-        ddof = int(ddof)  # ddof=1.0 worked before ddof was checked (numpy takes it too); 1.5 is refused
-    ddof = check_int(ddof, "ddof", low=0)
+    given: object = ddof
+    if isinstance(given, float) and given.is_integer():
+        given = int(given)  # ddof=1.0 worked before ddof was checked (numpy takes it too); 1.5 is refused
+    ddof = check_int(given, "ddof", low=0)
     if peak is not None:
         peak = _check_peak(peak)
     n = moments.count.to(torch.float64)
