@@ -148,11 +148,12 @@ def load_frames(directory: str, what: str, dtype: Any, paired_with: tuple[str, s
 def paired_files(files: list[Path], directory: str, what: str, original: str, original_what: str) -> list[Path]:
     """``files`` (of ``directory``) in the order of the original frames of ``original``, paired by frame number.
 
-    When every file name of both folders carries a frame number (:func:`~torchmeshmetric.data.frames.frame_numbers`),
-    the two sets of numbers must be the same: a missing export or another numbering is refused, naming both folders
-    and the first frame number in one folder only (paired by position, original frame 1 would be measured against
-    simplified frame 2 in silence). Otherwise (a name without a number, a number twice) the frames pair by natural
-    order, as documented. Different counts are left to the count check, which names them.
+    When every file name of both folders carries a frame number (:func:`~torchmeshmetric.data.frames.frame_numbers`:
+    the first number in the names that differs from file to file), the two sets of numbers must be the same: a missing
+    export or another numbering is refused, naming both folders, the first frame number in one folder only and the
+    number each folder starts at (paired by position, original frame 1 would be measured against simplified frame 2
+    in silence). Otherwise (a name without a number, no number that differs between all names, a single frame) the
+    frames pair by natural order, as documented. Different counts are left to the count check, which names them.
     """
     originals = list_frames(original)
     numbers, theirs = frame_numbers(originals), frame_numbers(files)
@@ -166,10 +167,21 @@ def paired_files(files: list[Path], directory: str, what: str, original: str, or
             else ((what, directory), (original_what, original))
         )
         name = (originals[numbers.index(first)] if first in numbers else files[theirs.index(first)]).name
+        start, their_start = min(numbers), min(theirs)
+        shift = their_start - start
+        if sorted(n + shift for n in numbers) == sorted(theirs):
+            fix = (
+                "the two folders number the same frames from different starts; rename the frames of "
+                f"{what} to start at {start}, or those of {original_what} to start at {their_start}"
+            )
+        else:
+            fix = f"rename (or re-export) the frames of {what} (or of {original_what}) to the same numbers"
         raise CLIError(
             f"{what} {directory!r} and {original_what} {original!r} number different frames: frame {first} "
-            f"({name!r}) is in {has[0]} {has[1]!r} but not in {lacks[0]} {lacks[1]!r}; frames are paired by their "
-            "numbers (rename or re-export the frames so that both folders hold the same numbers)"
+            f"({name!r}) is in {has[0]} {has[1]!r} but not in {lacks[0]} {lacks[1]!r}; {original_what} starts at "
+            f"frame {start} ({originals[numbers.index(start)].name!r}) and {what} at frame {their_start} "
+            f"({files[theirs.index(their_start)].name!r}). Frames are paired by the frame number in their names (the "
+            f"first number that differs from file to file), so {fix}"
         )
     by_number = dict(zip(theirs, files, strict=True))
     return [by_number[n] for n in numbers]

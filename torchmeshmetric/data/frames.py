@@ -17,6 +17,10 @@ PathsLike = str | os.PathLike | Sequence[str | os.PathLike]
 """A directory, a glob pattern, a single file, or a list of files."""
 
 
+_NUMBER = re.compile(r"(\d+)")
+"""A number in a file name: a run of digits (no sign, no decimal point: ``v1.2`` holds 1 and 2)."""
+
+
 def natural_key(path: str | os.PathLike) -> tuple[object, ...]:
     """Sort key that orders embedded numbers by value: ``frame2 < frame10``.
 
@@ -24,28 +28,38 @@ def natural_key(path: str | os.PathLike) -> tuple[object, ...]:
         >>> sorted(["f10.obj", "f2.obj", "f1.obj"], key=natural_key)
         ['f1.obj', 'f2.obj', 'f10.obj']
     """
-    parts = re.split(r"(\d+)", os.fspath(path))
+    parts = _NUMBER.split(os.fspath(path))
     return tuple((0, int(p), p) if p.isdigit() else (1, 0, p.lower()) for p in parts)
 
 
 def frame_numbers(paths: Sequence[str | os.PathLike]) -> list[int] | None:
-    """The frame number of each file: the last number in its name without the suffix, as :func:`natural_key` reads it.
+    """The frame number of each file: the first number position of the names whose values all differ.
 
-    ``None`` when a file's name holds no number or two files share one (such frames pair by position only).
+    The numbers of each name without its suffix are read left to right (as :func:`natural_key` reads them); the
+    frame number is the first position at which every file's number differs from every other's. A position whose
+    number repeats, such as a constant ``seq2``, ``r1`` or ``v1.2``, is skipped, and so is a number after the frame
+    number (a simplifier's face count, ``frame_0001_f1007.ply``) since the frame number comes first. Only positions
+    that every name has are read.
+
+    ``None`` when a file's name holds no number or no position has distinct numbers (such frames pair by position
+    only), and for a single file (one frame pairs with one frame: there is nothing to tell apart).
 
     Example:
-        >>> frame_numbers(["frame_000.ply", "frame_002.ply", "take2_frame_010.obj"])
+        >>> frame_numbers(["seq2_frame_000.ply", "seq2_frame_002.ply", "seq2_frame_010.obj"])
         [0, 2, 10]
+        >>> frame_numbers(["frame_0000_f1000.ply", "frame_0001_f1007.ply"])
+        [0, 1]
         >>> frame_numbers(["a.ply", "b.ply"]) is None
         True
     """
-    numbers = []
-    for path in paths:
-        found = [part for part in natural_key(Path(path).stem) if isinstance(part, tuple) and part[0] == 0]
-        if not found:
-            return None
-        numbers.append(int(found[-1][1]))
-    return numbers if len(set(numbers)) == len(numbers) else None
+    if len(paths) < 2:
+        return None
+    tokens = [[int(n) for n in _NUMBER.findall(Path(p).stem)] for p in paths]
+    for position in range(min(len(t) for t in tokens)):
+        numbers = [t[position] for t in tokens]
+        if len(set(numbers)) == len(numbers):
+            return numbers
+    return None
 
 
 def list_frames(paths: PathsLike) -> list[Path]:
