@@ -115,6 +115,29 @@ def test_a_psnr_inf_on_a_pair_with_the_sign_changing_is_undefined_never_nan():
     assert "no mean difference in dB exists; compare the rmse" in text
 
 
+def test_a_pair_both_measure_without_error_leaves_the_psnr_threshold_finite():
+    # review F, finding 3: the relative margin was 2 % of np.mean(a), inf with one lossless pair, so a method 9.3 dB
+    # better on every other pair (interval [8.4, 10.3]) was "inconclusive"; the margin follows mean_psnr now.
+    from torchmeshmetric.evaluation.comparison import _compare_values
+
+    a = [math.inf] + [40 + 0.1 * i for i in range(20)]
+    b = [math.inf] + [30 + 0.12 * i for i in range(20)]
+    entry = _compare_values(a, b, "psnr", 0.0, 0.02, 0.95, ("A", "B"))
+    assert entry["verdict"] == "A better"
+    assert entry["difference"] == pytest.approx(sum(x - y for x, y in zip(a[1:], b[1:], strict=True)) / 21)
+    assert entry["ci95"][0] > 8.0 and entry["ci95"][1] < 10.5
+    # the margin is 2 % of the better finite mean (40.95 dB -> 0.819 dB), not of inf; the both-inf pair counts as a
+    # difference 0 in the mean difference: 0.8 dB on 20 pairs (mean 0.762) is inconclusive, 0.9 (0.857) is called
+    close = [math.inf] + [x - 0.8 for x in a[1:]]
+    assert _compare_values(a, close, "psnr", 0.0, 0.02, 0.95, ("A", "B"))["verdict"] == "inconclusive"
+    closer = [math.inf] + [x - 0.9 for x in a[1:]]
+    assert _compare_values(a, closer, "psnr", 0.0, 0.02, 0.95, ("A", "B"))["verdict"] == "A better"
+    # through compare_methods: the same pairs as an MPEG PSNR
+    mpeg = lambda values: lambda k: {"mpeg": {"d1": {"d1_psnr": values[k - 1], "d1_mse": 1.0}}}  # noqa: E731
+    out = compare_methods({"A": _method([1.0] * 21, extra=mpeg(a)), "B": _method([1.0] * 21, extra=mpeg(b))})
+    assert out["A vs B"]["mpeg:d1"]["d1_psnr"]["verdict"] == "A better"
+
+
 def test_methods_must_share_frame_pairs():
     with pytest.raises(ValueError, match="frame pairs"):
         compare_methods({"A": _method([1.0, 2.0]), "B": _method([1.0, 2.0, 3.0])})

@@ -222,7 +222,7 @@ def _mean(values: Sequence[Any], key: str = "") -> Any:
     if isinstance(first, bool) or not isinstance(first, (int, float)):
         return first
     if "psnr" in key:
-        return mean_psnr([float(v) for v in values])[0]
+        return mean_psnr([float(v) for v in values], f"the sequences' {key}")[0]
     return math.fsum(float(v) for v in values) / len(values)
 
 

@@ -56,6 +56,7 @@ import numpy as np
 from torchmeshmetric._format import format_number, markdown_cell
 from torchmeshmetric.evaluation.determinacy import determined_cell, value_change
 from torchmeshmetric.evaluation.results import FLOOR_SET_NAMES, SequenceEvaluation
+from torchmeshmetric.stats.statistics import mean_psnr
 
 __all__ = [
     "DEFAULT_COMPARISON_STATISTICS",
@@ -223,7 +224,10 @@ def _compare_values(
         # (JSON "nan"; found by review E): say so in words; the same sets' rmse/ave are compared as usual.
         return {"difference": None, "ci95": None, "verdict": "inconclusive", "undefined": UNDEFINED_PSNR}
     mean, lo, hi = paired_t_interval(diffs, confidence)
-    mean_a, mean_b = float(np.mean(a)), float(np.mean(b))
+    if "psnr" in statistic:  # the one rule (mean_psnr): a pair both measure without error (inf) is left out
+        mean_a, mean_b = (mean_psnr(v, f"{name}'s {statistic}")[0] for v, name in zip((a, b), names, strict=True))
+    else:
+        mean_a, mean_b = float(np.mean(a)), float(np.mean(b))
     higher = _higher_is_better(statistic)
     better = max(mean_a, mean_b) if higher else min(mean_a, mean_b)
     threshold = max(floor, relative_margin * abs(better))

@@ -152,7 +152,7 @@ def mean_statistics(stats: list[DistanceStatistics]) -> dict[str, float]:
     out = {f: sum(float(getattr(s, f)) for s in stats) / len(stats) for f in fields}
     for f in fields:
         if f == "psnr":
-            out[f] = mean_psnr([float(getattr(s, f)) for s in stats])[0]
+            out[f] = mean_psnr([float(getattr(s, f)) for s in stats], "stats: the pairs' psnr")[0]
     return out
 
 

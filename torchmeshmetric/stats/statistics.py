@@ -385,14 +385,23 @@ def distance_statistics_compute(
     return statistics_from_parts(moments, quantiles, ddof=ddof, peak=peak)
 
 
-def mean_psnr(values: Sequence[float]) -> tuple[float, int]:
+def mean_psnr(values: Sequence[float], what: str = "values") -> tuple[float, int]:
     """The mean of PSNR values (frames, frame pairs, sequences) and the number of infinite ones left out.
 
     The library's one rule for an infinite PSNR (a frame measured without error, ``mse == 0``) in a mean: the mean
     is taken over the finite values and the infinite ones are counted beside it; it is ``inf`` only when every value
     is. (A mean in dB with one ``inf`` would be ``inf`` and hide every other frame; mmetric, which has no clipping
     rule here, prints that.) The MPEG sequence averages (``<key>_inf_frames``), Tables III/IV's mean PSNR over
-    frame pairs and a campaign's ``overall`` PSNR follow it; see ``docs/statistics.md``.
+    frame pairs, a campaign's ``overall`` PSNR and ``compare``'s verdict threshold follow it; see
+    ``docs/statistics.md``. Only ``+inf`` is left out: a NaN PSNR (a bug upstream, such as the PSNR of an empty set)
+    or ``-inf`` (impossible for a finite peak) is refused, never dropped in silence.
+
+    Args:
+        values: the PSNRs, in dB.
+        what: where the values come from, named by the error (``"the pairs' psnr"``).
+
+    Raises:
+        ValueError: a value is NaN or ``-inf``; the message names ``what`` and the value's position.
 
     Example:
         >>> mean_psnr([40.0, 50.0, float("inf")])
@@ -400,8 +409,16 @@ def mean_psnr(values: Sequence[float]) -> tuple[float, int]:
         >>> mean_psnr([float("inf")])
         (inf, 1)
     """
+    for i, v in enumerate(values):
+        if math.isnan(v) or v == -math.inf:
+            why = (
+                "a NaN PSNR is a bug upstream (the PSNR of an empty set, or a NaN distance)"
+                if math.isnan(v)
+                else "a PSNR of -inf is impossible for a finite peak"
+            )
+            raise ValueError(f"{what}: PSNR {v} at position {i} of {len(values)} cannot enter a mean of PSNRs: {why}")
     finite = [v for v in values if math.isfinite(v)]
-    infinite = sum(1 for v in values if math.isinf(v) and v > 0)
+    infinite = len(values) - len(finite)
     if finite:
         return sum(finite) / len(finite), infinite
     return (math.inf if infinite else math.nan), infinite

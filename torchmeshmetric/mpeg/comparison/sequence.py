@@ -78,7 +78,7 @@ class MpegSequence:
             if not vals:
                 continue
             if key.endswith("psnr"):
-                mean, inf_frames = mean_psnr(vals)
+                mean, inf_frames = mean_psnr(vals, f"the frames' {key}")
                 out[key], out[f"{key}_inf_frames"] = mean, float(inf_frames)
             else:
                 out[key] = sum(vals) / len(vals)
