@@ -138,6 +138,21 @@ def test_a_pair_both_measure_without_error_leaves_the_psnr_threshold_finite():
     assert out["A vs B"]["mpeg:d1"]["d1_psnr"]["verdict"] == "A better"
 
 
+def test_an_undefined_psnr_difference_on_the_nudged_frames_is_said_and_explained():
+    # review F, finding 6: the cell read "~A: ~2 ± ~1" and the note explaining "undefined" was not printed when only
+    # the nudged run's difference was undefined.
+    from torchmeshmetric.evaluation.comparison import with_nudged_verdicts
+
+    run = {"A vs B": {"mpeg:d1": {"d1_psnr": {"difference": 2.0, "ci95": [1.0, 3.0], "verdict": "A better"}}}}
+    undefined = {"difference": None, "ci95": None, "verdict": "inconclusive", "undefined": "..."}
+    text = comparison_markdown(with_nudged_verdicts(run, {"A vs B": {"mpeg:d1": {"d1_psnr": undefined}}}))
+    assert "| mpeg:d1 | ~A: undefined on the nudged frames (PSNR inf on a pair) |" in text, text
+    assert "~2" not in text and "± ~" not in text
+    assert "undefined: a PSNR is inf (a pair measured without error) on some pairs" in text
+    assert "on the frames nudged by --determinacy" in text and "0 of 1 the same" in text
+    assert "undefined:" not in comparison_markdown(run)  # a defined run alone gets no such note
+
+
 def test_methods_must_share_frame_pairs():
     with pytest.raises(ValueError, match="frame pairs"):
         compare_methods({"A": _method([1.0, 2.0]), "B": _method([1.0, 2.0, 3.0])})

@@ -386,6 +386,20 @@ def with_nudged_verdicts(
     return out
 
 
+def _undefined(entry: Mapping[str, Any]) -> str | None:
+    """Which run's difference is undefined (a PSNR inf on some pairs, the sign changing): the cell's words, or None.
+
+    The run's own (``"difference": null``) or, with ``--determinacy``, the nudged run's (``"nudged_difference":
+    null``): either way no digit of a difference is shared, so the cell says so and the note under the tables
+    explains it (:data:`UNDEFINED_PSNR`).
+    """
+    if entry["difference"] is None:
+        return "undefined (PSNR inf on a pair)"
+    if "nudged_difference" in entry and entry["nudged_difference"] is None:
+        return "undefined on the nudged frames (PSNR inf on a pair)"
+    return None
+
+
 def _undetermined(entry: Mapping[str, Any]) -> bool:
     """Whether the nudged frames reached another verdict (:func:`with_nudged_verdicts`)."""
     return entry.get("nudged_verdict", entry["verdict"]) != entry["verdict"]
@@ -407,8 +421,6 @@ def _numbers(entry: Mapping[str, Any], statistic: str) -> tuple[str, str]:
     tables' rule); every other number keeps significant digits by its relative change.
     """
     difference, half = entry["difference"], _half_width(entry["ci95"])
-    if entry.get("nudged_difference", 0.0) is None:  # the nudged run's is undefined: none of the digits is shared
-        return f"~{_cell(difference)}", f"~{_cell(half)}"
     if "nudged_difference" not in entry:
         return _cell(difference), _cell(half)
     decibels = _higher_is_better(statistic)
@@ -458,8 +470,9 @@ def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapp
                     continue
                 winner = e["verdict"].removesuffix(" better") if e["verdict"] != "inconclusive" else "≈"
                 mark = "~" if _undetermined(e) else ""
-                if e["difference"] is None:  # a PSNR inf on some pairs, the sign changing (UNDEFINED_PSNR)
-                    cells.append(f"{mark}{markdown_cell(winner)}: undefined (PSNR inf on a pair)")
+                undefined = _undefined(e)
+                if undefined is not None:  # a PSNR inf on some pairs, the sign changing (UNDEFINED_PSNR)
+                    cells.append(f"{mark}{markdown_cell(winner)}: {undefined}")
                     continue
                 difference, half = _numbers(e, stat)
                 cells.append(f"{mark}{markdown_cell(winner)}: {difference} ± {half}")
@@ -475,10 +488,11 @@ def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapp
         "margin). Units: frame pairs; see docs/statistics.md."
     )
     nudged = [e for sets in comparisons.values() for entries in sets.values() for e in entries.values()]
-    if any(e.get("difference", 0.0) is None for e in nudged):
+    if any(_undefined(e) is not None for e in nudged):
         out[-1] += (
             " undefined: a PSNR is inf (a pair measured without error) on some pairs and the difference changes "
-            "sign, so no mean difference in dB exists; compare the rmse."
+            "sign (in the run, or on the frames nudged by --determinacy), so no mean difference in dB exists; "
+            "compare the rmse."
         )
     if any("nudged_verdict" in e for e in nudged):
         changed = sum(_undetermined(e) for e in nudged)
