@@ -46,17 +46,6 @@ def path_argument(text: str) -> str:
     return text
 
 
-def positive_int(text: str) -> int:
-    """An argument that is an integer >= 1 (``--threads``)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, found {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, found {text!r}")
-    return value
-
-
 def int_in_range(low: int, high: int | None = None) -> Callable[[str], int]:
     """An argparse type: an integer in ``[low, high]`` (``high=None``: no upper bound), refused when parsed (exit 2).
 
@@ -64,18 +53,25 @@ def int_in_range(low: int, high: int | None = None) -> Callable[[str], int]:
         >>> int_in_range(3, 24)("5")
         5
     """
+    if high is not None:
+        span = f"an integer from {low} to {high}"
+    else:
+        span = "a positive integer" if low == 1 else f"an integer >= {low}"
 
     def parse(text: str) -> int:
-        span = f">= {low}" if high is None else f"from {low} to {high}"
         try:
             value = int(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer {span}, found {text!r}") from None
+            raise argparse.ArgumentTypeError(f"expected {span}, found {text!r}") from None
         if value < low or (high is not None and value > high):
-            raise argparse.ArgumentTypeError(f"expected an integer {span}, found {text!r}")
+            raise argparse.ArgumentTypeError(f"expected {span}, found {text!r}")
         return value
 
     return parse
+
+
+positive_int = int_in_range(1)
+"""An argument that is an integer >= 1 (``--threads``)."""
 
 
 def parse_ratio(text: str) -> float:
