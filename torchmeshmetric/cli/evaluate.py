@@ -20,7 +20,7 @@ def run(args: argparse.Namespace) -> int:
     their file names (the same numbers in both folders), or by natural sort order where a name has none; the counts
     must be equal.
     """
-    from torchmeshmetric.cli._outputs import check_writable, folder_inputs
+    from torchmeshmetric.cli._outputs import CLIError, check_writable, folder_inputs
     from torchmeshmetric.cli._shared import (
         determinacy_of,
         device_of,
@@ -45,8 +45,6 @@ def run(args: argparse.Namespace) -> int:
     original = load_frames(args.original, "--original", dtype_of(args))
     simplified = load_frames(args.simplified, "--simplified", dtype_of(args), (args.original, "--original"))
     if len(simplified) != len(original):  # named by the options: "method 'two'" named no option of this command
-        from torchmeshmetric.cli._outputs import CLIError
-
         raise CLIError(
             f"--simplified {args.simplified!r}: {len(simplified)} frames but --original {args.original!r} has "
             f"{len(original)} (must match)"

@@ -162,8 +162,8 @@ def rounding_slack(scale: Tensor) -> Tensor:
     """Absolute rounding level of values computed on centred coordinates of largest magnitude ``scale``.
 
     :data:`ROUNDING_ULPS` ulps of ``scale`` (``scale``'s dtype): the certified pruning slack of the ``"pruned"``
-    backend and of the C++ BVH (``slack_of_scale`` in ``bvh.cpp``), and the level below which a computed distance
-    cannot be told from 0 (the surface losses' gradient, :mod:`torchmeshmetric.kernels.danskin`).
+    backend and of the C++ BVH (``slack_of_scale`` in ``bvh.cpp``). (The surface losses' on-surface floor is the
+    point's own, :data:`torchmeshmetric.kernels.danskin.GRADIENT_ULPS`, not this item-wide bound.)
     """
     return ROUNDING_ULPS * torch.finfo(scale.dtype).eps * scale
 

@@ -56,10 +56,11 @@ class _DanskinDistance(torch.autograd.Function):
             dists_c = centred.result.dists
             # At or below the rounding of p - c (ulps of the point's and its face's own coordinates, not the whole
             # mesh's) the point is on the surface: its direction is rounding noise.
-            corners_c = index.centred_verts()[faces[hit.face_idx]]  # (P, 3, 3)
+            corners = faces[hit.face_idx]  # (P, 3): the selected faces' vertex rows
+            corners_c = index.centred_verts()[corners]  # (P, 3, 3)
             magnitude = torch.maximum(centred.points_c.abs().amax(-1), corners_c.abs().amax((-2, -1)))
             on_surface = dists_c <= GRADIENT_ULPS * torch.finfo(dists_c.dtype).eps * magnitude
-        ctx.save_for_backward(diff, dists_c, on_surface, hit.bary, faces[hit.face_idx])
+        ctx.save_for_backward(diff, dists_c, on_surface, hit.bary, corners)
         ctx.num_verts = int(verts.shape[0])
         ctx.owner = owner
         return hit.dists

@@ -23,7 +23,7 @@ from typing import Any, NamedTuple
 
 import torch
 
-from torchmeshmetric._checks import check_flag, check_int
+from torchmeshmetric._checks import check_flag, check_int, check_real
 from torchmeshmetric.registration.rigid import check_rigid_options, register_rigid
 
 __all__ = ["DEFAULT_SCHEDULE", "RUN_ARGUMENTS", "NonRigidOptions", "Stage"]
@@ -74,15 +74,9 @@ vertices of a ~17k-20k-vertex pair move by at most ~1e-12 and ~2e-6 of the diago
 80 steps (was 40 at a constant rate) so that it has room to converge."""
 
 
-def _number(name: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise TypeError(f"{name}: expected a float, found {type(value).__name__} {value!r}")
-    return float(value)
-
-
 def _real(name: str, value: Any, low: float, *, open_low: bool = False, high: float = math.inf) -> float:
     """``value`` as a float in ``[low, high]`` (``(low, high]`` with ``open_low``); NaN never passes."""
-    x = _number(name, value)
+    x = check_real(value, name)
     if not ((x > low if open_low else x >= low) and x <= high):
         bounds = f"{'(' if open_low else '['}{low:g}, {high:g}]"
         raise ValueError(f"{name}: expected a float in {bounds}, found {value!r}")

@@ -21,7 +21,7 @@ import torch
 from kornia.geometry.conversions import axis_angle_to_rotation_matrix
 from torch import Tensor
 
-from torchmeshmetric._checks import EmptyInputError, ShapeError, check_finite, check_float, check_shape
+from torchmeshmetric._checks import EmptyInputError, ShapeError, check_finite, check_float, check_real, check_shape
 from torchmeshmetric.kernels.mesh_index import MeshIndex, PointMeshResult
 from torchmeshmetric.registration._common import one_thread, validate_pair
 from torchmeshmetric.structures import Mesh, MeshLike
@@ -214,9 +214,7 @@ def check_rigid_options(options: Mapping[str, Any], where: str = "") -> None:
             if key == "num_samples" and value < 3:
                 raise ValueError(f"{name}: expected at least 3, found {value}")
         elif key in ("trim", "robust_scale", "tolerance"):
-            if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
-                raise TypeError(f"{name}: expected a float, found {type(value).__name__} {value!r}")
-            value = float(value)
+            value = check_real(value, name)  # numpy's bool is no Real: refused as bool is
             if key == "trim" and not 0.0 < value <= 1.0:
                 raise ValueError(f"{name}: expected a fraction in (0, 1], found {value}")
             if key == "robust_scale" and not value > 0:  # inf disables the kernel; NaN never passes

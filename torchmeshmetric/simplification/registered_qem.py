@@ -26,7 +26,7 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
-from torchmeshmetric._checks import EmptyInputError, check_finite
+from torchmeshmetric._checks import EmptyInputError, check_finite, check_real
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance
 from torchmeshmetric.simplification._target import resolve_target
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
@@ -178,9 +178,9 @@ def simplify_registered_qem(
     if not (isinstance(weight, numbers.Real) and not isinstance(weight, bool) and np.isfinite(weight) and weight >= 0):
         raise ValueError(f"weight: expected a finite float >= 0, found {weight!r}")
     for name, value in (("max_distance", max_distance), ("candidate_fraction", candidate_fraction)):
-        if value is not None and (isinstance(value, bool) or not isinstance(value, numbers.Real)):
+        if value is not None:
             # "1" gave Python's bare "'>' not supported between instances of 'str' and 'int'" (found by review)
-            raise TypeError(f"{name}: expected a float, found {type(value).__name__} {value!r}")
+            check_real(value, name)
     if max_distance is not None and not (max_distance > 0):
         raise ValueError(f"max_distance: expected a float > 0 or None, found {max_distance!r}")
     if not 0.0 < candidate_fraction <= 1.0:
