@@ -12,12 +12,12 @@ from torchmeshmetric.registration import NonRigidOptions, register_rigid
 @pytest.mark.parametrize(
     ("options", "error", "message"),
     [
-        ({"max_iterations": -3}, ValueError, "rigid_options: max_iterations: expected a non-negative int, found -3"),
+        ({"max_iterations": -3}, ValueError, "rigid_options: max_iterations: expected an int >= 0, found -3"),
         ({"max_iterations": "ten"}, TypeError, "rigid_options: max_iterations: expected an int, found str 'ten'"),
         ({"max_iterations": 2.5}, TypeError, "rigid_options: max_iterations: expected an int, found float 2.5"),
         ({"trim": 5.0}, ValueError, r"rigid_options: trim: expected a fraction in \(0, 1\], found 5.0"),
         ({"trim": float("nan")}, ValueError, r"rigid_options: trim: expected a fraction in \(0, 1\], found nan"),
-        ({"num_samples": 2}, ValueError, "rigid_options: num_samples: expected at least 3, found 2"),
+        ({"num_samples": 2}, ValueError, "rigid_options: num_samples: expected an int >= 3, found 2"),
         ({"point_to_plane": "yes"}, TypeError, "rigid_options: point_to_plane: expected a bool, found str"),
         ({"robust_scale": -1.0}, ValueError, "rigid_options: robust_scale: expected a float > 0"),
         ({"tolerance": float("inf")}, ValueError, "rigid_options: tolerance: expected a finite float >= 0"),

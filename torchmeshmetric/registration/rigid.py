@@ -12,16 +12,23 @@ step instead and projects the rotation back onto SO(3) with the exponential map.
 from __future__ import annotations
 
 import math
-import numbers
 from collections.abc import Mapping
 from typing import Any, NamedTuple
 
-import numpy as np
 import torch
 from kornia.geometry.conversions import axis_angle_to_rotation_matrix
 from torch import Tensor
 
-from torchmeshmetric._checks import EmptyInputError, ShapeError, check_finite, check_float, check_real, check_shape
+from torchmeshmetric._checks import (
+    EmptyInputError,
+    ShapeError,
+    check_finite,
+    check_flag,
+    check_float,
+    check_int,
+    check_real,
+    check_shape,
+)
 from torchmeshmetric.kernels.mesh_index import MeshIndex, PointMeshResult
 from torchmeshmetric.registration._common import one_thread, validate_pair
 from torchmeshmetric.structures import Mesh, MeshLike
@@ -204,15 +211,9 @@ def check_rigid_options(options: Mapping[str, Any], where: str = "") -> None:
     for key, value in options.items():
         name = f"{where}{key}"
         if key in _RIGID_FLAGS:
-            if not isinstance(value, (bool, np.bool_)):
-                raise TypeError(f"{name}: expected a bool, found {type(value).__name__} {value!r}")
+            check_flag(value, name)
         elif key in ("max_iterations", "num_samples"):
-            if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral):
-                raise TypeError(f"{name}: expected an int, found {type(value).__name__} {value!r}")
-            if key == "max_iterations" and value < 0:
-                raise ValueError(f"{name}: expected a non-negative int, found {value}")
-            if key == "num_samples" and value < 3:
-                raise ValueError(f"{name}: expected at least 3, found {value}")
+            check_int(value, name, low=0 if key == "max_iterations" else 3)  # a plane needs 3 samples
         elif key in ("trim", "robust_scale", "tolerance"):
             value = check_real(value, name)  # numpy's bool is no Real: refused as bool is
             if key == "trim" and not 0.0 < value <= 1.0:
