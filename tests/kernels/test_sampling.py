@@ -56,6 +56,31 @@ def test_ragged_batch_and_gradient() -> None:
     assert verts.grad is not None and float(verts.grad.abs().sum()) > 0
 
 
+def test_later_item_after_a_much_larger_one() -> None:
+    # Review D §12: one cumsum over the batch made the small box's CDF a difference of sums of the big box's areas
+    # (area ratio ~1e15), and all 120 000 of its samples fell on its last face. Each of its 12 equal faces gets ~10 000.
+    box = trimesh.creation.box()
+    v, f = torch.tensor(box.vertices, dtype=torch.float64), torch.tensor(box.faces)
+    n = 120_000
+    s = sample_surface([(v * 3e7, f), (v, f)], n=[10, n], generator=torch.Generator().manual_seed(0))
+    assert bool((s.face_idx[:10] < 12).all())
+    counts = torch.bincount(s.face_idx[10:] - 12, minlength=12)
+    sigma = (n * (1 / 12) * (11 / 12)) ** 0.5
+    assert counts.shape == (12,) and bool(((counts - n / 12).abs() < 5 * sigma).all()), counts.tolist()
+    # On it, too: the samples are points of the small box.
+    assert float(point_mesh_distance(s.points[10:], v, f).dists.max()) < 1e-12
+
+
+def test_item_scaling_keeps_the_samples() -> None:
+    # The per-item scaling is by a power of two (exact): a single mesh samples as it did before the fix (values
+    # recorded from the unscaled code), and its samples in a batch's first place are its samples alone.
+    m = trimesh.creation.icosphere(subdivisions=2)
+    a = sample_surface(m, n=6, generator=torch.Generator().manual_seed(3))
+    assert a.face_idx.tolist() == [11, 92, 247, 56, 241, 194]
+    b = sample_surface([m, _two_triangles()], n=[6, 4], generator=torch.Generator().manual_seed(3))
+    assert torch.equal(b.face_idx[:6], a.face_idx)
+
+
 def test_zero_area_and_bad_n() -> None:
     v = torch.tensor([[0.0, 0, 0], [1, 0, 0], [2, 0, 0]])
     with pytest.raises(EmptyInputError, match="mesh 0 has zero surface area"):

@@ -82,8 +82,15 @@ def sample_surface(
             b = int(bad.nonzero()[0, 0])
             raise EmptyInputError(f"verts/faces: mesh {b} has zero surface area; cannot sample {int(counts[b])} points")
         # Per-item normalised CDF shifted by the item index: one searchsorted serves the whole batch.
+        # One cumsum runs over the whole batch, so an item's CDF is a difference of running sums: each item's
+        # areas are first scaled by a power of two that brings its total into [0.5, 1), else the sums of a much
+        # larger earlier item swamp a later item's areas (area ratio ~1e15: every sample on one face). The
+        # scaling is exact, so a single mesh and a batch's first item keep the CDF of the unscaled sums.
         f_off = lengths_to_offsets(packed.faces_lengths)
-        csum = area.cumsum(0)
+        # (The exponent is capped where 2**-exponent would overflow: a subnormal total.)
+        scale = torch.ldexp(torch.ones_like(total), -torch.frexp(total).exponent.clamp_min(-1021))
+        total = total * scale
+        csum = (area * scale[face_batch]).cumsum(0)
         start = torch.cat([csum.new_zeros(1), csum])[f_off[:-1]]
         cdf = face_batch.double() + (csum - start[face_batch]) / total.clamp_min(1e-300)[face_batch]
         sample_batch = batch_index(counts)
