@@ -46,6 +46,7 @@ __all__ = [
     "pack_meshes",
     "pack_points",
     "power_of_two_above",
+    "power_of_two_scale_down",
     "vertex_set_mask",
 ]
 
@@ -63,6 +64,22 @@ def power_of_two_above(largest: Tensor) -> Tensor:
     """
     _, exponent = torch.frexp(largest)
     return torch.ldexp(torch.ones_like(largest), exponent)
+
+
+def power_of_two_scale_down(largest: Tensor) -> Tensor:
+    """Elementwise ``1 / power_of_two_above(largest)``, formed directly: ``largest`` times it is in ``[0.5, 1)``.
+
+    For float64 sums near the top of the range (statistics of values near 1.7e308, the areas of a batch's items):
+    ``2**e`` itself overflows for ``largest >= 2**1023``, its reciprocal does not. Multiplying by it is exact. It is
+    capped at ``2**1021`` for a subnormal ``largest`` (whose reciprocal power of two overflows), and is 1 where
+    ``largest`` is 0 or not finite.
+
+    Example:
+        >>> power_of_two_scale_down(torch.tensor([5.0, 1.7e308, 0.0], dtype=torch.float64)).tolist()
+        [0.125, 5.562684646268003e-309, 1.0]
+    """
+    _, exponent = torch.frexp(largest)
+    return torch.ldexp(torch.ones_like(largest), -exponent.clamp_min(-1021))
 
 
 def vertex_set_mask(faces: Tensor, num_verts: int) -> Tensor:

@@ -93,3 +93,69 @@ def test_values_near_the_float64_maximum_give_finite_mean_and_variance():
     for _ in range(10):
         acc.update(torch.tensor([1e300], dtype=torch.float64))
     assert float(acc.compute().ave) == 1e300 and float(acc.compute().var) == 0.0
+
+
+@pytest.mark.parametrize("exact", [True, False])
+def test_rmse_std_and_psnr_stay_finite_where_mse_and_var_overflow(exact):
+    # mse = mean(d^2) of distances near 1e200 is past float64 (inf, its true value's overflow) and so is var for a
+    # spread of 2e200; rmse and std were sqrt(inf) = inf and the PSNR -inf (NaN with a peak above 1e154), though
+    # rmse <= max|d| and std are representable.
+    s = distance_statistics(torch.tensor([1e200, 3e200], dtype=torch.float64), peak=1e200, exact_quantiles=exact)
+    assert float(s.mse) == float("inf") and float(s.var) == float("inf")
+    assert float(s.rmse) == pytest.approx(5**0.5 * 1e200, rel=1e-15)
+    assert float(s.std) == pytest.approx(1e200, rel=1e-15)
+    assert float(s.psnr) == pytest.approx(-10 * np.log10(5.0), rel=1e-12)  # 20 log10(1e200 / (sqrt(5) 1e200))
+    s = distance_statistics(torch.tensor([1.7e308, 1.7e308], dtype=torch.float64), peak=1.7e308)
+    assert float(s.rmse) == 1.7e308 and float(s.psnr) == 0.0 and float(s.std) == 0.0
+
+
+def test_overflowed_roots_on_every_path():
+    # A batch: the big item's rmse/std from its scaled values; the small item's figures are the plain ones. (One
+    # scale for the whole batch underflowed the small item's deviations: its var came out 0/0 = NaN.)
+    d = torch.tensor([1e200, 3e200, 1.0, 2.0, 5.0], dtype=torch.float64)
+    b = distance_statistics(d, lengths=torch.tensor([2, 0, 2, 1]), ddof=1, peak=10.0)
+    assert float(b.std[0]) == pytest.approx(2**0.5 * 1e200, rel=1e-15)
+    assert float(b.rmse[0]) == pytest.approx(5**0.5 * 1e200, rel=1e-15)
+    assert float(b.var[2]) == 0.5 and float(b.rmse[2]) == 2.5**0.5 and torch.isnan(b.var[3])
+    assert float(b.psnr[3]) == pytest.approx(20 * np.log10(2.0), rel=1e-14)
+    # Streaming: a constant 1e300, one value per update, in both quantile modes (the sketch keeps no values: its
+    # rmse is sqrt(var + ave^2) from the moments), and a spread of 2e200 with exact quantiles.
+    for exact in (True, False):
+        acc = DistanceAccumulator(exact_quantiles=exact)
+        for _ in range(10):
+            acc.update(torch.tensor([1e300], dtype=torch.float64))
+        s = acc.compute(peak=1e300)
+        assert (float(s.var), float(s.rmse), float(s.psnr)) == (0.0, 1e300, 0.0)
+    acc = DistanceAccumulator()
+    for v in (1e200, 3e200):
+        acc.update(torch.tensor([v], dtype=torch.float64))
+    s = acc.compute()
+    assert float(s.std) == pytest.approx(1e200, rel=1e-15) and float(s.rmse) == pytest.approx(5**0.5 * 1e200, rel=1e-15)
+
+
+def test_psnr_where_the_peak_squared_or_the_quotient_leaves_float64():
+    # peak**2 overflowed (1e200: PSNR inf for an mse of 1), the quotient overflowed (1e20 / 1e-300), and a subnormal
+    # mse was clamped to 2.2e-308 (3076.5 dB instead of 3200).
+    from torchmeshmetric.stats.statistics import psnr_from_mse
+
+    mse = torch.tensor([1.0, 1e-300, 1e-320, 4.0], dtype=torch.float64)
+    got = psnr_from_mse(mse, 1e10).tolist()
+    assert got[0] == 200.0 and got[3] == pytest.approx(200 - 10 * np.log10(4.0), rel=1e-15)
+    assert got[1] == pytest.approx(3200.0, rel=1e-15) and got[2] == pytest.approx(
+        200 - 10 * np.log10(1e-320), rel=1e-15
+    )
+    assert float(psnr_from_mse(torch.tensor(1.0, dtype=torch.float64), 1e200)) == pytest.approx(4000.0, rel=1e-15)
+
+
+def test_symmetric_rmse_and_psnr_where_the_mse_overflows():
+    # symmetric_rmse was sqrt(max(mse, reverse_mse)) = inf; a peak of 1e200 given as a Python float was made float32
+    # (inf) and refused as "expected finite values > 0".
+    from torchmeshmetric.metrics import DistanceStatisticsMetric
+
+    m = DistanceStatisticsMetric(two_sided=True, peak=1e200)
+    m.update(torch.tensor([1e200, 3e200], dtype=torch.float64), torch.tensor([1.0, 2.0], dtype=torch.float64))
+    out = m.compute()
+    assert float(out["symmetric_mse"]) == float("inf")
+    assert float(out["symmetric_rmse"]) == float(out["rmse"]) == pytest.approx(5**0.5 * 1e200, rel=1e-15)
+    assert float(out["symmetric_psnr"]) == float(out["psnr"]) == pytest.approx(-10 * np.log10(5.0), rel=1e-12)
+    assert float(out["reverse_psnr"]) == pytest.approx(4000 - 10 * np.log10(2.5), rel=1e-15)

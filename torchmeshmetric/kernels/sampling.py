@@ -9,7 +9,15 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric._checks import EmptyInputError
-from torchmeshmetric.structures import MeshLike, as_mesh, batch_index, lengths_to_offsets, pack_meshes, vertex_set_mask
+from torchmeshmetric.structures import (
+    MeshLike,
+    as_mesh,
+    batch_index,
+    lengths_to_offsets,
+    pack_meshes,
+    power_of_two_scale_down,
+    vertex_set_mask,
+)
 
 __all__ = ["SurfaceSamples", "sample_surface", "vertex_set", "vertex_set_mask"]
 
@@ -87,8 +95,7 @@ def sample_surface(
         # larger earlier item swamp a later item's areas (area ratio ~1e15: every sample on one face). The
         # scaling is exact, so a single mesh and a batch's first item keep the CDF of the unscaled sums.
         f_off = lengths_to_offsets(packed.faces_lengths)
-        # (The exponent is capped where 2**-exponent would overflow: a subnormal total.)
-        scale = torch.ldexp(torch.ones_like(total), -torch.frexp(total).exponent.clamp_min(-1021))
+        scale = power_of_two_scale_down(total)
         total = total * scale
         csum = (area * scale[face_batch]).cumsum(0)
         start = torch.cat([csum.new_zeros(1), csum])[f_off[:-1]]

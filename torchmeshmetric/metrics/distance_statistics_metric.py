@@ -24,7 +24,7 @@ from torchmeshmetric.metrics.directed_distances import DirectedDistances
 from torchmeshmetric.metrics.distance_states import DistanceStates, DistanceStatesMetric
 from torchmeshmetric.metrics.selected_statistic import SelectedStatistic
 from torchmeshmetric.stats.sketch import QuantileSketch
-from torchmeshmetric.stats.statistics import DistanceStatistics, distance_statistics_update, psnr_from_mse
+from torchmeshmetric.stats.statistics import DistanceStatistics, distance_statistics_update
 
 __all__ = ["DistanceStatisticsBase", "DistanceStatisticsMetric", "MeasuredDistanceBase"]
 
@@ -227,10 +227,12 @@ class DistanceStatisticsBase(StatisticsPlot, DistanceStatesMetric):
             out["symmetric_ave"] = 0.5 * (f.ave + r.ave)
             out["hausdorff"] = torch.maximum(f.max, r.max)
             out["symmetric_mse"] = torch.maximum(f.mse, r.mse)
-            out["symmetric_rmse"] = out["symmetric_mse"].sqrt()
-            peak = self._peak()
-            if peak is not None:
-                out["symmetric_psnr"] = psnr_from_mse(out["symmetric_mse"], peak)
+            # The side with the larger mse (by rmse where both sums of squares overflowed): its rmse and PSNR, which
+            # stay finite where the mse overflows (see distance_statistics); sqrt(max) is that rmse bit for bit.
+            forward = (f.mse > r.mse) | ((f.mse == r.mse) & (f.rmse >= r.rmse))
+            out["symmetric_rmse"] = torch.where(forward, f.rmse, r.rmse)
+            if f.psnr is not None and r.psnr is not None:
+                out["symmetric_psnr"] = torch.where(forward, f.psnr, r.psnr)
         return out
 
 
@@ -241,7 +243,8 @@ def _checked_peak(peak: object) -> Tensor:
     """
     if isinstance(peak, bool) or not isinstance(peak, (numbers.Real, Tensor)):  # numpy's numbers are Real
         raise TypeError(f"peak: expected a number or a tensor of them, found {type(peak).__name__} {peak!r}")
-    p = torch.as_tensor(peak).detach()
+    # A Python number straight to float64: torch's default float32 made a peak of 1e200 inf (refused).
+    p = peak.detach() if isinstance(peak, Tensor) else torch.as_tensor(peak, dtype=torch.float64)
     if p.dtype == torch.bool or p.is_complex() or p.numel() == 0:
         raise TypeError(f"peak: expected real numbers, found a {p.dtype} tensor of {p.numel()} values")
     p = p.to(torch.float64)

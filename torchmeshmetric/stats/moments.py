@@ -16,19 +16,19 @@ and, for ``K`` parts at once, the same shift form from the largest part ``r``:
 is likewise its minimum plus the mean of the shifts from it, so a constant set (or stream, however it is batched)
 has its value as mean and ``m2 = 0`` exactly; a stream of ``U`` merges accumulates about ``sqrt(U)`` roundings of
 the mean (20 000 single-value updates of uniform data: 3e-15 relative). Values so large that a sum of them
-overflows (near 1.7e308) are summed scaled by an exact power of two: the mean and ``m2`` overflow only where their
-true values do.
+overflows (near 1.7e308) are summed scaled by an exact power of two (each set of a batch by its own): the mean and
+``m2`` overflow only where their true values do (``m2`` and ``sumsq`` for values beyond ~1e154; the statistics then
+take ``rmse`` and ``std`` from the values, see ``statistics_from_parts``).
 """
 
 from __future__ import annotations
 
-import math
 from typing import NamedTuple
 
 import torch
 from torch import Tensor
 
-from torchmeshmetric.structures import batch_index
+from torchmeshmetric.structures import batch_index, power_of_two_scale_down
 
 __all__ = ["Moments", "merge_into_row", "merge_mean_m2", "merge_moments", "merge_rows", "moments_of", "moments_rows"]
 
@@ -107,11 +107,19 @@ def _mean_m2(x: Tensor, lo: Tensor, n: Tensor, batch: Tensor | None = None) -> t
         return mean, v.new_zeros(n.shape).index_add_(0, batch, (v - mean[batch]) ** 2)
 
     mean, m2 = passes(x, lo)
-    if bool(torch.isfinite(torch.stack([mean.reshape(-1), m2.reshape(-1)])).all()):
+    finite = torch.isfinite(mean) & torch.isfinite(m2)
+    if bool(finite.all()):
         return mean, m2
-    scale = math.ldexp(1.0, -math.frexp(float(x.abs().amax()))[1])  # |x| * scale in [0.5, 1): exact
-    mean, m2 = passes(x * scale, lo * scale)
-    return mean / scale, m2 / (scale * scale)
+    # Each set by its own power of two (|x| * scale in [0.5, 1): exact), and only the sets that overflowed take the
+    # redone figures: one scale for a whole batch underflowed a small item's deviations (its var came out 0/0).
+    if batch is None:
+        scale = power_of_two_scale_down(x.abs().amax())
+    else:
+        big = x.new_zeros(n.shape).scatter_reduce(0, batch, x.abs(), reduce="amax")
+        scale = power_of_two_scale_down(big)
+    mean_s, m2_s = passes(x * (scale if batch is None else scale[batch]), lo * scale)
+    # m2 is divided by the scale twice: scale * scale underflows to 0 for values beyond ~1e162.
+    return torch.where(finite, mean, mean_s / scale), torch.where(finite, m2, m2_s / scale / scale)
 
 
 def merge_moments(parts: Moments, dim: int = 0) -> Moments:

@@ -31,7 +31,7 @@ from torch import Tensor
 from torchmeshmetric._checks import EmptyInputError, check_finite, check_int, check_lengths, check_real, check_shape
 from torchmeshmetric.stats.moments import Moments, moments_of
 from torchmeshmetric.stats.sketch import QuantileSketch
-from torchmeshmetric.structures import batch_index, lengths_to_offsets
+from torchmeshmetric.structures import batch_index, lengths_to_offsets, power_of_two_scale_down
 
 __all__ = [
     "QUANTILE_LEVELS",
@@ -128,6 +128,10 @@ def psnr_from_mse(mse: Tensor, peak: float | Tensor) -> Tensor:
     p = torch.as_tensor(peak, dtype=torch.float64, device=mse.device)
     mse = mse.to(torch.float64)
     val = 10.0 * torch.log10(p * p / mse.clamp_min(torch.finfo(torch.float64).tiny))
+    # Where peak**2 or the quotient leaves float64's range (inf, 0 or NaN), or a subnormal mse was clamped, the same
+    # PSNR as a difference of logarithms, which forms neither. Only there: the plain form's bits are the pinned ones.
+    plain = torch.isfinite(val) & (mse >= torch.finfo(torch.float64).tiny)
+    val = torch.where(plain, val, 20.0 * torch.log10(p) - 10.0 * torch.log10(mse))
     return torch.where(mse > 0, val, torch.full_like(val, math.inf))
 
 
@@ -172,11 +176,19 @@ def linear_quantiles(values: Tensor, q: Sequence[float] | Tensor, lengths: Tenso
 
 
 def statistics_from_parts(
-    moments: Moments, quantiles: Tensor, *, ddof: int = 0, peak: float | Tensor | None = None
+    moments: Moments,
+    quantiles: Tensor,
+    *,
+    ddof: int = 0,
+    peak: float | Tensor | None = None,
+    values: Tensor | None = None,
+    lengths: Tensor | None = None,
 ) -> DistanceStatistics:
     """Finish :class:`DistanceStatistics` from merged :class:`Moments` and quantiles ``(..., 3)``.
 
     Empty sets (``count == 0``) get NaN statistics (``count`` 0); ``var``/``std`` are NaN when ``count <= ddof``.
+    ``values`` (the set's distances, packed with ``lengths`` for a batch), when kept, give ``rmse`` and ``std``
+    where ``mse`` or ``var`` overflowed (see :func:`_overflowed_roots`).
     """
     given: object = ddof
     if isinstance(given, float) and given.is_integer():
@@ -190,15 +202,22 @@ def statistics_from_parts(
     ave = torch.where(has, moments.mean, nan)
     var = torch.where(n > ddof, moments.m2 / (n - ddof).clamp_min(1.0), nan)
     mse = torch.where(has, moments.sumsq / n.clamp_min(1.0), nan)
-    psnr = None if peak is None else psnr_from_mse(mse, peak)
-    if psnr is not None:
+    rmse, std = mse.sqrt(), var.sqrt()
+    overflow = torch.isinf(mse)
+    if bool((overflow | torch.isinf(var)).any()):  # only there: the usual case's bits are the plain roots'
+        rmse, std = _overflowed_roots(moments, mse, var, ddof, values, lengths)
+    psnr = None
+    if peak is not None:
+        p = torch.as_tensor(peak, dtype=torch.float64, device=mse.device)
+        # An overflowed mse has no PSNR of its own: 10 log10(peak^2 / mse) = 20 log10(peak / rmse).
+        psnr = torch.where(overflow, 20.0 * (torch.log10(p) - torch.log10(rmse)), psnr_from_mse(mse, p))
         psnr = torch.where(has, psnr, nan)
     return DistanceStatistics(
         ave=ave,
         var=var,
-        std=var.sqrt(),
+        std=std,
         mse=mse,
-        rmse=mse.sqrt(),
+        rmse=rmse,
         max=torch.where(has, moments.max, nan),
         min=torch.where(has, moments.min, nan),
         median=quantiles[..., 0],
@@ -207,6 +226,35 @@ def statistics_from_parts(
         count=n.round().long(),
         psnr=psnr,
     )
+
+
+def _overflowed_roots(
+    moments: Moments, mse: Tensor, var: Tensor, ddof: int, values: Tensor | None, lengths: Tensor | None
+) -> tuple[Tensor, Tensor]:
+    r"""``(rmse, std)`` that stay finite where ``mse``/``var`` overflowed (their roots are ``sqrt`` elsewhere).
+
+    ``mse`` overflows for distances beyond ~1e154 and ``var`` for a spread beyond that: their true values are past
+    float64, but ``rmse <= max|d|`` and ``std`` never are. With the values at hand (exact quantiles keep them), both
+    are recomputed from the values scaled by an exact power of two per item (``max|d|`` into ``[0.5, 1)``). Without
+    them (the quantile sketch), ``rmse`` is :math:`\sqrt{\mathrm{Var}_0 + \mathrm{Ave}^2}` by ``hypot`` from the
+    moments, finite while ``m2`` is (a near-constant set), and ``std`` stays ``inf``.
+    """
+    rmse, std = mse.sqrt(), var.sqrt()
+    n = moments.count.to(torch.float64)
+    if values is None:
+        identity = torch.hypot(moments.mean, (moments.m2 / n.clamp_min(1.0)).sqrt())
+        return torch.where(torch.isinf(mse), identity, rmse), std
+    x = values.detach().reshape(-1).to(torch.float64)
+    shape = n.shape
+    n, mean = n.reshape(-1), moments.mean.reshape(-1)
+    scale = power_of_two_scale_down(torch.maximum(moments.min.abs(), moments.max.abs()).reshape(-1))
+    b = x.new_zeros(x.shape, dtype=torch.long) if lengths is None else batch_index(lengths.to(x.device, torch.long))
+    xs = x * scale[b]
+    sq = x.new_zeros(n.shape).index_add_(0, b, xs * xs)
+    dev = x.new_zeros(n.shape).index_add_(0, b, (xs - (mean * scale)[b]) ** 2)
+    scaled_rmse = ((sq / n.clamp_min(1.0)).sqrt() / scale).reshape(shape)
+    scaled_std = ((dev / (n - ddof).clamp_min(1.0)).sqrt() / scale).reshape(shape)
+    return torch.where(torch.isinf(mse), scaled_rmse, rmse), torch.where(torch.isinf(var), scaled_std, std)
 
 
 def _check_peak(peak: float | Tensor) -> float | Tensor:
@@ -286,7 +334,7 @@ def distance_statistics(
         moments, quantile_data = distance_statistics_update(d, sketch)
         if d.numel() == 0:
             raise EmptyInputError("dists: expected at least one distance, found an empty tensor")
-        return distance_statistics_compute(moments, quantile_data, sketch=sketch, ddof=ddof, peak=peak)
+        return distance_statistics_compute(moments, quantile_data, sketch=sketch, ddof=ddof, peak=peak, values=d)
     _check_distances(d, "dists")
     if sketch is not None:
         _check_sketch_input(d, "dists")
@@ -300,7 +348,7 @@ def distance_statistics(
             sketch.quantile(sketch.counts(d[b == i]), q, mom.min[i], mom.max[i]) for i in range(int(lengths.numel()))
         ]
         qv = torch.stack(rows) if rows else d.new_zeros((0, 3), dtype=torch.float64)
-    return statistics_from_parts(mom, qv, ddof=ddof, peak=peak)
+    return statistics_from_parts(mom, qv, ddof=ddof, peak=peak, values=d, lengths=lengths)
 
 
 def _check_distances(dists: Tensor, name: str) -> None:
@@ -357,6 +405,7 @@ def distance_statistics_compute(
     sketch: QuantileSketch | None = None,
     ddof: int = 0,
     peak: float | Tensor | None = None,
+    values: Tensor | None = None,
 ) -> DistanceStatistics:
     """Finish the statistics of one set from merged moments and its quantile data (the ``_compute`` half).
 
@@ -367,6 +416,8 @@ def distance_statistics_compute(
         sketch: the sketch that made the counts, ``None`` for exact quantiles.
         ddof: delta degrees of freedom of ``var``/``std``.
         peak: PSNR peak, or ``None`` (no PSNR).
+        values: the set's distances where a sketch's caller still has them (exact quantiles: ``quantile_data``);
+            read only where ``mse`` or ``var`` overflowed, to give a finite ``rmse``/``std``.
 
     Returns:
         0-dim :class:`DistanceStatistics`.
@@ -382,7 +433,9 @@ def distance_statistics_compute(
     else:
         q = torch.tensor(QUANTILE_LEVELS, dtype=torch.float64, device=quantile_data.device)
         quantiles = sketch.quantile(quantile_data, q, moments.min, moments.max)
-    return statistics_from_parts(moments, quantiles, ddof=ddof, peak=peak)
+    if sketch is None:
+        values = quantile_data
+    return statistics_from_parts(moments, quantiles, ddof=ddof, peak=peak, values=values)
 
 
 def mean_psnr(values: Sequence[float], what: str = "values") -> tuple[float, int]:
