@@ -34,6 +34,7 @@ __all__ = [
     "check_real",
     "check_same_device",
     "check_shape",
+    "check_tensor",
     "check_faces",
     "check_index_dtype",
     "common_dtype",
@@ -80,6 +81,37 @@ def _fmt_shape(shape: Sequence[int | str]) -> str:
     return "(" + ", ".join(str(s) for s in shape) + ")"
 
 
+def check_tensor(x: object, name: str, expected: str = "a torch.Tensor") -> None:
+    """Require a ``torch.Tensor``; the error names what was found and, for a numpy array, the conversion.
+
+    A numpy array is not a tensor here, and where a list of point sets is accepted too it was taken as one (each
+    row a "point set" of shape ``(3,)``): the error says so before anything is read from it.
+
+    Args:
+        x: the argument.
+        name: its name in the error.
+        expected: what was expected, e.g. ``"a (P, 3) torch.Tensor or a list of them"``.
+
+    Raises:
+        TypeError: ``x`` is not a tensor.
+
+    Example:
+        >>> import numpy as np
+        >>> check_tensor(np.zeros((5, 3)), "points")
+        Traceback (most recent call last):
+        ...
+        TypeError: points: expected a torch.Tensor, found numpy.ndarray; convert it with torch.as_tensor(points)
+    """
+    if isinstance(x, Tensor):
+        return
+    import numpy as np  # loaded with torch already
+
+    if isinstance(x, np.ndarray):
+        found = "numpy.ndarray" if type(x) is np.ndarray else f"{type(x).__name__} (a numpy.ndarray)"
+        raise TypeError(f"{name}: expected {expected}, found {found}; convert it with torch.as_tensor({name})")
+    raise TypeError(f"{name}: expected {expected}, found {type(x).__name__}")
+
+
 def check_shape(x: Tensor, pattern: Sequence[str | int], name: str) -> None:
     """Check ``x`` against a pattern such as ``("P", 3)``: strings are free sizes, integers fixed ones.
 
@@ -87,8 +119,7 @@ def check_shape(x: Tensor, pattern: Sequence[str | int], name: str) -> None:
         TypeError: ``x`` is not a tensor.
         ShapeError: the number of dimensions or a fixed size differs.
     """
-    if not isinstance(x, Tensor):
-        raise TypeError(f"{name}: expected a torch.Tensor, found {type(x).__name__}")
+    check_tensor(x, name)
     expected = _fmt_shape([str(p) for p in pattern])
     if x.dim() != len(pattern) or any(isinstance(p, int) and s != p for s, p in zip(x.shape, pattern, strict=False)):
         raise ShapeError(f"{name}: expected shape {expected}, found {_fmt_shape(x.shape)}")
@@ -112,9 +143,10 @@ def check_float(x: Tensor, name: str) -> None:
             "complex coordinates have no distance here (take .real if the imaginary parts are zero)"
         )
     if not x.is_floating_point():
+        kind = "boolean" if x.dtype == torch.bool else "integer"  # the advice names what was found
         raise DTypeError(
             f"{name}: expected a floating-point tensor (float32 or float64), found dtype {x.dtype}; "
-            "convert integer coordinates with .float() or .double()"
+            f"convert {kind} coordinates with .float() or .double()"
         )
 
 

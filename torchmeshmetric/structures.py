@@ -27,6 +27,7 @@ from torchmeshmetric._checks import (
     check_lengths,
     check_same_device,
     check_shape,
+    check_tensor,
 )
 
 if TYPE_CHECKING:
@@ -430,6 +431,9 @@ def pack_points(points: Sequence[Any] | Tensor, lengths: Tensor | None = None, n
         lengths = lengths.to(device=pts.device, dtype=torch.long)
         check_lengths(lengths, pts.shape[0], f"{name}_lengths")
         return PackedPoints(pts, lengths)
+    if not isinstance(points, Sequence):
+        # A numpy array was iterated as a list of point sets, one per row ("points[0]: expected shape (P, 3)").
+        check_tensor(points, name, "a (P, 3) torch.Tensor or a list of them")
     if lengths is not None:
         raise TypeError(
             f"{name}_lengths: only valid with a packed tensor, found a {type(points).__name__} of point sets"
@@ -497,6 +501,8 @@ def pack_meshes(
                 )
         return PackedMeshes(verts, faces, vl, fl)
     if faces is not None:
+        # verts and faces are two arguments only as tensors (numpy verts said "faces: only valid when verts is ...").
+        check_tensor(meshes, "verts", "a (V, 3) torch.Tensor when faces is given")
         raise TypeError("faces: only valid when verts is a tensor")
     if isinstance(meshes, (list, tuple)) and not (isinstance(meshes, tuple) and looks_like_pair(meshes)):
         items = [as_mesh(m, name=f"{name}[{i}]") for i, m in enumerate(meshes)]

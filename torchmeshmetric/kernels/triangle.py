@@ -20,7 +20,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import ShapeError, check_finite, check_float
+from torchmeshmetric._checks import ShapeError, check_finite, check_float, check_tensor
 from torchmeshmetric.kernels._common import cross, dot, safe_div
 
 __all__ = ["ClosestPointOnTriangle", "closest_point_on_triangle", "region_candidates"]
@@ -115,8 +115,7 @@ def closest_point_on_triangle(points: Tensor, a: Tensor, b: Tensor, c: Tensor) -
     """
     args = (("points", points), ("a", a), ("b", b), ("c", c))
     for name, x in args:
-        if not isinstance(x, Tensor):
-            raise TypeError(f"{name}: expected a tensor of shape (..., 3), found {type(x).__name__}")
+        check_tensor(x, name, "a tensor of shape (..., 3)")
         check_float(x, name)
         if x.dim() == 0 or x.shape[-1] != 3:
             raise ShapeError(f"{name}: expected shape (..., 3), found ({', '.join(map(str, x.shape))})")

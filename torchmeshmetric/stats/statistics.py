@@ -28,7 +28,15 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import EmptyInputError, check_finite, check_int, check_lengths, check_real, check_shape
+from torchmeshmetric._checks import (
+    EmptyInputError,
+    check_finite,
+    check_int,
+    check_lengths,
+    check_real,
+    check_shape,
+    check_tensor,
+)
 from torchmeshmetric.stats.moments import Moments, moments_of
 from torchmeshmetric.stats.sketch import QuantileSketch
 from torchmeshmetric.structures import batch_index, lengths_to_offsets, power_of_two_scale_down
@@ -320,6 +328,8 @@ def distance_statistics(
         if lengths is not None:
             check_lengths(lengths.to(d.device), d.shape[0], "lengths")
     else:
+        if not isinstance(dists, Sequence):  # a numpy array was taken as a list of sets (its values)
+            check_tensor(dists, "dists", "an (N,) torch.Tensor or a list of them")
         if lengths is not None:
             raise TypeError("lengths: only valid with a packed dists tensor, found a list of tensors")
         items = list(dists)

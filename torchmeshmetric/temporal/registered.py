@@ -27,7 +27,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import EmptyInputError, ShapeError, check_finite, check_float, check_int
+from torchmeshmetric._checks import EmptyInputError, ShapeError, check_finite, check_float, check_int, check_tensor
 from torchmeshmetric.evaluation.pipeline import RegisterFn, RegistrationOptions, register_pairs
 from torchmeshmetric.kernels import MeshIndex, PointMeshResult
 from torchmeshmetric.registration.cache import CachedRegistration, RegistrationCache
@@ -403,8 +403,7 @@ def carry_onto(
         >>> round(float(onto.norm(dim=-1).max()), 6)  # on the unit sphere's facets
         1.0
     """
-    if not isinstance(tracked, Tensor):
-        raise TypeError(f"tracked: expected a torch.Tensor of shape (F, V, 3), found {type(tracked).__name__}")
+    check_tensor(tracked, "tracked", "a torch.Tensor of shape (F, V, 3)")
     if tracked.dim() != 3 or tracked.shape[-1] != 3:
         raise ShapeError(f"tracked: expected a tensor of shape (F, V, 3), found {tuple(tracked.shape)}")
     # tracked's own faults under its own name: they surfaced as the distorted verts' dtype (cast to tracked's) or as

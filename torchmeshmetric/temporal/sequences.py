@@ -5,7 +5,7 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import ShapeError, check_faces, check_finite, check_float, check_same_device
+from torchmeshmetric._checks import ShapeError, check_faces, check_finite, check_float, check_same_device, check_tensor
 from torchmeshmetric.structures import power_of_two_above
 
 __all__ = ["check_faces_of", "check_sequence_pair", "power_of_two_scale"]
@@ -35,8 +35,7 @@ def check_sequence_pair(original: Tensor, distorted: Tensor, *, min_frames: int 
         torch.float64
     """
     for name, x in (("original", original), ("distorted", distorted)):
-        if not isinstance(x, Tensor):
-            raise TypeError(f"{name}: expected a torch.Tensor of shape (..., F, V, 3), found {type(x).__name__}")
+        check_tensor(x, name, "a torch.Tensor of shape (..., F, V, 3)")
         check_float(x, name)
         if x.dim() < 3 or x.shape[-1] != 3:
             raise ShapeError(f"{name}: expected shape (..., F, V, 3), found {tuple(x.shape)}")
@@ -57,8 +56,7 @@ def check_sequence_pair(original: Tensor, distorted: Tensor, *, min_frames: int 
 
 def check_faces_of(faces: Tensor, num_verts: int) -> Tensor:
     """Validate the ``(T, 3)`` faces shared by every frame and return them as int64 (see ``check_faces``)."""
-    if not isinstance(faces, Tensor):
-        raise TypeError(f"faces: expected a torch.Tensor of shape (T, 3), found {type(faces).__name__}")
+    check_tensor(faces, "faces", "a torch.Tensor of shape (T, 3)")
     check_faces(faces, num_verts, "faces")
     if faces.shape[0] == 0:
         raise ShapeError("faces: expected at least one face, found shape (0, 3)")

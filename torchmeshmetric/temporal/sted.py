@@ -38,7 +38,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import ShapeError, check_finite, check_float, check_int, check_real
+from torchmeshmetric._checks import ShapeError, check_finite, check_float, check_int, check_real, check_tensor
 from torchmeshmetric.temporal.sequences import check_faces_of, check_sequence_pair, power_of_two_scale
 from torchmeshmetric.temporal.topology import Neighbourhoods, neighbourhoods
 
@@ -149,8 +149,7 @@ def largest_vertex_distance(points: Tensor) -> Tensor:
         >>> largest_vertex_distance(torch.tensor([[0.0, 0, 0], [3.0, 4.0, 0], [1.0, 1.0, 0]])).item()
         5.0
     """
-    if not isinstance(points, Tensor):
-        raise TypeError(f"points: expected a torch.Tensor of shape (..., V, 3), found {type(points).__name__}")
+    check_tensor(points, "points", "a torch.Tensor of shape (..., V, 3)")
     if points.ndim < 2 or points.shape[-1] != 3 or points.shape[-2] == 0:
         raise ShapeError(f"points: expected (..., V, 3) with V >= 1, found {tuple(points.shape)}")
     check_float(points, "points")
