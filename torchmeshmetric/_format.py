@@ -8,6 +8,7 @@ A leaf module (standard library only), used by the reports, the comparisons, the
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -55,17 +56,29 @@ def json_safe(value: Any) -> Any:
     return value
 
 
-def markdown_cell(text: object) -> str:
-    r"""A user's name (a method's, a sequence's) as a Markdown table cell: ``|`` and ``\`` escaped, one line.
+#: The characters of a name that change how a Markdown cell renders (GitHub-flavoured): ``\`` escapes, ``|`` splits
+#: the row, ``*`` ``_`` ``~`` are emphasis and strikethrough, a backtick code, ``[`` ``]`` a link (``![`` an image),
+#: ``<`` ``>`` HTML or an autolink, ``$`` GitHub's math, ``&`` an entity (``&amp;`` shows as ``&``; only where one
+#: follows). A ``_`` between two letters or digits is left alone: CommonMark's flanking rules never let it open or
+#: close emphasis, so ``orig_qem`` is written as it is.
+_MARKDOWN_SPECIAL = re.compile(r"[\\|*`\[\]<>~$]|&(?=#?\w+;)|(?<![^\W_])_|_(?![^\W_])")
 
-    A ``|`` in a name otherwise splits its row into one cell more than the header has, and a backslash would escape
-    the character after it (``\*`` reads as ``*``); line breaks become spaces.
+
+def markdown_cell(text: object) -> str:
+    r"""A user's name (a method's, a sequence's) as Markdown table cell text that renders as the name itself.
+
+    Every character that Markdown would read as markup (:data:`_MARKDOWN_SPECIAL`) gets a backslash (CommonMark's
+    escape of ASCII punctuation); line breaks become spaces. A ``|`` otherwise split its row into one cell more
+    than the header has, and ``**a**`` or ``_a_`` showed in bold or italics. A name without such characters is
+    written unchanged.
 
     Example:
         >>> markdown_cell("QEM | 50 %"), markdown_cell("a\nb"), markdown_cell("C:\\x")
         ('QEM \\| 50 %', 'a b', 'C:\\\\x')
+        >>> print(markdown_cell("**a** _b_ [c](d) <e> orig_qem"))
+        \*\*a\*\* \_b\_ \[c\](d) \<e\> orig_qem
     """
-    return " ".join(str(text).replace("\\", "\\\\").replace("|", "\\|").splitlines())
+    return " ".join(_MARKDOWN_SPECIAL.sub(lambda m: "\\" + m.group(0), str(text)).splitlines())
 
 
 def check_csv_fields(path: object, line: int, row: Mapping[str | None, Any], header: Sequence[str]) -> None:

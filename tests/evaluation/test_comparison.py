@@ -287,3 +287,17 @@ def test_a_pipe_in_a_winners_name_keeps_the_verdict_tables_columns():
     assert surface_k[1] == "a|b x: -0.202 ± 0.0104"  # the ave column holds the ave difference (t interval)
     assert text.startswith("### a\\|b x vs B (difference")  # the heading: one line
     assert "<td>a|b x: -0.202 ± 0.0104</td>" in markdown_html(text)
+
+
+def test_markdown_emphasis_in_a_method_name_is_shown_as_written():
+    # "**a**" in a verdict cell or the heading showed as a bold "a", "_b_" as an italic "b" (markdown_cell escaped
+    # only "|" and "\\"); the page's cell is the name as typed.
+    from torchmeshmetric.viz.html_report import markdown_html
+
+    a = _method([1.0, 1.1, 0.9, 1.05, 0.95])
+    b = _method([1.2, 1.31, 1.1, 1.24, 1.16])
+    text = comparison_markdown(compare_methods({"**a**": a, "_b_": b}))
+    assert text.startswith("### \\*\\*a\\*\\* vs \\_b\\_ (difference")
+    assert "| surface_k | \\*\\*a\\*\\*: -0.202 ± 0.0104 |" in text
+    page = markdown_html(text)
+    assert "<td>**a**: -0.202 ± 0.0104</td>" in page and "<strong>" not in page

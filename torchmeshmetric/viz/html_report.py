@@ -304,7 +304,7 @@ _INLINE = (
 
 
 #: A Markdown backslash escape (CommonMark: a backslash before ASCII punctuation stands for that character):
-#: ``\*`` of a footnote mark, ``\|`` and ``\\`` of a name (:func:`~torchmeshmetric._format.markdown_cell`).
+#: ``\*`` of a footnote mark, and every markup character of a name (:func:`~torchmeshmetric._format.markdown_cell`).
 _ESCAPE = re.compile(r"\\([!-/:-@\[-`{-~])")
 _HELD = re.compile("\ue000(\\d+)\ue001")  # a held escaped character (private-use marks around its index)
 

@@ -573,7 +573,9 @@ def _pct(v: float | None, scale: float = 1.0) -> str:
 
 
 def _label(scope: str, name: str) -> str:
-    return name if scope == "sequence" else f"**{name} average**" if scope == "class" else "**Overall average**"
+    """A row's label in the summary's tables: the sequence's or class's name (escaped: the sheet's), or "Overall"."""
+    cell = markdown_cell(name)
+    return cell if scope == "sequence" else f"**{cell} average**" if scope == "class" else "**Overall average**"
 
 
 def summary_markdown(summary: Mapping[str, Any]) -> str:
