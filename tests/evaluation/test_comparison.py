@@ -85,14 +85,15 @@ def test_generic_over_the_statistics_a_pair_carries_psnr_is_higher_better():
 
 def test_a_perfect_method_wins_the_psnr_comparison():
     # A PSNR of inf on a pair (no error) gave "nan ± inf" and "inconclusive" while Ave said the same method won
-    # (found by review). One sign on every pair is a verdict; both infinite on a pair is no difference there.
+    # (found by review). One sign on every pair is a verdict; a pair both measure without error is left out (it was
+    # a difference of 0 there, the interval's low end) and counted.
     def mpeg(values):
         return lambda k: {"mpeg": {"d1": {"d1_psnr": values[k - 1], "d1_mse": 1.0}}}
 
     a = _method([1.0] * 4, extra=mpeg([math.inf, math.inf, 70.0, math.inf]))
     b = _method([1.0] * 4, extra=mpeg([60.0, math.inf, 61.0, 62.0]))
     entry = compare_methods({"A": a, "B": b})["A vs B"]["mpeg:d1"]["d1_psnr"]
-    assert entry == {"difference": math.inf, "ci95": [0.0, math.inf], "verdict": "A better"}
+    assert entry == {"difference": math.inf, "ci95": [9.0, math.inf], "verdict": "A better", "both_inf_pairs": 1}
     assert compare_methods({"B": b, "A": a})["B vs A"]["mpeg:d1"]["d1_psnr"]["verdict"] == "A better"
     mixed = _method([1.0] * 4, extra=mpeg([50.0, math.inf, 80.0, 62.0]))  # worse on one pair, better on another
     assert compare_methods({"A": a, "M": mixed})["A vs M"]["mpeg:d1"]["d1_psnr"]["verdict"] == "inconclusive"
@@ -115,6 +116,47 @@ def test_a_psnr_inf_on_a_pair_with_the_sign_changing_is_undefined_never_nan():
     assert "no mean difference in dB exists; compare the rmse" in text
 
 
+def test_a_pair_both_measure_without_error_is_left_out_of_the_psnr_difference():
+    # Both lossless on a pair (PSNR inf for both) entered the interval as a difference of 0: A, 1 dB better on every
+    # other pair, was "inconclusive" (mean 0.75, interval [-0.06, 1.56]); the mean difference was no longer the
+    # difference of the two methods' mean PSNRs (mean_psnr leaves the inf out). The pair is left out and counted.
+    from torchmeshmetric.evaluation.comparison import _compare_values
+    from torchmeshmetric.stats.statistics import mean_psnr
+
+    a, b = [math.inf, 40.0, 41.0, 42.0], [math.inf, 38.9, 40.0, 41.1]
+    entry = _compare_values(a, b, "psnr", 0.0, 0.02, 0.95, ("A", "B"))
+    assert entry["verdict"] == "A better" and entry["both_inf_pairs"] == 1
+    assert entry["difference"] == pytest.approx(1.0, rel=1e-12)
+    assert entry["difference"] == pytest.approx(mean_psnr(a)[0] - mean_psnr(b)[0], rel=1e-12)
+    half = 4.302653 * 0.1 / math.sqrt(3)  # t(0.975, 2) s_d / sqrt(n) over the 3 finite pairs (s_d = 0.1)
+    assert entry["ci95"] == pytest.approx([1.0 - half, 1.0 + half], rel=1e-6)
+    without = _compare_values(a[1:], b[1:], "psnr", 0.0, 0.02, 0.95, ("A", "B"))
+    assert {k: v for k, v in entry.items() if k != "both_inf_pairs"} == without and "both_inf_pairs" not in without
+    # identical methods stay identical, every pair lossless included; a distance statistic has no such rule
+    same = {"difference": 0.0, "ci95": [0.0, 0.0], "verdict": "inconclusive"}
+    assert _compare_values([math.inf, 40.0], [math.inf, 40.0], "psnr", 0.0, 0.02, 0.95, ("A", "B")) == {
+        **same,
+        "both_inf_pairs": 1,
+    }
+    assert _compare_values([math.inf] * 3, [math.inf] * 3, "psnr", 0.0, 0.02, 0.95, ("A", "B")) == {
+        **same,
+        "both_inf_pairs": 3,
+    }
+    assert "both_inf_pairs" not in _compare_values(
+        [math.inf, 1.0], [math.inf, 2.0], "rmse", 0.0, 0.02, 0.95, ("A", "B")
+    )
+    # through compare_methods and the verdict table: the count, and the note under the table
+    mpeg = lambda values: lambda k: {"mpeg": {"d1": {"d1_psnr": values[k - 1], "d1_mse": 1.0}}}  # noqa: E731
+    out = compare_methods({"A": _method([1.0] * 4, extra=mpeg(a)), "B": _method([1.0] * 4, extra=mpeg(b))})
+    assert out["A vs B"]["mpeg:d1"]["d1_psnr"] == entry
+    text = comparison_markdown(out)
+    assert "| mpeg:d1 |  |  |  |  | A: 1 ± 0.248 |" in text
+    assert (
+        "Frame pairs both methods measure without error (PSNR inf for both), left out of that PSNR's difference and "
+        "interval: mpeg:d1 d1_psnr 1" in text
+    )
+
+
 def test_a_pair_both_measure_without_error_leaves_the_psnr_threshold_finite():
     # review F, finding 3: the relative margin was 2 % of np.mean(a), inf with one lossless pair, so a method 9.3 dB
     # better on every other pair (interval [8.4, 10.3]) was "inconclusive"; the margin follows mean_psnr now.
@@ -123,11 +165,12 @@ def test_a_pair_both_measure_without_error_leaves_the_psnr_threshold_finite():
     a = [math.inf] + [40 + 0.1 * i for i in range(20)]
     b = [math.inf] + [30 + 0.12 * i for i in range(20)]
     entry = _compare_values(a, b, "psnr", 0.0, 0.02, 0.95, ("A", "B"))
-    assert entry["verdict"] == "A better"
-    assert entry["difference"] == pytest.approx(sum(x - y for x, y in zip(a[1:], b[1:], strict=True)) / 21)
+    assert entry["verdict"] == "A better" and entry["both_inf_pairs"] == 1
+    # the both-inf pair is left out (it was a difference of 0, the mean over 21 pairs): the mean over the 20 others
+    assert entry["difference"] == pytest.approx(sum(x - y for x, y in zip(a[1:], b[1:], strict=True)) / 20)
     assert entry["ci95"][0] > 8.0 and entry["ci95"][1] < 10.5
-    # the margin is 2 % of the better finite mean (40.95 dB -> 0.819 dB), not of inf; the both-inf pair counts as a
-    # difference 0 in the mean difference: 0.8 dB on 20 pairs (mean 0.762) is inconclusive, 0.9 (0.857) is called
+    # the margin is 2 % of the better finite mean (40.95 dB -> 0.819 dB), not of inf: 0.8 dB on the 20 finite pairs
+    # is inconclusive, 0.9 is called
     close = [math.inf] + [x - 0.8 for x in a[1:]]
     assert _compare_values(a, close, "psnr", 0.0, 0.02, 0.95, ("A", "B"))["verdict"] == "inconclusive"
     closer = [math.inf] + [x - 0.9 for x in a[1:]]

@@ -23,6 +23,12 @@ distinct resamples and its intervals are too narrow, and an exact sign-flip test
 ``p < 0.05`` at all (its smallest ``p`` is 2/32). The *t* interval is exact when the differences are normal and
 independent, and robust to moderate non-normality; its limits are in ``docs/statistics.md``.
 
+**A PSNR of inf** (a pair measured without error). A pair that both methods measure without error has no
+difference in dB: it is left out of the PSNR's differences and counted (``"both_inf_pairs"``), as
+:func:`~torchmeshmetric.stats.statistics.mean_psnr` leaves it out of each method's mean PSNR, so that :math:`\bar d`
+is still the difference of the two means. A pair only one method measures without error is a difference of
+``±inf``: one sign on every pair is a verdict, a sign that changes leaves the difference undefined.
+
 **Verdict.** ``"<A> better"`` or ``"<B> better"`` only when the interval excludes 0 *and* the difference is above
 the set's **noise floor**; otherwise ``"inconclusive"``. Lower is better for distances, higher for PSNR (any
 statistic whose name contains ``psnr``). Noise floors:
@@ -205,9 +211,33 @@ def _compare_values(
     confidence: float,
     names: tuple[str, str],
 ) -> dict[str, Any]:
-    if all(x == y for x, y in zip(a, b, strict=True)):  # identical (infinities included): no difference at all
+    # A pair both methods measure without error (PSNR inf for both) has no difference in dB: the one rule (mean_psnr)
+    # leaves it out and counts it ("both_inf_pairs"). It entered the interval as a difference of 0, which pulled the
+    # mean difference towards 0 and narrowed the interval with a pair that tells the methods nothing apart.
+    pairs = list(zip(a, b, strict=True))
+    if _higher_is_better(statistic):
+        pairs = [(x, y) for x, y in pairs if not x == y == math.inf]
+    entry = _paired_entry(
+        [x for x, _ in pairs], [y for _, y in pairs], statistic, floor, relative_margin, confidence, names
+    )
+    if len(pairs) < len(a):
+        entry["both_inf_pairs"] = len(a) - len(pairs)
+    return entry
+
+
+def _paired_entry(
+    a: list[float],
+    b: list[float],
+    statistic: str,
+    floor: float,
+    relative_margin: float,
+    confidence: float,
+    names: tuple[str, str],
+) -> dict[str, Any]:
+    """One entry of :func:`compare_methods` from the pairs' values (none left out here); see its docs."""
+    if all(x == y for x, y in zip(a, b, strict=True)):  # identical (no pair left included): no difference at all
         return {"difference": 0.0, "ci95": [0.0, 0.0], "verdict": "inconclusive"}
-    diffs = [0.0 if x == y else x - y for x, y in zip(a, b, strict=True)]  # both perfect (PSNR inf): no difference
+    diffs = [0.0 if x == y else x - y for x, y in zip(a, b, strict=True)]  # equal infinities of a distance: none
     if not all(math.isfinite(d) for d in diffs):
         # A PSNR of inf (a pair measured without error) leaves no mean nor interval: it gave "nan ± inf" and
         # "inconclusive" where one method won on every pair (found by review). One sign on every pair is a verdict.
@@ -261,6 +291,12 @@ def compare_methods(
     Returns:
         ``{"<A> vs <B>": {set: {statistic: {"difference": A - B, "ci95": [lo, hi], "verdict": ...}}}}``; entries
         of the sets measured against the registered frame ``k-1`` (and ``flicker``) also hold ``"noise_floor"``.
+        A PSNR entry also holds ``"both_inf_pairs"`` when both methods measure some frame pairs without error
+        (PSNR inf for both): those pairs have no difference in dB and are left out of the difference and its
+        interval, as :func:`~torchmeshmetric.stats.statistics.mean_psnr` leaves an inf out of a mean (with every
+        pair so, the methods are identical: difference 0). A PSNR inf for one method only is a difference of
+        ``±inf``: one sign on every pair is a verdict, the sign changing leaves the difference undefined
+        (:data:`UNDEFINED_PSNR`).
 
     Raises:
         ValueError: fewer than two methods, or methods evaluated on different frame pairs.
@@ -447,7 +483,8 @@ def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapp
 
     Rows are sets, columns statistics; a cell reads ``<winner>: difference ± half-width`` or
     ``≈ difference ± half-width`` when inconclusive (the difference is ``A - B``). Sets with a registration noise
-    floor are marked ``*`` and their floor is listed under the table. With the verdicts on nudged frames
+    floor are marked ``*`` and their floor is listed under the table, as are the frame pairs a PSNR's difference
+    leaves out (both methods measure them without error). With the verdicts on nudged frames
     (:func:`with_nudged_verdicts`), a cell whose verdict they change starts with ``~``, the note under the tables
     counts them, and each number (the noise floors too) keeps only the digits both runs share (``~`` before a number
     none of whose digits held).
@@ -483,6 +520,16 @@ def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapp
         out.append("")
         if floors:
             out += ["\\* noise floor (registration residual, or its error when known): " + "; ".join(floors), ""]
+        # the pairs a PSNR's difference leaves out, as mean_psnr leaves an inf out (compare_methods' both_inf_pairs)
+        both_inf = [
+            f"{n} {st} {e['both_inf_pairs']}" for n, es in sets.items() for st, e in es.items() if "both_inf_pairs" in e
+        ]
+        if both_inf:
+            out += [
+                "Frame pairs both methods measure without error (PSNR inf for both), left out of that PSNR's "
+                "difference and interval: " + "; ".join(both_inf),
+                "",
+            ]
     out.append(
         "≈: inconclusive (the interval contains 0, or the difference is below the noise floor or the relative "
         "margin). Units: frame pairs; see docs/statistics.md."
