@@ -3,6 +3,19 @@
 fast-simplification (MIT) wraps Sven Forstmann's Fast Quadric Mesh Simplification, an implementation of the quadric
 error metric edge collapse of Garland & Heckbert, "Surface Simplification Using Quadric Error Metrics",
 SIGGRAPH 1997. We keep it as the baseline rather than rewriting it.
+
+fast-simplification stops collapsing at an *absolute* error threshold (``1e-9 * (iteration + 3) ** agg``, squared
+distance units), so its result depends on the unit of the coordinates: the same frame in 16-bit integer coordinates
+stopped at 1864 faces of a 632-face target. :func:`simplify_qem` therefore simplifies a copy scaled by a power of two
+that brings the largest side of the bounding box of the used vertices into ``[1.5, 3)`` and scales the result back.
+A power of two only changes exponents: every normal, quadric coefficient, error and position that fast-simplification
+computes is the canonical one times an exact power of two (errors by an exact power of four), so its decisions are
+those at the canonical scale, and mapping back is exact (short of overflow and subnormal numbers): the same mesh in
+metres, millimetres or integer units gives the same faces and the same vertices in its own unit. The range holds the
+sizes this library meets most (the built-in frames, about 1.84 units; a mesh in ``[-1, 1]^3``, 2), which it leaves
+untouched. Small units had the opposite effect: the target was met, but every error under the first threshold, so
+fast-simplification collapsed in mesh order instead of by cost (twice the error of the canonical scale on a demo
+frame in kilometres).
 """
 
 from __future__ import annotations
@@ -20,8 +33,51 @@ from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
 __all__ = ["simplify_qem"]
 
+# The range [low, 2 * low) into which simplify_qem scales the largest bounding-box side, by a power of two, before
+# fast-simplification (whose stopping threshold is an absolute squared distance). low must lie in [1, 2) for
+# _canonical_exponent's two cases.
+_CANONICAL_EXTENT = (1.5, 3.0)
 
-def simplify_qem(mesh: MeshLike, target: int | float, *, preserve_border: bool = False, agg: float = 7.0) -> Mesh:
+
+def _canonical_exponent(verts: np.ndarray, faces: np.ndarray) -> int:
+    """The ``k`` for which ``2**k`` times the largest bounding-box side of the used vertices is in the canonical range.
+
+    0 when every used vertex is at one point (nothing to scale) or when the scaled coordinates would overflow (a
+    surface tiny next to its distance from the origin: it is simplified as given).
+    """
+    used = verts[np.unique(faces)]
+    extent = float((used.max(0) - used.min(0)).max())
+    if extent == 0.0:
+        return 0
+    mantissa, exponent = math.frexp(extent)  # extent = mantissa * 2**exponent, mantissa in [0.5, 1)
+    # 2 * mantissa is in [1, 2): keep it when it is at least the range's low end (1.5), else double it (into [2, 3)).
+    k = 1 - exponent if 2.0 * mantissa >= _CANONICAL_EXTENT[0] else 2 - exponent
+    if not math.isfinite(math.ldexp(float(np.abs(verts).max()), k)):
+        return 0
+    return k
+
+
+_DEFAULT_AGG = 7.0
+
+
+def _miss_cause(verts: np.ndarray, faces: np.ndarray, count: int, reached: int, agg: float, border: bool) -> str:
+    """Why fast-simplification stopped at ``reached`` faces, above ``count``: the warning's words.
+
+    The warning blamed ``agg`` whatever the cause, the default included (found by review: the cause was the scale).
+    """
+    if agg < _DEFAULT_AGG:
+        # Its threshold grows as (round + 3) ** agg over at most 100 rounds: a small agg may not reach the errors of
+        # the last collapses. Only a miss pays for this second run, which says whether agg is the cause.
+        default = len(fast_simplification.simplify(verts, faces, target_count=count, preserve_border=border)[1])
+        if default < reached:
+            return f"agg={agg!r} raises its error threshold too slowly: the default 7.0 reaches {default} faces"
+    kept = "preserve_border keeps every border vertex, and " if border else ""
+    return f"no edge left that fast-simplification collapses: {kept}it never joins a border vertex to an interior one"
+
+
+def simplify_qem(
+    mesh: MeshLike, target: int | float, *, preserve_border: bool = False, agg: float = _DEFAULT_AGG
+) -> Mesh:
     """Simplify a triangle mesh with QEM edge collapse (Garland & Heckbert 1997) via fast-simplification.
 
     Args:
@@ -33,9 +89,12 @@ def simplify_qem(mesh: MeshLike, target: int | float, *, preserve_border: bool =
             stopped at 1222.
 
     Returns:
-        The simplified mesh (same dtype and device as the input, detached). fast-simplification reaches the count
-        to within about one face (each collapse removes two faces); it may stop above it on meshes with few
-        collapsible edges. A target of every face returns ``mesh`` itself (as a :class:`Mesh`), nothing collapsed.
+        The simplified mesh (same dtype and device as the input, detached), the same whatever the unit of the
+        coordinates (see the module docstring). fast-simplification reaches the count to within about one face (each
+        collapse removes two faces); it stops above it (with a warning naming the cause) with an ``agg`` below the
+        default, or when no edge is left that it may collapse (it never joins a border vertex to an interior one,
+        nor, with ``preserve_border``, moves a border vertex). A target of every face returns ``mesh`` itself (as a
+        :class:`Mesh`), nothing collapsed.
         Faces with a repeated corner in the input (a capture defect, ``[a, a, b]``) are never collapsed and pass
         through: the output keeps them, as it keeps every other defect of the input.
 
@@ -46,7 +105,7 @@ def simplify_qem(mesh: MeshLike, target: int | float, *, preserve_border: bool =
         NonFiniteError: a vertex is NaN or infinite (possible only in a ``Mesh`` built with ``validate=False``).
 
     Warns:
-        UserWarning: the simplification stopped above the target (more than one face above it).
+        UserWarning: the simplification stopped above the target (more than one face above it), naming the cause.
 
     Example:
         >>> import trimesh
@@ -73,9 +132,12 @@ def simplify_qem(mesh: MeshLike, target: int | float, *, preserve_border: bool =
         )
     verts = m.verts.detach().cpu().double().numpy()
     faces = m.faces.cpu().numpy().astype(np.int64)
+    # fast-simplification's threshold is absolute: simplify at the canonical scale (exact, see the module docstring).
+    k = _canonical_exponent(verts, faces)
     out_v, out_f = fast_simplification.simplify(
-        verts, faces, target_count=count, agg=agg, preserve_border=preserve_border
+        np.ldexp(verts, k), faces, target_count=count, agg=agg, preserve_border=preserve_border
     )
+    out_v = np.ldexp(out_v, -k)
     if len(out_f) == 0:  # a closed mesh asked for 1 or 2 faces collapses whole: never return an empty "simplification"
         raise EmptyInputError(
             f"target: {target!r} ({count} of {m.num_faces} faces) left no face: every face collapsed; ask for more "
@@ -83,8 +145,8 @@ def simplify_qem(mesh: MeshLike, target: int | float, *, preserve_border: bool =
         )
     if len(out_f) > count + 1:  # as simplify_registered_qem says it (each collapse removes two faces)
         warnings.warn(
-            f"simplify_qem: stopped at {len(out_f)} faces, above the target {count} (agg={agg!r}; the default 7.0 "
-            "collapses further)",
+            f"simplify_qem: stopped at {len(out_f)} faces, above the target {count} "
+            f"({_miss_cause(np.ldexp(verts, k), faces, count, len(out_f), agg, preserve_border)})",
             UserWarning,
             stacklevel=2,
         )
