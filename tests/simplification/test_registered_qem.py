@@ -152,3 +152,55 @@ def test_bad_arguments(seq):
         simplify_registered_qem(m, None, 0)
     with pytest.raises(EmptyInputError, match="mesh_k"):
         simplify_registered_qem(Mesh(torch.zeros(3, 3), torch.zeros(0, 3, dtype=torch.long)), None, 0.5)
+
+
+def test_mesh_arrays_weld_coincident_vertices(seq):
+    from torchmeshmetric.simplification.registered_qem import mesh_arrays
+
+    verts = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, 0], [-0.0, 0, 0], [0, 0, 1]])
+    faces = torch.tensor([[0, 1, 2], [3, 2, 4], [4, 3, 5], [1, 3, 2]])
+    # copies go to the first vertex at the same position (-0.0 is 0.0); [1, 3, 2] becomes [1, 1, 2]: dropped
+    assert mesh_arrays(Mesh(verts, faces))[1].tolist() == [[0, 1, 2], [1, 2, 0], [0, 1, 5]]
+    frame = seq.frames[1]  # no two vertices of a built-in frame coincide: its faces as they are
+    assert np.array_equal(mesh_arrays(frame)[1], frame.faces.numpy())
+
+
+def test_duplicate_vertices_do_not_stop_the_collapse(seq):
+    # Captured frames store seams as duplicate vertices: unwelded, each seam was two open borders whose vertices the
+    # collapse keeps fixed, and at 10 % both simplifiers stopped at 530-556 faces (2 % duplicates) and 1122-1148
+    # (5 %) of 360, while QEM met it (found by review G). Welded, the target is met, and the error is the clean
+    # frame's: measured 1.03-1.06x (Registered QEM) and 0.98-1.02x (Anchored QEM), duplicate seeds 0-2.
+    from torchmeshmetric.simplification import simplify_anchored_qem
+
+    m, reg = seq.frames[1], _registered(seq, 1)
+    diag = float(m.bbox_diagonal())
+    anchors = seq.transfer(simplify_qem(seq.frames[0], 0.1).verts.double(), 0, 1).float()
+    clean = (simplify_registered_qem(m, reg, 0.1), simplify_anchored_qem(m, anchors, 0.1))
+    clean_error = [_surface_error(out, m, diag)[0] for out in clean]
+    for dup in (0.02, 0.05):
+        # no zero-area faces (a, m, b) on an edge ab: their non-manifold edges lock vertices of their own (below)
+        noisy = add_capture_defects(m, seed=0, duplicate_fraction=dup, normalize=False, num_collinear_faces=0)
+        want = resolve_target(0.1, noisy.num_faces)
+        outs = (simplify_registered_qem(noisy, reg, 0.1), simplify_anchored_qem(noisy, anchors, 0.1))
+        for out, base in zip(outs, clean_error, strict=True):
+            assert want <= out.num_faces <= want + 1
+            assert _surface_error(out, m, diag)[0] <= 1.15 * base
+    # With every defect, the 20 zero-area faces included, the target is met at 10 % as well.
+    noisy = add_capture_defects(m, seed=0, duplicate_fraction=0.05, normalize=False)
+    want = resolve_target(0.1, noisy.num_faces)
+    assert want <= simplify_registered_qem(noisy, reg, 0.1).num_faces <= want + 1
+    assert want <= simplify_anchored_qem(noisy, anchors, 0.1).num_faces <= want + 1
+
+
+def test_a_missed_target_counts_the_fixed_vertices():
+    # The warning said neither why nor which simplifier (Anchored QEM's named Registered QEM's). Here the 20 zero-area
+    # faces of the defects: their non-manifold edges keep 58 vertices fixed at 3 % of a 1597-face frame.
+    from torchmeshmetric.simplification import simplify_anchored_qem
+
+    frame = demo_sequence(2, resolution=32).frames[1]
+    noisy = add_capture_defects(frame, seed=1, duplicate_fraction=0.05, normalize=False)
+    tail = r"no valid collapse left at 134 faces \(target 48\); 58 of its 79 vertices lie on a border or non-manifold"
+    with pytest.warns(UserWarning, match="simplify_registered_qem: " + tail):
+        simplify_registered_qem(noisy, None, 0.03)
+    with pytest.warns(UserWarning, match="simplify_anchored_qem: " + tail):
+        simplify_anchored_qem(noisy, torch.zeros(0, 3), 0.03)

@@ -17,8 +17,8 @@ the survivors sit near the anchors: frame ``k`` takes the previous frame's tesse
 and re-tessellates where it does not (the plane quadrics of frame ``k`` still dominate where the anchors are off
 the surface). ``weight=0`` is plain QEM through the same queue.
 
-The queue is the one of Registered QEM (batched independent collapses, link condition, no flips): fast-simplification
-accepts no per-vertex quadric.
+The queue is the one of Registered QEM (batched independent collapses, link condition, no flips, coincident vertices
+welded first): fast-simplification accepts no per-vertex quadric.
 """
 
 from __future__ import annotations
@@ -87,7 +87,9 @@ def simplify_anchored_qem(
         min_normal_cos: smallest allowed cosine between a face normal before and after a collapse.
 
     Returns:
-        The simplified mesh (same dtype/device as ``mesh_k``) with ``target`` or ``target + 1`` faces.
+        The simplified mesh (same dtype/device as ``mesh_k``; coincident vertices welded, as in
+        :func:`~torchmeshmetric.simplification.simplify_registered_qem`) with ``target`` or ``target + 1`` faces, or
+        more with a ``UserWarning`` when no valid collapse remains first.
 
     Raises:
         ShapeError, DTypeError, NonFiniteError: bad ``anchors`` (or a ``weight`` tensor of the wrong shape).
@@ -124,4 +126,6 @@ def simplify_anchored_qem(
         used = np.unique(faces)  # anchors go to vertices that faces use (the others never move)
         near = nearest_vertex_distance(torch.from_numpy(pts), torch.from_numpy(verts[used])).idx.numpy()
         quad += scatter_rows(used[near.astype(np.int64)], point_quadrics(pts, w * area / pts.shape[0]), len(verts))
-    return collapse_mesh(mk, verts, faces, quad, count, candidate_fraction, min_normal_cos)
+    return collapse_mesh(
+        mk, verts, faces, quad, count, candidate_fraction, min_normal_cos, caller="simplify_anchored_qem"
+    )
