@@ -69,3 +69,41 @@ def test_bad_input_is_named(spheres):
         simplify_anchored_qem(uv, previous.verts, 400, weight="1")  # type: ignore[arg-type]
     with pytest.raises(EmptyInputError, match="mesh_k"):
         simplify_anchored_qem(Mesh(uv.verts, uv.faces[:0]), previous.verts, 1)
+
+
+def test_mesh_k_and_the_options_are_checked_as_in_the_other_simplifiers(spheres):
+    # A Mesh built with validate=False skips the constructor's checks. NaN vertices came back in the output without a
+    # word (no anchors, or weight 0) or were refused under the nearest-anchor query's own name "ref_points"; integer
+    # vertices ended in "ref_points: reference set 0 is empty"; candidate_fraction="0.5" and min_normal_cos="0.2" gave
+    # Python's "'<' not supported between instances of 'float' and 'str'" (found by review G).
+    from torchmeshmetric import DTypeError
+    from torchmeshmetric.simplification import simplify_qem
+
+    uv, previous = spheres
+    verts = uv.verts.clone()
+    verts[3] = float("nan")
+    nan_mesh = Mesh(verts, uv.faces, validate=False)
+    for anchors, weight in ((previous.verts[:0], 0.1), (previous.verts, 0.0), (previous.verts, 0.1)):
+        with pytest.raises(NonFiniteError, match=r"^mesh_k\.verts: expected finite values, found 3 NaN/Inf"):
+            simplify_anchored_qem(nan_mesh, anchors, 400, weight=weight)
+    with pytest.raises(
+        DTypeError, match=r"^mesh_k\.verts: expected a floating-point tensor .* found dtype torch.int64"
+    ):
+        simplify_anchored_qem(Mesh(uv.verts.long(), uv.faces, validate=False), previous.verts, 400)
+    half = Mesh(uv.verts.half(), uv.faces, validate=False)  # refused everywhere else, accepted by the simplifiers
+    for simplify, name in (
+        (lambda m: simplify_anchored_qem(m, previous.verts, 400), "mesh_k"),
+        (lambda m: simplify_registered_qem(m, None, 400), "mesh_k"),
+        (lambda m: simplify_registered_qem(uv, m, 400), "registered_mesh_k_minus_1"),
+        (lambda m: simplify_qem(m, 400), "mesh"),
+    ):
+        with pytest.raises(
+            DTypeError, match=rf"^{name}\.verts: expected float32 or float64, found dtype torch.float16"
+        ):
+            simplify(half)
+    for option, value in (("candidate_fraction", "0.5"), ("min_normal_cos", "0.2"), ("candidate_fraction", True)):
+        message = rf"^{option}: expected a float, found (str|bool) {value!r}"
+        with pytest.raises(TypeError, match=message):
+            simplify_anchored_qem(uv, previous.verts, 400, **{option: value})
+        with pytest.raises(TypeError, match=message):
+            simplify_registered_qem(uv, None, 400, **{option: value})

@@ -29,7 +29,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import EmptyInputError, check_finite, check_float, check_shape
+from torchmeshmetric._checks import EmptyInputError, check_finite, check_float, check_real, check_shape
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance
 from torchmeshmetric.simplification._target import resolve_target
 from torchmeshmetric.simplification.registered_qem import collapse_mesh, mesh_arrays, scatter_rows, vertex_quadrics
@@ -93,7 +93,9 @@ def simplify_anchored_qem(
 
     Raises:
         ShapeError, DTypeError, NonFiniteError: bad ``anchors`` (or a ``weight`` tensor of the wrong shape).
-        TypeError, ValueError: bad ``target`` or ``weight``.
+        DTypeError, NonFiniteError: vertices of ``mesh_k`` that are not float32/float64 or not finite (possible only
+            in a ``Mesh`` built with ``validate=False``).
+        TypeError, ValueError: bad ``target``, ``weight``, ``candidate_fraction`` or ``min_normal_cos``.
         EmptyInputError: ``mesh_k`` has no faces.
 
     Example:
@@ -108,10 +110,17 @@ def simplify_anchored_qem(
     mk = as_mesh(mesh_k, name="mesh_k")
     if mk.num_faces == 0:
         raise EmptyInputError("mesh_k: expected at least one face, found 0")
+    # A Mesh built with validate=False skipped these, as in the other simplifiers: NaN vertices came back in silence,
+    # or the nearest-anchor query refused its own argument ("ref_points"), and integer ones ended in "ref_points:
+    # reference set 0 is empty" (found by review).
+    check_float(mk.verts, "mesh_k.verts")
+    check_finite(mk.verts, "mesh_k.verts")
     check_shape(anchors, ("A", 3), "anchors")
     check_float(anchors, "anchors")
     check_finite(anchors, "anchors")
     w = _anchor_weights(weight, anchors.shape[0])
+    for name, value in (("candidate_fraction", candidate_fraction), ("min_normal_cos", min_normal_cos)):
+        check_real(value, name)  # "0.5" gave Python's bare "'<' not supported between instances of 'float' and 'str'"
     if not 0.0 < candidate_fraction <= 1.0:
         raise ValueError(f"candidate_fraction: expected a float in (0, 1], found {candidate_fraction!r}")
     if not -1.0 <= min_normal_cos < 1.0:

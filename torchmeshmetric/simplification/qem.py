@@ -27,7 +27,7 @@ import fast_simplification
 import numpy as np
 import torch
 
-from torchmeshmetric._checks import EmptyInputError, check_finite
+from torchmeshmetric._checks import EmptyInputError, check_finite, check_float
 from torchmeshmetric.simplification._target import resolve_target
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
@@ -102,7 +102,8 @@ def simplify_qem(
         TypeError, ValueError: bad ``target`` or ``agg``; a triangle soup (no vertex shared by two faces, as STL
             stores meshes), whose edges all look like borders to the collapse.
         EmptyInputError: the mesh has no faces, or the simplification left none (a target of 1 face).
-        NonFiniteError: a vertex is NaN or infinite (possible only in a ``Mesh`` built with ``validate=False``).
+        DTypeError, NonFiniteError: vertices that are not float32/float64, or NaN or infinite (possible only in a
+            ``Mesh`` built with ``validate=False``).
 
     Warns:
         UserWarning: the simplification stopped above the target (more than one face above it), naming the cause.
@@ -116,7 +117,9 @@ def simplify_qem(
     m = as_mesh(mesh)
     if m.num_faces == 0:
         raise EmptyInputError("mesh: expected at least one face, found 0")
-    # A Mesh built with validate=False skipped this; fast-simplification turned NaN into NaN vertices silently.
+    # A Mesh built with validate=False skipped these: fast-simplification turned NaN into NaN vertices silently, and
+    # half-precision vertices were accepted here only.
+    check_float(m.verts, "mesh.verts")
     check_finite(m.verts, "mesh.verts")
     count = resolve_target(target, m.num_faces)
     if isinstance(agg, bool) or not isinstance(agg, (int, float)) or not (0 < agg < math.inf):

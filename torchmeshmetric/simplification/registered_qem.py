@@ -28,7 +28,7 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
-from torchmeshmetric._checks import EmptyInputError, check_finite, check_real
+from torchmeshmetric._checks import EmptyInputError, check_finite, check_float, check_real
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance
 from torchmeshmetric.registration._common import welded_faces
 from torchmeshmetric.simplification._target import resolve_target
@@ -162,10 +162,11 @@ def simplify_registered_qem(
         ``UserWarning`` that counts the vertices kept fixed.
 
     Raises:
-        TypeError, ValueError: bad ``target``, ``weight``, ``max_distance`` or ``candidate_fraction``.
+        TypeError, ValueError: bad ``target``, ``weight``, ``max_distance``, ``candidate_fraction`` or
+            ``min_normal_cos``.
         EmptyInputError: ``mesh_k`` has no faces.
-        NonFiniteError: a vertex of either mesh is NaN or infinite (possible only in a ``Mesh`` built with
-            ``validate=False``).
+        DTypeError, NonFiniteError: vertices of either mesh that are not float32/float64, or NaN or infinite
+            (possible only in a ``Mesh`` built with ``validate=False``).
 
     Example:
         >>> import trimesh
@@ -177,12 +178,15 @@ def simplify_registered_qem(
     mk = as_mesh(mesh_k, name="mesh_k")
     if mk.num_faces == 0:
         raise EmptyInputError("mesh_k: expected at least one face, found 0")
-    check_finite(mk.verts, "mesh_k.verts")  # a Mesh built with validate=False skipped it (NaN quadrics otherwise)
+    # A Mesh built with validate=False skipped these (NaN quadrics; half precision accepted, unlike everywhere else)
+    check_float(mk.verts, "mesh_k.verts")
+    check_finite(mk.verts, "mesh_k.verts")
     if isinstance(weight, torch.Tensor) and weight.numel() == 1 and weight.is_floating_point():
         weight = float(weight)  # as simplify_anchored_qem takes it (a scalar tensor was refused here only)
     if not (isinstance(weight, numbers.Real) and not isinstance(weight, bool) and np.isfinite(weight) and weight >= 0):
         raise ValueError(f"weight: expected a finite float >= 0, found {weight!r}")
-    for name, value in (("max_distance", max_distance), ("candidate_fraction", candidate_fraction)):
+    options = (("max_distance", max_distance), ("candidate_fraction", candidate_fraction))
+    for name, value in (*options, ("min_normal_cos", min_normal_cos)):
         if value is not None:
             # "1" gave Python's bare "'>' not supported between instances of 'str' and 'int'" (found by review)
             check_real(value, name)
@@ -198,6 +202,7 @@ def simplify_registered_qem(
     quad = vertex_quadrics(verts, faces)
     if registered_mesh_k_minus_1 is not None and weight > 0:
         prev = as_mesh(registered_mesh_k_minus_1, name="registered_mesh_k_minus_1")
+        check_float(prev.verts, "registered_mesh_k_minus_1.verts")
         check_finite(prev.verts, "registered_mesh_k_minus_1.verts")
         pv = prev.verts.detach().cpu().double().numpy()
         pf = prev.faces.cpu().numpy().astype(np.int64)
