@@ -25,7 +25,13 @@ def test_targets_met(sphere, target):
 
 
 def test_identity_and_dtype(sphere):
-    assert simplify_qem(sphere, 1.0) is sphere
+    # At 1.0 the input itself came back, still requiring grad, though documented as detached (review G): now a
+    # detached copy, as at every other target (this test asserted `is sphere`, the behaviour being fixed).
+    verts = sphere.verts.clone().requires_grad_(True)
+    same = simplify_qem(Mesh(verts, sphere.faces), 1.0)
+    assert torch.equal(same.verts, sphere.verts) and torch.equal(same.faces, sphere.faces)
+    assert not same.verts.requires_grad and same.verts.grad_fn is None
+    assert same.verts.data_ptr() != verts.data_ptr() and same.faces.data_ptr() != sphere.faces.data_ptr()
     out = simplify_qem(sphere.to(dtype=torch.float64), 0.5)
     assert out.dtype == torch.float64
 

@@ -73,8 +73,10 @@ def test_registrations_must_match_the_frames(frames):
 
 def test_a_target_that_keeps_every_face_returns_the_frames(frames):
     # At 1.0 the slide still ran and moved vertices up to 0.5 % of the diagonal off the surface while the command
-    # printed "1552 -> 1552 faces" (found by review); qem and rqem return their input there.
+    # printed "1552 -> 1552 faces" (found by review); qem returns a copy of its input there.
     out = simplify_tracking(frames, 1.0, [_identity, _identity], slide=TemporalSlide().to(torch.float64))
     assert all(
         torch.equal(o.verts, f.verts) and torch.equal(o.faces, f.faces) for o, f in zip(out, frames, strict=True)
     )
+    # copies: the output shared its tensors with the frames (review G)
+    assert all(o.verts.data_ptr() != f.verts.data_ptr() for o, f in zip(out, frames, strict=True))

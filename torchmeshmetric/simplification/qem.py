@@ -93,8 +93,8 @@ def simplify_qem(
         coordinates (see the module docstring). fast-simplification reaches the count to within about one face (each
         collapse removes two faces); it stops above it (with a warning naming the cause) with an ``agg`` below the
         default, or when no edge is left that it may collapse (it never joins a border vertex to an interior one,
-        nor, with ``preserve_border``, moves a border vertex). A target of every face returns ``mesh`` itself (as a
-        :class:`Mesh`), nothing collapsed.
+        nor, with ``preserve_border``, moves a border vertex). A target of every face returns a detached copy of
+        ``mesh``, nothing collapsed.
         Faces with a repeated corner in the input (a capture defect, ``[a, a, b]``) are never collapsed and pass
         through: the output keeps them, as it keeps every other defect of the input.
 
@@ -125,7 +125,9 @@ def simplify_qem(
     if isinstance(agg, bool) or not isinstance(agg, (int, float)) or not (0 < agg < math.inf):
         raise ValueError(f"agg: expected a finite number > 0, found {agg!r}")  # NaN or -1 missed the target silently
     if count == m.num_faces:
-        return m
+        # A copy, detached, as at every other target: the input itself came back here, still requiring grad, and
+        # sharing its tensors with the caller's mesh (found by review).
+        return Mesh(m.verts.detach().clone(), m.faces.clone(), validate=False)
     if m.num_faces > 1 and int(torch.unique(m.faces).numel()) == m.faces.numel():
         # Every edge of a soup is a border: fast-simplification removed whole triangles, half the surface of a
         # sphere at 50 % (found by review: STL frames, which load as soups, came out full of holes).

@@ -132,8 +132,8 @@ def simplify_tracking(
 
     Returns:
         The ``N`` simplified frames, detached, in the dtype of ``frames[0]``. A target that keeps every face of every
-        frame returns the frames themselves (as :func:`simplify_qem` does): nothing is simplified, so nothing is
-        carried or slid (the slide moved vertices up to 0.5 % of the diagonal off the surface at ``1.0``).
+        frame returns detached copies of the frames (as :func:`simplify_qem` does): nothing is simplified, so
+        nothing is carried or slid (the slide moved vertices up to 0.5 % of the diagonal off the surface at ``1.0``).
 
     Example:
         >>> import trimesh
@@ -143,7 +143,8 @@ def simplify_tracking(
     """
     meshes = [as_mesh(f, name=f"frames[{k}]") for k, f in enumerate(frames)]
     if meshes and all(resolve_target(target, m.num_faces) == m.num_faces for m in meshes):
-        return [Mesh(m.verts.detach().to(meshes[0].dtype), m.faces, validate=False) for m in meshes]
+        # Copies, as simplify_qem's: the output shared its tensors with the caller's frames.
+        return [Mesh(m.verts.detach().to(meshes[0].dtype, copy=True), m.faces.clone(), validate=False) for m in meshes]
     anchored = anchored_sequence(frames, target, registrations, weight=weight)
     if slide is None:
         return anchored
