@@ -1,3 +1,5 @@
+import warnings
+
 import pytest
 import torch
 import trimesh
@@ -74,8 +76,15 @@ def test_soups_bad_aggressiveness_and_missed_targets_are_said(sphere):
     # at 50 %); agg NaN or -1 and a small agg missed the target without a word (found by review).
     m = as_mesh(sphere)
     soup = Mesh(m.verts[m.faces.reshape(-1)], torch.arange(m.num_faces * 3).reshape(-1, 3))
+    # Corners at exactly the same position are welded (review G): the soup is the sphere, simplified as the sphere is.
+    welded, direct = simplify_qem(soup, 0.5), simplify_qem(m, 0.5)
+    assert welded.num_faces == direct.num_faces == m.num_faces // 2
+    area = trimesh.Trimesh(welded.verts.numpy(), welded.faces.numpy()).area
+    assert area == pytest.approx(trimesh.Trimesh(direct.verts.numpy(), direct.faces.numpy()).area, rel=1e-3)
+    # Corners that do not coincide (each copy moved by 1e-9) stay a soup: refused, not cut into holes.
+    jitter = torch.arange(soup.num_verts, dtype=soup.verts.dtype)[:, None] * 1e-9
     with pytest.raises(ValueError, match=r"mesh: a triangle soup \(\d+ faces, no vertex shared .*merge_vertices"):
-        simplify_qem(soup, 0.5)
+        simplify_qem(Mesh(soup.verts + jitter, soup.faces), 0.5)
     for agg in (float("nan"), -1.0, 0, True, "7"):
         with pytest.raises(ValueError, match=r"agg: expected a finite number > 0"):
             simplify_qem(m, 0.5, agg=agg)  # type: ignore[arg-type]
@@ -103,18 +112,21 @@ def test_non_finite_vertices_are_refused_not_simplified(sphere):
         simplify_registered_qem(sphere, bad, 0.5, weight=1.0)
 
 
-def test_degenerate_input_faces_pass_through():
-    # Capture defects' faces with a repeated corner are not collapsed by fast-simplification: the output keeps the
-    # input's 5 (measured: targets 0.7 to 0.05 of 1325 faces, every defect seed 0-3); every other face is a triangle.
-    from torchmeshmetric.data import add_capture_defects
+def test_duplicate_vertices_are_welded_and_zero_area_faces_dropped():
+    # Capture defects' seams of duplicate vertices stopped QEM above its target (fast-simplification never moves a
+    # border vertex), and their faces with a repeated corner passed through; QEM now starts from the same welded
+    # surface as Registered and Anchored QEM (review G).
+    from torchmeshmetric.data import add_capture_defects, demo_sequence
 
-    m = trimesh.creation.icosphere(subdivisions=3)
-    d = add_capture_defects((m.vertices, m.faces), seed=0, normalize=False, shuffle=False)
-    f = d.faces
-    repeated = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
-    out = simplify_qem((d.verts, d.faces), 0.5).faces
-    out_repeated = (out[:, 0] == out[:, 1]) | (out[:, 1] == out[:, 2]) | (out[:, 0] == out[:, 2])
-    assert int(repeated.sum()) == int(out_repeated.sum()) == 5
+    frame = demo_sequence(1, resolution=64).frames[0]
+    d = add_capture_defects(frame, seed=0, duplicate_fraction=0.05)
+    target = round(0.03 * frame.num_faces)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the target is met: no miss warning
+        out = simplify_qem(d, target)
+    f = out.faces
+    assert abs(out.num_faces - target) <= 1  # unwelded: 586 faces of 191 (measured by review G)
+    assert not bool(((f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])).any())
 
 
 def test_the_result_does_not_depend_on_the_unit_of_the_coordinates():

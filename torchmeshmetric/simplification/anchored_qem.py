@@ -31,8 +31,9 @@ from torch import Tensor
 
 from torchmeshmetric._checks import EmptyInputError, check_finite, check_float, check_real, check_shape
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance
+from torchmeshmetric.simplification._input import mesh_arrays
 from torchmeshmetric.simplification._target import resolve_target
-from torchmeshmetric.simplification.registered_qem import collapse_mesh, mesh_arrays, scatter_rows, vertex_quadrics
+from torchmeshmetric.simplification.registered_qem import collapse_mesh, scatter_rows, vertex_quadrics
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
 __all__ = ["DEFAULT_ANCHOR_WEIGHT", "point_quadrics", "simplify_anchored_qem"]

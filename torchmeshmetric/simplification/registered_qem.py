@@ -30,7 +30,7 @@ import torch
 
 from torchmeshmetric._checks import EmptyInputError, check_finite, check_float, check_real
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance
-from torchmeshmetric.registration._common import welded_faces
+from torchmeshmetric.simplification._input import mesh_arrays
 from torchmeshmetric.simplification._target import resolve_target
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
@@ -38,7 +38,6 @@ __all__ = [
     "DEFAULT_WEIGHT",
     "collapse_mesh",
     "face_quadrics",
-    "mesh_arrays",
     "scatter_rows",
     "simplify_registered_qem",
     "vertex_quadrics",
@@ -212,23 +211,6 @@ def simplify_registered_qem(
             keep = np.ones(pf.shape[0], bool) if max_distance is None else dist <= max_distance
             quad += weight * scatter_rows(used[near[keep]], face_quadrics(pv, pf[keep]), num_v)
     return collapse_mesh(mk, verts, faces, quad, count, candidate_fraction, min_normal_cos)
-
-
-def mesh_arrays(mesh: Mesh) -> tuple[np.ndarray, np.ndarray]:
-    """float64 ``(V, 3)`` vertices (a copy) and int64 ``(F, 3)`` faces, coincident vertices welded.
-
-    Every corner is re-pointed to the first vertex at exactly the same position (the registration's
-    :func:`~torchmeshmetric.registration._common.welded_faces`), then the faces that repeat a vertex are dropped.
-    Captured frames store seams as duplicate vertices (:func:`~torchmeshmetric.data.add_capture_defects` models
-    them): unwelded, a seam is two open borders, whose vertices the collapse keeps fixed, and with 2 % of the vertices
-    duplicated Registered and Anchored QEM stopped at 1002 and 990 faces of a 636-face target (found by review).
-    Welded, the seam is interior surface again; a mesh without coincident vertices keeps its faces.
-    """
-    verts = mesh.verts.detach().cpu().double()
-    faces = welded_faces(verts, mesh.faces.cpu()).numpy().astype(np.int64)
-    return verts.numpy().copy(), faces[
-        (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 2] != faces[:, 0])
-    ]
 
 
 def collapse_mesh(
