@@ -147,3 +147,50 @@ def test_determinacy_prints_the_digits_both_runs_share(tmp_path, capsys):
     assert lines[1] == f"KG (%)       {got['kg']:#.3g}"
     assert "this run's input determines" in lines[6] and "(4 decimals, seed 0)" in lines[6]
     assert not cache.exists() or not any(cache.iterdir())  # exact forms: nothing registered, nothing cached
+
+
+def _write_numbered(folder, verts, faces, numbers, name="f_%04d.ply"):
+    folder.mkdir(exist_ok=True)
+    for k, v in zip(numbers, verts, strict=True):
+        save_mesh(Mesh(v, faces), folder / (name % k))
+    return folder
+
+
+def test_frames_pair_by_frame_number_as_evaluate_pairs_them(tmp_path, capsys):
+    # Review G, finding 3: temporal paired by position. A folder numbered from 1 was measured against one numbered
+    # from 0 with exit 0, and each printf pattern picked its own default first frame (o_0..o_2 against d_1..d_3).
+    a, faces = animated_sphere(num_frames=3)
+    orig = _write_numbered(tmp_path / "orig", a, faces, (0, 1, 2))
+    late = _write_numbered(tmp_path / "late", a, faces, (1, 2, 3))
+    for original, distorted in (
+        (orig, late),
+        (orig / "f_%04d.ply", late / "f_%04d.ply"),
+        (orig, late / "f_%04d.ply"),
+    ):
+        assert main(["temporal", str(original), str(distorted)]) == 1
+        err = capsys.readouterr().err
+        assert f"DISTORTED {str(distorted)!r} and ORIGINAL {str(original)!r} number different frames" in err, err
+        assert "ORIGINAL starts at frame 0 ('f_0000.ply') and DISTORTED at frame 1 ('f_0001.ply')" in err, err
+        assert "rename the frames of DISTORTED to start at 0, or those of ORIGINAL to start at 1" in err, err
+    # --first-frame applies to both patterns; the counts then differ, and the message says which frames each holds
+    assert main(["temporal", str(orig / "f_%04d.ply"), str(late / "f_%04d.ply"), "--first-frame", "1"]) == 1
+    err = capsys.readouterr().err
+    assert "DISTORTED: 3 frames, ORIGINAL: 2 (ORIGINAL: frames 1 to 2, DISTORTED: frames 1 to 3)" in err, err
+    # The same numbers from a folder and a pattern pair, frame k with frame k: the distorted frames are the originals
+    assert main(["temporal", str(orig), str(orig / "f_%04d.ply"), "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    assert (got["num_frames"], got["kg"], got["kso"], got["sted"]) == (3, 0.0, 0.0, 0.0)
+
+
+def test_frames_pair_by_number_not_by_name_order(tmp_path, capsys):
+    # Frame 2 of the distorted folder sorts first by name (a_2 < b_0 < c_1); paired by number, each frame is measured
+    # against its own original and every figure is 0. Paired by natural order it was not.
+    a, faces = animated_sphere(num_frames=3)
+    orig = _write_numbered(tmp_path / "orig", a, faces, (0, 1, 2))
+    dist = tmp_path / "dist"
+    dist.mkdir()
+    for k, prefix in zip((0, 1, 2), ("b", "c", "a"), strict=True):
+        save_mesh(Mesh(a[k], faces), dist / f"{prefix}_{k}.ply")
+    assert main(["temporal", str(orig), str(dist), "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    assert (got["kg"], got["kso"], got["sted"]) == (0.0, 0.0, 0.0)

@@ -145,7 +145,14 @@ def load_frames(directory: str, what: str, dtype: Any, paired_with: tuple[str, s
     return list(frames)
 
 
-def paired_files(files: list[Path], directory: str, what: str, original: str, original_what: str) -> list[Path]:
+def paired_files(
+    files: list[Path],
+    directory: str,
+    what: str,
+    original: str,
+    original_what: str,
+    original_files: Sequence[Path] | None = None,
+) -> list[Path]:
     """``files`` (of ``directory``) in the order of the original frames of ``original``, paired by frame number.
 
     When every file name of both folders carries a frame number (:func:`~torchmeshmetric.data.frames.frame_numbers`:
@@ -154,8 +161,12 @@ def paired_files(files: list[Path], directory: str, what: str, original: str, or
     number each folder starts at (paired by position, original frame 1 would be measured against simplified frame 2
     in silence). Otherwise (a name without a number, no number that differs between all names, a single frame) the
     frames pair by natural order, as documented. Different counts are left to the count check, which names them.
+
+    ``original_files``: the original frames when ``original`` is not a folder (``temporal``'s printf patterns,
+    resolved by the caller); default: the frames of the folder ``original``. ``directory`` and ``original`` are then
+    only the names the messages quote.
     """
-    originals = list_frames(original)
+    originals = list_frames(original) if original_files is None else list(original_files)
     numbers, theirs = frame_numbers(originals), frame_numbers(files)
     if numbers is None or theirs is None or len(files) != len(originals):
         return files
@@ -171,7 +182,7 @@ def paired_files(files: list[Path], directory: str, what: str, original: str, or
         shift = their_start - start
         if sorted(n + shift for n in numbers) == sorted(theirs):
             fix = (
-                "the two folders number the same frames from different starts; rename the frames of "
+                "the two number the same frames from different starts; rename the frames of "
                 f"{what} to start at {start}, or those of {original_what} to start at {their_start}"
             )
         else:

@@ -62,15 +62,17 @@ def frame_files(spec: str, what: str, first_frame: int | None, last_frame: int |
 def run(args: argparse.Namespace) -> int:
     """KG, KSO, STED_s, STED_t and STED of a distorted sequence against its original.
 
-    ORIGINAL and DISTORTED are folders (frames in natural order) or printf patterns such as dec_%04d.obj. When every
-    frame of both has the original's vertex count and triangles, the figures are the exact same-connectivity ones;
-    otherwise (or with --registered) the registered forms: frame 0 of the original followed through the frames by
-    the registration of each original frame onto the next, the distorted frames carried onto it along its normals
-    (docs/temporal.md).
+    ORIGINAL and DISTORTED are folders (frames in natural order) or printf patterns such as dec_%04d.obj, their
+    frames paired by the frame number in their names as evaluate pairs them (different numbers are refused, naming
+    both inputs; names without a number that tells the frames apart pair by position). When every frame of both has
+    the original's vertex count and triangles, the figures are the exact same-connectivity ones; otherwise (or with
+    --registered) the registered forms: frame 0 of the original followed through the frames by the registration of
+    each original frame onto the next, the distorted frames carried onto it along its normals (docs/temporal.md).
     """
     from torchmeshmetric._format import json_safe
     from torchmeshmetric.cli._outputs import CLIError
-    from torchmeshmetric.cli._shared import device_of, dtype_of
+    from torchmeshmetric.cli._shared import device_of, dtype_of, paired_files
+    from torchmeshmetric.data.frames import frame_numbers, list_frames
     from torchmeshmetric.data.sequence import load_sequence
     from torchmeshmetric.evaluation.determinacy import storage_unit
     from torchmeshmetric.registration.cache import RegistrationCache
@@ -85,8 +87,9 @@ def run(args: argparse.Namespace) -> int:
     )
 
     device = device_of(args)
-    sequences = []
-    for what, spec in (("ORIGINAL", args.original), ("DISTORTED", args.distorted)):
+    inputs = (("ORIGINAL", args.original), ("DISTORTED", args.distorted))
+    files: list[list[Path]] = []
+    for what, spec in inputs:
         paths = frame_files(spec, what, args.first_frame, args.last_frame)
         if isinstance(paths, str) and Path(paths).is_file():
             raise CLIError(
@@ -95,12 +98,30 @@ def run(args: argparse.Namespace) -> int:
         if isinstance(paths, str) and not Path(paths).is_dir():
             raise CLIError(f"{what} {spec!r}: no such directory (or a printf pattern such as dec_%04d.obj)")
         try:
+            files.append(list_frames(paths) if isinstance(paths, str) else paths)
+        except Exception as exc:
+            raise CLIError(f"{what} {spec!r}: {exc}") from exc
+    # Paired by frame number as evaluate pairs them (found by review G): by position, a folder or pattern numbered
+    # from 1 was measured against one numbered from 0 in silence, and each pattern picks its own default first frame.
+    files[1] = paired_files(files[1], args.distorted, "DISTORTED", args.original, "ORIGINAL", original_files=files[0])
+    sequences = []
+    for (what, spec), paths in zip(inputs, files, strict=True):
+        try:
             sequences.append(load_sequence(paths, dtype=dtype_of(args)))
         except Exception as exc:
             raise CLIError(f"{what} {spec!r}: {exc}") from exc
     original, distorted = sequences
     if len(original) != len(distorted):
-        raise CLIError(f"DISTORTED: {len(distorted)} frames, ORIGINAL: {len(original)}; the counts must be equal")
+        numbers = [frame_numbers(f) for f in files]
+        ranges = (
+            f" (ORIGINAL: frames {min(numbers[0])} to {max(numbers[0])}, DISTORTED: frames {min(numbers[1])} to "
+            f"{max(numbers[1])})"
+            if numbers[0] and numbers[1]
+            else ""
+        )
+        raise CLIError(
+            f"DISTORTED: {len(distorted)} frames, ORIGINAL: {len(original)}{ranges}; the counts must be equal"
+        )
     if len(original) < 2:
         raise CLIError(f"ORIGINAL: {len(original)} frame; the temporal metrics need at least 2")
 
