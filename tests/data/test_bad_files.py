@@ -230,7 +230,7 @@ def test_ply_with_polygons_is_refused_not_triangulated(tmp_path):
     header = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
     header += "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
     p = _write(tmp_path, "quad.ply", header + "0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n")
-    with pytest.raises(MeshFileError, match=r"declares 1 face elements but holds 2 triangles"):
+    with pytest.raises(MeshFileError, match=r"quad\.ply' line 14 has a face with 4 corners; expected triangles"):
         load_mesh(p)
 
 
@@ -290,10 +290,79 @@ def _ply(body, nv=3, nf=1, props=_XYZ, fmt="ascii"):
             _ply("0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", nv="\xb2"),
             r"line 3: 'element vertex \xb2' is not 'element NAME COUNT'",
         ),
+        # review G, finding 4: lines beyond the declared elements were dropped by trimesh (a second face, a junk line)
+        (
+            _ply("0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 1 2\n"),
+            r"line 14: more lines than the header declares \(3 vertex, 1 face elements\)",
+        ),
+        (
+            _ply("0 0 0\n1 0 0\n0 1 0\n3 1 2 0\n9 9 9\n"),
+            r"line 14: more lines than the header declares \(3 vertex, 1 face elements\)",
+        ),
+        # review G, finding 10: a value that is no number gave numpy's "unmatched data", with no line
+        (_ply("0 0 0\n1 0 0\n0 1 x\n3 0 1 2\n"), r"line 12: vertex 2 holds 'x', which is not a number"),
+        (_ply("0 0 0\n0x10 0 0\n0 1 0\n3 0 1 2\n"), r"line 11: vertex 1 holds '0x10', which is not a number"),
+        (_ply("0 0 0\n1 0 0\n0 1 0\n3 0 1 two\n"), r"line 13: face 0 holds 'two', which is not a number"),
+        (_ply("0 0 0\ncomment a b\n1 0 0\n0 1 0\n3 0 1 2\n"), r"line 11: vertex 1 holds 'comment', which is not"),
+        # review G, finding 10: two vertex elements were read as one (the second count), blamed on the faces
+        (
+            _ply("0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", props=_XYZ + "element vertex 3\n" + _XYZ),
+            r"line 7: element 'vertex' is declared twice \(first at line 3\)",
+        ),
+        # review G, finding 10: "format ascii 2.0" was read as PLY 1.0 without a word
+        (
+            _ply("0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n").replace(b"1.0", b"2.0"),
+            r"line 2: 'format ascii 2.0' is not 'format ascii 1.0', .* \(PLY 1.0 is the only version\)",
+        ),
+        (
+            _ply("0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n").replace(b"format ascii 1.0\n", b""),
+            r"has a PLY header without a 'format' line",
+        ),
+        # review G, finding 11: a quad beside a 2- or 1-corner face made as many triangles as declared faces, and
+        # loaded as a fanned quad (ASCII and binary, plain or with an extra face property)
+        (_ply("0 0 0\n1 0 0\n0 1 0\n1 1 0\n4 0 1 3 2\n2 0 1\n", nv=4, nf=2), r"line 14 has a face with 4 corners"),
+        (_ply("0 0 0\n1 0 0\n0 1 0\n1 1 0\n4 0 1 3 2\n1 0\n", nv=4, nf=2), r"line 14 has a face with 4 corners"),
+        (
+            _ply(
+                struct.pack("<12f", *range(12)) + struct.pack("<B4i", 4, 0, 1, 3, 2) + struct.pack("<B2i", 2, 0, 1),
+                nv=4,
+                nf=2,
+                fmt="binary_little_endian",
+            ),
+            r"frame\.ply' face 0 has 4 corners; expected triangles",
+        ),
+        (  # a triangle first: the quad after it is found at the triangles' stride
+            _ply(
+                struct.pack("<12f", *range(12))
+                + struct.pack("<B3i", 3, 0, 1, 2)
+                + struct.pack("<B4i", 4, 0, 1, 3, 2)
+                + struct.pack("<B2i", 2, 0, 1),
+                nv=4,
+                nf=3,
+                fmt="binary_little_endian",
+            ),
+            r"frame\.ply' face 1 has 4 corners; expected triangles",
+        ),
+        (  # not plain (a face property besides the list): through trimesh, whose lists are checked
+            _ply("0 0 0\n1 0 0\n0 1 0\n1 1 0\n4 0 1 3 2 7\n2 0 1 8\n", nv=4, nf=2).replace(
+                b"vertex_indices\n", b"vertex_indices\nproperty uchar q\n"
+            ),
+            r"frame\.ply' face 0 has 4 corners; expected triangles",
+        ),
     ],
 )
 def test_ply_values_and_header_are_checked(tmp_path, content, message):
     _assert_load_error_names_file(_write(tmp_path, "frame.ply", content), message)
+
+
+def test_ply_trailing_blank_lines_and_a_byte_order_mark_are_accepted(tmp_path):
+    body = "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"
+    assert load_mesh(_write(tmp_path, "blank.ply", _ply(body + "\n  \n\t\n"))).faces.tolist() == [[0, 1, 2]]
+    # review G, finding 10: refused as "a PLY file starts with 'ply'", while OBJ, OFF and trimesh read past the mark
+    bom = load_mesh(_write(tmp_path, "bom.ply", b"\xef\xbb\xbf" + _ply(body)))
+    assert bom.verts.tolist() == [[0, 0, 0], [1, 0, 0], [0, 1, 0]] and bom.faces.tolist() == [[0, 1, 2]]
+    not_plain = _ply(body).replace(b"element face", b"element edge 0\nproperty int a\nelement face")
+    assert load_mesh(_write(tmp_path, "bom2.ply", b"\xef\xbb\xbf" + not_plain)).faces.tolist() == [[0, 1, 2]]
 
 
 def test_end_header_in_a_ply_comment_is_no_end_of_header(tmp_path):

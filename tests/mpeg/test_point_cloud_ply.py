@@ -43,7 +43,7 @@ def test_a_point_cloud_is_read_with_its_colours(tmp_path):
         (lambda p: _ascii(p, ["0 0 0"], extra="element face x\n"), r"'{p}' line 7: 'element face x' is not"),
         (lambda p: _ascii(p, ["0 0 0", "nan 1 2"]), r"'{p}' vertex 1 \(line 9\) has non-finite coordinates"),
         (lambda p: _ascii(p, ["0 0 0", "1 1 1"], n=4), r"'{p}' declares 4 vertex elements of 3 values but holds 6"),
-        (lambda p: _ascii(p, ["0 0 zero"]), r"'{p}' holds a value that is not a number"),
+        (lambda p: _ascii(p, ["0 0 zero"]), r"'{p}' line 8: vertex 0 holds 'zero', which is not a number"),
         (
             lambda p: p.write_bytes(
                 (HEAD.format(fmt="binary_little_endian", n=4) + "end_header\n").encode() + struct.pack("<6f", *range(6))
@@ -77,7 +77,7 @@ def test_bad_point_cloud_files_are_refused_naming_the_file(tmp_path, capsys, wri
         (["0 0 0 1 2 3 4", "1 1 1 1 2"], None, r"line 11: vertex 0 has 7 value\(s\); its header declares 6"),
         (["0 0 0 1 2 3 1 1 1 1 2 3"], 2, r"line 11: vertex 0 has 12 value\(s\); its header declares 6"),
         # Python's float (the old parser here) read "1_0" as 10
-        (["0 0 0 1 2 3", "1_0 1 1 1 2 3"], None, r"holds a value that is not a number after its header"),
+        (["0 0 0 1 2 3", "1_0 1 1 1 2 3"], None, r"line 12: vertex 1 holds '1_0', which is not a number"),
     ],
 )
 def test_point_cloud_values_fit_their_lines_and_types(tmp_path, rows, n, pattern):

@@ -1,6 +1,7 @@
 """Plain PLY: a ``vertex`` then a triangle ``face`` element, binary or ASCII, read with numpy; written by ply_bytes.
 
-Anything else (other elements, polygons, truncation, trailing bytes) is left to
+Polygons, extra ASCII lines and ASCII values that are no numbers are refused here, naming the face or line. Anything
+else (other elements, truncation, trailing binary bytes) is left to
 :func:`~torchmeshmetric.data.trimesh_formats.read_with_trimesh`, which names the problem.
 """
 
@@ -14,7 +15,15 @@ import numpy as np
 
 from torchmeshmetric.data.mesh_file import MeshFileError, values_per_line
 
-__all__ = ["declared_counts", "header_end", "ply_bytes", "read_plain_ply", "read_ply_points"]
+__all__ = [
+    "declared_counts",
+    "header_end",
+    "ply_bytes",
+    "polygon_error",
+    "read_plain_ply",
+    "read_ply_file",
+    "read_ply_points",
+]
 
 
 _PLY_TYPES = {
@@ -40,6 +49,24 @@ _PLY_TYPES = {
 _END_HEADER = re.compile(rb"^end_header[ \t\r]*$", re.MULTILINE)
 
 
+def read_ply_file(p: Path) -> bytes:
+    """A PLY file's bytes without a UTF-8 byte-order mark, which trimesh reads past and OBJ and OFF accept too.
+
+    Every PLY reader starts here: with the mark, the file was refused as "not a PLY" (found by review).
+    """
+    return p.read_bytes().removeprefix(b"\xef\xbb\xbf")
+
+
+def polygon_error(p: Path, face: int, corners: int, line: int | None = None) -> MeshFileError:
+    """The error for a PLY face that is not a triangle (its line in ASCII), in the words of the OBJ and OFF readers.
+
+    Polygons are refused, never triangulated: a count check alone (triangles against declared faces) was fooled by
+    a quad beside a 2-corner face (found by review).
+    """
+    where = f"line {line} has a face with" if line is not None else f"face {face} has"
+    return MeshFileError(f"path: '{p}' {where} {corners} corners; expected triangles")
+
+
 def header_end(data: bytes) -> int:
     """Where a PLY's ``end_header`` line starts, or -1: that line itself, never the words in a comment."""
     m = _END_HEADER.search(data)
@@ -50,16 +77,20 @@ def read_plain_ply(p: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None] 
     """A plain PLY (a ``vertex`` then a triangle ``face`` element, nothing else) read with numpy, else ``None``.
 
     Binary (either byte order) or ASCII; vertex properties are scalars; the face element has one list property
-    ``vertex_indices`` (or ``vertex_index``), every face a triangle. Anything else (other elements, polygons,
-    truncation, trailing bytes) returns ``None`` and goes through trimesh, which then names the problem.
+    ``vertex_indices`` (or ``vertex_index``), every face a triangle. Other elements, truncation and trailing binary
+    bytes return ``None`` and go through trimesh, which then names the problem.
     Returns ``(verts, faces, colors)``, colours from ``uchar`` ``red green blue`` properties.
+
+    Raises:
+        MeshFileError: a face that is not a triangle, an ASCII line beyond the declared elements, an ASCII value that
+            is no number or that its type cannot hold (naming the file and the face or line).
     """
-    data = p.read_bytes()
+    data = read_ply_file(p)
     declared_counts(p, data)
     header = _plain_header(data)
     if header is None:
         return None
-    table = _read_ascii(p, header) if header.fmt == "ascii" else _read_binary(header)
+    table = _read_ascii(p, header) if header.fmt == "ascii" else _read_binary(p, header)
     if table is None:
         return None
     cols, faces = table
@@ -233,28 +264,30 @@ def _vertex_columns(p: Path, h: _Header, b: _Body, table: np.ndarray) -> dict[st
 def _read_ascii(p: Path, h: _Header) -> tuple[dict[str, np.ndarray], np.ndarray] | None:
     """``(vertex property columns, faces)`` of an ASCII body, else ``None``.
 
-    ``None`` for polygons, or lines other in number than the header declares (truncation, trailing lines): trimesh
-    then names which. Each line's values are counted (a total alone let a long line make up for a short one).
+    ``None`` for fewer lines than the header declares (truncation): trimesh then names it with the declared counts.
+    Each line's values are counted (a total alone let a long line make up for a short one).
 
     Raises:
-        MeshFileError: a line without the values its element declares, or a value its type cannot hold (naming the
-            file, line and value).
+        MeshFileError: a line without the values its element declares, a value that is no number or that its type
+            cannot hold, a face that is not a triangle, or a line beyond the declared elements (naming the file,
+            line and value).
     """
     b = _ascii_body(h)
     nv, nf, k = h.nv, h.nf, len(h.vprops)
-    if b.counts.size != nv + nf:
+    if b.counts.size < nv + nf:
         return None
     _check_vertex_lines(p, h, b)
     try:
         flat = np.fromstring(h.body, dtype=np.float64, sep=" ")
     except ValueError:
-        return None
-    if flat.size != int(b.counts.sum()):
-        return None
+        flat = np.zeros(0)
+    if flat.size != int(b.counts.sum()):  # older numpy stopped there with a warning, no error
+        raise _not_a_number(p, h, b)
     cols = _vertex_columns(p, h, b, flat[: nv * k].reshape(nv, k))
-    fcounts = b.counts[nv:]
+    fcounts = b.counts[nv : nv + nf]
+    fvalues = flat[nv * k : nv * k + int(fcounts.sum())]
     # triangles, as usual: no offsets to sum
-    corners = flat[nv * k :: 4] if (fcounts == 4).all() else flat[nv * k + np.cumsum(fcounts) - fcounts]
+    corners = fvalues[::4] if (fcounts == 4).all() else fvalues[np.cumsum(fcounts) - fcounts]
     _check_type(p, h, b, corners[:, None], h.count_t, ("face", " corner count"), nv, 0)
     listed = fcounts - 1
     bad = np.flatnonzero(listed != corners)
@@ -265,25 +298,63 @@ def _read_ascii(p: Path, h: _Header) -> tuple[dict[str, np.ndarray], np.ndarray]
             f"{int(listed[j])}"
         )
     if (corners != 3).any():
-        return None  # polygons: refused by trimesh's count check, naming them
-    fl = flat[nv * k :].reshape(nf, 4)[:, 1:]
+        j = int(np.flatnonzero(corners != 3)[0])
+        raise polygon_error(p, j, int(corners[j]), int(b.lines[nv + j]))
+    if b.counts.size > nv + nf:
+        # trimesh read the declared elements and dropped the rest: a writer whose face count was wrong lost faces in
+        # silence (found by review); binary PLY and OFF refuse the same
+        raise MeshFileError(
+            f"path: '{p}' line {int(b.lines[nv + nf])}: more lines than the header declares ({nv} vertex, {nf} face "
+            "elements)"
+        )
+    fl = fvalues.reshape(nf, 4)[:, 1:]
     _check_type(p, h, b, fl, h.index_t, ("face", " vertex index"), nv, 1)
     return cols, fl.astype(np.int64)
 
 
-def _read_binary(h: _Header) -> tuple[dict[str, np.ndarray], np.ndarray] | None:
-    """``(vertex property columns, faces)`` of a binary body (either byte order), else ``None``."""
+def _not_a_number(p: Path, h: _Header, b: _Body) -> MeshFileError:
+    """The error for an ASCII body value that is no number, naming its line; numpy's parser says only that one is.
+
+    Read value by value with the parser of the OBJ and OFF readers (:func:`~torchmeshmetric.data.mesh_file.
+    plain_float`), on this error's path only.
+    """
+    from torchmeshmetric.data.mesh_file import plain_float
+
+    for row in range(b.counts.size):
+        for token in h.body[int(b.starts[row]) : int(b.ends[row])].split():
+            try:
+                plain_float(token)
+            except ValueError:
+                what = f"vertex {row}" if row < h.nv else f"face {row - h.nv}" if row < h.nv + h.nf else "a value"
+                return MeshFileError(
+                    f"path: '{p}' line {int(b.lines[row])}: {what} holds {token.decode('latin-1')!r}, which is not a "
+                    "number"
+                )
+    return MeshFileError(f"path: '{p}' holds a value that is not a number after its header")
+
+
+def _read_binary(p: Path, h: _Header) -> tuple[dict[str, np.ndarray], np.ndarray] | None:
+    """``(vertex property columns, faces)`` of a binary body (either byte order), else ``None``.
+
+    Raises:
+        MeshFileError: a face that is not a triangle (the first one, by its number).
+    """
     order = "<" if h.fmt == "binary_little_endian" else ">"
     vdt = np.dtype([(n, order + _PLY_TYPES[t]) for t, n in h.vprops])
     idx_t = order + _PLY_TYPES[h.index_t]
     fdt = np.dtype([("n", order + _PLY_TYPES[h.count_t]), ("i0", idx_t), ("i1", idx_t), ("i2", idx_t)])
     body, nv, nf = h.body, h.nv, h.nf
+    # Every face before the first non-triangle lies at a triangle's stride, so that face's count is read right
+    # whatever follows it (trimesh reads every list at the first one's length).
+    whole = max(0, min(nf, (len(body) - nv * vdt.itemsize) // fdt.itemsize)) if len(body) >= nv * vdt.itemsize else 0
+    counts = np.frombuffer(body, dtype=fdt, count=whole, offset=nv * vdt.itemsize)["n"] if whole else np.zeros(0)
+    polygons = np.flatnonzero(counts != 3)
+    if polygons.size:
+        raise polygon_error(p, int(polygons[0]), int(counts[polygons[0]]))
     if len(body) != nv * vdt.itemsize + nf * fdt.itemsize:
-        return None  # polygons, truncation or trailing bytes: trimesh names which
+        return None  # truncation or trailing bytes: trimesh names which
     vtab = np.frombuffer(body, dtype=vdt, count=nv)
     ftab = np.frombuffer(body, dtype=fdt, count=nf, offset=nv * vdt.itemsize)
-    if (ftab["n"] != 3).any():
-        return None
     names = [pr[1] for pr in h.vprops]
     cols = {n: vtab[n] for n in names}
     if names[:3] == ["x", "y", "z"] and len({pr[0] for pr in h.vprops[:3]}) == 1:
@@ -299,14 +370,16 @@ def _read_binary(h: _Header) -> tuple[dict[str, np.ndarray], np.ndarray] | None:
 def declared_counts(p: Path, data: bytes) -> dict[str, int]:
     """The element counts of a PLY header, checked line by line (``path: 'f.ply' line 4: ...``).
 
-    Every PLY the library reads passes this check: element counts of ASCII digits, no property named twice in one
-    element (binary numpy said ``field 'x' occurs more than once``, ASCII used the last column; found by review).
+    Every PLY the library reads passes this check: a ``format`` line of PLY 1.0 (the only version there is; trimesh
+    read ``format ascii 2.0`` without a word), element counts of ASCII digits, no element named twice (the second
+    count replaced the first, and the message blamed the faces), no property named twice in one element (binary numpy
+    said ``field 'x' occurs more than once``, ASCII used the last column; all found by review).
 
     Raises:
-        MeshFileError: not a PLY, no ``end_header`` line, binary data in the header, a bad ``element`` line or a
-            property declared twice (naming the file and line).
+        MeshFileError: not a PLY, no ``end_header`` line, binary data in the header, a missing or bad ``format``
+            line, a bad ``element`` line, or an element or a property declared twice (naming the file and line).
     """
-    from torchmeshmetric.data.mesh_file import not_a_mesh, text_lines
+    from torchmeshmetric.data.mesh_file import not_a_mesh, plain_float, text_lines
 
     if not data.startswith(b"ply"):
         raise not_a_mesh(p, "a PLY file starts with 'ply'")
@@ -314,14 +387,33 @@ def declared_counts(p: Path, data: bytes) -> dict[str, int]:
     if end < 0:
         raise MeshFileError(f"path: '{p}' has a PLY header without 'end_header'")
     declared: dict[str, int] = {}
+    element_lines: dict[str, int] = {}
     properties: dict[str, int] = {}  # the current element's property names and their lines
+    has_format = False
     for i, raw in enumerate(text_lines(p, data[:end]), start=1):
         t = raw.decode("latin-1").split()
+        if t[:1] == ["format"]:
+            try:
+                version = plain_float(t[2].encode()) if len(t) == 3 else None
+            except ValueError:
+                version = None
+            if t[1:2] not in (["ascii"], ["binary_little_endian"], ["binary_big_endian"]) or version != 1.0:
+                raise MeshFileError(
+                    f"path: '{p}' line {i}: {' '.join(t)!r} is not 'format ascii 1.0', 'format binary_little_endian "
+                    "1.0' or 'format binary_big_endian 1.0' (PLY 1.0 is the only version)"
+                )
+            has_format = True
         # ASCII digits only: str.isdigit() takes "²", which int() refuses
         if t[:1] == ["element"] and (len(t) != 3 or not (t[2].isascii() and t[2].isdigit())):
             raise MeshFileError(f"path: '{p}' line {i}: {' '.join(t)!r} is not 'element NAME COUNT'")
         if t[:1] == ["element"]:
+            if t[1] in element_lines:
+                raise MeshFileError(
+                    f"path: '{p}' line {i}: element '{t[1]}' is declared twice (first at line {element_lines[t[1]]}); "
+                    "which of the two is meant cannot be told"
+                )
             declared[t[1]] = int(t[2])
+            element_lines[t[1]] = i
             properties = {}
         elif t[:1] == ["property"] and len(t) >= 3:
             name = t[-1]  # the name ends the line, after the type (or "list COUNT_TYPE INDEX_TYPE")
@@ -331,6 +423,8 @@ def declared_counts(p: Path, data: bytes) -> dict[str, int]:
                     f"{properties[name]}); which of the two is meant cannot be told"
                 )
             properties[name] = i
+    if not has_format:
+        raise MeshFileError(f"path: '{p}' has a PLY header without a 'format' line (such as 'format ascii 1.0')")
     return declared
 
 
@@ -356,7 +450,7 @@ def read_ply_points(p: Path) -> tuple[np.ndarray, np.ndarray | None] | None:
     from torchmeshmetric.data.mesh_file import check_vertices, existing_mesh_file
 
     p = existing_mesh_file(p)
-    data = p.read_bytes()
+    data = read_ply_file(p)
     declared = declared_counts(p, data)
     if declared.get("face", 0) > 0:
         return None
@@ -376,16 +470,16 @@ def read_ply_points(p: Path) -> tuple[np.ndarray, np.ndarray | None] | None:
             )
         # the values of its vertices on other lines than theirs: the first line that is wrong is among the first nv
         _check_vertex_lines(p, h, b)
-        try:
+        try:  # numpy's parser, not Python's float: "1_0" is no number
             values = np.fromstring(h.body, dtype=np.float64, sep=" ")
         except ValueError:
             values = np.zeros(0)
-        if values.size != total:  # numpy's parser, not Python's float: "1_0" is no number
-            raise MeshFileError(f"path: '{p}' holds a value that is not a number after its header") from None
+        if values.size != total:  # older numpy stopped there with a warning, no error
+            raise _not_a_number(p, h, b)
         lines = b.lines
         cols = _vertex_columns(p, h, b, values.reshape(nv, k))
     else:
-        read = _read_binary(h)
+        read = _read_binary(p, h)
         if read is None:
             size = np.dtype([(n, _PLY_TYPES[t]) for t, n in h.vprops]).itemsize
             raise MeshFileError(

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from torchmeshmetric.data.mesh_file import MeshFileError, not_a_mesh, text_lines
-from torchmeshmetric.data.ply import declared_counts, header_end
+from torchmeshmetric.data.ply import declared_counts, header_end, polygon_error, read_ply_file
 
 __all__ = ["read_with_trimesh"]
 
@@ -37,7 +37,7 @@ def read_with_trimesh(p: Path, suffix: str) -> tuple[np.ndarray, np.ndarray, np.
     declared: dict[str, int] = {}
     source: Any = os.fspath(p)
     if suffix == ".ply":
-        data = p.read_bytes()
+        data = read_ply_file(p)
         declared = declared_counts(p, data)  # the header checked line by line, as for every PLY
         end = header_end(data)
         # without its comments: trimesh takes the first "end_header" in the file, a comment's too, for the end
@@ -75,6 +75,8 @@ def read_with_trimesh(p: Path, suffix: str) -> tuple[np.ndarray, np.ndarray, np.
         loaded = trimesh.util.concatenate(geoms) if len(geoms) > 1 else geoms[0]
     if not isinstance(loaded, trimesh.Trimesh):
         raise MeshFileError(f"path: '{p}' holds a {type(loaded).__name__}, not a triangle mesh")
+    if suffix == ".ply":
+        _refuse_polygons(p, loaded)
     verts = np.asarray(loaded.vertices, dtype=np.float64)
     faces = np.asarray(loaded.faces, dtype=np.int64)
     for element, held in (("vertex", verts.shape[0]), ("face", faces.shape[0])):
@@ -90,3 +92,32 @@ def read_with_trimesh(p: Path, suffix: str) -> tuple[np.ndarray, np.ndarray, np.
     if vc is not None and getattr(visual, "kind", None) == "vertex":
         colors = np.asarray(vc, dtype=np.float64)[:, :3]
     return verts, faces, colors
+
+
+def _refuse_polygons(p: Path, loaded: Any) -> None:
+    """Refuse a PLY whose face lists, as trimesh read them, are not all triangles (trimesh fans polygons).
+
+    The count check (triangles against declared faces) alone was fooled by a quad beside a 2-corner face, which
+    trimesh drops (found by review). trimesh keeps the lists it read in ``metadata["_ply_raw"]``: an ``(F, n)`` array
+    or an object array of lists (ASCII), or ``(count, indices)`` records (binary, every list read at the first one's
+    length, so the first count that is not 3 is where the faces stop being triangles). A short last list is left to
+    the count check, which calls the file truncated. Without that metadata (another trimesh), the count check remains.
+    """
+    raw = getattr(loaded, "metadata", {}).get("_ply_raw")
+    data = raw.get("face", {}).get("data") if isinstance(raw, dict) and isinstance(raw.get("face"), dict) else None
+    names = data.keys() if isinstance(data, dict) else getattr(getattr(data, "dtype", None), "names", None) or ()
+    name = next((n for n in ("vertex_indices", "vertex_index") if n in names), None)
+    if name is None:
+        return
+    lists = np.asarray(data[name])  # type: ignore[index]
+    if lists.dtype.names:
+        corners = lists[lists.dtype.names[0]].astype(np.int64).reshape(-1)
+    elif lists.dtype == object:
+        corners = np.fromiter((len(f) for f in lists), dtype=np.int64, count=lists.shape[0])
+    else:
+        corners = np.full(lists.shape[0], lists.shape[1] if lists.ndim == 2 else 1, dtype=np.int64)
+    bad = np.flatnonzero(corners != 3)
+    if bad.size and bad[0] == corners.shape[0] - 1 and corners[bad[0]] < 3:
+        return  # a short last list: a file cut there, which the count check names as truncated
+    if bad.size:
+        raise polygon_error(p, int(bad[0]), int(corners[bad[0]]))
