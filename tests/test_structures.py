@@ -33,6 +33,34 @@ def test_as_mesh_accepts_all_forms() -> None:
     assert as_mesh(tm, dtype=torch.float32).dtype == torch.float32
 
 
+@pytest.mark.parametrize("index_dtype", ["uint8", "uint16", "uint32", "uint64", "int8", "int16", "int32"])
+def test_every_integer_face_dtype_is_accepted_as_int64(index_dtype: str) -> None:
+    # review G, finding 5: uint16/32/64 faces (glTF index buffers, plyfile's uint lists) crashed in check_faces with
+    # torch's untyped NotImplementedError ("aminmax_cpu" not implemented for 'UInt32')
+    tm = trimesh.creation.icosphere(subdivisions=1)
+    want = torch.tensor(tm.faces, dtype=torch.int64)
+    np_faces = tm.faces.astype(index_dtype)
+    torch_faces = torch.from_numpy(np_faces)
+    assert torch_faces.dtype == getattr(torch, index_dtype)
+    verts = torch.tensor(tm.vertices)
+    for mesh in (as_mesh((tm.vertices, np_faces)), as_mesh((verts, torch_faces)), Mesh(verts, torch_faces)):
+        assert mesh.faces.dtype == torch.int64 and torch.equal(mesh.faces, want)
+    packed = pack_meshes(verts, torch_faces)
+    assert packed.faces.dtype == torch.int64 and torch.equal(packed.faces, want)
+    with pytest.raises(
+        IndexRangeError, match=r"mesh\.faces: expected vertex indices in \[0, 41\], found values in \[0, 42\]"
+    ):
+        as_mesh((tm.vertices, np.array([[0, 1, 42]], dtype=index_dtype)))
+
+
+def test_a_uint64_face_index_beyond_int64_is_named_not_wrapped() -> None:
+    faces = np.array([[0, 1, 2**64 - 1]], dtype=np.uint64)  # -1 once wrapped into int64
+    with pytest.raises(
+        IndexRangeError, match=r"mesh\.faces: expected vertex indices in \[0, 2\], found a torch\.uint64"
+    ):
+        as_mesh((np.eye(3), faces))
+
+
 def test_mesh_is_immutable_and_round_trips_trimesh() -> None:
     m = as_mesh(trimesh.creation.icosphere(subdivisions=1))
     with pytest.raises(dataclasses.FrozenInstanceError):

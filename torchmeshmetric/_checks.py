@@ -269,12 +269,23 @@ def check_same_device(name_to_tensor: dict[str, Tensor]) -> None:
 
 
 def check_faces(faces: Tensor, num_verts: int, name: str = "faces") -> None:
-    """Require an integer ``(F, 3)`` tensor whose entries index ``num_verts`` vertices."""
+    """Require an integer ``(F, 3)`` tensor whose entries index ``num_verts`` vertices.
+
+    Any integer dtype, signed or unsigned (glTF index buffers and plyfile's ``uint`` lists are uint16/uint32); the
+    caller converts to int64 (``faces.long()``).
+    """
     check_shape(faces, ("F", 3), name)
     if faces.is_floating_point() or faces.dtype == torch.bool or faces.is_complex():
         raise DTypeError(f"{name}: expected an integer tensor of vertex indices, found dtype {faces.dtype}")
     if faces.numel():
-        lo, hi = (int(x) for x in torch.stack(torch.aminmax(faces)).tolist())  # one device-to-host read
+        # torch has no min/max of uint16/32/64 (an untyped NotImplementedError; found by review): the range is read
+        # in int64, where a uint64 index of 2**63 or more wraps negative
+        wide = faces if faces.is_signed() else faces.long()
+        lo, hi = (int(x) for x in torch.stack(torch.aminmax(wide)).tolist())  # one device-to-host read
+        if lo < 0 and not faces.is_signed():
+            raise IndexRangeError(
+                f"{name}: expected vertex indices in [0, {num_verts - 1}], found a {faces.dtype} value of 2**63 or more"
+            )
         if lo < 0 or hi >= num_verts:
             raise IndexRangeError(
                 f"{name}: expected vertex indices in [0, {num_verts - 1}], found values in [{lo}, {hi}]"
