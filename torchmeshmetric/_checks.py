@@ -29,6 +29,7 @@ __all__ = [
     "check_device",
     "check_finite",
     "check_float",
+    "check_float_dtype",
     "check_lengths",
     "check_non_empty",
     "check_real",
@@ -290,6 +291,27 @@ def check_faces(faces: Tensor, num_verts: int, name: str = "faces") -> None:
             raise IndexRangeError(
                 f"{name}: expected vertex indices in [0, {num_verts - 1}], found values in [{lo}, {hi}]"
             )
+
+
+def check_float_dtype(dtype: object, name: str = "dtype") -> torch.dtype:
+    """Require a ``dtype`` argument of torch.float32 or torch.float64, the two vertex dtypes the library computes in.
+
+    A dtype is an argument the data never checked: ``load_mesh(dtype=torch.float16)`` built a half-precision mesh
+    that every later check of coordinates refuses, ``torch.int32`` or ``"float32"`` raised torch's own ``TypeError``
+    (found by review). A string is refused too, with the dtype to pass.
+
+    Raises:
+        DTypeError: naming ``name`` and what was found.
+
+    Example:
+        >>> check_float_dtype(torch.float64)
+        torch.float64
+    """
+    if isinstance(dtype, torch.dtype) and dtype in (torch.float32, torch.float64):
+        return dtype
+    found = f"str {dtype!r}" if isinstance(dtype, str) else repr(dtype)
+    hint = f" (pass torch.{dtype})" if dtype in ("float32", "float64") else ""
+    raise DTypeError(f"{name}: expected torch.float32 or torch.float64, found {found}{hint}")
 
 
 def check_lengths(lengths: Tensor, total: int, name: str) -> None:

@@ -24,6 +24,7 @@ from torchmeshmetric._checks import (
     check_faces,
     check_finite,
     check_float,
+    check_float_dtype,
     check_lengths,
     check_same_device,
     check_shape,
@@ -173,7 +174,13 @@ class Mesh:
         return self.verts.dtype
 
     def to(self, device: torch.device | str | None = None, dtype: torch.dtype | None = None) -> Mesh:
-        """Return a copy on another device and/or with another vertex dtype."""
+        """Return a copy on another device and/or with another vertex dtype (torch.float32 or torch.float64).
+
+        Raises:
+            DTypeError: ``dtype`` is another dtype (a half-precision or integer mesh is refused by every check).
+        """
+        if dtype is not None:
+            check_float_dtype(dtype)
         return Mesh(self.verts.to(device=device, dtype=dtype), self.faces.to(device=device), validate=False)
 
     def detach(self) -> Mesh:
@@ -340,13 +347,15 @@ def as_mesh(
         mesh: a :class:`Mesh`, a ``(verts, faces)`` tuple of tensors/arrays, or a ``trimesh.Trimesh``.
         name: argument name used in error messages.
         device: optional target device.
-        dtype: optional vertex dtype. numpy ``float64`` arrays stay ``float64`` unless given.
+        dtype: optional vertex dtype, torch.float32 or torch.float64. numpy ``float64`` arrays stay ``float64``
+            unless given.
 
     Returns:
         The validated mesh (the same object when no conversion is needed).
 
     Raises:
         TypeError: ``mesh`` has none of the accepted forms.
+        DTypeError: ``dtype`` is neither torch.float32 nor torch.float64.
 
     Example:
         >>> import trimesh
@@ -355,6 +364,8 @@ def as_mesh(
     """
     if device is not None:
         device = check_device(device)
+    if dtype is not None:
+        check_float_dtype(dtype)
     if isinstance(mesh, Mesh):
         if device is None and dtype is None:
             return mesh

@@ -153,3 +153,33 @@ def test_save_refuses_overwrite_and_is_atomic(tmp_path: Path) -> None:
         save_mesh(m, tmp_path / "missing_dir" / "m.obj")
     with pytest.raises(MeshFileError, match="unsupported suffix"):
         save_mesh(m, tmp_path / "m.txt")
+
+
+@pytest.mark.parametrize("dtype", [torch.float16, torch.bfloat16, torch.complex64, torch.int32, "float32", None])
+def test_a_dtype_other_than_float32_or_float64_is_refused_naming_dtype(tmp_path: Path, dtype: object) -> None:
+    # review G, finding 7: load_mesh and Mesh.to built float16, bfloat16 and complex meshes (validate=False), and
+    # raised torch's own TypeError for int32 or "float32"
+    from torchmeshmetric import DTypeError
+    from torchmeshmetric.data.sequence import iter_sequence
+
+    p = save_mesh(as_mesh(trimesh.creation.icosphere(subdivisions=1)), tmp_path / "m.ply")
+    found = "str 'float32' (pass torch.float32)" if dtype == "float32" else repr(dtype)
+    message = f"dtype: expected torch.float32 or torch.float64, found {found}"
+    mesh = load_mesh(p)
+    calls = [lambda: load_mesh(p, dtype=dtype), lambda: load_sequence(tmp_path, dtype=dtype)]  # type: ignore[arg-type]
+    calls.append(lambda: iter_sequence(tmp_path, dtype=dtype))  # type: ignore[arg-type]
+    if dtype is not None:  # None: Mesh.to and as_mesh keep the dtype
+        calls += [lambda: mesh.to(dtype=dtype), lambda: as_mesh(mesh, dtype=dtype)]  # type: ignore[arg-type]
+        calls.append(lambda: as_mesh((mesh.verts, mesh.faces), dtype=dtype))  # type: ignore[arg-type]
+    for call in calls:
+        with pytest.raises(DTypeError) as info:
+            call()
+        assert str(info.value) == message
+    assert mesh.to(dtype=None).dtype == torch.float32
+
+
+def test_float32_and_float64_are_the_dtypes_accepted(tmp_path: Path) -> None:
+    p = save_mesh(as_mesh(trimesh.creation.icosphere(subdivisions=1)), tmp_path / "m.ply")
+    for dtype in (torch.float32, torch.float64):
+        assert load_mesh(p, dtype=dtype).dtype == dtype and load_sequence(tmp_path, dtype=dtype)[0].dtype == dtype
+        assert load_mesh(p).to(dtype=dtype).dtype == dtype

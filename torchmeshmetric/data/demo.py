@@ -30,7 +30,7 @@ import torch
 from skimage.measure import marching_cubes
 from torch import Tensor
 
-from torchmeshmetric._checks import DTypeError, IndexRangeError, check_finite, check_float, check_shape
+from torchmeshmetric._checks import IndexRangeError, check_finite, check_float, check_float_dtype, check_shape
 from torchmeshmetric.data._portable_math import cos_deg, dot3, exp, log, matmul3, matvec3, sin_deg
 from torchmeshmetric.structures import Mesh
 
@@ -460,8 +460,7 @@ def demo_sequence(
         raise ValueError(f"start_phase: expected a finite float, found {start_phase!r}")
     if not (np.isfinite(blend) and blend > 0):
         raise ValueError(f"blend: expected a float > 0, found {blend!r}")
-    if dtype not in (torch.float32, torch.float64):
-        raise DTypeError(f"dtype: expected torch.float32 or torch.float64, found {dtype!r}")
+    check_float_dtype(dtype)
     rng = np.random.default_rng(seed)
     scale = 1.0 + 0.05 * (2 * rng.random(len(BONE_NAMES)) - 1)  # per-bone length scale
     rscale = 1.0 + 0.05 * (2 * rng.random(len(_PRIMS)) - 1)  # per-primitive radius scale

@@ -16,7 +16,7 @@ import numpy as np
 import torch
 
 from torchmeshmetric._atomic import atomic_write, missing_folder_error
-from torchmeshmetric._checks import EmptyInputError, ShapeError
+from torchmeshmetric._checks import EmptyInputError, ShapeError, check_float_dtype
 from torchmeshmetric.data.mesh_file import (
     MeshFileError,
     check_dtype_range,
@@ -49,7 +49,7 @@ def load_mesh(path: str | os.PathLike, *, dtype: torch.dtype = torch.float32) ->
 
     Args:
         path: an OBJ, PLY, OFF, STL or GLB/GLTF file. A multi-mesh scene is concatenated.
-        dtype: vertex dtype of the result (default ``float32``).
+        dtype: vertex dtype of the result, ``torch.float32`` (default) or ``torch.float64``.
 
     Returns:
         The mesh on the CPU.
@@ -58,6 +58,7 @@ def load_mesh(path: str | os.PathLike, *, dtype: torch.dtype = torch.float32) ->
         MeshFileError: the file is missing, of an unknown format, not a mesh file, corrupt or truncated, empty,
             has non-triangle faces, invalid face indices or non-finite coordinates (the message names the file and,
             where there is one, the line or element).
+        DTypeError: ``dtype`` is neither torch.float32 nor torch.float64 (checked before the file is read).
 
     Example:
         >>> import tempfile, pathlib
@@ -66,6 +67,7 @@ def load_mesh(path: str | os.PathLike, *, dtype: torch.dtype = torch.float32) ->
         >>> load_mesh(p)
         Mesh(num_verts=3, num_faces=1, dtype=torch.float32, device=cpu)
     """
+    check_float_dtype(dtype)  # validate=False below: nothing else would refuse a float16 or complex mesh
     p = existing_mesh_file(path)
     verts, faces, _, lines = _read_file(p)
     check_mesh(p, verts, faces, lines)

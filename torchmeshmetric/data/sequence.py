@@ -10,6 +10,7 @@ from typing import Any, TypeVar, cast, overload
 
 import torch
 
+from torchmeshmetric._checks import check_float_dtype
 from torchmeshmetric.data.frames import PathsLike, list_frames
 from torchmeshmetric.data.io import load_mesh
 from torchmeshmetric.structures import Mesh
@@ -29,6 +30,7 @@ def load_sequence(paths: PathsLike, *, dtype: torch.dtype = torch.float32) -> li
 
     Raises:
         MeshFileError: no frame found, or a frame cannot be read (the message names the file).
+        DTypeError: ``dtype`` is neither torch.float32 nor torch.float64.
 
     Example:
         >>> import tempfile, pathlib
@@ -59,6 +61,7 @@ def iter_sequence(paths: PathsLike, *, dtype: torch.dtype = torch.float32, ahead
 
     Raises:
         MeshFileError: no frame found (at once), or a frame cannot be read (when that frame is reached).
+        DTypeError: ``dtype`` is neither torch.float32 nor torch.float64 (at once).
 
     Example:
         >>> import tempfile, pathlib
@@ -69,6 +72,7 @@ def iter_sequence(paths: PathsLike, *, dtype: torch.dtype = torch.float32, ahead
         ...     tuple(m.num_verts for m in frames)
         (3, 3)
     """
+    check_float_dtype(dtype)  # at once, not when the first frame is reached
     return prefetch_frames(list_frames(paths), load=lambda p: load_mesh(p, dtype=dtype), ahead=ahead)
 
 
