@@ -49,6 +49,52 @@ def test_off_and_ply_round_trip_bit_for_bit(tmp_path: Path, dtype: torch.dtype, 
     assert load_mesh(save_mesh(tiny, tmp_path / "tiny.off"), dtype=dtype).verts.abs().max() > 0
 
 
+@pytest.mark.parametrize(
+    ("dtype", "suffix"),
+    # STL and GLB store float32: float64's largest cannot be written (tested below)
+    [(torch.float32, s) for s in (".off", ".obj", ".ply", ".stl", ".glb")]
+    + [(torch.float64, s) for s in (".off", ".obj", ".ply")],
+)
+def test_the_largest_finite_coordinate_round_trips(tmp_path: Path, dtype: torch.dtype, suffix: str) -> None:
+    # review G, finding 8: float32's largest written as OFF ("3.4028235e+38", its shortest text) was refused on
+    # loading as "beyond the range of torch.float32": the parsed float64 is above it, yet rounds back to it
+    big = torch.finfo(dtype).max
+    verts = torch.tensor([[big, 0, 0], [0, -big, 0], [0, 0, 1]], dtype=dtype)
+    back = load_mesh(save_mesh(Mesh(verts, torch.tensor([[0, 1, 2]])), tmp_path / f"m{suffix}"), dtype=dtype)
+    corners = back.verts[back.faces[0]]  # STL: a soup, the same triangle
+    bits = torch.int32 if dtype == torch.float32 else torch.int64
+    assert torch.equal(corners.view(bits), verts.view(bits))
+
+
+def test_float32_text_within_half_a_unit_of_the_largest_loads_as_it(tmp_path: Path) -> None:
+    from torchmeshmetric.data.mesh_file import MeshFileError
+
+    # numpy's str of float32's largest, as another writer gives it; rounded, it is that largest, not inf
+    (tmp_path / "max.obj").write_text("v 3.4028235e+38 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\n")
+    assert load_mesh(tmp_path / "max.obj").verts[0, 0].item() == torch.finfo(torch.float32).max
+    (tmp_path / "over.obj").write_text("v 3.4028236e+38 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\n")  # rounds to inf
+    with pytest.raises(MeshFileError, match=r"line 1: vertex 0 has coordinates up to 3.4028236e\+38, beyond the range"):
+        load_mesh(tmp_path / "over.obj")
+    assert load_mesh(tmp_path / "over.obj", dtype=torch.float64).verts[0, 0].item() == 3.4028236e38
+
+
+@pytest.mark.parametrize("suffix", [".stl", ".glb"])
+def test_a_float64_coordinate_beyond_float32_is_not_written_as_inf(tmp_path: Path, suffix: str) -> None:
+    # review G, finding 8: STL and GLB store float32, and a float64 mesh's 1e39 was written as inf
+    from torchmeshmetric.data.mesh_file import MeshFileError
+
+    verts = torch.tensor([[0, 0, 0], [1, 0, 0], [0, -1e39, 0]], dtype=torch.float64)
+    kind = suffix[1:].upper()
+    with pytest.raises(MeshFileError) as info:
+        save_mesh(Mesh(verts, torch.tensor([[0, 1, 2]])), tmp_path / f"m{suffix}")
+    assert str(info.value) == (
+        f"path: mesh file '{tmp_path / f'm{suffix}'}' vertex 2 has coordinates up to 1e+39, beyond the range of "
+        f"torch.float32 (max 3.4028235e+38; 1 such vertices); cannot write it as {kind}, which stores float32: save "
+        "as .ply, .obj or .off (float64), or scale it"
+    )
+    assert not (tmp_path / f"m{suffix}").exists()
+
+
 def test_vertex_order_and_duplicates_survive(tmp_path: Path) -> None:
     verts = torch.tensor([[0.0, 1, 0], [0, 0, 0], [1, 0, 0], [0, 0, 0]], dtype=torch.float64)
     faces = torch.tensor([[1, 2, 0], [3, 2, 0]])

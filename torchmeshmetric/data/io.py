@@ -109,7 +109,7 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False) -
     The format follows the suffix (OBJ, PLY, OFF, STL, GLB). Vertices are written in their order, unmerged. OBJ, OFF
     and PLY read back bit for bit in the mesh's dtype (OFF: each coordinate's shortest decimal for that dtype; PLY:
     binary, ``double`` properties for a float64 mesh, ``float`` otherwise); STL and GLB store float32, bit for bit
-    for a float32 mesh only.
+    for a float32 mesh only (a float64 coordinate beyond float32's range is refused, never written as inf).
 
     Args:
         mesh: the mesh to write.
@@ -121,7 +121,8 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False) -
 
     Raises:
         FileExistsError: ``path`` exists and ``overwrite`` is false.
-        MeshFileError: unsupported suffix, missing directory, or an empty mesh.
+        MeshFileError: unsupported suffix, missing directory, or (STL, GLB) a coordinate beyond float32's range.
+        EmptyInputError: a mesh without faces.
 
     Example:
         >>> import tempfile, pathlib, torch
@@ -153,6 +154,14 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False) -
         v = mesh.verts.detach().cpu()
         data = ply_bytes(v.numpy() if v.dtype == torch.float64 else v.float().numpy(), mesh.faces.cpu().numpy())
     else:
+        # STL and GLB store float32: a float64 coordinate beyond its range was written as inf (found by review)
+        kind = suffix[1:].upper()
+        check_dtype_range(
+            p,
+            mesh.verts.detach().cpu().double().numpy(),
+            torch.float32,
+            hint=f"cannot write it as {kind}, which stores float32: save as .ply, .obj or .off (float64), or scale it",
+        )
         exported = mesh.to_trimesh().export(file_type=suffix[1:])
         data = exported.encode() if isinstance(exported, str) else bytes(exported)
     atomic_write(p, data, overwrite=overwrite)

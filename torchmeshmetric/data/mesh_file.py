@@ -169,18 +169,25 @@ def check_dtype_range(
 ) -> None:
     """Refuse coordinates that ``dtype`` cannot hold (they would become Inf), naming the first one and its line.
 
+    A value beyond the dtype's largest finite one but within half a unit of it rounds to that value, not to Inf: the
+    shortest text of float32's largest, ``3.4028235e+38``, is such a value, and a float32 mesh written as OFF or OBJ
+    did not load back (found by review). So the test is the cast itself, as the PLY reader's.
+
     ``what`` names a row, its values and the rows in the message: ``("texture coordinate", "values", "'vt' lines")``
     for UVs.
     """
     finfo_max = torch.finfo(dtype).max
     if verts.size == 0 or float(np.abs(verts).max()) <= finfo_max:
+        return  # the common case, without a cast
+    with np.errstate(over="ignore"):
+        big = np.isinf(verts.astype(_NUMPY_DTYPES.get(dtype, np.float64))).any(axis=1)
+    if not big.any():
         return
-    big = np.abs(verts).max(axis=1) > finfo_max
     i = int(np.nonzero(big)[0][0])
     where = f" line {int(lines[i])}:" if lines is not None else ""
     raise MeshFileError(
         f"path: mesh file '{p}'{where} {what[0]} {i} has {what[1]} up to "
-        f"{float(np.abs(verts).max()):.3g}, beyond the range of {dtype} (max {finfo_max:.3g}; "
+        f"{float(np.abs(verts).max()):.8g}, beyond the range of {dtype} (max {finfo_max:.8g}; "
         f"{int(big.sum())} such {what[2]}); {hint or 'load it with dtype=torch.float64'}"
     )
 
