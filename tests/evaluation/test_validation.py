@@ -8,6 +8,8 @@ import pytest
 from torchmeshmetric.cli import main
 from torchmeshmetric.evaluation.validation import DISTORTIONS, run_validation, spearman
 
+NAMES = "noise, simplification, constant_offset, alternating_offset, sliding, resimplification, registration"
+
 
 def test_spearman_known_answers_and_ties():
     assert spearman([1, 2, 3, 4], [10.0, 20.0, 25.0, 100.0]) == 1.0
@@ -38,6 +40,16 @@ def test_flicker_rises_with_alternating_offsets_and_ignores_a_constant_offset():
         run_validation(distortions=["wobble"])
 
 
+def test_an_empty_list_of_distortions_is_refused_before_any_work():
+    from torchmeshmetric.evaluation.validation import check_validation_arguments
+
+    # review G, finding 9: it ran nothing, then failed on its empty tables with a bare KeyError 'ave'
+    with pytest.raises(ValueError) as info:
+        check_validation_arguments(frames=3, resolution=16, keep=0.5, distortions=[])
+    assert str(info.value) == f"distortions: expected at least one name from {list(DISTORTIONS)}, found none"
+    assert ", ".join(DISTORTIONS) == NAMES
+
+
 def test_validate_command_reduced_size(capsys, tmp_path):
     """The command as documented, at its reduced default size (seconds of CPU; a minute or two under load)."""
     out = tmp_path / "v"
@@ -65,6 +77,14 @@ def test_validate_command_reduced_size(capsys, tmp_path):
         (["--resolution", "3"], "argument --resolution: expected an integer >= 16, found '3'"),
         (["--keep", "0"], "argument --keep: expected a ratio in (0, 1], found '0'"),
         (["--keep", "1.5"], "argument --keep: expected a ratio in (0, 1], found '1.5'"),
+        # review G, finding 9: "," ran no distortion and died with "error: 'ave'"; "" ran every distortion; unknown
+        # names exited 1 without the usage
+        (["--distortions", ","], f"argument --distortions: expected comma-separated names from {NAMES}, found ','"),
+        (["--distortions", ""], f"argument --distortions: expected comma-separated names from {NAMES}, found ''"),
+        (
+            ["--distortions", "noise,wobble"],
+            f"argument --distortions: expected comma-separated names from {NAMES}, found 'wobble'",
+        ),
     ],
 )
 def test_validate_checks_its_options_before_the_folder_and_any_work(capsys, tmp_path, monkeypatch, argv, message):

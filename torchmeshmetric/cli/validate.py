@@ -10,8 +10,29 @@ from typing import Any
 
 from torchmeshmetric._console import say
 from torchmeshmetric.cli.options import add_command, as_option_error, int_in_range, parse_ratio, path_argument
+from torchmeshmetric.evaluation._validation_names import DISTORTIONS
 
-__all__ = ["add_validate_command", "run"]
+__all__ = ["add_validate_command", "distortion_names", "run"]
+
+
+def distortion_names(text: str) -> list[str]:
+    """``--distortions``: comma-separated names of the study's distortions, refused when parsed (exit 2).
+
+    ``","`` and ``""`` name none: the first ran nothing and died on its empty tables, the second ran every
+    distortion as if the option were not given (found by review).
+
+    Example:
+        >>> distortion_names("noise, sliding")
+        ['noise', 'sliding']
+    """
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    expected = f"comma-separated names from {', '.join(DISTORTIONS)}"
+    if not names:
+        raise argparse.ArgumentTypeError(f"expected {expected}, found {text!r} (no name)")
+    unknown = [n for n in names if n not in DISTORTIONS]
+    if unknown:
+        raise argparse.ArgumentTypeError(f"expected {expected}, found {', '.join(map(repr, unknown))}")
+    return names
 
 
 def run(args: argparse.Namespace) -> int:
@@ -26,9 +47,8 @@ def run(args: argparse.Namespace) -> int:
     """
     from torchmeshmetric._atomic import atomic_write
     from torchmeshmetric._format import json_safe
-    from torchmeshmetric.cli._outputs import CLIError, check_folder, check_writable, make_folder, output_set
+    from torchmeshmetric.cli._outputs import check_folder, check_writable, make_folder, output_set
     from torchmeshmetric.evaluation.validation import (
-        DISTORTIONS,
         FULL,
         REDUCED,
         STRENGTHS,
@@ -41,18 +61,13 @@ def run(args: argparse.Namespace) -> int:
     for key in ("frames", "resolution", "keep"):
         if getattr(args, key) is not None:
             preset[key] = getattr(args, key)
-    names = None
-    if args.distortions:
-        names = [n.strip() for n in args.distortions.split(",") if n.strip()]
-        unknown = [n for n in names if n not in DISTORTIONS]
-        if unknown:
-            raise CLIError(f"--distortions: unknown {unknown}; expected names from {list(DISTORTIONS)}")
     try:  # every option before the folder is made and before any work (the library names its arguments)
         names = check_validation_arguments(
-            frames=preset["frames"], resolution=preset["resolution"], keep=preset["keep"], distortions=names
+            frames=preset["frames"], resolution=preset["resolution"], keep=preset["keep"], distortions=args.distortions
         )
     except ValueError as exc:
-        raise as_option_error(exc, {"frames": "--frames", "resolution": "--resolution", "keep": "--keep"}) from None
+        options = {"frames": "--frames", "resolution": "--resolution", "keep": "--keep", "distortions": "--distortions"}
+        raise as_option_error(exc, options) from None
     out_dir = Path(args.out_dir)
     paths = [out_dir / "validation.json", out_dir / "validation.md"] + (
         [] if args.no_plots else [out_dir / "validation.png"]
@@ -112,7 +127,13 @@ def add_validate_command(sub: Any) -> None:
         help="fraction of faces the tracked simplification keeps, in (0, 1] (default 0.5)",
     )
     p.add_argument("--seed", type=int, default=0, help="seed of the sequence and the distortions (default 0)")
-    p.add_argument("--distortions", default=None, metavar="A,B,...", help="only these distortions (default all)")
+    p.add_argument(
+        "--distortions",
+        type=distortion_names,
+        default=None,
+        metavar="A,B,...",
+        help=f"only these distortions, comma-separated: {', '.join(DISTORTIONS)} (default all)",
+    )
     p.add_argument(
         "--out-dir", type=path_argument, default="torchmeshmetric-validation", metavar="DIR", help="output folder"
     )

@@ -33,6 +33,7 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric.data import demo_sequence
+from torchmeshmetric.evaluation._validation_names import DISTORTIONS
 from torchmeshmetric.evaluation.distortions import (
     ground_truth_registrations,
     normal_offset,
@@ -58,17 +59,6 @@ __all__ = [
     "run_validation",
     "spearman",
 ]
-
-#: Distortions of the study, in report order, with the kind of defect each one injects.
-DISTORTIONS: dict[str, str] = {
-    "noise": "frame-k error: Gaussian noise along the normal (std s), new every frame",
-    "simplification": "frame-k error: the tracked simplification keeps a fraction 1 - s of its faces",
-    "constant_offset": "frame-k error: every vertex moved by s along the normal, every frame",
-    "alternating_offset": "flicker: every vertex moved by (-1)^k s along the normal",
-    "sliding": "flicker along the surface: vertices slid by s in a random tangent direction, re-projected",
-    "resimplification": "flicker: every frame re-simplified on its own to 1 - s of the faces",
-    "registration": "registration error: the true registration plus a smooth random field of size s",
-}
 
 #: Strengths of the geometric distortions as fractions of the bounding-box diagonal; simplification levels as
 #: fractions of faces removed.
@@ -100,19 +90,21 @@ def check_validation_arguments(
         frames: frames of the built-in sequence, 3 (two frame pairs) to :data:`MAX_FRAMES`.
         resolution: its mesh resolution, >= 16.
         keep: fraction of faces the tracked simplification keeps, in (0, 1].
-        distortions: names from :data:`DISTORTIONS` (default: all).
+        distortions: names from :data:`DISTORTIONS` (default: all); at least one.
 
     Returns:
         The names of the distortions to run, in the order given.
 
     Raises:
-        ValueError: an argument out of range, named (``frames: ...``).
+        ValueError: an argument out of range, named (``frames: ...``), or an empty or unknown distortion name.
 
     Example:
         >>> check_validation_arguments(frames=3, resolution=24, keep=0.5, distortions=["noise"])
         ['noise']
     """
     names = list(DISTORTIONS) if distortions is None else list(distortions)
+    if not names:  # the study ran nothing and died on its empty tables (found by review)
+        raise ValueError(f"distortions: expected at least one name from {list(DISTORTIONS)}, found none")
     unknown = [n for n in names if n not in DISTORTIONS]
     if unknown:
         raise ValueError(f"distortions: unknown {unknown}, expected names from {list(DISTORTIONS)}")
