@@ -61,6 +61,28 @@ def test_a_uint64_face_index_beyond_int64_is_named_not_wrapped() -> None:
         as_mesh((np.eye(3), faces))
 
 
+def test_meta_tensors_and_the_meta_device_are_refused_by_name() -> None:
+    # review G, finding 10: torch's untyped "RuntimeError: Tensor.item() cannot be called on meta tensors"
+    from torchmeshmetric import DeviceError, MeshSurfaceDistance
+
+    verts, faces = torch.rand(3, 3), torch.tensor([[0, 1, 2]])
+    no_values = "expected a tensor with values (on the CPU or a GPU), found one on the meta device, which holds shapes"
+    meta_device = "device: 'meta' holds shapes only, no values; use 'cpu' or 'cuda'"
+    cases = [
+        (lambda: Mesh(verts.to("meta"), faces.to("meta")), f"verts: {no_values}"),
+        (lambda: Mesh(verts, faces.to("meta")), f"faces: {no_values}"),
+        (lambda: as_mesh((verts.to("meta"), faces)), f"mesh.verts: {no_values}"),
+        (lambda: MeshSurfaceDistance().update(torch.rand(4, 3, device="meta"), (verts, faces)), "simplified: "),
+        (lambda: as_mesh((verts, faces), device="meta"), meta_device),
+        (lambda: as_mesh(Mesh(verts, faces), device="meta"), meta_device),  # built a meta Mesh in silence
+        (lambda: Mesh(verts, faces).to("meta"), meta_device),
+    ]
+    for call, message in cases:
+        with pytest.raises(DeviceError) as info:
+            call()
+        assert str(info.value).startswith(message), str(info.value)
+
+
 def test_mesh_is_immutable_and_round_trips_trimesh() -> None:
     m = as_mesh(trimesh.creation.icosphere(subdivisions=1))
     with pytest.raises(dataclasses.FrozenInstanceError):

@@ -30,6 +30,7 @@ __all__ = [
     "check_finite",
     "check_float",
     "check_float_dtype",
+    "check_has_values",
     "check_lengths",
     "check_non_empty",
     "check_real",
@@ -202,7 +203,8 @@ def all_finite(x: Tensor) -> bool:
 
 
 def check_finite(x: Tensor, name: str) -> None:
-    """Require every value of ``x`` to be finite (no NaN, no Inf)."""
+    """Require every value of ``x`` to be finite (no NaN, no Inf), and values to check (not a meta tensor)."""
+    check_has_values(x, name)
     if x.numel() and not all_finite(x):
         n_bad = int((~torch.isfinite(x)).sum())
         raise NonFiniteError(f"{name}: expected finite values, found {n_bad} NaN/Inf value(s)")
@@ -269,6 +271,22 @@ def check_same_device(name_to_tensor: dict[str, Tensor]) -> None:
         raise DeviceError(f"expected all inputs on one device, found {found}")
 
 
+def check_has_values(x: Tensor, name: str) -> None:
+    """Refuse a meta tensor, which has a shape and no values.
+
+    Every check of values failed on one with torch's untyped ``RuntimeError: Tensor.item() cannot be called on meta
+    tensors`` (found by review).
+
+    Raises:
+        DeviceError: naming ``name``.
+    """
+    if x.is_meta:
+        raise DeviceError(
+            f"{name}: expected a tensor with values (on the CPU or a GPU), found one on the meta device, which holds "
+            "shapes only"
+        )
+
+
 def check_faces(faces: Tensor, num_verts: int, name: str = "faces") -> None:
     """Require an integer ``(F, 3)`` tensor whose entries index ``num_verts`` vertices.
 
@@ -278,6 +296,7 @@ def check_faces(faces: Tensor, num_verts: int, name: str = "faces") -> None:
     check_shape(faces, ("F", 3), name)
     if faces.is_floating_point() or faces.dtype == torch.bool or faces.is_complex():
         raise DTypeError(f"{name}: expected an integer tensor of vertex indices, found dtype {faces.dtype}")
+    check_has_values(faces, name)
     if faces.numel():
         # torch has no min/max of uint16/32/64 (an untyped NotImplementedError; found by review): the range is read
         # in int64, where a uint64 index of 2**63 or more wraps negative
@@ -376,6 +395,8 @@ def check_device(device: torch.device | str | int, name: str = "device") -> torc
         dev = torch.device(device)
     except (RuntimeError, TypeError) as exc:
         raise DeviceError(f"{name}: {device!r} is not a device (expected e.g. 'cpu', 'cuda', 'cuda:1'; {exc})") from exc
+    if dev.type == "meta":  # tensors there have no values: every check and computation fails (found by review)
+        raise DeviceError(f"{name}: {device!r} holds shapes only, no values; use 'cpu' or 'cuda'")
     if dev.type == "cuda":
         if not torch.cuda.is_available():
             raise DeviceError(f"{name}: {device!r} asked, but no CUDA device is available here; use 'cpu'")

@@ -178,9 +178,12 @@ class Mesh:
 
         Raises:
             DTypeError: ``dtype`` is another dtype (a half-precision or integer mesh is refused by every check).
+            DeviceError: ``device`` is no device, is unavailable, or is ``meta`` (no values).
         """
         if dtype is not None:
             check_float_dtype(dtype)
+        if device is not None:
+            device = check_device(device)
         return Mesh(self.verts.to(device=device, dtype=dtype), self.faces.to(device=device), validate=False)
 
     def detach(self) -> Mesh:

@@ -172,15 +172,24 @@ def test_evaluate_and_compare_pages(capsys, tmp_path, known_registration):
 
 
 def test_report_command_refuses_what_it_cannot_read(capsys, tmp_path):
+    # review G, finding 10: REPORT is read before its Markdown is looked for; a JSON that is no report was said to
+    # lack "its Markdown", which hid the real problem
+    report = str(tmp_path / "r.json")
     (tmp_path / "r.json").write_text("[1, 2]")
-    assert main(["report", str(tmp_path / "r.json")]) == 1
-    assert "its Markdown (the tables)" in capsys.readouterr().err
-    (tmp_path / "r.md").write_text("# r\n")
-    assert main(["report", str(tmp_path / "r.json")]) == 1
-    assert "expected a JSON object, found list" in capsys.readouterr().err
+    assert main(["report", report]) == 1
+    assert f"error: REPORT {report!r}: expected a JSON object, found list" in capsys.readouterr().err
+    (tmp_path / "r.json").write_text("{}")
+    assert main(["report", report]) == 1
+    assert f"error: REPORT {report!r}: not a report this command reads: expected a report" in capsys.readouterr().err
     (tmp_path / "r.json").write_text("{")
-    assert main(["report", str(tmp_path / "r.json")]) == 1
+    assert main(["report", report]) == 1
     assert "not a JSON report" in capsys.readouterr().err
+    (tmp_path / "r.json").write_text(json.dumps({"methods": {"A": {"pairs": [_pair(1), _pair(2)]}}}))
+    assert main(["report", report]) == 1  # a report without the Markdown of its tables
+    markdown = str(tmp_path / "r.md")
+    assert f"error: its Markdown (the tables) {markdown!r}: no such file" in capsys.readouterr().err
+    (tmp_path / "r.md").write_text("# r\n")
+    assert main(["report", report]) == 0 and (tmp_path / "r.html").is_file()
 
 
 def _pair(frame: int, rmse: object = 0.5) -> dict:

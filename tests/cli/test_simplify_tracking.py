@@ -101,3 +101,24 @@ def test_a_frame_left_above_its_target_is_marked_in_the_summary(tmp_path, capsys
         assert written.num_faces > want + 1
         line = f"{out / name}: {original.num_faces} -> {written.num_faces} faces (above the target {want}: no collapse "
         assert line in said
+
+
+@pytest.mark.parametrize("method", ["qem", "rqem", "tracking"])
+def test_a_target_that_collapses_every_face_names_the_option_and_the_frame(tmp_path, capsys, monkeypatch, method):
+    # review G, finding 10: "target: 1 (1 of 1280 faces) left no face" named neither --target nor the frame. Frame 0
+    # is one triangle (a target of 1 keeps it), so under qem the egg of frame 1 is the one named; rqem and tracking
+    # simplify only frame 0 with QEM, and go on from it.
+    from tests.cli.cli_helpers import Counting
+
+    monkeypatch.setattr("torchmeshmetric.evaluation.pipeline.default_register", Counting())
+    frames = _write_frames(tmp_path / "in", n=2)
+    if method == "qem":
+        triangle = Mesh(torch.eye(3, dtype=torch.float64), torch.tensor([[0, 1, 2]]))
+        save_mesh(triangle, frames / "frame_00.ply", overwrite=True)
+    argv = ["simplify", "--input", str(frames), "--output", str(tmp_path / "out"), "--method", method]
+    assert main([*argv, "--target", "1"]) == 1
+    err = capsys.readouterr().err.strip()
+    frame = "frame_01.ply" if method == "qem" else "frame_00.ply"
+    want = f"error: --target: frame '{frame}': 1 (1 of 1280 faces) left no face: every face collapsed; ask for more"
+    assert err.endswith(f"{want} faces"), err
+    assert not (tmp_path / "out").exists()

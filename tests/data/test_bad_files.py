@@ -373,6 +373,20 @@ def test_end_header_in_a_ply_comment_is_no_end_of_header(tmp_path):
     assert load_mesh(_write(tmp_path, "t.ply", trimesh_path)).faces.tolist() == [[0, 1, 2]]
 
 
+def test_a_gltf_that_is_not_json_is_named_not_a_model_gltf(tmp_path):
+    # review G, finding 10: trimesh's fallback said "FileNotFoundError: model.gltf", a file the user never gave
+    p = _write(tmp_path, "bad.gltf", "{not json")
+    with pytest.raises(MeshFileError) as info:
+        load_mesh(p)
+    assert str(info.value) == (
+        f"path: '{p}' is not a mesh file (a .gltf file is JSON; line 1 column 2: Expecting property name enclosed in "
+        "double quotes)"
+    )
+    box = trimesh.creation.box()  # a .gltf that is JSON, its buffer embedded, still loads through trimesh
+    good = _write(tmp_path, "box.gltf", box.export(file_type="gltf", embed_buffers=True)["model.gltf"])
+    assert load_mesh(good, dtype=torch.float64).num_faces == 12
+
+
 @pytest.mark.parametrize("missing", [1, 20, 50, 3000])
 def test_truncated_binary_stl_is_refused(tmp_path, missing):
     data = trimesh.creation.icosphere(subdivisions=1).export(file_type="stl")

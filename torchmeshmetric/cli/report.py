@@ -27,15 +27,9 @@ def run(args: argparse.Namespace) -> int:
     source = Path(args.report)
     markdown_path = source.with_suffix(".md")
     out = Path(args.out) if args.out else source.with_suffix(".html")
-    for path, what in ((source, "REPORT"), (markdown_path, "its Markdown (the tables)")):
-        if not path.is_file():
-            raise CLIError(f"{what} {str(path)!r}: no such file")
-    meshes = [Path(m) for m in args.mesh]
-    for m in meshes:
-        if not m.is_file():
-            raise CLIError(f"--mesh {str(m)!r}: no such file")
-    inputs = [("REPORT", source), ("its Markdown", markdown_path), *(("--mesh", m) for m in meshes)]
-    check_writable([out], args.overwrite, inputs=inputs, what="--out")
+    if not source.is_file():
+        raise CLIError(f"REPORT {str(source)!r}: no such file")
+    # REPORT itself first: a JSON that is no report was said to lack "its Markdown" (found by review)
     try:
         report = json.loads(source.read_text(encoding="utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
@@ -48,6 +42,14 @@ def run(args: argparse.Namespace) -> int:
         check_report(report)
     except ValueError as exc:
         raise CLIError(f"REPORT {str(source)!r}: not a report this command reads: {exc}") from exc
+    if not markdown_path.is_file():
+        raise CLIError(f"its Markdown (the tables) {str(markdown_path)!r}: no such file")
+    meshes = [Path(m) for m in args.mesh]
+    for m in meshes:
+        if not m.is_file():
+            raise CLIError(f"--mesh {str(m)!r}: no such file")
+    inputs = [("REPORT", source), ("its Markdown", markdown_path), *(("--mesh", m) for m in meshes)]
+    check_writable([out], args.overwrite, inputs=inputs, what="--out")
     layers: list[Any] = []
     for m in meshes:
         try:

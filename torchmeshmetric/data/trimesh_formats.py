@@ -6,6 +6,7 @@ trimesh is imported on use only (~0.3 s): ``import torchmeshmetric`` never loads
 from __future__ import annotations
 
 import io
+import json
 import os
 from pathlib import Path
 from typing import Any
@@ -60,6 +61,14 @@ def read_with_trimesh(p: Path, suffix: str) -> tuple[np.ndarray, np.ndarray, np.
         source = io.BytesIO(data)
     elif suffix == ".glb" and p.read_bytes()[:4] != b"glTF":
         raise not_a_mesh(p, "a GLB file starts with 'glTF'")
+    elif suffix == ".gltf" and p.read_bytes()[:4] != b"glTF":  # binary glTF named .gltf: trimesh decides, as before
+        # trimesh falls back on a text that is not JSON and names a file the user never gave: "model.gltf" (found
+        # by review)
+        try:
+            json.loads(p.read_bytes())
+        except (UnicodeDecodeError, json.JSONDecodeError) as err:
+            where = f"line {err.lineno} column {err.colno}: {err.msg}" if isinstance(err, json.JSONDecodeError) else err
+            raise not_a_mesh(p, f"a .gltf file is JSON; {where}") from err
     try:
         loaded = trimesh.load(source, file_type=suffix[1:], process=False, maintain_order=True)
     except Exception as err:  # trimesh raises many exception types on malformed input
