@@ -229,3 +229,29 @@ def test_float32_and_float64_are_the_dtypes_accepted(tmp_path: Path) -> None:
     for dtype in (torch.float32, torch.float64):
         assert load_mesh(p, dtype=dtype).dtype == dtype and load_sequence(tmp_path, dtype=dtype)[0].dtype == dtype
         assert load_mesh(p).to(dtype=dtype).dtype == dtype
+
+
+def test_save_mesh_takes_every_mesh_form_the_library_takes(tmp_path: Path) -> None:
+    # review G, finding 12: save_mesh((v, f), p) raised "mesh: expected a Mesh, found tuple", though the library
+    # says every function that takes a mesh takes a (verts, faces) tuple and a trimesh.Trimesh
+    m = _sphere()
+    forms = {
+        "tensors": (m.verts, m.faces),
+        "arrays": (m.verts.numpy(), m.faces.numpy().astype(np.uint32)),
+        "trimesh": m.to_trimesh(),
+        "mesh": m,
+    }
+    for name, form in forms.items():
+        back = load_mesh(save_mesh(form, tmp_path / f"{name}.ply"), dtype=torch.float64)  # type: ignore[arg-type]
+        assert torch.equal(back.verts, m.verts) and torch.equal(back.faces, m.faces), name
+    with pytest.raises(TypeError) as info:
+        save_mesh("m.ply", tmp_path / "str.ply")  # type: ignore[arg-type]
+    assert str(info.value) == "mesh: expected a Mesh, a (verts, faces) tuple or a trimesh.Trimesh, found str"
+
+
+def test_stl_keeps_no_vertex_list_a_mesh_comes_back_as_a_triangle_soup(tmp_path: Path) -> None:
+    # As save_mesh and docs/data.md say: 320 faces over 162 shared vertices come back with 3 vertices per face
+    m = _sphere()
+    back = load_mesh(save_mesh(m, tmp_path / "s.stl"), dtype=torch.float64)
+    assert (m.num_verts, back.num_verts, back.num_faces) == (162, 960, 320)
+    assert torch.equal(back.faces, torch.arange(960).reshape(320, 3))

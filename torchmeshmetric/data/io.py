@@ -28,7 +28,7 @@ from torchmeshmetric.data.obj import obj_bytes, read_obj_triangles
 from torchmeshmetric.data.off import off_bytes, parse_off
 from torchmeshmetric.data.ply import ply_bytes, read_plain_ply
 from torchmeshmetric.data.trimesh_formats import read_with_trimesh
-from torchmeshmetric.structures import Mesh
+from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
 __all__ = ["WRITABLE_MESH_SUFFIXES", "load_mesh", "read_mesh_arrays", "save_mesh"]
 
@@ -101,18 +101,24 @@ def read_mesh_arrays(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, n
     return verts, faces, colors
 
 
-def save_mesh(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False) -> Path:
+def save_mesh(mesh: MeshLike, path: str | os.PathLike, *, overwrite: bool = False) -> Path:
     """Write a mesh atomically (temporary file in the same directory, then ``os.replace``), with normal permissions.
 
     Inside :func:`~torchmeshmetric._atomic.atomic_file_set` the file joins the set (all files or none appear).
 
-    The format follows the suffix (OBJ, PLY, OFF, STL, GLB). Vertices are written in their order, unmerged. OBJ, OFF
-    and PLY read back bit for bit in the mesh's dtype (OFF: each coordinate's shortest decimal for that dtype; PLY:
-    binary, ``double`` properties for a float64 mesh, ``float`` otherwise); STL and GLB store float32, bit for bit
-    for a float32 mesh only (a float64 coordinate beyond float32's range is refused, never written as inf).
+    The format follows the suffix (OBJ, PLY, OFF, STL, GLB). OBJ, PLY, OFF and GLB write the vertices in their order,
+    unmerged, and the faces as indices into them. STL cannot keep a vertex list: it stores each triangle's three
+    corners, so a mesh read back from STL is a triangle soup (3 vertices per face, each shared vertex once per face
+    corner), whose vertex statistics differ and which the simplifiers refuse (weld it with trimesh's
+    ``merge_vertices()``, or store frames in another format). OBJ, OFF and PLY read back bit for bit in the mesh's
+    dtype (OFF: each coordinate's shortest decimal for that dtype; PLY: binary, ``double`` properties for a float64
+    mesh, ``float`` otherwise); STL and GLB store float32, bit for bit for a float32 mesh only (a float64 coordinate
+    beyond float32's range is refused, never written as inf).
 
     Args:
-        mesh: the mesh to write.
+        mesh: the mesh to write: a :class:`~torchmeshmetric.structures.Mesh`, a ``(verts, faces)`` tuple of tensors
+            or arrays, or a ``trimesh.Trimesh`` (:func:`~torchmeshmetric.structures.as_mesh`), as every function of
+            the library that takes a mesh.
         path: the destination file; its directory must exist.
         overwrite: replace an existing file (default ``False``: refuse).
 
@@ -123,6 +129,8 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False) -
         FileExistsError: ``path`` exists and ``overwrite`` is false.
         MeshFileError: unsupported suffix, missing directory, or (STL, GLB) a coordinate beyond float32's range.
         EmptyInputError: a mesh without faces.
+        TypeError: ``mesh`` is none of the forms above (and the errors of :func:`~torchmeshmetric.structures.as_mesh`
+            for a malformed tuple).
 
     Example:
         >>> import tempfile, pathlib, torch
@@ -140,8 +148,9 @@ def save_mesh(mesh: Mesh, path: str | os.PathLike, *, overwrite: bool = False) -
         raise MeshFileError(str(missing_folder_error(p.parent)))
     if p.exists() and not overwrite:
         raise FileExistsError(f"path: '{p}' exists; pass overwrite=True to replace it")
-    if not isinstance(mesh, Mesh):
-        raise TypeError(f"mesh: expected a Mesh, found {type(mesh).__name__}")
+    # A (verts, faces) tuple was refused, though the library's every other function that takes a mesh takes one
+    # (found by review); a Mesh comes back as it is
+    mesh = as_mesh(mesh, name="mesh")
     if mesh.num_faces == 0:
         raise EmptyInputError(f"mesh: cannot write '{p}': the mesh has no faces")
     if mesh.faces.shape[1] != 3:
