@@ -106,14 +106,14 @@ def save_mesh(mesh: MeshLike, path: str | os.PathLike, *, overwrite: bool = Fals
 
     Inside :func:`~torchmeshmetric._atomic.atomic_file_set` the file joins the set (all files or none appear).
 
-    The format follows the suffix (OBJ, PLY, OFF, STL, GLB). OBJ, PLY, OFF and GLB write the vertices in their order,
-    unmerged, and the faces as indices into them. STL cannot keep a vertex list: it stores each triangle's three
-    corners, so a mesh read back from STL is a triangle soup (3 vertices per face, each shared vertex once per face
-    corner), whose vertex statistics differ and which the simplifiers refuse (weld it with trimesh's
-    ``merge_vertices()``, or store frames in another format). OBJ, OFF and PLY read back bit for bit in the mesh's
-    dtype (OFF: each coordinate's shortest decimal for that dtype; PLY: binary, ``double`` properties for a float64
-    mesh, ``float`` otherwise); STL and GLB store float32, bit for bit for a float32 mesh only (a float64 coordinate
-    beyond float32's range is refused, never written as inf).
+    The format follows the suffix (OBJ, PLY, OFF, STL, GLB). OBJ, PLY, OFF and GLB write the vertices in their
+    order, unmerged, and the faces as indices into them. STL cannot keep a vertex list: it stores each triangle's
+    three corners, so a mesh read back from STL is a triangle soup (3 vertices per face, each shared vertex once per
+    face corner), whose vertex statistics differ (the simplifiers weld its coincident corners themselves; for the
+    statistics, weld it with trimesh's ``merge_vertices()`` or store frames in another format). OBJ, OFF and PLY
+    read back bit for bit in the mesh's dtype (OFF: each coordinate's shortest decimal for that dtype; PLY: binary,
+    ``double`` properties for a float64 mesh, ``float`` otherwise); STL and GLB store float32, bit for bit for a
+    float32 mesh only (a float64 coordinate beyond float32's range is refused, never written as inf).
 
     Args:
         mesh: the mesh to write: a :class:`~torchmeshmetric.structures.Mesh`, a ``(verts, faces)`` tuple of tensors
