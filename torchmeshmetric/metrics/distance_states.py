@@ -30,6 +30,7 @@ from torchmetrics.utilities.data import dim_zero_cat
 from torchmetrics.utilities.distributed import gather_all_tensors
 
 from torchmeshmetric._checks import EmptyInputError
+from torchmeshmetric.metrics._settings import SettingsMetric
 from torchmeshmetric.stats.moments import Moments, merge_into_row, merge_rows, moments_rows
 from torchmeshmetric.stats.sketch import QuantileSketch
 from torchmeshmetric.stats.statistics import (
@@ -167,8 +168,11 @@ class DistanceStates(NamedTuple):
         return self.sketch
 
 
-class DistanceStatesMetric(Metric):
+class DistanceStatesMetric(SettingsMetric):
     """A ``torchmetrics.Metric`` whose states are :class:`DistanceStates`: kept whole where torchmetrics would not.
+
+    A :class:`~torchmeshmetric.metrics._settings.SettingsMetric`: its settings keep it out of the merges of other
+    configurations.
 
     - ``forward()`` whose batch is refused or empty (its batch ``compute`` raises) leaves the accumulated states as
       they were: torchmetrics resets them to compute the batch's value, and an error lost every earlier update.
@@ -220,20 +224,17 @@ class DistanceStatesMetric(Metric):
             setattr(self, name, value)
 
     def merge_state(self, incoming_state: dict[str, Any] | Metric) -> None:
-        """Torchmetrics' ``merge_state``, an incoming dict's moments (and this metric's) merged to one row first.
+        """``SettingsMetric.merge_state``, an incoming dict's moments (and this metric's) merged to one row first.
 
         Raises:
-            ValueError: what :meth:`_check_incoming` refuses.
+            ValueError: a metric of other settings, or a dict of other states (see
+                :class:`~torchmeshmetric.metrics._settings.SettingsMetric`).
         """
         for name, value in self._one_row({k: getattr(self, k) for k in self._defaults}).items():
             setattr(self, name, value)
         if isinstance(incoming_state, dict):
             incoming_state = self._one_row(incoming_state)
-        self._check_incoming(incoming_state)
         super().merge_state(incoming_state)
-
-    def _check_incoming(self, incoming_state: dict[str, Any] | Metric) -> None:
-        """Refuse a state this metric cannot merge (its moments already one row); a subclass says what it needs."""
 
     def _sync_dist(self, dist_sync_fn: Callable = gather_all_tensors, process_group: Any | None = None) -> None:
         for name, default in self._defaults.items():  # the lists are the distances: float64, like every state here

@@ -4,8 +4,9 @@ Each direction (forward: simplified → reference; reverse: reference → simpli
 states a :class:`~torchmeshmetric.metrics.distance_states.DistanceStates` names (moments rows, values or sketch
 counts; see there for their DDP semantics). Each metric class declares its own state names, so that two different
 metrics never share states in a ``MetricCollection`` compute group (torchmetrics groups metrics whose states have the
-same names and values). ``reference_peak`` is the largest reference bounding-box diagonal seen (``"max"``), the
-default PSNR peak.
+same names and values); ``merge_state`` refuses to pool two configurations of one class (``surface_samples``,
+``two_sided``, the quantile mode; see :class:`~torchmeshmetric.metrics._settings.SettingsMetric`). ``reference_peak``
+is the largest reference bounding-box diagonal seen (``"max"``), the default PSNR peak.
 """
 
 from __future__ import annotations
@@ -84,34 +85,16 @@ class DistanceStatisticsBase(StatisticsPlot, DistanceStatesMetric):
             self._reverse_states.add_to(self, self._sketch)
         self.add_state("reference_peak", default=torch.tensor(float("-inf"), dtype=torch.float64), dist_reduce_fx="max")
 
-    def _settings(self) -> str:
-        """What two metrics must share to merge: their class, directions and quantile mode (for messages)."""
-        mode = "exact_quantiles=True" if self.exact_quantiles else f"relative_accuracy={self.sketch.relative_accuracy}"
-        return f"{type(self).__name__}(two_sided={self.two_sided}, {mode})"
+    def _setting_items(self) -> dict[str, object]:
+        """The directions and the quantile mode.
 
-    def _check_incoming(self, incoming_state: dict[str, Any] | Metric) -> None:
-        """``merge_state``'s check that the two hold the same states.
-
-        Raises:
-            ValueError: a metric of another class, directions or quantile mode (sketches of two accuracies were
-                added bin by bin: a raw size mismatch, or a wrong figure had they the same size), or a dict
-                whose states are not this metric's.
+        Sketches of two accuracies were added bin by bin: a raw size mismatch, or a wrong figure had they the same
+        size.
         """
-        if isinstance(incoming_state, DistanceStatisticsBase):
-            if incoming_state._settings() != self._settings():
-                raise ValueError(
-                    f"incoming_state: {incoming_state._settings()} cannot merge into {self._settings()}: the two "
-                    "must measure the same directions with the same quantiles"
-                )
-        elif isinstance(incoming_state, dict):
-            for name, default in self._defaults.items():
-                found = incoming_state.get(name)
-                if isinstance(default, Tensor) and not (isinstance(found, Tensor) and found.shape == default.shape):
-                    shape = tuple(found.shape) if isinstance(found, Tensor) else type(found).__name__
-                    raise ValueError(
-                        f"incoming_state: state {name!r} of {self._settings()} expected shape "
-                        f"{tuple(default.shape)}, found {shape}"
-                    )
+        mode: dict[str, object] = (
+            {"exact_quantiles": True} if self.exact_quantiles else {"relative_accuracy": self.sketch.relative_accuracy}
+        )
+        return {**super()._setting_items(), "two_sided": self.two_sided, **mode}
 
     @property
     def _sketch(self) -> QuantileSketch | None:

@@ -63,3 +63,10 @@ class MeshSurfaceDistance(MeasuredDistanceBase):
         self.seed = check_int(seed, "seed")
         self.backend = backend
         self._options = {"surface_samples": surface_samples, "seed": self.seed, "backend": backend}
+
+    def _setting_items(self) -> dict[str, object]:
+        """The base's, and the sampling: exact distances, or ``surface_samples`` samples drawn with ``seed``."""
+        sampling: dict[str, object] = {"surface_samples": self.surface_samples}
+        if self.surface_samples is not None:  # the exact distances read no seed
+            sampling["seed"] = self.seed
+        return {**super()._setting_items(), **sampling}

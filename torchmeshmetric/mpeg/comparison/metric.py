@@ -7,10 +7,10 @@ from typing import Any
 
 import torch
 from torch import Tensor
-from torchmetrics import Metric
 
 from torchmeshmetric._checks import EmptyInputError
 from torchmeshmetric.metrics._plot import StatisticsPlot
+from torchmeshmetric.metrics._settings import SettingsMetric
 from torchmeshmetric.mpeg.comparison.mpeg_metrics import Sampling, mpeg_metrics
 from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh
 from torchmeshmetric.structures import MeshLike
@@ -20,12 +20,15 @@ __all__ = ["MpegPSNR"]
 _KEYS = ("d1_psnr", "d2_psnr")
 
 
-class MpegPSNR(StatisticsPlot, Metric):
+class MpegPSNR(StatisticsPlot, SettingsMetric):
     """Mean per-frame MPEG D1 and D2 PSNR (mmetric's figures) over every mesh pair seen, DDP-synchronised.
 
     Each :meth:`update` compares one distorted mesh (``preds``) with its reference (``target``) by
     :func:`mpeg_metrics`; :meth:`compute` returns the CTC average (mean of per-frame PSNR; frames with infinite PSNR,
     i.e. identical meshes, are left out and counted in ``*_inf_frames``; ``inf`` if every frame is identical).
+
+    ``merge_state`` refuses to pool two metrics built with other ``sampling`` or ``grid_size`` (see
+    :class:`~torchmeshmetric.metrics._settings.SettingsMetric`).
 
     Args:
         sampling: ``"grid"`` (CTC) or ``"mesh"``.
@@ -62,6 +65,11 @@ class MpegPSNR(StatisticsPlot, Metric):
             self.add_state(f"{key}_sum", torch.tensor(0.0, dtype=torch.float64), dist_reduce_fx="sum")
             self.add_state(f"{key}_finite", torch.tensor(0.0, dtype=torch.float64), dist_reduce_fx="sum")
             self.add_state(f"{key}_inf", torch.tensor(0.0, dtype=torch.float64), dist_reduce_fx="sum")
+
+    def _setting_items(self) -> dict[str, object]:
+        """The sampling, and the grid's size in grid mode (the mesh mode reads none)."""
+        grid: dict[str, object] = {"grid_size": self.grid_size} if self.sampling == "grid" else {}
+        return {**super()._setting_items(), "sampling": self.sampling, **grid}
 
     def update(self, preds: MeshLike | TexturedMesh, target: MeshLike | TexturedMesh) -> None:
         """Add one frame: ``preds`` (distorted) against ``target`` (reference)."""
