@@ -1,7 +1,8 @@
-"""Two configurations of one metric class never merge (review H, finding 3).
+"""Two configurations of one metric class never merge (review H, findings 2 and 3).
 
 torchmetrics' ``merge_state`` checks the class of an incoming metric, not its options: it pooled exact and sampled
-distances into one set of ``MeshSurfaceDistance``.
+distances into one set of ``MeshSurfaceDistance``, and ``TemporalConsistency`` dropped the sets one configuration has
+and the other lacks (or printed every tensor of the incoming states, the other way round).
 """
 
 from __future__ import annotations
@@ -13,6 +14,8 @@ import torch
 import trimesh
 from torchmetrics import Metric
 
+from tests.evaluation.eval_helpers import TranslationRegister, sphere
+from torchmeshmetric.evaluation import TemporalConsistency
 from torchmeshmetric.metrics import MeshSurfaceDistance
 from torchmeshmetric.mpeg import MpegPSNR
 
@@ -75,3 +78,58 @@ def test_merge_state_refuses_other_mpeg_sampling():
     assert "grid_size=64) cannot merge into MpegPSNR(sampling='grid', grid_size=128)" in _refused(
         MpegPSNR(grid_size=128), grid
     )
+
+
+def _temporal(**kwargs: Any) -> TemporalConsistency:
+    """A metric of one update on translated spheres (frames 0 and 1), with ``kwargs``."""
+    metric = TemporalConsistency(registration_fn=TranslationRegister(), **kwargs)
+    original = [sphere(2, offset=(0.1 * k, 0, 0)) for k in range(2)]
+    simplified = [sphere(1, offset=(0.1 * k, 0, 0)) for k in range(2)]
+    flicker = {"simplified_k_minus_1": simplified[0]} if kwargs.get("flicker") else {}
+    metric.update(simplified[1], original[1], original[0], **flicker)
+    return metric
+
+
+def _shown(**kwargs: Any) -> str:
+    sets = {"two_sided": True, "flicker": False, **kwargs}
+    return (
+        f"TemporalConsistency(two_sided={sets['two_sided']}, flicker={sets['flicker']}, "
+        "registration_fn='tests.evaluation.eval_helpers.TranslationRegister', registration_options={})"
+    )
+
+
+@pytest.mark.parametrize(
+    ("into", "incoming", "found"),
+    [
+        ({"two_sided": False}, {}, "unknown 8 (reverse_surface_k_minus_1_moments, "),  # dropped in silence
+        ({}, {"two_sided": False}, "missing 8 (reverse_surface_k_minus_1_moments, "),  # 9.7 kB of tensors
+        ({}, {"flicker": True}, "unknown 4 (flicker_moments, flicker_values, "),  # dropped in silence
+        ({"flicker": True}, {}, "missing 4 (flicker_moments, flicker_values, "),  # 9.7 kB of tensors
+    ],
+)
+def test_temporal_consistency_refuses_other_sets_both_ways(into, incoming, found):
+    target, other = _temporal(**into), _temporal(**incoming)
+    message = _refused(target, other)
+    assert message == (
+        f"incoming_state: {_shown(**incoming)} cannot merge into {_shown(**into)}: their states hold different "
+        "measurements; merge metrics built with the same options"
+    )
+    # As a dict: named by the states it lacks or has too many of, in a line (no tensor printed).
+    message = _refused(target, other.metric_state)
+    assert message.startswith(f"incoming_state: expected the states of {_shown(**into)}, found {found}")
+    assert len(message) < 400
+    same = _temporal(**into)
+    target.merge_state(same)  # the same sets still merge: every set holds both updates' distances
+    alone = _temporal(**into).compute()
+    assert target.compute()["vertex_k"]["count"].item() == 2 * alone["vertex_k"]["count"].item()
+    assert target.compute()["vertex_k"]["ave"].item() == pytest.approx(alone["vertex_k"]["ave"].item(), rel=1e-12)
+
+
+def test_temporal_consistency_refuses_other_registrations():
+    default = TemporalConsistency()
+    quick = TemporalConsistency(registration_options={"num_points": 500})
+    assert (
+        "registration_options={'num_points': 500}) cannot merge into TemporalConsistency(two_sided=True, "
+        "flicker=False, registration_fn=None, registration_options={})" in _refused(default, quick)
+    )
+    assert "registration_fn=None" in _refused(_temporal(), default)

@@ -9,12 +9,19 @@ from torch import Tensor
 
 from torchmeshmetric._checks import check_flag
 from torchmeshmetric.evaluation.flicker import FLICKER
-from torchmeshmetric.evaluation.pipeline import RegisterFn, RegistrationOptions, evaluate_pair, registration_keywords
+from torchmeshmetric.evaluation.pipeline import (
+    RegisterFn,
+    RegistrationOptions,
+    evaluate_pair,
+    registration_keywords,
+    registration_settings,
+)
 from torchmeshmetric.evaluation.results import SET_NAMES, flatten_statistics
 from torchmeshmetric.kernels import IndexCache
 from torchmeshmetric.metrics._plot import StatisticsPlot
 from torchmeshmetric.metrics.distance_states import DistanceStates, DistanceStatesMetric
 from torchmeshmetric.registration.cache import RegistrationCache
+from torchmeshmetric.registration.options import NonRigidOptions
 from torchmeshmetric.structures import MeshLike
 
 __all__ = ["TemporalConsistency"]
@@ -171,6 +178,26 @@ class TemporalConsistency(StatisticsPlot, DistanceStatesMetric):
                 _REVERSE_STATES[name].update(self, result.reverse_distances[name], sketch=None, name=f"reverse {name}")
         peak: Tensor = self.peak
         self.peak = torch.maximum(peak, torch.tensor(result.peak, dtype=torch.float64, device=peak.device))
+
+    def _setting_items(self) -> dict[str, object]:
+        """The sets measured and the registration, as the registration cache identifies it.
+
+        The library's registration by the options that differ from the defaults (equal options spelled differently
+        are one setting); another ``registration_fn`` by its qualified name and the options given to it. The
+        ``backend`` changes a registration only by rounding, and is left out as the cache leaves it out.
+        """
+        registration = registration_settings(self.registration_fn, self.registration_options)
+        options = registration["options"]
+        if isinstance(options, NonRigidOptions):
+            defaults = NonRigidOptions().canonical()
+            options = {k: v for k, v in options.canonical().items() if v != defaults[k]}
+        return {
+            **super()._setting_items(),
+            "two_sided": self.two_sided,
+            "flicker": self.measure_flicker,
+            "registration_fn": None if self.registration_fn is None else registration["register"],
+            "registration_options": dict(sorted(options.items())),
+        }
 
     def _statistics(self, states: DistanceStates, what: str) -> dict[str, Tensor]:
         return states.compute(self, sketch=None, what=what, peak=float(self.peak)).as_tensors()
