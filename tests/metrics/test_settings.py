@@ -1,23 +1,32 @@
-"""Two configurations of one metric class never merge (review H, findings 2 and 3).
+"""Two configurations of one metric class never share a compute group nor merge (review H, findings 1 to 3).
 
-torchmetrics' ``merge_state`` checks the class of an incoming metric, not its options: it pooled exact and sampled
-distances into one set of ``MeshSurfaceDistance``, and ``TemporalConsistency`` dropped the sets one configuration has
-and the other lacks (or printed every tensor of the incoming states, the other way round).
+torchmetrics groups the metrics of a ``MetricCollection`` whose states are equal after the first update
+(``MetricCollection._equal_metric_states``) and then updates the group's first member only. State names are per class,
+so two configurations of one class met there: after an empty first batch ``MeshSurfaceDistance(surface_samples=50)``
+reported the exact ``MeshSurfaceDistance()``'s figures. ``merge_state`` pooled exact and sampled distances, and
+``TemporalConsistency`` dropped the sets one configuration has and the other lacks.
 """
 
 from __future__ import annotations
 
+import importlib
+import inspect
+import pkgutil
+from collections.abc import Callable
 from typing import Any
 
 import pytest
 import torch
 import trimesh
-from torchmetrics import Metric
+from torchmetrics import Metric, MetricCollection
 
+import torchmeshmetric
 from tests.evaluation.eval_helpers import TranslationRegister, sphere
 from torchmeshmetric.evaluation import TemporalConsistency
-from torchmeshmetric.metrics import MeshSurfaceDistance
+from torchmeshmetric.metrics import DistanceStatisticsMetric, MeshSurfaceDistance, NearestVertexDistance
+from torchmeshmetric.metrics._settings import SETTINGS_DIGEST, SettingsMetric
 from torchmeshmetric.mpeg import MpegPSNR
+from torchmeshmetric.registration import NonRigidOptions
 
 
 def _mesh(num_verts: int, num_faces: int, seed: int) -> tuple[torch.Tensor, torch.Tensor]:
@@ -133,3 +142,153 @@ def test_temporal_consistency_refuses_other_registrations():
         "flicker=False, registration_fn=None, registration_options={})" in _refused(default, quick)
     )
     assert "registration_fn=None" in _refused(_temporal(), default)
+
+
+# Pairs of configurations whose states hold different measurements, for every metric class with such options.
+DIFFERENT: list[tuple[Callable[[], Metric], Callable[[], Metric]]] = [
+    (MeshSurfaceDistance, lambda: MeshSurfaceDistance(surface_samples=50)),
+    (lambda: MeshSurfaceDistance(surface_samples=50), lambda: MeshSurfaceDistance(surface_samples=50, seed=1)),
+    (lambda: MeshSurfaceDistance(surface_samples=50), lambda: MeshSurfaceDistance(surface_samples=60)),
+    (
+        lambda: DistanceStatisticsMetric(exact_quantiles=False, relative_accuracy=0.01),
+        lambda: DistanceStatisticsMetric(exact_quantiles=False, relative_accuracy=0.0100001),  # as many bins
+    ),
+    (MpegPSNR, lambda: MpegPSNR(sampling="mesh")),
+    (lambda: MpegPSNR(grid_size=64), lambda: MpegPSNR(grid_size=128)),
+    (TemporalConsistency, lambda: TemporalConsistency(registration_options={"num_points": 500})),
+    (lambda: TemporalConsistency(registration_fn=TranslationRegister()), TemporalConsistency),
+]
+# Pairs that differ only in what compute() reads (ddof, peak) or in rounding (backend): one group is right for them.
+SAME: list[tuple[Callable[[], Metric], Callable[[], Metric]]] = [
+    (MeshSurfaceDistance, lambda: MeshSurfaceDistance(ddof=1, peak=2.0, backend="bruteforce", seed=3)),  # seed: unread
+    (NearestVertexDistance, lambda: NearestVertexDistance(backend="bruteforce")),
+    (lambda: MpegPSNR(sampling="mesh", grid_size=64), lambda: MpegPSNR(sampling="mesh")),  # grid_size: unread
+    (
+        lambda: TemporalConsistency(registration_options={"num_points": 500}),
+        lambda: TemporalConsistency(registration_options=NonRigidOptions(num_points=500)),  # the same, spelled apart
+    ),
+    (
+        lambda: TemporalConsistency(registration_fn=TranslationRegister()),
+        lambda: TemporalConsistency(registration_fn=TranslationRegister()),
+    ),
+]
+
+
+@pytest.mark.parametrize(("make_a", "make_b"), DIFFERENT)
+def test_two_configurations_never_hold_equal_states(make_a, make_b):
+    # The check torchmetrics groups metrics by, on the states both hold before any update (what an empty first batch
+    # leaves): equal before, for every pair.
+    a, b = make_a(), make_b()
+    assert a._settings() != b._settings()
+    assert not MetricCollection._equal_metric_states(a, b)
+
+
+@pytest.mark.parametrize(("make_a", "make_b"), SAME)
+def test_one_configuration_still_shares_a_group(make_a, make_b):
+    a, b = make_a(), make_b()
+    assert a._settings() == b._settings()
+    assert MetricCollection._equal_metric_states(a, b)
+
+
+def test_an_empty_first_batch_keeps_exact_and_sampled_apart():
+    # The review's reproduction: the sampled metric reported the exact one's ave, 0.20474041212216906.
+    collection = MetricCollection({"exact": MeshSurfaceDistance(), "sampled": MeshSurfaceDistance(surface_samples=50)})
+    collection.update(torch.zeros(0, 3, dtype=torch.float64), REFERENCE)
+    assert collection.compute_groups == {0: ["exact"], 1: ["sampled"]}
+    collection.update(SIMPLIFIED, REFERENCE)
+    out = collection.compute()
+    alone = {"exact": MeshSurfaceDistance(), "sampled": MeshSurfaceDistance(surface_samples=50)}
+    for name, metric in alone.items():
+        metric.update(SIMPLIFIED, REFERENCE)
+        for key, value in metric.compute().items():
+            assert torch.equal(out[f"{name}_{key}"], value), (name, key)
+    assert out["exact_ave"].item() == pytest.approx(0.20474041212216906, rel=1e-12)
+    assert out["sampled_ave"].item() == pytest.approx(0.26136866976167084, rel=1e-12)
+
+
+def test_an_identical_first_frame_keeps_two_mpeg_grids_apart():
+    # An identical first pair is an infinite frame in both: equal states (sum 0, one inf frame), then one group.
+    sphere = trimesh.creation.icosphere(2)
+    scaled = sphere.copy().apply_scale(1.01)
+    collection = MetricCollection({"coarse": MpegPSNR(grid_size=64), "fine": MpegPSNR(grid_size=128)})
+    collection.update(sphere, sphere)
+    assert collection.compute_groups == {0: ["coarse"], 1: ["fine"]}
+    collection.update(scaled, sphere)
+    out = collection.compute()
+    for name, grid_size in (("coarse", 64), ("fine", 128)):
+        alone = MpegPSNR(grid_size=grid_size)
+        alone.update(sphere, sphere)
+        alone.update(scaled, sphere)
+        for key, value in alone.compute().items():
+            assert torch.equal(out[f"{name}_{key}"], value), (name, key)
+    assert out["coarse_d1_psnr"].item() != out["fine_d1_psnr"].item()
+    assert out["coarse_d1_psnr_inf_frames"].item() == 1.0
+
+
+def test_checkpoints_keep_their_keys():
+    # The digest is the constructor's: never in a state_dict, so a checkpoint loads into any configuration as before.
+    sampled = MeshSurfaceDistance(surface_samples=50)
+    sampled.persistent(True)
+    sampled.update(SIMPLIFIED, REFERENCE)
+    state = sampled.state_dict()
+    assert sorted(state) == ["reference_peak", "surface_moments", "surface_values"]
+    loaded = MeshSurfaceDistance(surface_samples=50)
+    loaded.persistent(True)
+    loaded.load_state_dict(state)
+    loaded._update_count = 1  # a loaded state counts no update
+    assert loaded.compute()["ave"].item() == sampled.compute()["ave"].item()
+    assert getattr(loaded, SETTINGS_DIGEST).tolist() == getattr(sampled, SETTINGS_DIGEST).tolist()
+
+
+def test_a_metric_pickled_before_the_digest_gets_it_when_unpickled():
+    sampled = MeshSurfaceDistance(surface_samples=50)
+    state = sampled.__getstate__()
+    for table in ("_defaults", "_persistent", "_reductions"):
+        state[table] = {k: v for k, v in state[table].items() if k != SETTINGS_DIGEST}
+    del state[SETTINGS_DIGEST]
+    old = MeshSurfaceDistance.__new__(MeshSurfaceDistance)
+    old.__setstate__(state)
+    assert getattr(old, SETTINGS_DIGEST).tolist() == getattr(sampled, SETTINGS_DIGEST).tolist()
+    assert not MetricCollection._equal_metric_states(old, MeshSurfaceDistance())
+
+
+def _metric_classes() -> list[type]:
+    found: dict[str, type] = {}
+    for info in pkgutil.walk_packages(torchmeshmetric.__path__, "torchmeshmetric."):
+        if info.name.endswith("__main__"):
+            continue
+        module = importlib.import_module(info.name)
+        for cls in vars(module).values():
+            if inspect.isclass(cls) and issubclass(cls, Metric) and cls.__module__ == module.__name__:
+                found[f"{cls.__module__}.{cls.__name__}"] = cls
+    return [found[k] for k in sorted(found)]
+
+
+# Metric classes that hold no state of their own (torchmetrics never groups a metric without states).
+STATELESS = {"SelectedStatistic"}
+
+
+def test_every_metric_class_has_settings():
+    # Found by walking the package, so that a new metric class without settings fails here.
+    classes = _metric_classes()
+    assert {"MeshSurfaceDistance", "TemporalConsistency", "MpegPSNR"} <= {c.__name__ for c in classes}
+    for cls in classes:
+        assert cls.__name__ in STATELESS or issubclass(cls, SettingsMetric), cls
+
+
+@pytest.mark.filterwarnings(
+    "ignore:The ``compute`` method of metric MeshSurfaceDistance was called before:UserWarning"
+)  # a merged state counts no update
+def test_merge_state_refuses_a_state_dict_of_other_settings():
+    # A dict carries the settings' digest: the sampled metric's states were taken by the exact one.
+    exact, sampled = MeshSurfaceDistance(), MeshSurfaceDistance(surface_samples=20)
+    sampled.update(SIMPLIFIED, REFERENCE)
+    message = _refused(exact, sampled.metric_state)
+    assert message == (
+        "incoming_state: the states of a metric built with other options cannot merge into MeshSurfaceDistance("
+        "two_sided=False, exact_quantiles=True, surface_samples=None) (its settings_digest differs)"
+    )
+    undigested = {k: v for k, v in sampled.metric_state.items() if k != SETTINGS_DIGEST}  # a dict written before
+    fresh = MeshSurfaceDistance(surface_samples=20)
+    fresh.merge_state(undigested)
+    assert fresh.compute()["ave"].item() == sampled.compute()["ave"].item()

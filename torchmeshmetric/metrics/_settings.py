@@ -1,27 +1,52 @@
-"""``SettingsMetric``: a ``torchmetrics.Metric`` that refuses to merge the states of another configuration.
+"""``SettingsMetric``: a ``torchmetrics.Metric`` that two configurations of one class never share.
 
-torchmetrics' ``merge_state`` checks the class of an incoming metric, not its options: it pooled the exact distances
-of ``MeshSurfaceDistance()`` and the sampled ones of ``MeshSurfaceDistance(surface_samples=20)`` into one set, and
-dropped the states that one configuration has and the other lacks (``TemporalConsistency``'s reverse and flicker
-sets). A :class:`SettingsMetric` lists, in :meth:`~SettingsMetric._setting_items`, the options that change what its
-states accumulate, and :meth:`~SettingsMetric.merge_state` refuses a metric of other settings, or a state dict of
-other states, in words. Options that only ``compute()`` reads (``ddof``, ``peak``) are left out: the merged states
-are the same measurement. So is the kernel ``backend``, which changes a distance only by rounding (as the
-registration cache leaves it out of its key).
+torchmetrics puts metrics of a ``MetricCollection`` into one compute group when, after the first update, their states
+have the same names and ``allclose`` values; later updates then reach the group's first member only, and every member
+computes from that member's states. Two configurations of one class have the same state names, and after an empty
+first batch the same values: ``MeshSurfaceDistance(surface_samples=50)`` reported the exact
+``MeshSurfaceDistance()``'s figures. ``merge_state`` likewise pooled exact and sampled distances into one set, and
+dropped the states that one configuration has and the other lacks (the reverse or flicker sets).
+
+A :class:`SettingsMetric` lists, in :meth:`~SettingsMetric._setting_items`, the options that change what its states
+accumulate, and holds their SHA-256 digest as one more state, ``settings_digest`` (32 float64 bytes; ``"max"``
+across processes, which all hold the same; never written to a ``state_dict``, whose keys stay what they were).
+Two configurations then never hold equal states, so torchmetrics never groups them, and :meth:`~SettingsMetric.
+merge_state` refuses a metric, or a state dict, of another configuration in words. Options that only ``compute()``
+reads (``ddof``, ``peak``) are left out: each member of a group computes with its own. So is the kernel
+``backend``, which changes a distance only by rounding (as the registration cache leaves it out of its key).
 """
 
 from __future__ import annotations
 
+import hashlib
+from abc import ABCMeta
 from typing import Any
 
+import torch
 from torch import Tensor
 from torchmetrics import Metric
 
-__all__ = ["SettingsMetric"]
+__all__ = ["SETTINGS_DIGEST", "SettingsMetric"]
+
+#: The name of the state that holds the digest of a metric's settings.
+SETTINGS_DIGEST = "settings_digest"
 
 
-class SettingsMetric(Metric):
-    """A ``torchmetrics.Metric`` whose settings keep it out of other configurations' merges.
+class _RecordsSettings(ABCMeta):
+    """The metaclass of :class:`SettingsMetric`: records the settings once the whole constructor chain has run.
+
+    A base class's ``__init__`` cannot: every subclass calls it first (``nn.Module`` needs that) and sets its own
+    options after it.
+    """
+
+    def __call__(cls, *args: Any, **kwargs: Any) -> Any:
+        metric = super().__call__(*args, **kwargs)
+        metric._record_settings()
+        return metric
+
+
+class SettingsMetric(Metric, metaclass=_RecordsSettings):
+    """A ``torchmetrics.Metric`` whose settings keep it out of other configurations' compute groups and merges.
 
     A subclass overrides :meth:`_setting_items` (calling the parent's) to add the options that change its states.
     See the module docstring.
@@ -32,8 +57,27 @@ class SettingsMetric(Metric):
         return {}
 
     def _settings(self) -> str:
-        """``ClassName(option=value, ...)``: the settings, as messages show them."""
+        """``ClassName(option=value, ...)``: the settings, as messages show them and as the digest hashes them."""
         return f"{type(self).__name__}({', '.join(f'{k}={v!r}' for k, v in self._setting_items().items())})"
+
+    def _record_settings(self) -> None:
+        digest = torch.tensor(list(hashlib.sha256(self._settings().encode()).digest()), dtype=torch.float64)
+        self.add_state(SETTINGS_DIGEST, default=digest, dist_reduce_fx="max", persistent=False)
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Torchmetrics' unpickling, the settings recorded for a metric pickled before they were."""
+        super().__setstate__(state)
+        if SETTINGS_DIGEST not in self._defaults:
+            self._record_settings()
+
+    def persistent(self, mode: bool = False) -> None:
+        """Torchmetrics' ``persistent``, the settings digest left out of the ``state_dict`` whatever ``mode``.
+
+        The digest is the constructor's, not an accumulation: checkpoints keep the keys they had before it existed,
+        and load into a metric built with any options as they did.
+        """
+        super().persistent(mode)
+        self._persistent[SETTINGS_DIGEST] = False
 
     def merge_state(self, incoming_state: dict[str, Any] | Metric) -> None:
         """Torchmetrics' ``merge_state``, refusing what :meth:`_check_incoming` refuses.
@@ -41,6 +85,9 @@ class SettingsMetric(Metric):
         Raises:
             ValueError: a metric of another class or settings, or a dict whose states are not this metric's.
         """
+        if isinstance(incoming_state, dict) and SETTINGS_DIGEST not in incoming_state:
+            # A dict written before the digest existed (or by hand): its states' names and shapes are all there is.
+            incoming_state = {**incoming_state, SETTINGS_DIGEST: getattr(self, SETTINGS_DIGEST)}
         self._check_incoming(incoming_state)
         super().merge_state(incoming_state)
 
@@ -67,6 +114,12 @@ class SettingsMetric(Metric):
         if missing or unknown:
             lists = [f"{what} {_some(names)}" for what, names in (("missing", missing), ("unknown", unknown)) if names]
             raise ValueError(f"incoming_state: expected the states of {self._settings()}, found {'; '.join(lists)}")
+        digest = incoming_state[SETTINGS_DIGEST]
+        if not isinstance(digest, Tensor) or digest.tolist() != getattr(self, SETTINGS_DIGEST).tolist():
+            raise ValueError(
+                f"incoming_state: the states of a metric built with other options cannot merge into "
+                f"{self._settings()} (its {SETTINGS_DIGEST} differs)"
+            )
         for name, default in self._defaults.items():
             found = incoming_state[name]
             if isinstance(default, Tensor) and not (isinstance(found, Tensor) and found.shape == default.shape):

@@ -171,8 +171,8 @@ class DistanceStates(NamedTuple):
 class DistanceStatesMetric(SettingsMetric):
     """A ``torchmetrics.Metric`` whose states are :class:`DistanceStates`: kept whole where torchmetrics would not.
 
-    A :class:`~torchmeshmetric.metrics._settings.SettingsMetric`: its settings keep it out of the merges of other
-    configurations.
+    A :class:`~torchmeshmetric.metrics._settings.SettingsMetric`: its settings keep it out of the compute groups and
+    merges of other configurations.
 
     - ``forward()`` whose batch is refused or empty (its batch ``compute`` raises) leaves the accumulated states as
       they were: torchmetrics resets them to compute the batch's value, and an error lost every earlier update.

@@ -4,9 +4,10 @@ Each direction (forward: simplified → reference; reverse: reference → simpli
 states a :class:`~torchmeshmetric.metrics.distance_states.DistanceStates` names (moments rows, values or sketch
 counts; see there for their DDP semantics). Each metric class declares its own state names, so that two different
 metrics never share states in a ``MetricCollection`` compute group (torchmetrics groups metrics whose states have the
-same names and values); ``merge_state`` refuses to pool two configurations of one class (``surface_samples``,
-``two_sided``, the quantile mode; see :class:`~torchmeshmetric.metrics._settings.SettingsMetric`). ``reference_peak``
-is the largest reference bounding-box diagonal seen (``"max"``), the default PSNR peak.
+same names and values); the settings digest of :class:`~torchmeshmetric.metrics._settings.SettingsMetric` keeps two
+configurations of one class apart (``surface_samples``, ``two_sided``, the quantile mode), and ``merge_state`` refuses
+to pool them. ``reference_peak`` is the largest reference bounding-box diagonal seen (``"max"``), the
+default PSNR peak.
 """
 
 from __future__ import annotations

@@ -27,8 +27,8 @@ class MpegPSNR(StatisticsPlot, SettingsMetric):
     :func:`mpeg_metrics`; :meth:`compute` returns the CTC average (mean of per-frame PSNR; frames with infinite PSNR,
     i.e. identical meshes, are left out and counted in ``*_inf_frames``; ``inf`` if every frame is identical).
 
-    ``merge_state`` refuses to pool two metrics built with other ``sampling`` or ``grid_size`` (see
-    :class:`~torchmeshmetric.metrics._settings.SettingsMetric`).
+    Two metrics built with other ``sampling`` or ``grid_size`` never share a ``MetricCollection`` compute group, and
+    ``merge_state`` refuses to pool them (see :class:`~torchmeshmetric.metrics._settings.SettingsMetric`).
 
     Args:
         sampling: ``"grid"`` (CTC) or ``"mesh"``.
