@@ -109,6 +109,25 @@ def test_mesh_validation_errors() -> None:
         as_mesh([1, 2, 3])  # type: ignore[arg-type]
 
 
+def test_a_tuple_of_two_point_sets_is_named_as_read() -> None:
+    # tuple(zip(*batch)), a common collate, gives (a, b) for two point sets: it is one (verts, faces) mesh, and the
+    # message only said "faces: expected an integer tensor" (review H, finding 4).
+    a, b = torch.rand(5, 3), torch.rand(7, 3)
+    with pytest.raises(DTypeError) as raised:
+        as_mesh((a, b), name="simplified")
+    assert str(raised.value) == (
+        "simplified.faces: expected an integer tensor of vertex indices, found dtype torch.float32; simplified is a "
+        "2-tuple, read as one (verts, faces) mesh: give a batch of point sets as a list, simplified=[a, b] (list() "
+        "of a collated tuple)"
+    )
+    with pytest.raises(DTypeError, match=r"mesh\.faces: .*; mesh is a 2-tuple, read as one \(verts, faces\) mesh"):
+        as_mesh((np.zeros((3, 3)), np.zeros((1, 3))))  # float faces as numpy loads them: the same reading named
+    with pytest.raises(DTypeError, match=r"^mesh\.faces: expected an integer tensor of vertex indices, found dtype "):
+        as_mesh((a, torch.zeros(1, 3, dtype=torch.bool)))  # not floating point: not a point set, no such hint
+    with pytest.raises(DTypeError, match=r"^mesh\.verts: "):
+        as_mesh((torch.zeros(3, 3, dtype=torch.long), b))  # the vertices are checked first, as before
+
+
 def test_pack_meshes_and_points() -> None:
     a, b = as_mesh(trimesh.creation.box()), as_mesh(trimesh.creation.icosphere(subdivisions=0))
     p = pack_meshes([a, b])

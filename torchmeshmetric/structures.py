@@ -18,6 +18,7 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric._checks import (
+    DTypeError,
     IndexRangeError,
     ShapeError,
     check_device,
@@ -358,7 +359,8 @@ def as_mesh(
 
     Raises:
         TypeError: ``mesh`` has none of the accepted forms.
-        DTypeError: ``dtype`` is neither torch.float32 nor torch.float64.
+        DTypeError: ``dtype`` is neither torch.float32 nor torch.float64; a 2-tuple whose second tensor is not integer faces (floating point: the message says that the
+            tuple was read as ``(verts, faces)`` and that a batch of point sets is a list).
 
     Example:
         >>> import trimesh
@@ -376,7 +378,17 @@ def as_mesh(
     if isinstance(mesh, tuple) and len(mesh) == 2:
         verts = _to_tensor(mesh[0], f"{name}.verts", device=device, dtype=dtype)
         faces = _to_tensor(mesh[1], f"{name}.faces", device=device if device is not None else verts.device, dtype=None)
-        return _named_mesh(verts, faces, name)
+        try:
+            return _named_mesh(verts, faces, name)
+        except DTypeError as err:
+            if not faces.is_floating_point():
+                raise
+            # Floating-point "faces" are often a second point set: the collate tuple(zip(*batch)) makes (a, b) of a
+            # batch of two. Not taken as one (it may be faces loaded as floats): the message says how it was read.
+            raise DTypeError(
+                f"{err}; {name} is a 2-tuple, read as one (verts, faces) mesh: give a batch of point sets as a "
+                f"list, {name}=[a, b] (list() of a collated tuple)"
+            ) from None
     if type(mesh).__name__ == "Trimesh" and hasattr(mesh, "vertices") and hasattr(mesh, "faces"):
         verts = torch.from_numpy(np.asarray(mesh.vertices, dtype=np.float64).copy()).to(device=device, dtype=dtype)
         faces = torch.from_numpy(np.asarray(mesh.faces, dtype=np.int64).copy()).to(device=verts.device)
