@@ -359,8 +359,9 @@ def as_mesh(
 
     Raises:
         TypeError: ``mesh`` has none of the accepted forms.
-        DTypeError: ``dtype`` is neither torch.float32 nor torch.float64; a 2-tuple whose second tensor is not integer faces (floating point: the message says that the
-            tuple was read as ``(verts, faces)`` and that a batch of point sets is a list).
+        DTypeError: ``dtype`` is neither torch.float32 nor torch.float64; a 2-tuple whose second tensor is not
+            integer faces (floating point: the message says that the tuple was read as ``(verts, faces)`` and that a
+            batch of point sets is a list).
 
     Example:
         >>> import trimesh
