@@ -26,7 +26,7 @@ from hypothesis import strategies as st
 
 triton = pytest.importorskip("triton")
 
-from torchmeshmetric import DeviceError, DTypeError  # noqa: E402
+from torchmeshmetric import DeviceError, DTypeError, MeshIndex  # noqa: E402
 from torchmeshmetric.kernels.accel import triton_traversal  # noqa: E402
 from torchmeshmetric.kernels.accel.lbvh import build_implicit_bvh, morton_codes  # noqa: E402
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance  # noqa: E402
@@ -223,6 +223,30 @@ def test_far_from_origin(interpret, dtype):
     g = torch.Generator().manual_seed(6)
     points = (torch.randn(120, 3, generator=g, dtype=torch.float64) * 1.2 + offset).to(dtype)
     same_faces(torch.cat([points, verts[:30]]), verts, torch.tensor(mesh.faces))
+
+
+@interpreted
+@pytest.mark.parametrize(("dtype", "far"), [(torch.float32, 1e4), (torch.float32, 1e9), (torch.float64, 1e15)])
+def test_a_stray_unreferenced_vertex_changes_no_distance(interpret, dtype, far):
+    # Review I #1: the centre came from every vertex, so one unreferenced vertex far away took it off the surface
+    # (float32, stray at 1e9: a point 0.29 from the sphere measured 3e-8). Now the answer is the clean mesh's.
+    mesh = trimesh.creation.icosphere(subdivisions=2)
+    verts, faces = torch.tensor(mesh.vertices, dtype=dtype), torch.tensor(mesh.faces)
+    g = torch.Generator().manual_seed(8)
+    points = torch.cat([torch.tensor([[0.3, 0.4, 0.5]], dtype=dtype), torch.randn(120, 3, generator=g, dtype=dtype)])
+    stray = torch.cat([verts, torch.tensor([[far, 0.0, 0.0]], dtype=dtype)])
+    clean = point_mesh_distance(points, verts, faces, backend="triton")
+    _, got = same_faces(points, stray, faces)
+    for name, a, b in zip(got._fields, got, clean, strict=True):
+        assert torch.equal(a, b), name
+    exact = point_mesh_distance(points.double(), verts.double(), faces, backend="bruteforce").dists
+    torch.testing.assert_close(got.dists.double(), exact, rtol=0, atol=8 * torch.finfo(dtype).eps)
+    index = MeshIndex(stray, faces, backend="triton")
+    assert torch.equal(index.point_mesh_distance(points).dists, clean.dists)  # built here, refitted below
+    index.refit(stray + 0.25)
+    moved = point_mesh_distance(points, verts + 0.25, faces, backend="triton")
+    for name, a, b in zip(moved._fields, index.point_mesh_distance(points), moved, strict=True):
+        assert torch.equal(a, b), f"refitted {name}"
 
 
 @interpreted

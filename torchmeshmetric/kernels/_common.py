@@ -72,15 +72,50 @@ def item_rows(lengths: Tensor, num_rows: int, centers: Tensor) -> tuple[Tensor, 
     return batch, centers[batch]
 
 
-def centred(x: Tensor, lengths: Tensor) -> tuple[Tensor, Tensor, Tensor]:
-    """Per-item bounding-box centring of packed rows: ``(centres (B, 3), row centres (1 or N, 3), batch (N,))``."""
+def referenced_rows(faces: Tensor, num_verts: int) -> Tensor | None:
+    """``(U,)`` ascending rows of the vertices some face references, or ``None`` when every vertex is referenced.
+
+    The centre and the range scale of a mesh are taken from these rows only: a vertex no face uses is no part of the
+    surface, and one far away (captured frames carry stray unreferenced vertices) moved the centre off the surface,
+    so float32 lost the digits of every short distance (found by review: one unreferenced vertex at 1e9 made a point
+    0.29 from a unit sphere measure 3e-8). ``None`` keeps the usual case (every vertex referenced) on the pass over
+    all rows, bit for bit what it computed before. One ``bincount`` (~0.14 ms for 40k faces on one CPU core, half
+    the cost of a boolean scatter), read back once per index: the faces of an index never change.
+
+    Args:
+        faces: ``(F, 3)`` int64 vertex rows (global rows of a packed batch), validated to lie in ``[0, num_verts)``.
+        num_verts: ``V``, the number of packed vertices.
+
+    Returns:
+        The referenced rows, or ``None``.
+    """
+    counts = torch.bincount(faces.reshape(-1), minlength=num_verts)
+    used = counts > 0
+    return None if bool(used.all()) else used.nonzero().squeeze(1)
+
+
+def centred(x: Tensor, lengths: Tensor, rows: Tensor | None = None) -> tuple[Tensor, Tensor, Tensor]:
+    """Per-item bounding-box centring of packed rows: ``(centres (B, 3), row centres (1 or N, 3), batch (N,))``.
+
+    Args:
+        x: ``(N, 3)`` packed rows.
+        lengths: ``(B,)`` rows per item.
+        rows: the rows whose bounding box gives each item's centre (:func:`referenced_rows`); ``None``: every row.
+            An item with none of them is centred on 0.
+
+    Returns:
+        The item centres, the centre of each row (``(1, 3)`` for one item: it broadcasts), the item of each row.
+    """
     num_items = int(lengths.numel())
     batch = (
         torch.zeros(x.shape[0], dtype=torch.long, device=x.device)
         if num_items == 1
         else batch_index(lengths, int(x.shape[0]))
     )
-    centers = item_centers(x, batch, num_items)
+    if rows is None:
+        centers = item_centers(x, batch, num_items)
+    else:
+        centers = item_centers(x.index_select(0, rows), batch.index_select(0, rows), num_items)
     return centers, (centers if num_items == 1 else centers[batch]), batch
 
 

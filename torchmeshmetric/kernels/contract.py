@@ -18,7 +18,8 @@ class FaceSet(NamedTuple):
     """Faces a backend selects from: centred, packed, detached.
 
     Attributes:
-        verts: ``(V, 3)`` vertices, each item centred on its bounding box.
+        verts: ``(V, 3)`` vertices, each item centred on the bounding box of the vertices its faces reference (rows no
+            face references are never read, and may be far away or, after range scaling, not finite).
         faces: ``(F, 3)`` int64 rows of ``verts`` (global indices).
         batch: ``(F,)`` int64 item of each face.
         offsets: ``(B + 1,)`` int64 first face of each item.

@@ -34,6 +34,7 @@ from torchmeshmetric.kernels._common import (
     check_representable,
     item_rows,
     range_scale,
+    referenced_rows,
     safe_sqrt,
 )
 from torchmeshmetric.kernels.accel.bvh import bvh_closest_points
@@ -149,7 +150,8 @@ def pack_mesh_args(
 class MeshIndex:
     """A triangle mesh (or a ragged batch of meshes) prepared once for many exact distance queries.
 
-    Validates and centres the mesh once; the selection structure of each query kind (closest face, nearest vertex)
+    Validates and centres the mesh once (on the bounding box of the vertices its faces reference: an unreferenced
+    vertex changes no answer); the selection structure of each query kind (closest face, nearest vertex)
     is built on its first query and kept (CPU: the C++ BVH; CUDA: the Triton implicit BVH, or the pruned scan
     without Triton; see ``docs/acceleration.md``). :meth:`point_mesh_distance` and :meth:`nearest_vertex_distance`
     return what the functions of the same names return for this mesh, bit for bit, with the same gradients
@@ -280,6 +282,8 @@ class MeshIndex:
         self._nearest: _NearestIndex | None = None
         self._origin: MeshIndex | None = None  # the index a `with_verts` copy shares its structures with
         self._faces_everywhere: bool | None = None  # every item has faces (read once, at the first query)
+        # The rows the centre and scale come from (None: all), once: refits keep the faces, so they keep the rows.
+        self._centre_rows = referenced_rows(self._faces_global, int(packed.verts.shape[0]))
         self._set_verts(packed.verts, queries)
         self._verts_sources = _sources([("verts", packed.verts)])
         self._faces_sources = _sources([("faces", packed.faces)])
@@ -312,9 +316,13 @@ class MeshIndex:
 
     def _set_verts(self, verts: Tensor, queries: PackedPoints | None = None) -> None:
         self.verts = verts
-        self._centers, self._vert_center, _ = centred(verts, self.verts_lengths)
+        # Centre and extent of the referenced vertices only: an unreferenced one far away took the centre off the
+        # surface (float32 lost every short distance), or forced a scale that underflowed its faces' squared areas.
+        rows = self._centre_rows
+        self._centers, self._vert_center, _ = centred(verts, self.verts_lengths, rows)
         verts_c = (verts - self._vert_center).detach()
-        extent = float(verts_c.abs().amax()) if verts_c.numel() else 0.0
+        used_c = verts_c if rows is None else verts_c.index_select(0, rows)
+        extent = float(used_c.abs().amax()) if used_c.numel() else 0.0
         if queries is not None and queries.points.numel() and queries.lengths.numel() == self.num_items:
             # A one-off index scales for its one query too (a malformed one is refused by check_queries).
             _, center = item_rows(queries.lengths, queries.points.shape[0], self._centers)
@@ -540,6 +548,11 @@ class MeshIndex:
         self.__dict__.update(state)
         for key in ("_verts_sources", "_faces_sources"):
             self.__dict__[key] = tuple((n, t, _version(t)) for n, t, _ in state.get(key, ()))
+        if "_centre_rows" not in state:
+            # Pickled by a version that centred on every vertex: centre on the referenced ones, as a new index does
+            # (the structures are rebuilt on the first query, from the frame set here).
+            self._centre_rows = referenced_rows(self._faces_global, int(self.verts.shape[0]))
+            self._set_verts(self.verts)
 
     def with_verts(
         self,

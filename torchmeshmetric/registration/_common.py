@@ -13,20 +13,27 @@ from torchmeshmetric.kernels._common import range_scale
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
 
-def coordinate_scale(*verts: Tensor) -> float:
-    """Power of two that brings the largest ``|coordinate|`` of ``verts`` into ``[0.5, 1)``, or 1.0 where not needed.
+def coordinate_scale(*meshes: Mesh) -> float:
+    """Power of two that brings the largest ``|coordinate|`` of the meshes' referenced vertices into ``[0.5, 1)``.
 
-    The registration computes areas, normals, squared distances and robust weights: products of up to four
-    coordinates (``|ab x ac|^2``), which overflow or underflow float32 for meshes beyond ~6e4 or below ~2e-5 units
-    (found by review: float32 icospheres of 1e20 units failed in :func:`normalisation`, of 1e-20 units were called
-    zero-area). Scaling by a power of two is exact, so the registration runs on scaled coordinates and its lengths are
-    divided back; where no scaling is needed (1.0) nothing is multiplied and the result is the same bit for bit.
-    The largest ``|coordinate|``, not the extent: :meth:`~torchmeshmetric.Mesh.surface_face_mask` compares areas
-    with rounding relative to it.
+    1.0 where not needed. The registration computes areas, normals, squared distances and robust weights: products of
+    up to four coordinates (``|ab x ac|^2``), which overflow or underflow float32 for meshes beyond ~6e4 or below ~2e-5
+    units (found by review: float32 icospheres of 1e20 units failed in :func:`normalisation`, of 1e-20 units were
+    called zero-area). Scaling by a power of two is exact, so the registration runs on scaled coordinates and its
+    lengths are divided back; where no scaling is needed (1.0) nothing is multiplied and the result is the same bit
+    for bit. The largest ``|coordinate|``, not the extent: :meth:`~torchmeshmetric.Mesh.surface_face_mask` compares
+    areas with rounding relative to it. Referenced vertices only (every vertex of a mesh without faces): a stray
+    unreferenced vertex at 1e6 scaled a unit float32 mesh by 2**-20, whose small faces' squared areas then lost their
+    digits (found by review: the registration onto such a target failed to converge).
     """
-    dtype = verts[0].dtype
-    extent = max(float(v.abs().amax()) if v.numel() else 0.0 for v in verts)
-    scale = range_scale(extent, dtype, 4)
+    extent = 0.0
+    for m in meshes:
+        v = m.verts.detach()
+        if m.num_faces:
+            v = v[m.referenced_vertex_mask()]
+        if v.numel():
+            extent = max(extent, float(v.abs().amax()))
+    scale = range_scale(extent, meshes[0].dtype, 4)
     return 1.0 if scale is None else scale
 
 
@@ -51,7 +58,7 @@ def validate_pair(source: MeshLike, target: MeshLike) -> tuple[Mesh, Mesh, float
             raise EmptyInputError(f"{name}: expected at least one face, found none")
     dtype = torch.promote_types(torch.promote_types(src.dtype, tgt.dtype), torch.float32)
     src, tgt = src.to(dtype=dtype), tgt.to(dtype=dtype)
-    scale = coordinate_scale(src.verts, tgt.verts)
+    scale = coordinate_scale(src, tgt)
     if scale != 1.0:
         src = Mesh(src.verts * scale, src.faces, validate=False)
         tgt = Mesh(tgt.verts * scale, tgt.faces, validate=False)
@@ -60,7 +67,7 @@ def validate_pair(source: MeshLike, target: MeshLike) -> tuple[Mesh, Mesh, float
         if not bool(m.face_areas().sum() > 0):
             raise EmptyInputError(f"{name}: expected a surface with positive area, found only zero-area faces")
         if not bool(m.surface_face_mask().any()):  # every area is rounding noise: the normals point anywhere
-            largest = float(m.verts.detach().abs().amax()) / scale
+            largest = float(m.verts.detach()[m.referenced_vertex_mask()].abs().amax()) / scale
             raise EmptyInputError(
                 f"{name}: every face is smaller than the rounding of its {str(dtype).removeprefix('torch.')} "
                 f"coordinates (up to {largest:.3g} from the origin); register in float64 (--dtype float64) or "
@@ -102,7 +109,7 @@ def normalisation(mesh: Mesh) -> tuple[Tensor, Tensor]:
     (float32 areas overflow beyond ~1e19 units and underflow below ~1e-19; found by review); the scaling is exact,
     so both values are those of the input, and computed as before where no scaling is needed.
     """
-    scale = coordinate_scale(mesh.verts)
+    scale = coordinate_scale(mesh)
     if scale != 1.0:
         mesh = Mesh(mesh.verts * scale, mesh.faces, validate=False)
     ref = mesh.verts[mesh.surface_vertex_mask()]
