@@ -200,3 +200,80 @@ def test_loss_mean_with_some_empty_items_pools_the_others():
     x = torch.tensor([[0.0, 0.0, 3.0]])
     got = tmm.mesh_surface_distance_loss([torch.zeros(0, 3), x], [refs, refs])
     assert got.item() == pytest.approx(tmm.mesh_surface_distance_loss(x, refs).item())
+
+
+# One far query point among near ones: float32 and float64, beyond the range the mesh's own frame keeps.
+FAR_POINTS = [(torch.float32, 1e10), (torch.float32, 1e18), (torch.float32, 1e30), (torch.float64, 1e150)]
+
+
+def _near_points(dtype: torch.dtype) -> torch.Tensor:
+    g = torch.Generator().manual_seed(0)
+    return torch.cat([POINTS, 1.5 * (2 * torch.rand(200, 3, generator=g, dtype=torch.float64) - 1)]).to(dtype)
+
+
+@pytest.mark.parametrize("backend", FACE_BACKENDS)
+@pytest.mark.parametrize(("dtype", "far"), FAR_POINTS)
+def test_one_far_query_point_leaves_the_others_in_the_meshs_frame(backend, dtype, far):
+    # Found while fixing review I #1: the function scaled every point for its farthest one, so one float32 point at
+    # 1e10 moved the other distances to a unit sphere by 0.031 (their faces' squared areas fell into subnormals), one
+    # at 1e30 made them all 0. The near points are now measured in the mesh's own frame (as a MeshIndex measures
+    # them, bit for bit), the far one in a frame scaled for it too.
+    verts, faces = torch.tensor(SPHERE.vertices, dtype=dtype), torch.tensor(SPHERE.faces)
+    near = _near_points(dtype).requires_grad_()
+    far_point = torch.tensor([[0.0, far, 0.0]], dtype=dtype, requires_grad=True)
+    got = tmm.point_mesh_distance(torch.cat([near[:100], far_point, near[100:]]), verts, faces, backend=backend)
+    alone = tmm.point_mesh_distance(near, verts, faces, backend=backend)
+    kept = tmm.MeshIndex(verts, faces, backend=backend).point_mesh_distance(near.detach())
+    rows = torch.cat([torch.arange(100), torch.arange(101, near.shape[0] + 1)])
+    for name, a, b, c in zip(got._fields, got, alone, kept, strict=True):
+        assert torch.equal(a[rows], b) and torch.equal(b, c), name
+    truth = tmm.point_mesh_distance(near.detach().double(), verts.double(), faces, backend="bruteforce").dists
+    torch.testing.assert_close(got.dists[rows].double(), truth, rtol=0, atol=8 * torch.finfo(dtype).eps)
+    assert float(got.dists[100].detach()) == pytest.approx(far - 1, rel=8 * torch.finfo(dtype).eps)
+    # Gradients of the near points are those of the call without the far point; the far point's is its direction.
+    (g_near, g_far) = torch.autograd.grad(got.dists.sum(), (near, far_point))
+    (g_alone,) = torch.autograd.grad(alone.dists.sum(), (near,))
+    assert torch.equal(g_near, g_alone)
+    torch.testing.assert_close(g_far, torch.tensor([[0.0, 1.0, 0.0]], dtype=dtype))
+
+
+@pytest.mark.parametrize("backend", NEAREST_BACKENDS)
+@pytest.mark.parametrize(("dtype", "far"), [(torch.float32, 1e30), (torch.float64, 1e300)])
+def test_one_far_query_point_leaves_the_others_in_the_reference_sets_frame(backend, dtype, far):
+    # float32, unit reference set, a point at 1e30: the other points' nearest distances came out 0.
+    ref = torch.tensor(SPHERE.vertices, dtype=dtype)
+    near = _near_points(dtype)
+    pts = torch.cat([near, torch.tensor([[far, 0.0, 0.0]], dtype=dtype)])
+    alone = tmm.nearest_vertex_distance(near, ref, backend=backend)
+    for got in (
+        tmm.nearest_vertex_distance(pts, ref, backend=backend),
+        tmm.nearest_vertex_distance([pts], [ref], backend=backend),
+    ):
+        assert torch.equal(got.dists[:-1], alone.dists) and torch.equal(got.idx[:-1], alone.idx)
+        assert float(got.dists[-1]) == pytest.approx(far - 1, rel=8 * torch.finfo(dtype).eps)
+
+
+def test_tiny_meshes_measure_near_points_in_their_own_frame_and_far_ones_too():
+    # A float32 triangle of size 1e-20: a point at distance 1 is measured (a frame scaled for it), and no longer
+    # takes the point 2e-20 above the triangle with it (that frame's squared areas underflowed: 2.00998e-20).
+    tri, face = torch.tensor([[0.0, 0, 0], [1e-20, 0, 0], [0, 1e-20, 0]]), torch.tensor([[0, 1, 2]])
+    pts = torch.tensor([[3e-21, 2e-21, 2e-20], [0.0, 0.0, 1.0]])
+    got = tmm.point_mesh_distance(pts, tri, face).dists
+    assert got.tolist() == [tmm.point_mesh_distance(pts[:1], tri, face).dists.item(), 1.0]
+    assert got[0].item() == pytest.approx(2e-20, rel=1e-6)
+    # Nearest vertex: the fused unscaled path overflows on the far point; the near one was 0, it is 5e-21.
+    near = tmm.nearest_vertex_distance(torch.tensor([[1.3e-20, 0.4e-20, 0.0], [0.0, 0.0, 1e30]]), tri).dists
+    assert near[0].item() == pytest.approx(5e-21, rel=1e-6) and near[1].item() == pytest.approx(1e30, rel=1e-6)
+
+
+def test_a_packed_batch_splits_its_points_by_frame_per_item():
+    verts, faces = torch.tensor(SPHERE.vertices, dtype=torch.float32), torch.tensor(SPHERE.faces)
+    near = _near_points(torch.float32)
+    first = torch.cat([near[:50], torch.tensor([[1e30, 0.0, 0.0]])])
+    meshes = [(verts, faces), (verts * 0.5 + 2.0, faces)]
+    got = tmm.point_mesh_distance([first, near + 2.0], meshes)
+    kept = tmm.MeshIndex(meshes).point_mesh_distance([near[:50], near + 2.0])
+    rows = torch.cat([torch.arange(50), torch.arange(51, 51 + near.shape[0])])
+    for name, a, b in zip(got._fields, got, kept, strict=True):
+        assert torch.equal(a[rows], b), name
+    assert float(got.dists[50]) == pytest.approx(1e30, rel=1e-6)

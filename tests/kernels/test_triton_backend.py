@@ -250,6 +250,25 @@ def test_a_stray_unreferenced_vertex_changes_no_distance(interpret, dtype, far):
 
 
 @interpreted
+@pytest.mark.parametrize("dtype", DTYPES)
+def test_one_far_query_point_leaves_the_others_in_the_meshs_frame(interpret, dtype):
+    # One frame scaled for the farthest point made float32 distances of the others to a unit sphere 0 (point at
+    # 1e30; float64: 1e300); the near points are now measured in the mesh's frame, as without the far point.
+    mesh = trimesh.creation.icosphere(subdivisions=2)
+    verts, faces = torch.tensor(mesh.vertices, dtype=dtype), torch.tensor(mesh.faces)
+    near = torch.randn(100, 3, generator=torch.Generator().manual_seed(9), dtype=dtype)
+    far = 1e30 if dtype == torch.float32 else 1e300
+    _, got = same_faces(torch.cat([near, torch.tensor([[far, 0.0, 0.0]], dtype=dtype)]), verts, faces)
+    alone = point_mesh_distance(near, verts, faces, backend="triton")
+    for name, a, b in zip(got._fields, got, alone, strict=True):
+        assert torch.equal(a[:-1], b), name
+    assert float(got.dists[-1]) == pytest.approx(far - 1, rel=1e-6)
+    pts = torch.cat([near, torch.tensor([[far, 0.0, 0.0]], dtype=dtype)])
+    _, nearest = same_nearest(pts, verts)
+    assert torch.equal(nearest.dists[:-1], nearest_vertex_distance(near, verts, backend="triton").dists)
+
+
+@interpreted
 def test_ragged_batch(interpret):
     g = torch.Generator().manual_seed(7)
     meshes, clouds = [], []

@@ -189,6 +189,46 @@ def range_scale(extent: float, dtype: torch.dtype, degree: int) -> float | None:
     return None if -limit <= exponent <= limit else math.ldexp(1.0, -exponent)
 
 
+def in_own_frame(magnitude: Tensor, extent: float, degree: int) -> Tensor | None:
+    """``(P,)`` bool: the points the primitives' own frame can measure, or ``None`` when it can measure them all.
+
+    A one-off query scaled for its points too (:func:`range_scale` of the larger of the primitives' ``extent`` and
+    the points' largest centred ``|coordinate|``), so that a point far from a small mesh is measured, not refused.
+    One far point then shrank every coordinate: float32, unit sphere, a query point at 1e10 moved the other points'
+    distances by 0.03 (the faces' squared areas fell into subnormals), one at 1e30 made them all 0. The points
+    marked here are those whose scaled magnitude stays within the range :func:`range_scale` keeps (below
+    ``2**(maxexp / (2 * degree))``) in the primitives' frame: they are measured in it, the frame a kept index uses;
+    the others in a frame scaled for them too. A power of two scales exactly, so a point measured in either frame
+    gets the same bits unless one of them under- or overflows.
+
+    Args:
+        magnitude: ``(P,)`` each point's largest centred ``|coordinate|`` (finite, unscaled).
+        extent: the primitives' largest centred ``|coordinate|``.
+        degree: as :func:`range_scale`.
+
+    Returns:
+        The mask, or ``None`` when it would be all ``True`` (one frame serves every point).
+    """
+    dtype = magnitude.dtype
+    scale = range_scale(extent, dtype, degree)
+    bound = math.ldexp(1.0, math.frexp(torch.finfo(dtype).max)[1] // (2 * degree)) / (1.0 if scale is None else scale)
+    if magnitude.numel() == 0 or float(magnitude.amax()) < bound:
+        return None
+    return magnitude < bound
+
+
+def rows_of(mask: Tensor, batch: Tensor, num_items: int) -> tuple[Tensor, Tensor]:
+    """``(rows (Q,), lengths (B,))`` of the packed rows ``mask`` selects (item order is kept)."""
+    rows = mask.nonzero().squeeze(1)
+    return rows, torch.bincount(batch.index_select(0, rows), minlength=num_items)
+
+
+def merge_rows(num_rows: int, rows: tuple[Tensor, Tensor], values: tuple[Tensor, Tensor]) -> Tensor:
+    """``(num_rows, ...)`` with ``values[k]`` at ``rows[k]`` (the two row sets partition the rows; differentiable)."""
+    out = values[0].new_empty((num_rows, *values[0].shape[1:]))
+    return out.index_put((rows[0],), values[0]).index_put((rows[1],), values[1])
+
+
 ROUNDING_ULPS = 64.0
 """Rounding allowance of the exact kernels, in ulps of an item's largest centred |coordinate| (and of a distance)."""
 

@@ -5,7 +5,7 @@ structure (a BVH on the CPU) for every call. Registration, ``compare`` and train
 many times: an index validates and centres the mesh once, builds each structure on its first query and keeps it;
 :meth:`MeshIndex.refit` moves the vertices (same faces) by refitting the bounds instead of rebuilding. Answers and
 gradients are those of the functions, bit for bit where no range scaling is involved (the functions are implemented
-on this class; at extreme magnitudes the functions also scale for their query points, see :class:`MeshIndex`).
+on this class; at extreme magnitudes the functions also scale for their far query points, see :class:`MeshIndex`).
 """
 
 from __future__ import annotations
@@ -32,9 +32,12 @@ from torchmeshmetric.kernels._common import (
     check_max_memory,
     check_queries,
     check_representable,
+    in_own_frame,
     item_rows,
+    merge_rows,
     range_scale,
     referenced_rows,
+    rows_of,
     safe_sqrt,
 )
 from torchmeshmetric.kernels.accel.bvh import bvh_closest_points
@@ -55,7 +58,7 @@ from torchmeshmetric.structures import (
     pack_points,
 )
 
-__all__ = ["MeshIndex", "PointMeshResult"]
+__all__ = ["MeshIndex", "PointMeshResult", "measure_once"]
 
 
 class PointMeshResult(NamedTuple):
@@ -156,9 +159,10 @@ class MeshIndex:
     without Triton; see ``docs/acceleration.md``). :meth:`point_mesh_distance` and :meth:`nearest_vertex_distance`
     return what the functions of the same names return for this mesh, bit for bit, with the same gradients
     (to the points, and to the mesh vertices through the same recomputation on the selected face), except at
-    extreme magnitudes: the index scales coordinates by a power of two chosen from its mesh alone, the functions
-    from the mesh and their points (or, for a single nearest-vertex set, unscaled), so for point sets of size
-    ~1e-15 (float32) the last bits may differ, and a point whose squared distance overflows the index's frame
+    extreme magnitudes: the index scales coordinates by a power of two chosen from its mesh alone; the functions
+    measure the points that scale covers in the same frame and only the others (far from a small mesh) in a frame
+    scaled for them too (a single nearest-vertex set: unscaled where its squares are in range), so for point sets of
+    size ~1e-15 (float32) the last bits may differ, and a point whose squared distance overflows the index's frame
     raises :class:`~torchmeshmetric.NonFiniteError` where the function measures it.
     :meth:`refit` moves the vertices (same faces): bounds are refitted, not rebuilt, and answers stay exact.
 
@@ -323,6 +327,7 @@ class MeshIndex:
         verts_c = (verts - self._vert_center).detach()
         used_c = verts_c if rows is None else verts_c.index_select(0, rows)
         extent = float(used_c.abs().amax()) if used_c.numel() else 0.0
+        self._extent = extent  # the mesh's own, before any query's (measure_once compares the two frames)
         if queries is not None and queries.points.numel() and queries.lengths.numel() == self.num_items:
             # A one-off index scales for its one query too (a malformed one is refused by check_queries).
             _, center = item_rows(queries.lengths, queries.points.shape[0], self._centers)
@@ -625,3 +630,49 @@ class MeshIndex:
             self._faces.refit(self._faceset)
         if self._nearest is not None:
             self._nearest.refit(self._ref_points()[0])
+
+
+def measure_once(
+    packed: PackedMeshes, points: Tensor, points_lengths: Tensor, backend: str, max_memory: int
+) -> PointMeshResult:
+    """:func:`~torchmeshmetric.point_mesh_distance` of validated points on a validated mesh of their dtype.
+
+    The points the mesh's own range scale covers are measured in the mesh's frame (bit for bit as a
+    :class:`MeshIndex` of the mesh measures them); the others, if any, in a frame scaled for them as well, so that a
+    point far from a small mesh is measured, not refused. One frame for all let one far point shrink every
+    coordinate (float32 unit sphere: a point at 1e10 moved the others' distances by 0.03, one at 1e30 made them 0).
+
+    Args:
+        packed: the packed meshes, validated, in the points' dtype.
+        points: ``(P, 3)`` packed points, validated.
+        points_lengths: ``(B,)`` points per mesh.
+        backend: a backend name.
+        max_memory: the bytes a chunked backend may use.
+
+    Returns:
+        As :func:`~torchmeshmetric.point_mesh_distance`.
+    """
+    index = MeshIndex.from_packed(packed, backend, max_memory, tree="morton")
+    num_items, num_points = index.num_items, int(points.shape[0])
+    if not (num_points and int(points_lengths.numel()) == num_items):
+        return index.point_mesh_distance_unchecked(points, points_lengths)  # raises, naming the fault
+    batch, center = item_rows(points_lengths, num_points, index._centers)
+    own = in_own_frame((points.detach() - center).abs().amax(-1), index._extent, 4)
+    if own is None:
+        return index.point_mesh_distance_unchecked(points, points_lengths)
+    if not bool(own.any()):  # every point needs the wider frame: one index scaled for them all
+        wide = MeshIndex.from_packed(
+            packed, backend, max_memory, tree="morton", queries=PackedPoints(points, points_lengths)
+        )
+        return wide.point_mesh_distance_unchecked(points, points_lengths)
+    near, near_lengths = rows_of(own, batch, num_items)
+    far, far_lengths = rows_of(~own, batch, num_items)
+    far_points = points.index_select(0, far)
+    wide = MeshIndex.from_packed(
+        packed, backend, max_memory, tree="morton", queries=PackedPoints(far_points, far_lengths)
+    )
+    parts = (
+        index.point_mesh_distance_unchecked(points.index_select(0, near), near_lengths),
+        wide.point_mesh_distance_unchecked(far_points, far_lengths),
+    )
+    return PointMeshResult(*(merge_rows(num_points, (near, far), pair) for pair in zip(*parts, strict=True)))

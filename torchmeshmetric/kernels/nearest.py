@@ -24,8 +24,11 @@ from torchmeshmetric.kernels._common import (
     check_queries,
     check_representable,
     dot,
+    in_own_frame,
     item_rows,
+    merge_rows,
     range_scale,
+    rows_of,
     safe_sqrt,
 )
 from torchmeshmetric.kernels.accel import bvh
@@ -69,6 +72,7 @@ class _NearestIndex:
         self.centers, self._row_center, batch = centred(ref, self.lengths)
         ref_c = (ref - self._row_center).detach()
         extent = float(ref_c.abs().amax()) if ref_c.numel() else 0.0
+        self._extent = extent  # the reference's own, before any query's (_query_once compares the two frames)
         if queries is not None and queries.points.numel():
             extent = max(extent, float(self._centred_queries(*queries)[1].detach().abs().amax()))
         self._scale = range_scale(extent, ref.dtype, 2)
@@ -162,9 +166,32 @@ def nearest_vertex_distance(
 def _query_once(
     points: Tensor, points_lengths: Tensor, ref: Tensor, ref_lengths: Tensor, backend: str, max_memory: int
 ) -> NearestVertexResult:
-    """A one-off index over ``ref``, scaled for these very points, queried once."""
-    queries = PackedPoints(points, points_lengths)
-    return _NearestIndex(ref, ref_lengths, backend, max_memory, queries=queries).query(points, points_lengths)
+    """A one-off index over ``ref`` queried once: in the reference's own frame, and far points in one scaled for them.
+
+    As :func:`~torchmeshmetric.kernels.mesh_index.measure_once`: the points the reference's range scale covers are
+    measured in its frame; the others, if any, in a frame scaled for them as well (one frame for all let a float32
+    point at 1e30 make every other distance to a unit set 0).
+    """
+    index = _NearestIndex(ref, ref_lengths, backend, max_memory)
+    num_items, num_points = int(ref_lengths.numel()), int(points.shape[0])
+    if not (num_points and int(points_lengths.numel()) == num_items):
+        return index.query(points, points_lengths)  # raises, naming the fault
+    batch, points_c = index._centred_queries(points, points_lengths)
+    own = in_own_frame(points_c.detach().abs().amax(-1), index._extent, 2)
+    if own is None:
+        return index.query(points, points_lengths)
+    if not bool(own.any()):  # every point needs the wider frame: one index scaled for them all
+        queries = PackedPoints(points, points_lengths)
+        return _NearestIndex(ref, ref_lengths, backend, max_memory, queries=queries).query(points, points_lengths)
+    near, near_lengths = rows_of(own, batch, num_items)
+    far, far_lengths = rows_of(~own, batch, num_items)
+    far_points = points.index_select(0, far)
+    wide = _NearestIndex(ref, ref_lengths, backend, max_memory, queries=PackedPoints(far_points, far_lengths))
+    parts = (
+        index.query(points.index_select(0, near), near_lengths),
+        wide.query(far_points, far_lengths),
+    )
+    return NearestVertexResult(*(merge_rows(num_points, (near, far), pair) for pair in zip(*parts, strict=True)))
 
 
 def _finite_bounds(x: Tensor, name: str) -> tuple[Tensor, Tensor]:

@@ -13,7 +13,7 @@ from torch import Tensor
 
 from torchmeshmetric._checks import check_same_device, common_dtype
 from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY
-from torchmeshmetric.kernels.mesh_index import MeshIndex, PointMeshResult, pack_mesh_args
+from torchmeshmetric.kernels.mesh_index import PointMeshResult, measure_once, pack_mesh_args
 from torchmeshmetric.structures import MeshLike, pack_points
 
 __all__ = ["point_mesh_distance"]
@@ -76,11 +76,7 @@ def point_mesh_distance(
     pts = pack_points(points, points_lengths)
     check_same_device({"points": pts.points, "verts": packed.verts})
     dtype = common_dtype(pts.points.dtype, packed.verts.dtype)  # the dtype rule (docs/concepts.md, Precision)
-    # MeshIndex scales extreme coordinates (the mesh's and these points') exactly itself and raises when distances
-    # overflow the dtype.
+    # measure_once scales extreme coordinates exactly (the mesh's, and far points' in a frame of their own) and
+    # raises when distances overflow the dtype.
     points = pts.points.to(dtype)
-    queries = pts._replace(points=points)
-    index = MeshIndex.from_packed(
-        packed._replace(verts=packed.verts.to(dtype)), backend, max_memory, tree="morton", queries=queries
-    )
-    return index.point_mesh_distance_unchecked(points, pts.lengths)
+    return measure_once(packed._replace(verts=packed.verts.to(dtype)), points, pts.lengths, backend, max_memory)
