@@ -16,7 +16,7 @@ import pytest
 import torch
 
 from tests.registration.test_extreme_scales import _pair
-from torchmeshmetric import Mesh, register_nonrigid, register_rigid
+from torchmeshmetric import Mesh, NonFiniteError, register_nonrigid, register_rigid
 from torchmeshmetric.registration._common import coordinate_scale, normalisation
 
 STRAYS = [(torch.float32, 1e4), (torch.float32, 1e6), (torch.float32, 1e9), (torch.float64, 1e15)]
@@ -66,3 +66,17 @@ def test_the_refusal_of_a_mesh_too_small_for_its_coordinates_names_its_surface_n
     source = (_stray(sv + shift, 1e9).float(), sf)
     with pytest.raises(ValueError, match=r"source: every face .* float32 coordinates \(up to 1e\+05 from the origin\)"):
         register_nonrigid(source, ((tv + shift).float(), tf))
+
+
+@pytest.mark.parametrize("side", ["source", "target"])
+def test_a_stray_vertex_beyond_the_range_of_a_tiny_surfaces_frame_is_refused_in_words(side: str) -> None:
+    # A float32 surface of 1e-20 units is scaled by 2**66 for the registration; an unreferenced vertex at 1e30 then
+    # overflows (7e49). The rigid registration of such a source returned Inf vertices, the others refused with
+    # "verts: expected finite values" (and, while the scale came from every vertex, "expected a surface with
+    # positive area": the surface underflowed).
+    (v, f), (w, _) = _pair(torch.float32, 1e-20)
+    pair = {"source": (v, f), "target": (w, f)}
+    pair[side] = (_stray(pair[side][0], 1e30), f)
+    for register in (register_rigid, register_nonrigid):
+        with pytest.raises(NonFiniteError, match=rf"{side}: an unreferenced vertex \(up to 1e\+30 from the origin\)"):
+            register(pair["source"], pair["target"])

@@ -8,7 +8,7 @@ from collections.abc import Iterator
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import EmptyInputError, check_same_device
+from torchmeshmetric._checks import EmptyInputError, NonFiniteError, check_same_device
 from torchmeshmetric.kernels._common import range_scale
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
@@ -60,8 +60,20 @@ def validate_pair(source: MeshLike, target: MeshLike) -> tuple[Mesh, Mesh, float
     src, tgt = src.to(dtype=dtype), tgt.to(dtype=dtype)
     scale = coordinate_scale(src, tgt)
     if scale != 1.0:
-        src = Mesh(src.verts * scale, src.faces, validate=False)
-        tgt = Mesh(tgt.verts * scale, tgt.faces, validate=False)
+        scaled = []
+        for name, m in (("source", src), ("target", tgt)):
+            verts = m.verts * scale
+            if scale > 1.0 and not bool(torch.isfinite(verts).all()):
+                # The scale is the surface's (coordinate_scale): an unreferenced vertex far beyond a tiny surface
+                # overflows it, and the registration moved it to Inf (or refused "verts: expected finite values").
+                far = float(m.verts.detach().abs().amax())
+                raise NonFiniteError(
+                    f"{name}: an unreferenced vertex (up to {far:.3g} from the origin) lies beyond "
+                    f"{str(dtype).removeprefix('torch.')}'s range in the frame of a surface of size "
+                    f"{1.0 / scale:.3g}; register in float64 (--dtype float64) or drop the unreferenced vertices"
+                )
+            scaled.append(Mesh(verts, m.faces, validate=False))
+        src, tgt = scaled
     for name, m in (("source", src), ("target", tgt)):
         # On the scaled vertices: float32 areas of a 1e-20-unit mesh underflow to 0 (found by review).
         if not bool(m.face_areas().sum() > 0):
