@@ -218,3 +218,21 @@ def test_an_index_pickled_when_every_vertex_set_the_centre_is_recentred_on_unpic
     index = MeshIndex.__new__(MeshIndex)
     index.__setstate__(state)
     assert_same(index.point_mesh_distance(q), MeshIndex(v, f).point_mesh_distance(q))
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_stray_vertex_that_a_tiny_meshs_scale_overflows_is_never_read(backend):
+    # A float32 sphere of 1e-20 units is scaled by 2**67; a stray vertex at 1e30 becomes Inf in that frame, in a row
+    # no face reads. Before, the scale came from the stray vertex (2**-100) and the sphere underflowed to 0.
+    v, f = sphere(torch.float32)
+    v = v * 1e-20
+    q = queries(torch.float32) * 1e-20
+    vs = with_stray(v, 1e30)
+    assert_same(point_mesh_distance(q, vs, f, backend=backend), point_mesh_distance(q, v, f, backend=backend))
+    x, p = vs.clone().requires_grad_(), q.clone().requires_grad_()
+    got = MeshIndex(x, f, backend=backend).point_mesh_distance(p)
+    got.dists.sum().backward()
+    assert torch.equal(got.dists.detach(), point_mesh_distance(q, v, f, backend=backend).dists)
+    assert bool(torch.isfinite(x.grad).all()) and bool(torch.isfinite(p.grad).all()) and not bool(x.grad[-1].any())
+    truth = point_mesh_distance(q.double() * 1e20, v.double() * 1e20, f, backend="bruteforce").dists * 1e-20
+    torch.testing.assert_close(got.dists.detach().double(), truth, rtol=0, atol=ATOL[torch.float32] * 1e-20)
