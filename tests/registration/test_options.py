@@ -138,6 +138,25 @@ def test_canonical_form_is_json_and_exact():
         ({"schedule": [_stage(max_steps=-1)]}, ValueError, r"^schedule\[0\]\.max_steps: expected an int >= 0"),
         ({"schedule": [_stage(max_normal_angle=190.0)]}, ValueError, r"^schedule\[0\]\.max_normal_angle:"),
         ({"schedule": [_stage(robust_scale=0.0)]}, ValueError, r"^schedule\[0\]\.robust_scale:"),
+        # its square underflowed to 0: the Geman-McClure kernel was 0 / 0 at a zero residual, a NaN loss
+        (
+            {"schedule": [_stage(robust_scale=1e-300)]},
+            ValueError,
+            r"^schedule\[0\]\.robust_scale: expected a float in \[1e-12",
+        ),
+        # inf passed and made the acceptance weight's smoothstep NaN: the loss was NaN at the first step (review I #8)
+        ({"schedule": [_stage(max_distance=math.inf)]}, ValueError, r"^schedule\[0\]\.max_distance: expected a finite"),
+        # no data could move the graph: the rigid start came back reported converged (review I #9)
+        (
+            {"schedule": [_stage(max_steps=0), DEFAULT_SCHEDULE[1]._replace(max_steps=0)]},
+            ValueError,
+            r"^schedule: expected a stage with max_steps > 0, found only stages of 0 steps",
+        ),
+        (
+            {"plane_weight": 0.0, "point_weight": 0},
+            ValueError,
+            r"^plane_weight, point_weight: expected at least one > 0, found both 0",
+        ),
         ({"rigid_options": {"generator": None}}, TypeError, r"^rigid_options: expected keywords of register_rigid"),
         ({"rigid_options": [("trim", 0.5)]}, TypeError, r"^rigid_options: expected a mapping"),
     ],

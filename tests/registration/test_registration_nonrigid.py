@@ -213,6 +213,34 @@ def test_exact_start_is_not_reported_as_divergence():
     assert len(r.loss_history) == 1
 
 
+@pytest.mark.parametrize(
+    ("changes", "reason"),
+    [
+        ({"max_distance": 1e-9}, "not fitted: every correspondence of the last stage was rejected"),
+        ({"max_normal_angle": 1e-300}, "not fitted: every correspondence of the last stage was rejected"),
+        ({"robust_scale": 1e-12}, "not fitted: the last stage stopped where the gradient vanishes"),
+    ],
+)
+def test_a_stage_that_fits_no_data_is_not_converged(changes, reason):
+    # Review I #9: every match rejected, or the Geman-McClure term's flat tail (a gradient that underflows to 0),
+    # left the graph at the rigid start with a loss that did not change: reported converged, residual and all (a
+    # max_normal_angle of 1e-300 made the acceptance weight 0 / 0 on this pair instead: a NaN loss at once).
+    src = trimesh.creation.icosphere(subdivisions=2)
+    tgt = trimesh.creation.icosphere(subdivisions=2)
+    tgt.vertices = tgt.vertices * [1.1, 1.0, 0.9] + [0.01, 0.02, 0.03]  # no source vertex lies on the target
+    stage = DEFAULT_SCHEDULE[0]._replace(max_steps=10, **changes)
+    with pytest.warns(RegistrationWarning, match=reason):
+        r = register_nonrigid(src, tgt, schedule=[stage], rigid_init=False)
+    assert not r.converged and r.reason.startswith(reason), r.reason
+    moved = float((r.verts - torch.tensor(src.vertices)).norm(dim=1).max())
+    assert moved <= 1e-14  # nothing moved: the source came back, to the normalisation's rounding
+    # The same pair, fitted, moves and converges: the reason is the data, not the pair.
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RegistrationWarning)  # 10 steps: fitted, not converged (its own reason)
+        fitted = register_nonrigid(src, tgt, schedule=[DEFAULT_SCHEDULE[0]._replace(max_steps=10)], rigid_init=False)
+    assert not fitted.reason.startswith("not fitted") and float(fitted.residual.mean()) < float(r.residual.mean()) / 2
+
+
 def test_exact_and_near_exact_pairs_are_not_made_worse():
     src = trimesh.creation.icosphere(subdivisions=2)
     diag = float(torch.tensor(src.extents).norm())

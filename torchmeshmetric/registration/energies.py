@@ -65,7 +65,15 @@ class Correspondences(NamedTuple):
 
 
 def _smoothstep(e0: float, e1: float, x: Tensor) -> Tensor:
-    t = ((x - e0) / (e1 - e0)).clamp(0.0, 1.0)
+    """0 below ``e0``, 1 above ``e1``, the C1 cubic in between; a step at ``e1`` where the dtype cannot tell them apart.
+
+    Edges closer than the dtype resolves (the cosines of a ``max_normal_angle`` of 1e-300 degrees are both 1.0)
+    divided 0 by 0: a NaN weight, and a NaN loss at the first step.
+    """
+    width = torch.tensor(e1, dtype=x.dtype) - torch.tensor(e0, dtype=x.dtype)
+    if not bool(width > 0):
+        return (x >= e1).to(x.dtype)
+    t = ((x - e0) / width.to(x.device)).clamp(0.0, 1.0)
     return t * t * (3.0 - 2.0 * t)
 
 

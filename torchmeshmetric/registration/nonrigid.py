@@ -248,6 +248,11 @@ def _register(
     )
 
 
+def _weighted_rms(matches: Correspondences) -> float:
+    """The acceptance-weighted RMS distance of a refresh's matches (in diagonals; 0 when none is accepted)."""
+    return float(((matches.weights * matches.dists**2).sum() / matches.weights.sum().clamp_min(1e-30)).sqrt())
+
+
 def _unscaled_rigid(rigid: RigidRegistration, unit: float) -> RigidRegistration:
     """``rigid``, computed on coordinates multiplied by ``unit``, in the input's units (lengths divided by it)."""
     translation = rigid.translation / unit
@@ -502,9 +507,7 @@ class _Fit:
                     # diagonals, as the translations): Adam moves every parameter by ~lr per step, so a pair already
                     # within r of its target would otherwise drift by the stage's lr in directions the energy barely
                     # sees (sliding along the surface). Continuous in the input, unlike returning a best iterate.
-                    fw = terms.forward
-                    rms = float(((fw.weights * fw.dists**2).sum() / fw.weights.sum().clamp_min(1e-30)).sqrt())
-                    lr0 = min(stage.lr, rms)
+                    lr0 = min(stage.lr, _weighted_rms(terms.forward))
             assert terms is not None
             value, grad_max = self._evaluate(stage, terms, gradient=True)
             if self.first_loss is None:
@@ -550,8 +553,11 @@ class _Fit:
         reports; it decides no iterate.
         """
         h = self.refresh_losses
-        if self.stationary or not h or self.last_stage is None or self.last_terms is None:
+        if self.last_stage is None or self.last_terms is None:
             return ""
+        unfitted = self._unfitted(self.last_stage, self.last_terms)
+        if unfitted or self.stationary or not h:
+            return unfitted
         final, _ = self._evaluate(self.last_stage, self.last_terms, gradient=False)
         # Below the loss of residuals of 1e-5 of the diagonal (in node spacings) the fit is as good as exact, and a
         # relative change of its tiny loss is rounding (a 1e-5 stretch ends at a loss of 7e-11, changing by 2e-13).
@@ -564,6 +570,32 @@ class _Fit:
             f"last correspondence refresh and its end), more than tolerance={self.opts.tolerance:g}; give the last "
             f"stage more steps or a stronger lr_decay"
         )
+
+    def _unfitted(self, stage: Stage, terms: _Terms) -> str:
+        """Why the last stage fitted no data (empty when it did): a stop the convergence criterion would pass.
+
+        Both cases leave the graph where its regularisation alone holds it, usually the rigid start, with a loss that
+        does not change: the criterion (and a stationary stop) read that as converged. Every match rejected (a
+        ``max_distance`` or ``max_normal_angle`` smaller than the residuals) leaves no data term; a stationary stop
+        with the data points' residuals beyond ``robust_scale`` is the Geman-McClure term's flat tail, whose gradient
+        vanishes (an exact pair stops stationary too, at residuals far below it).
+        """
+        reverse = terms.reverse
+        accepted = float(terms.forward.weights.sum()) + (0.0 if reverse is None else float(reverse.weights.sum()))
+        if not accepted > 0:
+            return (
+                "not fitted: every correspondence of the last stage was rejected (farther than its max_distance "
+                f"{stage.max_distance:g} or normals farther apart than its max_normal_angle "
+                f"{stage.max_normal_angle:g}); the deformation follows the regularisation alone"
+            )
+        rms = _weighted_rms(terms.forward)
+        if self.stationary and rms > stage.robust_scale:
+            return (
+                f"not fitted: the last stage stopped where the gradient vanishes, with its data points at an RMS "
+                f"residual of {rms:.3g} of the diagonal, beyond its robust_scale {stage.robust_scale:g} (where the "
+                "Geman-McClure term is flat)"
+            )
+        return ""
 
     def _diverged(self, reason: str) -> None:
         self.reason = reason

@@ -37,8 +37,10 @@ class Stage(NamedTuple):
 
     Attributes:
         regularization: weight (>= 0) of the embedded-deformation prior.
-        robust_scale: Geman-McClure scale ``sigma`` (> 0).
-        max_distance: correspondences farther than this (> 0) are rejected.
+        robust_scale: Geman-McClure scale ``sigma`` (finite, >= :data:`MIN_ROBUST_SCALE`, 1e-12).
+        max_distance: correspondences farther than this (finite, > 0) are rejected. Finite: the acceptance weight
+            falls smoothly from half this distance to it, so ``inf`` has no meaning (and gave a NaN loss); a
+            distance larger than the diagonal (``1.0``) rejects nothing.
         max_normal_angle: correspondences whose normals differ by more (degrees, in ``(0, 180]``) are rejected.
         lr: Adam's initial learning rate (> 0; radians for rotations, diagonals for translations).
         max_steps: Adam steps (>= 0; fewer only at a stationary point).
@@ -74,6 +76,12 @@ vertices of a ~17k-20k-vertex pair move by at most ~1e-12 and ~2e-6 of the diago
 80 steps (was 40 at a constant rate) so that it has room to converge."""
 
 
+MIN_ROBUST_SCALE = 1e-12
+"""The smallest ``Stage.robust_scale``: the Geman-McClure kernel ``s^2 r^2 / (s^2 + r^2)`` is 0 / 0 at a residual of 0
+once ``s^2`` underflows (``s`` below ~1e-23 in float32, the fused energy's dtype on float32 frames), and far above that
+floor every residual the kernels resolve is already in the kernel's flat tail, where it has no gradient."""
+
+
 def _real(name: str, value: Any, low: float, *, open_low: bool = False, high: float = math.inf) -> float:
     """``value`` as a float in ``[low, high]`` (``(low, high]`` with ``open_low``); NaN never passes."""
     x = check_real(value, name)
@@ -96,8 +104,8 @@ def _stage(name: str, stage: Any) -> Stage:
         raise TypeError(f"{name}: expected a Stage, found {type(stage).__name__} {stage!r}")
     return Stage(
         regularization=_finite(f"{name}.regularization", stage.regularization, 0.0),
-        robust_scale=_finite(f"{name}.robust_scale", stage.robust_scale, 0.0, open_low=True),
-        max_distance=_real(f"{name}.max_distance", stage.max_distance, 0.0, open_low=True),
+        robust_scale=_finite(f"{name}.robust_scale", stage.robust_scale, MIN_ROBUST_SCALE),
+        max_distance=_finite(f"{name}.max_distance", stage.max_distance, 0.0, open_low=True),
         max_normal_angle=_real(f"{name}.max_normal_angle", stage.max_normal_angle, 0.0, open_low=True, high=180.0),
         lr=_finite(f"{name}.lr", stage.lr, 0.0, open_low=True),
         max_steps=check_int(stage.max_steps, f"{name}.max_steps", 0),
@@ -165,9 +173,10 @@ class NonRigidOptions:
         num_points: source vertices (random subset of the surface vertices) in the data term (>= 1).
         num_target_samples: target surface samples in the reverse term (target → deformed source; >= 0).
         correspondence_every: Adam steps between two correspondence refreshes (>= 1).
-        schedule: coarse-to-fine stages, at least one (see :data:`DEFAULT_SCHEDULE`); kept as a tuple.
-        plane_weight: weight (>= 0) of the point-to-plane part of the data term.
-        point_weight: weight (>= 0) of the point-to-point part of the data term.
+        schedule: coarse-to-fine stages, at least one, and at least one with ``max_steps > 0`` (see
+            :data:`DEFAULT_SCHEDULE`); kept as a tuple.
+        plane_weight: weight (>= 0) of the point-to-plane part of the data terms (forward and reverse).
+        point_weight: weight (>= 0) of the point-to-point part of the data terms; one of the two must be > 0.
         reverse_weight: weight (>= 0) of the reverse term.
         adam_eps: Adam's ``eps`` in each stage, as a fraction (>= 0) of the largest gradient component at the stage's
             start (at least torch's 1e-8). Adam normalises each component's step by its own gradient's size, so one
@@ -243,6 +252,7 @@ class NonRigidOptions:
             raise TypeError(f"schedule: expected a sequence of Stage, found {type(self.schedule).__name__}")
         if not self.schedule:
             raise ValueError("schedule: expected at least one stage, found none")
+        schedule = tuple(_stage(f"schedule[{i}]", s) for i, s in enumerate(self.schedule))
         checked = {
             "rigid_init": check_flag(self.rigid_init, "rigid_init"),
             "node_spacing": _finite("node_spacing", self.node_spacing, 0.0, open_low=True),
@@ -251,7 +261,7 @@ class NonRigidOptions:
             "num_points": check_int(self.num_points, "num_points", 1),
             "num_target_samples": check_int(self.num_target_samples, "num_target_samples", 0),
             "correspondence_every": check_int(self.correspondence_every, "correspondence_every", 1),
-            "schedule": tuple(_stage(f"schedule[{i}]", s) for i, s in enumerate(self.schedule)),
+            "schedule": schedule,
             "plane_weight": _finite("plane_weight", self.plane_weight, 0.0),
             "point_weight": _finite("point_weight", self.point_weight, 0.0),
             "reverse_weight": _finite("reverse_weight", self.reverse_weight, 0.0),
@@ -263,6 +273,17 @@ class NonRigidOptions:
             "outlier_edge_factor": _finite("outlier_edge_factor", self.outlier_edge_factor, 0.0),
             "rigid_options": _rigid_options(self.rigid_options),
         }
+        # Settings under which no data can move the graph: the result would be the rigid start, reported converged.
+        if not any(stage.max_steps > 0 for stage in schedule):
+            raise ValueError(
+                "schedule: expected a stage with max_steps > 0, found only stages of 0 steps (no non-rigid fitting "
+                "would run; register_rigid is the rigid registration alone)"
+            )
+        if checked["plane_weight"] == 0 and checked["point_weight"] == 0:
+            raise ValueError(
+                "plane_weight, point_weight: expected at least one > 0, found both 0 (they weigh the forward and the "
+                "reverse data terms alike: no data term would remain)"
+            )
         for name, value in checked.items():
             object.__setattr__(self, name, value)
 
