@@ -7,7 +7,7 @@ import torch
 import trimesh
 
 from torchmeshmetric import ShapeError
-from torchmeshmetric.evaluation import TemporalConsistency, registration_settings
+from torchmeshmetric.evaluation import TemporalConsistency, evaluate_sequence, registration_settings
 from torchmeshmetric.evaluation.pipeline import registration_keywords
 from torchmeshmetric.registration import CachedRegistration, NonRigidOptions, SurfaceWarp, as_warp
 from torchmeshmetric.structures import as_mesh
@@ -36,3 +36,14 @@ def test_one_conversion_of_a_registration_to_a_warp():
         as_warp((moved[:-1], sphere.faces[:10]), sphere, sphere, name="registration")
     with pytest.raises(TypeError, match=r"registration: expected None, a warp"):
         as_warp(3, sphere, sphere, name="registration")
+
+
+def test_a_device_among_the_registration_options_is_refused_by_name():
+    # Review I #9: torch's "default_register() got multiple values for keyword argument 'device'" named an internal
+    # function; the device is the evaluation's own argument.
+    frames = [trimesh.creation.icosphere(subdivisions=1)] * 2
+    with pytest.raises(TypeError, match=r"^registration_options: 'device' is not a registration option"):
+        evaluate_sequence(frames, frames, registration_options={"device": "cpu", "num_points": 50})
+    with pytest.raises(TypeError, match=r"^registration_options: 'device' is not a registration option"):
+        TemporalConsistency(registration_options={"device": "cpu"})
+    assert registration_keywords({"num_threads": 1}) == {"num_threads": 1}  # run arguments pass through

@@ -22,6 +22,9 @@ from torchmeshmetric.registration import NonRigidOptions, register_rigid
         ({"robust_scale": -1.0}, ValueError, "rigid_options: robust_scale: expected a float > 0"),
         ({"tolerance": float("inf")}, ValueError, "rigid_options: tolerance: expected a finite float >= 0"),
         ({"init": torch.eye(3)}, ValueError, r"rigid_options: init: expected shape \(4, 4\), found \(3, 3\)"),
+        # Review I #9: a singular or NaN start passed and ICP died in torch's SVD ("linalg.svd: ... non-finite")
+        ({"init": torch.zeros(4, 4)}, ValueError, "rigid_options: init: expected an invertible transform"),
+        ({"init": torch.full((4, 4), float("nan"))}, ValueError, "rigid_options: init: expected finite values"),
     ],
 )
 def test_bad_rigid_options_are_refused_when_built(options, error, message):
@@ -41,3 +44,6 @@ def test_register_rigid_uses_the_same_checks():
         register_rigid(box, box, max_iterations="ten")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match=r"^trim: expected a fraction in \(0, 1\], found 5.0"):
         register_rigid(box, box, trim=5.0)
+    singular = torch.diag(torch.tensor([1.0, 1.0, 0.0, 1.0]))
+    with pytest.raises(ValueError, match=r"^init: expected an invertible transform .* determinant 0"):
+        register_rigid(box, box, init=singular)

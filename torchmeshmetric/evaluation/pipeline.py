@@ -59,7 +59,10 @@ RegisterFn = Callable[[Mesh, Mesh], Any]
 
 
 #: The options of the default registration, as every entry point takes them: a ``NonRigidOptions``, its fields as
-#: keywords (``{"num_points": 500}``, ``{"options": NonRigidOptions(...), "tolerance": 0.01}``), or ``None``.
+#: keywords (``{"num_points": 500}``, ``{"options": NonRigidOptions(...), "tolerance": 0.01}``), or ``None``. The
+#: options are the cache key; the run arguments of ``register_nonrigid`` a mapping may add (``generator``,
+#: ``num_threads``, ``backend``, ``warn``) are passed on but not keyed, so a cache hit returns the registration drawn
+#: with the generator of the run that computed it. ``device`` is the entry point's own argument, refused here.
 RegistrationOptions = NonRigidOptions | Mapping[str, Any] | None
 
 
@@ -83,6 +86,11 @@ def registration_keywords(options: RegistrationOptions) -> dict[str, Any]:
         raise TypeError(
             f"registration_options: expected NonRigidOptions, a mapping of its fields or None, found "
             f"{type(options).__name__}"
+        )
+    if "device" in options:  # the entry point passes its own: torch named an internal function twice given 'device'
+        raise TypeError(
+            "registration_options: 'device' is not a registration option; the registration runs on the device the "
+            "evaluation is given (its device= argument, --device)"
         )
     return dict(options)
 
@@ -183,8 +191,10 @@ def register_pairs(
     Args:
         original_frames: the ``N`` original frames, in order.
         registration_fn: registration function (default :func:`default_register`).
-        registration_options: options of the default registration (part of the cache key): a
-            :class:`~torchmeshmetric.registration.NonRigidOptions` or its fields as keywords.
+        registration_options: options of the default registration (the cache key): a
+            :class:`~torchmeshmetric.registration.NonRigidOptions` or its fields as keywords, and run arguments,
+            which are not keyed: a ``generator`` given here does not tell cache entries apart (see
+            :data:`RegistrationOptions`).
         registration_cache: a :class:`RegistrationCache`; ``None`` computes every registration.
         device: where the default registration runs.
         backend: kernel backend of the default registration.
@@ -289,8 +299,10 @@ def evaluate_pair(
         device: where distances are computed (default: the device of ``simplified_k``).
         registration_fn: registration function ``(source, target) -> registered source`` (see :data:`RegisterFn`);
             default :func:`default_register` (with ``registration_options`` and ``device``).
-        registration_options: options of the default registration (part of the cache key): a
-            :class:`~torchmeshmetric.registration.NonRigidOptions` or its fields as keywords.
+        registration_options: options of the default registration (the cache key): a
+            :class:`~torchmeshmetric.registration.NonRigidOptions` or its fields as keywords, and run arguments,
+            which are not keyed: a ``generator`` given here does not tell cache entries apart (see
+            :data:`RegistrationOptions`).
         registration_cache: a :class:`RegistrationCache`; reused registrations cost nothing.
         frame: the index ``k`` recorded in the result.
         backend: kernel backend of the distances and of the default registration (``"auto"``, ``"bvh"``, ...).
@@ -424,7 +436,9 @@ def evaluate_sequence(
         two_sided: also compute the reverse sets (default ``True``).
         device: where distances (and the default registration) are computed.
         registration_fn: registration function (default :func:`default_register`).
-        registration_options: options of the default registration (``NonRigidOptions`` or its fields as keywords).
+        registration_options: options of the default registration (``NonRigidOptions`` or its fields as keywords;
+            the cache key, less the run arguments: a ``generator`` given here is not keyed, see
+            :data:`RegistrationOptions`).
         precomputed_registrations: optional registrations, one per pair (``precomputed_registrations[k-1]`` is frame
             ``k-1`` registered onto frame ``k``, e.g. from :func:`register_pairs`); bypasses ``registration_fn`` and
             the cache.

@@ -69,7 +69,9 @@ class TemporalConsistency(StatisticsPlot, DistanceStatesMetric):
             ``simplified_k_minus_1``).
         registration_fn: registration function (default: the library's non-rigid registration); the old
             keyword ``register`` still works, with a ``DeprecationWarning``.
-        registration_options: options of the default registration (``NonRigidOptions`` or its fields).
+        registration_options: options of the default registration (``NonRigidOptions`` or its fields; run
+            arguments such as a ``generator`` are passed on but not keyed, see
+            :data:`~torchmeshmetric.evaluation.pipeline.RegistrationOptions`).
         backend: kernel backend of the distances and of the default registration (``"auto"``, ``"bvh"``, ...).
         kwargs: passed to :class:`torchmetrics.Metric`.
 

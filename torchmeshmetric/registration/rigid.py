@@ -226,6 +226,15 @@ def check_rigid_options(options: Mapping[str, Any], where: str = "") -> None:
             if not isinstance(value, Tensor):
                 raise TypeError(f"{name}: expected None or a (4, 4) tensor, found {type(value).__name__}")
             check_shape(value, (4, 4), name)
+            check_finite(value, name)
+            # The start's scale is |det|^(1/3) of the 3x3 block, which it divides by: a singular block made the
+            # rotation non-finite and ICP died in torch's SVD ("linalg.svd: ... non-finite values").
+            det = float(torch.linalg.det(value.detach().to("cpu", torch.float64)[:3, :3]))
+            if not (math.isfinite(det) and det != 0.0):
+                raise ValueError(
+                    f"{name}: expected an invertible transform (its 3x3 block scales and rotates), found one whose "
+                    f"3x3 block has determinant {det:g}"
+                )
 
 
 def register_rigid(
