@@ -9,6 +9,7 @@ Each ``seed<S>/`` gets ``original/`` (the built-in performer with seed ``S``) an
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from pathlib import Path
 
 from torchmeshmetric.cli import main as cli
@@ -28,10 +29,28 @@ def make(out: Path, frames: int, resolution: int, seeds: tuple[int, ...] = (0, 1
                 raise SystemExit(code)
 
 
+def _at_least(low: int) -> Callable[[str], int]:
+    """An argparse type: an int >= ``low``, refused when parsed, before any folder is made."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an int >= {low}, found {text!r}") from None
+        if value < low:
+            raise argparse.ArgumentTypeError(f"expected an int >= {low}, found {value}")
+        return value
+
+    return parse
+
+
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("out", type=Path, help="folder for seed0/ and seed1/ (created)")
-    parser.add_argument("--frames", type=int, default=4, help="frames per sequence (default 4)")
-    parser.add_argument("--resolution", type=int, default=48, help="demo_sequence resolution (default 48)")
+    # A campaign evaluates frame pairs: 2 frames at least (0 made seed0/ and then died in demo_sequence).
+    parser.add_argument("--frames", type=_at_least(2), default=4, help="frames per sequence (>= 2; default 4)")
+    parser.add_argument(
+        "--resolution", type=_at_least(16), default=48, help="demo_sequence resolution (>= 16; default 48)"
+    )
     args = parser.parse_args()
     make(args.out, args.frames, args.resolution)

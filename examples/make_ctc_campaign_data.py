@@ -6,15 +6,18 @@ quantised sources are. Two codecs ("anchor" and "test"), condition 1 at rates 1 
 integer space (positions moved by up to ``noise`` steps, float UVs, the texture with noise), the coarser the rate the
 noisier, the test codec a little cleaner than the anchor. The anchor's bits and runtimes come as the test model's
 CSV (anchor.csv); the test codec's are in the manifest. Every value is an integer or a rounding of one (the same
-files on every CPU)::
+files on every CPU). Beside the data it writes ``ctc_campaign.toml``, the manifest examples/ctc_campaign.toml with
+its paths relative to that folder, so the campaign runs on data written anywhere::
 
     PYTHONPATH=. python examples/make_ctc_campaign_data.py examples/ctc-campaign-data
     torchmeshmetric ctc-campaign examples/ctc_campaign.toml --out-dir ctc-report
+    # or, for data written elsewhere:
+    torchmeshmetric ctc-campaign OUTPUT_FOLDER/ctc_campaign.toml --out-dir ctc-report
 """
 
 from __future__ import annotations
 
-import sys
+import argparse
 from pathlib import Path
 
 import numpy as np
@@ -88,8 +91,24 @@ def make(root: Path) -> None:
     (root / "anchor.csv").write_text("\n".join(rows) + "\n")
 
 
+#: The example's manifest: its paths name the data in ``ctc-campaign-data/`` beside it.
+EXAMPLE_MANIFEST = Path(__file__).resolve().parent / "ctc_campaign.toml"
+
+
+def write_manifest(root: Path) -> Path:
+    """``root/ctc_campaign.toml``: the example's manifest with its paths relative to ``root``, the data's folder."""
+    text = EXAMPLE_MANIFEST.read_text()
+    manifest = root / "ctc_campaign.toml"
+    header = "# Written by examples/make_ctc_campaign_data.py: examples/ctc_campaign.toml, paths relative to here.\n"
+    manifest.write_text(header + text.replace('"ctc-campaign-data/', '"'))
+    return manifest
+
+
 if __name__ == "__main__":
-    if len(sys.argv) != 2:
-        sys.exit("usage: make_ctc_campaign_data.py OUTPUT_FOLDER")
-    make(Path(sys.argv[1]))
-    print(f"wrote {sys.argv[1]}; run: torchmeshmetric ctc-campaign examples/ctc_campaign.toml --out-dir ctc-report")
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("out", type=Path, metavar="OUTPUT_FOLDER", help="folder for the campaign's files (created)")
+    args = parser.parse_args()  # --help / -h print the usage; they named the output folder, which was written
+    make(args.out)
+    # the manifest that reads this folder: examples/ctc_campaign.toml reads examples/ctc-campaign-data only
+    manifest = write_manifest(args.out)
+    print(f"wrote {args.out}; run: torchmeshmetric ctc-campaign {manifest} --out-dir ctc-report")

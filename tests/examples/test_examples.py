@@ -224,3 +224,51 @@ def test_campaign_toml_runs_and_agrees_with_evaluate_folder(
     got = sequences["performer-seed0"]["methods"]["QEM 50%"]["aggregate"]["surface_k"]
     expected = report["methods"]["qem50"]["aggregate"]["surface_k"]
     assert got["ave"] == pytest.approx(expected["ave"], rel=1e-12) and got["max"] == expected["max"]
+
+
+def _exit_code(name: str, *argv: object) -> int:
+    """Run ``examples/<name>`` with ``argv``, which must end in ``SystemExit``; its code."""
+    with pytest.raises(SystemExit) as info:
+        sys.argv = [str(EXAMPLES / name), *map(str, argv)]
+        runpy.run_path(str(EXAMPLES / name), run_name="__main__")
+    return int(info.value.code or 0)
+
+
+@pytest.mark.parametrize("flag", ["--help", "-h"])
+def test_make_ctc_campaign_data_help_prints_the_usage_and_writes_nothing(flag, tmp_path, monkeypatch, capsys):
+    # Review I #10: the flag was taken for the output folder: the whole data set went into a folder named --help.
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(sys, "argv", sys.argv)  # restored after _exit_code sets it
+    assert _exit_code("make_ctc_campaign_data.py", flag) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("usage: make_ctc_campaign_data.py [-h] OUTPUT_FOLDER") and "ctc_campaign.toml" in out
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_make_ctc_campaign_data_names_a_manifest_that_reads_its_folder(tmp_path, monkeypatch):
+    # Review I #10: the hint named examples/ctc_campaign.toml whatever folder was written, and that manifest reads
+    # examples/ctc-campaign-data only. The manifest written beside the data reads the data, wherever it is.
+    from torchmeshmetric.mpeg.ctc.campaign import plan_frames
+    from torchmeshmetric.mpeg.ctc.manifest import load_ctc_campaign
+
+    monkeypatch.setattr(sys, "argv", sys.argv)
+    out = run_example("make_ctc_campaign_data.py", tmp_path / "elsewhere")
+    manifest = tmp_path / "elsewhere" / "ctc_campaign.toml"
+    assert out.strip() == (
+        f"wrote {tmp_path / 'elsewhere'}; run: torchmeshmetric ctc-campaign {manifest} --out-dir ctc-report"
+    )
+    campaign = load_ctc_campaign(manifest)
+    assert campaign.cache_dir == tmp_path / "elsewhere" / "cache"
+    tasks = plan_frames(campaign)  # every frame file found (plan_frames checks each)
+    assert len(tasks) == 2 * 2 * 2 * 5  # codecs x sequences x rates x frames
+    assert {Path(t.ref).parent for t in tasks} == {tmp_path / "elsewhere" / s / "src" for s in ("sphere", "ellipsoid")}
+
+
+@pytest.mark.parametrize(("option", "value"), [("--frames", 0), ("--frames", 1), ("--resolution", 8)])
+def test_make_campaign_data_refuses_bad_sizes_before_making_a_folder(option, value, tmp_path, monkeypatch, capsys):
+    # Review I #10: --frames 0 made out/seed0/ and died with demo_sequence's traceback.
+    monkeypatch.setattr(sys, "argv", sys.argv)
+    assert _exit_code("make_campaign_data.py", tmp_path / "out", option, value) == 2
+    low = 16 if option == "--resolution" else 2
+    assert f"argument {option}: expected an int >= {low}, found {value}" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
