@@ -1,12 +1,19 @@
 import os
+import warnings
 
 import pytest
 import torch
 
 from tests.evaluation.eval_helpers import TranslationRegister, sphere
 from torchmeshmetric import Mesh
-from torchmeshmetric.evaluation import default_register, evaluate_sequence, registration_settings
-from torchmeshmetric.registration import DEFAULT_SCHEDULE, CachedRegistration, RegistrationCache, registration_key
+from torchmeshmetric.evaluation import default_register, evaluate_sequence, register_pairs, registration_settings
+from torchmeshmetric.registration import (
+    DEFAULT_SCHEDULE,
+    CachedRegistration,
+    RegistrationCache,
+    RegistrationWarning,
+    registration_key,
+)
 from torchmeshmetric.registration.cache import DEFAULT_REGISTER
 
 
@@ -59,23 +66,52 @@ def test_corrupt_disk_entry_is_recomputed(tmp_path):
     assert again.calls == 1
 
 
-def test_key_depends_on_dtype_independent_content():
+def test_key_depends_on_the_content_and_the_registration_dtype():
     a = sphere(1)
     a32 = a.to(dtype=torch.float32)
     assert registration_key(a, a, {}) != registration_key(a, sphere(1, radius=2.0), {})
-    # float32 and float64 copies of float32-representable vertices hash alike (content, not storage)
-    assert registration_key(a32, a32, {}) == registration_key(a32.to(dtype=torch.float64), a32, {})
+    # Review I #4: float32 and float64 registrations of the same vertex values differ by 5-45 % of the registration's
+    # error, so they are two entries. The key counts the dtype the registration computes in (promoted, at least
+    # float32): a float64 source registers in float64 whatever the target's storage.
+    a64 = a32.to(dtype=torch.float64)
+    assert registration_key(a32, a32, {}) != registration_key(a64, a64, {})
+    assert registration_key(a64, a32, {}) == registration_key(a64, a64, {}) == registration_key(a32, a64, {})
+
+
+def test_a_float64_run_is_not_served_float32_registrations(tmp_path):
+    # Review I #4: `campaign --dtype float64` after a float32 run reused its registrations (24 table rows differed from
+    # a fresh float64 run). The default registration, a few steps on a small pair.
+    source, target = sphere(1), sphere(1, radius=1.1)
+    source32, target32 = source.to(dtype=torch.float32), target.to(dtype=torch.float32)
+    options = {"schedule": DEFAULT_SCHEDULE[:1], "num_points": 50, "num_target_samples": 50}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RegistrationWarning)  # one short stage: not converged, said so
+        cache = RegistrationCache(tmp_path)
+        (reg32,) = register_pairs([source32, target32], registration_options=options, registration_cache=cache)
+        (reg64,) = register_pairs(
+            [source32.to(dtype=torch.float64), target32.to(dtype=torch.float64)],
+            registration_options=options,
+            registration_cache=RegistrationCache(tmp_path),
+        )
+        (fresh64,) = register_pairs(
+            [source32.to(dtype=torch.float64), target32.to(dtype=torch.float64)], registration_options=options
+        )
+    assert (cache.hits, cache.misses) == (0, 1) and len(list(tmp_path.glob("*.pt"))) == 2
+    assert reg32.verts.dtype == torch.float32 and reg64.verts.dtype == torch.float64
+    assert torch.equal(reg64.verts, fresh64.verts)  # the float64 registration, not the float32 one
+    assert not torch.equal(reg64.verts, reg32.verts.double())
 
 
 def test_key_of_plain_settings_is_stable():
     # Entries on disk are found by these digests: keying NonRigidOptions must not move the keys of plain settings.
     m = Mesh(torch.eye(3, dtype=torch.float64), torch.tensor([[0, 1, 2]]))
-    assert registration_key(m, m, {}) == "1e600010b14e221ccdd238819573c89fce4f4658f7fa0e3203355ce34ee5338e"
+    # Changed on purpose (review I #4): the key holds the registration's dtype, so float32 entries are not float64's.
+    assert registration_key(m, m, {}) == "27a63c7f64f6d3f818e85bf533ca75b82f57953d811d292c433ed50fcf2d3f35"
     plain = {"register": "torchmeshmetric.evaluation.pipeline.default_register",
              "options": {"schedule": DEFAULT_SCHEDULE[:1], "num_points": 10}}  # fmt: skip
     # Changed on 2026-12-02 on purpose: a Stage has a lr_decay field (the converged schedule), so registrations cached
-    # by the earlier, unconverged schedule are recomputed instead of being reused.
-    assert registration_key(m, m, plain) == "aa2f9caaf0d923b66292270da66974eee85cccedfe7b7e46d5714e328f20331d"
+    # by the earlier, unconverged schedule are recomputed instead of being reused; and for the dtype (review I #4).
+    assert registration_key(m, m, plain) == "dc035c06facab2d264bf16e95bb30698ae956eca1312b2ee82261dc8a63c3873"
 
 
 def test_default_registration_is_keyed_by_its_complete_options():

@@ -37,6 +37,15 @@ def coordinate_scale(*meshes: Mesh) -> float:
     return 1.0 if scale is None else scale
 
 
+def registration_dtype(source: Mesh, target: Mesh) -> torch.dtype:
+    """The dtype a registration of ``source`` onto ``target`` computes in: theirs promoted, at least float32.
+
+    One rule for the registration (:func:`validate_pair`) and its cache key (``registration_key``), which keeps
+    float32 and float64 registrations apart.
+    """
+    return torch.promote_types(torch.promote_types(source.dtype, target.dtype), torch.float32)
+
+
 def validate_pair(source: MeshLike, target: MeshLike) -> tuple[Mesh, Mesh, float]:
     """Validate both meshes (typed errors), require one device and faces with positive total area.
 
@@ -56,7 +65,7 @@ def validate_pair(source: MeshLike, target: MeshLike) -> tuple[Mesh, Mesh, float
             raise EmptyInputError(f"{name}: expected at least one vertex, found an empty mesh")
         if m.num_faces == 0:
             raise EmptyInputError(f"{name}: expected at least one face, found none")
-    dtype = torch.promote_types(torch.promote_types(src.dtype, tgt.dtype), torch.float32)
+    dtype = registration_dtype(src, tgt)
     src, tgt = src.to(dtype=dtype), tgt.to(dtype=dtype)
     scale = coordinate_scale(src, tgt)
     if scale != 1.0:

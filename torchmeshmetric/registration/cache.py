@@ -6,8 +6,9 @@ training over many epochs, must not repeat it. The evaluation (:mod:`torchmeshme
 loss (:class:`~torchmeshmetric.metrics.TemporalLossCache`) both keep their registrations here, under one key
 (:func:`registration_key`): a registration computed through one is found by the other when they share a cache.
 Entries are keyed by a SHA-256 content hash of both meshes (vertex positions as float64 and faces as int64, with
-their shapes) and of the registration settings; disk entries are written atomically (temporary file in the same
-folder, then :func:`os.replace`), so an interrupted run never leaves a truncated entry behind.
+their shapes), the dtype the registration computes in, and the registration settings; disk entries are written
+atomically (temporary file in the same folder, then :func:`os.replace`), so an interrupted run never leaves a
+truncated entry behind.
 
 Entries keep the registration's deformation (:class:`~torchmeshmetric.registration.RegistrationWarp`) when it has
 one, because the ``flicker`` set moves points other than the registered vertices. Entries written before the
@@ -31,6 +32,7 @@ from torch import Tensor
 
 from torchmeshmetric._atomic import atomic_write_with
 from torchmeshmetric._checks import ShapeError
+from torchmeshmetric.registration._common import registration_dtype
 from torchmeshmetric.registration.nonrigid import register_nonrigid
 from torchmeshmetric.registration.options import NonRigidOptions
 from torchmeshmetric.registration.warp import RegistrationWarp, Warp
@@ -120,9 +122,12 @@ def _settings_json(value: object) -> object:
 def registration_key(source: Mesh, target: Mesh, settings: Mapping[str, object] | NonRigidOptions) -> str:
     """SHA-256 hex digest identifying the registration of ``source`` onto ``target`` with ``settings``.
 
-    The meshes count by content: vertices as float64 and faces as int64 with their shapes, so a float32 frame and its
-    float64 copy share a key (the dtype, like the device and the thread count, changes a registration only by
-    rounding, far below its error; the cache serves one registration per problem). A
+    The meshes count by content: vertices as float64 and faces as int64 with their shapes, so a frame's storage does
+    not matter, and the dtype the registration computes in (the meshes' promoted, at least float32) counts: a float32
+    registration and a float64 one of the same vertex values differ by 5-45 % of the registration's own error (the
+    optimisation amplifies float32's rounding; measured on the demo at resolutions 32 to 128), so a float64 run must
+    not be served float32 registrations. The device and the thread count are left out: the CPU's thread counts agree
+    bit for bit, and a cache serves one registration per problem across devices. A
     :class:`~torchmeshmetric.registration.NonRigidOptions`, given as ``settings`` or as a value inside them, counts
     by its :meth:`~torchmeshmetric.registration.NonRigidOptions.canonical` form: every field, defaults filled, so
     equal options spelled differently give one key and different options never share one.
@@ -148,6 +153,7 @@ def registration_key(source: Mesh, target: Mesh, settings: Mapping[str, object] 
     h = hashlib.sha256(_FORMAT.encode())
     _hash_mesh(h, source)
     _hash_mesh(h, target)
+    h.update(str(registration_dtype(source, target)).encode())
     if isinstance(settings, NonRigidOptions):
         text = json.dumps(_settings_json(settings), sort_keys=True)
     else:  # the text of plain settings is unchanged, so existing disk entries keep their keys
@@ -160,8 +166,8 @@ def default_registration_settings(options: NonRigidOptions) -> dict[str, object]
     """The settings that key the library's registration (:func:`compute_registration` with ``options``).
 
     What the evaluation (``registration_fn=None``) and the temporal loss both pass to :func:`registration_key`, so
-    that they find each other's entries. The backend, device and thread count are left out: they change a
-    registration only by rounding.
+    that they find each other's entries. The backend, device and thread count are left out: the exact backends and
+    the CPU's thread counts give the same registration bit for bit.
 
     Example:
         >>> default_registration_settings(NonRigidOptions())["register"] == DEFAULT_REGISTER
