@@ -169,3 +169,28 @@ def test_a_cache_directory_that_is_a_file_is_refused_at_once(tmp_path):
         RegistrationCache(path)
     assert path.read_text() == "kept"
     assert RegistrationCache(tmp_path / "new").directory == tmp_path / "new"  # a missing folder: made when needed
+
+
+def test_the_librarys_registrations_are_keyed_by_their_results_version(tmp_path, monkeypatch):
+    # Review I #5: no library or algorithm version was in the key, so entries written before a fix that changed every
+    # registration (without a new option) were served after it. REGISTRATION_RESULTS_VERSION is raised with such a
+    # fix; the earlier entries then miss, without a warning, and stay on disk untouched.
+    from torchmeshmetric.registration import cache as cache_module
+
+    a, b = sphere(1), sphere(1, offset=(0.1, 0, 0))
+    calls = []
+
+    def compute() -> CachedRegistration:
+        calls.append(cache_module.REGISTRATION_RESULTS_VERSION)
+        return CachedRegistration(b.verts * 1.0, torch.zeros(a.num_verts, dtype=a.dtype), True, 0.0)
+
+    assert registration_settings(None, {})["results_version"] == cache_module.REGISTRATION_RESULTS_VERSION == 1
+    first = RegistrationCache(tmp_path).get_or_compute(a, b, registration_settings(None, {}), compute)
+    monkeypatch.setattr(cache_module, "REGISTRATION_RESULTS_VERSION", 2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a clean miss: no "unreadable" or "invalid" entry
+        cache = RegistrationCache(tmp_path)
+        second = cache.get_or_compute(a, b, registration_settings(None, {}), compute)
+        again = RegistrationCache(tmp_path).get_or_compute(a, b, registration_settings(None, {}), compute)
+    assert calls == [1, 2] and (first[1], second[1], again[1]) == (False, False, True)
+    assert (cache.hits, cache.misses) == (0, 1) and len(list(tmp_path.glob("*.pt"))) == 2

@@ -411,3 +411,30 @@ def test_sequences_whose_plots_share_a_file_name_are_refused(tmp_path: Path, cap
     err = capsys.readouterr().err
     assert "sequences 'sphere_a' and 'sphere a' would write the same RD plots (rd_c<condition>_sphere_a.png)" in err
     assert not out.exists() and not (tmp_path / "c").exists()  # refused before any frame
+
+
+def test_a_frames_key_holds_the_results_version_not_the_package_version(
+    campaign: tuple[Path, Path], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Review I #5: the key held the package's version, 0.1.0 through every change that moved a figure, so a fix never
+    # invalidated a record. CTC_RESULTS_VERSION is raised with such a change: the earlier records then miss, cleanly.
+    import warnings
+
+    manifest, _ = campaign
+    parsed = load_ctc_campaign(manifest)
+    task = ctc_campaign.plan_frames(parsed)[0]
+    files = [(task.ref, task.ref_texture is None), (task.dis, task.dis_texture is None)]
+    files += [(t, False) for t in (task.ref_texture, task.dis_texture) if t is not None]
+    digests = {f: ctc_campaign._digest(f) for f in files}
+    key = ctc_campaign._key(parsed, task, digests)
+    assert parsed.cache_dir is not None
+    record = ctc_campaign._read_cached(parsed.cache_dir, key)  # the complete run's record of this frame
+    assert record is not None and record["settings"]["results_version"] == ctc_campaign.CTC_RESULTS_VERSION == 1
+    monkeypatch.setattr("torchmeshmetric._version.__version__", "9.9.9")
+    assert ctc_campaign._key(parsed, task, digests) == key
+    monkeypatch.setattr(ctc_campaign, "CTC_RESULTS_VERSION", 2)
+    bumped = ctc_campaign._key(parsed, task, digests)
+    assert bumped != key
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a miss, not a damaged record
+        assert ctc_campaign._read_cached(parsed.cache_dir, bumped) is None

@@ -40,6 +40,7 @@ from torchmeshmetric.structures import Mesh
 
 __all__ = [
     "DEFAULT_REGISTER",
+    "REGISTRATION_RESULTS_VERSION",
     "CachedRegistration",
     "RegistrationCache",
     "compute_registration",
@@ -48,6 +49,14 @@ __all__ = [
 ]
 
 _FORMAT = "torchmeshmetric-registration-cache-v1"
+
+#: The revision of the library's registration results, part of the cache key of every registration it computes
+#: (:func:`default_registration_settings`; the evaluation's and the temporal loss's). Raise it in every change that
+#: changes a registration's result without adding an option (the algorithm, its draws, a kernel it calls, a
+#: default): entries of the earlier revisions then miss and are recomputed, never served (docs/architecture.md,
+#: "Where to add ..."). 1: the first revision in the key (review I, 2026-12); before it, fixes that changed every
+#: registration (e.g. target samples drawn by face index) kept their keys.
+REGISTRATION_RESULTS_VERSION = 1
 
 #: The ``"register"`` name in the settings of the library's registration: the qualified name of the evaluation's
 #: ``default_register``, under which disk caches have stored its entries since the first format. Kept verbatim (a
@@ -166,14 +175,16 @@ def default_registration_settings(options: NonRigidOptions) -> dict[str, object]
     """The settings that key the library's registration (:func:`compute_registration` with ``options``).
 
     What the evaluation (``registration_fn=None``) and the temporal loss both pass to :func:`registration_key`, so
-    that they find each other's entries. The backend, device and thread count are left out: the exact backends and
-    the CPU's thread counts give the same registration bit for bit.
+    that they find each other's entries: the function's name, :data:`REGISTRATION_RESULTS_VERSION` and the options.
+    The backend, device and thread count are left out: the exact backends and the CPU's thread counts give the same
+    registration bit for bit.
 
     Example:
-        >>> default_registration_settings(NonRigidOptions())["register"] == DEFAULT_REGISTER
-        True
+        >>> settings = default_registration_settings(NonRigidOptions())
+        >>> settings["register"] == DEFAULT_REGISTER, settings["results_version"] == REGISTRATION_RESULTS_VERSION
+        (True, True)
     """
-    return {"register": DEFAULT_REGISTER, "options": options}
+    return {"register": DEFAULT_REGISTER, "results_version": REGISTRATION_RESULTS_VERSION, "options": options}
 
 
 def compute_registration(

@@ -6,7 +6,7 @@ before any work, and computes the frames :func:`~torchmeshmetric.mpeg.ctc.chain.
 
 * **Cache.** Each frame's figures are kept as one JSON file in the cache folder, named by a SHA-256 key of the
   frame's inputs (the bytes of the source and decoded files, their textures and MTLs) and of the chain's settings
-  (bit depths, box, PSNR peak, grid and IBSM settings, the library's version). A rerun after an interruption
+  (bit depths, box, PSNR peak, grid and IBSM settings, :data:`CTC_RESULTS_VERSION`). A rerun after an interruption
   computes only the frames without a file; a second test codec against the same anchor finds the anchor's frames;
   equal inputs anywhere in the campaign are computed once.
 * **Processes.** Under ``torchrun`` the files are hashed and the missing frames computed round robin by the ranks
@@ -39,7 +39,7 @@ from torchmeshmetric.mpeg.ctc.frame_pattern import frame_path
 from torchmeshmetric.mpeg.ctc.manifest import CtcCampaign, CtcCampaignSequence, CtcCodec, codec_path
 from torchmeshmetric.mpeg.ctc.sheet import COMPONENTS, RatePoint, SheetCondition, SheetSequence, read_test_model_csv
 
-__all__ = ["CampaignResult", "FrameTask", "frame_rows_csv", "plan_frames", "run_ctc_campaign"]
+__all__ = ["CTC_RESULTS_VERSION", "CampaignResult", "FrameTask", "frame_rows_csv", "plan_frames", "run_ctc_campaign"]
 
 _COLUMNS = ("GridD1", "GridD2", "GridLuma", "GridChromaCb", "GridChromaCr", "IbsmGeom", "IbsmLuma")
 _CODECS = ("anchor", "test")
@@ -168,9 +168,14 @@ def _digest(item: tuple[str, bool]) -> str:
     return h.hexdigest()
 
 
-def _settings(campaign: CtcCampaign, task: FrameTask) -> dict[str, Any]:
-    from torchmeshmetric._version import __version__
+#: The revision of a frame's CTC figures, part of each frame's cache key. Raise it in every change that changes a
+#: figure the chain computes (sampling, PSNR, IBSM, reading the files) without changing a setting in the key: records
+#: of the earlier revisions then miss and are computed again (docs/architecture.md, "Where to add ..."). The key held
+#: the package's version instead, which stayed 0.1.0 through such changes. 1: the first revision (review I, 2026-12).
+CTC_RESULTS_VERSION = 1
 
+
+def _settings(campaign: CtcCampaign, task: FrameTask) -> dict[str, Any]:
     s = task.seq
     return {
         "qp": s.qp,
@@ -182,7 +187,7 @@ def _settings(campaign: CtcCampaign, task: FrameTask) -> dict[str, Any]:
         "grid_size": campaign.grid_size,
         "ibsm_resolution": campaign.ibsm_resolution,
         "ibsm_cameras": campaign.ibsm_cameras,
-        "version": __version__,
+        "results_version": CTC_RESULTS_VERSION,
     }
 
 
@@ -267,6 +272,7 @@ def _compute(
     campaign: CtcCampaign, task: FrameTask, key: str, folder: Path | None, loaded: tuple[Any, Any, float]
 ) -> dict[str, Any]:
     """One frame through the chain; its record written to the cache at once (atomically)."""
+    from torchmeshmetric._version import __version__
     from torchmeshmetric.mpeg.ctc.chain import ctc_frame
 
     ref, dis, read_seconds = loaded
@@ -283,6 +289,7 @@ def _compute(
         "stages": f.seconds,
         "inputs": {"ref": task.ref, "ref_texture": task.ref_texture, "dis": task.dis, "dis_texture": task.dis_texture},
         "settings": _settings(campaign, task),
+        "library_version": __version__,  # which package computed it (provenance; the key holds the results version)
     }
     if folder is not None:
         _cache_file(folder, key).parent.mkdir(parents=True, exist_ok=True)
