@@ -23,12 +23,13 @@ set also needs to move *other* points of frame ``k-1`` (the vertices of the simp
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import TYPE_CHECKING, NamedTuple, Protocol
 
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import ShapeError, check_finite, check_float, check_shape
+from torchmeshmetric._checks import ShapeError, check_finite, check_float, check_int, check_shape
 from torchmeshmetric.kernels.point_triangle import point_mesh_distance
 from torchmeshmetric.registration._common import normalisation
 from torchmeshmetric.registration.deformation_graph import embedded_deformation, skinning_weights
@@ -135,9 +136,57 @@ class RegistrationWarp(NamedTuple):
         return {name: getattr(self, name) for name in self._fields}
 
     @classmethod
-    def from_state(cls, state: dict[str, object]) -> RegistrationWarp:
-        """Rebuild a warp from :meth:`state`."""
-        return cls(**{name: state[name] for name in cls._fields})  # type: ignore[arg-type]
+    def from_state(cls, state: Mapping[str, object], *, name: str = "warp") -> RegistrationWarp:
+        """Rebuild a warp from :meth:`state`, checked: a state read back from a file may be anything.
+
+        Args:
+            state: what :meth:`state` returned.
+            name: the state's name in errors (each field is named ``{name}.{field}``).
+
+        Raises:
+            ValueError: a missing field, a diagonal that is not positive, a graph without nodes.
+            ShapeError, DTypeError, NonFiniteError: a tensor of the wrong shape or dtype, or holding NaN/Inf (a warp
+                that would move every point to NaN, or divide by a zero diagonal).
+            TypeError: a field that is not a tensor, a ``num_neighbors`` that is not an int >= 1.
+
+        Example:
+            >>> import torch
+            >>> eye = torch.eye(3, dtype=torch.float64)
+            >>> warp = RegistrationWarp(torch.eye(4, dtype=torch.float64), torch.zeros(3, dtype=torch.float64),
+            ...                         torch.tensor(1.0, dtype=torch.float64), eye, eye.expand(3, 3, 3), 0 * eye, 2)
+            >>> RegistrationWarp.from_state({**warp.state(), "diagonal": torch.tensor(0.0)})
+            Traceback (most recent call last):
+                ...
+            ValueError: warp.diagonal: expected a positive scale (the target's diagonal), found 0.0
+        """
+        missing = [field for field in cls._fields if field not in state]
+        if missing:
+            raise ValueError(f"{name}: expected the fields {list(cls._fields)}, found none for {missing}")
+        shapes: dict[str, tuple[str | int, ...]] = {
+            "rigid": (4, 4), "center": (3,), "diagonal": (), "nodes": ("N", 3), "rotations": ("N", 3, 3),
+            "translations": ("N", 3),
+        }  # fmt: skip
+        tensors: dict[str, Tensor] = {}
+        for field, pattern in shapes.items():
+            t = state[field]
+            check_shape(t, pattern, f"{name}.{field}")  # type: ignore[arg-type]
+            assert isinstance(t, Tensor)  # check_shape refuses anything else
+            check_float(t, f"{name}.{field}")
+            check_finite(t, f"{name}.{field}")
+            tensors[field] = t
+        nodes = tensors["nodes"].shape[0]
+        if nodes == 0:
+            raise ValueError(f"{name}.nodes: expected at least one node, found none")
+        for field in ("rotations", "translations"):
+            if tensors[field].shape[0] != nodes:
+                raise ShapeError(
+                    f"{name}.{field}: expected one row per node ({nodes}), found {tensors[field].shape[0]}"
+                )
+        diagonal = float(tensors["diagonal"])
+        if not diagonal > 0:
+            raise ValueError(f"{name}.diagonal: expected a positive scale (the target's diagonal), found {diagonal}")
+        num_neighbors = check_int(state["num_neighbors"], f"{name}.num_neighbors", 1)
+        return cls(**tensors, num_neighbors=num_neighbors)
 
 
 class SurfaceWarp(NamedTuple):
