@@ -12,6 +12,7 @@ from torchmeshmetric.registration import (
     CachedRegistration,
     RegistrationCache,
     RegistrationWarning,
+    RegistrationWarp,
     registration_key,
 )
 from torchmeshmetric.registration.cache import DEFAULT_REGISTER
@@ -194,3 +195,35 @@ def test_the_librarys_registrations_are_keyed_by_their_results_version(tmp_path,
         again = RegistrationCache(tmp_path).get_or_compute(a, b, registration_settings(None, {}), compute)
     assert calls == [1, 2] and (first[1], second[1], again[1]) == (False, False, True)
     assert (cache.hits, cache.misses) == (0, 1) and len(list(tmp_path.glob("*.pt"))) == 2
+
+
+def test_an_entry_edited_in_place_by_its_caller_changes_no_later_hit(tmp_path):
+    # Review I #7: entries were handed out by reference: scaling the registered mesh in place (m.verts.mul_(1.01))
+    # changed every later hit of the process (k-1 average 0.0063619 -> 0.0055274), not the disk entry.
+    a, b = sphere(1), sphere(1, offset=(0.1, 0, 0))
+
+    def fresh() -> CachedRegistration:  # each computation makes new tensors
+        eye = torch.eye(3, dtype=a.dtype)
+        warp = RegistrationWarp(
+            torch.eye(4, dtype=a.dtype), torch.zeros(3, dtype=a.dtype), torch.tensor(2.0, dtype=a.dtype),
+            a.verts[:4] / 2, eye.expand(4, 3, 3).clone(), torch.zeros(4, 3, dtype=a.dtype), 4,
+        )  # fmt: skip
+        return CachedRegistration(b.verts.clone(), torch.zeros(a.num_verts, dtype=a.dtype), True, 0.5, warp)
+
+    want = b.verts.clone()
+    for cache in (RegistrationCache(), RegistrationCache(tmp_path)):
+        first, hit = cache.get_or_compute(a, b, {}, fresh)
+        assert not hit
+        first.registered_mesh(a).verts.mul_(1.01)  # the caller's post-processing of "its" registered mesh
+        first.residual.add_(1.0)
+        first.warp.translations.add_(5.0)
+        second, hit = cache.get_or_compute(a, b, {}, lambda: pytest.fail("computed again"))
+        assert hit and torch.equal(second.verts, want) and float(second.residual.abs().max()) == 0.0
+        assert float(second.warp.translations.abs().max()) == 0.0
+        second.verts.zero_()
+        third, _ = cache.get_or_compute(a, b, {}, lambda: pytest.fail("computed again"))
+        assert torch.equal(third.verts, want) and third.verts.data_ptr() != second.verts.data_ptr()
+    adopted = RegistrationCache()
+    adopted.adopt({"k": first})
+    first.verts.zero_()
+    assert torch.equal(adopted._memory["k"].verts, want * 1.01)  # kept as adopted, not as edited since

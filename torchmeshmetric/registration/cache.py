@@ -292,6 +292,12 @@ def _read_entry(data: object, num_verts: int) -> tuple[CachedRegistration | None
     return (None, problem) if problem is not None else (entry._replace(seconds=float(entry.seconds)), None)
 
 
+def _copied(entry: CachedRegistration) -> CachedRegistration:
+    """``entry`` with tensors of its own (the cache's entries never share memory with what callers hold)."""
+    warp = entry.warp.clone() if isinstance(entry.warp, RegistrationWarp) else entry.warp
+    return entry._replace(verts=entry.verts.clone(), residual=entry.residual.clone(), warp=warp)
+
+
 def _storable(warp: Warp | None) -> dict[str, Any] | None:
     return warp.state() if isinstance(warp, RegistrationWarp) else None
 
@@ -341,7 +347,7 @@ class RegistrationCache:
     def adopt(self, entries: Mapping[str, CachedRegistration]) -> None:
         """Answer later lookups of these entries (by key, e.g. another rank's :attr:`journal`) from memory."""
         for key, entry in entries.items():
-            self._remember(key, entry)
+            self._remember(key, _copied(entry))  # this rank's own journal holds what its callers were handed
 
     def _remember(self, key: str, entry: CachedRegistration) -> None:
         """Keep ``entry`` in memory as the most recently used, dropping the least recently used beyond the bound."""
@@ -398,7 +404,8 @@ class RegistrationCache:
             compute: called on a miss; its result is stored (detached, on the CPU).
 
         Returns:
-            ``(entry, hit)``.
+            ``(entry, hit)``; the entry's tensors are the caller's own (copies of the cache's), so editing them in
+            place changes no later lookup.
         """
         key = registration_key(source, target, settings)
         entry, hit = self._lookup_or_compute(key, source, compute)
@@ -409,22 +416,26 @@ class RegistrationCache:
     def _lookup_or_compute(
         self, key: str, source: Mesh, compute: Callable[[], CachedRegistration]
     ) -> tuple[CachedRegistration, bool]:
+        # The cache keeps its own tensors and hands out copies: a caller that edits a registration in place (scaling
+        # its registered mesh) changed every later hit of this process, not the disk entry, so one command gave other
+        # figures in a fresh process.
         entry = self._memory.get(key)
         if entry is None:
             entry = self._load(key, source)
         if entry is not None:
             self._remember(key, entry)
             self.hits += 1
-            return entry, True
+            return _copied(entry), True
         self.misses += 1
         fresh = compute()
         warp = fresh.warp.to("cpu") if isinstance(fresh.warp, RegistrationWarp) else None
-        entry = CachedRegistration(
+        given = CachedRegistration(
             fresh.verts.detach().cpu(), fresh.residual.detach().cpu(), bool(fresh.converged), float(fresh.seconds), warp
         )
+        entry = _copied(given)
         self._remember(key, entry)
         self._store(key, entry)
-        return entry, False
+        return given, False
 
     def __len__(self) -> int:
         """Entries held in memory."""

@@ -55,6 +55,10 @@ def _check_points(points: Tensor) -> None:
     check_finite(points, "points")
 
 
+#: The tensor fields of a :class:`RegistrationWarp` (all but ``num_neighbors``).
+_WARP_TENSORS = ("rigid", "center", "diagonal", "nodes", "rotations", "translations")
+
+
 class RegistrationWarp(NamedTuple):
     """The deformation of a non-rigid registration, applicable to any points (see the module docstring).
 
@@ -123,13 +127,17 @@ class RegistrationWarp(NamedTuple):
         return (x * w.diagonal + w.center).to(points.dtype)
 
     def to(self, device: torch.device | str, dtype: torch.dtype | None = None) -> RegistrationWarp:
-        """A copy with every tensor on ``device`` (and in ``dtype`` when given)."""
+        """The warp with every tensor on ``device`` (and in ``dtype`` when given; tensors already there are kept)."""
         return self._replace(
             **{
                 name: getattr(self, name).to(device=device, dtype=dtype or getattr(self, name).dtype)
-                for name in ("rigid", "center", "diagonal", "nodes", "rotations", "translations")
+                for name in _WARP_TENSORS
             }
         )
+
+    def clone(self) -> RegistrationWarp:
+        """A copy whose tensors share no memory with this warp's (an in-place edit of one leaves the other)."""
+        return self._replace(**{name: getattr(self, name).clone() for name in _WARP_TENSORS})
 
     def state(self) -> dict[str, object]:
         """Plain dict of tensors and ints (for ``torch.save(weights_only=True)``); :meth:`from_state` reverses it."""
