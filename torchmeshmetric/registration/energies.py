@@ -70,10 +70,10 @@ def _smoothstep(e0: float, e1: float, x: Tensor) -> Tensor:
     Edges closer than the dtype resolves (the cosines of a ``max_normal_angle`` of 1e-300 degrees are both 1.0)
     divided 0 by 0: a NaN weight, and a NaN loss at the first step.
     """
-    width = torch.tensor(e1, dtype=x.dtype) - torch.tensor(e0, dtype=x.dtype)
-    if not bool(width > 0):
+    width = e1 - e0
+    if not float(torch.tensor(width, dtype=x.dtype)) > 0:  # the width as the division below rounds it
         return (x >= e1).to(x.dtype)
-    t = ((x - e0) / width.to(x.device)).clamp(0.0, 1.0)
+    t = ((x - e0) / width).clamp(0.0, 1.0)
     return t * t * (3.0 - 2.0 * t)
 
 
