@@ -35,7 +35,9 @@ def test_damaged_entries_are_recomputed_with_a_warning(moving_spheres, tmp_path,
             data["verts"][3, 1] = float(damage)
         torch.save(data, path)
     register = TranslationRegister()
-    with pytest.warns(UserWarning, match=r"registration cache: entry .* is (invalid|unreadable).*recomputing it"):
+    # An edited entry no longer matches its checksum (damaged); a truncated one cannot be read (review I #3)
+    message = r"registration cache: entry .* is (damaged: .* does not match its checksum|unreadable).*recomputing"
+    with pytest.warns(UserWarning, match=message):
         second = evaluate_sequence(original, simplified, registration_fn=register, registration_cache_dir=str(tmp_path))
     assert register.calls == 1  # only the damaged entry
     assert [p.statistics for p in second.pairs] == [p.statistics for p in first.pairs]
