@@ -20,6 +20,11 @@ class TranslationRegister:
         self.calls = 0
         self.step = step
 
+    @property
+    def cache_key(self) -> str:
+        """What it computes, for a cache folder: an object has no lasting name of its own (registration_fn_name)."""
+        return f"tests.TranslationRegister(step={self.step!r})"
+
     def __call__(self, source: Mesh, target: Mesh) -> Mesh:
         self.calls += 1
         shift = torch.tensor([self.step, 0.0, 0.0], dtype=source.verts.dtype)

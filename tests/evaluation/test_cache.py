@@ -1,3 +1,4 @@
+import functools
 import os
 import warnings
 
@@ -227,3 +228,71 @@ def test_an_entry_edited_in_place_by_its_caller_changes_no_later_hit(tmp_path):
     adopted.adopt({"k": first})
     first.verts.zero_()
     assert torch.equal(adopted._memory["k"].verts, want * 1.01)  # kept as adopted, not as edited since
+
+
+def _shift(source: Mesh, target: Mesh) -> Mesh:
+    """A plain module-level registration (a lasting name): the source moved by +0.1 in x."""
+    return Mesh(source.verts + torch.tensor([0.1, 0.0, 0.0], dtype=source.dtype), source.faces)
+
+
+def _moved_by(step: float):
+    def register(source: Mesh, target: Mesh) -> Mesh:
+        return Mesh(source.verts + torch.tensor([step, 0.0, 0.0], dtype=source.dtype), source.faces)
+
+    return register
+
+
+def _k_minus_1_max(result) -> float:
+    return float(result.pairs[0].statistics["surface_k_minus_1"].max)
+
+
+def test_functions_the_cache_cannot_name_never_share_an_entry(moving_spheres, tmp_path):
+    # Review I #2: a caller's function was keyed by its qualified name alone: every functools.partial was
+    # "functools.partial", every lambda of a module "<module>.<lambda>", every closure of a factory the same name.
+    # The second of two such functions got the first one's registrations (an identity's for the real registration).
+    original, simplified = moving_spheres
+    identity = functools.partial(lambda source, target: source)
+    shifted = functools.partial(_moved_by(0.1))
+    cache = RegistrationCache()
+    a = evaluate_sequence(original, simplified, registration_fn=identity, registration_cache=cache)
+    b = evaluate_sequence(original, simplified, registration_fn=shifted, registration_cache=cache)
+    c = evaluate_sequence(original, simplified, registration_fn=_moved_by(0.3), registration_cache=cache)
+    d = evaluate_sequence(original, simplified, registration_fn=_moved_by(0.1), registration_cache=cache)
+    assert (cache.hits, cache.misses) == (0, 12)
+    # surface_k_minus_1 of pair 1: the simplified frame 1 (its vertices on the sphere offset by 0.1) against frame 0
+    # moved by the registration: not moved, 0.1 apart; moved by 0.1, on it; moved by 0.3, 0.2 apart.
+    assert _k_minus_1_max(a) == pytest.approx(0.1, abs=1e-12)
+    assert _k_minus_1_max(b) == _k_minus_1_max(d) < 1e-12
+    assert _k_minus_1_max(c) == pytest.approx(0.2, abs=1e-12)
+    # One function object still finds its own entries (in memory): a second method costs no registration.
+    again = evaluate_sequence(original, original, registration_fn=shifted, registration_cache=cache)
+    assert (cache.hits, cache.misses) == (3, 12) and all(p.registration_cached for p in again.pairs)
+
+
+def test_a_cache_folder_keeps_only_functions_with_a_lasting_name(moving_spheres, tmp_path):
+    original, simplified = moving_spheres
+    with pytest.warns(UserWarning, match=r"registration_fn functools\.partial\(tests\.evaluation\.test_cache\._moved_by"
+                      r"\.<locals>\.register, \.\.\.\) has no name that lasts beyond this process .* kept in memory "
+                      r"only, not in"):  # fmt: skip
+        evaluate_sequence(
+            original, simplified, registration_fn=functools.partial(_moved_by(0.1)), registration_cache_dir=tmp_path
+        )
+    assert list(tmp_path.iterdir()) == []
+    # A plain module-level function, and any callable given a cache_key, are stored: a new process finds them.
+    evaluate_sequence(original, simplified, registration_fn=_shift, registration_cache_dir=tmp_path)
+    named = functools.partial(_moved_by(0.3))
+    named.cache_key = "shift x by 0.3"  # type: ignore[attr-defined]
+    evaluate_sequence(original, simplified, registration_fn=named, registration_cache_dir=tmp_path)
+    assert len(list(tmp_path.glob("*.pt"))) == 6
+    cache = RegistrationCache(tmp_path)
+    shifted = evaluate_sequence(original, simplified, registration_fn=_shift, registration_cache=cache)
+    renamed = functools.partial(lambda s, t: pytest.fail("registered again"))
+    renamed.cache_key = "shift x by 0.3"  # type: ignore[attr-defined]
+    far = evaluate_sequence(original, simplified, registration_fn=renamed, registration_cache=cache)
+    assert (cache.hits, cache.misses) == (6, 0)
+    assert _k_minus_1_max(shifted) < 1e-12 and _k_minus_1_max(far) == pytest.approx(0.2, abs=1e-12)
+    assert registration_settings(_shift, {})["register"] == "tests.evaluation.test_cache._shift"
+    with pytest.raises(TypeError, match=r"^registration_fn\.cache_key: expected a non-empty str"):
+        bad = functools.partial(_shift)
+        bad.cache_key = 3  # type: ignore[attr-defined]
+        evaluate_sequence(original, simplified, registration_fn=bad, registration_cache=cache)

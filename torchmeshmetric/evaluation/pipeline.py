@@ -30,6 +30,7 @@ from torchmeshmetric.registration.cache import (
     RegistrationCache,
     compute_registration,
     default_registration_settings,
+    registration_fn_name,
 )
 from torchmeshmetric.registration.warp import as_warp, deformation_of
 from torchmeshmetric.stats import DistanceStatistics, distance_statistics
@@ -54,7 +55,11 @@ __all__ = [
 
 #: A registration function ``register(source_k_minus_1, target_k)`` returning the registered frame ``k-1``: a
 #: :class:`CachedRegistration`, a result object with ``verts`` (and optionally ``residual``, ``converged``), or a
-#: mesh-like with the vertices of the source.
+#: mesh-like with the vertices of the source. A cache (and a cache folder) keeps its registrations under a name
+#: that lasts across processes: a plain function's module and qualified name, or any callable's ``cache_key``
+#: attribute (a str naming what it computes: ``fn.cache_key = "shift-0.1"``). Without one (a lambda, a closure, a
+#: ``functools.partial``, a callable object) they are kept in memory only, for that function object, with a warning
+#: when the cache has a folder (:func:`~torchmeshmetric.registration.cache.registration_fn_name`).
 RegisterFn = Callable[[Mesh, Mesh], Any]
 
 
@@ -110,14 +115,24 @@ def default_register(
 
 
 def registration_settings(register: RegisterFn | None, options: Mapping[str, Any] | None) -> dict[str, Any]:
-    """The settings that identify a registration in the cache: the function's qualified name and its options."""
+    """The settings that identify a registration in the cache: the function's name and the options.
+
+    The library's registration (``register=None``) by its complete options; a caller's function by
+    :func:`~torchmeshmetric.registration.cache.registration_fn_name`, ``None`` when it has no name that lasts beyond
+    this process (a lambda, a closure, a ``functools.partial``, a callable object without a ``cache_key``): the
+    evaluation then keys it by the function object, in memory only
+    (:meth:`~torchmeshmetric.registration.RegistrationCache.session_name`).
+
+    Example:
+        >>> registration_settings(lambda s, t: s, {})["register"] is None
+        True
+    """
     if register is None:
         # The library's registration: its complete, validated options (defaults filled), so equal settings spelled
         # differently share one cache entry (the temporal loss's too) and a misspelled option fails here, before any
         # work.
         return default_registration_settings(NonRigidOptions.from_call(options or {}))
-    name = f"{getattr(register, '__module__', '?')}.{getattr(register, '__qualname__', type(register).__name__)}"
-    return {"register": name, "options": dict(options or {})}
+    return {"register": registration_fn_name(register), "options": dict(options or {})}
 
 
 def _registration_from(registration: Any, original_k_minus_1: Mesh, original_k: Mesh) -> CachedRegistration:
@@ -169,7 +184,12 @@ def _register_pair(
         reg, cached = compute(), False
     else:
         settings = registration_settings(registration_fn, options)
-        reg, cached = registration_cache.get_or_compute(original_k_minus_1, original_k, settings, compute)
+        lasting = settings["register"] is not None
+        if not lasting:  # no name beyond this process: keyed by the function object, in memory only
+            settings["register"] = registration_cache.session_name(registration_fn)
+        reg, cached = registration_cache.get_or_compute(
+            original_k_minus_1, original_k, settings, compute, on_disk=lasting
+        )
     reg = _registration_from(reg, original_k_minus_1, original_k)
     return reg, cached, 0.0 if cached else time.perf_counter() - start
 
@@ -190,7 +210,8 @@ def register_pairs(
 
     Args:
         original_frames: the ``N`` original frames, in order.
-        registration_fn: registration function (default :func:`default_register`).
+        registration_fn: registration function (default :func:`default_register`); cached under its name, or, for a
+            callable without a lasting one (a lambda, a partial), in memory only (see :data:`RegisterFn`).
         registration_options: options of the default registration (the cache key): a
             :class:`~torchmeshmetric.registration.NonRigidOptions` or its fields as keywords, and run arguments,
             which are not keyed: a ``generator`` given here does not tell cache entries apart (see
@@ -435,7 +456,8 @@ def evaluate_sequence(
             the originals).
         two_sided: also compute the reverse sets (default ``True``).
         device: where distances (and the default registration) are computed.
-        registration_fn: registration function (default :func:`default_register`).
+        registration_fn: registration function (default :func:`default_register`); cached under its name, or, for a
+            callable without a lasting one (a lambda, a partial), in memory only (see :data:`RegisterFn`).
         registration_options: options of the default registration (``NonRigidOptions`` or its fields as keywords;
             the cache key, less the run arguments: a ``generator`` given here is not keyed, see
             :data:`RegistrationOptions`).

@@ -22,10 +22,14 @@ names its file and why, and it is recomputed and replaced, never trusted.
 
 from __future__ import annotations
 
+import functools
 import hashlib
+import inspect
 import json
 import os
+import sys
 import time
+import uuid
 import warnings
 from collections import OrderedDict
 from collections.abc import Callable, Mapping
@@ -50,6 +54,7 @@ __all__ = [
     "RegistrationCache",
     "compute_registration",
     "default_registration_settings",
+    "registration_fn_name",
     "registration_key",
 ]
 
@@ -176,6 +181,60 @@ def registration_key(source: Mesh, target: Mesh, settings: Mapping[str, object] 
     return h.hexdigest()
 
 
+def registration_fn_name(register: object) -> str | None:
+    """The name that identifies a caller's registration function in every process, or ``None`` when none does.
+
+    The cache stores a function's registrations on disk under this name, so it must stand for what the function
+    computes, across runs and machines:
+
+    * a ``cache_key`` attribute, a non-empty str, on any callable (a ``functools.partial``, a lambda, an object):
+      ``"cache_key:<it>"``; the caller names the function and its settings, and changes the name when the results
+      change;
+    * a plain function found under its qualified name in its module (defined at the top level, or in a class body):
+      ``"<module>.<qualname>"``; a script's function (module ``__main__``) by the script's resolved path:
+      ``"<path>:<qualname>"``, so that two scripts' ``register`` are two functions;
+    * anything else has no such name (a lambda, a closure, a ``functools.partial``, a bound method, a callable
+      object): every ``functools.partial`` was ``"functools.partial"`` and every lambda of a module
+      ``"<module>.<lambda>"``, so two of them shared entries. The cache keys those by the object itself, in memory
+      (:meth:`RegistrationCache.session_name`).
+
+    A function edited between runs keeps its name: give it a ``cache_key`` that changes with it (or another cache
+    folder) when its results change.
+
+    Raises:
+        TypeError: a ``cache_key`` that is not a non-empty str.
+
+    Example:
+        >>> import functools
+        >>> registration_fn_name(registration_key), registration_fn_name(functools.partial(registration_key))
+        ('torchmeshmetric.registration.cache.registration_key', None)
+        >>> named = functools.partial(registration_key)
+        >>> named.cache_key = "my-registration-v2"
+        >>> registration_fn_name(named), registration_fn_name(lambda s, t: s)
+        ('cache_key:my-registration-v2', None)
+    """
+    key = getattr(register, "cache_key", None)
+    if key is not None:
+        if not isinstance(key, str) or not key:
+            raise TypeError(
+                f"registration_fn.cache_key: expected a non-empty str naming what the function computes, found "
+                f"{type(key).__name__} {key!r}"
+            )
+        return f"cache_key:{key}"
+    if not inspect.isfunction(register):
+        return None
+    module_name, qualname = register.__module__, register.__qualname__
+    found: object = sys.modules.get(module_name)
+    for part in qualname.split("."):  # "<lambda>" and "f.<locals>.g" are found nowhere
+        found = getattr(found, part, None)
+    if found is not register:  # not the function its module holds under that name (a copy made by a factory)
+        return None
+    if module_name == "__main__":
+        script = getattr(sys.modules["__main__"], "__file__", None)
+        return None if script is None else f"{Path(script).resolve()}:{qualname}"
+    return f"{module_name}.{qualname}"
+
+
 def default_registration_settings(options: NonRigidOptions) -> dict[str, object]:
     """The settings that key the library's registration (:func:`compute_registration` with ``options``).
 
@@ -292,6 +351,17 @@ def _read_entry(data: object, num_verts: int) -> tuple[CachedRegistration | None
     return (None, problem) if problem is not None else (entry._replace(seconds=float(entry.seconds)), None)
 
 
+def _described(register: object) -> str:
+    """A registration function in messages: its module and qualified name, what a partial wraps, or its type."""
+    if isinstance(register, functools.partial):
+        return f"functools.partial({_described(register.func)}, ...)"
+    name = getattr(register, "__qualname__", None)
+    if isinstance(name, str):
+        return f"{getattr(register, '__module__', '?')}.{name}"
+    kind = type(register)
+    return f"a {kind.__module__}.{kind.__qualname__} object"
+
+
 def _copied(entry: CachedRegistration) -> CachedRegistration:
     """``entry`` with tensors of its own (the cache's entries never share memory with what callers hold)."""
     warp = entry.warp.clone() if isinstance(entry.warp, RegistrationWarp) else entry.warp
@@ -343,6 +413,31 @@ class RegistrationCache:
         #: When a dict: every entry :meth:`get_or_compute` returns is also recorded there by key (the ranks of a
         #: distributed evaluation send each other the entries they computed or loaded).
         self.journal: dict[str, CachedRegistration] | None = None
+        # Functions without a lasting name, by id: (the function, kept alive so that its id is not reused; its name).
+        self._sessions: dict[int, tuple[object, str]] = {}
+
+    def session_name(self, register: object) -> str:
+        """The name of a registration function without a lasting one (:func:`registration_fn_name`) in this cache.
+
+        Unique to the function object (a random token: no other object, process or rank gets it), so its entries are
+        found again for this object only; :meth:`get_or_compute` keeps them in memory (``on_disk=False``). With a
+        folder, the first call for a function warns that its registrations are not stored there.
+        """
+        found = self._sessions.get(id(register))
+        if found is not None:
+            return found[1]
+        described = _described(register)
+        name = f"session:{described}:{uuid.uuid4().hex}"
+        self._sessions[id(register)] = (register, name)
+        if self.directory is not None:
+            warnings.warn(
+                f"registration cache: registration_fn {described} has no name that lasts beyond this process (a plain "
+                "function defined at a module's top level has one; give any other callable a cache_key attribute, a "
+                f"str naming what it computes); its registrations are kept in memory only, not in {self.directory}",
+                UserWarning,
+                stacklevel=4,
+            )
+        return name
 
     def adopt(self, entries: Mapping[str, CachedRegistration]) -> None:
         """Answer later lookups of these entries (by key, e.g. another rank's :attr:`journal`) from memory."""
@@ -394,6 +489,8 @@ class RegistrationCache:
         target: Mesh,
         settings: Mapping[str, object],
         compute: Callable[[], CachedRegistration],
+        *,
+        on_disk: bool = True,
     ) -> tuple[CachedRegistration, bool]:
         """Return the cached registration of ``source`` onto ``target``, computing and storing it on a miss.
 
@@ -402,25 +499,27 @@ class RegistrationCache:
             target: original frame ``k``.
             settings: registration settings that are part of the key.
             compute: called on a miss; its result is stored (detached, on the CPU).
+            on_disk: read and write the folder (when the cache has one); ``False`` for settings that name nothing
+                beyond this process (:meth:`session_name`).
 
         Returns:
             ``(entry, hit)``; the entry's tensors are the caller's own (copies of the cache's), so editing them in
             place changes no later lookup.
         """
         key = registration_key(source, target, settings)
-        entry, hit = self._lookup_or_compute(key, source, compute)
+        entry, hit = self._lookup_or_compute(key, source, compute, on_disk)
         if self.journal is not None:
             self.journal[key] = entry
         return entry, hit
 
     def _lookup_or_compute(
-        self, key: str, source: Mesh, compute: Callable[[], CachedRegistration]
+        self, key: str, source: Mesh, compute: Callable[[], CachedRegistration], on_disk: bool
     ) -> tuple[CachedRegistration, bool]:
         # The cache keeps its own tensors and hands out copies: a caller that edits a registration in place (scaling
         # its registered mesh) changed every later hit of this process, not the disk entry, so one command gave other
         # figures in a fresh process.
         entry = self._memory.get(key)
-        if entry is None:
+        if entry is None and on_disk:
             entry = self._load(key, source)
         if entry is not None:
             self._remember(key, entry)
@@ -434,7 +533,8 @@ class RegistrationCache:
         )
         entry = _copied(given)
         self._remember(key, entry)
-        self._store(key, entry)
+        if on_disk:
+            self._store(key, entry)
         return given, False
 
     def __len__(self) -> int:
