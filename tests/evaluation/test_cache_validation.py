@@ -1,6 +1,7 @@
 """Disk cache entries are validated on read: an entry that loads but holds wrong data is recomputed, with a warning
 that names the file; entries are written with the permissions of a normal write."""
 
+import errno
 import os
 import stat
 import warnings
@@ -223,3 +224,35 @@ def test_other_entry_fields_and_the_checksum_are_checked(tmp_path, change, messa
     with pytest.warns(UserWarning, match=message):
         _, hit = RegistrationCache(tmp_path).get_or_compute(mesh, mesh, {}, lambda: _identity_entry(mesh))
     assert not hit
+
+
+def _read_only(path, *args, **kwargs):
+    """The atomic write of a read-only file system: it fails at the temporary file (root writes through chmod)."""
+    raise OSError(errno.EROFS, "Read-only file system", str(path.parent / f".{path.name}.1234.tmp"))
+
+
+def test_a_read_only_cache_folder_is_read_and_the_run_goes_on_in_memory(moving_spheres, tmp_path, monkeypatch):
+    # Review I #6: at the first miss the run died with "[Errno 30] Read-only file system: '.../.a49c...pt.6592.tmp'",
+    # after its work and before any report: a read-only archive of precomputed registrations was of no use unless
+    # complete. Now its entries are read, the others computed and kept in memory, after one warning naming the folder.
+    original, simplified = moving_spheres
+    register = TranslationRegister()
+    full = evaluate_sequence(original, simplified, registration_fn=register, registration_cache_dir=tmp_path)
+    next(iter(tmp_path.glob("*.pt"))).unlink()  # an archive holding 2 of the 3 registrations
+    monkeypatch.setattr("torchmeshmetric.registration.cache.atomic_write_with", _read_only)
+    register = TranslationRegister()
+    cache = RegistrationCache(tmp_path)
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        first = evaluate_sequence(original, simplified, registration_fn=register, registration_cache=cache)
+        second = evaluate_sequence(original, original, registration_fn=register, registration_cache=cache)
+    messages = [str(w.message) for w in record]
+    assert messages == [
+        f"registration cache: cannot store entries in {tmp_path} (Read-only file system); this run keeps its "
+        "registrations in memory only (the entries already there are still read)"
+    ]
+    assert cache.unwritable == "Read-only file system"
+    assert register.calls == 1 and (cache.hits, cache.misses) == (5, 1)  # the missing one, once; then from memory
+    assert [p.statistics for p in first.pairs] == [p.statistics for p in full.pairs]
+    assert all(p.registration_cached for p in second.pairs)
+    assert len(list(tmp_path.glob("*.pt"))) == 2 and not [p for p in os.listdir(tmp_path) if p.endswith(".tmp")]

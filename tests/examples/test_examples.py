@@ -272,3 +272,40 @@ def test_make_campaign_data_refuses_bad_sizes_before_making_a_folder(option, val
     low = 16 if option == "--resolution" else 2
     assert f"argument {option}: expected an int >= {low}, found {value}" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+def test_campaign_with_a_read_only_cache_folder_warns_and_writes_its_reports(
+    campaign_data: tuple[Path, str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
+) -> None:
+    # Review I #6: `campaign --cache-dir` on a read-only folder died at the first registration it computed, after its
+    # work, naming a temporary file ("[Errno 30] Read-only file system: '.../.a49c...pt.6592.tmp'"), and wrote no
+    # report. It now warns once, naming the folder, and writes the reports a writable cache gives.
+    import errno
+
+    from torchmeshmetric.cli import main as cli
+
+    root, _ = campaign_data
+    shutil.copy(EXAMPLES / "campaign.toml", root / "campaign.toml")
+    with contextlib.redirect_stdout(io.StringIO()):
+        assert cli(["campaign", str(root / "campaign.toml"), "--out-dir", str(tmp_path / "writable"),
+                    "--cache-dir", str(tmp_path / "cache")]) == 0  # fmt: skip
+
+    def read_only(path: Path, *args: object, **kwargs: object) -> None:
+        raise OSError(errno.EROFS, "Read-only file system", str(path.parent / f".{path.name}.1234.tmp"))
+
+    monkeypatch.setattr("torchmeshmetric.registration.cache.atomic_write_with", read_only)
+    capsys.readouterr()
+    with pytest.warns(UserWarning) as record, contextlib.redirect_stdout(io.StringIO()):
+        code = cli(["campaign", str(root / "campaign.toml"), "--out-dir", str(tmp_path / "read-only"),
+                    "--cache-dir", str(tmp_path / "archive")])  # fmt: skip
+    assert code == 0
+    stored = [str(w.message) for w in record if "registration cache" in str(w.message)]
+    assert stored == [
+        f"registration cache: cannot store entries in {tmp_path / 'archive'} (Read-only file system); this run "
+        "keeps its registrations in memory only (the entries already there are still read)"
+    ]
+    got = json.loads((tmp_path / "read-only" / "campaign.json").read_text())["sequences"]
+    want = json.loads((tmp_path / "writable" / "campaign.json").read_text())["sequences"]
+    for name, sequence in want.items():
+        for method, figures in sequence["methods"].items():
+            assert got[name]["methods"][method]["aggregate"] == figures["aggregate"], (name, method)

@@ -438,3 +438,32 @@ def test_a_frames_key_holds_the_results_version_not_the_package_version(
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # a miss, not a damaged record
         assert ctc_campaign._read_cached(parsed.cache_dir, bumped) is None
+
+
+def test_a_read_only_cache_folder_warns_once_and_the_campaign_writes_its_files(
+    campaign: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Review I #6: with the cache folder on a read-only mount, ctc-campaign died at its first frame ("error: [Errno
+    # 30] Read-only file system: '.../12'"). Now the campaign goes on without storing, after one warning naming it.
+    import errno
+
+    manifest, reference = campaign
+    calls: list[Path] = []
+
+    def read_only(path: Path, *args: object, **kwargs: object) -> None:
+        calls.append(path)
+        raise OSError(errno.EROFS, "Read-only file system", str(path.parent))
+
+    monkeypatch.setattr(ctc_campaign, "atomic_write", read_only)
+    out = tmp_path / "out"
+    args = ["ctc-campaign", str(manifest), "--out-dir", str(out), "--cache-dir", str(tmp_path / "ro"), "--no-plots"]
+    with pytest.warns(UserWarning) as record:
+        assert main(args) == 0
+    messages = [str(w.message) for w in record if "cache folder" in str(w.message)]
+    assert messages == [
+        f"ctc-campaign: cannot store frame records in the cache folder {tmp_path / 'ro'} (Read-only file system); "
+        "this run goes on without storing them (the records already there are still read)"
+    ]
+    assert len(calls) == 1  # tried once, then no more
+    for name in ("frames.csv", "anchor.csv", "test.csv", "summary.csv"):
+        assert (out / name).read_text() == (reference / name).read_text(), name

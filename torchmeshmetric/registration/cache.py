@@ -380,6 +380,10 @@ class RegistrationCache:
         max_entries: entries kept in memory; beyond it the least recently used is dropped from memory (never from
             disk, where a later lookup finds it again). ``None``: unbounded.
 
+    A folder that cannot be written (read-only, full) is read all the same; the first entry that cannot be stored
+    gives one warning naming the folder, and the cache then keeps its new entries in memory only: a read-only archive
+    of precomputed registrations serves what it holds, and the rest is computed.
+
     Raises:
         ValueError: ``max_entries`` not a positive int or ``None``, or ``directory`` an existing file (checked here:
             an entry is stored only after its registration ran, too late to learn it cannot be).
@@ -387,6 +391,7 @@ class RegistrationCache:
     Attributes:
         hits: number of lookups answered from memory or disk.
         misses: number of lookups that ran the registration.
+        unwritable: why the folder could not be written, or ``None``.
 
     Example:
         >>> import torch
@@ -407,6 +412,8 @@ class RegistrationCache:
         if self.directory is not None and self.directory.exists() and not self.directory.is_dir():
             raise ValueError(f"directory: expected a folder for the cache's entries, found the file {str(directory)!r}")
         self.max_entries = max_entries
+        # Set at the first failed store (after one warning): the cache then stores nothing more, and reads the folder.
+        self.unwritable: str | None = None
         self._memory: OrderedDict[str, CachedRegistration] = OrderedDict()
         self.hits = 0
         self.misses = 0
@@ -473,15 +480,27 @@ class RegistrationCache:
         return entry
 
     def _store(self, key: str, entry: CachedRegistration) -> None:
-        if self.directory is None:
+        if self.directory is None or self.unwritable is not None:
             return
-        self.directory.mkdir(parents=True, exist_ok=True)
         # Unique temporary name, fsync, then rename: ranks and concurrent runs sharing the folder may store the same
         # key at once; a reader sees a complete entry (one of theirs) or none, never a mix or a truncated file.
         payload: dict[str, object] = {**entry._asdict(), "warp": _storable(entry.warp)}
         payload["sha256"] = _checksum(payload)
-        # Written at once even inside a report's atomic_file_set: a registration is worth keeping on any outcome.
-        atomic_write_with(self._path(key), lambda fh: torch.save(payload, fh), overwrite=True, join_file_set=False)
+        try:
+            self.directory.mkdir(parents=True, exist_ok=True)
+            # Written at once even inside a report's atomic_file_set: a registration is worth keeping on any outcome.
+            atomic_write_with(self._path(key), lambda fh: torch.save(payload, fh), overwrite=True, join_file_set=False)
+        except OSError as exc:
+            # A folder that cannot be written (read-only: an archive of precomputed registrations; full) failed the
+            # whole campaign at its first miss, after the work, naming a temporary file. The registration is worth
+            # more than its copy on disk: the run goes on, keeping it in memory, and reads the folder still.
+            self.unwritable = exc.strerror or str(exc)
+            warnings.warn(
+                f"registration cache: cannot store entries in {self.directory} ({self.unwritable}); this run keeps "
+                "its registrations in memory only (the entries already there are still read)",
+                UserWarning,
+                stacklevel=4,
+            )
 
     def get_or_compute(
         self,

@@ -268,8 +268,38 @@ def _load(item: tuple[str, FrameTask]) -> tuple[Any, Any, float]:
         raise ValueError(f"{task.describe()}: {exc}") from exc
 
 
+class _RecordFolder:
+    """The cache folder as the campaign writes it: each frame's record at once, atomically, as it is computed.
+
+    A folder that cannot be written (read-only: a shared archive of records; full) failed the campaign at the first
+    frame it computed, naming a subfolder: the first record that cannot be written gives one warning naming the
+    folder, and the campaign goes on without storing (its records are read all the same).
+    """
+
+    def __init__(self, path: Path | None) -> None:
+        self.path = path
+        self.unwritable: str | None = None
+
+    def write(self, key: str, record: dict[str, Any]) -> None:
+        """Keep ``record`` as ``key``'s file (nothing without a folder, or once the folder could not be written)."""
+        if self.path is None or self.unwritable is not None:
+            return
+        file = _cache_file(self.path, key)
+        try:
+            file.parent.mkdir(parents=True, exist_ok=True)
+            atomic_write(file, json.dumps(json_safe(record), indent=1) + "\n", overwrite=True, join_file_set=False)
+        except OSError as exc:
+            self.unwritable = exc.strerror or str(exc)
+            warnings.warn(
+                f"ctc-campaign: cannot store frame records in the cache folder {self.path} ({self.unwritable}); this "
+                "run goes on without storing them (the records already there are still read)",
+                UserWarning,
+                stacklevel=2,
+            )
+
+
 def _compute(
-    campaign: CtcCampaign, task: FrameTask, key: str, folder: Path | None, loaded: tuple[Any, Any, float]
+    campaign: CtcCampaign, task: FrameTask, key: str, records: _RecordFolder, loaded: tuple[Any, Any, float]
 ) -> dict[str, Any]:
     """One frame through the chain; its record written to the cache at once (atomically)."""
     from torchmeshmetric._version import __version__
@@ -291,14 +321,7 @@ def _compute(
         "settings": _settings(campaign, task),
         "library_version": __version__,  # which package computed it (provenance; the key holds the results version)
     }
-    if folder is not None:
-        _cache_file(folder, key).parent.mkdir(parents=True, exist_ok=True)
-        atomic_write(
-            _cache_file(folder, key),
-            json.dumps(json_safe(record), indent=1) + "\n",
-            overwrite=True,
-            join_file_set=False,
-        )
+    records.write(key, record)
     return record
 
 
@@ -424,7 +447,8 @@ def run_ctc_campaign(
     Args:
         campaign: the parsed manifest (:func:`~torchmeshmetric.mpeg.ctc.manifest.load_ctc_campaign`).
         cache_dir: the per-frame cache folder (default the manifest's ``cache_dir``; ``None`` in both: no cache,
-            every frame computed).
+            every frame computed). One that cannot be written (read-only) is read; the frames computed are then not
+            stored, after one warning naming it.
         progress: called with each frame computed here, and its record (on the rank that computed it).
 
     Returns:
@@ -475,9 +499,10 @@ def run_ctc_campaign(
     # the next frame is read in a background thread while this one is computed (run_tasks takes this rank's tasks
     # in the prefetcher's order, as the ctc command)
     ahead = Prefetcher([missing[i] for i in shard(len(missing), rank, world)], load=_load, ahead=1)
+    stored = _RecordFolder(folder)
 
     def one(item: tuple[str, FrameTask]) -> dict[str, Any]:
-        record = _compute(campaign, item[1], item[0], folder, next(ahead))
+        record = _compute(campaign, item[1], item[0], stored, next(ahead))
         if progress is not None:
             progress(item[1], record)
         return record
