@@ -296,3 +296,19 @@ def test_a_cache_folder_keeps_only_functions_with_a_lasting_name(moving_spheres,
         bad = functools.partial(_shift)
         bad.cache_key = 3  # type: ignore[attr-defined]
         evaluate_sequence(original, simplified, registration_fn=bad, registration_cache=cache)
+
+
+def test_a_copied_cache_names_no_function_of_the_original(moving_spheres):
+    # The names of functions without a lasting one are the objects' own: a copy (deepcopy, pickle) starts without them
+    # (a lambda does not pickle; an id could name another object there), and its entries are found by content again.
+    import copy
+    import pickle
+
+    original, simplified = moving_spheres
+    shifted = functools.partial(_moved_by(0.1))
+    cache = RegistrationCache()
+    evaluate_sequence(original, simplified, registration_fn=shifted, registration_cache=cache)
+    for twin in (copy.deepcopy(cache), pickle.loads(pickle.dumps(cache))):
+        assert twin._sessions == {} and len(twin) == 3
+        assert twin.session_name(shifted) != cache.session_name(shifted)
+    assert cache.session_name(shifted) == cache.session_name(shifted)

@@ -70,7 +70,7 @@ REGISTRATION_RESULTS_VERSION = 1
 
 #: The ``"register"`` name in the settings of the library's registration: the qualified name of the evaluation's
 #: ``default_register``, under which disk caches have stored its entries since the first format. Kept verbatim (a
-#: test checks it still names that function) so that existing caches keep their keys.
+#: test checks it still names that function).
 DEFAULT_REGISTER = "torchmeshmetric.evaluation.pipeline.default_register"
 
 
@@ -175,7 +175,7 @@ def registration_key(source: Mesh, target: Mesh, settings: Mapping[str, object] 
     h.update(str(registration_dtype(source, target)).encode())
     if isinstance(settings, NonRigidOptions):
         text = json.dumps(_settings_json(settings), sort_keys=True)
-    else:  # the text of plain settings is unchanged, so existing disk entries keep their keys
+    else:  # plain settings by their JSON text (a NonRigidOptions inside by its canonical form)
         text = json.dumps(dict(settings), sort_keys=True, default=_settings_json)
     h.update(text.encode())
     return h.hexdigest()
@@ -431,7 +431,7 @@ class RegistrationCache:
         folder, the first call for a function warns that its registrations are not stored there.
         """
         found = self._sessions.get(id(register))
-        if found is not None:
+        if found is not None and found[0] is register:
             return found[1]
         described = _described(register)
         name = f"session:{described}:{uuid.uuid4().hex}"
@@ -445,6 +445,11 @@ class RegistrationCache:
                 stacklevel=4,
             )
         return name
+
+    def __getstate__(self) -> dict[str, object]:
+        # A copy (deepcopy, pickle) names no function of this cache's: its objects may not be there (a lambda does not
+        # pickle), and an id could name another object there.
+        return {**self.__dict__, "_sessions": {}}
 
     def adopt(self, entries: Mapping[str, CachedRegistration]) -> None:
         """Answer later lookups of these entries (by key, e.g. another rank's :attr:`journal`) from memory."""
