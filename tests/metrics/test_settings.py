@@ -103,7 +103,7 @@ def _shown(**kwargs: Any) -> str:
     sets = {"two_sided": True, "flicker": False, **kwargs}
     return (
         f"TemporalConsistency(two_sided={sets['two_sided']}, flicker={sets['flicker']}, "
-        "registration_fn='tests.evaluation.eval_helpers.TranslationRegister', registration_options={})"
+        "registration_fn='cache_key:tests.TranslationRegister(step=0.1)', registration_options={})"
     )
 
 

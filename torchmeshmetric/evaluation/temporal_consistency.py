@@ -20,7 +20,7 @@ from torchmeshmetric.evaluation.results import SET_NAMES, flatten_statistics
 from torchmeshmetric.kernels import IndexCache
 from torchmeshmetric.metrics._plot import StatisticsPlot
 from torchmeshmetric.metrics.distance_states import DistanceStates, DistanceStatesMetric
-from torchmeshmetric.registration.cache import RegistrationCache
+from torchmeshmetric.registration.cache import RegistrationCache, object_name
 from torchmeshmetric.registration.options import NonRigidOptions
 from torchmeshmetric.structures import MeshLike
 
@@ -185,8 +185,10 @@ class TemporalConsistency(StatisticsPlot, DistanceStatesMetric):
         """The sets measured and the registration, as the registration cache identifies it.
 
         The library's registration by the options that differ from the defaults (equal options spelled differently
-        are one setting); another ``registration_fn`` by its qualified name and the options given to it. The
-        ``backend`` changes a registration only by rounding, and is left out as the cache leaves it out.
+        are one setting); another ``registration_fn`` by its lasting name (a top-level function, a ``cache_key``) or,
+        without one (a lambda, a partial), by the object itself
+        (:func:`~torchmeshmetric.registration.cache.object_name`), and the options given to it. The ``backend``
+        changes a registration only by rounding, and is left out as the cache leaves it out.
         """
         registration = registration_settings(self.registration_fn, self.registration_options)
         options = registration["options"]
@@ -197,7 +199,9 @@ class TemporalConsistency(StatisticsPlot, DistanceStatesMetric):
             **super()._setting_items(),
             "two_sided": self.two_sided,
             "flicker": self.measure_flicker,
-            "registration_fn": None if self.registration_fn is None else registration["register"],
+            "registration_fn": None
+            if self.registration_fn is None
+            else registration["register"] or object_name(self.registration_fn),
             "registration_options": dict(sorted(options.items())),
         }
 

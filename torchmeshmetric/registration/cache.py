@@ -31,6 +31,7 @@ import sys
 import time
 import uuid
 import warnings
+import weakref
 from collections import OrderedDict
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -54,6 +55,7 @@ __all__ = [
     "RegistrationCache",
     "compute_registration",
     "default_registration_settings",
+    "object_name",
     "registration_fn_name",
     "registration_key",
 ]
@@ -362,6 +364,33 @@ def _described(register: object) -> str:
     return f"a {kind.__module__}.{kind.__qualname__} object"
 
 
+def object_name(register: object) -> str:
+    """A registration function without a lasting name (:func:`registration_fn_name`), named by the object itself.
+
+    Unique among the objects alive at once: a metric that names its function this way holds it, so two metrics
+    compared by their settings name one function alike and two functions apart (every lambda and partial had the
+    default registration's ``None``, so ``TemporalConsistency`` merged their sets and grouped them; found by review J).
+
+    Example:
+        >>> f = lambda s, t: s
+        >>> object_name(f) == object_name(f) != object_name(lambda s, t: s)
+        True
+    """
+    return f"object {_described(register)} at {id(register):#x}"
+
+
+def _forget_session(sessions: dict[int, tuple[Callable[[], object], str]], key: int, ref: object) -> None:
+    """Drop a dead function's session name (the weak reference's callback; a later object may hold its id now)."""
+    entry = sessions.get(key)
+    if entry is not None and entry[0] is ref:
+        del sessions[key]
+
+
+def _same(value: object) -> object:
+    """``value``: a strong reference called as a weak one is."""
+    return value
+
+
 def _copied(entry: CachedRegistration) -> CachedRegistration:
     """``entry`` with tensors of its own (the cache's entries never share memory with what callers hold)."""
     warp = entry.warp.clone() if isinstance(entry.warp, RegistrationWarp) else entry.warp
@@ -420,8 +449,11 @@ class RegistrationCache:
         #: When a dict: every entry :meth:`get_or_compute` returns is also recorded there by key (the ranks of a
         #: distributed evaluation send each other the entries they computed or loaded).
         self.journal: dict[str, CachedRegistration] | None = None
-        # Functions without a lasting name, by id: (the function, kept alive so that its id is not reused; its name).
-        self._sessions: dict[int, tuple[object, str]] = {}
+        # Functions without a lasting name, by id: (a reference to the function, its name). A weak reference where
+        # the object takes one: a strong one kept every lambda and partial alive with whatever they hold (a model
+        # captured in a partial outlived its last user; found by review J). The entry goes with its function, so an
+        # id reused by a later object never finds the name (the reference is checked too).
+        self._sessions: dict[int, tuple[Callable[[], object], str]] = {}
 
     def session_name(self, register: object) -> str:
         """The name of a registration function without a lasting one (:func:`registration_fn_name`) in this cache.
@@ -431,11 +463,16 @@ class RegistrationCache:
         folder, the first call for a function warns that its registrations are not stored there.
         """
         found = self._sessions.get(id(register))
-        if found is not None and found[0] is register:
+        if found is not None and found[0]() is register:
             return found[1]
         described = _described(register)
         name = f"session:{described}:{uuid.uuid4().hex}"
-        self._sessions[id(register)] = (register, name)
+        ref: Callable[[], object]
+        try:
+            ref = weakref.ref(register, functools.partial(_forget_session, self._sessions, id(register)))
+        except TypeError:  # an object that takes no weak reference (__slots__ without it): held, as it must be
+            ref = functools.partial(_same, register)
+        self._sessions[id(register)] = (ref, name)
         if self.directory is not None:
             warnings.warn(
                 f"registration cache: registration_fn {described} has no name that lasts beyond this process (a plain "
