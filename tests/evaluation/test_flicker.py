@@ -187,3 +187,34 @@ def test_temporal_consistency_flicker_api(moving_spheres):
         plain.update(simplified[1], original[1], original[0], simplified[0])
     with pytest.raises(TypeError, match="flicker"):
         TemporalConsistency(flicker="yes")
+
+
+@pytest.mark.parametrize(
+    ("warp", "error", "match"),
+    [
+        (
+            lambda p: torch.cat([p, p]),
+            "ShapeError",
+            r"warp\(simplified_k_minus_1.verts\): expected shape \(42, 3\), found \(84, 3\)",
+        ),
+        (lambda p: p[:-3], "ShapeError", r"expected shape \(42, 3\), found \(39, 3\)"),
+        (lambda p: p[:, :2], "ShapeError", r"expected shape \(42, 3\), found \(42, 2\)"),
+        (
+            lambda p: p.numpy(),
+            "TypeError",
+            r"warp\(simplified_k_minus_1.verts\): expected a \(V, 3\) torch.Tensor, found numpy",
+        ),
+        (lambda p: p.long(), "DTypeError", r"warp\(simplified_k_minus_1.verts\): expected a floating-point tensor"),
+        (lambda p: p + float("nan"), "NonFiniteError", r"warp\(simplified_k_minus_1.verts\): expected finite values"),
+        (lambda p: p * float("inf"), "NonFiniteError", r"warp\(simplified_k_minus_1.verts\): expected finite values"),
+    ],
+)
+def test_flicker_checks_the_warps_output(warp, error: str, match: str) -> None:
+    """A registration's wrong output crashed deep in the kernel, or gave a plausible number (review K)."""
+    import torchmeshmetric._checks as checks
+
+    mesh = sphere(1)
+    assert mesh.verts.shape[0] == 42
+    exc = TypeError if error == "TypeError" else getattr(checks, error)
+    with pytest.raises(exc, match=match):
+        flicker_distances(mesh, mesh, warp)

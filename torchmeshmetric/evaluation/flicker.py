@@ -26,7 +26,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import common_dtype
+from torchmeshmetric._checks import check_finite, check_float, check_shape, check_tensor, common_dtype
 from torchmeshmetric.kernels import point_mesh_distance, vertex_set
 from torchmeshmetric.registration.warp import Warp
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
@@ -69,6 +69,12 @@ def flicker_distances(
         :class:`FlickerDistances` (computed without gradient, on ``simplified_k``'s device, in the promoted dtype
         of the two frames).
 
+    Raises:
+        TypeError: the warp's output is not a tensor.
+        ShapeError: it is not ``(V_{k-1}, 3)``, one row per vertex of ``simplified_k_minus_1``.
+        DTypeError: it is not floating point (float32 or float64).
+        NonFiniteError: it holds NaN or Inf.
+
     Example:
         >>> import torch, trimesh
         >>> sphere = as_mesh(trimesh.creation.icosphere(subdivisions=2))
@@ -84,6 +90,13 @@ def flicker_distances(
     s_k, s_km1 = s_k.to(dtype=dtype), s_km1.to(s_k.device, dtype)
     with torch.no_grad():
         moved_verts = warp(s_km1.verts.detach())
+        # a registration's output is checked here, or the wrong shape crashed deep in the distance kernel (fewer
+        # rows), gave a plausible number (extra rows), and a NaN blamed an overflow on `points` (found by review)
+        name = "warp(simplified_k_minus_1.verts)"
+        check_tensor(moved_verts, name, "a (V, 3) torch.Tensor")
+        check_shape(moved_verts, (s_km1.verts.shape[0], 3), name)
+        check_float(moved_verts, name)
+        check_finite(moved_verts, name)
         moved = Mesh(moved_verts.to(s_k.device, s_k.dtype), s_km1.faces, validate=False)
         dists = point_mesh_distance(vertex_set(s_k).detach(), moved).dists
         reverse = point_mesh_distance(vertex_set(moved), s_k.detach()).dists if two_sided else None
