@@ -8,6 +8,7 @@ Every check raises an error that names the argument, what was found and what was
 from __future__ import annotations
 
 import functools
+import math
 import numbers
 from collections.abc import Sequence
 
@@ -33,7 +34,9 @@ __all__ = [
     "check_has_values",
     "check_lengths",
     "check_non_empty",
+    "check_positive_real",
     "check_real",
+    "check_rgb255",
     "check_same_device",
     "check_shape",
     "check_tensor",
@@ -243,16 +246,73 @@ def check_int(value: object, name: str, low: int | None = None) -> int:
 
 
 def check_real(value: object, name: str) -> float:
-    """Require a real number: a Python or numpy int or float (not a bool), returned as a float.
+    """Require a real number: a Python or numpy int or float, or a one-element real tensor (not a bool), as a float.
+
+    A one-element tensor is a number here as it is for :func:`check_int`: ``mpeg_pcqm(radius_curvature=
+    torch.tensor(0.05))`` was refused as "not a positive finite number" (found by review).
 
     Example:
         >>> import numpy as np
         >>> check_real(np.float32(0.5), "dt")
         0.5
+        >>> check_real(torch.tensor(0.25), "dt")
+        0.25
     """
+    if isinstance(value, Tensor) and value.numel() == 1 and value.dtype != torch.bool and not value.is_complex():
+        check_has_values(value, name)
+        return float(value.item())
     if isinstance(value, bool) or not isinstance(value, numbers.Real):  # numpy's floats and ints are Real
         raise TypeError(f"{name}: expected a float, found {type(value).__name__} {value!r}")
     return float(value)
+
+
+def check_positive_real(value: object, name: str) -> float:
+    """Require a finite real number > 0 (:func:`check_real`'s numbers), returned as a float.
+
+    Example:
+        >>> check_positive_real(2, "radius_factor")
+        2.0
+        >>> check_positive_real(float("nan"), "peak")
+        Traceback (most recent call last):
+        ...
+        ValueError: peak: expected a positive finite number, found nan
+    """
+    x = check_real(value, name)
+    if not (math.isfinite(x) and x > 0):
+        raise ValueError(f"{name}: expected a positive finite number, found {x!r}")
+    return x
+
+
+def check_rgb255(colors: Tensor, name: str) -> None:
+    """Require RGB colours on mmetric's 8-bit scale: values in ``[0, 255]``, not all fractions of ``[0, 1]``.
+
+    mmetric reads 8-bit colours, so it never sees other values; given them, the library rounded or truncated them
+    in silence: colours normalised to ``[0, 1]`` (torch's convention) became black and hid every colour distortion,
+    negative ones extrapolated PCQM's lightness table (found by review). NaN is left to the caller's own rule (the
+    pcc merge counts it as 0, as mmetric's conversion does; PCQM refuses it).
+
+    Raises:
+        ValueError: naming ``name`` and the range found.
+
+    Example:
+        >>> check_rgb255(torch.tensor([[0.2, 0.5, 1.0]]), "ref.colors")  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        ValueError: ref.colors: expected 8-bit RGB values in [0, 255], found fractions in [0.2, 1] ...
+    """
+    check_has_values(colors, name)
+    c = colors.detach().to(torch.float64)
+    c = c[~torch.isnan(c)]
+    if c.numel() == 0:
+        return
+    lo, hi = (float(v) for v in torch.stack(torch.aminmax(c)).tolist())
+    if lo < 0 or hi > 255:
+        raise ValueError(f"{name}: expected 8-bit RGB values in [0, 255], found values in [{lo:g}, {hi:g}]")
+    if hi <= 1 and bool((c != torch.round(c)).any()):
+        raise ValueError(
+            f"{name}: expected 8-bit RGB values in [0, 255], found fractions in [{lo:g}, {hi:g}] (colours normalised "
+            "to [0, 1]? they would all round to black: multiply them by 255)"
+        )
 
 
 def check_non_empty(x: Tensor, name: str) -> None:

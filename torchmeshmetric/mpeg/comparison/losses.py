@@ -75,10 +75,18 @@ def point_to_plane_mse(points: Tensor, ref_points: Tensor, ref_normals: Tensor) 
     Args:
         points: ``(P, 3)`` points.
         ref_points: ``(R, 3)`` points searched.
-        ref_normals: ``(R, 3)`` their normals (mmetric's are unit face normals, averaged where points merge).
+        ref_normals: ``(R, 3)`` their normals (mmetric's are unit face normals, averaged where points merge);
+            finite, float32 or float64.
 
     Returns:
-        Scalar tensor.
+        Scalar tensor. A point exactly equidistant from several reference points projects on the normal of the one
+        the nearest-point kernel returns (which depends on the reference points' order: reordering them can change
+        the loss); only :func:`~torchmeshmetric.mpeg.mpeg_compare` averages equidistant neighbours, as mmetric.
+
+    Raises:
+        ShapeError: ``ref_normals`` is not ``(R, 3)``.
+        DTypeError: ``ref_normals`` is not float32 or float64.
+        NonFiniteError: ``ref_normals`` holds NaN or Inf.
 
     Example:
         >>> import torch
@@ -89,7 +97,9 @@ def point_to_plane_mse(points: Tensor, ref_points: Tensor, ref_normals: Tensor) 
     _check_points(points, "points")
     _check_points(ref_points, "ref_points")
     check_shape(ref_normals, (ref_points.shape[0], 3), "ref_normals")
+    check_float(ref_normals, "ref_normals")
     check_same_device({"points": points, "ref_points": ref_points, "ref_normals": ref_normals})
+    check_finite(ref_normals, "ref_normals")  # a NaN normal gave a NaN loss in silence (found by review)
     idx = nearest_vertex_distance(points, ref_points).idx
     err = points - ref_points[idx]
     proj = (err * ref_normals[idx].to(err.dtype)).sum(dim=-1)
@@ -162,6 +172,10 @@ def mpeg_geometry_loss(
     elif term == "d2":
         if ref_normals is None or dis_normals is None:
             raise ValueError("ref_normals, dis_normals: D2 needs the normals of both clouds")
+        for name, normals, pts in (("ref_normals", ref_normals, ref_points), ("dis_normals", dis_normals, dis_points)):
+            check_shape(normals, (pts.shape[0], 3), name)  # named here: point_to_plane_mse calls both ref_normals
+            check_float(normals, name)
+            check_finite(normals, name)
         a = point_to_plane_mse(ref_points, dis_points, dis_normals)
         b = point_to_plane_mse(dis_points, ref_points, ref_normals)
     else:

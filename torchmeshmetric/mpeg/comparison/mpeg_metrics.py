@@ -11,6 +11,7 @@ from torch import Tensor
 
 from torchmeshmetric._checks import EmptyInputError
 from torchmeshmetric.mpeg.comparison.pcc import MpegResult, mpeg_compare
+from torchmeshmetric.mpeg.comparison.psnr import check_mpeg_peak
 from torchmeshmetric.mpeg.core import _float32 as f32
 from torchmeshmetric.mpeg.core.point_cloud import PointCloud
 from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh, as_textured_mesh
@@ -192,8 +193,8 @@ def mpeg_point_clouds(
         (True, None)
     """
     r, d = _parts(ref, names[0]), _parts(dis, names[1])
-    if peak is not None and not (np.isfinite(peak) and peak > 0):
-        raise ValueError(f"peak: expected a positive finite number, found {peak!r}")
+    if peak is not None:
+        peak = check_mpeg_peak(peak)
     if sampling == "grid":
         lo, hi = mesh_box(r.mesh.verts) if box is None else check_box(box, r.mesh.verts)
         if peak is None:

@@ -28,7 +28,7 @@ import torch
 from torchmeshmetric import native
 from torchmeshmetric.mpeg.comparison.colour import rgb_to_ycbcr
 from torchmeshmetric.mpeg.comparison.neighbours import NeighbourTies, nearest_with_ties_both
-from torchmeshmetric.mpeg.comparison.psnr import mpeg_psnr
+from torchmeshmetric.mpeg.comparison.psnr import check_mpeg_peak, mpeg_psnr
 from torchmeshmetric.mpeg.core.point_cloud import PointCloud, merge_duplicate_points
 
 __all__ = ["MpegDirection", "MpegPointErrors", "MpegResult", "PointErrors", "mpeg_compare", "mpeg_point_errors"]
@@ -322,13 +322,17 @@ def mpeg_compare(ref: PointCloud, dis: PointCloud, *, peak: float | None = None)
     Args:
         ref: the reference cloud (its normals drive D2; without them D2 is ``nan``).
         dis: the distorted cloud (its own normals are not used, as in mmetric).
-        peak: PSNR peak; default the reference cloud's bounding-box diagonal. Rounded to float32 as mmetric does.
+        peak: PSNR peak, a positive finite number; default the reference cloud's bounding-box diagonal. Rounded to
+            float32 as mmetric does. A reference whose box is one point has a zero diagonal: its geometry PSNRs are
+            then mmetric's ``-inf`` (NaN where the error is 0 too), the colour PSNRs are unaffected.
 
     Returns:
         :class:`MpegResult`.
 
     Raises:
         EmptyInputError: a cloud is empty.
+        TypeError: ``peak`` is not a real number.
+        ValueError: ``peak`` is not positive and finite in float32; colours outside ``[0, 255]``.
 
     Example:
         >>> import torch
@@ -338,10 +342,10 @@ def mpeg_compare(ref: PointCloud, dis: PointCloud, *, peak: float | None = None)
         >>> round(r.symmetric.d1_mse, 6), round(r.symmetric.d2_mse, 6)
         (0.005, 0.005)
     """
-    m = _matched(ref, dis)  # first: it names an empty cloud ("ref"/"dis") before anything reads the points
-    if peak is None:
-        peak = bbox_diagonal(ref.points.detach().cpu().numpy().astype(np.float32))
-    peak = float(np.float32(peak))
+    given = None if peak is None else check_mpeg_peak(peak)  # before the search it would waste
+    m = _matched(ref, dis)  # before the default peak: it names an empty cloud ("ref"/"dis")
+    # a one-point reference box gives 0 here: mmetric's -inf (NaN for a zero error), see mpeg_psnr
+    peak = bbox_diagonal(ref.points.detach().cpu().numpy().astype(np.float32)) if given is None else given
     return MpegResult(
         peak=peak,
         points_ref=m.ref.num_points,

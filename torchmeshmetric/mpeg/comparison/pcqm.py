@@ -34,7 +34,13 @@ import numpy as np
 import torch
 
 from torchmeshmetric import native
-from torchmeshmetric._checks import EmptyInputError, check_allocation, check_finite
+from torchmeshmetric._checks import (
+    EmptyInputError,
+    check_allocation,
+    check_finite,
+    check_positive_real,
+    check_rgb255,
+)
 from torchmeshmetric.mpeg.comparison.pcc import bbox_diagonal
 from torchmeshmetric.mpeg.comparison.pcqm_lightness import pcqm_lightness
 from torchmeshmetric.mpeg.core.point_cloud import PointCloud
@@ -123,12 +129,13 @@ def _psnr(score: float, diagonal: float) -> float:
         return float(10.0 * np.log10(np.float64(diagonal * diagonal) / np.float64(mse)))
 
 
-def _check(radius_curvature: float, knn: int, radius_factor: float) -> None:
-    for name, v in (("radius_curvature", radius_curvature), ("radius_factor", radius_factor)):
-        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-            raise ValueError(f"{name}: expected a positive finite number, found {v!r}")
+def _check(radius_curvature: object, knn: int, radius_factor: object) -> tuple[float, float]:
+    """The two radii as floats (numpy's numbers and one-element tensors too, as every numeric option), and ``knn``."""
+    rc = check_positive_real(radius_curvature, "radius_curvature")
+    rf = check_positive_real(radius_factor, "radius_factor")
     if isinstance(knn, bool) or not isinstance(knn, (int, np.integer)) or knn < 1:
         raise ValueError(f"knn: expected an integer >= 1, found {knn!r}")
+    return rc, rf
 
 
 def mpeg_pcqm(
@@ -147,9 +154,10 @@ def mpeg_pcqm(
 
     Args:
         ref: ``(N, 3)`` cloud A (positions rounded to float32, as mmetric holds them) with optional ``(N, 3)`` RGB
-            colours in ``[0, 255]`` (white without; truncated to integers, as PCQM does).
+            colours in ``[0, 255]`` (white without; truncated to integers, as PCQM does; others are refused).
         dis: ``(M, 3)`` cloud B, likewise.
-        radius_curvature: mm's ``--radiusCurvature``: the curvature neighbourhood radius relative to A's box.
+        radius_curvature: mm's ``--radiusCurvature``: the curvature neighbourhood radius relative to A's box (a
+            Python or numpy number, or a one-element tensor).
         knn: mm's ``--thresholdKnnSearch``: the neighbours of the projection quadric.
         radius_factor: mm's ``--radiusFactor``: the pooling radius over the curvature radius.
 
@@ -159,7 +167,11 @@ def mpeg_pcqm(
     Raises:
         EmptyInputError: a cloud without points.
         NonFiniteError: NaN or Inf colours.
-        ValueError: a non-positive radius or factor, ``knn < 1``, or a cloud ``ref`` whose box measure is 0.
+        TypeError: a radius or factor that is not a real number.
+        ValueError: a non-positive or non-finite radius or factor, ``knn < 1``, a cloud ``ref`` whose box measure
+            is 0, colours outside ``[0, 255]`` (or all fractions of ``[0, 1]``: normalised colours), or radii whose
+            pooling radius overflows (``radius_curvature * box measure * radius_factor`` infinite: mm prints
+            ``-nan`` there).
         NativeBuildError: the C++ extension cannot be built here.
 
     Example:
@@ -168,12 +180,13 @@ def mpeg_pcqm(
         >>> r.pcqm, r.psnr
         (0.0, inf)
     """
-    _check(radius_curvature, knn, radius_factor)
+    radius_curvature, radius_factor = _check(radius_curvature, knn, radius_factor)
     for name, cloud in (("ref", ref), ("dis", dis)):
         if cloud.num_points == 0:
             raise EmptyInputError(f"{name}: expected a point cloud with points, found 0 points")
         if cloud.colors is not None:
             check_finite(cloud.colors, f"{name}.colors")
+            check_rgb255(cloud.colors, f"{name}.colors")
     a = ref.points.detach().cpu().to(torch.float32).to(torch.float64).contiguous()
     b = dis.points.detach().cpu().to(torch.float32).to(torch.float64).contiguous()
     white = np.full((1, 3), 255.0)
@@ -188,6 +201,12 @@ def mpeg_pcqm(
         raise ValueError(
             f"ref: PCQM's box measure (largest |min| + |max| over the axes) is {max_dim!r}, so the pooling radius "
             f"{radius * radius_factor!r} squares to 0; a cloud at the origin has no PCQM"
+        )
+    if not math.isfinite(pooling):  # mm prints -nan: the Gaussian weights divide inf by inf
+        raise ValueError(
+            f"radius_curvature, radius_factor: the pooling radius radius_curvature * box measure * radius_factor = "
+            f"{radius_curvature!r} * {max_dim!r} * {radius_factor!r} overflows to {pooling!r}, so PCQM would be NaN "
+            "(mm prints -nan); choose smaller radii"
         )
     # each thread fits its quadrics over knn neighbour slots (index, distance and a 6-column row: 64 bytes each);
     # PCQM pads the neighbours a cloud lacks with its point 0, so a knn above the points is valid, up to memory

@@ -9,7 +9,7 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric import native
-from torchmeshmetric._checks import EmptyInputError, check_finite, check_shape
+from torchmeshmetric._checks import EmptyInputError, check_finite, check_rgb255, check_shape
 
 __all__ = ["PointCloud", "merge_duplicate_points"]
 
@@ -95,6 +95,8 @@ def merge_duplicate_points(cloud: PointCloud, name: str = "cloud") -> PointCloud
 
     Raises:
         EmptyInputError: the cloud has no point.
+        ValueError: colours outside ``[0, 255]``, or all fractions of ``[0, 1]`` (:func:`check_rgb255`): mmetric
+            reads 8-bit colours, and converts wider float values in ways of its own (not a clamp).
 
     Example:
         >>> import torch
@@ -106,6 +108,8 @@ def merge_duplicate_points(cloud: PointCloud, name: str = "cloud") -> PointCloud
     """
     if cloud.num_points == 0:
         raise EmptyInputError(f"{name}: expected at least one point, found an empty point cloud")
+    if cloud.colors is not None:
+        check_rgb255(cloud.colors, f"{name}.colors")
     pts = np.ascontiguousarray(cloud.points.detach().cpu().numpy(), dtype=np.float32)
     ext = native.try_load("pcc")
     if ext is None:
