@@ -169,3 +169,20 @@ def test_d2_loss_refuses_non_finite_normals(bad: float) -> None:
         mpeg_geometry_loss(
             p, q, term="d2", ref_normals=n.nan_to_num(0.0), dis_normals=nd.index_fill(0, torch.tensor([2]), bad)
         )
+
+
+def test_more_than_30_equidistant_neighbours_keep_the_30_first_by_position() -> None:
+    """The library's documented rule (docs/mpeg.md): of more than 30 exactly equidistant neighbours, the 30 first of
+    the merged cloud (sorted by x, y, z) are averaged. mm averages the 30 its k-d tree visits first, another subset.
+    """
+    r = np.arange(-10, 11)
+    grid = np.stack(np.meshgrid(r, r, r, indexing="ij"), -1).reshape(-1, 3)
+    shell = grid[(grid * grid).sum(1) == 50].astype(np.float32)  # 84 integer points at distance sqrt(50)
+    assert shell.shape[0] == 84
+    first30 = np.lexsort((shell[:, 2], shell[:, 1], shell[:, 0]))[:30]
+    colours = np.full((84, 3), 200.0, np.float32)
+    colours[first30] = 40.0
+    perm = np.random.default_rng(0).permutation(84)  # the input order does not matter: the merge sorts
+    ref = PointCloud(torch.zeros(1, 3), colors=torch.tensor([[40.0, 40, 40]]))
+    dis = PointCloud(torch.from_numpy(shell[perm]), colors=torch.from_numpy(colours[perm]))
+    assert mpeg_compare(ref, dis, peak=10.0).ref_to_dis.color_mse == (0.0, 0.0, 0.0)

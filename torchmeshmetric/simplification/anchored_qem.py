@@ -120,8 +120,9 @@ def simplify_anchored_qem(
     check_float(anchors, "anchors")
     check_finite(anchors, "anchors")
     w = _anchor_weights(weight, anchors.shape[0])
-    for name, value in (("candidate_fraction", candidate_fraction), ("min_normal_cos", min_normal_cos)):
-        check_real(value, name)  # "0.5" gave Python's bare "'<' not supported between instances of 'float' and 'str'"
+    # "0.5" gave Python's bare "'<' not supported between instances of 'float' and 'str'"; used as the floats returned
+    candidate_fraction = check_real(candidate_fraction, "candidate_fraction")
+    min_normal_cos = check_real(min_normal_cos, "min_normal_cos")
     if not 0.0 < candidate_fraction <= 1.0:
         raise ValueError(f"candidate_fraction: expected a float in (0, 1], found {candidate_fraction!r}")
     if not -1.0 <= min_normal_cos < 1.0:

@@ -184,11 +184,11 @@ def simplify_registered_qem(
         weight = float(weight)  # as simplify_anchored_qem takes it (a scalar tensor was refused here only)
     if not (isinstance(weight, numbers.Real) and not isinstance(weight, bool) and np.isfinite(weight) and weight >= 0):
         raise ValueError(f"weight: expected a finite float >= 0, found {weight!r}")
-    options = (("max_distance", max_distance), ("candidate_fraction", candidate_fraction))
-    for name, value in (*options, ("min_normal_cos", min_normal_cos)):
-        if value is not None:
-            # "1" gave Python's bare "'>' not supported between instances of 'str' and 'int'" (found by review)
-            check_real(value, name)
+    # "1" gave Python's bare "'>' not supported between instances of 'str' and 'int'" (found by review); the numbers
+    # are used as the floats check_real returns (a one-element tensor is a number too)
+    max_distance = None if max_distance is None else check_real(max_distance, "max_distance")
+    candidate_fraction = check_real(candidate_fraction, "candidate_fraction")
+    min_normal_cos = check_real(min_normal_cos, "min_normal_cos")
     if max_distance is not None and not (max_distance > 0):
         raise ValueError(f"max_distance: expected a float > 0 or None, found {max_distance!r}")
     if not 0.0 < candidate_fraction <= 1.0:

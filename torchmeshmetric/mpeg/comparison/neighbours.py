@@ -7,6 +7,10 @@ common on grid-sampled clouds, so they are found exactly: the k nearest points a
 arithmetic (the C++ hierarchy's ``mpeg_knn``, or a chunked brute force where the extension cannot be built), ranked
 by (squared distance, index), and only queries whose two nearest are within ``1e-20`` are searched further, widening
 by 5 while all neighbours found are equally far, as dmetric does.
+
+One known difference (docs/mpeg.md): where more than 30 target points are exactly as far as the nearest, dmetric
+keeps the 30 its nanoflann k-d tree visits first, and this module the 30 lowest indices (of the merged cloud, sorted
+by position); the colour and D2 errors of that query point then differ from mm's, its D1 never does.
 """
 
 from __future__ import annotations
@@ -121,6 +125,9 @@ def k_nearest(query: np.ndarray, target: np.ndarray, k: int) -> tuple[np.ndarray
 
 def nearest_with_ties(query: np.ndarray, target: np.ndarray) -> NeighbourTies:
     """Nearest target point of every query point, with dmetric's equidistant neighbours.
+
+    At most 30 equidistant neighbours are kept, as in dmetric; of more, the 30 lowest target indices (dmetric keeps
+    the 30 its k-d tree visits first: see the module docstring).
 
     Args:
         query: ``(Q, 3)`` float32 points.
