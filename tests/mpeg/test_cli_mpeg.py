@@ -8,6 +8,7 @@ import re
 import subprocess
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from tests.mpeg.conftest import MM, MPEG_REF
@@ -125,3 +126,54 @@ def test_bad_input_is_one_clear_line(
     err = capsys.readouterr().err
     assert err.startswith("torchmeshmetric mpeg: error: ")
     assert message in err
+
+
+def _cloud_ply(path: Path, points: np.ndarray, colors: np.ndarray) -> str:
+    head = f"ply\nformat ascii 1.0\nelement vertex {len(points)}\n" + "".join(f"property float {c}\n" for c in "xyz")
+    head += "".join(f"property uchar {c}\n" for c in ("red", "green", "blue"))
+    pairs = zip(points.tolist(), colors.tolist(), strict=True)
+    rows = "".join(f"{x!r} {y!r} {z!r} {r} {g} {b}\n" for (x, y, z), (r, g, b) in pairs)
+    path.write_text(head + "end_header\n" + rows)
+    return str(path)
+
+
+def _clouds(tmp_path: Path) -> tuple[str, str]:
+    rng = np.random.default_rng(0)
+    a = rng.random((500, 3)).astype(np.float32)
+    b = (a + rng.normal(0, 0.01, a.shape)).astype(np.float32)
+    ca = rng.integers(0, 256, (500, 3))
+    cb = np.clip(ca + rng.integers(-10, 10, (500, 3)), 0, 255)
+    return _cloud_ply(tmp_path / "a.ply", a, ca), _cloud_ply(tmp_path / "b.ply", b, cb)
+
+
+@pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")
+def test_point_cloud_plys_are_compared_as_mm_compares_them(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Point-cloud PLYs (mm sample's output) were refused in pcc mode ("holds a PointCloud, not a triangle mesh",
+    review K); mm compare --mode pcc takes them as they are, and so does --sampling mesh now: mm's printed digits."""
+    ref, dis = _clouds(tmp_path)
+    args = [str(MM), "compare", "--mode", "pcc", "--inputModelA", ref, "--inputModelB", dis]
+    mm = subprocess.run(args, capture_output=True, text=True, timeout=300, check=True).stdout
+    found = dict(re.findall(r"^\s*(mseF\s+\(p2point\)|mseF,PSNR \(p2point\)|c\[\d\],PSNRF\s*): (\S+)$", mm, re.M))
+    printed = {re.sub(r"\s+", " ", k).strip(): v for k, v in found.items()}
+    assert len(printed) == 5, mm
+    assert main(["mpeg", ref, dis, "--sampling", "mesh"]) == 0
+    table = {line.split()[0]: line.split()[1] for line in capsys.readouterr().out.splitlines()[1:-1]}
+    for ours, theirs in (
+        ("d1_mse", "mseF (p2point)"),
+        ("d1_psnr", "mseF,PSNR (p2point)"),
+        ("y_psnr", "c[0],PSNRF"),
+        ("cb_psnr", "c[1],PSNRF"),
+        ("cr_psnr", "c[2],PSNRF"),
+    ):
+        assert table[ours] == printed[theirs], ours
+    assert table["d1_psnr"] == "44.8246519"
+
+
+def test_point_cloud_in_grid_mode_names_the_file_and_the_way(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    ref, dis = _clouds(tmp_path)
+    assert main(["mpeg", ref, dis]) == 1
+    err = capsys.readouterr().err
+    assert f"REF {ref!r}: a point cloud (500 points, no faces) has no surface for grid sampling" in err
+    assert "--sampling mesh" in err

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from pathlib import Path
 from typing import Any
 
 from torchmeshmetric._format import format_number, json_safe
@@ -102,6 +103,21 @@ def _run_tfan(args: argparse.Namespace) -> int:
     return 0 if report.endswith(" meshes are equal") else 1
 
 
+def _pcc_model(side: str, path: str, texture: str | None) -> Any:
+    """A pcc model: a PLY without faces as the point cloud it is (mm compare --mode pcc takes it), else the mesh.
+
+    A mesh PLY is read twice this way (the point reader stops at its declared faces, then the mesh reader); the
+    comparison's sampling and searches dwarf that.
+    """
+    from torchmeshmetric.data.ply import read_ply_points
+    from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
+    from torchmeshmetric.mpeg.sampling.model_cloud import load_model_cloud
+
+    if Path(path).suffix.lower() == ".ply" and read_ply_points(Path(path)) is not None:
+        return load_model_cloud(path, texture, name=f"{side} {path!r}")
+    return load_textured_mesh(path, texture)
+
+
 def _run(args: argparse.Namespace) -> int:
     from torchmeshmetric.cli.mpeg_outputs import check_outputs, load_pair, run_ibsm, write_pcc_outputs
     from torchmeshmetric.mpeg.comparison.mpeg_metrics import mpeg_point_clouds
@@ -122,7 +138,7 @@ def _run(args: argparse.Namespace) -> int:
     box = None
     if args.box is not None:
         box = (corner(args.box[0], "--box MIN"), corner(args.box[1], "--box MAX"))
-    ref, dis = load_pair(args)
+    ref, dis = load_pair(args, _pcc_model)
     try:
         clouds = mpeg_point_clouds(
             ref,

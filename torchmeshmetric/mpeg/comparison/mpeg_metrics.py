@@ -44,7 +44,7 @@ def _parts(m: MeshLike | TexturedMesh, name: str = "mesh") -> TexturedMesh:
 
 
 def mpeg_point_cloud(
-    mesh: MeshLike | TexturedMesh,
+    mesh: MeshLike | TexturedMesh | PointCloud,
     sampling: Sampling = "grid",
     *,
     grid_size: int = 1024,
@@ -68,6 +68,8 @@ def mpeg_point_cloud(
         >>> mpeg_point_cloud(tri, "mesh").num_points
         3
     """
+    if isinstance(mesh, PointCloud):
+        return _given_cloud(mesh, sampling, name)
     t = _parts(mesh, name)
     if sampling == "grid":
         cloud = grid_sample(
@@ -88,6 +90,25 @@ def mpeg_point_cloud(
     raise ValueError(f"sampling: expected 'grid' or 'mesh', found {sampling!r}")
 
 
+def _given_cloud(cloud: PointCloud, sampling: Sampling, name: str) -> PointCloud:
+    """A model that is already a point cloud: compared as it is in mesh mode, as ``mm compare --mode pcc`` does.
+
+    mmetric's ``sampleIfNeeded`` samples only a model with faces; a point cloud (``mm sample``'s PLY output) goes to
+    the comparison unchanged. Grid sampling needs a surface to cast its rays at, so a cloud is refused there.
+    """
+    if sampling == "grid":
+        raise ValueError(
+            f"{name}: a point cloud ({cloud.num_points} points, no faces) has no surface for grid sampling; compare it "
+            "with sampling='mesh' (the command line's --sampling mesh), which takes a point cloud as it is, as mm "
+            "compare --mode pcc does"
+        )
+    if sampling != "mesh":
+        raise ValueError(f"sampling: expected 'grid' or 'mesh', found {sampling!r}")
+    if cloud.num_points == 0:
+        raise EmptyInputError(f"{name}: expected points, found an empty point cloud")
+    return cloud
+
+
 def _why_no_grid_point(name: str, grid_size: int, box: BoxLike | None) -> str:
     """Why grid sampling gave no point from a mesh with a surface (`_parts` checked that): no grid ray reaches it."""
     where = (
@@ -101,8 +122,8 @@ def _why_no_grid_point(name: str, grid_size: int, box: BoxLike | None) -> str:
 
 
 def mpeg_metrics(
-    ref: MeshLike | TexturedMesh,
-    dis: MeshLike | TexturedMesh,
+    ref: MeshLike | TexturedMesh | PointCloud,
+    dis: MeshLike | TexturedMesh | PointCloud,
     *,
     sampling: Sampling = "grid",
     grid_size: int = 1024,
@@ -119,11 +140,13 @@ def mpeg_metrics(
     ``mm sample`` + ``mm sample`` + ``mm compare --mode pcc --resolution``, without ``--useFixedPoint``. The V-DMC
     test model's metric step (fixed-point dequantisation and sampling over the sequence's box, peak = its longest
     side, IBSM) is :func:`~torchmeshmetric.mpeg.ctc.chain.ctc_frame`. ``sampling="mesh"`` is
-    ``mm compare --mode pcc`` on the meshes (peak = the reference cloud's bounding-box diagonal).
+    ``mm compare --mode pcc`` on the meshes (peak = the reference cloud's bounding-box diagonal); a
+    :class:`PointCloud` (``mm sample``'s output, :func:`~torchmeshmetric.mpeg.load_model_cloud`) is compared as it
+    is there, as mmetric samples only models with faces.
 
     Args:
-        ref: reference mesh (or :class:`TexturedMesh` for colour figures).
-        dis: distorted mesh.
+        ref: reference mesh (or :class:`TexturedMesh` for colour figures; a :class:`PointCloud` in mesh mode).
+        dis: distorted mesh (likewise).
         sampling: ``"grid"`` or ``"mesh"``.
         grid_size: grid steps over the box's longest side (grid mode).
         box: ``(min, max)`` sampling box (grid mode); it must contain the reference.
@@ -137,10 +160,10 @@ def mpeg_metrics(
 
     Raises:
         BoxError: a malformed box or one that does not contain the reference.
-        EmptyInputError: a mesh without faces, or one that gives no point (every face of zero area; grid: no ray
-            hits it), named by ``names``.
+        EmptyInputError: a mesh without faces or an empty point cloud, or a mesh that gives no point (every face of
+            zero area; grid: no ray hits it), named by ``names``.
         NonFiniteError: NaN or Inf vertices.
-        ValueError: a bad ``sampling``, ``grid_size`` or ``peak``.
+        ValueError: a bad ``sampling``, ``grid_size`` or ``peak``; a point cloud in grid mode.
 
     Example:
         >>> import trimesh
@@ -172,8 +195,8 @@ class MpegClouds(NamedTuple):
 
 
 def mpeg_point_clouds(
-    ref: MeshLike | TexturedMesh,
-    dis: MeshLike | TexturedMesh,
+    ref: MeshLike | TexturedMesh | PointCloud,
+    dis: MeshLike | TexturedMesh | PointCloud,
     *,
     sampling: Sampling = "grid",
     grid_size: int = 1024,
@@ -192,10 +215,14 @@ def mpeg_point_clouds(
         >>> c.ref.num_points == c.dis.num_points, c.peak
         (True, None)
     """
-    r, d = _parts(ref, names[0]), _parts(dis, names[1])
+    r, d = (m if isinstance(m, PointCloud) else _parts(m, n) for m, n in ((ref, names[0]), (dis, names[1])))
     if peak is not None:
         peak = check_mpeg_peak(peak)
     if sampling == "grid":
+        for given, name in ((r, names[0]), (d, names[1])):
+            if isinstance(given, PointCloud):
+                _given_cloud(given, sampling, name)
+        assert isinstance(r, TexturedMesh)
         lo, hi = mesh_box(r.mesh.verts) if box is None else check_box(box, r.mesh.verts)
         if peak is None:
             diag = hi.astype(np.float64) - lo.astype(np.float64)
