@@ -281,8 +281,10 @@ def test_nudged_psnr_difference_keeps_decimals_as_the_tables_psnr():
     # "~-1e+01" a relative rule would print; the half-width is the same in both runs and keeps 3 digits.
     text = comparison_markdown(with_nudged_verdicts(table(-12.93), table(-12.89)))
     assert "| reverse:surface_k | B: -12.9 ± 2.00e-05 |" in text
+    # -12.93 and -11.5 dB: not even the units agree (-13, -12): '~' and their midpoint's, the text both runs print
+    # (it was the run's own "~-13" before review L's finding 3)
     text = comparison_markdown(with_nudged_verdicts(table(-12.93), table(-11.5)))
-    assert "| reverse:surface_k | B: ~-13 ± 2.00e-05 |" in text
+    assert "| reverse:surface_k | B: ~-12 ± 2.00e-05 |" in text
 
 
 def test_nudged_noise_floor_keeps_the_digits_both_runs_share():
@@ -308,7 +310,7 @@ def test_nudged_noise_floor_keeps_the_digits_both_runs_share():
     assert "surface_k_minus_1: rmse 0.01, psnr 0.00312" in text
     assert "Differences, half-widths and noise floors keep the digits both runs share" in text
     # A floor whose first digit moved is marked; without a nudged run, 3 significant digits as before.
-    assert "surface_k_minus_1: rmse ~0.01," in comparison_markdown(
+    assert "surface_k_minus_1: rmse ~0.02," in comparison_markdown(  # 0.0123 and 0.0223: the midpoint's digit
         with_nudged_verdicts(table(0.0123, 0.00312), table(0.0223, 0.00312))
     )
     assert "surface_k_minus_1: rmse 0.0123, psnr 0.00312" in comparison_markdown(table(0.0123456, 0.00312))

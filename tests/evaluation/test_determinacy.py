@@ -6,9 +6,20 @@ import math
 
 import pytest
 import torch
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from torchmeshmetric import Mesh
-from torchmeshmetric.evaluation.determinacy import Determinacy, measure_determinacy, nudge_frames, storage_unit
+from torchmeshmetric.evaluation.determinacy import (
+    Determinacy,
+    determined_cell,
+    measure_determinacy,
+    nudge_frames,
+    relabel_frames,
+    shared_cell,
+    storage_unit,
+    value_change,
+)
 from torchmeshmetric.evaluation.reports import COLUMN_FORMATS, COLUMNS
 
 
@@ -188,8 +199,9 @@ def test_paper_tables_print_the_determined_digits():
     methods = {"A": _Sequence(1.0)}
     d = measure_determinacy(methods, {"A": _Sequence(1.05)}, "6")  # type: ignore[dict-item]
     text = paper_tables(methods, determinacy=d)  # type: ignore[arg-type]
-    # Ave 1e-3 moved by 0.05/1.05 (relative): one digit; PSNR 60 dB moved by 3 dB: not even the units.
-    assert "| A | k-th | 0.001 | 0.002 |" in text and "| ~60 |" in text
+    # Ave 0.0010 and 0.0011 (1.05e-3) share one digit; PSNR 60 and 63 dB not even the units: '~' and their
+    # midpoint, 61.5 dB, with no decimal (the text both runs print; it was "~60", the run's own, before review L).
+    assert "| A | k-th | 0.001 | 0.002 |" in text and "| ~62 |" in text
     assert "one unit of its storage (6 decimals, seed 0)" in text
     plain = paper_tables(methods)  # type: ignore[arg-type]
     assert "| A | k-th | 0.0010 | 0.0020 |" in plain and "| 60.0 |" in plain
@@ -229,3 +241,96 @@ def test_temporal_changes_join_the_tables_changes():
     measured = Determinacy("float32", 0, {"temporal": [{"kg": 2e-3, "kso": 0, "sted_s": 0, "sted_t": 0, "sted": 0.5}]})
     row = temporal_markdown({"m": f}, determinacy=measured).splitlines()[4]
     assert row == "| m | 1.2 | 2.00000 | 0.100 | 0.200000 | ~0.1 | exact |"  # STED moved by half: "~"
+
+
+# Review L, finding 3: values on either side of a rounding boundary, each "determined" to 2 digits by its change
+# alone, printed 9.0e-07 and 8.9e-07 (the registration residual's MSE on two CPUs) and 0.012 / 0.013.
+@pytest.mark.parametrize(
+    ("a", "b", "spec", "cell"),
+    [
+        (8.950642936687598e-07, 8.945305266957198e-07, "#.2g", "9e-07"),
+        (0.012499, 0.012501, "#.2g", "0.01"),
+        (0.0949, 0.0951, "#.3g", "0.095"),  # 3 digits differ, 2 agree, 1 would differ again: the most that agree
+        (0.0123456, 0.0123457, "#.2g", "0.012"),
+        (0.0859412, 0.0859399, "#.3g", "0.0859"),
+        (2.2e-7, 2.3e-7, "#.2g", "2e-07"),
+        (0.0123, 0.0283, "#.2g", "~0.02"),  # not even the first digit: '~' and the midpoint's
+        (61.27, 61.36, ".1f", "61"),
+        (60.9, 62.2, ".1f", "~62"),
+        (61.25, 61.25, ".1f", "61.2"),  # equal values: the format's own text (round half to even)
+        (math.inf, math.inf, ".1f", "inf"),
+    ],
+)
+def test_shared_cell_prints_what_both_runs_print(a, b, spec, cell):
+    assert shared_cell(a, b, spec) == cell and shared_cell(b, a, spec) == cell
+
+
+def test_determinacy_cells_use_both_values():
+    a, b = 8.950642936687598e-07, 8.945305266957198e-07
+    run = Determinacy("float32", 0, {"I": [{"mse": value_change(a, b)}]}, {"I": [{"mse": b}]})
+    other = Determinacy("float32", 0, {"I": [{"mse": value_change(b, a)}]}, {"I": [{"mse": a}]})
+    assert run.cell("I", 0, "mse", a, "#.2g") == other.cell("I", 0, "mse", b, "#.2g") == "9e-07"
+    # the change alone (a Determinacy without the second run's values) keeps 3 - 1 digits of each: they differ
+    assert determined_cell(a, value_change(a, b), "#.2g") != determined_cell(b, value_change(a, b), "#.2g")
+    assert run.as_dict()["nudged"] == {"I": [{"mse": b}]} and "nudged" not in Determinacy("6 decimals", 0, {}).as_dict()
+
+
+def test_measure_determinacy_keeps_the_second_runs_values():
+    d = measure_determinacy({"A": _Sequence(1.0)}, {"A": _Sequence(1.001)}, "float32")  # type: ignore[dict-item]
+    assert d.nudged["III"][0] == _stats(1.001) and set(d.nudged) == set(d.changes)
+
+
+_FINITE = st.floats(allow_nan=False, allow_infinity=False)
+
+
+@settings(max_examples=500, deadline=None)
+@given(
+    a=_FINITE,
+    b=_FINITE,
+    spec=st.sampled_from(sorted({*COLUMN_FORMATS.values(), "#.1g", "#.3g", "#.6g", ".0f", ".2f"})),
+)
+def test_shared_cell_is_the_same_text_for_both_runs(a, b, spec):
+    text = shared_cell(a, b, spec)
+    assert text == shared_cell(b, a, spec)
+    # the most digits (at most the format's) at which both values read the same; '~' where no count of them does
+    significant = spec.endswith("g")
+    counts = range(int(spec.rstrip("fg").split(".")[-1]), 0 if significant else -1, -1)
+    agree = [d for d in counts if _text(a, d, significant) == _text(b, d, significant)]
+    if agree:
+        assert text == _text(a, agree[0], significant)
+    else:
+        assert text.startswith("~")
+
+
+def _text(x: float, digits: int, significant: bool) -> str:
+    if significant:
+        return format(x, f"#.{digits}g").replace(".e", "e").rstrip(".")
+    return format(x, f".{digits}f")
+
+
+def _oriented_triangles(mesh: Mesh) -> set[tuple[tuple[float, ...], ...]]:
+    """Each face as its corners' coordinates from its smallest corner on: the same for a rotation, not a flip."""
+    out = set()
+    for corners in mesh.verts[mesh.faces].tolist():
+        i = min(range(3), key=lambda j: corners[j])
+        out.add(tuple(tuple(c) for c in corners[i:] + corners[:i]))
+    return out
+
+
+def test_relabel_keeps_the_surfaces_and_a_shared_connectivity():
+    frame = _frame(torch.float32)
+    other = Mesh(frame.verts * 2, frame.faces, validate=False)  # the same connectivity (a tracked sequence)
+    moved, moved_other = relabel_frames([frame, other], seed=4)
+    assert _oriented_triangles(moved) == _oriented_triangles(frame) and torch.equal(moved.faces, moved_other.faces)
+    assert torch.equal(moved.verts.sort(0).values, frame.verts.sort(0).values)  # the frame's own bits, moved
+    assert not torch.equal(moved.faces, frame.faces) and not torch.equal(moved.verts, frame.verts)
+    again = relabel_frames([frame], seed=4)[0]
+    assert torch.equal(again.faces, moved.faces) and torch.equal(again.verts, moved.verts)  # a function of its input
+    assert not torch.equal(relabel_frames([frame], seed=5)[0].faces, moved.faces)
+
+
+@pytest.mark.pinned
+def test_relabel_is_the_same_on_every_machine():
+    # splitmix64 in numpy's uint64 arithmetic and a stable argsort: no torch RNG, whose streams are not promised
+    frame = Mesh(torch.zeros(6, 3), torch.tensor([[0, 1, 2], [2, 3, 4], [4, 5, 0], [1, 3, 5]]), validate=False)
+    assert relabel_frames([frame], seed=0)[0].faces.tolist() == [[4, 0, 3], [0, 2, 1], [2, 5, 4], [1, 5, 3]]

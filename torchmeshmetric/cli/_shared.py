@@ -465,14 +465,19 @@ def nudged_run(
     """``--determinacy``'s frames: the original and every method's moved by up to one unit of their storage.
 
     One seed for every frame: a coordinate moves by a function of its value, in the originals as in the simplified.
-    ``cache``: the second run's registrations (:func:`nudged_cache`: apart from the input's).
+    Every frame is also stored in another order (:func:`~torchmeshmetric.evaluation.determinacy.relabel_frames`):
+    the registration's random draws follow the originals' storage order, so the change measured includes the one a
+    re-export of the same surfaces makes. ``cache``: the second run's registrations (:func:`nudged_cache`: apart
+    from the input's).
     """
-    from torchmeshmetric.evaluation.determinacy import nudge_frames
+    from torchmeshmetric.evaluation.determinacy import nudge_frames, relabel_frames
 
     say_dtype_floor(rounding, [original, *methods.values()])
-    return NudgedRun(
-        nudge_frames(original, rounding), {name: nudge_frames(f, rounding) for name, f in methods.items()}, cache
-    )
+
+    def moved(frames: list[Any]) -> list[Any]:
+        return relabel_frames(nudge_frames(frames, rounding))
+
+    return NudgedRun(moved(original), {name: moved(f) for name, f in methods.items()}, cache)
 
 
 def say_dtype_floor(rounding: str, sequences: Sequence[Sequence[Any]]) -> None:

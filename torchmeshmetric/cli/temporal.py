@@ -142,13 +142,18 @@ def run(args: argparse.Namespace) -> int:
     if args.determinacy is not None:
         from torchmeshmetric._console import say
         from torchmeshmetric.cli._shared import nudged_cache, say_dtype_floor
-        from torchmeshmetric.evaluation.determinacy import Determinacy, nudge_frames, with_temporal_changes
+        from torchmeshmetric.evaluation.determinacy import (
+            Determinacy,
+            nudge_frames,
+            relabel_frames,
+            with_temporal_changes,
+        )
 
         say(f"--determinacy {args.determinacy}: computing the figures again on nudged frames")
         say_dtype_floor(args.determinacy, [original, distorted])
         again = figures_of(
-            nudge_frames(original, args.determinacy),
-            nudge_frames(distorted, args.determinacy),
+            relabel_frames(nudge_frames(original, args.determinacy)),  # another storage order too, as evaluate's
+            relabel_frames(nudge_frames(distorted, args.determinacy)),
             nudged_cache(args.cache_dir),  # apart from the input's registrations; a rerun resumes them
         ).as_dict()
         determinacy = with_temporal_changes(

@@ -316,7 +316,8 @@ def measure_campaign_determinacy(
     Args:
         results: sequence name → method name → the campaign's evaluation.
         nudged: the same, evaluated on the frames of
-            :func:`~torchmeshmetric.evaluation.determinacy.nudge_frames` (same settings).
+            :func:`~torchmeshmetric.evaluation.determinacy.nudge_frames` and
+            :func:`~torchmeshmetric.evaluation.determinacy.relabel_frames` (same settings).
         rounding: the nudge's storage unit (:func:`~torchmeshmetric.evaluation.determinacy.storage_unit`).
         seed: the nudge's seed.
 
@@ -331,17 +332,16 @@ def measure_campaign_determinacy(
         >>> d = measure_campaign_determinacy(results, nudged_results, "float32")  # doctest: +SKIP
         >>> campaign_tables(results, determinacy=d)  # doctest: +SKIP
     """
-    from torchmeshmetric.evaluation.determinacy import Determinacy, row_changes, storage_unit
+    from torchmeshmetric.evaluation.determinacy import Determinacy, row_changes, row_values, storage_unit
 
     if [(s, list(m)) for s, m in results.items()] != [(s, list(m)) for s, m in nudged.items()]:
         raise ValueError("nudged: expected the same sequences and methods as results")
-    changes = {
-        _table_name(kind, part): row_changes(
-            [row[4] for row in _rows(results, kind, part)], [row[4] for row in _rows(nudged, kind, part)]
-        )
-        for kind, part, _ in _TABLES
-    }
-    return Determinacy(storage_unit(rounding), seed, changes)
+    changes, values = {}, {}
+    for kind, part, _ in _TABLES:
+        again = [row[4] for row in _rows(nudged, kind, part)]
+        changes[_table_name(kind, part)] = row_changes([row[4] for row in _rows(results, kind, part)], again)
+        values[_table_name(kind, part)] = row_values(again)
+    return Determinacy(storage_unit(rounding), seed, changes, values)
 
 
 def campaign_tables(

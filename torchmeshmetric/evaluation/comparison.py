@@ -60,7 +60,7 @@ from typing import Any
 import numpy as np
 
 from torchmeshmetric._format import format_number, markdown_cell
-from torchmeshmetric.evaluation.determinacy import determined_cell, value_change
+from torchmeshmetric.evaluation.determinacy import shared_cell
 from torchmeshmetric.evaluation.results import FLOOR_SET_NAMES, SequenceEvaluation
 from torchmeshmetric.stats.statistics import mean_psnr
 
@@ -451,31 +451,30 @@ def _half_width(ci95: Sequence[float]) -> float:
 
 
 def _numbers(entry: Mapping[str, Any], statistic: str) -> tuple[str, str]:
-    """The difference and the half-width of a verdict cell; with the nudged run's, only the digits both share.
+    """The difference and the half-width of a verdict cell; with the nudged run's, only the digits both print alike.
 
-    A PSNR difference is in dB, as the tables' PSNR: its digits are decimals (absolute change, at most one, the
-    tables' rule); every other number keeps significant digits by its relative change.
+    A PSNR difference is in dB, as the tables' PSNR: its digits are decimals (at most one, the tables' rule); every
+    other number keeps significant digits (:func:`~torchmeshmetric.evaluation.determinacy.shared_cell`).
     """
     difference, half = entry["difference"], _half_width(entry["ci95"])
     if "nudged_difference" not in entry:
         return _cell(difference), _cell(half)
-    decibels = _higher_is_better(statistic)
-    moved = value_change(difference, entry["nudged_difference"], relative=not decibels)
-    text = determined_cell(difference, moved, ".1f" if decibels else "#.3g")
-    return text, determined_cell(half, value_change(half, _half_width(entry["nudged_ci95"])), "#.3g")
+    spec = ".1f" if _higher_is_better(statistic) else "#.3g"
+    text = shared_cell(difference, entry["nudged_difference"], spec)
+    return text, shared_cell(half, _half_width(entry["nudged_ci95"]), "#.3g")
 
 
 def _floor_cell(entry: Mapping[str, Any]) -> str:
-    """The noise floor of a verdict cell; with the nudged run's, only the digits both share.
+    """The noise floor of a verdict cell; with the nudged run's, only the digits both print alike.
 
     A floor is a registration residual (for PSNR, the dB it is worth): the registrations on the nudged frames are
     other fits, so its digits are measured like the difference's. It is a threshold, not a level, so every floor
-    keeps significant digits by its relative change (a PSNR floor of a few thousandths of a dB keeps them too).
+    keeps significant digits (a PSNR floor of a few thousandths of a dB keeps them too).
     """
     floor = entry["noise_floor"]
     if "nudged_noise_floor" not in entry:
         return _cell(floor)
-    return determined_cell(floor, value_change(floor, entry["nudged_noise_floor"]), "#.3g")
+    return shared_cell(floor, entry["nudged_noise_floor"], "#.3g")
 
 
 def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapping[str, Any]]]]) -> str:

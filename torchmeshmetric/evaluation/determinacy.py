@@ -5,14 +5,16 @@ computed through discrete choices (the registration's, a simplifier's) that can 
 far larger than itself (docs/statistics.md, "Which digits the input determines"). The tables' fixed digits
 (:data:`~torchmeshmetric.evaluation.reports.COLUMN_FORMATS`) come from a measurement on the library's own frames;
 this module measures the run at hand instead: every input frame (originals and simplified) is moved by up to one unit
-of its storage, the evaluation is repeated, and each table cell prints only the digits both runs share.
+of its storage and stored in another order (:func:`relabel_frames`: the registration's random draws follow the
+storage order, which acts as their seed), the evaluation is repeated, and each table cell prints only the digits
+both runs print alike (:func:`shared_cell`).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -29,7 +31,10 @@ __all__ = [
     "measure_determinacy",
     "nudge_frames",
     "raised_fraction",
+    "relabel_frames",
     "row_changes",
+    "row_values",
+    "shared_cell",
     "storage_unit",
     "value_change",
     "with_temporal_changes",
@@ -154,11 +159,65 @@ def _hashed_uniform(values: np.ndarray, seed: int) -> np.ndarray:
     bits = np.ascontiguousarray(values + 0.0, dtype=np.float64).view(np.uint64)
     axis = np.arange(values.shape[-1], dtype=np.uint64) * np.uint64(0xD1B54A32D192ED03)
     salt = np.full(1, seed & 0xFFFFFFFFFFFFFFFF, dtype=np.uint64) * _GOLDEN  # an array: wraps without a warning
-    z = (bits ^ axis ^ salt) + _GOLDEN
+    z = _splitmix(bits ^ axis ^ salt)
+    return (z >> np.uint64(11)).astype(np.float64) * 2.0**-52 - 1.0
+
+
+def _splitmix(z: np.ndarray) -> np.ndarray:
+    """splitmix64's output function of each uint64 of ``z`` (wrapping arithmetic)."""
+    z = z + _GOLDEN
     z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
     z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-    z = z ^ (z >> np.uint64(31))
-    return (z >> np.uint64(11)).astype(np.float64) * 2.0**-52 - 1.0
+    return z ^ (z >> np.uint64(31))
+
+
+def _hashed_order(count: int, salt: np.ndarray) -> np.ndarray:
+    """A permutation of ``range(count)``: the indices sorted by their splitmix64 hash with ``salt``."""
+    return np.argsort(_splitmix(np.arange(count, dtype=np.uint64) ^ salt), kind="stable")
+
+
+def relabel_frames(frames: Sequence[Mesh], *, seed: int = 0) -> list[Mesh]:
+    """The frames stored in another order: vertices renumbered, faces reordered, each face's corners rotated.
+
+    The same surfaces, as another tool (a re-export, an OBJ to PLY conversion) may store them. The registration
+    draws its samples by index (docs/registration.md, "Stability"), so the storage order acts as its random seed and
+    moves every figure that goes through it; ``--determinacy``'s second run stores its frames this way so that the
+    change it measures includes that one. The orders are drawn from a hash of ``(seed, V, F, index)`` (splitmix64:
+    the same on every machine), so frames with the same vertex and face counts get the same relabelling, and
+    sequences that share a connectivity (a frame and its distorted copy; the frames of a tracked sequence) still
+    share it. Each face keeps its orientation (its corners are rotated, never swapped). Vertices are moved, not
+    copied into another dtype: the coordinates are the frame's own bits.
+
+    Args:
+        frames: the meshes, any length.
+        seed: mixed into the hash: another seed, another order.
+
+    Returns:
+        One new :class:`Mesh` per frame, on the frame's device.
+
+    Example:
+        >>> mesh = Mesh(torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]]),
+        ...             torch.tensor([[0, 1, 2], [0, 2, 3], [0, 3, 1]]))
+        >>> other = relabel_frames([mesh])[0]
+        >>> normals = lambda m: sorted(map(tuple, m.face_normals().tolist()))  # the same oriented faces
+        >>> normals(other) == normals(mesh), other.faces.tolist() != mesh.faces.tolist()
+        (True, True)
+    """
+    out = []
+    for frame in frames:
+        count, num_faces = frame.num_verts, frame.num_faces
+        base = _splitmix(np.array([seed & 0xFFFFFFFFFFFFFFFF, count, num_faces], dtype=np.uint64)).sum(dtype=np.uint64)
+        salts = _splitmix(base + np.arange(3, dtype=np.uint64))
+        order = _hashed_order(count, salts[0])  # the new vertex i is the old vertex order[i]
+        new_index = np.empty(count, dtype=np.int64)
+        new_index[order] = np.arange(count)
+        faces = new_index[frame.faces.detach().cpu().numpy()][_hashed_order(num_faces, salts[1])]
+        shift = (_splitmix(np.arange(num_faces, dtype=np.uint64) ^ salts[2]) % np.uint64(3)).astype(np.int64)
+        faces = faces[np.arange(num_faces)[:, None], (np.arange(3)[None, :] + shift[:, None]) % 3]
+        device = frame.verts.device
+        verts = frame.verts[torch.from_numpy(order).to(device)]
+        out.append(Mesh(verts, torch.from_numpy(faces).to(device), validate=False))
+    return out
 
 
 def determined_digits(change: float, spec: str) -> int:
@@ -180,6 +239,10 @@ def determined_cell(value: Any, change: float, spec: str) -> str:
     A significant-digit ``spec`` (``"#.2g"``) takes the relative change, a fixed-point one (``".1f"``) the absolute
     one; at least one significant digit (no decimal) is printed, prefixed with ``~`` when even it moved.
 
+    Only the change is known here, not the other value: near a rounding boundary the other run can print another
+    last digit with the same count of digits (8.9506e-07 and 8.9453e-07 print ``9.0e-07`` and ``8.9e-07``). The
+    reports use :func:`shared_cell`, which has both values and prints the same text for both.
+
     Example:
         >>> determined_cell(0.0123456, 0.013, "#.2g"), determined_cell(0.0123456, 0.2, "#.2g")
         ('0.01', '~0.01')
@@ -193,6 +256,50 @@ def determined_cell(value: Any, change: float, spec: str) -> str:
         return text if digits >= 1 else f"~{text}"
     text = format_number(value, f".{max(digits, 0)}f")
     return text if digits >= 0 else f"~{text}"
+
+
+def _cell_text(value: Any, digits: int, significant: bool) -> str:
+    """``value`` with ``digits`` significant digits (``#`` kept, a bare point dropped) or decimals."""
+    if significant:
+        # '#' keeps a significant trailing zero (0.010); with one digit it leaves a bare point ("2.e-07", "3.").
+        return format_number(value, f"#.{digits}g").replace(".e", "e").rstrip(".")
+    return format_number(value, f".{digits}f")
+
+
+def shared_cell(value: Any, other: Any, spec: str) -> str:
+    """The text both of two runs print for a cell: the most digits of ``spec`` at which their values read the same.
+
+    ``value`` (a run's) and ``other`` (the same figure in a second run, e.g. on nudged frames) are printed with the
+    format's digits, then one digit fewer, down to one significant digit (no decimal for a fixed-point ``spec``),
+    and the first count at which both texts are equal is kept. Unlike :func:`determined_cell`, which keeps as many
+    digits as the change allows and can then print ``9.0e-07`` for one run and ``8.9e-07`` for the other, this text
+    is the same whichever of the two values is ``value``. Where even one significant digit (a fixed-point format's
+    integer part) differs, the cell is ``~`` and the midpoint with that one digit.
+
+    Args:
+        value: a real number (Python, NumPy or a 0-d tensor).
+        other: the same figure in the second run.
+        spec: the column's format: significant digits (``"#.2g"``) or decimals (``".1f"``).
+
+    Returns:
+        The cell's text; ``shared_cell(a, b, spec) == shared_cell(b, a, spec)`` for any ``a`` and ``b``.
+
+    Example:
+        >>> shared_cell(8.9506e-07, 8.9453e-07, "#.2g"), shared_cell(8.9453e-07, 8.9506e-07, "#.2g")
+        ('9e-07', '9e-07')
+        >>> shared_cell(0.012499, 0.012501, "#.2g"), shared_cell(0.0123, 0.0123, "#.2g")
+        ('0.01', '0.012')
+        >>> shared_cell(0.0123, 0.0283, "#.2g"), shared_cell(61.27, 61.36, ".1f"), shared_cell(60.9, 62.2, ".1f")
+        ('~0.02', '61', '~62')
+    """
+    significant = spec.endswith("g")
+    most = int(spec.rstrip("fg").split(".")[-1])
+    for digits in range(most, 0 if significant else -1, -1):
+        text = _cell_text(value, digits, significant)
+        if text == _cell_text(other, digits, significant):
+            return text
+    midpoint = float(value) / 2 + float(other) / 2  # commutative: the same text from either run
+    return "~" + _cell_text(midpoint, 1 if significant else 0, significant)
 
 
 def value_change(a: float, b: float, *, relative: bool = True) -> float:
@@ -216,40 +323,55 @@ def value_change(a: float, b: float, *, relative: bool = True) -> float:
 
 @dataclass(frozen=True)
 class Determinacy:
-    """The change of every table cell between a run and a second run on nudged frames.
+    """The change of every table cell between a run and a second run on nudged, relabelled frames.
 
     Attributes:
         rounding: the storage unit the frames were nudged by (:func:`storage_unit`).
-        seed: the nudge's seed.
+        seed: the nudge's seed, and the relabelling's (:func:`relabel_frames`).
         changes: per table (``"I"`` .. ``"IV-reverse"``), per row in the table's order, per statistic: the change,
             relative to the larger magnitude for every statistic but ``psnr`` (absolute, dB).
+        nudged: the second run's values, in the layout of ``changes``: a table found here prints each cell as both
+            runs print it (:func:`shared_cell`); a table found only in ``changes`` keeps the digits its change
+            leaves (:func:`determined_cell`, which near a rounding boundary can differ from the other run's).
     """
 
     rounding: str
     seed: int
     changes: Mapping[str, list[dict[str, float]]]
+    nudged: Mapping[str, list[dict[str, float]]] = field(default_factory=dict)
 
     def cell(self, table: str, row: int, key: str, value: Any, spec: str) -> str:
-        """The cell of ``value`` with only the digits the nudge left in place (at most those of ``spec``).
+        """The cell of ``value`` with only the digits both runs print alike (at most those of ``spec``).
 
-        A significant-digit ``spec`` (``"#.2g"``) keeps ``floor(-log10(relative change))`` digits, at least one; a
-        fixed-point one (``".1f"``) keeps ``floor(-log10(absolute change))`` decimals, at least none. A cell
-        whose first printed digit moved is prefixed with ``~``.
+        With the second run's value (:attr:`nudged`): :func:`shared_cell`, the same text for either run. Without:
+        a significant-digit ``spec`` (``"#.2g"``) keeps ``floor(-log10(relative change))`` digits, at least one; a
+        fixed-point one (``".1f"``) keeps ``floor(-log10(absolute change))`` decimals, at least none. A cell whose
+        first printed digit moved is prefixed with ``~``.
 
         Example:
+            >>> d = Determinacy("float32", 0, {"I": [{"mse": 6e-4}]}, {"I": [{"mse": 8.9453e-07}]})
+            >>> d.cell("I", 0, "mse", 8.9506e-07, "#.2g")  # 8.9e-07 in the other run: one digit is shared
+            '9e-07'
             >>> d = Determinacy("float32", 0, {"III": [{"ave": 0.013, "psnr": 0.3}]})
             >>> d.cell("III", 0, "ave", 0.0123456, "#.2g"), d.cell("III", 0, "psnr", 61.27, ".1f")
             ('0.01', '61')
             >>> Determinacy("float32", 0, {"III": [{"ave": 0.2}]}).cell("III", 0, "ave", 0.0123456, "#.2g")
             '~0.01'
-            >>> Determinacy("float32", 0, {"III": [{"var": 0.05}]}).cell("III", 0, "var", 2.2e-7, "#.2g")
-            '2e-07'
         """
+        if table in self.nudged:
+            return shared_cell(value, self.nudged[table][row][key], spec)
         return determined_cell(value, self.changes[table][row][key], spec)
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON-ready: ``{"rounding", "seed", "changes": {table: [row: {statistic: change}]}}``."""
-        return {"rounding": self.rounding, "seed": self.seed, "changes": {t: list(r) for t, r in self.changes.items()}}
+        """JSON-ready: ``{"rounding", "seed", "changes": {table: [row: {statistic: change}]}}``, and ``"nudged"``.
+
+        ``"nudged"`` (the second run's values, in the same layout) only where measured.
+        """
+        out: dict[str, Any] = {"rounding": self.rounding, "seed": self.seed}
+        out["changes"] = {t: list(r) for t, r in self.changes.items()}
+        if self.nudged:
+            out["nudged"] = {t: list(r) for t, r in self.nudged.items()}
+        return out
 
 
 def measure_determinacy(
@@ -287,10 +409,25 @@ def measure_determinacy(
         raise ValueError("nudged: expected the same methods and frame pairs as methods")
     best = next(iter(methods.values())).best_pair_index() if methods else 0
     changes: dict[str, list[dict[str, float]]] = {}
+    values: dict[str, list[dict[str, float]]] = {}
     for table in _TABLES:
         rows, again = table_rows(methods, table, best=best), table_rows(nudged, table, best=best)
         changes[table] = row_changes([r[2] for r in rows], [r[2] for r in again])
-    return Determinacy(storage_unit(rounding), seed, changes)
+        values[table] = row_values([r[2] for r in again])
+    return Determinacy(storage_unit(rounding), seed, changes, values)
+
+
+def row_values(rows: Sequence[Mapping[str, Any]]) -> list[dict[str, float]]:
+    """The statistics of the tables' columns of each row, as :attr:`Determinacy.nudged` holds them.
+
+    Example:
+        >>> stats = {"ave": 2.0, "var": 1.0, "std": 1.0, "mse": 5.0, "rmse": 2.2, "max": 4.0, "p95": 3.0, "psnr": 40.0}
+        >>> row_values([{**stats, "median": 1.5}])[0] == stats
+        True
+    """
+    from torchmeshmetric.evaluation.reports import COLUMNS
+
+    return [{key: float(row[key]) for key, _ in COLUMNS} for row in rows]
 
 
 def row_changes(rows: Sequence[Mapping[str, Any]], again: Sequence[Mapping[str, Any]]) -> list[dict[str, float]]:
@@ -350,4 +487,10 @@ def with_temporal_changes(
     if list(figures) != list(nudged):
         raise ValueError(f"nudged: expected the methods {list(figures)}, found {list(nudged)}")
     rows = [{k: value_change(float(figures[m][k]), float(nudged[m][k])) for k in names} for m in figures]
-    return Determinacy(determinacy.rounding, determinacy.seed, {**determinacy.changes, "temporal": rows})
+    values = [{k: float(nudged[m][k]) for k in names} for m in figures]
+    return Determinacy(
+        determinacy.rounding,
+        determinacy.seed,
+        {**determinacy.changes, "temporal": rows},
+        {**determinacy.nudged, "temporal": values},
+    )
