@@ -3,9 +3,8 @@ import json
 
 import pytest
 
-from torchmeshmetric._format import format_number
 from torchmeshmetric.cli import build_parser, main
-from torchmeshmetric.evaluation.reports import COLUMN_FORMATS
+from torchmeshmetric.evaluation.reports import statistic_cells
 
 pytestmark = pytest.mark.skipif(
     importlib.util.find_spec("torchmeshmetric.simplification") is None,
@@ -64,12 +63,8 @@ def _printed_tables(stdout):
                 tables[title] = {}
         elif title and line.startswith("| ") and not line.startswith("| Algorithm"):
             cells = [c.strip() for c in line.strip("|").split("|")]
-            tables[title][(cells[0], cells[1])] = [float(c) for c in cells[2:]]
+            tables[title][(cells[0], cells[1])] = cells[2:]
     return tables
-
-
-def _printed(value, column):
-    return float(format_number(value, COLUMN_FORMATS[column]))
 
 
 def _check_tables_equal_report(stdout, report):
@@ -82,11 +77,12 @@ def _check_tables_equal_report(stdout, report):
             stats = body["aggregate"] if part == "aggregate" else body["pairs"][body["best_pair"]["index"]]
             for mesh, name in zip(("(k-1)-th", "k-th", "flicker"), sets, strict=False):
                 printed = tables[title][(method, mesh)]
-                expected = [_printed(stats[name][c], c) for c in _COLUMNS]
-                assert printed == expected, (title, method, mesh)  # the report's digits (COLUMN_FORMATS)
+                row = {c: float(stats[name][c]) for c in _COLUMNS}  # "inf" -> inf
+                # the report's digits: COLUMN_FORMATS, REGISTERED_COLUMN_FORMATS where the registration enters
+                assert printed == statistic_cells(row, registered=mesh != "k-th"), (title, method, mesh)
             for what, label in (("residual", "residual to k"), ("error", "error to truth")):
-                expected = [_printed(float(stats["registration"][what][c]), c) for c in _COLUMNS]  # "inf" -> inf
-                assert tables[title][("Registration", label)] == expected
+                row = {c: float(stats["registration"][what][c]) for c in _COLUMNS}
+                assert tables[title][("Registration", label)] == statistic_cells(row, registered=True)
 
 
 def test_demo_printed_tables_equal_json_report(capsys, tmp_path, known_registration):

@@ -42,6 +42,10 @@ __all__ = [
     "paper_tables",
     "report_dict",
     "stability_note",
+    "REGISTERED_COLUMN_FORMATS",
+    "REGISTERED_UNDETERMINED",
+    "registered_set",
+    "row_formats",
     "statistic_cells",
     "table_rows",
     "write_csv",
@@ -78,15 +82,43 @@ COLUMN_FORMATS: dict[str, str] = {
     "psnr": ".1f",
 }
 
+#: Printed format of each column in the rows that go through the registration (the (k-1)-th and flicker rows, the
+#: registration's own): those also depend on how the original frames are stored (face order, each face's first
+#: corner, vertex numbering), which the registration's index-based draws follow like a random seed
+#: (docs/registration.md, "Stability"). Measured (review L; 5 orders of :func:`~torchmeshmetric.evaluation.
+#: determinacy.relabel_frames` against the frames as stored, the demo performer at resolution 160, ~20k vertices, 3
+#: frames, QEM 50 %, float32, every table and the two-sided sets): Ave moves by up to 3.1 %, P95 by 6.2 %, RMSE by
+#: 8.5 %, STD by 12 %, MSE by 16 %, Var by 23 %, Max by 55 % and PSNR by 0.76 dB. Hence one significant digit,
+#: no decimal for PSNR, and :data:`REGISTERED_UNDETERMINED`'s columns marked '~'.
+REGISTERED_COLUMN_FORMATS: dict[str, str] = {
+    "ave": "#.1g",
+    "var": "#.1g",
+    "std": "#.1g",
+    "mse": "#.1g",
+    "rmse": "#.1g",
+    "max": "#.1g",
+    "p95": "#.1g",
+    "psnr": ".0f",
+}
+#: The columns of the registration-dependent rows whose first digit another storage order moves (a spread above
+#: 10 %, :data:`REGISTERED_COLUMN_FORMATS`): printed with a leading '~', as --determinacy prints a cell none of
+#: whose digits held.
+REGISTERED_UNDETERMINED = frozenset({"var", "std", "mse", "max"})
+
 _MESH_LABELS = {"k_minus_1": "(k-1)-th", "k": "k-th"}
 #: Algorithm cell of the registration's rows, and their mesh cells.
 REGISTRATION_ROW = "Registration"
 STABILITY_NOTE = (
-    "the tables print only the digits that the input determines: rounding frames of ~20k vertices from float64 to "
-    "float32 moves Ave, Var, STD, MSE, RMSE and P95 by up to 5e-3 (relative), Max by 5e-5 and PSNR by 0.014 dB "
-    "(measured, docs/statistics.md), hence 2 significant digits, 3 for Max and one decimal for PSNR; frames "
-    "stored with 6 decimals or with capture defects may hold fewer: --determinacy measures this run's digits. "
-    "Compare methods to those digits; report.json keeps the full values."
+    "the tables print only the digits that the input determines. The k-th rows: rounding frames of ~20k vertices "
+    "from float64 to float32 moves Ave, Var, STD, MSE, RMSE and P95 by up to 5e-3 (relative), Max by 5e-5 and "
+    "PSNR by 0.014 dB (measured, docs/statistics.md), hence 2 significant digits, 3 for Max and one decimal for "
+    "PSNR. The rows that go through the registration ((k-1)-th, flicker, Registration) also depend on how the "
+    "original frames are stored (face order, each face's first corner, vertex numbering: the registration's draws "
+    "follow it like a seed): 5 other orders of ~20k-vertex frames moved their Ave by up to 3 %, P95 and RMSE by 6 "
+    "to 9 %, STD, MSE and Var by 12 to 23 %, Max by 55 % and PSNR by 0.8 dB, hence one significant digit, '~' "
+    "before Var, STD, MSE and Max (even their first digit moved), and no decimal for PSNR. Frames stored with 6 "
+    "decimals or with capture defects may hold fewer: --determinacy measures this run's digits (another rounding "
+    "and another storage order). Compare methods to those digits; report.json keeps the full values."
 )
 """What the measured determinacy of the figures (``tests/evaluation/report_determinacy.py``) says about their
 digits; printed under the report's tables."""
@@ -168,15 +200,54 @@ def _rows(
     return rows
 
 
-def statistic_cells(stats: Mapping[str, float]) -> list[str]:
-    """The table cells of one row of statistics, in :data:`COLUMNS` order and :data:`COLUMN_FORMATS`.
+def registered_set(set_key: str) -> bool:
+    """Whether a row's set goes through the registration (all but the frame-k sets ``surface_k``, ``vertex_k``).
 
     Example:
-        >>> statistic_cells({"ave": 0.0123456, "var": 1e-4, "std": 0.01, "mse": 2.5e-4, "rmse": 0.0158,
-        ...                  "max": 0.08594, "p95": 0.0315, "psnr": 42.41})
-        ['0.012', '0.00010', '0.010', '0.00025', '0.016', '0.0859', '0.032', '42.4']
+        >>> registered_set("surface_k"), registered_set("vertex_k_minus_1"), registered_set("registration:residual")
+        (False, True, True)
     """
-    return [format_number(stats[k], COLUMN_FORMATS[k]) for k, _ in COLUMNS]
+    return set_key not in ("surface_k", "vertex_k")
+
+
+def row_formats(set_key: str) -> dict[str, str]:
+    """The formats of a row's cells: :data:`REGISTERED_COLUMN_FORMATS` where it goes through the registration.
+
+    :data:`COLUMN_FORMATS` for a frame-k set (:func:`registered_set`).
+
+    Example:
+        >>> row_formats("surface_k")["max"], row_formats("flicker")["max"]
+        ('#.3g', '#.1g')
+    """
+    return REGISTERED_COLUMN_FORMATS if registered_set(set_key) else COLUMN_FORMATS
+
+
+def statistic_cells(stats: Mapping[str, float], *, registered: bool = False) -> list[str]:
+    """The table cells of one row of statistics, in :data:`COLUMNS` order and :data:`COLUMN_FORMATS`.
+
+    Args:
+        stats: the row's statistics.
+        registered: the row goes through the registration (:func:`registered_set`): the digits of
+            :data:`REGISTERED_COLUMN_FORMATS` (a bare point dropped: ``4e-08``, not ``4.e-08``), and '~' before
+            :data:`REGISTERED_UNDETERMINED`'s columns.
+
+    Example:
+        >>> stats = {"ave": 0.0123456, "var": 1e-4, "std": 0.01, "mse": 2.5e-4, "rmse": 0.0158,
+        ...          "max": 0.08594, "p95": 0.0315, "psnr": 42.41}
+        >>> statistic_cells(stats)
+        ['0.012', '0.00010', '0.010', '0.00025', '0.016', '0.0859', '0.032', '42.4']
+        >>> statistic_cells(stats, registered=True)
+        ['0.01', '~0.0001', '~0.01', '~0.0003', '0.02', '~0.09', '0.03', '42']
+    """
+    if not registered:
+        return [format_number(stats[k], COLUMN_FORMATS[k]) for k, _ in COLUMNS]
+    cells = []
+    for k, _ in COLUMNS:
+        spec = REGISTERED_COLUMN_FORMATS[k]
+        text = format_number(stats[k], spec)
+        text = text.replace(".e", "e").rstrip(".") if spec.startswith("#") else text
+        cells.append(f"~{text}" if k in REGISTERED_UNDETERMINED else text)
+    return cells
 
 
 def paper_tables(
@@ -206,16 +277,17 @@ def paper_tables(
     out = []
     tables = ["I", "II", "III", "IV"] + (["III-reverse", "IV-reverse"] if reverse else [])
     for table in tables:
-        rows = table_rows(methods, table)
+        rows = _rows(methods, table)
         if not rows:
             continue
         title = _TITLES[table] + (f" (frames {frame - 1} -> {frame})" if table in ("I", "II") else "")
         out += [f"### {title}", "", header, rule]
-        for i, (name, mesh, stats) in enumerate(rows):
+        for i, (name, mesh, stats, set_key) in enumerate(rows):
             if determinacy is None:
-                cells = statistic_cells(stats)
+                cells = statistic_cells(stats, registered=registered_set(set_key))
             else:
-                cells = [determinacy.cell(table, i, k, stats[k], COLUMN_FORMATS[k]) for k, _ in COLUMNS]
+                specs = row_formats(set_key)
+                cells = [determinacy.cell(table, i, k, stats[k], specs[k]) for k, _ in COLUMNS]
             out.append(f"| {markdown_cell(name)} | {mesh} | " + " | ".join(cells) + " |")
         out.append("")
     out.append(f"Best pair rule: {BEST_PAIR_RULE}. Averages: mean over pairs of each per-pair statistic.")
@@ -273,11 +345,13 @@ def determinacy_note(determinacy: Determinacy) -> str:
     """The note under the tables of a run with a measured determinacy (instead of :data:`STABILITY_NOTE`)."""
     return (
         "the tables print only the digits this run's input determines: the evaluation was repeated on the frames with "
-        f"every coordinate moved by up to one unit of its storage ({determinacy.rounding}, seed {determinacy.seed}), "
-        "and each cell keeps the digits both runs share (at most 2 significant digits, 3 for Max, one decimal for "
-        "PSNR); '~' marks a figure none of whose digits held (PSNR: a change of 1 dB or more). report.json keeps "
-        "the full values and, under "
-        "'determinacy', each cell's change."
+        f"every coordinate moved by up to one unit of its storage ({determinacy.rounding}, seed {determinacy.seed}) "
+        "and stored in another order (vertices renumbered, faces reordered, corners rotated: the registration's draws "
+        "follow the storage order), and each cell prints what both runs print alike (at most 2 significant digits, "
+        "3 for Max, one decimal for PSNR in the k-th rows; one significant digit, no decimal for PSNR, in the rows "
+        "that go through the registration); '~' marks a figure none of whose digits held, printed as the midpoint "
+        "of both runs (PSNR: not even the units). report.json keeps the full values and, under 'determinacy', each "
+        "cell's change and the second run's value."
     )
 
 
