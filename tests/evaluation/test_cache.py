@@ -8,15 +8,17 @@ import torch
 from tests.evaluation.eval_helpers import TranslationRegister, sphere
 from torchmeshmetric import Mesh
 from torchmeshmetric.evaluation import default_register, evaluate_sequence, register_pairs, registration_settings
+from torchmeshmetric.metrics import TemporalLossCache
 from torchmeshmetric.registration import (
     DEFAULT_SCHEDULE,
     CachedRegistration,
+    NonRigidOptions,
     RegistrationCache,
     RegistrationWarning,
     RegistrationWarp,
     registration_key,
 )
-from torchmeshmetric.registration.cache import DEFAULT_REGISTER
+from torchmeshmetric.registration.cache import DEFAULT_REGISTER, compute_registration
 
 
 def test_cache_hit_avoids_reregistration_across_methods(moving_spheres):
@@ -102,6 +104,26 @@ def test_a_float64_run_is_not_served_float32_registrations(tmp_path):
     assert reg32.verts.dtype == torch.float32 and reg64.verts.dtype == torch.float64
     assert torch.equal(reg64.verts, fresh64.verts)  # the float64 registration, not the float32 one
     assert not torch.equal(reg64.verts, reg32.verts.double())
+    # Review L #2: the evaluation registers float32 frames in float64 too, and rounds the result to float32 once.
+    assert torch.equal(reg32.verts, reg64.verts.float()) and torch.equal(reg32.residual, reg64.residual.float())
+
+
+def test_the_loss_and_the_evaluation_keep_float32_frames_registrations_apart(tmp_path):
+    # Review L #2: the evaluation registers float32 frames in float64 (the same figures on every CPU), the temporal
+    # loss in float32 (a float32 training loop's speed); one cache must not serve one's entry to the other. Float64
+    # frames are one computation for both, one entry (test_loss_and_evaluation_share_registrations).
+    source, target = sphere(1).to(dtype=torch.float32), sphere(1, radius=1.1).to(dtype=torch.float32)
+    options = NonRigidOptions(schedule=DEFAULT_SCHEDULE[:1], num_points=50, num_target_samples=50)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RegistrationWarning)  # one short stage: not converged, said so
+        cache = RegistrationCache(tmp_path)
+        (evaluation,) = register_pairs([source, target], registration_options=options, registration_cache=cache)
+        TemporalLossCache(registrations=cache).warp(target, source, options, "auto")
+        own32 = compute_registration(source, target, options=options)
+    assert (cache.hits, cache.misses, len(cache)) == (0, 2, 2) and len(list(tmp_path.glob("*.pt"))) == 2
+    assert evaluation.verts.dtype == own32.verts.dtype == torch.float32
+    assert not torch.equal(evaluation.verts, own32.verts)
+    assert registration_settings(None, {})["computes_in"] == "float64"
 
 
 def test_key_of_plain_settings_is_stable():
@@ -186,15 +208,16 @@ def test_the_librarys_registrations_are_keyed_by_their_results_version(tmp_path,
         calls.append(cache_module.REGISTRATION_RESULTS_VERSION)
         return CachedRegistration(b.verts * 1.0, torch.zeros(a.num_verts, dtype=a.dtype), True, 0.0)
 
-    assert registration_settings(None, {})["results_version"] == cache_module.REGISTRATION_RESULTS_VERSION == 1
+    # 2 since review L #2 (the evaluation's registration of float32 frames computes in float64).
+    assert registration_settings(None, {})["results_version"] == cache_module.REGISTRATION_RESULTS_VERSION == 2
     first = RegistrationCache(tmp_path).get_or_compute(a, b, registration_settings(None, {}), compute)
-    monkeypatch.setattr(cache_module, "REGISTRATION_RESULTS_VERSION", 2)
+    monkeypatch.setattr(cache_module, "REGISTRATION_RESULTS_VERSION", 3)
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # a clean miss: no "unreadable" or "invalid" entry
         cache = RegistrationCache(tmp_path)
         second = cache.get_or_compute(a, b, registration_settings(None, {}), compute)
         again = RegistrationCache(tmp_path).get_or_compute(a, b, registration_settings(None, {}), compute)
-    assert calls == [1, 2] and (first[1], second[1], again[1]) == (False, False, True)
+    assert calls == [2, 3] and (first[1], second[1], again[1]) == (False, False, True)
     assert (cache.hits, cache.misses) == (0, 1) and len(list(tmp_path.glob("*.pt"))) == 2
 
 

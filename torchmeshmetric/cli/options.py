@@ -158,8 +158,9 @@ def common_options(dtype_help: str | None = None) -> argparse.ArgumentParser:
         choices=("float32", "float64"),
         default="float32",
         help=dtype_help
-        or "precision of the frames and of every computation (default float32: statistics within ~3e-5 "
-        "relative of float64 on a 40k-face pair, see the docs' command-line page; float64 to compare tiny differences)",
+        or "precision of the frames and of every distance (default float32: statistics within ~3e-5 relative of "
+        "float64 on a 40k-face pair, see the docs' command-line page; float64 to compare tiny differences); the "
+        "registration of the original frames computes in float64 either way (the same figures on every CPU)",
     )
     common.add_argument(
         "--backend",

@@ -184,8 +184,8 @@ def run(args: argparse.Namespace) -> int:
 def add_temporal_command(sub: Any) -> None:
     """Add the ``temporal`` subcommand to the CLI's subparsers."""
     dtype_help = (
-        "precision the frames are loaded in, and the registered forms' registrations run in (default float32); KG, "
-        "KSO and STED themselves are computed in float64 either way (float64: the files' every digit)"
+        "precision the frames are loaded in (default float32); the registered forms' registrations, KG, KSO and "
+        "STED themselves are computed in float64 either way (float64: the files' every digit)"
     )
     p = add_command(sub, "temporal", run, [common_options(dtype_help)])
     p.add_argument(

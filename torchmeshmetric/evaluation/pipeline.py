@@ -38,6 +38,7 @@ from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 from torchmeshmetric.tasks import exchange, run_tasks
 
 __all__ = [
+    "REGISTRATION_DTYPE",
     "PairTask",
     "RegisterFn",
     "RegistrationOptions",
@@ -100,6 +101,15 @@ def registration_keywords(options: RegistrationOptions) -> dict[str, Any]:
     return dict(options)
 
 
+#: The dtype the evaluation's registration (:func:`default_register`) computes in, whatever the frames' dtype; its
+#: result is cast back to the frames' dtype. In float32 the registration (Adam and its stopping rule) amplifies the
+#: rounding of torch's CPU kernels, which differs between CPUs: on review L's data64 pair (3.2k vertices) it took 263
+#: steps on an AVX-512 CPU and 272 under the ``scalar`` personality, and the printed tables differed (MSE 9.0e-07 vs
+#: 8.9e-07). In float64 both CPUs agree to ~1e-11 relative, far below float32's rounding of the result, so float32
+#: frames print the same figures on every machine (docs/statistics.md, "The same figures on every machine").
+REGISTRATION_DTYPE = torch.float64
+
+
 def default_register(
     source: Mesh, target: Mesh, *, device: torch.device | str | None = None, **options: Any
 ) -> CachedRegistration:
@@ -107,11 +117,12 @@ def default_register(
 
     The evaluation's registration when none is given: :func:`~torchmeshmetric.registration.cache.compute_registration`
     (registered vertices, residual, convergence flag and deformation, a
-    :class:`~torchmeshmetric.registration.RegistrationWarp`, which moves any point: the ``flicker`` set needs it).
+    :class:`~torchmeshmetric.registration.RegistrationWarp`, which moves any point: the ``flicker`` set needs it),
+    computed in :data:`REGISTRATION_DTYPE` (float64) and cast back to the frames' promoted dtype (at least float32).
     Its qualified name is the ``"register"`` of its cache settings
     (:data:`~torchmeshmetric.registration.cache.DEFAULT_REGISTER`).
     """
-    return compute_registration(source, target, device=device, **options)
+    return compute_registration(source, target, device=device, dtype=REGISTRATION_DTYPE, **options)
 
 
 def registration_settings(register: RegisterFn | None, options: Mapping[str, Any] | None) -> dict[str, Any]:
@@ -131,7 +142,7 @@ def registration_settings(register: RegisterFn | None, options: Mapping[str, Any
         # The library's registration: its complete, validated options (defaults filled), so equal settings spelled
         # differently share one cache entry (the temporal loss's too) and a misspelled option fails here, before any
         # work.
-        return default_registration_settings(NonRigidOptions.from_call(options or {}))
+        return default_registration_settings(NonRigidOptions.from_call(options or {}), REGISTRATION_DTYPE)
     return {"register": registration_fn_name(register), "options": dict(options or {})}
 
 

@@ -41,6 +41,7 @@ from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.kernels.mesh_index import MeshIndex, _version
 from torchmeshmetric.metrics._loss import check_loss_args, reduce_directed
 from torchmeshmetric.metrics.directed_distances import DirectedDistances
+from torchmeshmetric.registration._common import registration_dtype
 from torchmeshmetric.registration.cache import (
     CachedRegistration,
     RegistrationCache,
@@ -195,7 +196,8 @@ class TemporalLossCache:
     def warp(self, original_k: Mesh, original_k_minus_1: Mesh, options: NonRigidOptions, backend: str) -> Warp:
         """The warp of ``original_k_minus_1`` registered onto ``original_k`` (registered on the first request)."""
         source, target = original_k_minus_1.detach(), original_k.detach()
-        settings = default_registration_settings(options)
+        # In the frames' dtype: a float32 training loop registers in float32 (float64 is slow on most GPUs).
+        settings = default_registration_settings(options, registration_dtype(source, target))
         key = registration_key(source, target, settings)
         converted = (key, source.dtype, source.device)
         found = self._warps.get(converted)

@@ -68,7 +68,9 @@ _FORMAT = "torchmeshmetric-registration-cache-v1"
 #: default): entries of the earlier revisions then miss and are recomputed, never served (docs/architecture.md,
 #: "Where to add ..."). 1: the first revision in the key (review I, 2026-12); before it, fixes that changed every
 #: registration (e.g. target samples drawn by face index) kept their keys.
-REGISTRATION_RESULTS_VERSION = 1
+#: 2: the settings name the dtype the registration computes in (``"computes_in"``), and the evaluation's registration
+#: computes in float64 whatever the frames' dtype (review L, 2027-01).
+REGISTRATION_RESULTS_VERSION = 2
 
 #: The ``"register"`` name in the settings of the library's registration: the qualified name of the evaluation's
 #: ``default_register``, under which disk caches have stored its entries since the first format. Kept verbatim (a
@@ -237,24 +239,44 @@ def registration_fn_name(register: object) -> str | None:
     return f"{module_name}.{qualname}"
 
 
-def default_registration_settings(options: NonRigidOptions) -> dict[str, object]:
+def default_registration_settings(options: NonRigidOptions, computes_in: torch.dtype) -> dict[str, object]:
     """The settings that key the library's registration (:func:`compute_registration` with ``options``).
 
     What the evaluation (``registration_fn=None``) and the temporal loss both pass to :func:`registration_key`, so
-    that they find each other's entries: the function's name, :data:`REGISTRATION_RESULTS_VERSION` and the options.
-    The backend, device and thread count are left out: the exact backends and the CPU's thread counts give the same
-    registration bit for bit.
+    that they find each other's entries: the function's name, :data:`REGISTRATION_RESULTS_VERSION`, the options and
+    the dtype the registration computes in. The evaluation's computes in float64 whatever the frames' dtype
+    (:data:`~torchmeshmetric.evaluation.pipeline.REGISTRATION_DTYPE`), the temporal loss's in the frames' dtype, so
+    they share entries of float64 frames and keep float32 frames' two registrations apart (the key's frame dtype,
+    the entry's dtype, does not tell them apart). The backend, device and thread count are left out: the exact
+    backends and the CPU's thread counts give the same registration bit for bit.
+
+    Args:
+        options: the registration's complete options.
+        computes_in: the dtype the registration computes in (the ``dtype`` of :func:`compute_registration`, or the
+            frames' promoted dtype, at least float32, when it has none).
 
     Example:
-        >>> settings = default_registration_settings(NonRigidOptions())
+        >>> settings = default_registration_settings(NonRigidOptions(), torch.float64)
         >>> settings["register"] == DEFAULT_REGISTER, settings["results_version"] == REGISTRATION_RESULTS_VERSION
         (True, True)
+        >>> settings["computes_in"]
+        'float64'
     """
-    return {"register": DEFAULT_REGISTER, "results_version": REGISTRATION_RESULTS_VERSION, "options": options}
+    return {
+        "register": DEFAULT_REGISTER,
+        "results_version": REGISTRATION_RESULTS_VERSION,
+        "options": options,
+        "computes_in": str(computes_in).removeprefix("torch."),
+    }
 
 
 def compute_registration(
-    source: Mesh, target: Mesh, *, device: torch.device | str | None = None, **options: Any
+    source: Mesh,
+    target: Mesh,
+    *,
+    device: torch.device | str | None = None,
+    dtype: torch.dtype | None = None,
+    **options: Any,
 ) -> CachedRegistration:
     """Register ``source`` (frame ``k-1``) onto ``target`` (frame ``k``) as a cache entry, timed.
 
@@ -264,20 +286,45 @@ def compute_registration(
     (:class:`~torchmeshmetric.registration.RegistrationWarp`, which moves any point: the ``flicker`` set and the
     temporal loss need it).
 
+    Args:
+        source: original frame ``k-1``.
+        target: original frame ``k``.
+        device: where the registration runs (default: where the frames are).
+        dtype: the dtype the registration computes in; the frames are cast to it (float32 to float64 is exact) and
+            the result is cast back to the frames' promoted dtype (at least float32), the dtype of the entry.
+            ``None``: the frames' promoted dtype, as :func:`~torchmeshmetric.registration.register_nonrigid`.
+            float32's Adam steps and stopping rule amplify the CPU kernels' rounding (``at::sqrt``/``sin``/``cos``,
+            the fused Adam's vector math), so a float32 registration is another computation on another CPU; the
+            evaluation computes in float64 (docs/statistics.md, "The same figures on every machine").
+        **options: keywords of :func:`~torchmeshmetric.registration.register_nonrigid`.
+
     Example:
         >>> import trimesh
         >>> from torchmeshmetric.registration import DEFAULT_SCHEDULE
         >>> from torchmeshmetric.structures import as_mesh
         >>> m = as_mesh(trimesh.creation.icosphere(subdivisions=1))
-        >>> reg = compute_registration(m, m, schedule=[DEFAULT_SCHEDULE[0]._replace(max_steps=5)])
+        >>> quick = [DEFAULT_SCHEDULE[0]._replace(max_steps=5)]
+        >>> reg = compute_registration(m, m, schedule=quick)
         >>> tuple(reg.verts.shape) == tuple(m.verts.shape), type(reg.warp).__name__
         (True, 'RegistrationWarp')
+        >>> m32 = m.to(dtype=torch.float32)
+        >>> reg = compute_registration(m32, m32, dtype=torch.float64, schedule=quick)
+        >>> reg.verts.dtype, reg.residual.dtype, reg.warp.nodes.dtype
+        (torch.float32, torch.float32, torch.float32)
     """
+    frames_dtype = registration_dtype(source, target)
     start = time.perf_counter()
-    result = register_nonrigid(source, target, device=device, **options)
+    if dtype is None or dtype == frames_dtype:
+        result = register_nonrigid(source, target, device=device, **options)
+        warp = RegistrationWarp.from_registration(result, target)
+    else:
+        wide_target = target.to(dtype=dtype)
+        result = register_nonrigid(source.to(dtype=dtype), wide_target, device=device, **options)
+        warp = RegistrationWarp.from_registration(result, wide_target)
     seconds = time.perf_counter() - start
-    warp = RegistrationWarp.from_registration(result, target)
-    return CachedRegistration(result.verts.detach(), result.residual.detach(), bool(result.converged), seconds, warp)
+    verts, residual = result.verts.detach().to(frames_dtype), result.residual.detach().to(frames_dtype)
+    warp = warp.to(warp.center.device, frames_dtype)
+    return CachedRegistration(verts, residual, bool(result.converged), seconds, warp)
 
 
 def _feed(h: hashlib._Hash, value: object) -> None:
