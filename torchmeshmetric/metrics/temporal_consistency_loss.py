@@ -147,7 +147,8 @@ class TemporalLossCache:
       :class:`~torchmeshmetric.registration.RegistrationCache` keyed by
       :func:`~torchmeshmetric.registration.registration_key` (the content of both frames and the registration
       settings, as the evaluation keys them): give the evaluation's cache as ``registrations`` and each finds the
-      other's registrations;
+      other's registrations of float64 frames (the loss registers in the frames' dtype, the evaluation in float64:
+      float32 frames get one entry each);
     * the warp of each of those registrations on the device and in the dtype of the loss's frames, converted once
       (least recently used dropped beyond ``max_warps``);
     * the indexes of the original frames ``k`` (an :class:`~torchmeshmetric.IndexCache`);

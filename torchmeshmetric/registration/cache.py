@@ -86,7 +86,8 @@ class CachedRegistration(NamedTuple):
         residual: ``(V_{k-1},)`` distance of each registered vertex to the surface of frame ``k``, on the CPU.
         converged: the registration's convergence flag.
         seconds: wall time the registration took when it was computed.
-        warp: the registration's deformation as a map of arbitrary points of frame ``k-1`` to frame ``k``
+        warp: the registration's deformation as a map of arbitrary points of frame ``k-1`` to frame ``k``, in the
+            dtype the registration computed in (the evaluation's: float64, whatever the frames' dtype)
             (:data:`~torchmeshmetric.registration.Warp`), or ``None`` when only the registered vertices are known
             (then the evaluation interpolates them: :class:`~torchmeshmetric.registration.SurfaceWarp`). The cache
             keeps a :class:`~torchmeshmetric.registration.RegistrationWarp` and drops any other callable (it cannot
@@ -290,8 +291,11 @@ def compute_registration(
         source: original frame ``k-1``.
         target: original frame ``k``.
         device: where the registration runs (default: where the frames are).
-        dtype: the dtype the registration computes in; the frames are cast to it (float32 to float64 is exact) and
-            the result is cast back to the frames' promoted dtype (at least float32), the dtype of the entry.
+        dtype: the dtype the registration computes in; the frames are cast to it (float32 to float64 is exact),
+            the registered vertices and the residual are cast back to the frames' promoted dtype (at least float32)
+            and the deformation is kept in ``dtype``: a float64 warp moves float32 points in float64 and rounds
+            them once (:class:`~torchmeshmetric.registration.RegistrationWarp`), so the ``flicker`` set and the
+            registered temporal forms are as portable as the registered vertices.
             ``None``: the frames' promoted dtype, as :func:`~torchmeshmetric.registration.register_nonrigid`.
             float32's Adam steps and stopping rule amplify the CPU kernels' rounding (``at::sqrt``/``sin``/``cos``,
             the fused Adam's vector math), so a float32 registration is another computation on another CPU; the
@@ -310,7 +314,7 @@ def compute_registration(
         >>> m32 = m.to(dtype=torch.float32)
         >>> reg = compute_registration(m32, m32, dtype=torch.float64, schedule=quick)
         >>> reg.verts.dtype, reg.residual.dtype, reg.warp.nodes.dtype
-        (torch.float32, torch.float32, torch.float32)
+        (torch.float32, torch.float32, torch.float64)
     """
     frames_dtype = registration_dtype(source, target)
     start = time.perf_counter()
@@ -323,7 +327,6 @@ def compute_registration(
         warp = RegistrationWarp.from_registration(result, wide_target)
     seconds = time.perf_counter() - start
     verts, residual = result.verts.detach().to(frames_dtype), result.residual.detach().to(frames_dtype)
-    warp = warp.to(warp.center.device, frames_dtype)
     return CachedRegistration(verts, residual, bool(result.converged), seconds, warp)
 
 
