@@ -102,11 +102,12 @@ def registration_keywords(options: RegistrationOptions) -> dict[str, Any]:
 
 
 #: The dtype the evaluation's registration (:func:`default_register`) computes in, whatever the frames' dtype; its
-#: result is cast back to the frames' dtype. In float32 the registration (Adam and its stopping rule) amplifies the
-#: rounding of torch's CPU kernels, which differs between CPUs: on review L's data64 pair (3.2k vertices) it took 263
-#: steps on an AVX-512 CPU and 272 under the ``scalar`` personality, and the printed tables differed (MSE 9.0e-07 vs
-#: 8.9e-07). In float64 both CPUs agree to ~1e-11 relative, far below float32's rounding of the result, so float32
-#: frames print the same figures on every machine (docs/statistics.md, "The same figures on every machine").
+#: registered vertices and residual are cast back to the frames' dtype, its deformation stays in this dtype. In
+#: float32 the registration (Adam and its stopping rule) amplifies the rounding of torch's CPU kernels, which differs
+#: between CPUs: on review L's data64 pair (3.2k vertices) it took 263 steps on an AVX-512 CPU and 272 under the
+#: ``scalar`` personality, and the printed tables differed (MSE 9.0e-07 vs 8.9e-07). In float64 both CPUs agree to
+#: ~1e-11 relative, far below float32's rounding of the result, so float32 frames print the same figures on every
+#: machine (docs/statistics.md, "The same figures on every machine").
 REGISTRATION_DTYPE = torch.float64
 
 
@@ -118,7 +119,8 @@ def default_register(
     The evaluation's registration when none is given: :func:`~torchmeshmetric.registration.cache.compute_registration`
     (registered vertices, residual, convergence flag and deformation, a
     :class:`~torchmeshmetric.registration.RegistrationWarp`, which moves any point: the ``flicker`` set needs it),
-    computed in :data:`REGISTRATION_DTYPE` (float64) and cast back to the frames' promoted dtype (at least float32).
+    computed in :data:`REGISTRATION_DTYPE` (float64); the registered vertices and the residual are cast back to the
+    frames' promoted dtype (at least float32), the deformation is kept in float64.
     Its qualified name is the ``"register"`` of its cache settings
     (:data:`~torchmeshmetric.registration.cache.DEFAULT_REGISTER`).
     """
