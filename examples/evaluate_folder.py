@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 from torchmeshmetric.evaluation import evaluate_sequence, paper_tables, report_dict, write_json
-from torchmeshmetric.evaluation.reports import COLUMN_FORMATS
+from torchmeshmetric.evaluation.reports import statistic_cell
 
 
 def main() -> int:
@@ -40,13 +40,12 @@ def main() -> int:
     name = Path(args.simplified).name
     kept_by = Path(args.out).name if args.out else "the JSON report (--out)"  # the note names what keeps every digit
     print(paper_tables({name: result}, json_file=kept_by))
-    digits = COLUMN_FORMATS["rmse"]  # the tables' digits: only those the input determines (docs/statistics.md)
     for pair in result.pairs:  # per-frame temporal consistency and the registration's own quality
-        s = pair.statistics["surface_k_minus_1"]
-        print(
-            f"frame {pair.frame}: surface_k_minus_1 rmse {float(s.rmse):{digits}}, "
-            f"registration residual rmse {float(pair.registration_statistics.rmse):{digits}}"
-        )
+        # The tables' digits: both go through the registration, which follows the frames' storage order like a seed
+        # (one significant digit; docs/statistics.md, "Storage order").
+        k_minus_1 = statistic_cell(float(pair.statistics["surface_k_minus_1"].rmse), "rmse", registered=True)
+        residual = statistic_cell(float(pair.registration_statistics.rmse), "rmse", registered=True)
+        print(f"frame {pair.frame}: surface_k_minus_1 rmse {k_minus_1}, registration residual rmse {residual}")
     if args.out:
         write_json(args.out, report_dict({name: result}), overwrite=args.overwrite)
     return 0

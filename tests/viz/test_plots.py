@@ -26,6 +26,7 @@ def test_histograms_show_the_distribution_on_a_log_axis():
 
     from torchmeshmetric import Mesh
     from torchmeshmetric.evaluation import evaluate_pair
+    from torchmeshmetric.viz import plots
     from torchmeshmetric.viz.plots import histogram_figure, log_bins
 
     ref = sphere(3)
@@ -47,8 +48,18 @@ def test_histograms_show_the_distribution_on_a_log_axis():
         assert heights.max() <= 0.1 * moved.numel()
     legend = fig.axes[0].get_legend().get_texts()[0].get_text()
     assert f"{(n - moved.numel()) / n:.1%} of vertices below" in legend
-    # The RMSE with the report tables' digits (COLUMN_FORMATS: 2 significant, those the input determines).
-    assert f"m (RMSE {np.sqrt(np.mean(values * values)):#.2g};" in legend
+    # The RMSE with the report tables' digits for the panel's set: those the input determines (COLUMN_FORMATS: 2
+    # significant) for frame k, one significant for a set through the registration (REGISTERED_COLUMN_FORMATS: it
+    # follows the original frames' storage order like a seed; review L, finding 1). The first panel is the k-1 set.
+    titles = {v: k for k, v in plots._LABELS.items()}
+    assert {"surface_k", "surface_k_minus_1"} <= {titles[ax.get_title()] for ax in fig.axes}  # both kinds checked
+    for ax in fig.axes:
+        name = titles[ax.get_title()]
+        d = (pair.distances[name] if name != "registration" else pair.registration_residual).double().numpy()
+        rmse = float(np.sqrt(np.mean(d * d)))
+        frame_k = name in ("surface_k", "vertex_k")
+        want = f"{rmse:#.2g}" if frame_k else f"{rmse:#.1g}".replace(".e", "e").rstrip(".")
+        assert f"m (RMSE {want};" in ax.get_legend().get_texts()[0].get_text(), name
     edges = log_bins([values], 40)
     assert edges[0] == pytest.approx(values[values > 0].min()) and edges[-1] == pytest.approx(values.max())
 

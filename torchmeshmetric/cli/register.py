@@ -17,12 +17,11 @@ def run(args: argparse.Namespace) -> int:
     Align --source (frame k-1) onto --target (frame k), keeping the source's vertices and topology, and write the
     registered mesh. Exit code 3 when the registration did not converge.
     """
-    from torchmeshmetric._format import format_number
     from torchmeshmetric.cli._outputs import CLIError, check_mesh_suffixes, check_writable
     from torchmeshmetric.cli._shared import device_of, dtype_of
     from torchmeshmetric.data.io import load_mesh, save_mesh
     from torchmeshmetric.evaluation.pipeline import register_pairs
-    from torchmeshmetric.evaluation.reports import COLUMN_FORMATS
+    from torchmeshmetric.evaluation.reports import statistic_cell
     from torchmeshmetric.stats.statistics import distance_statistics
 
     device = device_of(args)
@@ -44,8 +43,9 @@ def run(args: argparse.Namespace) -> int:
     (reg,) = register_pairs([source, target], device=device, backend=args.backend)
     save_mesh(reg.registered_mesh(source), args.out, overwrite=args.overwrite)
     stats = distance_statistics(reg.residual, peak=float(target.bbox_diagonal()))
-    # The report tables' digits for the registration's residual row: those the input determines (docs/statistics.md).
-    ave, rmse, peak = (format_number(getattr(stats, k), COLUMN_FORMATS[k]) for k in ("ave", "rmse", "max"))
+    # The report tables' digits for the registration's residual row: those the input determines, and the registration
+    # follows how the frames are stored like a seed (one digit, '~' before Max; docs/statistics.md, "Storage order").
+    ave, rmse, peak = (statistic_cell(getattr(stats, k), k, registered=True) for k in ("ave", "rmse", "max"))
     print(
         f"registered {args.source} onto {args.target} in {reg.seconds:.2f} s (converged: {reg.converged}); "
         f"residual to target surface: ave {ave}, rmse {rmse}, max {peak}; wrote {args.out}"

@@ -46,6 +46,7 @@ __all__ = [
     "REGISTERED_UNDETERMINED",
     "registered_set",
     "row_formats",
+    "statistic_cell",
     "statistic_cells",
     "table_rows",
     "write_csv",
@@ -222,14 +223,43 @@ def row_formats(set_key: str) -> dict[str, str]:
     return REGISTERED_COLUMN_FORMATS if registered_set(set_key) else COLUMN_FORMATS
 
 
+def statistic_cell(value: float, statistic: str, *, registered: bool = False) -> str:
+    """One statistic as the tables print it: :data:`COLUMN_FORMATS`, or the registration-dependent rows' digits.
+
+    The one place that picks a cell's digits by the kind of its row; the tables, the sweep, the plots' labels and the
+    ``register`` command print through it.
+
+    Args:
+        value: the statistic.
+        statistic: its column key (:data:`COLUMNS`: ``"ave"``, ``"var"``, ..., ``"psnr"``).
+        registered: the value goes through the registration (:func:`registered_set`): the digits of
+            :data:`REGISTERED_COLUMN_FORMATS` (a bare point dropped: ``4e-08``, not ``4.e-08``), and '~' before
+            :data:`REGISTERED_UNDETERMINED`'s columns.
+
+    Raises:
+        KeyError: another ``statistic``.
+
+    Example:
+        >>> statistic_cell(0.0158, "rmse"), statistic_cell(0.0158, "rmse", registered=True)
+        ('0.016', '0.02')
+        >>> statistic_cell(0.08594, "max", registered=True), statistic_cell(42.41, "psnr", registered=True)
+        ('~0.09', '42')
+    """
+    if not registered:
+        return format_number(value, COLUMN_FORMATS[statistic])
+    spec = REGISTERED_COLUMN_FORMATS[statistic]
+    text = format_number(value, spec)
+    # '#' keeps "4.e-08" and "4." (the trailing zeros of 2 digits, none with one): the point alone says nothing.
+    text = text.replace(".e", "e").rstrip(".") if spec.startswith("#") else text
+    return f"~{text}" if statistic in REGISTERED_UNDETERMINED else text
+
+
 def statistic_cells(stats: Mapping[str, float], *, registered: bool = False) -> list[str]:
-    """The table cells of one row of statistics, in :data:`COLUMNS` order and :data:`COLUMN_FORMATS`.
+    """The table cells of one row of statistics, in :data:`COLUMNS` order (:func:`statistic_cell`).
 
     Args:
         stats: the row's statistics.
-        registered: the row goes through the registration (:func:`registered_set`): the digits of
-            :data:`REGISTERED_COLUMN_FORMATS` (a bare point dropped: ``4e-08``, not ``4.e-08``), and '~' before
-            :data:`REGISTERED_UNDETERMINED`'s columns.
+        registered: the row goes through the registration (:func:`registered_set`).
 
     Example:
         >>> stats = {"ave": 0.0123456, "var": 1e-4, "std": 0.01, "mse": 2.5e-4, "rmse": 0.0158,
@@ -239,15 +269,7 @@ def statistic_cells(stats: Mapping[str, float], *, registered: bool = False) -> 
         >>> statistic_cells(stats, registered=True)
         ['0.01', '~0.0001', '~0.01', '~0.0003', '0.02', '~0.09', '0.03', '42']
     """
-    if not registered:
-        return [format_number(stats[k], COLUMN_FORMATS[k]) for k, _ in COLUMNS]
-    cells = []
-    for k, _ in COLUMNS:
-        spec = REGISTERED_COLUMN_FORMATS[k]
-        text = format_number(stats[k], spec)
-        text = text.replace(".e", "e").rstrip(".") if spec.startswith("#") else text
-        cells.append(f"~{text}" if k in REGISTERED_UNDETERMINED else text)
-    return cells
+    return [statistic_cell(stats[k], k, registered=registered) for k, _ in COLUMNS]
 
 
 def paper_tables(

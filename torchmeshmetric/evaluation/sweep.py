@@ -18,9 +18,8 @@ from typing import Any, NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric._format import format_number
 from torchmeshmetric.evaluation.pipeline import evaluate_sequence
-from torchmeshmetric.evaluation.reports import COLUMN_FORMATS
+from torchmeshmetric.evaluation.reports import COLUMN_FORMATS, registered_set, statistic_cell
 from torchmeshmetric.evaluation.results import SequenceEvaluation
 from torchmeshmetric.simplification import simplify_sequence
 from torchmeshmetric.structures import MeshLike, as_mesh
@@ -34,9 +33,11 @@ _SWEEP_SETS = ("surface_k", "surface_k_minus_1", "flicker")
 
 #: Printed under the sweep's table: why weights can read alike.
 SWEEP_DIGITS_NOTE = (
-    "Digits as in the report's tables: only those the input determines (docs/statistics.md). Weights that read "
-    "alike differ by less than rounding the frames to float32 moves the figure (up to 5e-3 relative at ~20k "
-    "vertices); the sweep's JSON (weight_sweep.json) keeps every digit."
+    "Digits as in the report's tables: only those the input determines (docs/statistics.md). Frame k: weights that "
+    "read alike differ by less than rounding the frames to float32 moves the figure (up to 5e-3 relative at ~20k "
+    "vertices). The registered k-1 and flicker columns go through the registration, which follows how the original "
+    "frames are stored like a seed (another order moved their Ave by up to 3 %, their Max by 55 %): one significant "
+    "digit, '~' where even that one moved. The sweep's JSON (weight_sweep.json) keeps every digit."
 )
 
 
@@ -82,8 +83,9 @@ class WeightSweep(NamedTuple):
         """The sweep as a Markdown table (the baseline row is ``QEM``), with the report tables' digits.
 
         Each cell prints only the digits the input determines, as the paper's tables do
-        (:data:`~torchmeshmetric.evaluation.reports.COLUMN_FORMATS`: 2 significant digits for the averages), so
-        weights whose figures differ below the input's storage read alike; :meth:`as_dict` keeps every digit.
+        (:func:`~torchmeshmetric.evaluation.reports.statistic_cell`: 2 significant digits for frame k's averages, one
+        for the registered k-1 and flicker columns, which go through the registration), so weights whose figures
+        differ below the input's storage read alike; :meth:`as_dict` keeps every digit.
 
         Args:
             statistic: one of the printed statistics (``"ave"``, ``"var"``, ``"std"``, ``"mse"``, ``"rmse"``,
@@ -104,7 +106,7 @@ class WeightSweep(NamedTuple):
         for row in self.rows(statistic):
             name = "QEM (fast-simplification)" if row["weight"] is None else "Registered QEM"
             weight = "" if row["weight"] is None else f"{row['weight']:g}"
-            cells = " | ".join(format_number(row[s], COLUMN_FORMATS[statistic]) for s in _SWEEP_SETS)
+            cells = " | ".join(statistic_cell(row[s], statistic, registered=registered_set(s)) for s in _SWEEP_SETS)
             lines.append(f"| {name} | {weight} | {cells} |")
         lines += ["", SWEEP_DIGITS_NOTE]
         return "\n".join(lines) + "\n"

@@ -58,27 +58,35 @@ def _base(key: str) -> str:
 
 
 def bar_label(key: str, value: float) -> str:
-    """A bar's label: ``value`` with the digits the reports print of its statistic (``COLUMN_FORMATS``).
+    """A bar's label: ``value`` with the digits the reports print of its statistic and its set.
 
     The tables print 2 significant digits of a mean, spread or quantile (those the input determines), 3 of a
     maximum (a Hausdorff distance, a minimum: an extreme too) and one decimal of a PSNR; a count is a whole number.
+    A set that goes through the registration (a flattened key of :class:`~torchmeshmetric.evaluation.
+    TemporalConsistency` such as ``"surface_k_minus_1/ave"``, ``"flicker/max"`` or ``"registration/residual/rmse"``)
+    prints the digits of its rows in the tables: one significant digit, no PSNR decimal, '~' where even the first
+    digit follows the original frames' storage order (:func:`~torchmeshmetric.evaluation.reports.statistic_cell`).
 
     Example:
         >>> bar_label("ave", 1.5), bar_label("reverse_std", 0.5), bar_label("hausdorff", 2.0), bar_label("psnr", 61.234)
         ('1.5', '0.50', '2.00', '61.2')
+        >>> bar_label("surface_k/rmse", 0.0158), bar_label("surface_k_minus_1/rmse", 0.0158)
+        ('0.016', '0.02')
     """
-    from torchmeshmetric.evaluation.reports import COLUMN_FORMATS  # on use only (the tables' digits)
+    from torchmeshmetric.evaluation.reports import registered_set, statistic_cell  # on use only (the tables' digits)
 
     statistic = _base(key).removeprefix("reverse_").removeprefix("symmetric_")
+    if statistic == "count":
+        return format_number(value, ".0f")
+    parts = key.split("/")
+    registered = len(parts) > 1 and registered_set(parts[-2])  # the set of a flattened key; a plain key has none
     if "psnr" in statistic:
-        spec = COLUMN_FORMATS["psnr"]
+        column = "psnr"
     elif statistic in ("max", "min", "hausdorff"):
-        spec = COLUMN_FORMATS["max"]
-    elif statistic == "count":
-        spec = ".0f"
-    else:  # ave, var, std, mse, rmse and the quantiles (median, p95, p99)
-        spec = COLUMN_FORMATS.get(statistic, COLUMN_FORMATS["p95"])
-    return format_number(value, spec)
+        column = "max"
+    else:  # ave, var, std, mse, rmse and the quantiles (median, p95, p99: P95's digits)
+        column = statistic if statistic in ("ave", "var", "std", "mse", "rmse") else "p95"
+    return statistic_cell(value, column, registered=registered)
 
 
 def _scalar(value: object, where: str) -> Tensor:
