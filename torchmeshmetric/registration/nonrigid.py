@@ -36,7 +36,11 @@ from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.registration._common import normalisation, validate_pair, welded_faces
 from torchmeshmetric.registration.adam import Adam
-from torchmeshmetric.registration.deformation_graph import DeformationGraph
+from torchmeshmetric.registration.deformation_graph import (
+    DeformationGraph,
+    _coordinate_order,
+    canonical_farthest_points,
+)
 from torchmeshmetric.registration.energies import (
     Correspondences,
     EnergyTerms,
@@ -164,7 +168,8 @@ def register_nonrigid(
         **keywords: fields of :class:`NonRigidOptions` (``rigid_init``, ``node_spacing``, ``num_neighbors``,
             ``num_points``, ``num_target_samples``, ``correspondence_every``, ``schedule``, ``plane_weight``,
             ``point_weight``, ``reverse_weight``, ``adam_eps``, ``tolerance``, ``max_outlier_fraction``,
-            ``max_uncovered_fraction``, ``outlier_distance``, ``outlier_edge_factor``, ``rigid_options``).
+            ``max_uncovered_fraction``, ``outlier_distance``, ``outlier_edge_factor``, ``rigid_options``,
+            ``sampling``).
 
     Returns:
         :class:`NonRigidRegistration`.
@@ -333,7 +338,7 @@ def _normalise(
     center, diag = normalisation(tgt)
     t0 = time.perf_counter()
     if opts.rigid_init:
-        rigid = register_rigid(src, tgt, generator=gen, **(opts.rigid_options or {}))
+        rigid = register_rigid(src, tgt, generator=gen, sampling=opts.sampling, **(opts.rigid_options or {}))
         moved = rigid.verts
     else:
         rigid = _identity_rigid(src.verts)
@@ -410,6 +415,38 @@ def _target_samples(verts: Tensor, faces: Tensor, n: int, generator: torch.Gener
     return _TargetSamples(points, face_idx, weights)
 
 
+def _face_centroids(verts: Tensor, faces: Tensor) -> Tensor:
+    """``(F, 3)`` face centroids, each the sum of its corners in coordinate order.
+
+    The same bits for any rotation of the corners (a sum in stored corner order differs in the last bit).
+    """
+    c = verts[faces]  # (F, 3, 3)
+    # The corners sorted by x, then y, then z: stable sorts by the least significant key first.
+    for j in (2, 1, 0):
+        idx = c[..., j].argsort(dim=1, stable=True)
+        c = c.gather(1, idx[..., None].expand(-1, -1, 3))
+    return (c[:, 0] + c[:, 1] + c[:, 2]) / 3
+
+
+def _canonical_target_samples(verts: Tensor, faces: Tensor, n: int, dense: bool) -> _TargetSamples:
+    """The reverse term's target samples without random draws (``NonRigidOptions.sampling``).
+
+    ``faces`` are the target's faces with a normal (welded). ``dense``: one sample at every face's centroid, weighted
+    by its area over the mean area (a midpoint quadrature of the surface). Otherwise ``n`` face centroids chosen by
+    farthest-point sampling (:func:`~torchmeshmetric.registration.deformation_graph.canonical_farthest_points`),
+    weight 1: their spacing is about uniform, so each stands for about the same area.
+    """
+    with torch.no_grad():
+        centroids = _face_centroids(verts, faces)
+        area = Mesh(verts, faces, validate=False).face_areas()
+        if dense:
+            order = _coordinate_order(centroids)
+            mean = math.fsum(area.tolist()) / max(faces.shape[0], 1)
+            return _TargetSamples(centroids[order], order, area[order] / max(mean, torch.finfo(verts.dtype).tiny))
+        chosen = canonical_farthest_points(centroids, n, math.fsum(area.tolist()))
+        return _TargetSamples(centroids[chosen], chosen, verts.new_ones(chosen.shape[0]))
+
+
 class _Fit:
     """The deformation graph being fitted, and what every stage reuses.
 
@@ -432,8 +469,9 @@ class _Fit:
         # are in units of this spacing (self.graph.node_spacing), as the regularisation's edges.
         spacing = max(opts.node_spacing, opts.node_edge_factor * self.edge)
         # Node candidates from every source face, not only those with a normal (see DeformationGraph).
+        canonical = opts.sampling != "index"
         self.graph = DeformationGraph(
-            src.verts, frame.faces, node_spacing=spacing, num_neighbors=opts.num_neighbors
+            src.verts, frame.faces, node_spacing=spacing, num_neighbors=opts.num_neighbors, canonical=canonical
         ).to(dev)
         # The data points and the target samples are drawn over every vertex and every face, not over the surface
         # ones only: a rounding of the input that makes a face degenerate (6 decimals did on 2 of the demo's 40k faces)
@@ -442,14 +480,23 @@ class _Fit:
         # them, such a face only loses its own share (its samples' area weights, ~0; see _target_samples).
         used = src.surface_vertex_mask()
         surf = used.nonzero()[:, 0]
-        if surf.numel() > opts.num_points:
+        if opts.sampling == "dense":
+            surf = surf[_coordinate_order(src.verts[surf])]
+        elif opts.sampling == "canonical":
+            area = math.fsum(src.face_areas().double().tolist())
+            surf = surf[canonical_farthest_points(src.verts[surf], opts.num_points, area)]
+        elif surf.numel() > opts.num_points:
             perm = torch.randperm(src.num_verts, generator=gen).to(dev)
             surf = perm[used[perm]][: opts.num_points]
         self.surf = surf
         self.samples: Tensor | None = None
         self.sample_normals = tgt.verts[:0]
         self.sample_weights = tgt.verts.new_zeros(0)  # area weights, mean 1 over the faces (see _target_samples)
-        if opts.num_target_samples > 0:
+        if opts.num_target_samples > 0 and opts.sampling != "index":
+            drawn = _canonical_target_samples(tgt.verts, tgt.faces, opts.num_target_samples, opts.sampling == "dense")
+            self.samples, self.sample_weights = drawn.points, drawn.weights
+            self.sample_normals = tgt.face_normals()[drawn.face_idx]
+        elif opts.num_target_samples > 0:
             whole = Mesh(tgt.verts, frame.target_all_faces, validate=False)
             drawn = _target_samples(whole.verts, whole.faces, opts.num_target_samples, gen)
             self.samples, self.sample_weights = drawn.points, drawn.weights

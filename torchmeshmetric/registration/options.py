@@ -113,11 +113,24 @@ def _stage(name: str, stage: Any) -> Stage:
     )
 
 
+SAMPLINGS = ("index", "canonical", "dense")
+"""The values of ``NonRigidOptions.sampling``."""
+
+
+def _sampling(value: Any) -> str:
+    if not isinstance(value, str):
+        raise TypeError(f"sampling: expected one of {list(SAMPLINGS)}, found {type(value).__name__}")
+    if value not in SAMPLINGS:
+        raise ValueError(f"sampling: expected one of {list(SAMPLINGS)}, found {value!r}")
+    return value
+
+
 @cache
 def _rigid_defaults() -> Mapping[str, Any]:
-    """register_rigid's keyword defaults, less ``generator`` (the registration passes its own)."""
+    """register_rigid's keyword defaults, less ``generator`` and ``sampling`` (the registration passes its own)."""
     params = inspect.signature(register_rigid).parameters.values()
-    defaults = {p.name: p.default for p in params if p.kind is p.KEYWORD_ONLY and p.name != "generator"}
+    passed = ("generator", "sampling")
+    defaults = {p.name: p.default for p in params if p.kind is p.KEYWORD_ONLY and p.name not in passed}
     # The registration's rigid stage solves point-to-plane: it converges in fewer iterations on smooth surfaces.
     return MappingProxyType({**defaults, "point_to_plane": True})
 
@@ -211,6 +224,16 @@ class NonRigidOptions:
             ``outlier_distance`` alone.
         rigid_options: keyword arguments of :func:`register_rigid` (not ``generator``); kept with its defaults
             filled in, ``point_to_plane=True`` unless given.
+        sampling: how the data points, the target samples, the graph's nodes and the rigid stage's ICP points are
+            chosen. ``"index"`` (default): random draws over the vertex and face indices (the generator's), so the
+            same surfaces stored in another order (vertices renumbered, faces shuffled, corners rotated) register
+            differently. ``"canonical"``: no random draw; farthest-point subsets of the surface vertices (data and
+            ICP points) and of the target's face centroids (target samples, weight 1), started at the point nearest
+            to the exact mean, ties broken by coordinates: the same points for any storage order. ``"dense"``: every
+            surface vertex a data point and every target face's centroid a sample (area weights); ``num_points`` and
+            ``num_target_samples`` are then ignored (except ``num_target_samples=0``); the ICP points and the nodes
+            as with ``"canonical"``. The option is experimental
+            (docs/registration.md, "Stability", "Storage order").
 
     Raises:
         TypeError: a field of the wrong type (e.g. ``num_points=2.5``), a schedule item that is not a
@@ -246,6 +269,7 @@ class NonRigidOptions:
     outlier_distance: float = 0.02
     outlier_edge_factor: float = 4.0
     rigid_options: Mapping[str, Any] | None = None
+    sampling: str = "index"
 
     def __post_init__(self) -> None:
         if isinstance(self.schedule, (str, bytes)) or not isinstance(self.schedule, Sequence):
@@ -272,6 +296,7 @@ class NonRigidOptions:
             "outlier_distance": _real("outlier_distance", self.outlier_distance, 0.0),
             "outlier_edge_factor": _finite("outlier_edge_factor", self.outlier_edge_factor, 0.0),
             "rigid_options": _rigid_options(self.rigid_options),
+            "sampling": _sampling(self.sampling),
         }
         # Settings under which no data can move the graph: the result would be the rigid start, reported converged.
         if not any(stage.max_steps > 0 for stage in schedule):
@@ -330,6 +355,9 @@ class NonRigidOptions:
     def canonical(self) -> dict[str, Any]:
         """JSON-ready form of every field (stages as dicts, defaults filled): the registration cache's key.
 
+        ``sampling`` is left out where it is the default ``"index"``, so that the keys of the registrations cached
+        before the option existed stay the same.
+
         Example:
             >>> first, *_ = NonRigidOptions().canonical()["schedule"]
             >>> first["max_steps"], first["lr"]
@@ -339,6 +367,8 @@ class NonRigidOptions:
         out["schedule"] = [s._asdict() for s in self.schedule]
         assert self.rigid_options is not None  # filled by __post_init__
         out["rigid_options"] = {k: _json_value(v) for k, v in sorted(self.rigid_options.items())}
+        if out["sampling"] == "index":
+            del out["sampling"]  # the default: the keys of the registrations cached before the option stay the same
         return out
 
     def _key(self) -> str:

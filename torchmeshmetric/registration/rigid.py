@@ -251,6 +251,7 @@ def register_rigid(
     align_centroids: bool = True,
     init: Tensor | None = None,
     generator: torch.Generator | None = None,
+    sampling: str = "index",
 ) -> RigidRegistration:
     """Align ``source`` onto ``target`` with trimmed, robust ICP (rigid, or similarity with ``scale=True``).
 
@@ -276,6 +277,9 @@ def register_rigid(
         align_centroids: start by translating the source's vertex centroid onto the target's.
         init: optional ``(4, 4)`` initial transform (replaces ``align_centroids``).
         generator: optional ``torch.Generator`` for the sample subset.
+        sampling: ``"index"``: the subset is a random permutation of the vertex indices; ``"canonical"`` (or
+            ``"dense"``): a farthest-point subset chosen whatever order the vertices are stored in, and the centroids
+            as exactly rounded sums (``NonRigidOptions.sampling``).
 
     Returns:
         :class:`RigidRegistration`.
@@ -317,13 +321,21 @@ def register_rigid(
     # normal depends on the input's rounding (docs/registration.md, "Stability", item 7).
     used = src.referenced_vertex_mask()
     pts_all = src.verts[used]
-    if pts_all.shape[0] > num_samples:
+    if sampling not in ("index", "canonical", "dense"):
+        raise ValueError(f"sampling: expected one of ['index', 'canonical', 'dense'], found {sampling!r}")
+    canonical = sampling != "index"
+    if canonical:
+        from torchmeshmetric.registration.deformation_graph import canonical_farthest_points
+
+        area = math.fsum(src.face_areas().double().tolist())
+        pts = pts_all[canonical_farthest_points(pts_all, num_samples, area)]
+    elif pts_all.shape[0] > num_samples:
         perm = torch.randperm(pts_all.shape[0], generator=generator, device="cpu")[:num_samples].to(device)
         pts = pts_all[perm]
     else:
         pts = pts_all
     diag = tgt.bbox_diagonal()
-    R, t, s = _initial_transform(src, tgt, pts_all, init, scale, align_centroids)
+    R, t, s = _initial_transform(src, tgt, pts_all, init, scale, align_centroids, canonical)
     sigma2 = (robust_scale * diag) ** 2
     converged = False
     it = 0
@@ -365,7 +377,13 @@ def register_rigid(
 
 
 def _initial_transform(
-    src: Mesh, tgt: Mesh, pts_all: Tensor, init: Tensor | None, scale: bool, align_centroids: bool
+    src: Mesh,
+    tgt: Mesh,
+    pts_all: Tensor,
+    init: Tensor | None,
+    scale: bool,
+    align_centroids: bool,
+    canonical: bool = False,
 ) -> tuple[Tensor, Tensor, Tensor]:
     """``(R, t, s)`` ICP starts from.
 
@@ -387,7 +405,12 @@ def _initial_transform(
     s = torch.ones((), dtype=dtype, device=device)
     t = torch.zeros(3, dtype=dtype, device=device)
     if align_centroids:
-        t = tgt.verts[tgt.referenced_vertex_mask()].mean(0) - pts_all.mean(0)
+        if canonical:
+            from torchmeshmetric.registration.deformation_graph import _exact_mean
+
+            t = _exact_mean(tgt.verts[tgt.referenced_vertex_mask()]) - _exact_mean(pts_all)
+        else:
+            t = tgt.verts[tgt.referenced_vertex_mask()].mean(0) - pts_all.mean(0)
     return R, t, s
 
 
