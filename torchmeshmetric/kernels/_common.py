@@ -19,8 +19,16 @@ DEFAULT_MAX_MEMORY = 256 * 2**20
 
 
 def dot(x: Tensor, y: Tensor) -> Tensor:
-    """Row-wise dot product over the last dimension."""
-    return (x * y).sum(-1)
+    """Row-wise dot product of 3-vectors (last dimension 3), added as ``(x0*y0 + x1*y1) + x2*y2`` on every device.
+
+    Not ``(x * y).sum(-1)``: a reduction's order is the device's choice, and CUDA's (two threads per output of a
+    size-3 dimension) is ``(x0*y0 + x2*y2) + x1*y1``, which rounds differently from the C++ (``triangle.h``
+    ``dot3``) and Triton kernels, so the torch brute force chose other faces at near-ties on a GPU (review M).
+    Elementwise products and adds, one op each, round the same on the CPU and on CUDA and are never fused into FMAs.
+    """
+    x0, x1, x2 = x.unbind(-1)
+    y0, y1, y2 = y.unbind(-1)
+    return (x0 * y0 + x1 * y1) + x2 * y2
 
 
 def cross(x: Tensor, y: Tensor) -> Tensor:

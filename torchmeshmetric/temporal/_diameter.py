@@ -32,6 +32,8 @@ import math
 import torch
 from torch import Tensor
 
+from torchmeshmetric.kernels._common import dot
+
 __all__ = ["farthest_pair", "squared_distances"]
 
 #: Points per leaf of the tree (measured on 20k to 300k points on a sphere: 8 and 32 within 20 % of 16).
@@ -58,10 +60,11 @@ _DIRECTIONS = (
 
 
 def squared_distances(a: Tensor, b: Tensor) -> Tensor:
-    """``((a - b) ** 2).sum(-1)``: the squared distances of :func:`farthest_pair`, the brute force's formula.
+    """``(dx*dx + dy*dy) + dz*dz``, ``d = a - b``: the squared distances of :func:`farthest_pair`, the brute force's.
 
     Every squared distance the search compares is computed by this one expression, so its values are the brute
-    force's, bit for bit (a sum of three terms, in one order).
+    force's, bit for bit (a sum of three terms, in one order: explicit adds, not a ``.sum(-1)`` reduction, whose
+    order is the device's choice and differs on CUDA, see ``kernels._common.dot``).
 
     Args:
         a: ``(..., 3)`` points.
@@ -74,7 +77,8 @@ def squared_distances(a: Tensor, b: Tensor) -> Tensor:
         >>> squared_distances(torch.tensor([[0.0, 0, 0]]), torch.tensor([[1.0, 2, 2]])).tolist()
         [9.0]
     """
-    return ((a - b) ** 2).sum(-1)
+    d = a - b
+    return dot(d, d)
 
 
 def _threshold(lower: float) -> float:

@@ -73,8 +73,9 @@ def query_faces(_structure: None, faces: FaceSet, points: Tensor, point_batch: T
 def query_points(_structure: None, ref: PointSet, points: Tensor, point_batch: Tensor, max_memory: int) -> Tensor:
     """Nearest reference row per centred point, by ``(dx*dx + dy*dy) + dz*dz`` on explicit differences.
 
-    That is the order of ``(d * d).sum(-1)`` used for the returned distances, and no ``|p|^2 - 2 p.q + |q|^2``
-    cancellation; every backend selects by this same computed value.
+    That is the order of ``dot(d, d)`` (``kernels._common.dot``, explicit adds, not a reduction whose order the
+    device picks) used for the returned distances, and no ``|p|^2 - 2 p.q + |q|^2`` cancellation; every backend
+    selects by this same computed value.
     """
     r_all = ref.points
 

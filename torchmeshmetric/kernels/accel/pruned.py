@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 import torch
 from torch import Tensor
 
-from torchmeshmetric.kernels._common import ROUNDING_ULPS, rounding_slack
+from torchmeshmetric.kernels._common import ROUNDING_ULPS, dot, rounding_slack
 from torchmeshmetric.kernels.triangle import region_candidates
 
 if TYPE_CHECKING:
@@ -85,7 +85,7 @@ def _clusters(lo: Tensor, hi: Tensor, batch: Tensor, offsets: Tensor) -> tuple[T
 def _box_sq(p: Tensor, lo: Tensor, hi: Tensor) -> Tensor:
     """(Q, C) squared distance from points (Q, 3) to boxes (C, 3)."""
     d = torch.maximum((lo[None] - p[:, None]).clamp_min(0), (p[:, None] - hi[None]).clamp_min(0))
-    return (d * d).sum(-1)
+    return dot(d, d)  # the fixed order of the point distances below, not a reduction's (device-dependent) one
 
 
 def _select(
@@ -178,7 +178,8 @@ def pruned_nearest(
 
     def pair_sq(p: Tensor, mem: Tensor) -> Tensor:
         d = p[:, None] - ref[mem.clamp_min(0)]
-        return (d * d).sum(-1).masked_fill(mem < 0, float("inf"))
+        # (dx*dx + dy*dy) + dz*dz on every device, the brute force's selection key (not a reduction, see dot).
+        return dot(d, d).masked_fill(mem < 0, float("inf"))
 
     return _select(points, point_batch, ref, ref, ref_batch, ref_offsets, pair_sq, max_memory)
 
