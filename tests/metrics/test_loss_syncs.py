@@ -9,12 +9,22 @@ the real ones on a GPU (CUDA's sync debug mode).
 Measured (2026-12-04, CPU, "auto" backend): before this test's fixes, 72 at 2 pairs and 99 at 3 (27 per pair);
 after, 24 and 32: 8 per pair, all of them the validation at the door of the 4 meshes per pair given as
 ``(verts, faces)`` tuples (finiteness and face range, one read each), and 8 per step whatever the batch.
+
+What this counter cannot see (review M, finding 5): a host-to-device copy of Python data (``torch.tensor(list,
+device=cuda)`` synchronises; on the CPU it is no copy at all), counted here by patching ``torch.tensor`` for calls
+with an explicit ``device``; and the code a CPU step never runs: on CUDA the loss's kept indexes are ``"triton"``
+trees, whose refit (``kernels/accel/lbvh.py``) is checked separately below on CPU tensors. Whatever else differs on
+a GPU (the CUDA caching allocator, kernels that read a size back) only CUDA's sync debug mode sees: the
+``temporal_loss`` section of ``tests/benchmarks/gpu_check.py`` counts it on the device, and that count is the
+authority.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections import Counter
+from collections.abc import Iterator
 from typing import Any
 
 import pytest
@@ -74,10 +84,29 @@ def _syncs_of_a_warm_step(pairs: int, monkeypatch: pytest.MonkeyPatch) -> int:
         return tolist(self)
 
     monkeypatch.setattr(torch.Tensor, "tolist", counted_tolist)
-    with CountSyncs() as counter:
+    with count_host_data_copies() as copies, CountSyncs() as counter:
         step()
     monkeypatch.setattr(torch.Tensor, "tolist", tolist)
+    assert copies["torch.tensor(host data, device=...)"] == 0  # the loss keeps its lengths tensors (was 4 in this step)
     return sum(counter.ops.values()) + reads["tolist"]
+
+
+@contextlib.contextmanager
+def count_host_data_copies() -> Iterator[Counter[str]]:
+    """Counts ``torch.tensor(data, device=...)``: on a GPU a synchronising host-to-device copy of Python data."""
+    made = Counter[str]()
+    tensor = torch.tensor
+
+    def counted(*args: Any, **kwargs: Any) -> torch.Tensor:
+        if kwargs.get("device") is not None:
+            made["torch.tensor(host data, device=...)"] += 1
+        return tensor(*args, **kwargs)
+
+    torch.tensor = counted  # type: ignore[assignment]
+    try:
+        yield made
+    finally:
+        torch.tensor = tensor
 
 
 def test_a_training_step_reads_the_device_only_to_validate_its_inputs(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -116,3 +145,46 @@ def test_a_non_finite_warp_of_one_pair_is_named_once_batched() -> None:
 
     with pytest.raises(NonFiniteError, match=r"registration\[1\]: the warp moved 1 vertices"):
         temporal_consistency_loss(simplified[1:], simplified[:-1], originals[1:], originals[:-1], [_ident, bad, _ident])
+
+
+def test_the_triton_trees_refit_reads_nothing_back() -> None:
+    # On CUDA the loss's kept indexes are "triton" trees (8 x ~10k points x 40k faces is far above MIN_PAIRS), and
+    # their refit runs at every step. It read the leaf depths back (tolist), copied them to the device (torch.tensor)
+    # and selected with boolean masks and repeat_interleave without output_size: ~10 syncs per refit of a forest
+    # (review M, finding 5). The plan of its levels is now made once, at build; the refit is device work only.
+    from torchmeshmetric.kernels.accel.lbvh import build_implicit_bvh, refit_implicit_bvh
+
+    g = torch.Generator().manual_seed(0)
+    lengths = torch.tensor([300, 7, 0, 129, 64])  # items of different depths, one empty
+    offsets = torch.cat([torch.zeros(1, dtype=torch.long), lengths.cumsum(0)])
+    batch = torch.repeat_interleave(torch.arange(5), lengths)
+    x = torch.randn(int(offsets[-1]), 3, generator=g)
+    tree = build_implicit_bvh(x - 0.01, x + 0.01, batch, offsets, 4)
+    moved = x + 0.1 * torch.randn(x.shape, generator=g)
+    tolist = torch.Tensor.tolist
+    reads = Counter[str]()
+
+    def counted_tolist(self: torch.Tensor) -> Any:
+        reads["tolist"] += 1
+        return tolist(self)
+
+    torch.Tensor.tolist = counted_tolist  # type: ignore[method-assign]
+    try:
+        with count_host_data_copies() as copies, CountSyncs() as counter:
+            refit = refit_implicit_bvh(tree, moved - 0.01, moved + 0.01)
+    finally:
+        torch.Tensor.tolist = tolist  # type: ignore[method-assign]
+    assert dict(counter.ops) == {} and reads["tolist"] == 0 and sum(copies.values()) == 0
+    # The same boxes as a tree built over the moved boxes in the same layout: a fresh build's node boxes.
+    fresh = build_implicit_bvh(moved - 0.01, moved + 0.01, batch, offsets, 4)
+    same_layout = torch.equal(fresh.prims, tree.prims)
+    assert not same_layout or torch.equal(fresh.nodes, refit.nodes)
+    # Each item's root box is the box of its moved primitives (an empty item: the empty box).
+    for b in range(5):
+        lo, hi = int(offsets[b]), int(offsets[b + 1])
+        root = refit.nodes[int(tree.node_base[b]) + 1]
+        if lo == hi:
+            assert bool((root[:3] == math.inf).all() and (root[3:] == -math.inf).all())
+        else:
+            assert torch.equal(root[:3], (moved[lo:hi] - 0.01).amin(0))
+            assert torch.equal(root[3:], (moved[lo:hi] + 0.01).amax(0))

@@ -239,8 +239,28 @@ def _to_surface(points: list[Tensor], meshes: list[Mesh], index: MeshIndex) -> T
     p = torch.cat(points) if len(points) > 1 else points[0]
     if p.shape[0] == 0:
         return p.new_zeros(0)
-    lengths = torch.tensor([q.shape[0] for q in points], dtype=torch.long, device=p.device)
+    lengths = _device_lengths(tuple(q.shape[0] for q in points), p.device)
     return mesh_surface_distances(p.to(index.dtype), lengths, meshes, index, owner="temporal_consistency_loss")
+
+
+_LENGTHS: OrderedDict[tuple[tuple[int, ...], torch.device], Tensor] = OrderedDict()
+
+
+def _device_lengths(lengths: tuple[int, ...], device: torch.device) -> Tensor:
+    """``torch.tensor(lengths, device=device)``, kept for the next steps (the same sizes recur at every step).
+
+    Copying a Python list to a CUDA device synchronises with the host (a pageable host-to-device copy); the loss made
+    2-4 of them per step. The kept tensors are never written to (the kernels only read lengths).
+    """
+    key = (lengths, device)
+    found = _LENGTHS.get(key)
+    if found is None:
+        found = _LENGTHS[key] = torch.tensor(lengths, dtype=torch.long, device=device)
+        if len(_LENGTHS) > 64:
+            _LENGTHS.popitem(last=False)
+    else:
+        _LENGTHS.move_to_end(key)
+    return found
 
 
 def _directed(
@@ -252,7 +272,7 @@ def _directed(
     """Forward (``points`` → ``meshes``) and, when given, reverse distances, packed as the losses reduce them."""
     forward = _to_surface(points, meshes, index)
     rev = None if reverse is None else _to_surface(*reverse)
-    no_lengths = torch.zeros(0, dtype=torch.long)
+    no_lengths = torch.zeros(0, dtype=torch.long, device=forward.device)  # the device of the other fields
     return DirectedDistances(forward, no_lengths, rev, None, forward.new_zeros(0))
 
 

@@ -38,6 +38,10 @@ class ImplicitBVH(NamedTuple):
         slot_base: ``(B,)`` int64 first slot of each item.
         depth: ``(B,)`` int64 leaf depth ``D_b`` of each item (``2**D_b`` leaves; ``0``: the root is a leaf).
         leaf_size: primitives per leaf.
+        levels: the refit's plan for a forest of several items, on the device (``None`` for one item): per level
+            ``k`` from the leaves up, the rows of level ``k - 1`` that stay (``None`` where every item does) and the
+            node rows level ``k`` fills. Computed once by :func:`build_implicit_bvh` (it reads sizes back to the
+            host), so that :func:`refit_implicit_bvh` runs on the device without a host-device synchronisation.
     """
 
     nodes: Tensor
@@ -46,6 +50,7 @@ class ImplicitBVH(NamedTuple):
     slot_base: Tensor
     depth: Tensor
     leaf_size: int
+    levels: tuple[tuple[Tensor | None, Tensor], ...] | None = None
 
 
 def _spread10(x: Tensor) -> Tensor:
@@ -156,8 +161,9 @@ def build_implicit_bvh(lo: Tensor, hi: Tensor, batch: Tensor, offsets: Tensor, l
     prims = torch.full((total_leaves * leaf_size,), -1, dtype=torch.long, device=device)
     prims[slot_base[sorted_batch] + rank] = order
 
-    nodes = _node_bounds(prims, lo, hi, leaf_size, depth_list, node_base, num_items)
-    return ImplicitBVH(nodes, prims, node_base, slot_base, depth, leaf_size)
+    levels = None if num_items == 1 else _level_plan(depth_list, node_base)
+    nodes = _node_bounds(prims, lo, hi, leaf_size, levels)
+    return ImplicitBVH(nodes, prims, node_base, slot_base, depth, leaf_size, levels)
 
 
 def refit_implicit_bvh(tree: ImplicitBVH, lo: Tensor, hi: Tensor) -> ImplicitBVH:
@@ -170,26 +176,56 @@ def refit_implicit_bvh(tree: ImplicitBVH, lo: Tensor, hi: Tensor) -> ImplicitBVH
         >>> refit_implicit_bvh(t, 2 * pts, 2 * pts).nodes[1].tolist()
         [0.0, 0.0, 0.0, 10.0, 0.0, 0.0]
     """
-    depth_list = [int(d) for d in tree.depth.tolist()]
-    nodes = _node_bounds(tree.prims, lo, hi, tree.leaf_size, depth_list, tree.node_base, tree.depth.numel())
-    return tree._replace(nodes=nodes)
+    levels = tree.levels
+    if levels is None and tree.depth.numel() > 1:  # a forest built without its plan: make it (host reads)
+        levels = _level_plan([int(d) for d in tree.depth.tolist()], tree.node_base)
+        tree = tree._replace(levels=levels)
+    return tree._replace(nodes=_node_bounds(tree.prims, lo, hi, tree.leaf_size, levels))
+
+
+def _level_plan(depth_list: list[int], node_base: Tensor) -> tuple[tuple[Tensor | None, Tensor], ...]:
+    """:attr:`ImplicitBVH.levels` of a forest of items with leaf depths ``depth_list`` (several items).
+
+    The boolean selections and the per-item counts read sizes back to the host: done once per tree, here.
+    """
+    device = node_base.device
+    num_items = len(depth_list)
+    depth = torch.tensor(depth_list, dtype=torch.long, device=device)
+    leaves = 1 << depth
+    total = sum(1 << d for d in depth_list)
+    entry_item = torch.repeat_interleave(torch.arange(num_items, device=device), leaves, output_size=total)
+    plan: list[tuple[Tensor | None, Tensor]] = []
+    for k in range(max(depth_list) + 1):
+        keep = None
+        if k > 0:
+            if (k - 1) in depth_list:  # items whose root was level k - 1 leave the level arrays
+                keep = (depth[entry_item] >= k).nonzero().squeeze(1)
+                entry_item = entry_item[keep]
+            # Every kept item has an even number of entries at level k - 1, starting at an even position.
+            entry_item = entry_item[::2]
+        counts = torch.where(depth >= k, leaves >> k, torch.zeros_like(leaves))
+        start = torch.cumsum(counts, 0) - counts
+        local = torch.arange(entry_item.numel(), device=device) - start[entry_item]
+        plan.append((keep, node_base[entry_item] + (leaves[entry_item] >> k) + local))
+    return tuple(plan)
 
 
 def _node_bounds(
-    prims: Tensor, lo: Tensor, hi: Tensor, leaf_size: int, depth_list: list[int], node_base: Tensor, num_items: int
+    prims: Tensor, lo: Tensor, hi: Tensor, leaf_size: int, levels: tuple[tuple[Tensor | None, Tensor], ...] | None
 ) -> Tensor:
-    """``(N, 6)`` node boxes of the implicit trees whose slots hold ``prims`` (boxes ``lo`` / ``hi``)."""
+    """``(N, 6)`` node boxes of the implicit trees whose slots hold ``prims`` (boxes ``lo`` / ``hi``).
+
+    ``levels``: :attr:`ImplicitBVH.levels` (``None`` for one item). Only device work: no value is read back.
+    """
     device, dtype = lo.device, lo.dtype
-    depth = torch.tensor(depth_list, dtype=torch.long, device=device)
-    leaves = 1 << depth
-    total_leaves = sum(1 << d for d in depth_list)
+    total_leaves = prims.numel() // leaf_size
     # Leaf boxes, then one pairwise reduction per level. Boxes are held as [lo, -hi] so that one amin reduces both
     # halves (padding: +inf, an empty box); the upper corners are negated back at the end (negation is exact).
     real = prims >= 0
     slot_box = torch.where(real[:, None], torch.cat([lo, -hi], 1)[prims.clamp_min(0)], float("inf"))
     level = slot_box.view(total_leaves, leaf_size, 6).amin(1)
     nodes = torch.full((2 * total_leaves, 6), float("inf"), dtype=dtype, device=device)
-    if num_items == 1:
+    if levels is None:
         width = total_leaves
         while True:
             nodes[width : 2 * width] = level
@@ -198,18 +234,11 @@ def _node_bounds(
             level = level.view(-1, 2, 6).amin(1)
             width //= 2
     else:
-        entry_item = torch.repeat_interleave(torch.arange(num_items, device=device), leaves)
-        for k in range(max(depth_list) + 1):
+        for k, (keep, rows) in enumerate(levels):
             if k > 0:
-                if (k - 1) in depth_list:  # items whose root was level k - 1 leave the level arrays
-                    keep = depth[entry_item] >= k
-                    level, entry_item = level[keep], entry_item[keep]
-                # Every kept item has an even number of entries at level k - 1, starting at an even position.
+                if keep is not None:
+                    level = level.index_select(0, keep)
                 level = level.view(-1, 2, 6).amin(1)
-                entry_item = entry_item[::2]
-            counts = torch.where(depth >= k, leaves >> k, torch.zeros_like(leaves))
-            start = torch.cumsum(counts, 0) - counts
-            local = torch.arange(entry_item.numel(), device=device) - start[entry_item]
-            nodes[node_base[entry_item] + (leaves[entry_item] >> k) + local] = level
+            nodes[rows] = level
     nodes[:, 3:] = -nodes[:, 3:]
     return nodes
