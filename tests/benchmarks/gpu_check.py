@@ -170,6 +170,33 @@ def sync_counter() -> Any:
     return Counter()
 
 
+class _ReadInBackward(torch.autograd.Function):
+    """Identity whose backward reads a value back (one sync on the autograd engine's device thread)."""
+
+    @staticmethod
+    def forward(ctx: Any, x: torch.Tensor) -> torch.Tensor:
+        return x.clone()
+
+    @staticmethod
+    def backward(ctx: Any, grad: torch.Tensor) -> torch.Tensor:
+        float(grad.sum())
+        return grad
+
+
+def _sync_counter_control(device: str) -> dict[str, bool]:
+    """Whether :func:`sync_counter` sees a known sync in forward code and one in a backward pass.
+
+    The backward's warnings are raised on the autograd engine's CUDA thread and replayed on the caller's; a count of
+    0 per step would otherwise be ambiguous (review M, finding 10).
+    """
+    x = torch.ones(4, device=device, requires_grad=True)
+    with sync_counter() as fwd:
+        float(x.detach().sum())
+    with sync_counter() as bwd:
+        _ReadInBackward.apply(x).sum().backward()
+    return {"forward": fwd.count >= 1, "backward": bwd.count >= 1}
+
+
 # ------------------------------------------------------------------------------------------------------ the run
 
 
@@ -521,11 +548,13 @@ class Check:
         # Host-device synchronisations of one warmed step: CUDA's sync debug mode on a GPU; on a CPU the aten ops
         # that would synchronise (tests/metrics/test_loss_syncs.py's counter).
         if self.cuda:
+            sync(dev)
             with sync_counter() as sc:
-                step()
-                sync(dev)
+                step()  # the warnings are raised by the host calls: no synchronize inside (it would count too)
+            sync(dev)
             r["syncs_per_step"] = sc.count
             r["sync_kinds"] = sc.kinds
+            r["sync_counter_sees_known_syncs"] = _sync_counter_control(dev)
         else:
             from tests.metrics.test_loss_syncs import CountSyncs
 
