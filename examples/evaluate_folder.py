@@ -41,8 +41,8 @@ def main() -> int:
     kept_by = Path(args.out).name if args.out else "the JSON report (--out)"  # the note names what keeps every digit
     print(paper_tables({name: result}, json_file=kept_by))
     for pair in result.pairs:  # per-frame temporal consistency and the registration's own quality
-        # The tables' digits: both go through the registration, which follows the frames' storage order like a seed
-        # (one significant digit; docs/statistics.md, "Storage order").
+        # The tables' digits for rows that go through the registration (statistic_cell picks them; today the k-th
+        # rows' digits, since the registration draws independently of the frames' storage order).
         k_minus_1 = statistic_cell(float(pair.statistics["surface_k_minus_1"].rmse), "rmse", registered=True)
         residual = statistic_cell(float(pair.registration_statistics.rmse), "rmse", registered=True)
         print(f"frame {pair.frame}: surface_k_minus_1 rmse {k_minus_1}, registration residual rmse {residual}")

@@ -161,7 +161,7 @@ def test_temporal_section_keeps_the_digits_both_runs_share(capsys, tmp_path, seq
         line = next(line for line in text.split("## Temporal metrics")[1].splitlines() if line.startswith("| simp |"))
         assert line.strip("| ").split(" | ")[1:-1] == want
         assert "this run's input determines: the figures were computed again" in text and FIGURE_DIGITS_NOTE not in text
-    # KG of the translated spheres moves by ~2.5e-7 (measured, 2026-12-06): its 2 registered digits hold; STED_t is
+    # KG of the translated spheres moves by ~2.5e-7 (measured, 2026-12-06): its 3 registered digits hold; STED_t is
     # the exact translation's rounding (~8e-8) and moves by 0.55: not one of its digits is the input's.
     assert changes["kg"] < 1e-5 and want[0] == format_figure("kg", figures["kg"], registered=True)
     assert changes["sted_t"] > 0.1 and want[FIGURE_NAMES.index("sted_t")].startswith("~")

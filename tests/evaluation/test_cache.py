@@ -208,17 +208,38 @@ def test_the_librarys_registrations_are_keyed_by_their_results_version(tmp_path,
         calls.append(cache_module.REGISTRATION_RESULTS_VERSION)
         return CachedRegistration(b.verts * 1.0, torch.zeros(a.num_verts, dtype=a.dtype), True, 0.0)
 
-    # 2 since review L #2 (the evaluation's registration of float32 frames computes in float64).
-    assert registration_settings(None, {})["results_version"] == cache_module.REGISTRATION_RESULTS_VERSION == 2
+    # 2 since review L #2 (the evaluation's registration of float32 frames computes in float64); 3 since review L #1
+    # (the evaluation's registration samples with sampling="canonical").
+    assert registration_settings(None, {})["results_version"] == cache_module.REGISTRATION_RESULTS_VERSION == 3
     first = RegistrationCache(tmp_path).get_or_compute(a, b, registration_settings(None, {}), compute)
-    monkeypatch.setattr(cache_module, "REGISTRATION_RESULTS_VERSION", 3)
+    monkeypatch.setattr(cache_module, "REGISTRATION_RESULTS_VERSION", 4)
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # a clean miss: no "unreadable" or "invalid" entry
         cache = RegistrationCache(tmp_path)
         second = cache.get_or_compute(a, b, registration_settings(None, {}), compute)
         again = RegistrationCache(tmp_path).get_or_compute(a, b, registration_settings(None, {}), compute)
-    assert calls == [2, 3] and (first[1], second[1], again[1]) == (False, False, True)
+    assert calls == [3, 4] and (first[1], second[1], again[1]) == (False, False, True)
     assert (cache.hits, cache.misses) == (0, 1) and len(list(tmp_path.glob("*.pt"))) == 2
+
+
+def test_the_evaluations_canonical_sampling_is_keyed_apart_and_a_named_sampling_wins():
+    # Review L #1: the evaluation's registration samples with sampling="canonical" (draws independent of the frames'
+    # storage order) unless its options name one; its key names it, so entries of the index draws (and those of
+    # results version 2) are never served for it, and {"sampling": "index"} keys (and runs) the index draws.
+    from torchmeshmetric.evaluation.pipeline import REGISTRATION_SAMPLING, evaluation_keywords, registration_keywords
+    from torchmeshmetric.registration import NonRigidOptions
+
+    default = registration_settings(None, {})
+    assert REGISTRATION_SAMPLING == "canonical" and default["options"].sampling == "canonical"
+    index = registration_settings(None, {"sampling": "index"})
+    assert index["options"].sampling == "index" and index != default
+    assert "sampling" not in index["options"].canonical()  # "index" is left out of the key, as before the option
+    # A NonRigidOptions is the same settings as its fields spelled as keywords; its non-default sampling wins.
+    spelled = registration_keywords(NonRigidOptions(num_points=500))
+    assert registration_settings(None, spelled) == registration_settings(None, {"num_points": 500})
+    dense = registration_settings(None, {"options": NonRigidOptions(sampling="dense")})
+    assert dense["options"].sampling == "dense"
+    assert evaluation_keywords({"sampling": "index", "num_points": 5}) == {"sampling": "index", "num_points": 5}
 
 
 def test_an_entry_edited_in_place_by_its_caller_changes_no_later_hit(tmp_path):

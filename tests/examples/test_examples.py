@@ -169,8 +169,8 @@ def test_evaluate_folder_prints_the_tables_and_writes_the_report(folder_report: 
     pair = method["pairs"][0]
     assert pair["frame"] == 1 and len(method["pairs"]) == 1
     # The per-frame line and the table rows print what the JSON holds, to the tables' digits: both per-frame figures go
-    # through the registration (REGISTERED_COLUMN_FORMATS: one significant; review L, finding 1), frame k's Ave does
-    # not (COLUMN_FORMATS).
+    # through the registration (REGISTERED_COLUMN_FORMATS, since canonical sampling the same as COLUMN_FORMATS), frame
+    # k's Ave does not (COLUMN_FORMATS).
     line = re.search(r"frame 1: surface_k_minus_1 rmse (\S+), registration residual rmse (\S+)", out)
     assert line is not None
     assert line.group(1) == format_number(pair["surface_k_minus_1"]["rmse"], REGISTERED_COLUMN_FORMATS["rmse"])

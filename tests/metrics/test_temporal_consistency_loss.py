@@ -267,13 +267,22 @@ def test_default_registration_is_computed_once_per_original_pair(monkeypatch):
 
 @expects_not_converged
 def test_loss_and_evaluation_share_registrations():
-    # One cache, one key: a registration computed by the evaluation is a hit for the loss, and the other way round.
+    # One cache, one key: a registration computed by the evaluation is a hit for the loss, and the other way round,
+    # for float64 frames and the same options. The evaluation samples with sampling="canonical" unless told
+    # otherwise, the loss with register_nonrigid's "index": the loss shares the evaluation's entries when it names
+    # "canonical" (and not otherwise: two registrations).
     src = trimesh.creation.icosphere(subdivisions=2)
     tgt = trimesh.creation.icosphere(subdivisions=2)
     tgt.vertices *= [1.1, 1.0, 0.9]
     s_km1 = noisy(trimesh.creation.icosphere(subdivisions=1), 0.01, 5)
     s_k = noisy(trimesh.creation.icosphere(subdivisions=1), 0.01, 6)
-    quick = {"schedule": [DEFAULT_SCHEDULE[0]._replace(max_steps=10)]}
+    quick = {"schedule": [DEFAULT_SCHEDULE[0]._replace(max_steps=10)], "sampling": "canonical"}
+    apart = RegistrationCache()
+    register_pairs([src, tgt], registration_options={"schedule": quick["schedule"]}, registration_cache=apart)
+    TemporalConsistencyLoss(registration_options={"schedule": quick["schedule"]}, registration_cache=apart)(
+        s_k, s_km1, tgt, src
+    )
+    assert (apart.hits, apart.misses, len(apart)) == (0, 2, 2)
     own = TemporalConsistencyLoss(registration_options=quick)(s_k, s_km1, tgt, src)
 
     evaluation_first = RegistrationCache()

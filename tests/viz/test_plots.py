@@ -49,16 +49,15 @@ def test_histograms_show_the_distribution_on_a_log_axis():
     legend = fig.axes[0].get_legend().get_texts()[0].get_text()
     assert f"{(n - moved.numel()) / n:.1%} of vertices below" in legend
     # The RMSE with the report tables' digits for the panel's set: those the input determines (COLUMN_FORMATS: 2
-    # significant) for frame k, one significant for a set through the registration (REGISTERED_COLUMN_FORMATS: it
-    # follows the original frames' storage order like a seed; review L, finding 1). The first panel is the k-1 set.
+    # significant) for frame k and for a set through the registration (REGISTERED_COLUMN_FORMATS, the same: the
+    # registration draws independently of the storage order; review L, finding 1). The first panel is the k-1 set.
     titles = {v: k for k, v in plots._LABELS.items()}
     assert {"surface_k", "surface_k_minus_1"} <= {titles[ax.get_title()] for ax in fig.axes}  # both kinds checked
     for ax in fig.axes:
         name = titles[ax.get_title()]
         d = (pair.distances[name] if name != "registration" else pair.registration_residual).double().numpy()
         rmse = float(np.sqrt(np.mean(d * d)))
-        frame_k = name in ("surface_k", "vertex_k")
-        want = f"{rmse:#.2g}" if frame_k else f"{rmse:#.1g}".replace(".e", "e").rstrip(".")
+        want = f"{rmse:#.2g}"
         assert f"m (RMSE {want};" in ax.get_legend().get_texts()[0].get_text(), name
     edges = log_bins([values], 40)
     assert edges[0] == pytest.approx(values[values > 0].min()) and edges[-1] == pytest.approx(values.max())

@@ -466,9 +466,9 @@ def nudged_run(
 
     One seed for every frame: a coordinate moves by a function of its value, in the originals as in the simplified.
     Every frame is also stored in another order (:func:`~torchmeshmetric.evaluation.determinacy.relabel_frames`):
-    the registration's random draws follow the originals' storage order, so the change measured includes the one a
-    re-export of the same surfaces makes. ``cache``: the second run's registrations (:func:`nudged_cache`: apart
-    from the input's).
+    the evaluation's registration draws independently of it (``sampling="canonical"``), and the change measured
+    would include the one a re-export of the same surfaces makes if it did not. ``cache``: the second run's
+    registrations (:func:`nudged_cache`: apart from the input's).
     """
     from torchmeshmetric.evaluation.determinacy import nudge_frames, relabel_frames
 

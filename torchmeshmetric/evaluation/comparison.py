@@ -532,10 +532,9 @@ def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapp
     out.append(
         "≈: inconclusive (the interval contains 0, or the difference is below the noise floor or the relative "
         "margin). Units: frame pairs; see docs/statistics.md. The sets marked * go through the registration, "
-        "whose draws follow the original frames' storage order (face order, corners, vertex numbering): 5 other "
-        "orders of frames of about 20k vertices moved their differences by up to 5 % and their half-widths by up to "
-        "100x (measured, docs/statistics.md), so read those intervals to one digit; --determinacy includes another "
-        "order."
+        "which draws its samples independently of how the original frames are stored (face order, corners, vertex "
+        "numbering: 3 other orders of frames of about 20k vertices moved those sets' figures by at most 7e-5 "
+        "relative, docs/statistics.md); --determinacy includes another order."
     )
     nudged = [e for sets in comparisons.values() for entries in sets.values() for e in entries.values()]
     if any(_undefined(e) is not None for e in nudged):

@@ -5,9 +5,9 @@ computed through discrete choices (the registration's, a simplifier's) that can 
 far larger than itself (docs/statistics.md, "Which digits the input determines"). The tables' fixed digits
 (:data:`~torchmeshmetric.evaluation.reports.COLUMN_FORMATS`) come from a measurement on the library's own frames;
 this module measures the run at hand instead: every input frame (originals and simplified) is moved by up to one unit
-of its storage and stored in another order (:func:`relabel_frames`: the registration's random draws follow the
-storage order, which acts as their seed), the evaluation is repeated, and each table cell prints only the digits
-both runs print alike (:func:`shared_cell`).
+of its storage and stored in another order (:func:`relabel_frames`: the evaluation's registration draws
+independently of it, so a registration that did not would show here), the evaluation is repeated, and each table
+cell prints only the digits both runs print alike (:func:`shared_cell`).
 """
 
 from __future__ import annotations
@@ -179,12 +179,15 @@ def _hashed_order(count: int, salt: np.ndarray) -> np.ndarray:
 def relabel_frames(frames: Sequence[Mesh], *, seed: int = 0) -> list[Mesh]:
     """The frames stored in another order: vertices renumbered, faces reordered, each face's corners rotated.
 
-    The same surfaces, as another tool (a re-export, an OBJ to PLY conversion) may store them. The registration
-    draws its samples by index (docs/registration.md, "Stability"), so the storage order acts as its random seed and
-    moves every figure that goes through it; ``--determinacy``'s second run stores its frames this way so that the
-    change it measures includes that one. The orders are drawn from a hash of ``(seed, V, F, index)`` (splitmix64:
-    the same on every machine), so frames with the same vertex and face counts get the same relabelling, and
-    sequences that share a connectivity (a frame and its distorted copy; the frames of a tracked sequence) still
+    The same surfaces, as another tool (a re-export, an OBJ to PLY conversion) may store them. The evaluation's
+    registration draws its samples independently of the storage order (``sampling="canonical"``); with the index
+    draws (``{"sampling": "index"}``, :func:`~torchmeshmetric.registration.register_nonrigid`'s default) the storage
+    order acts as their random seed and moves every figure that goes through them (docs/registration.md,
+    "Stability"). ``--determinacy``'s second run stores its frames this way, so the change it measures would include
+    a registration that follows the storage order. The orders are drawn from a hash of ``(seed, V, F, index)``
+    (splitmix64: the same on every machine), so frames with the same vertex and face counts get the same
+    relabelling, and sequences that share a connectivity (a frame and its distorted copy; the frames of a tracked
+    sequence) still
     share it. Each face keeps its orientation (its corners are rotated, never swapped). Vertices are moved, not
     copied into another dtype: the coordinates are the frame's own bits.
 

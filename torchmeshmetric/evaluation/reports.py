@@ -84,42 +84,30 @@ COLUMN_FORMATS: dict[str, str] = {
 }
 
 #: Printed format of each column in the rows that go through the registration (the (k-1)-th and flicker rows, the
-#: registration's own): those also depend on how the original frames are stored (face order, each face's first
-#: corner, vertex numbering), which the registration's index-based draws follow like a random seed
-#: (docs/registration.md, "Stability"). Measured (review L; 5 orders of :func:`~torchmeshmetric.evaluation.
-#: determinacy.relabel_frames` against the frames as stored, the demo performer at resolution 160, ~20k vertices, 3
-#: frames, QEM 50 %, float32, every table and the two-sided sets): Ave moves by up to 3.1 %, P95 by 6.2 %, RMSE by
-#: 8.5 %, STD by 12 %, MSE by 16 %, Var by 23 %, Max by 55 % and PSNR by 0.76 dB. Hence one significant digit,
-#: no decimal for PSNR, and :data:`REGISTERED_UNDETERMINED`'s columns marked '~'.
-REGISTERED_COLUMN_FORMATS: dict[str, str] = {
-    "ave": "#.1g",
-    "var": "#.1g",
-    "std": "#.1g",
-    "mse": "#.1g",
-    "rmse": "#.1g",
-    "max": "#.1g",
-    "p95": "#.1g",
-    "psnr": ".0f",
-}
-#: The columns of the registration-dependent rows whose first digit another storage order moves (a spread above
-#: 10 %, :data:`REGISTERED_COLUMN_FORMATS`): printed with a leading '~', as --determinacy prints a cell none of
-#: whose digits held.
-REGISTERED_UNDETERMINED = frozenset({"var", "std", "mse", "max"})
+#: registration's own): :data:`COLUMN_FORMATS`. The evaluation's registration draws its samples independently of
+#: how the original frames are stored (``sampling="canonical"``, :data:`~torchmeshmetric.evaluation.pipeline.
+#: REGISTRATION_SAMPLING`): the frames as stored against 3 orders of :func:`~torchmeshmetric.evaluation.determinacy.
+#: relabel_frames` (the demo performer, 3 frames, QEM 50 %, float32 ``evaluate --temporal``) moved these rows' printed
+#: columns by at most 7.0e-5 relative at resolution 160 (~20k vertices; the k-th rows 6.6e-5) and 1.9e-6 at
+#: resolution 24, the Registration rows by 1e-11: the float32 level that :data:`COLUMN_FORMATS` was measured on, so
+#: they print its digits. With the index draws (``registration_options={"sampling": "index"}``) the storage order
+#: moved them by 3 % (Ave) to 55 % (Max) and the tables printed one digit (docs/statistics.md, "Storage order").
+REGISTERED_COLUMN_FORMATS: dict[str, str] = COLUMN_FORMATS
+#: The columns of the registration-dependent rows printed with a leading '~' (a first digit that the storage order
+#: moves): none since the evaluation's registration draws independently of it.
+REGISTERED_UNDETERMINED: frozenset[str] = frozenset()
 
 _MESH_LABELS = {"k_minus_1": "(k-1)-th", "k": "k-th"}
 #: Algorithm cell of the registration's rows, and their mesh cells.
 REGISTRATION_ROW = "Registration"
 STABILITY_NOTE = (
-    "the tables print only the digits that the input determines. The k-th rows: rounding frames of ~20k vertices "
-    "from float64 to float32 moves Ave, Var, STD, MSE, RMSE and P95 by up to 5e-3 (relative), Max by 5e-5 and "
-    "PSNR by 0.014 dB (measured, docs/statistics.md), hence 2 significant digits, 3 for Max and one decimal for "
-    "PSNR. The rows that go through the registration ((k-1)-th, flicker, Registration) also depend on how the "
-    "original frames are stored (face order, each face's first corner, vertex numbering: the registration's draws "
-    "follow it like a seed): 5 other orders of ~20k-vertex frames moved their Ave by up to 3 %, P95 and RMSE by 6 "
-    "to 9 %, STD, MSE and Var by 12 to 23 %, Max by 55 % and PSNR by 0.8 dB, hence one significant digit, '~' "
-    "before Var, STD, MSE and Max (even their first digit moved), and no decimal for PSNR. Frames stored with 6 "
-    "decimals or with capture defects may hold fewer: --determinacy measures this run's digits (another rounding "
-    "and another storage order). Compare methods to those digits; report.json keeps the full values."
+    "the tables print only the digits that the input determines: rounding frames of ~20k vertices from float64 to "
+    "float32 moves Ave, Var, STD, MSE, RMSE and P95 by up to 5e-3 (relative), Max by 5e-5 and PSNR by 0.014 dB "
+    "(measured, docs/statistics.md), hence 2 significant digits, 3 for Max and one decimal for PSNR, in every row. "
+    "The registration draws its samples independently of how the original frames are stored (3 other orders moved "
+    "no printed figure: at most 7e-5 relative); frames stored with 6 decimals or with capture defects may hold "
+    "fewer digits: --determinacy measures this run's digits (another rounding and another storage order). Compare "
+    "methods to those digits; report.json keeps the full values."
 )
 """What the measured determinacy of the figures (``tests/evaluation/report_determinacy.py``) says about their
 digits; printed under the report's tables."""
@@ -218,7 +206,7 @@ def row_formats(set_key: str) -> dict[str, str]:
 
     Example:
         >>> row_formats("surface_k")["max"], row_formats("flicker")["max"]
-        ('#.3g', '#.1g')
+        ('#.3g', '#.3g')
     """
     return REGISTERED_COLUMN_FORMATS if registered_set(set_key) else COLUMN_FORMATS
 
@@ -233,25 +221,20 @@ def statistic_cell(value: float, statistic: str, *, registered: bool = False) ->
         value: the statistic.
         statistic: its column key (:data:`COLUMNS`: ``"ave"``, ``"var"``, ..., ``"psnr"``).
         registered: the value goes through the registration (:func:`registered_set`): the digits of
-            :data:`REGISTERED_COLUMN_FORMATS` (a bare point dropped: ``4e-08``, not ``4.e-08``), and '~' before
-            :data:`REGISTERED_UNDETERMINED`'s columns.
+            :data:`REGISTERED_COLUMN_FORMATS` (today :data:`COLUMN_FORMATS`'s), and '~' before
+            :data:`REGISTERED_UNDETERMINED`'s columns (today none).
 
     Raises:
         KeyError: another ``statistic``.
 
     Example:
         >>> statistic_cell(0.0158, "rmse"), statistic_cell(0.0158, "rmse", registered=True)
-        ('0.016', '0.02')
+        ('0.016', '0.016')
         >>> statistic_cell(0.08594, "max", registered=True), statistic_cell(42.41, "psnr", registered=True)
-        ('~0.09', '42')
+        ('0.0859', '42.4')
     """
-    if not registered:
-        return format_number(value, COLUMN_FORMATS[statistic])
-    spec = REGISTERED_COLUMN_FORMATS[statistic]
-    text = format_number(value, spec)
-    # '#' keeps "4.e-08" and "4." (the trailing zeros of 2 digits, none with one): the point alone says nothing.
-    text = text.replace(".e", "e").rstrip(".") if spec.startswith("#") else text
-    return f"~{text}" if statistic in REGISTERED_UNDETERMINED else text
+    text = format_number(value, (REGISTERED_COLUMN_FORMATS if registered else COLUMN_FORMATS)[statistic])
+    return f"~{text}" if registered and statistic in REGISTERED_UNDETERMINED else text
 
 
 def statistic_cells(stats: Mapping[str, float], *, registered: bool = False) -> list[str]:
@@ -266,8 +249,8 @@ def statistic_cells(stats: Mapping[str, float], *, registered: bool = False) -> 
         ...          "max": 0.08594, "p95": 0.0315, "psnr": 42.41}
         >>> statistic_cells(stats)
         ['0.012', '0.00010', '0.010', '0.00025', '0.016', '0.0859', '0.032', '42.4']
-        >>> statistic_cells(stats, registered=True)
-        ['0.01', '~0.0001', '~0.01', '~0.0003', '0.02', '~0.09', '0.03', '42']
+        >>> statistic_cells(stats, registered=True) == statistic_cells(stats)
+        True
     """
     return [statistic_cell(stats[k], k, registered=registered) for k, _ in COLUMNS]
 
@@ -368,10 +351,10 @@ def determinacy_note(determinacy: Determinacy) -> str:
     return (
         "the tables print only the digits this run's input determines: the evaluation was repeated on the frames with "
         f"every coordinate moved by up to one unit of its storage ({determinacy.rounding}, seed {determinacy.seed}) "
-        "and stored in another order (vertices renumbered, faces reordered, corners rotated: the registration's draws "
-        "follow the storage order), and each cell prints what both runs print alike (at most 2 significant digits, "
-        "3 for Max, one decimal for PSNR in the k-th rows; one significant digit, no decimal for PSNR, in the rows "
-        "that go through the registration); '~' marks a figure none of whose digits held, printed as the midpoint "
+        "and stored in another order (vertices renumbered, faces reordered, corners rotated: the registration draws "
+        "independently of it, so this would catch a registration that does not), and each cell prints what both runs "
+        "print alike (at most 2 significant digits, 3 for Max, one decimal for PSNR); '~' marks a figure none of "
+        "whose digits held, printed as the midpoint "
         "of both runs (PSNR: not even the units). report.json keeps the full values and, under 'determinacy', each "
         "cell's change and the second run's value."
     )

@@ -35,9 +35,8 @@ _SWEEP_SETS = ("surface_k", "surface_k_minus_1", "flicker")
 SWEEP_DIGITS_NOTE = (
     "Digits as in the report's tables: only those the input determines (docs/statistics.md). Frame k: weights that "
     "read alike differ by less than rounding the frames to float32 moves the figure (up to 5e-3 relative at ~20k "
-    "vertices). The registered k-1 and flicker columns go through the registration, which follows how the original "
-    "frames are stored like a seed (another order moved their Ave by up to 3 %, their Max by 55 %): one significant "
-    "digit, '~' where even that one moved. The sweep's JSON (weight_sweep.json) keeps every digit."
+    "vertices); the registered k-1 and flicker columns too (the registration draws independently of how the original "
+    "frames are stored). The sweep's JSON (weight_sweep.json) keeps every digit."
 )
 
 

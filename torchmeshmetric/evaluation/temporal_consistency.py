@@ -10,6 +10,7 @@ from torch import Tensor
 from torchmeshmetric._checks import check_flag
 from torchmeshmetric.evaluation.flicker import FLICKER
 from torchmeshmetric.evaluation.pipeline import (
+    REGISTRATION_SAMPLING,
     RegisterFn,
     RegistrationOptions,
     evaluate_pair,
@@ -193,8 +194,11 @@ class TemporalConsistency(StatisticsPlot, DistanceStatesMetric):
         registration = registration_settings(self.registration_fn, self.registration_options)
         options = registration["options"]
         if isinstance(options, NonRigidOptions):
-            defaults = NonRigidOptions().canonical()
-            options = {k: v for k, v in options.canonical().items() if v != defaults[k]}
+            # Against the evaluation's defaults (canonical sampling): a caller's {"sampling": "index"} is a setting.
+            # canonical() leaves the default "index" out of its key, so it is put back to compare.
+            defaults = NonRigidOptions(sampling=REGISTRATION_SAMPLING).canonical()
+            given = {"sampling": "index", **options.canonical()}
+            options = {k: v for k, v in given.items() if v != defaults[k]}
         return {
             **super()._setting_items(),
             "two_sided": self.two_sided,

@@ -64,14 +64,14 @@ def bar_label(key: str, value: float) -> str:
     maximum (a Hausdorff distance, a minimum: an extreme too) and one decimal of a PSNR; a count is a whole number.
     A set that goes through the registration (a flattened key of :class:`~torchmeshmetric.evaluation.
     TemporalConsistency` such as ``"surface_k_minus_1/ave"``, ``"flicker/max"`` or ``"registration/residual/rmse"``)
-    prints the digits of its rows in the tables: one significant digit, no PSNR decimal, '~' where even the first
-    digit follows the original frames' storage order (:func:`~torchmeshmetric.evaluation.reports.statistic_cell`).
+    prints the digits of its rows in the tables, the same since the registration draws independently of how the
+    original frames are stored (:func:`~torchmeshmetric.evaluation.reports.statistic_cell`).
 
     Example:
         >>> bar_label("ave", 1.5), bar_label("reverse_std", 0.5), bar_label("hausdorff", 2.0), bar_label("psnr", 61.234)
         ('1.5', '0.50', '2.00', '61.2')
         >>> bar_label("surface_k/rmse", 0.0158), bar_label("surface_k_minus_1/rmse", 0.0158)
-        ('0.016', '0.02')
+        ('0.016', '0.016')
     """
     from torchmeshmetric.evaluation.reports import registered_set, statistic_cell  # on use only (the tables' digits)
 

@@ -70,7 +70,9 @@ _FORMAT = "torchmeshmetric-registration-cache-v1"
 #: registration (e.g. target samples drawn by face index) kept their keys.
 #: 2: the settings name the dtype the registration computes in (``"computes_in"``), and the evaluation's registration
 #: computes in float64 whatever the frames' dtype (review L, 2027-01).
-REGISTRATION_RESULTS_VERSION = 2
+#: 3: the evaluation's registration samples with ``sampling="canonical"`` unless its options name one (the key's
+#: options then name ``"sampling"``; review L #1, 2027-01).
+REGISTRATION_RESULTS_VERSION = 3
 
 #: The ``"register"`` name in the settings of the library's registration: the qualified name of the evaluation's
 #: ``default_register``, under which disk caches have stored its entries since the first format. Kept verbatim (a
@@ -247,8 +249,9 @@ def default_registration_settings(options: NonRigidOptions, computes_in: torch.d
     that they find each other's entries: the function's name, :data:`REGISTRATION_RESULTS_VERSION`, the options and
     the dtype the registration computes in. The evaluation's computes in float64 whatever the frames' dtype
     (:data:`~torchmeshmetric.evaluation.pipeline.REGISTRATION_DTYPE`), the temporal loss's in the frames' dtype, so
-    they share entries of float64 frames and keep float32 frames' two registrations apart (the key's frame dtype,
-    the entry's dtype, does not tell them apart). The backend, device and thread count are left out: the exact
+    they share entries of float64 frames (given the same options: the evaluation samples with ``"canonical"`` unless
+    told otherwise, the loss with ``"index"``) and keep float32 frames' two registrations apart (the key's frame
+    dtype, the entry's dtype, does not tell them apart). The backend, device and thread count are left out: the exact
     backends and the CPU's thread counts give the same registration bit for bit.
 
     Args:

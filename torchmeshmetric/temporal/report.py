@@ -28,27 +28,26 @@ FIGURE_LABELS = {"kg": "KG (%)", "kso": "KSO (E_RMS)", "sted_s": "STED_s", "sted
 #: determines. Measured (tests/temporal/temporal_determinacy.py, docs/temporal.md "Which digits the input
 #: determines"): rounding the built-in frames (~20k vertices, 4 to 10 frames) from float64 to float32 moves the
 #: exact forms' KG, KSO and STED_t by at most 2.4e-7 (relative) and their STED_s by 3.9e-4 (the relative length
-#: changes of very short edges), hence 6 and 3 significant digits (``floor(-log10(change))``, the tables' rule). The
-#: registered forms also depend on how the original frames are stored (face order, each face's first corner, vertex
-#: numbering: the registrations' draws follow it like a seed, docs/statistics.md "Storage order"): 5 other orders
-#: (:func:`~torchmeshmetric.evaluation.determinacy.relabel_frames`) of the demo at resolution 160 (~18k vertices
-#: tracked, 3 frames, QEM 50 %) moved KG and KSO by up to 1.8e-3 and STED_s, STED_t and STED by 5.6e-3 (relative;
-#: the float32 rounding: 3.8e-4 and 1.2e-3), hence 2 significant digits for every registered figure. The JSON keeps
-#: every digit.
+#: changes of very short edges); the registered forms' KG, KSO and STED_t by up to 3.8e-4 and their STED_s by 1.2e-3
+#: (the registrations and the tracking amplify the rounding, as they do the paper's statistics). Hence 6 / 3 and
+#: 3 / 2 significant digits (``floor(-log10(change))``, the tables' rule). The registered forms' registrations draw
+#: independently of how the original frames are stored (``sampling="canonical"``): 3 other orders
+#: (:func:`~torchmeshmetric.evaluation.determinacy.relabel_frames`) of the demo at resolutions 160 and 24 (3 frames,
+#: QEM 50 %) moved them by at most 3e-12 (relative; with the index draws, ``{"sampling": "index"}``: 1.8e-3 and
+#: 5.6e-3, docs/temporal.md). The JSON keeps every digit.
 FIGURE_FORMATS: dict[bool, dict[str, str]] = {
     False: {"kg": "#.6g", "kso": "#.6g", "sted_s": "#.3g", "sted_t": "#.6g", "sted": "#.3g"},
-    True: {"kg": "#.2g", "kso": "#.2g", "sted_s": "#.2g", "sted_t": "#.2g", "sted": "#.2g"},
+    True: {"kg": "#.3g", "kso": "#.3g", "sted_s": "#.2g", "sted_t": "#.3g", "sted": "#.2g"},
 }
 
 #: Printed under the temporal figures: which digits they show, and why.
 FIGURE_DIGITS_NOTE = (
     "Digits: only those the input determines (docs/temporal.md): rounding ~20k-vertex frames to float32 moves the "
-    "exact forms' KG, KSO and STED_t by up to 2.4e-7 and their STED and STED_s by 4e-4 (relative): 6 and 3 "
-    "significant digits. The registered forms also depend on how the original frames are stored (face order, each "
-    "face's first corner, vertex numbering: the registrations' draws follow it like a seed): 5 other orders of "
-    "~20k-vertex frames moved their KG and KSO by up to 1.8e-3 and their STED, STED_s and STED_t by 5.6e-3: 2 "
-    "significant digits. Frames stored with 6 decimals can hold fewer (the exact STED_s of a mesh with very short "
-    "edges: one digit), and smaller frames too (~420 vertices: 8 %); the JSON keeps every digit."
+    "exact forms' KG, KSO and STED_t by up to 2.4e-7 and their STED and STED_s by 4e-4 (relative), the registered "
+    "forms' KG, KSO and STED_t by 4e-4 and their STED and STED_s by 1.2e-3: 6 and 3 significant digits for the exact "
+    "forms, 3 and 2 for the registered (whose registrations draw independently of how the frames are stored: 3 "
+    "other orders moved them by 3e-12). Frames stored with 6 decimals can hold fewer (the exact STED_s of a mesh "
+    "with very short edges: one digit); the JSON keeps every digit."
 )
 
 
@@ -65,7 +64,7 @@ def format_figure(name: str, value: float, *, registered: bool) -> str:
 
     Example:
         >>> format_figure("kg", 0.0750344025, registered=True), format_figure("kg", 0.0750344025, registered=False)
-        ('0.075', '0.0750344')
+        ('0.0750', '0.0750344')
     """
     return format_number(value, FIGURE_FORMATS[bool(registered)][name])
 
@@ -102,7 +101,7 @@ def temporal_markdown(
     Example:
         >>> f = TemporalFigures(1.0, 2.0, 0.1, 0.2, 0.1, True, 3, 100)
         >>> print(temporal_markdown({"qem": f}).splitlines()[4])
-        | qem | 1.0 | 2.0 | 0.10 | 0.20 | 0.10 | registered |
+        | qem | 1.00 | 2.00 | 0.10 | 0.200 | 0.10 | registered |
     """
     measured = determinacy is not None and "temporal" in determinacy.changes
     lines = [
@@ -137,8 +136,9 @@ def temporal_determinacy_note(determinacy: Determinacy) -> str:
     return (
         "Digits: only those this run's input determines: the figures were computed again on the frames with every "
         f"coordinate moved by up to one unit of its storage ({determinacy.rounding}, seed {determinacy.seed}) and "
-        "stored in another order (the registered forms' registrations follow it), and each keeps the digits both "
-        "runs share (at most 6 and 3 significant digits for the exact forms, 2 for the registered: docs/temporal.md); "
+        "stored in another order (the registered forms' registrations draw independently of it: this would catch one "
+        "that does not), and each keeps the digits both runs share (at most 6 and 3 significant digits for the exact "
+        "forms, 3 and 2 for the registered: docs/temporal.md); "
         "'~' marks a figure whose first digit moved. The JSON keeps every digit and, under 'determinacy' -> "
         "'changes' -> 'temporal', each figure's change."
     )

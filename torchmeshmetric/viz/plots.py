@@ -115,7 +115,7 @@ def histogram_figure(methods: Mapping[str, PairEvaluation], *, bins: int = 50) -
         edges = log_bins(list(values.values()), bins)
         for m, v in values.items():
             below = float(np.mean(v < edges[0])) if len(v) else 0.0
-            # the tables' determined digits for this set (one digit where it goes through the registration)
+            # the tables' determined digits for this set (statistic_cell: the one place that picks them by row kind)
             rmse = statistic_cell(float(np.sqrt(np.mean(v * v))), "rmse", registered=registered_set(name))
             label = f"{plain_label(m)} (RMSE {rmse}; {below:.1%} of vertices below {edges[0]:.2g})"
             ax.hist(v[v >= edges[0]], bins=edges, alpha=0.55, label=label)
