@@ -232,8 +232,9 @@ class NonRigidOptions:
             to the exact mean, ties broken by coordinates: the same points for any storage order. ``"dense"``: every
             surface vertex a data point and every target face's centroid a sample (area weights); ``num_points`` and
             ``num_target_samples`` are then ignored (except ``num_target_samples=0``); the ICP points and the nodes
-            as with ``"canonical"``. The option is experimental
-            (docs/registration.md, "Stability", "Storage order").
+            as with ``"canonical"``. The evaluation's registration uses ``"canonical"`` unless its options name a
+            sampling (:data:`~torchmeshmetric.evaluation.pipeline.REGISTRATION_SAMPLING`; docs/registration.md,
+            "Stability", "Storage order").
 
     Raises:
         TypeError: a field of the wrong type (e.g. ``num_points=2.5``), a schedule item that is not a
