@@ -59,6 +59,7 @@ def _exact_mean(points: Tensor) -> Tensor:
 
 
 def _fps(p: Tensor, start: int, spacing: float) -> Tensor:
+    """``(N,)`` int64 farthest-point choices among ``p`` from ``start`` until every point is within ``spacing``."""
     if p.device.type == "cpu" and p.dtype in (torch.float32, torch.float64):
         # The same loop in C++ (bit-identical choices, tested): one pass per node instead of ~4 torch ops, each a
         # parallel region on large inputs (seconds on a loaded machine).
@@ -135,22 +136,7 @@ def farthest_point_nodes(points: Tensor, spacing: float, *, canonical: bool = Fa
         start = int(((q - _exact_mean(q)) ** 2).sum(-1).argmin())
         return order[_fps(q, start, spacing)]
     start = int(((p - p.mean(0)) ** 2).sum(-1).argmin())
-    if p.device.type == "cpu" and p.dtype in (torch.float32, torch.float64):
-        # The same loop in C++ (bit-identical choices, tested): one pass per node instead of ~4 torch ops, each a
-        # parallel region on large inputs (seconds on a loaded machine).
-        ext = native.try_load("bvh")
-        if ext is not None:
-            return ext.farthest_point_sampling(p.contiguous(), start, spacing * spacing).to(points.device)
-    chosen = [start]
-    dmin = ((p - p[start]) ** 2).sum(-1)
-    s2 = spacing * spacing
-    while True:
-        far = int(dmin.argmax())
-        if float(dmin[far]) <= s2:
-            break
-        chosen.append(far)
-        dmin = torch.minimum(dmin, ((p - p[far]) ** 2).sum(-1))
-    return torch.tensor(chosen, dtype=torch.long, device=points.device)
+    return _fps(p, start, spacing)
 
 
 def skinning_weights(points: Tensor, nodes: Tensor, num_neighbors: int) -> tuple[Tensor, Tensor]:
