@@ -144,8 +144,7 @@ def _rigid_options(value: Mapping[str, Any] | None) -> Mapping[str, Any]:
     unknown = sorted(str(k) for k in value if k not in defaults)
     if unknown:
         raise TypeError(f"rigid_options: expected keywords of register_rigid among {sorted(defaults)}, found {unknown}")
-    check_rigid_options(value, "rigid_options: ")
-    return MappingProxyType({**defaults, **value})
+    return MappingProxyType({**defaults, **check_rigid_options(value, "rigid_options: ")})
 
 
 def _json_value(value: Any) -> Any:

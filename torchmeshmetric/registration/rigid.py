@@ -191,29 +191,36 @@ def _point_to_plane_step(p: Tensor, q: Tensor, n: Tensor, w: Tensor, scale: bool
 _RIGID_FLAGS = ("point_to_plane", "scale", "align_centroids")
 
 
-def check_rigid_options(options: Mapping[str, Any], where: str = "") -> None:
+def check_rigid_options(options: Mapping[str, Any], where: str = "") -> dict[str, Any]:
     """The checks of :func:`register_rigid`'s keywords (types and ranges), each named ``{where}{keyword}``.
 
     One implementation for :func:`register_rigid` and for ``NonRigidOptions(rigid_options=...)``, which validates
     them when built. Unknown keywords are left to the caller.
+
+    Returns:
+        The options with each checked value as the checks read it (a one-element tensor or numpy number as a Python
+        float or int), the others as given.
 
     Raises:
         TypeError: a value of the wrong type (``max_iterations='ten'``).
         ValueError: a value out of its range (``trim=5.0``, ``max_iterations=-3``).
 
     Example:
-        >>> check_rigid_options({"trim": 0.5, "max_iterations": 10})
+        >>> import torch
+        >>> check_rigid_options({"trim": torch.tensor(0.5), "max_iterations": 10})
+        {'trim': 0.5, 'max_iterations': 10}
         >>> check_rigid_options({"trim": 5.0}, "rigid_options: ")
         Traceback (most recent call last):
         ...
         ValueError: rigid_options: trim: expected a fraction in (0, 1], found 5.0
     """
+    checked = dict(options)
     for key, value in options.items():
         name = f"{where}{key}"
         if key in _RIGID_FLAGS:
-            check_flag(value, name)
+            checked[key] = check_flag(value, name)
         elif key in ("max_iterations", "num_samples"):
-            check_int(value, name, low=0 if key == "max_iterations" else 3)  # a plane needs 3 samples
+            checked[key] = check_int(value, name, low=0 if key == "max_iterations" else 3)  # a plane needs 3 samples
         elif key in ("trim", "robust_scale", "tolerance"):
             value = check_real(value, name)  # numpy's bool is no Real: refused as bool is
             if key == "trim" and not 0.0 < value <= 1.0:
@@ -222,6 +229,9 @@ def check_rigid_options(options: Mapping[str, Any], where: str = "") -> None:
                 raise ValueError(f"{name}: expected a float > 0 (inf: no robust kernel), found {value}")
             if key == "tolerance" and not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name}: expected a finite float >= 0, found {value}")
+            # The checked float, not the caller's object: a one-element tensor passes check_real, and kept as given
+            # it failed later ("type Tensor doesn't define __round__") and keyed the cache apart from the same float.
+            checked[key] = value
         elif key == "init" and value is not None:
             if not isinstance(value, Tensor):
                 raise TypeError(f"{name}: expected None or a (4, 4) tensor, found {type(value).__name__}")
@@ -235,6 +245,7 @@ def check_rigid_options(options: Mapping[str, Any], where: str = "") -> None:
                     f"{name}: expected an invertible transform (its 3x3 block scales and rotates), found one whose "
                     f"3x3 block has determinant {det:g}"
                 )
+    return checked
 
 
 def register_rigid(
@@ -297,7 +308,7 @@ def register_rigid(
         >>> r.converged, round(float(r.rmse), 6)
         (True, 0.0)
     """
-    check_rigid_options(
+    checked = check_rigid_options(
         {
             "max_iterations": max_iterations,
             "point_to_plane": point_to_plane,
@@ -310,6 +321,8 @@ def register_rigid(
             "init": init,
         }
     )
+    max_iterations, num_samples = checked["max_iterations"], checked["num_samples"]
+    trim, robust_scale, tolerance = checked["trim"], checked["robust_scale"], checked["tolerance"]
     # On coordinates scaled by an exact power of two where float32's range would overflow or underflow (scale 1.0,
     # no multiplication, otherwise); the lengths of the result are divided back.
     src, tgt, unit = validate_pair(source, target)
