@@ -103,3 +103,53 @@ def test_index_sampling_is_unchanged() -> None:
     a = register_nonrigid(src, tgt, schedule=QUICK)
     b = register_nonrigid(src, tgt, NonRigidOptions(schedule=QUICK, sampling="index"))
     assert torch.equal(a.verts, b.verts)
+
+
+def test_no_more_distinct_points_than_asked_takes_each_once_in_one_pass(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A triangle soup (642 distinct of 3840 stored vertices) asked for 2000 points: the shrinking radius never
+    reached 2000 and ran ~4000 farthest-point passes down to 1e-300 (20.8 s per registration instead of 0.2 s,
+    review N). Now one pass at radius 0 takes every distinct point once."""
+    import torchmeshmetric.registration.deformation_graph as graph
+
+    seq = demo_sequence(1, resolution=24)
+    verts = seq.frames[0].verts.double()
+    soup = verts[seq.frames[0].faces.reshape(-1)]  # every corner its own vertex
+    distinct = torch.unique(soup, dim=0).shape[0]
+    assert distinct < 2000 < soup.shape[0]
+    passes = []
+    fps = graph._fps
+    monkeypatch.setattr(graph, "_fps", lambda *a: passes.append(a[2]) or fps(*a))
+    chosen = canonical_farthest_points(soup, 2000, 1.0)
+    assert passes == [0.0]
+    assert chosen.numel() == distinct and torch.unique(soup[chosen], dim=0).shape[0] == distinct
+
+
+def test_every_centroid_taken_carries_its_area() -> None:
+    """With no more faces than samples every centroid is a sample: at weight 1 a small face weighed as much as a
+    large one (review N: the res-24 demo's residual RMSE 0.0044 -> 0.0056). They carry area / mean area, as "dense"
+    does."""
+    from torchmeshmetric.registration.nonrigid import _canonical_target_samples
+
+    src, _ = _pair()
+    faces = src.faces
+    area = src.face_areas()
+    drawn = _canonical_target_samples(src.verts, faces, faces.shape[0] + 5, dense=False)
+    assert drawn.points.shape[0] == faces.shape[0]
+    expected = area[drawn.face_idx] / (math.fsum(area.tolist()) / faces.shape[0])
+    assert torch.equal(drawn.weights, expected)
+    assert drawn.weights.min() < 0.5 < 1.5 < drawn.weights.max()  # the demo's faces are not all alike
+    fewer = _canonical_target_samples(src.verts, faces, 100, dense=False)
+    assert fewer.points.shape[0] == 100 and bool((fewer.weights == 1).all())
+
+
+def test_rigid_options_given_as_tensors_are_used_as_the_floats_they_were_checked_as() -> None:
+    """check_real accepts one-element tensors; the rigid checks kept the caller's tensor, so trim=tensor(0.5) passed
+    the check and then failed ("type Tensor doesn't define __round__"), and keyed the cache apart from 0.5
+    (review N)."""
+    src, tgt = _pair()
+    a = register_rigid(src, tgt, trim=torch.tensor(0.5), max_iterations=3)
+    b = register_rigid(src, tgt, trim=0.5, max_iterations=3)
+    assert torch.equal(a.transform, b.transform)
+    options = NonRigidOptions(rigid_options={"trim": torch.tensor(0.5)})
+    assert options == NonRigidOptions(rigid_options={"trim": 0.5})
+    assert type(options.rigid_options["trim"]) is float

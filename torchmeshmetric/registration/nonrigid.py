@@ -431,15 +431,17 @@ def _face_centroids(verts: Tensor, faces: Tensor) -> Tensor:
 def _canonical_target_samples(verts: Tensor, faces: Tensor, n: int, dense: bool) -> _TargetSamples:
     """The reverse term's target samples without random draws (``NonRigidOptions.sampling``).
 
-    ``faces`` are the target's faces with a normal (welded). ``dense``: one sample at every face's centroid, weighted
-    by its area over the mean area (a midpoint quadrature of the surface). Otherwise ``n`` face centroids chosen by
-    farthest-point sampling (:func:`~torchmeshmetric.registration.deformation_graph.canonical_farthest_points`),
-    weight 1: their spacing is about uniform, so each stands for about the same area.
+    ``faces`` are the target's faces with a normal (welded). ``dense``, or ``n`` at least the face count: one sample
+    at every face's centroid, weighted by its area over the mean area (a midpoint quadrature of the surface).
+    Otherwise ``n`` face centroids chosen by farthest-point sampling
+    (:func:`~torchmeshmetric.registration.deformation_graph.canonical_farthest_points`), weight 1: their spacing is
+    about uniform, so each stands for about the same area. Every centroid at weight 1 would weigh a small face as a
+    large one (review N: on the 828-912-face res-24 demo frames the residual's RMSE rose from 0.0044 to 0.0056).
     """
     with torch.no_grad():
         centroids = _face_centroids(verts, faces)
         area = Mesh(verts, faces, validate=False).face_areas()
-        if dense:
+        if dense or n >= faces.shape[0]:
             order = _coordinate_order(centroids)
             mean = math.fsum(area.tolist()) / max(faces.shape[0], 1)
             return _TargetSamples(centroids[order], order, area[order] / max(mean, torch.finfo(verts.dtype).tiny))
