@@ -82,9 +82,10 @@ class WeightSweep(NamedTuple):
         """The sweep as a Markdown table (the baseline row is ``QEM``), with the report tables' digits.
 
         Each cell prints only the digits the input determines, as the paper's tables do
-        (:func:`~torchmeshmetric.evaluation.reports.statistic_cell`: 2 significant digits for frame k's averages, one
-        for the registered k-1 and flicker columns, which go through the registration), so weights whose figures
-        differ below the input's storage read alike; :meth:`as_dict` keeps every digit.
+        (:func:`~torchmeshmetric.evaluation.reports.statistic_cell`: 2 significant digits for the averages, the
+        registered k-1 and flicker columns too, now that the evaluation's registration does not depend on the storage
+        order), so weights whose figures differ below the input's rounding read alike; :meth:`as_dict` keeps every
+        digit.
 
         Args:
             statistic: one of the printed statistics (``"ave"``, ``"var"``, ``"std"``, ``"mse"``, ``"rmse"``,
