@@ -12,6 +12,23 @@ from torchmeshmetric._checks import EmptyInputError, NonFiniteError, check_same_
 from torchmeshmetric.kernels._common import range_scale
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
+SAMPLINGS = ("index", "canonical", "dense")
+"""The values of ``NonRigidOptions.sampling`` and ``register_rigid``'s ``sampling``."""
+
+
+def check_sampling(value: object) -> str:
+    """Require one of :data:`SAMPLINGS` (``register_rigid``'s ``sampling`` and ``NonRigidOptions.sampling``).
+
+    Example:
+        >>> check_sampling("canonical")
+        'canonical'
+    """
+    if not isinstance(value, str):
+        raise TypeError(f"sampling: expected one of {list(SAMPLINGS)}, found {type(value).__name__}")
+    if value not in SAMPLINGS:
+        raise ValueError(f"sampling: expected one of {list(SAMPLINGS)}, found {value!r}")
+    return value
+
 
 def coordinate_scale(*meshes: Mesh) -> float:
     """Power of two that brings the largest ``|coordinate|`` of the meshes' referenced vertices into ``[0.5, 1)``.

@@ -69,9 +69,9 @@ _FORMAT = "torchmeshmetric-registration-cache-v1"
 #: "Where to add ..."). 1: the first revision in the key (review I, 2026-12); before it, fixes that changed every
 #: registration (e.g. target samples drawn by face index) kept their keys.
 #: 2: the settings name the dtype the registration computes in (``"computes_in"``), and the evaluation's registration
-#: computes in float64 whatever the frames' dtype (review L, 2027-01).
+#: computes in float64 whatever the frames' dtype (review L, 2026-12).
 #: 3: the evaluation's registration samples with ``sampling="canonical"`` unless its options name one (the key's
-#: options then name ``"sampling"``; review L #1, 2027-01).
+#: options then name ``"sampling"``; review L #1, 2026-12).
 REGISTRATION_RESULTS_VERSION = 3
 
 #: The ``"register"`` name in the settings of the library's registration: the qualified name of the evaluation's

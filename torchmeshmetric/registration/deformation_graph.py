@@ -58,6 +58,17 @@ def _exact_mean(points: Tensor) -> Tensor:
     return torch.tensor([math.fsum(p[:, j].tolist()) / n for j in range(3)], dtype=points.dtype, device=points.device)
 
 
+def _canonical_start(points: Tensor) -> tuple[Tensor, Tensor, int]:
+    """``(order, sorted, start)``: the points in coordinate order and the row nearest their exactly rounded mean.
+
+    Farthest-point sampling over ``sorted`` from ``start`` breaks every tie (of the start and of each farthest point)
+    by coordinates, never by the stored index: the first of ties in coordinate order wins.
+    """
+    order = _coordinate_order(points)
+    q = points[order].contiguous()
+    return order, q, int(((q - _exact_mean(q)) ** 2).sum(-1).argmin())
+
+
 def _fps(p: Tensor, start: int, spacing: float) -> Tensor:
     """``(N,)`` int64 farthest-point choices among ``p`` from ``start`` until every point is within ``spacing``."""
     if p.device.type == "cpu" and p.dtype in (torch.float32, torch.float64):
@@ -96,11 +107,9 @@ def canonical_farthest_points(points: Tensor, count: int, area: float) -> Tensor
     """
     p = points.detach()
     n = p.shape[0]
-    order = _coordinate_order(p)
     if count >= n:
-        return order
-    q = p[order].contiguous()
-    start = int(((q - _exact_mean(q)) ** 2).sum(-1).argmin())  # the first of ties in coordinate order
+        return _coordinate_order(p)
+    order, q, start = _canonical_start(p)
     # Equal points are never chosen twice (their distance is 0): with no more distinct points than `count`, one pass
     # at radius 0 takes them all. The shrinking radius below would otherwise never reach `count` and run ~4000
     # passes to 1e-300 (a triangle soup of 642 distinct in 3840 stored vertices: 20.8 s per registration, review N).
@@ -137,9 +146,7 @@ def farthest_point_nodes(points: Tensor, spacing: float, *, canonical: bool = Fa
         raise EmptyInputError("points: expected at least one candidate node position, found none")
     p = points.detach()
     if canonical:
-        order = _coordinate_order(p)
-        q = p[order].contiguous()
-        start = int(((q - _exact_mean(q)) ** 2).sum(-1).argmin())
+        order, q, start = _canonical_start(p)
         return order[_fps(q, start, spacing)]
     start = int(((p - p.mean(0)) ** 2).sum(-1).argmin())
     return _fps(p, start, spacing)

@@ -24,6 +24,7 @@ from typing import Any, NamedTuple
 import torch
 
 from torchmeshmetric._checks import check_flag, check_int, check_real
+from torchmeshmetric.registration._common import check_sampling
 from torchmeshmetric.registration.rigid import check_rigid_options, register_rigid
 
 __all__ = ["DEFAULT_SCHEDULE", "RUN_ARGUMENTS", "NonRigidOptions", "Stage"]
@@ -111,18 +112,6 @@ def _stage(name: str, stage: Any) -> Stage:
         max_steps=check_int(stage.max_steps, f"{name}.max_steps", 0),
         lr_decay=_real(f"{name}.lr_decay", stage.lr_decay, 0.0, open_low=True, high=1.0),
     )
-
-
-SAMPLINGS = ("index", "canonical", "dense")
-"""The values of ``NonRigidOptions.sampling``."""
-
-
-def _sampling(value: Any) -> str:
-    if not isinstance(value, str):
-        raise TypeError(f"sampling: expected one of {list(SAMPLINGS)}, found {type(value).__name__}")
-    if value not in SAMPLINGS:
-        raise ValueError(f"sampling: expected one of {list(SAMPLINGS)}, found {value!r}")
-    return value
 
 
 @cache
@@ -227,7 +216,8 @@ class NonRigidOptions:
             chosen. ``"index"`` (default): random draws over the vertex and face indices (the generator's), so the
             same surfaces stored in another order (vertices renumbered, faces shuffled, corners rotated) register
             differently. ``"canonical"``: no random draw; farthest-point subsets of the surface vertices (data and
-            ICP points) and of the target's face centroids (target samples, weight 1), started at the point nearest
+            ICP points) and of the target's face centroids (target samples, weight 1; every centroid, with area
+            weights, when the target has no more faces than ``num_target_samples``), started at the point nearest
             to the exact mean, ties broken by coordinates: the same points for any storage order. ``"dense"``: every
             surface vertex a data point and every target face's centroid a sample (area weights); ``num_points`` and
             ``num_target_samples`` are then ignored (except ``num_target_samples=0``); the ICP points and the nodes
@@ -296,7 +286,7 @@ class NonRigidOptions:
             "outlier_distance": _real("outlier_distance", self.outlier_distance, 0.0),
             "outlier_edge_factor": _finite("outlier_edge_factor", self.outlier_edge_factor, 0.0),
             "rigid_options": _rigid_options(self.rigid_options),
-            "sampling": _sampling(self.sampling),
+            "sampling": check_sampling(self.sampling),
         }
         # Settings under which no data can move the graph: the result would be the rigid start, reported converged.
         if not any(stage.max_steps > 0 for stage in schedule):

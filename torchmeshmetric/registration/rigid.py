@@ -30,7 +30,7 @@ from torchmeshmetric._checks import (
     check_shape,
 )
 from torchmeshmetric.kernels.mesh_index import MeshIndex, PointMeshResult
-from torchmeshmetric.registration._common import one_thread, validate_pair
+from torchmeshmetric.registration._common import check_sampling, one_thread, validate_pair
 from torchmeshmetric.structures import Mesh, MeshLike
 
 __all__ = [
@@ -334,9 +334,7 @@ def register_rigid(
     # normal depends on the input's rounding (docs/registration.md, "Stability", item 7).
     used = src.referenced_vertex_mask()
     pts_all = src.verts[used]
-    if sampling not in ("index", "canonical", "dense"):
-        raise ValueError(f"sampling: expected one of ['index', 'canonical', 'dense'], found {sampling!r}")
-    canonical = sampling != "index"
+    canonical = check_sampling(sampling) != "index"
     if canonical:
         from torchmeshmetric.registration.deformation_graph import canonical_farthest_points
 
