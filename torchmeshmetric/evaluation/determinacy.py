@@ -253,12 +253,9 @@ def determined_cell(value: Any, change: float, spec: str) -> str:
         ('-0.106', '61')
     """
     digits = determined_digits(change, spec)
-    if spec.endswith("g"):
-        # '#' keeps a significant trailing zero (0.010); with one digit it leaves a bare point ("2.e-07", "3.").
-        text = format_number(value, f"#.{max(digits, 1)}g").replace(".e", "e").rstrip(".")
-        return text if digits >= 1 else f"~{text}"
-    text = format_number(value, f".{max(digits, 0)}f")
-    return text if digits >= 0 else f"~{text}"
+    least = 1 if spec.endswith("g") else 0  # one significant digit; no decimal
+    text = _cell_text(value, max(digits, least), least == 1)
+    return text if digits >= least else f"~{text}"
 
 
 def _cell_text(value: Any, digits: int, significant: bool) -> str:
