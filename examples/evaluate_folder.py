@@ -41,10 +41,9 @@ def main() -> int:
     kept_by = Path(args.out).name if args.out else "the JSON report (--out)"  # the note names what keeps every digit
     print(paper_tables({name: result}, json_file=kept_by))
     for pair in result.pairs:  # per-frame temporal consistency and the registration's own quality
-        # The tables' digits for rows that go through the registration (statistic_cell picks them; today the k-th
-        # rows' digits, since the registration draws independently of the frames' storage order).
-        k_minus_1 = statistic_cell(float(pair.statistics["surface_k_minus_1"].rmse), "rmse", registered=True)
-        residual = statistic_cell(float(pair.registration_statistics.rmse), "rmse", registered=True)
+        # The tables' digits (statistic_cell: those the input determines, the same in every row).
+        k_minus_1 = statistic_cell(float(pair.statistics["surface_k_minus_1"].rmse), "rmse")
+        residual = statistic_cell(float(pair.registration_statistics.rmse), "rmse")
         print(f"frame {pair.frame}: surface_k_minus_1 rmse {k_minus_1}, registration residual rmse {residual}")
     if args.out:
         write_json(args.out, report_dict({name: result}), overwrite=args.overwrite)

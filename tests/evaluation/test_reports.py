@@ -58,8 +58,8 @@ def test_markdown_has_the_papers_layout(methods):
     assert [r.split("|")[2].strip() for r in rows[:2]] == ["(k-1)-th", "k-th"]
     agg = methods["coarse"].aggregate()
     table3 = text.split("Table III")[1]
-    # the (k-1)-th rows go through the registration, which draws independently of the storage order: the same
-    # digits as the k-th rows (REGISTERED_COLUMN_FORMATS == COLUMN_FORMATS; review L, finding 1)
+    # the (k-1)-th rows go through the registration, as determined as the k-th rows (float64, canonical sampling):
+    # the same digits, COLUMN_FORMATS (review L, finding 1)
     assert f"| coarse | (k-1)-th | {agg['surface_k_minus_1']['ave']:#.2g} |" in table3
     assert f"| coarse | k-th | {agg['surface_k']['ave']:#.2g} |" in table3  # COLUMN_FORMATS
 

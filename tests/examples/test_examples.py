@@ -29,7 +29,7 @@ import pytest
 import torch
 
 from torchmeshmetric._format import format_number
-from torchmeshmetric.evaluation.reports import COLUMN_FORMATS, REGISTERED_COLUMN_FORMATS
+from torchmeshmetric.evaluation.reports import COLUMN_FORMATS
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
@@ -168,13 +168,12 @@ def test_evaluate_folder_prints_the_tables_and_writes_the_report(folder_report: 
     method = report["methods"]["qem50"]
     pair = method["pairs"][0]
     assert pair["frame"] == 1 and len(method["pairs"]) == 1
-    # The per-frame line and the table rows print what the JSON holds, to the tables' digits: both per-frame figures go
-    # through the registration (REGISTERED_COLUMN_FORMATS, since canonical sampling the same as COLUMN_FORMATS), frame
-    # k's Ave does not (COLUMN_FORMATS).
+    # The per-frame line and the table rows print what the JSON holds, to the tables' digits (COLUMN_FORMATS): those of
+    # the per-frame figures, which go through the registration, are those of frame k's Ave, which does not.
     line = re.search(r"frame 1: surface_k_minus_1 rmse (\S+), registration residual rmse (\S+)", out)
     assert line is not None
-    assert line.group(1) == format_number(pair["surface_k_minus_1"]["rmse"], REGISTERED_COLUMN_FORMATS["rmse"])
-    assert line.group(2) == format_number(pair["registration"]["residual"]["rmse"], REGISTERED_COLUMN_FORMATS["rmse"])
+    assert line.group(1) == format_number(pair["surface_k_minus_1"]["rmse"], COLUMN_FORMATS["rmse"])
+    assert line.group(2) == format_number(pair["registration"]["residual"]["rmse"], COLUMN_FORMATS["rmse"])
     row = re.search(r"\| qem50 \| k-th \| (\S+) \|", out)
     printed = format_number(method["aggregate"]["surface_k"]["ave"], COLUMN_FORMATS["ave"])  # the report's digits
     assert row is not None and row.group(1) == printed

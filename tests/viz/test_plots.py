@@ -48,9 +48,9 @@ def test_histograms_show_the_distribution_on_a_log_axis():
         assert heights.max() <= 0.1 * moved.numel()
     legend = fig.axes[0].get_legend().get_texts()[0].get_text()
     assert f"{(n - moved.numel()) / n:.1%} of vertices below" in legend
-    # The RMSE with the report tables' digits for the panel's set: those the input determines (COLUMN_FORMATS: 2
-    # significant) for frame k and for a set through the registration (REGISTERED_COLUMN_FORMATS, the same: the
-    # registration draws independently of the storage order; review L, finding 1). The first panel is the k-1 set.
+    # The RMSE with the report tables' digits: those the input determines (COLUMN_FORMATS: 2 significant), for frame k
+    # and for a set through the registration alike (float64, canonical sampling; review L, finding 1). The first panel
+    # is the k-1 set.
     titles = {v: k for k, v in plots._LABELS.items()}
     assert {"surface_k", "surface_k_minus_1"} <= {titles[ax.get_title()] for ax in fig.axes}  # both kinds checked
     for ax in fig.axes:

@@ -43,9 +43,8 @@ def run(args: argparse.Namespace) -> int:
     (reg,) = register_pairs([source, target], device=device, backend=args.backend)
     save_mesh(reg.registered_mesh(source), args.out, overwrite=args.overwrite)
     stats = distance_statistics(reg.residual, peak=float(target.bbox_diagonal()))
-    # The report tables' digits for the registration's residual row: those the input determines (the registration
-    # draws independently of how the frames are stored; docs/statistics.md, "Storage order").
-    ave, rmse, peak = (statistic_cell(getattr(stats, k), k, registered=True) for k in ("ave", "rmse", "max"))
+    # The report tables' digits for the registration's residual row: those the input determines (docs/statistics.md).
+    ave, rmse, peak = (statistic_cell(getattr(stats, k), k) for k in ("ave", "rmse", "max"))
     print(
         f"registered {args.source} onto {args.target} in {reg.seconds:.2f} s (converged: {reg.converged}); "
         f"residual to target surface: ave {ave}, rmse {rmse}, max {peak}; wrote {args.out}"

@@ -32,10 +32,9 @@ from torchmeshmetric._atomic import atomic_write
 from torchmeshmetric._format import json_safe, markdown_cell
 from torchmeshmetric._toml import kind_name, read_manifest
 from torchmeshmetric.evaluation.reports import (
+    COLUMN_FORMATS,
     COLUMNS,
-    registered_set,
     report_dict,
-    row_formats,
     stability_note,
     statistic_cells,
     unconverged_frames,
@@ -369,12 +368,12 @@ def campaign_tables(
         if not rows:
             continue
         out += [f"### {title}", "", header, rule]
-        for i, (scope, method, label, set_key, stats) in enumerate(rows):
+        for i, (scope, method, label, _, stats) in enumerate(rows):
             if determinacy is None:
-                cells = " | ".join(statistic_cells(stats, registered=registered_set(set_key)))
+                cells = " | ".join(statistic_cells(stats))
             else:
-                table, specs = _table_name(kind, part), row_formats(set_key)
-                cells = " | ".join(determinacy.cell(table, i, k, stats[k], specs[k]) for k, _ in COLUMNS)
+                table = _table_name(kind, part)
+                cells = " | ".join(determinacy.cell(table, i, k, stats[k], COLUMN_FORMATS[k]) for k, _ in COLUMNS)
             out.append(f"| {markdown_cell(scope)} | {markdown_cell(method)} | {label} | {cells} |")
         out.append("")
     out.append(

@@ -42,10 +42,6 @@ __all__ = [
     "paper_tables",
     "report_dict",
     "stability_note",
-    "REGISTERED_COLUMN_FORMATS",
-    "REGISTERED_UNDETERMINED",
-    "registered_set",
-    "row_formats",
     "statistic_cell",
     "statistic_cells",
     "table_rows",
@@ -72,6 +68,17 @@ COLUMNS: tuple[tuple[str, str], ...] = (
 #: 2e-3 to 5e-3 relative (the simplifiers' discrete choices and the registration amplify the input's rounding), so
 #: their third significant digit is not determined; Max moves by 5e-5 (three digits hold) and PSNR by 0.014 dB. The
 #: full values stay in report.json / report.csv (data, for frames stored in float64).
+#:
+#: Every row prints these digits, those that go through the registration (the (k-1)-th and flicker rows, the
+#: registration's own) too: the evaluation's registration computes in float64 (:data:`~torchmeshmetric.evaluation.
+#: pipeline.REGISTRATION_DTYPE`: the same figures on every CPU) and draws its samples independently of how the
+#: original frames are stored (``sampling="canonical"``, :data:`~torchmeshmetric.evaluation.pipeline.
+#: REGISTRATION_SAMPLING`): the frames as stored against 3 orders of :func:`~torchmeshmetric.evaluation.determinacy.
+#: relabel_frames` (the demo performer, 3 frames, QEM 50 %, float32 ``evaluate --temporal``) moved these rows' printed
+#: columns by at most 7.0e-5 relative at resolution 160 (~20k vertices; the k-th rows 6.6e-5) and 1.9e-6 at
+#: resolution 24, the Registration rows by 1e-11: the float32 level these formats were measured on. With the index
+#: draws (``registration_options={"sampling": "index"}``) the storage order moved them by 3 % (Ave) to 55 % (Max)
+#: (docs/statistics.md, "Storage order").
 COLUMN_FORMATS: dict[str, str] = {
     "ave": "#.2g",
     "var": "#.2g",
@@ -82,20 +89,6 @@ COLUMN_FORMATS: dict[str, str] = {
     "p95": "#.2g",
     "psnr": ".1f",
 }
-
-#: Printed format of each column in the rows that go through the registration (the (k-1)-th and flicker rows, the
-#: registration's own): :data:`COLUMN_FORMATS`. The evaluation's registration draws its samples independently of
-#: how the original frames are stored (``sampling="canonical"``, :data:`~torchmeshmetric.evaluation.pipeline.
-#: REGISTRATION_SAMPLING`): the frames as stored against 3 orders of :func:`~torchmeshmetric.evaluation.determinacy.
-#: relabel_frames` (the demo performer, 3 frames, QEM 50 %, float32 ``evaluate --temporal``) moved these rows' printed
-#: columns by at most 7.0e-5 relative at resolution 160 (~20k vertices; the k-th rows 6.6e-5) and 1.9e-6 at
-#: resolution 24, the Registration rows by 1e-11: the float32 level that :data:`COLUMN_FORMATS` was measured on, so
-#: they print its digits. With the index draws (``registration_options={"sampling": "index"}``) the storage order
-#: moved them by 3 % (Ave) to 55 % (Max) and the tables printed one digit (docs/statistics.md, "Storage order").
-REGISTERED_COLUMN_FORMATS: dict[str, str] = COLUMN_FORMATS
-#: The columns of the registration-dependent rows printed with a leading '~' (a first digit that the storage order
-#: moves): none since the evaluation's registration draws independently of it.
-REGISTERED_UNDETERMINED: frozenset[str] = frozenset()
 
 _MESH_LABELS = {"k_minus_1": "(k-1)-th", "k": "k-th"}
 #: Algorithm cell of the registration's rows, and their mesh cells.
@@ -189,70 +182,40 @@ def _rows(
     return rows
 
 
-def registered_set(set_key: str) -> bool:
-    """Whether a row's set goes through the registration (all but the frame-k sets ``surface_k``, ``vertex_k``).
+def statistic_cell(value: float, statistic: str) -> str:
+    """One statistic as the tables print it: the digits of :data:`COLUMN_FORMATS`, the same in every row.
 
-    Example:
-        >>> registered_set("surface_k"), registered_set("vertex_k_minus_1"), registered_set("registration:residual")
-        (False, True, True)
-    """
-    return set_key not in ("surface_k", "vertex_k")
-
-
-def row_formats(set_key: str) -> dict[str, str]:
-    """The formats of a row's cells: :data:`REGISTERED_COLUMN_FORMATS` where it goes through the registration.
-
-    :data:`COLUMN_FORMATS` for a frame-k set (:func:`registered_set`).
-
-    Example:
-        >>> row_formats("surface_k")["max"], row_formats("flicker")["max"]
-        ('#.3g', '#.3g')
-    """
-    return REGISTERED_COLUMN_FORMATS if registered_set(set_key) else COLUMN_FORMATS
-
-
-def statistic_cell(value: float, statistic: str, *, registered: bool = False) -> str:
-    """One statistic as the tables print it: :data:`COLUMN_FORMATS`, or the registration-dependent rows' digits.
-
-    The one place that picks a cell's digits by the kind of its row; the tables, the sweep, the plots' labels and the
-    ``register`` command print through it.
+    The one place that formats a cell; the tables, the campaign, the sweep, the plots' labels and the ``register``
+    command print through it. The rows that go through the registration print the digits of the others (see
+    :data:`COLUMN_FORMATS`).
 
     Args:
         value: the statistic.
         statistic: its column key (:data:`COLUMNS`: ``"ave"``, ``"var"``, ..., ``"psnr"``).
-        registered: the value goes through the registration (:func:`registered_set`): the digits of
-            :data:`REGISTERED_COLUMN_FORMATS` (today :data:`COLUMN_FORMATS`'s), and '~' before
-            :data:`REGISTERED_UNDETERMINED`'s columns (today none).
 
     Raises:
         KeyError: another ``statistic``.
 
     Example:
-        >>> statistic_cell(0.0158, "rmse"), statistic_cell(0.0158, "rmse", registered=True)
-        ('0.016', '0.016')
-        >>> statistic_cell(0.08594, "max", registered=True), statistic_cell(42.41, "psnr", registered=True)
-        ('0.0859', '42.4')
+        >>> statistic_cell(0.0158, "rmse"), statistic_cell(0.08594, "max"), statistic_cell(42.41, "psnr")
+        ('0.016', '0.0859', '42.4')
     """
-    text = format_number(value, (REGISTERED_COLUMN_FORMATS if registered else COLUMN_FORMATS)[statistic])
-    return f"~{text}" if registered and statistic in REGISTERED_UNDETERMINED else text
+    return format_number(value, COLUMN_FORMATS[statistic])
 
 
-def statistic_cells(stats: Mapping[str, float], *, registered: bool = False) -> list[str]:
+def statistic_cells(stats: Mapping[str, float]) -> list[str]:
     """The table cells of one row of statistics, in :data:`COLUMNS` order (:func:`statistic_cell`).
 
     Args:
         stats: the row's statistics.
-        registered: the row goes through the registration (:func:`registered_set`).
 
     Example:
         >>> stats = {"ave": 0.0123456, "var": 1e-4, "std": 0.01, "mse": 2.5e-4, "rmse": 0.0158,
         ...          "max": 0.08594, "p95": 0.0315, "psnr": 42.41}
         >>> statistic_cells(stats)
         ['0.012', '0.00010', '0.010', '0.00025', '0.016', '0.0859', '0.032', '42.4']
-        >>> statistic_cells(stats, registered=True) == statistic_cells(stats)
-        True
     """
-    return [statistic_cell(stats[k], k, registered=registered) for k, _ in COLUMNS]
+    return [statistic_cell(stats[k], k) for k, _ in COLUMNS]
 
 
 def paper_tables(
@@ -287,12 +250,11 @@ def paper_tables(
             continue
         title = _TITLES[table] + (f" (frames {frame - 1} -> {frame})" if table in ("I", "II") else "")
         out += [f"### {title}", "", header, rule]
-        for i, (name, mesh, stats, set_key) in enumerate(rows):
+        for i, (name, mesh, stats, _) in enumerate(rows):
             if determinacy is None:
-                cells = statistic_cells(stats, registered=registered_set(set_key))
+                cells = statistic_cells(stats)
             else:
-                specs = row_formats(set_key)
-                cells = [determinacy.cell(table, i, k, stats[k], specs[k]) for k, _ in COLUMNS]
+                cells = [determinacy.cell(table, i, k, stats[k], COLUMN_FORMATS[k]) for k, _ in COLUMNS]
             out.append(f"| {markdown_cell(name)} | {mesh} | " + " | ".join(cells) + " |")
         out.append("")
     out.append(f"Best pair rule: {BEST_PAIR_RULE}. Averages: mean over pairs of each per-pair statistic.")

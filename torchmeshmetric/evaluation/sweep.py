@@ -19,7 +19,7 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric.evaluation.pipeline import evaluate_sequence
-from torchmeshmetric.evaluation.reports import COLUMN_FORMATS, registered_set, statistic_cell
+from torchmeshmetric.evaluation.reports import COLUMN_FORMATS, statistic_cell
 from torchmeshmetric.evaluation.results import SequenceEvaluation
 from torchmeshmetric.simplification import simplify_sequence
 from torchmeshmetric.structures import MeshLike, as_mesh
@@ -82,10 +82,9 @@ class WeightSweep(NamedTuple):
         """The sweep as a Markdown table (the baseline row is ``QEM``), with the report tables' digits.
 
         Each cell prints only the digits the input determines, as the paper's tables do
-        (:func:`~torchmeshmetric.evaluation.reports.statistic_cell`: 2 significant digits for the averages, the
-        registered k-1 and flicker columns too, now that the evaluation's registration does not depend on the storage
-        order), so weights whose figures differ below the input's rounding read alike; :meth:`as_dict` keeps every
-        digit.
+        (:func:`~torchmeshmetric.evaluation.reports.statistic_cell`: 2 significant digits for the averages, in every
+        column: the registered k-1 and flicker columns are as determined as frame k's), so weights whose figures
+        differ below the input's rounding read alike; :meth:`as_dict` keeps every digit.
 
         Args:
             statistic: one of the printed statistics (``"ave"``, ``"var"``, ``"std"``, ``"mse"``, ``"rmse"``,
@@ -106,7 +105,7 @@ class WeightSweep(NamedTuple):
         for row in self.rows(statistic):
             name = "QEM (fast-simplification)" if row["weight"] is None else "Registered QEM"
             weight = "" if row["weight"] is None else f"{row['weight']:g}"
-            cells = " | ".join(statistic_cell(row[s], statistic, registered=registered_set(s)) for s in _SWEEP_SETS)
+            cells = " | ".join(statistic_cell(row[s], statistic) for s in _SWEEP_SETS)
             lines.append(f"| {name} | {weight} | {cells} |")
         lines += ["", SWEEP_DIGITS_NOTE]
         return "\n".join(lines) + "\n"

@@ -58,14 +58,13 @@ def _base(key: str) -> str:
 
 
 def bar_label(key: str, value: float) -> str:
-    """A bar's label: ``value`` with the digits the reports print of its statistic and its set.
+    """A bar's label: ``value`` with the digits the reports print of its statistic.
 
     The tables print 2 significant digits of a mean, spread or quantile (those the input determines), 3 of a
     maximum (a Hausdorff distance, a minimum: an extreme too) and one decimal of a PSNR; a count is a whole number.
-    A set that goes through the registration (a flattened key of :class:`~torchmeshmetric.evaluation.
-    TemporalConsistency` such as ``"surface_k_minus_1/ave"``, ``"flicker/max"`` or ``"registration/residual/rmse"``)
-    prints the digits of its rows in the tables, the same since the registration draws independently of how the
-    original frames are stored (:func:`~torchmeshmetric.evaluation.reports.statistic_cell`).
+    A flattened key of :class:`~torchmeshmetric.evaluation.TemporalConsistency` (``"surface_k_minus_1/ave"``,
+    ``"flicker/max"``, ``"registration/residual/rmse"``) prints the digits of its statistic, whatever its set: the
+    tables print the same digits in every row (:func:`~torchmeshmetric.evaluation.reports.statistic_cell`).
 
     Example:
         >>> bar_label("ave", 1.5), bar_label("reverse_std", 0.5), bar_label("hausdorff", 2.0), bar_label("psnr", 61.234)
@@ -73,20 +72,18 @@ def bar_label(key: str, value: float) -> str:
         >>> bar_label("surface_k/rmse", 0.0158), bar_label("surface_k_minus_1/rmse", 0.0158)
         ('0.016', '0.016')
     """
-    from torchmeshmetric.evaluation.reports import registered_set, statistic_cell  # on use only (the tables' digits)
+    from torchmeshmetric.evaluation.reports import statistic_cell  # on use only (the tables' digits)
 
     statistic = _base(key).removeprefix("reverse_").removeprefix("symmetric_")
     if statistic == "count":
         return format_number(value, ".0f")
-    parts = key.split("/")
-    registered = len(parts) > 1 and registered_set(parts[-2])  # the set of a flattened key; a plain key has none
     if "psnr" in statistic:
         column = "psnr"
     elif statistic in ("max", "min", "hausdorff"):
         column = "max"
     else:  # ave, var, std, mse, rmse and the quantiles (median, p95, p99: P95's digits)
         column = statistic if statistic in ("ave", "var", "std", "mse", "rmse") else "p95"
-    return statistic_cell(value, column, registered=registered)
+    return statistic_cell(value, column)
 
 
 def _scalar(value: object, where: str) -> Tensor:

@@ -13,7 +13,7 @@ import numpy as np
 from torchmeshmetric._atomic import atomic_write
 from torchmeshmetric._format import plain_label
 from torchmeshmetric.evaluation.flicker import FLICKER
-from torchmeshmetric.evaluation.reports import registered_set, statistic_cell
+from torchmeshmetric.evaluation.reports import statistic_cell
 from torchmeshmetric.evaluation.results import SET_NAMES, PairEvaluation, SequenceEvaluation
 
 __all__ = [
@@ -115,8 +115,7 @@ def histogram_figure(methods: Mapping[str, PairEvaluation], *, bins: int = 50) -
         edges = log_bins(list(values.values()), bins)
         for m, v in values.items():
             below = float(np.mean(v < edges[0])) if len(v) else 0.0
-            # the tables' determined digits for this set (statistic_cell: the one place that picks them by row kind)
-            rmse = statistic_cell(float(np.sqrt(np.mean(v * v))), "rmse", registered=registered_set(name))
+            rmse = statistic_cell(float(np.sqrt(np.mean(v * v))), "rmse")  # the tables' determined digits
             label = f"{plain_label(m)} (RMSE {rmse}; {below:.1%} of vertices below {edges[0]:.2g})"
             ax.hist(v[v >= edges[0]], bins=edges, alpha=0.55, label=label)
         # The axis spans the bins even when no bar is drawn (every distance below the lowest edge, e.g. an exact
