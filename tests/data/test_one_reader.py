@@ -99,18 +99,38 @@ def _decorate(data: st.DataObject, text: str) -> bytes:
 
 
 @settings(max_examples=60, deadline=None)
-@given(data=st.data(), num_verts=st.integers(3, 12), uvs=st.booleans())
-def test_vectorised_pass_equals_statement_by_statement_pass(data, num_verts, uvs) -> None:
+@given(data=st.data(), num_verts=st.integers(3, 12), uvs=st.booleans(), normals=st.booleans())
+def test_vectorised_pass_equals_statement_by_statement_pass(data, num_verts, uvs, normals) -> None:
     _, text, _, _ = _random_obj(data, num_verts, uv=data.draw(st.booleans()))
     raw = _decorate(data, text)
-    fast = _parse_fast(raw, uvs)
-    slow = _parse_slow(Path("x.obj"), raw, uvs)
-    whole = parse_obj(Path("x.obj"), raw, uvs=uvs)
+    fast = _parse_fast(raw, uvs, normals)
+    slow = _parse_slow(Path("x.obj"), raw, uvs, normals)
+    whole = parse_obj(Path("x.obj"), raw, uvs=uvs, normals=normals)
+    names = ("verts", "vert_lines", "uvs", "uv_lines", "corners", "corner_uvs", "face_sizes", "face_lines")
+    names += ("normals", "normal_lines", "color_rows")
     for d in [whole] + ([fast] if fast is not None else []):
-        for name in ("verts", "vert_lines", "uvs", "uv_lines", "corners", "corner_uvs", "face_sizes", "face_lines"):
+        for name in names:
             np.testing.assert_array_equal(getattr(d, name), getattr(slow, name), err_msg=name)
         np.testing.assert_array_equal(d.face_materials, slow.face_materials)
         assert d.materials == slow.materials and d.mtllibs == slow.mtllibs
+        assert d.normal_indexed == slow.normal_indexed
+    assert len(slow.normals) == (1 if normals else 0)  # the one "vn 0 0 1" line
+    assert slow.normal_indexed == bool(re.search(r"/-?\d*/", text))  # the v/vt/vn and v//vn forms
+
+
+def test_normals_and_partial_colours_in_both_passes() -> None:
+    """``vn`` lines, corners naming normals, and the colour rows of the vertices that have one (mmetric's list)."""
+    text = "v 0 0 0 1 0 0\nv 1 0 0\nv 0 1 0 0 0.5 1\nvn 0 0 1\nvn 0 1 0\n"
+    for faces, indexed in (("f 1 2 3\n", False), ("f 1//1 2//2 3//1\n", True), ("f 1/1/1 2/1/2 3/1/1\n", True)):
+        raw = (text + ("vt 0 0\n" if "/1/" in faces else "") + faces).encode()
+        for d in (_parse_fast(raw, True, True), _parse_slow(Path("x.obj"), raw, True, True)):
+            assert d is not None and d.normal_indexed == indexed
+            assert d.normals.tolist() == [[0, 0, 1], [0, 1, 0]] and d.normal_lines.tolist() == [4, 5]
+            assert d.vert_colors is None and d.color_rows.tolist() == [[1, 0, 0], [0, 0.5, 1]]
+    with pytest.raises(MeshFileError, match=r"line 2: normal 0 has 2 value\(s\)"):
+        parse_obj(Path("x.obj"), TRI.replace("v 1 0 0", "vn 0 1\nv 1 0 0").encode() + b"f 1 2 3\n", normals=True)
+    with pytest.raises(MeshFileError, match=r"normal 0 \(line 1\) is not finite"):
+        parse_obj(Path("x.obj"), b"vn nan 0 1\n" + TRI.encode() + b"f 1 2 3\n", normals=True)
 
 
 @settings(max_examples=30, deadline=None)
@@ -243,6 +263,39 @@ def test_ply_reader_equals_trimesh(tmp_path_factory, seed, encoding, colour) -> 
         t = load_textured_mesh(p)
         assert t.colors is not None and torch.equal(t.colors, torch.from_numpy(colors).float())
     np.testing.assert_array_equal(load_mesh(p, dtype=torch.float64).verts.numpy(), theirs.vertices)
+
+
+@pytest.mark.parametrize("encoding", ["ascii", "binary_little_endian", "binary_big_endian"])
+def test_ply_normals_and_texture_coordinates(tmp_path: Path, encoding: str) -> None:
+    """``nx ny nz`` and ``texture_u texture_v`` (mmetric's per-vertex properties) come back as their types hold them."""
+    from torchmeshmetric.data.ply import read_plain_ply
+
+    rng = np.random.default_rng(1)
+    xyz, nrm, uv = rng.normal(size=(4, 3)), rng.normal(size=(4, 3)), rng.random((4, 2))
+    props = [("float", "x"), ("float", "y"), ("float", "z"), ("double", "nx"), ("double", "ny"), ("double", "nz")]
+    props += [("float", "texture_u"), ("float", "texture_v")]
+    head = f"ply\nformat {encoding} 1.0\nelement vertex 4\n" + "".join(f"property {t} {n}\n" for t, n in props)
+    head += "element face 2\nproperty list uchar int vertex_indices\nend_header\n"
+    faces = np.array([[0, 1, 2], [0, 2, 3]])
+    if encoding == "ascii":
+        rows = [" ".join(repr(float(x)) for x in (*a, *b, *c)) for a, b, c in zip(xyz, nrm, uv, strict=True)]
+        body = ("\n".join(rows + [f"3 {a} {b} {c}" for a, b, c in faces]) + "\n").encode()
+    else:
+        o = "<" if encoding.endswith("little_endian") else ">"
+        vdt = np.dtype([(n, o + ("f4" if t == "float" else "f8")) for t, n in props])
+        vtab = np.empty(4, dtype=vdt)
+        for k, (_, n) in enumerate(props):
+            vtab[n] = np.concatenate([xyz, nrm, uv], axis=1)[:, k]
+        ftab = np.empty(2, dtype=[("n", "u1"), ("i", o + "i4", (3,))])
+        ftab["n"], ftab["i"] = 3, faces
+        body = vtab.tobytes() + ftab.tobytes()
+    path = tmp_path / "m.ply"
+    path.write_bytes(head.encode() + body)
+    read = read_plain_ply(path)
+    assert read is not None and read.colors is None
+    np.testing.assert_array_equal(read.normals, nrm)  # double properties: exact
+    np.testing.assert_array_equal(read.uvs, uv.astype(np.float32))  # float properties: float32 values
+    np.testing.assert_array_equal(read.faces, faces)
 
 
 @settings(max_examples=30, deadline=None)

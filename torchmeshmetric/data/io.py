@@ -84,7 +84,7 @@ def _read_file(p: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.n
     if suffix == ".off":
         return (*parse_off(p, p.read_bytes()), None, None)
     plain = read_plain_ply(p) if suffix == ".ply" else None
-    verts, faces, colors = plain if plain is not None else read_with_trimesh(p, suffix)
+    verts, faces, colors = plain[:3] if plain is not None else read_with_trimesh(p, suffix)
     return verts, faces, colors, None
 
 

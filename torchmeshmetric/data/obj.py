@@ -45,6 +45,11 @@ class ObjData:
         materials: names given to ``usemtl``, in order of first use.
         material_lines: 1-based line of the first ``usemtl`` of each name.
         mtllibs: ``(name, line)`` of every ``mtllib`` statement (the name is the rest of the line).
+        normals: ``(N, 3)`` float64 normals (``vn x y z``), read with ``parse_obj(..., normals=True)``, else empty.
+        normal_lines: ``(N,)`` 1-based line of each ``vn``.
+        normal_indexed: whether any face corner names a normal (``v/vt/vn`` or ``v//vn``).
+        color_rows: ``(K, 3)`` float64 colours of the ``v`` lines that have one, in file order (``vert_colors``
+            when every vertex has one; mmetric's colour list holds these rows whether or not all have one).
     """
 
     verts: np.ndarray
@@ -60,6 +65,10 @@ class ObjData:
     materials: list[str] = field(default_factory=list)
     material_lines: list[int] = field(default_factory=list)
     mtllibs: list[tuple[str, int]] = field(default_factory=list)
+    normals: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    normal_lines: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    normal_indexed: bool = False
+    color_rows: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
     def triangles(self) -> tuple[np.ndarray, np.ndarray]:
         """``(F', 3)`` vertex and ``vt`` indices, polygons fanned from their first corner (as mmetric does).
@@ -94,7 +103,7 @@ def _rest(line: bytes, key: bytes) -> str:
     return body[len(key) :].strip().decode("utf-8", errors="replace")
 
 
-def parse_obj(p: Path, data: bytes, *, uvs: bool = True) -> ObjData:
+def parse_obj(p: Path, data: bytes, *, uvs: bool = True, normals: bool = False) -> ObjData:
     r"""Parse an OBJ file's bytes (every check of the docs' *Bad input* page; errors name ``p`` and the line).
 
     OBJ indices are 1-based; a negative index ``-k`` is the ``k``-th element counted back from the last one defined
@@ -107,14 +116,16 @@ def parse_obj(p: Path, data: bytes, *, uvs: bool = True) -> ObjData:
         uvs: read and check the texture coordinates (``vt`` lines and the corners' ``vt`` indices). Without,
             they are skipped unread, as a reader of geometry only needs (``uvs`` then is empty, ``corner_uvs``
             ``-1``).
+        normals: read and check the ``vn`` lines (three finite values each); without, they are skipped unread
+            (``normals`` then is empty). Whether a corner names a normal is found either way.
 
     Returns:
         :class:`ObjData`.
 
     Raises:
         MeshFileError: binary data, a line that is no OBJ statement, a vertex with a wrong number of coordinates
-            or non-numbers, NaN/Inf coordinates, colours or UVs, a face with fewer than 3 corners, an index 0, a
-            negative index counting back past the first element, an index past the last element.
+            or non-numbers, NaN/Inf coordinates, colours, UVs or normals, a face with fewer than 3 corners, an index
+            0, a negative index counting back past the first element, an index past the last element.
 
     Example:
         >>> d = parse_obj(Path("t.obj"), b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 -1/1\n")
@@ -123,9 +134,9 @@ def parse_obj(p: Path, data: bytes, *, uvs: bool = True) -> ObjData:
     """
     check_text(p, data)
     data = data.removeprefix(b"\xef\xbb\xbf")
-    fast = _parse_fast(data, uvs)
+    fast = _parse_fast(data, uvs, normals)
     if fast is None or not _valid(fast):
-        fast = _parse_slow(p, data, uvs)
+        fast = _parse_slow(p, data, uvs, normals)
     _check_finite(p, fast)
     return fast
 
@@ -161,12 +172,19 @@ def _check_finite(p: Path, d: ObjData) -> None:
             f"path: mesh file '{p}' texture coordinate {i} (line {int(d.uv_lines[i])}) is not finite: "
             f"{d.uvs[i].tolist()} ({int(bad.sum())} such 'vt' lines)"
         )
+    bad = ~np.isfinite(d.normals).all(axis=1)
+    if bad.any():
+        i = int(np.nonzero(bad)[0][0])
+        raise MeshFileError(
+            f"path: mesh file '{p}' normal {i} (line {int(d.normal_lines[i])}) is not finite: "
+            f"{d.normals[i].tolist()} ({int(bad.sum())} such 'vn' lines)"
+        )
 
 
 # ----------------------------------------------------------------------------------------------- the fast pass
 _SPACE = np.zeros(256, dtype=bool)
 _SPACE[[9, 11, 12, 13, 32]] = True  # not the newline: a keyword must be followed by something on its line
-_V, _VT, _F, _SKIP, _OTHER = 1, 2, 3, 4, 5
+_V, _VT, _F, _SKIP, _OTHER, _VN = 1, 2, 3, 4, 5, 6
 
 
 class _Lines(NamedTuple):
@@ -176,10 +194,10 @@ class _Lines(NamedTuple):
     buf: np.ndarray  # the bytes as uint8 (two more bytes to look past the last line start); keywords get blanked
     starts: np.ndarray
     ends: np.ndarray
-    kind: np.ndarray  # _SKIP, _V, _VT, _F or _OTHER per line
+    kind: np.ndarray  # _SKIP, _V, _VT, _VN, _F or _OTHER per line
 
 
-def _classify(data: bytes, read_uvs: bool) -> _Lines | None:
+def _classify(data: bytes, read_uvs: bool, read_normals: bool) -> _Lines | None:
     """Every line's kind from its first bytes, or ``None`` for what the fast pass does not take."""
     if not data or b"\\" in data:
         return None  # line continuations: statement by statement
@@ -200,13 +218,13 @@ def _classify(data: bytes, read_uvs: bool) -> _Lines | None:
     kind[c0 == ord("#")] = _SKIP
     kind[(c0 == ord("v")) & sp1] = _V
     kind[(c0 == ord("v")) & (c1 == ord("t")) & sp2] = _VT if read_uvs else _SKIP
-    kind[(c0 == ord("v")) & (c1 == ord("n")) & sp2] = _SKIP  # normals are not used
+    kind[(c0 == ord("v")) & (c1 == ord("n")) & sp2] = _VN if read_normals else _SKIP
     kind[(c0 == ord("f")) & sp1] = _F
     hashes = np.flatnonzero(buf == ord("#"))
     if hashes.size:
         hash_line = np.searchsorted(starts, hashes, side="right") - 1
         k = kind[hash_line]
-        if ((k == _V) | (k == _VT) | (k == _F)).any():
+        if ((k == _V) | (k == _VT) | (k == _VN) | (k == _F)).any():
             return None  # a comment after a statement
     return _Lines(data, buf, starts, ends, kind)
 
@@ -227,7 +245,7 @@ def _other_statements(lines: _Lines) -> _Materials | None:
         if not tokens:
             continue
         key = tokens[0]
-        if key not in _KEYWORDS or key in (b"v", b"vt", b"f") or not line[:1].strip():
+        if key not in _KEYWORDS or key in (b"v", b"vt", b"vn", b"f") or not line[:1].strip():
             return None  # not OBJ, or an indented statement: the slow pass
         if key == b"mtllib":
             found.mtllibs.append((_rest(line, key), i + 1))
@@ -267,8 +285,11 @@ def _resolve(index: np.ndarray, defined_before: np.ndarray) -> np.ndarray | None
 
 def _face_corners(
     lines: _Lines, regions: _Regions, f_lines: np.ndarray, sizes: np.ndarray, read_uvs: bool
-) -> tuple[np.ndarray, np.ndarray] | None:
-    """``(vertex index, UV index or -1)`` of every face corner, 0-based; ``None`` for mixed or bad corners."""
+) -> tuple[np.ndarray, np.ndarray, bool] | None:
+    """``(vertex index, UV index or -1, any corner names a normal)`` of every face corner, 0-based, or ``None``.
+
+    ``None`` for mixed or bad corners (the slow pass then decides).
+    """
     fbytes = regions.of(_F, f_lines)
     slash = fbytes == ord("/")
     n_corner = int(sizes.sum())
@@ -276,6 +297,7 @@ def _face_corners(
     if form is None:
         return None
     per, uv_col = form
+    normal_indexed = per == 3 or (per == 2 and uv_col < 0)  # v/vt/vn or v//vn
     if slash.any():
         per_corner = 2 if uv_col < 0 else per - 1  # slashes in each corner of the form found
         per_line = np.add.reduceat(lines.buf == ord("/"), lines.starts, dtype=np.int32)[f_lines]
@@ -294,14 +316,14 @@ def _face_corners(
     if corners is None:
         return None
     if uv_col < 0 or not read_uvs:
-        return corners, np.full(n_corner, -1, dtype=np.int64)
+        return corners, np.full(n_corner, -1, dtype=np.int64), normal_indexed
     corner_uvs = _resolve(ints[:, uv_col], np.cumsum(lines.kind == _VT)[corner_line])
-    return None if corner_uvs is None else (corners, corner_uvs)
+    return None if corner_uvs is None else (corners, corner_uvs, normal_indexed)
 
 
-def _parse_fast(data: bytes, read_uvs: bool) -> ObjData | None:
+def _parse_fast(data: bytes, read_uvs: bool, read_normals: bool = False) -> ObjData | None:
     """Vectorised parse, or ``None`` whenever the file is unusual (the slow pass then decides)."""
-    lines = _classify(data, read_uvs)
+    lines = _classify(data, read_uvs, read_normals)
     if lines is None:
         return None
     materials = _other_statements(lines)
@@ -312,10 +334,13 @@ def _parse_fast(data: bytes, read_uvs: bool) -> ObjData | None:
         return None  # no statement at all (or only odd ones): the slow pass names it
     v_lines = np.flatnonzero(kind == _V)
     vt_lines = np.flatnonzero(kind == _VT)
+    vn_lines = np.flatnonzero(kind == _VN)
     f_lines = np.flatnonzero(kind == _F)
     buf[starts[v_lines]] = 32  # blank the keywords
     buf[starts[vt_lines]] = 32
     buf[starts[vt_lines] + 1] = 32
+    buf[starts[vn_lines]] = 32
+    buf[starts[vn_lines] + 1] = 32
     buf[starts[f_lines]] = 32
     # Tokens per line: space-to-text transitions, counted by a running sum read at the line ends. Control bytes
     # other than whitespace were refused, so "<= 32" is whitespace.
@@ -333,7 +358,12 @@ def _parse_fast(data: bytes, read_uvs: bool) -> ObjData | None:
     uvs, _ = _numbers(regions.of(_VT, vt_lines), counts[vt_lines], (2, 3))
     if uvs is None:
         return None
+    normals, _ = _numbers(regions.of(_VN, vn_lines), counts[vn_lines], (3,))
+    if normals is None:
+        return None
+    color_rows = np.zeros((0, 3)) if colors is None else colors
     if colors is not None and (counts[v_lines] < 6).any():
+        color_rows = colors[counts[v_lines] >= 6]
         colors = None
     sizes = counts[f_lines]
     if sizes.size and int(sizes.min()) < 3:
@@ -359,6 +389,10 @@ def _parse_fast(data: bytes, read_uvs: bool) -> ObjData | None:
         materials=materials.names,
         material_lines=materials.lines,
         mtllibs=materials.mtllibs,
+        normals=normals,
+        normal_lines=vn_lines + 1,
+        normal_indexed=corners[2],
+        color_rows=color_rows,
     )
 
 
@@ -422,7 +456,9 @@ def _numbers(
     if lo >= 6:
         colors = flat[offset[:, None] + np.arange(3, 6)]
     elif hi >= 6:
-        colors = np.zeros((counts.size, 3))  # some vertices lack a colour: the caller drops them
+        has = counts >= 6  # some vertices lack a colour: the caller keeps the others' as mmetric's list
+        colors = np.zeros((counts.size, 3))
+        colors[has] = flat[offset[has][:, None] + np.arange(3, 6)]
     return rows, colors
 
 
@@ -447,6 +483,9 @@ class _Statements:
     material_lines: list[int] = field(default_factory=list)
     mtllibs: list[tuple[str, int]] = field(default_factory=list)
     material: int = -1
+    normals: list[list[float]] = field(default_factory=list)
+    normal_lines: list[int] = field(default_factory=list)
+    normal_indexed: bool = False
 
     def vertex(self, at: int, tokens: list[bytes]) -> None:
         n = len(tokens) - 1
@@ -469,6 +508,15 @@ class _Statements:
         self.uvs.append(self.line_floats(at, tokens, 1, 3, "texture coordinates"))
         self.uv_lines.append(at)
 
+    def normal(self, at: int, tokens: list[bytes]) -> None:
+        n = len(tokens) - 1
+        if n != 3:
+            raise MeshFileError(
+                f"path: '{self.p}' line {at}: normal {len(self.normals)} has {n} value(s); expected 'vn x y z'"
+            )
+        self.normals.append(self.line_floats(at, tokens, 1, 4, "normal coordinates"))
+        self.normal_lines.append(at)
+
     def line_floats(self, at: int, tokens: list[bytes], start: int, stop: int, what: str) -> list[float]:
         """``tokens[start:stop]`` as floats; an error quotes the line's values (``what``: whose)."""
         try:
@@ -487,6 +535,7 @@ class _Statements:
             self.corners.append(_index(self.p, at, parts[0], len(self.verts), "vertex", t))
             has_uv = self.read_uvs and len(parts) > 1 and parts[1] != b""
             self.corner_uvs.append(_index(self.p, at, parts[1], len(self.uvs), "texture", t) if has_uv else -1)
+            self.normal_indexed = self.normal_indexed or (len(parts) > 2 and parts[2] != b"")
         self.sizes.append(n)
         self.face_lines.append(at)
         self.face_materials.append(self.material)
@@ -531,10 +580,14 @@ class _Statements:
             materials=self.materials,
             material_lines=self.material_lines,
             mtllibs=self.mtllibs,
+            normals=np.array(self.normals, dtype=np.float64).reshape(-1, 3),
+            normal_lines=np.array(self.normal_lines, dtype=np.int64),
+            normal_indexed=self.normal_indexed,
+            color_rows=np.array([c for c in self.colors if c is not None], dtype=np.float64).reshape(-1, 3),
         )
 
 
-def _parse_slow(p: Path, data: bytes, read_uvs: bool) -> ObjData:
+def _parse_slow(p: Path, data: bytes, read_uvs: bool, read_normals: bool = False) -> ObjData:
     """One statement at a time, naming the line of the first problem."""
     read = _Statements(p, read_uvs)
     pending = b""
@@ -558,6 +611,8 @@ def _parse_slow(p: Path, data: bytes, read_uvs: bool) -> ObjData:
             read.vertex(at, tokens)
         elif key == b"vt" and read_uvs:
             read.uv(at, tokens)
+        elif key == b"vn" and read_normals:
+            read.normal(at, tokens)
         elif key == b"f":
             read.face(at, tokens)
         elif key == b"mtllib":

@@ -16,6 +16,7 @@ import numpy as np
 from torchmeshmetric.data.mesh_file import MeshFileError, values_per_line
 
 __all__ = [
+    "PlyArrays",
     "declared_counts",
     "header_end",
     "ply_bytes",
@@ -73,13 +74,32 @@ def header_end(data: bytes) -> int:
     return -1 if m is None else m.start()
 
 
-def read_plain_ply(p: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None] | None:
+class PlyArrays(NamedTuple):
+    """What :func:`read_plain_ply` reads: the mesh and its per-vertex attributes (``None`` where the file has none).
+
+    Attributes:
+        verts: ``(V, 3)`` float64 positions.
+        faces: ``(F, 3)`` int64 triangles.
+        colors: ``(V, 3)`` float64 colours in ``[0, 255]`` from ``uchar`` ``red green blue``.
+        normals: ``(V, 3)`` float64 ``nx ny nz`` (as their declared type holds them).
+        uvs: ``(V, 2)`` float64 ``texture_u texture_v`` (mmetric's names for per-vertex texture coordinates).
+    """
+
+    verts: np.ndarray
+    faces: np.ndarray
+    colors: np.ndarray | None
+    normals: np.ndarray | None = None
+    uvs: np.ndarray | None = None
+
+
+def read_plain_ply(p: Path) -> PlyArrays | None:
     """A plain PLY (a ``vertex`` then a triangle ``face`` element, nothing else) read with numpy, else ``None``.
 
     Binary (either byte order) or ASCII; vertex properties are scalars; the face element has one list property
     ``vertex_indices`` (or ``vertex_index``), every face a triangle. Other elements, truncation and trailing binary
     bytes return ``None`` and go through trimesh, which then names the problem.
-    Returns ``(verts, faces, colors)``, colours from ``uchar`` ``red green blue`` properties.
+    Returns :class:`PlyArrays`: colours from ``uchar`` ``red green blue`` properties, normals from ``nx ny nz``,
+    texture coordinates from ``texture_u texture_v`` (the properties mmetric reads).
 
     Raises:
         MeshFileError: a face that is not a triangle, an ASCII line beyond the declared elements, an ASCII value that
@@ -104,7 +124,16 @@ def read_plain_ply(p: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None] 
         if not all(_PLY_TYPES[pr[0]] == "u1" for pr in header.vprops if pr[1] in ("red", "green", "blue")):
             return None  # float colours: trimesh's conversion decides
         colors = np.stack([cols["red"], cols["green"], cols["blue"]], axis=1).astype(np.float64)
-    return verts, faces, colors
+    normals = _columns(cols, ("nx", "ny", "nz"))
+    uvs = _columns(cols, ("texture_u", "texture_v"))
+    return PlyArrays(verts, faces, colors, normals, uvs)
+
+
+def _columns(cols: dict[str, np.ndarray], names: tuple[str, ...]) -> np.ndarray | None:
+    """The vertex properties ``names`` side by side as float64, or ``None`` unless the file has all of them."""
+    if not set(names) <= set(cols):
+        return None
+    return np.stack([cols[n] for n in names], axis=1).astype(np.float64)
 
 
 class _Header(NamedTuple):
