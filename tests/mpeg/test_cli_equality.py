@@ -5,7 +5,9 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
+from PIL import Image
 
 from torchmeshmetric.cli import main
 
@@ -33,7 +35,13 @@ def test_equal_and_reordered(tmp_path: Path, capsys: pytest.CaptureFixture[str])
     assert capsys.readouterr().out == "meshes are equal\n"
     assert main(["mpeg", a, c, "--mode", "equ", "--all-differences", "--json"]) == 1
     d = json.loads(capsys.readouterr().out)
-    assert (d["equal"], d["different_triangles"], d["first_unmatched"], d["textures"]) == (False, 1, 0, "skipped")
+    assert (d["equal"], d["different_triangles"], d["first_unmatched"], d["textures"]) == (False, 1, 0, [])
+    assert (d["position_differences"], d["uv_differences"], d["color_differences"], d["normal_differences"]) == (
+        0,
+        0,
+        0,
+        0,
+    )
 
 
 def test_different_counts(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -41,3 +49,67 @@ def test_different_counts(tmp_path: Path, capsys: pytest.CaptureFixture[str]) ->
     b = _write(tmp_path, "b.obj", "f 1 2 3\n")
     assert main(["mpeg", a, b, "--mode", "equ"]) == 1
     assert capsys.readouterr().out == "meshes are not equal, number of triangles are different 2 vs 1\n"
+
+
+def _textured(
+    tmp_path: Path, name: str, texel: int, normals: str, colour3: str, corners: str, extra_vt: str = ""
+) -> str:
+    """The quad with a 2x2 texture (texel 0's red = ``texel``), four UVs, per-vertex colours and normals."""
+    img = np.full((2, 2, 3), 200, dtype=np.uint8)
+    img[0, 0, 0] = texel
+    Image.fromarray(img).save(tmp_path / f"{name}.png")
+    (tmp_path / f"{name}.mtl").write_text(f"newmtl m\nmap_Kd {name}.png\n")
+    verts = QUAD.splitlines()
+    verts = [f"{v} 0.5 0.5 0.5" for v in verts[:3]] + [f"{verts[3]} {colour3}"]
+    text = (
+        f"mtllib {name}.mtl\n" + "\n".join(verts) + "\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n" + extra_vt + normals + corners
+    )
+    p = tmp_path / f"{name}.obj"
+    p.write_text(text)
+    return str(p)
+
+
+def test_every_line_of_a_hand_built_pair(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The lines mmetric v1.1.7's ``Compare::equ`` (source/lib/source/mmCompare.cpp) prints, without the binary.
+
+    Its source gives each line: the maps first, RGB texel by texel, ``"texture maps are not equal: " << diffs <<
+    "pixel differences"`` (no space); then the triangles, whose corners compare normals too when both models have
+    one per position (``fetchTriangle(..., hasNormals, ...)``); with ``--earlyReturn=false`` the four lists, each
+    ``|count A - count B|`` plus the rows that differ in their common prefix. Its OBJ reader keeps the ``vt`` lines as
+    listed and drops every ``vn`` when a corner names one ("normals with separate index table are not yet
+    supported").
+    """
+    up = "vn 0 0 1\nvn 0 0 1\nvn 0 0 1\nvn 0 0 1\n"
+    tilted = "vn 0 0 1\nvn 0 0.6 0.8\nvn 0 0 1\nvn 0 0 1\n"
+    plain, indexed = "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n", "f 1/1/1 2/2/2 3/3/3\nf 1/1/1 3/3/3 4/4/4\n"
+    a = _textured(tmp_path, "a", 200, up, "0.5 0.5 0.5", plain)
+    # one texel, the normal of vertex 2 (triangle 0), the colour of vertex 4 (triangle 1) and an unused fifth UV
+    b = _textured(tmp_path, "b", 7, tilted, "1 0 0", plain, extra_vt="vt 0.5 0.5\n")
+    assert main(["mpeg", a, b, "--mode", "equ", "--all-differences"]) == 1
+    assert capsys.readouterr().out.splitlines() == [
+        "texture maps are not equal: 1pixel differences",
+        "meshes are not equal, 2 different triangles",
+        "Position differences: 0",
+        "UV coords differences: 1",
+        "Colors differences: 1",
+        "Normals differences: 1",
+    ]
+    assert main(["mpeg", a, b, "--mode", "equ"]) == 1
+    assert capsys.readouterr().out.splitlines() == [
+        "texture maps are not equal: 1pixel differences",
+        "meshes are not equal, early return.",
+        "triangle number 0 from A has no equivalent in B",
+    ]
+    # v/vt/vn corners: mmetric's reader drops the normals, so the tilted one no longer counts
+    c = _textured(tmp_path, "c", 200, tilted, "0.5 0.5 0.5", indexed)
+    assert main(["mpeg", a, c, "--mode", "equ", "--all-differences"]) == 0
+    assert capsys.readouterr().out.splitlines() == ["texture maps are equal", "meshes are equal"]
+    # the texture given on the command line replaces the MTL's; a model without any map: "mapB is null"
+    d = _write(tmp_path, "d.obj", "f 1 2 3\nf 1 3 4\n")
+    assert main(["mpeg", a, d, "--mode", "equ", "--dis-texture", str(tmp_path / "b.png")]) == 0
+    assert capsys.readouterr().out.splitlines() == [
+        "texture maps are not equal: 1pixel differences",
+        "meshes are equal",
+    ]
+    assert main(["mpeg", a, d, "--mode", "equ", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["textures"] == ["mapB is null"]

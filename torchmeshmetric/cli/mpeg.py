@@ -31,13 +31,13 @@ def _table(d: dict[str, Any]) -> str:
 
 
 def _run_equality(args: argparse.Namespace) -> int:
-    """``--mode equ``: mmetric's verdict in its words (or JSON); exit status 0 when equal, 1 otherwise."""
+    """``--mode equ``: mmetric's lines (texture maps, verdict, differences) or JSON; exit status 0 when equal."""
     from dataclasses import asdict
 
     from torchmeshmetric.cli.mpeg_outputs import load_pair
-    from torchmeshmetric.mpeg.comparison.equality import mesh_equality
+    from torchmeshmetric.mpeg.comparison.equality import load_equality_model, mesh_equality
 
-    ref, dis = load_pair(args)
+    ref, dis = load_pair(args, lambda side, path, texture: load_equality_model(path, texture))
     result = mesh_equality(ref, dis, unoriented=args.unoriented)
     if args.json:
         print(json.dumps(asdict(result), indent=1))
@@ -179,8 +179,10 @@ def add_mpeg_command(sub: Any) -> None:
         "*sequence's* box and passes the sequence box's longest side as --resolution -- use 'torchmeshmetric ctc' for "
         "it. --sampling mesh is mm compare --mode pcc on the meshes. Textures come from the OBJ's MTL (map_Kd) "
         "unless given. --mode equ is mm compare --mode equ instead: are the two meshes the same triangles in any order "
-        "(exit status 0 when equal, 1 otherwise). --mode topo is mm compare --mode topo: is DIS the connectivity of "
-        "REF under --face-map and --vertex-map (exit status 0 when matching, 1 otherwise).",
+        "(corners compared by position, and UV, colour and normal where both have them); it prints mm's lines: the "
+        "texture maps' comparison, the verdict and, with --all-differences, the position, UV, colour and normal "
+        "differences (exit status 0 when equal, 1 otherwise). --mode topo is mm compare --mode topo: is DIS the "
+        "connectivity of REF under --face-map and --vertex-map (exit status 0 when matching, 1 otherwise).",
     )
     p.add_argument(
         "ref", type=path_argument, metavar="REF", help="reference mesh (OBJ/PLY; OBJ with MTL + texture for colour)"
@@ -263,7 +265,7 @@ def add_mpeg_command(sub: Any) -> None:
         "--all-differences",
         action="store_true",
         help="equ / eqTFAN modes: count every difference (mm --earlyReturn=false / --eqTFAN_earlyReturn=false) "
-        "instead of stopping at the first",
+        "instead of stopping at the first, and print the position / UV / colour / normal lists' differences",
     )
     from torchmeshmetric.cli.mpeg_outputs import add_output_options
 

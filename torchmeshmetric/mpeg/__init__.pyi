@@ -9,6 +9,7 @@ from . import core as core
 from . import ctc as ctc
 from . import sampling as sampling
 from .comparison import (
+    EqualityModel,
     IbsmNoOverlapWarning,
     IbsmResult,
     MeshEquality,
@@ -31,6 +32,7 @@ from .comparison import (
     differentiable_grid_sample,
     ibsm,
     k_nearest,
+    load_equality_model,
     load_tfan_mesh,
     mean_psnr,
     mesh_equality,
@@ -133,6 +135,7 @@ __all__ = [
     "PointErrors",
     "grid_sample_faces",
     "mpeg_point_errors",
+    "EqualityModel",
     "MeshEquality",
     "MpegGeometryLoss",
     "MpegPSNR",
@@ -153,6 +156,7 @@ __all__ = [
     "differentiable_grid_sample",
     "grid_hits",
     "grid_sample",
+    "load_equality_model",
     "load_textured_mesh",
     "load_tfan_mesh",
     "map_sample",

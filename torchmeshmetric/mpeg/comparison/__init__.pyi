@@ -17,7 +17,7 @@ from . import sequence as sequence
 from . import tfan_comparison as tfan_comparison
 from . import topology as topology
 from .colour import rgb_to_ycbcr
-from .equality import MeshEquality, mesh_equality
+from .equality import EqualityModel, MeshEquality, load_equality_model, mesh_equality
 from .ibsm import IbsmNoOverlapWarning, IbsmResult, ibsm
 from .losses import (
     MpegGeometryLoss,
@@ -47,7 +47,9 @@ __all__ = [
     "bbox_diagonal",
     "mpeg_compare",
     "mpeg_point_errors",
+    "EqualityModel",
     "MeshEquality",
+    "load_equality_model",
     "mesh_equality",
     "IbsmNoOverlapWarning",
     "IbsmResult",

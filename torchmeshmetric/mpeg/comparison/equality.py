@@ -1,28 +1,250 @@
-"""mmetric's equality comparison of two meshes (``compare --mode equ``): the same triangles, in any order.
+"""mmetric's equality comparison of two meshes (``compare --mode equ``), with every line it prints.
 
-mmetric v1.1.7 walks the triangles of A in order and, for each, takes the first not yet matched triangle of B with
-the same three corners (position, and UV / colour when both meshes have them, compared as float32 values) in the
-same cyclic order -- or in either order with ``--unoriented``. Because "same corners up to a rotation (or a
-reflection)" is an equivalence, that greedy walk leaves exactly the triangles of A beyond the count B has of their
-class unmatched: the k-th triangle of A in a class is unmatched when B has fewer than k of that class. This module
-counts that way (a sort, not mmetric's quadratic search), so the verdict, the count of different triangles and the
-first unmatched triangle of A are mmetric's.
+mmetric v1.1.7's ``Compare::equ`` prints, in order:
 
-Not compared: per-vertex normals (the library's reader does not keep them; mmetric compares them when both files
-carry them), and point clouds (mmetric's sorted-vertex comparison of meshes without faces).
+1. A line per pair of texture maps (the models' map sets, one map per material of their MTL files, or the map given
+   with ``--inputMap``): ``texture maps are equal``, ``... not equal: mapA is null`` / ``mapB is null`` / ``dimensions
+   are not equal`` / ``<n>pixel differences`` (RGB compared texel by texel), nothing for a pair where neither model
+   has a map; ``... not of equal: size of set A is diffrent from size of set B`` when the sets differ in size.
+2. The verdict. It walks the triangles of A in order and, for each, takes the first not yet matched triangle of B
+   with the same three corners (position, and UV / colour / normal when both models have them, compared as float32
+   values) in the same cyclic order -- or in either order with ``--unoriented``. Because "same corners up to a
+   rotation (or a reflection)" is an equivalence, that greedy walk leaves exactly the triangles of A beyond the count
+   B has of their class unmatched: the k-th triangle of A in a class is unmatched when B has fewer than k of that
+   class. This module counts that way (a sort, not mmetric's quadratic search), so the verdict, the count of
+   different triangles and the first unmatched triangle of A are mmetric's.
+3. When the meshes differ and every triangle was searched: the position, UV, colour and normal lists compared index
+   by index, plus the difference of their lengths (``Position differences: N`` ... ``Normals differences: N``).
+
+The lists are the models' as mmetric's readers fill them, which :func:`load_equality_model` reproduces through the
+library's one reader per format: OBJ ``vt`` lines (indexed per corner), ``v x y z r g b`` colours of the vertices
+that have one (scaled as mmetric does, ``roundf(value * 255)``), ``vn`` lines unless a face corner names a normal
+(mmetric then drops them); PLY ``texture_u texture_v`` (per vertex), ``red green blue`` and ``nx ny nz``. Colours and
+normals take part in the triangle comparison when both models have one per position; UVs when both have them per
+corner, or one per position.
+
+Not covered: point clouds (mmetric's sorted-vertex comparison of models without faces). Where a file is read
+otherwise: a greyscale texture is refused (mmetric reads three bytes per texel of a one-channel image); a ``map_Kd``
+is found beside its MTL (mmetric looks beside the OBJ); an OBJ vertex of four numbers is ``x y z w`` (mmetric takes
+the fourth for a red channel); PLY colours other than ``uchar red green blue`` and per-corner ``texcoord`` lists go
+through trimesh, without normals or UVs; OFF, which mmetric does not read, gives positions and triangles.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import os
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
+import torch
 
-from torchmeshmetric._checks import EmptyInputError
-from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh, as_textured_mesh
+from torchmeshmetric._checks import DTypeError, EmptyInputError, ShapeError
+from torchmeshmetric.mpeg.comparison.tfan_comparison import _differences, _table
+from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh, _obj_colors, as_textured_mesh, read_texture
 from torchmeshmetric.structures import MeshLike
 
-__all__ = ["MeshEquality", "mesh_equality"]
+__all__ = ["EqualityModel", "MeshEquality", "load_equality_model", "mesh_equality"]
+
+
+def _empty(cols: int, dtype: type = np.float32) -> np.ndarray:
+    return np.zeros((0, cols), dtype=dtype)
+
+
+@dataclass(frozen=True, eq=False)
+class EqualityModel:
+    """A mesh as ``mm compare --mode equ`` holds it: its lists as read from the file, and its texture maps.
+
+    Build it with :func:`load_equality_model` (a file, as mmetric reads it); :func:`mesh_equality` also takes a
+    :class:`~torchmeshmetric.mpeg.TexturedMesh` or any mesh form, whose UVs are then its per-corner list.
+
+    Args:
+        positions: ``(V, 3)`` float32 positions.
+        triangles: ``(F, 3)`` 0-based position indices.
+        uvs: ``(T, 2)`` float32 texture coordinates, as listed in the file.
+        triangles_uv: ``(F, 3)`` 0-based indices into ``uvs`` per corner, or ``(0, 3)``: then ``uvs`` are per
+            position (used when ``T = V``).
+        colors: ``(C, 3)`` float32 colours, as listed (per position when ``C = V``).
+        normals: ``(N, 3)`` float32 normals, as listed (per position when ``N = V``).
+        textures: the texture maps, one per material (``(H, W, 3)`` uint8, or ``None`` for a material without a
+            map); ``(None,)`` (the default) for a model without a map, as mmetric counts it.
+
+    Raises:
+        ShapeError, DTypeError, IndexRangeError, NonFiniteError: a table of the wrong shape or type, an index
+            outside its list, a non-finite value (naming the field).
+
+    Example:
+        >>> import numpy as np
+        >>> m = EqualityModel(np.eye(3, dtype=np.float32), np.array([[0, 1, 2]]))
+        >>> m.uvs.shape, m.textures
+        ((0, 2), (None,))
+    """
+
+    positions: np.ndarray
+    triangles: np.ndarray
+    uvs: np.ndarray = field(default_factory=lambda: _empty(2))
+    triangles_uv: np.ndarray = field(default_factory=lambda: _empty(3, np.int64))
+    colors: np.ndarray = field(default_factory=lambda: _empty(3))
+    normals: np.ndarray = field(default_factory=lambda: _empty(3))
+    textures: tuple[np.ndarray | None, ...] = (None,)
+
+    def __post_init__(self) -> None:
+        """Check every table when built (shapes, dtypes, finite values, indices inside their lists)."""
+        own = "EqualityModel"
+        pos = _table("positions", self.positions, 3, integer=False, owner=own)
+        tri = _table("triangles", self.triangles, 3, integer=True, indexes=("positions", pos.shape[0]), owner=own)
+        uvs = _table("uvs", self.uvs, 2, integer=False, owner=own)
+        tuv = _table("triangles_uv", self.triangles_uv, 3, integer=True, indexes=("uvs", uvs.shape[0]), owner=own)
+        if tuv.shape[0] not in (0, tri.shape[0]):
+            raise ShapeError(
+                f"{own}.triangles_uv: expected 0 or {tri.shape[0]} rows (one per triangle), found {tuv.shape[0]}"
+            )
+        col = _table("colors", self.colors, 3, integer=False, owner=own)
+        nrm = _table("normals", self.normals, 3, integer=False, owner=own)
+        if not isinstance(self.textures, tuple):
+            raise TypeError(f"{own}.textures: expected a tuple of images or None, found {type(self.textures).__name__}")
+        for k, t in enumerate(self.textures):
+            if t is None:
+                continue
+            if not isinstance(t, np.ndarray) or t.dtype != np.uint8:
+                found = t.dtype if hasattr(t, "dtype") else type(t).__name__
+                raise DTypeError(f"{own}.textures[{k}]: expected an (H, W, 3) uint8 numpy image, found {found}")
+            if t.ndim != 3 or t.shape[2] != 3 or 0 in t.shape:
+                raise ShapeError(f"{own}.textures[{k}]: expected shape (H, W, 3) with H, W >= 1, found {t.shape}")
+        for name, value in (("positions", pos), ("triangles", tri), ("uvs", uvs), ("triangles_uv", tuv),
+                            ("colors", col), ("normals", nrm)):  # fmt: skip
+            object.__setattr__(self, name, value)
+
+    @property
+    def has_uvs(self) -> bool:
+        """Whether mmetric compares its UVs (``hasUvCoords``): UVs per corner (an index table), or one per position."""
+        return len(self.uvs) > 0 and (len(self.triangles_uv) > 0 or len(self.uvs) == len(self.positions))
+
+    @property
+    def has_colors(self) -> bool:
+        """Whether mmetric compares its colours (``hasColors``): one colour per position."""
+        return len(self.positions) > 0 and len(self.colors) == len(self.positions)
+
+    @property
+    def has_normals(self) -> bool:
+        """Whether mmetric compares its normals (``hasNormals``): one normal per position."""
+        return len(self.positions) > 0 and len(self.normals) == len(self.positions)
+
+    def corner_uvs(self) -> np.ndarray:
+        """``(F, 3, 2)`` the UV of every corner (mmetric's ``fetchTriangleUVs``); only meaningful with ``has_uvs``."""
+        return self.uvs[self.triangles_uv if len(self.triangles_uv) else self.triangles]
+
+
+def _obj_maps(p: Path, mtllibs: list[tuple[str, int]]) -> tuple[np.ndarray | None, ...]:
+    """The map set mmetric reads for an OBJ: every material of every ``mtllib``, in order, its map or ``None``."""
+    from torchmeshmetric.data.obj import parse_mtl
+
+    maps: list[np.ndarray | None] = []
+    for name, line in mtllibs:
+        mtl = p.parent / name
+        if not mtl.is_file():
+            warnings.warn(
+                f"{p}:{line}: 'mtllib {name}' names a material file that does not exist ({mtl}); as mmetric, the "
+                "comparison goes on without its materials",
+                stacklevel=3,
+            )
+            continue
+        for m in parse_mtl(mtl):
+            image = None
+            if m.map_kd is not None:
+                f = mtl.parent / m.map_kd
+                if f.is_file():
+                    image = read_texture(f, f"{p} (map_Kd at {mtl}:{m.map_line})")
+                else:
+                    warnings.warn(
+                        f"{mtl}:{m.map_line}: the texture '{f}' of material '{m.name}' does not exist; as mmetric, it "
+                        "is compared as a null map",
+                        stacklevel=3,
+                    )
+            maps.append(image)
+    return tuple(maps) or (None,)  # no material: mmetric compares one null map
+
+
+def load_equality_model(path: str | os.PathLike, texture: str | os.PathLike | None = None) -> EqualityModel:
+    r"""Read a mesh file as ``mm compare --mode equ`` reads it, through the library's one reader per format.
+
+    OBJ: ``v`` positions; ``vt`` lines as listed, indexed per corner (a corner without one takes the first, as
+    mmetric's reader does); the ``v x y z r g b`` colours of the vertices that have one, as mmetric scales them
+    (``roundf(value * 255)``); ``vn`` lines as listed, unless a face corner names a normal (``v/vt/vn``, ``v//vn``):
+    mmetric then drops them all. The texture maps are every material of every ``mtllib``, in order (a material
+    without ``map_Kd`` has none), read as mmetric reads them (:func:`~torchmeshmetric.mpeg.read_texture`); a missing
+    MTL or texture file is warned about and, as mmetric does, compared as no map. PLY: ``x y z``, ``red green blue``,
+    ``nx ny nz`` and ``texture_u texture_v`` (per vertex) of a plain PLY; other PLYs, OFF and the other formats give
+    positions and triangles (and colours where trimesh finds them). The positions and triangles are checked as
+    :func:`~torchmeshmetric.data.load_mesh` checks them.
+
+    Args:
+        path: OBJ, PLY or OFF file.
+        texture: a texture image replacing the file's maps (mmetric's ``--inputMap``).
+
+    Returns:
+        :class:`EqualityModel`.
+
+    Raises:
+        MeshFileError: unreadable or malformed file (naming the file and line), a greyscale texture.
+
+    Example:
+        >>> import tempfile, pathlib
+        >>> d = pathlib.Path(tempfile.mkdtemp())
+        >>> _ = (d / "t.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nvn 0 0 1\nvn 0 0 1\nf 1 2 3\n")
+        >>> load_equality_model(d / "t.obj").normals.shape
+        (3, 3)
+    """
+    from torchmeshmetric.data.io import read_mesh_arrays
+    from torchmeshmetric.data.mesh_file import check_dtype_range, check_mesh, existing_mesh_file
+    from torchmeshmetric.data.obj import parse_obj
+    from torchmeshmetric.data.ply import read_plain_ply
+
+    p = existing_mesh_file(path)
+    f32 = torch.float32
+    given = (read_texture(Path(texture), "texture"),) if texture is not None else None
+    if p.suffix.lower() == ".obj":
+        d = parse_obj(p, p.read_bytes(), uvs=True, normals=True)
+        faces, face_uvs = d.triangles()
+        check_mesh(p, d.verts, faces, d.vert_lines)
+        check_dtype_range(p, d.verts, f32, d.vert_lines, "mmetric reads coordinates as float32")
+        what = ("texture coordinate", "values", "'vt' lines")
+        check_dtype_range(p, d.uvs, f32, d.uv_lines, "mmetric reads texture coordinates as float32", what=what)
+        what = ("normal", "values", "'vn' lines")
+        check_dtype_range(p, d.normals, f32, d.normal_lines, "mmetric reads normals as float32", what=what)
+        indexed = face_uvs >= 0
+        return EqualityModel(
+            positions=d.verts.astype(np.float32),
+            triangles=faces,
+            uvs=d.uvs.astype(np.float32),
+            # mmetric keeps the UV index table when any corner has an index; the others index the first UV
+            triangles_uv=np.where(indexed, face_uvs, 0) if indexed.any() else _empty(3, np.int64),
+            colors=_obj_colors(d.color_rows),
+            # "normals with separate index table are not yet supported. Skipping normals." (mmetric's reader)
+            normals=_empty(3) if d.normal_indexed else d.normals.astype(np.float32),
+            textures=given or _obj_maps(p, d.mtllibs),
+        )
+    plain = read_plain_ply(p) if p.suffix.lower() == ".ply" else None
+    if plain is not None:
+        check_mesh(p, plain.verts, plain.faces, None)
+        verts, faces, colors = plain.verts, plain.faces, plain.colors
+    else:
+        verts, faces, colors = read_mesh_arrays(p)
+    check_dtype_range(p, verts, f32, None, "mmetric reads coordinates as float32")
+    extra = {}
+    for name, values in (("normals", getattr(plain, "normals", None)), ("uvs", getattr(plain, "uvs", None))):
+        if values is not None:
+            what = (name[:-1], "values", name)
+            check_dtype_range(p, values, f32, None, f"mmetric reads {name} as float32", what=what)
+            extra[name] = values.astype(np.float32)
+    return EqualityModel(
+        positions=verts.astype(np.float32),
+        triangles=faces,
+        colors=_empty(3) if colors is None else colors.astype(np.float32),
+        textures=given or (None,),
+        **extra,
+    )
 
 
 @dataclass(frozen=True)
@@ -39,8 +261,13 @@ class MeshEquality:
             with its default early return (``None`` when there is none or the counts differ).
         position_differences: positions that differ index by index, plus the difference of the position counts
             (mmetric's "Position differences", printed when the meshes differ).
-        textures: ``"equal"``, ``"skipped"`` (neither mesh has a texture), ``"one missing"``, ``"dimensions"``
-            or ``"<n> pixel differences"``.
+        textures: the texture comparison, one entry per pair of maps where either model has one: ``"equal"``,
+            ``"mapA is null"``, ``"mapB is null"``, ``"dimensions"`` or ``"<n> pixel differences"``; or the single
+            entry ``"set sizes"`` (the models have different numbers of maps) or ``"skipped"`` (neither has a map
+            set at all); empty when neither model has a map.
+        uv_differences: the same for the UV lists ("UV coords differences").
+        color_differences: the same for the colour lists ("Colors differences").
+        normal_differences: the same for the normal lists ("Normals differences").
     """
 
     equal: bool
@@ -49,45 +276,97 @@ class MeshEquality:
     different_triangles: int | None
     first_unmatched: int | None
     position_differences: int
-    textures: str
+    textures: tuple[str, ...]
+    uv_differences: int = 0
+    color_differences: int = 0
+    normal_differences: int = 0
 
     def report(self, early_return: bool = True) -> str:
-        """The verdict in mmetric's words (the lines its regression scripts look for).
+        """Every line mmetric's ``compare --mode equ`` prints between ``Epsilon = 0`` and its timing.
 
         Args:
             early_return: as mmetric's ``--earlyReturn`` (default true): name the first unmatched triangle
-                instead of counting them all.
+                instead of counting them all (and the lists' differences).
 
         Returns:
             One or more lines, without a trailing newline.
 
         Example:
-            >>> MeshEquality(True, 4, 4, 0, None, 0, "skipped").report()
-            'meshes are equal'
+            >>> print(MeshEquality(False, 4, 4, 1, 2, 0, ("7 pixel differences",), 0, 0, 3).report(False))
+            texture maps are not equal: 7pixel differences
+            meshes are not equal, 1 different triangles
+            Position differences: 0
+            UV coords differences: 0
+            Colors differences: 0
+            Normals differences: 3
         """
+        lines = [_texture_line(t) for t in self.textures]
         if self.different_triangles is None:
-            return f"meshes are not equal, number of triangles are different {self.triangles_a} vs {self.triangles_b}"
-        if self.equal:
-            return "meshes are equal"
-        if early_return:
-            return (
-                "meshes are not equal, early return.\n"
-                f"triangle number {self.first_unmatched} from A has no equivalent in B"
+            lines.append(
+                f"meshes are not equal, number of triangles are different {self.triangles_a} vs {self.triangles_b}"
             )
-        return (
-            f"meshes are not equal, {self.different_triangles} different triangles\n"
-            f"Position differences: {self.position_differences}"
-        )
+        elif self.equal:
+            lines.append("meshes are equal")
+        elif early_return:
+            lines += [
+                "meshes are not equal, early return.",
+                f"triangle number {self.first_unmatched} from A has no equivalent in B",
+            ]
+        else:
+            lines += [
+                f"meshes are not equal, {self.different_triangles} different triangles",
+                f"Position differences: {self.position_differences}",
+                f"UV coords differences: {self.uv_differences}",
+                f"Colors differences: {self.color_differences}",
+                f"Normals differences: {self.normal_differences}",
+            ]
+        return "\n".join(lines)
 
 
-def _corner_rows(m: TexturedMesh, with_uv: bool, with_colour: bool) -> np.ndarray:
-    """``(F, 3, D)`` float32 corner attributes: position, then UV and colour when compared."""
-    faces = m.mesh.faces.numpy()
-    parts = [m.mesh.verts.numpy().astype(np.float32)[faces]]
-    if with_uv and m.uvs is not None:
-        parts.append(m.uvs.numpy().astype(np.float32))
-    if with_colour and m.colors is not None:
-        parts.append(m.colors.numpy().astype(np.float32)[faces])
+def _texture_line(status: str) -> str:
+    """The line mmetric prints for one entry of :attr:`MeshEquality.textures` (its spelling, its missing space)."""
+    if status == "set sizes":
+        return "texture maps are not of equal: size of set A is diffrent from size of set B"
+    if status == "skipped":
+        return "skipping texture maps comparison"
+    if status == "equal":
+        return "texture maps are equal"
+    if status == "dimensions":
+        return "texture maps are not equal: dimensions are not equal"
+    if status.endswith(" pixel differences"):
+        return f"texture maps are not equal: {status.split()[0]}pixel differences"
+    return f"texture maps are not equal: {status}"
+
+
+def _as_model(m: EqualityModel | TexturedMesh | MeshLike, name: str) -> EqualityModel:
+    """An :class:`EqualityModel` as it is; a textured (or plain) mesh with its per-corner UVs and its one map."""
+    if isinstance(m, EqualityModel):
+        return m
+    t = as_textured_mesh(m, name)
+    faces = t.mesh.faces.detach().cpu().numpy()
+    uvs, tuv = _empty(2), _empty(3, np.int64)
+    if t.uvs is not None:
+        uvs = t.uvs.detach().cpu().numpy().reshape(-1, 2)
+        tuv = np.arange(3 * faces.shape[0], dtype=np.int64).reshape(-1, 3)
+    return EqualityModel(
+        positions=t.mesh.verts.detach().cpu().numpy().astype(np.float32),
+        triangles=faces,
+        uvs=uvs,
+        triangles_uv=tuv,
+        colors=t.colors.detach().cpu().numpy() if t.colors is not None else _empty(3),
+        textures=(t.texture,),
+    )
+
+
+def _corner_rows(m: EqualityModel, with_uv: bool, with_colour: bool, with_normal: bool) -> np.ndarray:
+    """``(F, 3, D)`` float32 corner attributes: position, then UV, colour and normal when compared."""
+    parts = [m.positions[m.triangles]]
+    if with_uv:
+        parts.append(m.corner_uvs())
+    if with_colour:
+        parts.append(m.colors[m.triangles])
+    if with_normal:
+        parts.append(m.normals[m.triangles])
     # + 0.0 turns -0.0 into 0.0: C++ float == holds between them, and np.unique must see one value
     return np.concatenate(parts, axis=2) + np.float32(0.0)
 
@@ -113,32 +392,41 @@ def _canonical(ids: np.ndarray, unoriented: bool) -> np.ndarray:
     return _lexicographic_min(np.stack([np.stack(o, axis=1) for o in orders], axis=1))
 
 
-def _texture_status(a: TexturedMesh, b: TexturedMesh) -> str:
-    if a.texture is None and b.texture is None:
-        return "skipped"
-    if a.texture is None or b.texture is None:
-        return "one missing"
-    if a.texture.shape != b.texture.shape:
-        return "dimensions"
-    diffs = int(np.any(a.texture != b.texture, axis=2).sum())
-    return "equal" if diffs == 0 else f"{diffs} pixel differences"
+def _texture_status(a: tuple[np.ndarray | None, ...], b: tuple[np.ndarray | None, ...]) -> tuple[str, ...]:
+    """The map sets compared pair by pair, as mmetric does (RGB texel by texel, when the dimensions agree)."""
+    if len(a) != len(b):
+        return ("set sizes",)
+    if not a:
+        return ("skipped",)
+    out = []
+    for ma, mb in zip(a, b, strict=True):
+        if ma is None and mb is None:
+            continue  # mmetric prints nothing for two null maps
+        if ma is None or mb is None:
+            out.append("mapA is null" if ma is None else "mapB is null")
+        elif ma.shape != mb.shape:
+            out.append("dimensions")
+        else:
+            diffs = int(np.any(ma != mb, axis=2).sum())
+            out.append("equal" if diffs == 0 else f"{diffs} pixel differences")
+    return tuple(out)
 
 
-def _position_differences(a: TexturedMesh, b: TexturedMesh) -> int:
-    pa, pb = a.mesh.verts.numpy().astype(np.float32), b.mesh.verts.numpy().astype(np.float32)
-    n = min(len(pa), len(pb))
-    return abs(len(pa) - len(pb)) + int(np.any(pa[:n] != pb[:n], axis=1).sum())
-
-
-def mesh_equality(a: TexturedMesh | MeshLike, b: TexturedMesh | MeshLike, unoriented: bool = False) -> MeshEquality:
+def mesh_equality(
+    a: EqualityModel | TexturedMesh | MeshLike, b: EqualityModel | TexturedMesh | MeshLike, unoriented: bool = False
+) -> MeshEquality:
     """Whether two meshes have the same triangles in any order, as mmetric's ``compare --mode equ`` decides.
 
-    Corners are compared by position, and by UV (resp. colour) when both meshes have UVs (resp. per-vertex
-    colours), all as float32 values; a triangle equals another when its corners are a rotation of the other's (or
-    also a reflection with ``unoriented``). Each triangle of B matches at most one triangle of A.
+    Corners are compared by position, and by UV (resp. colour, normal) when both meshes have UVs (resp. colours,
+    normals) -- per corner or per position, see :class:`EqualityModel` --, all as float32 values; a triangle equals
+    another when its corners are a rotation of the other's (or also a reflection with ``unoriented``). Each
+    triangle of B matches at most one triangle of A. The texture maps are compared too (they do not change the
+    verdict, as in mmetric), and the position, UV, colour and normal lists index by index.
 
     Args:
-        a: reference mesh (mmetric's ``--inputModelA``), e.g. from :func:`load_textured_mesh`.
+        a: reference mesh (mmetric's ``--inputModelA``): :func:`load_equality_model` reads a file as mmetric does;
+            a :class:`~torchmeshmetric.mpeg.TexturedMesh` (or any mesh form) gives its own arrays (UVs per corner,
+            its texture as its one map, no normals).
         b: distorted mesh (``--inputModelB``).
         unoriented: mmetric's ``--unoriented``: a triangle also equals its reversed copy.
 
@@ -146,7 +434,7 @@ def mesh_equality(a: TexturedMesh | MeshLike, b: TexturedMesh | MeshLike, unorie
         EmptyInputError: a mesh without triangles.
 
     Returns:
-        :class:`MeshEquality` (the verdict, counts and mmetric's message through ``report()``).
+        :class:`MeshEquality` (the verdict, counts and mmetric's lines through ``report()``).
 
     Example:
         >>> import torch
@@ -160,21 +448,25 @@ def mesh_equality(a: TexturedMesh | MeshLike, b: TexturedMesh | MeshLike, unorie
         meshes are not equal, early return.
         triangle number 0 from A has no equivalent in B
     """
-    a, b = as_textured_mesh(a, "a"), as_textured_mesh(b, "b")
+    a, b = _as_model(a, "a"), _as_model(b, "b")
     for name, m in (("a", a), ("b", b)):
-        if m.mesh.faces.shape[0] == 0:  # no triangle to compare: "equal" would say nothing about the vertices
+        if m.triangles.shape[0] == 0:  # no triangle to compare: "equal" would say nothing about the vertices
             raise EmptyInputError(
-                f"{name}: expected a mesh with triangles, found {m.mesh.verts.shape[0]} vertices and no face (mm "
-                "compares vertex-only models by their vertex lists instead: compare a.mesh.verts and b.mesh.verts)"
+                f"{name}: expected a mesh with triangles, found {m.positions.shape[0]} vertices and no face (mm "
+                "compares vertex-only models by their vertex lists instead: compare their positions)"
             )
-    fa, fb = int(a.mesh.faces.shape[0]), int(b.mesh.faces.shape[0])
-    textures = _texture_status(a, b)
-    positions = _position_differences(a, b)
+    fa, fb = int(a.triangles.shape[0]), int(b.triangles.shape[0])
+    textures = _texture_status(a.textures, b.textures)
+    lists = {
+        "position_differences": _differences(a.positions, b.positions),
+        "uv_differences": _differences(a.uvs, b.uvs),
+        "color_differences": _differences(a.colors, b.colors),
+        "normal_differences": _differences(a.normals, b.normals),
+    }
     if fa != fb:
-        return MeshEquality(False, fa, fb, None, None, positions, textures)
-    with_uv = a.uvs is not None and b.uvs is not None
-    with_colour = a.colors is not None and b.colors is not None
-    rows = np.concatenate([_corner_rows(a, with_uv, with_colour), _corner_rows(b, with_uv, with_colour)])
+        return MeshEquality(False, fa, fb, None, None, textures=textures, **lists)
+    flags = (a.has_uvs and b.has_uvs, a.has_colors and b.has_colors, a.has_normals and b.has_normals)
+    rows = np.concatenate([_corner_rows(a, *flags), _corner_rows(b, *flags)])
     _, corner_ids = np.unique(rows.reshape(-1, rows.shape[2]), axis=0, return_inverse=True)
     canonical = _canonical(corner_ids.reshape(-1, 3), unoriented)
     _, cls = np.unique(canonical, axis=0, return_inverse=True)
@@ -189,4 +481,4 @@ def mesh_equality(a: TexturedMesh | MeshLike, b: TexturedMesh | MeshLike, unorie
     rank[order] = np.arange(fa) - starts
     unmatched = np.nonzero(rank >= in_b[cls_a])[0]
     first = int(unmatched[0]) if unmatched.size else None
-    return MeshEquality(unmatched.size == 0, fa, fb, int(unmatched.size), first, positions, textures)
+    return MeshEquality(unmatched.size == 0, fa, fb, int(unmatched.size), first, textures=textures, **lists)

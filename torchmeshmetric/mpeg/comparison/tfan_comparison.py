@@ -73,9 +73,20 @@ class TfanMesh:
             object.__setattr__(self, name, value)
 
 
-def _table(name: str, value: object, cols: int, *, integer: bool, indexes: tuple[str, int] | None = None) -> np.ndarray:
-    """One :class:`TfanMesh` table as a ``(N, cols)`` array: integer indices inside ``indexes``, or finite float32."""
-    where = f"TfanMesh.{name}"
+def _table(
+    name: str,
+    value: object,
+    cols: int,
+    *,
+    integer: bool,
+    indexes: tuple[str, int] | None = None,
+    owner: str = "TfanMesh",
+) -> np.ndarray:
+    """One table of an mmetric model as a ``(N, cols)`` array: integer indices inside ``indexes``, or finite float32.
+
+    ``owner`` names the model in messages (:class:`TfanMesh`, ``EqualityModel``).
+    """
+    where = f"{owner}.{name}"
     arr = np.asarray(value.detach().cpu().numpy() if isinstance(value, Tensor) else value)
     if arr.size == 0 and arr.ndim < 2:
         arr = arr.reshape(0, cols)
