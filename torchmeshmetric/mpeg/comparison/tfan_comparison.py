@@ -19,7 +19,6 @@ reads past the end of a list (fans missing for an iteration) :class:`TfanUndefin
 from __future__ import annotations
 
 import os
-import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -114,10 +113,6 @@ def _table(
     return arr
 
 
-_VN = re.compile(rb"^[ \t]*vn[ \t]+(\S+)[ \t]+(\S+)[ \t]+(\S+)", re.MULTILINE)
-_FACE_NORMAL_INDEX = re.compile(rb"^[ \t]*f[ \t]+\S*/\S*/\S", re.MULTILINE)
-
-
 def load_tfan_mesh(path: str | os.PathLike) -> TfanMesh:
     r"""Read an OBJ (or PLY / OFF) file with its index tables as written (what ``eqTFAN`` compares).
 
@@ -132,25 +127,21 @@ def load_tfan_mesh(path: str | os.PathLike) -> TfanMesh:
     from torchmeshmetric.data.io import read_mesh_arrays
     from torchmeshmetric.data.mesh_file import check_mesh, existing_mesh_file
     from torchmeshmetric.data.obj import parse_obj
+    from torchmeshmetric.mpeg.core.textured_mesh import _obj_colors
 
     p = existing_mesh_file(path)
     if p.suffix.lower() != ".obj":
         verts, faces, colors = read_mesh_arrays(p)
         col = np.zeros((0, 3), np.float32) if colors is None else np.asarray(colors, np.float32)
         return TfanMesh(np.asarray(verts, np.float32), np.asarray(faces, np.int64), colors=col)
-    raw = p.read_bytes()
-    d = parse_obj(p, raw, uvs=True)
+    d = parse_obj(p, p.read_bytes(), uvs=True, normals=True)
     faces, face_uvs = d.triangles()
     check_mesh(p, d.verts, faces, d.vert_lines)
     has_uv = bool((face_uvs >= 0).any())
-    cols = np.zeros((0, 3), np.float32)
-    if d.vert_colors is not None:
-        scaled = d.vert_colors.astype(np.float32) * np.float32(255.0)
-        cols = (np.sign(scaled) * np.floor(np.abs(scaled) + np.float32(0.5))).astype(np.float32)
+    cols = np.zeros((0, 3), np.float32) if d.vert_colors is None else _obj_colors(d.vert_colors)
     normals = np.zeros((0, 3), np.float32)
-    if not _FACE_NORMAL_INDEX.search(raw):  # mmetric drops normals that have their own index table
-        rows = [[float(x) for x in m.groups()] for m in _VN.finditer(raw)]
-        normals = np.asarray(rows, np.float32).reshape(-1, 3)
+    if not d.normal_indexed:  # mmetric drops normals that have their own index table
+        normals = d.normals.astype(np.float32)
     return TfanMesh(
         positions=d.verts.astype(np.float32),
         triangles=faces.astype(np.int64),
