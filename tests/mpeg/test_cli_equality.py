@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from torchmeshmetric._checks import DTypeError, IndexRangeError, ShapeError
 from torchmeshmetric.cli import main
+from torchmeshmetric.mpeg import EqualityModel, mesh_equality
 
 QUAD = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
 
@@ -113,3 +115,32 @@ def test_every_line_of_a_hand_built_pair(tmp_path: Path, capsys: pytest.CaptureF
     ]
     assert main(["mpeg", a, d, "--mode", "equ", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["textures"] == ["mapB is null"]
+
+
+def test_equality_model_tables_and_map_sets() -> None:
+    """The model's tables are checked when built (naming the field); map sets of other sizes, or both empty, give
+    mmetric's set-level lines (``Compare::equ``: "not of equal: size of set A ..." / "skipping texture maps
+    comparison"), a per-position UV list is compared through the position indices."""
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], np.float32)
+    f = np.array([[0, 1, 2], [0, 2, 3]])
+    with pytest.raises(IndexRangeError, match=r"EqualityModel.triangles: expected indices of positions in \[0, 3\]"):
+        EqualityModel(v, f + 1)
+    with pytest.raises(ShapeError, match=r"EqualityModel.triangles_uv: expected 0 or 2 rows"):
+        EqualityModel(v, f, uvs=np.zeros((4, 2)), triangles_uv=np.zeros((1, 3), np.int64))
+    with pytest.raises(DTypeError, match=r"EqualityModel.textures\[0\]: expected an \(H, W, 3\) uint8"):
+        EqualityModel(v, f, textures=(np.zeros((2, 2, 3)),))
+    img = np.zeros((2, 2, 3), np.uint8)
+    assert mesh_equality(EqualityModel(v, f, textures=()), EqualityModel(v, f, textures=())).report() == (
+        "skipping texture maps comparison\nmeshes are equal"
+    )
+    two = EqualityModel(v, f, textures=(img, None))
+    assert mesh_equality(two, EqualityModel(v, f, textures=(img,))).textures == ("set sizes",)
+    assert mesh_equality(two, two).textures == ("equal",)  # a pair of null maps prints nothing
+    uv = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], np.float32)
+    a, b = EqualityModel(v, f, uvs=uv), EqualityModel(v, f, uvs=uv[[0, 1, 2, 0]])
+    assert a.has_uvs and mesh_equality(a, b).report(False).splitlines()[:4] == [
+        "meshes are not equal, 1 different triangles",
+        "Position differences: 0",
+        "UV coords differences: 1",
+        "Colors differences: 0",
+    ]

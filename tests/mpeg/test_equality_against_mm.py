@@ -50,7 +50,6 @@ def _ours(a: Path, b: Path, unoriented: bool, early: bool, maps: tuple[Path | No
 
 def _all_pairs(paths: list[Path]) -> None:
     """Every ordered pair (each file with itself too) under the four option sets: mm's lines, all of them."""
-    models = {}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
         models = {p: load_equality_model(p) for p in paths}
