@@ -578,28 +578,225 @@ bool is_double(const torch::Tensor& x, const char* who) {
   return false;
 }
 
-// Farthest-point sampling from `start` until every point is within sqrt(s2) of a chosen one: the operations of
-// deformation_graph.farthest_point_nodes (squared distances (dx*dx + dy*dy) + dz*dz, running minimum, first
-// maximum), one thread: ~N passes over the points without a parallel region each.
+// Farthest-point sampling from `start` until every point is within sqrt(s2) of a chosen one: the choices of the loop
+// of deformation_graph._fps, bit for bit. dmin[i] is the running minimum std::min(dmin[i], sq(i, c)) over the chosen
+// centres c, sq the squared distance with the loop's operations (dx*dx + dy*dy) + dz*dz (dx = p_i - c, no fused
+// multiply-add: -ffp-contract=off); each choice is the first maximum of dmin (the first NaN, if any, as torch's
+// argmax), and the sampling stops when double(dmin[far]) <= s2.
+//
+// The same values from less work: the points sit in the leaves of a k-d tree (median splits of the longest side, at
+// most FPS_LEAF points a leaf, each leaf in index order), each node holding the box of its points' coordinates and
+// the maximum of its points' dmin with the lowest index attaining it. A new centre c leaves a node alone when
+// L >= dmax, L the lower bound below computed from the box. That skip changes no bit: it needs sq(i, c) >= dmin[i]
+// (then std::min keeps dmin[i]) for every point i of the node, and L is no margin-padded estimate but a bound on the
+// *computed* sq. Per axis, g = lo - c where c < lo, g = hi - c where c > hi, else 0, with the operation sq does
+// (p_i - c, rounded in T); L = (gx*gx + gy*gy) + gz*gz in T in sq's order. Rounding is monotone (x <= y gives
+// fl(x) <= fl(y), whatever the rounding mode, subnormals flushed or not), so lo <= p_i (c < lo) gives
+// fl(p_i - c) >= fl(lo - c) >= 0, hi >= p_i (c > hi) gives fl(p_i - c) <= fl(hi - c) <= 0, and in both cases
+// |dx| >= |g|, so fl(dx*dx) >= fl(g*g) (and fl(dx*dx) >= 0 = fl(g*g) where c is inside); each addition of
+// nonnegative terms is monotone too, so sq(i, c) >= L >= dmax >= dmin[i]. A NaN coordinate makes sq(i, c) NaN,
+// which std::min never takes: the box ignores NaN coordinates, and a NaN bound or a NaN dmax (nothing compares
+// true) never skips. The maximum is then the root's: the nodes merge their children's (value, index) with the
+// loop's order (NaN first, then the larger value, then the lower index), and a leaf scans its points in index order
+// as the loop does. One thread: the registration calls it between its own parallel phases.
+constexpr int64_t FPS_LEAF = 128;
+
 template <typename T>
-std::vector<int64_t> fps_impl(const T* p, int64_t n, int64_t start, double s2) {
-  std::vector<int64_t> chosen{start};
-  std::vector<T> dmin(n);
-  auto sq = [p](int64_t i, int64_t j) {
-    const T dx = p[3 * i] - p[3 * j], dy = p[3 * i + 1] - p[3 * j + 1], dz = p[3 * i + 2] - p[3 * j + 2];
+struct FpsNode {
+  T lo[3], hi[3];  // the box of the node's coordinates (NaN ones left out; lo > hi on an axis with none)
+  T dmax;  // the largest dmin of the node's points in the loop's order (NaN if any is NaN)
+  int64_t arg;  // the lowest point index attaining dmax
+  int64_t begin, end;  // the node's points: tree-order slots [begin, end)
+  int32_t left, right;  // children, -1 for a leaf
+};
+
+// (a, ia) comes before (b, ib) in the order the loop's argmax takes: NaN first, then the larger value, then the
+// lower index.
+template <typename T>
+inline bool fps_before(T a, int64_t ia, T b, int64_t ib) {
+  const bool na = std::isnan(a), nb = std::isnan(b);
+  if (na != nb) return na;
+  if (!na && a != b) return a > b;
+  return ia < ib;
+}
+
+template <typename T>
+class FpsTree {
+ public:
+  FpsTree(const T* p, int64_t n) : p_(p), idx_(n), x_(n), y_(n), z_(n), d_(n) {
+    std::vector<Pt> pts(n);
+    T lo[3], hi[3];
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = std::numeric_limits<T>::infinity();
+      hi[a] = -std::numeric_limits<T>::infinity();
+    }
+    for (int64_t i = 0; i < n; ++i) {
+      pts[i] = {{p[3 * i], p[3 * i + 1], p[3 * i + 2]}, i};
+      for (int a = 0; a < 3; ++a) {
+        lo[a] = pts[i].c[a] < lo[a] ? pts[i].c[a] : lo[a];
+        hi[a] = pts[i].c[a] > hi[a] ? pts[i].c[a] : hi[a];
+      }
+    }
+    nodes_.reserve(static_cast<size_t>(4 * (n / FPS_LEAF + 1)));
+    build(pts, 0, n, lo, hi);
+    for (int64_t k = 0; k < n; ++k) {
+      idx_[k] = pts[k].i;
+      x_[k] = pts[k].c[0];
+      y_[k] = pts[k].c[1];
+      z_[k] = pts[k].c[2];
+    }
+  }
+
+  // dmin = sq(., c) for the first centre.
+  void reset(int64_t c) {
+    set_centre(c);
+    reset_node(0);
+  }
+
+  // dmin = min(dmin, sq(., c)) for a new centre.
+  void add(int64_t c) {
+    set_centre(c);
+    add_node(0);
+  }
+
+  // The first maximum of dmin: its value and index.
+  T dmax() const { return nodes_[0].dmax; }
+  int64_t arg() const { return nodes_[0].arg; }
+
+ private:
+  struct Pt {
+    T c[3];
+    int64_t i;
+  };
+
+  // The node of the points pts[begin, end) inside the cell [clo, chi] (the bounds of the splits above, which choose
+  // the axis: the cell's longest side); its box, the tight one, is made from its points (a leaf) or its children's.
+  int32_t build(std::vector<Pt>& pts, int64_t begin, int64_t end, const T* clo, const T* chi) {
+    const int32_t id = static_cast<int32_t>(nodes_.size());
+    nodes_.emplace_back();
+    FpsNode<T> nd;
+    nd.begin = begin;
+    nd.end = end;
+    nd.left = nd.right = -1;
+    if (end - begin <= FPS_LEAF) {
+      // Index order: a leaf's scan meets ties as the loop does.
+      std::sort(pts.begin() + begin, pts.begin() + end, [](const Pt& a, const Pt& b) { return a.i < b.i; });
+      for (int a = 0; a < 3; ++a) {
+        nd.lo[a] = std::numeric_limits<T>::infinity();
+        nd.hi[a] = -std::numeric_limits<T>::infinity();
+      }
+      for (int64_t k = begin; k < end; ++k)
+        for (int a = 0; a < 3; ++a) {
+          const T v = pts[k].c[a];
+          if (v < nd.lo[a]) nd.lo[a] = v;  // a NaN compares false: left out
+          if (v > nd.hi[a]) nd.hi[a] = v;
+        }
+    } else {
+      int axis = 0;
+      for (int a = 1; a < 3; ++a)
+        if (chi[a] - clo[a] > chi[axis] - clo[axis]) axis = a;
+      const int64_t mid = begin + (end - begin) / 2;
+      // A strict weak order with NaN after every number (std::less is none with NaN).
+      std::nth_element(pts.begin() + begin, pts.begin() + mid, pts.begin() + end, [axis](const Pt& p, const Pt& q) {
+        const T a = p.c[axis], b = q.c[axis];
+        return a < b || (std::isnan(b) && !std::isnan(a));
+      });
+      T lhi[3] = {chi[0], chi[1], chi[2]}, rlo[3] = {clo[0], clo[1], clo[2]};
+      lhi[axis] = rlo[axis] = pts[mid].c[axis];
+      nd.left = build(pts, begin, mid, clo, lhi);
+      nd.right = build(pts, mid, end, rlo, chi);
+      const FpsNode<T>& l = nodes_[nd.left];
+      const FpsNode<T>& r = nodes_[nd.right];
+      for (int a = 0; a < 3; ++a) {
+        nd.lo[a] = r.lo[a] < l.lo[a] ? r.lo[a] : l.lo[a];
+        nd.hi[a] = r.hi[a] > l.hi[a] ? r.hi[a] : l.hi[a];
+      }
+    }
+    nodes_[id] = nd;
+    return id;
+  }
+
+  void set_centre(int64_t c) {
+    cx_ = p_[3 * c];
+    cy_ = p_[3 * c + 1];
+    cz_ = p_[3 * c + 2];
+  }
+
+  // The leaf's maximum in the loop's order: its points are in index order, so the loop's own scan.
+  void scan(FpsNode<T>& nd) const {
+    int64_t far = nd.begin;
+    for (int64_t k = nd.begin + 1; k < nd.end; ++k)
+      if (d_[k] > d_[far] || (std::isnan(d_[k]) && !std::isnan(d_[far]))) far = k;
+    nd.dmax = d_[far];
+    nd.arg = idx_[far];
+  }
+
+  void merge(FpsNode<T>& nd) const {
+    const FpsNode<T>& l = nodes_[nd.left];
+    const FpsNode<T>& r = nodes_[nd.right];
+    const bool right = fps_before(r.dmax, r.arg, l.dmax, l.arg);
+    nd.dmax = right ? r.dmax : l.dmax;
+    nd.arg = right ? r.arg : l.arg;
+  }
+
+  // sq(i, c) with the loop's operations, i a tree-order slot.
+  T sq(int64_t k) const {
+    const T dx = x_[k] - cx_, dy = y_[k] - cy_, dz = z_[k] - cz_;
     T s = dx * dx;
     s += dy * dy;
     s += dz * dz;
     return s;
-  };
-  for (int64_t i = 0; i < n; ++i) dmin[i] = sq(i, start);
+  }
+
+  void reset_node(int32_t id) {
+    FpsNode<T>& nd = nodes_[id];
+    if (nd.left < 0) {
+      for (int64_t k = nd.begin; k < nd.end; ++k) d_[k] = sq(k);
+      scan(nd);
+    } else {
+      reset_node(nd.left);
+      reset_node(nd.right);
+      merge(nd);
+    }
+  }
+
+  // The box's bound on sq(i, c) for every point i of the node (see above): the gap per axis as sq rounds p_i - c.
+  static T gap(T c, T lo, T hi) { return c < lo ? lo - c : (c > hi ? hi - c : T(0)); }
+
+  void add_node(int32_t id) {
+    FpsNode<T>& nd = nodes_[id];
+    const T gx = gap(cx_, nd.lo[0], nd.hi[0]), gy = gap(cy_, nd.lo[1], nd.hi[1]), gz = gap(cz_, nd.lo[2], nd.hi[2]);
+    T bound = gx * gx;
+    bound += gy * gy;
+    bound += gz * gz;
+    if (bound >= nd.dmax) return;  // no dmin of the node changes (false on a NaN: visited)
+    if (nd.left < 0) {
+      for (int64_t k = nd.begin; k < nd.end; ++k) d_[k] = std::min(d_[k], sq(k));
+      scan(nd);
+    } else {
+      add_node(nd.left);
+      add_node(nd.right);
+      merge(nd);
+    }
+  }
+
+  const T* p_;
+  std::vector<int64_t> idx_;  // the point index of each tree-order slot
+  std::vector<T> x_, y_, z_, d_;  // coordinates and dmin in tree order
+  std::vector<FpsNode<T>> nodes_;  // nodes_[0] is the root
+  T cx_ = 0, cy_ = 0, cz_ = 0;  // the current centre
+};
+
+template <typename T>
+std::vector<int64_t> fps_impl(const T* p, int64_t n, int64_t start, double s2) {
+  std::vector<int64_t> chosen{start};
+  FpsTree<T> tree(p, n);
+  tree.reset(start);
   for (;;) {
-    int64_t far = 0;
-    for (int64_t i = 1; i < n; ++i)
-      if (dmin[i] > dmin[far] || (std::isnan(dmin[i]) && !std::isnan(dmin[far]))) far = i;
-    if (static_cast<double>(dmin[far]) <= s2) break;  // compared in double, as float(dmin[far]) <= s2
+    if (static_cast<double>(tree.dmax()) <= s2) break;  // compared in double, as float(dmin[far]) <= s2
+    const int64_t far = tree.arg();
     chosen.push_back(far);
-    for (int64_t i = 0; i < n; ++i) dmin[i] = std::min(dmin[i], sq(i, far));
+    tree.add(far);
   }
   return chosen;
 }
@@ -776,6 +973,9 @@ TORCH_LIBRARY(torchmeshmetric_registration, m) {
 
 torch::Tensor farthest_point_sampling(torch::Tensor points, int64_t start, double spacing2) {
   TORCH_CHECK(points.is_contiguous() && points.device().is_cpu(), "farthest_point_sampling: contiguous CPU points");
+  TORCH_CHECK(points.dim() == 2 && points.size(1) == 3 && points.size(0) > 0,
+              "farthest_point_sampling: (N, 3) points with N >= 1 expected");
+  TORCH_CHECK(start >= 0 && start < points.size(0), "farthest_point_sampling: start out of range");
   std::vector<int64_t> out;
   if (is_double(points, "farthest_point_sampling"))
     out = fps_impl<double>(points.data_ptr<double>(), points.size(0), start, spacing2);
