@@ -180,3 +180,25 @@ def test_arguments_are_checked() -> None:
         ext.farthest_point_sampling(torch.zeros(4, 2, dtype=torch.float64), 0, 0.0)
     with pytest.raises(RuntimeError, match="start out of range"):
         ext.farthest_point_sampling(torch.zeros(4, 3, dtype=torch.float64), 4, 0.0)
+
+
+@pytest.mark.parametrize("bad", [float("nan"), float("inf"), -float("inf")])
+def test_a_non_finite_coordinate_is_refused_not_looped_on(bad: float) -> None:
+    """A NaN or Inf coordinate never let the sampling stop: the C++ and the torch loop ran forever, growing."""
+    from torchmeshmetric._checks import NonFiniteError
+
+    p = torch.rand(50, 3, dtype=torch.float64, generator=torch.Generator().manual_seed(0))
+    p[17, 1] = bad
+    with pytest.raises(NonFiniteError, match=r"points: expected finite values, found 1 NaN/Inf"):
+        graph.farthest_point_nodes(p, 0.1)
+    with pytest.raises(NonFiniteError, match=r"points: expected finite values, found 1 NaN/Inf"):
+        graph.farthest_point_nodes(p, 0.1, canonical=True)
+    with pytest.raises(NonFiniteError, match=r"points: expected finite values, found 1 NaN/Inf"):
+        graph.canonical_farthest_points(p, 10, 1.0)
+
+
+@pytest.mark.parametrize("spacing", [float("nan"), -0.1, float("inf")])
+def test_a_spacing_that_is_no_radius_is_refused(spacing: float) -> None:
+    p = torch.rand(50, 3, dtype=torch.float64, generator=torch.Generator().manual_seed(0))
+    with pytest.raises(ValueError, match=r"spacing: expected a finite covering radius >= 0"):
+        graph.farthest_point_nodes(p, spacing)

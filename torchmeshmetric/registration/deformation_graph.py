@@ -105,7 +105,13 @@ def canonical_farthest_points(points: Tensor, count: int, area: float) -> Tensor
     Returns:
         ``(min(count, P),)`` int64 indices into ``points``, in the farthest-point order (the canonical order of the
         points when ``count >= P``; each distinct point once when there are no more distinct points than ``count``).
+
+    Raises:
+        NonFiniteError: a NaN or Inf coordinate (the sampling would never stop).
     """
+    # A NaN or Inf coordinate never lets farthest-point sampling stop (its distances never fall within the radius):
+    # the loop ran forever, its list of choices growing (found 2026-12-07).
+    check_finite(points, "points")
     p = points.detach()
     n = p.shape[0]
     if count >= n:
@@ -142,9 +148,17 @@ def farthest_point_nodes(points: Tensor, spacing: float, *, canonical: bool = Fa
 
     Returns:
         ``(N,)`` int64 indices into ``points``, ``N >= 1``.
+
+    Raises:
+        EmptyInputError: no point.
+        NonFiniteError: a NaN or Inf coordinate (the sampling would never stop).
+        ValueError: a ``spacing`` that is negative or not finite.
     """
     if points.shape[0] == 0:
         raise EmptyInputError("points: expected at least one candidate node position, found none")
+    check_finite(points, "points")  # a NaN or Inf never lets the sampling stop (canonical_farthest_points)
+    if not math.isfinite(spacing) or spacing < 0:
+        raise ValueError(f"spacing: expected a finite covering radius >= 0, found {spacing!r}")
     p = points.detach()
     if canonical:
         order, q, start = _canonical_start(p)
