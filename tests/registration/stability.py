@@ -32,11 +32,12 @@ PERTURBATIONS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
 
 
 def _evaluate(
-    simplified: tuple[Any, Any], k: tuple[Any, Any], km1: tuple[Any, Any], threads: int, seed: int
+    simplified: tuple[Any, Any], k: tuple[Any, Any], km1: tuple[Any, Any], threads: int, seed: int, sampling: str
 ) -> dict[str, Any]:
     km1_t = (torch.as_tensor(km1[0]), torch.as_tensor(km1[1]))
     k_t = (torch.as_tensor(k[0]), torch.as_tensor(k[1]))
-    reg = register_nonrigid(km1_t, k_t, num_threads=threads, generator=torch.Generator().manual_seed(seed))
+    generator = torch.Generator().manual_seed(seed)
+    reg = register_nonrigid(km1_t, k_t, num_threads=threads, generator=generator, sampling=sampling)
     result = evaluate_pair(simplified[0], k_t, km1_t, precomputed_registration=reg, simplified_k_minus_1=simplified[1])
     stats = {name: {s: float(getattr(st, s)) for s in STATISTICS} for name, st in result.statistics.items()}
     return {"verts": reg.verts, "stats": stats, "converged": reg.converged}
@@ -50,6 +51,7 @@ def stability(
     perturbations: tuple[str, ...] = tuple(PERTURBATIONS),
     threads: tuple[int, ...] = (2,),
     seed: int = 0,
+    sampling: str = "index",
 ) -> dict[str, dict[str, Any]]:
     """Per perturbation: the registered vertices' largest movement (fraction of frame k's diagonal) and, per set, the
     largest relative change among :data:`STATISTICS`.
@@ -57,19 +59,20 @@ def stability(
     The simplified frames (QEM at ``target`` of the faces) are made once from the unperturbed frames; only frame
     k-1, the registration's source, is perturbed. ``threads``: the unperturbed pair registered on these thread
     counts too (the reference runs on one). ``seed``: the registration's generator seed (its random draws: data
-    points, target samples, ICP points), the same for every run compared.
+    points, target samples, ICP points), the same for every run compared. ``sampling``: ``NonRigidOptions.sampling``
+    (``"index"``, ``register_nonrigid``'s default, or ``"canonical"``, the evaluation's: ``REGISTRATION_SAMPLING``).
     """
     k_v, k_f = original_k
     km1_v, km1_f = original_k_minus_1
     simp_k = simplify_qem((torch.tensor(k_v), torch.tensor(k_f)), target)
     simp_km1 = simplify_qem((torch.tensor(km1_v), torch.tensor(km1_f)), target)
     diag = float(np.linalg.norm(k_v.max(0) - k_v.min(0)))
-    base = _evaluate((simp_k, simp_km1), original_k, original_k_minus_1, 1, seed)
+    base = _evaluate((simp_k, simp_km1), original_k, original_k_minus_1, 1, seed, sampling)
     cases = {name: (PERTURBATIONS[name](km1_v), 1) for name in perturbations}
     cases.update({f"threads={n}": (km1_v, n) for n in threads})
     out: dict[str, dict[str, Any]] = {}
     for name, (verts, n) in cases.items():
-        run = _evaluate((simp_k, simp_km1), original_k, (verts, km1_f), n, seed)
+        run = _evaluate((simp_k, simp_km1), original_k, (verts, km1_f), n, seed, sampling)
         moved = float((run["verts"] - base["verts"]).norm(dim=1).max()) / diag
         sets = {}
         for set_name, stats in base["stats"].items():
