@@ -6,7 +6,6 @@ shuffled capsule and a demo frame, with and without ``--unoriented`` and ``--ear
 from __future__ import annotations
 
 import itertools
-import subprocess
 import warnings
 from pathlib import Path
 
@@ -14,9 +13,9 @@ import numpy as np
 import pytest
 import torch
 import trimesh
-from PIL import Image
 
 from tests.mpeg.conftest import MM, MM_TESTS
+from tests.mpeg.mm_compare import colour_cases, given_maps, mm_block, normal_cases, texture_cases, uv_list_cases
 from torchmeshmetric.mpeg import TexturedMesh, load_equality_model, load_textured_mesh, mesh_equality
 from torchmeshmetric.structures import Mesh
 
@@ -31,14 +30,8 @@ def _mm_lines(
     a: Path, b: Path, unoriented: bool, early: bool, maps: tuple[Path | None, Path | None] = (None, None)
 ) -> str:
     """Every line mm prints for the comparison itself: after ``Epsilon = 0``, before ``Time on processing``."""
-    args = [str(MM), "compare", "--mode", "equ", "--inputModelA", str(a), "--inputModelB", str(b)]
-    args += [f"--earlyReturn={'true' if early else 'false'}"] + (["--unoriented"] if unoriented else [])
-    for option, m in zip(("--inputMapA", "--inputMapB"), maps, strict=True):
-        args += [option, str(m)] if m is not None else []
-    out = subprocess.run(args, capture_output=True, text=True, timeout=60, check=True, cwd=a.parent).stdout.splitlines()
-    start = next(i for i, line in enumerate(out) if line.startswith("  Epsilon = "))
-    stop = next(i for i, line in enumerate(out) if line.startswith("Time on processing"))
-    return "\n".join(out[start + 1 : stop])
+    options = [f"--earlyReturn={'true' if early else 'false'}"] + (["--unoriented"] if unoriented else [])
+    return mm_block("equ", a, b, *options, maps=maps)
 
 
 def _ours(a: Path, b: Path, unoriented: bool, early: bool, maps: tuple[Path | None, Path | None] = (None, None)) -> str:
@@ -82,92 +75,10 @@ def test_regression_script_figures() -> None:
 
 
 # ----------------------------------------------------------------------------------------------- built cases
-QUAD = [(0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (1.0, 1.0, 0.0), (0.0, 1.0, 0.0)]
-TRIS = [(0, 1, 2), (0, 2, 3)]
-
-
-def _obj(
-    path: Path,
-    *,
-    colors: list[tuple[float, float, float] | None] | None = None,
-    normals: list[tuple[float, float, float]] | None = None,
-    normal_index: bool = False,
-    uvs: list[tuple[float, float]] | None = None,
-    corner_uvs: list[tuple[int, int, int]] | None = None,
-    mtl: str | None = None,
-    verts: list[tuple[float, float, float]] = QUAD,
-    tris: list[tuple[int, int, int]] = TRIS,
-) -> Path:
-    """A small OBJ: ``v`` (with a colour where given), ``vn``, ``vt`` and faces of the chosen corner form."""
-    lines = [f"mtllib {mtl}"] if mtl else []
-    for k, v in enumerate(verts):
-        c = colors[k] if colors is not None and k < len(colors) else None
-        lines.append("v " + " ".join(f"{x:g}" for x in v) + ("" if c is None else " " + " ".join(f"{x:g}" for x in c)))
-    lines += ["vn " + " ".join(f"{x:g}" for x in n) for n in normals or []]
-    lines += ["vt " + " ".join(f"{x:g}" for x in t) for t in uvs or []]
-    for j, tri in enumerate(tris):
-        if corner_uvs is not None:
-            normal = [f"/{i + 1}" if normal_index else "" for i in tri]
-            corners = [f"{i + 1}/{t + 1}{n}" for i, t, n in zip(tri, corner_uvs[j], normal, strict=True)]
-        else:
-            corners = [f"{i + 1}//{i + 1}" if normal_index else f"{i + 1}" for i in tri]
-        lines.append("f " + " ".join(corners))
-    path.write_text("\n".join(lines) + "\n")
-    return path
-
-
-def _ply(
-    path: Path,
-    *,
-    colors: list[tuple[int, int, int]] | None = None,
-    normals: list[tuple[float, float, float]] | None = None,
-    uvs: list[tuple[float, float]] | None = None,
-) -> Path:
-    """An ASCII PLY of the quad with optional ``red green blue``, ``nx ny nz`` and ``texture_u texture_v``."""
-    props = ["x", "y", "z"]
-    types = ["float"] * 3
-    if normals is not None:
-        props += ["nx", "ny", "nz"]
-        types += ["float"] * 3
-    if colors is not None:
-        props += ["red", "green", "blue"]
-        types += ["uchar"] * 3
-    if uvs is not None:
-        props += ["texture_u", "texture_v"]
-        types += ["float"] * 2
-    head = ["ply", "format ascii 1.0", f"element vertex {len(QUAD)}"]
-    head += [f"property {t} {p}" for t, p in zip(types, props, strict=True)]
-    head += [f"element face {len(TRIS)}", "property list uchar int vertex_indices", "end_header"]
-    rows = []
-    for k, v in enumerate(QUAD):
-        row = (
-            list(v)
-            + list(normals[k] if normals else [])
-            + list(colors[k] if colors else [])
-            + list(uvs[k] if uvs else [])
-        )
-        rows.append(" ".join(f"{x:g}" for x in row))
-    rows += [f"3 {a} {b} {c}" for a, b, c in TRIS]
-    path.write_text("\n".join(head + rows) + "\n")
-    return path
-
-
-UP = [(0.0, 0.0, 1.0)] * 4
-TILTED = [(0.0, 0.0, 1.0), (0.0, 0.6, 0.8), (0.0, 0.0, 1.0), (0.0, 0.0, 1.0)]
-
-
 def test_normals(tmp_path: Path) -> None:
     """Normals differing only (OBJ ``vn``, PLY ``nx ny nz``): mm compares them when both models have one per
     position; ``v//vn`` corners make mm drop them; a model without normals is compared without."""
-    files = [
-        _obj(tmp_path / "up.obj", normals=UP),
-        _obj(tmp_path / "tilted.obj", normals=TILTED),
-        _obj(tmp_path / "indexed.obj", normals=TILTED, normal_index=True),  # dropped by mm's reader
-        _obj(tmp_path / "none.obj"),
-        _obj(tmp_path / "three.obj", normals=UP[:3]),  # fewer normals than positions: not compared
-        _ply(tmp_path / "up.ply", normals=UP),
-        _ply(tmp_path / "tilted.ply", normals=TILTED),
-    ]
+    files = normal_cases(tmp_path)
     _all_pairs(files)
     up, tilted = load_equality_model(files[0]), load_equality_model(files[1])
     assert not mesh_equality(up, tilted).equal and mesh_equality(up, load_equality_model(files[2])).equal
@@ -175,75 +86,20 @@ def test_normals(tmp_path: Path) -> None:
 
 def test_colours(tmp_path: Path) -> None:
     """Per-vertex colours (OBJ ``v x y z r g b`` scaled by 255, PLY ``uchar``), differing, partial, absent."""
-    grey = [(0.5, 0.5, 0.5)] * 4
-    files = [
-        _obj(tmp_path / "grey.obj", colors=grey),
-        _obj(tmp_path / "red.obj", colors=[(1.0, 0.0, 0.0), *grey[1:]]),
-        _obj(tmp_path / "almost.obj", colors=[(0.501, 0.5, 0.5), *grey[1:]]),  # the same byte after the scaling
-        _obj(tmp_path / "partial.obj", colors=[None, (1.0, 0.0, 0.0), None, (0.5, 0.5, 0.5)]),
-        _obj(tmp_path / "none.obj"),
-        _ply(tmp_path / "grey.ply", colors=[(128, 128, 128)] * 4),
-        _ply(tmp_path / "red.ply", colors=[(255, 0, 0)] + [(128, 128, 128)] * 3),
-    ]
-    _all_pairs(files)
+    _all_pairs(colour_cases(tmp_path))
 
 
 def test_uv_lists(tmp_path: Path) -> None:
     """UV lists of different lengths, per corner and per position (OBJ ``vt`` without indices, PLY texture_u/v)."""
-    uv4 = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]
-    per_corner = [(0, 1, 2), (0, 2, 3)]
-    files = [
-        _obj(tmp_path / "four.obj", uvs=uv4, corner_uvs=per_corner),
-        _obj(tmp_path / "five.obj", uvs=[*uv4, (0.5, 0.5)], corner_uvs=per_corner),  # an unused fifth UV
-        _obj(tmp_path / "six.obj", uvs=[(0.5, 0.5), *uv4, (0.2, 0.2)], corner_uvs=[(1, 2, 3), (1, 3, 4)]),
-        _obj(tmp_path / "moved.obj", uvs=[*uv4[:3], (0.0, 0.9)], corner_uvs=per_corner),
-        _obj(tmp_path / "split.obj", uvs=[*uv4, (0.0, 0.0)], corner_uvs=[(0, 1, 2), (4, 2, 3)]),  # a seam
-        _obj(tmp_path / "shuffled.obj", uvs=uv4, corner_uvs=per_corner, tris=[(2, 0, 1), (3, 0, 2)]),
-        _obj(tmp_path / "vertex_uv.obj", uvs=uv4),  # no index: mm takes them per position
-        _obj(tmp_path / "vertex_uv3.obj", uvs=uv4[:3]),  # no index, fewer than positions: no UVs for mm
-        _obj(tmp_path / "moved_vertex.obj", verts=[*QUAD[:3], (0.0, 2.0, 0.0)], uvs=uv4, corner_uvs=per_corner),
-        _ply(tmp_path / "vertex_uv.ply", uvs=uv4),
-        _ply(tmp_path / "moved.ply", uvs=[*uv4[:3], (0.0, 0.9)]),
-    ]
-    _all_pairs(files)
-
-
-def _png(path: Path, size: tuple[int, int], changed: int = 0) -> Path:
-    rng = np.random.default_rng(3)
-    img = rng.integers(0, 256, (size[1], size[0], 3), dtype=np.uint8)
-    img.reshape(-1, 3)[:changed, 0] ^= 1  # the first `changed` texels differ in red
-    Image.fromarray(img).save(path)
-    return path
+    _all_pairs(uv_list_cases(tmp_path))
 
 
 def test_texture_maps(tmp_path: Path) -> None:
     """Maps equal, differing in pixels, in size, missing on either side, several materials, a material without a
     map, a missing map file, and maps given on the command line (``--inputMapA/B``)."""
-    _png(tmp_path / "t.png", (8, 6))
-    _png(tmp_path / "t_copy.png", (8, 6))
-    _png(tmp_path / "t3.png", (8, 6), changed=3)
-    _png(tmp_path / "wide.png", (9, 6))
-    mtl = {
-        "t": "newmtl m0\nmap_Kd t.png\n",
-        "t_copy": "newmtl m0\nmap_Kd t_copy.png\n",
-        "t3": "newmtl m0\nmap_Kd t3.png\n",
-        "wide": "newmtl m0\nmap_Kd wide.png\n",
-        "nomap": "newmtl m0\nKd 1 1 1\n",
-        "two": "newmtl m0\nmap_Kd t.png\nnewmtl m1\nmap_Kd t3.png\n",
-        "lost": "newmtl m0\nmap_Kd gone.png\n",
-    }
-    for name, text in mtl.items():
-        (tmp_path / f"{name}.mtl").write_text(text)
-    uv4 = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]
-    files = [
-        _obj(tmp_path / f"{name}.obj", uvs=uv4, corner_uvs=[(0, 1, 2), (0, 2, 3)], mtl=f"{name}.mtl") for name in mtl
-    ]
-    files.append(_obj(tmp_path / "bare.obj", uvs=uv4, corner_uvs=[(0, 1, 2), (0, 2, 3)]))
-    files.append(_obj(tmp_path / "geometry.obj", mtl="t.mtl"))  # a map but no UVs: mm still reads the map
-    files.append(_obj(tmp_path / "no_mtl_file.obj", mtl="absent.mtl"))
-    _all_pairs(files)
+    _all_pairs(texture_cases(tmp_path))
     a, b = tmp_path / "bare.obj", tmp_path / "t.obj"
-    for maps in [(tmp_path / "t3.png", None), (tmp_path / "t.png", tmp_path / "wide.png"), (None, tmp_path / "t.png")]:
+    for maps in given_maps(tmp_path):
         for unoriented, early in OPTIONS:
             assert _ours(a, b, unoriented, early, maps) == _mm_lines(a, b, unoriented, early, maps), maps
 
