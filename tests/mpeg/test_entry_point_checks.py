@@ -15,8 +15,8 @@ from torchmeshmetric._checks import (
     NonFiniteError,
     ShapeError,
 )
-from torchmeshmetric.mpeg.comparison.equality import mesh_equality
-from torchmeshmetric.mpeg.comparison.tfan_comparison import TfanMesh, tfan_equality
+from torchmeshmetric.mpeg.comparison.equality import EqualityModel, mesh_equality
+from torchmeshmetric.mpeg.comparison.tfan_comparison import tfan_equality
 from torchmeshmetric.mpeg.comparison.topology import topology_equivalence
 from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh
 from torchmeshmetric.mpeg.sampling.edge_sampling import edge_sample
@@ -57,31 +57,34 @@ def test_mesh_equality_needs_triangles_and_takes_any_mesh_form():
         (
             np.array([[0, 1, 9]]),
             IndexRangeError,
-            r"TfanMesh.triangles: expected indices of positions in \[0, 3\], found values in \[0, 9\]",
+            r"EqualityModel.triangles: expected indices of positions in \[0, 3\], found values in \[0, 9\]",
         ),
         (
             np.array([[0, 1, -1]]),
             IndexRangeError,
-            r"TfanMesh.triangles: expected indices of positions in \[0, 3\], found values in \[-1, 1\]",
+            r"EqualityModel.triangles: expected indices of positions in \[0, 3\], found values in \[-1, 1\]",
         ),
-        (np.array([[0.0, 1.0, 2.0]]), DTypeError, "TfanMesh.triangles: expected integer indices, found dtype float64"),
-        (np.array([0, 1, 2]), ShapeError, r"TfanMesh.triangles: expected shape \(N, 3\), found \(3,\)"),
+        (
+            np.array([[0.0, 1.0, 2.0]]),
+            DTypeError,
+            "EqualityModel.triangles: expected integer indices, found dtype float64",
+        ),
+        (np.array([0, 1, 2]), ShapeError, r"EqualityModel.triangles: expected shape \(N, 3\), found \(3,\)"),
     ],
 )
-def test_tfan_mesh_tables_are_checked_when_built(triangles, error, message):
+def test_equality_model_tables_are_checked_when_built(triangles, error, message):
     with pytest.raises(error, match=f"^{message}"):
-        TfanMesh(V.numpy(), triangles)
+        EqualityModel(V.numpy(), triangles)
 
 
-def test_tfan_mesh_other_tables():
-    with pytest.raises(NonFiniteError, match=r"^TfanMesh.positions: expected finite values"):
-        TfanMesh(np.array([[0.0, 0, np.nan], [1, 0, 0], [0, 1, 0]]), np.array([[0, 1, 2]]))
-    with pytest.raises(IndexRangeError, match=r"^TfanMesh.triangles_uv: expected indices of uvs in \[0, 0\]"):
-        TfanMesh(V.numpy(), F.numpy(), uvs=np.zeros((1, 2)), triangles_uv=np.array([[0, 0, 0], [0, 0, 3]]))
-    with pytest.raises(ShapeError, match=r"^TfanMesh.colors: expected 0 or 4 rows"):
-        TfanMesh(V.numpy(), F.numpy(), colors=np.zeros((7, 3)))
-    a = TfanMesh(V.numpy(), F.numpy())
-    assert tfan_equality(a, TfanMesh(V.numpy(), torch.tensor([[0, 1, 2], [0, 2, 3]]))).endswith("meshes are equal")
+def test_equality_model_other_tables_and_tfan_forms():
+    with pytest.raises(NonFiniteError, match=r"^EqualityModel.positions: expected finite values"):
+        EqualityModel(np.array([[0.0, 0, np.nan], [1, 0, 0], [0, 1, 0]]), np.array([[0, 1, 2]]))
+    with pytest.raises(IndexRangeError, match=r"^EqualityModel.triangles_uv: expected indices of uvs in \[0, 0\]"):
+        EqualityModel(V.numpy(), F.numpy(), uvs=np.zeros((1, 2)), triangles_uv=np.array([[0, 0, 0], [0, 0, 3]]))
+    a = EqualityModel(V.numpy(), F.numpy())
+    assert tfan_equality(a, EqualityModel(V.numpy(), torch.tensor([[0, 1, 2], [0, 2, 3]]))).equal
+    assert tfan_equality(a, (V, F)).equal and tfan_equality(Mesh(V, F), TexturedMesh(Mesh(V, F))).equal
 
 
 @pytest.mark.parametrize(

@@ -1,53 +1,117 @@
-"""``tfan_equality`` against the ``mm`` binary's ``compare --mode eqTFAN`` (skipped where it is absent): every ordered
-pair of mmetric's test meshes, shuffled meshes (renamed vertices, UVs and faces, rotated corners) and their altered
-copies, a demo frame, each with and without ``--eqTFAN_earlyReturn``."""
+"""``tfan_equality`` against the ``mm`` binary's ``compare --mode eqTFAN`` (skipped where it is absent): every line mm
+prints between ``eqTFAN_Epsilon = `` and ``Time on processing`` (texture maps, counts, both connectivity passes, the
+verdict, the four lists' differences), on every ordered pair of mmetric's test meshes under every option set
+(``--eqTFAN_earlyReturn``, ``--eqTFAN_unoriented``, ``--eqTFAN_epsilon``), on the built cases of the ``equ`` tests
+(normals, colours, UV lists, texture maps), shuffled meshes (renamed vertices, UVs and faces, rotated corners) and
+their altered copies, a demo frame. One test checks the lines without the binary."""
 
 from __future__ import annotations
 
 import itertools
-import subprocess
+import json
+import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 import trimesh
 
 from tests.mpeg.conftest import MM, MM_TESTS
+from tests.mpeg.mm_compare import (
+    PER_CORNER,
+    QUAD,
+    UV4,
+    colour_cases,
+    given_maps,
+    mm_block,
+    normal_cases,
+    obj,
+    texture_cases,
+    uv_list_cases,
+)
+from torchmeshmetric._checks import EmptyInputError
 from torchmeshmetric.cli import main
-from torchmeshmetric.mpeg import TfanMesh, load_tfan_mesh, tfan_equality
+from torchmeshmetric.mpeg import EqualityModel, TfanEquality, load_equality_model, tfan_equality
 
 T = MM_TESTS
+NAMES = sorted(p.stem for p in T.glob("*.obj"))  # plane_multi_map too: its second map is missing (a null map)
 _needs_mm = pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")
-_LABELS = ("meshes are", " meshes are", "the geometry", "the texture", "Position differences", "UV coords differences")
-_LABELS += ("Colors differences", "Normals differences")
+# (unoriented, epsilon): neither changes a line of mm v1.1.7 on meshes; every combination is run against it
+_NO_EFFECT = list(itertools.product((False, True), ("0", "0.5")))
 
 
-def _mm(a: Path, b: Path, early: bool) -> str:
-    args = [str(MM), "compare", "--mode", "eqTFAN", "--inputModelA", str(a), "--inputModelB", str(b)]
-    out = subprocess.run(
-        [*args, f"--eqTFAN_earlyReturn={'true' if early else 'false'}"], capture_output=True, text=True, timeout=300
-    ).stdout
-    lines = out[out.index("eqTFAN_Epsilon") :].splitlines()[1:]
-    return "\n".join(line for line in lines if line.startswith(_LABELS))
+def _mm(a: Path, b: Path, early: bool, unoriented: bool = False, epsilon: str = "0", maps: tuple = (None, None)) -> str:
+    options = [f"--eqTFAN_earlyReturn={'true' if early else 'false'}", f"--eqTFAN_epsilon={epsilon}"]
+    return mm_block("eqTFAN", a, b, *options, *(["--eqTFAN_unoriented"] if unoriented else []), maps=maps)
 
 
-def _agree(a: Path, b: Path) -> list[str]:
-    ma, mb = load_tfan_mesh(a), load_tfan_mesh(b)
+def _load(path: Path, texture: Path | None = None) -> EqualityModel:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # a missing texture, which mm reports as a null map
+        return load_equality_model(path, texture)
+
+
+def _agree(a: Path, b: Path, maps: tuple[Path | None, Path | None] = (None, None)) -> list[str]:
+    """Our lines, with and without early return, equal mm's under every option set; returns them."""
+    ma, mb = _load(a, maps[0]), _load(b, maps[1])
     got = []
     for early in (True, False):
-        ours = tfan_equality(ma, mb, early_return=early)
-        assert ours == _mm(a, b, early), (a.name, b.name, early)
+        ours = tfan_equality(ma, mb, early_return=early).report()
+        for unoriented, epsilon in _NO_EFFECT:
+            assert ours == _mm(a, b, early, unoriented, epsilon, maps), (a.name, b.name, early, unoriented, epsilon)
         got.append(ours)
     return got
 
 
+def _all_pairs(paths: list[Path]) -> set[str]:
+    """Every ordered pair (each file with itself too) agrees with mm; returns the lines seen."""
+    seen: set[str] = set()
+    for a, b in itertools.product(paths, paths):
+        for lines in _agree(a, b):
+            seen |= set(lines.splitlines())
+    return seen
+
+
 @_needs_mm
 def test_mmetric_test_meshes() -> None:
-    names = sorted(p.stem for p in T.glob("*.obj") if p.stem != "plane_multi_map")
-    verdicts = set()
-    for a, b in itertools.product(names, names):
-        verdicts |= {r.splitlines()[-1].split(",")[0] for r in _agree(T / f"{a}.obj", T / f"{b}.obj")}
-    assert {" meshes are equal", "meshes are not equal", "Normals differences: 0"} <= verdicts
+    seen = _all_pairs([T / f"{n}.obj" for n in NAMES])
+    assert {" meshes are equal", "texture maps are equal", "texture maps are not equal: mapB is null"} <= seen
+    assert {"the geometry connectivity of meshes is not equal, early return.", "Normals differences: 0"} <= seen
+
+
+@_needs_mm
+def test_normals(tmp_path: Path) -> None:
+    _all_pairs(normal_cases(tmp_path))
+
+
+@_needs_mm
+def test_colours(tmp_path: Path) -> None:
+    _all_pairs(colour_cases(tmp_path))
+
+
+@_needs_mm
+def test_uv_lists(tmp_path: Path) -> None:
+    """Unindexed ``vt`` lines and PLY UVs count for mm's "number of uv coordinates" (the old reader dropped them)."""
+    seen = _all_pairs(uv_list_cases(tmp_path))
+    assert {f"meshes are not equal, number of uv coordinates are different 0 vs {n}" for n in (3, 4)} <= seen
+
+
+@_needs_mm
+def test_texture_maps(tmp_path: Path) -> None:
+    """The texture lines of ``equ`` before eqTFAN's: texels, size, a null map on either side, set sizes, maps given
+    on the command line (``--inputMapA/B``, the CLI's ``--ref-texture`` / ``--dis-texture``)."""
+    seen = _all_pairs(texture_cases(tmp_path))
+    assert {
+        "texture maps are equal",
+        "texture maps are not equal: 3pixel differences",
+        "texture maps are not equal: dimensions are not equal",
+        "texture maps are not equal: mapA is null",
+        "texture maps are not equal: mapB is null",
+        "texture maps are not of equal: size of set A is diffrent from size of set B",
+    } <= seen
+    for maps in given_maps(tmp_path):
+        _agree(tmp_path / "bare.obj", tmp_path / "t.obj", maps)
 
 
 def _write(
@@ -136,24 +200,84 @@ def test_demo_frames(tmp_path: Path) -> None:
     _agree(a, _write(frames[1].verts.float().numpy(), frames[1].faces.numpy(), tmp_path / "c.obj"))
 
 
-def test_library_and_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], np.float32)
-    a = TfanMesh(v, np.array([[0, 1, 2], [1, 3, 2]]))
-    assert tfan_equality(a, TfanMesh(v, np.array([[0, 1, 2]]))) == (
-        "meshes are not equal, number of triangles are different 2 vs 1"
+def test_every_line_of_hand_built_pairs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The lines mmetric v1.1.7's ``Compare::eqTFAN`` (source/lib/source/mmCompare.cpp) prints, without the binary.
+
+    Its source gives each line: the texture maps first, by the same code as ``equ`` (``"texture maps are not equal: "
+    << diffs << "pixel differences"``, no space); the triangle, position and UV counts (a difference ends the
+    comparison); ``compareConnectivity`` on positions then on UVs, each printing "is equal", "is not equal, early
+    return." or nothing; then `` meshes are equal`` (leading space) or ``N different triangles`` with N the geometry
+    pass's count, and the four lists' differences as ``equ`` prints them.
+    """
+    texture_cases(tmp_path)  # t.obj (map t.png), t3.obj (3 texels differ), bare.obj (no map), their MTLs and PNGs
+    moved = obj(
+        tmp_path / "moved.obj", verts=[*QUAD[:3], (0.0, 2.0, 0.0)], uvs=UV4, corner_uvs=PER_CORNER, mtl="t3.mtl"
     )
-    moved = v.copy()
-    moved[3, 2] = 0.5
-    assert tfan_equality(a, TfanMesh(moved, a.triangles)).splitlines()[:2] == [
+    renamed = obj(  # t.obj with its vertices and UVs listed in reverse and its faces in another order
+        tmp_path / "renamed.obj", verts=QUAD[::-1], tris=[(3, 1, 0), (3, 2, 1)], uvs=UV4[::-1],
+        corner_uvs=[(3, 1, 0), (3, 2, 1)],
+    )  # fmt: skip
+    a = str(tmp_path / "t.obj")
+    assert main(["mpeg", a, str(moved), "--mode", "eqTFAN"]) == 1
+    assert capsys.readouterr().out.splitlines() == [
+        "texture maps are not equal: 3pixel differences",
         "the geometry connectivity of meshes is not equal, early return.",
         "the texture connectivity of meshes is equal",
+        "meshes are not equal, 1 different triangles",
+        "Position differences: 1",
+        "UV coords differences: 0",
+        "Colors differences: 0",
+        "Normals differences: 0",
     ]
-    pa, pb = (
-        _write(v, a.triangles, tmp_path / "a.obj"),
-        _write(v[[3, 2, 1, 0]], np.array([[3, 2, 1], [2, 0, 1]]), tmp_path / "b.obj"),
+    assert main(["mpeg", a, str(moved), "--mode", "eqTFAN", "--all-differences"]) == 1
+    assert capsys.readouterr().out.splitlines() == [
+        "texture maps are not equal: 3pixel differences",
+        "the texture connectivity of meshes is equal",  # the geometry pass counted to the end: no line of its own
+        "meshes are not equal, 1 different triangles",
+        "Position differences: 1",
+        "UV coords differences: 0",
+        "Colors differences: 0",
+        "Normals differences: 0",
+    ]
+    # renamed, without a map: equal for eqTFAN (not for equ's lists), "mapB is null"
+    assert main(["mpeg", a, str(renamed), "--mode", "eqTFAN"]) == 0
+    assert capsys.readouterr().out.splitlines() == [
+        "texture maps are not equal: mapB is null",
+        "the geometry connectivity of meshes is equal",
+        "the texture connectivity of meshes is equal",
+        " meshes are equal",
+    ]
+    # the map given on the command line replaces the MTL's (mm's --inputMapB): the same texels, "equal"
+    assert main(["mpeg", a, str(renamed), "--mode", "eqTFAN", "--dis-texture", str(tmp_path / "t_copy.png")]) == 0
+    assert capsys.readouterr().out.splitlines()[0] == "texture maps are equal"
+    five = obj(tmp_path / "five.obj", uvs=[*UV4, (0.5, 0.5)], corner_uvs=PER_CORNER)  # an unused fifth UV
+    assert main(["mpeg", a, str(five), "--mode", "eqTFAN", "--json"]) == 1
+    d = json.loads(capsys.readouterr().out)
+    assert (d["equal"], d["textures"], d["uvs_a"], d["uvs_b"], d["geometry"]) == (False, ["mapB is null"], 4, 5, None)
+    assert d["report"].splitlines() == [
+        "texture maps are not equal: mapB is null",
+        "meshes are not equal, number of uv coordinates are different 4 vs 5",
+    ]
+
+
+def test_library_forms_and_counts() -> None:
+    """Models built by hand, and any mesh form (its own per-corner UVs, no map); the count lines in mm's order."""
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], np.float32)
+    f = np.array([[0, 1, 2], [1, 3, 2]])
+    a = EqualityModel(v, f)
+    r = tfan_equality(a, EqualityModel(v, f[:1]))
+    assert isinstance(r, TfanEquality) and not r.equal and r.geometry_differences is None
+    assert r.report() == "meshes are not equal, number of triangles are different 2 vs 1"
+    assert tfan_equality(a, EqualityModel(v[[0, 1, 2, 3, 3]], f)).report() == (
+        "meshes are not equal, number of positions are different 4 vs 5"
     )
-    assert main(["mpeg", str(pa), str(pb), "--mode", "eqTFAN"]) == 0
-    assert capsys.readouterr().out.endswith(" meshes are equal\n")
-    pc = _write(moved, a.triangles, tmp_path / "c.obj")
-    assert main(["mpeg", str(pa), str(pc), "--mode", "eqTFAN", "--all-differences"]) == 1
-    assert "meshes are not equal, 1 different triangles" in capsys.readouterr().out
+    img = np.zeros((2, 2, 3), np.uint8)
+    assert tfan_equality(EqualityModel(v, f, textures=(img,)), EqualityModel(v, f, textures=(img, None))).report() == (
+        "texture maps are not of equal: size of set A is diffrent from size of set B\n"
+        "the geometry connectivity of meshes is equal\n"
+        "the texture connectivity of meshes is equal\n"
+        " meshes are equal"
+    )
+    assert tfan_equality((torch.from_numpy(v), torch.from_numpy(f)), a).equal
+    with pytest.raises(EmptyInputError, match=r"^a, b: expected meshes with triangles, found none in either"):
+        tfan_equality(EqualityModel(v, f[:0]), EqualityModel(v, f[:0]))

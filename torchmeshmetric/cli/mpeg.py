@@ -93,14 +93,18 @@ def _run_topology(args: argparse.Namespace) -> int:
 
 
 def _run_tfan(args: argparse.Namespace) -> int:
-    """``--mode eqTFAN``: mmetric's TFAN connectivity verdict in its words; exit status 0 when equal, 1 otherwise."""
-    from torchmeshmetric.cli.mpeg_outputs import load_pair
-    from torchmeshmetric.mpeg.comparison.tfan_comparison import load_tfan_mesh, tfan_equality
+    """``--mode eqTFAN``: mmetric's lines (maps, connectivity, verdict, differences) or JSON; exit 0 when equal."""
+    from dataclasses import asdict
 
-    ref, dis = load_pair(args, lambda side, path, texture: load_tfan_mesh(path))
-    report = tfan_equality(ref, dis, early_return=not args.all_differences)
-    print(json.dumps({"equal": report.endswith(" meshes are equal"), "report": report}) if args.json else report)
-    return 0 if report.endswith(" meshes are equal") else 1
+    from torchmeshmetric.cli.mpeg_outputs import load_pair
+    from torchmeshmetric.mpeg.comparison.equality import load_equality_model
+    from torchmeshmetric.mpeg.comparison.tfan_comparison import tfan_equality
+
+    ref, dis = load_pair(args, lambda side, path, texture: load_equality_model(path, texture))
+    result = tfan_equality(ref, dis, early_return=not args.all_differences)
+    report = result.report()
+    print(json.dumps({**asdict(result), "report": report}, indent=1) if args.json else report)
+    return 0 if result.equal else 1
 
 
 def _pcc_model(side: str, path: str, texture: str | None) -> Any:
@@ -181,7 +185,10 @@ def add_mpeg_command(sub: Any) -> None:
         "unless given. --mode equ is mm compare --mode equ instead: are the two meshes the same triangles in any order "
         "(corners compared by position, and UV, colour and normal where both have them); it prints mm's lines: the "
         "texture maps' comparison, the verdict and, with --all-differences, the position, UV, colour and normal "
-        "differences (exit status 0 when equal, 1 otherwise). --mode topo is mm compare --mode topo: is DIS the "
+        "differences (exit status 0 when equal, 1 otherwise). --mode eqTFAN is mm compare --mode eqTFAN: is DIS "
+        "REF with its vertices and texture coordinates renamed (triangle fans); it prints mm's lines: the same "
+        "texture maps' lines, the count lines, both connectivity passes, the verdict and the differences (exit status "
+        "0 when equal, 1 otherwise). --mode topo is mm compare --mode topo: is DIS the "
         "connectivity of REF under --face-map and --vertex-map (exit status 0 when matching, 1 otherwise).",
     )
     p.add_argument(
@@ -260,7 +267,12 @@ def add_mpeg_command(sub: Any) -> None:
         metavar="F",
         help="pcqm mode: pooling radius over the curvature radius (mm --radiusFactor, default 2.0)",
     )
-    p.add_argument("--unoriented", action="store_true", help="equ mode: a triangle also equals its reversed copy")
+    p.add_argument(
+        "--unoriented",
+        action="store_true",
+        help="equ mode: a triangle also equals its reversed copy (mm --unoriented; eqTFAN ignores it, as mm v1.1.7 "
+        "ignores --eqTFAN_unoriented)",
+    )
     p.add_argument(
         "--all-differences",
         action="store_true",

@@ -35,7 +35,7 @@ from .pcqm import PcqmResult, mpeg_pcqm
 from .pcqm_lightness import pcqm_lightness
 from .psnr import mpeg_psnr
 from .sequence import MpegSequence, mean_psnr, mpeg_sequence
-from .tfan_comparison import TfanMesh, TfanUndefinedError, load_tfan_mesh, tfan_equality
+from .tfan_comparison import TfanEquality, TfanUndefinedError, tfan_equality
 from .topology import TopologyComparison, TopologyMapError, read_topology_map, topology_equivalence
 
 __all__ = [
@@ -77,9 +77,8 @@ __all__ = [
     "MpegSequence",
     "mean_psnr",
     "mpeg_sequence",
-    "TfanMesh",
+    "TfanEquality",
     "TfanUndefinedError",
-    "load_tfan_mesh",
     "tfan_equality",
     "TopologyComparison",
     "TopologyMapError",

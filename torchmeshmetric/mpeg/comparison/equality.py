@@ -23,6 +23,9 @@ that have one (scaled as mmetric does, ``roundf(value * 255)``), ``vn`` lines un
 normals take part in the triangle comparison when both models have one per position; UVs when both have them per
 corner, or one per position.
 
+``compare --mode eqTFAN`` reads the same lists and maps and prints the same texture lines and list differences
+(:mod:`~torchmeshmetric.mpeg.comparison.tfan_comparison` uses this module's model, loader and lines).
+
 Not covered: point clouds (mmetric's sorted-vertex comparison of models without faces). Where a file is read
 otherwise: a greyscale texture is refused (mmetric reads three bytes per texel of a one-channel image); a ``map_Kd``
 is found beside its MTL (mmetric looks beside the OBJ); an OBJ vertex of four numbers is ``x y z w`` (mmetric takes
@@ -39,9 +42,9 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from torch import Tensor
 
-from torchmeshmetric._checks import DTypeError, EmptyInputError, ShapeError
-from torchmeshmetric.mpeg.comparison.tfan_comparison import _differences, _table
+from torchmeshmetric._checks import DTypeError, EmptyInputError, IndexRangeError, NonFiniteError, ShapeError
 from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh, _obj_colors, as_textured_mesh, read_texture
 from torchmeshmetric.structures import MeshLike
 
@@ -52,9 +55,52 @@ def _empty(cols: int, dtype: type = np.float32) -> np.ndarray:
     return np.zeros((0, cols), dtype=dtype)
 
 
+def _table(
+    name: str,
+    value: object,
+    cols: int,
+    *,
+    integer: bool,
+    indexes: tuple[str, int] | None = None,
+) -> np.ndarray:
+    """One table of an :class:`EqualityModel` as ``(N, cols)``: indices inside ``indexes``, or finite float32."""
+    where = f"EqualityModel.{name}"
+    arr = np.asarray(value.detach().cpu().numpy() if isinstance(value, Tensor) else value)
+    if arr.size == 0 and arr.ndim < 2:
+        arr = arr.reshape(0, cols)
+    if arr.ndim != 2 or arr.shape[1] != cols:
+        raise ShapeError(f"{where}: expected shape (N, {cols}), found {tuple(arr.shape)}")
+    if integer:
+        if arr.size and (arr.dtype == np.bool_ or arr.dtype.kind not in "iu"):
+            raise DTypeError(f"{where}: expected integer indices, found dtype {arr.dtype}")
+        arr = arr.astype(np.int64, copy=False)
+        assert indexes is not None
+        of, n = indexes
+        if arr.size and (int(arr.min()) < 0 or int(arr.max()) >= n):
+            raise IndexRangeError(
+                f"{where}: expected indices of {of} in [0, {n - 1}], found values in [{int(arr.min())}, "
+                f"{int(arr.max())}]"
+            )
+        return arr
+    if arr.size and (arr.dtype == np.bool_ or arr.dtype.kind not in "iuf"):
+        raise DTypeError(f"{where}: expected numbers, found dtype {arr.dtype}")
+    arr = arr.astype(np.float32, copy=False)
+    if arr.size and not np.isfinite(arr).all():
+        raise NonFiniteError(
+            f"{where}: expected finite values, found {int((~np.isfinite(arr)).sum())} NaN/Inf value(s)"
+        )
+    return arr
+
+
+def _differences(a: np.ndarray, b: np.ndarray) -> int:
+    """The "... differences" mmetric prints: the count difference plus the rows that differ index by index."""
+    n = min(len(a), len(b))
+    return abs(len(a) - len(b)) + int(np.any(a[:n] != b[:n], axis=1).sum()) if n else abs(len(a) - len(b))
+
+
 @dataclass(frozen=True, eq=False)
 class EqualityModel:
-    """A mesh as ``mm compare --mode equ`` holds it: its lists as read from the file, and its texture maps.
+    """A mesh as ``mm compare --mode equ`` (and ``eqTFAN``) holds it: its lists as read from the file, its maps.
 
     Build it with :func:`load_equality_model` (a file, as mmetric reads it); :func:`mesh_equality` also takes a
     :class:`~torchmeshmetric.mpeg.TexturedMesh` or any mesh form, whose UVs are then its per-corner list.
@@ -92,16 +138,16 @@ class EqualityModel:
     def __post_init__(self) -> None:
         """Check every table when built (shapes, dtypes, finite values, indices inside their lists)."""
         own = "EqualityModel"
-        pos = _table("positions", self.positions, 3, integer=False, owner=own)
-        tri = _table("triangles", self.triangles, 3, integer=True, indexes=("positions", pos.shape[0]), owner=own)
-        uvs = _table("uvs", self.uvs, 2, integer=False, owner=own)
-        tuv = _table("triangles_uv", self.triangles_uv, 3, integer=True, indexes=("uvs", uvs.shape[0]), owner=own)
+        pos = _table("positions", self.positions, 3, integer=False)
+        tri = _table("triangles", self.triangles, 3, integer=True, indexes=("positions", pos.shape[0]))
+        uvs = _table("uvs", self.uvs, 2, integer=False)
+        tuv = _table("triangles_uv", self.triangles_uv, 3, integer=True, indexes=("uvs", uvs.shape[0]))
         if tuv.shape[0] not in (0, tri.shape[0]):
             raise ShapeError(
                 f"{own}.triangles_uv: expected 0 or {tri.shape[0]} rows (one per triangle), found {tuv.shape[0]}"
             )
-        col = _table("colors", self.colors, 3, integer=False, owner=own)
-        nrm = _table("normals", self.normals, 3, integer=False, owner=own)
+        col = _table("colors", self.colors, 3, integer=False)
+        nrm = _table("normals", self.normals, 3, integer=False)
         if not isinstance(self.textures, tuple):
             raise TypeError(f"{own}.textures: expected a tuple of images or None, found {type(self.textures).__name__}")
         for k, t in enumerate(self.textures):
@@ -167,7 +213,7 @@ def _obj_maps(p: Path, mtllibs: list[tuple[str, int]]) -> tuple[np.ndarray | Non
 
 
 def load_equality_model(path: str | os.PathLike, texture: str | os.PathLike | None = None) -> EqualityModel:
-    r"""Read a mesh file as ``mm compare --mode equ`` reads it, through the library's one reader per format.
+    r"""Read a mesh file as ``mm compare --mode equ`` / ``eqTFAN`` read it, through the one reader per format.
 
     OBJ: ``v`` positions; ``vt`` lines as listed, indexed per corner (a corner without one takes the first, as
     mmetric's reader does); the ``v x y z r g b`` colours of the vertices that have one, as mmetric scales them

@@ -1,12 +1,27 @@
-"""mmetric's connectivity comparison by triangle fans (``compare --mode eqTFAN``), step for step.
+"""mmetric's connectivity comparison by triangle fans (``compare --mode eqTFAN``), step for step, every line it prints.
 
-``eqTFAN`` decides whether B is A with its vertices renamed: it walks A's vertices in order, builds the triangle fans
-around each (TFAN, the connectivity coder's traversal: the free triangles around the vertex, chained through shared
-edges from the least connected one, oriented by the first), encodes each fan (its degree, a case number, which of
-its vertices were already visited and their relative order), and searches B for an unvisited vertex with the same
-coordinates whose fans, built the same way and starting from the triangle matching A's first one, encode the same;
-candidates that do not lead to a full match are backtracked. It runs twice: on positions (``v`` indices) and on
-texture coordinates (``vt`` indices). The verdict lines are mmetric v1.1.7's.
+mmetric v1.1.7's ``Compare::eqTFAN`` prints, in order:
+
+1. The texture maps' lines, exactly as ``compare --mode equ`` does (the same code in mmetric; here the same
+   :func:`~torchmeshmetric.mpeg.comparison.equality.load_equality_model` maps and the same lines).
+2. Where the models' sizes differ, one line and nothing more: ``number of triangles are different``, then ``number of
+   positions are different``, then ``number of uv coordinates are different`` (the lists as read from the files).
+3. The connectivity compared twice, on positions (``v`` indices) then on texture coordinates (``vt`` indices), each
+   printing ``the geometry (texture) connectivity of meshes is equal``, ``... is not equal, early return.`` (with
+   ``--eqTFAN_earlyReturn``, the default), ``meshes are not equal, maxV2TA_ != maxV2TB_ `` (a vertex in more
+   triangles than any of the other model's), or nothing (differences counted without early return).
+4. `` meshes are equal`` (with its leading space), or ``meshes are not equal, N different triangles`` -- N is the
+   count of the geometry pass -- followed by the position, UV, colour and normal lists' differences, as ``equ``.
+
+``--eqTFAN_unoriented`` reaches no test in mmetric v1.1.7 and ``--eqTFAN_epsilon`` applies to models without
+triangles only (mmetric's point-cloud branch, which this module does not cover), so neither changes a line here.
+
+The connectivity pass decides whether B is A with its vertices renamed: it walks A's vertices in order, builds the
+triangle fans around each (TFAN, the connectivity coder's traversal: the free triangles around the vertex, chained
+through shared edges from the least connected one, oriented by the first), encodes each fan (its degree, a case
+number, which of its vertices were already visited and their relative order), and searches B for an unvisited vertex
+with the same coordinates whose fans, built the same way and starting from the triangle matching A's first one,
+encode the same; candidates that do not lead to a full match are backtracked.
 
 The search is path dependent -- which triangle starts a fan, the order adjacency lists are built in, a fan list that
 grows across iterations -- so this module follows mmetric's ``mmCompareTFAN.cpp`` operation by operation (the same
@@ -18,138 +33,26 @@ reads past the end of a list (fans missing for an iteration) :class:`TfanUndefin
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 
 import numpy as np
-from torch import Tensor
 
-from torchmeshmetric._checks import DTypeError, IndexRangeError, NonFiniteError, ShapeError
+from torchmeshmetric._checks import EmptyInputError
+from torchmeshmetric.mpeg.comparison.equality import (
+    EqualityModel,
+    _as_model,
+    _differences,
+    _texture_line,
+    _texture_status,
+)
+from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh
+from torchmeshmetric.structures import MeshLike
 
-__all__ = ["TfanMesh", "TfanUndefinedError", "load_tfan_mesh", "tfan_equality"]
+__all__ = ["TfanEquality", "TfanUndefinedError", "tfan_equality"]
 
 
 class TfanUndefinedError(RuntimeError):
     """mmetric's TFAN comparison reads past the end of one of its lists on these meshes: its result is undefined."""
-
-
-@dataclass(frozen=True)
-class TfanMesh:
-    """A mesh as mmetric's model holds it: index tables into position and UV lists, as in the file.
-
-    Attributes:
-        positions: ``(V, 3)`` float32 positions.
-        triangles: ``(F, 3)`` 0-based position indices.
-        uvs: ``(T, 2)`` float32 texture coordinates (``T = 0`` without).
-        triangles_uv: ``(F, 3)`` 0-based ``vt`` indices (``(0, 3)`` without).
-        colors: ``(V, 3)`` float32 per-vertex colours (``(0, 3)`` without).
-        normals: ``(N, 3)`` float32 normals (``vn`` lines; ``(0, 3)`` without).
-    """
-
-    positions: np.ndarray
-    triangles: np.ndarray
-    uvs: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.float32))
-    triangles_uv: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.int64))
-    colors: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.float32))
-    normals: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.float32))
-
-    def __post_init__(self) -> None:
-        """Check every table when built: shapes, dtypes, finite values, indices inside their lists."""
-        pos = _table("positions", self.positions, 3, integer=False)
-        tri = _table("triangles", self.triangles, 3, integer=True, indexes=("positions", pos.shape[0]))
-        uvs = _table("uvs", self.uvs, 2, integer=False)
-        tuv = _table("triangles_uv", self.triangles_uv, 3, integer=True, indexes=("uvs", uvs.shape[0]))
-        if tuv.shape[0] not in (0, tri.shape[0]):
-            raise ShapeError(f"TfanMesh.triangles_uv: expected 0 or {tri.shape[0]} rows (one per triangle), found "
-                             f"{tuv.shape[0]}")  # fmt: skip
-        col = _table("colors", self.colors, 3, integer=False)
-        if col.shape[0] not in (0, pos.shape[0]):
-            raise ShapeError(f"TfanMesh.colors: expected 0 or {pos.shape[0]} rows (one per position), found "
-                             f"{col.shape[0]}")  # fmt: skip
-        normals = _table("normals", self.normals, 3, integer=False)
-        for name, value in (("positions", pos), ("triangles", tri), ("uvs", uvs), ("triangles_uv", tuv),
-                            ("colors", col), ("normals", normals)):  # fmt: skip
-            object.__setattr__(self, name, value)
-
-
-def _table(
-    name: str,
-    value: object,
-    cols: int,
-    *,
-    integer: bool,
-    indexes: tuple[str, int] | None = None,
-    owner: str = "TfanMesh",
-) -> np.ndarray:
-    """One table of an mmetric model as a ``(N, cols)`` array: integer indices inside ``indexes``, or finite float32.
-
-    ``owner`` names the model in messages (:class:`TfanMesh`, ``EqualityModel``).
-    """
-    where = f"{owner}.{name}"
-    arr = np.asarray(value.detach().cpu().numpy() if isinstance(value, Tensor) else value)
-    if arr.size == 0 and arr.ndim < 2:
-        arr = arr.reshape(0, cols)
-    if arr.ndim != 2 or arr.shape[1] != cols:
-        raise ShapeError(f"{where}: expected shape (N, {cols}), found {tuple(arr.shape)}")
-    if integer:
-        if arr.size and (arr.dtype == np.bool_ or arr.dtype.kind not in "iu"):
-            raise DTypeError(f"{where}: expected integer indices, found dtype {arr.dtype}")
-        arr = arr.astype(np.int64, copy=False)
-        assert indexes is not None
-        of, n = indexes
-        if arr.size and (int(arr.min()) < 0 or int(arr.max()) >= n):
-            raise IndexRangeError(
-                f"{where}: expected indices of {of} in [0, {n - 1}], found values in [{int(arr.min())}, "
-                f"{int(arr.max())}]"
-            )
-        return arr
-    if arr.size and (arr.dtype == np.bool_ or arr.dtype.kind not in "iuf"):
-        raise DTypeError(f"{where}: expected numbers, found dtype {arr.dtype}")
-    arr = arr.astype(np.float32, copy=False)
-    if arr.size and not np.isfinite(arr).all():
-        raise NonFiniteError(
-            f"{where}: expected finite values, found {int((~np.isfinite(arr)).sum())} NaN/Inf value(s)"
-        )
-    return arr
-
-
-def load_tfan_mesh(path: str | os.PathLike) -> TfanMesh:
-    r"""Read an OBJ (or PLY / OFF) file with its index tables as written (what ``eqTFAN`` compares).
-
-    Example:
-        >>> import tempfile, pathlib
-        >>> p = pathlib.Path(tempfile.mkdtemp()) / "t.obj"
-        >>> _ = p.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/1\n")
-        >>> m = load_tfan_mesh(p)
-        >>> m.triangles.tolist(), m.triangles_uv.tolist()
-        ([[0, 1, 2]], [[0, 0, 0]])
-    """
-    from torchmeshmetric.data.io import read_mesh_arrays
-    from torchmeshmetric.data.mesh_file import check_mesh, existing_mesh_file
-    from torchmeshmetric.data.obj import parse_obj
-    from torchmeshmetric.mpeg.core.textured_mesh import _obj_colors
-
-    p = existing_mesh_file(path)
-    if p.suffix.lower() != ".obj":
-        verts, faces, colors = read_mesh_arrays(p)
-        col = np.zeros((0, 3), np.float32) if colors is None else np.asarray(colors, np.float32)
-        return TfanMesh(np.asarray(verts, np.float32), np.asarray(faces, np.int64), colors=col)
-    d = parse_obj(p, p.read_bytes(), uvs=True, normals=True)
-    faces, face_uvs = d.triangles()
-    check_mesh(p, d.verts, faces, d.vert_lines)
-    has_uv = bool((face_uvs >= 0).any())
-    cols = np.zeros((0, 3), np.float32) if d.vert_colors is None else _obj_colors(d.vert_colors)
-    normals = np.zeros((0, 3), np.float32)
-    if not d.normal_indexed:  # mmetric drops normals that have their own index table
-        normals = d.normals.astype(np.float32)
-    return TfanMesh(
-        positions=d.verts.astype(np.float32),
-        triangles=faces.astype(np.int64),
-        uvs=d.uvs.astype(np.float32) if has_uv else np.zeros((0, 2), np.float32),
-        triangles_uv=np.where(face_uvs < 0, 0, face_uvs).astype(np.int64) if has_uv else np.zeros((0, 3), np.int64),
-        colors=cols,
-        normals=normals,
-    )
 
 
 class _Side:
@@ -597,13 +500,12 @@ def _match_b(
     return None
 
 
-def _connectivity(a: _Side, b: _Side, early: bool, kind: str) -> tuple[int, str | None]:
-    """``compareConnectivity``: the differences counted and the line mmetric prints (none after a full count)."""
+def _connectivity(a: _Side, b: _Side, early: bool) -> tuple[int, str]:
+    """``compareConnectivity``: the differences counted and how the pass ended (see :attr:`TfanEquality.geometry`)."""
     max_a = max((len(x) for x in a.v2t), default=0)
     max_b = max((len(x) for x in b.v2t), default=0)
     if max_a != max_b:
-        return 1, "meshes are not equal, maxV2TA_ != maxV2TB_ "
-    stop = f"the {kind} connectivity of meshes is not equal, early return."
+        return 1, "valence"
     sa = _State([0] * a.nt, [0] * a.nv, [-1] * a.nv, 0)
     sb = _State([0] * b.nt, [0] * b.nv, [-1] * b.nv, 0)
     by_coords: dict[tuple[float, ...], list[int]] = {}
@@ -620,7 +522,7 @@ def _connectivity(a: _Side, b: _Side, early: bool, kind: str) -> tuple[int, str 
         if not found:
             diffs += 1
             if early:
-                return diffs, stop
+                return diffs, "early return"
         elif len(found) > 1:  # a vertex B has several matches for: decided after the others
             sa = saved
             repeats.append(v)
@@ -636,71 +538,158 @@ def _connectivity(a: _Side, b: _Side, early: bool, kind: str) -> tuple[int, str 
             if not stack:
                 diffs += 1
                 if early:
-                    return diffs, stop
+                    return diffs, "early return"
             else:
                 sa, sb = stack.pop()
             continue
         stack += [(sa.copy(), other) for other in found[1:]]
         sb = found[0]
-    return diffs, (f"the {kind} connectivity of meshes is equal" if diffs == 0 else None)
+    return diffs, ("equal" if diffs == 0 else "counted")
 
 
-def _differences(a: np.ndarray, b: np.ndarray) -> int:
-    """The "... differences" mmetric prints: the count difference plus the rows that differ index by index."""
-    n = min(len(a), len(b))
-    return abs(len(a) - len(b)) + int(np.any(a[:n] != b[:n], axis=1).sum()) if n else abs(len(a) - len(b))
+@dataclass(frozen=True)
+class TfanEquality:
+    """The outcome of :func:`tfan_equality`: mmetric's figures, its lines through :meth:`report`.
+
+    Attributes:
+        equal: both connectivity passes found every vertex of A in B (mmetric's `` meshes are equal``).
+        textures: the texture maps compared, as :attr:`~torchmeshmetric.mpeg.MeshEquality.textures` (one entry per
+            pair of maps where either model has one, or ``"set sizes"`` / ``"skipped"``; empty without maps).
+        triangles_a: triangle count of A (``triangles_b``: of B).
+        positions_a: position count of A (``positions_b``: of B).
+        uvs_a: texture-coordinate count of A, as listed in the file (``uvs_b``: of B).
+        geometry: how the pass on positions ended: ``"equal"``, ``"early return"`` (a vertex of A without a match,
+            the pass stopped), ``"counted"`` (differences counted to the end; mmetric prints no line), ``"valence"``
+            (the most triangles around one vertex differs: mmetric's ``maxV2TA_ != maxV2TB_``), or ``None`` when the
+            counts differ (mmetric stops before the passes).
+        texture: the same for the pass on texture coordinates.
+        geometry_differences: the vertices of A the geometry pass found no match for (1 after an early return or a
+            valence difference), which mmetric prints as ``N different triangles``; ``None`` when the counts differ.
+        texture_differences: the same for the texture pass (mmetric does not print it).
+        position_differences: positions that differ index by index, plus the difference of the position counts.
+        uv_differences: the same for the UV lists.
+        color_differences: the same for the colour lists.
+        normal_differences: the same for the normal lists.
+    """
+
+    equal: bool
+    textures: tuple[str, ...]
+    triangles_a: int
+    triangles_b: int
+    positions_a: int
+    positions_b: int
+    uvs_a: int
+    uvs_b: int
+    geometry: str | None
+    texture: str | None
+    geometry_differences: int | None
+    texture_differences: int | None
+    position_differences: int
+    uv_differences: int
+    color_differences: int
+    normal_differences: int
+
+    def report(self) -> str:
+        """Every line mmetric's ``compare --mode eqTFAN`` prints between ``eqTFAN_Epsilon = ...`` and its timing.
+
+        Returns:
+            One or more lines, without a trailing newline.
+
+        Example:
+            >>> r = TfanEquality(False, ("3 pixel differences",), 2, 2, 4, 4, 0, 0, "early return", "equal", 1, 0,
+            ...                  1, 0, 0, 0)
+            >>> print(r.report())
+            texture maps are not equal: 3pixel differences
+            the geometry connectivity of meshes is not equal, early return.
+            the texture connectivity of meshes is equal
+            meshes are not equal, 1 different triangles
+            Position differences: 1
+            UV coords differences: 0
+            Colors differences: 0
+            Normals differences: 0
+        """
+        lines = [_texture_line(t) for t in self.textures]
+        for what, a, b in (
+            ("triangles", self.triangles_a, self.triangles_b),
+            ("positions", self.positions_a, self.positions_b),
+            ("uv coordinates", self.uvs_a, self.uvs_b),
+        ):
+            if a != b:
+                return "\n".join([*lines, f"meshes are not equal, number of {what} are different {a} vs {b}"])
+        for kind, status in (("geometry", self.geometry), ("texture", self.texture)):
+            if status == "valence":
+                lines.append("meshes are not equal, maxV2TA_ != maxV2TB_ ")
+            elif status == "early return":
+                lines.append(f"the {kind} connectivity of meshes is not equal, early return.")
+            elif status == "equal":
+                lines.append(f"the {kind} connectivity of meshes is equal")
+        if self.equal:
+            return "\n".join([*lines, " meshes are equal"])
+        lines += [
+            f"meshes are not equal, {self.geometry_differences} different triangles",
+            f"Position differences: {self.position_differences}",
+            f"UV coords differences: {self.uv_differences}",
+            f"Colors differences: {self.color_differences}",
+            f"Normals differences: {self.normal_differences}",
+        ]
+        return "\n".join(lines)
 
 
-def tfan_equality(a: TfanMesh, b: TfanMesh, early_return: bool = True) -> str:
-    """The verdict lines of ``mm compare --mode eqTFAN`` (texture images are not compared here).
+def tfan_equality(
+    a: EqualityModel | TexturedMesh | MeshLike, b: EqualityModel | TexturedMesh | MeshLike, early_return: bool = True
+) -> TfanEquality:
+    """Whether B is A with its vertices (and texture coordinates) renamed, as ``mm compare --mode eqTFAN`` decides.
 
     Args:
-        a: reference mesh (``--inputModelA``), e.g. from :func:`load_tfan_mesh`.
+        a: reference mesh (``--inputModelA``): :func:`~torchmeshmetric.mpeg.load_equality_model` reads a file as
+            mmetric does (its lists and texture maps); a :class:`~torchmeshmetric.mpeg.TexturedMesh` (or any mesh
+            form) gives its own arrays (UVs per corner, its texture as its one map).
         b: distorted mesh (``--inputModelB``).
-        early_return: ``--eqTFAN_earlyReturn`` (default true): stop at the first vertex without a match.
+        early_return: ``--eqTFAN_earlyReturn`` (default true): each pass stops at the first vertex without a match.
 
     Returns:
-        mmetric's lines, without a trailing newline (the first line is ``" meshes are equal"`` with its leading
-        space when the meshes are equal).
+        :class:`TfanEquality` (the verdict, the counts, mmetric's lines through ``report()``).
 
     Raises:
+        EmptyInputError: neither mesh has a triangle (mmetric then compares point clouds, not covered here).
         TfanUndefinedError: mmetric reads past one of its lists on these meshes.
 
     Example:
         >>> v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], np.float32)
-        >>> a = TfanMesh(v, np.array([[0, 1, 2], [1, 3, 2]]))
-        >>> b = TfanMesh(v[[3, 2, 1, 0]], np.array([[3, 2, 1], [2, 0, 1]]))  # renamed vertices and faces
-        >>> print(tfan_equality(a, b))
+        >>> a = EqualityModel(v, np.array([[0, 1, 2], [1, 3, 2]]))
+        >>> b = EqualityModel(v[[3, 2, 1, 0]], np.array([[3, 2, 1], [2, 0, 1]]))  # renamed vertices and faces
+        >>> print(tfan_equality(a, b).report())
         the geometry connectivity of meshes is equal
         the texture connectivity of meshes is equal
          meshes are equal
     """
+    a, b = _as_model(a, "a"), _as_model(b, "b")
     fa, fb = len(a.triangles), len(b.triangles)
-    if fa != fb:
-        return f"meshes are not equal, number of triangles are different {fa} vs {fb}"
-    if fa == 0:
-        raise ValueError("meshes without triangles: mmetric compares point clouds here, which eqTFAN does not cover")
-    if len(a.positions) != len(b.positions):
-        return f"meshes are not equal, number of positions are different {len(a.positions)} vs {len(b.positions)}"
-    if len(a.uvs) != len(b.uvs):
-        return f"meshes are not equal, number of uv coordinates are different {len(a.uvs)} vs {len(b.uvs)}"
-    lines = []
-    diffs = []
-    for kind, (ta, ca, tb, cb) in (
-        ("geometry", (a.triangles, a.positions, b.triangles, b.positions)),
-        ("texture", (a.triangles_uv, a.uvs, b.triangles_uv, b.uvs)),
-    ):
-        d, line = _connectivity(_Side(ta, ca), _Side(tb, cb), early_return, kind)
-        diffs.append(d)
-        if line is not None:
-            lines.append(line)
-    if diffs == [0, 0]:
-        return "\n".join([*lines, " meshes are equal"])
-    lines += [
-        f"meshes are not equal, {diffs[0]} different triangles",
-        f"Position differences: {_differences(a.positions, b.positions)}",
-        f"UV coords differences: {_differences(a.uvs, b.uvs)}",
-        f"Colors differences: {_differences(a.colors, b.colors)}",
-        f"Normals differences: {_differences(a.normals, b.normals)}",
-    ]
-    return "\n".join(lines)
+    if fa == 0 and fb == 0:
+        raise EmptyInputError(
+            "a, b: expected meshes with triangles, found none in either (mm compares vertex-only models by their "
+            "vertex lists instead: compare their positions)"
+        )
+    counts = {
+        "triangles_a": fa,
+        "triangles_b": fb,
+        "positions_a": len(a.positions),
+        "positions_b": len(b.positions),
+        "uvs_a": len(a.uvs),
+        "uvs_b": len(b.uvs),
+    }
+    lists = {
+        "position_differences": _differences(a.positions, b.positions),
+        "uv_differences": _differences(a.uvs, b.uvs),
+        "color_differences": _differences(a.colors, b.colors),
+        "normal_differences": _differences(a.normals, b.normals),
+    }
+    textures = _texture_status(a.textures, b.textures)
+    if fa != fb or counts["positions_a"] != counts["positions_b"] or counts["uvs_a"] != counts["uvs_b"]:
+        return TfanEquality(False, textures, **counts, geometry=None, texture=None, geometry_differences=None,
+                            texture_differences=None, **lists)  # fmt: skip
+    geo_diffs, geo = _connectivity(_Side(a.triangles, a.positions), _Side(b.triangles, b.positions), early_return)
+    uv_diffs, uv = _connectivity(_Side(a.triangles_uv, a.uvs), _Side(b.triangles_uv, b.uvs), early_return)
+    equal = geo_diffs == 0 and uv_diffs == 0
+    return TfanEquality(equal, textures, **counts, geometry=geo, texture=uv, geometry_differences=geo_diffs,
+                        texture_differences=uv_diffs, **lists)  # fmt: skip
