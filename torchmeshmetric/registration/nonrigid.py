@@ -156,7 +156,9 @@ def register_nonrigid(
         target: mesh to reach (frame k).
         options: the registration's settings (default: ``NonRigidOptions()``).
         device: device to compute on (default: the source's device); results live there.
-        generator: CPU ``torch.Generator`` for sampling (default: a fresh one seeded with 0, so runs repeat).
+        generator: CPU ``torch.Generator`` for sampling (default: a fresh one seeded with 0, so runs repeat). Unused
+            with ``sampling="canonical"``, whose samples are chosen from the surfaces, not drawn: any generator
+            gives the same registration (tests/registration/test_stability.py).
         warn: emit a :class:`RegistrationWarning` when the registration fails.
         backend: selection backend of the closest-face searches (see :func:`~torchmeshmetric.point_mesh_distance`);
             the exact backends return the same faces, so the result does not depend on it.
