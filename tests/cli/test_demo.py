@@ -1,5 +1,6 @@
 import importlib.util
 import json
+from pathlib import Path
 
 import pytest
 
@@ -159,6 +160,53 @@ def test_the_parsers_bounds_are_the_librarys():
     from torchmeshmetric.evaluation import validation
 
     assert (validation.MAX_FRAMES, validation._MIN_RESOLUTION) == (24, 16)
+
+
+def test_the_parsers_extremes_pass_the_librarys_checks():
+    # demo and validate rely on the parser alone for these options (their own checks were unreachable and were
+    # removed, found by review O): every value the parser lets through is one the library takes
+    from torchmeshmetric.data.demo import demo_sequence
+    from torchmeshmetric.evaluation.validation import check_validation_arguments
+
+    parser = build_parser()
+    for frames, resolution, keep in (("3", "16", "1e-9"), ("24", "16", "1")):
+        args = parser.parse_args(["validate", "--frames", frames, "--resolution", resolution, "--keep", keep])
+        assert check_validation_arguments(frames=args.frames, resolution=args.resolution, keep=args.keep)
+    args = parser.parse_args(["demo", "--frames", "2", "--resolution", "16"])
+    assert len(demo_sequence(args.frames, resolution=args.resolution, seed=args.seed).frames) == 2
+
+
+def _bad_input_row(start):
+    page = (Path(__file__).resolve().parents[2] / "docs" / "bad-input.md").read_text(encoding="utf-8")
+    return next(line for line in page.splitlines() if line.startswith(start))
+
+
+@pytest.mark.parametrize(
+    ("command", "argv"),
+    [
+        ("demo", ["--frames", "1"]),
+        ("demo", ["--resolution", "3"]),
+        ("validate", ["--frames", "100000"]),
+        ("validate", ["--keep", "0"]),
+    ],
+)
+def test_the_bad_input_page_quotes_what_the_option_errors_print(capsys, tmp_path, command, argv):
+    # Found by review O: docs/bad-input.md quoted the messages (exit 1) of checks made after parsing, which the
+    # parser's refusal (exit 2) had made unreachable
+    with pytest.raises(SystemExit) as info:
+        main([command, *argv, "--out-dir", str(tmp_path / "dm")])
+    message = capsys.readouterr().err.strip().splitlines()[-1].partition(": error: ")[2]
+    row = _bad_input_row("| `demo` / `validate` options out of range")
+    assert info.value.code == 2 and f"`{message}`" in row and "exit code 2" in row, (message, row)
+
+
+def test_the_bad_input_page_quotes_what_demo_target_prints(capsys, tmp_path):
+    row = _bad_input_row("| `demo --target` above a frame's face count")
+    argv = row.split("(`demo ", 1)[1].split("`", 1)[0].split()  # the page's own example
+    assert main(["demo", *argv, "--out-dir", str(tmp_path / "dm")]) == 1
+    message = capsys.readouterr().err.strip().splitlines()[-1].partition(": error: ")[2]
+    assert f"`{message}`" in row and "exit code 1" in row, (message, row)
+    assert not (tmp_path / "dm").exists()
 
 
 # Found by review: the demo made its --out-dir (with its marker) before checking its options, so each of these left

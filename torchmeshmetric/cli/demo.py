@@ -63,17 +63,11 @@ def run(args: argparse.Namespace) -> int:
     from torchmeshmetric.simplification._target import resolve_target
 
     device = device_of(args)
-    if args.frames < 2:  # checked here, not by register_pairs after the sequence is made
-        raise CLIError(f"--frames: expected at least 2 frames (one frame pair), found {args.frames}")
     out_dir = _demo_out_dir(args)
     t0 = time.perf_counter()
-    kwargs: dict[str, Any] = {"seed": args.seed}
-    if args.resolution is not None:
-        kwargs["resolution"] = args.resolution
-    try:  # its arguments are checked before the sequence is made
-        seq = demo_sequence(args.frames, **kwargs)
-    except ValueError as exc:
-        raise as_option_error(exc, {"num_frames": "--frames", "resolution": "--resolution"}) from None
+    # --frames (>= 2: one frame pair) and --resolution (>= 16, demo_sequence's least) were refused when parsed
+    # (exit 2), so demo_sequence's own checks, which name its arguments, cannot fail here
+    seq = demo_sequence(args.frames, resolution=args.resolution, seed=args.seed)
     frames = [f.to(dtype=dtype_of(args)) for f in seq.frames]
     for f in frames:  # a face count above a frame's faces: refused before the registration, not after it
         try:
