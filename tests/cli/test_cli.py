@@ -73,6 +73,27 @@ def test_compare_two_identical_method_folders_every_verdict_inconclusive(
     assert "argument --relative-margin: expected a finite fraction >= 0, found '-1'" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("out", [False, True])
+@pytest.mark.parametrize("which", ["--original", "--simplified", "--method"])
+def test_an_empty_frame_folder_is_named_by_its_option(capsys, tmp_path, sequence, which, out):
+    # Found by review O: the outputs' check listed the input frames first, even without --out, and said
+    # "paths: directory 'empty' holds no mesh files": "paths" is a parameter of list_frames, no option
+    orig, simp = sequence
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    argv = {
+        "--original": ["evaluate", "--original", str(empty), "--simplified", str(simp)],
+        "--simplified": ["evaluate", "--original", str(orig), "--simplified", str(empty)],
+        "--method": ["compare", "--original", str(orig), "--method", f"A={simp}", "--method", f"B={empty}"],
+    }[which]
+    report = tmp_path / "r.json"
+    code, _, stderr = _run(capsys, *argv, *(["--out", str(report)] if out else []))
+    option = "--method B" if which == "--method" else which
+    expected = f"error: {option} {str(empty)!r}: directory {str(empty)!r} holds no mesh files (suffixes .obj"
+    assert code == 1 and expected in stderr and "paths" not in stderr, stderr
+    assert not report.exists()
+
+
 @pytest.mark.parametrize(
     ("case", "message"),
     [

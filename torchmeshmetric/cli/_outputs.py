@@ -99,12 +99,22 @@ def _identity(path: Path) -> tuple[object, ...]:
 
 
 def folder_inputs(option: str, folder: str | os.PathLike[str] | None) -> list[tuple[str, Path]]:
-    """The frames of an input folder, as :func:`check_writable` inputs (none where it is no folder)."""
+    """The frames of an input folder, as :func:`check_writable` inputs (none where it is no folder).
+
+    A folder whose frames cannot be listed (it holds no mesh file, a frame is a broken link) gives none: this is the
+    outputs' check, and the command's reading of its inputs reports that problem, naming the option that gave the
+    folder (reported from here, the message named ``paths``, a parameter of ``list_frames``, and came even without
+    an output: found by review O).
+    """
     if folder is None or not Path(folder).is_dir():
         return []
     from torchmeshmetric.data.frames import list_frames
+    from torchmeshmetric.data.mesh_file import MeshFileError
 
-    return [(option, p) for p in list_frames(folder)]
+    try:
+        return [(option, p) for p in list_frames(folder)]
+    except MeshFileError:
+        return []
 
 
 def _labels(what: str | Sequence[str], n: int) -> list[str]:

@@ -138,8 +138,8 @@ def load_frames(directory: str, what: str, dtype: Any, paired_with: tuple[str, s
         frames = load_sequence(files, dtype=dtype)
     except CLIError:
         raise
-    except Exception as exc:
-        raise CLIError(f"{what} {directory!r}: {exc}") from exc
+    except Exception as exc:  # list_frames names its parameter ("paths: ..."): the option stands for it here
+        raise CLIError(f"{what} {directory!r}: {str(exc).removeprefix('paths: ')}") from exc
     if len(frames) == 0:
         raise CLIError(f"{what} {directory!r}: no mesh files found")
     return list(frames)

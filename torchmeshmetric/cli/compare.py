@@ -50,8 +50,8 @@ def run(args: argparse.Namespace) -> int:
     folders = [("--original", args.original)] + [(f"--method {n}", d) for n, d in specs.items()]
     paths = report_paths(args.out, args.mpeg, args.html, folders)
     inputs = folder_inputs("--original", args.original)
-    for spec in args.method:
-        inputs += folder_inputs("--method", spec.partition("=")[2])
+    for name, folder in specs.items():
+        inputs += folder_inputs(f"--method {name}", folder)
     check_writable(list(paths.values()), args.overwrite, inputs=inputs, what="--out")
     original = load_frames(args.original, "--original", dtype_of(args))
     frames = {

@@ -99,8 +99,8 @@ def run(args: argparse.Namespace) -> int:
             raise CLIError(f"{what} {spec!r}: no such directory (or a printf pattern such as dec_%04d.obj)")
         try:
             files.append(list_frames(paths) if isinstance(paths, str) else paths)
-        except Exception as exc:
-            raise CLIError(f"{what} {spec!r}: {exc}") from exc
+        except Exception as exc:  # list_frames names its parameter ("paths: ..."): the argument stands for it here
+            raise CLIError(f"{what} {spec!r}: {str(exc).removeprefix('paths: ')}") from exc
     # Paired by frame number as evaluate pairs them (found by review G): by position, a folder or pattern numbered
     # from 1 was measured against one numbered from 0 in silence, and each pattern picks its own default first frame.
     files[1] = paired_files(files[1], args.distorted, "DISTORTED", args.original, "ORIGINAL", original_files=files[0])
