@@ -197,3 +197,68 @@ def test_frames_pair_by_number_not_by_name_order(tmp_path, capsys):
     assert main(["temporal", str(orig), str(dist), "--json"]) == 0
     got = json.loads(capsys.readouterr().out)
     assert (got["kg"], got["kso"], got["sted"]) == (0.0, 0.0, 0.0)
+
+
+@pytest.mark.parametrize("side", ["ORIGINAL", "DISTORTED"])
+@pytest.mark.parametrize("last", [None, "4"])
+def test_a_gap_in_a_patterns_frames_is_named(tmp_path, capsys, side, last):
+    # Found by review O: the scan of a pattern stopped at its first gap (frames 0 and 1 of 0..4 without 2) and the
+    # count check said "DISTORTED: 2 frames, ORIGINAL: 5", naming no frame; the docs said the default --last-frame
+    # is "the last file that exists". As mm's --firstFrame/--lastFrame, every frame of the range is read.
+    a, faces = animated_sphere(num_frames=5)
+    orig, dist = _write(tmp_path / "orig", a, faces), _write(tmp_path / "dist", a, faces)
+    (dist / "f_0002.ply").unlink()
+    patterns = [str(orig / "f_%04d.ply"), str(dist / "f_%04d.ply")]
+    if side == "ORIGINAL":
+        patterns.reverse()
+    assert main(["temporal", *patterns, *(["--last-frame", last] if last else [])]) == 1
+    until = "--last-frame" if last else "its last file, the default --last-frame"
+    expected = (
+        f"{side} {str(dist / 'f_%04d.ply')!r}: frame 2 is missing ({dist / 'f_0002.ply'}): every frame from 0 to 4 "
+        f"({until}) is read"
+    )
+    err = capsys.readouterr().err
+    assert expected in err and "counts" not in err, err
+
+
+def test_folders_of_different_counts_name_the_frame_one_lacks(tmp_path, capsys):
+    a, faces = animated_sphere(num_frames=5)
+    orig, dist = _write(tmp_path / "orig", a, faces), _write(tmp_path / "dist", a, faces)
+    (dist / "f_0002.ply").unlink()
+    assert main(["temporal", str(orig), str(dist)]) == 1
+    err = capsys.readouterr().err
+    assert (
+        "DISTORTED: 4 frames, ORIGINAL: 5 (ORIGINAL: frames 0 to 4, DISTORTED: frames 0 to 4); frame 2 "
+        f"('f_0002.ply') is in ORIGINAL {str(orig)!r} but not in DISTORTED {str(dist)!r}; the counts must be equal"
+    ) in err, err
+
+
+def test_a_pattern_numbered_from_elsewhere_says_its_first_frame(tmp_path, capsys):
+    # V-DMC sequences are numbered from their source's frame (1051, ...): the default first frame (0 or 1) is missing
+    a, faces = animated_sphere(num_frames=3)
+    late = _write_numbered(tmp_path / "late", a, faces, (1051, 1052, 1053))
+    pattern = str(late / "f_%04d.ply")
+    assert main(["temporal", pattern, pattern]) == 1
+    assert "frame 1 is missing" in (err := capsys.readouterr().err) and "pass --first-frame 1051" in err, err
+    assert main(["temporal", pattern, pattern, "--first-frame", "1051", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["num_frames"] == 3
+    assert main(["temporal", pattern, pattern, "--first-frame", "2000"]) == 1
+    assert "no frame file from frame 2000 (its files run from frame 1051 to 1053)" in capsys.readouterr().err
+
+
+def test_pattern_frames_reads_only_the_names_the_pattern_writes(tmp_path):
+    from torchmeshmetric.mpeg.ctc.frame_pattern import pattern_frames
+
+    for name in ("dec_0000.obj", "dec_0003.obj", "dec_7.obj", "dec_00012.obj", "dec_0004.obj.bak", "other_0001.obj"):
+        (tmp_path / name).write_text("")
+    (tmp_path / "dec_0005.obj").mkdir()  # a folder is no frame
+    assert pattern_frames(str(tmp_path / "dec_%04d.obj")) == [0, 3]
+    assert pattern_frames(str(tmp_path / "dec_%d.obj")) == [7]
+    for k in (1, 2, 10):  # the field in a folder's name
+        (tmp_path / f"f{k:03d}").mkdir()
+        if k != 2:
+            (tmp_path / f"f{k:03d}" / "mesh.obj").write_text("")
+    assert pattern_frames(str(tmp_path / "f%03d" / "mesh.obj")) == [1, 10]
+    assert pattern_frames(str(tmp_path / "missing" / "x_%d.obj")) == []
+    with pytest.raises(ValueError, match="expected one printf integer field"):
+        pattern_frames(str(tmp_path / "x_%d_%d.obj"))

@@ -13,18 +13,22 @@ __all__ = ["add_temporal_command", "frame_files", "run"]
 
 
 def frame_files(spec: str, what: str, first_frame: int | None, last_frame: int | None) -> list[Path] | str:
-    """The frames a command-line argument names: a folder (returned as is), or a printf pattern's existing files.
+    """The frames a command-line argument names: a folder (returned as is), or a printf pattern's files.
 
     A pattern such as ``dec_%04d.obj`` runs from ``first_frame`` (default: 0, or 1 when frame 0 does not exist) to
-    ``last_frame`` (default: the last consecutive file that exists). An existing folder is a folder, a ``%`` in
-    its name too (``runs/100%_q``).
+    ``last_frame`` (default: the highest frame number whose file exists), and every frame of that range must exist,
+    as ``mm``'s ``--firstFrame``/``--lastFrame`` and the V-DMC scripts' frame ranges read every frame of theirs: a
+    missing frame is refused, naming it and its file (the scan stopped at the first gap and the count check then
+    named no frame: found by review O). An existing folder is a folder, a ``%`` in its name too (``runs/100%_q``).
 
     Raises:
-        CLIError: the pattern is malformed or names no file, a frame range given for a folder (its frames have no
-            numbers to select by), or ``last_frame`` before ``first_frame`` (or before the default first frame).
+        CLIError: the pattern is malformed or names no file, a frame of the range is missing, a frame range given
+            for a folder (its frames have no numbers to select by), or ``last_frame`` before ``first_frame`` (or
+            before the default first frame).
     """
     from torchmeshmetric.cli._outputs import CLIError
     from torchmeshmetric.cli.ctc import frame_path
+    from torchmeshmetric.mpeg.ctc.frame_pattern import pattern_frames
 
     if "%" not in spec or Path(spec).is_dir():
         if (first_frame is not None or last_frame is not None) and Path(spec).is_dir():
@@ -37,6 +41,7 @@ def frame_files(spec: str, what: str, first_frame: int | None, last_frame: int |
         # The loop never ran and the count check called frame first_frame missing (found by review).
         raise CLIError(f"--last-frame {last_frame} is before --first-frame {first_frame}: no frame to read")
     try:
+        existing = pattern_frames(spec, what)
         start = first_frame
         if start is None:
             start = 0 if Path(frame_path(spec, 0, what)).is_file() else 1
@@ -45,17 +50,24 @@ def frame_files(spec: str, what: str, first_frame: int | None, last_frame: int |
                 f"--last-frame {last_frame} is before {what} {spec!r}'s first frame, {start} (the default "
                 "--first-frame: 0, or 1 when frame 0 does not exist)"
             )
-        files = []
-        k = start
-        while (last_frame is None or k <= last_frame) and Path(frame_path(spec, k, what)).is_file():
-            files.append(Path(frame_path(spec, k, what)))
-            k += 1
+        last = last_frame if last_frame is not None else max(existing, default=start - 1)
+        if last < start:  # no file from the first frame on
+            found = f" (its files run from frame {existing[0]} to {existing[-1]})" if existing else ""
+            raise CLIError(f"{what} {spec!r}: no frame file from frame {start}{found}")
+        files = [Path(frame_path(spec, k, what)) for k in range(start, last + 1)]
     except ValueError as exc:
         raise CLIError(str(exc)) from exc
-    if last_frame is not None and len(files) != last_frame - start + 1:
-        raise CLIError(f"{what} {spec!r}: frame {start + len(files)} is missing ({frame_path(spec, k, what)})")
-    if not files:
-        raise CLIError(f"{what} {spec!r}: no frame file from frame {start}")
+    for k, path in enumerate(files, start):
+        if path.is_file():
+            continue
+        until = "--last-frame" if last_frame is not None else "its last file, the default --last-frame"
+        hint = ""
+        if k == start and first_frame is None and existing:  # numbered from elsewhere (V-DMC's 1051, ...)
+            hint = f"; its first file is frame {existing[0]}: pass --first-frame {existing[0]}"
+        raise CLIError(
+            f"{what} {spec!r}: frame {k} is missing ({path}): every frame from {start} to {last} ({until}) "
+            f"is read{hint}"
+        )
     return files
 
 
@@ -112,13 +124,18 @@ def run(args: argparse.Namespace) -> int:
             raise CLIError(f"{what} {spec!r}: {exc}") from exc
     original, distorted = sequences
     if len(original) != len(distorted):
-        numbers = [frame_numbers(f) for f in files]
-        ranges = (
-            f" (ORIGINAL: frames {min(numbers[0])} to {max(numbers[0])}, DISTORTED: frames {min(numbers[1])} to "
-            f"{max(numbers[1])})"
-            if numbers[0] and numbers[1]
-            else ""
-        )
+        ours, theirs = (frame_numbers(f) for f in files)
+        ranges = ""
+        if ours and theirs:
+            ranges = f" (ORIGINAL: frames {min(ours)} to {max(ours)}, DISTORTED: frames {min(theirs)} to {max(theirs)})"
+            # the first frame one of them lacks (the ranges alone did not say which frame a folder misses)
+            first = min(set(ours) ^ set(theirs))
+            has, lacks = (0, 1) if first in ours else (1, 0)
+            name = files[has][(ours if has == 0 else theirs).index(first)].name
+            ranges += (
+                f"; frame {first} ({name!r}) is in {inputs[has][0]} {inputs[has][1]!r} but not in "
+                f"{inputs[lacks][0]} {inputs[lacks][1]!r}"
+            )
         raise CLIError(
             f"DISTORTED: {len(distorted)} frames, ORIGINAL: {len(original)}{ranges}; the counts must be equal"
         )
@@ -203,7 +220,20 @@ def add_temporal_command(sub: Any) -> None:
         action="store_true",
         help="use the registered forms even when the connectivity allows the exact ones",
     )
-    p.add_argument("--first-frame", type=int, default=None, metavar="F", help="patterns: first frame number")
-    p.add_argument("--last-frame", type=int, default=None, metavar="L", help="patterns: last frame number (included)")
+    p.add_argument(
+        "--first-frame",
+        type=int,
+        default=None,
+        metavar="F",
+        help="patterns: first frame number (default 0, or 1 when frame 0 does not exist)",
+    )
+    p.add_argument(
+        "--last-frame",
+        type=int,
+        default=None,
+        metavar="L",
+        help="patterns: last frame number, included (default: the highest whose file exists); every frame from the "
+        "first to the last must exist",
+    )
     add_cache_dir(p, "registration cache folder (registered forms)")
     add_determinacy(p, "compute the figures again", "docs/temporal.md")
