@@ -6,8 +6,9 @@ import argparse
 import csv
 import json
 import math
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 from torchmeshmetric._format import check_csv_fields, json_safe
 from torchmeshmetric.cli.options import path_argument
@@ -36,6 +37,32 @@ def _check_row(
         cols[k].append(value)
 
 
+def _refuse_header(path: str, header: Sequence[str] | None) -> NoReturn:
+    """A CSV that is no rate curve: the header found, and for the test model's CSV what to read instead.
+
+    The test model's CSV (``ctc-campaign``'s ``anchor.csv`` and ``test.csv``, ``collect_results.sh``'s) is refused
+    rather than read: it holds every sequence, condition and rate of a codec in one file, ``0`` for a colour figure
+    not computed and ``inf`` for a lossless point, and its rate is the total bitstream, where the CTC sheet takes the
+    rate from the bitstream components when the campaign has them. Its BD-rates, per sequence and condition with
+    the sheet's rates, are ``ctc-campaign``'s summary (found by review O: the message named no header, no way out).
+    """
+    from torchmeshmetric.mpeg.ctc.sheet import TEST_MODEL_COLUMNS  # the standard library only: no torch
+
+    expected = "expected a header with a 'rate' column and one column per metric (one row per rate point)"
+    if not header:
+        raise ValueError(f"{path}:1: {expected}, found an empty file")
+    found = ",".join(header)
+    if set(TEST_MODEL_COLUMNS[:5]) <= set(header):
+        raise ValueError(
+            f"{path}:1: {expected}, found the test model's CSV header {found!r} (as ctc-campaign writes anchor.csv "
+            "and test.csv: every sequence, condition and rate of a codec): its BD-rates per sequence and condition, "
+            "with the CTC sheet's rates, are ctc-campaign's summary.csv (summary.md, summary.json; in Python, from "
+            "such CSVs: torchmeshmetric.mpeg.read_test_model_csv and ctc_summary); bdrate compares one curve per "
+            "file (docs/ctc.md, 'BD-rates')"
+        )
+    raise ValueError(f"{path}:1: {expected}, found the header {found!r}")
+
+
 def read_curve(path: str) -> dict[str, list[float]]:
     r"""The rate points of one CSV: ``{"rate": [...], metric: [...]}``, every value checked, errors as ``file:line``.
 
@@ -43,7 +70,8 @@ def read_curve(path: str) -> dict[str, list[float]]:
     rates and finite PSNRs; a metric needs 2 rate points or more with distinct PSNRs.
 
     Raises:
-        ValueError: the first problem found, naming the file, the line and the column.
+        ValueError: the first problem found, naming the file, the line and the column (a header without ``rate``:
+            the header found; the test model's CSV, ``ctc-campaign``'s ``anchor.csv``: where its BD-rates are).
 
     Example:
         >>> import tempfile, os
@@ -58,7 +86,7 @@ def read_curve(path: str) -> dict[str, list[float]]:
     with open(p, newline="", encoding="utf-8-sig") as fh:
         reader = csv.DictReader(fh)
         if reader.fieldnames is None or "rate" not in reader.fieldnames:
-            raise ValueError(f"{path}:1: expected a header with a 'rate' column and one column per metric")
+            _refuse_header(path, reader.fieldnames)
         cols: dict[str, list[float]] = {k: [] for k in reader.fieldnames if k}
         lines: list[int] = []
         for row in reader:
