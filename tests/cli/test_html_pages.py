@@ -399,3 +399,19 @@ def test_report_names_out_when_its_folder_is_missing(capsys, tmp_path):
     assert err == (
         f"torchmeshmetric report: error: --out {str(out)!r}: output folder {str(out.parent)!r} does not exist"
     )
+
+
+def test_report_rerun_names_the_default_page_not_out(capsys, tmp_path):
+    # Found by review O: `report r.json` twice said "--out 'r.html' already exists", an option never given
+    (tmp_path / "r.json").write_text(json.dumps({"frames": [{"frame": 0, "GridD1": 60.0}]}))
+    (tmp_path / "r.md").write_text("# r\n")
+    page = tmp_path / "r.html"
+    page.write_text("keep me")
+    assert main(["report", str(tmp_path / "r.json")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err == (
+        f"torchmeshmetric report: error: the page {str(page)!r} already exists (pass --overwrite to replace it)"
+    )
+    assert page.read_text() == "keep me"
+    assert main(["report", str(tmp_path / "r.json"), "--overwrite"]) == 0
+    assert page.read_text() != "keep me"

@@ -49,7 +49,8 @@ def run(args: argparse.Namespace) -> int:
         if not m.is_file():
             raise CLIError(f"--mesh {str(m)!r}: no such file")
     inputs = [("REPORT", source), ("its Markdown", markdown_path), *(("--mesh", m) for m in meshes)]
-    check_writable([out], args.overwrite, inputs=inputs, what="--out")
+    # without --out the page is REPORT.html: named so, not as an --out the user never gave (found by review O)
+    check_writable([out], args.overwrite, inputs=inputs, what="--out" if args.out else "the page")
     layers: list[Any] = []
     for m in meshes:
         try:
