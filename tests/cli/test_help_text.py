@@ -28,3 +28,18 @@ def test_the_percent_signs_are_shown_single(capsys):
     assert "printf patterns such as dec_%04d.obj" in _help(capsys, "temporal")
     assert "a pattern such as src_%04d.obj" in _help(capsys, "temporal")
     assert "e.g. dec_%04d.obj" in _help(capsys, "ctc")
+
+
+@pytest.mark.parametrize("command", [None, *COMMANDS])
+def test_no_help_cites_a_path_of_the_developers_tree(capsys, command):
+    # mpeg --help cited "../shared/reference/mpeg", a folder beside the developers' checkout
+    text = _help(capsys, *([command] if command else []))
+    assert "../" not in text and "shared/reference" not in text, text
+
+
+@pytest.mark.parametrize("command", ["demo", "validate"])
+def test_the_output_folders_default_is_shown(capsys, command):
+    from torchmeshmetric.cli import build_parser
+
+    default = build_parser().parse_args([command]).out_dir
+    assert f"--out-dir DIR output folder (default {default}," in _help(capsys, command)

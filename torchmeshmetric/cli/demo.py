@@ -35,6 +35,7 @@ DEMO_FRAMES = 6
 DEMO_RESOLUTION = 160
 DEMO_TARGET = 0.97
 DEMO_WEIGHTS = (0.0, 0.5, 1.0, 2.0, 4.0, 8.0)
+DEMO_OUT_DIR = "torchmeshmetric-demo"
 
 
 def run(args: argparse.Namespace) -> int:
@@ -328,7 +329,13 @@ def add_demo_command(sub: Any) -> None:
         help="also run Registered QEM at each of these weights beside plain QEM and write weight_sweep.md/.json "
         f"and the Pareto plot weight_sweep.png (default {','.join(f'{w:g}' for w in DEMO_WEIGHTS)}; 'none' skips)",
     )
-    p.add_argument("--out-dir", type=path_argument, default="torchmeshmetric-demo", metavar="DIR", help="output folder")
+    p.add_argument(
+        "--out-dir",
+        type=path_argument,
+        default=DEMO_OUT_DIR,
+        metavar="DIR",
+        help=f"output folder (default {DEMO_OUT_DIR}, in the current folder)",
+    )
     p.add_argument("--overwrite", action="store_true", help="write into --out-dir even if another tool made it")
     p.add_argument("--no-plots", action="store_true", help="skip PNG plots and coloured PLY files")
     p.add_argument("--save-meshes", action="store_true", help="also save the simplified frames as PLY")

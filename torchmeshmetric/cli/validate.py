@@ -133,7 +133,11 @@ def add_validate_command(sub: Any) -> None:
         help=f"only these distortions, comma-separated: {', '.join(DISTORTIONS)} (default all)",
     )
     p.add_argument(
-        "--out-dir", type=path_argument, default="torchmeshmetric-validation", metavar="DIR", help="output folder"
+        "--out-dir",
+        type=path_argument,
+        default="torchmeshmetric-validation",
+        metavar="DIR",
+        help="output folder (default torchmeshmetric-validation, in the current folder)",
     )
     p.add_argument("--overwrite", action="store_true", help="replace existing output files")
     p.add_argument("--no-plots", action="store_true", help="skip validation.png")
