@@ -273,3 +273,37 @@ def test_numbers_are_accepted_where_tensors_are():
     _, ax = metric.plot([{"ave": 1}, {"ave": 2}], keys=["ave"])
     assert [float(y) for y in ax.get_lines()[0].get_ydata()] == [1.0, 2.0]
     plt.close("all")
+
+
+def _steps() -> list[dict[str, torch.Tensor]]:
+    metric = DistanceStatisticsMetric(two_sided=True)
+    out = []
+    for batch in ([1.0, 2.0], [3.0, 5.0], [0.5]):
+        metric.update(torch.tensor(batch), torch.tensor([0.25]))
+        out.append(metric.compute())
+    return out
+
+
+_KINDS = {  # every form plot() draws on a new figure: bars (few, and tilted names), curves of dicts, of scalars
+    "bars": lambda: _updated(MeshSurfaceDistance).plot(),
+    "tilted bars": lambda: _updated(MeshSurfaceDistance, two_sided=True).plot(),
+    "curves": lambda: DistanceStatisticsMetric(two_sided=True).plot(_steps()),
+    "scalar": lambda: _updated(SelectedStatistic).plot(),
+    "scalar steps": lambda: _updated(SelectedStatistic).plot([torch.tensor(0.5), torch.tensor(0.25)]),
+}
+
+
+@pytest.mark.parametrize("kind", list(_KINDS))
+def test_saved_figure_holds_every_label(kind, tmp_path):
+    # review O (F-plot-clip): the two-sided bars' tilted names ran off the bottom of a saved figure ("_ave", "dorff")
+    fig, ax = _KINDS[kind]()
+    tilted = kind == "tilted bars"
+    assert tilted == any(t.get_rotation() != 0 for t in ax.get_xticklabels())
+    fig.savefig(tmp_path / "figure.png")  # laid out and drawn as a user's savefig draws it (Agg)
+    renderer = fig.canvas.get_renderer()
+    # what is drawn (tick labels, axis labels, bar labels, legend, notes), not tick objects outside the view
+    drawn, box = ax.get_tightbbox(renderer), fig.bbox
+    cut = [t.get_text() for t in ax.get_xticklabels() if t.get_window_extent(renderer).y0 < box.y0]
+    assert drawn.x0 >= box.x0 - 0.5 and drawn.y0 >= box.y0 - 0.5, (kind, drawn.bounds, box.bounds, cut)
+    assert drawn.x1 <= box.x1 + 0.5 and drawn.y1 <= box.y1 + 0.5, (kind, drawn.bounds, box.bounds)
+    plt.close(fig)

@@ -255,6 +255,8 @@ def _curves(val: Any, ax: Any, name: str, higher_is_better: bool | None) -> tupl
     fig, ax = plot_single_or_multi_val(
         val, ax=ax, higher_is_better=higher_is_better, lower_bound=lower, name=plain_label(name)
     )
+    if fig is not None:  # a figure of ours: laid out when drawn, so a saved one keeps its labels and legend
+        fig.set_layout_engine("constrained")
     return fig, ax
 
 
@@ -266,7 +268,9 @@ def _bars(result: dict[str, Tensor], ax: Any, chosen: list[str], name: str) -> t
     finite = [v if math.isfinite(v) else 0.0 for v in values]  # a NaN bar had no label at all, an inf one no height
     odd = [f"{k}={v:g}" for k, v in zip(chosen, values, strict=True) if not math.isfinite(v)]
     _warn_not_finite(name, odd, "each is a label over no bar")
-    fig, ax = plt.subplots(figsize=(max(4.0, 0.6 * len(chosen) + 1.5), 3.5)) if ax is None else (None, ax)
+    # constrained layout (as viz/plots.py's figures): a saved figure keeps its tilted names (they ran off its bottom)
+    size = (max(4.0, 0.6 * len(chosen) + 1.5), 3.5)
+    fig, ax = plt.subplots(figsize=size, layout="constrained") if ax is None else (None, ax)
     bars = ax.bar(range(len(chosen)), finite, color=[f"C{_direction(k)}" for k in chosen])
     ax.bar_label(bars, labels=[bar_label(k, v) for k, v in zip(chosen, values, strict=True)], fontsize=7)
     tilted = len(chosen) > 8
