@@ -10,6 +10,7 @@ import tests.distributed.helpers as known
 from tests.cli.cli_helpers import write_frames
 from tests.distributed.helpers import without_timings
 from torchmeshmetric.cli import main
+from torchmeshmetric.cli._shared import fast_registration_options
 from torchmeshmetric.evaluation.campaign import ManifestError, load_campaign
 from torchmeshmetric.evaluation.determinacy import shared_cell, value_change
 from torchmeshmetric.evaluation.reports import COLUMN_FORMATS
@@ -57,7 +58,8 @@ def test_campaign_writes_combined_and_per_sequence_reports_equal_to_compare(tmp_
     assert "| overall | coarse | k-th |" in stdout and "| run fast | fine | (k-1)-th |" in stdout
     names = sorted(p.name for p in out.iterdir())
     assert names == sorted(f"{s}.{e}" for s in ("campaign", "walk", "run_fast") for e in ("json", "md", "csv"))
-    # each sequence's report is the compare command's report for it (of the same name: the note names its JSON)
+    # each sequence's report is the compare command's report for it (of the same name: the note names its JSON), with
+    # the manifest's default registration = "full", the one compare runs ("fast": the next test)
     walk = tmp_path / "walk"
     (tmp_path / "compare").mkdir()
     assert main(["compare", "--original", str(walk / "orig"), "--method", f"fine={walk / 'fine'}", "--method",
@@ -89,6 +91,31 @@ def test_campaign_writes_combined_and_per_sequence_reports_equal_to_compare(tmp_
     assert main(["campaign", str(campaign), "--out-dir", str(out)]) == 1
     assert "already exists" in capsys.readouterr().err
     assert main(["campaign", str(campaign), "--out-dir", str(out), "--overwrite"]) == 0
+
+
+def test_fast_registration_reports_differ_from_compare_in_the_registered_rows(tmp_path, campaign, monkeypatch):
+    # docs/scaling.md (review O, F-campaign-vs-compare): the per-sequence report is compare's with registration =
+    # "full" (above); compare has no --registration, so under "fast" every registered row differs, the k-th rows not
+    def register(source, target, *, device=None, **options):
+        done = known.register(source, target, device=device)
+        fast = options.get("num_points") == fast_registration_options()["num_points"]
+        return done._replace(verts=done.verts + 0.01) if fast else done  # "fast" lands elsewhere
+
+    monkeypatch.setattr("torchmeshmetric.evaluation.pipeline.default_register", register)
+    fast = MANIFEST.format(extra="").replace("two_sided = true", 'two_sided = true\nregistration = "fast"')
+    campaign.write_text(fast)
+    assert main(["campaign", str(campaign), "--out-dir", str(tmp_path / "report")]) == 0
+    walk = tmp_path / "walk"
+    (tmp_path / "compare").mkdir()
+    assert main(["compare", "--original", str(walk / "orig"), "--method", f"fine={walk / 'fine'}", "--method",
+                 f"coarse={walk / 'coarse'}", "--out", str(tmp_path / "compare" / "walk.json")]) == 0  # fmt: skip
+    got, want = ((tmp_path / d / "walk.md").read_text().splitlines() for d in ("report", "compare"))
+    assert len(got) == len(want)
+    rows = [g for g, w in zip(got, want, strict=True) if g.startswith("| ") and g != w]  # tables and comparisons
+    assert rows and all(any(s in g for s in ("(k-1)-th", "flicker", "Registration", "k_minus_1")) for g in rows), rows
+    for mesh in ("| k-th |", "| (k-1)-th |", "| flicker |"):
+        mine = [g for g in got if mesh in g]
+        assert mine and (mine == [w for w in want if mesh in w]) == (mesh == "| k-th |"), mesh
 
 
 @pytest.mark.parametrize(
