@@ -36,7 +36,11 @@ def test_compare_checks_every_method_before_the_first_is_evaluated(
     code = main(argv + (["--mpeg"] if mpeg else []))
     err = capsys.readouterr().err
     assert code == 1
-    assert f"torchmeshmetric compare: error: method 'M{bad}': 2 simplified frames but 3 original frames" in err
+    # the folders number their frames: the message names the frame the short one lacks (review O)
+    assert (
+        f"torchmeshmetric compare: error: --method M{bad} {str(short)!r}: 2 frames but --original {str(orig)!r} has 3 "
+        "(must match): frame 2 of the original frames ('frame_02.ply') is missing here"
+    ) in err
     assert known_registration.calls == 0 and pair_calls == []  # nothing was registered or measured
 
 
@@ -50,5 +54,8 @@ def test_campaign_checks_every_sequence_before_any_work(capsys, tmp_path, known_
     )
     assert main(["campaign", str(manifest)]) == 1
     err = capsys.readouterr().err
-    assert "sequence 'second': method 's': 2 simplified frames but 3 original frames (must match)" in err
+    assert (
+        f"sequence 'second': method 's' {str(short)!r}: 2 frames but sequence 'second': original {str(a)!r} has 3 "
+        "(must match): frame 2 of the original frames ('frame_02.ply') is missing here"
+    ) in err
     assert known_registration.calls == 0 and pair_calls == []

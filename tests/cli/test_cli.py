@@ -125,7 +125,10 @@ def test_errors_are_one_line_no_traceback_no_report(capsys, tmp_path, sequence, 
     lines = [line for line in stderr.splitlines() if "frame pair" not in line]
     assert len(lines) == 1 and "error:" in lines[0] and message in lines[0], stderr
     if case == "count":
-        assert f"2 frames but --original {str(orig)!r} has 3 (must match)" in lines[0]
+        assert lines[0].endswith(
+            f"2 frames but --original {str(orig)!r} has 3 (must match): frame 2 of the original frames "
+            "('frame_02.ply') is missing here"
+        )
     assert "Traceback" not in stderr
     if case == "exists":
         assert out.read_text() == "keep me"
@@ -176,3 +179,23 @@ def test_help_explains_every_option():
 def test_python_dash_m_help():
     r = subprocess.run([sys.executable, "-m", "torchmeshmetric", "--help"], capture_output=True, text=True, check=False)
     assert r.returncode == 0 and "evaluate" in r.stdout and "demo" in r.stdout
+
+
+def test_frame_counts_that_differ_name_the_frame_one_folder_lacks(capsys, tmp_path):
+    """Numbered frames: the first number in one folder only, either way (review O: only the counts were named)."""
+    orig = write_frames(tmp_path / "orig", 1, n=4)
+    simp = write_frames(tmp_path / "simp", 1, n=5)
+    (simp / "frame_01.ply").unlink()
+    (simp / "frame_02.ply").unlink()  # 3 frames: 00, 03, 04
+    code, _, stderr = _run(capsys, "evaluate", "--original", str(orig), "--simplified", str(simp))
+    assert code == 1
+    assert stderr.strip().endswith(
+        f"--simplified {str(simp)!r}: 3 frames but --original {str(orig)!r} has 4 (must match): frame 1 of the "
+        "original frames ('frame_01.ply') is missing here; 3 frame numbers are in one folder only"
+    ), stderr
+    code, _, stderr = _run(capsys, "evaluate", "--original", str(simp), "--simplified", str(orig))
+    assert code == 1
+    assert stderr.strip().endswith(
+        f"--simplified {str(orig)!r}: 4 frames but --original {str(simp)!r} has 3 (must match): frame 1 "
+        "('frame_01.ply') has no original frame; 3 frame numbers are in one folder only"
+    ), stderr

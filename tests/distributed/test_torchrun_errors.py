@@ -33,7 +33,7 @@ def _ours(stderr: str) -> list[str]:
 @pytest.mark.parametrize(
     ("case", "message"),
     [
-        ("count", "method 'B': 2 simplified frames but 3 original frames (must match)"),
+        ("count", "2 frames but --original {orig!r} has 3 (must match): frame 2 of the original frames"),
         ("missing", "no such directory"),
         # refused when parsed since 2026-12-07 (it was after the evaluation): a usage error, printed once too
         ("margin", "argument --relative-margin: expected a finite fraction >= 0, found '-1'"),
@@ -51,7 +51,7 @@ def test_an_error_of_every_rank_is_printed_once_by_rank_0(tmp_path, frames, case
     assert code != 0
     ours = _ours(stderr)
     assert len(ours) == 1, stderr
-    assert message in ours[0] and "rank " not in ours[0]
+    assert message.format(orig=str(orig)) in ours[0] and "rank " not in ours[0]
 
 
 @pytest.mark.parametrize("rank", [0, 1])

@@ -160,7 +160,9 @@ def paired_files(
     export or another numbering is refused, naming both folders, the first frame number in one folder only and the
     number each folder starts at (paired by position, original frame 1 would be measured against simplified frame 2
     in silence). Otherwise (a name without a number, no number that differs between all names, a single frame) the
-    frames pair by natural order, as documented. Different counts are left to the count check, which names them.
+    frames pair by natural order, as documented. Different counts of numbered frames are refused here, naming the
+    first frame one folder lacks (the count check after it named only the counts: found by review O); unnumbered
+    ones are left to the count check.
 
     ``original_files``: the original frames when ``original`` is not a folder (``temporal``'s printf patterns,
     resolved by the caller); default: the frames of the folder ``original``. ``directory`` and ``original`` are then
@@ -168,8 +170,22 @@ def paired_files(
     """
     originals = list_frames(original) if original_files is None else list(original_files)
     numbers, theirs = frame_numbers(originals), frame_numbers(files)
-    if numbers is None or theirs is None or len(files) != len(originals):
+    if numbers is None or theirs is None:
         return files
+    if len(files) != len(originals):
+        only = sorted(set(numbers) ^ set(theirs))
+        if not only:  # the same numbers, repeated in one folder: the count check names the counts
+            return files
+        first = only[0]
+        if first in numbers:
+            which = f"frame {first} of the original frames ({originals[numbers.index(first)].name!r}) is missing here"
+        else:
+            which = f"frame {first} ({files[theirs.index(first)].name!r}) has no original frame"
+        more = f"; {len(only)} frame numbers are in one folder only" if len(only) > 1 else ""
+        raise CLIError(
+            f"{what} {directory!r}: {len(files)} frames but {original_what} {original!r} has {len(originals)} (must "
+            f"match): {which}{more}"
+        )
     if set(numbers) != set(theirs):
         first = min(set(numbers) ^ set(theirs))
         has, lacks = (
