@@ -249,6 +249,33 @@ def _edge_scale(x: Tensor, faces: Tensor) -> Tensor:
     return total / count.clamp_min(1)
 
 
+def _line_normals(x: Tensor, faces: Tensor) -> Tensor:
+    """``(V, 3)`` the unit normals of the lines :func:`carry_onto` follows; zero where rounding would set them.
+
+    The area-weighted vertex normal (:meth:`~torchmeshmetric.structures.Mesh.vertex_normals`), except at a vertex
+    whose faces' area vectors cancel to within their rounding (``64 eps`` of the largest coordinate times the longest
+    edge, per face, as :meth:`~torchmeshmetric.structures.Mesh.surface_face_mask` bounds a face's): a fin of two
+    faces on the same three vertices, which the weld can fold (the demo at resolution 80 has one). There the sum was
+    rounding noise whose direction changed with the last bits of the vertices and with the CPU's kernels (fused
+    multiply-adds), and the line followed it: a tracked vertex 1e-17 apart was carried 1.7e-3 apart (measured). Such a
+    vertex takes its closest point, as one without faces of positive area does.
+    """
+    mesh = Mesh(x, faces, validate=False)
+    normal = mesh.vertex_normals()
+    if faces.shape[0] == 0:
+        return normal
+    tri = x[faces]
+    edges = torch.stack([tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], tri[:, 2] - tri[:, 1]], dim=1)
+    unit = power_of_two_above(edges[:, :2].abs().amax())  # _normal_cross's units (exact)
+    longest = (edges / unit).norm(dim=-1).amax(-1)
+    noise = 64 * torch.finfo(x.dtype).eps * (tri.abs().amax(dim=(1, 2)) / unit) * longest
+    cross = mesh._normal_cross()
+    total = torch.zeros_like(x).index_add(0, faces[:, 0], cross).index_add(0, faces[:, 1], cross)
+    total = total.index_add(0, faces[:, 2], cross)
+    bound = torch.zeros_like(x[:, 0]).index_add(0, faces.flatten(), noise.repeat_interleave(3))
+    return torch.where((total.norm(dim=-1) > bound)[:, None], normal, torch.zeros_like(normal))
+
+
 def _region_step(
     verts: Tensor, faces: Tensor, hit: PointMeshResult, q: Tensor, normal: Tensor
 ) -> tuple[Tensor, Tensor]:
@@ -495,7 +522,7 @@ def carry_onto(
             hit = index.point_mesh_distance(x)
             if faces is not None and normal_steps:
                 tracked_faces = faces.to(tracked.device)
-                normal = Mesh(x, tracked_faces, validate=False).vertex_normals()
+                normal = _line_normals(x, tracked_faces)
                 scale = _edge_scale(x, tracked_faces)
                 hit, q, on_line = _along_normal(index, verts.detach(), mesh_faces, x, normal, scale, hit, normal_steps)
         corners = verts[mesh_faces[hit.face_idx]]  # (V, 3, 3)
