@@ -255,10 +255,11 @@ def _line_normals(x: Tensor, faces: Tensor) -> Tensor:
     The area-weighted vertex normal (:meth:`~torchmeshmetric.structures.Mesh.vertex_normals`), except at a vertex
     whose faces' area vectors cancel to within their rounding (``64 eps`` of the largest coordinate times the longest
     edge, per face, as :meth:`~torchmeshmetric.structures.Mesh.surface_face_mask` bounds a face's): a fin of two
-    faces on the same three vertices, which the weld can fold (the demo at resolution 80 has one). There the sum was
-    rounding noise whose direction changed with the last bits of the vertices and with the CPU's kernels (fused
-    multiply-adds), and the line followed it: a tracked vertex 1e-17 apart was carried 1.7e-3 apart (measured). Such a
-    vertex takes its closest point, as one without faces of positive area does.
+    faces on the same three vertices, which the weld can fold (one on the demo at resolutions 64, 80 and 120). There
+    the sum was rounding noise whose direction changed with the last bits of the vertices and with the CPU's kernels
+    (fused multiply-adds), and the line followed it: at resolution 80 a tracked vertex 1e-17 apart under the
+    ``scalar`` CPU was carried 1.7e-3 apart (measured). Such a vertex takes its closest point, as one without faces of
+    positive area does.
     """
     mesh = Mesh(x, faces, validate=False)
     normal = mesh.vertex_normals()
