@@ -28,10 +28,11 @@ FIGURE_LABELS = {"kg": "KG (%)", "kso": "KSO (E_RMS)", "sted_s": "STED_s", "sted
 #: determines. Measured (tests/temporal/temporal_determinacy.py, docs/temporal.md "Which digits the input
 #: determines"): rounding the built-in frames (~20k vertices, 4 to 10 frames) from float64 to float32 moves the
 #: exact forms' KG, KSO and STED_t by at most 2.4e-7 (relative) and their STED_s by 3.9e-4 (the relative length
-#: changes of very short edges); the registered forms' KG, KSO and STED_t by up to 3.8e-4 and their STED_s by 1.2e-3
-#: (the registrations and the tracking amplify the rounding, as they do the paper's statistics). Hence 6 / 3 and
-#: 3 / 2 significant digits (``floor(-log10(change))``, the tables' rule). The registered forms' registrations draw
-#: independently of how the original frames are stored (``sampling="canonical"``): 3 other orders
+#: changes of very short edges); rounding them to float32 or to 6 decimals moves the registered forms' KG, KSO and
+#: STED_t by up to 4.1e-4 and their STED_s by 1.1e-3 (2026-12-07; 6 decimals set these, float32 alone moves them by
+#: 4.5e-5 and 4.2e-4: the registrations and the tracking amplify the rounding, as they do the paper's statistics).
+#: Hence 6 / 3 and 3 / 2 significant digits (``floor(-log10(change))``, the tables' rule). The registered forms'
+#: registrations draw independently of how the original frames are stored (``sampling="canonical"``): 3 other orders
 #: (:func:`~torchmeshmetric.evaluation.determinacy.relabel_frames`) of the demo at resolutions 160 and 24 (3 frames,
 #: QEM 50 %) moved them by at most 3e-12 (relative; with the index draws, ``{"sampling": "index"}``: 1.8e-3 and
 #: 5.6e-3, docs/temporal.md). The JSON keeps every digit.
@@ -43,11 +44,12 @@ FIGURE_FORMATS: dict[bool, dict[str, str]] = {
 #: Printed under the temporal figures: which digits they show, and why.
 FIGURE_DIGITS_NOTE = (
     "Digits: only those the input determines (docs/temporal.md): rounding ~20k-vertex frames to float32 moves the "
-    "exact forms' KG, KSO and STED_t by up to 2.4e-7 and their STED and STED_s by 4e-4 (relative), the registered "
-    "forms' KG, KSO and STED_t by 4e-4 and their STED and STED_s by 1.2e-3: 6 and 3 significant digits for the exact "
-    "forms, 3 and 2 for the registered (whose registrations draw independently of how the frames are stored: 3 "
-    "other orders moved them by 3e-12). Frames stored with 6 decimals can hold fewer (the exact STED_s of a mesh "
-    "with very short edges: one digit); the JSON keeps every digit."
+    "exact forms' KG, KSO and STED_t by up to 2.4e-7 and their STED and STED_s by 4e-4 (relative); rounding them to "
+    "float32 or to 6 decimals moves the registered forms' KG, KSO and STED_t by up to 4e-4 and their STED and STED_s "
+    "by 1.1e-3: 6 and 3 significant digits for the exact forms, 3 and 2 for the registered (whose registrations draw "
+    "independently of how the frames are stored: 3 other orders moved them by 3e-12). Frames stored with 6 decimals "
+    "can hold fewer of the exact forms' digits (STED_s on a mesh with very short edges: one digit); the JSON keeps "
+    "every digit."
 )
 
 
