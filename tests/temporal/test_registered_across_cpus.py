@@ -16,7 +16,7 @@ two places (demo, 4 frames, QEM keeping 50 %, one thread, against ``scalar``):
   (the default) KG moved by 2.4e-3 and STED_s by 8.0e-3, and KG and KSO printed 0.0868 and 0.284 here, 0.0870 and
   0.285 under ``scalar``. Such a vertex now takes its closest point (``_line_normals``).
 
-Measured after (2027-01, AMD EPYC, AVX-512): at most 5.7e-14 in these cases, 1.2e-12 (STED_t) over resolutions 24 to
+Measured after (2026-12-07, AMD EPYC, AVX-512): at most 5.7e-14 in these cases, 1.2e-12 (STED_t) over resolutions 24 to
 160 and both samplings; the same bits under ``avx2``. Not bits: the library does not control the registration's
 kernels, so the floats are compared to a bound (1e-11: 8x the largest measured), and the printed figures
 (:func:`~torchmeshmetric.temporal.report.format_figure`) must be the same text.
