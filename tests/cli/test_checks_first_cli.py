@@ -39,7 +39,8 @@ def test_compare_checks_every_method_before_the_first_is_evaluated(
     # the folders number their frames: the message names the frame the short one lacks (review O)
     assert (
         f"torchmeshmetric compare: error: --method M{bad} {str(short)!r}: 2 frames but --original {str(orig)!r} has 3 "
-        "(must match): frame 2 of the original frames ('frame_02.ply') is missing here"
+        "(must match; the original frames run from 0 to 2, these from 0 to 1): frame 2 of the original frames "
+        "('frame_02.ply') is missing here"
     ) in err
     assert known_registration.calls == 0 and pair_calls == []  # nothing was registered or measured
 
@@ -56,6 +57,7 @@ def test_campaign_checks_every_sequence_before_any_work(capsys, tmp_path, known_
     err = capsys.readouterr().err
     assert (
         f"sequence 'second': method 's' {str(short)!r}: 2 frames but sequence 'second': original {str(a)!r} has 3 "
-        "(must match): frame 2 of the original frames ('frame_02.ply') is missing here"
+        "(must match; the original frames run from 0 to 2, these from 0 to 1): frame 2 of the original frames "
+        "('frame_02.ply') is missing here"
     ) in err
     assert known_registration.calls == 0 and pair_calls == []

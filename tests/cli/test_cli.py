@@ -126,8 +126,8 @@ def test_errors_are_one_line_no_traceback_no_report(capsys, tmp_path, sequence, 
     assert len(lines) == 1 and "error:" in lines[0] and message in lines[0], stderr
     if case == "count":
         assert lines[0].endswith(
-            f"2 frames but --original {str(orig)!r} has 3 (must match): frame 2 of the original frames "
-            "('frame_02.ply') is missing here"
+            f"2 frames but --original {str(orig)!r} has 3 (must match; the original frames run from 0 to 2, these "
+            "from 0 to 1): frame 2 of the original frames ('frame_02.ply') is missing here"
         )
     assert "Traceback" not in stderr
     if case == "exists":
@@ -190,12 +190,14 @@ def test_frame_counts_that_differ_name_the_frame_one_folder_lacks(capsys, tmp_pa
     code, _, stderr = _run(capsys, "evaluate", "--original", str(orig), "--simplified", str(simp))
     assert code == 1
     assert stderr.strip().endswith(
-        f"--simplified {str(simp)!r}: 3 frames but --original {str(orig)!r} has 4 (must match): frame 1 of the "
-        "original frames ('frame_01.ply') is missing here; 3 frame numbers are in one folder only"
+        f"--simplified {str(simp)!r}: 3 frames but --original {str(orig)!r} has 4 (must match; the original frames "
+        "run from 0 to 3, these from 0 to 4): frame 1 of the original frames ('frame_01.ply') is missing here; 3 "
+        "frame numbers are in one folder only"
     ), stderr
     code, _, stderr = _run(capsys, "evaluate", "--original", str(simp), "--simplified", str(orig))
     assert code == 1
     assert stderr.strip().endswith(
-        f"--simplified {str(orig)!r}: 4 frames but --original {str(simp)!r} has 3 (must match): frame 1 "
-        "('frame_01.ply') has no original frame; 3 frame numbers are in one folder only"
+        f"--simplified {str(orig)!r}: 4 frames but --original {str(simp)!r} has 3 (must match; the original frames "
+        "run from 0 to 4, these from 0 to 3): frame 1 ('frame_01.ply') has no original frame; 3 frame numbers are in "
+        "one folder only"
     ), stderr

@@ -45,7 +45,17 @@ def test_bad_input_is_one_line(tmp_path, capsys):
     orig = _write(tmp_path / "orig", a, faces)
     short = _write(tmp_path / "short", a[:2], faces)
     assert main(["temporal", str(orig), str(short)]) == 1
-    assert "the counts must be equal" in capsys.readouterr().err
+    assert (
+        f"DISTORTED {str(short)!r}: 2 frames but ORIGINAL {str(orig)!r} has 3 (must match; the original frames run "
+        "from 0 to 2, these from 0 to 1): frame 2 of the original frames ('f_0002.ply') is missing here"
+    ) in capsys.readouterr().err
+    # frames without numbers pair by natural order: only the counts can be named
+    for folder, n in ((tmp_path / "plain3", 3), (tmp_path / "plain2", 2)):
+        folder.mkdir()
+        for k, name in enumerate(("first", "second", "third")[:n]):
+            (folder / f"{name}.ply").write_bytes((orig / f"f_{k:04d}.ply").read_bytes())
+    assert main(["temporal", str(tmp_path / "plain3"), str(tmp_path / "plain2")]) == 1
+    assert "DISTORTED: 2 frames, ORIGINAL: 3; the counts must be equal" in capsys.readouterr().err
     assert main(["temporal", str(orig), str(tmp_path / "none")]) == 1
     assert "no such directory" in capsys.readouterr().err
     assert main(["temporal", str(next(orig.iterdir())), str(orig)]) == 1
@@ -178,7 +188,10 @@ def test_frames_pair_by_frame_number_as_evaluate_pairs_them(tmp_path, capsys):
     # --first-frame applies to both patterns; the counts then differ, and the message says which frames each holds
     assert main(["temporal", str(orig / "f_%04d.ply"), str(late / "f_%04d.ply"), "--first-frame", "1"]) == 1
     err = capsys.readouterr().err
-    assert "DISTORTED: 3 frames, ORIGINAL: 2 (ORIGINAL: frames 1 to 2, DISTORTED: frames 1 to 3)" in err, err
+    assert (
+        "3 frames but ORIGINAL {!r} has 2 (must match; the original frames run from 1 to 2, these from 1 to 3): "
+        "frame 3 ('f_0003.ply') has no original frame".format(str(orig / "f_%04d.ply"))
+    ) in err, err
     # The same numbers from a folder and a pattern pair, frame k with frame k: the distorted frames are the originals
     assert main(["temporal", str(orig), str(orig / "f_%04d.ply"), "--json"]) == 0
     got = json.loads(capsys.readouterr().out)
@@ -228,8 +241,8 @@ def test_folders_of_different_counts_name_the_frame_one_lacks(tmp_path, capsys):
     assert main(["temporal", str(orig), str(dist)]) == 1
     err = capsys.readouterr().err
     assert (
-        "DISTORTED: 4 frames, ORIGINAL: 5 (ORIGINAL: frames 0 to 4, DISTORTED: frames 0 to 4); frame 2 "
-        f"('f_0002.ply') is in ORIGINAL {str(orig)!r} but not in DISTORTED {str(dist)!r}; the counts must be equal"
+        f"DISTORTED {str(dist)!r}: 4 frames but ORIGINAL {str(orig)!r} has 5 (must match; the original frames run "
+        "from 0 to 4, these from 0 to 4): frame 2 of the original frames ('f_0002.ply') is missing here"
     ) in err, err
 
 

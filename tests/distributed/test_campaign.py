@@ -157,8 +157,8 @@ def test_campaign_errors_are_one_line_before_any_work(tmp_path, campaign, capsys
     err = capsys.readouterr().err.strip().splitlines()
     fine, orig = str(tmp_path / "run" / "fine"), str(tmp_path / "run" / "orig")
     assert err == [f"torchmeshmetric campaign: error: sequence 'run fast': method 'fine' {fine!r}: 2 frames but "
-                   f"sequence 'run fast': original {orig!r} has 3 (must match): frame 2 of the original frames "
-                   "('frame_02.ply') is missing here"]  # fmt: skip
+                   f"sequence 'run fast': original {orig!r} has 3 (must match; the original frames run from 0 to 2, "
+                   "these from 0 to 1): frame 2 of the original frames ('frame_02.ply') is missing here"]  # fmt: skip
     assert not (tmp_path / "out").exists()
     assert main(["campaign", str(tmp_path / "nope.toml")]) == 1
     assert "no such file" in capsys.readouterr().err

@@ -33,7 +33,7 @@ def _ours(stderr: str) -> list[str]:
 @pytest.mark.parametrize(
     ("case", "message"),
     [
-        ("count", "2 frames but --original {orig!r} has 3 (must match): frame 2 of the original frames"),
+        ("count", "has 3 (must match; the original frames run from 0 to 2, these from 0 to 1): frame 2 of the"),
         ("missing", "no such directory"),
         # refused when parsed since 2026-12-07 (it was after the evaluation): a usage error, printed once too
         ("margin", "argument --relative-margin: expected a finite fraction >= 0, found '-1'"),

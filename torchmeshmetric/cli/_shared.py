@@ -182,9 +182,11 @@ def paired_files(
         else:
             which = f"frame {first} ({files[theirs.index(first)].name!r}) has no original frame"
         more = f"; {len(only)} frame numbers are in one folder only" if len(only) > 1 else ""
+        ranges = f"the original frames run from {min(numbers)} to {max(numbers)}, these from {min(theirs)} to "
+        ranges += str(max(theirs))
         raise CLIError(
             f"{what} {directory!r}: {len(files)} frames but {original_what} {original!r} has {len(originals)} (must "
-            f"match): {which}{more}"
+            f"match; {ranges}): {which}{more}"
         )
     if set(numbers) != set(theirs):
         first = min(set(numbers) ^ set(theirs))

@@ -84,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
     from torchmeshmetric._format import json_safe
     from torchmeshmetric.cli._outputs import CLIError
     from torchmeshmetric.cli._shared import device_of, dtype_of, paired_files
-    from torchmeshmetric.data.frames import frame_numbers, list_frames
+    from torchmeshmetric.data.frames import list_frames
     from torchmeshmetric.data.sequence import load_sequence
     from torchmeshmetric.evaluation.determinacy import storage_unit
     from torchmeshmetric.registration.cache import RegistrationCache
@@ -123,22 +123,8 @@ def run(args: argparse.Namespace) -> int:
         except Exception as exc:
             raise CLIError(f"{what} {spec!r}: {exc}") from exc
     original, distorted = sequences
-    if len(original) != len(distorted):
-        ours, theirs = (frame_numbers(f) for f in files)
-        ranges = ""
-        if ours and theirs:
-            ranges = f" (ORIGINAL: frames {min(ours)} to {max(ours)}, DISTORTED: frames {min(theirs)} to {max(theirs)})"
-            # the first frame one of them lacks (the ranges alone did not say which frame a folder misses)
-            first = min(set(ours) ^ set(theirs))
-            has, lacks = (0, 1) if first in ours else (1, 0)
-            name = files[has][(ours if has == 0 else theirs).index(first)].name
-            ranges += (
-                f"; frame {first} ({name!r}) is in {inputs[has][0]} {inputs[has][1]!r} but not in "
-                f"{inputs[lacks][0]} {inputs[lacks][1]!r}"
-            )
-        raise CLIError(
-            f"DISTORTED: {len(distorted)} frames, ORIGINAL: {len(original)}{ranges}; the counts must be equal"
-        )
+    if len(original) != len(distorted):  # unnumbered frames (numbered ones: paired_files names the frame one lacks)
+        raise CLIError(f"DISTORTED: {len(distorted)} frames, ORIGINAL: {len(original)}; the counts must be equal")
     if len(original) < 2:
         raise CLIError(f"ORIGINAL: {len(original)} frame; the temporal metrics need at least 2")
 
