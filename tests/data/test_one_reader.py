@@ -216,14 +216,21 @@ def test_polygons_are_fanned_on_the_mpeg_path_and_refused_by_load_mesh(tmp_path:
 
 
 def test_obj_vertex_colours_round_as_mmetric(tmp_path: Path) -> None:
-    """mmetric stores ``roundf((float)value * 255)``; failed before (0.5019 gave 127.99 instead of 128)."""
-    values = [0.5019, 0.001, 0.999, 1 / 255, 0.5 / 255, 1.5 / 255]
+    """mmetric stores ``roundf((float)value * 255)``; failed before (0.5019 gave 127.99 instead of 128), and
+    0.0019607842 (whose float32 product is 0.49999997) gave 1, not 0: ``floor(x + 0.5)`` in float32 rounds it up
+    (review P; mm reads that pair's colours as equal)."""
+    from decimal import ROUND_HALF_UP, Decimal
+
+    values = [0.5019, 0.001, 0.999, 1 / 255, 0.5 / 255, 1.5 / 255, 0.0019607841968536377, 2.5 / 255]
     lines = [f"v {i} 0 0 {values[i]} {values[-1 - i]} 0.25" for i in range(len(values))]
-    p = _write(tmp_path, "c.obj", "\n".join(lines) + "\nf 1 2 3\nf 4 5 6\n")
+    p = _write(tmp_path, "c.obj", "\n".join(lines) + "\nf 1 2 3\nf 4 5 6\nf 6 7 8\n")
     c = load_textured_mesh(p).colors
     assert c is not None
-    expected = np.floor(np.array(values, np.float32) * np.float32(255) + np.float32(0.5))
-    np.testing.assert_array_equal(c[:, 0].numpy(), expected)
+    products = np.array(values, np.float32) * np.float32(255)  # (float)value * 255, in float32 as mmetric
+    # roundf: halves away from zero, exactly (Decimal's ROUND_HALF_UP rounds the exact binary value)
+    expected = [float(Decimal(float(x)).quantize(Decimal(1), rounding=ROUND_HALF_UP)) for x in products]
+    assert c[:, 0].tolist() == expected
+    assert expected[6] == 0.0 and products[6] == np.float32(0.49999997)
     assert c[:, 2].tolist() == [64.0] * len(values)
 
 

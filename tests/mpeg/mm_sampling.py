@@ -9,6 +9,7 @@ import numpy as np
 
 from tests.mpeg.conftest import MM
 from torchmeshmetric.mpeg import PointCloud, TexturedMesh, load_textured_mesh
+from torchmeshmetric.mpeg.core._float32 import roundf
 
 
 def mm_sample(obj: Path, texture: Path | None, tmp_path: Path, mode: str, *options: str) -> np.ndarray:
@@ -37,7 +38,7 @@ def assert_same_rows_in_order(pc: PointCloud, theirs: np.ndarray) -> int:
     np.testing.assert_array_equal(ours, theirs[:, :6].astype(np.float32))  # same points, same order
     if pc.colors is not None:
         assert theirs.shape[1] == 9
-        np.testing.assert_array_equal(np.floor(pc.colors.numpy() + 0.5), theirs[:, 6:])  # mm writes roundf(c)
+        np.testing.assert_array_equal(roundf(pc.colors.numpy()), theirs[:, 6:])  # mm writes roundf(c)
     else:
         assert theirs.shape[1] == 6
     return ours.shape[0]
@@ -52,7 +53,7 @@ def assert_same_rows_sorted(pc: PointCloud, data: np.ndarray) -> int:
     theirs = np.concatenate([data[:, :6].astype(np.float32).astype(np.float64), data[:, 6:]], axis=1)
     cols = [pc.points.numpy(), pc.normals.numpy()]
     if pc.colors is not None:
-        cols.append(np.floor(pc.colors.numpy() + 0.5))  # mm writes roundf(colour)
+        cols.append(roundf(pc.colors.numpy()))  # mm writes roundf(colour)
     ours = np.concatenate(cols, axis=1).astype(np.float64)
     assert ours.shape == theirs.shape
     np.testing.assert_array_equal(_sorted_rows(ours), _sorted_rows(theirs))

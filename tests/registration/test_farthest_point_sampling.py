@@ -202,3 +202,20 @@ def test_a_spacing_that_is_no_radius_is_refused(spacing: float) -> None:
     p = torch.rand(50, 3, dtype=torch.float64, generator=torch.Generator().manual_seed(0))
     with pytest.raises(ValueError, match=r"spacing: expected a finite covering radius >= 0"):
         graph.farthest_point_nodes(p, spacing)
+
+
+@pytest.mark.parametrize(
+    ("count", "area", "message"),
+    [
+        (10, float("inf"), r"area: expected a finite area >= 0, found inf"),
+        (10, float("nan"), r"area: expected a finite area >= 0, found nan"),
+        (10, -1.0, r"area: expected a finite area >= 0, found -1.0"),
+        (-3, 1.0, r"count: expected an integer >= 0, found -3"),
+        (2.5, 1.0, r"count: expected an integer >= 0, found 2.5"),
+    ],
+)
+def test_canonical_farthest_points_checks_count_and_area(count: Any, area: float, message: str) -> None:
+    """An infinite or NaN area never let the passes stop (review P: the radius stayed inf, or no distance beat NaN)."""
+    p = torch.rand(200, 3, dtype=torch.float64, generator=torch.Generator().manual_seed(0))
+    with pytest.raises(ValueError, match=message):
+        graph.canonical_farthest_points(p, count, area)

@@ -108,10 +108,16 @@ def canonical_farthest_points(points: Tensor, count: int, area: float) -> Tensor
 
     Raises:
         NonFiniteError: a NaN or Inf coordinate (the sampling would never stop).
+        ValueError: a ``count`` that is not an integer >= 0, an ``area`` that is negative or not finite.
     """
     # A NaN or Inf coordinate never lets farthest-point sampling stop (its distances never fall within the radius):
     # the loop ran forever, its list of choices growing (found 2026-12-07).
     check_finite(points, "points")
+    # a NaN or infinite area made the radius NaN or infinite: the passes below never stopped either (review P)
+    if isinstance(count, bool) or not isinstance(count, int) or count < 0:
+        raise ValueError(f"count: expected an integer >= 0, found {count!r}")
+    if not math.isfinite(area) or area < 0:
+        raise ValueError(f"area: expected a finite area >= 0, found {area!r}")
     p = points.detach()
     n = p.shape[0]
     if count >= n:

@@ -4,7 +4,17 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["area", "cross", "dot", "normalize"]
+__all__ = ["area", "cross", "dot", "normalize", "roundf"]
+
+
+def roundf(x: np.ndarray) -> np.ndarray:
+    """C's ``roundf`` of float32 values (halves away from zero), exact, as float64.
+
+    ``floor(|x| + 0.5)`` in float32 is not ``roundf``: ``0.49999997f + 0.5f`` rounds to 1 (review P). In float64 the sum
+    of a float32 value and 0.5 is exact (24 significant bits and one more fit in 53), so the floor is.
+    """
+    c = np.asarray(x, np.float32).astype(np.float64)
+    return np.sign(c) * np.floor(np.abs(c) + 0.5)
 
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:

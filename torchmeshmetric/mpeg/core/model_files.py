@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from torchmeshmetric.mpeg.core._float32 import roundf
 from torchmeshmetric.mpeg.core.point_cloud import PointCloud
 from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh
 
@@ -37,8 +38,7 @@ def _rows(cols: list[np.ndarray]) -> list[str]:
 
 def _colour_bytes(colors: np.ndarray) -> np.ndarray:
     """``(unsigned short) roundf(c)``: halves away from zero, computed in double so no float32 sum rounds first."""
-    c = np.asarray(colors, np.float32).astype(np.float64)
-    return (np.sign(c) * np.floor(np.abs(c) + 0.5)).astype(np.int64) % 65536
+    return roundf(colors).astype(np.int64) % 65536
 
 
 def mmetric_ply_text(

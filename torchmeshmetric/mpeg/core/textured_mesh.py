@@ -14,6 +14,7 @@ from torchmeshmetric._checks import DTypeError, ShapeError, check_finite, check_
 from torchmeshmetric.data.io import read_mesh_arrays
 from torchmeshmetric.data.mesh_file import MeshFileError, check_dtype_range, check_mesh, existing_mesh_file, to_tensor
 from torchmeshmetric.data.obj import MtlMaterial, ObjData, parse_mtl, parse_obj
+from torchmeshmetric.mpeg.core._float32 import roundf
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
 __all__ = ["TexturedMesh", "as_textured_mesh", "load_textured_mesh", "read_texture"]
@@ -155,8 +156,7 @@ def read_texture(path: str | os.PathLike, where: str = "texture") -> np.ndarray:
 
 def _obj_colors(colors: np.ndarray) -> np.ndarray:
     """``v x y z r g b`` colours as mmetric stores them: ``roundf((float)value * 255)`` (halves away from 0)."""
-    scaled = colors.astype(np.float32) * np.float32(255.0)
-    return (np.sign(scaled) * np.floor(np.abs(scaled) + np.float32(0.5))).astype(np.float32)
+    return roundf(colors.astype(np.float32) * np.float32(255.0)).astype(np.float32)
 
 
 def _obj_texture(p: Path, d: ObjData, corner_uv: np.ndarray | None) -> tuple[Path, str] | None:
