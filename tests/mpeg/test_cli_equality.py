@@ -144,3 +144,20 @@ def test_equality_model_tables_and_map_sets() -> None:
         "UV coords differences: 1",
         "Colors differences: 0",
     ]
+
+
+@pytest.mark.parametrize("bad", ["vn nan nan nan", "vn 0 1"])
+def test_normals_mm_drops_are_not_read(tmp_path: Path, capsys: pytest.CaptureFixture[str], bad: str) -> None:
+    """Faces naming normals (``v//vn``): mmetric drops the normals, so a bad ``vn`` line there is no error (review P:
+    such files compared before the normals were read, and were refused after); without the indices it still is."""
+    quad = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
+    a = tmp_path / "a.obj"
+    a.write_text(quad + bad + "\nf 1//1 2//1 3//1\nf 1//1 3//1 4//1\n")
+    b = tmp_path / "b.obj"
+    b.write_text(quad + "f 1 2 3\nf 1 3 4\n")
+    assert main(["mpeg", "--mode", "equ", "--all-differences", str(a), str(b)]) == 0
+    assert capsys.readouterr().out.strip() == "meshes are equal"
+    c = tmp_path / "c.obj"
+    c.write_text(quad + bad + "\nf 1 2 3\nf 1 3 4\n")
+    assert main(["mpeg", "--mode", "equ", str(c), str(b)]) == 1
+    assert "line 5" in capsys.readouterr().err
