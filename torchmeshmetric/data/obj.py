@@ -150,35 +150,21 @@ def _valid(d: ObjData) -> bool:
 
 
 def _check_finite(p: Path, d: ObjData) -> None:
-    bad = ~np.isfinite(d.verts).all(axis=1)
-    if bad.any():
-        i = int(np.nonzero(bad)[0][0])
-        raise MeshFileError(
-            f"path: mesh file '{p}' vertex {i} (line {int(d.vert_lines[i])}) has non-finite coordinates "
-            f"{d.verts[i].tolist()} ({int(bad.sum())} such vertices)"
-        )
+    """Refuse the first row of vertices, colours, ``vt`` or ``vn`` values that is not finite, naming its line."""
+    tables = [(d.verts, d.vert_lines, "vertex {i} (line {line}) has non-finite coordinates {row} ({n} such vertices)")]
     if d.vert_colors is not None:
-        bad = ~np.isfinite(d.vert_colors).all(axis=1)
+        tables.append(
+            (d.vert_colors, d.vert_lines, "vertex {i} (line {line}) has a non-finite colour {row} ({n} such vertices)")
+        )
+    uv_message = "texture coordinate {i} (line {line}) is not finite: {row} ({n} such 'vt' lines)"
+    tables.append((d.uvs, d.uv_lines, uv_message))
+    tables.append((d.normals, d.normal_lines, "normal {i} (line {line}) is not finite: {row} ({n} such 'vn' lines)"))
+    for values, lines, message in tables:
+        bad = ~np.isfinite(values).all(axis=1)
         if bad.any():
             i = int(np.nonzero(bad)[0][0])
-            raise MeshFileError(
-                f"path: mesh file '{p}' vertex {i} (line {int(d.vert_lines[i])}) has a non-finite colour "
-                f"{d.vert_colors[i].tolist()} ({int(bad.sum())} such vertices)"
-            )
-    bad = ~np.isfinite(d.uvs).all(axis=1)
-    if bad.any():
-        i = int(np.nonzero(bad)[0][0])
-        raise MeshFileError(
-            f"path: mesh file '{p}' texture coordinate {i} (line {int(d.uv_lines[i])}) is not finite: "
-            f"{d.uvs[i].tolist()} ({int(bad.sum())} such 'vt' lines)"
-        )
-    bad = ~np.isfinite(d.normals).all(axis=1)
-    if bad.any():
-        i = int(np.nonzero(bad)[0][0])
-        raise MeshFileError(
-            f"path: mesh file '{p}' normal {i} (line {int(d.normal_lines[i])}) is not finite: "
-            f"{d.normals[i].tolist()} ({int(bad.sum())} such 'vn' lines)"
-        )
+            what = message.format(i=i, line=int(lines[i]), row=values[i].tolist(), n=int(bad.sum()))
+            raise MeshFileError(f"path: mesh file '{p}' {what}")
 
 
 # ----------------------------------------------------------------------------------------------- the fast pass
