@@ -165,6 +165,54 @@ def test_a_vertex_whose_normal_is_rounding_takes_its_closest_point() -> None:
     assert noisy == 3  # the case exists: rounding gave the tip a unit normal
 
 
+@pytest.mark.parametrize(
+    ("scale", "dtype"), [(1.0, torch.float64), (1e3, torch.float64), (1e-3, torch.float64), (1.0, torch.float32)]
+)
+def test_the_carried_point_moves_continuously_as_a_normal_leaves_the_rounding(scale: float, dtype: torch.dtype) -> None:
+    # Found by review: vertex 0's area vectors (0, 0, 1) and (d, 0, -1) sum to (d, 0, 0), within their rounding bound
+    # (128 sqrt(2) eps, 4.0e-14 in float64) below d_b = 4.0e-14. The hard threshold carried vertex 0 onto the plane
+    # x + z = 0.05 at its closest point (0.025, 0, 0.025) for d = 3e-14 and along the line at (0.05, 0, 0) for
+    # d = 5e-14. Now the line's weight rises smoothly from 0 at d_b to 1 at 2 d_b (smoothstep, slope at most 1.5 / d_b).
+    eps = torch.finfo(dtype).eps
+    d_b = 128 * math.sqrt(2) * eps
+    faces = torch.tensor([[0, 1, 2], [0, 2, 3]])
+    plane = torch.tensor([[0.05, -5.0, 0.0], [10.05, 5.0, -10.0], [-9.95, 5.0, 10.0]], dtype=dtype) * scale
+    mesh = Mesh(plane, torch.tensor([[0, 1, 2]]))
+    closest = torch.tensor([0.025, 0.0, 0.025], dtype=dtype) * scale
+    line = torch.tensor([0.05, 0.0, 0.0], dtype=dtype) * scale
+    ds = torch.linspace(0.25, 2.5, 91, dtype=torch.float64) * d_b
+    points = []
+    for d in ds.tolist():
+        x = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, d]], dtype=torch.float64).to(dtype) * scale
+        p = carry_onto([mesh], x[None], faces)[0, 0]
+        if d <= 0.99 * d_b:  # rounding: the closest point, the same bits as without lines
+            assert torch.equal(p, carry_onto([mesh], x[None], faces, normal_steps=0)[0, 0])
+        points.append(p.double())
+    p = torch.stack(points)
+    tol = 64 * eps * scale
+    gap = float((line - closest).norm())
+    below, above = ds <= 0.99 * d_b, ds >= 2.01 * d_b
+    assert float((p[below] - closest.double()).norm(dim=-1).max()) < tol
+    assert float((p[above] - line.double()).norm(dim=-1).max()) < tol
+    assert torch.equal(p[above], p[above][:1].expand_as(p[above]))  # the line's point, the same bits throughout
+    # Every point on the segment between them, moving towards the line's point without a jump: a step of d moves it
+    # by at most the smoothstep's slope (1.5 per d_b, 10 % for the bound's own rounding) times the gap.
+    along = ((p - closest.double()) @ (line - closest).double()) / gap**2
+    off = (p - closest.double() - along[:, None] * (line - closest).double()).norm(dim=-1)
+    assert float(off.max()) < tol
+    assert bool((along.diff() >= -tol / gap).all())
+    moves = (p.diff(dim=0)).norm(dim=-1)
+    assert float((moves - 1.1 * 1.5 * gap * ds.diff() / d_b).max()) < tol
+    assert 0.1 < float(along[(ds > 1.4 * d_b) & (ds < 1.6 * d_b)].mean()) < 0.9  # the band is where it should be
+    # The gradient of a point in the band reaches the plane's vertices (the blend of both points' derivatives).
+    x = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, 1.5 * d_b]], dtype=torch.float64).to(dtype) * scale
+    verts = plane.clone().requires_grad_(True)
+    q = carry_onto([Mesh(verts, torch.tensor([[0, 1, 2]]))], x[None], faces)[0, 0]
+    assert torch.equal(q.detach(), carry_onto([mesh], x[None], faces)[0, 0])
+    (grad,) = torch.autograd.grad(q.sum(), verts)
+    assert bool(grad.isfinite().all()) and float(grad.abs().sum()) > 0
+
+
 def test_flicker_raises_the_registered_temporal_part() -> None:
     a, faces = _performer()
     frames = _meshes(a, faces)

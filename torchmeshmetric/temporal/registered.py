@@ -249,8 +249,8 @@ def _edge_scale(x: Tensor, faces: Tensor) -> Tensor:
     return total / count.clamp_min(1)
 
 
-def _line_normals(x: Tensor, faces: Tensor) -> Tensor:
-    """``(V, 3)`` the unit normals of the lines :func:`carry_onto` follows; zero where rounding would set them.
+def _line_normals(x: Tensor, faces: Tensor) -> tuple[Tensor, Tensor]:
+    """``(V, 3)`` the unit normals of the lines :func:`carry_onto` follows and ``(V,)`` the weights of those lines.
 
     The area-weighted vertex normal (:meth:`~torchmeshmetric.structures.Mesh.vertex_normals`), except at a vertex
     whose faces' area vectors cancel to within their rounding (``64 eps`` of the largest coordinate times the longest
@@ -258,13 +258,23 @@ def _line_normals(x: Tensor, faces: Tensor) -> Tensor:
     faces on the same three vertices, which the weld can fold (one on the demo at resolutions 64, 80 and 120). There
     the sum was rounding noise whose direction changed with the last bits of the vertices and with the CPU's kernels
     (fused multiply-adds), and the line followed it: at resolution 80 a tracked vertex 1e-17 apart under the
-    ``scalar`` CPU was carried 1.7e-3 apart (measured). Such a vertex takes its closest point, as one without faces of
-    positive area does.
+    ``scalar`` CPU was carried 1.7e-3 apart (measured). Such a vertex has no line (weight 0, normal zero) and takes its
+    closest point, as one without faces of positive area does.
+
+    The weight rises from 0 at ``|total| = bound`` to 1 at ``2 bound`` (``total`` the sum of the area vectors,
+    ``bound`` their rounding), as the smoothstep ``s^2 (3 - 2 s)`` of ``s = |total| / bound - 1``, and the carried
+    point is ``w`` times the line's point plus ``1 - w`` times the closest point. A hard threshold made the carried
+    point, and every figure, jump where ``|total|`` crossed ``bound`` (found by review: a vertex moved 0.035 when a
+    coordinate changed by 2e-14). Above the bound the normal's direction is known to within ``bound / |total|``
+    (a radian at the lower end, a half at the upper); the smoothstep's zero slope at ``s = 0`` keeps the line's weight
+    ``O(s^2)`` where its direction is least known, and at ``s = 1`` the carried point's derivative has no jump. Below
+    the bound (rounding: the cross-CPU agreement) and from ``2 bound`` up the carried point is the same bits as
+    without the band.
     """
     mesh = Mesh(x, faces, validate=False)
     normal = mesh.vertex_normals()
     if faces.shape[0] == 0:
-        return normal
+        return normal, (normal != 0).any(-1).to(x.dtype)
     tri = x[faces]
     edges = torch.stack([tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], tri[:, 2] - tri[:, 1]], dim=1)
     unit = power_of_two_above(edges[:, :2].abs().amax())  # _normal_cross's units (exact)
@@ -272,9 +282,21 @@ def _line_normals(x: Tensor, faces: Tensor) -> Tensor:
     noise = 64 * torch.finfo(x.dtype).eps * (tri.abs().amax(dim=(1, 2)) / unit) * longest
     cross = mesh._normal_cross()
     total = torch.zeros_like(x).index_add(0, faces[:, 0], cross).index_add(0, faces[:, 1], cross)
-    total = total.index_add(0, faces[:, 2], cross)
+    total = total.index_add(0, faces[:, 2], cross).norm(dim=-1)
     bound = torch.zeros_like(x[:, 0]).index_add(0, faces.flatten(), noise.repeat_interleave(3))
-    return torch.where((total.norm(dim=-1) > bound)[:, None], normal, torch.zeros_like(normal))
+    # (|total| - bound) / bound: its sign is exact, so the weight is 0 exactly where |total| <= bound (as before the
+    # band); a bound of 0 (no face of positive size) keeps the threshold, without dividing by it.
+    positive = bound > 0
+    above = torch.where(positive, (total - bound) / torch.where(positive, bound, 1), (total > 0).to(x.dtype))
+    s = above.clamp(0, 1)
+    weight = s * s * (3 - 2 * s)
+    return torch.where((weight > 0)[:, None], normal, torch.zeros_like(normal)), weight
+
+
+def _mix(line: Tensor, band: Tensor, weight: Tensor, closest: Tensor) -> Tensor:
+    """``line`` with its rows ``band`` replaced by ``weight`` of them plus ``1 - weight`` of ``closest`` (per row)."""
+    w = weight[:, None].to(line.dtype)
+    return line.index_put((band,), w * line[band] + (1 - w) * closest)
 
 
 def _region_step(
@@ -464,7 +486,9 @@ def carry_onto(
     crossing is another part of the surface). Where
     the distorted surface is a displacement of the original along its normals this ends on the displaced point (a
     closest point alone lands short of a narrow bump: it prefers the bump's flanks), which is what the exact forms
-    measure (docs/temporal.md gives the measurement). ``normal_steps=0`` or ``faces=None`` is the plain closest point.
+    measure (docs/temporal.md gives the measurement). A vertex whose normal is rounding (its faces' area vectors
+    cancel) takes its closest point, and just above that rounding a blend of both that is continuous in the input
+    (:func:`_line_normals`). ``normal_steps=0`` or ``faces=None`` is the plain closest point.
 
     Args:
         distorted: the ``F`` distorted frames (any connectivity each).
@@ -518,16 +542,22 @@ def carry_onto(
         mesh_faces = mesh.faces.to(tracked.device)
         x = tracked[k].detach()
         normal, q, on_line = None, x, torch.zeros_like(x[:, 0], dtype=torch.bool)
+        band = torch.zeros(0, dtype=torch.long, device=x.device)  # the vertices between a line and no line
         with torch.no_grad():
             index = MeshIndex(verts.detach(), mesh_faces, backend=backend, tree="morton")  # a few queries: cheap build
-            hit = index.point_mesh_distance(x)
+            near = hit = index.point_mesh_distance(x)
             if faces is not None and normal_steps:
                 tracked_faces = faces.to(tracked.device)
-                normal = _line_normals(x, tracked_faces)
+                normal, weight = _line_normals(x, tracked_faces)
+                band = torch.nonzero((weight > 0) & (weight < 1)).flatten()
                 scale = _edge_scale(x, tracked_faces)
                 hit, q, on_line = _along_normal(index, verts.detach(), mesh_faces, x, normal, scale, hit, normal_steps)
         corners = verts[mesh_faces[hit.face_idx]]  # (V, 3, 3)
         blend = (hit.bary.to(verts.dtype)[..., None] * corners).sum(1)
+        if band.numel():  # weight of the line's point, the rest the closest point's (_line_normals)
+            near_corners = verts[mesh_faces[near.face_idx[band]]]
+            near_bary = near.bary[band].to(verts.dtype)
+            blend = _mix(blend, band, weight[band], (near_bary[..., None] * near_corners).sum(1))
         if not (torch.is_grad_enabled() and verts.requires_grad):
             out.append(blend)
             continue
@@ -535,6 +565,10 @@ def carry_onto(
         # barycentric coordinates held fixed moved the point with the face's vertices along the surface too: its
         # gradient was off by up to 2x (found by review: STED_s 1.4x, KG 0.34x, against finite differences).
         point = _carried_point(q, corners, hit.bary.to(verts.dtype), normal, on_line)
+        if band.numel():
+            none = torch.zeros_like(band, dtype=torch.bool)
+            closest = _carried_point(x[band], near_corners, near_bary, None, none)
+            point = _mix(point, band, weight[band], closest)
         out.append(blend.detach() + (point - point.detach()))
     return torch.stack(out)
 
