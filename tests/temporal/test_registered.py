@@ -162,7 +162,10 @@ def test_a_vertex_whose_normal_is_rounding_takes_its_closest_point() -> None:
         ball = Mesh(unit_ball[0] * 0.3 + tip + torch.tensor([0.02, 0.0, 0.0]), unit_ball[1])
         carried = carry_onto([ball], x[None], faces)[0, 4]
         assert torch.equal(carried, carry_onto([ball], x[None], faces, normal_steps=0)[0, 4])
-    assert noisy == 3  # the case exists: rounding gave the tip a unit normal
+    # The case exists: rounding gave the tip a unit normal. How often is the CPU's rounding (the point of the rule):
+    # 3 of the 5 tips here natively (AVX-512, fused multiply-adds), 5 of 5 under the scalar personality (CI,
+    # 2026-12-07); the property asserted above holds for every tip either way.
+    assert noisy >= 1
 
 
 @pytest.mark.parametrize(
