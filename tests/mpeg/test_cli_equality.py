@@ -161,3 +161,18 @@ def test_normals_mm_drops_are_not_read(tmp_path: Path, capsys: pytest.CaptureFix
     c.write_text(quad + bad + "\nf 1 2 3\nf 1 3 4\n")
     assert main(["mpeg", "--mode", "equ", str(c), str(b)]) == 1
     assert "line 5" in capsys.readouterr().err
+
+
+def test_equality_model_values_beyond_float32_are_named() -> None:
+    """Finite float64 values float32 cannot hold were reported as "NaN/Inf" after the cast, with a numpy warning."""
+    import warnings
+
+    from torchmeshmetric._checks import NonFiniteError
+
+    big = np.array([[0.0, 0, 0], [1e39, 0, 0], [0, 1, 0]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(NonFiniteError, match=r"EqualityModel.positions: expected values that fit float32 .*1e\+39"):
+            EqualityModel(big, np.array([[0, 1, 2]]))
+    with pytest.raises(NonFiniteError, match=r"EqualityModel.positions: expected finite values, found 1 NaN/Inf"):
+        EqualityModel(np.array([[0.0, 0, 0], [np.nan, 0, 0], [0, 1, 0]]), np.array([[0, 1, 2]]))

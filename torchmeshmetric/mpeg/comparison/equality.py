@@ -87,7 +87,15 @@ def _table(
         return arr
     if arr.size and (arr.dtype == np.bool_ or arr.dtype.kind not in "iuf"):
         raise DTypeError(f"{where}: expected numbers, found dtype {arr.dtype}")
-    arr = arr.astype(np.float32, copy=False)
+    wide = arr.astype(np.float64, copy=False)
+    if arr.size and np.isfinite(wide).all() and (np.abs(wide) > float(np.finfo(np.float32).max)).any():
+        # finite values that float32 cannot hold were called "NaN/Inf" after the cast (review P)
+        big = float(wide.flat[int(np.argmax(np.abs(wide)))])
+        raise NonFiniteError(
+            f"{where}: expected values that fit float32 (mmetric reads them as float), found {big!r}, beyond +/-3.4e38"
+        )
+    with np.errstate(over="ignore"):
+        arr = arr.astype(np.float32, copy=False)
     if arr.size and not np.isfinite(arr).all():
         raise NonFiniteError(
             f"{where}: expected finite values, found {int((~np.isfinite(arr)).sum())} NaN/Inf value(s)"
