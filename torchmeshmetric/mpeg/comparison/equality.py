@@ -254,7 +254,7 @@ def load_equality_model(path: str | os.PathLike, texture: str | os.PathLike | No
         (3, 3)
     """
     from torchmeshmetric.data.io import read_mesh_arrays
-    from torchmeshmetric.data.mesh_file import check_dtype_range, check_mesh, existing_mesh_file
+    from torchmeshmetric.data.mesh_file import MeshFileError, check_dtype_range, check_mesh, existing_mesh_file
     from torchmeshmetric.data.obj import parse_obj
     from torchmeshmetric.data.ply import read_plain_ply
 
@@ -263,11 +263,15 @@ def load_equality_model(path: str | os.PathLike, texture: str | os.PathLike | No
     given = (read_texture(Path(texture), "texture"),) if texture is not None else None
     if p.suffix.lower() == ".obj":
         data = p.read_bytes()
-        d = parse_obj(p, data, uvs=True, normals=False)
-        # mmetric drops the normals when a face corner names one (below): their lines are then not read, so a
-        # malformed or NaN 'vn' line there is no error (review P: such files compared before the normals were read)
-        if not d.normal_indexed:
+        try:
             d = parse_obj(p, data, uvs=True, normals=True)
+        except MeshFileError:
+            # mmetric drops the normals when a face corner names one (below), unread: a malformed or NaN 'vn' line
+            # there is no error (review P: such files compared before the normals were read). Read again without
+            # them only then, so a file without a fault is parsed once.
+            d = parse_obj(p, data, uvs=True, normals=False)
+            if not d.normal_indexed:
+                raise
         faces, face_uvs = d.triangles()
         check_mesh(p, d.verts, faces, d.vert_lines)
         check_dtype_range(p, d.verts, f32, d.vert_lines, "mmetric reads coordinates as float32")
