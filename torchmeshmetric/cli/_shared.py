@@ -172,15 +172,21 @@ def paired_files(
     numbers, theirs = frame_numbers(originals), frame_numbers(files)
     if numbers is None or theirs is None:
         return files
-    if len(files) != len(originals):
-        only = sorted(set(numbers) ^ set(theirs))
-        if not only:  # the same numbers, repeated in one folder: the count check names the counts
+    only = sorted(set(numbers) ^ set(theirs))  # the frame numbers in one folder only
+    if not only:
+        if len(files) != len(originals):  # the same numbers, repeated in one folder: the count check names the counts
             return files
-        first = only[0]
-        if first in numbers:
-            which = f"frame {first} of the original frames ({originals[numbers.index(first)].name!r}) is missing here"
-        else:
-            which = f"frame {first} ({files[theirs.index(first)].name!r}) has no original frame"
+        by_number = dict(zip(theirs, files, strict=True))
+        return [by_number[n] for n in numbers]
+    first = only[0]
+    in_originals = first in numbers
+    name = (originals[numbers.index(first)] if in_originals else files[theirs.index(first)]).name
+    if len(files) != len(originals):
+        which = (
+            f"frame {first} of the original frames ({name!r}) is missing here"
+            if in_originals
+            else f"frame {first} ({name!r}) has no original frame"
+        )
         more = f"; {len(only)} frame numbers are in one folder only" if len(only) > 1 else ""
         ranges = f"the original frames run from {min(numbers)} to {max(numbers)}, these from {min(theirs)} to "
         ranges += str(max(theirs))
@@ -188,32 +194,24 @@ def paired_files(
             f"{what} {directory!r}: {len(files)} frames but {original_what} {original!r} has {len(originals)} (must "
             f"match; {ranges}): {which}{more}"
         )
-    if set(numbers) != set(theirs):
-        first = min(set(numbers) ^ set(theirs))
-        has, lacks = (
-            ((original_what, original), (what, directory))
-            if first in numbers
-            else ((what, directory), (original_what, original))
+    ours, their = (original_what, original), (what, directory)
+    has, lacks = (ours, their) if in_originals else (their, ours)
+    start, their_start = min(numbers), min(theirs)
+    shift = their_start - start
+    if sorted(n + shift for n in numbers) == sorted(theirs):
+        fix = (
+            "the two number the same frames from different starts; rename the frames of "
+            f"{what} to start at {start}, or those of {original_what} to start at {their_start}"
         )
-        name = (originals[numbers.index(first)] if first in numbers else files[theirs.index(first)]).name
-        start, their_start = min(numbers), min(theirs)
-        shift = their_start - start
-        if sorted(n + shift for n in numbers) == sorted(theirs):
-            fix = (
-                "the two number the same frames from different starts; rename the frames of "
-                f"{what} to start at {start}, or those of {original_what} to start at {their_start}"
-            )
-        else:
-            fix = f"rename (or re-export) the frames of {what} (or of {original_what}) to the same numbers"
-        raise CLIError(
-            f"{what} {directory!r} and {original_what} {original!r} number different frames: frame {first} "
-            f"({name!r}) is in {has[0]} {has[1]!r} but not in {lacks[0]} {lacks[1]!r}; {original_what} starts at "
-            f"frame {start} ({originals[numbers.index(start)].name!r}) and {what} at frame {their_start} "
-            f"({files[theirs.index(their_start)].name!r}). Frames are paired by the frame number in their names (the "
-            f"first number that differs from file to file), so {fix}"
-        )
-    by_number = dict(zip(theirs, files, strict=True))
-    return [by_number[n] for n in numbers]
+    else:
+        fix = f"rename (or re-export) the frames of {what} (or of {original_what}) to the same numbers"
+    raise CLIError(
+        f"{what} {directory!r} and {original_what} {original!r} number different frames: frame {first} "
+        f"({name!r}) is in {has[0]} {has[1]!r} but not in {lacks[0]} {lacks[1]!r}; {original_what} starts at "
+        f"frame {start} ({originals[numbers.index(start)].name!r}) and {what} at frame {their_start} "
+        f"({files[theirs.index(their_start)].name!r}). Frames are paired by the frame number in their names (the "
+        f"first number that differs from file to file), so {fix}"
+    )
 
 
 def write_reports(
