@@ -10,7 +10,6 @@ import torch
 from torchmeshmetric._checks import (
     DeviceError,
     DTypeError,
-    EmptyInputError,
     IndexRangeError,
     NonFiniteError,
     ShapeError,
@@ -40,13 +39,13 @@ def test_topology_maps_must_be_integers(kind, bad):
     assert topology_equivalence(a, b, fmap, vmap).matching  # the integer maps still match
 
 
-def test_mesh_equality_needs_triangles_and_takes_any_mesh_form():
+def test_mesh_equality_compares_models_without_triangles_and_takes_any_mesh_form():
+    """Models without triangles were refused (EmptyInputError); mm compares them as point clouds."""
     empty = (torch.tensor([[0.0, 0, 0], [1, 0, 0]]), torch.zeros(0, 3, dtype=torch.long))
     other = (torch.tensor([[5.0, 0, 0], [1, 7, 0]]), torch.zeros(0, 3, dtype=torch.long))
-    with pytest.raises(EmptyInputError, match=r"^a: expected a mesh with triangles, found 2 vertices and no face"):
-        mesh_equality(empty, other)
-    with pytest.raises(EmptyInputError, match=r"^b: expected a mesh with triangles"):
-        mesh_equality((V, F), other)
+    assert mesh_equality(empty, other).report() == "model vertices are not equals"
+    assert mesh_equality(empty, (empty[0].flip(0), empty[1])).report() == "model vertices are equals"
+    assert mesh_equality((V, F), other).report() == "meshes are not equal, number of triangles are different 2 vs 0"
     assert mesh_equality((V, F), Mesh(V, F[[1, 0]])).equal
     assert mesh_equality(TexturedMesh(Mesh(V, F)), (V, F)).equal
 

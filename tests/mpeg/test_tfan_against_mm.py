@@ -30,7 +30,6 @@ from tests.mpeg.mm_compare import (
     texture_cases,
     uv_list_cases,
 )
-from torchmeshmetric._checks import EmptyInputError
 from torchmeshmetric.cli import main
 from torchmeshmetric.mpeg import EqualityModel, TfanEquality, load_equality_model, tfan_equality
 
@@ -279,5 +278,8 @@ def test_library_forms_and_counts() -> None:
         " meshes are equal"
     )
     assert tfan_equality((torch.from_numpy(v), torch.from_numpy(f)), a).equal
-    with pytest.raises(EmptyInputError, match=r"^a, b: expected meshes with triangles, found none in either"):
-        tfan_equality(EqualityModel(v, f[:0]), EqualityModel(v, f[:0]))
+    # models without triangles: mm's point-cloud branch (EmptyInputError before), before the position counts
+    assert tfan_equality(EqualityModel(v, f[:0]), EqualityModel(v[::-1], f[:0])).report() == "model vertices are equals"
+    assert tfan_equality(EqualityModel(v, f[:0]), EqualityModel(v[:3], f[:0])).report() == (
+        "model vertices are not equals"
+    )

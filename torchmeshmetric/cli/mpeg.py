@@ -38,7 +38,10 @@ def _run_equality(args: argparse.Namespace) -> int:
     from torchmeshmetric.mpeg.comparison.equality import load_equality_model, mesh_equality
 
     ref, dis = load_pair(args, lambda side, path, texture: load_equality_model(path, texture))
-    result = mesh_equality(ref, dis, unoriented=args.unoriented)
+    try:
+        result = mesh_equality(ref, dis, unoriented=args.unoriented, epsilon=args.epsilon)
+    except ValueError as exc:
+        raise as_option_error(exc, {"epsilon": "--epsilon"}) from exc
     if args.json:
         print(json.dumps(asdict(result), indent=1))
     else:
@@ -101,7 +104,10 @@ def _run_tfan(args: argparse.Namespace) -> int:
     from torchmeshmetric.mpeg.comparison.tfan_comparison import tfan_equality
 
     ref, dis = load_pair(args, lambda side, path, texture: load_equality_model(path, texture))
-    result = tfan_equality(ref, dis, early_return=not args.all_differences)
+    try:
+        result = tfan_equality(ref, dis, early_return=not args.all_differences, epsilon=args.epsilon)
+    except ValueError as exc:
+        raise as_option_error(exc, {"epsilon": "--epsilon"}) from exc
     report = result.report()
     print(json.dumps({**asdict(result), "report": report}, indent=1) if args.json else report)
     return 0 if result.equal else 1
@@ -186,10 +192,12 @@ def add_mpeg_command(sub: Any) -> None:
         "unless given. --mode equ is mm compare --mode equ instead: are the two meshes the same triangles in any order "
         "(corners compared by position, and UV, colour and normal where both have them); it prints mm's lines: the "
         "texture maps' comparison, the verdict and, with --all-differences, the position, UV, colour and normal "
-        "differences (exit status 0 when equal, 1 otherwise). --mode eqTFAN is mm compare --mode eqTFAN: is DIS "
+        "differences (exit status 0 when equal, 1 otherwise); two models without faces (point clouds: OBJ 'v' "
+        "lines, a PLY such as mm sample writes) are compared as mm compares them, their sorted points equal or within "
+        "--epsilon. --mode eqTFAN is mm compare --mode eqTFAN: is DIS "
         "REF with its vertices and texture coordinates renamed (triangle fans); it prints mm's lines: the same "
         "texture maps' lines, the count lines, both connectivity passes, the verdict and the differences (exit status "
-        "0 when equal, 1 otherwise). --mode topo is mm compare --mode topo: is DIS the "
+        "0 when equal, 1 otherwise; point clouds as in equ mode). --mode topo is mm compare --mode topo: is DIS the "
         "connectivity of REF under --face-map and --vertex-map (exit status 0 when matching, 1 otherwise).",
     )
     p.add_argument(
@@ -273,6 +281,15 @@ def add_mpeg_command(sub: Any) -> None:
         action="store_true",
         help="equ mode: a triangle also equals its reversed copy (mm --unoriented; eqTFAN ignores it, as mm v1.1.7 "
         "ignores --eqTFAN_unoriented)",
+    )
+    p.add_argument(
+        "--epsilon",
+        type=float,
+        default=0.0,
+        metavar="E",
+        help="equ / eqTFAN modes, models without faces (point clouds) only: sorted points at distance >= E differ, "
+        "counted (mm --epsilon / --eqTFAN_epsilon; default 0: the sorted points must be equal); meshes ignore it, "
+        "as mm does",
     )
     p.add_argument(
         "--all-differences",

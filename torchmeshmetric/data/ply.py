@@ -23,6 +23,7 @@ __all__ = [
     "polygon_error",
     "read_plain_ply",
     "read_ply_file",
+    "read_ply_point_arrays",
     "read_ply_points",
 ]
 
@@ -148,7 +149,10 @@ class _Header(NamedTuple):
 
 
 def _plain_header(data: bytes, *, points: bool = False) -> _Header | None:
-    """The header of a plain PLY (see :func:`read_plain_ply`; ``points``: a lone ``vertex`` element), else ``None``."""
+    """The header of a plain PLY (see :func:`read_plain_ply`; ``points``: a lone ``vertex`` element, or with 0 faces).
+
+    Returns ``None`` for any other header.
+    """
     end = header_end(data)
     if not data.startswith(b"ply") or end < 0:
         return None
@@ -169,6 +173,8 @@ def _plain_header(data: bytes, *, points: bool = False) -> _Header | None:
             elements[-1][2].append(tuple(t[1:]))
         else:
             return None
+    if points and [e[:2] for e in elements][1:] == [("face", 0)]:
+        elements = elements[:1]  # a cloud that declares no face, as some writers do: its faces need no reading
     kinds = [e[0] for e in elements]
     if fmt not in ("ascii", "binary_little_endian", "binary_big_endian") or kinds not in (
         [["vertex"]] if points else [["vertex", "face"]]
@@ -460,10 +466,7 @@ def declared_counts(p: Path, data: bytes) -> dict[str, int]:
 def read_ply_points(p: Path) -> tuple[np.ndarray, np.ndarray | None] | None:
     r"""A PLY point cloud (no faces, ``mm sample``'s output) as ``(verts, colors)``, every value checked; else ``None``.
 
-    The header is checked line by line and the body against its declared vertex count (a truncated file is refused,
-    never read in part); coordinates must be finite (the message names the vertex and, in ASCII, its line).
-    ``colors`` are ``(V, 3)`` in ``[0, 255]`` from ``uchar red green blue``, else ``None``. A point cloud with
-    other elements or property types goes through trimesh, with the same count check.
+    :func:`read_ply_point_arrays`'s positions and colours (see there).
 
     Raises:
         MeshFileError: naming the file (and line or vertex).
@@ -475,6 +478,32 @@ def read_ply_points(p: Path) -> tuple[np.ndarray, np.ndarray | None] | None:
         >>> _ = f.write_text(head + "end_header\n0 0 0\n1 2 3\n")
         >>> read_ply_points(f)[0].tolist()
         [[0.0, 0.0, 0.0], [1.0, 2.0, 3.0]]
+    """
+    arrays = read_ply_point_arrays(p)
+    return None if arrays is None else (arrays.verts, arrays.colors)
+
+
+def read_ply_point_arrays(p: Path) -> PlyArrays | None:
+    r"""A PLY point cloud (no faces, ``mm sample``'s output) as :class:`PlyArrays`, every value checked; else ``None``.
+
+    ``None`` when the header declares faces. The header is checked line by line and the body against its declared
+    vertex count (a truncated file is refused, never read in part); coordinates must be finite (the message names
+    the vertex and, in ASCII, its line). ``faces`` is ``(0, 3)``; ``colors`` are ``(V, 3)`` in ``[0, 255]`` from
+    ``uchar red green blue``, ``normals`` from ``nx ny nz`` and ``uvs`` from ``texture_u texture_v``, each ``None``
+    where the file has none. A point cloud with other elements or property types goes through trimesh, with the same
+    count check (positions and colours only).
+
+    Raises:
+        MeshFileError: naming the file (and line or vertex).
+
+    Example:
+        >>> import tempfile, pathlib
+        >>> f = pathlib.Path(tempfile.mkdtemp()) / "c.ply"
+        >>> props = "".join(f"property float {c}\n" for c in ("x", "y", "z", "nx", "ny", "nz"))
+        >>> _ = f.write_text("ply\nformat ascii 1.0\nelement vertex 1\n" + props + "end_header\n1 2 3 0 0 1\n")
+        >>> a = read_ply_point_arrays(f)
+        >>> a.faces.shape, a.normals.tolist(), a.colors
+        ((0, 3), [[0.0, 0.0, 1.0]], None)
     """
     from torchmeshmetric.data.mesh_file import check_vertices, existing_mesh_file
 
@@ -524,10 +553,13 @@ def read_ply_points(p: Path) -> tuple[np.ndarray, np.ndarray | None] | None:
         if not all(_PLY_TYPES[pr[0]] == "u1" for pr in h.vprops if pr[1] in ("red", "green", "blue")):
             return _trimesh_points(p, nv)  # float colours: trimesh's conversion decides, as for meshes
         colors = np.stack([cols["red"], cols["green"], cols["blue"]], axis=1).astype(np.float64)
-    return verts, colors
+    faces = np.zeros((0, 3), dtype=np.int64)
+    return PlyArrays(
+        verts, faces, colors, _columns(cols, ("nx", "ny", "nz")), _columns(cols, ("texture_u", "texture_v"))
+    )
 
 
-def _trimesh_points(p: Path, nv: int) -> tuple[np.ndarray, np.ndarray | None]:
+def _trimesh_points(p: Path, nv: int) -> PlyArrays:
     """A point-cloud PLY outside the plain form, through trimesh, its vertex count and coordinates checked."""
     import trimesh
 
@@ -548,7 +580,7 @@ def _trimesh_points(p: Path, nv: int) -> tuple[np.ndarray, np.ndarray | None]:
     rgb = None
     if colors is not None and len(colors) == nv and nv > 0:
         rgb = np.asarray(colors)[:, :3].astype(np.float64)
-    return verts, rgb
+    return PlyArrays(verts, np.zeros((0, 3), dtype=np.int64), rgb)
 
 
 def ply_bytes(verts: np.ndarray, faces: np.ndarray) -> bytes:

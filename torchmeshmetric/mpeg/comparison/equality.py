@@ -16,6 +16,15 @@ mmetric v1.1.7's ``Compare::equ`` prints, in order:
 3. When the meshes differ and every triangle was searched: the position, UV, colour and normal lists compared index
    by index, plus the difference of their lengths (``Position differences: N`` ... ``Normals differences: N``).
 
+Models without triangles (point clouds: an OBJ without faces, a PLY such as ``mm sample`` writes) take mmetric's
+point-cloud branch instead of 2. and 3., when neither model has a triangle (one model with triangles and one without
+is the "number of triangles are different" line): both position lists sorted lexicographically (x, then y, then z,
+as float32), then, with ``epsilon`` 0, compared as whole lists (``model vertices are equals`` / ``... not equals``;
+different counts are not equal), or, with ``epsilon`` > 0, point by point in sorted order, a point differing when
+its float32 distance ``length(A - B) >= epsilon`` (``model vertices are not equals, found N differences``; different
+counts: ``... not equals``). UVs, colours and normals take no part; ``--unoriented`` and ``--earlyReturn`` change
+nothing there. ``epsilon`` is ignored for meshes, as mmetric ignores it.
+
 The lists are the models' as mmetric's readers fill them, which :func:`load_equality_model` reproduces through the
 library's one reader per format: OBJ ``vt`` lines (indexed per corner), ``v x y z r g b`` colours of the vertices
 that have one (scaled as mmetric does, ``roundf(value * 255)``), ``vn`` lines unless a face corner names a normal
@@ -26,13 +35,15 @@ corner, or one per position.
 ``compare --mode eqTFAN`` reads the same lists and maps and prints the same texture lines and list differences
 (:mod:`~torchmeshmetric.mpeg.comparison.tfan_comparison` uses this module's model, loader and lines).
 
-Not covered: point clouds (mmetric's sorted-vertex comparison of models without faces). Where a file is read
-otherwise: a greyscale texture is refused (mmetric reads three bytes per texel of a one-channel image); a ``map_Kd``
-is found beside its MTL (mmetric looks beside the OBJ); an OBJ vertex of four numbers is ``x y z w`` (mmetric takes
-the fourth for a red channel); PLY colours other than ``uchar red green blue`` and per-corner ``texcoord`` lists go
-through trimesh, without normals or UVs; OFF, which mmetric does not read, gives positions and triangles; negative
-(relative) OBJ face indices are resolved as the OBJ format defines them, where mmetric v1.1.7 does not resolve them
-(its equ compared garbage triangles and its eqTFAN crashed on such a file, review P): re-export the file with
+Where a file is read otherwise than by mmetric: a NaN or infinite coordinate is refused (mmetric sorts it with an
+ordering NaN breaks, and its distance test never counts a NaN); a face line naming fewer than three vertices is
+refused (mmetric skips it, so a file of such lines is a point cloud for it); a greyscale texture is refused (mmetric
+reads three bytes per texel of a one-channel image); a ``map_Kd`` is found beside its MTL (mmetric looks beside the
+OBJ); an OBJ vertex of four numbers is ``x y z w`` (mmetric takes the fourth for a red channel); PLY colours other
+than ``uchar red green blue`` and per-corner ``texcoord`` lists go through trimesh, without normals or UVs; OFF, which
+mmetric does not read, gives positions and triangles; negative (relative) OBJ face indices are resolved as the OBJ
+format defines them, where mmetric v1.1.7 does not resolve them (its equ compared garbage triangles and its eqTFAN
+crashed on such a file, review P): re-export the file with
 positive indices to compare it with mm.
 """
 
@@ -42,16 +53,18 @@ import os
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TypedDict
 
 import numpy as np
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import DTypeError, EmptyInputError, IndexRangeError, NonFiniteError, ShapeError
+from torchmeshmetric._checks import DTypeError, IndexRangeError, NonFiniteError, ShapeError, check_real
+from torchmeshmetric.data.ply import PlyArrays
 from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh, _obj_colors, as_textured_mesh, read_texture
 from torchmeshmetric.structures import MeshLike
 
-__all__ = ["EqualityModel", "MeshEquality", "load_equality_model", "mesh_equality"]
+__all__ = ["EqualityModel", "MeshEquality", "load_equality_model", "mesh_equality", "point_cloud_verdict"]
 
 
 def _empty(cols: int, dtype: type = np.float32) -> np.ndarray:
@@ -101,6 +114,25 @@ def _table(
             f"{where}: expected finite values, found {int((~np.isfinite(arr)).sum())} NaN/Inf value(s)"
         )
     return arr
+
+
+class _ListDifferences(TypedDict):
+    """The four lists' differences, as keyword arguments of :class:`MeshEquality` and ``TfanEquality``."""
+
+    position_differences: int
+    uv_differences: int
+    color_differences: int
+    normal_differences: int
+
+
+def _list_differences(a: EqualityModel, b: EqualityModel) -> _ListDifferences:
+    """The position, UV, colour and normal lists compared index by index (mmetric's "... differences" lines)."""
+    return _ListDifferences(
+        position_differences=_differences(a.positions, b.positions),
+        uv_differences=_differences(a.uvs, b.uvs),
+        color_differences=_differences(a.colors, b.colors),
+        normal_differences=_differences(a.normals, b.normals),
+    )
 
 
 def _differences(a: np.ndarray, b: np.ndarray) -> int:
@@ -234,7 +266,10 @@ def load_equality_model(path: str | os.PathLike, texture: str | os.PathLike | No
     MTL or texture file is warned about and, as mmetric does, compared as no map. PLY: ``x y z``, ``red green blue``,
     ``nx ny nz`` and ``texture_u texture_v`` (per vertex) of a plain PLY; other PLYs, OFF and the other formats give
     positions and triangles (and colours where trimesh finds them). The positions and triangles are checked as
-    :func:`~torchmeshmetric.data.load_mesh` checks them.
+    :func:`~torchmeshmetric.data.load_mesh` checks them. A file without faces (an OBJ of ``v`` lines, a PLY point
+    cloud such as ``mm sample`` writes, binary or ASCII, with its ``red green blue`` / ``nx ny nz`` /
+    ``texture_u texture_v``) is a model without triangles, which :func:`mesh_equality` compares as mmetric compares
+    point clouds; it needs at least one vertex, all finite (mmetric refuses a model without vertices too).
 
     Args:
         path: OBJ, PLY or OFF file.
@@ -244,7 +279,8 @@ def load_equality_model(path: str | os.PathLike, texture: str | os.PathLike | No
         :class:`EqualityModel`.
 
     Raises:
-        MeshFileError: unreadable or malformed file (naming the file and line), a greyscale texture.
+        MeshFileError: unreadable or malformed file (naming the file and line), a greyscale texture, a file without
+            faces or vertices, a NaN or infinite coordinate.
 
     Example:
         >>> import tempfile, pathlib
@@ -256,11 +292,14 @@ def load_equality_model(path: str | os.PathLike, texture: str | os.PathLike | No
     from torchmeshmetric.data.io import read_mesh_arrays
     from torchmeshmetric.data.mesh_file import MeshFileError, check_dtype_range, check_mesh, existing_mesh_file
     from torchmeshmetric.data.obj import parse_obj
-    from torchmeshmetric.data.ply import read_plain_ply
+    from torchmeshmetric.data.ply import read_plain_ply, read_ply_point_arrays
 
     p = existing_mesh_file(path)
     f32 = torch.float32
     given = (read_texture(Path(texture), "texture"),) if texture is not None else None
+    points = read_ply_point_arrays(p) if p.suffix.lower() == ".ply" else None
+    if points is not None:  # a PLY without faces: mmetric's point-cloud branch compares its positions
+        return _ply_model(p, points, given)
     if p.suffix.lower() == ".obj":
         data = p.read_bytes()
         try:
@@ -273,7 +312,10 @@ def load_equality_model(path: str | os.PathLike, texture: str | os.PathLike | No
             if not d.normal_indexed:
                 raise
         faces, face_uvs = d.triangles()
-        check_mesh(p, d.verts, faces, d.vert_lines)
+        if len(faces):
+            check_mesh(p, d.verts, faces, d.vert_lines)
+        else:  # no face: a point cloud for mmetric, whose positions must be there and finite all the same
+            _check_points(p, d.verts, d.vert_lines)
         check_dtype_range(p, d.verts, f32, d.vert_lines, "mmetric reads coordinates as float32")
         what = ("texture coordinate", "values", "'vt' lines")
         check_dtype_range(p, d.uvs, f32, d.uv_lines, "mmetric reads texture coordinates as float32", what=what)
@@ -295,20 +337,38 @@ def load_equality_model(path: str | os.PathLike, texture: str | os.PathLike | No
     plain = read_plain_ply(p) if p.suffix.lower() == ".ply" else None
     if plain is not None:
         check_mesh(p, plain.verts, plain.faces, None)
-        verts, faces, colors = plain.verts, plain.faces, plain.colors
-    else:
-        verts, faces, colors = read_mesh_arrays(p)
-    check_dtype_range(p, verts, f32, None, "mmetric reads coordinates as float32")
+        return _ply_model(p, plain, given)
+    verts, faces, colors = read_mesh_arrays(p)
+    return _ply_model(p, PlyArrays(verts, faces, colors), given)
+
+
+def _check_points(p: Path, verts: np.ndarray, lines: np.ndarray | None) -> None:
+    """A model without faces, as mmetric takes it: at least one position (mm: "has no vertices"), all finite."""
+    from torchmeshmetric.data.mesh_file import MeshFileError, check_vertices
+
+    if verts.shape[0] == 0:
+        raise MeshFileError(f"path: mesh file '{p}' has no vertices and no faces (mmetric refuses it too)")
+    check_vertices(p, verts, "vertex", lines)
+
+
+def _ply_model(p: Path, arrays: PlyArrays, given: tuple[np.ndarray | None, ...] | None) -> EqualityModel:
+    """The model of a mesh read by a PLY (or other non-OBJ) reader, or of a PLY point cloud (no faces)."""
+    from torchmeshmetric.data.mesh_file import check_dtype_range
+
+    f32 = torch.float32
+    if len(arrays.faces) == 0:
+        _check_points(p, arrays.verts, None)
+    check_dtype_range(p, arrays.verts, f32, None, "mmetric reads coordinates as float32")
     extra = {}
-    for name, values in (("normals", getattr(plain, "normals", None)), ("uvs", getattr(plain, "uvs", None))):
+    for name, values in (("normals", arrays.normals), ("uvs", arrays.uvs)):
         if values is not None:
             what = (name[:-1], "values", name)
             check_dtype_range(p, values, f32, None, f"mmetric reads {name} as float32", what=what)
             extra[name] = values.astype(np.float32)
     return EqualityModel(
-        positions=verts.astype(np.float32),
-        triangles=faces,
-        colors=_empty(3) if colors is None else colors.astype(np.float32),
+        positions=arrays.verts.astype(np.float32),
+        triangles=arrays.faces,
+        colors=_empty(3) if arrays.colors is None else arrays.colors.astype(np.float32),
         textures=given or (None,),
         **extra,
     )
@@ -319,7 +379,8 @@ class MeshEquality:
     """The outcome of :func:`mesh_equality`.
 
     Attributes:
-        equal: every triangle of A has its own equal triangle in B (and the counts agree).
+        equal: every triangle of A has its own equal triangle in B (and the counts agree); for point clouds
+            (``points``), the sorted positions agree (within ``epsilon``).
         triangles_a: triangle count of A.
         triangles_b: triangle count of B.
         different_triangles: triangles of A without an equal triangle in B (``None`` when the counts differ:
@@ -335,6 +396,10 @@ class MeshEquality:
         uv_differences: the same for the UV lists ("UV coords differences").
         color_differences: the same for the colour lists ("Colors differences").
         normal_differences: the same for the normal lists ("Normals differences").
+        points: neither model has a triangle: their sorted positions were compared (mmetric's point-cloud branch,
+            ``model vertices are equals``); ``different_triangles`` and ``first_unmatched`` are then ``None``.
+        point_differences: point clouds compared with ``epsilon`` > 0 and as many points on both sides: the sorted
+            points at distance ``>= epsilon`` ("found N differences"); ``None`` otherwise.
     """
 
     equal: bool
@@ -347,9 +412,11 @@ class MeshEquality:
     uv_differences: int = 0
     color_differences: int = 0
     normal_differences: int = 0
+    points: bool = False
+    point_differences: int | None = None
 
     def report(self, early_return: bool = True) -> str:
-        """Every line mmetric's ``compare --mode equ`` prints between ``Epsilon = 0`` and its timing.
+        """Every line mmetric's ``compare --mode equ`` prints between ``Epsilon = ...`` and its timing.
 
         Args:
             early_return: as mmetric's ``--earlyReturn`` (default true): name the first unmatched triangle
@@ -368,7 +435,9 @@ class MeshEquality:
             Normals differences: 3
         """
         lines = [_texture_line(t) for t in self.textures]
-        if self.different_triangles is None:
+        if self.points:
+            lines.append(_points_line(self.equal, self.point_differences))
+        elif self.different_triangles is None:
             lines.append(
                 f"meshes are not equal, number of triangles are different {self.triangles_a} vs {self.triangles_b}"
             )
@@ -388,6 +457,71 @@ class MeshEquality:
                 f"Normals differences: {self.normal_differences}",
             ]
         return "\n".join(lines)
+
+
+def _points_line(equal: bool, differences: int | None) -> str:
+    """The line mmetric's point-cloud branch prints (its "equals", its count of differences with an epsilon)."""
+    if equal:
+        return "model vertices are equals"
+    if differences is None:
+        return "model vertices are not equals"
+    return f"model vertices are not equals, found {differences} differences"
+
+
+def _epsilon(epsilon: object) -> np.float32:
+    """``epsilon`` as the float32 mmetric reads, checked: a finite distance >= 0."""
+    x = check_real(epsilon, "epsilon")
+    with np.errstate(over="ignore"):
+        e = np.float32(x)
+    if not (np.isfinite(e) and x >= 0):
+        raise ValueError(f"epsilon: expected a finite float32 distance >= 0, found {x!r}")
+    return e
+
+
+def _sorted_points(positions: np.ndarray) -> np.ndarray:
+    """The positions in mmetric's order: lexicographic on (x, y, z), as its ``CompareVertex<true, ...>`` sorts them.
+
+    ``+ 0.0`` turns -0.0 into 0.0: mmetric's ``<`` sees them equal, so either may come first there; after it the
+    comparison below is the same whichever did.
+    """
+    q = positions + np.float32(0.0)
+    return q[np.lexsort((q[:, 2], q[:, 1], q[:, 0]))]
+
+
+def point_cloud_verdict(a: np.ndarray, b: np.ndarray, epsilon: float = 0.0) -> tuple[bool, int | None]:
+    """Mmetric's comparison of two models without triangles: their positions sorted, then compared.
+
+    Args:
+        a: ``(N, 3)`` positions of A (compared as float32).
+        b: ``(M, 3)`` positions of B.
+        epsilon: 0: the sorted lists must be equal, value for value (``-0.0 == 0.0``); > 0: lists of equal length
+            are compared point by point, a point differing when ``length(A - B) >= epsilon``, computed as mmetric's
+            ``glm::length`` does in float32 (``sqrt((dx*dx + dy*dy) + dz*dz)``).
+
+    Returns:
+        ``(equal, differences)``: ``differences`` is the count of differing points with ``epsilon`` > 0 and lists
+        of equal length, else ``None``.
+
+    Raises:
+        ValueError: ``epsilon`` negative, NaN or beyond float32.
+
+    Example:
+        >>> a = np.array([[0, 0, 1], [0, 0, 0]], np.float32)
+        >>> point_cloud_verdict(a, a[::-1]), point_cloud_verdict(a, a + [0, 0, 0.5], epsilon=0.5)
+        ((True, None), (False, 2))
+    """
+    eps = _epsilon(epsilon)
+    sa = _sorted_points(np.asarray(a, dtype=np.float32).reshape(-1, 3))
+    sb = _sorted_points(np.asarray(b, dtype=np.float32).reshape(-1, 3))
+    if eps == 0:
+        return sa.shape == sb.shape and bool(np.array_equal(sa, sb)), None
+    if sa.shape != sb.shape:
+        return False, None
+    with np.errstate(over="ignore", invalid="ignore"):  # an overflowing difference is an infinite distance, as in C++
+        d = sa - sb
+        length = np.sqrt((d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]) + d[:, 2] * d[:, 2])
+    count = int((length >= eps).sum())
+    return count == 0, count
 
 
 def _texture_line(status: str) -> str:
@@ -480,7 +614,10 @@ def _texture_status(a: tuple[np.ndarray | None, ...], b: tuple[np.ndarray | None
 
 
 def mesh_equality(
-    a: EqualityModel | TexturedMesh | MeshLike, b: EqualityModel | TexturedMesh | MeshLike, unoriented: bool = False
+    a: EqualityModel | TexturedMesh | MeshLike,
+    b: EqualityModel | TexturedMesh | MeshLike,
+    unoriented: bool = False,
+    epsilon: float = 0.0,
 ) -> MeshEquality:
     """Whether two meshes have the same triangles in any order, as mmetric's ``compare --mode equ`` decides.
 
@@ -488,7 +625,9 @@ def mesh_equality(
     normals) -- per corner or per position, see :class:`EqualityModel` --, all as float32 values; a triangle equals
     another when its corners are a rotation of the other's (or also a reflection with ``unoriented``). Each
     triangle of B matches at most one triangle of A. The texture maps are compared too (they do not change the
-    verdict, as in mmetric), and the position, UV, colour and normal lists index by index.
+    verdict, as in mmetric), and the position, UV, colour and normal lists index by index. When neither model has a
+    triangle (point clouds), their positions are compared as :func:`point_cloud_verdict` does (mmetric's point-cloud
+    branch); one model with triangles and one without have different triangle counts.
 
     Args:
         a: reference mesh (mmetric's ``--inputModelA``): :func:`load_equality_model` reads a file as mmetric does;
@@ -496,9 +635,11 @@ def mesh_equality(
             its texture as its one map, no normals).
         b: distorted mesh (``--inputModelB``).
         unoriented: mmetric's ``--unoriented``: a triangle also equals its reversed copy.
+        epsilon: mmetric's ``--epsilon``: the distance at which two sorted points of point clouds differ (0: they
+            must be equal); ignored for meshes, as mmetric ignores it.
 
     Raises:
-        EmptyInputError: a mesh without triangles.
+        ValueError: ``epsilon`` negative, NaN or beyond float32.
 
     Returns:
         :class:`MeshEquality` (the verdict, counts and mmetric's lines through ``report()``).
@@ -515,23 +656,16 @@ def mesh_equality(
         meshes are not equal, early return.
         triangle number 0 from A has no equivalent in B
     """
+    _epsilon(epsilon)  # checked for meshes too: a bad value is refused whatever the models
     a, b = _as_model(a, "a"), _as_model(b, "b")
-    for name, m in (("a", a), ("b", b)):
-        if m.triangles.shape[0] == 0:  # no triangle to compare: "equal" would say nothing about the vertices
-            raise EmptyInputError(
-                f"{name}: expected a mesh with triangles, found {m.positions.shape[0]} vertices and no face (mm "
-                "compares vertex-only models by their vertex lists instead: compare their positions)"
-            )
     fa, fb = int(a.triangles.shape[0]), int(b.triangles.shape[0])
     textures = _texture_status(a.textures, b.textures)
-    lists = {
-        "position_differences": _differences(a.positions, b.positions),
-        "uv_differences": _differences(a.uvs, b.uvs),
-        "color_differences": _differences(a.colors, b.colors),
-        "normal_differences": _differences(a.normals, b.normals),
-    }
+    lists = _list_differences(a, b)
     if fa != fb:
         return MeshEquality(False, fa, fb, None, None, textures=textures, **lists)
+    if fa == 0:  # neither has a triangle: mmetric compares the sorted positions
+        equal, diffs = point_cloud_verdict(a.positions, b.positions, epsilon)
+        return MeshEquality(equal, 0, 0, None, None, textures=textures, **lists, points=True, point_differences=diffs)
     flags = (a.has_uvs and b.has_uvs, a.has_colors and b.has_colors, a.has_normals and b.has_normals)
     rows = np.concatenate([_corner_rows(a, *flags), _corner_rows(b, *flags)])
     _, corner_ids = np.unique(rows.reshape(-1, rows.shape[2]), axis=0, return_inverse=True)

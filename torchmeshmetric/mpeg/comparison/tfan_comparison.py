@@ -4,17 +4,21 @@ mmetric v1.1.7's ``Compare::eqTFAN`` prints, in order:
 
 1. The texture maps' lines, exactly as ``compare --mode equ`` does (the same code in mmetric; here the same
    :func:`~torchmeshmetric.mpeg.comparison.equality.load_equality_model` maps and the same lines).
-2. Where the models' sizes differ, one line and nothing more: ``number of triangles are different``, then ``number of
+2. Where the triangle counts are equal and zero (point clouds), the line of ``equ``'s point-cloud branch and nothing
+   more: the sorted positions compared, with ``--eqTFAN_epsilon`` as ``equ``'s ``--epsilon``
+   (:func:`~torchmeshmetric.mpeg.comparison.equality.point_cloud_verdict`); the position and UV counts are not
+   compared first.
+3. Where the models' sizes differ, one line and nothing more: ``number of triangles are different``, then ``number of
    positions are different``, then ``number of uv coordinates are different`` (the lists as read from the files).
-3. The connectivity compared twice, on positions (``v`` indices) then on texture coordinates (``vt`` indices), each
+4. The connectivity compared twice, on positions (``v`` indices) then on texture coordinates (``vt`` indices), each
    printing ``the geometry (texture) connectivity of meshes is equal``, ``... is not equal, early return.`` (with
    ``--eqTFAN_earlyReturn``, the default), ``meshes are not equal, maxV2TA_ != maxV2TB_ `` (a vertex in more
    triangles than any of the other model's), or nothing (differences counted without early return).
-4. `` meshes are equal`` (with its leading space), or ``meshes are not equal, N different triangles`` -- N is the
+5. `` meshes are equal`` (with its leading space), or ``meshes are not equal, N different triangles`` -- N is the
    count of the geometry pass -- followed by the position, UV, colour and normal lists' differences, as ``equ``.
 
-``--eqTFAN_unoriented`` reaches no test in mmetric v1.1.7 and ``--eqTFAN_epsilon`` applies to models without
-triangles only (mmetric's point-cloud branch, which this module does not cover), so neither changes a line here.
+``--eqTFAN_unoriented`` reaches no test in mmetric v1.1.7, so it changes no line, and ``--eqTFAN_epsilon`` applies
+to models without triangles only (2.).
 
 The connectivity pass decides whether B is A with its vertices renamed: it walks A's vertices in order, builds the
 triangle fans around each (TFAN, the connectivity coder's traversal: the free triangles around the vertex, chained
@@ -34,16 +38,19 @@ reads past the end of a list (fans missing for an iteration) :class:`TfanUndefin
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TypedDict
 
 import numpy as np
 
-from torchmeshmetric._checks import EmptyInputError
 from torchmeshmetric.mpeg.comparison.equality import (
     EqualityModel,
     _as_model,
-    _differences,
+    _epsilon,
+    _list_differences,
+    _points_line,
     _texture_line,
     _texture_status,
+    point_cloud_verdict,
 )
 from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh
 from torchmeshmetric.structures import MeshLike
@@ -570,6 +577,10 @@ class TfanEquality:
         uv_differences: the same for the UV lists.
         color_differences: the same for the colour lists.
         normal_differences: the same for the normal lists.
+        points: neither model has a triangle: their sorted positions were compared (mmetric's point-cloud branch,
+            as ``equ``'s); ``geometry``, ``texture`` and their differences are then ``None``.
+        point_differences: point clouds compared with ``epsilon`` > 0 and as many points on both sides: the sorted
+            points at distance ``>= epsilon``; ``None`` otherwise.
     """
 
     equal: bool
@@ -588,6 +599,8 @@ class TfanEquality:
     uv_differences: int
     color_differences: int
     normal_differences: int
+    points: bool = False
+    point_differences: int | None = None
 
     def report(self) -> str:
         """Every line mmetric's ``compare --mode eqTFAN`` prints between ``eqTFAN_Epsilon = ...`` and its timing.
@@ -609,6 +622,8 @@ class TfanEquality:
             Normals differences: 0
         """
         lines = [_texture_line(t) for t in self.textures]
+        if self.points:
+            return "\n".join([*lines, _points_line(self.equal, self.point_differences)])
         for what, a, b in (
             ("triangles", self.triangles_a, self.triangles_b),
             ("positions", self.positions_a, self.positions_b),
@@ -635,8 +650,22 @@ class TfanEquality:
         return "\n".join(lines)
 
 
+class _Counts(TypedDict):
+    """The list sizes mmetric compares first, as keyword arguments of :class:`TfanEquality`."""
+
+    triangles_a: int
+    triangles_b: int
+    positions_a: int
+    positions_b: int
+    uvs_a: int
+    uvs_b: int
+
+
 def tfan_equality(
-    a: EqualityModel | TexturedMesh | MeshLike, b: EqualityModel | TexturedMesh | MeshLike, early_return: bool = True
+    a: EqualityModel | TexturedMesh | MeshLike,
+    b: EqualityModel | TexturedMesh | MeshLike,
+    early_return: bool = True,
+    epsilon: float = 0.0,
 ) -> TfanEquality:
     """Whether B is A with its vertices (and texture coordinates) renamed, as ``mm compare --mode eqTFAN`` decides.
 
@@ -646,12 +675,14 @@ def tfan_equality(
             form) gives its own arrays (UVs per corner, its texture as its one map).
         b: distorted mesh (``--inputModelB``).
         early_return: ``--eqTFAN_earlyReturn`` (default true): each pass stops at the first vertex without a match.
+        epsilon: ``--eqTFAN_epsilon``: for models without triangles (point clouds), the distance at which two sorted
+            points differ (0: they must be equal); ignored for meshes, as mmetric ignores it.
 
     Returns:
         :class:`TfanEquality` (the verdict, the counts, mmetric's lines through ``report()``).
 
     Raises:
-        EmptyInputError: neither mesh has a triangle (mmetric then compares point clouds, not covered here).
+        ValueError: ``epsilon`` negative, NaN or beyond float32.
         TfanUndefinedError: mmetric reads past one of its lists on these meshes.
 
     Example:
@@ -663,28 +694,23 @@ def tfan_equality(
         the texture connectivity of meshes is equal
          meshes are equal
     """
+    _epsilon(epsilon)  # checked for meshes too: a bad value is refused whatever the models
     a, b = _as_model(a, "a"), _as_model(b, "b")
     fa, fb = len(a.triangles), len(b.triangles)
-    if fa == 0 and fb == 0:
-        raise EmptyInputError(
-            "a, b: expected meshes with triangles, found none in either (mm compares vertex-only models by their "
-            "vertex lists instead: compare their positions)"
-        )
-    counts = {
-        "triangles_a": fa,
-        "triangles_b": fb,
-        "positions_a": len(a.positions),
-        "positions_b": len(b.positions),
-        "uvs_a": len(a.uvs),
-        "uvs_b": len(b.uvs),
-    }
-    lists = {
-        "position_differences": _differences(a.positions, b.positions),
-        "uv_differences": _differences(a.uvs, b.uvs),
-        "color_differences": _differences(a.colors, b.colors),
-        "normal_differences": _differences(a.normals, b.normals),
-    }
+    counts = _Counts(
+        triangles_a=fa,
+        triangles_b=fb,
+        positions_a=len(a.positions),
+        positions_b=len(b.positions),
+        uvs_a=len(a.uvs),
+        uvs_b=len(b.uvs),
+    )
+    lists = _list_differences(a, b)
     textures = _texture_status(a.textures, b.textures)
+    if fa == 0 and fb == 0:  # mmetric's point-cloud branch, before the position and UV counts
+        equal, diffs = point_cloud_verdict(a.positions, b.positions, epsilon)
+        return TfanEquality(equal, textures, **counts, geometry=None, texture=None, geometry_differences=None,
+                            texture_differences=None, **lists, points=True, point_differences=diffs)  # fmt: skip
     if fa != fb or counts["positions_a"] != counts["positions_b"] or counts["uvs_a"] != counts["uvs_b"]:
         return TfanEquality(False, textures, **counts, geometry=None, texture=None, geometry_differences=None,
                             texture_differences=None, **lists)  # fmt: skip
