@@ -159,6 +159,10 @@ def _point_to_plane_step(p: Tensor, q: Tensor, n: Tensor, w: Tensor, scale: bool
 
     Model ``x -> c + e^sigma R(omega) (x - c) + t`` linearised as ``x + omega x (x - c) + sigma (x - c) + t``;
     the residual ``n . (x' - q)`` is linear in ``(omega, t[, sigma])``. Rotation projected back with exp.
+
+    Solved for ``(L omega, t[, L sigma])``, ``L`` the samples' weighted RMS distance from ``c``: every column is then
+    dimensionless and the damped system is the same in any unit, so the step is ``s`` times the step for the input
+    times ``s`` (bit for bit for a power of two).
     """
     w = w / w.sum()
     c = (w[:, None] * p).sum(0)
@@ -170,6 +174,23 @@ def _point_to_plane_step(p: Tensor, q: Tensor, n: Tensor, w: Tensor, scale: bool
     b = -(n * (p - q)).sum(-1)
     AtA = A.T @ (w[:, None] * A)
     Atb = A.T @ (w * b)
+    # omega and sigma are dimensionless and their columns (x x n, n . x) are lengths; t is a length and its columns
+    # (n) are not. With coordinates times k the rotation's diagonal entries scale by k^2 and the translation's do not,
+    # so one damping relative to the largest entry damped each block by a share that changed with the units (at 1e-3
+    # units the rotation's ~1e-6 entries got 1e-9: 1e-3 of their own; float32's 64 eps floor stopped its rotation).
+    # The registration was not unit-invariant: the evaluation's k-1 statistics moved by 3e-6 relative at 1e-3 units
+    # and 1e-13 at 2x, an ill-posed pair by 0.017 at 2x (measured 2026-12-07). The system is solved for
+    # (L omega, t[, L sigma]) instead, L a length of the data (continuous in the input, exactly doubled with it): its
+    # entries are dimensionless. L = 0 only when every weighted sample is at c, where those rows and columns are 0
+    # whatever they are divided by. Row and column divided in turn: L^2 could underflow where L does not.
+    length = (w * (x * x).sum(-1)).sum().sqrt()
+    length = torch.where(length > 0, length, torch.ones_like(length))
+    units = torch.ones_like(Atb)
+    units[:3] = length
+    if scale:
+        units[6] = length
+    AtA = AtA / units[:, None] / units[None, :]
+    Atb = Atb / units
     # Tikhonov damping relative to the system's scale keeps flat/planar configurations (a 3-vertex source cannot
     # fix 6 degrees of freedom) solvable; it must stay above the dtype's rounding of the diagonal (float32: 1e-9
     # relative vanishes in it), so it is at least 64 eps.
@@ -182,6 +203,7 @@ def _point_to_plane_step(p: Tensor, q: Tensor, n: Tensor, w: Tensor, scale: bool
         sol = torch.linalg.lstsq(system.cpu(), Atb.cpu()[:, None], driver="gelsd").solution[:, 0].to(p.device)
         if not bool(torch.isfinite(sol).all()):
             sol = torch.zeros_like(Atb)
+    sol = sol / units
     R = axis_angle_to_rotation_matrix(sol[None, :3])[0]
     s = torch.exp(sol[6]) if scale else torch.ones((), dtype=p.dtype, device=p.device)
     t = c + sol[3:6] - s * (R @ c)
