@@ -16,7 +16,7 @@ from torch import Tensor
 from torchmeshmetric import Mesh
 from torchmeshmetric.data.demo import demo_sequence
 from torchmeshmetric.evaluation import evaluate_pair
-from torchmeshmetric.registration import register_rigid
+from torchmeshmetric.registration import register_rigid, skinning_weights
 from torchmeshmetric.simplification import simplify_qem
 
 Pair = tuple[tuple[Tensor, Tensor], tuple[Tensor, Tensor]]
@@ -113,3 +113,19 @@ def test_evaluation_k_minus_1_statistics_do_not_depend_on_the_units(s):
                 assert y == x, (key, name)
             else:
                 assert y == pytest.approx(x, rel=1e-12, abs=5e-15 * diag if power == 1 else 0.0), (key, name)
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_skinning_weights_of_few_nodes_do_not_depend_on_the_units(dtype):
+    # With no more nodes than K there is no (K+1)-th distance: the weights divide by 1.5x the farthest node's, to
+    # which 1e-12 (absolute) was added: at 2**-40 units (~1e-12) the weights moved by 0.21, at 2**-20 by 6.6e-7
+    # (found 2026-12-07). A power of two now gives the same bits; a point on every node still gets equal weights.
+    g = torch.Generator().manual_seed(0)
+    points = torch.rand(50, 3, generator=g, dtype=torch.float64).to(dtype)
+    nodes = torch.rand(3, 3, generator=g, dtype=torch.float64).to(dtype)
+    idx, w = skinning_weights(points, nodes, 4)
+    for k in (-40, 40):
+        idx_k, w_k = skinning_weights(points * 2.0**k, nodes * 2.0**k, 4)
+        assert torch.equal(idx_k, idx) and torch.equal(w_k, w)
+    _, w0 = skinning_weights(torch.zeros(1, 3, dtype=dtype), torch.zeros(2, 3, dtype=dtype), 4)
+    assert torch.equal(w0, torch.full((1, 2), 0.5, dtype=dtype))

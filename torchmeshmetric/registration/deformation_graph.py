@@ -188,7 +188,10 @@ def skinning_weights(points: Tensor, nodes: Tensor, num_neighbors: int) -> tuple
     k = min(num_neighbors, n)
     d = torch.cdist(points, nodes, compute_mode="donot_use_mm_for_euclid_dist")
     dk, idx = d.topk(min(k + 1, n), dim=1, largest=False)
-    dmax = dk[:, -1:] if n > k else dk[:, -1:] * 1.5 + 1e-12
+    # With no (K+1)-th node, 1.5x the farthest: it keeps a weight. No absolute term: a 1e-12 added here made the
+    # weights of a graph of <= K nodes depend on the units (at 1e-12 units it dominated); a point on every node
+    # (dmax 0) gets equal weights through the clamp below.
+    dmax = dk[:, -1:] if n > k else dk[:, -1:] * 1.5
     w = (1 - dk[:, :k] / dmax.clamp_min(torch.finfo(d.dtype).tiny)).clamp_min(0) ** 2
     wsum = w.sum(1, keepdim=True)
     # All K nodes at the same distance as the (K+1)-th: fall back to equal weights.
