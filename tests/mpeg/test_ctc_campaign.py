@@ -467,3 +467,49 @@ def test_a_read_only_cache_folder_warns_once_and_the_campaign_writes_its_files(
     assert len(calls) == 1  # tried once, then no more
     for name in ("frames.csv", "anchor.csv", "test.csv", "summary.csv"):
         assert (out / name).read_text() == (reference / name).read_text(), name
+
+
+_TRIANGLE = "usemtl a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n"
+
+
+@pytest.mark.parametrize(
+    ("obj", "mtl_name", "mtl"),
+    [
+        ("mtllib m.mtl # exported by the encoder\n" + _TRIANGLE, "m.mtl", "newmtl a\nmap_Kd tex.png\n"),
+        ("mtllib m.mtl#note\n" + _TRIANGLE, "m.mtl", "newmtl a\nmap_Kd tex.png\n"),
+        ("mtllib\tm.mtl\t\n" + _TRIANGLE, "m.mtl", "newmtl a\nmap_Kd\ttex.png\n"),
+        ("  mtllib m.mtl\n" + _TRIANGLE, "m.mtl", "newmtl a\nmap_Kd tex.png\n"),
+        ("\ufeffmtllib m.mtl\n" + _TRIANGLE, "m.mtl", "newmtl a\nmap_Kd tex.png\n"),
+        (("mtllib m.mtl\n" + _TRIANGLE).replace("\n", "\r\n"), "m.mtl", "newmtl a\r\nmap_Kd tex.png\r\n"),
+        (("mtllib m.mtl\n" + _TRIANGLE).replace("\n", "\r"), "m.mtl", "newmtl a\rmap_Kd tex.png\r"),
+        ("mtllib \\\n  m.mtl\n" + _TRIANGLE, "m.mtl", "newmtl a\nmap_Kd tex.png\n"),
+        ("mtllib my m.mtl\n" + _TRIANGLE, "my m.mtl", "newmtl a\nmap_Kd tex.png\n"),
+        ("mtllib m.mtl\n" + _TRIANGLE, "m.mtl", "newmtl a # skin\nmap_Kd -s 1 1 1 -o 0 0 tex.png # the atlas\n"),
+    ],
+    ids=["comment", "comment-no-space", "tabs", "indented", "bom", "crlf", "cr", "continuation", "spaces", "mtl"],
+)
+def test_a_frames_key_holds_the_mtl_and_texture_the_reader_uses(
+    tmp_path: Path, obj: str, mtl_name: str, mtl: str
+) -> None:
+    # Review R #1: the key read "mtllib dec.mtl # exported by encoder" as the file "dec.mtl # exported by encoder",
+    # which does not exist, and left the MTL and its texture out; the reader strips the comment and uses them, so a
+    # changed texture reused stale figures (GridLuma 32.60 from the cache, 40.35 computed). Every form the reader
+    # accepts must bring its MTL and texture into the key.
+    from PIL import Image
+
+    from torchmeshmetric.data.obj import obj_mtllibs, parse_obj
+    from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
+
+    frame = tmp_path / "f.obj"
+    frame.write_bytes(obj.encode())
+    (tmp_path / mtl_name).write_bytes(mtl.encode())
+    texture = tmp_path / "tex.png"
+    Image.new("RGB", (4, 4), (200, 10, 10)).save(texture)
+    assert obj_mtllibs(frame.read_bytes()) == [n for n, _ in parse_obj(frame, frame.read_bytes()).mtllibs]
+    assert load_textured_mesh(frame).texture is not None  # the reader does use the MTL's texture
+    first = ctc_campaign._digest((str(frame), True))
+    Image.new("RGB", (4, 4), (10, 200, 10)).save(texture)
+    assert ctc_campaign._digest((str(frame), True)) != first
+    changed = ctc_campaign._digest((str(frame), True))
+    (tmp_path / mtl_name).write_bytes(mtl.replace("tex.png", "tex.png ").encode())  # the MTL's bytes are keyed too
+    assert ctc_campaign._digest((str(frame), True)) != changed

@@ -13,6 +13,8 @@ accepts (tested against each other).
 
 from __future__ import annotations
 
+import re
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, NamedTuple
@@ -24,7 +26,7 @@ from torchmeshmetric.data.mesh_file import MeshFileError, check_text, not_a_mesh
 if TYPE_CHECKING:
     from torchmeshmetric.structures import Mesh
 
-__all__ = ["MtlMaterial", "ObjData", "obj_bytes", "parse_mtl", "parse_obj", "read_obj_triangles"]
+__all__ = ["MtlMaterial", "ObjData", "obj_bytes", "obj_mtllibs", "parse_mtl", "parse_obj", "read_obj_triangles"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -573,13 +575,11 @@ class _Statements:
         )
 
 
-def _parse_slow(p: Path, data: bytes, read_uvs: bool, read_normals: bool = False) -> ObjData:
-    """One statement at a time, naming the line of the first problem."""
-    read = _Statements(p, read_uvs)
+def _statements(numbered: Iterable[tuple[int, bytes]]) -> Iterator[tuple[int, bytes, list[bytes]]]:
+    """``(line, text, tokens)`` of every statement of numbered lines: continuations joined, comments and blanks out."""
     pending = b""
     start = 0
-    statements = 0
-    for lineno, raw in enumerate(data.splitlines(), 1):
+    for lineno, raw in numbered:
         line = pending + raw
         if line.rstrip().endswith(b"\\"):  # line continuation
             pending = line.rstrip()[:-1] + b" "
@@ -587,8 +587,40 @@ def _parse_slow(p: Path, data: bytes, read_uvs: bool, read_normals: bool = False
             continue
         at, pending, start = start or lineno, b"", 0
         tokens = line.split(b"#", 1)[0].split()
-        if not tokens:
-            continue
+        if tokens:
+            yield at, line, tokens
+
+
+_MTLLIB_LINE = re.compile(rb"[^\r\n]*mtllib[^\r\n]*")  # the lines of bytes.splitlines() that hold the word
+
+
+def obj_mtllibs(data: bytes) -> list[str]:
+    r"""The names of an OBJ file's ``mtllib`` statements, as :func:`parse_obj` reads them, without its geometry.
+
+    The same statements and the same rule as the reader's ``mtllibs`` (the rest of the line, its comment and
+    surrounding whitespace removed; line continuations joined; a byte-order mark skipped), for what must agree with
+    the reader without parsing the whole file: the CTC campaign's cache key holds the MTL and texture the reader
+    uses (a key reading ``mtllib x.mtl # note`` as the file ``x.mtl # note`` left them out, review R #1).
+
+    Example:
+        >>> obj_mtllibs(b"mtllib frame.mtl # by the encoder\nv 0 0 0\n")
+        ['frame.mtl']
+    """
+    data = data.removeprefix(b"\xef\xbb\xbf")
+    if b"mtllib" not in data:  # a statement naming mtllib holds the word: continuations join with a space
+        return []
+    if b"\\" in data:
+        numbered: Iterable[tuple[int, bytes]] = enumerate(data.splitlines(), 1)
+    else:  # no continuation: each statement is one line, and only the lines holding the word can be one
+        numbered = ((0, m.group()) for m in _MTLLIB_LINE.finditer(data))
+    return [_rest(line, b"mtllib") for _, line, tokens in _statements(numbered) if tokens[0] == b"mtllib"]
+
+
+def _parse_slow(p: Path, data: bytes, read_uvs: bool, read_normals: bool = False) -> ObjData:
+    """One statement at a time, naming the line of the first problem."""
+    read = _Statements(p, read_uvs)
+    statements = 0
+    for at, line, tokens in _statements(enumerate(data.splitlines(), 1)):
         key = tokens[0]
         if key not in _KEYWORDS:
             raise not_a_mesh(p, f"line {at} starts with {key.decode('latin-1')!r}, not an OBJ statement")

@@ -24,7 +24,6 @@ import hashlib
 import io
 import json
 import math
-import re
 import time
 import warnings
 from collections.abc import Callable
@@ -34,7 +33,7 @@ from typing import Any, NamedTuple
 
 from torchmeshmetric._atomic import atomic_write
 from torchmeshmetric._format import json_safe
-from torchmeshmetric.data.obj import parse_mtl
+from torchmeshmetric.data.obj import obj_mtllibs, parse_mtl
 from torchmeshmetric.mpeg.ctc.frame_pattern import frame_path
 from torchmeshmetric.mpeg.ctc.manifest import CtcCampaign, CtcCampaignSequence, CtcCodec, codec_path
 from torchmeshmetric.mpeg.ctc.sheet import COMPONENTS, RatePoint, SheetCondition, SheetSequence, read_test_model_csv
@@ -144,9 +143,6 @@ def _check_file(path: str, task: FrameTask) -> None:
         raise ValueError(f"{task.describe()}: file {path!r} is empty")
 
 
-_MTLLIB = re.compile(rb"^[ \t]*mtllib[ \t]+(.+?)[ \t]*\r?$", re.M)
-
-
 def _digest(item: tuple[str, bool]) -> str:
     """SHA-256 of a file; for an OBJ whose texture comes from its MTL, of the MTL and its ``map_Kd`` files too."""
     path, with_materials = item
@@ -155,8 +151,10 @@ def _digest(item: tuple[str, bool]) -> str:
     data = p.read_bytes()
     h.update(data)
     if with_materials and p.suffix.lower() == ".obj":
-        for m in _MTLLIB.finditer(data):
-            mtl = p.parent / m.group(1).decode("utf-8", "replace")
+        # the reader's own rule for what an mtllib statement names: a regex of the line took a trailing comment as
+        # part of the name, and the MTL and its texture were left out of the key (stale figures, review R #1)
+        for name in obj_mtllibs(data):
+            mtl = p.parent / name
             if mtl.is_file():
                 h.update(b"\0mtl\0" + mtl.read_bytes())
                 # the package's MTL reader: a texture name may hold spaces, after options (-s 1 1 1 my tex.png);
