@@ -10,15 +10,15 @@ import pytest
 import torch
 
 from tests.evaluation.eval_helpers import TranslationRegister, sphere
+from torchmeshmetric._checksum import content_sha256
 from torchmeshmetric.evaluation import evaluate_sequence
 from torchmeshmetric.registration import CachedRegistration, RegistrationCache, RegistrationWarp
-from torchmeshmetric.registration.cache import _checksum
 
 
 def _signed(data: dict) -> dict:
     """``data`` with its checksum recomputed, as an entry written with wrong data would hold it."""
     content = {k: v for k, v in data.items() if k != "sha256"}
-    return {**content, "sha256": _checksum(content)}
+    return {**content, "sha256": content_sha256(content)}
 
 
 def _nan_verts(d):

@@ -14,11 +14,13 @@ import math
 import shutil
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
 from tests.mpeg.test_ctc import MM_BIN, TOL_DB, _mm_chain, _parse
+from torchmeshmetric._checksum import content_sha256
 from torchmeshmetric.cli import main
 from torchmeshmetric.mpeg.ctc import campaign as ctc_campaign
 from torchmeshmetric.mpeg.ctc.campaign import FrameTask
@@ -157,8 +159,9 @@ def test_a_damaged_cache_record_is_computed_again(
     shutil.copytree(load_ctc_campaign(manifest).cache_dir, cache)  # type: ignore[arg-type]
     record_file = sorted(cache.rglob("*.json"))[0]
     record = json.loads(record_file.read_text())
+    record.pop("sha256")
     record["figures"]["GridD1"] = damage
-    record_file.write_text(json.dumps(record))
+    record_file.write_text(json.dumps({**record, "sha256": content_sha256(record)}))  # damaged by its writer
     calls: list[str] = []
     real = ctc_campaign._compute
 
@@ -174,7 +177,7 @@ def test_a_damaged_cache_record_is_computed_again(
     for name in ("anchor.csv", "test.csv", "frames.csv", "summary.csv", "summary.md"):
         assert (tmp_path / "out" / name).read_bytes() == (reference / name).read_bytes(), name
     assert json.loads(record_file.read_text())["figures"]["GridD1"] == pytest.approx(
-        ctc_campaign._read_cached(cache, record["key"])["figures"]["GridD1"]  # type: ignore[index]
+        ctc_campaign._read_cached(cache, record["key"], ibsm=True)["figures"]["GridD1"]  # type: ignore[index]
     )
     assert math.isfinite(json.loads(record_file.read_text())["figures"]["GridD1"])
 
@@ -428,8 +431,8 @@ def test_a_frames_key_holds_the_results_version_not_the_package_version(
     digests = {f: ctc_campaign._digest(f) for f in files}
     key = ctc_campaign._key(parsed, task, digests)
     assert parsed.cache_dir is not None
-    record = ctc_campaign._read_cached(parsed.cache_dir, key)  # the complete run's record of this frame
-    assert record is not None and record["settings"]["results_version"] == ctc_campaign.CTC_RESULTS_VERSION == 1
+    record = ctc_campaign._read_cached(parsed.cache_dir, key, ibsm=True)  # the complete run's record of this frame
+    assert isinstance(record, dict) and record["settings"]["results_version"] == ctc_campaign.CTC_RESULTS_VERSION == 1
     monkeypatch.setattr("torchmeshmetric._version.__version__", "9.9.9")
     assert ctc_campaign._key(parsed, task, digests) == key
     monkeypatch.setattr(ctc_campaign, "CTC_RESULTS_VERSION", 2)
@@ -437,7 +440,7 @@ def test_a_frames_key_holds_the_results_version_not_the_package_version(
     assert bumped != key
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # a miss, not a damaged record
-        assert ctc_campaign._read_cached(parsed.cache_dir, bumped) is None
+        assert ctc_campaign._read_cached(parsed.cache_dir, bumped, ibsm=True) is None
 
 
 def test_a_read_only_cache_folder_warns_once_and_the_campaign_writes_its_files(
@@ -460,11 +463,11 @@ def test_a_read_only_cache_folder_warns_once_and_the_campaign_writes_its_files(
     with pytest.warns(UserWarning) as record:
         assert main(args) == 0
     messages = [str(w.message) for w in record if "cache folder" in str(w.message)]
-    assert messages == [
-        f"ctc-campaign: cannot store frame records in the cache folder {tmp_path / 'ro'} (Read-only file system); "
-        "this run goes on without storing them (the records already there are still read)"
-    ]
-    assert len(calls) == 1  # tried once, then no more
+    assert len(messages) == 1 and messages[0].startswith(
+        f"cannot store frame records in the cache folder {tmp_path / 'ro'} (Read-only file system: "
+    )
+    assert "the campaign goes on and stores the records it can" in messages[0]
+    assert len(calls) == 2 * 2 * 2 * FRAMES  # every record tried (review R #8), one warning per cause
     for name in ("frames.csv", "anchor.csv", "test.csv", "summary.csv"):
         assert (out / name).read_text() == (reference / name).read_text(), name
 
@@ -513,3 +516,124 @@ def test_a_frames_key_holds_the_mtl_and_texture_the_reader_uses(
     changed = ctc_campaign._digest((str(frame), True))
     (tmp_path / mtl_name).write_bytes(mtl.replace("tex.png", "tex.png ").encode())  # the MTL's bytes are keyed too
     assert ctc_campaign._digest((str(frame), True)) != changed
+
+
+def _counting_compute(monkeypatch: pytest.MonkeyPatch) -> list[str]:
+    calls: list[str] = []
+    real = ctc_campaign._compute
+
+    def counting(campaign, task, key, *rest):  # type: ignore[no-untyped-def]
+        calls.append(key)
+        return real(campaign, task, key, *rest)
+
+    monkeypatch.setattr(ctc_campaign, "_compute", counting)
+    return calls
+
+
+def _resign(path: Path, edit: Any) -> None:
+    """Edit a record and give it the checksum of its new content (a record damaged by its writer)."""
+    record = json.loads(path.read_text())
+    record.pop("sha256")
+    edit(record)
+    path.write_text(json.dumps({**record, "sha256": content_sha256(record)}))
+
+
+_UNMATCHED = r"its content does not match its checksum"
+
+
+@pytest.mark.parametrize(
+    ("damage", "why"),
+    [
+        # review R #6: GridD1 edited to 70.0 reached frames.csv and the CSVs silently
+        (lambda p: p.write_text(p.read_text().replace('"GridD1": ', '"GridD1": 1')), _UNMATCHED),
+        # review R #2: a record without one figure: a misleading error about textures, or a blank column
+        (lambda p: p.write_text(p.read_text().replace('"IbsmLuma"', '"IbsmLumaX"')), _UNMATCHED),
+        (lambda p: _resign(p, lambda r: r["figures"].pop("IbsmLuma")), r"no IbsmLuma: the campaign's settings"),
+        (lambda p: _resign(p, lambda r: r["figures"].pop("GridChromaCb")), r"no GridChromaCb: the campaign's"),
+        (lambda p: _resign(p, lambda r: r["figures"].pop("GridD2")), r"no GridD2: the campaign's settings"),
+        (lambda p: _resign(p, lambda r: r.update(key="0" * 64)), r"it holds the record of the key '0000"),
+        # review R #7: a truncated or empty record was computed again without the warning the docs promise
+        (lambda p: p.write_bytes(p.read_bytes()[:200]), r"not JSON \(Unterminated string|not JSON \(Expecting"),
+        (lambda p: p.write_bytes(b""), r"not JSON \(an empty file\)"),
+        (lambda p: p.write_bytes(b"\xff\xfe" * 10), r"not JSON \("),
+    ],
+    ids=[
+        "edited",
+        "renamed-figure",
+        "no-ibsm-luma",
+        "one-colour-figure",
+        "no-grid-d2",
+        "other-key",
+        "truncated",
+        "empty",
+        "binary",
+    ],
+)
+def test_a_record_failing_its_checks_is_named_and_computed_again(
+    campaign: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch, damage: Any, why: str
+) -> None:
+    manifest, reference = campaign
+    cache = tmp_path / "c"
+    shutil.copytree(load_ctc_campaign(manifest).cache_dir, cache)  # type: ignore[arg-type]
+    record_file = sorted(cache.rglob("*.json"))[3]
+    key = record_file.stem
+    damage(record_file)
+    calls = _counting_compute(monkeypatch)
+    args = ["ctc-campaign", str(manifest), "--out-dir", str(tmp_path / "out"), "--cache-dir", str(cache), "--no-plots"]
+    with pytest.warns(UserWarning, match=rf"{record_file.name}: damaged cache record \(({why})"):
+        assert main(args) == 0
+    assert calls == [key]
+    for name in ("anchor.csv", "test.csv", "frames.csv", "summary.csv", "summary.md"):
+        assert (tmp_path / "out" / name).read_bytes() == (reference / name).read_bytes(), name
+    assert isinstance(ctc_campaign._read_cached(cache, key, ibsm=True), dict)  # replaced by a sound record
+
+
+def test_records_without_a_checksum_are_computed_again_after_one_warning(
+    campaign: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Records written before they held a checksum: not trusted (one warning for all of them), computed again."""
+    manifest, reference = campaign
+    cache = tmp_path / "c"
+    shutil.copytree(load_ctc_campaign(manifest).cache_dir, cache)  # type: ignore[arg-type]
+    old = sorted(cache.rglob("*.json"))[:3]
+    for path in old:
+        record = json.loads(path.read_text())
+        del record["sha256"]
+        path.write_text(json.dumps(record))
+    calls = _counting_compute(monkeypatch)
+    args = ["ctc-campaign", str(manifest), "--out-dir", str(tmp_path / "out"), "--cache-dir", str(cache), "--no-plots"]
+    with pytest.warns(UserWarning) as caught:
+        assert main(args) == 0
+    messages = [str(w.message) for w in caught if "cache record" in str(w.message)]
+    assert len(messages) == 1 and messages[0].startswith(f"3 cache records in {cache} hold no checksum (sha256;")
+    assert sorted(calls) == sorted(p.stem for p in old)
+    assert (tmp_path / "out" / "frames.csv").read_bytes() == (reference / "frames.csv").read_bytes()
+    assert all("sha256" in json.loads(p.read_text()) for p in old)
+
+
+def test_one_unwritable_record_path_does_not_stop_storing_the_others(
+    campaign: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Review R #8: a folder standing at one record's path turned storing off for the rest of the run, so every
+    # rerun computed all the later frames again. Now that record alone is not stored, after one warning.
+    manifest, _ = campaign
+    cache = tmp_path / "c"
+    shutil.copytree(load_ctc_campaign(manifest).cache_dir, cache)  # type: ignore[arg-type]
+    records = sorted(cache.rglob("*.json"))
+    blocked = records[0]
+    for path in records:
+        path.unlink()
+    blocked.mkdir()
+    (blocked / "x").write_text("")  # not removable by the writer either
+    calls = _counting_compute(monkeypatch)
+    args = ["ctc-campaign", str(manifest), "--out-dir", str(tmp_path / "out"), "--cache-dir", str(cache), "--no-plots"]
+    with pytest.warns(UserWarning) as caught:
+        assert main(args) == 0
+    assert len(calls) == 2 * 2 * 2 * FRAMES
+    stored = [str(w.message) for w in caught if "cannot store" in str(w.message)]
+    assert len(stored) == 1 and str(blocked) in stored[0], stored
+    assert sorted(p for p in cache.rglob("*.json") if p.is_file()) == records[1:]
+    calls[:] = []
+    with pytest.warns(UserWarning, match=r"damaged cache record \(cannot be read \(Is a directory\)\)"):
+        assert main([*args, "--overwrite"]) == 0
+    assert calls == [blocked.stem]

@@ -42,6 +42,7 @@ from torch import Tensor
 
 from torchmeshmetric._atomic import atomic_write_with
 from torchmeshmetric._checks import ShapeError
+from torchmeshmetric._checksum import content_sha256
 from torchmeshmetric.registration._common import registration_dtype
 from torchmeshmetric.registration.nonrigid import register_nonrigid
 from torchmeshmetric.registration.options import NonRigidOptions
@@ -333,36 +334,6 @@ def compute_registration(
     return CachedRegistration(verts, residual, bool(result.converged), seconds, warp)
 
 
-def _feed(h: hashlib._Hash, value: object) -> None:
-    """Add ``value`` to ``h`` unambiguously.
-
-    Each tensor by its dtype, shape and bytes, mappings by sorted key, sequences in order, the rest by type and
-    ``repr`` (exact for floats).
-    """
-    if isinstance(value, Tensor):
-        t = value.detach().to("cpu").contiguous()
-        h.update(f"tensor {t.dtype} {tuple(t.shape)}\0".encode())
-        h.update(t.reshape(-1).view(torch.uint8).numpy().tobytes())
-    elif isinstance(value, Mapping):
-        h.update(f"mapping {len(value)}\0".encode())
-        for key in sorted(value, key=str):
-            h.update(f"{key!r}\0".encode())
-            _feed(h, value[key])
-    elif isinstance(value, (list, tuple)):
-        h.update(f"sequence {len(value)}\0".encode())
-        for item in value:
-            _feed(h, item)
-    else:
-        h.update(f"{type(value).__name__} {value!r}\0".encode())
-
-
-def _checksum(payload: Mapping[str, object]) -> str:
-    """The SHA-256 of an entry's content (:func:`_feed`), stored in it as ``"sha256"`` and checked when it is read."""
-    h = hashlib.sha256()
-    _feed(h, payload)
-    return h.hexdigest()
-
-
 def _entry_problem(entry: CachedRegistration, num_verts: int) -> str | None:
     """What is wrong with an entry read from disk for a source of ``num_verts`` vertices, or ``None``."""
     verts, residual = entry.verts, entry.residual
@@ -392,7 +363,7 @@ def _read_entry(data: object, num_verts: int) -> tuple[CachedRegistration | None
     stored = data.pop("sha256", None)
     if stored is None:
         return None, "invalid: it holds no checksum (sha256)"
-    if stored != _checksum(data):
+    if stored != content_sha256(data):
         return None, "damaged: its content does not match its checksum (sha256)"
     fields = ("verts", "residual", "converged", "seconds", "warp")
     if set(data) != set(fields):
@@ -580,7 +551,7 @@ class RegistrationCache:
         # Unique temporary name, fsync, then rename: ranks and concurrent runs sharing the folder may store the same
         # key at once; a reader sees a complete entry (one of theirs) or none, never a mix or a truncated file.
         payload: dict[str, object] = {**entry._asdict(), "warp": _storable(entry.warp)}
-        payload["sha256"] = _checksum(payload)
+        payload["sha256"] = content_sha256(payload)
         try:
             self.directory.mkdir(parents=True, exist_ok=True)
             # Written at once even inside a report's atomic_file_set: a registration is worth keeping on any outcome.

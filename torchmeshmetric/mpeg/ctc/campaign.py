@@ -8,7 +8,8 @@ before any work, and computes the frames :func:`~torchmeshmetric.mpeg.ctc.chain.
   frame's inputs (the bytes of the source and decoded files, their textures and MTLs) and of the chain's settings
   (bit depths, box, PSNR peak, grid and IBSM settings, :data:`CTC_RESULTS_VERSION`). A rerun after an interruption
   computes only the frames without a file; a second test codec against the same anchor finds the anchor's frames;
-  equal inputs anywhere in the campaign are computed once.
+  equal inputs anywhere in the campaign are computed once. Each record holds the SHA-256 checksum of its content,
+  checked with what it must hold when it is read; a record failing a check is computed again, after a warning.
 * **Processes.** Under ``torchrun`` the files are hashed and the missing frames computed round robin by the ranks
   (:func:`~torchmeshmetric.tasks.run_tasks`); rank 0 reads the cache and returns the result, the others ``None``.
 
@@ -32,6 +33,7 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from torchmeshmetric._atomic import atomic_write
+from torchmeshmetric._checksum import content_sha256
 from torchmeshmetric._format import json_safe
 from torchmeshmetric.data.obj import obj_mtllibs, parse_mtl
 from torchmeshmetric.mpeg.ctc.frame_pattern import frame_path
@@ -217,20 +219,24 @@ def _cached_count(value: Any) -> bool:
     return isinstance(value, int) and not isinstance(value, bool) and value >= 0
 
 
-def _read_cached(folder: Path, key: str) -> dict[str, Any] | None:
-    """A frame's cached record; ``None`` when absent or unreadable (then it is computed again).
+#: The colour figures: the chain computes the three or none (both frames carry colour, or not).
+_COLOUR = frozenset(("GridLuma", "GridChromaCb", "GridChromaCr"))
 
-    The cache folder may be shared by several machines: a record that parses but holds a figure that is not a finite
-    number or ``"inf"`` (``NaN``, a string), or a point or face count that is not a count, is damaged. It is not
-    used (it would reach the CSVs and the summary); a warning names its file, and the frame is computed again.
+
+def _record_problem(record: Any, key: str, ibsm: bool) -> str | None:
+    """What is wrong with a record read from the cache for ``key`` (its checksum removed), or ``None``.
+
+    The cache folder may be shared by several machines: a record that holds a figure that is not a finite number or
+    ``"inf"`` (``NaN``, a string), a point or face count that is not a count, or not the figures its settings compute
+    (GridD1 and GridD2; IbsmGeom and IbsmLuma exactly when IBSM is on; the three colour figures or none) is damaged:
+    one without a figure made a point's mean fail with an error about textures, or left its column blank.
     """
-    path = _cache_file(folder, key)
-    try:
-        record = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return None
-    if not isinstance(record, dict) or record.get("key") != key or not isinstance(record.get("figures"), dict):
-        return None
+    if not isinstance(record, dict):
+        return f"expected a JSON object, found {type(record).__name__}"
+    if record.get("key") != key:
+        return f"it holds the record of the key {record.get('key')!r}, not of its file name"
+    if not isinstance(record.get("figures"), dict):
+        return f"figures={record.get('figures')!r}: expected a JSON object of figures"
     figures = {k: _cached_figure(v) for k, v in record["figures"].items()}
     bad = [f"{k}={record['figures'][k]!r}" for k, v in figures.items() if v is None or k not in _COLUMNS]
     bad += [
@@ -239,15 +245,87 @@ def _read_cached(folder: Path, key: str) -> dict[str, Any] | None:
         if not _cached_count(record.get(k))
     ]
     if bad:
-        warnings.warn(
-            f"{path}: damaged cache record ({', '.join(bad)}: expected finite numbers or 'inf', and counts); "
-            "not used, the frame is computed again",
-            UserWarning,
-            stacklevel=2,
-        )
+        return f"{', '.join(bad)}: expected finite numbers or 'inf', and counts"
+    needed = {"GridD1", "GridD2"} | ({"IbsmGeom", "IbsmLuma"} if ibsm else set())
+    if _COLOUR & set(figures):
+        needed |= _COLOUR
+    missing = [c for c in _COLUMNS if c in needed and c not in figures]
+    if missing:
+        computes = ", ".join(c for c in _COLUMNS if c in needed)
+        return f"no {', '.join(missing)}: the campaign's settings compute {computes}"
+    extra = [c for c in ("IbsmGeom", "IbsmLuma") if c in figures and not ibsm]
+    if extra:
+        return f"{', '.join(extra)} present, but the campaign computes no IBSM"
+    return None
+
+
+class _Unchecked(NamedTuple):
+    """A record without a checksum (written before records had one)."""
+
+    path: Path
+
+
+def _read_cached(folder: Path, key: str, *, ibsm: bool) -> dict[str, Any] | str | _Unchecked | None:
+    """A frame's cached record; ``None`` when absent, else why it is not used (then it is computed again).
+
+    A record is used only when it parses, its content matches the SHA-256 checksum it holds (``"sha256"``, as the
+    registration cache's entries: a truncated copy, a zeroed block or a hand edit of a shared folder's record would
+    reach the CSVs and the summary) and it holds what its settings compute (:func:`_record_problem`).
+
+    Returns:
+        The record (its figures as floats), ``None`` (no record), a string (why the record is damaged) or
+        :class:`_Unchecked` (a record without a checksum).
+    """
+    path = _cache_file(folder, key)
+    try:
+        text = path.read_bytes()
+    except FileNotFoundError:
         return None
-    record["figures"] = figures
+    except OSError as exc:
+        return f"cannot be read ({exc.strerror or exc})"
+    try:
+        record = json.loads(text)
+    except ValueError as exc:  # UnicodeDecodeError is one: a zero-byte, truncated or overwritten file
+        return f"not JSON ({'an empty file' if not text else exc})"
+    if isinstance(record, dict):
+        stored = record.pop("sha256", None)
+        if stored is None:
+            return _Unchecked(path)
+        if stored != content_sha256(record):
+            return "its content does not match its checksum (sha256)"
+    problem = _record_problem(record, key, ibsm)
+    if problem is not None:
+        return problem
+    record["figures"] = {k: _cached_figure(v) for k, v in record["figures"].items()}
     return record
+
+
+def _read_records(folder: Path, keys: list[str], ibsm: bool) -> dict[str, dict[str, Any]]:
+    """The usable records of ``keys``; a warning names each damaged one, and one the records without a checksum."""
+    records: dict[str, dict[str, Any]] = {}
+    unchecked: list[Path] = []
+    for key in keys:
+        found = _read_cached(folder, key, ibsm=ibsm)
+        if isinstance(found, dict):
+            records[key] = found
+        elif isinstance(found, _Unchecked):
+            unchecked.append(found.path)
+        elif found is not None:
+            warnings.warn(
+                f"{_cache_file(folder, key)}: damaged cache record ({found}); not used, the frame is computed again",
+                UserWarning,
+                stacklevel=3,
+            )
+    if unchecked:  # one line for all: a whole cache written by the earlier release would give one per frame
+        n = len(unchecked)
+        warnings.warn(
+            f"{n} cache record{'s' if n > 1 else ''} in {folder} hold{'' if n > 1 else 's'} no checksum (sha256; "
+            f"written before records had one), first {unchecked[0]}: not used, "
+            f"{'their frames are' if n > 1 else 'its frame is'} computed again and the records replaced",
+            UserWarning,
+            stacklevel=3,
+        )
+    return records
 
 
 def _load(item: tuple[str, FrameTask]) -> tuple[Any, Any, float]:
@@ -269,31 +347,45 @@ def _load(item: tuple[str, FrameTask]) -> tuple[Any, Any, float]:
 class _RecordFolder:
     """The cache folder as the campaign writes it: each frame's record at once, atomically, as it is computed.
 
-    A folder that cannot be written (read-only: a shared archive of records; full) failed the campaign at the first
-    frame it computed, naming a subfolder: the first record that cannot be written gives one warning naming the
-    folder, and the campaign goes on without storing (its records are read all the same).
+    A record that cannot be written (a read-only folder: a shared archive of records; a full disk; a folder standing
+    at its path) failed the campaign at the first frame it computed, naming a subfolder; then, one such record turned
+    storing off for the rest of the run (review R #8: a rerun computed every later frame again). Each record is now
+    tried, and each distinct cause gives one warning naming the folder and the first record it stopped.
     """
 
     def __init__(self, path: Path | None) -> None:
         self.path = path
-        self.unwritable: str | None = None
+        self.causes: set[str] = set()
+        self.not_stored = 0
 
     def write(self, key: str, record: dict[str, Any]) -> None:
-        """Keep ``record`` as ``key``'s file (nothing without a folder, or once the folder could not be written)."""
-        if self.path is None or self.unwritable is not None:
+        """Keep ``record`` (checksummed, :func:`_record_text`) as ``key``'s file (nothing without a folder)."""
+        if self.path is None:
             return
         file = _cache_file(self.path, key)
         try:
             file.parent.mkdir(parents=True, exist_ok=True)
-            atomic_write(file, json.dumps(json_safe(record), indent=1) + "\n", overwrite=True, join_file_set=False)
+            atomic_write(file, _record_text(record), overwrite=True, join_file_set=False)
         except OSError as exc:
-            self.unwritable = exc.strerror or str(exc)
+            self.not_stored += 1
+            cause = exc.strerror or type(exc).__name__
+            if cause in self.causes:
+                return
+            self.causes.add(cause)
+            why = f"{exc.strerror}: {file}" if exc.strerror else str(exc).removeprefix("path: ")
             warnings.warn(
-                f"ctc-campaign: cannot store frame records in the cache folder {self.path} ({self.unwritable}); this "
-                "run goes on without storing them (the records already there are still read)",
+                f"cannot store frame records in the cache folder {self.path} ({why}); the campaign goes on and "
+                "stores the records it can (the frames not stored are computed again by a rerun; the records "
+                "already there are still read)",
                 UserWarning,
-                stacklevel=2,
+                stacklevel=3,
             )
+
+
+def _record_text(record: dict[str, Any]) -> str:
+    """A record as its cache file holds it: JSON, with the SHA-256 checksum of its content (``"sha256"``)."""
+    content = json.loads(json.dumps(json_safe(record)))  # the checksum of what a reader parses, exactly
+    return json.dumps({**content, "sha256": content_sha256(content)}, indent=1) + "\n"
 
 
 def _compute(
@@ -445,8 +537,9 @@ def run_ctc_campaign(
     Args:
         campaign: the parsed manifest (:func:`~torchmeshmetric.mpeg.ctc.manifest.load_ctc_campaign`).
         cache_dir: the per-frame cache folder (default the manifest's ``cache_dir``; ``None`` in both: no cache,
-            every frame computed). One that cannot be written (read-only) is read; the frames computed are then not
-            stored, after one warning naming it.
+            every frame computed). A record that fails its checks (:func:`_read_cached`) is computed again after a
+            warning naming it. One that cannot be written (read-only) is read; the records that cannot be stored
+            are skipped, after one warning per cause.
         progress: called with each frame computed here, and its record (on the rank that computed it).
 
     Returns:
@@ -488,7 +581,7 @@ def run_ctc_campaign(
         unique.setdefault(k, t)
     cached: dict[str, dict[str, Any]] = {}
     if rank == 0 and folder is not None:
-        cached = {k: r for k in unique if (r := _read_cached(folder, k)) is not None}
+        cached = _read_records(folder, list(unique), campaign.ibsm_resolution is not None)
     done = set(exchange(sorted(cached) if rank == 0 else None, what="the list of cached frames")[0])
     missing = [(k, t) for k, t in unique.items() if k not in done]
 
