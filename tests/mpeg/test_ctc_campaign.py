@@ -637,3 +637,28 @@ def test_one_unwritable_record_path_does_not_stop_storing_the_others(
     with pytest.warns(UserWarning, match=r"damaged cache record \(cannot be read \(Is a directory\)\)"):
         assert main([*args, "--overwrite"]) == 0
     assert calls == [blocked.stem]
+
+
+def test_a_manifest_without_cache_dir_resumes_from_ctc_cache_beside_it(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Review R #3: the docs give cache_dir = "ctc-cache" as the default and say a rerun resumes from it; without the
+    # key no cache was used, and every rerun computed every frame again. The default is now that folder, relative
+    # to the manifest as its other paths (whatever the working folder); cache_dir = "" keeps no cache.
+    manifest = _make(tmp_path)
+    text = manifest.read_text()
+    assert 'cache_dir = "ctc-campaign-data/cache"' in text
+    manifest.write_text(
+        text.replace('cache_dir = "ctc-campaign-data/cache"', "").replace("frame_count = 5", "frame_count = 1")
+    )
+    assert load_ctc_campaign(manifest).cache_dir == tmp_path / "ctc-cache"
+    monkeypatch.chdir(tmp_path / "ctc-campaign-data")  # another working folder
+    calls = _counting_compute(monkeypatch)
+    args = ["ctc-campaign", str(manifest), "--out-dir", str(tmp_path / "out"), "--no-plots", "--overwrite"]
+    assert main(args) == 0
+    assert len(calls) == 2 * 2 * 2 and len(list((tmp_path / "ctc-cache").rglob("*.json"))) == len(calls)
+    calls[:] = []
+    assert main(args) == 0
+    assert calls == []  # resumed: every frame from the cache
+    manifest.write_text(manifest.read_text().replace("[options]", '[options]\ncache_dir = ""'))
+    assert load_ctc_campaign(manifest).cache_dir is None

@@ -204,7 +204,8 @@ def add_ctc_campaign_command(sub: Any) -> None:
         type=cache_folder,
         default=None,
         metavar="DIR",
-        help="per-frame cache folder (overrides the manifest's cache_dir); a rerun resumes from it",
+        help="per-frame cache folder (overrides the manifest's cache_dir, default ctc-cache beside the manifest); a "
+        "rerun resumes from it",
     )
     p.add_argument("--no-plots", action="store_true", help="write no RD-curve PNGs")
     p.add_argument("--overwrite", action="store_true", help="replace existing files in --out-dir")

@@ -3,7 +3,7 @@
 Example (``examples/ctc_campaign.toml`` is a complete one)::
 
     [options]                       # all optional; these are the defaults
-    cache_dir = "ctc-cache"         # per-frame results, relative to the manifest (a rerun resumes from it)
+    cache_dir = "ctc-cache"         # per-frame results, relative to the manifest (a rerun resumes from it); "": none
     grid_size = 1024                # sample --gridSize
     ibsm_resolution = 2048          # 0: no IBSM
     ibsm_cameras = 16
@@ -67,6 +67,7 @@ __all__ = [
     "CtcCampaignSequence",
     "CtcCodec",
     "CtcCondition",
+    "DEFAULT_CACHE_DIR",
     "CtcManifestError",
     "codec_path",
     "load_ctc_campaign",
@@ -81,6 +82,10 @@ _POINT_NUMBERS = (
     "encoder_memory",
     "decoder_memory",
 )
+
+
+#: The per-frame cache folder of a manifest without ``cache_dir`` (relative to the manifest, as its other paths).
+DEFAULT_CACHE_DIR = "ctc-cache"
 
 
 class CtcManifestError(ValueError):
@@ -167,7 +172,8 @@ class CtcCampaign:
     Attributes:
         sequences, conditions: in manifest order.
         anchor, test: the two codecs.
-        cache_dir: the per-frame cache folder, or ``None`` (no cache).
+        cache_dir: the per-frame cache folder (default ``ctc-cache`` beside the manifest), or ``None`` (no cache:
+            the manifest's ``cache_dir = ""``).
         grid_size, ibsm_resolution, ibsm_cameras: the chain's settings (``ibsm_resolution`` ``None``: no IBSM).
         path: the manifest file.
     """
@@ -475,7 +481,7 @@ def load_ctc_campaign(path: str | Path) -> CtcCampaign:
         >>> with open(os.path.join(d, "c.toml"), "w") as f:
         ...     _ = f.write(text)
         >>> c = load_ctc_campaign(os.path.join(d, "c.toml"))
-        >>> c.sequences[0].resolution, c.conditions[0].rates, c.anchor.name, c.cache_dir is None
+        >>> c.sequences[0].resolution, c.conditions[0].rates, c.anchor.name, c.cache_dir == Path(d) / "ctc-cache"
         (1023.0, (1, 2), 'anchor', True)
     """
     file = Path(path)
@@ -486,7 +492,9 @@ def load_ctc_campaign(path: str | Path) -> CtcCampaign:
     opt = _Table(
         top.get("options", dict, {}), f"{where}: options", ("cache_dir", "grid_size", "ibsm_resolution", "ibsm_cameras")
     )
-    cache = opt.get("cache_dir", str, "")
+    # the docs' default: a rerun resumes (found by review R #3: without the key no cache was used, and every rerun
+    # computed every frame again); "" keeps no cache
+    cache = opt.get("cache_dir", str, DEFAULT_CACHE_DIR)
     sequences = [
         _sequence(e, f"{where}: sequences[{i}]", base)
         for i, e in enumerate(top.get("sequences", list, what="at least one [[sequences]]"))
