@@ -662,3 +662,25 @@ def test_a_manifest_without_cache_dir_resumes_from_ctc_cache_beside_it(
     assert calls == []  # resumed: every frame from the cache
     manifest.write_text(manifest.read_text().replace("[options]", '[options]\ncache_dir = ""'))
     assert load_ctc_campaign(manifest).cache_dir is None
+
+
+@pytest.mark.parametrize("folder", ["pct 50%", "brace{x}", "both %d {sequence}", "%%"])
+def test_a_manifest_in_a_folder_named_with_percent_or_braces_runs(
+    tmp_path: Path, folder: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Review R #4: the manifest's folder was joined to each relative path before the printf and {field} checks, so
+    # "pct 50%/c2.toml" was refused ("source: expected one printf integer field ..., found 'pct 50%/src/...'") and
+    # "brace{x}/c2.toml" too ("'source': unknown field 'x'"); the user could not escape the folder's name.
+    root = tmp_path / folder
+    root.mkdir()
+    manifest = _make(root)
+    manifest.write_text(manifest.read_text().replace("frame_count = 5", "frame_count = 1"))
+    campaign = load_ctc_campaign(manifest)
+    tasks = ctc_campaign.plan_frames(campaign)
+    assert tasks[0].ref == str(root / "ctc-campaign-data" / "sphere" / "src" / "src_0000.obj")
+    assert tasks[-1].dis_texture == str(root / "ctc-campaign-data" / "ellipsoid" / "test" / "r2" / "dec_0000.png")
+    assert all(Path(p).is_file() for _, p in campaign.input_files() if p is not None)
+    monkeypatch.chdir(tmp_path)
+    out = Path(folder) / "out"
+    assert main(["ctc-campaign", str(Path(folder) / manifest.name), "--out-dir", str(out), "--no-plots"]) == 0
+    assert (tmp_path / out / "frames.csv").is_file()

@@ -98,7 +98,8 @@ class CtcCampaignSequence:
 
     Attributes:
         name, seq_id, cls: its name, ``SeqId`` and class.
-        source: printf pattern of the quantised source frames (absolute or relative to the working folder).
+        source: printf pattern of the quantised source frames (absolute or relative to the working folder; a
+            ``%`` of the manifest's folder written ``%%``).
         source_texture: pattern of their textures, or ``None`` (the OBJ's MTL).
         first_frame, frame_count: the frames measured.
         fps: frame rate.
@@ -145,7 +146,8 @@ class CtcCodec:
 
     Attributes:
         name: its name in the reports.
-        decoded: template of the decoded frames (``{sequence}``... and a printf frame field).
+        decoded: template of the decoded frames (``{sequence}``... and a printf frame field; the manifest's
+            folder escaped: ``{{``, ``}}``, ``%%``).
         decoded_texture: template of their textures, or ``None``.
         decoded_qt: UV bit depth of the decoded frames (the test model: 0).
         csv: the test model's CSV of this codec, or ``None``.
@@ -294,17 +296,35 @@ def _corner(t: _Table, key: str) -> tuple[float, float, float]:
     return (float(value[0]), float(value[1]), float(value[2]))
 
 
-def _pattern(t: _Table, key: str, base: Path, *, required: bool = True) -> str | None:
-    """A path or template relative to the manifest (checked to hold one printf frame field where frames are)."""
+def _pattern(t: _Table, key: str, base: Path, *, printf: bool, template: bool, required: bool = True) -> str | None:
+    """A path or pattern relative to the manifest: the user's value checked, then joined to the manifest's folder.
+
+    ``printf``: a frame pattern (one printf integer field); ``template``: ``{sequence}``... fields. The checks run on
+    the value the user wrote, and the folder joined to it is escaped for what the path goes through (``%`` as ``%%``
+    in a frame pattern, braces doubled in a template): checked and filled as a whole, a manifest in a folder named
+    ``50%`` or ``a{x}`` was refused, the error blaming the user's key (review R #4).
+    """
     value = t.text(key) if required else t.text(key, None)
     if value is None:
         return None
-    return str(base / value)
+    if printf:
+        _check_frame_field(t.where, key, value, template=template)
+    elif template:
+        _check_template(t.where, key, value)
+    if Path(value).is_absolute():
+        return str(Path(value))
+    folder = str(base)
+    if template:
+        folder = folder.replace("{", "{{").replace("}", "}}")
+    if printf:
+        folder = folder.replace("%", "%%")
+    return str(Path(folder) / value)
 
 
-def _check_frame_field(where: str, key: str, pattern: str) -> None:
+def _check_frame_field(where: str, key: str, pattern: str, *, template: bool) -> None:
     try:
-        frame_path(pattern.format(sequence="s", seq_id=1, cond_id=1, rate_id=1), 0, key)
+        filled = pattern.format(sequence="s", seq_id=1, cond_id=1, rate_id=1) if template else pattern
+        frame_path(filled, 0, key)
     except (KeyError, IndexError) as exc:
         raise CtcManifestError(
             f"{where}: {key!r}: unknown field {exc} (expected {{sequence}}, {{seq_id}}, {{cond_id}}, {{rate_id}})"
@@ -345,11 +365,8 @@ def _sequence(entry: Any, where: str, base: Path) -> CtcCampaignSequence:
     lo, hi = _corner(t, "min_pos"), _corner(t, "max_pos")
     if any(h <= lo_ for lo_, h in zip(lo, hi, strict=True)):
         raise CtcManifestError(f"{t.where}: 'max_pos' {list(hi)} must be above 'min_pos' {list(lo)} on every axis")
-    source = _pattern(t, "source", base)
-    texture = _pattern(t, "source_texture", base, required=False)
-    for key, pattern in (("source", source), ("source_texture", texture)):
-        if pattern is not None:
-            _check_frame_field(t.where, key, pattern)
+    source = _pattern(t, "source", base, printf=True, template=False)
+    texture = _pattern(t, "source_texture", base, printf=True, template=False, required=False)
     faces = t.get("input_faces", int, None)
     if faces is not None and faces <= 0:
         raise CtcManifestError(f"{t.where}: 'input_faces' must be positive, found {faces}")
@@ -396,15 +413,12 @@ def _codec(entry: Any, where: str, base: Path, seq_ids: dict[str, int], conds: d
         "points",
     )
     t = _Table(entry, where, keys)
-    decoded = _pattern(t, "decoded", base)
-    texture = _pattern(t, "decoded_texture", base, required=False)
-    for key, pattern in (("decoded", decoded), ("decoded_texture", texture)):
-        if pattern is not None:
-            _check_frame_field(where, key, pattern)
-    templates = {k: _pattern(t, k, base, required=False) for k in ("bitstream", "encoder_log", "decoder_log")}
-    for key, template in templates.items():
-        if template is not None:
-            _check_template(where, key, template)
+    decoded = _pattern(t, "decoded", base, printf=True, template=True)
+    texture = _pattern(t, "decoded_texture", base, printf=True, template=True, required=False)
+    templates = {
+        k: _pattern(t, k, base, printf=False, template=True, required=False)
+        for k in ("bitstream", "encoder_log", "decoder_log")
+    }
     csv_name = t.text("csv", None)
     points: dict[tuple[int, int, int], dict[str, Any]] = {}
     for i, raw in enumerate(t.get("points", list, [])):
