@@ -79,6 +79,11 @@ def run(args: argparse.Namespace) -> int:
             for s in campaign.sequences
         ]
     check_folder(out, "--out-dir", may_create=True)  # a file there is refused now, not after the campaign ran
+    from torchmeshmetric.mpeg.ctc.campaign import plan_frames, run_ctc_campaign
+
+    # the frames first, each file checked in order: a frame_count typo (300000 for 300) stops at its first missing
+    # file at once, where listing and resolving every input path of the campaign took minutes and GBs (review R #5)
+    tasks = plan_frames(campaign)
     check_writable(
         [out / n for n in names] if out.is_dir() else [out],
         args.overwrite,
@@ -88,13 +93,12 @@ def run(args: argparse.Namespace) -> int:
     cache = Path(args.cache_dir) if args.cache_dir else None
     if cache is not None or campaign.cache_dir is not None:
         check_folder(cache or campaign.cache_dir, "cache folder", may_create=True)  # type: ignore[arg-type]
-    from torchmeshmetric.mpeg.ctc.campaign import run_ctc_campaign
 
     def progress(task: Any, record: dict[str, Any]) -> None:
         figs = "  ".join(f"{c} {v:.4f}" for c, v in record["figures"].items())
         say(f"ctc-campaign: {task.describe()}: {figs}  [{record['seconds']:.2f} s]")
 
-    result = run_ctc_campaign(campaign, cache_dir=cache, progress=progress)
+    result = run_ctc_campaign(campaign, cache_dir=cache, progress=progress, tasks=tasks)
     if result is None:  # a torchrun rank other than 0: rank 0 reports
         return 0
     from torchmeshmetric._atomic import atomic_write

@@ -529,6 +529,7 @@ def run_ctc_campaign(
     *,
     cache_dir: Path | None = None,
     progress: Callable[[FrameTask, dict[str, Any]], None] | None = None,
+    tasks: list[FrameTask] | None = None,
 ) -> CampaignResult | None:
     """Run a campaign (see the module): every frame not cached yet, then every codec's CSV rows.
 
@@ -541,6 +542,7 @@ def run_ctc_campaign(
             warning naming it. One that cannot be written (read-only) is read; the records that cannot be stored
             are skipped, after one warning per cause.
         progress: called with each frame computed here, and its record (on the rank that computed it).
+        tasks: ``plan_frames(campaign)``, when the caller planned the frames already (its files then checked).
 
     Returns:
         :class:`CampaignResult` on rank 0, ``None`` on the others.
@@ -555,7 +557,8 @@ def run_ctc_campaign(
 
     rank, world = rank_and_world_size()
     folder = cache_dir if cache_dir is not None else campaign.cache_dir
-    tasks = plan_frames(campaign)
+    if tasks is None:
+        tasks = plan_frames(campaign)
     rows = {
         name: read_test_model_csv(getattr(campaign, name).csv) if getattr(campaign, name).csv is not None else {}
         for name in _CODECS
