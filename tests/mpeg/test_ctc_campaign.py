@@ -281,7 +281,8 @@ def test_an_out_dir_that_is_a_file_is_refused_before_any_frame(
         (("src_%04d.obj", "src.obj"), r"sequence 'sphere': source: expected one printf integer field"),
         (("r{rate_id}/dec", "r{rate}/dec"), r"'decoded': unknown field 'rate'"),
         (('sequence = "sphere"', 'sequence = "cube"'), r"\[anchor\]\.points\[0\]: 'sequence' 'cube' is not"),
-        (("max_pos = [1, 1, 1]", "max_pos = [1, 1, -1]"), r"'max_pos' \[1\.0, 1\.0, -1\.0\] must be above"),
+        (("max_pos = [1, 1, 1]", "max_pos = [1, 1, -2]"), r"'max_pos': \[1\.0, 1\.0, -2\.0\] is below 'min_pos'"),
+        (("max_pos = [1, 1, 1]", "max_pos = [-1, -1, -1]"), r"'max_pos': \[-1\.0, -1\.0, -1\.0\] equals 'min_pos'"),
         # 0 bits made the point's BD-rates vanish from the summary without a word (found by review)
         (("total_bits = 36900", "total_bits = 0"), r"points\[0\]: 'total_bits' must be > 0"),
         # a test codec named as the anchor gave a summary and RD legends whose two codecs read the same
@@ -706,3 +707,25 @@ def test_a_frame_count_typo_stops_at_the_first_missing_file_at_once(
     assert main(["ctc-campaign", str(big), *out]) == 1
     err = capsys.readouterr().err
     assert "anchor sequence 'sphere' condition 1 rate 1 frame 5: file" in err and "src_0005.obj' not found" in err
+
+
+def test_a_box_flat_on_one_axis_is_accepted_by_the_manifest_as_by_ctc(tmp_path: Path) -> None:
+    # Review R #9: ctc accepts a box flat on one axis (docs/ctc.md), ctc-campaign refused the same box ("'max_pos'
+    # [1.0, 1.0, 0.0] must be above 'min_pos' [-1.0, -1.0, 0.0] on every axis"). One check now serves both.
+    import argparse
+
+    from torchmeshmetric.cli.options import ctc_options
+    from torchmeshmetric.mpeg.ctc.settings import CtcSettings
+
+    text = (REPO / "examples" / "ctc_campaign.toml").read_text()
+    p = tmp_path / "m.toml"
+    p.write_text(
+        text.replace("min_pos = [-1, -1, -1]\nmax_pos = [1, 1, 1]", "min_pos = [-1, -1, 0]\nmax_pos = [1, 1, 0]", 1)
+    )
+    seq = load_ctc_campaign(p).sequences[0]
+    assert (seq.min_pos, seq.max_pos, seq.resolution) == ((-1.0, -1.0, 0.0), (1.0, 1.0, 0.0), 2.0)
+    args = argparse.Namespace(qp=10, qt=8, decoded_qt=0, min_pos="-1 -1 0", max_pos="1 1 0")
+    assert ctc_options(args, []) == ([-1.0, -1.0, 0.0], [1.0, 1.0, 0.0])
+    CtcSettings(qp=10, qt=8, min_pos=seq.min_pos, max_pos=seq.max_pos)
+    with pytest.raises(ValueError, match=r"the box is a single point"):
+        CtcSettings(qp=10, qt=8, min_pos=[1, 1, 1], max_pos=[1, 1, 1])

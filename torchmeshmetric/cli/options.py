@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import math
 import re
-import struct
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -378,20 +377,11 @@ def ctc_options(
     for option, value, low, high in (*common, *ranges):
         if not low <= value <= high:
             raise ValueError(f"{option}: expected an integer in {low}..{high}, found {value}")
+    from torchmeshmetric.mpeg.ctc.box import check_box
+
     lo, hi = corner(args.min_pos, "--min-pos"), corner(args.max_pos, "--max-pos")
-    if any(h < lo_ for lo_, h in zip(lo, hi, strict=True)):
-        raise ValueError(f"--max-pos: {hi} is below --min-pos {lo}")
-    if all(_float32(h) == _float32(lo_) for lo_, h in zip(lo, hi, strict=True)):  # the sampler's float32 corners
-        raise ValueError(f"--max-pos: {hi} equals --min-pos {lo} (the box is a single point)")
+    check_box(lo, hi, ("--min-pos", "--max-pos"))  # the manifest's and CtcSettings' check too
     return lo, hi
-
-
-def _float32(x: float) -> float:
-    """``x`` rounded to float32 (as the grid sampler reads the box); beyond float32's range, ``x`` itself."""
-    try:
-        return float(struct.unpack("f", struct.pack("f", x))[0])
-    except OverflowError:
-        return x
 
 
 def as_option_error(exc: ValueError, options: dict[str, str]) -> Exception:

@@ -59,6 +59,7 @@ from pathlib import Path
 from typing import Any
 
 from torchmeshmetric._toml import kind_name, read_manifest
+from torchmeshmetric.mpeg.ctc.box import check_box
 from torchmeshmetric.mpeg.ctc.frame_pattern import frame_path
 from torchmeshmetric.mpeg.ctc.settings import CtcSettings, box_longest_side
 
@@ -363,8 +364,10 @@ def _sequence(entry: Any, where: str, base: Path) -> CtcCampaignSequence:
     name = t.text("name")
     t.where = f"{where.rsplit(':', 1)[0]}: sequence {name!r}"
     lo, hi = _corner(t, "min_pos"), _corner(t, "max_pos")
-    if any(h <= lo_ for lo_, h in zip(lo, hi, strict=True)):
-        raise CtcManifestError(f"{t.where}: 'max_pos' {list(hi)} must be above 'min_pos' {list(lo)} on every axis")
+    try:  # the ctc command's check: a box flat on one axis is accepted by both (review R #9)
+        check_box(lo, hi, ("'min_pos'", "'max_pos'"))
+    except ValueError as exc:
+        raise CtcManifestError(f"{t.where}: {exc}") from None
     source = _pattern(t, "source", base, printf=True, template=False)
     texture = _pattern(t, "source_texture", base, printf=True, template=False, required=False)
     faces = t.get("input_faces", int, None)

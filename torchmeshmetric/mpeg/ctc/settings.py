@@ -16,6 +16,7 @@ from typing import Any, TypedDict, Union
 import numpy as np
 from torch import Tensor
 
+from torchmeshmetric.mpeg.ctc.box import check_box
 from torchmeshmetric.mpeg.ctc.dequantize import _bits, _corner
 
 __all__ = ["Corner", "CtcKeywords", "CtcSettings", "box_longest_side", "resolve_settings"]
@@ -67,8 +68,7 @@ class CtcSettings:
         for name in ("qp", "qt", "decoded_qt"):
             _bits(getattr(self, name), name)
         lo, hi = _corner(self.min_pos, "min_pos", 3), _corner(self.max_pos, "max_pos", 3)
-        if (hi < lo).any():
-            raise ValueError(f"max_pos: {hi.tolist()} is below min_pos {lo.tolist()}")
+        check_box(lo.tolist(), hi.tolist())  # the ctc command's and the manifest's check
         _at_least(self.grid_size, "grid_size", 2)
         if self.ibsm_resolution is not None:
             _at_least(self.ibsm_resolution, "ibsm_resolution", 1, "(or None: no IBSM)")
