@@ -78,3 +78,25 @@ def test_the_package_prints_nothing_to_stderr_but_through_say() -> None:
             if to_stderr and any(k.arg == "file" and ast.unparse(k.value) == "sys.stderr" for k in node.keywords):
                 found.append(f"{path.relative_to(ROOT)}:{node.lineno}")
     assert found == []
+
+
+def test_warnings_as_lines_prints_one_line_without_the_source() -> None:
+    # Review R #11: the commands' warnings showed Python's source file, line and code (`records.write(key, record)`).
+    # In a process of its own: pytest records the warnings of its tests instead of printing them.
+    code = (
+        "import warnings\n"
+        "from torchmeshmetric._console import warnings_as_lines\n"
+        "with warnings_as_lines('ctc-campaign'):\n"
+        "    warnings.warn('cannot store frame records in the cache folder /archive', UserWarning)\n"
+        "    warnings.warn('not converged', RuntimeWarning)\n"
+        "warnings.warn('after', UserWarning)\n"
+    )
+    root = str(Path(__file__).resolve().parents[1])
+    env = {**os.environ, "PYTHONPATH": root + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    err = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True).stderr
+    lines = err.splitlines()
+    assert lines[:2] == [
+        "torchmeshmetric ctc-campaign: warning: cannot store frame records in the cache folder /archive",
+        "torchmeshmetric ctc-campaign: RuntimeWarning: not converged",
+    ]
+    assert "UserWarning: after" in lines[2]  # Python's own format again once the command is over

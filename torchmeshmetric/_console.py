@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
 import sys
+import warnings
+from collections.abc import Iterator
 
-__all__ = ["say"]
+__all__ = ["say", "warnings_as_lines"]
 
 
 def say(line: str) -> None:
@@ -27,3 +30,35 @@ def say(line: str) -> None:
         return
     stream.write(line + "\n")
     stream.flush()
+
+
+@contextlib.contextmanager
+def warnings_as_lines(command: str) -> Iterator[None]:
+    r"""While a command runs, print each warning as one line, ``torchmeshmetric <command>: warning: <message>``.
+
+    Python's format adds the warning's source file and line and the source line itself (``records.write(key,
+    record)``), which tell the command's user nothing (review R #11). Only the text is changed: filters (``-W
+    error``) and recorders (``pytest.warns``, ``catch_warnings(record=True)``) see the warning as before; a category
+    other than ``UserWarning`` is named (``RegistrationWarning: ...``). Written in one call, as :func:`say`.
+
+    Args:
+        command: the command's name.
+
+    Example:
+        >>> with warnings_as_lines("ctc"):
+        ...     warnings.formatwarning("frame 2 is empty", UserWarning, "x.py", 1)
+        'torchmeshmetric ctc: warning: frame 2 is empty\n'
+    """
+    previous = warnings.formatwarning
+
+    def one_line(
+        message: Warning | str, category: type[Warning], filename: str, lineno: int, line: str | None = None
+    ) -> str:
+        kind = "warning" if category is UserWarning else category.__name__
+        return f"torchmeshmetric {command}: {kind}: {message}\n"
+
+    warnings.formatwarning = one_line
+    try:
+        yield
+    finally:
+        warnings.formatwarning = previous

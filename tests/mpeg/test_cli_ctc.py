@@ -140,3 +140,31 @@ def test_bdrate_command(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> N
     (tmp_path / "c.csv").write_text("rate,GridD1\n100,x\n")
     assert main(["bdrate", str(tmp_path / "a.csv"), str(tmp_path / "c.csv")]) == 1
     assert "c.csv:2: column 'GridD1': expected a number" in capsys.readouterr().err
+
+
+def test_ctc_html_page_says_no_word_of_meshes_has_integer_frame_ticks_and_names_the_textures(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Review R #11: a page written by `ctc --out R --html` said "No meshes on this page: ... (the commands' `--html`
+    # adds them)" (ctc never adds meshes), its per-frame plots had ticks 0.0, 0.2, ..., 1.0 for frames 0 and 1, and
+    # its settings left the texture patterns out.
+    from torchmeshmetric.viz import plots
+
+    figures: list[object] = []
+    real = plots.png_bytes
+
+    def keep(fig: object) -> bytes:
+        figures.append(fig)
+        return real(fig)
+
+    monkeypatch.setattr(plots, "png_bytes", keep)
+    args = _sequence(tmp_path)
+    assert main([*args, "--out", str(tmp_path / "rep"), "--html"]) == 0
+    page = (tmp_path / "rep.html").read_text()
+    assert "No meshes on this page" not in page and "reference_texture" in page and "decoded_texture" in page
+    (fig,) = figures
+    for ax in fig.axes:  # type: ignore[attr-defined]
+        if ax.get_visible():
+            lo, hi = ax.get_xlim()
+            ticks = [t for t in ax.get_xticks() if lo <= t <= hi]
+            assert ticks and all(float(t).is_integer() for t in ticks), ticks

@@ -729,3 +729,65 @@ def test_a_box_flat_on_one_axis_is_accepted_by_the_manifest_as_by_ctc(tmp_path: 
     CtcSettings(qp=10, qt=8, min_pos=seq.min_pos, max_pos=seq.max_pos)
     with pytest.raises(ValueError, match=r"the box is a single point"):
         CtcSettings(qp=10, qt=8, min_pos=[1, 1, 1], max_pos=[1, 1, 1])
+
+
+def test_clear_errors_of_the_campaign(
+    campaign: tuple[Path, Path], tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
+) -> None:
+    """Review R #10: each error names what the user wrote (the folder, the manifest and its key), once."""
+    manifest, _ = campaign
+    data = manifest.parent / "ctc-campaign-data"
+    cache = ["--cache-dir", str(tmp_path / "c"), "--no-plots"]
+    # --out-dir beside the input anchor.csv: it said "--out-dir 'anchor.csv' is the input anchor csv ..."
+    assert main(["ctc-campaign", str(manifest), "--out-dir", str(data), "--overwrite", *cache]) == 1
+    err = capsys.readouterr().err
+    assert f"--out-dir {str(data)!r}: its {str(data / 'anchor.csv')!r} is the input [anchor] csv" in err, err
+    # a missing codec CSV: "nope.csv: file not found", naming neither the manifest nor the key
+    bad = manifest.parent / "nope.toml"
+    bad.write_text(manifest.read_text().replace('csv = "ctc-campaign-data/anchor.csv"', 'csv = "nope.csv"'))
+    assert main(["ctc-campaign", str(bad), "--out-dir", str(tmp_path / "o1"), *cache]) == 1
+    err = capsys.readouterr().err
+    assert f"CTC campaign manifest {str(bad)!r}: [anchor] 'csv': {str(manifest.parent / 'nope.csv')!r} not found" in err
+    # a grid too fine for the memory: it named --grid-size, an option ctc-campaign does not have
+    from torchmeshmetric.mpeg.sampling import grid_sampling
+
+    monkeypatch.setattr(grid_sampling, "_available_memory", lambda: 1000)
+    assert main(["ctc-campaign", str(manifest), "--out-dir", str(tmp_path / "o2"), *cache]) == 1
+    err = capsys.readouterr().err
+    assert f"CTC campaign manifest {str(manifest)!r}: [options] grid_size 128: the grid sampling would give" in err
+    assert "--grid-size" not in err
+    monkeypatch.undo()
+    # a malformed decoded frame: the task was said twice, with a stray "path:"
+    broken = manifest.parent / "broken"
+    shutil.copytree(data / "sphere" / "test" / "r2", broken)
+    with (broken / "dec_0001.obj").open("a") as fh:
+        fh.write("f 1 2 99999\n")
+    b2 = manifest.parent / "broken.toml"
+    b2.write_text(
+        manifest.read_text().replace(
+            'decoded = "ctc-campaign-data/{sequence}/test/r{rate_id}/dec_%04d.obj"', 'decoded = "broken/dec_%04d.obj"'
+        )
+    )
+    assert main(["ctc-campaign", str(b2), "--out-dir", str(tmp_path / "o3"), *cache]) == 1
+    line = next(x for x in capsys.readouterr().err.splitlines() if "error:" in x)
+    assert line.count("frame 1") == 1 and "path:" not in line and "vertex index 99999" in line, line
+
+
+def test_frames_with_the_same_inputs_are_not_counted_from_the_cache(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    # Review R #11: with the anchor's and test's decoded files the same and an empty cache, it said "2 frames, 1
+    # computed, 1 from the cache": the frame computed once for both was counted as read from the cache.
+    manifest = _make(tmp_path)
+    text = (
+        manifest.read_text()
+        .replace("frame_count = 5", "frame_count = 1")
+        .replace("/test/r{rate_id}", "/anchor/r{rate_id}")
+    )
+    manifest.write_text(text)
+    args = ["ctc-campaign", str(manifest), "--out-dir", str(tmp_path / "out"), "--no-plots"]
+    assert main(args) == 0
+    assert "ctc-campaign: 8 frames, 4 computed (" in (err := capsys.readouterr().err)
+    assert "s of chains), 0 from the cache, 4 the same as another frame of the campaign; " in err
+    assert main([*args, "--overwrite"]) == 0
+    assert "s of chains), 4 from the cache, 4 the same as another frame of the campaign; " in capsys.readouterr().err

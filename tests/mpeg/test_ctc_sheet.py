@@ -273,3 +273,19 @@ def test_a_header_with_a_trailing_space_is_read(tmp_path: Path) -> None:
     path = tmp_path / "a.csv"
     path.write_text("\n".join([header.replace("PeakDecoderMemory", "PeakDecoderMemory "), *rows]) + "\n")
     assert read_test_model_csv(path)[1, 1, 2].decoder_memory == 512.0
+
+
+def test_the_markdown_summary_carries_the_lossless_mesh_ratio() -> None:
+    # Review R #11: summary.csv and .json had a lossless condition's mesh_ratio (docs/ctc.md: the mesh-bits ratio
+    # B / A - 1), summary.md and stdout had no such column.
+    from torchmeshmetric.mpeg.ctc.sheet import summary_markdown
+
+    a = {(1, 0, 0): RatePoint(1, 0, 0, 1000.0, components={"mesh_intra": 600.0, "mesh_inter": 100.0})}
+    b = {(1, 0, 0): RatePoint(1, 0, 0, 800.0, components={"mesh_intra": 500.0, "mesh_inter": 60.0})}
+    text = summary_markdown(ctc_summary(SEQS[:1], [SheetCondition(0, "C0 lossless AI", True)], a, b))
+    header = next(line for line in text.splitlines() if "bpif ratio" in line)
+    assert "| mesh ratio |" in header
+    row = next(line for line in text.splitlines() if line.startswith(f"| {SEQS[0].name} |"))
+    assert f"| {(560.0 / 700.0 - 1) * 100:+.2f} % |" in row  # -20.00 %
+    lossy = summary_markdown(ctc_summary(SEQS, [COND], ANCHOR, TEST))
+    assert "mesh ratio" not in lossy

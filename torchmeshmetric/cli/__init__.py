@@ -42,7 +42,7 @@ import sys
 from collections.abc import Collection, Iterator, Sequence
 from typing import NamedTuple
 
-from torchmeshmetric._console import say
+from torchmeshmetric._console import say, warnings_as_lines
 from torchmeshmetric.cli import _interrupts
 
 __all__ = ["COMMANDS", "CommandInfo", "build_parser", "main"]
@@ -191,7 +191,12 @@ def _error(command: str, exc: Exception) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    """Run the parsed command (inside a process group under torchrun); an error becomes one line."""
+    """Run the parsed command (inside a process group under torchrun); an error, and each warning, becomes one line."""
+    with warnings_as_lines(args.command):
+        return _run_command(args)
+
+
+def _run_command(args: argparse.Namespace) -> int:
     try:
         if getattr(args, "without_torch", False) and "WORLD_SIZE" not in os.environ:
             return int(args.func(args))  # a command that computes without torch (bdrate) starts without it

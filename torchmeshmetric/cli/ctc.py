@@ -188,7 +188,9 @@ def _report(args: argparse.Namespace, seq: Any, lo: list[float], hi: list[float]
     columns = list(seq.columns)
     settings = {
         "reference": args.reference,
+        "reference_texture": args.reference_texture,  # the page's settings left the textures out (review R #11)
         "decoded": args.decoded,
+        "decoded_texture": args.decoded_texture,
         "frames": f"{args.first_frame}..{args.last_frame}",
         "qp": args.qp,
         "qt": args.qt,

@@ -84,11 +84,14 @@ def run(args: argparse.Namespace) -> int:
     # the frames first, each file checked in order: a frame_count typo (300000 for 300) stops at its first missing
     # file at once, where listing and resolving every input path of the campaign took minutes and GBs (review R #5)
     tasks = plan_frames(campaign)
+    targets = [out / n for n in names] if out.is_dir() else [out]
     check_writable(
-        [out / n for n in names] if out.is_dir() else [out],
+        targets,
         args.overwrite,
         inputs=campaign.input_files(),
-        what="--out-dir",
+        # a report in the folder is named as the folder's: "--out-dir '.': its 'anchor.csv' is the input [anchor]
+        # csv" (it read "--out-dir 'anchor.csv' is the input ...", naming a file as the option's value; review R #10)
+        what=[f"--out-dir {str(out)!r}: its" if t != out else "--out-dir" for t in targets],
     )
     cache = Path(args.cache_dir) if args.cache_dir else None
     if cache is not None or campaign.cache_dir is not None:
@@ -180,9 +183,12 @@ def run(args: argparse.Namespace) -> int:
     print(summary_markdown(summary))
     wall = time.perf_counter() - start
     chains = result.chain_seconds
+    same = len(result.frames) - result.computed - result.from_cache  # counted "from the cache" (review R #11)
     line = (
         f"ctc-campaign: {len(result.frames)} frames, {result.computed} computed ({chains:.2f} s of chains), "
-        f"{len(result.frames) - result.computed} from the cache; {wall:.2f} s in all"
+        f"{result.from_cache} from the cache"
+        + (f", {same} the same as another frame of the campaign" if same else "")
+        + f"; {wall:.2f} s in all"
     )
     if chains > 0:
         line += f" (campaign overhead {100 * (wall - chains) / chains:+.1f} % of the chains)"

@@ -165,7 +165,7 @@ def report_page(
             ``frame_curves.png``).
     """
     notes = [f"{report.get('tool', 'torchmeshmetric')} {report.get('version', '')}".strip()]
-    if not meshes:
+    if not meshes and not isinstance(report.get("frames"), list):  # a CTC report has no meshes to add (review R #11)
         notes.append("No meshes on this page: the report was written without them (the commands' `--html` adds them).")
     drawn = report_figures(report) if curves else []
     return html_page(title, markdown, figures=[*drawn, *figures], meshes=meshes, notes=notes)
@@ -282,6 +282,8 @@ def report_figures(report: Mapping[str, Any]) -> list[tuple[str, bytes]]:
         figures.append((CURVES_CAPTION, png_bytes(frame_curves_figure(pairs))))
     frames = report.get("frames")
     if isinstance(frames, list) and frames:
+        from matplotlib.ticker import MaxNLocator  # matplotlib on use only (see _figure)
+
         columns = [c for c in frames[0] if c != "frame"]
         fig = _figure()(figsize=(5 * min(len(columns), 3), 3.6 * ((len(columns) + 2) // 3)), layout="constrained")
         axes = fig.subplots((len(columns) + 2) // 3, min(len(columns), 3), squeeze=False).ravel()
@@ -289,6 +291,7 @@ def report_figures(report: Mapping[str, Any]) -> list[tuple[str, bytes]]:
             ax.plot([f["frame"] for f in frames], [float(f.get(column, "nan")) for f in frames], marker="o")
             ax.set_title(plain_label(column), fontsize=10)
             ax.set_xlabel("frame")
+            ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # frames are integers (it drew 0.2, 0.4, ...)
             ax.set_ylabel("dB" if "psnr" in column.lower() or column.startswith(("Grid", "Ibsm")) else "")
         for ax in axes[len(columns) :]:
             ax.set_visible(False)

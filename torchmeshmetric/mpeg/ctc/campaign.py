@@ -86,7 +86,9 @@ class CampaignResult:
         conditions: the sheet's conditions.
         frames: one record per planned frame, in plan order: the task's place (``codec``, ``sequence``,
             ``condition``, ``rate``, ``frame``) and ``figures`` (column -> PSNR, ``inf`` for identical frames).
-        computed: frames computed by this run (the others came from the cache).
+        computed: frames computed by this run.
+        from_cache: frames read from the cache (the others have the same inputs and settings as a frame computed
+            or read: the campaign's frames less these two counts).
         chain_seconds: the wall seconds of the frames computed by this run, summed (each frame's read and chain).
         names: the two codecs' names.
     """
@@ -96,6 +98,7 @@ class CampaignResult:
     conditions: list[SheetCondition]
     frames: list[dict[str, Any]]
     computed: int
+    from_cache: int
     chain_seconds: float
     names: tuple[str, str]
 
@@ -341,7 +344,10 @@ def _load(item: tuple[str, FrameTask]) -> tuple[Any, Any, float]:
             (time.perf_counter() - t0),
         )
     except ValueError as exc:
-        raise ValueError(f"{task.describe()}: {exc}") from exc
+        # the task is named once, by run_tasks' note ("... (while running <task>)"): prefixed here too, it was said
+        # twice; the reader's "path: " (its argument's name) means nothing to the command's user (review R #10)
+        exc.args = (str(exc).removeprefix("path: "), *exc.args[1:])
+        raise
 
 
 class _RecordFolder:
@@ -394,10 +400,19 @@ def _compute(
     """One frame through the chain; its record written to the cache at once (atomically)."""
     from torchmeshmetric._version import __version__
     from torchmeshmetric.mpeg.ctc.chain import ctc_frame
+    from torchmeshmetric.mpeg.sampling.grid_sampling import GridTooLargeError
 
     ref, dis, read_seconds = loaded
     t0 = time.perf_counter() - read_seconds  # the frame's seconds: its reading (ahead of time) and its chain
-    f = ctc_frame(ref, dis, campaign.settings(task.seq, task.decoded_qt), frame=task.frame)
+    try:
+        f = ctc_frame(ref, dis, campaign.settings(task.seq, task.decoded_qt), frame=task.frame)
+    except GridTooLargeError as exc:  # it named --grid-size, an option this command does not have (review R #10)
+        head, _, rest = str(exc).partition(": ")
+        raise GridTooLargeError(
+            f"CTC campaign manifest {str(campaign.path)!r}: [options] grid_size {campaign.grid_size}: {rest}"
+            if head.startswith("grid_size (--grid-size)")
+            else str(exc)
+        ) from exc
     record = {
         "key": key,
         "figures": dict(f.figures),
@@ -524,6 +539,20 @@ def _point(
     )
 
 
+def _codec_rows(campaign: CtcCampaign, name: str) -> dict[tuple[int, int, int], RatePoint]:
+    """The rows of a codec's test-model CSV (none without one); a missing file named by the manifest and its key.
+
+    ``nope.csv: file not found`` named neither (review R #10), where every other manifest error does.
+    """
+    csv_path = getattr(campaign, name).csv
+    if csv_path is None:
+        return {}
+    if not csv_path.is_file():
+        what = "is a directory, expected a file" if csv_path.is_dir() else "not found"
+        raise ValueError(f"CTC campaign manifest {str(campaign.path)!r}: [{name}] 'csv': {str(csv_path)!r} {what}")
+    return read_test_model_csv(csv_path)
+
+
 def run_ctc_campaign(
     campaign: CtcCampaign,
     *,
@@ -559,10 +588,7 @@ def run_ctc_campaign(
     folder = cache_dir if cache_dir is not None else campaign.cache_dir
     if tasks is None:
         tasks = plan_frames(campaign)
-    rows = {
-        name: read_test_model_csv(getattr(campaign, name).csv) if getattr(campaign, name).csv is not None else {}
-        for name in _CODECS
-    }
+    rows = {name: _codec_rows(campaign, name) for name in _CODECS}
     values = {
         (name, s.seq_id, c.cond_id, r): _codec_values(getattr(campaign, name), s, c.cond_id, r, rows[name])
         for name in _CODECS
@@ -606,7 +632,7 @@ def run_ctc_campaign(
     if rank != 0 or computed is None:
         return None
     records = {**cached, **{k: r for (k, _), r in zip(missing, computed, strict=True)}}
-    return _result(campaign, tasks, keys, records, values, computed)
+    return _result(campaign, tasks, keys, records, values, computed, len(cached))
 
 
 def _result(
@@ -616,6 +642,7 @@ def _result(
     records: dict[str, dict[str, Any]],
     values: dict[tuple[str, int, int, int], dict[str, Any]],
     computed: list[dict[str, Any]],
+    from_cache: int,
 ) -> CampaignResult:
     frames: list[dict[str, Any]] = []
     by_point: dict[tuple[str, int, int, int], list[dict[str, Any]]] = {}
@@ -655,6 +682,7 @@ def _result(
         conditions,
         frames,
         len(computed),
+        from_cache,
         math.fsum(r["seconds"] for r in computed),
         (campaign.anchor.name, campaign.test.name),
     )

@@ -212,8 +212,8 @@ class CtcCampaign:
         their textures, bitstreams and logs.
         """
         files: list[tuple[str, str | Path | None]] = [("MANIFEST", self.path)]
-        for codec in (self.anchor, self.test):
-            files.append((f"{codec.name} csv", codec.csv))
+        for table, codec in (("anchor", self.anchor), ("test", self.test)):
+            files.append((f"[{table}] csv", codec.csv))
         for seq in self.sequences:
             for k in seq.frames:
                 files.append((f"{seq.name} source", frame_path(seq.source, k)))

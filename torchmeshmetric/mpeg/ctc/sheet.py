@@ -602,6 +602,9 @@ def summary_markdown(summary: Mapping[str, Any]) -> str:
             "bpif A",
             "bpif B",
             "bpif ratio",
+            # a lossless condition's mesh-bits ratio B / A - 1 (summary.csv and .json had it, the Markdown not:
+            # review R #11)
+            *(["mesh ratio"] if cond["lossless"] else []),
             *(c.replace("_", " ") for c in COMPONENTS),
             "enc time",
             "dec time",
@@ -615,6 +618,8 @@ def summary_markdown(summary: Mapping[str, Any]) -> str:
             cells = ["·" if v is None else f"{v:.4f}" for v in bp]
             ratio = _value(f, "bpif_ratio")
             cells.append("·" if ratio is None else f"{ratio * 100:.2f} %")
+            if cond["lossless"]:
+                cells.append(_pct(_value(f, "mesh_ratio"), 100))
             cells += [_pct(_value(f, f"component_ratios:{c}"), 100) for c in COMPONENTS]
             for k in ("time_ratios:encoder", "time_ratios:decoder", "memory_ratios:encoder", "memory_ratios:decoder"):
                 v = _value(f, k)
