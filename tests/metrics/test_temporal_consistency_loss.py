@@ -9,7 +9,7 @@ import trimesh
 
 from tests.registration.expected_warnings import expects_not_converged
 from torchmeshmetric import Mesh
-from torchmeshmetric._checks import EmptyInputError, ShapeError
+from torchmeshmetric._checks import DTypeError, EmptyInputError, ShapeError
 from torchmeshmetric.evaluation import register_pairs
 from torchmeshmetric.evaluation.flicker import flicker_distances
 from torchmeshmetric.metrics import (
@@ -339,3 +339,34 @@ def test_bad_input_typed_errors(frames):
     empty = (torch.zeros(0, 3, dtype=torch.float64), torch.zeros(0, 3, dtype=torch.long))
     with pytest.raises(EmptyInputError):
         temporal_consistency_loss(empty, s_km1, o_k, o_km1, affine_warp, two_sided=False)
+
+
+@pytest.mark.parametrize(
+    "convert",
+    [
+        lambda p: p.long(),
+        lambda p: p > 0,
+        lambda p: p.to(torch.complex128),
+        lambda p: p.half(),
+        lambda p: p.numpy(),
+    ],
+    ids=["int64", "bool", "complex", "half", "numpy"],
+)
+def test_a_warp_output_that_is_not_float_is_refused_as_the_evaluation_refuses_it(frames, convert):
+    """Review Q: the loss cast an int/bool/complex/half warp output (int64: loss 1.32 for 0.032, no gradient)."""
+    s_k, s_km1, o_k, o_km1 = frames
+
+    def warp(p: torch.Tensor) -> torch.Tensor:
+        return convert(affine_warp(p.detach()))
+
+    kind = TypeError if convert(torch.zeros(1, 3, dtype=torch.float64)).__class__ is not torch.Tensor else DTypeError
+    with pytest.raises(kind) as loss_error:
+        temporal_consistency_loss(s_k, s_km1, o_k, o_km1, warp)
+    with pytest.raises(kind) as evaluation_error:
+        flicker_distances(s_k, s_km1, warp)
+    # the same check, so the same words, about the warp's output under the loss's name of it
+    loss_name, evaluation_name = "registration(simplified_k_minus_1.verts)", "warp(simplified_k_minus_1.verts)"
+    assert str(loss_error.value).startswith(loss_name + ": ")
+    assert str(loss_error.value).replace(loss_name, evaluation_name) == str(evaluation_error.value)
+    with pytest.raises(kind, match=r"registration\[1\]\(simplified_k_minus_1\[1\].verts\)"):
+        temporal_consistency_loss([s_k, s_k], [s_km1, s_km1], [o_k, o_k], [o_km1, o_km1], [affine_warp, warp])

@@ -26,9 +26,9 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import check_finite, check_float, check_shape, check_tensor, common_dtype
+from torchmeshmetric._checks import check_finite, common_dtype
 from torchmeshmetric.kernels import point_mesh_distance, vertex_set
-from torchmeshmetric.registration.warp import Warp
+from torchmeshmetric.registration.warp import Warp, check_warped
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
 __all__ = ["FLICKER", "FlickerDistances", "flicker_distances"]
@@ -93,10 +93,7 @@ def flicker_distances(
         # a registration's output is checked here, or the wrong shape crashed deep in the distance kernel (fewer
         # rows), gave a plausible number (extra rows), and a NaN blamed an overflow on `points` (found by review)
         name = "warp(simplified_k_minus_1.verts)"
-        check_tensor(moved_verts, name, "a (V, 3) torch.Tensor")
-        check_shape(moved_verts, (s_km1.verts.shape[0], 3), name)
-        check_float(moved_verts, name)
-        check_finite(moved_verts, name)
+        check_finite(check_warped(moved_verts, s_km1.verts, name), name)
         moved = Mesh(moved_verts.to(s_k.device, s_k.dtype), s_km1.faces, validate=False)
         dists = point_mesh_distance(vertex_set(s_k).detach(), moved).dists
         reverse = point_mesh_distance(vertex_set(moved), s_k.detach()).dists if two_sided else None

@@ -35,7 +35,7 @@ from typing import Any
 import torch
 from torch import Tensor, nn
 
-from torchmeshmetric._checks import EmptyInputError, NonFiniteError, ShapeError, check_flag, common_dtype
+from torchmeshmetric._checks import EmptyInputError, NonFiniteError, check_flag, common_dtype
 from torchmeshmetric.kernels.danskin import mesh_surface_distances
 from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.kernels.mesh_index import MeshIndex, _version
@@ -50,7 +50,7 @@ from torchmeshmetric.registration.cache import (
     registration_key,
 )
 from torchmeshmetric.registration.options import NonRigidOptions
-from torchmeshmetric.registration.warp import RegistrationWarp, Warp, as_warp
+from torchmeshmetric.registration.warp import RegistrationWarp, Warp, as_warp, check_warped
 from torchmeshmetric.structures import Mesh, as_mesh, is_mesh_like, vertex_set_mask
 
 __all__ = ["TemporalConsistencyLoss", "TemporalLossCache", "temporal_consistency_loss"]
@@ -310,13 +310,7 @@ def _registration_items(registration: Any, count: int) -> list[Any]:
 
 def _moved(warp: Warp, simplified_k_minus_1: Mesh, like: Mesh, name: str) -> Mesh:
     """``simplified_k_minus_1`` moved onto frame ``k`` by ``warp`` (differentiable in its vertices)."""
-    moved = warp(simplified_k_minus_1.verts)
-    if not isinstance(moved, Tensor) or tuple(moved.shape) != tuple(simplified_k_minus_1.verts.shape):
-        found = tuple(moved.shape) if isinstance(moved, Tensor) else type(moved).__name__
-        raise ShapeError(
-            f"{name}: the warp must map (P, 3) points to (P, 3) points; it mapped "
-            f"{tuple(simplified_k_minus_1.verts.shape)} to {found}"
-        )
+    moved = check_warped(warp(simplified_k_minus_1.verts), simplified_k_minus_1.verts, name)
     return Mesh(moved.to(like.device, like.dtype), simplified_k_minus_1.faces.to(like.device), validate=False)
 
 
@@ -417,6 +411,8 @@ def temporal_consistency_loss(
         DoubleBackwardError: a double backward (``create_graph=True``): the loss is differentiable once.
         ShapeError: a registration whose vertices are not those of ``original_k_minus_1``, a warp that does not map
             ``(P, 3)`` to ``(P, 3)``.
+        DTypeError: a warp whose output is not float32 or float64 (integers, booleans, complex, half precision):
+            refused as the evaluation refuses it, not cast.
         EmptyInputError: ``reduction="mean"`` on a batch without any point.
 
     Example:
@@ -453,7 +449,8 @@ def temporal_consistency_loss(
     for i, (g, ok, okm1, skm1, sk) in enumerate(zip(given, o_k, o_km1, s_km1, s_k, strict=True)):
         name = "registration" if len(s_k) == 1 else f"registration[{i}]"
         warp = work.warp(ok, okm1, options, backend) if g is None else as_warp(g, ok, okm1, name=name)
-        moved.append(_moved(warp, skm1.to(dtype=dtype), sk, name))
+        item = "" if len(s_k) == 1 else f"[{i}]"
+        moved.append(_moved(warp, skm1.to(dtype=dtype), sk, f"{name}(simplified_k_minus_1{item}.verts)"))
         names.append(name)
     _check_moved(moved, names)
     # One index per role for the whole batch: the moved frames k-1 (measured to) and the simplified frames k

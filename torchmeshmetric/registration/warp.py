@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, NamedTuple, Protocol
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import ShapeError, check_finite, check_float, check_int, check_shape
+from torchmeshmetric._checks import ShapeError, check_finite, check_float, check_int, check_shape, check_tensor
 from torchmeshmetric.kernels.point_triangle import point_mesh_distance
 from torchmeshmetric.registration._common import normalisation
 from torchmeshmetric.registration.deformation_graph import embedded_deformation, skinning_weights
@@ -53,6 +53,38 @@ def _check_points(points: Tensor) -> None:
     check_shape(points, ("P", 3), "points")
     check_float(points, "points")
     check_finite(points, "points")
+
+
+def check_warped(moved: object, points: Tensor, name: str) -> Tensor:
+    """Check a warp's output ``moved`` for its input ``points``: the evaluation's and the temporal loss's one check.
+
+    A warp is the caller's code (a voxel-grid lookup that forgets ``.float()``, a half-precision model): its output
+    is refused rather than cast, since a cast gave a silently wrong loss and, from integers, no gradient (found by
+    review). Finiteness is the caller's to check (the loss checks a whole batch with one device read).
+
+    Args:
+        moved: the warp's output.
+        points: ``(V, 3)`` the points it was given.
+        name: the output's name in errors (e.g. ``"warp(simplified_k_minus_1.verts)"``).
+
+    Returns:
+        ``moved``, a ``(V, 3)`` float32 or float64 tensor.
+
+    Raises:
+        TypeError: ``moved`` is not a tensor.
+        ShapeError: it is not ``(V, 3)``, one row per point.
+        DTypeError: it is not float32 or float64 (integer, boolean, complex, half precision).
+
+    Example:
+        >>> p = torch.zeros(4, 3)
+        >>> check_warped(p + 1.0, p, "warp(points)").shape
+        torch.Size([4, 3])
+    """
+    check_tensor(moved, name, "a (V, 3) torch.Tensor")
+    assert isinstance(moved, Tensor)  # for mypy: check_tensor raised otherwise
+    check_shape(moved, (points.shape[0], 3), name)
+    check_float(moved, name)
+    return moved
 
 
 #: The tensor fields of a :class:`RegistrationWarp` (all but ``num_neighbors``).
