@@ -34,7 +34,8 @@ from torchmeshmetric.registration.cache import (
 )
 from torchmeshmetric.registration.warp import as_warp, deformation_of
 from torchmeshmetric.stats import DistanceStatistics, distance_statistics
-from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
+from torchmeshmetric.stats.statistics import derived_peak
+from torchmeshmetric.structures import Mesh, MeshLike, as_mesh, power_of_two_scale_down
 from torchmeshmetric.tasks import exchange, run_tasks
 
 __all__ = [
@@ -429,7 +430,11 @@ def evaluate_pair(
     start = time.perf_counter()
     with torch.no_grad():
         distances, reverse = _distance_sets(simp, {"k": orig_k, "k_minus_1": registered}, two_sided, backend, indexes)
-        motion = float((registered.verts - orig_km1.verts).norm(dim=-1).mean() / orig_k.bbox_diagonal())
+        # scaled by an exact power of two: the squares of the norms under- or overflowed for extreme magnitudes
+        diagonal = orig_k.bbox_diagonal().to(torch.float64)
+        scale = power_of_two_scale_down(diagonal)
+        moves = (registered.verts - orig_km1.verts).to(torch.float64) * scale
+        motion = float(moves.norm(dim=-1).mean() / (diagonal * scale))
         flicker = None
         if simplified_k_minus_1 is not None:
             warp = as_warp(reg, orig_k, orig_km1, name="precomputed_registration")
@@ -437,7 +442,7 @@ def evaluate_pair(
     timings["distances"] = time.perf_counter() - start
 
     start = time.perf_counter()
-    peak = float(orig_k.bbox_diagonal())
+    peak = derived_peak(float(orig_k.bbox_diagonal()), "original_k")
     distances = {name: distances[name] for name in SET_NAMES}
     reverse = {name: reverse[name] for name in SET_NAMES if name in reverse}
     if flicker is not None:

@@ -26,7 +26,7 @@ from torchmeshmetric.metrics.directed_distances import DirectedDistances
 from torchmeshmetric.metrics.distance_states import DistanceStates, DistanceStatesMetric
 from torchmeshmetric.metrics.selected_statistic import SelectedStatistic
 from torchmeshmetric.stats.sketch import QuantileSketch
-from torchmeshmetric.stats.statistics import DistanceStatistics, distance_statistics_update
+from torchmeshmetric.stats.statistics import DistanceStatistics, derived_peak, distance_statistics_update
 
 __all__ = ["DistanceStatisticsBase", "DistanceStatisticsMetric", "MeasuredDistanceBase"]
 
@@ -117,7 +117,7 @@ class DistanceStatisticsBase(StatisticsPlot, DistanceStatesMetric):
         if self.fixed_peak is not None:
             return self.fixed_peak
         p = float(self.reference_peak)
-        return p if p >= 0 else None
+        return derived_peak(p, "reference (the largest diagonal measured)") if p >= 0 else None
 
     def compute_statistics(self) -> dict[str, DistanceStatistics]:
         """The accumulated :class:`DistanceStatistics` per direction: ``{"forward": ..., "reverse": ...}``."""

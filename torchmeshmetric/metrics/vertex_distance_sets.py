@@ -18,7 +18,7 @@ from torchmeshmetric.kernels.nearest import nearest_vertex_distance
 from torchmeshmetric.metrics._inputs import as_point_sources, cast_sources
 from torchmeshmetric.metrics._prebuilt_index import bound_to, check_index, index_of, query_points
 from torchmeshmetric.metrics.directed_distances import DirectedDistances, lengths_of, packed
-from torchmeshmetric.structures import Mesh
+from torchmeshmetric.structures import Mesh, bbox_diagonal
 
 __all__ = ["NearestVertexOptions", "measure_vertex_distance_sets", "nearest_vertex_distance_sets"]
 
@@ -66,8 +66,7 @@ def _cloud_to_cloud(
 
 
 def _bbox_diagonal(p: Tensor) -> Tensor:
-    q = p.detach().to(torch.float64)
-    return (q.amax(0) - q.amin(0)).to(torch.float64).norm().to(q.dtype) if q.shape[0] else q.new_zeros(())
+    return bbox_diagonal(p.detach().to(torch.float64))
 
 
 def measure_vertex_distance_sets(

@@ -196,7 +196,7 @@ def statistics_from_parts(
 
     Empty sets (``count == 0``) get NaN statistics (``count`` 0); ``var``/``std`` are NaN when ``count <= ddof``.
     ``values`` (the set's distances, packed with ``lengths`` for a batch), when kept, give ``rmse`` and ``std``
-    where ``mse`` or ``var`` overflowed (see :func:`_overflowed_roots`).
+    where ``mse`` or ``var`` over- or underflowed (see :func:`_scaled_roots`).
     """
     given: object = ddof
     if isinstance(given, float) and given.is_integer():
@@ -211,14 +211,19 @@ def statistics_from_parts(
     var = torch.where(n > ddof, moments.m2 / (n - ddof).clamp_min(1.0), nan)
     mse = torch.where(has, moments.sumsq / n.clamp_min(1.0), nan)
     rmse, std = mse.sqrt(), var.sqrt()
-    overflow = torch.isinf(mse)
-    if bool((overflow | torch.isinf(var)).any()):  # only there: the usual case's bits are the plain roots'
-        rmse, std = _overflowed_roots(moments, mse, var, ddof, values, lengths)
+    # mse and var out of float64's normal range: overflowed (distances beyond ~1e154), or underflowed to a subnormal
+    # or 0 though some distance is not 0 (below ~1e-154: rmse was 0 < ave, std 0 for three different values, the
+    # PSNR inf; found by review). A constant set's var is 0 exactly and stays so.
+    tiny = torch.finfo(torch.float64).tiny
+    out_mse = torch.isinf(mse) | ((mse < tiny) & (moments.max > 0))
+    out_var = torch.isinf(var) | ((var < tiny) & (moments.max > moments.min))
+    if bool((out_mse | out_var).any()):  # only there: the usual case's bits are the plain roots'
+        mse, var, rmse, std = _scaled_roots(moments, mse, var, out_mse, out_var, ddof, values, lengths)
     psnr = None
     if peak is not None:
         p = torch.as_tensor(peak, dtype=torch.float64, device=mse.device)
-        # An overflowed mse has no PSNR of its own: 10 log10(peak^2 / mse) = 20 log10(peak / rmse).
-        psnr = torch.where(overflow, 20.0 * (torch.log10(p) - torch.log10(rmse)), psnr_from_mse(mse, p))
+        # An mse out of range has no PSNR of its own: 10 log10(peak^2 / mse) = 20 log10(peak / rmse).
+        psnr = torch.where(out_mse, 20.0 * (torch.log10(p) - torch.log10(rmse)), psnr_from_mse(mse, p))
         psnr = torch.where(has, psnr, nan)
     return DistanceStatistics(
         ave=ave,
@@ -236,22 +241,35 @@ def statistics_from_parts(
     )
 
 
-def _overflowed_roots(
-    moments: Moments, mse: Tensor, var: Tensor, ddof: int, values: Tensor | None, lengths: Tensor | None
-) -> tuple[Tensor, Tensor]:
-    r"""``(rmse, std)`` that stay finite where ``mse``/``var`` overflowed (their roots are ``sqrt`` elsewhere).
+def _scaled_roots(
+    moments: Moments,
+    mse: Tensor,
+    var: Tensor,
+    out_mse: Tensor,
+    out_var: Tensor,
+    ddof: int,
+    values: Tensor | None,
+    lengths: Tensor | None,
+) -> tuple[Tensor, Tensor, Tensor, Tensor]:
+    r"""``(mse, var, rmse, std)`` where ``mse`` (``out_mse``) or ``var`` (``out_var``) left float64's normal range.
 
-    ``mse`` overflows for distances beyond ~1e154 and ``var`` for a spread beyond that: their true values are past
-    float64, but ``rmse <= max|d|`` and ``std`` never are. With the values at hand (exact quantiles keep them), both
-    are recomputed from the values scaled by an exact power of two per item (``max|d|`` into ``[0.5, 1)``). Without
-    them (the quantile sketch), ``rmse`` is :math:`\sqrt{\mathrm{Var}_0 + \mathrm{Ave}^2}` by ``hypot`` from the
-    moments, finite while ``m2`` is (a near-constant set), and ``std`` stays ``inf``.
+    ``mse`` overflows for distances beyond ~1e154 and underflows below ~1e-154 (subnormal: digits lost; 0), and
+    ``var`` likewise for a spread beyond or below those: their true values may be past float64, but ``rmse`` and
+    ``std`` (of the order of the distances) never are. With the values at hand (exact quantiles keep them), all four
+    are recomputed from the values scaled by an exact power of two per item (``max|d|`` into ``[0.5, 1)``); ``mse``
+    and ``var`` are then their true values rounded (``inf`` or 0 only where those are past float64). Without them
+    (the quantile sketch): an overflowed ``rmse`` is :math:`\sqrt{\mathrm{Var}_0 + \mathrm{Ave}^2}` by ``hypot``
+    from the moments, finite while ``m2`` is (a near-constant set), and ``std`` stays ``inf``; an underflowed
+    ``rmse`` / ``std`` is NaN, unknown (the moments' squares lost it), never a 0 below ``ave``.
     """
     rmse, std = mse.sqrt(), var.sqrt()
     n = moments.count.to(torch.float64)
     if values is None:
+        nan = torch.full_like(rmse, float("nan"))
         identity = torch.hypot(moments.mean, (moments.m2 / n.clamp_min(1.0)).sqrt())
-        return torch.where(torch.isinf(mse), identity, rmse), std
+        rmse = torch.where(torch.isinf(mse), identity, torch.where(out_mse, nan, rmse))
+        std = torch.where(out_var & ~torch.isinf(var), nan, std)
+        return mse, var, rmse, std
     x = values.detach().reshape(-1).to(torch.float64)
     shape = n.shape
     n, mean = n.reshape(-1), moments.mean.reshape(-1)
@@ -260,9 +278,19 @@ def _overflowed_roots(
     xs = x * scale[b]
     sq = x.new_zeros(n.shape).index_add_(0, b, xs * xs)
     dev = x.new_zeros(n.shape).index_add_(0, b, (xs - (mean * scale)[b]) ** 2)
-    scaled_rmse = ((sq / n.clamp_min(1.0)).sqrt() / scale).reshape(shape)
-    scaled_std = ((dev / (n - ddof).clamp_min(1.0)).sqrt() / scale).reshape(shape)
-    return torch.where(torch.isinf(mse), scaled_rmse, rmse), torch.where(torch.isinf(var), scaled_std, std)
+    scaled_mse, scaled_var = sq / n.clamp_min(1.0), dev / (n - ddof).clamp_min(1.0)
+    scale = scale.reshape(shape)
+    # divided back twice: the square of the scale of distances near 1e-300 overflows
+    true_mse = scaled_mse.reshape(shape) / scale / scale
+    true_var = scaled_var.reshape(shape) / scale / scale
+    scaled_rmse = scaled_mse.sqrt().reshape(shape) / scale
+    scaled_std = scaled_var.sqrt().reshape(shape) / scale
+    return (
+        torch.where(out_mse, true_mse, mse),
+        torch.where(out_var, true_var, var),
+        torch.where(out_mse, scaled_rmse, rmse),
+        torch.where(out_var, scaled_std, std),
+    )
 
 
 def _check_peak(peak: float | Tensor) -> float | Tensor:
@@ -277,6 +305,27 @@ def _check_peak(peak: float | Tensor) -> float | Tensor:
     if not (math.isfinite(value) and value > 0):
         raise ValueError(f"peak: expected a finite number > 0, found {value!r}")
     return value
+
+
+def derived_peak(peak: float, what: str) -> float:
+    """A PSNR peak the library derived (a reference's bounding-box diagonal), checked under ``what`` it came from.
+
+    The user gave no ``peak``: an error about one would name an argument they never passed (found by review).
+
+    Raises:
+        ValueError: the diagonal is 0 (every referenced vertex at one point) or not finite (coordinates whose
+            extent overflows float64); the message names ``what`` and asks for an explicit peak.
+
+    Example:
+        >>> derived_peak(2.0, "original_k")
+        2.0
+    """
+    if not (math.isfinite(peak) and peak > 0):
+        raise ValueError(
+            f"{what}: its bounding-box diagonal, the default PSNR peak, is {peak!r}, and the PSNR needs a finite "
+            "positive peak (a reference whose referenced vertices are all one point has none); pass peak= explicitly"
+        )
+    return peak
 
 
 def distance_statistics(
