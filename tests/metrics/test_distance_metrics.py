@@ -423,3 +423,36 @@ def test_numpy_and_torch_scalars_are_taken_for_flags_counts_and_peaks():
     assert MeshSurfaceDistance(seed=torch.tensor(5)).seed == 5
     with pytest.raises(TypeError, match=r"seed: expected an int, found float 1.5"):
         MeshSurfaceDistance(seed=1.5)
+
+
+def test_sampled_mode_does_not_depend_on_the_batch():
+    # Review Q: one generator drew the samples of a whole batch, so a mesh measured alone and second in a batch got
+    # other samples (distances up to 0.19 apart), and update([a, c], [d, b]) != update(a, d); update(c, b).
+    a, b = trimesh.creation.icosphere(subdivisions=1), trimesh.creation.icosphere(subdivisions=3)
+    c, d = trimesh.creation.capsule(), trimesh.creation.box()
+    for two_sided in (False, True):
+        batched = MeshSurfaceDistance(surface_samples=200, seed=7, two_sided=two_sided)
+        one_by_one = MeshSurfaceDistance(surface_samples=200, seed=7, two_sided=two_sided)
+        reversed_order = MeshSurfaceDistance(surface_samples=200, seed=7, two_sided=two_sided)
+        batched.update([a, c], [d, b])
+        one_by_one.update(a, d)
+        one_by_one.update(c, b)
+        reversed_order.update([c, a], [b, d])
+        ref = batched.compute()
+        for other in (one_by_one.compute(), reversed_order.compute()):
+            for key in ref:
+                assert float(other[key]) == pytest.approx(float(ref[key]), rel=1e-14, abs=1e-15), key
+
+
+def test_sampled_loss_of_a_batch_is_the_sum_of_its_pairs():
+    from torchmeshmetric.metrics import mesh_surface_distance_loss
+
+    a, b = trimesh.creation.icosphere(subdivisions=1), trimesh.creation.icosphere(subdivisions=3)
+    c, d = trimesh.creation.capsule(), trimesh.creation.box()
+    for two_sided in (False, True):
+        kw = {"surface_samples": 150, "seed": 2, "two_sided": two_sided, "reduction": "sum"}
+        batch = mesh_surface_distance_loss([a, c], [d, b], **kw)
+        pairs = mesh_surface_distance_loss(a, d, **kw) + mesh_surface_distance_loss(c, b, **kw)
+        swapped = mesh_surface_distance_loss([c, a], [b, d], **kw)
+        assert float(batch) == pytest.approx(float(pairs), rel=1e-14)
+        assert float(swapped) == pytest.approx(float(pairs), rel=1e-14)

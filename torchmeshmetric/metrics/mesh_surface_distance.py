@@ -35,7 +35,8 @@ class MeshSurfaceDistance(MeasuredDistanceBase):
     Args:
         two_sided: also measure reference → simplified (needs simplified meshes, not bare points).
         surface_samples: ``None`` (exact, default) or the paper's sampled-surface mode with ``N`` samples.
-        seed: seed of the surface sampling.
+        seed: seed of the surface sampling: each mesh is sampled by its own generator seeded with it, so a pair's
+            samples do not depend on its batch, its position in it or the DDP split.
         backend: kernel backend.
         peak, ddof, exact_quantiles, relative_accuracy, kwargs: see
             :class:`~torchmeshmetric.metrics.DistanceStatisticsBase`.

@@ -76,10 +76,19 @@ def _to_surface(
             return point_mesh_distance(p, meshes, points_lengths=lengths_of(points), backend=backend).dists
         q = query_points(index, p, index_name)
         return mesh_surface_distances(q, lengths_of(points), meshes, index, owner="mesh_surface_distance_loss")
-    gen = torch.Generator(device=meshes[0].device).manual_seed(seed)
-    s = sample_surface(meshes, n=surface_samples, generator=gen)
+    # Each mesh's samples from its own generator seeded by `seed`: one stream for the whole batch gave a mesh other
+    # samples (its distances up to 0.19 apart) by the items before it, so the figures depended on the batch size,
+    # the shuffling and DDP's split (found by review). A mesh alone is sampled as before (a batch's first item was).
+    samples = [
+        sample_surface(m, n=surface_samples, generator=torch.Generator(device=m.device).manual_seed(seed)).points
+        for m in meshes
+    ]
     return nearest_vertex_distance(
-        p.to(dtype), s.points.to(dtype), points_lengths=lengths_of(points), ref_lengths=s.lengths, backend=backend
+        p.to(dtype),
+        packed(samples).to(dtype),
+        points_lengths=lengths_of(points),
+        ref_lengths=lengths_of(samples),
+        backend=backend,
     ).dists
 
 
@@ -148,7 +157,8 @@ def mesh_surface_distance_sets(
         reference: a mesh-like or a list of them, one per simplified item.
         two_sided: also measure reference → simplified.
         surface_samples: ``None`` (exact surface) or the number of surface samples per mesh.
-        seed: seed of the surface sampling.
+        seed: seed of the surface sampling (each mesh by its own generator seeded with it: its samples do not
+            depend on the batch).
         detach_reference: cut the gradient to the reference vertices (default); ``False`` lets it flow.
         backend: kernel backend (``"auto"``, ``"bruteforce"``, ...) of the distances computed without an index.
         indexes: an :class:`~torchmeshmetric.IndexCache`: the references' indexes are found again by content
