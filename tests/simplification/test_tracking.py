@@ -80,3 +80,32 @@ def test_a_target_that_keeps_every_face_returns_the_frames(frames):
     )
     # copies: the output shared its tensors with the frames (review G)
     assert all(o.verts.data_ptr() != f.verts.data_ptr() for o, f in zip(out, frames, strict=True))
+
+
+def test_a_nonrigid_registration_moves_the_frames_by_its_deformation_graph_as_the_loss_does():
+    # Review Q: tracking turned a NonRigidRegistration into the SurfaceWarp of its registered vertices, while the
+    # temporal loss and the evaluation use its deformation graph (RegistrationWarp): anchors 0.0019 apart on average.
+    from torchmeshmetric.data import demo_sequence
+    from torchmeshmetric.registration import RegistrationWarp, register_nonrigid
+    from torchmeshmetric.registration.warp import as_warp
+    from torchmeshmetric.simplification.tracking import registration_warp
+
+    demo = demo_sequence(2, resolution=20)
+    a, b = demo.frames[0], demo.frames[1]
+    r = register_nonrigid(a, b)
+    warp = registration_warp(r, a, b)
+    assert isinstance(warp, RegistrationWarp)
+    points = simplify_qem(a, 0.2).verts
+    assert torch.equal(warp(points), as_warp(r, b, a, name="registration")(points))
+    graph = RegistrationWarp.from_registration(r, b)
+    by_result = anchored_sequence([a, b], 0.2, [r])
+    by_graph = anchored_sequence([a, b], 0.2, [graph])
+    for x, y in zip(by_result, by_graph, strict=True):
+        assert torch.equal(x.verts, y.verts) and torch.equal(x.faces, y.faces)
+    slide = TemporalSlide().to(by_result[0].dtype)
+    with torch.no_grad():
+        slid = slide_sequence(by_result, [a, b], [r], slide)
+        slid_graph = slide_sequence(by_graph, [a, b], [graph], slide)
+    assert torch.equal(slid[1].verts, slid_graph[1].verts)
+    with pytest.raises(TypeError, match=r"registrations\[0\]"):
+        anchored_sequence([a, b], 0.2, [3])
