@@ -19,6 +19,7 @@ from torch import Tensor
 
 from torchmeshmetric._checks import (
     DTypeError,
+    EmptyInputError,
     IndexRangeError,
     ShapeError,
     check_device,
@@ -51,6 +52,7 @@ __all__ = [
     "pack_points",
     "power_of_two_above",
     "power_of_two_scale_down",
+    "require_faces",
     "vertex_set_mask",
 ]
 
@@ -103,6 +105,24 @@ def bbox_diagonal(points: Tensor) -> Tensor:
     extent = (points.amax(0) - points.amin(0)).to(torch.float64)
     scale = power_of_two_scale_down(extent.detach().amax())
     return (extent * scale).norm().div(scale).to(points.dtype)
+
+
+def require_faces(mesh: Mesh, name: str) -> Mesh:
+    """``mesh``, refused unless it has a face, under the caller's ``name`` for it (``simplified_k``, ``original_k``).
+
+    For entry points that measure to a surface or from a vertex set: the kernels would name their own argument
+    (``faces: mesh 0 has no faces but 162 query points``, the same words for four different frames; found by review).
+
+    Raises:
+        EmptyInputError: ``mesh`` has no face.
+
+    Example:
+        >>> require_faces(Mesh(torch.zeros(3, 3), torch.tensor([[0, 1, 2]])), "simplified_k").num_faces
+        1
+    """
+    if mesh.num_faces == 0:
+        raise EmptyInputError(f"{name}: expected a mesh with at least one face, found none")
+    return mesh
 
 
 def vertex_set_mask(faces: Tensor, num_verts: int) -> Tensor:

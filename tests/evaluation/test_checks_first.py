@@ -87,3 +87,32 @@ def test_mpeg_sequence_refuses_a_wrong_count_before_any_frame(monkeypatch, disto
     with pytest.raises(ValueError, match=r"^distorted: expected as many frames as the reference \(2, at least 1\)"):
         mpeg_sequence([_SPHERE] * 2, [_SPHERE] * distorted, sampling="mesh")
     assert calls == []
+
+
+def test_a_faceless_frame_is_named_by_its_argument():
+    # Review Q: four different frames without faces gave two identical messages naming none of them
+    # ("faces: mesh 0 has no faces but 162 query points"); the temporal loss named them.
+    import torch
+
+    from torchmeshmetric import EmptyInputError
+    from torchmeshmetric.evaluation import TemporalConsistency, evaluate_pair
+
+    ref, coarse = trimesh.creation.icosphere(subdivisions=2), _SPHERE
+
+    def faceless(m):
+        return torch.tensor(m.vertices), torch.zeros(0, 3, dtype=torch.long)
+
+    def identity(source, target):
+        return source
+
+    cases = {
+        "simplified_k": ((faceless(coarse), ref, ref), {}),
+        "original_k": ((coarse, faceless(ref), ref), {}),
+        "original_k_minus_1": ((coarse, ref, faceless(ref)), {}),
+        "simplified_k_minus_1": ((coarse, ref, ref), {"simplified_k_minus_1": faceless(coarse)}),
+    }
+    for name, (args, kwargs) in cases.items():
+        with pytest.raises(EmptyInputError, match=rf"^{name}: expected a mesh with at least one face, found none"):
+            evaluate_pair(*args, registration_fn=identity, **kwargs)
+    with pytest.raises(EmptyInputError, match=r"^simplified_k: expected a mesh with at least one face"):
+        TemporalConsistency(registration_fn=identity).update(faceless(coarse), ref, ref)

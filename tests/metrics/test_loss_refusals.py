@@ -99,3 +99,22 @@ def test_a_warp_to_non_finite_positions_is_refused(spheres):
     fine, v, f = spheres
     with pytest.raises(NonFiniteError, match=r"registration: the warp moved 42 vertices of simplified_k_minus_1"):
         temporal_consistency_loss((v, f), (v, f), fine, fine, lambda p: p * math.nan)
+
+
+def test_an_empty_set_measured_to_is_named_as_the_caller_gave_it(spheres):
+    # Review Q: "ref_points: reference set 1 is empty but has 162 query points", where simplified[1] was empty and
+    # two_sided=True measured the reference to it (ref_points is the kernel's argument, not the caller's).
+    from torchmeshmetric.metrics import NearestVertexDistance, NearestVertexDistanceLoss
+
+    fine, v, _ = spheres
+    sphere = torch.tensor(fine.vertices)
+    empty = torch.zeros(0, 3, dtype=torch.float64)
+    two_sided = r"two_sided=True measures reference → simplified: the 162 points of reference\[1\]"
+    with pytest.raises(EmptyInputError, match=r"^simplified\[1\]: expected at least one point \(" + two_sided):
+        NearestVertexDistanceLoss(two_sided=True)([v, empty], [sphere, sphere])
+    with pytest.raises(EmptyInputError, match=r"^simplified\[1\]: expected at least one point"):
+        NearestVertexDistance(two_sided=True).update([v, empty], [sphere, sphere])
+    with pytest.raises(EmptyInputError, match=r"^simplified: expected at least one point \(two_sided=True"):
+        NearestVertexDistanceLoss(two_sided=True, reduction="sum")(empty, sphere)
+    with pytest.raises(EmptyInputError, match=r"^reference: expected at least one point \(the 42 points of simplified"):
+        NearestVertexDistanceLoss()(v, empty)

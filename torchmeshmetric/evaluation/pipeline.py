@@ -35,7 +35,7 @@ from torchmeshmetric.registration.cache import (
 from torchmeshmetric.registration.warp import as_warp, deformation_of
 from torchmeshmetric.stats import DistanceStatistics, distance_statistics
 from torchmeshmetric.stats.statistics import derived_peak
-from torchmeshmetric.structures import Mesh, MeshLike, as_mesh, power_of_two_scale_down
+from torchmeshmetric.structures import Mesh, MeshLike, as_mesh, power_of_two_scale_down, require_faces
 from torchmeshmetric.tasks import exchange, run_tasks
 
 __all__ = [
@@ -402,12 +402,16 @@ def evaluate_pair(
         >>> round(float(r.reverse_statistics["surface_k"].max), 3)  # fine vertices off the coarse surface
         0.049
     """
-    simp = as_mesh(simplified_k, name="simplified_k")  # each under its own name (it read "mesh": found by review)
+    # Each under its own name (it read "mesh", and a faceless frame "faces: mesh 0 ...": found by reviews), now, not
+    # after the registration; every frame is measured to or from its surface, so each needs a face.
+    simp = require_faces(as_mesh(simplified_k, name="simplified_k"), "simplified_k")
     dev = torch.device(device) if device is not None else simp.device
-    orig_k = as_mesh(original_k, name="original_k")
-    orig_km1 = as_mesh(original_k_minus_1, name="original_k_minus_1")
-    if simplified_k_minus_1 is not None:  # now, not after the registration
-        simplified_k_minus_1 = as_mesh(simplified_k_minus_1, name="simplified_k_minus_1")
+    orig_k = require_faces(as_mesh(original_k, name="original_k"), "original_k")
+    orig_km1 = require_faces(as_mesh(original_k_minus_1, name="original_k_minus_1"), "original_k_minus_1")
+    if simplified_k_minus_1 is not None:
+        simplified_k_minus_1 = require_faces(
+            as_mesh(simplified_k_minus_1, name="simplified_k_minus_1"), "simplified_k_minus_1"
+        )
     # The dtype rule (docs/concepts.md, Precision): the three frames in their promoted dtype (a float32 model's
     # output against float64 originals is measured in float64, nothing rounded).
     dtype = common_dtype(simp.dtype, orig_k.dtype, orig_km1.dtype)

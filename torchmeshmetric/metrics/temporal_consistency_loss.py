@@ -51,7 +51,7 @@ from torchmeshmetric.registration.cache import (
 )
 from torchmeshmetric.registration.options import NonRigidOptions
 from torchmeshmetric.registration.warp import RegistrationWarp, Warp, as_warp, check_warped
-from torchmeshmetric.structures import Mesh, as_mesh, is_mesh_like, vertex_set_mask
+from torchmeshmetric.structures import Mesh, as_mesh, is_mesh_like, require_faces, vertex_set_mask
 
 __all__ = ["TemporalConsistencyLoss", "TemporalLossCache", "temporal_consistency_loss"]
 
@@ -289,10 +289,8 @@ def _mesh_items(x: Any, name: str) -> list[Mesh]:
             f"{name}: expected a mesh (Mesh, (verts, faces) or trimesh.Trimesh) or a list of them, found "
             f"{type(x).__name__}"
         )
-    for item_name, mesh in items:  # named here: the kernels would name their own argument ("mesh")
-        if mesh.num_faces == 0:
-            raise EmptyInputError(f"{item_name}: expected a mesh with at least one face, found none")
-    return [mesh for _, mesh in items]
+    # named here: the kernels would name their own argument ("mesh")
+    return [require_faces(mesh, item_name) for item_name, mesh in items]
 
 
 def _registration_items(registration: Any, count: int) -> list[Any]:

@@ -11,11 +11,11 @@ from typing import Any, TypedDict
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import check_flag, common_dtype
+from torchmeshmetric._checks import EmptyInputError, check_flag, common_dtype
 from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance
-from torchmeshmetric.metrics._inputs import as_point_sources, cast_sources
+from torchmeshmetric.metrics._inputs import PointSource, as_point_sources, cast_sources
 from torchmeshmetric.metrics._prebuilt_index import bound_to, check_index, index_of, query_points
 from torchmeshmetric.metrics.directed_distances import DirectedDistances, lengths_of, packed
 from torchmeshmetric.structures import Mesh, bbox_diagonal
@@ -63,6 +63,27 @@ def _cloud_to_cloud(
     return nearest_vertex_distance(
         p.to(dtype), r.to(dtype), points_lengths=lengths_of(points), ref_lengths=lengths_of(refs), backend=backend
     ).dists
+
+
+def _check_measurable(sources: list[PointSource], ref_sources: list[PointSource], two_sided: bool) -> None:
+    """Refuse an empty set that points are measured to, named as the caller gave it.
+
+    The kernel's own words named its argument (``ref_points: reference set 1 is empty but has 162 query points``)
+    where the caller's ``simplified[1]`` was empty and ``two_sided=True`` measured the reference to it (found by
+    review).
+    """
+    directions = [("reference", ref_sources, "simplified", sources, "")]
+    if two_sided:
+        why = "two_sided=True measures reference → simplified: "
+        directions.append(("simplified", sources, "reference", ref_sources, why))
+    for to_name, to_items, from_name, from_items, reason in directions:
+        for i, (to, frm) in enumerate(zip(to_items, from_items, strict=True)):
+            if to.points.shape[0] == 0 and frm.points.shape[0] > 0:
+                item = "" if len(to_items) == 1 else f"[{i}]"
+                raise EmptyInputError(
+                    f"{to_name}{item}: expected at least one point ({reason}the {frm.points.shape[0]} points of "
+                    f"{from_name}{item} have nothing to measure to), found none"
+                )
 
 
 def _bbox_diagonal(p: Tensor) -> Tensor:
@@ -164,6 +185,7 @@ def nearest_vertex_distance_sets(
         raise ValueError(
             f"reference: expected {len(sources)} reference(s), one per simplified item, found {len(ref_sources)}"
         )
+    _check_measurable(sources, ref_sources, two_sided)
     check_index(reference_index, [s.mesh for s in ref_sources], "reference_index")
     check_index(simplified_index, [s.mesh for s in sources], "simplified_index")
     # The dtype rule, at the door: everything in the promoted dtype of the inputs (a given index stands for its
