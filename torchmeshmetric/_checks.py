@@ -245,6 +245,27 @@ def check_int(value: object, name: str, low: int | None = None) -> int:
     return int(value)
 
 
+def as_real(value: object, name: str) -> float | None:
+    """``value`` as a float when it is a real number, else ``None``: the one definition of a number for every option.
+
+    A Python or numpy int or float, or a one-element real tensor; not a bool (``True`` is no weight or power), not a
+    complex. Numeric options that refuse with their own words (``power``, ``frame_weight``) call this, the others
+    :func:`check_real`: ``np.float32(2.0)`` and ``torch.tensor(0.5)`` were refused by some options as "not a finite
+    number" though the docs call them numbers "as for every numeric option" (found by review).
+
+    Example:
+        >>> import numpy as np
+        >>> as_real(np.float32(0.5), "power"), as_real(torch.tensor(2.0), "power"), as_real(True, "power")
+        (0.5, 2.0, None)
+    """
+    if isinstance(value, Tensor) and value.numel() == 1 and value.dtype != torch.bool and not value.is_complex():
+        check_has_values(value, name)
+        return float(value.item())
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):  # numpy's floats and ints are Real
+        return None
+    return float(value)
+
+
 def check_real(value: object, name: str) -> float:
     """Require a real number: a Python or numpy int or float, or a one-element real tensor (not a bool), as a float.
 
@@ -258,12 +279,10 @@ def check_real(value: object, name: str) -> float:
         >>> check_real(torch.tensor(0.25), "dt")
         0.25
     """
-    if isinstance(value, Tensor) and value.numel() == 1 and value.dtype != torch.bool and not value.is_complex():
-        check_has_values(value, name)
-        return float(value.item())
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):  # numpy's floats and ints are Real
+    x = as_real(value, name)
+    if x is None:
         raise TypeError(f"{name}: expected a float, found {type(value).__name__} {value!r}")
-    return float(value)
+    return x
 
 
 def check_positive_real(value: object, name: str) -> float:

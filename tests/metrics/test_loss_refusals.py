@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 import torch
 import trimesh
@@ -118,3 +119,22 @@ def test_an_empty_set_measured_to_is_named_as_the_caller_gave_it(spheres):
         NearestVertexDistanceLoss(two_sided=True, reduction="sum")(empty, sphere)
     with pytest.raises(EmptyInputError, match=r"^reference: expected at least one point \(the 42 points of simplified"):
         NearestVertexDistanceLoss()(v, empty)
+
+
+@pytest.mark.parametrize("number", [lambda x: np.float32(x), lambda x: torch.tensor(x), lambda x: np.int64(x)])
+def test_numpy_numbers_and_one_element_tensors_are_numbers_for_power_and_frame_weight(number, spheres):
+    # Review Q: np.float32(2.0) and torch.tensor(0.5) were refused as "expected a finite positive number ..., found
+    # np.float32(2.0)"; docs/bad-input.md: numbers "as for every numeric option".
+    fine, v, f = spheres
+    loss = MeshSurfaceDistanceLoss(power=number(2))
+    assert loss.power == 2.0 and type(loss.power) is float
+    assert float(loss((v, f), fine)) == float(MeshSurfaceDistanceLoss(power=2.0)((v, f), fine))
+    assert float(mesh_surface_distance_loss((v, f), fine, power=number(2))) == float(loss((v, f), fine))
+    temporal = TemporalConsistencyLoss(frame_weight=number(1), power=number(2))
+    assert (temporal.frame_weight, temporal.power) == (1.0, 2.0)
+    got = temporal_consistency_loss((v, f), (v, f), fine, fine, _shifted, frame_weight=number(1), power=number(2))
+    assert float(got) == float(temporal_consistency_loss((v, f), (v, f), fine, fine, _shifted, power=2.0))
+    with pytest.raises(ValueError, match=r"frame_weight: expected a finite number >= 0, found"):
+        TemporalConsistencyLoss(frame_weight=number(-1))
+    with pytest.raises(ValueError, match=r"power: expected a finite positive number"):
+        MeshSurfaceDistanceLoss(power=number(0))

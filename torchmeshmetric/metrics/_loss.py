@@ -9,21 +9,26 @@ from typing import Any
 import torch
 from torch import Tensor, nn
 
-from torchmeshmetric._checks import EmptyInputError, check_flag, check_int
+from torchmeshmetric._checks import EmptyInputError, as_real, check_flag, check_int
 from torchmeshmetric.metrics.directed_distances import DirectedDistances
 
 REDUCTIONS = ("mean", "sum", "none")
 
 
-def check_loss_args(reduction: str, power: float) -> None:
-    """Validate ``reduction`` and ``power`` (constructor and functional arguments)."""
+def check_loss_args(reduction: str, power: float) -> float:
+    """Validate ``reduction`` and ``power`` (constructor and functional arguments); return ``power`` as a float.
+
+    ``power`` is any number (:func:`~torchmeshmetric._checks.as_real`: numpy scalars, one-element tensors).
+    """
     if reduction not in REDUCTIONS:
         raise ValueError(f"reduction: expected one of {REDUCTIONS}, found {reduction!r}")
-    if isinstance(power, bool) or not isinstance(power, (int, float)) or not 0 < power < math.inf:
+    value = as_real(power, "power")
+    if value is None or not 0 < value < math.inf:
         # inf would make every distance below 1 count 0 and every other one inf; NaN fails both comparisons
         raise ValueError(
             f"power: expected a finite positive number (1: distance, 2: squared distance), found {power!r}"
         )
+    return value
 
 
 def check_options(options: Mapping[str, Any], allowed: type, owner: str) -> None:
@@ -78,9 +83,8 @@ class DistanceLossModule(nn.Module):
 
     def __init__(self, loss: Callable[..., Tensor], power: float, reduction: str, options: Mapping[str, Any]) -> None:
         super().__init__()
-        check_loss_args(reduction, power)
         self._loss = loss
-        self.power = power
+        self.power = check_loss_args(reduction, power)
         self.reduction = reduction
         self.options = dict(options)
 

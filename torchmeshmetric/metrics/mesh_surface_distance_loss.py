@@ -67,7 +67,7 @@ def mesh_surface_distance_loss(
         >>> round(loss.item(), 4), [round(g, 4) for g in x.grad[0].tolist()]
         (4.0, [0.0, 0.0, 4.0])
     """
-    check_loss_args(reduction, power)
+    power = check_loss_args(reduction, power)
     check_options(options, SurfaceDistanceOptions, "mesh_surface_distance_loss")
     return reduce_directed(mesh_surface_distance_sets(simplified, reference, **options), power, reduction)
 

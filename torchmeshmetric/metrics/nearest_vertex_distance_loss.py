@@ -56,7 +56,7 @@ def nearest_vertex_distance_loss(
         >>> loss.item(), x.grad[0].tolist()
         (5.0, [-0.6000000238418579, -0.800000011920929, 0.0])
     """
-    check_loss_args(reduction, power)
+    power = check_loss_args(reduction, power)
     check_options(options, NearestVertexOptions, "nearest_vertex_distance_loss")
     return reduce_directed(nearest_vertex_distance_sets(simplified, reference, **options), power, reduction)
 

@@ -35,7 +35,7 @@ from typing import Any
 import torch
 from torch import Tensor, nn
 
-from torchmeshmetric._checks import EmptyInputError, NonFiniteError, check_flag, common_dtype
+from torchmeshmetric._checks import EmptyInputError, NonFiniteError, as_real, check_flag, common_dtype
 from torchmeshmetric.kernels.danskin import mesh_surface_distances
 from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.kernels.mesh_index import MeshIndex, _version
@@ -330,16 +330,17 @@ def _options(given: Mapping[str, Any] | NonRigidOptions | None) -> NonRigidOptio
     return given if isinstance(given, NonRigidOptions) else NonRigidOptions.from_keywords(None, **dict(given or {}))
 
 
-def _check_arguments(frame_weight: float, two_sided: bool, reduction: str, power: float) -> None:
-    """The loss's scalar arguments (function and module alike): a bad one would give a NaN or inf loss, or 0."""
-    check_loss_args(reduction, power)
-    if (
-        isinstance(frame_weight, bool)
-        or not isinstance(frame_weight, (int, float))
-        or not 0 <= frame_weight < math.inf  # NaN fails both comparisons
-    ):
+def _check_arguments(frame_weight: float, two_sided: bool, reduction: str, power: float) -> tuple[float, float]:
+    """The loss's scalar arguments (function and module alike): a bad one would give a NaN or inf loss, or 0.
+
+    Returns ``(frame_weight, power)`` as floats (numbers as :func:`~torchmeshmetric._checks.as_real` reads them).
+    """
+    power = check_loss_args(reduction, power)
+    weight = as_real(frame_weight, "frame_weight")
+    if weight is None or not 0 <= weight < math.inf:  # NaN fails both comparisons
         raise ValueError(f"frame_weight: expected a finite number >= 0, found {frame_weight!r}")
     check_flag(two_sided, "two_sided")
+    return weight, power
 
 
 def temporal_consistency_loss(
@@ -425,7 +426,7 @@ def temporal_consistency_loss(
         >>> loss.item(), float(v.grad.abs().max())  # the same simplification twice: no flicker, zero gradient
         (0.0, 0.0)
     """
-    _check_arguments(frame_weight, two_sided, reduction, power)
+    frame_weight, power = _check_arguments(frame_weight, two_sided, reduction, power)
     if cache is not None and not isinstance(cache, TemporalLossCache):
         raise TypeError(f"cache: expected a TemporalLossCache or None, found {type(cache).__name__}")
     s_k = _mesh_items(simplified_k, "simplified_k")
@@ -522,11 +523,9 @@ class TemporalConsistencyLoss(nn.Module):
         registration_cache: RegistrationCache | None = None,
     ) -> None:
         super().__init__()
-        _check_arguments(frame_weight, two_sided, reduction, power)
-        self.frame_weight = float(frame_weight)
+        self.frame_weight, self.power = _check_arguments(frame_weight, two_sided, reduction, power)
         self.two_sided = two_sided
         self.reduction = reduction
-        self.power = power
         # Validated once here (a misspelled option fails at construction, not at the first step).
         self.registration_options = _options(registration_options)
         self.backend = backend

@@ -27,7 +27,7 @@ import fast_simplification
 import numpy as np
 import torch
 
-from torchmeshmetric._checks import EmptyInputError, check_finite, check_float
+from torchmeshmetric._checks import EmptyInputError, as_real, check_finite, check_float
 from torchmeshmetric.simplification._input import mesh_arrays
 from torchmeshmetric.simplification._target import resolve_target
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
@@ -124,8 +124,10 @@ def simplify_qem(
     check_float(m.verts, "mesh.verts")
     check_finite(m.verts, "mesh.verts")
     count = resolve_target(target, m.num_faces)
-    if isinstance(agg, bool) or not isinstance(agg, (int, float)) or not (0 < agg < math.inf):
+    agg_value = as_real(agg, "agg")
+    if agg_value is None or not (0 < agg_value < math.inf):
         raise ValueError(f"agg: expected a finite number > 0, found {agg!r}")  # NaN or -1 missed the target silently
+    agg = agg_value
     if count == m.num_faces:
         # A copy, detached, as at every other target: the input itself came back here, still requiring grad, and
         # sharing its tensors with the caller's mesh (found by review).

@@ -27,7 +27,15 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import EmptyInputError, ShapeError, check_finite, check_float, check_int, check_tensor
+from torchmeshmetric._checks import (
+    EmptyInputError,
+    ShapeError,
+    as_real,
+    check_finite,
+    check_float,
+    check_int,
+    check_tensor,
+)
 from torchmeshmetric.evaluation.pipeline import RegisterFn, RegistrationOptions, register_pairs
 from torchmeshmetric.kernels import MeshIndex, PointMeshResult
 from torchmeshmetric.registration.cache import CachedRegistration, RegistrationCache
@@ -111,9 +119,10 @@ def check_weld(fraction: object) -> None:
         TypeError: not a number.
         ValueError: outside ``[0, 1)`` (NaN and infinities too).
     """
-    if isinstance(fraction, bool) or not isinstance(fraction, (int, float)):
+    value = as_real(fraction, "weld")
+    if value is None:
         raise TypeError(f"weld: expected a fraction of the median edge length, found {type(fraction).__name__}")
-    if not 0 <= fraction < 1:
+    if not 0 <= value < 1:
         raise ValueError(f"weld: expected a fraction of the median edge length in [0, 1), found {fraction!r}")
 
 
