@@ -138,3 +138,39 @@ def test_numpy_numbers_and_one_element_tensors_are_numbers_for_power_and_frame_w
         TemporalConsistencyLoss(frame_weight=number(-1))
     with pytest.raises(ValueError, match=r"power: expected a finite positive number"):
         MeshSurfaceDistanceLoss(power=number(0))
+
+
+def test_options_are_checked_at_construction_and_named_as_given():
+    # Review Q: backend="bvhh" was accepted by every metric and loss module and refused at the first update (a
+    # validation metric: after a training epoch); max_indexes was checked as max_entries, "a" raised a raw comparison
+    # error, and 2.5 and True were taken.
+    from torchmeshmetric.evaluation import TemporalConsistency
+    from torchmeshmetric.kernels import IndexCache
+    from torchmeshmetric.metrics import (
+        MeshSurfaceDistance,
+        NearestVertexDistance,
+        NearestVertexDistanceLoss,
+        TemporalLossCache,
+    )
+
+    makers = [
+        MeshSurfaceDistance,
+        NearestVertexDistance,
+        MeshSurfaceDistanceLoss,
+        NearestVertexDistanceLoss,
+        TemporalConsistencyLoss,
+        TemporalConsistency,
+    ]
+    for make in makers:
+        with pytest.raises(ValueError, match=r"^backend: expected one of \['auto', .*found 'bvhh'"):
+            make(backend="bvhh")
+        with pytest.raises(TypeError, match=r"^backend: expected one of"):
+            make(backend=3)
+    with pytest.raises(ValueError, match=r"^max_indexes: expected an int >= 1, found 0"):
+        TemporalLossCache(max_indexes=0)
+    for bad in ("a", 2.5, True):
+        with pytest.raises(TypeError, match=r"^max_indexes: expected an int"):
+            TemporalLossCache(max_indexes=bad)
+        with pytest.raises(TypeError, match=r"^max_entries: expected an int"):
+            IndexCache(max_entries=bad)
+    assert TemporalLossCache(max_indexes=np.int64(3)).indexes.max_entries == 3

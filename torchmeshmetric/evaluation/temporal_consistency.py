@@ -19,6 +19,7 @@ from torchmeshmetric.evaluation.pipeline import (
 )
 from torchmeshmetric.evaluation.results import SET_NAMES, flatten_statistics
 from torchmeshmetric.kernels import IndexCache
+from torchmeshmetric.kernels.select import check_backend
 from torchmeshmetric.metrics._plot import StatisticsPlot
 from torchmeshmetric.metrics.distance_states import DistanceStates, DistanceStatesMetric
 from torchmeshmetric.registration.cache import RegistrationCache, object_name
@@ -119,7 +120,7 @@ class TemporalConsistency(StatisticsPlot, DistanceStatesMetric):
         self.registration_fn = registration_fn
         self.registration_options = registration_keywords(registration_options)
         self.registration_cache = RegistrationCache()
-        self.backend = backend
+        self.backend = check_backend(backend)  # at construction, not at the first validation step
         # One index per reference mesh, found again by content: validating every epoch on the same frames builds
         # each reference's structure once.
         self.indexes = IndexCache(max_entries=64)

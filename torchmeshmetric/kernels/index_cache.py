@@ -13,6 +13,7 @@ from collections.abc import Sequence
 
 import torch
 
+from torchmeshmetric._checks import check_int
 from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY
 from torchmeshmetric.kernels.mesh_index import MeshIndex, _given_tensors
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh, looks_like_pair, pack_meshes
@@ -67,9 +68,8 @@ class IndexCache:
     """
 
     def __init__(self, max_entries: int = 16) -> None:
-        if max_entries < 1:
-            raise ValueError(f"max_entries: expected a positive int, found {max_entries}")
-        self.max_entries = max_entries
+        # an int >= 1: a string failed with a raw comparison error, 2.5 and True were taken (found by review)
+        self.max_entries = check_int(max_entries, "max_entries", low=1)
         self._entries: OrderedDict[str, MeshIndex] = OrderedDict()
 
     def get(self, mesh: MeshLike | Sequence[MeshLike], *, backend: str = "auto", tree: str = "sah") -> MeshIndex:

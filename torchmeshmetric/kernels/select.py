@@ -99,10 +99,17 @@ def auto_backend_name(device: torch.device, dtype: torch.dtype, num_pairs: int) 
     return "pruned"
 
 
-def check_backend(name: str) -> None:
-    """Raise ``ValueError`` unless ``name`` is ``"auto"`` or a name of :data:`BACKENDS`."""
+def check_backend(name: str) -> str:
+    """Return ``name`` if it is ``"auto"`` or a name of :data:`BACKENDS`; else raise ``TypeError`` / ``ValueError``.
+
+    The metrics and losses call it at construction: a misspelt backend of a validation metric failed at the first
+    validation step, after a training epoch (found by review).
+    """
+    if not isinstance(name, str):
+        raise TypeError(f"backend: expected one of {['auto', *BACKENDS]}, found {type(name).__name__} {name!r}")
     if name != "auto" and name not in BACKENDS:
         raise ValueError(f"backend: expected one of {['auto', *BACKENDS]}, found {name!r}")
+    return name
 
 
 def resolve_backend(name: str, device: torch.device, dtype: torch.dtype, num_pairs: int) -> SelectionBackend:

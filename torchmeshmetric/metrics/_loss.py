@@ -10,6 +10,7 @@ import torch
 from torch import Tensor, nn
 
 from torchmeshmetric._checks import EmptyInputError, as_real, check_flag, check_int
+from torchmeshmetric.kernels.select import check_backend
 from torchmeshmetric.metrics.directed_distances import DirectedDistances
 
 REDUCTIONS = ("mean", "sum", "none")
@@ -43,6 +44,8 @@ def check_options(options: Mapping[str, Any], allowed: type, owner: str) -> None
             check_flag(value, key)
         elif kind == "int":
             check_int(value, key)
+        elif key == "backend":  # checked here, not at the first step (found by review)
+            check_backend(value)
 
 
 def reduce_directed(r: DirectedDistances, power: float, reduction: str) -> Tensor:

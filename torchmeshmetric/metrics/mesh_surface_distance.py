@@ -8,6 +8,7 @@ from __future__ import annotations
 from typing import Any
 
 from torchmeshmetric._checks import check_int
+from torchmeshmetric.kernels.select import check_backend
 from torchmeshmetric.metrics._inputs import check_surface_samples
 from torchmeshmetric.metrics.distance_states import DistanceStates
 from torchmeshmetric.metrics.distance_statistics_metric import MeasuredDistanceBase
@@ -62,7 +63,7 @@ class MeshSurfaceDistance(MeasuredDistanceBase):
         super().__init__(**kwargs)
         self.surface_samples = surface_samples
         self.seed = check_int(seed, "seed")
-        self.backend = backend
+        self.backend = check_backend(backend)  # at construction, not at the first validation step
         self._options = {"surface_samples": surface_samples, "seed": self.seed, "backend": backend}
 
     def _setting_items(self) -> dict[str, object]:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from torchmeshmetric.kernels.select import check_backend
 from torchmeshmetric.metrics.distance_states import DistanceStates
 from torchmeshmetric.metrics.distance_statistics_metric import MeasuredDistanceBase
 
@@ -47,5 +48,5 @@ class NearestVertexDistance(MeasuredDistanceBase):
 
     def __init__(self, *, backend: str = "auto", **kwargs: Any) -> None:
         super().__init__(**kwargs)
-        self.backend = backend
+        self.backend = check_backend(backend)  # at construction, not at the first validation step
         self._options = {"backend": backend}

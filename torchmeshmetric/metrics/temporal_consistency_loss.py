@@ -35,10 +35,11 @@ from typing import Any
 import torch
 from torch import Tensor, nn
 
-from torchmeshmetric._checks import EmptyInputError, NonFiniteError, as_real, check_flag, common_dtype
+from torchmeshmetric._checks import EmptyInputError, NonFiniteError, as_real, check_flag, check_int, common_dtype
 from torchmeshmetric.kernels.danskin import mesh_surface_distances
 from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.kernels.mesh_index import MeshIndex, _version
+from torchmeshmetric.kernels.select import check_backend
 from torchmeshmetric.metrics._loss import check_loss_args, reduce_directed
 from torchmeshmetric.metrics.directed_distances import DirectedDistances
 from torchmeshmetric.registration._common import registration_dtype
@@ -162,7 +163,7 @@ class TemporalLossCache:
             cache of its own, bounded by ``max_warps``.
 
     Raises:
-        ValueError: ``max_warps`` not a positive int.
+        ValueError: ``max_warps`` or ``max_indexes`` not a positive int (``max_indexes``: a non-int is a TypeError).
         TypeError: ``registrations`` not a :class:`~torchmeshmetric.registration.RegistrationCache` or ``None``.
 
     Example:
@@ -184,7 +185,7 @@ class TemporalLossCache:
         self.registrations = registrations if registrations is not None else RegistrationCache(max_entries=max_warps)
         # The warps in use, by (registration key, dtype, device): converted from the cache's CPU entry once.
         self._warps: OrderedDict[tuple[str, torch.dtype, torch.device], Warp] = OrderedDict()
-        self.indexes = IndexCache(max_entries=max_indexes)
+        self.indexes = IndexCache(max_entries=check_int(max_indexes, "max_indexes", low=1))
         self._simplified = _KeptIndex()
         self._moved = _KeptIndex()
         self._vertex_rows = _VertexRows(4 * max_warps)  # simplified k, moved k-1 and original k of each pair
@@ -427,6 +428,7 @@ def temporal_consistency_loss(
         (0.0, 0.0)
     """
     frame_weight, power = _check_arguments(frame_weight, two_sided, reduction, power)
+    check_backend(backend)
     if cache is not None and not isinstance(cache, TemporalLossCache):
         raise TypeError(f"cache: expected a TemporalLossCache or None, found {type(cache).__name__}")
     s_k = _mesh_items(simplified_k, "simplified_k")
@@ -528,7 +530,7 @@ class TemporalConsistencyLoss(nn.Module):
         self.reduction = reduction
         # Validated once here (a misspelled option fails at construction, not at the first step).
         self.registration_options = _options(registration_options)
-        self.backend = backend
+        self.backend = check_backend(backend)
         self.cache = TemporalLossCache(registrations=registration_cache)
 
     def forward(
