@@ -328,3 +328,18 @@ def test_callback_refuses_a_bad_tag():
 
     with pytest.raises(TypeError, match="tag: expected a string"):
         ErrorMeshCallback(lambda trainer, module: None, tag=None)
+
+
+def test_surface_errors_are_computed_in_the_promoted_dtype():
+    # Review Q: a float64 simplified mesh was cast to a float32 reference's dtype, so 1.000000001 came back as 1.0.
+    from torchmeshmetric.viz.mesh_logging import surface_errors
+
+    reference = (torch.tensor([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]), torch.tensor([[0, 1, 2]]))
+    heights = torch.tensor([1e-9, 3e-9, 1.000000001], dtype=torch.float64)
+    simplified = (
+        torch.stack([torch.full_like(heights, 0.25), torch.full_like(heights, 0.25), heights], 1),
+        torch.tensor([[0, 1, 2]]),
+    )
+    got = surface_errors(simplified, reference)
+    assert got.dtype == torch.float64
+    assert torch.allclose(got, heights, rtol=1e-15, atol=0)
