@@ -234,3 +234,35 @@ def test_ddp_two_processes_equal_single_process(tmp_path):
     assert set(expected) <= set(logged)
     for k, v in expected.items():
         assert logged[k] == pytest.approx(v, rel=1e-12, abs=0), k
+
+
+def test_a_view_logged_for_steps_logs_the_batch_value_of_its_source(tmp_path):
+    # Review Q: a view never ran forward, so Lightning (on_step=True, its default in training_step) logged nothing for
+    # the steps, silently. Called (forward) in the step, the source's batch value of the key is the step value; the
+    # epoch value stays the pooled one.
+    class StepLogging(Module):
+        def __init__(self, items) -> None:
+            super().__init__(items)
+            self.train_surface = MeshSurfaceDistance()
+            self.train_rmse = self.train_surface.statistic("rmse")
+            self.batch_rmse: list[float] = []
+
+        def training_step(self, batch, batch_idx):
+            simplified, reference = batch
+            moved = self.model(simplified)
+            batch_values = self.train_surface([(v.detach(), f) for v, f in moved], reference)
+            self.batch_rmse.append(float(batch_values["rmse"]))
+            self.log("train/rmse", self.train_rmse, on_step=True, on_epoch=True, batch_size=len(simplified))
+            return self.loss(moved, reference)
+
+    items = _items()
+    module = StepLogging(items)
+    logger = MemoryLogger()
+    trainer = _trainer(max_epochs=1, logger=logger, default_root_dir=tmp_path, log_every_n_steps=1)
+    trainer.fit(module, train_dataloaders=_loader(items), val_dataloaders=_loader(items))
+    steps = [m["train/rmse_step"] for _, m in logger.history if "train/rmse_step" in m]
+    assert steps == pytest.approx(module.batch_rmse, rel=1e-12) and len(steps) == 3
+    epoch = [m["train/rmse_epoch"] for _, m in logger.history if "train/rmse_epoch" in m]
+    assert len(epoch) == 1
+    view = MeshSurfaceDistance().statistic("rmse")
+    assert view._forward_cache is None  # update() alone: no batch value, as for any torchmetrics metric

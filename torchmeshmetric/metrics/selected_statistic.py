@@ -45,7 +45,10 @@ class SelectedStatistic(StatisticsPlot, Metric):
 
     Made by :meth:`DistanceStatisticsBase.statistic` (or, for several keys at once, by
     :meth:`DistanceStatisticsBase.statistics`). The view never accumulates: update the *source* metric (once per
-    batch), then compute or log the views. ``compute()`` is not cached, so it always reflects the source's current
+    batch), then compute or log the views. Its step value (what Lightning logs with ``on_step=True``) is the
+    source's batch value of ``key`` when the source was called (``forward``: ``metric(simplified, reference)``);
+    after ``update()`` alone a step has no value and Lightning logs the epoch value only, as for any metric.
+    ``compute()`` is not cached, so it always reflects the source's current
     state; the source caches its own result until its next ``update``/``reset``. ``reset()`` resets the source
     (Lightning resets every logged metric at the end of an epoch; resetting a shared source several times is
     harmless). ``plot()`` draws the value (or a list of values, one a step) as torchmetrics draws a scalar
@@ -95,6 +98,19 @@ class SelectedStatistic(StatisticsPlot, Metric):
     @_update_count.setter
     def _update_count(self, value: int) -> None:
         pass  # Metric.__init__/reset assign it; the source keeps the real count
+
+    # The step value: the source's batch value of the key, when the source's forward() ran. Lightning logs a metric
+    # for a step (self.log(..., on_step=True), its default in training_step) from its `_forward_cache`; a view never
+    # runs forward, so it logged nothing, silently (found by review). After update() alone there is no batch value,
+    # as for any torchmetrics metric: Lightning then logs the epoch value only.
+    @property
+    def _forward_cache(self) -> Any:
+        cache = getattr(self.source, "_forward_cache", None) if "source" in self._modules else None
+        return cache.get(self.key) if isinstance(cache, dict) else None
+
+    @_forward_cache.setter
+    def _forward_cache(self, value: Any) -> None:
+        pass  # Metric.__init__/reset assign it; the source keeps the batch value
 
     def update(self, *args: Any, **kwargs: Any) -> None:
         """Not supported: update the source metric instead (once per batch, for all of its views).
