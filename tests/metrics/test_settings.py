@@ -226,12 +226,13 @@ def test_an_identical_first_frame_keeps_two_mpeg_grids_apart():
 
 
 def test_checkpoints_keep_their_keys():
-    # The digest is the constructor's: never in a state_dict, so a checkpoint loads into any configuration as before.
+    # The digest is the constructor's: never in a state_dict. The states come with the settings they were accumulated
+    # with (review Q: a metric of other settings loaded them in silence), which a metric of those settings loads.
     sampled = MeshSurfaceDistance(surface_samples=50)
     sampled.persistent(True)
     sampled.update(SIMPLIFIED, REFERENCE)
     state = sampled.state_dict()
-    assert sorted(state) == ["reference_peak", "surface_moments", "surface_values"]
+    assert sorted(state) == ["reference_peak", "states_settings", "surface_moments", "surface_values"]
     loaded = MeshSurfaceDistance(surface_samples=50)
     loaded.persistent(True)
     loaded.load_state_dict(state)
@@ -292,3 +293,36 @@ def test_merge_state_refuses_a_state_dict_of_other_settings():
     fresh = MeshSurfaceDistance(surface_samples=20)
     fresh.merge_state(undigested)
     assert fresh.compute()["ave"].item() == sampled.compute()["ave"].item()
+
+
+def test_load_state_dict_refuses_the_states_of_other_settings():
+    # Review Q: load_state_dict took a sampled metric's states into the exact metric in silence, and the next update
+    # pooled sampled and exact distances (merge_state refuses them).
+    import torch.nn as nn
+
+    from torchmeshmetric.metrics._settings import SETTINGS_KEY
+
+    simplified, reference = trimesh.creation.icosphere(subdivisions=1), trimesh.creation.icosphere(subdivisions=3)
+    sampled = MeshSurfaceDistance(surface_samples=20)
+    sampled.persistent(True)
+    sampled.update(simplified, reference)
+    written = sampled.state_dict()
+    assert bytes(written[SETTINGS_KEY].tolist()).decode() == sampled._settings()
+    exact = MeshSurfaceDistance()
+    with pytest.raises(ValueError, match=r"^state_dict: the states of MeshSurfaceDistance\(.*surface_samples=20, "):
+        exact.load_state_dict(written)
+    assert exact._update_count == 0 and not exact.surface_values  # nothing loaded
+    same = MeshSurfaceDistance(surface_samples=20)  # the same settings load, strictly, in a module too
+    same.load_state_dict(written)
+    same._update_count = 1  # a loaded state counts no update
+    assert float(same.compute()["ave"]) == float(sampled.compute()["ave"])
+    holder, other = nn.ModuleDict({"m": MeshSurfaceDistance(surface_samples=20)}), nn.ModuleDict({"m": exact})
+    holder["m"].persistent(True)
+    holder["m"].update(simplified, reference)
+    with pytest.raises(ValueError, match="cannot load into"):
+        other.load_state_dict(holder.state_dict())
+    nn.ModuleDict({"m": MeshSurfaceDistance(surface_samples=20)}).load_state_dict(holder.state_dict(), strict=True)
+    # Written before the key existed (or without states): loads as it did; torchmetrics' default writes no key.
+    old = {k: v for k, v in written.items() if k != SETTINGS_KEY}
+    MeshSurfaceDistance().load_state_dict(old)
+    assert MeshSurfaceDistance(surface_samples=20).state_dict() == {}

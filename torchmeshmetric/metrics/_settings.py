@@ -9,7 +9,11 @@ dropped the states that one configuration has and the other lacks (the reverse o
 
 A :class:`SettingsMetric` lists, in :meth:`~SettingsMetric._setting_items`, the options that change what its states
 accumulate, and holds their SHA-256 digest as one more state, ``settings_digest`` (32 float64 bytes; ``"max"``
-across processes, which all hold the same; never written to a ``state_dict``, whose keys stay what they were).
+across processes, which all hold the same; never written to a ``state_dict``, whose keys stay what they were). A
+``state_dict`` that holds states (``persistent(True)``) also holds the settings they were accumulated with, as UTF-8
+bytes under ``states_settings``, and ``load_state_dict`` refuses them into a metric of other settings as
+``merge_state`` does (it pooled sampled and exact distances in silence: found by review); a ``state_dict`` without
+states (torchmetrics' default) keeps no key, and one written before (without the key) loads as it did.
 Two configurations then never hold equal states, so torchmetrics never groups them, and :meth:`~SettingsMetric.
 merge_state` refuses a metric, or a state dict, of another configuration in words. Options that only ``compute()``
 reads (``ddof``, ``peak``) are left out: each member of a group computes with its own. So is the kernel
@@ -26,10 +30,13 @@ import torch
 from torch import Tensor
 from torchmetrics import Metric
 
-__all__ = ["SETTINGS_DIGEST", "SettingsMetric"]
+__all__ = ["SETTINGS_DIGEST", "SETTINGS_KEY", "SettingsMetric"]
 
 #: The name of the state that holds the digest of a metric's settings.
 SETTINGS_DIGEST = "settings_digest"
+
+#: The ``state_dict`` key (after the metric's prefix) of the settings its states were accumulated with.
+SETTINGS_KEY = "states_settings"
 
 
 class _RecordsSettings(ABCMeta):
@@ -78,6 +85,42 @@ class SettingsMetric(Metric, metaclass=_RecordsSettings):
         """
         super().persistent(mode)
         self._persistent[SETTINGS_DIGEST] = False
+
+    def state_dict(  # type: ignore[override]  # torchmetrics' signature
+        self, destination: dict[str, Any] | None = None, prefix: str = "", keep_vars: bool = False
+    ) -> dict[str, Any]:
+        """Torchmetrics' ``state_dict``, with the settings (UTF-8 bytes, a uint8 tensor) where it holds states."""
+        out: dict[str, Any] = super().state_dict(destination=destination, prefix=prefix, keep_vars=keep_vars)
+        if any(self._persistent[name] for name in self._defaults if name != SETTINGS_DIGEST):
+            out[prefix + SETTINGS_KEY] = torch.tensor(list(self._settings().encode()), dtype=torch.uint8)
+        return out
+
+    def _load_from_state_dict(
+        self,
+        state_dict: dict,
+        prefix: str,
+        local_metadata: dict,
+        strict: bool,
+        missing_keys: list[str],
+        unexpected_keys: list[str],
+        error_msgs: list[str],
+    ) -> None:
+        """Torchmetrics' loading, refusing states accumulated with other settings (before any is loaded).
+
+        Raises:
+            ValueError: the ``state_dict`` names other settings than this metric's.
+        """
+        written = state_dict.pop(prefix + SETTINGS_KEY, None)
+        if written is not None:
+            found = bytes(written.tolist()).decode() if isinstance(written, Tensor) else repr(written)
+            if found != self._settings():
+                raise ValueError(
+                    f"state_dict: the states of {found} cannot load into {self._settings()}: their states hold "
+                    "different measurements; load them into a metric built with the same options"
+                )
+        super()._load_from_state_dict(
+            state_dict, prefix, local_metadata, strict, missing_keys, unexpected_keys, error_msgs
+        )
 
     def merge_state(self, incoming_state: dict[str, Any] | Metric) -> None:
         """Torchmetrics' ``merge_state``, refusing what :meth:`_check_incoming` refuses.
