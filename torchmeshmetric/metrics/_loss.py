@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -17,9 +18,10 @@ REDUCTIONS = ("mean", "sum", "none")
 
 
 def check_loss_args(reduction: str, power: float) -> float:
-    """Validate ``reduction`` and ``power`` (constructor and functional arguments); return ``power`` as a float.
+    """Validate ``reduction`` and ``power`` (constructor and functional arguments); return ``power`` as a number.
 
-    ``power`` is any number (:func:`~torchmeshmetric._checks.as_real`: numpy scalars, one-element tensors).
+    ``power`` is any number (:func:`~torchmeshmetric._checks.as_real`: numpy scalars, one-element tensors), returned
+    as a Python ``int`` when it is an integer (``d ** 2`` as before) and a ``float`` otherwise.
     """
     if reduction not in REDUCTIONS:
         raise ValueError(f"reduction: expected one of {REDUCTIONS}, found {reduction!r}")
@@ -29,7 +31,7 @@ def check_loss_args(reduction: str, power: float) -> float:
         raise ValueError(
             f"power: expected a finite positive number (1: distance, 2: squared distance), found {power!r}"
         )
-    return value
+    return int(value) if isinstance(power, numbers.Integral) else value
 
 
 def check_options(options: Mapping[str, Any], allowed: type, owner: str) -> None:
