@@ -129,3 +129,92 @@ def test_skinning_weights_of_few_nodes_do_not_depend_on_the_units(dtype):
         assert torch.equal(idx_k, idx) and torch.equal(w_k, w)
     _, w0 = skinning_weights(torch.zeros(1, 3, dtype=dtype), torch.zeros(2, 3, dtype=dtype), 4)
     assert torch.equal(w0, torch.full((1, 2), 0.5, dtype=dtype))
+
+
+# Review S (2026-12-07): with L the samples' spread alone the step was not continuous. Samples that are all one point
+# have a spread of the centroid's rounding (1e-19 at 1e-3 units), so the divided rotation columns were rounding noise
+# of size 1 (rotation 1.7 rad, scale inf), and a sample of weight 1e-300 set a 0.14 rad rotation. L is now at least
+# 1/16 of the target diagonal; the rotation goes to 0 with the spread.
+
+
+def _angle(rotation: Tensor) -> float:
+    return float(torch.linalg.matrix_norm(rotation - torch.eye(3, dtype=rotation.dtype)))
+
+
+@pytest.mark.parametrize("scale", [False, True], ids=["rigid", "similarity"])
+@pytest.mark.parametrize("weights", ["equal", "unequal"])
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_point_to_plane_step_of_coincident_samples_turns_by_rounding_only(dtype, weights, scale):
+    # 20 copies of one point at 1e-3 units, random normals, targets 1e-5 away: no rotation or scale is constrained.
+    # Measured: |R - I| <= 2.5e-16 (float64) / 1.4e-7 (float32), |s - 1| <= 4.5e-16 / 1.2e-7. Before: 1.1-2.8 rad, and
+    # s = inf with scale (float32 too where unequal weights leave the centroid rounded).
+    from torchmeshmetric.registration.rigid import _point_to_plane_step
+
+    g = torch.Generator().manual_seed(1)
+    p = torch.tensor([[0.3, 0.7, 0.1]], dtype=dtype).repeat(20, 1) * 1e-3
+    n = torch.nn.functional.normalize(torch.randn(20, 3, generator=g).to(dtype), dim=-1)
+    q = p + 1e-5 * torch.randn(20, 3, generator=g).to(dtype)
+    w = torch.ones(20, dtype=dtype)
+    if weights == "unequal":
+        w[::3] = 0.7
+    diag = torch.tensor(1e-3, dtype=dtype)
+    step = _point_to_plane_step(p, q, n, w, scale, diag)
+    tol = 2e-6 if dtype == torch.float32 else 3e-15
+    assert _angle(step.rotation) <= tol
+    assert abs(float(step.scale) - 1) <= tol
+    assert bool(torch.isfinite(step.translation).all()) and float(step.translation.abs().max()) <= 1e-4
+    twice = _point_to_plane_step(2 * p, 2 * q, n, w, scale, 2 * diag)
+    assert torch.equal(twice.rotation, step.rotation) and torch.equal(twice.translation, 2 * step.translation)
+
+
+def test_point_to_plane_step_turns_less_and_less_as_a_weight_goes_to_0():
+    # A heavy sample at the origin on its plane, two light ones at distance 1, one 0.1 off its plane: weight eps on
+    # the light ones. The rotation they ask for is 0.14 rad; with weight 0 there is none. Measured: |R - I| = 1.8e10
+    # eps for eps <= 1e-16, 0 at 1e-300, 0.14 from 1e-9 up, monotone. Before: 0.14 rad for every eps > 0 (1e-300 too).
+    from torchmeshmetric.registration.rigid import _point_to_plane_step
+    from torchmeshmetric.structures import bbox_diagonal
+
+    p = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=torch.float64)
+    n = torch.tensor([[0.0, 0, 1]] * 3, dtype=torch.float64)
+    q = p.clone()
+    q[1, 2] = 0.1
+    diag = bbox_diagonal(q)
+    angles = []
+    for eps in [0.0, 1e-300, 1e-100, 1e-30, 1e-20, 1e-16, 1e-12, 1e-9, 1e-6, 1e-3]:
+        step = _point_to_plane_step(p, q, n, torch.tensor([1.0, eps, eps], dtype=torch.float64), False, diag)
+        angles.append(_angle(step.rotation))
+        if eps <= 1e-16:
+            assert angles[-1] <= 2e11 * eps
+    assert angles[:2] == [0.0, 0.0]
+    assert angles == sorted(angles)
+    assert angles[-1] == pytest.approx(0.1414, rel=1e-3)
+
+
+def _fan(dtype: torch.dtype) -> Pair:
+    """An unwelded fan of 20 triangles at 1e-3 units (each stores its own apex) and its copy tilted 0.2 rad about the
+    apex: with trim 1/3 the kept samples are exactly the apex copies, which constrain no rotation."""
+    k = 20
+    apex = torch.tensor([0.3e-3, 0.7e-3, 0.1e-3], dtype=torch.float64)
+    ang = torch.arange(k + 1, dtype=torch.float64) * 2 * torch.pi / k
+    ring = torch.stack([torch.cos(ang), torch.sin(ang), torch.zeros_like(ang)], 1) * 1e-3 + apex
+    ring = ring - torch.tensor([0, 0, 0.5e-3], dtype=torch.float64)
+    v = torch.stack([x for i in range(k) for x in (apex, ring[i], ring[i + 1])])
+    f = torch.arange(3 * k).reshape(k, 3)
+    m = torch.tensor(trimesh.transformations.rotation_matrix(0.2, [1, 0, 0], point=apex.tolist())[:3, :])
+    return (v.to(dtype), f), ((v @ m[:, :3].T + m[:, 3]).to(dtype), f)
+
+
+@pytest.mark.parametrize("scale", [False, True], ids=["rigid", "similarity"])
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_registration_on_samples_that_constrain_no_rotation_does_not_turn(dtype, scale):
+    # Measured: the identity (as before the unit-invariant step), s = 1. Before: 0.0625 rad (|R - I| = 0.088) in
+    # float32 and float64, from the last bits of the centroid.
+    (sv, sf), (tv, tf) = _fan(dtype)
+    opts = {"point_to_plane": True, "scale": scale, "trim": 1 / 3, "align_centroids": False, "max_iterations": 30}
+    r = register_rigid((sv, sf), (tv, tf), **opts)
+    assert r.converged
+    assert _angle(r.rotation) <= 1e-6
+    assert abs(float(r.scale) - 1) <= 1e-6
+    assert bool(torch.isfinite(r.verts).all())
+    twice = register_rigid((2 * sv, sf), (2 * tv, tf), **opts)
+    assert torch.equal(twice.rotation, r.rotation) and torch.equal(twice.verts, 2 * r.verts)

@@ -154,15 +154,22 @@ def kabsch_umeyama(src: Tensor, dst: Tensor, weights: Tensor | None = None, scal
     return SimilarityTransform(R, t, s)
 
 
-def _point_to_plane_step(p: Tensor, q: Tensor, n: Tensor, w: Tensor, scale: bool) -> SimilarityTransform:
+# L's floor relative to the target diagonal (see _point_to_plane_step). Below every spread of the pinned and tested
+# well-posed pairs (min 0.16 of the diagonal; only the tiny-mesh robustness cases go lower), so their steps keep their
+# bits; high enough that a spread of rounding noise (eps times the coordinates) moves the rotation by rounding only.
+_LENGTH_FLOOR = 0.0625
+
+
+def _point_to_plane_step(p: Tensor, q: Tensor, n: Tensor, w: Tensor, scale: bool, diag: Tensor) -> SimilarityTransform:
     """One linearised point-to-plane step (Chen & Medioni 1992) about the weighted centroid of ``p``.
 
     Model ``x -> c + e^sigma R(omega) (x - c) + t`` linearised as ``x + omega x (x - c) + sigma (x - c) + t``;
     the residual ``n . (x' - q)`` is linear in ``(omega, t[, sigma])``. Rotation projected back with exp.
 
-    Solved for ``(L omega, t[, L sigma])``, ``L`` the samples' weighted RMS distance from ``c``: every column is then
-    dimensionless and the damped system is the same in any unit, so the step is ``s`` times the step for the input
-    times ``s`` (bit for bit for a power of two).
+    Solved for ``(L omega, t[, L sigma])``, ``L`` the larger of the samples' weighted RMS distance from ``c`` and
+    1/16 of ``diag`` (the target's bounding-box diagonal): every column is then dimensionless and the damped system is
+    the same in any unit, so the step is ``s`` times the step for the input times ``s`` (bit for bit for a power of
+    two). The rotation (and scale) goes to 0 with the samples' spread.
     """
     w = w / w.sum()
     c = (w[:, None] * p).sum(0)
@@ -180,10 +187,17 @@ def _point_to_plane_step(p: Tensor, q: Tensor, n: Tensor, w: Tensor, scale: bool
     # units the rotation's ~1e-6 entries got 1e-9: 1e-3 of their own; float32's 64 eps floor stopped its rotation).
     # The registration was not unit-invariant: the evaluation's k-1 statistics moved by 3e-6 relative at 1e-3 units
     # and 1e-13 at 2x, an ill-posed pair by 0.017 at 2x (measured 2026-12-07). The system is solved for
-    # (L omega, t[, L sigma]) instead, L a length of the data (continuous in the input, exactly doubled with it): its
-    # entries are dimensionless. L = 0 only when every weighted sample is at c, where those rows and columns are 0
-    # whatever they are divided by. Row and column divided in turn: L^2 could underflow where L does not.
-    length = (w * (x * x).sum(-1)).sum().sqrt()
+    # (L omega, t[, L sigma]) instead, L a length of the data (exactly doubled with it): its entries are dimensionless.
+    # L is the samples' spread, but at least 1/16 of the target diagonal. With L = spread alone (review S, 2026-12-07)
+    # the step was not continuous: samples that are all one point have a spread of the centroid's rounding (1e-19 at
+    # 1e-3 units), the divided columns were that rounding at O(1) and the damping could not stop them (rotation 1.7
+    # rad, s = inf with scale; an unwelded fan whose kept samples are its apex copies turned 0.0625 rad), and a sample
+    # of weight 1e-300 set a 0.14 rad rotation that weight 0 does not. With the floor the rotation's columns shrink
+    # with the spread below it, so the rotation goes to 0 with the spread and with such a weight (below 2e-16 rad for
+    # coincident samples in float64, 1.4e-7 in float32), and the floor scales with the input as L must.
+    # Row and column divided in turn: L^2 could underflow where L does not. L = 0 only where the diagonal is 0.
+    spread = (w * (x * x).sum(-1)).sum().sqrt()
+    length = torch.maximum(spread, _LENGTH_FLOOR * diag.to(spread.dtype))
     length = torch.where(length > 0, length, torch.ones_like(length))
     units = torch.ones_like(Atb)
     units[:3] = length
@@ -379,7 +393,7 @@ def register_rigid(
         w = _robust_trimmed_weights(res.dists, trim, sigma2)
         with one_thread():  # the same step whatever the thread count (only the query above is threaded)
             if point_to_plane:
-                step = _point_to_plane_step(cur, res.closest, _match_normals(cur, res, tgt), w, scale)
+                step = _point_to_plane_step(cur, res.closest, _match_normals(cur, res, tgt), w, scale, diag)
             else:
                 step = kabsch_umeyama(cur, res.closest, w, scale=scale)
         R, t, s = step.rotation @ R, step.scale * (step.rotation @ t) + step.translation, step.scale * s
