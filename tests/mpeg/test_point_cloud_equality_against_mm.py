@@ -237,3 +237,68 @@ def test_mmetric_regression_sdiv_cases(tmp_path: Path, epsilon: float) -> None:
     assert tfan_equality(load["plane"], load["sphere"], epsilon=epsilon).report() == theirs_ps
     # mm on the library's files prints the same
     assert _theirs("equ", files["plane"], files["sphere"], epsilon) == theirs_ps
+
+
+def _near_midpoints(e: np.float32) -> list[str]:
+    """Decimals just past and just short of the float32 midpoints on either side of ``e``: float64 rounds each of them
+    to the midpoint itself, so reading them through float64 picks the wrong float32 for half of them (review S)."""
+    from decimal import Decimal, getcontext
+
+    getcontext().prec = 60
+    texts = []
+    for other in (np.nextafter(e, np.float32(np.inf)), np.nextafter(e, np.float32(-np.inf))):
+        mid = (Decimal(float(e)) + Decimal(float(other))) / 2
+        for sign in (1, -1):
+            texts.append(str(mid + sign * mid.copy_abs() * Decimal("1e-30")))
+    assert all(np.float64(t) == np.float64(texts[0 if k < 2 else 2]) for k, t in enumerate(texts))  # the midpoints
+    return texts
+
+
+def test_epsilon_text_past_float32_midpoints(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``--epsilon`` from decimal text, as mm reads it (the float32 nearest the text): decimals past a float32
+    midpoint on either side of a distance, not float32 round-trip strings (those cannot tell double rounding apart,
+    review S §3). mm prints the float32 it used; the CLI's verdict agrees with mm's."""
+    from torchmeshmetric.cli import main
+    from torchmeshmetric.cli.mpeg import float32
+
+    a = _write(tmp_path / "a.obj", np.zeros((1, 3), np.float32), "obj")
+    for k, x in enumerate((0.1, 1.0, 3e-3)):
+        e = np.float32(x)
+        b = _write(tmp_path / f"b{k}.obj", np.array([[e, 0, 0]], np.float32), "obj")
+        for text in _near_midpoints(e):
+            for mode in MODES:
+                theirs = mm_block(mode, a, b, EPSILON_OPTION[mode], text)
+                eps = float32(text)
+                assert _ours(mode, a, b, eps) == theirs, (x, text, mode)
+                capsys.readouterr()
+                rc = main(["mpeg", "--mode", mode, str(a), str(b), "--epsilon", text])
+                assert capsys.readouterr().out.strip() == theirs
+                assert rc == (0 if "are equals" in theirs else 1)
+
+
+def test_ascii_ply_past_float32_midpoints(tmp_path: Path) -> None:
+    """ASCII PLY ``float`` coordinates read as mm reads them (the float32 nearest the text; float64 first rounded
+    twice, review S §2): decimals past float32 midpoints against an OBJ of either neighbour, both modes, as a point
+    cloud and as a mesh."""
+    values = [np.float32(0.1), np.float32(-2.5e-3), np.float32(7.0), np.float32(1e-40)]  # 1e-40: subnormal
+    texts = [t for v in values for t in _near_midpoints(v)]
+    for k, text in enumerate(texts):
+        ply = tmp_path / f"p{k}.ply"
+        ply.write_text(
+            "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
+            f"end_header\n{text} 0 0\n"
+        )
+        mesh = tmp_path / f"m{k}.ply"
+        mesh.write_text(
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+            f"element face 1\nproperty list uchar int vertex_indices\nend_header\n{text} 0 0\n0 1 0\n0 0 1\n3 0 1 2\n"
+        )
+        x = np.float64(text)
+        for j, neighbour in enumerate((np.float32(x), np.nextafter(np.float32(x), np.float32(np.sign(x) * np.inf)))):
+            obj = tmp_path / f"o{k}_{j}.obj"
+            obj.write_text(f"v {float(neighbour)!r} 0 0\n")
+            objm = tmp_path / f"om{k}_{j}.obj"
+            objm.write_text(f"v {float(neighbour)!r} 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\n")
+            for mode in MODES:
+                assert _ours(mode, ply, obj) == _theirs(mode, ply, obj), (text, mode, j)
+                assert _ours(mode, mesh, objm) == _theirs(mode, mesh, objm), (text, mode, j, "mesh")

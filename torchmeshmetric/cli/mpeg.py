@@ -30,6 +30,21 @@ def _table(d: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def float32(text: str) -> float:
+    """An option's decimal text as mm reads it: the float32 nearest it (``strtof``), as a float holding that value.
+
+    ``float`` then float32 rounds twice and picks the wrong neighbour for a decimal just past a float32 midpoint (mm
+    prints ``Epsilon = 0.100000016`` for ``0.100000012665987014770507812501``, float64 first gave 0.100000009; review
+    S). Beyond float32's range, the float itself (the comparison refuses it, quoting it).
+    """
+    import numpy as np
+
+    from torchmeshmetric._float32_text import float32_from_text
+
+    x = float32_from_text(text)
+    return float(x) if np.isfinite(x) or not np.isfinite(float(text)) else float(text)
+
+
 def _run_equality(args: argparse.Namespace) -> int:
     """``--mode equ``: mmetric's lines (texture maps, verdict, differences) or JSON; exit status 0 when equal."""
     from dataclasses import asdict
@@ -284,7 +299,7 @@ def add_mpeg_command(sub: Any) -> None:
     )
     p.add_argument(
         "--epsilon",
-        type=float,
+        type=float32,
         default=0.0,
         metavar="E",
         help="equ / eqTFAN modes, models without faces (point clouds) only: sorted points at distance >= E differ, "

@@ -7,12 +7,14 @@ else (other elements, truncation, trailing binary bytes) is left to
 
 from __future__ import annotations
 
+import functools
 import re
 from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
+from torchmeshmetric._float32_text import float32_of_texts
 from torchmeshmetric.data.mesh_file import MeshFileError, values_per_line
 
 __all__ = [
@@ -226,6 +228,11 @@ def _token(h: _Header, b: _Body, row: int, col: int) -> str:
     return h.body[int(b.starts[row]) : int(b.ends[row])].split()[col].decode("latin-1")
 
 
+def _vertex_token(h: _Header, b: _Body, col: int, row: int) -> str:
+    """The text of vertex ``row``'s value ``col`` (vertices come first in the body)."""
+    return _token(h, b, row, col)
+
+
 def _check_vertex_lines(p: Path, h: _Header, b: _Body) -> None:
     """Every vertex line holds one value per vertex property (a total alone lets a long line make up for a short)."""
     k = len(h.vprops)
@@ -249,13 +256,22 @@ def _unfit(values: np.ndarray, code: str) -> np.ndarray:
 
 
 def _check_type(
-    p: Path, h: _Header, b: _Body, values: np.ndarray, ply_type: str, what: tuple[str, str], first: int, col0: int
+    p: Path,
+    h: _Header,
+    b: _Body,
+    values: np.ndarray,
+    ply_type: str,
+    what: tuple[str, str],
+    first: int,
+    col0: int,
+    unfit: np.ndarray | None = None,
 ) -> None:
     """Refuse the first of ``values`` that its declared type cannot hold (a uchar 300 or -1, an int 0.7).
 
     Casting would wrap or truncate it silently (300 as uchar is 44; found by review). ``values`` is
     ``(rows, columns)``, row ``r`` on non-blank body line ``first + r``, column ``c`` its line's value ``col0 + c``;
     the message names ``what[0] r what[1]`` (``("vertex", " property 'red'")``) and quotes the value as written.
+    ``unfit``: which values do not fit, where the caller knows better than ``values`` (float32 from the text).
     """
     code = _PLY_TYPES[ply_type]
     if code == "f8" or values.size == 0:
@@ -266,9 +282,9 @@ def _check_type(
         else:  # reductions first: no temporary array for a file that is right
             lo, hi = np.iinfo(code).min, np.iinfo(code).max
             fits = lo <= float(values.min()) and float(values.max()) <= hi and bool((np.floor(values) == values).all())
-    if fits:
+    if fits:  # correct rounding cannot overflow either
         return
-    bad = _unfit(values, code)
+    bad = _unfit(values, code) if unfit is None else unfit
     if not bad.any():
         return
     row, col = (int(x) for x in np.argwhere(bad)[0])
@@ -286,13 +302,26 @@ def _check_type(
 
 
 def _vertex_columns(p: Path, h: _Header, b: _Body, table: np.ndarray) -> dict[str, np.ndarray]:
-    """Each vertex property's column as its declared type holds it, every value checked to fit that type."""
+    """Each vertex property's column as its declared type holds it, every value checked to fit that type.
+
+    A ``float`` property is float32, as mmetric reads it: each value the float32 nearest its decimal text, as
+    ``strtof`` rounds it. ``table`` is numpy's float64 parse; rounding that to float32 rounds twice, which errs for a
+    decimal just past a float32 midpoint (``mpeg --mode equ`` then disagreed with mm; review S), so those few values
+    are rounded again from their text (:func:`~torchmeshmetric._float32_text.float32_of_texts`).
+    """
     cols = {}
     for i, (ply_type, name) in enumerate(h.vprops):
         column = table[:, i : i + 1]
+        code = _PLY_TYPES[ply_type]
+        if code == "f4":
+            col32 = float32_of_texts(column[:, 0], functools.partial(_vertex_token, h, b, i))
+            # beyond FLT_MAX by correct rounding (a float64 on the overflow midpoint may be below it in the text)
+            unfit = (np.isinf(col32) & np.isfinite(column[:, 0]))[:, None]
+            _check_type(p, h, b, column, ply_type, ("vertex", f" property '{name}'"), 0, i, unfit)
+            cols[name] = col32
+            continue
         _check_type(p, h, b, column, ply_type, ("vertex", f" property '{name}'"), 0, i)
-        # a "float" property is float32, as trimesh and mmetric read it
-        cols[name] = column[:, 0].astype(_PLY_TYPES[ply_type])
+        cols[name] = column[:, 0].astype(code)
     return cols
 
 
