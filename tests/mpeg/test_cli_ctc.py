@@ -109,6 +109,19 @@ def test_a_single_point_box_is_refused_with_the_options(tmp_path: Path, capsys: 
     assert ctc_options(a, []) == ([0.0, 0.0, 0.0], [1.0, 0.0, 1.0])  # flat on one axis: a box
 
 
+def test_a_line_box_is_refused_with_the_options(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A box flat on two axes (a line) was accepted, then frame 0 failed with "ref: expected at least one point, found
+    an empty point cloud (while running frame 0)" (review S): mm dequantises every vertex onto the line and its grid
+    sampling generates 0 points. It is now an option error naming both options and the flat axes."""
+    args = _sequence(tmp_path)
+    i, j = args.index("--min-pos"), args.index("--max-pos")
+    args[i + 1], args[j + 1] = "-1 0 0", "1 0 0"
+    assert main(args) == 1
+    err = capsys.readouterr().err
+    assert "--max-pos: [1.0, 0.0, 0.0] equals --min-pos [-1.0, 0.0, 0.0] on y and z (the box is a line" in err
+    assert "frame 0" not in err
+
+
 def test_frame_path() -> None:
     assert frame_path("a_%04d.obj", 12) == "a_0012.obj"
     assert frame_path("a_%d_100%%.obj", 3) == "a_3_100%.obj"

@@ -734,6 +734,13 @@ def test_a_box_flat_on_one_axis_is_accepted_by_the_manifest_as_by_ctc(tmp_path: 
     CtcSettings(qp=10, qt=8, min_pos=seq.min_pos, max_pos=seq.max_pos)
     with pytest.raises(ValueError, match=r"the box is a single point"):
         CtcSettings(qp=10, qt=8, min_pos=[1, 1, 1], max_pos=[1, 1, 1])
+    with pytest.raises(ValueError, match=r"on x and z \(the box is a line"):  # review S: mm samples no point
+        CtcSettings(qp=10, qt=8, min_pos=[1, -1, 1], max_pos=[1, 1, 1])
+    p.write_text(
+        text.replace("min_pos = [-1, -1, -1]\nmax_pos = [1, 1, 1]", "min_pos = [0, 0, -1]\nmax_pos = [0, 0, 1]", 1)
+    )
+    with pytest.raises(ValueError, match=r"'max_pos': \[0.0, 0.0, 1.0\] equals 'min_pos' .* on x and y"):
+        load_ctc_campaign(p)
 
 
 def test_clear_errors_of_the_campaign(

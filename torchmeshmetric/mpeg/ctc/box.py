@@ -21,10 +21,13 @@ def _float32(x: float) -> float:
 
 
 def check_box(lo: Sequence[float], hi: Sequence[float], names: tuple[str, str] = ("min_pos", "max_pos")) -> None:
-    """Refuse a box whose ``hi`` is below ``lo`` on an axis, or that is a single point (in the sampler's float32).
+    """Refuse a box whose ``hi`` is below ``lo`` on an axis, or a line or a single point (in the sampler's float32).
 
-    A box flat on one or two axes is accepted (a planar sequence): mmetric's quantisation steps are per axis, and a
-    zero side only makes that axis' step zero. ``ctc`` refused a box that ``ctc-campaign`` accepted, and the other way
+    A box flat on one axis is accepted (a planar sequence): mmetric's quantisation steps are per axis, and a zero side
+    only makes that axis' step zero. A box flat on two axes is a line: ``mm dequantize`` puts every vertex on it and
+    ``mm sample --mode grid`` then generates 0 points (measured with mm v1.1.7, box ``-1 0 0`` / ``1 0 0``), so no
+    frame could be compared; it is refused here, before any frame runs (review S).
+    ``ctc`` refused a box that ``ctc-campaign`` accepted, and the other way
     round for a flat one (review R #9): both and :class:`~torchmeshmetric.mpeg.ctc.settings.CtcSettings` call this.
 
     Args:
@@ -37,6 +40,10 @@ def check_box(lo: Sequence[float], hi: Sequence[float], names: tuple[str, str] =
 
     Example:
         >>> check_box([-1, -1, 0], [1, 1, 0])  # flat on z: accepted
+        >>> check_box([-1, 0, 0], [1, 0, 0], ("--min-pos", "--max-pos"))  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        ValueError: --max-pos: [1.0, 0.0, 0.0] equals --min-pos [-1.0, 0.0, 0.0] on y and z (the box is a line: ...)
         >>> check_box([0, 0, 0], [1, -1, 1], ("--min-pos", "--max-pos"))
         Traceback (most recent call last):
         ...
@@ -45,5 +52,13 @@ def check_box(lo: Sequence[float], hi: Sequence[float], names: tuple[str, str] =
     low, high = [float(x) for x in lo], [float(x) for x in hi]
     if any(h < x for x, h in zip(low, high, strict=True)):
         raise ValueError(f"{names[1]}: {high} is below {names[0]} {low}")
-    if all(_float32(h) == _float32(x) for x, h in zip(low, high, strict=True)):  # the sampler's float32 corners
+    flat = [a for a, x, h in zip("xyz", low, high, strict=True) if _float32(h) == _float32(x)]  # the sampler's float32
+    if len(flat) == 3:
         raise ValueError(f"{names[1]}: {high} equals {names[0]} {low} (the box is a single point)")
+    if len(flat) == 2:
+        # mm dequantises every vertex onto the line and its grid sampling finds no point there: the frame then
+        # failed on an empty point cloud, naming neither option (review S)
+        raise ValueError(
+            f"{names[1]}: {high} equals {names[0]} {low} on {flat[0]} and {flat[1]} (the box is a line: mm's "
+            "dequantisation puts every vertex on it and its grid sampling finds no point)"
+        )
