@@ -159,7 +159,7 @@ def test_normals_mm_drops_are_not_read(tmp_path: Path, capsys: pytest.CaptureFix
     assert capsys.readouterr().out.strip() == "meshes are equal"
     c = tmp_path / "c.obj"
     c.write_text(quad + bad + "\nf 1 2 3\nf 1 3 4\n")
-    assert main(["mpeg", "--mode", "equ", str(c), str(b)]) == 1
+    assert main(["mpeg", "--mode", "equ", str(c), str(b)]) == 2  # an error: diff's 2, not "not equal"
     assert "line 5" in capsys.readouterr().err
 
 
@@ -176,3 +176,31 @@ def test_equality_model_values_beyond_float32_are_named() -> None:
             EqualityModel(big, np.array([[0, 1, 2]]))
     with pytest.raises(NonFiniteError, match=r"EqualityModel.positions: expected finite values, found 1 NaN/Inf"):
         EqualityModel(np.array([[0.0, 0, 0], [np.nan, 0, 0], [0, 1, 0]]), np.array([[0, 1, 2]]))
+
+
+def test_exit_status_is_diffs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """equ, eqTFAN and topo exit as ``diff`` does: 0 equal, 1 not equal, 2 trouble. An error exited 1 like "not
+    equal" (an empty OBJ, a NaN point cloud the library refuses, a bad option once the command ran; review S §6);
+    other modes keep 1 for an error, and argparse's refusals stay 2."""
+    a = _write(tmp_path, "a.obj", "f 1 2 3\n")
+    b = _write(tmp_path, "b.obj", "f 1 2 4\n")
+    empty = tmp_path / "e.obj"
+    empty.write_text("")
+    nan = tmp_path / "n.obj"
+    nan.write_text("v nan 0 0\n")
+    maps = tmp_path / "m.txt"
+    maps.write_text("0 0\n")
+    for mode in ("equ", "eqTFAN"):
+        assert main(["mpeg", "--mode", mode, a, a]) == 0
+        assert main(["mpeg", "--mode", mode, a, b]) == 1
+        assert main(["mpeg", "--mode", mode, str(empty), a]) == 2
+        assert main(["mpeg", "--mode", mode, str(nan), str(nan), "--epsilon", "0.1"]) == 2
+        assert main(["mpeg", "--mode", mode, a, a, "--epsilon", "-1"]) == 2
+        with pytest.raises(SystemExit) as refused:  # argparse's refusal, as ever
+            main(["mpeg", "--mode", mode, a, a, "--epsilon", "x"])
+        assert refused.value.code == 2
+    assert main(["mpeg", "--mode", "topo", a, a]) == 2  # no maps
+    assert main(["mpeg", "--mode", "topo", a, a, "--face-map", str(maps), "--vertex-map", str(tmp_path / "no")]) == 2
+    assert main(["mpeg", "--mode", "pcc", str(empty), a]) == 1  # not a comparison mode: an error is 1
+    err = capsys.readouterr().err
+    assert err.count("torchmeshmetric mpeg: error: ") >= 10

@@ -73,7 +73,7 @@ def test_cli_refusals(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> Non
     out.write_text("mine")
     assert main(["mpeg", str(a), str(a), "--sampling", "mesh", "--output-model-ref", str(out)]) == 1
     assert "already exists" in capsys.readouterr().err and out.read_text() == "mine"
-    assert main(["mpeg", str(a), str(a), "--mode", "equ", "--output-csv", str(tmp_path / "s.csv")]) == 1
+    assert main(["mpeg", str(a), str(a), "--mode", "equ", "--output-csv", str(tmp_path / "s.csv")]) == 2
     assert "not in equ mode" in capsys.readouterr().err and not (tmp_path / "s.csv").exists()
     assert main(["mpeg", str(a), str(a), "--output-model-ref", str(tmp_path / "x.obj")]) == 1
     assert "must end with .ply in pcc mode" in capsys.readouterr().err

@@ -200,6 +200,6 @@ def test_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["mpeg", str(a), str(c), "--mode", "equ", "--epsilon", "0.3", "--json"]) == 0
     d = json.loads(capsys.readouterr().out)
     assert (d["points"], d["equal"], d["point_differences"]) == (True, True, 0)
-    assert main(["mpeg", str(a), str(c), "--mode", "equ", "--epsilon", "-1"]) == 1
+    assert main(["mpeg", str(a), str(c), "--mode", "equ", "--epsilon", "-1"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("torchmeshmetric mpeg: error: --epsilon: expected a finite float32 distance >= 0, found -1.0")

@@ -84,7 +84,7 @@ def test_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     d = json.loads(capsys.readouterr().out)
     assert (d["matching"], d["reason"], d["face_b"], d["corners_b"]) == (False, "orientation", 0, [2, 3, 0])
     f.write_text("0 0\n1 x\n")
-    assert main(args) == 1
+    assert main(args) == 2  # trouble, not "not matching" (diff's convention, review S)
     assert f"{f}:2: expected two unsigned face indices" in capsys.readouterr().err
-    assert main(args[:5]) == 1
+    assert main(args[:5]) == 2
     assert "--mode topo needs --face-map FILE and --vertex-map FILE" in capsys.readouterr().err

@@ -176,18 +176,31 @@ def _named_command(argv: Sequence[str]) -> list[str]:
     return []
 
 
-def _error(command: str, exc: Exception) -> int:
-    """End a command that raised with one line on stderr and exit code 1 (``TORCHMESHMETRIC_DEBUG=1``: re-raise)."""
+COMPARISON_MODES = ("equ", "eqTFAN", "topo")
+"""The ``mpeg`` modes whose exit status is a verdict, as ``diff``'s: 0 equal, 1 not equal, 2 trouble (an error)."""
+
+
+def _error_code(args: argparse.Namespace) -> int:
+    """The exit code of a command that failed: 1, or 2 for a comparison mode (1 is its "not equal"; review S).
+
+    ``diff``'s convention: a script that tests ``mpeg --mode equ`` for 1 ("not equal") no longer takes a file that
+    could not be read, or an option refused once the command ran, for a difference.
+    """
+    return 2 if args.command == "mpeg" and getattr(args, "mode", None) in COMPARISON_MODES else 1
+
+
+def _error(command: str, exc: Exception, code: int = 1) -> int:
+    """End a command that raised with one line on stderr and exit ``code`` (``TORCHMESHMETRIC_DEBUG=1``: re-raise)."""
     if os.environ.get("TORCHMESHMETRIC_DEBUG"):
         raise exc
     if "torchmeshmetric.launch" not in sys.modules:  # the command ran without torch: the same line, torch not loaded
         text = str(exc).strip()
         say(f"torchmeshmetric {command}: error: {text.splitlines()[0] if text else type(exc).__name__}")
-        return 1
+        return code
     from torchmeshmetric.launch import error_line  # under torchrun: once, by rank 0 (or by the rank that failed)
 
     say(error_line(command, exc))
-    return 1
+    return code
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -206,12 +219,13 @@ def _run_command(args: argparse.Namespace) -> int:
     except BrokenPipeError:
         # The reader of stdout went away (`torchmeshmetric mpeg A B | head -3`): nothing left to say to it, and
         # "error: [Errno 32] Broken pipe" was noise. Later writes (the interpreter's flush at exit) go nowhere, as
-        # Python's documentation advises; exit code 1, as for SIGPIPE's default handling's non-zero end.
+        # Python's documentation advises; a non-zero exit code (1; 2 for a comparison mode), as SIGPIPE's default
+        # handling's non-zero end.
         with contextlib.suppress(OSError, ValueError):
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 1
+        return _error_code(args)
     except Exception as exc:
-        return _error(args.command, exc)
+        return _error(args.command, exc, _error_code(args))
 
 
 @contextlib.contextmanager
@@ -232,6 +246,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit code.
 
     Exit codes: 0 ok, 1 error (one line on stderr), 2 usage error, 3 registration not converged, 130 interrupted
+    (``mpeg --mode equ/eqTFAN/topo``: ``diff``'s, 0 equal, 1 not equal, 2 an error or a usage error)
     (Ctrl-C at any moment, start-up included: one line, ``torchmeshmetric: interrupted``; see
     ``torchmeshmetric.cli._interrupts``).
 
