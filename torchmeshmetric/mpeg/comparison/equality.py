@@ -44,7 +44,8 @@ than ``uchar red green blue`` and per-corner ``texcoord`` lists go through trime
 mmetric does not read, gives positions and triangles; negative (relative) OBJ face indices are resolved as the OBJ
 format defines them, where mmetric v1.1.7 does not resolve them (its equ compared garbage triangles and its eqTFAN
 crashed on such a file, review P): re-export the file with
-positive indices to compare it with mm.
+positive indices to compare it with mm; PLY ``x y z`` declared in another order (``z y x``) are read by their names,
+where mmetric (tinyply) takes them in their declared order as x, y, z (measured, review S; docs/mpeg.md).
 """
 
 from __future__ import annotations
