@@ -302,3 +302,19 @@ def test_ascii_ply_past_float32_midpoints(tmp_path: Path) -> None:
             for mode in MODES:
                 assert _ours(mode, ply, obj) == _theirs(mode, ply, obj), (text, mode, j)
                 assert _ours(mode, mesh, objm) == _theirs(mode, mesh, objm), (text, mode, j, "mesh")
+
+
+def test_ply_positions_in_another_order_are_read_by_name(tmp_path: Path) -> None:
+    """A documented divergence (review S §4, docs/mpeg.md): mm (tinyply) takes x y z in their declared order whatever
+    their names; the library reads them by name. Measured here so that the docs stay true."""
+    pts = np.array([[-0.0, 5, 6], [1, 2, 3], [0.1, 0.2, 0.3]], np.float32)
+    ref = _write(tmp_path / "r.obj", pts, "obj")
+    head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float z\nproperty float y\nproperty float x\nend_header\n"
+    named = tmp_path / "zyx.ply"  # columns under their names
+    named.write_text(head + "".join(" ".join(f"{v:.9g}" for v in p[::-1]) + "\n" for p in pts))
+    placed = tmp_path / "pos.ply"  # columns x y z under the names z y x
+    placed.write_text(head + "".join(" ".join(f"{v:.9g}" for v in p) + "\n" for p in pts))
+    assert _theirs("equ", ref, named) == "model vertices are not equals"
+    assert _theirs("equ", ref, placed) == "model vertices are equals"
+    assert _ours("equ", ref, named) == "model vertices are equals"
+    assert _ours("equ", ref, placed) == "model vertices are not equals"
