@@ -11,6 +11,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+import re
 import shutil
 import sys
 from pathlib import Path
@@ -640,9 +641,13 @@ def test_one_unwritable_record_path_does_not_stop_storing_the_others(
     assert len(stored) == 1 and str(blocked) in stored[0], stored
     assert _campaign_records(cache) == records[1:]
     calls[:] = []
-    with pytest.warns(UserWarning, match=r"damaged cache record \(cannot be read \(Is a directory\)\)"):
+    with pytest.warns(UserWarning) as caught:  # the folder is still there: read as damaged, and again not stored
         assert main([*args, "--overwrite"]) == 0
     assert calls == [blocked.stem]
+    messages = [str(w.message) for w in caught]
+    assert any(re.search(r"damaged cache record \(cannot be read \(Is a directory\)\)", m) for m in messages), messages
+    stored = [m for m in messages if "cannot store" in m]
+    assert len(stored) == 1 and str(blocked) in stored[0], stored
 
 
 def test_a_manifest_without_cache_dir_resumes_from_ctc_cache_beside_it(
