@@ -27,6 +27,7 @@ __all__ = [
     "plain_int",
     "text_lines",
     "to_tensor",
+    "without_bom",
     "values_per_line",
 ]
 
@@ -44,10 +45,20 @@ def not_a_mesh(p: Path, why: str) -> MeshFileError:
     return MeshFileError(f"path: '{p}' is not a mesh file ({why})")
 
 
+def without_bom(data: bytes) -> bytes:
+    r"""``data`` without a leading UTF-8 byte-order mark: every reader of the package skips it (it is no statement).
+
+    Example:
+        >>> without_bom(b"\xef\xbb\xbfv 0 0 0\n")
+        b'v 0 0 0\n'
+    """
+    return data.removeprefix(b"\xef\xbb\xbf")
+
+
 def text_lines(p: Path, data: bytes) -> list[bytes]:
     """Lines of a text mesh format; binary data (NUL or other control bytes) is refused as not a mesh file."""
     check_text(p, data)
-    return data.removeprefix(b"\xef\xbb\xbf").splitlines()  # a UTF-8 byte-order mark is no statement
+    return without_bom(data).splitlines()
 
 
 _CONTROL = bytes([*range(0, 9), *range(14, 32), 127])

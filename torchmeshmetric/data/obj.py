@@ -21,7 +21,15 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from torchmeshmetric.data.mesh_file import MeshFileError, check_text, not_a_mesh, plain_float, plain_int
+from torchmeshmetric.data.mesh_file import (
+    MeshFileError,
+    check_text,
+    not_a_mesh,
+    plain_float,
+    plain_int,
+    text_lines,
+    without_bom,
+)
 
 if TYPE_CHECKING:
     from torchmeshmetric.structures import Mesh
@@ -135,7 +143,7 @@ def parse_obj(p: Path, data: bytes, *, uvs: bool = True, normals: bool = False) 
         ([0, 1, 2], [0, 0, 0])
     """
     check_text(p, data)
-    data = data.removeprefix(b"\xef\xbb\xbf")
+    data = without_bom(data)
     fast = _parse_fast(data, uvs, normals)
     if fast is None or not _valid(fast):
         fast = _parse_slow(p, data, uvs, normals)
@@ -606,7 +614,7 @@ def obj_mtllibs(data: bytes) -> list[str]:
         >>> obj_mtllibs(b"mtllib frame.mtl # by the encoder\nv 0 0 0\n")
         ['frame.mtl']
     """
-    data = data.removeprefix(b"\xef\xbb\xbf")
+    data = without_bom(data)
     if b"mtllib" not in data:  # a statement naming mtllib holds the word: continuations join with a space
         return []
     if b"\\" in data:
@@ -750,10 +758,8 @@ def parse_mtl(path: Path) -> list[MtlMaterial]:
         >>> parse_mtl(p)[0].map_kd
         'my texture.png'
     """
-    data = path.read_bytes()
-    check_text(path, data)
     out: list[MtlMaterial] = []
-    for lineno, raw in enumerate(data.removeprefix(b"\xef\xbb\xbf").splitlines(), 1):
+    for lineno, raw in enumerate(text_lines(path, path.read_bytes()), 1):
         line = raw.split(b"#", 1)[0].strip()
         tokens = line.split()
         if not tokens:

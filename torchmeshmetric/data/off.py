@@ -24,6 +24,7 @@ from torchmeshmetric.data.mesh_file import (
     plain_int,
     text_lines,
     values_per_line,
+    without_bom,
 )
 
 if TYPE_CHECKING:
@@ -35,7 +36,7 @@ __all__ = ["off_bytes", "parse_off"]
 def parse_off(p: Path, data: bytes) -> tuple[np.ndarray, np.ndarray]:
     """Vertices and triangles of an OFF file; the header's counts must match what the file holds."""
     check_text(p, data)
-    fast = _parse_off_fast(data.removeprefix(b"\xef\xbb\xbf"))
+    fast = _parse_off_fast(without_bom(data))
     if fast is not None:
         return fast
     return _parse_off_slow(p, data)

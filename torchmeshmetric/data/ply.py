@@ -15,7 +15,7 @@ from typing import NamedTuple
 import numpy as np
 
 from torchmeshmetric._float32_text import float32_of_texts
-from torchmeshmetric.data.mesh_file import MeshFileError, values_per_line
+from torchmeshmetric.data.mesh_file import MeshFileError, values_per_line, without_bom
 
 __all__ = [
     "PlyArrays",
@@ -58,7 +58,7 @@ def read_ply_file(p: Path) -> bytes:
 
     Every PLY reader starts here: with the mark, the file was refused as "not a PLY" (found by review).
     """
-    return p.read_bytes().removeprefix(b"\xef\xbb\xbf")
+    return without_bom(p.read_bytes())
 
 
 def polygon_error(p: Path, face: int, corners: int, line: int | None = None) -> MeshFileError:
