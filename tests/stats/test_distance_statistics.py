@@ -139,3 +139,38 @@ def test_approximate_quantiles_within_bound():
         exact = np.percentile(d, q)
         assert abs(float(getattr(s, name)) - exact) <= 0.01 * exact * (1 + 1e-9), name
     assert float(s.ave) == pytest.approx(np.mean(d), rel=1e-12)  # moments stay exact
+
+
+def _two_pass_quantiles(x: torch.Tensor, q: list[float], lens: torch.Tensor) -> torch.Tensor:
+    """The quantiles as linear_quantiles formed them before its numpy sort: two stable torch sorts (the oracle)."""
+    from torchmeshmetric.structures import batch_index, lengths_to_offsets
+
+    b = batch_index(lens)
+    order = torch.argsort(x, stable=True)
+    xs = x[order[torch.argsort(b[order], stable=True)]]
+    off, n = lengths_to_offsets(lens)[:-1], lens.to(torch.float64)
+    pos = torch.tensor(q, dtype=torch.float64)[None, :] * (n[:, None] - 1).clamp_min(0)
+    lo, hi = torch.floor(pos), torch.ceil(pos)
+    last = max(x.numel() - 1, 0)
+    lo_v, hi_v = xs[(off[:, None] + lo.long()).clamp(max=last)], xs[(off[:, None] + hi.long()).clamp(max=last)]
+    out = lo_v + (pos - lo) * (hi_v - lo_v)
+    return torch.where((lens > 0)[:, None], out, torch.full_like(out, float("nan")))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_linear_quantiles_bit_identical_to_the_two_stable_torch_sorts(seed: int) -> None:
+    """The per-item numpy sort (docs/benchmarks.md, eleventh round) gives the quantiles' bits of the stable torch
+    sorts it replaced: ties, zeros of both signs (whose order an unstable sort may swap), infinities, empty items."""
+    rng = np.random.default_rng(seed)
+    sizes = [int(n) for n in rng.integers(0, 40, size=int(rng.integers(1, 7)))] + [0, 1, 2]
+    rng.shuffle(sizes)
+    pool = np.array([0.0, -0.0, 1.5, 1.5, 2.0**-1074, -(2.0**-1074), np.inf, -np.inf, 3.0, -3.0])
+    x = np.where(rng.random(sum(sizes)) < 0.5, rng.choice(pool, sum(sizes)), rng.normal(size=sum(sizes)))
+    lens = torch.tensor(sizes)
+    q = [0.0, 0.01, 0.25, 0.5, 0.95, 0.99, 1.0]
+    got = linear_quantiles(torch.from_numpy(x), q, lens)
+    want = _two_pass_quantiles(torch.from_numpy(x), q, lens)
+    assert torch.equal(got.view(torch.int64), want.view(torch.int64))
+    one = torch.from_numpy(x[: max(sizes[0], 1)])  # a single item (no lengths)
+    want_one = _two_pass_quantiles(one, q, torch.tensor([len(one)]))[0]
+    assert torch.equal(linear_quantiles(one, q).view(torch.int64), want_one.view(torch.int64))

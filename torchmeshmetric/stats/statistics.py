@@ -143,6 +143,37 @@ def psnr_from_mse(mse: Tensor, peak: float | Tensor) -> Tensor:
     return torch.where(mse > 0, val, torch.full_like(val, math.inf))
 
 
+def _sorted_within_items(x: Tensor, lens: Tensor) -> Tensor:
+    """``x`` (packed by ``lens``) with each item's values sorted ascending (NaN last).
+
+    On the CPU each item is sorted by numpy (its vectorised sort): torch's stable sort of the whole packed tensor,
+    then by item, took 20x longer (43.8 ms against 1.8 ms for 400k float64 values, one thread, 2026-12-07), and
+    ``compute()`` of a metric and each statistics call is mostly that sort. Any two sorts of the same values give the
+    same sequence but for the order of equal values, which differ only in the sign of a zero (and a NaN's payload);
+    the interpolation in :func:`linear_quantiles` gives +0 for any signs of zeros, so the quantiles are the same bits.
+    Elsewhere (CUDA: no host read of ``lens``) the two stable torch sorts.
+    """
+    if x.device.type == "cpu" and lens.device.type == "cpu":
+        sizes = lens.tolist()
+        if sum(sizes) == x.numel() and min(sizes, default=0) >= 0:  # else the torch path raises as it did
+            import numpy as np
+
+            a = x.numpy(force=True)
+            if len(sizes) == 1:
+                return torch.from_numpy(np.sort(a))
+            out = np.empty_like(a)
+            start = 0
+            for n in sizes:
+                out[start : start + n] = np.sort(a[start : start + n])
+                start += n
+            return torch.from_numpy(out)
+    b = batch_index(lens)
+    # Sort by value, then stably by item: values sorted within each item.
+    order = torch.argsort(x, stable=True)
+    order = order[torch.argsort(b[order], stable=True)]
+    return x[order]
+
+
 def linear_quantiles(values: Tensor, q: Sequence[float] | Tensor, lengths: Tensor | None = None) -> Tensor:
     """Exact quantiles with linear interpolation (``numpy.percentile(..., method="linear")``), per item.
 
@@ -162,11 +193,7 @@ def linear_quantiles(values: Tensor, q: Sequence[float] | Tensor, lengths: Tenso
     qs = torch.as_tensor(q, dtype=torch.float64, device=x.device).reshape(-1)
     single = lengths is None
     lens = x.new_tensor([x.numel()], dtype=torch.long) if lengths is None else lengths.to(x.device, torch.long)
-    b = batch_index(lens)
-    # Sort by value, then stably by item: values sorted within each item.
-    order = torch.argsort(x, stable=True)
-    order = order[torch.argsort(b[order], stable=True)]
-    xs = x[order]
+    xs = _sorted_within_items(x, lens)
     off = lengths_to_offsets(lens)[:-1]
     n = lens.to(torch.float64)
     pos = qs[None, :] * (n[:, None] - 1).clamp_min(0)
