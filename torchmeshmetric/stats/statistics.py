@@ -155,7 +155,7 @@ def _sorted_within_items(x: Tensor, lens: Tensor) -> Tensor:
     """
     if x.device.type == "cpu" and lens.device.type == "cpu":
         sizes = lens.tolist()
-        if sum(sizes) == x.numel() and min(sizes, default=0) >= 0:  # else the torch path raises as it did
+        if sum(sizes) == x.numel() and min(sizes, default=0) >= 0:  # else the torch path, as before
             import numpy as np
 
             a = x.numpy(force=True)
