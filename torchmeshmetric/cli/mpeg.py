@@ -49,7 +49,7 @@ def _run_equality(args: argparse.Namespace) -> int:
     """``--mode equ``: mmetric's lines (texture maps, verdict, differences) or JSON; exit status 0 when equal."""
     from dataclasses import asdict
 
-    from torchmeshmetric.cli.mpeg_outputs import load_pair
+    from torchmeshmetric.cli.mpeg_outputs import load_pair, write_comparison_models
     from torchmeshmetric.mpeg.comparison.equality import load_equality_model, mesh_equality
 
     ref, dis = load_pair(args, lambda side, path, texture: load_equality_model(path, texture))
@@ -61,6 +61,7 @@ def _run_equality(args: argparse.Namespace) -> int:
         print(json.dumps(asdict(result), indent=1))
     else:
         print(result.report(early_return=not args.all_differences))
+    write_comparison_models(args, (ref, dis) if result.points else None)
     return 0 if result.equal else 1
 
 
@@ -73,7 +74,7 @@ _PCQM_OPTIONS = {
 
 def _run_pcqm(args: argparse.Namespace) -> int:
     """``--mode pcqm``: mm compare --mode pcqm's printed figures (or JSON)."""
-    from torchmeshmetric.cli.mpeg_outputs import load_pair
+    from torchmeshmetric.cli.mpeg_outputs import cloud_texts, load_pair, write_models
     from torchmeshmetric.mpeg.comparison.pcqm import mpeg_pcqm
     from torchmeshmetric.mpeg.sampling.model_cloud import load_model_cloud
 
@@ -89,6 +90,7 @@ def _run_pcqm(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise as_option_error(exc, _PCQM_OPTIONS) from exc
     print(json.dumps(json_safe(result.to_dict()), indent=1) if args.json else result.report())
+    write_models(args, cloud_texts(args, ref, dis))
     return 0
 
 
@@ -97,7 +99,7 @@ def _run_topology(args: argparse.Namespace) -> int:
     from dataclasses import asdict
 
     from torchmeshmetric.cli._outputs import CLIError
-    from torchmeshmetric.cli.mpeg_outputs import load_pair
+    from torchmeshmetric.cli.mpeg_outputs import load_pair, write_comparison_models
     from torchmeshmetric.mpeg.comparison.topology import topology_equivalence
 
     if args.face_map is None or args.vertex_map is None:
@@ -107,6 +109,7 @@ def _run_topology(args: argparse.Namespace) -> int:
     ref, dis = load_pair(args)
     result = topology_equivalence(ref, dis, args.face_map, args.vertex_map)
     print(json.dumps(asdict(result), indent=1) if args.json else result.report())
+    write_comparison_models(args, None)
     return 0 if result.matching else 1
 
 
@@ -114,7 +117,7 @@ def _run_tfan(args: argparse.Namespace) -> int:
     """``--mode eqTFAN``: mmetric's lines (maps, connectivity, verdict, differences) or JSON; exit 0 when equal."""
     from dataclasses import asdict
 
-    from torchmeshmetric.cli.mpeg_outputs import load_pair
+    from torchmeshmetric.cli.mpeg_outputs import load_pair, write_comparison_models
     from torchmeshmetric.mpeg.comparison.equality import load_equality_model
     from torchmeshmetric.mpeg.comparison.tfan_comparison import tfan_equality
 
@@ -125,6 +128,7 @@ def _run_tfan(args: argparse.Namespace) -> int:
         raise as_option_error(exc, {"epsilon": "--epsilon"}) from exc
     report = result.report()
     print(json.dumps({**asdict(result), "report": report}, indent=1) if args.json else report)
+    write_comparison_models(args, (ref, dis) if result.points else None)
     return 0 if result.equal else 1
 
 

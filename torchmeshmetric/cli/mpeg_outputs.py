@@ -1,11 +1,12 @@
 """The files ``torchmeshmetric mpeg`` writes beside its figures, as mmetric's ``compare`` writes them.
 
-``--output-model-ref/--output-model-dis`` (mmetric's ``--outputModelA/B``): in pcc mode the two point clouds
-compared (the grid samples, or the mesh-mode subdivision of the reordered mesh), as PLY; in ibsm mode the two
-meshes after mmetric's oriented reordering, as PLY or OBJ. ``--output-csv`` (``--outputCsv``): one row appended
-per run, the header first in a new or empty file. The files are checked before any computation (never an input,
-distinct, a CSV with this mode's header) and written as one set: the models appear once the CSV row is appended
-(never over an existing file without ``--overwrite``); the CSV is only ever appended to.
+``--output-model-ref/--output-model-dis`` (mmetric's ``--outputModelA/B``), as PLY or OBJ: in pcc mode the two
+point clouds compared (the grid samples, or the mesh-mode subdivision of the reordered mesh); in ibsm mode the two
+meshes after mmetric's oriented reordering; in equ and eqTFAN modes the sorted positions of two point clouds, and
+in these modes and topo mode for meshes the empty models mmetric writes there. ``--output-csv`` (``--outputCsv``):
+one row appended per run, the header first in a new or empty file. The files are checked before any computation
+(never an input, distinct, a CSV with this mode's header) and written as one set: the models appear once the CSV
+row is appended (never over an existing file without ``--overwrite``); the CSV is only ever appended to.
 """
 
 from __future__ import annotations
@@ -21,7 +22,16 @@ from typing import Any
 from torchmeshmetric._atomic import atomic_write
 from torchmeshmetric.cli.options import path_argument
 
-__all__ = ["add_output_options", "check_outputs", "run_ibsm", "write_pcc_outputs"]
+__all__ = [
+    "add_output_options",
+    "check_outputs",
+    "cloud_texts",
+    "load_pair",
+    "run_ibsm",
+    "write_comparison_models",
+    "write_models",
+    "write_pcc_outputs",
+]
 
 
 def add_output_options(p: Any) -> None:
@@ -38,7 +48,8 @@ def add_output_options(p: Any) -> None:
         type=path_argument,
         default=None,
         metavar="FILE",
-        help="pcc mode: REF's sampled cloud (.ply); ibsm mode: REF reordered (.ply/.obj) -- mm's --outputModelA",
+        help="REF's model as mm --outputModelA writes it (.ply/.obj): pcc mode its sampled cloud; ibsm mode REF "
+        "reordered; equ/eqTFAN modes a point cloud's sorted points (meshes, and topo mode: mm's empty model)",
     )
     p.add_argument(
         "--output-model-dis", type=path_argument, default=None, metavar="FILE", help="the same for DIS (--outputModelB)"
@@ -70,12 +81,11 @@ def check_outputs(args: argparse.Namespace) -> None:
 
     named = [(o, Path(m)) for o, m in (("--output-model-ref", args.output_model_ref),
                                          ("--output-model-dis", args.output_model_dis)) if m is not None]  # fmt: skip
-    if (named or args.output_csv is not None) and args.mode not in ("pcc", "ibsm"):
-        raise CLIError(f"--output-csv / --output-model-*: written in pcc and ibsm modes, not in {args.mode} mode")
-    allowed = (".ply",) if args.mode == "pcc" else (".ply", ".obj")
+    if args.output_csv is not None and args.mode not in ("pcc", "ibsm"):
+        raise CLIError(f"--output-csv: written in pcc and ibsm modes, not in {args.mode} mode")
     for option, m in named:
-        if m.suffix.lower() not in allowed:
-            raise CLIError(f"{option}: {str(m)!r} must end with {' or '.join(allowed)} in {args.mode} mode")
+        if m.suffix.lower() not in (".ply", ".obj"):  # mmetric writes by the name's last three letters, no other
+            raise CLIError(f"{option}: {str(m)!r} must end with .ply or .obj")
     csv = [] if args.output_csv is None else [("--output-csv", Path(args.output_csv))]
     if not named and not csv:
         return
@@ -109,13 +119,59 @@ def _write(args: argparse.Namespace, texts: tuple[str, str], header: str, row: s
             append_csv_row(args.output_csv, header, [row])  # last: a failure before it keeps no model
 
 
+def write_comparison_models(args: argparse.Namespace, models: tuple[Any, Any] | None) -> None:
+    """The equ / eqTFAN / topo modes' output models, as mmetric writes them.
+
+    Args:
+        args: the command's arguments.
+        models: the two :class:`~torchmeshmetric.mpeg.comparison.equality.EqualityModel` when mmetric's point-cloud
+            branch ran (neither has a triangle): their positions, sorted in mmetric's order, are the files; ``None``
+            otherwise (meshes, topo mode), where mmetric writes the models it left empty.
+    """
+    import numpy as np
+
+    from torchmeshmetric.mpeg.comparison.point_order import mmetric_point_order
+    from torchmeshmetric.mpeg.core.model_files import empty_model_text, mmetric_obj_text, mmetric_ply_text, obj_header
+
+    texts = []
+    for k, (path, name) in enumerate(((args.output_model_ref, args.ref), (args.output_model_dis, args.dis))):
+        suffix = "" if path is None else Path(path).suffix.lower()
+        if path is None:
+            texts.append("")
+        elif models is None:
+            texts.append(empty_model_text(suffix, obj_header(name)))
+        else:
+            positions = models[k].positions
+            points = positions[mmetric_point_order(positions)]
+            none = np.zeros((0, 3), np.int64)
+            ply = suffix == ".ply"
+            texts.append(mmetric_ply_text(points) if ply else mmetric_obj_text(points, none, header=obj_header(name)))
+    write_models(args, (texts[0], texts[1]))
+
+
+def write_models(args: argparse.Namespace, texts: tuple[str, str]) -> None:
+    """The two model files of a mode without a CSV row (``""``: a file not asked for)."""
+    _write(args, texts, "", "")
+
+
+def cloud_texts(args: argparse.Namespace, ref: Any, dis: Any) -> tuple[str, str]:
+    """The two clouds compared, as the files ``--output-model-ref/dis`` name (PLY or OBJ).
+
+    The OBJ starts with the input's ``mtllib`` lines, as mmetric keeps them; ``""`` for a file not asked for.
+    """
+    from torchmeshmetric.mpeg.core.model_files import obj_header, point_cloud_text
+
+    texts = []
+    for path, cloud, name in ((args.output_model_ref, ref, args.ref), (args.output_model_dis, dis, args.dis)):
+        texts.append("" if path is None else point_cloud_text(cloud, Path(path).suffix, obj_header(name)))
+    return texts[0], texts[1]
+
+
 def write_pcc_outputs(args: argparse.Namespace, clouds: Any, result: Any) -> None:
     """The pcc mode's output models and CSV row."""
     from torchmeshmetric.mpeg.comparison.csv_rows import PCC_CSV_HEADER, mmetric_texture_url, pcc_csv_row
-    from torchmeshmetric.mpeg.core.model_files import point_cloud_ply_text
 
-    ref = point_cloud_ply_text(clouds.ref) if args.output_model_ref is not None else ""
-    dis = point_cloud_ply_text(clouds.dis) if args.output_model_dis is not None else ""
+    ref, dis = cloud_texts(args, clouds.ref, clouds.dis)
     row = ""
     if args.output_csv is not None:
         given = args.peak if args.sampling == "mesh" else result.peak  # the grid chain passes the peak to mm

@@ -12,6 +12,7 @@ from . import metric as metric
 from . import neighbours as neighbours
 from . import pcc as pcc
 from . import pcqm as pcqm
+from . import point_order as point_order
 from . import psnr as psnr
 from . import sequence as sequence
 from . import tfan_comparison as tfan_comparison

@@ -62,6 +62,7 @@ from torch import Tensor
 
 from torchmeshmetric._checks import DTypeError, IndexRangeError, NonFiniteError, ShapeError, check_real
 from torchmeshmetric.data.ply import PlyArrays
+from torchmeshmetric.mpeg.comparison.point_order import lexicographic_order
 from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh, _obj_colors, as_textured_mesh, read_texture
 from torchmeshmetric.structures import MeshLike
 
@@ -482,11 +483,12 @@ def _epsilon(epsilon: object) -> np.float32:
 def _sorted_points(positions: np.ndarray) -> np.ndarray:
     """The positions in mmetric's order: lexicographic on (x, y, z), as its ``CompareVertex<true, ...>`` sorts them.
 
-    ``+ 0.0`` turns -0.0 into 0.0: mmetric's ``<`` sees them equal, so either may come first there; after it the
-    comparison below is the same whichever did.
+    -0.0 is made 0.0: mmetric's ``<`` sees them equal, so either may come first there; the comparison below is the
+    same whichever did (the files of the sorted points place them:
+    :func:`~torchmeshmetric.mpeg.comparison.point_order.mmetric_point_order`).
     """
-    q = positions + np.float32(0.0)
-    return q[np.lexsort((q[:, 2], q[:, 1], q[:, 0]))]
+    keys, order = lexicographic_order(positions)
+    return keys[order]
 
 
 def point_cloud_verdict(a: np.ndarray, b: np.ndarray, epsilon: float = 0.0) -> tuple[bool, int | None]:

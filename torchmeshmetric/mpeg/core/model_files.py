@@ -5,7 +5,10 @@ float32 value reads back unchanged), colours in a PLY as ``roundf`` integers and
 A PLY vertex row is ``x y z`` and a space, ``nx ny nz`` and a space when there are normals, then ``r g b`` when there
 are colours; faces are ``3 a b c`` (0-based). An OBJ starts with the input's ``mtllib`` lines (mmetric's model
 "header", an empty line when there is none), then ``v`` (with colours), ``vn``, ``vt`` rows, ``usemtl material0000``
-when there are UVs, and 1-based ``f`` rows (``v/vt`` when there is a UV per vertex).
+when there are UVs, and 1-based ``f`` rows (``v/vt`` when there is a UV per vertex). A model with nothing in it
+(mmetric's ``--outputModelA/B`` in equ, eqTFAN and topo modes on meshes) is a PLY header that declares normals and
+colours -- mmetric declares them when their lists are as long as the positions', and 0 is 0 -- or an OBJ of its
+header line alone.
 """
 
 from __future__ import annotations
@@ -21,7 +24,15 @@ from torchmeshmetric.mpeg.core._float32 import roundf
 from torchmeshmetric.mpeg.core.point_cloud import PointCloud
 from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh
 
-__all__ = ["mmetric_obj_text", "mmetric_ply_text", "obj_header", "point_cloud_ply_text", "textured_mesh_text"]
+__all__ = [
+    "empty_model_text",
+    "mmetric_obj_text",
+    "mmetric_ply_text",
+    "obj_header",
+    "point_cloud_ply_text",
+    "point_cloud_text",
+    "textured_mesh_text",
+]
 
 _MTLLIB = re.compile(rb"^[ \t]*mtllib[ \t]+([^\n]*)", re.MULTILINE)
 
@@ -87,15 +98,17 @@ def mmetric_obj_text(
     *,
     uvs: np.ndarray | None = None,
     colors: np.ndarray | None = None,
+    normals: np.ndarray | None = None,
     header: str = "",
 ) -> str:
-    """The OBJ mmetric writes for a mesh with one UV per vertex (its reordered models) or none.
+    """The OBJ mmetric writes for a mesh with one UV per vertex (its reordered models) or none, or a point cloud.
 
     Args:
         verts: ``(V, 3)`` float32 positions.
-        faces: ``(F, 3)`` 0-based vertex indices.
+        faces: ``(F, 3)`` 0-based vertex indices (``(0, 3)`` for a point cloud).
         uvs: ``(V, 2)`` UV of each vertex (``f v/v`` rows), or ``None``.
         colors: ``(V, 3)`` per-vertex colours in ``[0, 255]`` (written as ``value / 255``), or ``None``.
+        normals: ``(N, 3)`` normals (``vn`` rows, which no face row names: mmetric's point clouds), or ``None``.
         header: the input's ``mtllib`` lines (:func:`obj_header`).
 
     Returns:
@@ -115,6 +128,8 @@ def mmetric_obj_text(
         scaled = np.asarray(colors, np.float32) / np.float32(255)  # float / 255 in float32, as mmetric
         rows = [f"{a} {b}" for a, b in zip(rows, _rows([scaled]), strict=True)]
     lines += rows
+    if normals is not None and len(normals):
+        lines += ["vn " + r for r in _rows([normals])]
     f = np.asarray(faces, np.int64) + 1
     if uvs is not None and len(uvs):
         lines += ["vt " + r for r in _rows([uvs])]
@@ -154,6 +169,45 @@ def point_cloud_ply_text(cloud: PointCloud) -> str:
         None if cloud.normals is None else cloud.normals.numpy(),
         None if cloud.colors is None else cloud.colors.numpy(),
     )
+
+
+def point_cloud_text(cloud: PointCloud, suffix: str, header: str = "") -> str:
+    """A point cloud as mmetric writes it (``--outputModelA/B``), ``.ply`` or ``.obj`` by ``suffix``.
+
+    The OBJ is the header (:func:`obj_header` of the model the cloud came from), ``v`` rows (with the colours
+    divided by 255) and ``vn`` rows, no face.
+
+    Example:
+        >>> import torch
+        >>> c = PointCloud(torch.tensor([[0.5, 0, 1]]), normals=torch.tensor([[0.0, 0, 1]]))
+        >>> point_cloud_text(c, ".obj", "mtllib m.mtl").splitlines()
+        ['mtllib m.mtl', 'v 0.5 0 1', 'vn 0 0 1']
+    """
+    if suffix.lower() == ".ply":
+        return point_cloud_ply_text(cloud)
+    points = cloud.points.numpy()
+    normals = None if cloud.normals is None else cloud.normals.numpy()
+    colors = None if cloud.colors is None else cloud.colors.numpy()
+    return mmetric_obj_text(points, np.zeros((0, 3), np.int64), colors=colors, normals=normals, header=header)
+
+
+def empty_model_text(suffix: str, header: str = "") -> str:
+    r"""The file mmetric writes for a model with nothing in it, ``.ply`` or ``.obj`` by ``suffix``.
+
+    ``mm compare --mode equ/eqTFAN/topo`` fill their output models only for point clouds; for meshes mmetric still
+    writes the untouched model: a PLY header declaring no vertex (but normals and colours, its lists being as long
+    as the empty positions'), or an OBJ of the input's ``mtllib`` lines and a newline.
+
+    Example:
+        >>> empty_model_text(".obj", "mtllib m.mtl")
+        'mtllib m.mtl\n'
+        >>> empty_model_text(".ply").splitlines()[3], empty_model_text(".ply").splitlines()[-2]
+        ('element vertex 0', 'property uchar blue')
+    """
+    none = np.zeros((0, 3), np.float32)
+    if suffix.lower() == ".ply":
+        return mmetric_ply_text(none, none, none)
+    return mmetric_obj_text(none, np.zeros((0, 3), np.int64), header=header)
 
 
 def textured_mesh_text(mesh: TexturedMesh, suffix: str, header: str = "") -> str:

@@ -10,7 +10,7 @@ import torch
 
 from torchmeshmetric._checks import EmptyInputError
 from torchmeshmetric.data.mesh_file import check_dtype_range, existing_mesh_file
-from torchmeshmetric.data.ply import read_ply_points
+from torchmeshmetric.data.ply import read_ply_point_arrays
 from torchmeshmetric.mpeg.core.point_cloud import PointCloud
 from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
 from torchmeshmetric.mpeg.sampling.vertex_sampling import vertex_sample
@@ -25,7 +25,8 @@ def load_model_cloud(
 
     A mesh (faces present) is reordered and sampled at its vertices and subdivided faces, in mmetric's order
     (:func:`~torchmeshmetric.mpeg.vertex_sample`), with the colours of its texture or vertices; a file
-    without faces (``mm sample``'s PLY output) passes through with its vertex colours.
+    without faces (``mm sample``'s PLY output) passes through with its normals (``nx ny nz``, which mmetric's D2
+    uses) and vertex colours.
 
     Args:
         path: OBJ, PLY or OFF file.
@@ -33,7 +34,7 @@ def load_model_cloud(
         name: how error messages name the model.
 
     Returns:
-        :class:`PointCloud` (colours when the model has any).
+        :class:`PointCloud` (normals and colours when the model has any).
 
     Raises:
         MeshFileError: an unreadable file (a point-cloud PLY through the one PLY reader: header, count and
@@ -48,12 +49,12 @@ def load_model_cloud(
         15
     """
     p = Path(path)
-    points = read_ply_points(existing_mesh_file(p)) if p.suffix.lower() == ".ply" else None
+    points = read_ply_point_arrays(existing_mesh_file(p)) if p.suffix.lower() == ".ply" else None
     if points is not None:  # a point cloud: checked by the one PLY reader, used as it is
-        verts, colors = points
-        check_dtype_range(p, verts, torch.float32, None, "mmetric reads coordinates as float32")
-        rgb = None if colors is None else torch.from_numpy(colors.astype(np.float32))
-        cloud = PointCloud(torch.from_numpy(verts.astype(np.float32)), colors=rgb)
+        check_dtype_range(p, points.verts, torch.float32, None, "mmetric reads coordinates as float32")
+        rgb = None if points.colors is None else torch.from_numpy(points.colors.astype(np.float32))
+        normals = None if points.normals is None else torch.from_numpy(points.normals.astype(np.float32))
+        cloud = PointCloud(torch.from_numpy(points.verts.astype(np.float32)), normals=normals, colors=rgb)
     else:
         model = load_textured_mesh(p, texture)
         if model.mesh.faces.shape[0] > 0:
