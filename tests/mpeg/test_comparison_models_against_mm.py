@@ -29,7 +29,7 @@ def _both(tmp: Path, mode: str, a: Path, b: Path, suffixes: tuple[str, str], mm:
         p.unlink(missing_ok=True)
     args = [str(MM), "compare", "--mode", mode, "--inputModelA", str(a), "--inputModelB", str(b), *mm]
     args += ["--outputModelA", str(theirs[0]), "--outputModelB", str(theirs[1])]
-    subprocess.run(args, capture_output=True, timeout=300, check=True)
+    subprocess.run(args, capture_output=True, timeout=300, check=True, cwd=tmp)  # pcqm writes features_extracted.csv
     rc = main(["mpeg", str(a), str(b), "--mode", mode, "--output-model-ref", str(mine[0]),
                "--output-model-dis", str(mine[1]), *ours])  # fmt: skip
     assert rc in (0, 1)
