@@ -26,10 +26,8 @@ _OPTIONS = {
 def _run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from torchmeshmetric._atomic import atomic_write
     from torchmeshmetric.cli._outputs import CLIError, check_writable
     from torchmeshmetric.cli.options import as_option_error
-    from torchmeshmetric.mpeg.core.model_files import point_cloud_ply_text
     from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
     from torchmeshmetric.mpeg.sampling.edge_sampling import edge_sample
     from torchmeshmetric.mpeg.sampling.face_sampling import face_sample
@@ -47,7 +45,15 @@ def _run(args: argparse.Namespace) -> int:
     except (OSError, ValueError):  # an unreadable mesh is reported by its reader
         texture = None
     inputs = [("MESH", args.mesh), ("--texture" if args.texture else "MESH's texture", texture)]
-    check_writable([out], args.overwrite, inputs=inputs, what="OUT")
+    csv = [] if args.output_csv is None else [("--output-csv", Path(args.output_csv))]
+    check_writable([out], args.overwrite, inputs=inputs, what="OUT", appended=csv)
+    if csv:
+        from torchmeshmetric.mpeg.comparison.csv_rows import SAMPLE_CSV_HEADERS, CsvHeaderError, check_csv_header
+
+        try:
+            check_csv_header(csv[0][1], SAMPLE_CSV_HEADERS[args.mode])
+        except CsvHeaderError as exc:
+            raise CLIError(f"--output-csv: {exc}") from exc
     # the library's errors name its arguments (mesh, texture, num_samples_min...): retold with the command's names
     options = {**_OPTIONS, "path": "MESH", "mesh": f"MESH {args.mesh!r}"}
     options["texture"] = "--texture" if args.texture else "MESH's texture"
@@ -84,12 +90,13 @@ def _run(args: argparse.Namespace) -> int:
             found = search_sample_count(sample, kind, args.num_samples_min, args.num_samples_max, args.max_iterations)
         except ValueError as exc:
             raise as_option_error(exc, options) from exc
-        pc = found.cloud
+        pc, computed = found.cloud, found.value
         if found.earlier_points and pc.colors is not None:
             # mmetric's Model::reset keeps the earlier samplings' colours: its file then has none (see CountSearch)
             pc = type(pc)(pc.points, pc.normals)
         print(f"Computed {kind} {found.value:.9g} after {found.iterations} iterations")
     else:
+        computed = 0.0
         try:
             pc = sample()
         except ValueError as exc:
@@ -99,9 +106,38 @@ def _run(args: argparse.Namespace) -> int:
                 args.mode, "--length-threshold" if args.mode == "ediv" and args.length_threshold else "--resolution"
             )
             raise CLIError(f"{option}: the {args.mode} sampling needs more memory than is free here ({exc})") from exc
-    atomic_write(out, point_cloud_ply_text(pc), overwrite=args.overwrite)
+    _write(args, out, texture or "", pc, computed)
     print(f"Generated {pc.num_points} points -> {out}")
     return 0
+
+
+def _write(args: argparse.Namespace, out: Any, texture: str, pc: Any, computed: float) -> None:
+    """OUT and the ``--output-csv`` row as one set: OUT appears only once the row is appended."""
+    from torchmeshmetric._atomic import atomic_write
+    from torchmeshmetric.cli._outputs import output_set
+    from torchmeshmetric.mpeg.comparison.csv_rows import SAMPLE_CSV_HEADERS, append_csv_row, sample_csv_row
+    from torchmeshmetric.mpeg.core.model_files import point_cloud_ply_text
+
+    with output_set("OUT and the CSV row"):
+        atomic_write(out, point_cloud_ply_text(pc), overwrite=args.overwrite)
+        if args.output_csv is not None:
+            row = sample_csv_row(
+                args.mode,
+                model=args.mesh,
+                texture=texture,
+                points=pc.num_points,
+                resolution=args.resolution,
+                thickness=args.thickness,
+                area_threshold=args.area_threshold,
+                length_threshold=args.length_threshold,
+                num_samples=args.num_samples,
+                bilinear=args.bilinear,
+                num_samples_min=args.num_samples_min,
+                num_samples_max=args.num_samples_max,
+                max_iterations=args.max_iterations,
+                computed=computed,
+            )
+            append_csv_row(args.output_csv, SAMPLE_CSV_HEADERS[args.mode], [row])  # last: a failure keeps no OUT
 
 
 def add_sample_command(sub: Any) -> None:
@@ -154,6 +190,14 @@ def add_sample_command(sub: Any) -> None:
     p.add_argument("--bilinear", action="store_true", help="bilinear texture filtering (default nearest, as mm)")
     p.add_argument(
         "--texture", type=path_argument, default=None, metavar="IMG", help="texture of MESH (overrides its MTL)"
+    )
+    p.add_argument(
+        "--output-csv",
+        type=path_argument,
+        default=None,
+        metavar="FILE",
+        help="append mm sample --outputCsv's row (options, searched value, point count; the mode's header first in a "
+        "new or empty file)",
     )
     p.add_argument("--overwrite", action="store_true", help="replace OUT if it exists (never MESH nor its texture)")
     p.set_defaults(func=_run)

@@ -5,8 +5,10 @@ the parameters, the frame number and the figures, separated by ``;``, floats wit
 (``%.9g``: ``inf``, ``nan`` as C prints them), booleans as ``0`` / ``1``. Two modes have figures worth a row:
 ``pcc`` (D1/D2 PSNR and their Hausdorff PSNR, Y/Cb/Cr PSNR and the RGB Hausdorff PSNR; colour columns ``0`` without
 colours) and ``ibsm`` (geometry, RGB and YUV PSNR, then the processing time in seconds -- a clock reading, never
-equal between runs). The texture columns are what mmetric names: the ``--inputMap`` given, or the first material's
-``map_Kd`` of the OBJ's ``mtllib`` files as ``<OBJ folder>/<map_Kd>`` (``.`` for a bare file name), or empty.
+equal between runs). ``mm sample --outputCsv`` appends its own rows (one header per sampling mode: the options, the
+search's outcome and the point count). The texture columns are what mmetric names: the ``--inputMap`` given, or the
+first material's ``map_Kd`` of the OBJ's ``mtllib`` files as ``<OBJ folder>/<map_Kd>`` (``.`` for a bare file
+name), or empty.
 
 :func:`append_csv_row` appends under an exclusive lock in one write, so concurrent runs appending to one file
 interleave whole rows; it refuses a non-empty file whose first line is not this mode's header (mmetric would append
@@ -29,12 +31,14 @@ from torchmeshmetric.mpeg.comparison.pcc import MpegResult
 __all__ = [
     "IBSM_CSV_HEADER",
     "PCC_CSV_HEADER",
+    "SAMPLE_CSV_HEADERS",
     "CsvHeaderError",
     "append_csv_row",
     "check_csv_header",
     "ibsm_csv_row",
     "mmetric_texture_url",
     "pcc_csv_row",
+    "sample_csv_row",
 ]
 
 PCC_CSV_HEADER = (
@@ -47,6 +51,17 @@ IBSM_CSV_HEADER = (
     "p_ibsmResolution;p_ibsmDisableCulling;p_ibsmOutputPrefix;frame;geo_psnr;rgb_psnr;r_psnr;g_psnr;b_psnr;"
     "yuv_psnr;y_psnr;u_psnr;v_psnr;processingTime"
 )
+
+_SEARCH = "nbSamplesMin;nbSamplesMax;maxIterations"
+SAMPLE_CSV_HEADERS = {
+    "face": f"model;texture;frame;resolution;thickness;bilinear;{_SEARCH};computedResolution;nbSamples",
+    "sdiv": f"model;texture;frame;mode;areaThreshold;bilinear;{_SEARCH};computedThreshold;nbSamples",
+    "ediv": f"model;texture;frame;mode;resolution;lengthThreshold;bilinear;{_SEARCH};computedThreshold;nbSamples",
+    "prnd": "model;texture;frame;mode;targetPointCount;bilinear;nbSamples",
+    "map": "model;texture;frame;mode;nbSamples",
+}
+"""``mm sample --outputCsv``'s header for each mode the ``sample`` command has (mmetric's face header has no
+``mode`` column, nor its rows)."""
 
 
 class CsvHeaderError(ValueError):
@@ -151,6 +166,67 @@ def ibsm_csv_row(
     return ";".join(cols)
 
 
+def sample_csv_row(
+    mode: str,
+    *,
+    model: str,
+    texture: str,
+    points: int,
+    resolution: int = 1024,
+    thickness: float = 0.0,
+    area_threshold: float = 1.0,
+    length_threshold: float = 0.0,
+    num_samples: int = 2000000,
+    bilinear: bool = False,
+    num_samples_min: int = 0,
+    num_samples_max: int = 0,
+    max_iterations: int = 10,
+    computed: float = 0.0,
+    frame: int = 0,
+) -> str:
+    """The row ``mm sample --mode MODE --outputCsv`` appends (its header: :data:`SAMPLE_CSV_HEADERS`).
+
+    Args:
+        mode: ``face``, ``sdiv``, ``ediv``, ``prnd`` or ``map``.
+        model: the ``-i`` name, as given.
+        texture: the texture name mmetric reports (:func:`mmetric_texture_url`).
+        points: the points sampled (the file's vertex count).
+        resolution: ``--resolution`` (face, ediv), as given (not the searched one).
+        thickness: ``--thickness`` (face; float32, as mmetric holds it).
+        area_threshold: ``--areaThreshold`` (sdiv; float32), as given.
+        length_threshold: ``--lengthThreshold`` (ediv; float32), as given.
+        num_samples: ``--nbSamples`` (prnd's target count).
+        bilinear: ``--bilinear``.
+        num_samples_min: ``--nbSamplesMin`` (0: no search).
+        num_samples_max: ``--nbSamplesMax``.
+        max_iterations: ``--maxIterations``.
+        computed: the search's resolution (face, an integer) or threshold (sdiv, ediv; float32); 0 without a search.
+        frame: the frame number.
+
+    Returns:
+        The row, without a newline.
+
+    Raises:
+        ValueError: ``mode`` not one of the five.
+
+    Example:
+        >>> sample_csv_row("face", model="m.obj", texture="", points=10, thickness=0.3)
+        'm.obj;;0;1024;0.300000012;0;0;0;10;0;10'
+    """
+    if mode not in SAMPLE_CSV_HEADERS:
+        raise ValueError(f"mode: expected one of {sorted(SAMPLE_CSV_HEADERS)}, found {mode!r}")
+    search = [str(num_samples_min), str(num_samples_max), str(max_iterations)]
+    lead = [model, texture, str(frame)] + ([] if mode == "face" else [mode])
+    cols = {
+        "face": [str(resolution), _f32(thickness), str(int(bilinear)), *search, str(int(computed))],
+        "sdiv": [_f32(area_threshold), str(int(bilinear)), *search, _f32(computed)],
+        "ediv": [str(resolution), _f32(length_threshold), str(int(bilinear)), *search, _f32(computed)],
+        "prnd": [str(num_samples), str(int(bilinear))],
+        "map": [],
+    }[mode]
+    return ";".join([*lead, *cols, str(points)])
+
+
 def _mtl_maps(folder: str, mtl: str) -> list[str]:
     """Each ``newmtl``'s texture as mmetric names it (``<OBJ folder>/<map_Kd>``, ``""`` without one)."""
     try:
@@ -207,7 +283,7 @@ def check_csv_header(path: str | os.PathLike, header: str) -> None:
 
     Args:
         path: the CSV file (missing or empty: accepted).
-        header: :data:`PCC_CSV_HEADER` or :data:`IBSM_CSV_HEADER`.
+        header: :data:`PCC_CSV_HEADER`, :data:`IBSM_CSV_HEADER` or one of :data:`SAMPLE_CSV_HEADERS`.
 
     Raises:
         CsvHeaderError: the file is not empty and its first line is not ``header``.
@@ -252,7 +328,7 @@ def append_csv_row(path: str | os.PathLike, header: str, rows: Sequence[str]) ->
 
     Args:
         path: the CSV file (created when missing).
-        header: :data:`PCC_CSV_HEADER` or :data:`IBSM_CSV_HEADER`.
+        header: :data:`PCC_CSV_HEADER`, :data:`IBSM_CSV_HEADER` or one of :data:`SAMPLE_CSV_HEADERS`.
         rows: the rows to append (:func:`pcc_csv_row`, :func:`ibsm_csv_row`).
 
     Returns:

@@ -1,0 +1,95 @@
+"""``torchmeshmetric sample --output-csv`` against the rows ``mm sample --outputCsv`` appended.
+
+The stored CSVs (``tests/data/mmetric/outputs/sample_*.csv``) were written by ``mm`` v1.1.7, run in
+``tests/data/mmetric`` on the relative names these tests give (the model column is the name as given, the texture
+column ``./plane.png`` for a map found through ``plane.obj``'s MTL); the same runs against the binary itself, appended
+twice, are at the end (skipped where ``mm`` is absent).
+"""
+
+from __future__ import annotations
+
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from tests.mpeg.conftest import MM, MM_TESTS
+from torchmeshmetric.cli import main
+from torchmeshmetric.mpeg.comparison.csv_rows import SAMPLE_CSV_HEADERS, sample_csv_row
+
+RUNS = {
+    "face": [
+        ["plane.obj", "--resolution", "64"],
+        ["sphere.obj", "--resolution", "32", "--thickness", "0.3", "--bilinear", "--texture", "plane_16_16.png"],
+        ["sphere.obj", "--num-samples-min", "1000", "--num-samples-max", "2000"],
+    ],
+    "sdiv": [
+        ["plane.obj", "--area-threshold", "0.5"],
+        ["sphere.obj", "--num-samples-min", "3000", "--num-samples-max", "3100"],
+    ],
+    "ediv": [
+        ["plane.obj", "--length-threshold", "0.7"],
+        ["sphere.obj", "--num-samples-min", "1000", "--num-samples-max", "2000", "--max-iterations", "4"],
+    ],
+    "prnd": [["plane.obj", "--num-samples", "500", "--bilinear"]],
+    "map": [["plane_qp8.obj", "--texture", "plane_10_10.png"]],
+}
+"""The stored files' runs, in the sample command's words (mm's: --resolution, --thickness, --areaThreshold, ...)."""
+
+MM_NAMES = {
+    "--texture": "--inputMap",
+    "--area-threshold": "--areaThreshold",
+    "--length-threshold": "--lengthThreshold",
+    "--num-samples": "--nbSamples",
+    "--num-samples-min": "--nbSamplesMin",
+    "--num-samples-max": "--nbSamplesMax",
+    "--max-iterations": "--maxIterations",
+}
+
+
+def _ours(tmp: Path, mode: str, csv: Path) -> None:
+    for run in RUNS[mode]:
+        args = ["sample", run[0], str(tmp / "o.ply"), "--mode", mode, *run[1:], "--output-csv", str(csv)]
+        assert main([*args, "--overwrite"]) == 0
+
+
+@pytest.mark.parametrize("mode", sorted(RUNS))
+def test_rows_as_mm_wrote_them(
+    tmp_path: Path, mode: str, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.chdir(MM_TESTS)
+    _ours(tmp_path, mode, tmp_path / "s.csv")
+    assert (tmp_path / "s.csv").read_bytes() == (MM_TESTS / "outputs" / f"sample_{mode}.csv").read_bytes()
+    capsys.readouterr()
+
+
+def test_refusals(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Another mode's header is refused before any work (OUT not written); the CSV may not be an input."""
+    mesh, out, csv = MM_TESTS / "plane.obj", tmp_path / "o.ply", tmp_path / "s.csv"
+    csv.write_text(SAMPLE_CSV_HEADERS["sdiv"] + "\n")
+    assert main(["sample", str(mesh), str(out), "--output-csv", str(csv)]) == 1
+    assert "not this mode's header" in capsys.readouterr().err and not out.exists()
+    assert csv.read_text() == SAMPLE_CSV_HEADERS["sdiv"] + "\n"
+    assert main(["sample", str(mesh), str(out), "--output-csv", str(mesh)]) == 1
+    assert "MESH" in capsys.readouterr().err and not out.exists()
+    with pytest.raises(ValueError, match="mode: expected one of"):
+        sample_csv_row("grid", model="m.obj", texture="", points=1)
+
+
+@pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")
+@pytest.mark.parametrize("mode", sorted(RUNS))
+def test_rows_against_mm(
+    tmp_path: Path, mode: str, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Both tools twice into their CSV (the header once, then the rows appended), absolute names this time."""
+    monkeypatch.chdir(MM_TESTS)
+    mm_csv = tmp_path / "mm.csv"
+    for _ in range(2):
+        for run in RUNS[mode]:
+            opts = [MM_NAMES.get(a, a) for a in run[1:]]
+            args = [str(MM), "sample", "--mode", mode, "-i", run[0], "-o", str(tmp_path / "m.ply"), *opts]
+            subprocess.run([*args, "--outputCsv", str(mm_csv), "--hideProgress"], capture_output=True, check=True)
+        _ours(tmp_path, mode, tmp_path / "ours.csv")
+    assert (tmp_path / "ours.csv").read_bytes() == mm_csv.read_bytes()
+    assert len(mm_csv.read_text().splitlines()) == 1 + 2 * len(RUNS[mode])
+    capsys.readouterr()
