@@ -114,3 +114,22 @@ def test_refusals(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert "already exists" in capsys.readouterr().err and (tmp_path / "mine.ply").read_text() == "mine"
     assert main(["mpeg", str(a), str(a), "--mode", "equ", "--output-model-ref", str(a)]) == 2
     capsys.readouterr()
+
+
+_OPTIONS = ["--radius-curvature", "0.01", "--threshold-knn-search", "10", "--radius-factor", "1.5"]
+PCQM_RUNS = [
+    ["plane.obj", "plane_qp8.obj"],
+    ["triangles_qp8.obj", "triangles.obj", "--dis-texture", "plane_10_10.png", *_OPTIONS],
+]
+"""The runs of the stored ``outputs/pcqm.csv`` (mm run in tests/data/mmetric on these relative names)."""
+
+
+def test_pcqm_csv_rows(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    """--output-csv in pcqm mode: mm's header and rows (the options, the float32 score, its PSNR). It was refused."""
+    monkeypatch.chdir(MM_TESTS)
+    for run in PCQM_RUNS:
+        assert main(["mpeg", *run, "--mode", "pcqm", "--output-csv", str(tmp_path / "p.csv")]) == 0
+    assert (tmp_path / "p.csv").read_bytes() == (OUT / "pcqm.csv").read_bytes()
+    (tmp_path / "other.csv").write_text("p_inputModelA;p_inputModelB\n")
+    assert main(["mpeg", *PCQM_RUNS[0], "--mode", "pcqm", "--output-csv", str(tmp_path / "other.csv")]) == 1
+    assert "not this mode's header" in capsys.readouterr().err

@@ -112,3 +112,21 @@ def test_point_cloud_inputs(tmp_path: Path, mode: str, capsys: pytest.CaptureFix
     _both(tmp_path, mode, clouds[0], clouds[1], (".obj", ".ply"), [], ours)
     _both(tmp_path, mode, clouds[1], clouds[0], (".obj", ".ply"), [], ours)
     capsys.readouterr()
+
+
+def test_pcqm_csv(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """pcqm --outputCsv, appended twice, absolute names: mm's file byte for byte."""
+    runs = [
+        (["plane.obj", "plane_qp8.obj"], [], []),
+        (["sphere.obj", "sphere_qp8.obj"], ["--radiusCurvature", "0.002"], ["--radius-curvature", "0.002"]),
+        (["triangles_qp8.obj", "triangles.obj"], ["--inputMapB", str(T / "plane_10_10.png")],
+         ["--dis-texture", str(T / "plane_10_10.png")]),
+    ]  # fmt: skip
+    for _ in range(2):
+        for (a, b), mm, ours in runs:
+            args = [str(MM), "compare", "--mode", "pcqm", "--inputModelA", str(T / a), "--inputModelB", str(T / b)]
+            subprocess.run([*args, *mm, "--outputCsv", str(tmp_path / "mm.csv")], capture_output=True, cwd=tmp_path)
+            mine = ["mpeg", str(T / a), str(T / b), "--mode", "pcqm", *ours, "--output-csv", str(tmp_path / "o.csv")]
+            assert main(mine) == 0
+    assert (tmp_path / "o.csv").read_bytes() == (tmp_path / "mm.csv").read_bytes()
+    capsys.readouterr()

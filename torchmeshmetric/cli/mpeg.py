@@ -75,6 +75,7 @@ _PCQM_OPTIONS = {
 def _run_pcqm(args: argparse.Namespace) -> int:
     """``--mode pcqm``: mm compare --mode pcqm's printed figures (or JSON)."""
     from torchmeshmetric.cli.mpeg_outputs import cloud_texts, load_pair, write_models
+    from torchmeshmetric.mpeg.comparison.csv_rows import mmetric_texture_url, pcqm_csv_row
     from torchmeshmetric.mpeg.comparison.pcqm import mpeg_pcqm
     from torchmeshmetric.mpeg.sampling.model_cloud import load_model_cloud
 
@@ -90,7 +91,19 @@ def _run_pcqm(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise as_option_error(exc, _PCQM_OPTIONS) from exc
     print(json.dumps(json_safe(result.to_dict()), indent=1) if args.json else result.report())
-    write_models(args, cloud_texts(args, ref, dis))
+    row = ""
+    if args.output_csv is not None:
+        row = pcqm_csv_row(
+            result,
+            model_a=args.ref,
+            model_b=args.dis,
+            map_a=mmetric_texture_url(args.ref, args.ref_texture),
+            map_b=mmetric_texture_url(args.dis, args.dis_texture),
+            radius_curvature=args.radius_curvature,
+            knn=args.threshold_knn_search,
+            radius_factor=args.radius_factor,
+        )
+    write_models(args, cloud_texts(args, ref, dis), row)
     return 0
 
 

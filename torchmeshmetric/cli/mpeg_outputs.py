@@ -26,6 +26,7 @@ __all__ = [
     "add_output_options",
     "check_outputs",
     "cloud_texts",
+    "csv_header",
     "load_pair",
     "run_ibsm",
     "write_comparison_models",
@@ -41,7 +42,7 @@ def add_output_options(p: Any) -> None:
         type=path_argument,
         default=None,
         metavar="FILE",
-        help="pcc/ibsm modes: append mmetric's --outputCsv row (header first in a new or empty file)",
+        help="pcc/ibsm/pcqm modes: append mmetric's --outputCsv row (header first in a new or empty file)",
     )
     p.add_argument(
         "--output-model-ref",
@@ -81,8 +82,8 @@ def check_outputs(args: argparse.Namespace) -> None:
 
     named = [(o, Path(m)) for o, m in (("--output-model-ref", args.output_model_ref),
                                          ("--output-model-dis", args.output_model_dis)) if m is not None]  # fmt: skip
-    if args.output_csv is not None and args.mode not in ("pcc", "ibsm"):
-        raise CLIError(f"--output-csv: written in pcc and ibsm modes, not in {args.mode} mode")
+    if args.output_csv is not None and args.mode not in ("pcc", "ibsm", "pcqm"):
+        raise CLIError(f"--output-csv: written in pcc, ibsm and pcqm modes, not in {args.mode} mode")
     for option, m in named:
         if m.suffix.lower() not in (".ply", ".obj"):  # mmetric writes by the name's last three letters, no other
             raise CLIError(f"{option}: {str(m)!r} must end with .ply or .obj")
@@ -93,17 +94,19 @@ def check_outputs(args: argparse.Namespace) -> None:
         [m for _, m in named], args.overwrite, inputs=_inputs(args), what=[o for o, _ in named], appended=csv
     )
     if csv:
-        from torchmeshmetric.mpeg.comparison.csv_rows import (
-            IBSM_CSV_HEADER,
-            PCC_CSV_HEADER,
-            CsvHeaderError,
-            check_csv_header,
-        )
+        from torchmeshmetric.mpeg.comparison.csv_rows import CsvHeaderError, check_csv_header
 
         try:
-            check_csv_header(csv[0][1], PCC_CSV_HEADER if args.mode == "pcc" else IBSM_CSV_HEADER)
+            check_csv_header(csv[0][1], csv_header(args.mode))
         except CsvHeaderError as exc:
             raise CLIError(f"--output-csv: {exc}") from exc
+
+
+def csv_header(mode: str) -> str:
+    """The ``--output-csv`` header of a mode that writes one (pcc, ibsm, pcqm)."""
+    from torchmeshmetric.mpeg.comparison import csv_rows
+
+    return {"pcc": csv_rows.PCC_CSV_HEADER, "ibsm": csv_rows.IBSM_CSV_HEADER, "pcqm": csv_rows.PCQM_CSV_HEADER}[mode]
 
 
 def _write(args: argparse.Namespace, texts: tuple[str, str], header: str, row: str) -> None:
@@ -149,9 +152,9 @@ def write_comparison_models(args: argparse.Namespace, models: tuple[Any, Any] | 
     write_models(args, (texts[0], texts[1]))
 
 
-def write_models(args: argparse.Namespace, texts: tuple[str, str]) -> None:
-    """The two model files of a mode without a CSV row (``""``: a file not asked for)."""
-    _write(args, texts, "", "")
+def write_models(args: argparse.Namespace, texts: tuple[str, str], row: str = "") -> None:
+    """The two model files (``""``: a file not asked for) and the mode's ``--output-csv`` row, as one set."""
+    _write(args, texts, csv_header(args.mode) if args.output_csv is not None else "", row)
 
 
 def cloud_texts(args: argparse.Namespace, ref: Any, dis: Any) -> tuple[str, str]:

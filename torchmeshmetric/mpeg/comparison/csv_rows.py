@@ -2,13 +2,14 @@
 
 mmetric opens the file in append mode, writes the header when the file is empty, then one row per compared pair:
 the parameters, the frame number and the figures, separated by ``;``, floats with 9 significant digits
-(``%.9g``: ``inf``, ``nan`` as C prints them), booleans as ``0`` / ``1``. Two modes have figures worth a row:
+(``%.9g``: ``inf``, ``nan`` as C prints them), booleans as ``0`` / ``1``. Three modes have figures worth a row:
 ``pcc`` (D1/D2 PSNR and their Hausdorff PSNR, Y/Cb/Cr PSNR and the RGB Hausdorff PSNR; colour columns ``0`` without
-colours) and ``ibsm`` (geometry, RGB and YUV PSNR, then the processing time in seconds -- a clock reading, never
-equal between runs). ``mm sample --outputCsv`` appends its own rows (one header per sampling mode: the options, the
-search's outcome and the point count). The texture columns are what mmetric names: the ``--inputMap`` given, or the
-first material's ``map_Kd`` of the OBJ's ``mtllib`` files as ``<OBJ folder>/<map_Kd>`` (``.`` for a bare file
-name), or empty.
+colours), ``ibsm`` (geometry, RGB and YUV PSNR, then the processing time in seconds -- a clock reading, never
+equal between runs) and ``pcqm`` (the score and its PSNR); equ, eqTFAN and topo rows hold the text ``TODO``
+where their verdict would be (mmetric v1.1.7) and are not written. ``mm sample --outputCsv`` appends its own rows
+(one header per sampling mode: the options, the search's outcome and the point count). The texture columns are
+what mmetric names: the ``--inputMap`` given, or the first material's ``map_Kd`` of the OBJ's ``mtllib`` files as
+``<OBJ folder>/<map_Kd>`` (``.`` for a bare file name), or empty.
 
 :func:`append_csv_row` appends under an exclusive lock in one write, so concurrent runs appending to one file
 interleave whole rows; it refuses a non-empty file whose first line is not this mode's header (mmetric would append
@@ -27,10 +28,12 @@ import numpy as np
 
 from torchmeshmetric.mpeg.comparison.ibsm import IbsmResult
 from torchmeshmetric.mpeg.comparison.pcc import MpegResult
+from torchmeshmetric.mpeg.comparison.pcqm import PcqmResult
 
 __all__ = [
     "IBSM_CSV_HEADER",
     "PCC_CSV_HEADER",
+    "PCQM_CSV_HEADER",
     "SAMPLE_CSV_HEADERS",
     "CsvHeaderError",
     "append_csv_row",
@@ -38,6 +41,7 @@ __all__ = [
     "ibsm_csv_row",
     "mmetric_texture_url",
     "pcc_csv_row",
+    "pcqm_csv_row",
     "sample_csv_row",
 ]
 
@@ -50,6 +54,10 @@ IBSM_CSV_HEADER = (
     "p_inputModelA;p_inputModelB;p_inputMapA;p_inputMapB;p_ibsmRenderer;p_ibsmCameraCount;p_ibsmCameraRotation;"
     "p_ibsmResolution;p_ibsmDisableCulling;p_ibsmOutputPrefix;frame;geo_psnr;rgb_psnr;r_psnr;g_psnr;b_psnr;"
     "yuv_psnr;y_psnr;u_psnr;v_psnr;processingTime"
+)
+PCQM_CSV_HEADER = (
+    "p_inputModelA;p_inputModelB;p_inputMapA;p_inputMapB;p_radiusCurvature;p_thresholdKnnSearch;p_radiusFactor;"
+    "frame;pcqm;pcqm_psnr"
 )
 
 _SEARCH = "nbSamplesMin;nbSamplesMax;maxIterations"
@@ -164,6 +172,44 @@ def ibsm_csv_row(
     cols += [_g(v) for v in (rgb[3], rgb[0], rgb[1], rgb[2], yuv[3], yuv[0], yuv[1], yuv[2])]
     cols.append(_f32(seconds))
     return ";".join(cols)
+
+
+def pcqm_csv_row(
+    result: PcqmResult,
+    *,
+    model_a: str,
+    model_b: str,
+    map_a: str = "",
+    map_b: str = "",
+    radius_curvature: float = 0.001,
+    knn: int = 20,
+    radius_factor: float = 2.0,
+    frame: int = 0,
+) -> str:
+    """The row ``mm compare --mode pcqm --outputCsv`` appends: the options, then the score and its PSNR.
+
+    Args:
+        result: :func:`~torchmeshmetric.mpeg.comparison.pcqm.mpeg_pcqm`'s figures (the score as PCQM returns it
+            to mmetric, rounded to float32: ``pcqm_float``).
+        model_a: the ``--inputModelA`` name, as given.
+        model_b: the ``--inputModelB`` name.
+        map_a: the texture name mmetric reports for A (:func:`mmetric_texture_url`).
+        map_b: the one of B.
+        radius_curvature: ``--radiusCurvature`` (double).
+        knn: ``--thresholdKnnSearch``.
+        radius_factor: ``--radiusFactor`` (double).
+        frame: the frame number.
+
+    Returns:
+        The row, without a newline.
+
+    Example:
+        >>> r = PcqmResult(0.0, 0.0, float("inf"), (0.0, 1.0, 1.0), 3, 3, 0.001)
+        >>> pcqm_csv_row(r, model_a="a.obj", model_b="b.obj")
+        'a.obj;b.obj;;;0.001;20;2;0;0;inf'
+    """
+    cols = [model_a, model_b, map_a, map_b, _g(radius_curvature), str(knn), _g(radius_factor), str(frame)]
+    return ";".join([*cols, _g(result.pcqm_float), _g(result.psnr)])
 
 
 def sample_csv_row(
