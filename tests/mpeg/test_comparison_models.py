@@ -133,3 +133,11 @@ def test_pcqm_csv_rows(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: 
     (tmp_path / "other.csv").write_text("p_inputModelA;p_inputModelB\n")
     assert main(["mpeg", *PCQM_RUNS[0], "--mode", "pcqm", "--output-csv", str(tmp_path / "other.csv")]) == 1
     assert "not this mode's header" in capsys.readouterr().err
+
+
+def test_grid_cloud_as_obj(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Grid mode's clouds are mm sample's files: as OBJ, mm sample's (no mtllib header, bilinear colours / 255)."""
+    a = MM_TESTS / "plane.obj"
+    assert main(["mpeg", str(a), str(a), "--grid-size", "8", "--output-model-ref", str(tmp_path / "g.obj")]) == 0
+    assert (tmp_path / "g.obj").read_bytes() == (OUT / "grid8_plane.obj").read_bytes()
+    capsys.readouterr()

@@ -130,3 +130,17 @@ def test_pcqm_csv(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
             assert main(mine) == 0
     assert (tmp_path / "o.csv").read_bytes() == (tmp_path / "mm.csv").read_bytes()
     capsys.readouterr()
+
+
+def test_grid_clouds_as_obj(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Grid mode's OBJ clouds are ``mm sample --mode grid ... -o X.obj``'s files (no header, float colours / 255)."""
+    lo, hi = "-5 -5 0", "5 5 0"  # plane.obj's box
+    ours = ["mpeg", str(T / "plane.obj"), str(T / "sphere_qp8.obj"), "--grid-size", "32", "--box", lo, hi]
+    ours += ["--output-model-ref", str(tmp_path / "oA.obj"), "--output-model-dis", str(tmp_path / "oB.obj")]
+    assert main(ours) == 0
+    for name, out in (("plane", "oA.obj"), ("sphere_qp8", "oB.obj")):
+        args = [str(MM), "sample", "--mode", "grid", "--gridSize", "32", "--useNormal", "--bilinear", "--minPos", lo]
+        args += ["--maxPos", hi, "-i", str(T / f"{name}.obj"), "-o", str(tmp_path / "m.obj"), "--hideProgress"]
+        subprocess.run(args, capture_output=True, timeout=300, check=True, cwd=tmp_path)
+        assert (tmp_path / out).read_bytes() == (tmp_path / "m.obj").read_bytes(), name
+    capsys.readouterr()

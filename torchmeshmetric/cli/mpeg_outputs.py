@@ -160,13 +160,16 @@ def write_models(args: argparse.Namespace, texts: tuple[str, str], row: str = ""
 def cloud_texts(args: argparse.Namespace, ref: Any, dis: Any) -> tuple[str, str]:
     """The two clouds compared, as the files ``--output-model-ref/dis`` name (PLY or OBJ).
 
-    The OBJ starts with the input's ``mtllib`` lines, as mmetric keeps them; ``""`` for a file not asked for.
+    The OBJ starts with the input's ``mtllib`` lines, as ``mm compare`` keeps them, except in grid mode, whose
+    clouds are ``mm sample``'s files: it keeps no header (an empty first line). ``""`` for a file not asked for.
     """
     from torchmeshmetric.mpeg.core.model_files import obj_header, point_cloud_text
 
+    grid = args.mode == "pcc" and args.sampling == "grid"
     texts = []
     for path, cloud, name in ((args.output_model_ref, ref, args.ref), (args.output_model_dis, dis, args.dis)):
-        texts.append("" if path is None else point_cloud_text(cloud, Path(path).suffix, obj_header(name)))
+        header = "" if grid or path is None else obj_header(name)
+        texts.append("" if path is None else point_cloud_text(cloud, Path(path).suffix, header))
     return texts[0], texts[1]
 
 
