@@ -44,14 +44,17 @@ def test_refuses_to_overwrite(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     assert _body(out)[0] == "0 0 0 0 0 1" and len(_body(out)) == 17
 
 
-def test_the_cloud_is_written_to_a_ply_name_only(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    # PLY text went to "out.obj" as well, a file no OBJ reader reads (found by review)
+def test_the_cloud_is_written_as_its_name_says(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # PLY text went to "out.obj" as well, a file no OBJ reader reads (found by review); out.obj is now an OBJ
+    # (mm sample -o X.obj's), and other names are refused
     obj = tmp_path / "t.obj"
     obj.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
-    assert main(["sample", str(obj), str(tmp_path / "out.obj"), "--resolution", "4"]) == 1
-    assert f"OUT: {str(tmp_path / 'out.obj')!r} must end with .ply" in capsys.readouterr().err
-    assert not (tmp_path / "out.obj").exists()
+    assert main(["sample", str(obj), str(tmp_path / "out.xyz"), "--resolution", "4"]) == 1
+    assert f"OUT: {str(tmp_path / 'out.xyz')!r} must end with .ply or .obj" in capsys.readouterr().err
+    assert not (tmp_path / "out.xyz").exists()
     assert main(["sample", str(obj), str(tmp_path / "out.PLY"), "--resolution", "4"]) == 0
+    assert main(["sample", str(obj), str(tmp_path / "out.obj"), "--resolution", "4"]) == 0
+    assert (tmp_path / "out.obj").read_text().splitlines()[:2] == ["", "v 0 0 0"]
 
 
 @pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")

@@ -1,8 +1,9 @@
-"""The ``torchmeshmetric sample MESH OUT.ply`` command: a mesh to the point cloud mmetric's ``mm sample`` writes."""
+"""The ``torchmeshmetric sample MESH OUT.ply`` command: a mesh to the point cloud (PLY or OBJ) ``mm sample`` writes."""
 
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from typing import Any, Literal
 
 from torchmeshmetric.cli.options import path_argument
@@ -24,8 +25,6 @@ _OPTIONS = {
 
 
 def _run(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
     from torchmeshmetric.cli._outputs import CLIError, check_writable
     from torchmeshmetric.cli.options import as_option_error
     from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
@@ -36,8 +35,8 @@ def _run(args: argparse.Namespace) -> int:
     from torchmeshmetric.mpeg.sampling.subdivision_sampling import subdivision_sample
 
     out = Path(args.output)
-    if out.suffix.lower() != ".ply":  # the cloud is written as PLY text: another name would hide what the file is
-        raise CLIError(f"OUT: {str(out)!r} must end with .ply (the cloud is written as PLY)")
+    if out.suffix.lower() not in (".ply", ".obj"):  # mm sample writes by the name's suffix, these two only
+        raise CLIError(f"OUT: {str(out)!r} must end with .ply or .obj")
     from torchmeshmetric.mpeg.comparison.csv_rows import mmetric_texture_url
 
     try:
@@ -111,15 +110,16 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _write(args: argparse.Namespace, out: Any, texture: str, pc: Any, computed: float) -> None:
+def _write(args: argparse.Namespace, out: Path, texture: str, pc: Any, computed: float) -> None:
     """OUT and the ``--output-csv`` row as one set: OUT appears only once the row is appended."""
     from torchmeshmetric._atomic import atomic_write
     from torchmeshmetric.cli._outputs import output_set
     from torchmeshmetric.mpeg.comparison.csv_rows import SAMPLE_CSV_HEADERS, append_csv_row, sample_csv_row
-    from torchmeshmetric.mpeg.core.model_files import point_cloud_ply_text
+    from torchmeshmetric.mpeg.core.model_files import point_cloud_text
 
     with output_set("OUT and the CSV row"):
-        atomic_write(out, point_cloud_ply_text(pc), overwrite=args.overwrite)
+        # mm sample keeps no header of the input: an OBJ starts with an empty line, never the mesh's mtllib
+        atomic_write(out, point_cloud_text(pc, out.suffix), overwrite=args.overwrite)
         if args.output_csv is not None:
             row = sample_csv_row(
                 args.mode,
@@ -145,15 +145,18 @@ def add_sample_command(sub: Any) -> None:
     p = sub.add_parser(
         "sample",
         help="a mesh to the point cloud mmetric's mm sample writes (face, sdiv, ediv, prnd, map)",
-        description="Sample MESH as 'mm sample --mode face' (or sdiv, ediv, prnd, map) does and writes its PLY "
-        "(byte for byte as mm writes it, except ediv, whose points come in another order). The grid "
-        "sampling of the CTC is inside the 'mpeg' and 'ctc' commands.",
+        description="Sample MESH as 'mm sample --mode face' (or sdiv, ediv, prnd, map) does and writes its PLY or "
+        "OBJ (byte for byte as mm writes it, except ediv, whose points come in another order); --output-csv appends "
+        "the row of mm sample --outputCsv. The grid sampling of the CTC is inside the 'mpeg' and 'ctc' commands.",
     )
     p.add_argument(
         "mesh", type=path_argument, metavar="MESH", help="mesh to sample (OBJ/PLY; OBJ with MTL + texture for colour)"
     )
     p.add_argument(
-        "output", type=path_argument, metavar="OUT", help="PLY file to write (never overwritten unless --overwrite)"
+        "output",
+        type=path_argument,
+        metavar="OUT",
+        help="PLY or OBJ file to write, as mm sample -o writes it (never overwritten unless --overwrite)",
     )
     p.add_argument(
         "--mode",
