@@ -141,3 +141,23 @@ def test_grid_cloud_as_obj(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -
     assert main(["mpeg", str(a), str(a), "--grid-size", "8", "--output-model-ref", str(tmp_path / "g.obj")]) == 0
     assert (tmp_path / "g.obj").read_bytes() == (OUT / "grid8_plane.obj").read_bytes()
     capsys.readouterr()
+
+
+SEAM = "v 0 0 0\nv 4 0 0\nv 0 4 0\nv 4 4 0\nvt 0 0\nvt 1 0\nvt 0 1\nvt 0.5 0.5\nvt 0.2 0.2\nvt 1 1\n"
+SEAM += "f 1/1 2/2 3/3\nf 2/4 4/6 3/5\n"
+"""A square of two triangles whose shared corners have other UVs in each (a seam), no texture map."""
+
+
+@pytest.mark.parametrize("mode", ["pcc", "pcqm"])
+def test_uv_seam_without_map(tmp_path: Path, mode: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """UVs without a map key mmetric's reorder and point builder: the seam's points are kept once per UV (30
+    points, mm's file; the UVs were ignored, 25). As OBJ the cloud has its UVs: mm v1.1.7 aborts writing it
+    (std::bad_alloc / length_error, a material of index -1); the library writes them as mm sample does."""
+    (tmp_path / "seam.obj").write_text(SEAM)
+    extra = ("--sampling", "mesh") if mode == "pcc" else ()
+    a = tmp_path / "seam.obj"
+    assert _run(tmp_path, mode, a, a, "c.ply", "c.obj", *extra) == 0
+    assert (tmp_path / "c.ply").read_bytes() == (OUT / "pcc_seam.ply").read_bytes()
+    lines = (tmp_path / "c.obj").read_text().splitlines()
+    assert [x.split()[0] for x in lines[1:] if x].count("vt") == 30 and lines[-1] == "usemtl material0000"
+    capsys.readouterr()

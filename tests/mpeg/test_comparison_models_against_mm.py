@@ -144,3 +144,16 @@ def test_grid_clouds_as_obj(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
         subprocess.run(args, capture_output=True, timeout=300, check=True, cwd=tmp_path)
         assert (tmp_path / out).read_bytes() == (tmp_path / "m.obj").read_bytes(), name
     capsys.readouterr()
+
+
+@pytest.mark.parametrize("mode", ["pcc", "pcqm"])
+def test_uv_seam_without_map(tmp_path: Path, mode: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """A mesh with UV seams and no map: mm keeps a point per UV; its PLY cloud (its OBJ aborts mm)."""
+    from tests.mpeg.test_comparison_models import SEAM
+
+    (tmp_path / "seam.obj").write_text(SEAM)
+    (tmp_path / "flat.obj").write_text(SEAM.replace("v 4 4 0", "v 4 4 1"))
+    ours = ["--sampling", "mesh"] if mode == "pcc" else []
+    _both(tmp_path, mode, tmp_path / "seam.obj", tmp_path / "flat.obj", (".ply", ".ply"), [], ours)
+    _both(tmp_path, mode, T / "plane_qp8.obj", T / "sphere.obj", (".ply", ".ply"), [], ours)
+    capsys.readouterr()

@@ -100,19 +100,24 @@ def test_obj_output(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "s.obj"
     assert main(["sample", str(MM_TESTS / "plane.obj"), str(out), "--mode", "sdiv", "--area-threshold", "0.5"]) == 0
     assert out.read_bytes() == (MM_TESTS / "outputs" / "sdiv_plane.obj").read_bytes()
+    qp8 = tmp_path / "qp8.obj"  # UVs and no map: mm keeps the UVs (it wrote no vt row here)
+    assert main(["sample", str(MM_TESTS / "plane_qp8.obj"), str(qp8), "--mode", "sdiv", "--area-threshold", "5"]) == 0
+    assert qp8.read_bytes() == (MM_TESTS / "outputs" / "sdiv_plane_qp8.obj").read_bytes()
     assert main(["sample", str(MM_TESTS / "plane.obj"), str(tmp_path / "s.txt")]) == 1
     assert "must end with .ply or .obj" in capsys.readouterr().err
 
 
 @pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")
 def test_obj_output_against_mm(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """face, sdiv and prnd clouds as OBJ, byte for byte. Not plane_qp8 in sdiv / prnd: a mesh with UVs and no map
-    keeps its UVs in mm's cloud (``vt`` rows, ``usemtl material0000``), which the library's cloud does not hold."""
+    """face, sdiv and prnd clouds as OBJ, byte for byte; plane_qp8 (UVs, no map) keeps its UVs in sdiv and prnd
+    clouds (``vt`` rows, ``usemtl material0000``), and a count search's last cloud too."""
     runs = [("face", ["--resolution", "32"], ["--resolution", "32"]),
             ("sdiv", ["--areaThreshold", "0.05"], ["--area-threshold", "0.05"]),
-            ("prnd", ["--nbSamples", "300"], ["--num-samples", "300"])]  # fmt: skip
+            ("prnd", ["--nbSamples", "300"], ["--num-samples", "300"]),
+            ("sdiv", ["--nbSamplesMin", "100", "--nbSamplesMax", "200"],
+             ["--num-samples-min", "100", "--num-samples-max", "200"])]  # fmt: skip
     for mode, mm, ours in runs:
-        for name in ("plane", "sphere_qp8", "triangles") + (("plane_qp8",) if mode == "face" else ()):
+        for name in ("plane", "sphere_qp8", "triangles", "plane_qp8"):
             args = [str(MM), "sample", "--mode", mode, *mm, "-i", str(MM_TESTS / f"{name}.obj")]
             subprocess.run([*args, "-o", str(tmp_path / "m.obj"), "--hideProgress"], capture_output=True, check=True)
             mine = ["sample", str(MM_TESTS / f"{name}.obj"), str(tmp_path / "o.obj"), "--mode", mode, *ours]

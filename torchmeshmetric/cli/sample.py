@@ -92,7 +92,7 @@ def _run(args: argparse.Namespace) -> int:
         pc, computed = found.cloud, found.value
         if found.earlier_points and pc.colors is not None:
             # mmetric's Model::reset keeps the earlier samplings' colours: its file then has none (see CountSearch)
-            pc = type(pc)(pc.points, pc.normals)
+            pc = type(pc)(pc.points, pc.normals, None, pc.uvs)
         print(f"Computed {kind} {found.value:.9g} after {found.iterations} iterations")
     else:
         computed = 0.0

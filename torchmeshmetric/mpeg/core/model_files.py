@@ -175,7 +175,8 @@ def point_cloud_text(cloud: PointCloud, suffix: str, header: str = "") -> str:
     """A point cloud as mmetric writes it (``--outputModelA/B``), ``.ply`` or ``.obj`` by ``suffix``.
 
     The OBJ is the header (:func:`obj_header` of the model the cloud came from), ``v`` rows (with the colours
-    divided by 255) and ``vn`` rows, no face.
+    divided by 255), ``vn`` rows and, for a cloud with UVs, ``vt`` rows and ``usemtl material0000`` (the name
+    mmetric writes for a model without materials), no face.
 
     Example:
         >>> import torch
@@ -188,7 +189,8 @@ def point_cloud_text(cloud: PointCloud, suffix: str, header: str = "") -> str:
     points = cloud.points.numpy()
     normals = None if cloud.normals is None else cloud.normals.numpy()
     colors = None if cloud.colors is None else cloud.colors.numpy()
-    return mmetric_obj_text(points, np.zeros((0, 3), np.int64), colors=colors, normals=normals, header=header)
+    uvs = None if cloud.uvs is None else cloud.uvs.numpy()
+    return mmetric_obj_text(points, np.zeros((0, 3), np.int64), uvs=uvs, colors=colors, normals=normals, header=header)
 
 
 def empty_model_text(suffix: str, header: str = "") -> str:

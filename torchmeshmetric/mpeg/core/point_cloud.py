@@ -16,12 +16,15 @@ __all__ = ["PointCloud", "merge_duplicate_points"]
 
 @dataclass(frozen=True, eq=False)
 class PointCloud:
-    """A sampled point cloud as mmetric holds it: float32 positions, optional normals and colours.
+    """A sampled point cloud as mmetric holds it: float32 positions, optional normals, colours and UVs.
 
     Args:
         points: ``(N, 3)`` positions (float32, as mmetric stores them).
         normals: ``(N, 3)`` normals (float32) or ``None``.
         colors: ``(N, 3)`` RGB colours in ``[0, 255]`` (float32, before mmetric rounds them to 8 bits) or ``None``.
+        uvs: ``(N, 2)`` texture coordinates or ``None``: mmetric's samplers keep them for a mesh with UVs and no
+            texture map (a map turns them into colours); only its OBJ files show them (``vt`` rows), no figure
+            uses them.
 
     Example:
         >>> import torch
@@ -32,6 +35,7 @@ class PointCloud:
     points: Tensor
     normals: Tensor | None = None
     colors: Tensor | None = None
+    uvs: Tensor | None = None
 
     def __post_init__(self) -> None:
         check_shape(self.points, ("N", 3), "points")
@@ -40,6 +44,8 @@ class PointCloud:
             value = getattr(self, name)
             if value is not None:
                 check_shape(value, (self.points.shape[0], 3), name)
+        if self.uvs is not None:
+            check_shape(self.uvs, (self.points.shape[0], 2), "uvs")
 
     @property
     def num_points(self) -> int:

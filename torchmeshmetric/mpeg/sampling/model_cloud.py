@@ -26,7 +26,7 @@ def load_model_cloud(
     A mesh (faces present) is reordered and sampled at its vertices and subdivided faces, in mmetric's order
     (:func:`~torchmeshmetric.mpeg.vertex_sample`), with the colours of its texture or vertices; a file
     without faces (``mm sample``'s PLY output) passes through with its normals (``nx ny nz``, which mmetric's D2
-    uses) and vertex colours.
+    uses), vertex colours and UVs (``texture_u texture_v``, which only an OBJ of the cloud shows).
 
     Args:
         path: OBJ, PLY or OFF file.
@@ -54,7 +54,8 @@ def load_model_cloud(
         check_dtype_range(p, points.verts, torch.float32, None, "mmetric reads coordinates as float32")
         rgb = None if points.colors is None else torch.from_numpy(points.colors.astype(np.float32))
         normals = None if points.normals is None else torch.from_numpy(points.normals.astype(np.float32))
-        cloud = PointCloud(torch.from_numpy(points.verts.astype(np.float32)), normals=normals, colors=rgb)
+        uvs = None if points.uvs is None else torch.from_numpy(points.uvs.astype(np.float32))
+        cloud = PointCloud(torch.from_numpy(points.verts.astype(np.float32)), normals=normals, colors=rgb, uvs=uvs)
     else:
         model = load_textured_mesh(p, texture)
         if model.mesh.faces.shape[0] > 0:

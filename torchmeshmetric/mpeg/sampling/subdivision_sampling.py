@@ -102,18 +102,21 @@ def builder_cloud(
     """The rows mmetric's ``ModelBuilder`` keeps of pushed points with corner attributes ``att`` (UVs or colours).
 
     The key is position, UV, colour and normal; UVs become texture colours (nearest or bilinear) when a texture
-    is there.
+    is there, and are kept as the cloud's UVs otherwise (mmetric's ``pushVertex`` without a valid map).
     """
-    colours = None
+    colours = uvs = None
     key = att if att.shape[1] else None
     if mesh.uvs is not None and mesh.texture is not None:
         colours = sample_texture(mesh.texture, att, bilinear=bilinear)
         key = np.concatenate([att, colours], axis=1)
     elif mesh.colors is not None and mesh.uvs is None:
         colours = att
+    elif mesh.uvs is not None:
+        uvs = att
     kept = unique_vertex_rows(points, normals, key)
     return PointCloud(
         torch.from_numpy(np.ascontiguousarray(points[kept])),
         torch.from_numpy(np.ascontiguousarray(normals[kept])),
         None if colours is None else torch.from_numpy(np.ascontiguousarray(colours[kept], dtype=np.float32)),
+        None if uvs is None else torch.from_numpy(np.ascontiguousarray(uvs[kept], dtype=np.float32)),
     )

@@ -79,7 +79,7 @@ def vertex_sample(
     pos = verts[faces].reshape(-1, 3)
     keys = [pos]
     uv = col = None
-    if texture is not None and uvs is not None:
+    if uvs is not None:  # with or without a texture: mmetric's reorder and ModelBuilder key on the UVs
         uv = np.asarray(uvs.detach().cpu().numpy() if isinstance(uvs, Tensor) else uvs, np.float32).reshape(-1, 2)
         keys.append(uv)
     elif colors is not None:
@@ -98,12 +98,17 @@ def vertex_sample(
     width = 0 if attr is None else attr.shape[1]
     att3 = np.zeros((tri.shape[0], 3, 0), np.float32) if attr is None else attr[tri]
     points, normals, att = subdivision_rows(corners, att3.reshape(tri.shape[0], 3, width), max_depth, area_threshold)
-    colours = None
-    if attr is not None:
-        colours = sample_texture(texture, att, bilinear=True) if uv is not None else att
-    kept = unique_vertex_rows(points, normals, colours)
+    colours = point_uvs = None
+    if uv is not None and texture is not None:
+        colours = sample_texture(texture, att, bilinear=True)
+    elif uv is not None:  # no map: the points keep their UVs (mmetric's pushVertex without a valid image)
+        point_uvs = att
+    elif attr is not None:
+        colours = att
+    kept = unique_vertex_rows(points, normals, colours if point_uvs is None else point_uvs)
     return PointCloud(
         torch.from_numpy(np.ascontiguousarray(points[kept])),
         torch.from_numpy(np.ascontiguousarray(normals[kept])),
         None if colours is None else torch.from_numpy(np.ascontiguousarray(colours[kept], dtype=np.float32)),
+        None if point_uvs is None else torch.from_numpy(np.ascontiguousarray(point_uvs[kept], dtype=np.float32)),
     )
