@@ -83,7 +83,10 @@ def check_outputs(args: argparse.Namespace) -> None:
     named = [(o, Path(m)) for o, m in (("--output-model-ref", args.output_model_ref),
                                          ("--output-model-dis", args.output_model_dis)) if m is not None]  # fmt: skip
     if args.output_csv is not None and args.mode not in ("pcc", "ibsm", "pcqm"):
-        raise CLIError(f"--output-csv: written in pcc, ibsm and pcqm modes, not in {args.mode} mode")
+        raise CLIError(
+            f"--output-csv: written in pcc, ibsm and pcqm modes, not in {args.mode} mode (mmetric v1.1.7 writes the "
+            "text TODO where its verdict would be; the exit status and --json give it)"
+        )
     for option, m in named:
         if m.suffix.lower() not in (".ply", ".obj"):  # mmetric writes by the name's last three letters, no other
             raise CLIError(f"{option}: {str(m)!r} must end with .ply or .obj")
