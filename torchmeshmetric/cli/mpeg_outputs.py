@@ -135,23 +135,22 @@ def write_comparison_models(args: argparse.Namespace, models: tuple[Any, Any] | 
             otherwise (meshes, topo mode), where mmetric writes the models it left empty.
     """
     import numpy as np
+    import torch
 
     from torchmeshmetric.mpeg.comparison.point_order import mmetric_point_order
-    from torchmeshmetric.mpeg.core.model_files import empty_model_text, mmetric_obj_text, mmetric_ply_text, obj_header
+    from torchmeshmetric.mpeg.core.model_files import empty_model_text, obj_header, point_cloud_text
+    from torchmeshmetric.mpeg.core.point_cloud import PointCloud
 
     texts = []
     for k, (path, name) in enumerate(((args.output_model_ref, args.ref), (args.output_model_dis, args.dis))):
-        suffix = "" if path is None else Path(path).suffix.lower()
         if path is None:
             texts.append("")
         elif models is None:
-            texts.append(empty_model_text(suffix, obj_header(name)))
-        else:
+            texts.append(empty_model_text(Path(path).suffix, obj_header(name)))
+        else:  # the positions only, in mmetric's sorted order
             positions = models[k].positions
-            points = positions[mmetric_point_order(positions)]
-            none = np.zeros((0, 3), np.int64)
-            ply = suffix == ".ply"
-            texts.append(mmetric_ply_text(points) if ply else mmetric_obj_text(points, none, header=obj_header(name)))
+            cloud = PointCloud(torch.from_numpy(np.ascontiguousarray(positions[mmetric_point_order(positions)])))
+            texts.append(point_cloud_text(cloud, Path(path).suffix, obj_header(name)))
     write_models(args, (texts[0], texts[1]))
 
 
