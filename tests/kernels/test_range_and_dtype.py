@@ -77,6 +77,31 @@ def test_float32_nearest_vertex_distance_is_exact_at_any_magnitude(backend, grad
     torch.testing.assert_close(packed.dists.double(), ref, rtol=0, atol=2e-6 * diag)
 
 
+@pytest.mark.parametrize("backend", FACE_BACKENDS)
+@pytest.mark.parametrize(("dtype", "exponent"), [(torch.float32, -133), (torch.float32, -140), (torch.float64, -1030)])
+def test_subnormal_extents_are_measured_on_every_backend(backend, dtype, exponent):
+    # Review V, F2: the range scale for an extent below the smallest normal was not representable (float32 1e-40:
+    # 2**132 = inf; float64 1e-310: OverflowError from math.ldexp); each backend then failed its own way ("distances
+    # overflow ... too large", IndexError, torch.cat of an empty list). The scale is now capped at the largest finite
+    # power of two. The reference: the same (rounded) inputs scaled exactly into float64's normal range.
+    points, verts, faces = _scaled(1.3 * 2.0**exponent, dtype)
+    assert 0 < float(verts.abs().amax()) < torch.finfo(dtype).tiny
+    up = 2.0**600
+    ref_face = tmm.point_mesh_distance(points.double() * up, verts.double() * up, faces, backend="bruteforce").dists
+    ref_vert = tmm.nearest_vertex_distance(points.double() * up, verts.double() * up, backend="bruteforce").dists
+    # Subnormal inputs carry few bits, but are exact; the distances are computed at unit magnitude (float32 rel.
+    # 2e-6 of the diagonal, as at any magnitude above) and rounded once to the subnormal grid (half its spacing).
+    diag = float((verts.double().amax(0) - verts.double().amin(0)).norm())
+    spacing = torch.finfo(dtype).tiny * torch.finfo(dtype).eps  # the subnormals' spacing
+    atol = (2e-6 if dtype == torch.float32 else 1e-13) * diag + spacing
+    for got, ref in (
+        (tmm.point_mesh_distance(points, verts, faces, backend=backend).dists, ref_face),
+        (tmm.MeshIndex(verts, faces, backend=backend).point_mesh_distance(points).dists, ref_face),
+        (tmm.nearest_vertex_distance(points, verts, backend=backend).dists, ref_vert),
+    ):
+        torch.testing.assert_close(got.double(), ref / up, rtol=0, atol=atol)
+
+
 @pytest.mark.parametrize("scale", [1e12, 1e20, 1e30, 1e-12, 1e-20])
 def test_statistics_and_psnr_at_extreme_magnitudes(scale):
     ref = tmm.Mesh((torch.tensor(SPHERE.vertices) * scale).float(), torch.tensor(SPHERE.faces))

@@ -189,12 +189,18 @@ def range_scale(extent: float, dtype: torch.dtype, degree: int) -> float | None:
     breaks down for meshes beyond ~1e9 or below ~1e-9 units. Scaling by a power of two is exact (only the exponent
     changes), so the kernel computes on scaled coordinates and divides its distances back, bit for bit the same
     result where no scaling was needed. ``None`` while ``extent`` is within ``2**(+-maxexp / (2 * degree))``.
+
+    A subnormal ``extent`` (float32 below ~1.2e-38, float64 below ~2.2e-308) would need a scale beyond the dtype's
+    largest finite power of two (float32 1e-40 asked for ``2**132``, an ``inf`` in float32, and float64 1e-310 for
+    ``2**1030``, an ``OverflowError`` in Python): the scale is capped at ``2**(maxexp - 1)``, which still brings the
+    smallest subnormal to ``2**-22`` (float32; ``2**-51`` in float64), where products of 4 coordinates stay normal.
     """
     if not (extent > 0 and math.isfinite(extent)):
         return None
     exponent = math.frexp(extent)[1]
-    limit = math.frexp(torch.finfo(dtype).max)[1] // (2 * degree)
-    return None if -limit <= exponent <= limit else math.ldexp(1.0, -exponent)
+    maxexp = math.frexp(torch.finfo(dtype).max)[1]
+    limit = maxexp // (2 * degree)
+    return None if -limit <= exponent <= limit else math.ldexp(1.0, min(-exponent, maxexp - 1))
 
 
 def in_own_frame(magnitude: Tensor, extent: float, degree: int) -> Tensor | None:
