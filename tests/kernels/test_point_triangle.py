@@ -360,3 +360,82 @@ def test_points_above_an_edge_get_barycentrics_on_the_triangle() -> None:
             first = out
         else:  # every backend picks the same face and the same bits
             assert torch.equal(out.dists, first.dists) and torch.equal(out.face_idx, first.face_idx)
+
+
+def _random_pairs(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    g = np.random.default_rng(seed)
+    return g.normal(scale=2.0, size=(n, 3)), g.normal(size=(n, 3, 3))
+
+
+@pytest.mark.parametrize(
+    ("dtype", "exponent"),
+    [
+        (torch.float32, 34),
+        (torch.float32, 58),
+        (torch.float32, -40),
+        (torch.float32, -135),
+        (torch.float64, 270),
+        (torch.float64, -340),
+        (torch.float64, -1040),
+    ],
+)
+def test_large_and_tiny_triangles_keep_their_voronoi_region(dtype: torch.dtype, exponent: int) -> None:
+    # Review V, F1: the region test's degree-4 products overflowed (float32 edges >~1.4e9, float64 >~4e76): the face
+    # candidate was dropped and an edge point returned, 5x the squared distance at float32 1e10, NaN at 2e19; tiny
+    # triangles underflowed the squared normal the same way. Reference: the exact closest point of the same (rounded)
+    # inputs, computed at unit magnitude (a power of two scales exactly).
+    scale = 2.0**exponent
+    pts, tri = _random_pairs(300, 7)
+    p, a, b, c = (torch.from_numpy(x).to(dtype) * scale for x in (pts, tri[:, 0], tri[:, 1], tri[:, 2]))
+    assert bool(torch.isfinite(torch.stack([p, a, b, c])).all())
+    r = closest_point_on_triangle(p, a, b, c)
+    unit = [x.double().numpy() / scale for x in (p, a, b, c)]
+    ref = np.stack([reference.closest_point_triangle_exact(*q) for q in zip(*unit, strict=True)])
+    ref_sq = ((unit[0] - ref) ** 2).sum(-1)
+    size = float(np.abs(np.stack(unit)).max())
+    eps, spacing = torch.finfo(dtype).eps, torch.finfo(dtype).tiny * torch.finfo(dtype).eps
+    # Measured at unit magnitude: float32 <= 4e-7, float64 <= 1e-15 of the size. A subnormal closest point is formed
+    # as three products and two sums, each rounded to the subnormal grid (half its spacing each: measured <= 1.3
+    # spacings), which at 2**-135 is 2**-14 of the size.
+    atol = 16 * eps * size + 4 * spacing / scale
+    np.testing.assert_allclose(r.closest.double().numpy() / scale, ref, rtol=0, atol=atol)
+    sq = r.sq_dists.double().numpy()
+    np.testing.assert_allclose(sq, ref_sq * scale * scale, rtol=0, atol=(32 * eps * size**2) * scale * scale + spacing)
+    assert bool((r.bary >= 0).all()) and bool((r.bary <= 1).all())
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+def test_range_scaling_leaves_ordinary_pairs_bit_for_bit(dtype: torch.dtype) -> None:
+    # Pairs of ordinary size give the unscaled computation's bits, also beside pairs that need scaling.
+    from torchmeshmetric.kernels.triangle import closest_point_on_triangle_unchecked
+
+    pts, tri = _random_pairs(2000, 11)
+    sizes = 10.0 ** np.random.default_rng(12).uniform(-3, 3, size=(2000, 1))
+    p, a, b, c = (torch.from_numpy(x * sizes).to(dtype) for x in (pts, tri[:, 0], tri[:, 1], tri[:, 2]))
+    want = closest_point_on_triangle_unchecked(p, a, b, c)
+    for got in (closest_point_on_triangle(p, a, b, c), closest_point_on_triangle(p[None], a[None], b[None], c[None])):
+        for g, w in zip(got, want, strict=True):
+            assert torch.equal(g.reshape(w.shape), w)
+    big = 1e15 if dtype == torch.float32 else 1e100  # needs scaling (and its squares fit): in the same call
+    mixed = closest_point_on_triangle(*(torch.cat([x, x[:5] * big]) for x in (p, a, b, c)))
+    for g, w in zip(mixed, want, strict=True):
+        assert torch.equal(g[:2000], w)
+
+
+def test_unrepresentable_squared_distance_is_an_error() -> None:
+    a, b, c = torch.tensor([-3e38, 0, 0]), torch.tensor([-3e38, 1, 0]), torch.tensor([-3e38, 0, 1])
+    with pytest.raises(NonFiniteError, match=r"points: the distances overflow torch\.float32"):
+        closest_point_on_triangle(torch.tensor([3e38, 0, 0]), a, b, c)
+
+
+def test_scaled_pairs_have_the_unit_gradient() -> None:
+    pts, tri = _random_pairs(50, 3)
+    unit = [torch.from_numpy(x) for x in (pts, tri[:, 0], tri[:, 1], tri[:, 2])]
+    scale = 2.0**300
+    big = [(x * scale).requires_grad_() for x in unit]
+    small = [x.clone().requires_grad_() for x in unit]
+    closest_point_on_triangle(*big).sq_dists.sum().backward()
+    closest_point_on_triangle(*small).sq_dists.sum().backward()
+    for x, y in zip(big, small, strict=True):
+        assert x.grad is not None and y.grad is not None
+        torch.testing.assert_close(x.grad / scale, y.grad, rtol=1e-12, atol=1e-12)

@@ -15,15 +15,16 @@ item is centred on its bounding box first, so float32 results stay accurate for 
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import torch
 from torch import Tensor
 
 from torchmeshmetric._checks import ShapeError, check_finite, check_float, check_tensor
-from torchmeshmetric.kernels._common import cross, dot, safe_div
+from torchmeshmetric.kernels._common import check_representable, cross, dot, safe_div
 
-__all__ = ["ClosestPointOnTriangle", "closest_point_on_triangle", "region_candidates"]
+__all__ = ["ClosestPointOnTriangle", "closest_point_on_triangle", "region_candidates", "triangle_range_scale"]
 
 
 class ClosestPointOnTriangle(NamedTuple):
@@ -91,7 +92,11 @@ def closest_point_on_triangle(points: Tensor, a: Tensor, b: Tensor, c: Tensor) -
     """Closest point on triangles ``(a, b, c)`` to ``points``, elementwise with broadcasting.
 
     Exact in all seven Voronoi regions (Ericson 2004, §5.1.5) and for degenerate (zero-area, collinear,
-    repeated-vertex) triangles. Differentiable w.r.t. all inputs; gradients are finite everywhere.
+    repeated-vertex) triangles, at any magnitude: where the region test's products of four coordinates would
+    overflow or underflow the dtype (float32 edges beyond ~1e9 or below ~1e-10; float64 beyond ~1e76), that
+    triangle and its point are scaled by an exact power of two (:func:`triangle_range_scale`), bit for bit the
+    answer of the unscaled computation wherever that neither overflows nor underflows. Differentiable w.r.t. all
+    inputs; gradients are finite everywhere.
 
     Args:
         points: ``(..., 3)`` query points.
@@ -105,6 +110,7 @@ def closest_point_on_triangle(points: Tensor, a: Tensor, b: Tensor, c: Tensor) -
     Raises:
         TypeError, DTypeError, ShapeError, NonFiniteError: an argument that is not a float tensor of shape
             ``(..., 3)`` with finite values, or shapes that do not broadcast; the error names the argument.
+        NonFiniteError: a squared distance the dtype cannot hold (float32 beyond ~3.4e38, a distance of ~1.8e19).
 
     Example:
         >>> import torch
@@ -125,7 +131,70 @@ def closest_point_on_triangle(points: Tensor, a: Tensor, b: Tensor, c: Tensor) -
     except RuntimeError:
         found = ", ".join(f"{n} {tuple(x.shape)}" for n, x in args)
         raise ShapeError(f"points, a, b, c: expected shapes that broadcast, found {found}") from None
-    return closest_point_on_triangle_unchecked(points, a, b, c)
+    scale = triangle_range_scale(points, a, b, c)
+    if scale is None:
+        result = closest_point_on_triangle_unchecked(points, a, b, c)
+    else:
+        # The region is chosen on scaled copies (barycentrics do not depend on the scale); the closest point and its
+        # squared distance are formed from them in the caller's units, as the unscaled path forms them.
+        bary = closest_point_on_triangle_unchecked(points * scale, a * scale, b * scale, c * scale).bary
+        closest = bary[..., 0:1] * a + bary[..., 1:2] * b + bary[..., 2:3] * c
+        diff = points - closest
+        result = ClosestPointOnTriangle(closest, bary, dot(diff, diff))
+    check_representable(result.sq_dists, "points")
+    return result
+
+
+def triangle_range_scale(points: Tensor, a: Tensor, b: Tensor, c: Tensor) -> Tensor | None:
+    """``(..., 1)`` per-pair power-of-two scale for :func:`region_candidates`, or ``None`` where no pair needs one.
+
+    The region test forms products of four coordinate differences (``|ab x ac|^2``, ``(ap x ac) . n``): with the
+    largest difference ``m = max |ab|, |ac|, |ap|`` at or above ``2**(maxexp / 4 - 2)`` they overflow (float32:
+    edges of 1e10 gave a NaN barycentric, the face candidate was dropped and an edge point returned, a squared
+    distance 5x too large; review V), and with the largest edge ``e`` below ``2**-(maxexp / 4 - 2)`` the squared
+    normal underflows. Such a pair is scaled so that ``m`` comes into ``[0.5, 1)``, or, where that would take ``e``
+    below the bound (a point far from a small triangle), just enough to keep ``e`` above it; every other pair gets
+    1, so scaled and unscaled pairs give the same bits where nothing over- or underflows. The scale is capped at
+    ``2**(maxexp - 2)`` (subnormal pairs). A point farther than
+    ``2**(maxexp / 2 - 8)`` times the triangle's size (float32: ~2**56) overflows its squares in that frame: its
+    distance is right to rounding (the triangle is a point at that ratio), its closest point may be another point
+    of the triangle.
+
+    Args:
+        points: ``(..., 3)`` query points (finite).
+        a: ``(..., 3)`` first corners.
+        b: ``(..., 3)`` second corners.
+        c: ``(..., 3)`` third corners.
+
+    Returns:
+        The scale, broadcast over the inputs' leading shape with a trailing 1, or ``None``.
+
+    Example:
+        >>> import torch
+        >>> a, b, c = torch.zeros(3), torch.tensor([1e10, 0, 0]), torch.tensor([0, 1e10, 0])
+        >>> triangle_range_scale(torch.tensor([0.2e10, 0.3e10, 0.1e10]), a, b, c).item() == 2.0**-34
+        True
+        >>> triangle_range_scale(torch.ones(3), a / 1e10, b / 1e10, c / 1e10) is None
+        True
+    """
+    with torch.no_grad():
+        # Halved, so that the differences of finite coordinates cannot overflow (the exponent is all that is used).
+        pa, pb, pc, pp = (x.detach() * 0.5 for x in (a, b, c, points))
+        edge = torch.maximum((pb - pa).abs().amax(-1), (pc - pa).abs().amax(-1))
+        largest = torch.maximum(edge, (pp - pa).abs().amax(-1))
+        maxexp = math.frexp(torch.finfo(largest.dtype).max)[1]
+        bound = maxexp // 4 - 2  # float32 30, float64 254
+        _, m_exp = torch.frexp(largest)
+        _, e_exp = torch.frexp(edge)
+        m_exp, e_exp = m_exp + 1, e_exp + 1  # the halving
+        needs = (m_exp > bound) | ((edge > 0) & (e_exp < -bound))
+        if not bool(needs.any()):
+            return None
+        exponent = torch.where(edge > 0, torch.maximum(-m_exp, 1 - bound - e_exp), -m_exp)
+        # A subnormal pair would ask for more than the largest finite power of two; 2**(maxexp - 2) is enough.
+        exponent = exponent.clamp_max(maxexp - 2)
+        exponent = torch.where(needs & (largest > 0), exponent, torch.zeros_like(exponent))
+        return torch.ldexp(torch.ones_like(largest), exponent)[..., None]
 
 
 def closest_point_on_triangle_unchecked(points: Tensor, a: Tensor, b: Tensor, c: Tensor) -> ClosestPointOnTriangle:
