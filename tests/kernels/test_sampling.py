@@ -94,3 +94,45 @@ def test_vertex_set_drops_unreferenced_only() -> None:
     f = torch.tensor([[0, 1, 2], [4, 1, 2]])
     assert vertex_set((v, f)).tolist() == [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, 0]]
     assert vertex_set((v, f), referenced_only=False).shape == (5, 3)
+
+
+# Areas 0.5 and 50: 1 % of the samples on face 0 (review V, F3).
+_SMALL_AND_LARGE = (
+    torch.tensor([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [10, 0, 1], [0, 10, 1]], dtype=torch.float64),
+    torch.tensor([[0, 1, 2], [3, 4, 5]]),
+)
+
+
+@pytest.mark.parametrize(
+    ("dtype", "exponent"),
+    [
+        *((torch.float32, k) for k in (33, 66, -83, -140)),
+        *((torch.float64, k) for k in (260, 600, -565, -1060)),
+    ],
+)
+def test_samples_of_a_mesh_scaled_by_a_power_of_two_are_the_same_samples(dtype, exponent):
+    # Areas were formed in the input dtype, whose |cross|**2 overflowed float32 beyond edges of ~1e9 (at 1e20 every
+    # sample fell on the overflowing face: 0 % on face 0 instead of 1 %) and underflowed below ~1e-9 (a valid mesh at
+    # 1e-25: "zero surface area"); float64 likewise at ~1e-170. A power of two scales exactly, so the same seed must
+    # give the same faces and barycentrics, and the points times that power, at any magnitude the dtype holds.
+    verts, faces = _SMALL_AND_LARGE
+    verts = verts.to(dtype)
+    scale = 2.0**exponent
+    unit = sample_surface(verts, faces, 2000, generator=torch.Generator().manual_seed(3))
+    got = sample_surface(verts * scale, faces, 2000, generator=torch.Generator().manual_seed(3))
+    assert torch.equal(got.face_idx, unit.face_idx)
+    assert torch.equal(got.bary, unit.bary)
+    if exponent > -120:  # subnormal points round (the faces and barycentrics above are exact)
+        assert torch.equal(got.points, unit.points * scale)
+    assert 0.005 < float((got.face_idx == 0).double().mean()) < 0.02
+
+
+def test_a_mesh_at_an_extreme_magnitude_leaves_the_others_of_a_batch_alone():
+    verts, faces = _SMALL_AND_LARGE
+    ordinary = (verts.float() * 3.7, faces)
+    g = torch.Generator()
+    alone = sample_surface([ordinary, (verts.float(), faces)], n=[500, 500], generator=g.manual_seed(5))
+    mixed = sample_surface([ordinary, (verts.float() * 2.0**70, faces)], n=[500, 500], generator=g.manual_seed(5))
+    assert torch.equal(mixed.face_idx, alone.face_idx)
+    assert torch.equal(mixed.points[:500], alone.points[:500])
+    assert torch.equal(mixed.points[500:], alone.points[500:] * 2.0**70)
