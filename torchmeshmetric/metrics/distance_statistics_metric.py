@@ -48,7 +48,9 @@ class DistanceStatisticsBase(StatisticsPlot, DistanceStatesMetric):
             diagonals).
         ddof: delta degrees of freedom of ``var``/``std`` (0: population, the default).
         exact_quantiles: keep all values for exact quantiles (default), or a fixed-size sketch whose quantiles are
-            within relative error ``relative_accuracy`` (constant memory, cheap DDP sync).
+            within relative error ``relative_accuracy`` (constant memory, cheap DDP sync) where they lie in its
+            fixed window ``[1e-12, 1e12]`` (a quantile outside it warns,
+            :class:`~torchmeshmetric.stats.sketch.SketchRangeWarning`).
         relative_accuracy: the sketch's bound.
         kwargs: ``torchmetrics.Metric`` options (``dist_sync_on_step``, ``process_group``, ...).
     """

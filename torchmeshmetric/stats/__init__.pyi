@@ -9,7 +9,7 @@ from . import sketch as sketch
 from . import statistics as statistics
 from . import streaming as streaming
 from .moments import Moments, merge_moments, moments_of
-from .sketch import QuantileSketch
+from .sketch import QuantileSketch, SketchRangeWarning
 from .statistics import (
     QUANTILE_LEVELS,
     DistanceStatistics,
@@ -26,6 +26,7 @@ __all__ = [
     "DistanceStatistics",
     "Moments",
     "QuantileSketch",
+    "SketchRangeWarning",
     "distance_statistics",
     "linear_quantiles",
     "merge_moments",

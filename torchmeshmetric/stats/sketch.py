@@ -13,16 +13,30 @@ Values below ``min_value`` (including exact zeros) share one *zero bucket* repre
 ``[min, max]`` of the data. :meth:`QuantileSketch.quantile` interpolates linearly between ranks like
 ``numpy.percentile(..., method="linear")``; a convex combination of two estimates each within ``alpha`` of its
 order statistic is within ``alpha`` of the interpolated exact value, so the bound carries over.
+
+The window ``[min_value, max_value]`` is fixed, so that count vectors merge by addition (streaming, DDP). Where the
+values are all at hand (:meth:`QuantileSketch.quantiles_of`, the one-shot ``distance_statistics``), the window
+follows the data: values whose mean is below ``1e6 * min_value`` or whose maximum exceeds ``max_value`` are
+counted in a power-of-two unit near their mean (exact, divided back), so the bound holds at any scale (until review
+V, distances around 1e13 got every quantile = 1e12 and around 1e-13 the minimum). Where counts were made in the
+fixed window, :meth:`QuantileSketch.quantile` warns (:class:`SketchRangeWarning`) when a reported quantile comes
+from the zero bucket while every value is positive, or from the last bucket while the maximum exceeds
+``max_value``: that estimate has no relative-error bound.
 """
 
 from __future__ import annotations
 
 import math
+import warnings
 
 import torch
 from torch import Tensor
 
-__all__ = ["QuantileSketch"]
+__all__ = ["QuantileSketch", "SketchRangeWarning"]
+
+
+class SketchRangeWarning(UserWarning):
+    """A sketched quantile lies outside the sketch's window ``[min_value, max_value]``: no relative-error bound."""
 
 
 class QuantileSketch:
@@ -112,4 +126,74 @@ class QuantileSketch:
             return self.bin_value(idx).clamp(vmin.to(c), vmax.to(c))
 
         lo_v, hi_v = order_stat(lo_rank), order_stat(hi_rank)
+        self._warn_outside(cum, torch.cat([lo_rank, hi_rank]), vmin, vmax)
         return lo_v + frac * (hi_v - lo_v)
+
+    def _warn_outside(self, cum: Tensor, ranks: Tensor, vmin: Tensor, vmax: Tensor) -> None:
+        """Warn when an order statistic used comes from a bucket without the relative bound (see the module)."""
+        idx = torch.searchsorted(cum, ranks, right=True).clamp(max=self.num_bins - 1)
+        low = float(vmin) > 0 and bool((idx == 0).any())
+        high = float(vmax) > self.max_value and bool((idx == self.num_bins - 1).any())
+        if low or high:
+            where = f"below min_value={self.min_value:g}" if low else f"above max_value={self.max_value:g}"
+            warnings.warn(
+                f"quantile sketch: a reported quantile lies {where} (data in [{float(vmin):.3g}, {float(vmax):.3g}]), "
+                f"so it is not within relative error {self.relative_accuracy:g}; use exact quantiles, or distances "
+                "in a unit that brings them into the window",
+                SketchRangeWarning,
+                stacklevel=3,
+            )
+
+    def unit_exponent(self, mean: float, vmax: float) -> int | None:
+        """Exponent ``k``: values of ``mean`` and maximum ``vmax`` are counted times ``2**k``; ``None``: as they are.
+
+        They are counted as they are when the window fits them: ``vmax <= max_value`` and ``mean >= 1e6 *
+        min_value`` (values down to a millionth of their mean are resolved). Otherwise ``2**k`` brings ``mean`` into
+        ``[0.5, 1)``: values from ~``1e-12`` to ~``1e12`` times the mean are resolved (the maximum of ``N < 1e12``
+        values is below ``N`` times their mean). ``k`` may exceed float64's exponent range (subnormal means); it is
+        applied in two steps.
+
+        Example:
+            >>> sk = QuantileSketch()
+            >>> sk.unit_exponent(0.5, 2.0) is None, sk.unit_exponent(4.8e12, 9.9e12)
+            (True, -43)
+        """
+        if vmax <= self.max_value and mean >= 1e6 * self.min_value:
+            return None
+        if not (mean > 0 and math.isfinite(mean)):
+            return None
+        return -math.frexp(mean)[1]
+
+    def quantiles_of(self, values: Tensor, q: Tensor) -> Tensor:
+        """Estimated quantiles of ``values`` at hand, in a window that follows them (:meth:`unit_exponent`).
+
+        Args:
+            values: ``(N,)`` non-negative finite values (``N`` may be 0).
+            q: ``(Q,)`` quantile levels in ``[0, 1]``.
+
+        Returns:
+            ``(Q,)`` float64 estimates within relative error ``relative_accuracy`` of the exact ones (values below
+            ~``1e-12`` of the mean excepted: absolute error below that); NaN for no values.
+
+        Example:
+            >>> import torch
+            >>> x = torch.arange(1, 1001, dtype=torch.float64) * 1e13  # beyond the fixed window
+            >>> est = QuantileSketch(0.01).quantiles_of(x, torch.tensor([0.5]))
+            >>> abs(est.item() - 500.5e13) / 500.5e13 <= 0.01
+            True
+        """
+        x = values.detach().reshape(-1).to(torch.float64)
+        if x.numel() == 0:
+            return torch.full_like(q, float("nan"), dtype=torch.float64, device=x.device)
+        vmin, vmax = x.amin(), x.amax()
+        k = self.unit_exponent(float(x.mean()), float(vmax))
+        if k is None:
+            return self.quantile(self.counts(x), q, vmin, vmax)
+        # Powers of two scale exactly (values taken into subnormals lie ~1e300 below the mean: the zero bucket), in
+        # two steps so that neither overflows.
+        up, down = (
+            (math.ldexp(1.0, k // 2), math.ldexp(1.0, k - k // 2)),
+            (math.ldexp(1.0, -(k // 2)), math.ldexp(1.0, k // 2 - k)),
+        )
+        est = self.quantile(self.counts(x * up[0] * up[1]), q, vmin * up[0] * up[1], vmax * up[0] * up[1])
+        return est * down[0] * down[1]

@@ -379,7 +379,9 @@ def distance_statistics(
         peak: PSNR peak (MPEG convention: e.g. the reference's bounding-box diagonal). ``None``: ``psnr`` is
             ``None`` (never NaN by omission). A ``(B,)`` tensor gives one peak per item.
         exact_quantiles: exact quantiles (sorts the values) or the sketch estimate with relative error
-            ``relative_accuracy`` (see :class:`~torchmeshmetric.stats.sketch.QuantileSketch`).
+            ``relative_accuracy`` (see :class:`~torchmeshmetric.stats.sketch.QuantileSketch`), at any scale: the
+            sketch's window follows each set (:meth:`~torchmeshmetric.stats.sketch.QuantileSketch.quantiles_of`;
+            values below ~1e-12 of the set's mean have an absolute error below that instead).
         relative_accuracy: the sketch's relative-error bound when ``exact_quantiles=False``.
 
     Returns:
@@ -417,10 +419,16 @@ def distance_statistics(
         d = torch.cat([t.to(torch.float64) for t in items])
     sketch = None if exact_quantiles else QuantileSketch(relative_accuracy)
     if lengths is None:
-        moments, quantile_data = distance_statistics_update(d, sketch)
+        moments, values = distance_statistics_update(d, None)
+        if sketch is not None:
+            _check_sketch_input(d, "dists")
         if d.numel() == 0:
             raise EmptyInputError("dists: expected at least one distance, found an empty tensor")
-        return distance_statistics_compute(moments, quantile_data, sketch=sketch, ddof=ddof, peak=peak, values=d)
+        if sketch is None:
+            return distance_statistics_compute(moments, values, ddof=ddof, peak=peak)
+        # All values at hand: the sketch's window follows them (QuantileSketch.quantiles_of), not the fixed one.
+        q = torch.tensor(QUANTILE_LEVELS, dtype=torch.float64, device=d.device)
+        return statistics_from_parts(moments, sketch.quantiles_of(values, q), ddof=ddof, peak=peak, values=values)
     _check_distances(d, "dists")
     if sketch is not None:
         _check_sketch_input(d, "dists")
@@ -430,9 +438,7 @@ def distance_statistics(
     else:
         q = torch.tensor(QUANTILE_LEVELS, dtype=torch.float64, device=d.device)
         b = batch_index(lengths.to(d.device, torch.long))
-        rows = [
-            sketch.quantile(sketch.counts(d[b == i]), q, mom.min[i], mom.max[i]) for i in range(int(lengths.numel()))
-        ]
+        rows = [sketch.quantiles_of(d[b == i], q) for i in range(int(lengths.numel()))]
         qv = torch.stack(rows) if rows else d.new_zeros((0, 3), dtype=torch.float64)
     return statistics_from_parts(mom, qv, ddof=ddof, peak=peak, values=d, lengths=lengths)
 

@@ -23,7 +23,10 @@ class DistanceAccumulator:
     Keeps, in float64, the count, mean and ``M2`` (merged with Chan et al. 1979's parallel formula), the sum of
     squares, the minimum and the maximum. Quantiles are exact when ``exact_quantiles=True`` (all values are kept,
     ``8 N`` bytes), otherwise estimated by a fixed-size :class:`~torchmeshmetric.stats.sketch.QuantileSketch` whose
-    estimates are within relative error ``relative_accuracy`` of the exact order statistics.
+    estimates are within relative error ``relative_accuracy`` of the exact order statistics that lie in its fixed
+    window ``[1e-12, 1e12]`` (fixed so that accumulators merge by adding counts; a quantile outside it raises a
+    :class:`~torchmeshmetric.stats.sketch.SketchRangeWarning`: express the distances in a unit that brings them
+    into the window, or keep exact quantiles; the one-shot ``distance_statistics`` has no such window).
     ``compute()`` equals :func:`~torchmeshmetric.stats.distance_statistics` on the concatenated data (to float64
     rounding), whatever the batching or merge order: every batch passes through the same checks and sufficient
     statistics (``distance_statistics_update``) and the result is finished by the same ``distance_statistics_compute``
