@@ -185,3 +185,29 @@ def test_pickled_and_deep_copied_indexes_watch_their_own_tensors():
         with pytest.raises(StaleIndexError):
             other.point_mesh_distance(_points())
     index.point_mesh_distance(_points())  # the original's tensors did not change
+
+
+def test_with_verts_refuses_vertices_that_are_not_the_indexs():
+    # Review V, F6: nothing was checked, so the copy answered for the index's mesh while autograd reached the new
+    # tensor: with_verts(V + 1) gave 2.0 (the distance to V; V + 1 is at 1.4608), and a (10, 3) tensor was taken
+    # for a 162-vertex index.
+    from torchmeshmetric import DeviceError, DTypeError, ShapeError
+
+    s = trimesh.creation.icosphere(subdivisions=2)
+    verts, faces = torch.tensor(s.vertices), torch.tensor(s.faces)
+    index = MeshIndex(verts, faces)
+    q = torch.tensor([[0.0, 0, 3.0]])
+    with pytest.raises(StaleIndexError, match=r"verts: expected vertices equal in value .* off by 1"):
+        index.with_verts(verts + 1)
+    with pytest.raises(ShapeError, match="verts"):
+        index.with_verts(verts[:10])
+    with pytest.raises(DTypeError, match="verts"):
+        index.with_verts(verts.float())
+    with pytest.raises(DeviceError, match="verts"):
+        index.with_verts(verts.to("meta"))
+    # Equal values (another tensor): accepted, and the gradient reaches it.
+    v = verts.clone().requires_grad_()
+    d = index.with_verts(v).point_mesh_distance(q).dists
+    assert float(d.detach()) == float(index.point_mesh_distance(q).dists)
+    d.sum().backward()
+    assert v.grad is not None and float(v.grad.abs().sum()) > 0

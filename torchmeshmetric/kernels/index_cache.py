@@ -97,10 +97,10 @@ class IndexCache:
             self._entries.move_to_end(key)
         verts_given, faces_given = _given_tensors(mesh, None)
         if len(meshes) == 1:
-            return index.with_verts(meshes[0].verts, verts_given, faces_given)
+            return index.with_verts_unchecked(meshes[0].verts, verts_given, faces_given)
         if any(m.verts.requires_grad for m in meshes):
-            return index.with_verts(torch.cat([m.verts for m in meshes]), verts_given, faces_given)
-        return index.with_verts(None, verts_given, faces_given)
+            return index.with_verts_unchecked(torch.cat([m.verts for m in meshes]), verts_given, faces_given)
+        return index.with_verts_unchecked(None, verts_given, faces_given)
 
     def __len__(self) -> int:
         return len(self._entries)

@@ -570,6 +570,9 @@ class MeshIndex:
         ``verts=None`` keeps the index's vertices. The copy also refuses to answer once ``verts`` or one of the
         caller's tensors ``verts_given`` / ``faces_given`` (``(name, tensor)``) changes in place, as the index does
         for the tensors it was built from (which stay watched). A copy that is refitted takes structures of its own.
+        ``verts`` is checked, values included (one comparison, O(V), and a device sync on a GPU: 0.12 ms for 164k
+        vertices on the CPU, against 55 ms for a query of 10k points on that mesh); the library's own callers, whose
+        values are equal by construction, use :meth:`with_verts_unchecked`.
 
         Args:
             verts: ``(V, 3)`` packed vertices equal in value to the index's, or ``None``.
@@ -578,7 +581,40 @@ class MeshIndex:
 
         Returns:
             The copy.
+
+        Raises:
+            ShapeError, DTypeError, DeviceError: ``verts`` is not ``(V, 3)`` of the index's dtype and device.
+            StaleIndexError: ``verts`` differs in value from the index's vertices (the copy would answer for the
+                index's mesh, not for ``verts``; until review V it did: ``V + 1`` got the distance of ``V``).
+
+        Example:
+            >>> import torch, trimesh
+            >>> s = trimesh.creation.icosphere()
+            >>> index = MeshIndex(torch.tensor(s.vertices), torch.tensor(s.faces))
+            >>> v = torch.tensor(s.vertices, requires_grad=True)
+            >>> d = index.with_verts(v).point_mesh_distance(torch.tensor([[0.0, 0, 2]])).dists
+            >>> d.sum().backward(); v.grad.abs().sum() > 0
+            tensor(True)
         """
+        if verts is not None:
+            self._check_new_verts(verts)
+            if not torch.equal(verts.detach(), self.verts.detach()):
+                gap = (verts.detach() - self.verts.detach()).abs().amax(1)
+                row = int(gap.argmax())
+                raise StaleIndexError(
+                    f"verts: expected vertices equal in value to the index's (a copy answers for the index's mesh), "
+                    f"found row {row} off by {float(gap[row]):.3g}; refit the index (index.refit(verts)) or build a "
+                    "new MeshIndex for this mesh"
+                )
+        return self.with_verts_unchecked(verts, verts_given, faces_given)
+
+    def with_verts_unchecked(
+        self,
+        verts: Tensor | None,
+        verts_given: Sequence[tuple[str, Any]] = (),
+        faces_given: Sequence[tuple[str, Any]] = (),
+    ) -> MeshIndex:
+        """:meth:`with_verts` for vertices the caller knows equal to the index's (of its shape, dtype and device)."""
         other = MeshIndex.__new__(MeshIndex)
         other.__dict__.update(self.__dict__)  # not copy.copy: __getstate__ drops the structures
         # Structures not built yet are built on the origin, so that the next copy finds them (an IndexCache's hits).
@@ -592,6 +628,15 @@ class MeshIndex:
             other._nearest = copy.copy(other._nearest)
         return other
 
+    def _check_new_verts(self, verts: Tensor) -> None:
+        """Require ``verts`` of the index's shape ``(V, 3)``, float dtype and device (O(1))."""
+        check_shape(verts, (int(self.verts.shape[0]), 3), "verts")
+        check_float(verts, "verts")
+        if verts.device != self.device:
+            raise DeviceError(f"verts: expected a tensor on the index's device {self.device}, found {verts.device}")
+        if verts.dtype != self.dtype:
+            raise DTypeError(f"verts: expected the index's dtype {self.dtype}, found {verts.dtype}")
+
     def refit(self, verts: Tensor) -> None:
         """Move the vertices (same faces, same order): bounds are refitted, not rebuilt; answers stay exact.
 
@@ -604,12 +649,7 @@ class MeshIndex:
         Raises:
             ShapeError, DTypeError, DeviceError, NonFiniteError: when ``verts`` does not fit the index.
         """
-        check_shape(verts, (int(self.verts.shape[0]), 3), "verts")
-        check_float(verts, "verts")
-        if verts.device != self.device:
-            raise DeviceError(f"verts: expected a tensor on the index's device {self.device}, found {verts.device}")
-        if verts.dtype != self.dtype:
-            raise DTypeError(f"verts: expected the index's dtype {self.dtype}, found {verts.dtype}")
+        self._check_new_verts(verts)
         check_finite(verts, "verts")
         self.refit_unchecked(verts)
 

@@ -50,7 +50,7 @@ def bound_to(index: MeshIndex | None, meshes: Sequence[Mesh]) -> MeshIndex | Non
     verts = meshes[0].verts if len(meshes) == 1 else torch.cat([m.verts for m in meshes])
     if verts is index.verts or not (verts.requires_grad or index.verts.requires_grad):
         return index  # equal values and no autograd graph to connect: nothing to rebind
-    return index.with_verts(verts.to(index.dtype))
+    return index.with_verts_unchecked(verts.to(index.dtype))
 
 
 def index_of(
