@@ -29,6 +29,7 @@ from torchmeshmetric._checks import (
     check_real,
     check_shape,
 )
+from torchmeshmetric.kernels._common import range_scale
 from torchmeshmetric.kernels.mesh_index import MeshIndex, PointMeshResult
 from torchmeshmetric.registration._common import check_sampling, one_thread, validate_pair
 from torchmeshmetric.structures import Mesh, MeshLike
@@ -106,8 +107,15 @@ def kabsch_umeyama(src: Tensor, dst: Tensor, weights: Tensor | None = None, scal
     Returns:
         :class:`SimilarityTransform` ``(rotation (3, 3), translation (3,), scale ())``.
 
+    Coordinates of any finite magnitude are handled: the centred points are scaled by powers of two (exact) where
+    the covariance's products would overflow or underflow (float32 beyond ~4e9, float64 beyond ~1e77; until review V
+    float64 1e200 and float32 1e20 raised a torch ``_LinAlgError`` from the SVD); the rotation does not depend on
+    the scale and the scale estimate is corrected by the ratio of the two powers.
+
     Raises:
         ShapeError: shapes differ or are not ``(N, 3)`` / ``(N,)``.
+        NonFiniteError: ``src``, ``dst`` or ``weights`` holds NaN or Inf (named).
+        ValueError: a negative weight (named, with its row).
         EmptyInputError: no point, or all weights are zero.
 
     Example:
@@ -125,12 +133,18 @@ def kabsch_umeyama(src: Tensor, dst: Tensor, weights: Tensor | None = None, scal
         raise ShapeError(f"dst: expected the shape of src {tuple(src.shape)}, found {tuple(dst.shape)}")
     if src.shape[0] == 0:
         raise EmptyInputError("src: expected at least one point pair, found none")
+    check_finite(src, "src")
+    check_finite(dst, "dst")
     dst = dst.to(src.dtype)
     if weights is None:
         w = torch.ones(src.shape[0], dtype=src.dtype, device=src.device)
     else:
         check_shape(weights, (src.shape[0],), "weights")
-        w = weights.to(src.dtype).clamp_min(0)
+        check_finite(weights, "weights")
+        w = weights.to(src.dtype)
+        if bool((w < 0).any()):
+            row = int((w < 0).nonzero()[0, 0])
+            raise ValueError(f"weights: expected non-negative weights, found {float(w[row])!r} at row {row}")
     wsum = w.sum()
     if not bool(wsum > 0):
         raise EmptyInputError("weights: expected at least one positive weight, found all zero")
@@ -138,6 +152,13 @@ def kabsch_umeyama(src: Tensor, dst: Tensor, weights: Tensor | None = None, scal
     mu_s = (w[:, None] * src).sum(0)
     mu_d = (w[:, None] * dst).sum(0)
     xs, xd = src - mu_s, dst - mu_d
+    # Powers of two (exact; None: 1, the same bits) where the covariance's products would over- or underflow.
+    unit_s = range_scale(float(xs.detach().abs().amax()), xs.dtype, 2)
+    unit_d = range_scale(float(xd.detach().abs().amax()), xd.dtype, 2)
+    if unit_s is not None:
+        xs = xs * unit_s
+    if unit_d is not None:
+        xd = xd * unit_d
     cov = (w[:, None] * xd).T @ xs  # (3, 3) = sum w (dst - mu_d)(src - mu_s)^T
     U, S, Vh = torch.linalg.svd(cov)
     d = torch.ones(3, dtype=src.dtype, device=src.device)
@@ -148,6 +169,8 @@ def kabsch_umeyama(src: Tensor, dst: Tensor, weights: Tensor | None = None, scal
     if scale:
         var_s = (w * (xs * xs).sum(-1)).sum()
         s = (S * d).sum() / var_s if bool(var_s > 0) else torch.ones((), dtype=src.dtype, device=src.device)
+        if unit_s is not None or unit_d is not None:  # s was estimated between the scaled copies
+            s = s * (unit_s or 1.0) / (unit_d or 1.0)
     else:
         s = torch.ones((), dtype=src.dtype, device=src.device)
     t = mu_d - s * (R @ mu_s)
