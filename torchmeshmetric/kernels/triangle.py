@@ -93,7 +93,7 @@ def closest_point_on_triangle(points: Tensor, a: Tensor, b: Tensor, c: Tensor) -
 
     Exact in all seven Voronoi regions (Ericson 2004, §5.1.5) and for degenerate (zero-area, collinear,
     repeated-vertex) triangles, at any magnitude: where the region test's products of four coordinates would
-    overflow or underflow the dtype (float32 edges beyond ~1e9 or below ~1e-10; float64 beyond ~1e76), that
+    overflow or underflow the dtype (float32 edges beyond ~1e9 or below ~1e-9; float64 beyond ~1e76), that
     triangle and its point are scaled by an exact power of two (:func:`triangle_range_scale`), bit for bit the
     answer of the unscaled computation wherever that neither overflows nor underflows. Differentiable w.r.t. all
     inputs; gradients are finite everywhere.
@@ -155,10 +155,11 @@ def triangle_range_scale(points: Tensor, a: Tensor, b: Tensor, c: Tensor) -> Ten
     normal underflows. Such a pair is scaled so that ``m`` comes into ``[0.5, 1)``, or, where that would take ``e``
     below the bound (a point far from a small triangle), just enough to keep ``e`` above it; every other pair gets
     1, so scaled and unscaled pairs give the same bits where nothing over- or underflows. The scale is capped at
-    ``2**(maxexp - 2)`` (subnormal pairs). A point farther than
-    ``2**(maxexp / 2 - 8)`` times the triangle's size (float32: ~2**56) overflows its squares in that frame: its
-    distance is right to rounding (the triangle is a point at that ratio), its closest point may be another point
-    of the triangle.
+    ``2**(maxexp - 2)`` (subnormal pairs). A point far from a small triangle has its distance right to rounding,
+    but once its candidates' squared distances tie in the dtype (float32: beyond ~2**12 times the triangle's size,
+    scaled or not) the first of them gives its closest point (the library's tie rule); beyond
+    ``2**(maxexp / 2 + maxexp / 4 - 2)`` (float32 2**94, float64 2**766) the squares overflow in the scaled frame
+    and the same holds.
 
     Args:
         points: ``(..., 3)`` query points (finite).

@@ -189,11 +189,11 @@ class QuantileSketch:
         k = self.unit_exponent(float(x.mean()), float(vmax))
         if k is None:
             return self.quantile(self.counts(x), q, vmin, vmax)
-        # Powers of two scale exactly (values taken into subnormals lie ~1e300 below the mean: the zero bucket), in
-        # two steps so that neither overflows.
-        up, down = (
-            (math.ldexp(1.0, k // 2), math.ldexp(1.0, k - k // 2)),
-            (math.ldexp(1.0, -(k // 2)), math.ldexp(1.0, k // 2 - k)),
-        )
-        est = self.quantile(self.counts(x * up[0] * up[1]), q, vmin * up[0] * up[1], vmax * up[0] * up[1])
-        return est * down[0] * down[1]
+        # Powers of two scale exactly (values taken into subnormals lie ~1e300 below the mean: the zero bucket).
+        est = self.quantile(self.counts(_ldexp(x, k)), q, _ldexp(vmin, k), _ldexp(vmax, k))
+        return _ldexp(est, -k)
+
+
+def _ldexp(x: Tensor, k: int) -> Tensor:
+    """``x * 2**k`` in two steps, so that neither factor overflows float64 (``k`` up to about +-2000)."""
+    return x * math.ldexp(1.0, k // 2) * math.ldexp(1.0, k - k // 2)
