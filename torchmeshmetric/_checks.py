@@ -245,6 +245,44 @@ def check_int(value: object, name: str, low: int | None = None) -> int:
     return int(value)
 
 
+def check_seed(value: object, name: str = "seed") -> int:
+    """Require a seed torch's generators take: an int (:func:`check_int`'s) in ``[-2**63, 2**64)``.
+
+    A seed outside that range reached ``Generator.manual_seed`` and failed there with torch's untyped
+    ``ValueError: Overflow when unpacking long long``, naming no argument (found by review).
+
+    Example:
+        >>> check_seed(2**70)  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        ValueError: seed: expected an int in [-2**63, 2**64) (torch's seed range), found 1180591620717411303424
+    """
+    seed = check_int(value, name)
+    if not -(2**63) <= seed < 2**64:
+        raise ValueError(f"{name}: expected an int in [-2**63, 2**64) (torch's seed range), found {seed}")
+    return seed
+
+
+def check_generator(value: object, name: str = "generator") -> torch.Generator | None:
+    """Require ``None`` or a ``torch.Generator``: a seed passed in its place failed in torch's sampler.
+
+    ``sample_surface(..., generator=0)`` raised torch's ``rand() received an invalid combination of arguments``
+    (found by review); the message says to seed a generator.
+
+    Example:
+        >>> check_generator(0)  # doctest: +ELLIPSIS
+        Traceback (most recent call last):
+        ...
+        TypeError: generator: expected a torch.Generator or None, found int 0 (for a seed, pass ...)
+    """
+    if value is None or isinstance(value, torch.Generator):
+        return value
+    raise TypeError(
+        f"{name}: expected a torch.Generator or None, found {type(value).__name__} {value!r} (for a seed, pass "
+        "torch.Generator().manual_seed(seed))"
+    )
+
+
 def as_real(value: object, name: str) -> float | None:
     """``value`` as a float when it is a real number, else ``None``: the one definition of a number for every option.
 
@@ -384,6 +422,10 @@ def check_faces(faces: Tensor, num_verts: int, name: str = "faces") -> None:
         if lo < 0 and not faces.is_signed():
             raise IndexRangeError(
                 f"{name}: expected vertex indices in [0, {num_verts - 1}], found a {faces.dtype} value of 2**63 or more"
+            )
+        if num_verts == 0:  # "expected vertex indices in [0, -1]" read as a bug of the check (found by review)
+            raise IndexRangeError(
+                f"{name}: found vertex indices in [{lo}, {hi}], but the vertices are empty (0 vertices to index)"
             )
         if lo < 0 or hi >= num_verts:
             raise IndexRangeError(

@@ -25,6 +25,7 @@ from torchmeshmetric._checks import (
     check_device,
     check_faces,
     check_finite,
+    check_flag,
     check_float,
     check_float_dtype,
     check_lengths,
@@ -36,6 +37,9 @@ from torchmeshmetric._checks import (
 if TYPE_CHECKING:
     import trimesh
 
+# The packing and scaling helpers (batch_index, lengths_to_offsets, looks_like_pair, power_of_two_above,
+# power_of_two_scale_down, vertex_set_mask) are the library's internals: importable by name, not public (they check
+# nothing; a review found them in __all__, undocumented, taking out-of-range indices).
 __all__ = [
     "Mesh",
     "MeshLike",
@@ -43,17 +47,11 @@ __all__ = [
     "PackedPoints",
     "as_mesh",
     "as_points",
-    "batch_index",
     "bbox_diagonal",
     "is_mesh_like",
-    "lengths_to_offsets",
-    "looks_like_pair",
     "pack_meshes",
     "pack_points",
-    "power_of_two_above",
-    "power_of_two_scale_down",
     "require_faces",
-    "vertex_set_mask",
 ]
 
 
@@ -96,6 +94,12 @@ def bbox_diagonal(points: Tensor) -> Tensor:
     of ``inf`` or 0 that every metric then refused as its PSNR peak (found by review). The same bits wherever nothing
     over- or underflowed: a power of two scales the squares, their sum and the root exactly.
 
+    Args:
+        points: ``(P, 3)`` float points (trusted: not checked).
+
+    Returns:
+        The 0-dim diagonal length, in ``points``' dtype.
+
     Example:
         >>> bbox_diagonal(torch.tensor([[0.0, 0.0, 0.0], [3e-200, 4e-200, 0.0]], dtype=torch.float64)).item()
         5e-200
@@ -112,6 +116,13 @@ def require_faces(mesh: Mesh, name: str) -> Mesh:
 
     For entry points that measure to a surface or from a vertex set: the kernels would name their own argument
     (``faces: mesh 0 has no faces but 162 query points``, the same words for four different frames; found by review).
+
+    Args:
+        mesh: the mesh.
+        name: the caller's name for it, in the error.
+
+    Returns:
+        ``mesh`` itself.
 
     Raises:
         EmptyInputError: ``mesh`` has no face.
@@ -176,6 +187,7 @@ class Mesh:
     _derived: dict[str, tuple[tuple[int, ...], Tensor]] = field(init=False, repr=False, compare=False)
 
     def __init__(self, verts: Tensor, faces: Tensor, *, validate: bool = True) -> None:
+        validate = check_flag(validate, "validate")
         if validate:
             check_shape(verts, ("V", 3), "verts")
             check_float(verts, "verts")
@@ -444,7 +456,23 @@ def _named_mesh(verts: Tensor, faces: Tensor, name: str) -> Mesh:
 
 
 def as_points(points: Any, name: str = "points") -> Tensor:
-    """Validate a ``(P, 3)`` floating-point, finite point tensor (numpy arrays are converted)."""
+    """Validate a ``(P, 3)`` floating-point, finite point tensor (numpy arrays are converted).
+
+    Args:
+        points: ``(P, 3)`` float32 or float64 points, a tensor or a numpy array.
+        name: the argument's name in error messages.
+
+    Returns:
+        The points as a tensor (the same tensor when one was given).
+
+    Raises:
+        ShapeError, DTypeError, NonFiniteError: not ``(P, 3)``, not float32/float64, or not finite.
+
+    Example:
+        >>> import numpy as np
+        >>> as_points(np.zeros((2, 3))).dtype
+        torch.float64
+    """
     t = _to_tensor(points, name, device=None, dtype=None)
     check_shape(t, ("P", 3), name)
     check_float(t, name)
@@ -486,14 +514,34 @@ def pack_points(points: Sequence[Any] | Tensor, lengths: Tensor | None = None, n
     """Pack a list of ``(P_b, 3)`` point sets (or validate an already packed tensor with ``lengths``).
 
     A single ``(P, 3)`` tensor without ``lengths`` is a batch of one.
+
+    Args:
+        points: a ``(P, 3)`` float tensor (packed, with ``lengths``), or a list of ``(P_b, 3)`` tensors or
+            mesh-likes (a mesh stands for its vertex set).
+        lengths: ``(B,)`` integer points per item of a packed ``points`` (summing to ``P``).
+        name: the argument's name in error messages.
+
+    Returns:
+        :class:`PackedPoints` ``(points (sum P_b, 3), lengths (B,))``.
+
+    Raises:
+        ShapeError, DTypeError, NonFiniteError: a point set is not ``(P, 3)`` finite floats; ``lengths`` does not
+            sum to ``P``.
+        TypeError: ``points`` is neither a tensor nor a list (a numpy array: convert it), or ``lengths`` is no
+            tensor.
+
+    Example:
+        >>> p = pack_points([torch.zeros(2, 3), torch.ones(3, 3)])
+        >>> p.points.shape, p.lengths.tolist()
+        (torch.Size([5, 3]), [2, 3])
     """
     if isinstance(points, Tensor):
         pts = as_points(points, name)
         if lengths is None:  # a batch of one: its lengths are right by construction
             return PackedPoints(pts, torch.tensor([pts.shape[0]], device=pts.device))
-        lengths = lengths.to(device=pts.device, dtype=torch.long)
+        # checked before the cast: a list failed in .to(), float lengths were truncated (found by review)
         check_lengths(lengths, pts.shape[0], f"{name}_lengths")
-        return PackedPoints(pts, lengths)
+        return PackedPoints(pts, lengths.to(device=pts.device, dtype=torch.long))
     if not isinstance(points, Sequence):
         # A numpy array was iterated as a list of point sets, one per row ("points[0]: expected shape (P, 3)").
         check_tensor(points, name, "a (P, 3) torch.Tensor or a list of them")
@@ -523,6 +571,29 @@ def pack_meshes(
 
     Accepts a single mesh-like, a list of mesh-likes, or already packed ``verts``/``faces`` tensors with
     ``verts_lengths``/``faces_lengths`` (both omitted means a batch of one).
+
+    Args:
+        meshes: a mesh-like (:class:`Mesh`, ``(verts, faces)`` tuple, ``trimesh.Trimesh``), a list of them, or
+            packed ``(sum V_b, 3)`` vertices with ``faces``.
+        faces: packed ``(sum F_b, 3)`` integer faces, local to their item, when ``meshes`` is a tensor.
+        verts_lengths: ``(B,)`` vertices per item of packed tensors (with ``faces_lengths``).
+        faces_lengths: ``(B,)`` faces per item of packed tensors.
+        name: the argument's name in error messages.
+
+    Returns:
+        :class:`PackedMeshes` ``(verts (sum V_b, 3), faces (sum F_b, 3) int64, verts_lengths (B,),
+        faces_lengths (B,))``; faces stay local to their item.
+
+    Raises:
+        ShapeError, DTypeError, NonFiniteError, IndexRangeError: a bad mesh, lengths that do not sum to the rows,
+            or a face indexing outside its item.
+        TypeError: packed vertices without faces, or only one of the two lengths.
+
+    Example:
+        >>> import trimesh
+        >>> b = pack_meshes([trimesh.creation.icosphere(subdivisions=0), trimesh.creation.box()])
+        >>> b.verts.shape, b.verts_lengths.tolist(), b.faces_lengths.tolist()
+        (torch.Size([20, 3]), [12, 8], [20, 12])
     """
     if isinstance(meshes, Tensor):
         if faces is None:
@@ -544,10 +615,10 @@ def pack_meshes(
                 torch.tensor([verts.shape[0]], device=dev),
                 torch.tensor([faces.shape[0]], device=dev),
             )
+        check_lengths(verts_lengths, verts.shape[0], "verts_lengths")  # before the cast, as in pack_points
+        check_lengths(faces_lengths, faces.shape[0], "faces_lengths")
         vl = verts_lengths.to(device=verts.device, dtype=torch.long)
         fl = faces_lengths.to(device=verts.device, dtype=torch.long)
-        check_lengths(vl, verts.shape[0], "verts_lengths")
-        check_lengths(fl, faces.shape[0], "faces_lengths")
         if vl.numel() != fl.numel():
             raise ShapeError(
                 f"verts_lengths/faces_lengths: expected the same batch size, found {vl.numel()} and {fl.numel()}"
@@ -593,6 +664,12 @@ def looks_like_pair(t: tuple[Any, ...]) -> bool:
 
 def is_mesh_like(x: Any) -> bool:
     """Whether ``x`` is one mesh: a :class:`Mesh`, a ``(verts, faces)`` pair of arrays/tensors, a ``trimesh.Trimesh``.
+
+    Args:
+        x: anything.
+
+    Returns:
+        ``True`` for one mesh; ``False`` for a list of meshes, a point set or anything else.
 
     Example:
         >>> import torch

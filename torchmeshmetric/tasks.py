@@ -21,6 +21,8 @@ from typing import Any, TypeVar
 import torch
 import torch.distributed as dist
 
+from torchmeshmetric._checks import check_int
+
 __all__ = [
     "RankFailedError",
     "default_store",
@@ -56,12 +58,28 @@ class RankFailedError(RuntimeError):
 
 
 def is_distributed() -> bool:
-    """``True`` inside an initialised process group of more than one rank."""
+    """``True`` inside an initialised process group of more than one rank.
+
+    Returns:
+        Whether tasks are shared between ranks.
+
+    Example:
+        >>> is_distributed()  # a plain process
+        False
+    """
     return dist.is_available() and dist.is_initialized() and dist.get_world_size() > 1
 
 
 def rank_and_world_size() -> tuple[int, int]:
-    """``(rank, world_size)`` of the default process group; ``(0, 1)`` outside one."""
+    """``(rank, world_size)`` of the default process group; ``(0, 1)`` outside one.
+
+    Returns:
+        This process's rank and the number of ranks.
+
+    Example:
+        >>> rank_and_world_size()  # a plain process
+        (0, 1)
+    """
     if dist.is_available() and dist.is_initialized():
         return dist.get_rank(), dist.get_world_size()
     return 0, 1
@@ -70,10 +88,28 @@ def rank_and_world_size() -> tuple[int, int]:
 def shard(num_tasks: int, rank: int, world_size: int) -> range:
     """Indices of the tasks of ``rank``: ``rank, rank + world_size, ...`` (round robin, so ranks stay balanced).
 
+    Args:
+        num_tasks: the number of tasks, ``>= 0``.
+        rank: this process's rank, in ``[0, world_size)``.
+        world_size: the number of processes, ``>= 1``.
+
+    Returns:
+        The task indices of ``rank``.
+
+    Raises:
+        TypeError: an argument is not an int.
+        ValueError: an argument is out of its range (``world_size=0`` raised ``range()``'s error; a rank outside
+            the world was given no task, or another rank's, in silence).
+
     Example:
         >>> list(shard(5, 0, 2)), list(shard(5, 1, 2))
         ([0, 2, 4], [1, 3])
     """
+    num_tasks = check_int(num_tasks, "num_tasks", 0)
+    world_size = check_int(world_size, "world_size", 1)
+    rank = check_int(rank, "rank", 0)
+    if rank >= world_size:
+        raise ValueError(f"rank: expected a rank in [0, {world_size - 1}] (world_size {world_size}), found {rank}")
     return range(rank, num_tasks, world_size)
 
 

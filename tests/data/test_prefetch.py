@@ -111,7 +111,15 @@ def test_sequence_readers_agree_and_name_the_bad_file(tmp_path: Path) -> None:
     assert _threads() == 0
 
 
-@pytest.mark.parametrize("ahead", [0, -1, 1.5, True])
-def test_bad_ahead_is_refused(ahead: object) -> None:
-    with pytest.raises(ValueError, match="ahead: expected an integer >= 1"):
+@pytest.mark.parametrize(
+    ("ahead", "error", "message"),
+    [
+        (0, ValueError, "ahead: expected an int >= 1"),
+        (-1, ValueError, "ahead: expected an int >= 1"),
+        (1.5, TypeError, "ahead: expected an int, found float"),
+        (True, TypeError, "ahead: expected an int, found bool"),
+    ],
+)
+def test_bad_ahead_is_refused(ahead: object, error: type[Exception], message: str) -> None:
+    with pytest.raises(error, match=message):
         Prefetcher([1], load=str, ahead=ahead)  # type: ignore[arg-type]

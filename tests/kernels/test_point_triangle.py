@@ -318,7 +318,7 @@ class TestBadInput:
             point_mesh_distance(self.pts, "not a mesh")  # type: ignore[arg-type]
 
     def test_mismatched_batch_sizes(self) -> None:
-        with pytest.raises(ValueError, match="points_lengths: expected 2 point sets"):
+        with pytest.raises(ValueError, match="points: expected 2 point sets"):
             point_mesh_distance(self.pts, [(self.verts, self.faces), (self.verts, self.faces)])
 
     def test_bad_backend(self) -> None:

@@ -85,7 +85,7 @@ def test_zero_area_and_bad_n() -> None:
     v = torch.tensor([[0.0, 0, 0], [1, 0, 0], [2, 0, 0]])
     with pytest.raises(EmptyInputError, match="mesh 0 has zero surface area"):
         sample_surface(v, torch.tensor([[0, 1, 2]]), 5)
-    with pytest.raises(ValueError, match="n: expected a non-negative int"):
+    with pytest.raises(ValueError, match="n: expected an int >= 0, found -1"):
         sample_surface(_two_triangles(), n=-1)
 
 

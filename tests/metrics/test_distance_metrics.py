@@ -330,7 +330,7 @@ def test_loss_and_distance_options_are_checked():
     ]:
         with pytest.raises(TypeError, match=rf"{key}: expected an? (bool|int), found"):
             cls(**{key: value})
-    with pytest.raises(ValueError, match=r"surface_samples: expected None or a positive int, found True"):
+    with pytest.raises(TypeError, match=r"surface_samples: expected an int, found bool True"):
         MeshSurfaceDistance(surface_samples=True)
     sphere = trimesh.creation.icosphere(subdivisions=1)
     with pytest.raises(TypeError, match=r"detach_reference: expected a bool, found str 'False'"):

@@ -205,17 +205,19 @@ def test_a_spacing_that_is_no_radius_is_refused(spacing: float) -> None:
 
 
 @pytest.mark.parametrize(
-    ("count", "area", "message"),
+    ("count", "area", "error", "message"),
     [
-        (10, float("inf"), r"area: expected a finite area >= 0, found inf"),
-        (10, float("nan"), r"area: expected a finite area >= 0, found nan"),
-        (10, -1.0, r"area: expected a finite area >= 0, found -1.0"),
-        (-3, 1.0, r"count: expected an integer >= 0, found -3"),
-        (2.5, 1.0, r"count: expected an integer >= 0, found 2.5"),
+        (10, float("inf"), ValueError, r"area: expected a finite area >= 0, found inf"),
+        (10, float("nan"), ValueError, r"area: expected a finite area >= 0, found nan"),
+        (10, -1.0, ValueError, r"area: expected a finite area >= 0, found -1.0"),
+        (-3, 1.0, ValueError, r"count: expected an int >= 0, found -3"),
+        (2.5, 1.0, TypeError, r"count: expected an int, found float 2.5"),  # check_int's rule: a float is a TypeError
     ],
 )
-def test_canonical_farthest_points_checks_count_and_area(count: Any, area: float, message: str) -> None:
+def test_canonical_farthest_points_checks_count_and_area(
+    count: Any, area: float, error: type[Exception], message: str
+) -> None:
     """An infinite or NaN area never let the passes stop (review P: the radius stayed inf, or no distance beat NaN)."""
     p = torch.rand(200, 3, dtype=torch.float64, generator=torch.Generator().manual_seed(0))
-    with pytest.raises(ValueError, match=message):
+    with pytest.raises(error, match=message):
         graph.canonical_farthest_points(p, count, area)

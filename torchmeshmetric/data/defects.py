@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from torchmeshmetric._checks import check_flag, check_int, check_real
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
 __all__ = ["add_capture_defects"]
@@ -56,7 +57,8 @@ def add_capture_defects(
         The defective mesh (same dtype and device as the input).
 
     Raises:
-        ValueError: a count is negative or ``duplicate_fraction`` is outside ``[0, 1]``.
+        TypeError: a count or ``seed`` is not an int, or ``duplicate_fraction`` is not a number.
+        ValueError: a count or ``seed`` is negative, or ``duplicate_fraction`` is outside ``[0, 1]``.
 
     Example:
         >>> import trimesh
@@ -67,6 +69,8 @@ def add_capture_defects(
         >>> float(noisy.verts.abs().max())
         1.0
     """
+    normalize = check_flag(normalize, "normalize")
+    shuffle = check_flag(shuffle, "shuffle")
     m = as_mesh(mesh)
     for name, val in (
         ("num_zero_length_edges", num_zero_length_edges),
@@ -74,11 +78,10 @@ def add_capture_defects(
         ("num_repeated_index_faces", num_repeated_index_faces),
         ("num_unreferenced", num_unreferenced),
     ):
-        if not isinstance(val, int) or val < 0:
-            raise ValueError(f"{name}: expected an int >= 0, found {val!r}")
-    if not 0.0 <= duplicate_fraction <= 1.0:
+        check_int(val, name, 0)
+    if not 0.0 <= check_real(duplicate_fraction, "duplicate_fraction") <= 1.0:
         raise ValueError(f"duplicate_fraction: expected a float in [0, 1], found {duplicate_fraction!r}")
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(check_int(seed, "seed", 0))  # numpy's SeedSequence named no argument
     verts = m.verts.detach().cpu().double().numpy().copy()
     faces = m.faces.cpu().numpy().copy()
     if normalize and verts.shape[0]:

@@ -30,7 +30,14 @@ import torch
 from skimage.measure import marching_cubes
 from torch import Tensor
 
-from torchmeshmetric._checks import IndexRangeError, check_finite, check_float, check_float_dtype, check_shape
+from torchmeshmetric._checks import (
+    IndexRangeError,
+    check_finite,
+    check_float,
+    check_float_dtype,
+    check_int,
+    check_shape,
+)
 from torchmeshmetric.data._portable_math import cos_deg, dot3, exp, log, matmul3, matvec3, sin_deg
 from torchmeshmetric.structures import Mesh
 
@@ -267,8 +274,7 @@ class DemoSequence:
         return len(self.frames)
 
     def _check_frame(self, k: int, name: str) -> int:
-        if not isinstance(k, int) or isinstance(k, bool):
-            raise TypeError(f"{name}: expected an int frame index, found {type(k).__name__}")
+        k = check_int(k, name)
         if not -self.num_frames <= k < self.num_frames:
             raise IndexRangeError(f"{name}: frame {k} is out of range for a sequence of {self.num_frames} frames")
         return k % self.num_frames
@@ -450,12 +456,9 @@ def demo_sequence(
         >>> seq.frames[0].num_verts != seq.frames[1].num_verts
         True
     """
-    if not isinstance(num_frames, int) or num_frames < 1:
-        raise ValueError(f"num_frames: expected an int >= 1, found {num_frames!r}")
-    if not isinstance(resolution, int) or resolution < 16:
-        raise ValueError(f"resolution: expected an int >= 16, found {resolution!r}")
-    if not isinstance(frames_per_cycle, int) or frames_per_cycle < 2:
-        raise ValueError(f"frames_per_cycle: expected an int >= 2, found {frames_per_cycle!r}")
+    num_frames = check_int(num_frames, "num_frames", 1)
+    resolution = check_int(resolution, "resolution", 16)
+    frames_per_cycle = check_int(frames_per_cycle, "frames_per_cycle", 2)
     if not np.isfinite(start_phase):
         raise ValueError(f"start_phase: expected a finite float, found {start_phase!r}")
     if not (np.isfinite(blend) and blend > 0):

@@ -24,6 +24,12 @@ _NUMBER = re.compile(r"(\d+)")
 def natural_key(path: str | os.PathLike) -> tuple[object, ...]:
     """Sort key that orders embedded numbers by value: ``frame2 < frame10``.
 
+    Args:
+        path: a file name or path.
+
+    Returns:
+        A tuple comparing runs of digits by their value and other text case-insensitively.
+
     Example:
         >>> sorted(["f10.obj", "f2.obj", "f1.obj"], key=natural_key)
         ['f1.obj', 'f2.obj', 'f10.obj']
@@ -69,6 +75,12 @@ def list_frames(paths: PathsLike) -> list[Path]:
     with ``.``, such as an editor's ``.frame1.obj``) out, as a glob pattern does; a glob yields its matches; a list is
     kept in the given order (an explicit order is respected). A broken symbolic link among the frames is refused:
     leaving it out would give every frame after it the number of the one before.
+
+    Args:
+        paths: a directory, a glob pattern, a single mesh file, or a list of mesh files.
+
+    Returns:
+        The frame files, in natural order (a list: in its own order).
 
     Raises:
         MeshFileError: an empty path, nothing matches, a listed file does not exist, or a frame is a broken

@@ -16,7 +16,7 @@ import numpy as np
 import torch
 
 from torchmeshmetric._atomic import atomic_write, missing_folder_error
-from torchmeshmetric._checks import EmptyInputError, ShapeError, check_float_dtype
+from torchmeshmetric._checks import EmptyInputError, ShapeError, check_flag, check_float_dtype
 from torchmeshmetric.data.mesh_file import (
     MeshFileError,
     check_dtype_range,
@@ -89,11 +89,31 @@ def _read_file(p: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.n
 
 
 def read_mesh_arrays(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-    """``(verts, faces, colors)`` of a mesh file through its format's one reader, every check of :func:`load_mesh`.
+    r"""``(verts, faces, colors)`` of a mesh file through its format's one reader, every check of :func:`load_mesh`.
 
     The same reader and checks as :func:`load_mesh` (which needs no colours); ``colors`` are ``(V, 3)`` per-vertex
     colours in ``[0, 255]`` from a PLY's ``red green blue`` (or trimesh's reading of other formats), else ``None``.
     OBJ colours are read by :func:`~torchmeshmetric.mpeg.load_textured_mesh`.
+
+    Args:
+        path: an OBJ, OFF, PLY, STL, GLB or glTF file.
+
+    Returns:
+        ``(verts, faces, colors)``: ``(V, 3)`` float64 vertices, ``(F, 3)`` int64 faces, and ``(V, 3)`` colours or
+        ``None``, as stored (vertex order and duplicates kept).
+
+    Raises:
+        MeshFileError: the file is missing, empty, not a mesh, truncated, or holds a bad value (named with its line;
+            see ``docs/bad-input.md``).
+
+    Example:
+        >>> import tempfile, pathlib
+        >>> with tempfile.TemporaryDirectory() as d:
+        ...     path = pathlib.Path(d, "t.obj")
+        ...     _ = path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+        ...     v, f, c = read_mesh_arrays(path)
+        >>> v.shape, f.tolist(), c
+        ((3, 3), [[0, 1, 2]], None)
     """
     p = existing_mesh_file(path)
     verts, faces, colors, lines = _read_file(p)
@@ -139,6 +159,7 @@ def save_mesh(mesh: MeshLike, path: str | os.PathLike, *, overwrite: bool = Fals
         >>> load_mesh(p).num_faces
         1
     """
+    overwrite = check_flag(overwrite, "overwrite")
     p = Path(path)
     suffix = p.suffix.lower()
     if suffix not in WRITABLE_MESH_SUFFIXES:

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
+from torchmeshmetric._checks import check_flag
 from torchmeshmetric.data.mesh_file import (
     MeshFileError,
     check_text,
@@ -142,6 +143,8 @@ def parse_obj(p: Path, data: bytes, *, uvs: bool = True, normals: bool = False) 
         >>> d.corners.tolist(), d.corner_uvs.tolist()
         ([0, 1, 2], [0, 0, 0])
     """
+    uvs = check_flag(uvs, "uvs")
+    normals = check_flag(normals, "normals")
     check_text(p, data)
     data = without_bom(data)
     fast = _parse_fast(data, uvs, normals)

@@ -10,7 +10,7 @@ from typing import Any, TypeVar, cast, overload
 
 import torch
 
-from torchmeshmetric._checks import check_float_dtype
+from torchmeshmetric._checks import check_float_dtype, check_int
 from torchmeshmetric.data.frames import PathsLike, list_frames
 from torchmeshmetric.data.io import load_mesh
 from torchmeshmetric.structures import Mesh
@@ -27,6 +27,9 @@ def load_sequence(paths: PathsLike, *, dtype: torch.dtype = torch.float32) -> li
     Args:
         paths: a directory, a glob pattern, a single file or a list of files.
         dtype: vertex dtype of the frames.
+
+    Returns:
+        One :class:`~torchmeshmetric.Mesh` per frame, in the order of :func:`list_frames`.
 
     Raises:
         MeshFileError: no frame found, or a frame cannot be read (the message names the file).
@@ -99,8 +102,7 @@ class Prefetcher(Iterator[T]):
     """
 
     def __init__(self, paths: Iterable[Any], load: Callable[[Any], T], ahead: int = 2) -> None:
-        if isinstance(ahead, bool) or not isinstance(ahead, int) or ahead < 1:
-            raise ValueError(f"ahead: expected an integer >= 1, found {ahead!r}")
+        ahead = check_int(ahead, "ahead", 1)
         if not callable(load):
             raise TypeError(f"load: expected a callable, found {type(load).__name__}")
         self._paths = list(paths)

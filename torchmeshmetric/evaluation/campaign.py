@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 from torchmeshmetric._atomic import atomic_write
+from torchmeshmetric._checks import check_flag
 from torchmeshmetric._format import json_safe, markdown_cell
 from torchmeshmetric._toml import kind_name, read_manifest
 from torchmeshmetric.evaluation.reports import (
@@ -397,6 +398,7 @@ def write_campaign_csv(
     Columns: ``table`` (``III``, ``IV``, ``III-reverse``, ``IV-reverse``), ``sequence`` (a name or ``overall``),
     ``algorithm``, ``set``, then ``ave, var, std, mse, rmse, max, p95, psnr`` (full precision).
     """
+    overwrite = check_flag(overwrite, "overwrite")
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
     keys = [k for k, _ in COLUMNS]
@@ -417,6 +419,7 @@ def write_campaign_markdown(
     determinacy: Determinacy | None = None,
 ) -> Path:
     """Write :func:`campaign_markdown` to a file, atomically."""
+    overwrite = check_flag(overwrite, "overwrite")
     return atomic_write(path, campaign_markdown(results, determinacy=determinacy), overwrite=overwrite)
 
 

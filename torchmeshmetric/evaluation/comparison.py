@@ -59,6 +59,7 @@ from typing import Any
 
 import numpy as np
 
+from torchmeshmetric._checks import check_real
 from torchmeshmetric._format import format_number, markdown_cell
 from torchmeshmetric.evaluation.determinacy import shared_cell
 from torchmeshmetric.evaluation.results import FLOOR_SET_NAMES, SequenceEvaluation
@@ -130,18 +131,27 @@ def paired_t_interval(differences: Sequence[float], confidence: float = 0.95) ->
     Returns:
         ``(mean, low, high)``; with fewer than 2 differences the interval is ``(-inf, inf)``.
 
+    Raises:
+        ValueError: no difference, a NaN or infinite one (the interval was ``(nan, nan, nan)``), or ``confidence``
+            outside ``(0, 1)``.
+
     Example:
         >>> mean, lo, hi = paired_t_interval([1.0, 2.0, 3.0])
         >>> mean, round(lo, 4), round(hi, 4)
         (2.0, -0.4841, 4.4841)
     """
+    level = check_real(confidence, "confidence")
+    if not 0.0 < level < 1.0:  # NaN too; it was reported as t_quantile's "p: ... found 0.5"
+        raise ValueError(f"confidence: expected a coverage in (0, 1), found {confidence!r}")
     d = np.asarray(differences, dtype=np.float64)
     if d.size == 0:
         raise ValueError("differences: expected at least one difference, found none")
+    if not np.isfinite(d).all():
+        raise ValueError(f"differences: expected finite differences, found {int((~np.isfinite(d)).sum())} NaN/Inf")
     mean = float(d.mean())
     if d.size < 2:
         return mean, -math.inf, math.inf
-    half = t_quantile(0.5 + confidence / 2, d.size - 1) * float(d.std(ddof=1)) / math.sqrt(d.size)
+    half = t_quantile(0.5 + level / 2, d.size - 1) * float(d.std(ddof=1)) / math.sqrt(d.size)
     return mean, mean - half, mean + half
 
 

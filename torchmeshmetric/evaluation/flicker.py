@@ -26,7 +26,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import check_finite, common_dtype
+from torchmeshmetric._checks import check_finite, check_flag, common_dtype
 from torchmeshmetric.kernels import point_mesh_distance, vertex_set
 from torchmeshmetric.registration.warp import Warp, check_warped
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
@@ -84,6 +84,7 @@ def flicker_distances(
         >>> float(r.dists.max()) < 1e-12, float(r.reverse.max()) < 1e-12  # a stable simplification: no flicker
         (True, True)
     """
+    two_sided = check_flag(two_sided, "two_sided")
     s_k = as_mesh(simplified_k, name="simplified_k")
     s_km1 = as_mesh(simplified_k_minus_1, name="simplified_k_minus_1")
     dtype = common_dtype(s_k.dtype, s_km1.dtype)  # the dtype rule (docs/concepts.md, Precision)

@@ -18,10 +18,11 @@ from typing import Any, NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import ShapeError, common_dtype
+from torchmeshmetric._checks import ShapeError, check_device, check_flag, common_dtype
 from torchmeshmetric.evaluation.flicker import FLICKER, flicker_distances
 from torchmeshmetric.evaluation.results import SET_NAMES, PairEvaluation, SequenceEvaluation
 from torchmeshmetric.kernels import IndexCache, MeshIndex, point_mesh_distance
+from torchmeshmetric.metrics._prebuilt_index import check_index_cache
 from torchmeshmetric.metrics.surface_distance_sets import measure_surface_distance_sets
 from torchmeshmetric.metrics.vertex_distance_sets import measure_vertex_distance_sets
 from torchmeshmetric.registration import NonRigidOptions
@@ -182,14 +183,19 @@ def registration_settings(register: RegisterFn | None, options: Mapping[str, Any
     return {"register": registration_fn_name(register), "options": dict(options or {})}
 
 
-def _registration_from(registration: Any, original_k_minus_1: Mesh, original_k: Mesh) -> CachedRegistration:
-    """Normalise a caller-given registration (mesh-like or result object with ``verts``) to a CachedRegistration."""
+def _registration_from(
+    registration: Any, original_k_minus_1: Mesh, original_k: Mesh, name: str = "registration"
+) -> CachedRegistration:
+    """Normalise a caller-given registration (mesh-like or result object with ``verts``) to a CachedRegistration.
+
+    ``name``: the argument that gave it, in the error a registration that is no mesh-like gets.
+    """
     if isinstance(registration, CachedRegistration):
         reg = registration
     else:
         verts = getattr(registration, "verts", None)
         if verts is None:
-            verts = as_mesh(registration).verts
+            verts = as_mesh(registration, name=name).verts
         verts = torch.as_tensor(verts)
         residual = getattr(registration, "residual", None)
         if residual is None:
@@ -404,8 +410,10 @@ def evaluate_pair(
     """
     # Each under its own name (it read "mesh", and a faceless frame "faces: mesh 0 ...": found by reviews), now, not
     # after the registration; every frame is measured to or from its surface, so each needs a face.
+    two_sided = check_flag(two_sided, "two_sided")  # "y" was taken for True
+    check_index_cache(indexes)
     simp = require_faces(as_mesh(simplified_k, name="simplified_k"), "simplified_k")
-    dev = torch.device(device) if device is not None else simp.device
+    dev = check_device(device) if device is not None else simp.device
     orig_k = require_faces(as_mesh(original_k, name="original_k"), "original_k")
     orig_km1 = require_faces(as_mesh(original_k_minus_1, name="original_k_minus_1"), "original_k_minus_1")
     if simplified_k_minus_1 is not None:
@@ -417,7 +425,11 @@ def evaluate_pair(
     dtype = common_dtype(simp.dtype, orig_k.dtype, orig_km1.dtype)
     simp, orig_k, orig_km1 = simp.to(dev, dtype), orig_k.to(dev, dtype), orig_km1.to(dev, dtype)
     if precomputed_registration is not None:
-        reg, cached, seconds = _registration_from(precomputed_registration, orig_km1, orig_k), True, 0.0
+        reg, cached, seconds = (
+            _registration_from(precomputed_registration, orig_km1, orig_k, "precomputed_registration"),
+            True,
+            0.0,
+        )
     else:
         reg, cached, seconds = _register_pair(
             orig_km1,
@@ -548,6 +560,8 @@ def evaluate_sequence(
         >>> len(result.pairs), float(result.pairs[0].statistics["surface_k"].max) < 1e-12
         (2, True)
     """
+    two_sided = check_flag(two_sided, "two_sided")
+    distributed = check_flag(distributed, "distributed")
     check_sequence(original_frames, simplified_frames, precomputed_registrations)
     if registration_cache is None:
         registration_cache = RegistrationCache(registration_cache_dir)
@@ -637,6 +651,7 @@ def evaluate_pairs(
         >>> p.frame, float(p.statistics["surface_k"].max) < 1e-12
         (1, True)
     """
+    sharded = check_flag(sharded, "sharded")
 
     def one_pair(task: PairTask) -> PairEvaluation:
         original, simplified, k = task.original, task.simplified, task.frame

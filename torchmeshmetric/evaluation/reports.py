@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from torchmeshmetric._atomic import atomic_write
+from torchmeshmetric._checks import check_flag
 from torchmeshmetric._format import format_number, json_safe, markdown_cell
 from torchmeshmetric._version import __version__
 from torchmeshmetric.evaluation.comparison import comparison_markdown
@@ -236,6 +237,7 @@ def paper_tables(
         json_file: what the note under the tables names as keeping the full values: the JSON report's file name,
             or e.g. ``"the JSON report (--out)"`` for tables printed without one.
     """
+    reverse = check_flag(reverse, "reverse")
     if not methods:
         raise ValueError("methods: expected at least one method, found none")
     best = _best_index(methods)
@@ -350,6 +352,7 @@ def report_dict(
 
 def write_json(path: str | os.PathLike[str], report: Mapping[str, Any], *, overwrite: bool = False) -> Path:
     """Write a :func:`report_dict` as strict JSON, atomically."""
+    overwrite = check_flag(overwrite, "overwrite")
     return atomic_write(path, json.dumps(report, indent=2, allow_nan=False) + "\n", overwrite=overwrite)
 
 
@@ -364,6 +367,7 @@ def write_markdown(
     json_file: str = "report.json",
 ) -> Path:
     """Write :func:`markdown_report` to a file, atomically."""
+    overwrite = check_flag(overwrite, "overwrite")
     text = markdown_report(methods, extra=extra, comparisons=comparisons, determinacy=determinacy, json_file=json_file)
     return atomic_write(path, text, overwrite=overwrite)
 
@@ -398,6 +402,7 @@ def write_csv(
     and ``registration:error`` for the registration's rows), ``frame`` (pair rows and tables I/II), then the
     statistics ``ave, var, std, mse, rmse, max, p95, psnr``.
     """
+    overwrite = check_flag(overwrite, "overwrite")
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
     keys = [k for k, _ in COLUMNS]

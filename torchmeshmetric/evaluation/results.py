@@ -138,7 +138,11 @@ def mean_statistics(stats: list[DistanceStatistics]) -> dict[str, float]:
         stats: one :class:`~torchmeshmetric.stats.DistanceStatistics` per pair (non-empty).
 
     Returns:
-        Statistic name → mean value.
+        Statistic name → mean value. A field that is ``None`` in every pair (``psnr`` of statistics computed
+        without a peak) has no mean and no key (it raised ``TypeError: float() ... NoneType``).
+
+    Raises:
+        ValueError: ``stats`` is empty, or a field is ``None`` in some pairs only.
 
     Example:
         >>> from collections import namedtuple
@@ -149,10 +153,21 @@ def mean_statistics(stats: list[DistanceStatistics]) -> dict[str, float]:
     if not stats:
         raise ValueError("stats: expected at least one pair, found none")
     fields = stats[0]._fields
-    out = {f: sum(float(getattr(s, f)) for s in stats) / len(stats) for f in fields}
+    out: dict[str, float] = {}
     for f in fields:
+        values = [getattr(s, f) for s in stats]
+        missing = [i for i, v in enumerate(values) if v is None]
+        if len(missing) == len(values):  # statistics without a peak have psnr=None: there is no mean PSNR
+            continue
+        if missing:  # the mean of some pairs only would pass for the mean of all
+            raise ValueError(
+                f"stats: {f} is None in pair {missing[0]} (computed without a peak?) but a number in pair "
+                f"{values.index(next(v for v in values if v is not None))}; give every pair the same peak"
+            )
         if f == "psnr":
-            out[f] = mean_psnr([float(getattr(s, f)) for s in stats], "stats: the pairs' psnr")[0]
+            out[f] = mean_psnr([float(v) for v in values], "stats: the pairs' psnr")[0]
+        else:
+            out[f] = sum(float(v) for v in values) / len(values)
     return out
 
 
@@ -220,15 +235,31 @@ class SequenceEvaluation(NamedTuple):
 def flatten_statistics(nested: dict[str, object], sep: str = "/") -> dict[str, object]:
     """Flatten a nested statistics dict (e.g. :meth:`TemporalConsistency.compute`) for ``log_dict``.
 
+    Args:
+        nested: statistic names to values or to nested dicts of them.
+        sep: the separator of the flattened keys.
+
+    Returns:
+        One entry per leaf, keyed by its path joined with ``sep``.
+
+    Raises:
+        ValueError: two leaves flatten to one key (``{"a/b": 1, "a": {"b": 2}}`` kept one of the two in silence).
+
     Example:
         >>> flatten_statistics({"surface_k": {"ave": 1.0}, "reverse": {"vertex_k": {"max": 2.0}}})
         {'surface_k/ave': 1.0, 'reverse/vertex_k/max': 2.0}
     """
     flat: dict[str, object] = {}
+
+    def put(key: str, value: object) -> None:
+        if key in flat:
+            raise ValueError(f"nested: two statistics flatten to the key {key!r} (separator {sep!r}); rename one")
+        flat[key] = value
+
     for key, value in nested.items():
         if isinstance(value, dict):
             for sub, v in flatten_statistics(value, sep).items():
-                flat[f"{key}{sep}{sub}"] = v
+                put(f"{key}{sep}{sub}", v)
         else:
-            flat[key] = value
+            put(key, value)
     return flat

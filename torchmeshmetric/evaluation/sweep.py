@@ -18,6 +18,7 @@ from typing import Any, NamedTuple
 import torch
 from torch import Tensor
 
+from torchmeshmetric._checks import check_flag
 from torchmeshmetric.evaluation.pipeline import evaluate_sequence
 from torchmeshmetric.evaluation.reports import COLUMN_FORMATS, statistic_cell
 from torchmeshmetric.evaluation.results import SequenceEvaluation
@@ -145,6 +146,7 @@ def registered_qem_sweep(
         >>> tuple(row["weight"] for row in sweep.rows())
         (0.0, 1.0)
     """
+    baseline = check_flag(baseline, "baseline")
     if isinstance(weights, (str, bytes)) or not isinstance(weights, Sequence):  # "1" ran over its characters
         raise TypeError(f"weights: expected a sequence of numbers, found {type(weights).__name__} {weights!r}")
     if not weights:

@@ -32,6 +32,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from torchmeshmetric._checks import check_flag, check_int
 from torchmeshmetric.data import demo_sequence
 from torchmeshmetric.evaluation._validation_names import DISTORTIONS
 from torchmeshmetric.evaluation.distortions import (
@@ -108,13 +109,12 @@ def check_validation_arguments(
     unknown = [n for n in names if n not in DISTORTIONS]
     if unknown:
         raise ValueError(f"distortions: unknown {unknown}, expected names from {list(DISTORTIONS)}")
-    if isinstance(frames, bool) or not isinstance(frames, int) or not 3 <= frames <= MAX_FRAMES:
+    if not 3 <= check_int(frames, "frames") <= MAX_FRAMES:
         raise ValueError(
             f"frames: expected 3 (two frame pairs) to {MAX_FRAMES} frames (one motion cycle of the built-in "
             f"sequence; more repeat its poses), found {frames!r}"
         )
-    if isinstance(resolution, bool) or not isinstance(resolution, int) or resolution < _MIN_RESOLUTION:
-        raise ValueError(f"resolution: expected an int >= {_MIN_RESOLUTION}, found {resolution!r}")
+    check_int(resolution, "resolution", _MIN_RESOLUTION)
     if not (isinstance(keep, (int, float)) and 0 < keep <= 1):  # NaN too
         raise ValueError(f"keep: expected a ratio of faces to keep in (0, 1], found {keep!r}")
     return names
@@ -266,6 +266,7 @@ def run_validation(
         >>> round(flicker["ave"], 2), len(d["strengths"])
         (1.0, 6)
     """
+    two_sided = check_flag(two_sided, "two_sided")
     names = check_validation_arguments(frames=frames, resolution=resolution, keep=keep, distortions=distortions)
     start = time.perf_counter()
     seq = demo_sequence(frames, resolution=resolution, seed=seed)

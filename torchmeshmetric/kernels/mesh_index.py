@@ -22,6 +22,7 @@ from torchmeshmetric._checks import (
     DTypeError,
     StaleIndexError,
     check_finite,
+    check_flag,
     check_float,
     check_index_dtype,
     check_shape,
@@ -217,6 +218,7 @@ class MeshIndex:
         referenced_only: bool = True,
         tree: str = "sah",
     ) -> None:
+        referenced_only = check_flag(referenced_only, "referenced_only")
         packed = pack_mesh_args(mesh, faces, verts_lengths, faces_lengths)
         self._init(packed, backend, max_memory, referenced_only, tree)
         given_verts, given_faces = _given_tensors(mesh, faces)
@@ -423,7 +425,9 @@ class MeshIndex:
             points,
             points_lengths,
             self.faces_lengths,
-            count_error="points_lengths: expected {items} point sets (one per mesh), found {sets}",
+            # named `points`: the sets come from a list as often as from points_lengths (found by review)
+            count_error="points: expected {items} point sets (one per mesh), found {sets} (a list of point sets, or "
+            "a packed tensor split by points_lengths)",
             lacking_error="faces: mesh {item} has no faces but {points} query points",
             prims_everywhere=bool(self._faces_everywhere),
         )

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import NamedTuple
+from typing import NamedTuple, cast
 
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import EmptyInputError
+from torchmeshmetric._checks import EmptyInputError, check_allocation, check_flag, check_generator, check_int
 from torchmeshmetric.structures import (
     MeshLike,
     as_mesh,
@@ -20,7 +20,7 @@ from torchmeshmetric.structures import (
     vertex_set_mask,
 )
 
-__all__ = ["SurfaceSamples", "sample_surface", "vertex_set", "vertex_set_mask"]
+__all__ = ["SurfaceSamples", "sample_surface", "vertex_set"]
 
 
 class SurfaceSamples(NamedTuple):
@@ -37,6 +37,33 @@ class SurfaceSamples(NamedTuple):
     face_idx: Tensor
     bary: Tensor
     lengths: Tensor
+
+
+# Least bytes each sample takes: float32 point and barycentrics (2 x 12), int64 face index and batch index (2 x 8).
+_SAMPLE_BYTES = 40
+
+
+def sample_counts(n: object, num_items: int) -> list[int]:
+    """``sample_surface``'s ``n`` as one count per mesh: an int for all, or a sequence of ``num_items`` ints.
+
+    Each is :func:`~torchmeshmetric._checks.check_int`'s int (numpy's and one-element integer tensors too, not a
+    bool), at least 0; their total must fit in memory. ``n=1.5``, ``np.int64(5)`` or ``True`` gave torch or Python
+    errors naming no argument, or one sample (found by review).
+
+    Raises:
+        TypeError: ``n`` or one of its items is not an int.
+        ValueError: a count is negative, or the sequence has another length than the batch.
+        SizeLimitError: the samples cannot fit in memory.
+    """
+    is_one = not isinstance(n, (Sequence, Tensor)) or isinstance(n, str) or (isinstance(n, Tensor) and n.dim() == 0)
+    if is_one:
+        counts = [check_int(n, "n", 0)] * num_items
+    else:
+        counts = [check_int(c, f"n[{i}]", 0) for i, c in enumerate(cast(Sequence[object], n))]
+        if len(counts) != num_items:
+            raise ValueError(f"n: expected an int or {num_items} ints (one per mesh), found {len(counts)}")
+    check_allocation(float(sum(counts)), _SAMPLE_BYTES, "n", n, "samples")
+    return counts
 
 
 def sample_surface(
@@ -63,6 +90,9 @@ def sample_surface(
 
     Raises:
         EmptyInputError: a mesh with samples requested has zero total area.
+        TypeError: ``n`` is not an int (or a sequence of them), or ``generator`` is not a ``torch.Generator``.
+        ValueError: a count is negative, or ``n`` has another length than the batch.
+        SizeLimitError: the samples cannot fit in memory.
 
     Example:
         >>> import torch, trimesh
@@ -73,9 +103,8 @@ def sample_surface(
     """
     packed = pack_meshes(verts, faces)
     num_items = int(packed.verts_lengths.numel())
-    counts = torch.as_tensor([n] * num_items if isinstance(n, int) else list(n), dtype=torch.long)
-    if counts.numel() != num_items or bool((counts < 0).any()):
-        raise ValueError(f"n: expected a non-negative int or {num_items} non-negative ints, found {n}")
+    counts = torch.as_tensor(sample_counts(n, num_items), dtype=torch.long)
+    check_generator(generator)
     device = packed.verts.device
     counts = counts.to(device)
     face_batch = batch_index(packed.faces_lengths)
@@ -180,6 +209,7 @@ def vertex_set(mesh: MeshLike, *, referenced_only: bool = True, name: str = "mes
         >>> vertex_set((v, torch.tensor([[0, 1, 2]]))).shape
         torch.Size([3, 3])
     """
+    referenced_only = check_flag(referenced_only, "referenced_only")
     m = as_mesh(mesh, name=name)
     if not referenced_only:
         return m.verts

@@ -9,7 +9,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import EmptyInputError
+from torchmeshmetric._checks import EmptyInputError, check_int
 from torchmeshmetric.kernels.sampling import vertex_set
 from torchmeshmetric.structures import Mesh, as_mesh, as_points, is_mesh_like
 
@@ -103,7 +103,5 @@ def require_meshes(sources: Sequence[PointSource], name: str, why: str) -> list[
 
 def check_surface_samples(surface_samples: object) -> None:
     """Validate the ``surface_samples`` argument: ``None`` (exact surface) or a positive int."""
-    if surface_samples is not None and (
-        isinstance(surface_samples, bool) or not isinstance(surface_samples, int) or surface_samples <= 0
-    ):  # True was 1 sample
-        raise ValueError(f"surface_samples: expected None or a positive int, found {surface_samples!r}")
+    if surface_samples is not None:
+        check_int(surface_samples, "surface_samples", 1)  # True was 1 sample; np.int64(100) was refused

@@ -12,7 +12,7 @@ from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.structures import Mesh
 
-__all__ = ["bound_to", "check_index", "index_of", "query_points"]
+__all__ = ["bound_to", "check_index", "check_index_cache", "index_of", "query_points"]
 
 
 def check_index(index: MeshIndex | None, items: Sequence[Mesh | None], name: str) -> None:
@@ -37,6 +37,19 @@ def check_index(index: MeshIndex | None, items: Sequence[Mesh | None], name: str
     if not index.referenced_only:
         # Its nearest-vertex reference would hold unreferenced vertices, which the vertex set (Eq. 3) excludes.
         raise ValueError(f"{name}: expected an index built with referenced_only=True, found referenced_only=False")
+
+
+def check_index_cache(indexes: object, name: str = "indexes") -> None:
+    """Refuse an ``indexes`` that is not an :class:`~torchmeshmetric.IndexCache` (or ``None``).
+
+    A dict there failed at the first lookup with ``TypeError: dict.get() takes no keyword arguments`` (found by
+    review); ``reference_index`` had its check (:func:`check_index`), ``indexes`` had none.
+
+    Raises:
+        TypeError: naming ``name`` and the type found.
+    """
+    if indexes is not None and not isinstance(indexes, IndexCache):
+        raise TypeError(f"{name}: expected an IndexCache or None, found {type(indexes).__name__}")
 
 
 def bound_to(index: MeshIndex | None, meshes: Sequence[Mesh]) -> MeshIndex | None:

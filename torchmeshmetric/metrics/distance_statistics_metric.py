@@ -53,6 +53,13 @@ class DistanceStatisticsBase(StatisticsPlot, DistanceStatesMetric):
             :class:`~torchmeshmetric.stats.sketch.SketchRangeWarning`).
         relative_accuracy: the sketch's bound.
         kwargs: ``torchmetrics.Metric`` options (``dist_sync_on_step``, ``process_group``, ...).
+
+    Example:
+        >>> from torchmeshmetric import DistanceStatisticsMetric, MeshSurfaceDistance
+        >>> issubclass(DistanceStatisticsMetric, DistanceStatisticsBase)  # what the metrics share
+        True
+        >>> issubclass(MeshSurfaceDistance, DistanceStatisticsBase)
+        True
     """
 
     is_differentiable = False

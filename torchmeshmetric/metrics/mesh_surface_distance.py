@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from torchmeshmetric._checks import check_int
+from torchmeshmetric._checks import check_seed
 from torchmeshmetric.kernels.select import check_backend
 from torchmeshmetric.metrics._inputs import check_surface_samples
 from torchmeshmetric.metrics.distance_states import DistanceStates
@@ -62,7 +62,7 @@ class MeshSurfaceDistance(MeasuredDistanceBase):
         check_surface_samples(surface_samples)
         super().__init__(**kwargs)
         self.surface_samples = surface_samples
-        self.seed = check_int(seed, "seed")
+        self.seed = check_seed(seed)
         self.backend = check_backend(backend)  # at construction, not at the first validation step
         self._options = {"surface_samples": surface_samples, "seed": self.seed, "backend": backend}
 

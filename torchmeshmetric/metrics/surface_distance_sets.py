@@ -11,7 +11,7 @@ from typing import Any, TypedDict
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import check_flag, check_int, common_dtype
+from torchmeshmetric._checks import check_flag, check_seed, common_dtype
 from torchmeshmetric.kernels.danskin import mesh_surface_distances
 from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.kernels.mesh_index import MeshIndex
@@ -25,7 +25,7 @@ from torchmeshmetric.metrics._inputs import (
     check_surface_samples,
     require_meshes,
 )
-from torchmeshmetric.metrics._prebuilt_index import bound_to, check_index, index_of, query_points
+from torchmeshmetric.metrics._prebuilt_index import bound_to, check_index, check_index_cache, index_of, query_points
 from torchmeshmetric.metrics.directed_distances import DirectedDistances, lengths_of, packed
 from torchmeshmetric.structures import Mesh
 
@@ -36,6 +36,14 @@ class SurfaceDistanceOptions(TypedDict, total=False):
     """The keyword options of :func:`mesh_surface_distance_sets`, which its loss function and module take too.
 
     The defaults and meanings are those of :func:`mesh_surface_distance_sets`.
+
+    Example:
+        >>> import torch, trimesh
+        >>> from torchmeshmetric import mesh_surface_distance_loss
+        >>> options: SurfaceDistanceOptions = {"surface_samples": 1000, "seed": 0}
+        >>> loss = mesh_surface_distance_loss(torch.tensor([[0.0, 0.0, 3.0]]), trimesh.creation.icosphere(), **options)
+        >>> 1.9 < loss.item() < 2.1  # about 2 (the sampled surface stands for the sphere of radius 1)
+        True
     """
 
     two_sided: bool
@@ -198,7 +206,8 @@ def mesh_surface_distance_sets(
     check_surface_samples(surface_samples)
     check_flag(two_sided, "two_sided")
     check_flag(detach_reference, "detach_reference")
-    check_int(seed, "seed")
+    check_seed(seed)
+    check_index_cache(indexes)
     if surface_samples is not None and (reference_index is not None or simplified_index is not None):
         raise ValueError("reference_index, simplified_index: only with surface_samples=None (the exact surface)")
     sources = as_point_sources(simplified, "simplified")

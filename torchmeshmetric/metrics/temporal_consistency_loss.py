@@ -175,8 +175,7 @@ class TemporalLossCache:
     def __init__(
         self, max_warps: int = 64, max_indexes: int = 64, *, registrations: RegistrationCache | None = None
     ) -> None:
-        if isinstance(max_warps, bool) or not isinstance(max_warps, int) or max_warps < 1:
-            raise ValueError(f"max_warps: expected a positive int, found {max_warps!r}")
+        max_warps = check_int(max_warps, "max_warps", 1)
         if registrations is not None and not isinstance(registrations, RegistrationCache):
             raise TypeError(
                 f"registrations: expected a RegistrationCache or None, found {type(registrations).__name__}"
@@ -427,6 +426,7 @@ def temporal_consistency_loss(
         >>> loss.item(), float(v.grad.abs().max())  # the same simplification twice: no flicker, zero gradient
         (0.0, 0.0)
     """
+    two_sided = check_flag(two_sided, "two_sided")
     frame_weight, power = _check_arguments(frame_weight, two_sided, reduction, power)
     check_backend(backend)
     if cache is not None and not isinstance(cache, TemporalLossCache):
@@ -524,6 +524,7 @@ class TemporalConsistencyLoss(nn.Module):
         backend: str = "auto",
         registration_cache: RegistrationCache | None = None,
     ) -> None:
+        two_sided = check_flag(two_sided, "two_sided")
         super().__init__()
         self.frame_weight, self.power = _check_arguments(frame_weight, two_sided, reduction, power)
         self.two_sided = two_sided

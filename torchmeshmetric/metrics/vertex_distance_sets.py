@@ -16,7 +16,7 @@ from torchmeshmetric.kernels.index_cache import IndexCache
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.kernels.nearest import nearest_vertex_distance
 from torchmeshmetric.metrics._inputs import PointSource, as_point_sources, cast_sources
-from torchmeshmetric.metrics._prebuilt_index import bound_to, check_index, index_of, query_points
+from torchmeshmetric.metrics._prebuilt_index import bound_to, check_index, check_index_cache, index_of, query_points
 from torchmeshmetric.metrics.directed_distances import DirectedDistances, lengths_of, packed
 from torchmeshmetric.structures import Mesh, bbox_diagonal
 
@@ -27,6 +27,14 @@ class NearestVertexOptions(TypedDict, total=False):
     """The keyword options of :func:`nearest_vertex_distance_sets`, which its loss function and module take too.
 
     The defaults and meanings are those of :func:`nearest_vertex_distance_sets`.
+
+    Example:
+        >>> import torch, trimesh
+        >>> from torchmeshmetric import nearest_vertex_distance_loss
+        >>> options: NearestVertexOptions = {"two_sided": True, "backend": "bruteforce"}
+        >>> loss = nearest_vertex_distance_loss(torch.zeros(1, 3), trimesh.creation.icosphere(), **options)
+        >>> round(loss.item(), 4)  # the centre to the unit sphere's vertices: 1 forward, plus 1 reverse
+        2.0
     """
 
     two_sided: bool
@@ -106,6 +114,7 @@ def measure_vertex_distance_sets(
     hand), if given, are those of the meshes of ``refs`` and ``points``; ``ref_meshes``: the references' meshes
     (``None`` when some reference is a point set), looked up in ``indexes`` when ``reference_index`` is ``None``.
     """
+    two_sided = check_flag(two_sided, "two_sided")
     forward = _cloud_to_cloud(points, refs, backend, reference_index, indexes, ref_meshes)
     if not two_sided:
         return forward, None
@@ -179,6 +188,7 @@ def nearest_vertex_distance_sets(
     """
     check_flag(two_sided, "two_sided")
     check_flag(detach_reference, "detach_reference")
+    check_index_cache(indexes)
     sources = as_point_sources(simplified, "simplified")
     ref_sources = as_point_sources(reference, "reference")
     if len(ref_sources) != len(sources):

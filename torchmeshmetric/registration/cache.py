@@ -41,7 +41,7 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric._atomic import atomic_write_with
-from torchmeshmetric._checks import ShapeError
+from torchmeshmetric._checks import ShapeError, check_flag, check_int
 from torchmeshmetric._checksum import content_sha256
 from torchmeshmetric.registration._common import registration_dtype
 from torchmeshmetric.registration.nonrigid import register_nonrigid
@@ -457,10 +457,8 @@ class RegistrationCache:
     """
 
     def __init__(self, directory: str | os.PathLike[str] | None = None, *, max_entries: int | None = None) -> None:
-        if max_entries is not None and (
-            isinstance(max_entries, bool) or not isinstance(max_entries, int) or max_entries < 1
-        ):
-            raise ValueError(f"max_entries: expected a positive int or None, found {max_entries!r}")
+        if max_entries is not None:
+            max_entries = check_int(max_entries, "max_entries", 1)
         self.directory = None if directory is None else Path(directory)
         if self.directory is not None and self.directory.exists() and not self.directory.is_dir():
             raise ValueError(f"directory: expected a folder for the cache's entries, found the file {str(directory)!r}")
@@ -591,6 +589,7 @@ class RegistrationCache:
             ``(entry, hit)``; the entry's tensors are the caller's own (copies of the cache's), so editing them in
             place changes no later lookup.
         """
+        on_disk = check_flag(on_disk, "on_disk")
         key = registration_key(source, target, settings)
         entry, hit = self._lookup_or_compute(key, source, compute, on_disk)
         if self.journal is not None:

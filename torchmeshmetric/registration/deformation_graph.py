@@ -29,7 +29,7 @@ from kornia.geometry.conversions import axis_angle_to_rotation_matrix
 from torch import Tensor, nn
 
 from torchmeshmetric import native
-from torchmeshmetric._checks import EmptyInputError, check_finite, check_float, check_shape
+from torchmeshmetric._checks import EmptyInputError, check_finite, check_flag, check_float, check_int, check_shape
 from torchmeshmetric.structures import Mesh
 
 __all__ = [
@@ -114,8 +114,7 @@ def canonical_farthest_points(points: Tensor, count: int, area: float) -> Tensor
     # the loop ran forever, its list of choices growing (found 2026-12-07).
     check_finite(points, "points")
     # a NaN or infinite area made the radius NaN or infinite: the passes below never stopped either (review P)
-    if isinstance(count, bool) or not isinstance(count, int) or count < 0:
-        raise ValueError(f"count: expected an integer >= 0, found {count!r}")
+    count = check_int(count, "count", 0)
     if not math.isfinite(area) or area < 0:
         raise ValueError(f"area: expected a finite area >= 0, found {area!r}")
     p = points.detach()
@@ -160,6 +159,7 @@ def farthest_point_nodes(points: Tensor, spacing: float, *, canonical: bool = Fa
         NonFiniteError: a NaN or Inf coordinate (the sampling would never stop).
         ValueError: a ``spacing`` that is negative or not finite.
     """
+    canonical = check_flag(canonical, "canonical")
     if points.shape[0] == 0:
         raise EmptyInputError("points: expected at least one candidate node position, found none")
     check_finite(points, "points")  # a NaN or Inf never lets the sampling stop (canonical_farthest_points)
@@ -267,6 +267,7 @@ class DeformationGraph(nn.Module):
         num_neighbors: int = 4,
         canonical: bool = False,
     ) -> None:
+        canonical = check_flag(canonical, "canonical")
         super().__init__()
         check_shape(verts, ("V", 3), "verts")
         check_float(verts, "verts")

@@ -31,7 +31,7 @@ from typing import Any, NamedTuple
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import check_device
+from torchmeshmetric._checks import check_device, check_flag, check_generator, check_int
 from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.registration._common import normalisation, validate_pair, welded_faces
@@ -192,11 +192,11 @@ def register_nonrigid(
         >>> bool((register_nonrigid(src, tgt, schedule=DEFAULT_SCHEDULE[-2:]).verts == r.verts).all())  # same result
         True
     """
+    warn = check_flag(warn, "warn")
     opts = NonRigidOptions.from_keywords(options, **keywords)
-    if num_threads is not None and (isinstance(num_threads, bool) or not isinstance(num_threads, int)):
-        raise TypeError(f"num_threads: expected an int or None, found {type(num_threads).__name__}")
-    if num_threads is not None and num_threads < 1:
-        raise ValueError(f"num_threads: expected a positive int or None, found {num_threads}")
+    if num_threads is not None:
+        num_threads = check_int(num_threads, "num_threads", 1)
+    check_generator(generator)  # a seed here failed in torch's randperm
     previous_threads = torch.get_num_threads()
     if num_threads is not None and num_threads != previous_threads:
         torch.set_num_threads(num_threads)

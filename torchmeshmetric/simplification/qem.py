@@ -33,7 +33,7 @@ import fast_simplification
 import numpy as np
 import torch
 
-from torchmeshmetric._checks import EmptyInputError, as_real, check_finite, check_float
+from torchmeshmetric._checks import EmptyInputError, as_real, check_finite, check_flag, check_float
 from torchmeshmetric.simplification._input import mesh_arrays
 from torchmeshmetric.simplification._target import resolve_target
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
@@ -123,6 +123,7 @@ def simplify_qem(
         >>> simplify_qem(sphere, 0.25).num_faces
         320
     """
+    preserve_border = check_flag(preserve_border, "preserve_border")
     m = as_mesh(mesh)
     if m.num_faces == 0:
         raise EmptyInputError("mesh: expected at least one face, found 0")

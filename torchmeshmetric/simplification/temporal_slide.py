@@ -30,7 +30,7 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from torchmeshmetric._checks import DTypeError, EmptyInputError, check_same_device
+from torchmeshmetric._checks import DTypeError, EmptyInputError, check_flag, check_same_device
 from torchmeshmetric.kernels.point_triangle import point_mesh_distance
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
@@ -80,6 +80,7 @@ class TemporalSlide(nn.Module):
     """
 
     def __init__(self, hidden: int = 32, initial_gate: float = 0.01, across: bool = False) -> None:
+        across = check_flag(across, "across")
         super().__init__()
         self.across = across
         if isinstance(hidden, (bool, np.bool_)) or not isinstance(hidden, numbers.Integral) or hidden < 1:

@@ -28,6 +28,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
+from torchmeshmetric._checks import IndexRangeError, check_int
 from torchmeshmetric.structures import batch_index, power_of_two_scale_down
 
 __all__ = ["Moments", "merge_into_row", "merge_mean_m2", "merge_moments", "merge_rows", "moments_of", "moments_rows"]
@@ -133,6 +134,9 @@ def merge_moments(parts: Moments, dim: int = 0) -> Moments:
     Returns:
         :class:`Moments` with ``dim`` removed; equal (to float64 rounding) to :func:`moments_of` on the union.
 
+    Raises:
+        IndexRangeError: ``dim`` is not a dimension of the fields.
+
     Example:
         >>> import torch
         >>> a, b = moments_of(torch.tensor([1.0, 2.0])), moments_of(torch.tensor([3.0]))
@@ -140,6 +144,11 @@ def merge_moments(parts: Moments, dim: int = 0) -> Moments:
         >>> m.count.item(), m.mean.item(), m.m2.item()
         (3.0, 2.0, 2.0)
     """
+    ndim = parts.count.dim()
+    dim = check_int(dim, "dim")
+    if not -ndim <= dim < max(ndim, 1):
+        # torch's "Dimension out of range" named no argument (found by review)
+        raise IndexRangeError(f"dim: expected a dimension of the parts' {ndim}-D fields, found {dim!r}")
     count, mean, m2, sumsq, lo, hi = (t.to(torch.float64) for t in parts)
     n, new_mean, new_m2 = merge_mean_m2(count, mean, m2, dim)
     if lo.shape[dim] == 0:

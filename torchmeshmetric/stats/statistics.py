@@ -30,7 +30,11 @@ from torch import Tensor
 
 from torchmeshmetric._checks import (
     EmptyInputError,
+    ShapeError,
+    as_real,
     check_finite,
+    check_flag,
+    check_has_values,
     check_int,
     check_lengths,
     check_real,
@@ -126,13 +130,45 @@ class DistanceStatistics(NamedTuple):
         return [DistanceStatistics._make(None if c is None else c[b] for c in cols) for b in range(self.ave.shape[0])]
 
 
-def psnr_from_mse(mse: Tensor, peak: float | Tensor) -> Tensor:
+def psnr_from_mse(mse: Tensor | float, peak: float | Tensor) -> Tensor:
     """MPEG-style geometry PSNR, ``10 log10(peak^2 / mse)`` dB; ``+inf`` where ``mse == 0``.
+
+    Args:
+        mse: mean squared errors, a tensor of any shape or a real number, each ``>= 0`` (``inf`` gives ``-inf`` dB).
+        peak: the PSNR peak, a finite number ``> 0`` or a tensor of them that broadcasts against ``mse``.
+
+    Returns:
+        float64 PSNRs in dB, of ``mse``'s shape broadcast with ``peak``'s.
+
+    Raises:
+        TypeError: ``mse`` or ``peak`` is not a number or a real tensor.
+        ValueError: an ``mse`` is negative or NaN (``-1`` gave ``+inf`` dB), or a peak is not finite and positive
+            (``0`` gave ``-inf`` dB, NaN NaN).
 
     Example:
         >>> psnr_from_mse(torch.tensor(0.01, dtype=torch.float64), 1.0).item()
         20.0
+        >>> psnr_from_mse(0.01, 1.0).item()  # a number is a one-element mse
+        20.0
     """
+    if not isinstance(mse, Tensor):
+        value = as_real(mse, "mse")
+        if value is None:
+            raise TypeError(f"mse: expected a tensor or a real number, found {type(mse).__name__} {mse!r}")
+        mse = torch.tensor(value, dtype=torch.float64)
+    if mse.is_complex() or mse.dtype == torch.bool:
+        raise TypeError(f"mse: expected a real tensor, found dtype {mse.dtype}")
+    check_has_values(mse, "mse")
+    bad = torch.isnan(mse) | (mse < 0)
+    if bool(bad.any()):
+        raise ValueError(
+            f"mse: expected mean squared errors >= 0, found {float(mse.detach().reshape(-1)[bad.reshape(-1)][0])!r}"
+        )
+    return _psnr_db(mse, _check_peak(peak))
+
+
+def _psnr_db(mse: Tensor, peak: float | Tensor) -> Tensor:
+    """:func:`psnr_from_mse` of checked inputs (an empty set's NaN ``mse`` gives NaN)."""
     p = torch.as_tensor(peak, dtype=torch.float64, device=mse.device)
     mse = mse.to(torch.float64)
     val = 10.0 * torch.log10(p * p / mse.clamp_min(torch.finfo(torch.float64).tiny))
@@ -178,17 +214,50 @@ def linear_quantiles(values: Tensor, q: Sequence[float] | Tensor, lengths: Tenso
     """Exact quantiles with linear interpolation (``numpy.percentile(..., method="linear")``), per item.
 
     Args:
-        values: ``(N,)`` values, or packed ``(sum N_b,)`` with ``lengths``.
-        q: ``Q`` levels in ``[0, 1]``.
-        lengths: optional ``(B,)`` item sizes.
+        values: ``(N,)`` finite real values, or packed ``(sum N_b,)`` with ``lengths``.
+        q: ``Q`` levels in ``[0, 1]`` (a sequence of numbers or a 1-D tensor).
+        lengths: optional ``(B,)`` item sizes summing to ``N``.
 
     Returns:
         ``(Q,)`` (or ``(B, Q)`` with ``lengths``) float64 quantiles; NaN for empty items.
 
+    Raises:
+        ShapeError: ``values`` is not 1-D, ``q`` not a flat sequence, or ``lengths`` does not sum to ``N``.
+        NonFiniteError: ``values`` holds NaN or Inf.
+        ValueError: a level is outside ``[0, 1]`` or NaN (``-0.1`` read a value from the other end; NaN raised an
+            ``IndexError``).
+
     Example:
         >>> linear_quantiles(torch.tensor([1.0, 2.0, 3.0, 4.0]), [0.5]).tolist()
         [2.5]
+        >>> linear_quantiles(torch.tensor([1.0, 2.0]), [1.5])
+        Traceback (most recent call last):
+        ...
+        ValueError: q: expected levels in [0, 1], found 1.5
     """
+    check_shape(values, ("N",), "values")
+    if values.is_complex() or values.dtype == torch.bool:
+        raise TypeError(f"values: expected a float or integer tensor, found dtype {values.dtype}")
+    check_finite(values, "values")
+    if isinstance(q, Tensor):
+        levels = q.detach().to("cpu", torch.float64)
+        if levels.dim() > 1:
+            raise ShapeError(f"q: expected a 1-D tensor of levels, found shape {tuple(levels.shape)}")
+        found = levels.reshape(-1).tolist()
+    elif isinstance(q, Sequence) and not isinstance(q, str):
+        found = [check_real(level, f"q[{i}]") for i, level in enumerate(q)]
+    else:
+        raise TypeError(f"q: expected a sequence of levels in [0, 1] or a 1-D tensor, found {type(q).__name__} {q!r}")
+    outside = [level for level in found if not 0.0 <= level <= 1.0]  # NaN too
+    if outside:
+        raise ValueError(f"q: expected levels in [0, 1], found {outside[0]!r}")
+    if lengths is not None:
+        check_lengths(lengths, values.shape[0], "lengths")
+    return _linear_quantiles(values, q, lengths)
+
+
+def _linear_quantiles(values: Tensor, q: Sequence[float] | Tensor, lengths: Tensor | None = None) -> Tensor:
+    """:func:`linear_quantiles` of checked inputs (the distance statistics checked them once, at their door)."""
     x = values.detach().reshape(-1).to(torch.float64)
     qs = torch.as_tensor(q, dtype=torch.float64, device=x.device).reshape(-1)
     single = lengths is None
@@ -232,6 +301,14 @@ def statistics_from_parts(
     if peak is not None:
         peak = _check_peak(peak)
     n = moments.count.to(torch.float64)
+    if isinstance(peak, Tensor) and peak.dim():
+        if n.dim() == 0 and peak.numel() == 1:
+            peak = peak.reshape(())  # one set, one peak
+        elif tuple(peak.shape) != tuple(n.shape):  # (2,) for one set gave two PSNRs; (3,) for two, torch's error
+            raise ShapeError(
+                f"peak: expected a number or a tensor of shape {tuple(n.shape)} (one peak per item), found shape "
+                f"{tuple(peak.shape)}"
+            )
     nan = torch.full_like(n, float("nan"))
     has = n > 0
     ave = torch.where(has, moments.mean, nan)
@@ -250,7 +327,7 @@ def statistics_from_parts(
     if peak is not None:
         p = torch.as_tensor(peak, dtype=torch.float64, device=mse.device)
         # An mse out of range has no PSNR of its own: 10 log10(peak^2 / mse) = 20 log10(peak / rmse).
-        psnr = torch.where(out_mse, 20.0 * (torch.log10(p) - torch.log10(rmse)), psnr_from_mse(mse, p))
+        psnr = torch.where(out_mse, 20.0 * (torch.log10(p) - torch.log10(rmse)), _psnr_db(mse, p))
         psnr = torch.where(has, psnr, nan)
     return DistanceStatistics(
         ave=ave,
@@ -400,6 +477,7 @@ def distance_statistics(
         >>> s.ave.item(), s.var.item(), s.mse.item(), s.median.item(), round(s.psnr.item(), 4)
         (2.5, 1.25, 7.5, 2.5, 11.2494)
     """
+    exact_quantiles = check_flag(exact_quantiles, "exact_quantiles")
     if isinstance(dists, Tensor):
         d = dists
         check_shape(d, ("N",), "dists")
@@ -434,7 +512,7 @@ def distance_statistics(
         _check_sketch_input(d, "dists")
     mom = moments_of(d, lengths)
     if sketch is None:
-        qv = linear_quantiles(d, QUANTILE_LEVELS, lengths)
+        qv = _linear_quantiles(d, QUANTILE_LEVELS, lengths)
     else:
         q = torch.tensor(QUANTILE_LEVELS, dtype=torch.float64, device=d.device)
         b = batch_index(lengths.to(d.device, torch.long))
@@ -521,7 +599,7 @@ def distance_statistics_compute(
         (2.5, 1.25, 2.5)
     """
     if sketch is None:
-        quantiles = linear_quantiles(quantile_data, QUANTILE_LEVELS)
+        quantiles = _linear_quantiles(quantile_data, QUANTILE_LEVELS)
     else:
         q = torch.tensor(QUANTILE_LEVELS, dtype=torch.float64, device=quantile_data.device)
         quantiles = sketch.quantile(quantile_data, q, moments.min, moments.max)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import EmptyInputError
+from torchmeshmetric._checks import EmptyInputError, check_flag
 from torchmeshmetric.stats.moments import Moments, merge_into_row, moments_of, moments_rows
 from torchmeshmetric.stats.sketch import QuantileSketch
 from torchmeshmetric.stats.statistics import (
@@ -46,6 +46,7 @@ class DistanceAccumulator:
     """
 
     def __init__(self, *, exact_quantiles: bool = True, relative_accuracy: float = 1e-3) -> None:
+        exact_quantiles = check_flag(exact_quantiles, "exact_quantiles")
         self.exact_quantiles = bool(exact_quantiles)
         self.sketch = QuantileSketch(relative_accuracy)
         self.reset()

@@ -112,18 +112,18 @@ def _compact(mesh: Mesh) -> Mesh:
     return mesh if bool(used.all()) else Mesh(mesh.verts[used], faces, validate=False)
 
 
-def check_weld(fraction: object) -> None:
+def check_weld(fraction: object, name: str = "weld") -> None:
     """A weld fraction: a number in ``[0, 1)`` (at 1 half the mesh's edges, those below the median, would weld).
 
     Raises:
         TypeError: not a number.
         ValueError: outside ``[0, 1)`` (NaN and infinities too).
     """
-    value = as_real(fraction, "weld")
+    value = as_real(fraction, name)
     if value is None:
-        raise TypeError(f"weld: expected a fraction of the median edge length, found {type(fraction).__name__}")
+        raise TypeError(f"{name}: expected a fraction of the median edge length, found {type(fraction).__name__}")
     if not 0 <= value < 1:
-        raise ValueError(f"weld: expected a fraction of the median edge length in [0, 1), found {fraction!r}")
+        raise ValueError(f"{name}: expected a fraction of the median edge length in [0, 1), found {fraction!r}")
 
 
 def weld_short_edges(mesh: Mesh, fraction: float, *, backend: str = "auto") -> Mesh:
@@ -149,7 +149,7 @@ def weld_short_edges(mesh: Mesh, fraction: float, *, backend: str = "auto") -> M
         >>> weld_short_edges(Mesh(v, f), 0.05).faces.tolist()  # vertices 2 and 3 become one
         [[0, 1, 2], [1, 3, 2]]
     """
-    check_weld(fraction)
+    check_weld(fraction, "fraction")  # its own argument's name (it said "weld")
     if fraction == 0:
         return mesh
     edges = mesh_edges(mesh.faces, mesh.num_verts)

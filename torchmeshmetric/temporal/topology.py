@@ -13,6 +13,7 @@ from typing import NamedTuple
 import torch
 from torch import Tensor
 
+from torchmeshmetric._checks import check_faces, check_int
 from torchmeshmetric.structures import vertex_set_mask
 
 __all__ = ["Neighbourhoods", "mesh_edges", "neighbourhoods"]
@@ -36,10 +37,21 @@ def referenced_vertices(faces: Tensor, num_verts: int) -> tuple[Tensor, Tensor]:
 def mesh_edges(faces: Tensor, num_verts: int) -> Tensor:
     """The ``(E, 2)`` undirected edges of ``faces`` (each once, ``a < b``, sorted), int64.
 
+    Args:
+        faces: ``(T, 3)`` integer faces, indices in ``[0, num_verts)``.
+        num_verts: the vertex count ``V``.
+
+    Returns:
+        ``(E, 2)`` int64 edges; a degenerate face's repeated corner gives no edge.
+
+    Raises:
+        IndexRangeError: a face index outside ``[0, num_verts)``.
+
     Example:
         >>> mesh_edges(torch.tensor([[0, 1, 2], [0, 2, 3]]), 4).tolist()
         [[0, 1], [0, 2], [0, 3], [1, 2], [2, 3]]
     """
+    check_faces(faces, check_int(num_verts, "num_verts", 0))  # an index >= num_verts gave edges of other vertices
     f = faces.long()
     pairs = torch.cat([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
     pairs = pairs[pairs[:, 0] != pairs[:, 1]]  # a degenerate face's repeated corner is no edge

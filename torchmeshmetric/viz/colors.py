@@ -13,7 +13,7 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric._atomic import atomic_write
-from torchmeshmetric._checks import NonFiniteError, ShapeError, check_finite
+from torchmeshmetric._checks import NonFiniteError, ShapeError, check_finite, check_flag
 from torchmeshmetric.kernels.sampling import vertex_set_mask
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
@@ -187,6 +187,7 @@ def write_error_ply(
         NonFiniteError, ValueError, TypeError: a distance is NaN, infinite or negative, or ``vmax`` is not a finite
             positive number (:func:`error_colors`).
     """
+    overwrite = check_flag(overwrite, "overwrite")
     import trimesh  # ~0.3 s to import: on use only, `import torchmeshmetric` never loads it
 
     m, dists = per_vertex_errors(mesh, dists)

@@ -122,6 +122,8 @@ def error_mesh(
 
 
 def _trimesh(mesh: ErrorMesh) -> Any:
+    if not isinstance(mesh, ErrorMesh):  # None failed on its missing .colors (found by review)
+        raise TypeError(f"mesh: expected an ErrorMesh (from error_mesh), found {type(mesh).__name__}")
     import trimesh  # ~0.3 s to import: on use only
 
     rgba = np.concatenate([mesh.colors, np.full((len(mesh.colors), 1), 255, np.uint8)], axis=1)
@@ -130,6 +132,15 @@ def _trimesh(mesh: ErrorMesh) -> Any:
 
 def glb_bytes(mesh: ErrorMesh) -> bytes:
     """The mesh as binary glTF (GLB) with per-vertex colours: what ``wandb.Object3D`` and 3D viewers take.
+
+    Args:
+        mesh: an :class:`ErrorMesh` (from :func:`error_mesh`).
+
+    Returns:
+        The GLB file's bytes.
+
+    Raises:
+        TypeError: ``mesh`` is not an :class:`ErrorMesh`.
 
     Example:
         >>> import io, torch, trimesh
@@ -142,7 +153,23 @@ def glb_bytes(mesh: ErrorMesh) -> bytes:
 
 
 def ply_bytes(mesh: ErrorMesh) -> bytes:
-    """The mesh as binary PLY with per-vertex colours (the format of :func:`~torchmeshmetric.viz.write_error_ply`)."""
+    """The mesh as binary PLY with per-vertex colours (the format of :func:`~torchmeshmetric.viz.write_error_ply`).
+
+    Args:
+        mesh: an :class:`ErrorMesh` (from :func:`error_mesh`).
+
+    Returns:
+        The PLY file's bytes.
+
+    Raises:
+        TypeError: ``mesh`` is not an :class:`ErrorMesh`.
+
+    Example:
+        >>> import torch, trimesh
+        >>> m = error_mesh("s", trimesh.creation.icosphere(subdivisions=1), torch.linspace(0, 1, 42), what="", vmax=1)
+        >>> ply_bytes(m)[:3]
+        b'ply'
+    """
     buf = io.BytesIO()
     _trimesh(mesh).export(buf, file_type="ply")
     return buf.getvalue()

@@ -7,6 +7,7 @@ from typing import Any, Literal
 
 from lightning.pytorch import Callback, LightningModule, Trainer
 
+from torchmeshmetric._checks import check_int
 from torchmeshmetric.structures import MeshLike
 from torchmeshmetric.viz.colors import check_vmax
 from torchmeshmetric.viz.error_mesh import error_mesh
@@ -53,8 +54,7 @@ class ErrorMeshCallback(Callback):
     ) -> None:
         if not callable(pair):
             raise TypeError(f"pair: expected a callable (trainer, module) -> (simplified, reference), found {pair!r}")
-        if isinstance(every_n_epochs, bool) or not isinstance(every_n_epochs, int) or every_n_epochs < 1:
-            raise ValueError(f"every_n_epochs: expected a positive int, found {every_n_epochs!r}")
+        every_n_epochs = check_int(every_n_epochs, "every_n_epochs", 1)
         self.vmax = check_vmax(vmax)  # refused now, not at the end of the first validation epoch
         self.pair = pair
         self.tag = check_tag(tag)

@@ -28,6 +28,7 @@ import numpy as np
 import torch
 
 from torchmeshmetric._atomic import atomic_write
+from torchmeshmetric._checks import check_flag
 from torchmeshmetric._format import plain_label
 from torchmeshmetric.structures import MeshLike
 from torchmeshmetric.viz.colors import ERROR_COLOR_ANCHORS
@@ -164,6 +165,7 @@ def report_page(
         curves: draw :func:`report_figures` (``False``: ``figures`` already hold them, e.g. the demo's
             ``frame_curves.png``).
     """
+    curves = check_flag(curves, "curves")
     notes = [f"{report.get('tool', 'torchmeshmetric')} {report.get('version', '')}".strip()]
     if not meshes and not isinstance(report.get("frames"), list):  # a CTC report has no meshes to add (review R #11)
         notes.append("No meshes on this page: the report was written without them (the commands' `--html` adds them).")
@@ -488,4 +490,5 @@ def html_page(
 
 def write_html(path: str | os.PathLike[str], page: str, *, overwrite: bool = False) -> Path:
     """Write an :func:`html_page` atomically."""
+    overwrite = check_flag(overwrite, "overwrite")
     return atomic_write(path, page, overwrite=overwrite)

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from torchmeshmetric._atomic import atomic_write
+from torchmeshmetric._checks import check_flag
 from torchmeshmetric._format import plain_label
 from torchmeshmetric.evaluation.flicker import FLICKER
 from torchmeshmetric.evaluation.reports import statistic_cell
@@ -145,6 +146,7 @@ def plot_histograms(
         bins: number of bins (shared by the methods of a panel).
         overwrite: replace an existing file.
     """
+    overwrite = check_flag(overwrite, "overwrite")
     return _save(histogram_figure(methods, bins=bins), path, overwrite)
 
 
@@ -163,6 +165,7 @@ def plot_frame_curves(
         statistic: a field of :class:`~torchmeshmetric.stats.DistanceStatistics` (default ``"rmse"``).
         overwrite: replace an existing file.
     """
+    overwrite = check_flag(overwrite, "overwrite")
     pairs = {m: [p.as_dict() for p in seq.pairs] for m, seq in methods.items()}
     return _save(frame_curves_figure(pairs, statistic=statistic), path, overwrite)
 
@@ -207,6 +210,7 @@ def plot_mpeg_curves(methods: Mapping[str, Any], path: str | os.PathLike[str], *
         path: destination ``.png``.
         overwrite: replace an existing file.
     """
+    overwrite = check_flag(overwrite, "overwrite")
     return _save(mpeg_figure(methods), path, overwrite)
 
 

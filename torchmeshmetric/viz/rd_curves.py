@@ -7,6 +7,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from torchmeshmetric._checks import check_flag
 from torchmeshmetric._format import plain_label
 from torchmeshmetric.viz.plots import _figure, _save
 
@@ -36,6 +37,7 @@ def plot_rd_curves(
     Returns:
         The path written.
     """
+    overwrite = check_flag(overwrite, "overwrite")
     Figure = _figure()
     rows = sequence["rates"]
     metrics = [m for m in _METRICS if all(m in r["anchor"] and m in r["test"] for r in rows)]

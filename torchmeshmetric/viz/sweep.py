@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from torchmeshmetric._checks import check_flag
 from torchmeshmetric.evaluation.sweep import WeightSweep, pareto_front
 from torchmeshmetric.viz.plots import _figure, _save
 
@@ -25,6 +26,7 @@ def plot_weight_sweep(
         statistic: the statistic plotted (mean over pairs; default ``"ave"``).
         overwrite: replace an existing file.
     """
+    overwrite = check_flag(overwrite, "overwrite")
     Figure = _figure()
     fig = Figure(figsize=(11, 4.8), layout="constrained")
     axes = fig.subplots(1, 2)

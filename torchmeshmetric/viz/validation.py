@@ -6,6 +6,7 @@ import math
 import os
 from pathlib import Path
 
+from torchmeshmetric._checks import check_flag
 from torchmeshmetric.evaluation.validation import ValidationResult
 from torchmeshmetric.viz.plots import _figure, _save
 
@@ -23,6 +24,7 @@ def plot_validation(
     one-sided frame-k sets of a simplification whose vertices lie on the surface) is drawn against the diagonal
     instead, as ``1 + value / (1e-3 diagonal)``, and marked ``(from 0)``.
     """
+    overwrite = check_flag(overwrite, "overwrite")
     Figure = _figure()
     names = list(result.distortions)
     cols = min(4, len(names))

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from torchmeshmetric._checks import ShapeError
+
 __all__ = ["rgb_to_ycbcr"]
 
 
@@ -21,11 +23,16 @@ def rgb_to_ycbcr(rgb: np.ndarray) -> np.ndarray:
     Returns:
         ``(..., 3)`` float32 ``(Y, Cb, Cr)`` in ``[0, 1]``.
 
+    Raises:
+        ShapeError: the last dimension is not 3 (a fourth channel was dropped in silence).
+
     Example:
         >>> rgb_to_ycbcr(np.array([255, 255, 255])).round(4).tolist()
         [1.0, 0.5, 0.5]
     """
     c = np.asarray(rgb, dtype=np.float64)
+    if c.ndim == 0 or c.shape[-1] != 3:
+        raise ShapeError(f"rgb: expected shape (..., 3), found {tuple(c.shape)}")
     r, g, b = c[..., 0], c[..., 1], c[..., 2]
     y = (0.2126 * r + 0.7152 * g + 0.0722 * b) / 255.0
     cb = (-0.1146 * r - 0.3854 * g + 0.5000 * b) / 255.0 + 0.5000

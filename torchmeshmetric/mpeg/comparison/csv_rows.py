@@ -26,6 +26,7 @@ from typing import BinaryIO
 
 import numpy as np
 
+from torchmeshmetric._checks import check_flag
 from torchmeshmetric.mpeg.comparison.ibsm import IbsmResult
 from torchmeshmetric.mpeg.comparison.pcc import MpegResult
 from torchmeshmetric.mpeg.comparison.pcqm import PcqmResult
@@ -119,6 +120,7 @@ def pcc_csv_row(
         >>> pcc_csv_row(mpeg_compare(pc, pc), model_a="a.ply", model_b="b.ply")
         'a.ply;b.ply;;;0;1;0;0;1;2;1;0;1;inf;3081.29777;inf;3081.29777;0;0;0;0;0;0'
     """
+    hausdorff = check_flag(hausdorff, "hausdorff")
     s = result.symmetric
     colour = s.color_psnr is not None and s.color_rgb_hausdorff_psnr is not None
     cols = [model_a, model_b, map_a, map_b, "0", str(int(hausdorff)), str(int(colour)), _f32(resolution)]
@@ -166,6 +168,7 @@ def ibsm_csv_row(
         >>> ibsm_csv_row(r, model_a="a.obj", model_b="b.obj", seconds=0.5)
         'a.obj;b.obj;;;sw_raster;16;0.0 0.0 0.0;2048;0;;0;99.99;99.99;99.99;99.99;99.99;99.99;99.99;99.99;99.99;0.5'
     """
+    disable_culling = check_flag(disable_culling, "disable_culling")
     rgb, yuv = result.rgb_psnr, result.yuv_psnr
     cols = [model_a, model_b, map_a, map_b, "sw_raster", str(cameras), "0.0 0.0 0.0", str(resolution)]
     cols += [str(int(disable_culling)), "", str(frame), _g(result.geo_psnr)]

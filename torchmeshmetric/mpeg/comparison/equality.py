@@ -60,7 +60,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import DTypeError, IndexRangeError, NonFiniteError, ShapeError, check_real
+from torchmeshmetric._checks import DTypeError, IndexRangeError, NonFiniteError, ShapeError, check_flag, check_real
 from torchmeshmetric.data.ply import PlyArrays
 from torchmeshmetric.mpeg.comparison.point_order import lexicographic_order
 from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh, _obj_colors, as_textured_mesh, read_texture
@@ -659,6 +659,7 @@ def mesh_equality(
         meshes are not equal, early return.
         triangle number 0 from A has no equivalent in B
     """
+    unoriented = check_flag(unoriented, "unoriented")
     _epsilon(epsilon)  # checked for meshes too: a bad value is refused whatever the models
     a, b = _as_model(a, "a"), _as_model(b, "b")
     fa, fb = int(a.triangles.shape[0]), int(b.triangles.shape[0])

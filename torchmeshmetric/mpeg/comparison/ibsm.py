@@ -21,6 +21,7 @@ import numpy as np
 import torch
 
 from torchmeshmetric import native
+from torchmeshmetric._checks import check_flag, check_int
 from torchmeshmetric.mpeg.core.reindex import oriented_reindex
 from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh
 
@@ -92,10 +93,8 @@ def _arrays(m: TexturedMesh) -> tuple[torch.Tensor, ...]:
 
 
 def _check(resolution: int, cameras: int) -> None:
-    if isinstance(resolution, bool) or not isinstance(resolution, int) or resolution < 1:
-        raise ValueError(f"resolution: expected a positive integer, found {resolution!r}")
-    if isinstance(cameras, bool) or not isinstance(cameras, int) or cameras < 2:
-        raise ValueError(f"cameras: expected an integer >= 2 (mmetric's Fibonacci sphere), found {cameras!r}")
+    check_int(resolution, "resolution", 1)
+    check_int(cameras, "cameras", 2)  # mmetric's Fibonacci sphere needs 2 cameras
 
 
 def _prepared(m: TexturedMesh, name: str, reorder: bool) -> TexturedMesh:
@@ -141,6 +140,8 @@ def ibsm(
         >>> r.geo_psnr, r.unmatched_percent
         (99.99, 0.0)
     """
+    cull = check_flag(cull, "cull")
+    reorder = check_flag(reorder, "reorder")
     _check(resolution, cameras)
     a, b = _prepared(ref, "ref", reorder), _prepared(dis, "dis", reorder)
     va, vb = a.mesh.verts.to(torch.float32), b.mesh.verts.to(torch.float32)
@@ -200,6 +201,7 @@ def ibsm_render(
         >>> rgba.shape, rgba[16, 16].tolist(), rng
         (torch.Size([32, 32, 4]), [255, 0, 0, 255], 3.0)
     """
+    cull = check_flag(cull, "cull")
     _check(resolution, 2)
     b = torch.tensor([*box[0], *box[1]], dtype=torch.float32)
     d = torch.tensor(direction, dtype=torch.float32)

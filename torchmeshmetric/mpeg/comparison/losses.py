@@ -18,6 +18,7 @@ from torch import Tensor, nn
 
 from torchmeshmetric._checks import (
     check_finite,
+    check_flag,
     check_float,
     check_non_empty,
     check_same_device,
@@ -256,6 +257,7 @@ def differentiable_grid_sample(
         >>> p.shape, v.grad[:, 2].sum().item()
         (torch.Size([6, 3]), 6.0)
     """
+    use_normal = check_flag(use_normal, "use_normal")
     check_shape(verts, ("V", 3), "verts")
     check_float(verts, "verts")
     check_finite(verts, "verts")

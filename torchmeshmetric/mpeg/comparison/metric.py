@@ -8,7 +8,7 @@ from typing import Any
 import torch
 from torch import Tensor
 
-from torchmeshmetric._checks import EmptyInputError
+from torchmeshmetric._checks import EmptyInputError, check_int
 from torchmeshmetric.metrics._plot import StatisticsPlot
 from torchmeshmetric.metrics._settings import SettingsMetric
 from torchmeshmetric.mpeg.comparison.mpeg_metrics import Sampling, mpeg_metrics
@@ -57,8 +57,7 @@ class MpegPSNR(StatisticsPlot, SettingsMetric):
         super().__init__(**kwargs)
         if sampling not in ("grid", "mesh"):
             raise ValueError(f"sampling: expected 'grid' or 'mesh', found {sampling!r}")
-        if isinstance(grid_size, bool) or not isinstance(grid_size, int) or grid_size < 2:
-            raise ValueError(f"grid_size: expected an integer >= 2, found {grid_size!r}")
+        grid_size = check_int(grid_size, "grid_size", 2)
         self.sampling: Sampling = sampling
         self.grid_size = grid_size
         for key in _KEYS:

@@ -9,7 +9,7 @@ from typing import Any, Literal, NamedTuple, Union
 import numpy as np
 from torch import Tensor
 
-from torchmeshmetric._checks import EmptyInputError
+from torchmeshmetric._checks import EmptyInputError, check_flag
 from torchmeshmetric.mpeg.comparison.pcc import MpegResult, mpeg_compare
 from torchmeshmetric.mpeg.comparison.psnr import check_mpeg_peak
 from torchmeshmetric.mpeg.core import _float32 as f32
@@ -68,6 +68,8 @@ def mpeg_point_cloud(
         >>> mpeg_point_cloud(tri, "mesh").num_points
         3
     """
+    use_normal = check_flag(use_normal, "use_normal")
+    bilinear = check_flag(bilinear, "bilinear")
     if isinstance(mesh, PointCloud):
         return _given_cloud(mesh, sampling, name)
     t = _parts(mesh, name)
@@ -172,6 +174,8 @@ def mpeg_metrics(
         >>> r.symmetric.d1_psnr, r.points_ref == r.points_dis
         (inf, True)
     """
+    use_normal = check_flag(use_normal, "use_normal")
+    bilinear = check_flag(bilinear, "bilinear")
     clouds = mpeg_point_clouds(
         ref, dis, sampling=sampling, grid_size=grid_size, box=box, peak=peak, use_normal=use_normal,
         bilinear=bilinear, names=names,
@@ -215,6 +219,8 @@ def mpeg_point_clouds(
         >>> c.ref.num_points == c.dis.num_points, c.peak
         (True, None)
     """
+    use_normal = check_flag(use_normal, "use_normal")
+    bilinear = check_flag(bilinear, "bilinear")
     r, d = (m if isinstance(m, PointCloud) else _parts(m, n) for m, n in ((ref, names[0]), (dis, names[1])))
     if peak is not None:
         peak = check_mpeg_peak(peak)

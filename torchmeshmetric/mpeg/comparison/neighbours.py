@@ -21,12 +21,14 @@ import numpy as np
 import torch
 
 from torchmeshmetric import native
+from torchmeshmetric._checks import EmptyInputError, ShapeError, check_int
 
 __all__ = ["NeighbourTies", "k_nearest", "mpeg_sq_dists", "nearest_with_ties", "nearest_with_ties_both"]
 
 _SIMILAR = 1e-20  # dmetric's similarPointThreshold (mmetric passes 1e-20)
 _MAX_K = 30  # dmetric's num_results_max
 _STEP_K = 5  # dmetric's num_results_incr
+_KNN_MAX = 64  # the native k-nearest search's largest k (its fixed-size candidate lists)
 _BRUTE_CHUNK = 1 << 24  # (query, target) pairs per block of the brute-force fallback
 
 
@@ -45,6 +47,11 @@ def mpeg_sq_dists(query: np.ndarray, target: np.ndarray) -> np.ndarray:
         >>> float(mpeg_sq_dists(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32))[0])
         3.0
     """
+    for name, x in (("query", query), ("target", target)):
+        if not isinstance(x, np.ndarray):  # a tensor failed on .astype (found by review)
+            raise TypeError(f"{name}: expected a numpy array of (..., 3) points, found {type(x).__name__}")
+        if x.ndim == 0 or x.shape[-1] != 3:  # (N, 2) points raised numpy's IndexError
+            raise ShapeError(f"{name}: expected shape (..., 3), found {tuple(x.shape)}")
     d = (query - target).astype(np.float64)
     return (d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1]) + d[..., 2] * d[..., 2]
 
@@ -112,8 +119,16 @@ def k_nearest(query: np.ndarray, target: np.ndarray, k: int) -> tuple[np.ndarray
         >>> idx.tolist(), sq.tolist()
         ([[1, 2]], [[1.0, 1.0]])
     """
+    k = check_int(k, "k", 1)  # 2.5 was a pybind error, 0 or -1 the C++ "mpeg_knn: k out of range"
+    if k > _KNN_MAX:
+        raise ValueError(f"k: expected an int in [1, {_KNN_MAX}], found {k}")
     query = np.ascontiguousarray(query, dtype=np.float32)
     target = np.ascontiguousarray(target, dtype=np.float32)
+    for name, x in (("query", query), ("target", target)):
+        if x.ndim != 2 or x.shape[1] != 3:
+            raise ShapeError(f"{name}: expected shape ({name[0].upper()}, 3), found {tuple(x.shape)}")
+    if target.shape[0] == 0:
+        raise EmptyInputError("target: expected at least one point, found none")
     if query.shape[0] == 0:
         return np.zeros((0, k), np.int64), np.zeros((0, k))
     ext = native.try_load("bvh")

@@ -17,6 +17,8 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from torchmeshmetric._checks import ShapeError
+
 __all__ = ["pcqm_lightness"]
 
 _TABLE = Path(__file__).with_name("pcqm_lightness.npz")
@@ -48,12 +50,24 @@ def pcqm_lightness(colors: Tensor | np.ndarray) -> np.ndarray:
     Returns:
         ``(N,)`` float64 lightness.
 
+    Raises:
+        ShapeError: ``colors`` is not ``(N, 3)``.
+        ValueError: a colour is NaN or outside ``[0, 255]`` (a negative one extrapolated the table).
+
     Example:
         >>> pcqm_lightness(np.array([[0, 0, 0], [255, 255, 255]])).round(4).tolist()
         [0.0, 75.1522]
     """
     c = colors.detach().cpu().to(torch.float64).numpy() if isinstance(colors, Tensor) else np.asarray(colors)
-    rgb = np.trunc(c.astype(np.float64)) / 255.0
+    if c.ndim != 2 or c.shape[1] != 3:  # (N, 2) raised numpy's IndexError (found by review)
+        raise ShapeError(f"colors: expected shape (N, 3), found {tuple(c.shape)}")
+    c = c.astype(np.float64)
+    if c.size and not (c.min() >= 0 and c.max() <= 255):  # NaN fails both
+        raise ValueError(
+            f"colors: expected RGB values in [0, 255], found values in [{np.nanmin(c):g}, {np.nanmax(c):g}]"
+            + (" and NaN" if np.isnan(c).any() else "")
+        )
+    rgb = np.trunc(c) / 255.0
     lin = np.where(rgb > 0.0404482362771076, np.power((rgb + 0.055) / 1.055, 2.4), rgb / 12.92)
     y = (0.212586 * lin[:, 0] + 0.71517 * lin[:, 1]) + 0.0722005 * lin[:, 2]
     lstar = 116.0 * _f(y / 1.0) - 16.0

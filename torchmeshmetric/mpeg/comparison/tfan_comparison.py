@@ -42,6 +42,7 @@ from typing import TypedDict
 
 import numpy as np
 
+from torchmeshmetric._checks import check_flag
 from torchmeshmetric.mpeg.comparison.equality import (
     EqualityModel,
     _as_model,
@@ -694,6 +695,7 @@ def tfan_equality(
         the texture connectivity of meshes is equal
          meshes are equal
     """
+    early_return = check_flag(early_return, "early_return")
     _epsilon(epsilon)  # checked for meshes too: a bad value is refused whatever the models
     a, b = _as_model(a, "a"), _as_model(b, "b")
     fa, fb = len(a.triangles), len(b.triangles)

@@ -27,6 +27,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+from torchmeshmetric._checks import check_positive_real
 from torchmeshmetric.mpeg.comparison.ibsm import IbsmResult, ibsm
 from torchmeshmetric.mpeg.comparison.pcc import mpeg_compare
 from torchmeshmetric.mpeg.core.point_cloud import PointCloud
@@ -62,13 +63,22 @@ def ctc_mean(values: Sequence[float], clip: float = CTC_CLIP) -> float:
 
     An infinite PSNR (a frame identical to its source) counts as ``clip``; NaN stays NaN.
 
+    Args:
+        values: the per-frame PSNRs in dB.
+        clip: the ceiling an infinite PSNR counts as, a finite number > 0 (mmetric's 99.99 dB).
+
+    Returns:
+        The mean in dB.
+
     Raises:
-        ValueError: no value (a mean of nothing is no figure).
+        ValueError: no value (a mean of nothing is no figure), or ``clip`` not a finite positive number (``-1`` was
+            taken: every frame then counted as -1 dB).
 
     Example:
         >>> ctc_mean([40.0, float("inf")])
         69.995
     """
+    clip = check_positive_real(clip, "clip")
     if len(values) == 0:
         raise ValueError("values: expected at least one per-frame PSNR, found none")
     fract = 1.0 / len(values)

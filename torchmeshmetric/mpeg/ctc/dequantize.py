@@ -17,6 +17,7 @@ import numpy as np
 import torch
 from torch import Tensor
 
+from torchmeshmetric._checks import check_flag
 from torchmeshmetric.mpeg.core.fixed_point import fixed_point_box, fixed_point_ceil
 
 __all__ = ["dequantize_positions", "dequantize_uvs", "position_scale"]
@@ -62,6 +63,7 @@ def position_scale(qp: int, min_pos: Corner, max_pos: Corner, *, fixed_point: bo
         >>> lo.tolist(), s * 65536
         ([0.0, 0.0, 0.0], 129.0)
     """
+    fixed_point = check_flag(fixed_point, "fixed_point")
     qp = _bits(qp, "qp")
     lo, hi = _corner(min_pos, "min_pos", 3), _corner(max_pos, "max_pos", 3)
     if (hi < lo).any():
@@ -110,6 +112,7 @@ def dequantize_positions(
         >>> dequantize_positions(q, 10, [0, 0, 0], [1, 1, 1], fixed_point=False).tolist()
         [[0.0, 1.0, 0.5004887580871582]]
     """
+    fixed_point = check_flag(fixed_point, "fixed_point")
     v = _quantised(verts, "verts")
     if v.ndim != 2 or v.shape[1] != 3:
         raise ValueError(f"verts: expected shape (V, 3), found {tuple(v.shape)}")

@@ -21,6 +21,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from torchmeshmetric._atomic import atomic_write
+from torchmeshmetric._checks import check_flag
 from torchmeshmetric.mpeg.comparison.pcc import mpeg_point_errors
 from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh
 from torchmeshmetric.mpeg.ctc.chain import dequantized_pair
@@ -174,6 +175,7 @@ def write_face_errors_csv(path: str | os.PathLike[str], errors: FaceErrors, *, o
 
     Written atomically; refuses to replace a file unless ``overwrite``.
     """
+    overwrite = check_flag(overwrite, "overwrite")
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     cols = _columns(errors)
@@ -204,6 +206,7 @@ def write_face_errors_ply(
     Raises:
         ValueError: ``color_by`` is not one of the error columns.
     """
+    overwrite = check_flag(overwrite, "overwrite")
     import torch
 
     from torchmeshmetric.viz.colors import error_colors

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from torchmeshmetric._checks import EmptyInputError, check_allocation
+from torchmeshmetric._checks import EmptyInputError, check_allocation, check_flag
 from torchmeshmetric.mpeg.core import _float32 as f32
 from torchmeshmetric.mpeg.core.point_cloud import PointCloud
 from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh, as_textured_mesh
@@ -84,6 +84,7 @@ def edge_sample(
         >>> edge_sample(TexturedMesh(tri), length_threshold=1.0).num_points  # corners + 3 midpoints, then stop
         6
     """
+    bilinear = check_flag(bilinear, "bilinear")
     mesh = as_textured_mesh(mesh, name)  # a Mesh, (V, F) or trimesh too: no colour
     verts, faces = mesh_arrays(mesh.mesh)
     length = _length(mesh, verts, length_threshold, resolution)

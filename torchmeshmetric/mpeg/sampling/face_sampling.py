@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from torchmeshmetric._checks import EmptyInputError, check_allocation
+from torchmeshmetric._checks import EmptyInputError, check_allocation, check_flag
 from torchmeshmetric.mpeg.core import _float32 as f32
 from torchmeshmetric.mpeg.core.point_cloud import PointCloud
 from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh, as_textured_mesh
@@ -98,6 +98,7 @@ def face_sample(
         >>> face_sample(TexturedMesh(tri), resolution=2).num_points  # s in {0, .5, 1}: 1 + 2 + 3 points
         6
     """
+    bilinear = check_flag(bilinear, "bilinear")
     mesh = as_textured_mesh(mesh, name)  # a Mesh, (V, F) or trimesh too: no colour
     _check(resolution, thickness)
     resolution = int(resolution)  # a numpy integer too

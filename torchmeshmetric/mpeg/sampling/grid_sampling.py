@@ -11,7 +11,7 @@ import torch
 from torch import Tensor
 
 from torchmeshmetric import native
-from torchmeshmetric._checks import EmptyInputError, NonFiniteError
+from torchmeshmetric._checks import EmptyInputError, NonFiniteError, check_flag, check_int
 from torchmeshmetric.mpeg.core import _float32 as f32
 from torchmeshmetric.mpeg.core.fixed_point import fixed_point_box, fixed_point_ceil
 from torchmeshmetric.mpeg.core.point_cloud import PointCloud
@@ -173,6 +173,9 @@ def grid_sample(
         >>> grid_sample(tri, 3, box=([0, 0, 0], [1, 1, 1])).num_points
         6
     """
+    use_normal = check_flag(use_normal, "use_normal")
+    bilinear = check_flag(bilinear, "bilinear")
+    use_fixed_point = check_flag(use_fixed_point, "use_fixed_point")
     return _grid_samples(mesh, grid_size, use_normal, box, texture, uvs, colors, bilinear, use_fixed_point).cloud
 
 
@@ -209,6 +212,9 @@ def grid_sample_faces(
         >>> grid_sample_faces(tri, 3, box=([0, 0, 0], [1, 1, 1])).face_idx.tolist()
         [0, 0, 0, 0, 0, 0]
     """
+    use_normal = check_flag(use_normal, "use_normal")
+    bilinear = check_flag(bilinear, "bilinear")
+    use_fixed_point = check_flag(use_fixed_point, "use_fixed_point")
     return _grid_samples(mesh, grid_size, use_normal, box, texture, uvs, colors, bilinear, use_fixed_point)
 
 
@@ -444,8 +450,9 @@ def grid_hits(
         >>> grid_hits(tri, 3, box=([0, 0, 0], [1, 1, 1])).axis.tolist()
         [2, 2, 2, 2, 2, 2]
     """
-    if isinstance(grid_size, bool) or not isinstance(grid_size, int) or grid_size < 2:
-        raise ValueError(f"grid_size: expected an integer >= 2, found {grid_size!r}")
+    use_normal = check_flag(use_normal, "use_normal")
+    use_fixed_point = check_flag(use_fixed_point, "use_fixed_point")
+    grid_size = check_int(grid_size, "grid_size", 2)
     verts, faces = mesh_arrays(mesh)
     if use_fixed_point and box is None:
         raise ValueError("use_fixed_point: needs a box (mmetric rounds only a box given as --minPos/--maxPos)")

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from torchmeshmetric._checks import EmptyInputError, check_allocation
+from torchmeshmetric._checks import EmptyInputError, check_allocation, check_flag
 from torchmeshmetric.mpeg.core import _float32 as f32
 from torchmeshmetric.mpeg.core.point_cloud import PointCloud
 from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh, as_textured_mesh
@@ -66,6 +66,7 @@ def prnd_sample(
         >>> prnd_sample(TexturedMesh(tri), num_samples=10).num_points  # 3 corners + 9 inner points
         12
     """
+    bilinear = check_flag(bilinear, "bilinear")
     mesh = as_textured_mesh(mesh, name)  # a Mesh, (V, F) or trimesh too: no colour
     if isinstance(num_samples, bool) or not isinstance(num_samples, (int, np.integer)) or num_samples < 1:
         raise ValueError(f"num_samples: expected an integer >= 1, found {num_samples!r}")

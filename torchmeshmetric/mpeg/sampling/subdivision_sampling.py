@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from torchmeshmetric._checks import EmptyInputError, check_allocation
+from torchmeshmetric._checks import EmptyInputError, check_allocation, check_flag
 from torchmeshmetric.mpeg.core import _float32 as f32
 from torchmeshmetric.mpeg.core.point_cloud import PointCloud
 from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh, as_textured_mesh
@@ -72,6 +72,8 @@ def subdivision_sample(
         >>> subdivision_sample(TexturedMesh(tri), max_depth=3, area_threshold=2.0).num_points  # area 8, then 2
         15
     """
+    bilinear = check_flag(bilinear, "bilinear")
+    map_threshold = check_flag(map_threshold, "map_threshold")
     mesh = as_textured_mesh(mesh, name)  # a Mesh, (V, F) or trimesh too: no colour
     if isinstance(max_depth, bool) or not isinstance(max_depth, (int, np.integer)) or max_depth < 1:
         raise ValueError(f"max_depth: expected an integer >= 1, found {max_depth!r}")
@@ -104,6 +106,7 @@ def builder_cloud(
     The key is position, UV, colour and normal; UVs become texture colours (nearest or bilinear) when a texture
     is there, and are kept as the cloud's UVs otherwise (mmetric's ``pushVertex`` without a valid map).
     """
+    bilinear = check_flag(bilinear, "bilinear")
     colours = uvs = None
     key = att if att.shape[1] else None
     if mesh.uvs is not None and mesh.texture is not None:

@@ -6,6 +6,8 @@ from typing import Any
 
 import numpy as np
 
+from torchmeshmetric._checks import NonFiniteError, ShapeError, check_flag
+
 __all__ = ["sample_texture"]
 
 
@@ -30,6 +32,11 @@ def sample_texture(texture: Any, uv: np.ndarray, *, bilinear: bool = True) -> np
     Returns:
         ``(N, 3)`` float32 RGB in ``[0, 255]``.
 
+    Raises:
+        ShapeError: ``texture`` is not an ``(H, W)`` or ``(H, W, C >= 3)`` image with texels, or ``uv`` not
+            ``(N, 2)``.
+        NonFiniteError: ``uv`` holds NaN or Inf (they became arbitrary texels, with numpy's cast warnings).
+
     Example:
         >>> img = np.array([[[0, 0, 0], [255, 255, 255]]], np.uint8)  # 1 x 2 image
         >>> sample_texture(img, np.array([[0.5, 0.5]], np.float32)).tolist()
@@ -37,10 +44,17 @@ def sample_texture(texture: Any, uv: np.ndarray, *, bilinear: bool = True) -> np
         >>> sample_texture(img, np.array([[0.9, 0.5]], np.float32), bilinear=False).tolist()
         [[255.0, 255.0, 255.0]]
     """
+    bilinear = check_flag(bilinear, "bilinear")
     img = np.asarray(texture)
     if img.ndim == 2:
         img = np.repeat(img[..., None], 3, axis=2)
+    if img.ndim != 3 or img.shape[2] < 3 or img.shape[0] == 0 or img.shape[1] == 0:
+        raise ShapeError(f"texture: expected an (H, W, C >= 3) image with texels, found shape {tuple(img.shape)}")
     uv = np.asarray(uv, dtype=np.float32)
+    if uv.ndim != 2 or uv.shape[1] != 2:  # (N, 3) was read as its first two columns
+        raise ShapeError(f"uv: expected shape (N, 2), found {tuple(uv.shape)}")
+    if not np.isfinite(uv).all():
+        raise NonFiniteError(f"uv: expected finite values, found {int((~np.isfinite(uv)).sum())} NaN/Inf value(s)")
     h, w = img.shape[:2]
     if not bilinear:
         x = (uv[:, 0] * np.float32(w)).astype(np.int64)  # (int) truncates toward zero
