@@ -180,8 +180,8 @@ def test_memory_bound_drops_the_least_recently_used(tmp_path):
     calls.clear()
     assert [get(disk, p) for p in (a, b, a)] == [False, False, True]
     assert len(calls) == 2 and len(disk) == 1 and len(list(tmp_path.glob("*.pt"))) == 2
-    for bad in (0, -1, True, 2.0):
-        with pytest.raises(ValueError, match="max_entries"):
+    for bad, error in ((0, ValueError), (-1, ValueError), (True, TypeError), (2.0, TypeError)):  # check_int's rule
+        with pytest.raises(error, match=r"^max_entries: expected an int"):
             RegistrationCache(max_entries=bad)  # type: ignore[arg-type]
 
 

@@ -83,7 +83,6 @@ from .sampling import (
     GridHits,
     GridSamples,
     GridTooLargeError,
-    check_box,
     edge_sample,
     face_sample,
     grid_hits,
@@ -95,7 +94,6 @@ from .sampling import (
     prnd_sample,
     sample_texture,
     subdivision_sample,
-    unique_vertex_rows,
     vertex_sample,
 )
 
@@ -151,7 +149,6 @@ __all__ = [
     "TopologyComparison",
     "TopologyMapError",
     "bbox_diagonal",
-    "check_box",
     "differentiable_grid_sample",
     "grid_hits",
     "grid_sample",
@@ -182,7 +179,6 @@ __all__ = [
     "subdivision_sample",
     "tfan_equality",
     "topology_equivalence",
-    "unique_vertex_rows",
     "vertex_sample",
     "PcqmResult",
     "load_model_cloud",

@@ -293,6 +293,27 @@ def statistics_from_parts(
     Empty sets (``count == 0``) get NaN statistics (``count`` 0); ``var``/``std`` are NaN when ``count <= ddof``.
     ``values`` (the set's distances, packed with ``lengths`` for a batch), when kept, give ``rmse`` and ``std``
     where ``mse`` or ``var`` over- or underflowed (see :func:`_scaled_roots`).
+
+    Args:
+        moments: the merged :class:`~torchmeshmetric.stats.moments.Moments` (0-dim fields, or ``(B,)``).
+        quantiles: ``(..., 3)`` median, p95 and p99 of each set.
+        ddof: delta degrees of freedom of ``var``/``std``.
+        peak: PSNR peak (a number or one per item), or ``None`` (no PSNR).
+        values: the sets' distances (packed with ``lengths``), when kept.
+        lengths: ``(B,)`` set sizes of packed ``values``.
+
+    Returns:
+        :class:`DistanceStatistics` of the fields' shape.
+
+    Raises:
+        TypeError, ValueError: ``ddof`` not an int >= 0, or ``peak`` not finite and positive.
+        ShapeError: a ``peak`` tensor of another shape than the sets'.
+
+    Example:
+        >>> d = torch.tensor([1.0, 2.0, 3.0, 4.0], dtype=torch.float64)
+        >>> s = statistics_from_parts(moments_of(d), linear_quantiles(d, QUANTILE_LEVELS), peak=10.0, values=d)
+        >>> s.ave.item(), s.median.item(), round(s.psnr.item(), 4)
+        (2.5, 2.5, 11.2494)
     """
     given: object = ddof
     if isinstance(given, float) and given.is_integer():
@@ -622,6 +643,10 @@ def mean_psnr(values: Sequence[float], what: str = "values") -> tuple[float, int
     Args:
         values: the PSNRs, in dB.
         what: where the values come from, named by the error (``"the pairs' psnr"``).
+
+    Returns:
+        ``(mean, infinite)``: the mean of the finite values (``inf`` when every value is infinite) and the number of
+        infinite values left out.
 
     Raises:
         ValueError: a value is NaN or ``-inf``; the message names ``what`` and the value's position.

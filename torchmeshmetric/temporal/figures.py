@@ -67,6 +67,13 @@ def same_connectivity(original: Sequence[Mesh], distorted: Sequence[Mesh]) -> bo
     distorted frames' faces are the evidence that their vertex ``i`` is the original's: the same surfaces with their
     vertices numbered otherwise have the same counts and other triples (measured by the registered forms instead).
 
+    Args:
+        original: the original frames (frame 0's vertex count and triangles are the reference).
+        distorted: the distorted frames.
+
+    Returns:
+        Whether every frame of both has frame 0's vertex count and triangles.
+
     Example:
         >>> import trimesh
         >>> sphere = as_mesh(trimesh.creation.icosphere(subdivisions=1))

@@ -74,6 +74,12 @@ def format_figure(name: str, value: float, *, registered: bool) -> str:
 def temporal_report(figures: Mapping[str, TemporalFigures]) -> dict[str, dict[str, Any]]:
     """``{method: {figure: value, "registered": bool, ...}}`` (the reports' ``"temporal"`` entry).
 
+    Args:
+        figures: method name → its :class:`TemporalFigures`.
+
+    Returns:
+        method name → its figures as a dict (:meth:`TemporalFigures.as_dict`).
+
     Example:
         >>> f = TemporalFigures(1.0, 2.0, 0.1, 0.2, 0.1, True, 3, 100)
         >>> row = temporal_report({"qem": f}).get("qem", {})
@@ -99,6 +105,9 @@ def temporal_markdown(
             :data:`FIGURE_FORMATS`. Without that table, the measured digits of :data:`FIGURE_FORMATS`.
         sequence: the sequence the figures are of, named in the section's title (a campaign prints one section per
             sequence).
+
+    Returns:
+        The Markdown section: a title, the table and the note on digits.
 
     Example:
         >>> f = TemporalFigures(1.0, 2.0, 0.1, 0.2, 0.1, True, 3, 100)

@@ -113,6 +113,17 @@ def mpeg_psnr_from_mse(mse: Tensor, peak: float, factor: float = 3.0) -> Tensor:
     The library's :func:`torchmeshmetric.stats.psnr_from_mse` (the paper's ``10 log10(peak^2 / mse)``) applied to
     ``mse / factor``: the two conventions differ by ``10 log10(3)`` = 4.77 dB for geometry.
 
+    Args:
+        mse: mean squared errors (any shape, ``>= 0``), differentiable.
+        peak: the PSNR peak, a finite number ``> 0``.
+        factor: mmetric's factor of ``peak^2`` (3 for geometry: the squared diagonal of a unit cube).
+
+    Returns:
+        float64 PSNRs in dB, of ``mse``'s shape.
+
+    Raises:
+        ValueError: ``peak`` is not a positive finite number, or an ``mse`` is negative or NaN.
+
     Example:
         >>> import torch
         >>> round(mpeg_psnr_from_mse(torch.tensor(1e-4), 1.0).item(), 4)

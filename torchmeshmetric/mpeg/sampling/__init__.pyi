@@ -22,12 +22,10 @@ from .grid_sampling import (
     GridHits,
     GridSamples,
     GridTooLargeError,
-    check_box,
     grid_hits,
     grid_sample,
     grid_sample_faces,
     mesh_box,
-    unique_vertex_rows,
 )
 from .map_sampling import map_sample
 from .model_cloud import load_model_cloud
@@ -43,12 +41,10 @@ __all__ = [
     "GridHits",
     "GridSamples",
     "GridTooLargeError",
-    "check_box",
     "grid_hits",
     "grid_sample",
     "grid_sample_faces",
     "mesh_box",
-    "unique_vertex_rows",
     "map_sample",
     "load_model_cloud",
     "prnd_sample",

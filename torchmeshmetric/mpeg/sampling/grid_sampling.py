@@ -46,6 +46,12 @@ class BoxError(ValueError):
 def mesh_box(verts: np.ndarray | Tensor) -> tuple[np.ndarray, np.ndarray]:
     """The float32 bounding box of a mesh's vertices (mmetric's ``computeBBox``).
 
+    Args:
+        verts: ``(V, 3)`` vertices (numpy or a tensor; rounded to float32 as mmetric reads them), ``V >= 1``.
+
+    Returns:
+        ``(min, max)``, two ``(3,)`` float32 arrays.
+
     Example:
         >>> lo, hi = mesh_box(np.array([[0, 1, 2], [3, -1, 5]], np.float32))
         >>> lo.tolist(), hi.tolist()
@@ -161,6 +167,7 @@ def grid_sample(
 
     Raises:
         ValueError: ``grid_size < 2``.
+        TypeError: ``grid_size`` is not an int (numpy's and one-element integer tensors are), or a flag not a bool.
         EmptyInputError: the mesh has no face.
         BoxError: a malformed box (wrong shape, non-finite, max below min, a single point).
         GridTooLargeError: the expected number of samples (the triangles' projected areas over the squared step)
@@ -205,6 +212,23 @@ def grid_sample_faces(
     use_fixed_point: bool = False,
 ) -> GridSamples:
     """:func:`grid_sample` (the same arguments and cloud) with the face of every point, for per-face maps.
+
+    Args:
+        mesh: the mesh, as for :func:`grid_sample`.
+        grid_size: grid steps over the box's longest side (``>= 2``).
+        use_normal: cast only along the axis closest to each triangle's normal.
+        box: ``(min, max)`` corners of the sampling box; default the mesh's bounding box.
+        texture: an ``(H, W, 3)`` uint8 texture image; needs ``uvs``.
+        uvs: ``(F, 3, 2)`` texture coordinates per face corner.
+        colors: ``(V, 3)`` per-vertex colours in ``[0, 255]``.
+        bilinear: bilinear texture filtering, nearest otherwise.
+        use_fixed_point: mmetric ``--useFixedPoint`` (needs ``box``).
+
+    Returns:
+        :class:`GridSamples`: :func:`grid_sample`'s cloud and the face of each of its points.
+
+    Raises:
+        The errors of :func:`grid_sample`.
 
     Example:
         >>> import torch
@@ -443,6 +467,19 @@ def grid_hits(
     use_fixed_point: bool = False,
 ) -> GridHits:
     """The rays of :func:`grid_sample` that hit the mesh, with their faces, axes and origins.
+
+    Args:
+        mesh: the mesh, as for :func:`grid_sample`.
+        grid_size: grid steps over the box's longest side (``>= 2``).
+        use_normal: cast only along the axis closest to each triangle's normal.
+        box: ``(min, max)`` corners of the sampling box; default the mesh's bounding box.
+        use_fixed_point: mmetric ``--useFixedPoint`` (needs ``box``).
+
+    Returns:
+        :class:`GridHits`: every ray-triangle hit, in mmetric's order, before repeated points are removed.
+
+    Raises:
+        The errors of :func:`grid_sample` about the mesh, the box and ``grid_size``.
 
     Example:
         >>> import torch
