@@ -193,6 +193,12 @@ CASES: list[tuple[str, Callable[[], Any], type[Exception], str]] = [
         ShapeError,
         "texture: expected an",
     ),
+    (
+        "mean_psnr empty",
+        lambda: t.mpeg.mean_psnr([]),
+        ValueError,
+        "values: expected at least one PSNR, found none",
+    ),
     ("ctc clip", lambda: t.mpeg.ctc_mean([40.0], clip=-1), ValueError, "clip: expected a positive finite number"),
     (
         "flatten collision",

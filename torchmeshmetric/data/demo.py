@@ -448,6 +448,7 @@ def demo_sequence(
 
     Raises:
         ValueError: an argument is out of range.
+        TypeError: a count (``num_frames``, ``resolution``, ``frames_per_cycle``) is not an int.
 
     Example:
         >>> seq = demo_sequence(3, resolution=40)

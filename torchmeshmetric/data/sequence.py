@@ -211,6 +211,7 @@ def prefetch_frames(paths: PathsLike, *, load: Callable[[Path], Any] | None = No
     Raises:
         MeshFileError: no frame found (at once).
         ValueError: ``ahead < 1``.
+        TypeError: ``ahead`` is not an int.
 
     Example:
         >>> import tempfile, pathlib

@@ -43,7 +43,7 @@ class SurfaceSamples(NamedTuple):
 _SAMPLE_BYTES = 40
 
 
-def sample_counts(n: object, num_items: int) -> list[int]:
+def _sample_counts(n: object, num_items: int) -> list[int]:
     """``sample_surface``'s ``n`` as one count per mesh: an int for all, or a sequence of ``num_items`` ints.
 
     Each is :func:`~torchmeshmetric._checks.check_int`'s int (numpy's and one-element integer tensors too, not a
@@ -103,7 +103,7 @@ def sample_surface(
     """
     packed = pack_meshes(verts, faces)
     num_items = int(packed.verts_lengths.numel())
-    counts = torch.as_tensor(sample_counts(n, num_items), dtype=torch.long)
+    counts = torch.as_tensor(_sample_counts(n, num_items), dtype=torch.long)
     check_generator(generator)
     device = packed.verts.device
     counts = counts.to(device)

@@ -163,7 +163,7 @@ class TemporalLossCache:
             cache of its own, bounded by ``max_warps``.
 
     Raises:
-        ValueError: ``max_warps`` or ``max_indexes`` not a positive int (``max_indexes``: a non-int is a TypeError).
+        ValueError: ``max_warps`` or ``max_indexes`` below 1 (a non-int is a TypeError).
         TypeError: ``registrations`` not a :class:`~torchmeshmetric.registration.RegistrationCache` or ``None``.
 
     Example:

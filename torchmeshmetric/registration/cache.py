@@ -438,8 +438,9 @@ class RegistrationCache:
     of precomputed registrations serves what it holds, and the rest is computed.
 
     Raises:
-        ValueError: ``max_entries`` not a positive int or ``None``, or ``directory`` an existing file (checked here:
-            an entry is stored only after its registration ran, too late to learn it cannot be).
+        TypeError: ``max_entries`` not an int or ``None`` (numpy's and one-element integer tensors are ints).
+        ValueError: ``max_entries`` below 1, or ``directory`` an existing file (checked here: an entry is stored only
+            after its registration ran, too late to learn it cannot be).
 
     Attributes:
         hits: number of lookups answered from memory or disk.

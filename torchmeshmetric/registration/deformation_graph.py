@@ -108,7 +108,8 @@ def canonical_farthest_points(points: Tensor, count: int, area: float) -> Tensor
 
     Raises:
         NonFiniteError: a NaN or Inf coordinate (the sampling would never stop).
-        ValueError: a ``count`` that is not an integer >= 0, an ``area`` that is negative or not finite.
+        TypeError: a ``count`` that is not an int.
+        ValueError: a ``count`` below 0, an ``area`` that is negative or not finite.
     """
     # A NaN or Inf coordinate never lets farthest-point sampling stop (its distances never fall within the radius):
     # the loop ran forever, its list of choices growing (found 2026-12-07).

@@ -649,7 +649,8 @@ def mean_psnr(values: Sequence[float], what: str = "values") -> tuple[float, int
         infinite values left out.
 
     Raises:
-        ValueError: a value is NaN or ``-inf``; the message names ``what`` and the value's position.
+        ValueError: no value (it returned ``(nan, 0)`` though a NaN is refused, never dropped in silence; found by
+            review), or a value is NaN or ``-inf``; the message names ``what`` and the value's position.
 
     Example:
         >>> mean_psnr([40.0, 50.0, float("inf")])
@@ -657,6 +658,8 @@ def mean_psnr(values: Sequence[float], what: str = "values") -> tuple[float, int
         >>> mean_psnr([float("inf")])
         (inf, 1)
     """
+    if len(values) == 0:  # every caller's list holds a value; a direct call's empty one is a mistake to report
+        raise ValueError(f"{what}: expected at least one PSNR, found none (a mean of nothing is no figure)")
     for i, v in enumerate(values):
         if math.isnan(v) or v == -math.inf:
             why = (
@@ -669,4 +672,4 @@ def mean_psnr(values: Sequence[float], what: str = "values") -> tuple[float, int
     infinite = len(values) - len(finite)
     if finite:
         return sum(finite) / len(finite), infinite
-    return (math.inf if infinite else math.nan), infinite
+    return math.inf, infinite  # every value infinite (there is at least one)
