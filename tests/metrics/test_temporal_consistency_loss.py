@@ -238,6 +238,24 @@ def test_module_equals_function_and_refits_its_kept_indexes(frames):
     assert "frame_weight=0.7" in repr(module)
 
 
+def test_faces_edited_in_place_to_equal_values_are_refitted_not_refused(frames):
+    """The kept indexes watched the caller's faces: an in-place edit leaving them equal (``faces.add_(0)``, a buffer
+    refilled with the same connectivity) was taken for the same faces, refitted, then refused with StaleIndexError.
+    They watch copies of their own now (``kernels/kept_index.py``)."""
+    s_k, s_km1, o_k, o_km1 = frames
+    faces_k, faces_km1 = s_k[1].clone(), s_km1[1].clone()
+    module = TemporalConsistencyLoss()
+    module((s_k[0], faces_k), (s_km1[0], faces_km1), o_k, o_km1, registration=affine_warp)
+    index = module.cache._simplified.index
+    faces_k.add_(0)
+    faces_km1.add_(0)
+    got = module((s_k[0], faces_k), (s_km1[0], faces_km1), o_k, o_km1, registration=affine_warp)
+    assert module.cache._simplified.index is index  # still the same faces: refitted
+    assert torch.equal(
+        got, temporal_consistency_loss((s_k[0], faces_k), (s_km1[0], faces_km1), o_k, o_km1, affine_warp)
+    )
+
+
 @expects_not_converged
 def test_default_registration_is_computed_once_per_original_pair(monkeypatch):
     src = trimesh.creation.icosphere(subdivisions=2)

@@ -3,6 +3,9 @@
 Loops that measure against the same references again and again (the frames of ``compare``, the validation set of a
 training loop, every epoch) ask the cache instead of building: an index is keyed by a hash of the mesh's vertices
 and faces (plus dtype, device, backend), so equal content finds the built structure even through new tensors.
+The meshes a loss learns move at every step and would only push the references out: the cache keeps one index of
+them apart (``moving``, a :class:`~torchmeshmetric.kernels.kept_index.KeptIndex`), refitted while their faces stay
+the same.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ import torch
 
 from torchmeshmetric._checks import check_int
 from torchmeshmetric.kernels._common import DEFAULT_MAX_MEMORY
+from torchmeshmetric.kernels.kept_index import KeptIndex
 from torchmeshmetric.kernels.mesh_index import MeshIndex, _given_tensors
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh, looks_like_pair, pack_meshes
 
@@ -54,6 +58,11 @@ def content_key(meshes: Sequence[Mesh], salt: str) -> str:
 class IndexCache:
     """Least-recently-used cache of :class:`~torchmeshmetric.MeshIndex` keyed by mesh content.
 
+    Also holds, in ``moving``, the index of the simplified meshes a loss measures the reverse direction to
+    (:class:`~torchmeshmetric.metrics.MeshSurfaceDistanceLoss` with ``two_sided=True``): their vertices move at every
+    training step, so it is refitted while their faces stay the same and rebuilt when they change (one such index;
+    its answers are those of a new index, bit for bit).
+
     Args:
         max_entries: indexes kept (the least recently used is dropped beyond).
 
@@ -71,6 +80,7 @@ class IndexCache:
         # an int >= 1: a string failed with a raw comparison error, 2.5 and True were taken (found by review)
         self.max_entries = check_int(max_entries, "max_entries", low=1)
         self._entries: OrderedDict[str, MeshIndex] = OrderedDict()
+        self.moving = KeptIndex()
 
     def get(self, mesh: MeshLike | Sequence[MeshLike], *, backend: str = "auto", tree: str = "sah") -> MeshIndex:
         """The index of ``mesh`` (a mesh-like or a list: a batch), built on the first request for this content.
@@ -107,4 +117,9 @@ class IndexCache:
 
     def __getstate__(self) -> dict[str, object]:
         # A cache: pickled empty (a metric holding one is pickled, deep-copied and synced across processes).
+        # `moving` is left out: pickles stay those of the versions before it.
         return {"max_entries": self.max_entries, "_entries": OrderedDict()}
+
+    def __setstate__(self, state: dict[str, object]) -> None:
+        self.__dict__.update(state)
+        self.moving = KeptIndex()

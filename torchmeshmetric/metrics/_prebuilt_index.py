@@ -9,6 +9,7 @@ from torch import Tensor
 
 from torchmeshmetric._checks import DeviceError, ShapeError, check_index_dtype
 from torchmeshmetric.kernels.index_cache import IndexCache
+from torchmeshmetric.kernels.kept_index import KeptIndex
 from torchmeshmetric.kernels.mesh_index import MeshIndex
 from torchmeshmetric.structures import Mesh
 
@@ -74,13 +75,15 @@ def index_of(
     backend: str,
     name: str,
     build: bool = False,
+    kept: KeptIndex | None = None,
 ) -> MeshIndex | None:
     """The index of ``meshes`` for queries computed in ``dtype`` (:func:`~torchmeshmetric._checks.common_dtype`).
 
     ``given`` (a prebuilt index: refused when narrower than ``dtype``, used as it is otherwise), else the entry
-    ``indexes`` holds for the meshes in ``dtype``, else, with ``build``, a one-off index of the meshes (detached) in
-    ``dtype``, else ``None``. Every index a set is measured on is chosen here, so the dtype rule holds in both
-    directions and for every source of index.
+    ``indexes`` holds for the meshes in ``dtype``, else, with ``build``, the index of the meshes (detached) in
+    ``dtype`` that ``kept`` holds (refitted when only their vertices moved since its last call: the answers of a
+    new index, bit for bit) or, without ``kept``, a one-off index, else ``None``. Every index a set is measured on
+    is chosen here, so the dtype rule holds in both directions and for every source of index.
 
     Raises:
         DTypeError: ``given`` is narrower than ``dtype`` (see :func:`~torchmeshmetric._checks.check_index_dtype`).
@@ -90,6 +93,8 @@ def index_of(
         return given
     if indexes is not None:
         return indexes.get([m.to(dtype=dtype) for m in meshes], backend=backend)
+    if build and kept is not None:
+        return kept.get([m.to(dtype=dtype) for m in meshes], backend)
     if build:
         detached = [m.detach().to(dtype=dtype) for m in meshes]
         return MeshIndex(detached if len(detached) > 1 else detached[0], backend=backend)

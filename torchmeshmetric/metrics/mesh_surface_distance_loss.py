@@ -47,7 +47,9 @@ def mesh_surface_distance_loss(
             ``two_sided`` (add the reverse direction, reference vertices → simplified surface), ``detach_reference``
             (cut the gradient to the reference vertices, default ``True``), ``surface_samples`` (``None``: exact
             surface; or the paper's sampled-surface mode with ``N`` samples), ``seed``, ``backend``, ``indexes``
-            (an :class:`~torchmeshmetric.IndexCache` for the references; :class:`MeshSurfaceDistanceLoss` keeps one).
+            (an :class:`~torchmeshmetric.IndexCache` for the references, which also keeps the simplified meshes'
+            index of a two-sided loss, refitted from call to call while their faces stay the same;
+            :class:`MeshSurfaceDistanceLoss` keeps one).
 
     Returns:
         A 0-dim loss, or ``(P [+ R],)`` per-point terms for ``reduction="none"``, in the promoted dtype of the
@@ -77,7 +79,11 @@ class MeshSurfaceDistanceLoss(DistanceLossModule):
 
     Keeps an :class:`~torchmeshmetric.IndexCache` of the reference meshes (unless ``indexes`` is given): training or
     validating every epoch on the same references builds each reference's index once (found again by content, any
-    tensor object).
+    tensor object). Two-sided, the cache also keeps the index of the simplified meshes (the reverse direction is
+    measured to them): a training step moves their vertices, so it is refitted while their faces stay the same
+    (compared with a copy of the last call's) and rebuilt when they change; the values and gradients are those of a
+    new index, bit for bit. Nothing else is kept between steps (no graph); the module pickles as before (its caches
+    empty) and has no state in ``state_dict``.
 
     Example:
         >>> import torch, trimesh

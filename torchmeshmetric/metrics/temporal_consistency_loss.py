@@ -38,6 +38,7 @@ from torch import Tensor, nn
 from torchmeshmetric._checks import EmptyInputError, NonFiniteError, as_real, check_flag, check_int, common_dtype
 from torchmeshmetric.kernels.danskin import mesh_surface_distances
 from torchmeshmetric.kernels.index_cache import IndexCache
+from torchmeshmetric.kernels.kept_index import KeptIndex
 from torchmeshmetric.kernels.mesh_index import MeshIndex, _version
 from torchmeshmetric.kernels.select import check_backend
 from torchmeshmetric.metrics._loss import check_loss_args, reduce_directed
@@ -55,61 +56,6 @@ from torchmeshmetric.registration.warp import RegistrationWarp, Warp, as_warp, c
 from torchmeshmetric.structures import Mesh, as_mesh, is_mesh_like, require_faces, vertex_set_mask
 
 __all__ = ["TemporalConsistencyLoss", "TemporalLossCache", "temporal_consistency_loss"]
-
-
-class _KeptIndex:
-    """The index of a batch of meshes whose vertices move between calls: refitted while the faces stay the same."""
-
-    def __init__(self) -> None:
-        self.faces: list[Tensor] | None = None
-        self.index: MeshIndex | None = None
-        # The caller's faces tensors of the last call and their versions: the same tensors, unmodified, are the same
-        # faces without comparing values (a comparison reads a bool back from the device: a sync per mesh on CUDA).
-        self.sources: list[tuple[Tensor, int]] = []
-        self.num_verts: list[int] = []
-
-    def _same_faces(self, meshes: list[Mesh]) -> bool:
-        if self.faces is None or len(self.faces) != len(meshes):
-            return False
-        if len(self.sources) == len(meshes) and all(
-            t is m.faces and v >= 0 and v == _version(m.faces) for (t, v), m in zip(self.sources, meshes, strict=True)
-        ):
-            return True
-        if not all(
-            f.shape == m.faces.shape and f.device == m.faces.device for f, m in zip(self.faces, meshes, strict=True)
-        ):
-            return False
-        # One device read for the whole batch.
-        return bool(torch.stack([(f == m.faces).all() for f, m in zip(self.faces, meshes, strict=True)]).all())
-
-    def get(self, meshes: list[Mesh], backend: str) -> MeshIndex:
-        verts = torch.cat([m.verts for m in meshes]).detach()
-        same = (
-            self.index is not None
-            and self.index.dtype == verts.dtype
-            and self.index.device == verts.device
-            and self.num_verts == [m.num_verts for m in meshes]
-            and self._same_faces(meshes)
-        )
-        if same and self.index is not None:
-            self.index.refit_unchecked(verts)  # validated at the door (as_mesh) or by _check_moved
-            self.sources = [(m.faces, _version(m.faces)) for m in meshes]
-            return self.index
-        detached = [Mesh(m.verts.detach(), m.faces, validate=False) for m in meshes]
-        index = MeshIndex(detached if len(detached) > 1 else detached[0], backend=backend)
-        # Build the face structure now, on this index: the queries run on copies bound to the caller's vertices
-        # (autograd), and a copy of an index not yet queried would build (and keep) a structure of its own, each
-        # time. One point of an item with faces is enough; the structure covers every item.
-        with_faces = [i for i, m in enumerate(meshes) if m.num_faces > 0]
-        if with_faces:
-            lengths = torch.zeros(len(meshes), dtype=torch.long, device=verts.device)
-            lengths[with_faces[0]] = 1
-            with torch.no_grad():
-                mesh_surface_distances(verts[:1].to(index.dtype), lengths, detached, index)
-        self.index, self.faces = index, [m.faces.clone() for m in meshes]
-        self.sources = [(m.faces, _version(m.faces)) for m in meshes]
-        self.num_verts = [m.num_verts for m in meshes]
-        return index
 
 
 class _VertexRows:
@@ -185,8 +131,8 @@ class TemporalLossCache:
         # The warps in use, by (registration key, dtype, device): converted from the cache's CPU entry once.
         self._warps: OrderedDict[tuple[str, torch.dtype, torch.device], Warp] = OrderedDict()
         self.indexes = IndexCache(max_entries=check_int(max_indexes, "max_indexes", low=1))
-        self._simplified = _KeptIndex()
-        self._moved = _KeptIndex()
+        self._simplified = KeptIndex()
+        self._moved = KeptIndex()
         self._vertex_rows = _VertexRows(4 * max_warps)  # simplified k, moved k-1 and original k of each pair
 
     @property
@@ -227,7 +173,7 @@ class TemporalLossCache:
         # cache comes back as an empty one with the same folder and bound.
         registrations = RegistrationCache(self.registrations.directory, max_entries=self.registrations.max_entries)
         return {"max_warps": self.max_warps, "registrations": registrations, "_warps": OrderedDict(),
-                "indexes": self.indexes, "_simplified": _KeptIndex(), "_moved": _KeptIndex(),
+                "indexes": self.indexes, "_simplified": KeptIndex(), "_moved": KeptIndex(),
                 "_vertex_rows": _VertexRows(4 * self.max_warps)}  # fmt: skip
 
 
