@@ -148,6 +148,71 @@ SEAM += "f 1/1 2/2 3/3\nf 2/4 4/6 3/5\n"
 """A square of two triangles whose shared corners have other UVs in each (a seam), no texture map."""
 
 
+CSEAM = SEAM.replace("v 0 0 0\n", "v 0 0 0 1 0 0\n").replace("v 4 0 0\n", "v 4 0 0 0 1 0\n")
+CSEAM = CSEAM.replace("v 0 4 0\n", "v 0 4 0 0 0 1\n").replace("v 4 4 0\n", "v 4 4 0 1 1 1\n")
+""":data:`SEAM` with per-vertex colours (still no map); the distorted copy has its fourth vertex black."""
+
+
+def test_coloured_uv_seam_without_map(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Vertex colours and UVs without a map: the points keep their colours (mm keys on the UVs and keeps the colours;
+    the colours were dropped, no colour rows and PCQM 0). mm's figures: ``c[0],PSNRF`` 9.03480018, PCQM 0.210767856,
+    and its PLY (``pcc_cseam.ply``, with ``red green blue``)."""
+    a, b = tmp_path / "cs_ref.obj", tmp_path / "cs_dis.obj"
+    a.write_text(CSEAM)
+    b.write_text(CSEAM.replace("v 4 4 0 1 1 1\n", "v 4 4 0 0 0 0\n"))
+    assert (
+        main(
+            ["mpeg", str(a), str(b), "--sampling", "mesh", "--peak", "1", "--output-model-ref", str(tmp_path / "c.ply")]
+        )
+        == 0
+    )
+    rows = {line.split()[0]: line.split()[1:] for line in capsys.readouterr().out.splitlines() if line.strip()}
+    assert rows["y_psnr"][0] == "9.03480018"
+    assert (tmp_path / "c.ply").read_bytes() == (OUT / "pcc_cseam.ply").read_bytes()
+    assert main(["mpeg", str(a), str(b), "--mode", "pcqm"]) == 0
+    assert "PCQM value is : 0.210767856" in capsys.readouterr().out
+
+
+def _seamed_frames(tmp: Path, colours: bool) -> tuple[Path, Path]:
+    """Demo frames 0 and 1 (resolution 32) with random UVs, a seam at every face's first corner, no map; with
+    ``colours`` also random vertex colours (the review's ``mkseam.py``, seeds 3 and 5)."""
+    from torchmeshmetric.data import demo_sequence, save_mesh
+
+    seq = demo_sequence(num_frames=2, resolution=32)
+    rng, crng, paths = np.random.default_rng(3), np.random.default_rng(5), []
+    for i in (0, 1):
+        save_mesh(seq.frames[i], tmp / "frame.obj", overwrite=True)
+        lines = (tmp / "frame.obj").read_text().splitlines()
+        vs, fs = [x for x in lines if x.startswith("v ")], [x for x in lines if x.startswith("f ")]
+        out = vs + [f"vt {u:.6g} {v:.6g}" for u, v in rng.random((len(vs), 2))]
+        rows = []
+        for k, face in enumerate(fs):
+            a, b, c = (int(x.split("/")[0]) for x in face.split()[1:])
+            out.append(f"vt {rng.random():.6g} {rng.random():.6g}")
+            rows.append(f"f {a}/{len(vs) + k + 1} {b}/{b} {c}/{c}")
+        paths.append(tmp / f"seam{i}.obj")
+        paths[-1].write_text("\n".join(out + rows) + "\n")
+    if colours:  # a second pass, as the review made them: "v x y z" + " r g b"
+        for path in paths:
+            text = [x + " {:.4f} {:.4f} {:.4f}".format(*crng.random(3)) if x.startswith("v ") else x
+                    for x in path.read_text().splitlines()]  # fmt: skip
+            path.write_text("\n".join(text) + "\n")
+    return paths[0], paths[1]
+
+
+def test_seamed_frames_figures(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A UV seam at every face of two demo frames: the UV keying moved D2's MSE to mm's ``mseF (p2plane)``
+    0.000177506416 (0.000177506417 before, the seam's copies merged); with vertex colours PCQM is mm's 0.383744443
+    (0 while the colours were dropped)."""
+    a, b = _seamed_frames(tmp_path, colours=False)
+    assert main(["mpeg", str(a), str(b), "--sampling", "mesh", "--peak", "1"]) == 0
+    rows = {line.split()[0]: line.split()[1:] for line in capsys.readouterr().out.splitlines() if line.strip()}
+    assert rows["d2_mse"][0] == "0.000177506416"
+    a, b = _seamed_frames(tmp_path, colours=True)
+    assert main(["mpeg", str(a), str(b), "--mode", "pcqm"]) == 0
+    assert "PCQM value is : 0.383744443" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize("mode", ["pcc", "pcqm"])
 def test_uv_seam_without_map(tmp_path: Path, mode: str, capsys: pytest.CaptureFixture[str]) -> None:
     """UVs without a map key mmetric's reorder and point builder: the seam's points are kept once per UV (30

@@ -107,6 +107,30 @@ def test_obj_output(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert "must end with .ply or .obj" in capsys.readouterr().err
 
 
+def test_coloured_uvs_without_map(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Vertex colours and UVs without a map: sdiv and prnd keep the colours beside the UVs, as mm writes them (they
+    were dropped: ``v x y z`` without colour, a PLY without ``red green blue``); prnd's inner points are black in mm."""
+    from tests.mpeg.test_comparison_models import CSEAM
+
+    mesh = tmp_path / "cs.obj"
+    mesh.write_text(CSEAM)
+    assert main(["sample", str(mesh), str(tmp_path / "s.obj"), "--mode", "sdiv", "--area-threshold", "2"]) == 0
+    assert (tmp_path / "s.obj").read_bytes() == (MM_TESTS / "outputs" / "sdiv_cseam.obj").read_bytes()
+    assert main(["sample", str(mesh), str(tmp_path / "p.ply"), "--mode", "prnd", "--num-samples", "20"]) == 0
+    assert (tmp_path / "p.ply").read_bytes() == (MM_TESTS / "outputs" / "prnd_cseam.ply").read_bytes()
+    capsys.readouterr()
+
+
+def test_map_obj_output(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """``--mode map OUT.obj`` is mm's file: a ``vt`` row per point (its texel centre) and a last ``usemtl
+    material0000`` (both were missing: 207 lines against mm's 311)."""
+    out = tmp_path / "m.obj"
+    args = ["sample", str(MM_TESTS / "plane.obj"), str(out), "--mode", "map"]
+    assert main([*args, "--texture", str(MM_TESTS / "plane_10_10.png")]) == 0
+    assert out.read_bytes() == (MM_TESTS / "outputs" / "map_plane.obj").read_bytes()
+    capsys.readouterr()
+
+
 @pytest.mark.skipif(not MM.is_file(), reason="mmetric's mm binary absent (../shared/tools/mmetric/mm)")
 def test_obj_output_against_mm(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """face, sdiv and prnd clouds as OBJ, byte for byte; plane_qp8 (UVs, no map) keeps its UVs in sdiv and prnd

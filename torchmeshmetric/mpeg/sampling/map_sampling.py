@@ -90,7 +90,8 @@ def map_sample(mesh: TexturedMesh | MeshLike, *, name: str = "mesh") -> PointClo
         name: the mesh's name in error messages.
 
     Returns:
-        :class:`PointCloud` with face normals and texel colours, mmetric's points in its order.
+        :class:`PointCloud` with face normals, texel colours and the texel centres as UVs (the `vt` rows of mmetric's
+            OBJ), mmetric's points in its order.
 
     Raises:
         ValueError: the mesh has no UVs or no texture.
@@ -133,4 +134,5 @@ def map_sample(mesh: TexturedMesh | MeshLike, *, name: str = "mesh") -> PointClo
         torch.from_numpy(np.ascontiguousarray(points[kept])),
         torch.from_numpy(np.ascontiguousarray(normals[kept])),
         torch.from_numpy(np.ascontiguousarray(colours[kept])),
+        torch.from_numpy(np.ascontiguousarray(t[kept], dtype=np.float32)),  # mmetric keeps the texel UVs (OBJ vt)
     )

@@ -96,8 +96,8 @@ def prnd_sample(
     po, ao = pf[rows, o], af[rows, o]
     pos = (po + x[:, None] * (pf[rows, a] - po)) + y[:, None] * (pf[rows, b] - po)
     att = (ao + x[:, None] * (af[rows, a] - ao)) + y[:, None] * (af[rows, b] - ao)
-    if mesh.uvs is None:  # mmetric leaves the inner points' colour at zero
-        att = np.zeros_like(att)
+    # mmetric interpolates the inner points' UVs but leaves their vertex colour at zero (with or without UVs)
+    att[:, 0 if mesh.uvs is None else 2 :] = 0
     # mmetric's order: per face its three corners, then its inner points
     order = np.argsort(np.concatenate([np.repeat(np.arange(nf), 3), face]), kind="stable")
     points = np.concatenate([p.reshape(-1, 3), pos])[order]

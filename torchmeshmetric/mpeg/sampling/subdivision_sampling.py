@@ -29,12 +29,17 @@ _DBL_EPSILON = 2.220446049250313e-16
 
 
 def corner_attributes(mesh: TexturedMesh, faces: np.ndarray) -> np.ndarray:
-    """``(F, 3, C)`` float32 corner UVs, or else per-vertex colours; ``C = 0`` without either."""
+    """``(F, 3, C)`` float32 corner UVs (``C = 2``), then per-vertex colours (``C = 3`` more); ``C = 0`` without either.
+
+    The colours are left out under a texture (its colours replace them); UVs without a texture keep them, as
+    mmetric's sampler interpolates both and its ``ModelBuilder`` keeps both.
+    """
+    attrs = [np.zeros((faces.shape[0], 3, 0), np.float32)]
     if mesh.uvs is not None:
-        return mesh.uvs.numpy().astype(np.float32)
-    if mesh.colors is not None:
-        return mesh.colors.numpy().astype(np.float32)[faces]
-    return np.zeros((faces.shape[0], 3, 0), np.float32)
+        attrs.append(mesh.uvs.numpy().astype(np.float32))
+    if mesh.colors is not None and (mesh.uvs is None or mesh.texture is None):
+        attrs.append(mesh.colors.numpy().astype(np.float32)[faces])
+    return np.concatenate(attrs, axis=2)
 
 
 def subdivision_sample(
@@ -101,10 +106,11 @@ def subdivision_sample(
 def builder_cloud(
     mesh: TexturedMesh, points: np.ndarray, normals: np.ndarray, att: np.ndarray, bilinear: bool
 ) -> PointCloud:
-    """The rows mmetric's ``ModelBuilder`` keeps of pushed points with corner attributes ``att`` (UVs or colours).
+    """The rows mmetric's ``ModelBuilder`` keeps of pushed points with corner attributes ``att`` (UVs, colours).
 
-    The key is position, UV, colour and normal; UVs become texture colours (nearest or bilinear) when a texture
-    is there, and are kept as the cloud's UVs otherwise (mmetric's ``pushVertex`` without a valid map).
+    ``att`` is laid out as :func:`corner_attributes` gives it. The key is position, UV, colour and normal; UVs
+    become texture colours (nearest or bilinear) when a texture is there, and are kept as the cloud's UVs otherwise
+    (mmetric's ``pushVertex`` without a valid map), with the vertex colours where the mesh has them.
     """
     bilinear = check_flag(bilinear, "bilinear")
     colours = uvs = None
@@ -112,10 +118,11 @@ def builder_cloud(
     if mesh.uvs is not None and mesh.texture is not None:
         colours = sample_texture(mesh.texture, att, bilinear=bilinear)
         key = np.concatenate([att, colours], axis=1)
-    elif mesh.colors is not None and mesh.uvs is None:
-        colours = att
     elif mesh.uvs is not None:
-        uvs = att
+        uvs = att[:, :2]
+        colours = att[:, 2:] if mesh.colors is not None else None
+    elif mesh.colors is not None:
+        colours = att
     kept = unique_vertex_rows(points, normals, key)
     return PointCloud(
         torch.from_numpy(np.ascontiguousarray(points[kept])),

@@ -77,35 +77,34 @@ def vertex_sample(
     verts, faces = mesh_arrays(mesh)
     nf = faces.shape[0]
     pos = verts[faces].reshape(-1, 3)
-    keys = [pos]
-    uv = col = None
-    if uvs is not None:  # with or without a texture: mmetric's reorder and ModelBuilder key on the UVs
-        uv = np.asarray(uvs.detach().cpu().numpy() if isinstance(uvs, Tensor) else uvs, np.float32).reshape(-1, 2)
-        keys.append(uv)
-    elif colors is not None:
+    attrs = []  # corner attributes, UVs first: mmetric's reorder and ModelBuilder key on position, UV and colour
+    if uvs is not None:  # with or without a texture
+        attrs.append(np.asarray(uvs.detach().cpu().numpy() if isinstance(uvs, Tensor) else uvs, np.float32))
+        attrs[0] = attrs[0].reshape(-1, 2)
+    if colors is not None and (uvs is None or texture is None):  # a texture's colours replace the vertex colours
         c = np.asarray(colors.detach().cpu().numpy() if isinstance(colors, Tensor) else colors, np.float32)
-        col = c[faces].reshape(-1, 3)
-        keys.append(col)
-    corner_keys = np.concatenate(keys, axis=1)
-    tri = oriented_faces(corner_keys)
+        attrs.append(c[faces].reshape(-1, 3))
+    attr = np.concatenate(attrs, axis=1) if attrs else None
+    tri = oriented_faces(pos if attr is None else np.concatenate([pos, attr], axis=1))
     p1, p2, p3 = pos[tri[:, 0]], pos[tri[:, 1]], pos[tri[:, 2]]
     keep = f32.area(p1, p2, p3) >= _DBL_EPSILON
     if not keep.any():
         raise EmptyInputError(zero_area_message(name, nf))
     tri, p1, p2, p3 = tri[keep], p1[keep], p2[keep], p3[keep]
-    attr = uv if uv is not None else col
     corners = np.stack([p1, p2, p3], axis=1)
     width = 0 if attr is None else attr.shape[1]
     att3 = np.zeros((tri.shape[0], 3, 0), np.float32) if attr is None else attr[tri]
     points, normals, att = subdivision_rows(corners, att3.reshape(tri.shape[0], 3, width), max_depth, area_threshold)
     colours = point_uvs = None
-    if uv is not None and texture is not None:
+    if uvs is not None and texture is not None:
         colours = sample_texture(texture, att, bilinear=True)
-    elif uv is not None:  # no map: the points keep their UVs (mmetric's pushVertex without a valid image)
-        point_uvs = att
-    elif attr is not None:
+    elif uvs is not None:  # no map: the points keep their UVs, and their vertex colours (mmetric's pushVertex)
+        point_uvs = att[:, :2]
+        colours = att[:, 2:] if colors is not None else None
+    elif colors is not None:
         colours = att
-    kept = unique_vertex_rows(points, normals, colours if point_uvs is None else point_uvs)
+    key = colours if uvs is not None and texture is not None else att if width else None
+    kept = unique_vertex_rows(points, normals, key)
     return PointCloud(
         torch.from_numpy(np.ascontiguousarray(points[kept])),
         torch.from_numpy(np.ascontiguousarray(normals[kept])),
