@@ -11,10 +11,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 
 from tests.mpeg.conftest import MM_TESTS
+from torchmeshmetric import native
 from torchmeshmetric.cli import main
-from torchmeshmetric.mpeg.comparison.point_order import _introsort, lexicographic_order, mmetric_point_order
+from torchmeshmetric.mpeg.comparison.point_order import (
+    _introsort,
+    _tie_ranks,
+    lexicographic_order,
+    mmetric_point_order,
+)
 
 OUT = MM_TESTS / "outputs"
 
@@ -47,13 +54,53 @@ def test_signed_zero_ties_need_mm_sort() -> None:
     assert rows == [line.rstrip() for line in (OUT / "sorted_a.ply").read_text().splitlines()[8:]]
 
 
-def test_introsort_sorts() -> None:
-    """libstdc++'s introsort sorts whatever the ranks (many ties, sorted, reversed input; past its 16-element runs)."""
+# clouds whose ties mix -0 and 0, and the positions mm compare --mode equ --outputModelA wrote sorted: cloud_a (40
+# points), a McIlroy adversary of 1000 points (x = killer rank // 2; libstdc++ reaches its heapsort, one call over 964
+# points, counted in an instrumented copy of the replay) and 500 points of three x values (long runs of ties)
+MM_SORTS = [
+    ("cloud_a.obj", "sorted_a.ply"),
+    ("killer_cloud.obj", "killer_sorted.ply"),
+    ("ties_cloud.obj", "ties_sorted.ply"),
+]
+
+
+def _mm_sorted_rows(cloud: str, sorted_file: str) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    from torchmeshmetric.mpeg.comparison.equality import load_equality_model
+
+    p = load_equality_model(OUT / cloud).positions
+    keys, order = lexicographic_order(p)
+    rank = _tie_ranks(p, keys, order)
+    assert rank is not None
+    return p, rank, [line.rstrip() for line in (OUT / sorted_file).read_text().splitlines()[8:]]
+
+
+@pytest.mark.parametrize(("cloud", "sorted_file"), MM_SORTS)
+def test_introsort_tie_order(cloud: str, sorted_file: str) -> None:
+    """The replay's order of ties is mm's (the -0 / 0 pattern of its file), in Python and in C++; a stable sort's is
+    not. (This test checked only that the output was sorted, blind to the order of ties.)"""
+    p, rank, mm_rows = _mm_sorted_rows(cloud, sorted_file)
+    stable = lexicographic_order(p)[1]
+    orders = {"python": np.asarray(_introsort(rank.tolist())), "native": mmetric_point_order(p), "stable": stable}
+    rows = {k: [" ".join(f"{v:.9g}" for v in r) for r in p[o].astype(np.float64).tolist()] for k, o in orders.items()}
+    assert rows["python"] == mm_rows and rows["native"] == mm_rows
+    assert rows["stable"] != mm_rows
+
+
+def test_native_introsort_is_the_reference() -> None:
+    """The C++ replay leaves the Python reference's permutation on ranks of every shape: many ties, sorted, reversed,
+    organ pipe, all equal, the McIlroy adversary (heapsort) and its ranks // 7, tiny, 16 / 17 elements."""
+    ext = native.load("pcc")
     rng = np.random.default_rng(0)
-    for rank in (rng.integers(0, 3, 500), np.arange(300), np.arange(300)[::-1], rng.integers(0, 10**6, 1000)):
-        order = _introsort(rank.tolist())
-        assert sorted(order) == list(range(len(rank)))
-        assert np.all(np.diff(rank[order]) >= 0)
+    killer = _mm_sorted_rows("killer_cloud.obj", "killer_sorted.ply")[1]
+    cases = [rng.integers(0, 3, 500), np.arange(300), np.arange(300)[::-1], rng.integers(0, 10**6, 1000),
+             np.minimum(np.arange(2000), 2000 - np.arange(2000)), np.zeros(100, np.int64), killer, killer // 7,
+             np.array([1, 0]), np.array([0]), np.array([], np.int64), rng.integers(0, 4, 16),
+             rng.integers(0, 4, 17)]  # fmt: skip
+    for rank in cases:
+        rank = np.ascontiguousarray(rank, np.int64)
+        expected = _introsort(rank.tolist())
+        assert ext.introsort_permutation(torch.from_numpy(rank)).tolist() == expected, rank[:20]
+        assert np.all(np.diff(rank[expected]) >= 0)
 
 
 @pytest.mark.parametrize("mode", ["equ", "eqTFAN"])

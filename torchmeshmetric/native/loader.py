@@ -79,8 +79,12 @@ EXTENSIONS: dict[str, NativeExtension] = {
         sources=("ibsm_raster.cpp",), headers=("parallel.h",), cflags=(*_EXACT, "-fopenmp"), ldflags=("-fopenmp",)
     ),
     # mmetric's pcc comparison: the duplicate merge and the neighbour search with ties (mpeg.point_cloud, neighbours).
+    # Also the replay of mmetric's std::sort of a cloud's positions (mpeg.comparison.point_order).
     "pcc": NativeExtension(
-        sources=("mpeg_pcc.cpp",), headers=("parallel.h",), cflags=(*_EXACT, "-fopenmp"), ldflags=("-fopenmp",)
+        sources=("mpeg_pcc.cpp", "point_order.cpp"),
+        headers=("parallel.h",),
+        cflags=(*_EXACT, "-fopenmp"),
+        ldflags=("-fopenmp",),
     ),
     # mmetric's PCQM (compare --mode pcqm): its k-d tree searches, quadric fits and pooled features (mpeg.pcqm).
     "pcqm": NativeExtension(

@@ -662,7 +662,11 @@ torch::Tensor mpeg_plane_errors(torch::Tensor query, torch::Tensor target, torch
   return out_t;
 }
 
+// point_order.cpp (compiled into the same extension).
+torch::Tensor introsort_permutation(const torch::Tensor& rank);
+
 PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
+  m.def("introsort_permutation", &introsort_permutation, "the permutation libstdc++'s std::sort leaves, by rank");
   m.def("mpeg_plane_errors", &mpeg_plane_errors, "dmetric's squared point-to-plane error per (query, target) pair");
   m.def("mpeg_merge", &mpeg_merge, "dmetric's duplicate merge (dropDuplicates = 2): sorted, runs averaged");
   m.def("mpeg_nearest_ties", &mpeg_nearest_ties, "nearest neighbours with dmetric's equidistant-neighbour rule");

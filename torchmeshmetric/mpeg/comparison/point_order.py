@@ -8,12 +8,17 @@ numpy's stable sort when no tie mixes bit patterns (every order of such ties wri
 runs libstdc++'s introsort (GCC's ``std::sort``: median-of-three quicksort to 16-element runs, heapsort past a
 depth of ``2 * floor(log2(n))``, then insertion sort), the one mmetric v1.1.7 is built with, on the points' ranks.
 Measured on the v1.1.7 binary: 5 points with signed zeros come out in input order (insertion sort), 200 points with
-signed zeros in the order this emulation gives.
+signed zeros in the order this emulation gives. The replay runs in C++ (``native/point_order.cpp``, the same steps
+written out, not this build's ``std::sort``, whose order of ties is its library's); :func:`_introsort` is its Python
+reference, used where the extension cannot be built.
 """
 
 from __future__ import annotations
 
 import numpy as np
+import torch
+
+from torchmeshmetric import native
 
 __all__ = ["lexicographic_order", "mmetric_point_order"]
 
@@ -56,15 +61,26 @@ def mmetric_point_order(positions: np.ndarray) -> np.ndarray:
     """
     p = np.asarray(positions, np.float32).reshape(-1, 3)
     keys, order = lexicographic_order(p)
+    rank = _tie_ranks(p, keys, order)
+    if rank is None:
+        return order.astype(np.int64)  # ties are bit-identical: any order of them is the same file
+    ext = native.try_load("pcc")  # None without a C++ compiler: the Python replay (seconds at 1M points)
+    if ext is not None:
+        return ext.introsort_permutation(torch.from_numpy(rank)).numpy()
+    return np.asarray(_introsort(rank.tolist()), np.int64)
+
+
+def _tie_ranks(p: np.ndarray, keys: np.ndarray, order: np.ndarray) -> np.ndarray | None:
+    """``(N,)`` int64 dense ranks of the points under mmetric's ``<``, or ``None`` where no tie mixes bit patterns."""
     if len(order) < 2:
-        return order.astype(np.int64)
+        return None
     ks, bits = keys[order], p[order].view(np.uint32)
     tied = (ks[1:] == ks[:-1]).all(axis=1)
     if not (tied & (bits[1:] != bits[:-1]).any(axis=1)).any():
-        return order.astype(np.int64)  # ties are bit-identical: any order of them is the same file
+        return None
     rank = np.empty(len(order), np.int64)
     rank[order] = np.concatenate([[0], np.cumsum(~tied)])
-    return np.asarray(_introsort(rank.tolist()), np.int64)
+    return rank
 
 
 def _introsort(rank: list[int]) -> list[int]:
