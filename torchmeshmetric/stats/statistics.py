@@ -179,6 +179,12 @@ def _psnr_db(mse: Tensor, peak: float | Tensor) -> Tensor:
     return torch.where(mse > 0, val, torch.full_like(val, math.inf))
 
 
+_LOOP_MIN_MEAN = 8
+"""Mean item size from which :func:`_sorted_within_items` sorts item by item with numpy (below it, two torch sorts
+of all items; the crossover measured at 10k items of 9 values, one thread: 0.0082 s the torch sorts, 0.0092 s numpy
+by item, 2026-12-07)."""
+
+
 def _sorted_within_items(x: Tensor, lens: Tensor) -> Tensor:
     """``x`` (packed by ``lens``) with each item's values sorted ascending (NaN last).
 
@@ -189,20 +195,26 @@ def _sorted_within_items(x: Tensor, lens: Tensor) -> Tensor:
     the interpolation in :func:`linear_quantiles` gives +0 for any signs of zeros, so the quantiles are the same bits.
     Elsewhere (CUDA: no host read of ``lens``) the two stable torch sorts.
     """
-    if x.device.type == "cpu" and lens.device.type == "cpu":
-        sizes = lens.tolist()
-        if sum(sizes) == x.numel() and min(sizes, default=0) >= 0:  # else the torch path, as before
+    nb = lens.numel()
+    if x.device.type == "cpu" and lens.device.type == "cpu" and nb:
+        lo, hi, total = int(lens.min()), int(lens.max()), int(lens.sum())
+        if total == x.numel() and lo >= 0:  # else the torch path, as before
             import numpy as np
 
             a = x.numpy(force=True)
-            if len(sizes) == 1:
+            if nb == 1:
                 return torch.from_numpy(np.sort(a))
-            out = np.empty_like(a)
-            start = 0
-            for n in sizes:
-                out[start : start + n] = np.sort(a[start : start + n])
-                start += n
-            return torch.from_numpy(out)
+            if lo == hi:  # items of one size: one sort along rows
+                return torch.from_numpy(np.sort(a.reshape(nb, lo), axis=1).reshape(-1))
+            if a.size >= _LOOP_MIN_MEAN * nb:
+                out = np.empty_like(a)
+                start = 0
+                for n in lens.tolist():
+                    out[start : start + n] = np.sort(a[start : start + n])
+                    start += n
+                return torch.from_numpy(out)
+            # many tiny items of several sizes: a sort call per item (~1 us each) loses to the two torch sorts below
+            # (100k items of 2-3 values: 0.087 s by item, 0.024 s the two sorts; numpy's lexsort 0.035 s)
     b = batch_index(lens)
     # Sort by value, then stably by item: values sorted within each item.
     order = torch.argsort(x, stable=True)
