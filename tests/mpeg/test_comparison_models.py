@@ -6,7 +6,9 @@ same cases against the binary itself are in ``test_comparison_models_against_mm.
 
 from __future__ import annotations
 
+import io
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -273,3 +275,29 @@ def test_uv_seam_without_map(tmp_path: Path, mode: str, capsys: pytest.CaptureFi
     lines = (tmp_path / "c.obj").read_text().splitlines()
     assert [x.split()[0] for x in lines[1:] if x].count("vt") == 30 and lines[-1] == "usemtl material0000"
     capsys.readouterr()
+
+
+class _ClosedStdout(io.StringIO):
+    """A stdout whose reader went away (``... | head -1``): every write raises BrokenPipeError."""
+
+    def write(self, text: str) -> int:
+        raise BrokenPipeError(32, "Broken pipe")
+
+
+@pytest.mark.parametrize("mode", ["equ", "eqTFAN", "pcqm", "ibsm", "topo"])
+def test_files_written_before_printing(tmp_path: Path, mode: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """With stdout closed the files asked for are still written, as in pcc mode (these modes printed first, so the
+    BrokenPipeError ended them with nothing written, exit status 1 or 2 and no message); the exit status stays
+    non-zero, as SIGPIPE's (mm, which prints first, dies of it with no file)."""
+    plane = MM_TESTS / "plane.obj"
+    extra: list[str] = []
+    if mode == "topo":
+        (tmp_path / "f.txt").write_text("".join(f"{i} {i}\n" for i in range(2)))
+        (tmp_path / "v.txt").write_text("".join(f"{i} {i}\n" for i in range(4)))
+        extra = ["--face-map", str(tmp_path / "f.txt"), "--vertex-map", str(tmp_path / "v.txt")]
+    if mode in ("pcqm", "ibsm"):
+        extra = ["--output-csv", str(tmp_path / "s.csv")]
+    monkeypatch.setattr(sys, "stdout", _ClosedStdout())
+    assert _run(tmp_path, mode, plane, plane, "a.ply", "b.obj", *extra) != 0
+    assert (tmp_path / "a.ply").is_file() and (tmp_path / "b.obj").is_file()
+    assert mode not in ("pcqm", "ibsm") or (tmp_path / "s.csv").is_file()

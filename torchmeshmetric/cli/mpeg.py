@@ -57,11 +57,13 @@ def _run_equality(args: argparse.Namespace) -> int:
         result = mesh_equality(ref, dis, unoriented=args.unoriented, epsilon=args.epsilon)
     except ValueError as exc:
         raise as_option_error(exc, {"epsilon": "--epsilon"}) from exc
+    # The files before the figures, in every mode: a closed stdout (`... | head -1`) ends the command at its print,
+    # and the files asked for are written by then (mm, which prints first, dies of SIGPIPE without them).
+    write_comparison_models(args, (ref, dis) if result.points else None)
     if args.json:
         print(json.dumps(asdict(result), indent=1))
     else:
         print(result.report(early_return=not args.all_differences))
-    write_comparison_models(args, (ref, dis) if result.points else None)
     return 0 if result.equal else 1
 
 
@@ -90,7 +92,6 @@ def _run_pcqm(args: argparse.Namespace) -> int:
         )
     except ValueError as exc:
         raise as_option_error(exc, _PCQM_OPTIONS) from exc
-    print(json.dumps(json_safe(result.to_dict()), indent=1) if args.json else result.report())
     row = ""
     if args.output_csv is not None:
         row = pcqm_csv_row(
@@ -103,7 +104,8 @@ def _run_pcqm(args: argparse.Namespace) -> int:
             knn=args.threshold_knn_search,
             radius_factor=args.radius_factor,
         )
-    write_models(args, cloud_texts(args, ref, dis), row)
+    write_models(args, cloud_texts(args, ref, dis), row)  # the files first: see _run_equality
+    print(json.dumps(json_safe(result.to_dict()), indent=1) if args.json else result.report())
     return 0
 
 
@@ -121,8 +123,8 @@ def _run_topology(args: argparse.Namespace) -> int:
         )
     ref, dis = load_pair(args)
     result = topology_equivalence(ref, dis, args.face_map, args.vertex_map)
+    write_comparison_models(args, None)  # the files first: see _run_equality
     print(json.dumps(asdict(result), indent=1) if args.json else result.report())
-    write_comparison_models(args, None)
     return 0 if result.matching else 1
 
 
@@ -140,8 +142,8 @@ def _run_tfan(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise as_option_error(exc, {"epsilon": "--epsilon"}) from exc
     report = result.report()
+    write_comparison_models(args, (ref, dis) if result.points else None)  # the files first: see _run_equality
     print(json.dumps({**asdict(result), "report": report}, indent=1) if args.json else report)
-    write_comparison_models(args, (ref, dis) if result.points else None)
     return 0 if result.equal else 1
 
 

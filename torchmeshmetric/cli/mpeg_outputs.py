@@ -242,7 +242,6 @@ def run_ibsm(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise as_option_error(exc, {"resolution": "--ibsm-resolution", "cameras": "--ibsm-cameras"}) from exc
     seconds = time.process_time() - start
-    print(json.dumps(json_safe(asdict(result)), indent=1) if args.json else _ibsm_lines(result))
     texts = []
     for path, mesh, name in ((args.output_model_ref, ref, args.ref), (args.output_model_dis, dis, args.dis)):
         text = "" if path is None else textured_mesh_text(oriented_reindex(mesh), Path(path).suffix, obj_header(name))
@@ -259,5 +258,6 @@ def run_ibsm(args: argparse.Namespace) -> int:
             resolution=args.ibsm_resolution,
             seconds=seconds,
         )
-    _write(args, (texts[0], texts[1]), IBSM_CSV_HEADER, row)
+    _write(args, (texts[0], texts[1]), IBSM_CSV_HEADER, row)  # the files first, as every mode: see _run_equality
+    print(json.dumps(json_safe(asdict(result)), indent=1) if args.json else _ibsm_lines(result))
     return 0
