@@ -317,7 +317,8 @@ def _normal_clouds(tmp: Path) -> tuple[Path, Path, Path]:
         head = "ply\nformat ascii 1.0\nelement vertex 200\n" + "".join(f"property float {c}\n" for c in "xyz")
         head += "".join(f"property float {c}\n" for c in names.split()) + "end_header\n"
         cols = [nrm[:, "xyz".index(c[1])] for c in names.split()]
-        body = "".join(" ".join(f"{v:.6g}" for v in (*a, *b)) + "\n" for a, b in zip(pos, np.stack(cols, 1), strict=True))
+        rows = zip(pos, np.stack(cols, 1), strict=True)
+        body = "".join(" ".join(f"{v:.6g}" for v in (*a, *b)) + "\n" for a, b in rows)
         path.write_text(head + body)
         return path
 
