@@ -47,8 +47,9 @@ def vertex_sample(
     face normal; faces whose area is at least ``area_threshold`` (an *absolute* area in model units: a unit-scale mesh
     yields its vertices, an integer-scale one is subdivided) are split at their edge midpoints, recursively, at
     most ``max_depth - 1`` times, each new point with the normal of the face it splits. Colour comes from the texture
-    (bilinear, at the point's UV) or from per-vertex colours. Points equal in position, normal and colour are kept
-    once; :func:`mpeg_compare` then merges equal positions.
+    (bilinear, at the point's UV) or from per-vertex colours; without a texture the points keep their UVs too (and
+    the colours beside them). Points equal in position, normal, UV and colour are kept once; :func:`mpeg_compare`
+    then merges equal positions.
 
     Args:
         mesh: the mesh (vertices rounded to float32 as mmetric reads them).
@@ -60,7 +61,7 @@ def vertex_sample(
         name: the mesh's name in error messages (``"ref"``, ``"dis"``, a file).
 
     Returns:
-        :class:`PointCloud` with normals (and colours).
+        :class:`PointCloud` with normals (and colours; UVs where there are UVs and no texture).
 
     Raises:
         EmptyInputError: the mesh has no face, or every face has zero area (nothing to sample).
