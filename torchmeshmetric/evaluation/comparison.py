@@ -497,6 +497,25 @@ def comparison_markdown(comparisons: Mapping[str, Mapping[str, Mapping[str, Mapp
     (:func:`with_nudged_verdicts`), a cell whose verdict they change starts with ``~``, the note under the tables
     counts them, and each number (the noise floors too) keeps only the digits both runs share (``~`` before a number
     none of whose digits held).
+
+    Args:
+        comparisons: the verdicts of :func:`compare_methods` (``{"<A> vs <B>": {set: {statistic: entry}}}``, each
+            entry with ``"difference"``, ``"ci95"``, ``"verdict"`` and optionally ``"noise_floor"``,
+            ``"both_inf_pairs"`` and the ``"nudged_*"`` keys of :func:`with_nudged_verdicts`).
+
+    Returns:
+        The Markdown text: per pair of methods a ``###`` title and a table, the notes under it, then the legend.
+
+    Raises:
+        KeyError: an entry without ``"difference"``, ``"ci95"`` or ``"verdict"``.
+
+    Example:
+        >>> ave = {"difference": 0.2, "ci95": [0.1, 0.3], "verdict": "A better"}
+        >>> rmse = {"difference": -0.01, "ci95": [-0.03, 0.01], "verdict": "inconclusive"}
+        >>> lines = comparison_markdown({"A vs B": {"surface_k": {"ave": ave, "rmse": rmse}}}).splitlines()
+        >>> print(lines[2]); print(lines[4])
+        | set | ave | rmse |
+        | surface_k | A: 0.2 ± 0.1 | ≈: -0.01 ± 0.02 |
     """
     out = []
     for title, sets in comparisons.items():

@@ -156,6 +156,30 @@ def default_register(
     name a ``sampling`` (:func:`evaluation_keywords`).
     Its qualified name is the ``"register"`` of its cache settings
     (:data:`~torchmeshmetric.registration.cache.DEFAULT_REGISTER`).
+
+    Args:
+        source: frame ``k-1``, ``(V_{k-1}, 3)`` vertices.
+        target: frame ``k``.
+        device: where the registration computes (default: ``source``'s device); the result is on the CPU.
+        **options: the registration's options (:data:`RegistrationOptions`: ``options=NonRigidOptions(...)`` or
+            its fields as keywords, e.g. ``num_points=500``).
+
+    Returns:
+        A :class:`~torchmeshmetric.registration.CachedRegistration`: ``verts`` ``(V_{k-1}, 3)`` and ``residual``
+        ``(V_{k-1},)`` in the frames' promoted dtype, ``converged``, ``seconds`` and ``warp`` (float64).
+
+    Raises:
+        TypeError: an option that is not a registration option (the message lists them).
+
+    Example:
+        >>> import torch, trimesh
+        >>> from torchmeshmetric import Mesh
+        >>> sphere = trimesh.creation.icosphere(2)
+        >>> source = Mesh(torch.tensor(sphere.vertices, dtype=torch.float32), torch.tensor(sphere.faces))
+        >>> target = Mesh(source.verts + torch.tensor([0.02, 0.0, 0.0]), source.faces)  # moved by 0.02 along x
+        >>> reg = default_register(source, target)
+        >>> tuple(reg.verts.shape), reg.verts.dtype, reg.converged, bool(reg.residual.max() < 1e-6)
+        ((162, 3), torch.float32, True, True)
     """
     return compute_registration(source, target, device=device, dtype=REGISTRATION_DTYPE, **evaluation_keywords(options))
 
@@ -169,7 +193,23 @@ def registration_settings(register: RegisterFn | None, options: Mapping[str, Any
     evaluation then keys it by the function object, in memory only
     (:meth:`~torchmeshmetric.registration.RegistrationCache.session_name`).
 
+    Args:
+        register: the caller's registration function ``register(source, target)``, or ``None`` for the library's
+            (:func:`default_register`).
+        options: the registration's options (:data:`RegistrationOptions`); ``None`` for the defaults.
+
+    Returns:
+        For the library's registration its cache settings (``"register"``, ``"results_version"``, ``"options"``: the
+        complete :class:`~torchmeshmetric.registration.NonRigidOptions`, ``"computes_in"``: ``"float64"``); for a
+        caller's function ``{"register": name or None, "options": dict(options)}``.
+
+    Raises:
+        TypeError: with ``register=None``, an option that is not a registration option.
+
     Example:
+        >>> settings = registration_settings(None, {"num_points": 500})
+        >>> settings["options"].num_points, settings["options"].sampling, settings["computes_in"]
+        (500, 'canonical', 'float64')
         >>> registration_settings(lambda s, t: s, {})["register"] is None
         True
     """

@@ -236,6 +236,28 @@ def paper_tables(
             place, at most those of :data:`COLUMN_FORMATS`.
         json_file: what the note under the tables names as keeping the full values: the JSON report's file name,
             or e.g. ``"the JSON report (--out)"`` for tables printed without one.
+
+    Returns:
+        The Markdown text: one ``###`` section per table (a header row, then per method its ``(k-1)-th``, ``k-th``
+        and, in the surface tables, ``flicker`` rows, then the registration's rows), the best pair rule and the
+        notes on the registration rows and the digits; ends with a newline.
+
+    Raises:
+        ValueError: ``methods`` is empty.
+        TypeError: ``reverse`` is not a bool.
+
+    Example:
+        >>> import trimesh
+        >>> from torchmeshmetric.evaluation import evaluate_sequence
+        >>> frames = [trimesh.creation.icosphere(1)] * 2
+        >>> moved = [f.copy().apply_translation([0.01, 0, 0]) for f in frames]  # every vertex 0.01 away
+        >>> seq = evaluate_sequence(frames, moved, registration_fn=lambda s, t: s)
+        >>> lines = paper_tables({"moved": seq}).splitlines()
+        >>> lines[0]
+        '### Table I: best pair, mesh surface distance (frames 0 -> 1)'
+        >>> table_2 = lines[lines.index("### Table II: best pair, nearest vertex distance (frames 0 -> 1)") :]
+        >>> [line.split(" | ")[2] for line in table_2 if line.startswith("| moved | k-th")][0]  # Ave: 0.01 exactly
+        '0.010'
     """
     reverse = check_flag(reverse, "reverse")
     if not methods:
@@ -337,6 +359,28 @@ def report_dict(
     ``registration``, ``timings``), ``aggregate`` under the same keys and ``best_pair``. Non-finite floats are
     written as the strings ``"nan"``, ``"inf"``. With ``comparisons`` (from
     :func:`~torchmeshmetric.evaluation.compare_methods`) the report also holds ``"comparisons"``.
+
+    Args:
+        methods: method name → its sequence evaluation (all on the same original sequence).
+        settings: the run's settings, written under ``"settings"`` (default: ``{}``).
+        comparisons: the verdicts of :func:`~torchmeshmetric.evaluation.compare_methods`, written under
+            ``"comparisons"`` when given.
+
+    Returns:
+        A dict of plain Python values (str, int, float, list, dict) that :func:`json.dumps` writes with
+        ``allow_nan=False``; the values are full precision (not the tables' digits).
+
+    Example:
+        >>> import trimesh
+        >>> from torchmeshmetric.evaluation import evaluate_sequence
+        >>> frames = [trimesh.creation.icosphere(1)] * 2
+        >>> moved = [f.copy().apply_translation([0.01, 0, 0]) for f in frames]  # every vertex 0.01 away
+        >>> report = report_dict({"moved": evaluate_sequence(frames, moved, registration_fn=lambda s, t: s)})
+        >>> sorted(report), report["methods"]["moved"]["pairs"][0]["frame"]
+        (['methods', 'set_names', 'settings', 'tool', 'version'], 1)
+        >>> vertex_k = report["methods"]["moved"]["pairs"][0]["vertex_k"]
+        >>> round(vertex_k["max"], 12), vertex_k["count"]
+        (0.01, 42)
     """
     return json_safe(
         {
@@ -351,7 +395,29 @@ def report_dict(
 
 
 def write_json(path: str | os.PathLike[str], report: Mapping[str, Any], *, overwrite: bool = False) -> Path:
-    """Write a :func:`report_dict` as strict JSON, atomically."""
+    """Write a :func:`report_dict` as strict JSON, atomically.
+
+    Args:
+        path: destination file (``.json``).
+        report: the report, e.g. from :func:`report_dict` (only strict JSON values: non-finite floats as strings).
+        overwrite: replace an existing file; by default an existing ``path`` is left untouched.
+
+    Returns:
+        The path written.
+
+    Raises:
+        FileExistsError: ``path`` exists and ``overwrite`` is ``False``.
+        ValueError: ``report`` holds a non-finite float (strict JSON has none; :func:`report_dict` writes them as
+            strings).
+        TypeError: ``overwrite`` is not a bool, or ``report`` holds a value JSON cannot write.
+
+    Example:
+        >>> import json, os, tempfile
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     path = write_json(os.path.join(folder, "report.json"), {"tool": "torchmeshmetric", "psnr": "inf"})
+        ...     json.loads(path.read_text())
+        {'tool': 'torchmeshmetric', 'psnr': 'inf'}
+    """
     overwrite = check_flag(overwrite, "overwrite")
     return atomic_write(path, json.dumps(report, indent=2, allow_nan=False) + "\n", overwrite=overwrite)
 
@@ -366,7 +432,36 @@ def write_markdown(
     determinacy: Determinacy | None = None,
     json_file: str = "report.json",
 ) -> Path:
-    """Write :func:`markdown_report` to a file, atomically."""
+    """Write :func:`markdown_report` to a file, atomically.
+
+    Args:
+        path: destination file (``.md``).
+        methods: method name → its sequence evaluation (all on the same original sequence).
+        overwrite: replace an existing file; by default an existing ``path`` is left untouched.
+        extra: Markdown appended after the tables (e.g. the MPEG section of ``--mpeg``).
+        comparisons: the verdicts of :func:`~torchmeshmetric.evaluation.compare_methods`, printed as
+            :func:`~torchmeshmetric.evaluation.comparison.comparison_markdown` tables.
+        determinacy: this run's measured determinacy, as in :func:`paper_tables`.
+        json_file: the JSON report the notes name as keeping the full values, as in :func:`paper_tables`.
+
+    Returns:
+        The path written.
+
+    Raises:
+        FileExistsError: ``path`` exists and ``overwrite`` is ``False``.
+        ValueError: ``methods`` is empty.
+        TypeError: ``overwrite`` is not a bool.
+
+    Example:
+        >>> import os, tempfile, trimesh
+        >>> from torchmeshmetric.evaluation import evaluate_sequence
+        >>> frames = [trimesh.creation.icosphere(1)] * 2
+        >>> seq = evaluate_sequence(frames, frames, registration_fn=lambda s, t: s)
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     text = write_markdown(os.path.join(folder, "report.md"), {"same": seq}).read_text()
+        >>> text.splitlines()[0], "| same | k-th | 0.0 |" in text
+        ('# torchmeshmetric evaluation', True)
+    """
     overwrite = check_flag(overwrite, "overwrite")
     text = markdown_report(methods, extra=extra, comparisons=comparisons, determinacy=determinacy, json_file=json_file)
     return atomic_write(path, text, overwrite=overwrite)
@@ -400,7 +495,31 @@ def write_csv(
     Columns: ``table`` (``I``..``IV``, ``III-reverse``, ``IV-reverse``, or ``pair`` for per-frame rows), ``algorithm``,
     ``set`` (e.g. ``surface_k_minus_1``, ``flicker``; ``reverse:...`` for reverse sets; ``registration:residual``
     and ``registration:error`` for the registration's rows), ``frame`` (pair rows and tables I/II), then the
-    statistics ``ave, var, std, mse, rmse, max, p95, psnr``.
+    statistics ``ave, var, std, mse, rmse, max, p95, psnr`` at full precision (``repr`` of the float).
+
+    Args:
+        path: destination file (``.csv``).
+        methods: method name → its sequence evaluation (all on the same original sequence).
+        overwrite: replace an existing file; by default an existing ``path`` is left untouched.
+
+    Returns:
+        The path written.
+
+    Raises:
+        FileExistsError: ``path`` exists and ``overwrite`` is ``False``.
+        TypeError: ``overwrite`` is not a bool.
+
+    Example:
+        >>> import csv, os, tempfile, trimesh
+        >>> from torchmeshmetric.evaluation import evaluate_sequence
+        >>> frames = [trimesh.creation.icosphere(1)] * 2
+        >>> moved = [f.copy().apply_translation([0.01, 0, 0]) for f in frames]  # every vertex 0.01 away
+        >>> seq = evaluate_sequence(frames, moved, registration_fn=lambda s, t: s)
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     rows = list(csv.DictReader(write_csv(os.path.join(folder, "r.csv"), {"moved": seq}).open()))
+        >>> row = [r for r in rows if r["table"] == "pair" and r["set"] == "vertex_k"][0]
+        >>> row["frame"], round(float(row["max"]), 12)
+        ('1', 0.01)
     """
     overwrite = check_flag(overwrite, "overwrite")
     buf = io.StringIO()
