@@ -182,10 +182,23 @@ def write_error_ply(
             are compared side by side.
         overwrite: replace an existing file.
 
+    Returns:
+        The path written: a binary PLY with the vertices (float64), the faces and one RGBA colour per vertex.
+
     Raises:
         ShapeError: when ``dists`` does not have one value per vertex.
         NonFiniteError, ValueError, TypeError: a distance is NaN, infinite or negative, or ``vmax`` is not a finite
             positive number (:func:`error_colors`).
+        FileExistsError: ``path`` exists and ``overwrite`` is ``False``.
+
+    Example:
+        >>> import os, tempfile, torch, trimesh
+        >>> box = trimesh.creation.box()  # 8 vertices
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     path = write_error_ply(os.path.join(folder, "error.ply"), box, torch.linspace(0, 1, 8), vmax=1.0)
+        ...     back = trimesh.load(path, process=False)
+        >>> back.vertices.shape, back.visual.vertex_colors[[0, -1]].tolist()  # viridis: 0 dark, vmax bright
+        ((8, 3), [[68, 1, 84, 255], [253, 231, 37, 255]])
     """
     overwrite = check_flag(overwrite, "overwrite")
     import trimesh  # ~0.3 s to import: on use only, `import torchmeshmetric` never loads it

@@ -451,6 +451,12 @@ def html_page(
 
     Returns:
         The HTML text (UTF-8, no external resource).
+
+    Example:
+        >>> table = chr(10).join(["| a | b |", "|---|---|", "| 1 | 2 |"])
+        >>> page = html_page("Demo <1>", table, notes=["no meshes: none given"])
+        >>> "<h1>Demo &lt;1&gt;</h1>" in page, 'id="viewer"' in page, page.count("<table")
+        (True, False, 1)
     """
     parts = [f"<h1>{html.escape(title)}</h1>"]
     parts += [f'<p class="note">{_inline(n)}</p>' for n in notes]
@@ -489,6 +495,26 @@ def html_page(
 
 
 def write_html(path: str | os.PathLike[str], page: str, *, overwrite: bool = False) -> Path:
-    """Write an :func:`html_page` atomically."""
+    """Write an :func:`html_page` atomically.
+
+    Args:
+        path: destination ``.html`` file.
+        page: the page's text (:func:`html_page`), written as UTF-8.
+        overwrite: replace an existing file.
+
+    Returns:
+        The path written.
+
+    Raises:
+        FileExistsError: ``path`` exists and ``overwrite`` is ``False``.
+        TypeError: ``overwrite`` is not a bool.
+
+    Example:
+        >>> import os, tempfile
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     text = write_html(os.path.join(folder, "report.html"), html_page("Demo", "## Tables")).read_text()
+        >>> text.startswith("<!DOCTYPE html>"), "<h1>Demo</h1>" in text
+        (True, True)
+    """
     overwrite = check_flag(overwrite, "overwrite")
     return atomic_write(path, page, overwrite=overwrite)

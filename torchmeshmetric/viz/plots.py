@@ -145,6 +145,24 @@ def plot_histograms(
         path: destination ``.png``.
         bins: number of bins (shared by the methods of a panel).
         overwrite: replace an existing file.
+
+    Returns:
+        The path written (a PNG of :func:`histogram_figure`).
+
+    Raises:
+        FileExistsError: ``path`` exists and ``overwrite`` is ``False``.
+        TypeError: ``overwrite`` is not a bool.
+
+    Example:
+        >>> import os, tempfile, trimesh
+        >>> from torchmeshmetric.evaluation import evaluate_sequence
+        >>> frames = [trimesh.creation.icosphere(1)] * 2
+        >>> moved = [f.copy().apply_translation([0.01, 0, 0]) for f in frames]
+        >>> seq = evaluate_sequence(frames, moved, registration_fn=lambda s, t: s)
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     png = plot_histograms({"moved": seq.pairs[0]}, os.path.join(folder, "hist.png")).read_bytes()
+        >>> png[1:4]  # the PNG signature
+        b'PNG'
     """
     overwrite = check_flag(overwrite, "overwrite")
     return _save(histogram_figure(methods, bins=bins), path, overwrite)
@@ -164,6 +182,25 @@ def plot_frame_curves(
         path: destination ``.png``.
         statistic: a field of :class:`~torchmeshmetric.stats.DistanceStatistics` (default ``"rmse"``).
         overwrite: replace an existing file.
+
+    Returns:
+        The path written (a PNG of :func:`frame_curves_figure`).
+
+    Raises:
+        FileExistsError: ``path`` exists and ``overwrite`` is ``False``.
+        KeyError: ``statistic`` is not a statistic of the sets.
+        TypeError: ``overwrite`` is not a bool.
+
+    Example:
+        >>> import os, tempfile, trimesh
+        >>> from torchmeshmetric.evaluation import evaluate_sequence
+        >>> frames = [trimesh.creation.icosphere(1)] * 2
+        >>> moved = [f.copy().apply_translation([0.01, 0, 0]) for f in frames]
+        >>> seq = evaluate_sequence(frames, moved, registration_fn=lambda s, t: s)
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     png = plot_frame_curves({"moved": seq}, os.path.join(folder, "rmse.png")).read_bytes()
+        >>> png[1:4]  # the PNG signature
+        b'PNG'
     """
     overwrite = check_flag(overwrite, "overwrite")
     pairs = {m: [p.as_dict() for p in seq.pairs] for m, seq in methods.items()}
@@ -209,6 +246,24 @@ def plot_mpeg_curves(methods: Mapping[str, Any], path: str | os.PathLike[str], *
         methods: method name → its :class:`~torchmeshmetric.mpeg.comparison.sequence.MpegSequence`.
         path: destination ``.png``.
         overwrite: replace an existing file.
+
+    Returns:
+        The path written: one panel per figure (``d1_psnr``, ``d2_psnr``, and ``y_psnr`` when every frame has it);
+        an infinite PSNR (identical frames) is a gap in its line.
+
+    Raises:
+        FileExistsError: ``path`` exists and ``overwrite`` is ``False``.
+        TypeError: ``overwrite`` is not a bool.
+
+    Example:
+        >>> import os, tempfile, trimesh
+        >>> from torchmeshmetric.mpeg import mpeg_sequence
+        >>> a = trimesh.creation.icosphere(1)
+        >>> seq = mpeg_sequence([a, a], [a, a.copy().apply_scale(1.01)], sampling="mesh")
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     png = plot_mpeg_curves({"scaled": seq}, os.path.join(folder, "mpeg.png")).read_bytes()
+        >>> png[1:4]  # the PNG signature
+        b'PNG'
     """
     overwrite = check_flag(overwrite, "overwrite")
     return _save(mpeg_figure(methods), path, overwrite)

@@ -36,6 +36,19 @@ def plot_rd_curves(
 
     Returns:
         The path written.
+
+    Raises:
+        FileExistsError: ``path`` exists and ``overwrite`` is ``False``.
+        TypeError: ``overwrite`` is not a bool.
+
+    Example:
+        >>> import os, tempfile
+        >>> rows = [{"anchor": {"rate_mbps": r, "GridD1": 60 + r}, "test": {"rate_mbps": 0.9 * r, "GridD1": 60 + r}}
+        ...         for r in (1.0, 2.0, 4.0)]
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     path = plot_rd_curves({"rates": rows}, os.path.join(folder, "rd.png"))
+        ...     path.name, path.read_bytes()[1:4]  # the PNG signature
+        ('rd.png', b'PNG')
     """
     overwrite = check_flag(overwrite, "overwrite")
     Figure = _figure()

@@ -25,6 +25,27 @@ def plot_weight_sweep(
         path: destination ``.png``.
         statistic: the statistic plotted (mean over pairs; default ``"ave"``).
         overwrite: replace an existing file.
+
+    Returns:
+        The path written.
+
+    Raises:
+        FileExistsError: ``path`` exists and ``overwrite`` is ``False``.
+        KeyError: ``statistic`` is not a statistic of the sets.
+        TypeError: ``overwrite`` is not a bool.
+
+    Example:
+        >>> import os, tempfile, trimesh
+        >>> from torchmeshmetric.evaluation import evaluate_sequence
+        >>> frames = [trimesh.creation.icosphere(1)] * 2
+        >>> moved = [f.copy().apply_translation([0.01, 0, 0]) for f in frames]
+        >>> seq = evaluate_sequence(frames, moved, registration_fn=lambda s, t: s)
+        >>> from torchmeshmetric.evaluation import WeightSweep
+        >>> sweep = WeightSweep(weights=[0.5], results=[seq], baseline=seq)  # as registered_qem_sweep returns it
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     png = plot_weight_sweep(sweep, os.path.join(folder, "sweep.png")).read_bytes()
+        >>> png[1:4]  # the PNG signature
+        b'PNG'
     """
     overwrite = check_flag(overwrite, "overwrite")
     Figure = _figure()

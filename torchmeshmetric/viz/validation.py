@@ -23,6 +23,31 @@ def plot_validation(
     Values are drawn relative to the set's value at strength 0 (1 = unchanged); a set that starts at 0 (the
     one-sided frame-k sets of a simplification whose vertices lie on the surface) is drawn against the diagonal
     instead, as ``1 + value / (1e-3 diagonal)``, and marked ``(from 0)``.
+
+    Args:
+        result: the study's result (:func:`~torchmeshmetric.evaluation.validation.run_validation`); its
+            ``settings["diagonal"]`` scales the sets that start at 0.
+        path: destination ``.png``.
+        statistic: the statistic plotted (mean over pairs; default ``"ave"``).
+        overwrite: replace an existing file.
+
+    Returns:
+        The path written: up to 4 panels a row.
+
+    Raises:
+        FileExistsError: ``path`` exists and ``overwrite`` is ``False``.
+        KeyError: ``statistic`` is not among the study's statistics.
+        TypeError: ``overwrite`` is not a bool.
+
+    Example:
+        >>> import os, tempfile
+        >>> from torchmeshmetric.evaluation.validation import ValidationResult
+        >>> noise = {"strengths": [0.0, 0.1], "values": {"surface_k": {"ave": [0.01, 0.02]}}}
+        >>> result = ValidationResult({"diagonal": 2.0}, {"noise": noise}, registration={}, seconds=0.0)
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     png = plot_validation(result, os.path.join(folder, "validation.png")).read_bytes()
+        >>> png[1:4]  # the PNG signature
+        b'PNG'
     """
     overwrite = check_flag(overwrite, "overwrite")
     Figure = _figure()
