@@ -58,9 +58,24 @@ def mpeg_point_cloud(
     ``grid`` is ``mm sample --mode grid`` (:func:`grid_sample`); ``mesh`` the conversion ``mm compare --mode pcc``
     applies to a mesh (:func:`vertex_sample`: its vertices, subdivided where faces are large).
 
+    Args:
+        mesh: the mesh (or :class:`TexturedMesh`, whose texture colours the points; a :class:`PointCloud` is
+            returned as it is, in mesh mode only).
+        sampling: ``"grid"`` or ``"mesh"``.
+        grid_size: grid steps over the box's longest side (grid mode).
+        box: ``(min, max)`` sampling box (grid mode); default the mesh's bounding box.
+        use_normal: mmetric's ``--useNormal``: each point takes its face's normal (grid mode).
+        bilinear: bilinear texture filtering in grid mode (nearest otherwise).
+        name: how error messages name the mesh.
+
+    Returns:
+        The :class:`PointCloud`: ``(P, 3)`` float32 points, with normals and (textured or coloured meshes) colours.
+
     Raises:
         EmptyInputError: nothing was sampled, with the reason, the mesh named by ``name``: every face has zero
             area, or (grid) no grid ray hits the surface inside the box.
+        ValueError: ``sampling`` is neither ``"grid"`` nor ``"mesh"``; a point cloud in grid mode.
+        BoxError: a malformed ``box`` (grid mode).
 
     Example:
         >>> import torch
@@ -211,6 +226,29 @@ def mpeg_point_clouds(
     names: tuple[str, str] = ("ref", "dis"),
 ) -> MpegClouds:
     """The clouds and peak :func:`mpeg_metrics` compares (same arguments, same errors), before the comparison.
+
+    Both meshes are sampled side by side (two threads). In grid mode both use the reference's box (or ``box``),
+    and the peak defaults to that box's diagonal.
+
+    Args:
+        ref: reference mesh (or :class:`TexturedMesh`; a :class:`PointCloud` in mesh mode).
+        dis: distorted mesh (likewise).
+        sampling: ``"grid"`` or ``"mesh"``.
+        grid_size: grid steps over the box's longest side (grid mode).
+        box: ``(min, max)`` sampling box (grid mode); it must contain the reference.
+        peak: PSNR peak; default the box diagonal (grid) or ``None`` (mesh: the reference cloud's diagonal, taken
+            by :func:`mpeg_compare`).
+        use_normal: mmetric's ``--useNormal`` (grid mode).
+        bilinear: bilinear texture filtering in grid mode.
+        names: how error messages name the two meshes.
+
+    Returns:
+        :class:`MpegClouds`: ``ref`` and ``dis`` clouds and the ``peak``.
+
+    Raises:
+        BoxError: a malformed box or one that does not contain the reference.
+        EmptyInputError: a mesh without faces, an empty point cloud or a mesh that gives no point.
+        ValueError: a bad ``sampling`` or ``peak``; a point cloud in grid mode.
 
     Example:
         >>> import trimesh

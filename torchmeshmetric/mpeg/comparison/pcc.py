@@ -308,6 +308,12 @@ def _direction(
 def bbox_diagonal(points: np.ndarray) -> float:
     """The bounding-box diagonal of float32 points in float32 arithmetic (mmetric's default PSNR peak).
 
+    Args:
+        points: ``(N, 3)`` points, ``N >= 1`` (the box's extent is rounded to float32 before the diagonal).
+
+    Returns:
+        The diagonal of the axis-aligned bounding box, a float32 value as a Python float.
+
     Example:
         >>> bbox_diagonal(np.array([[0, 0, 0], [3, 4, 0]], np.float32))
         5.0
@@ -403,6 +409,17 @@ def mpeg_point_errors(ref: PointCloud, dis: PointCloud) -> MpegPointErrors:
 
     The means of these arrays (in their order, float64) are the MSEs of :func:`mpeg_compare`, so a per-point view
     (a per-face map, a histogram) adds up to the reported figures.
+
+    Args:
+        ref: the reference cloud (its normals drive the distorted points' D2; without them ``d2`` is ``None``).
+        dis: the distorted cloud.
+
+    Returns:
+        :class:`MpegPointErrors`: both clouds after duplicate merging and each point's errors in both directions
+        (``d1``, ``d2`` ``(N,)``, ``color``, ``rgb`` ``(N, 3)`` or ``None``).
+
+    Raises:
+        EmptyInputError: a cloud is empty.
 
     Example:
         >>> import torch

@@ -257,6 +257,23 @@ def ctc_sequence(
     ``pairs`` may be a generator that reads the frames lazily (one pair in memory at a time). The settings are
     ``settings`` or the keywords, as for :func:`ctc_frame`; ``progress`` is called with each frame's result.
 
+    Args:
+        pairs: ``(frame, source, decoded)`` triples: the frame number, the *quantised* source frame and the
+            decoded frame (as :func:`ctc_frame`'s ``ref`` and ``dis``).
+        settings: the chain's settings (:class:`~torchmeshmetric.mpeg.ctc.settings.CtcSettings`), or ``None`` to
+            give them as keywords (not both).
+        progress: called with each :class:`CtcFrame` as it is computed.
+        **keywords: the settings as keywords (``qp``, ``qt``, ``min_pos``, ``max_pos``, ...), as for
+            :func:`ctc_frame`.
+
+    Returns:
+        :class:`CtcSequence`: the frames in the order given and the columns present in any of them
+        (:meth:`CtcSequence.mean` gives mmetric's sequence means).
+
+    Raises:
+        TypeError: both ``settings`` and a keyword, or a required keyword missing
+            (:func:`~torchmeshmetric.mpeg.ctc.settings.resolve_settings`); and :func:`ctc_frame`'s errors.
+
     Example:
         >>> import numpy as np, torch, trimesh
         >>> s = trimesh.creation.icosphere(2)

@@ -468,6 +468,14 @@ def _codec(entry: Any, where: str, base: Path, seq_ids: dict[str, int], conds: d
 def load_ctc_campaign(path: str | Path) -> CtcCampaign:
     """Read and check a CTC campaign manifest (see the module); paths resolved against its folder.
 
+    Args:
+        path: the manifest (TOML): ``[[sequences]]``, ``[[conditions]]``, ``[anchor]``, ``[test]`` and optional
+            ``[options]``.
+
+    Returns:
+        :class:`CtcCampaign`: the sequences and conditions in manifest order, the two codecs, the cache folder
+        (default ``ctc-cache`` beside the manifest) and the chain's settings.
+
     Raises:
         CtcManifestError: the file is missing or not TOML, a key is missing, unknown or of the wrong type, a name or
             id is repeated, a frame pattern lacks its printf field (naming the file and the key).

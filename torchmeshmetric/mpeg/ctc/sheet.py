@@ -228,6 +228,13 @@ def read_test_model_csv(path: str | Path) -> dict[tuple[int, int, int], RatePoin
     ``-1`` (the script's mark of a failed lossless check) and empty fields read as unknown; a metric of ``0``
     (mmetric's mean of a figure it did not compute) as absent.
 
+    Args:
+        path: the CSV file (UTF-8, a byte-order mark allowed); its header names the test model's columns
+            (``SeqId``, ``CondId``, ``RateId``, ``TotalBitstreamBits``, the metrics, ...).
+
+    Returns:
+        ``(seq_id, cond_id, rate_id)`` → :class:`RatePoint`, in file order.
+
     Raises:
         ValueError: a missing file or column, a row with more or fewer fields than the header (a row cut
             mid-write), a non-numeric field, a repeated row (naming file:line).
