@@ -165,6 +165,10 @@ def registration_key(source: Mesh, target: Mesh, settings: Mapping[str, object] 
         settings: registration settings (anything that changes the result): JSON-serialisable values or
             :class:`~torchmeshmetric.registration.NonRigidOptions`, or the options themselves.
 
+    Returns:
+        The key: 64 lowercase hexadecimal characters. A setting JSON cannot write (nor a ``NonRigidOptions``)
+        counts by its ``str``.
+
     Example:
         >>> import torch
         >>> from torchmeshmetric.registration import DEFAULT_SCHEDULE, NonRigidOptions
@@ -260,6 +264,10 @@ def default_registration_settings(options: NonRigidOptions, computes_in: torch.d
         computes_in: the dtype the registration computes in (the ``dtype`` of :func:`compute_registration`, or the
             frames' promoted dtype, at least float32, when it has none).
 
+    Returns:
+        ``{"register": DEFAULT_REGISTER, "results_version": REGISTRATION_RESULTS_VERSION, "options": options,
+        "computes_in": "float32" | "float64"}``.
+
     Example:
         >>> settings = default_registration_settings(NonRigidOptions(), torch.float64)
         >>> settings["register"] == DEFAULT_REGISTER, settings["results_version"] == REGISTRATION_RESULTS_VERSION
@@ -305,6 +313,15 @@ def compute_registration(
             the fused Adam's vector math), so a float32 registration is another computation on another CPU; the
             evaluation computes in float64 (docs/statistics.md, "The same figures on every machine").
         **options: keywords of :func:`~torchmeshmetric.registration.register_nonrigid`.
+
+    Returns:
+        :class:`CachedRegistration`: ``verts`` ``(V_{k-1}, 3)`` and ``residual`` ``(V_{k-1},)`` in the frames'
+        promoted dtype, on the CPU; ``converged``; ``seconds`` (wall time); ``warp`` (a
+        :class:`~torchmeshmetric.registration.RegistrationWarp` in ``dtype``).
+
+    Raises:
+        TypeError: an option :func:`~torchmeshmetric.registration.register_nonrigid` does not take; and its errors
+            on bad frames.
 
     Example:
         >>> import trimesh

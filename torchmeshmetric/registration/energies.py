@@ -128,6 +128,9 @@ def interpolated_normals(vertex_normals: Tensor, faces: Tensor, face_idx: Tensor
         face_idx: ``(P,)`` face of each point.
         bary: ``(P, 3)`` barycentric coordinates of each point on its face.
 
+    Returns:
+        ``(P, 3)`` unit normals in ``vertex_normals``' dtype (rows of zeros where no normal exists).
+
     Example:
         >>> import torch
         >>> vn = torch.tensor([[0.0, 0, 1], [0, 1, 0], [0, 0, 1]])
@@ -142,6 +145,16 @@ def interpolated_normals(vertex_normals: Tensor, faces: Tensor, face_idx: Tensor
 
 def geman_mcclure(sq: Tensor, sigma: float) -> Tensor:
     """Geman-McClure robust kernel on squared residuals: ``sigma^2 r^2 / (sigma^2 + r^2)`` (``~ r^2`` for small r).
+
+    Bounded by ``sigma^2``: a residual much larger than ``sigma`` (an outlier) costs about ``sigma^2`` and has
+    almost no gradient (Geman and McClure 1987; the robust scale of the registration's stages).
+
+    Args:
+        sq: squared residuals ``r^2``, any shape, non-negative.
+        sigma: the robust scale (a length, in the units of the residuals).
+
+    Returns:
+        The kernel's values, same shape and dtype as ``sq``.
 
     Example:
         >>> import torch

@@ -85,7 +85,23 @@ class RigidRegistration(NamedTuple):
 
 
 def transform_matrix(rotation: Tensor, translation: Tensor, scale: Tensor | float = 1.0) -> Tensor:
-    """``(4, 4)`` homogeneous matrix of ``x -> scale * rotation @ x + translation``."""
+    """``(4, 4)`` homogeneous matrix of ``x -> scale * rotation @ x + translation``.
+
+    Args:
+        rotation: ``(3, 3)`` rotation (its dtype and device are the matrix's).
+        translation: ``(3,)`` translation.
+        scale: uniform scale (a float or a 0-dimensional tensor).
+
+    Returns:
+        ``(4, 4)`` matrix ``[[scale * rotation, translation], [0, 0, 0, 1]]``, acting on column vectors
+        ``(x, y, z, 1)``.
+
+    Example:
+        >>> import torch
+        >>> T = transform_matrix(torch.eye(3), torch.tensor([1.0, 2.0, 3.0]), 2.0)
+        >>> (T @ torch.tensor([1.0, 0.0, 0.0, 1.0])).tolist()  # 2 * (1, 0, 0) + (1, 2, 3)
+        [3.0, 2.0, 3.0, 1.0]
+    """
     T = torch.eye(4, dtype=rotation.dtype, device=rotation.device)
     T[:3, :3] = rotation * scale
     T[:3, 3] = translation

@@ -270,9 +270,20 @@ def deformation_of(registration: object, original_k: MeshLike) -> Warp | None:
     One of the two conversions of a registration (the evaluation's and the temporal loss's); :func:`as_warp` is the
     other, for registrations known only by their registered vertices.
 
+    Args:
+        registration: a caller's registration: anything with a ``warp`` attribute (the evaluation's
+            ``CachedRegistration``), a ``NonRigidRegistration``, or anything else (then ``None``).
+        original_k: the target frame (a ``NonRigidRegistration``'s warp needs it).
+
+    Returns:
+        The registration's :data:`Warp` (a callable mapping ``(P, 3)`` points of frame ``k-1`` to frame ``k``), or
+        ``None`` when it carries no deformation.
+
     Example:
-        >>> deformation_of(object(), None) is None
-        True
+        >>> from types import SimpleNamespace
+        >>> shift = lambda points: points + 1.0
+        >>> deformation_of(SimpleNamespace(warp=shift), None) is shift, deformation_of(object(), None) is None
+        (True, True)
     """
     warp = getattr(registration, "warp", None)  # a CachedRegistration (evaluation), or anything holding a warp
     if warp is not None:
@@ -293,6 +304,10 @@ def as_warp(registration: object, original_k: MeshLike, original_k_minus_1: Mesh
         original_k_minus_1: the source frame.
         name: the argument's name in errors.
 
+    Returns:
+        A :data:`Warp`: the registration's own deformation (:func:`deformation_of`), the callable itself, or a
+        :class:`SurfaceWarp` of the registered vertices (in ``original_k_minus_1``'s dtype and device).
+
     Raises:
         ShapeError: registered vertices that are not those of ``original_k_minus_1``.
         TypeError: anything else.
@@ -300,8 +315,9 @@ def as_warp(registration: object, original_k: MeshLike, original_k_minus_1: Mesh
     Example:
         >>> import torch, trimesh
         >>> sphere = as_mesh(trimesh.creation.icosphere(subdivisions=1))
-        >>> type(as_warp((sphere.verts + 1.0, sphere.faces), sphere, sphere, name="registration")).__name__
-        'SurfaceWarp'
+        >>> warp = as_warp((sphere.verts + 1.0, sphere.faces), sphere, sphere, name="registration")
+        >>> type(warp).__name__, (warp(sphere.verts[:2]) - sphere.verts[:2]).round(decimals=9).tolist()
+        ('SurfaceWarp', [[1.0, 1.0, 1.0], [1.0, 1.0, 1.0]])
     """
     warp = deformation_of(registration, original_k)
     if warp is not None:
