@@ -102,6 +102,22 @@ def bvh_nearest_single(points: Tensor, ref: Tensor) -> tuple[Tensor, Tensor, Ten
     so the result is bit-identical to the general path.
     ``None`` (the general path runs, and raises if a value is not finite) for non-CPU tensors, a missing compiler
     or non-finite values.
+
+    Args:
+        points: ``(P, 3)`` query points, float32 or float64 (another dtype or device: ``None``).
+        ref: ``(R, 3)`` reference points, same dtype.
+
+    Returns:
+        ``(dists, idx, center)``: ``(P,)`` Euclidean distance to the nearest reference point, ``(P,)`` int64 its
+        row (lowest among equal distances), ``(3,)`` the centre of ``ref``'s bounding box the search ran centred
+        on; or ``None`` as above.
+
+    Example:
+        >>> import torch
+        >>> ref = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 0, 5]], dtype=torch.float64)
+        >>> out = bvh_nearest_single(torch.tensor([[0.0, 0, 1], [0.0, 0, 3.5]], dtype=torch.float64), ref)
+        >>> out is None or (out[0].tolist(), out[1].tolist(), out[2].tolist())  # None without a C++ compiler
+        ([1.0, 1.5], [0, 2], [0.5, 0.0, 2.5])
     """
     if points.device.type != "cpu" or points.dtype not in (torch.float32, torch.float64):
         return None
@@ -122,6 +138,27 @@ def bvh_closest_points(
     Bit-identical to :func:`~torchmeshmetric.closest_point_on_triangle` on the selected faces (same operations,
     order and dtype; tested). ``None`` (the torch recomputation runs) off the CPU, for other dtypes, or where the
     extension cannot be built (fixed for the process: see :mod:`torchmeshmetric.native`).
+
+    Args:
+        points: ``(P, 3)`` query points, float32 or float64.
+        verts: ``(V, 3)`` vertices, same dtype.
+        faces: ``(F, 3)`` faces (rows of ``verts``).
+        face_idx: ``(P,)`` the face selected for each point (rows of ``faces``).
+
+    Returns:
+        ``(sq_dists, bary, closest)``: ``(P,)`` squared distance to the closest point of the selected face,
+        ``(P, 3)`` its barycentric coordinates and ``(P, 3)`` the point; or ``None`` as above.
+
+    Raises:
+        RuntimeError: a ``face_idx`` outside ``[0, F)`` (a selection backend that broke its contract).
+
+    Example:
+        >>> import torch
+        >>> verts = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=torch.float64)
+        >>> points = torch.tensor([[0.25, 0.25, 1.0]], dtype=torch.float64)
+        >>> out = bvh_closest_points(points, verts, torch.tensor([[0, 1, 2]]), torch.tensor([0]))
+        >>> out is None or (out[0].tolist(), out[1].tolist(), out[2].tolist())  # None without a C++ compiler
+        ([1.0], [[0.5, 0.25, 0.25]], [[0.25, 0.25, 0.0]])
     """
     if points.device.type != "cpu" or points.dtype not in (torch.float32, torch.float64):
         return None

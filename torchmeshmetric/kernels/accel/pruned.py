@@ -154,7 +154,34 @@ def pruned_faces(
     face_offsets: Tensor,
     max_memory: int,
 ) -> Tensor:
-    """Closest face per point (brute-force face-selector contract, see ``kernels.select``), exact, any device."""
+    """Closest face per point (brute-force face-selector contract, see ``kernels.select``), exact, any device.
+
+    Faces are grouped in clusters whose bounding boxes bound each point's distance from below; only clusters whose
+    bound can beat the best face found so far (with the rounding slack of the coordinates' scale) are searched.
+
+    Args:
+        points: ``(P, 3)`` query points, centred as their item's faces (:class:`~torchmeshmetric.kernels.contract.
+            FaceSet`).
+        point_batch: ``(P,)`` int64 item of each point.
+        verts: ``(V, 3)`` vertices.
+        faces: ``(F, 3)`` int64 faces (global rows of ``verts``), grouped by item.
+        face_batch: ``(F,)`` int64 item of each face.
+        face_offsets: ``(B + 1,)`` int64 first face of each item.
+        max_memory: bytes the temporary candidate matrices may take (the points are processed in chunks).
+
+    Returns:
+        ``(P,)`` int64 row of ``faces`` of each point's closest face in its item (lowest row among equal squared
+        distances).
+
+    Example:
+        >>> import torch
+        >>> verts = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 5], [1, 0, 5], [0, 1, 5]])
+        >>> faces = torch.tensor([[0, 1, 2], [3, 4, 5]])
+        >>> points = torch.tensor([[0.25, 0.25, 1.0], [0.2, 0.2, 4.0]])
+        >>> one_item = torch.zeros(2, dtype=torch.long)
+        >>> pruned_faces(points, one_item, verts, faces, one_item, torch.tensor([0, 2]), 2**20).tolist()
+        [0, 1]
+    """
     tri = verts[faces]
     a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
     ab, ac, bc = b - a, c - a, c - b
@@ -174,6 +201,25 @@ def pruned_nearest(
     """Nearest reference point per point (nearest-selector contract, see ``kernels.select``), exact, any device.
 
     Selects by the computed squared distance, lowest index among equal ones, like the brute force.
+
+    Args:
+        points: ``(P, 3)`` query points, centred as their item's reference points.
+        point_batch: ``(P,)`` int64 item of each point.
+        ref: ``(R, 3)`` reference points, grouped by item.
+        ref_batch: ``(R,)`` int64 item of each reference point.
+        ref_offsets: ``(B + 1,)`` int64 first reference point of each item.
+        max_memory: bytes the temporary candidate matrices may take.
+
+    Returns:
+        ``(P,)`` int64 row of ``ref`` nearest to each point in its item.
+
+    Example:
+        >>> import torch
+        >>> ref = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 0, 5]])
+        >>> points = torch.tensor([[0.0, 0, 1], [0.1, 0, 4], [0.9, 0, 0]])
+        >>> batch = torch.zeros(3, dtype=torch.long)
+        >>> pruned_nearest(points, batch, ref, batch, torch.tensor([0, 3]), 2**20).tolist()
+        [0, 2, 1]
     """
 
     def pair_sq(p: Tensor, mem: Tensor) -> Tensor:
