@@ -164,7 +164,17 @@ def _parser(full: Collection[str]) -> argparse.ArgumentParser:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of the command line, with every command's options (imports every command's module)."""
+    """The argument parser of the command line, with every command's options (imports every command's module).
+
+    Returns:
+        The ``torchmeshmetric`` :class:`argparse.ArgumentParser`: one subcommand per entry of :data:`COMMANDS`;
+        parsed arguments carry ``command`` and ``func`` (the command's runner).
+
+    Example:
+        >>> args = build_parser().parse_args(["bdrate", "anchor.csv", "test.csv"])
+        >>> args.command, args.anchor, args.test, args.json
+        ('bdrate', 'anchor.csv', 'test.csv', False)
+    """
     return _parser(COMMANDS)
 
 
@@ -253,6 +263,21 @@ def main(argv: Sequence[str] | None = None) -> int:
     Args:
         argv: the arguments; ``None``: ``sys.argv[1:]``, and this call is the whole program (the console script,
             ``python -m torchmeshmetric``), so a Ctrl-C during the interpreter's shutdown still ends with code 130.
+
+    Returns:
+        The exit code (above). A command's error is not raised: it is one line on stderr and the code
+        (``TORCHMESHMETRIC_DEBUG=1`` re-raises it); a usage error exits through argparse's ``SystemExit(2)``.
+
+    Example:
+        >>> import os, tempfile
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     for name, rates in (("anchor", [100, 200, 400, 800]), ("test", [90, 180, 360, 720])):
+        ...         rows = ["rate,GridD1"] + [f"{r},{psnr}" for r, psnr in zip(rates, [30, 33, 36, 39])]
+        ...         with open(os.path.join(folder, name + ".csv"), "w") as f:
+        ...             _ = f.write(chr(10).join(rows))
+        ...     main(["bdrate", os.path.join(folder, "anchor.csv"), os.path.join(folder, "test.csv")])  # 10 % less rate
+        GridD1  -10.0000 %
+        0
     """
     with _interrupts.handled(own_process=argv is None):
         try:
