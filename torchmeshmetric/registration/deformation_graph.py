@@ -159,6 +159,11 @@ def farthest_point_nodes(points: Tensor, spacing: float, *, canonical: bool = Fa
         EmptyInputError: no point.
         NonFiniteError: a NaN or Inf coordinate (the sampling would never stop).
         ValueError: a ``spacing`` that is negative or not finite.
+
+    Example:
+        >>> points = torch.tensor([[0.0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]])
+        >>> farthest_point_nodes(points, 1.0).tolist(), farthest_point_nodes(points, 5.0).tolist()
+        ([1, 3], [1])
     """
     canonical = check_flag(canonical, "canonical")
     if points.shape[0] == 0:
@@ -184,6 +189,12 @@ def skinning_weights(points: Tensor, nodes: Tensor, num_neighbors: int) -> tuple
 
     Returns:
         ``(idx (P, K) int64, weights (P, K))`` with rows summing to 1.
+
+    Example:
+        >>> nodes = torch.tensor([[0.0, 0, 0], [2, 0, 0], [4, 0, 0]])
+        >>> idx, weights = skinning_weights(torch.tensor([[1.0, 0, 0]]), nodes, 2)  # halfway between two nodes
+        >>> idx.tolist(), weights.tolist()
+        ([[0, 1]], [[0.5, 0.5]])
     """
     n = nodes.shape[0]
     k = min(num_neighbors, n)
@@ -215,6 +226,14 @@ def embedded_deformation(
 
     Returns:
         ``(P, 3)`` deformed positions.
+
+    Example:
+        >>> nodes = torch.tensor([[0.0, 0, 0], [2, 0, 0], [4, 0, 0]])
+        >>> points = torch.tensor([[1.0, 0, 0]])
+        >>> idx, weights = skinning_weights(points, nodes, 2)
+        >>> rotations, lift = torch.eye(3).expand(3, 3, 3), torch.tensor([[0.0, 0, 1]] * 3)  # every node moves up 1
+        >>> embedded_deformation(points, nodes, rotations, lift, idx, weights).tolist()
+        [[1.0, 0.0, 1.0]]
     """
     # Each node's map is affine, x -> R_j x + (g_j + t_j - R_j g_j): blend the K affine maps (one (P, K, 12)
     # gather), then apply the blended map once. Same value as blending the K moved positions.

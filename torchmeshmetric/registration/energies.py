@@ -195,6 +195,14 @@ def find_correspondences(
 
     Returns:
         :class:`Correspondences`.
+
+    Example:
+        >>> import torch
+        >>> verts, faces = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]])
+        >>> points = torch.tensor([[0.25, 0.25, 0.5], [0.25, 0.25, -3.0]])
+        >>> corr = find_correspondences(points, None, verts, faces, max_distance=1.0, max_normal_angle=60.0)
+        >>> corr.closest.tolist(), corr.dists.tolist(), corr.weights.tolist()
+        ([[0.25, 0.25, 0.0], [0.25, 0.25, 0.0]], [0.5, 3.0], [1.0, 0.0])
     """
     with torch.no_grad():
         p = points.detach()
@@ -228,6 +236,14 @@ def data_term(
 
     Returns:
         0-dim energy (0 when every weight is 0).
+
+    Example:
+        >>> import torch
+        >>> verts, faces = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]])
+        >>> points = torch.tensor([[0.25, 0.25, 0.5], [0.25, 0.25, -3.0]])  # the second too far: weight 0
+        >>> corr = find_correspondences(points, None, verts, faces, max_distance=1.0, max_normal_angle=60.0)
+        >>> round(data_term(points, corr, sigma=1.0).item(), 6)  # rho(0.25) = 0.25 / 1.25, twice, over weight 1
+        0.4
     """
     d = points - corr.closest
     e = point_weight * geman_mcclure((d * d).sum(-1), sigma)
@@ -265,6 +281,19 @@ def reverse_term(
 
     Returns:
         0-dim energy.
+
+    Example:
+        >>> import torch
+        >>> verts, faces = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]])
+        >>> samples = torch.tensor([[0.25, 0.25, 0.5]])
+        >>> corr = find_correspondences(samples, None, verts, faces, max_distance=1.0, max_normal_angle=60.0)
+        >>> moved = verts.clone().requires_grad_()
+        >>> energy = reverse_term(samples, moved, faces, corr, sigma=1.0)
+        >>> round(energy.item(), 6)  # rho(0.25) = 0.25 / 1.25, point and plane
+        0.4
+        >>> energy.backward()
+        >>> [round(g, 4) for g in moved.grad[:, 2].tolist()]  # descent lifts the face, each corner by its bary
+        [-0.64, -0.32, -0.32]
     """
     x = (corr.bary[:, :, None] * verts[faces[corr.face_idx]]).sum(1)
     fixed = corr._replace(closest=samples)
@@ -283,6 +312,18 @@ def embedded_deformation_regularizer(graph: DeformationGraph) -> Tensor:
 
     Returns:
         0-dim energy (0 for a graph with a single node).
+
+    Example:
+        >>> import torch
+        >>> verts, faces = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]])
+        >>> from torchmeshmetric.registration import DeformationGraph
+        >>> graph = DeformationGraph(verts, faces, node_spacing=0.5, num_neighbors=2)  # a node on each vertex
+        >>> embedded_deformation_regularizer(graph).item()  # the identity
+        0.0
+        >>> with torch.no_grad():
+        ...     _ = graph.translations[0].copy_(torch.tensor([0.0, 0.0, 1.0]))  # one node lifted: not rigid
+        >>> embedded_deformation_regularizer(graph).item()
+        1.0
     """
     e = graph.edges
     if e.shape[0] == 0:
