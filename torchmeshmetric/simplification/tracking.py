@@ -116,6 +116,19 @@ def slide_sequence(
 
     Returns:
         ``N`` meshes with the faces of ``anchored``.
+
+    Raises:
+        ValueError: ``anchored`` or ``registrations`` of the wrong length.
+
+    Example:
+        >>> import trimesh
+        >>> from torchmeshmetric.simplification import TemporalSlide
+        >>> frames = [trimesh.creation.icosphere(subdivisions=2)] * 2
+        >>> same = [lambda points: points]  # frames that do not move
+        >>> anchored = anchored_sequence(frames, 0.5, same)
+        >>> slid = slide_sequence(anchored, frames, same, TemporalSlide())
+        >>> [m.num_faces for m in slid], slid[1].verts.requires_grad  # a loss on it trains the slide
+        ([160, 160], True)
     """
     _check_lengths(frames, registrations)
     if len(anchored) != len(frames):
