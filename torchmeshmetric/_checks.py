@@ -47,31 +47,109 @@ __all__ = [
 
 
 class ShapeError(ValueError):
-    """A tensor has the wrong number of dimensions or the wrong size along one of them."""
+    """A tensor has the wrong number of dimensions or the wrong size along one of them.
+
+    Example:
+        >>> import torch
+        >>> from torchmeshmetric import Mesh
+        >>> try:
+        ...     Mesh(torch.zeros(3, 2), torch.tensor([[0, 1, 2]]))
+        ... except ShapeError as error:  # a ValueError too
+        ...     print(error)
+        verts: expected shape (V, 3), found (3, 2)
+    """
 
 
 class DoubleBackwardError(RuntimeError):
-    """A second derivative was asked of an operation that is differentiable once only (e.g. Danskin's gradient)."""
+    """A second derivative was asked of an operation that is differentiable once only (e.g. Danskin's gradient).
+
+    Example:
+        >>> import torch
+        >>> from torchmeshmetric import mesh_surface_distance_loss
+        >>> triangle = (torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]]))
+        >>> points = torch.tensor([[0.2, 0.2, 1.0]], requires_grad=True)
+        >>> loss = mesh_surface_distance_loss(points, triangle)
+        >>> try:
+        ...     torch.autograd.grad(loss, points, create_graph=True)  # a Hessian-vector product would need this
+        ... except DoubleBackwardError as error:  # a RuntimeError too
+        ...     print(str(error).split(":")[1].strip())
+        first-order only
+        >>> torch.autograd.grad(mesh_surface_distance_loss(points, triangle), points)[0].tolist()  # once is fine
+        [[0.0, 0.0, 1.0]]
+    """
 
 
 class DTypeError(TypeError):
-    """A tensor has an unsupported dtype (e.g. integer coordinates or floating-point face indices)."""
+    """A tensor has an unsupported dtype (e.g. integer coordinates or floating-point face indices).
+
+    Example:
+        >>> import torch
+        >>> from torchmeshmetric import Mesh
+        >>> try:
+        ...     Mesh(torch.zeros(3, 3, dtype=torch.long), torch.tensor([[0, 1, 2]]))
+        ... except DTypeError as error:  # a TypeError too
+        ...     print(str(error).split(";")[0])
+        verts: expected a floating-point tensor (float32 or float64), found dtype torch.int64
+    """
 
 
 class DeviceError(ValueError):
-    """Tensors that must live on one device live on several."""
+    """Tensors that must live on one device live on several.
+
+    Also raised for a tensor on the ``meta`` device, which holds no values.
+
+    Example:
+        >>> import torch
+        >>> from torchmeshmetric import Mesh
+        >>> try:
+        ...     Mesh(torch.zeros(3, 3), torch.tensor([[0, 1, 2]], device="meta"))
+        ... except DeviceError as error:  # a ValueError too
+        ...     print(str(error).split(",")[0])
+        faces: expected a tensor with values (on the CPU or a GPU)
+    """
 
 
 class NonFiniteError(ValueError):
-    """A tensor holds NaN or Inf where only finite values make sense."""
+    """A tensor holds NaN or Inf where only finite values make sense.
+
+    Example:
+        >>> import torch
+        >>> from torchmeshmetric import Mesh
+        >>> try:
+        ...     Mesh(torch.tensor([[float("nan"), 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]]))
+        ... except NonFiniteError as error:  # a ValueError too
+        ...     print(error)
+        verts: expected finite values, found 1 NaN/Inf value(s)
+    """
 
 
 class IndexRangeError(ValueError):
-    """Indices (face corners, lengths) point outside the array they index."""
+    """Indices (face corners, lengths) point outside the array they index.
+
+    Example:
+        >>> import torch
+        >>> from torchmeshmetric import Mesh
+        >>> try:
+        ...     Mesh(torch.zeros(3, 3), torch.tensor([[0, 1, 3]]))  # 3 vertices: rows 0 to 2
+        ... except IndexRangeError as error:  # a ValueError too
+        ...     print(error)
+        faces: expected vertex indices in [0, 2], found values in [0, 3]
+    """
 
 
 class EmptyInputError(ValueError):
-    """A mesh or point set is empty where at least one element is required."""
+    """A mesh or point set is empty where at least one element is required.
+
+    Example:
+        >>> import torch
+        >>> from torchmeshmetric import Mesh, point_mesh_distance
+        >>> triangle = Mesh(torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]]))
+        >>> try:
+        ...     point_mesh_distance(torch.zeros(0, 3), triangle)
+        ... except EmptyInputError as error:  # a ValueError too
+        ...     print(error)
+        points: expected at least one point, found an empty point set
+    """
 
 
 class SizeLimitError(ValueError):
@@ -79,7 +157,23 @@ class SizeLimitError(ValueError):
 
 
 class StaleIndexError(ValueError):
-    """A kept index is queried after a tensor it was built from changed in place (refit it, or build a new one)."""
+    """A kept index is queried after a tensor it was built from changed in place (refit it, or build a new one).
+
+    Example:
+        >>> import torch
+        >>> from torchmeshmetric import MeshIndex
+        >>> verts, faces = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]])
+        >>> index = MeshIndex(verts, faces)
+        >>> verts[:, 2] = 1.0  # the triangle lifted to z = 1 in place: the index still holds the old one
+        >>> try:
+        ...     index.point_mesh_distance(torch.tensor([[0.2, 0.2, 1.0]]))
+        ... except StaleIndexError as error:  # a ValueError too
+        ...     print(str(error).split(" (")[0])
+        verts: modified in place since the index was built or last refitted
+        >>> index.refit(verts)
+        >>> index.point_mesh_distance(torch.tensor([[0.2, 0.2, 1.0]])).dists.tolist()  # on the lifted triangle
+        [0.0]
+    """
 
 
 def _fmt_shape(shape: Sequence[int | str]) -> str:
