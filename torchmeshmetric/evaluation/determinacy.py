@@ -333,6 +333,16 @@ class Determinacy:
         nudged: the second run's values, in the layout of ``changes``: a table found here prints each cell as both
             runs print it (:func:`shared_cell`); a table found only in ``changes`` keeps the digits its change
             leaves (:func:`determined_cell`, which near a rounding boundary can differ from the other run's).
+
+    Example:
+        >>> import trimesh
+        >>> from torchmeshmetric.evaluation import evaluate_sequence
+        >>> frames = [trimesh.creation.icosphere(1)] * 3
+        >>> moved = [f.copy().apply_translation([0.01, 0, 0]) for f in frames]  # every vertex 0.01 away
+        >>> seq = evaluate_sequence(frames, moved, registration_fn=lambda s, t: s)
+        >>> d = measure_determinacy({"moved": seq}, {"moved": seq}, "float32")  # the same run twice: nothing moved
+        >>> d.rounding, list(d.changes)[:2], d.changes["I"][0]["ave"]
+        ('float32', ['I', 'II'], 0.0)
     """
 
     rounding: str

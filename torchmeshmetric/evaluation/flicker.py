@@ -46,6 +46,14 @@ class FlickerDistances(NamedTuple):
         reverse: ``(V_{k-1},)`` distance of each moved (referenced) vertex of the simplified frame ``k-1`` to the
             simplified frame ``k``; ``None`` when one-sided.
         moved: the simplified frame ``k-1`` moved onto frame ``k`` (its faces, warped vertices).
+
+    Example:
+        >>> import torch, trimesh
+        >>> sphere = as_mesh(trimesh.creation.icosphere(subdivisions=1))
+        >>> lifted = Mesh(sphere.verts + torch.tensor([0.0, 0.0, 0.01], dtype=sphere.dtype), sphere.faces)
+        >>> r = flicker_distances(lifted, sphere, lambda points: points)  # a static registration: the lift is flicker
+        >>> tuple(r.dists.shape), round(r.dists.max().item(), 12), r.moved.num_faces
+        ((42,), 0.01, 80)
     """
 
     dists: Tensor

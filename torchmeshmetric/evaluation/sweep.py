@@ -48,6 +48,17 @@ class WeightSweep(NamedTuple):
         weights: the swept weights, in the order given.
         results: one :class:`SequenceEvaluation` per weight.
         baseline: plain QEM (fast-simplification) on the same frames, or ``None``.
+
+    Example:
+        >>> import trimesh
+        >>> from torchmeshmetric.evaluation import evaluate_sequence
+        >>> frames = [trimesh.creation.icosphere(1)] * 3
+        >>> moved = [f.copy().apply_translation([0.01, 0, 0]) for f in frames]  # every vertex 0.01 away
+        >>> seq = evaluate_sequence(frames, moved, registration_fn=lambda s, t: s)
+        >>> sweep = WeightSweep(weights=[0.5], results=[seq], baseline=None)  # as registered_qem_sweep returns it
+        >>> row = sweep.rows("ave")[0]
+        >>> row["weight"], round(row["surface_k"], 6) == round(seq.aggregate()["surface_k"]["ave"], 6)
+        (0.5, True)
     """
 
     weights: list[float]
