@@ -255,6 +255,11 @@ class DemoSequence:
         prim_bone: ``(M,)`` int64 bone of each primitive.
         blend: smooth-union radius ``k`` of the field.
         bone_names: names of the ``B`` bones.
+
+    Example:
+        >>> seq = demo_sequence(2, resolution=16)  # a coarse mesh: 16 steps of the marching cubes
+        >>> len(seq.frames), tuple(seq.rotations.shape), seq.bone_names[:3], seq.phases.tolist()
+        (2, (2, 13, 3, 3), ('pelvis', 'spine', 'head'), [0.0, 0.041666666666666664])
     """
 
     frames: list[Mesh]

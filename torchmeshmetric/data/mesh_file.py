@@ -33,7 +33,18 @@ __all__ = [
 
 
 class MeshFileError(ValueError):
-    """A mesh file is missing, unreadable, corrupt, empty or not made of triangles (the message names the file)."""
+    """A mesh file is missing, unreadable, corrupt, empty or not made of triangles (the message names the file).
+
+    Example:
+        >>> import os, tempfile
+        >>> from torchmeshmetric import load_mesh
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     try:
+        ...         load_mesh(os.path.join(folder, "missing.obj"))
+        ...     except MeshFileError as error:  # a ValueError too
+        ...         print(str(error).replace(folder, "FOLDER"))
+        path: mesh file 'FOLDER/missing.obj' does not exist
+    """
 
 
 MESH_SUFFIXES: tuple[str, ...] = (".obj", ".ply", ".off", ".stl", ".glb", ".gltf")

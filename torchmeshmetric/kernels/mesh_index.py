@@ -70,6 +70,14 @@ class PointMeshResult(NamedTuple):
         face_idx: ``(P,)`` int64 index of the closest face, a row of the (packed) ``faces`` tensor.
         bary: ``(P, 3)`` barycentric coordinates of the closest point on that face.
         closest: ``(P, 3)`` the closest point on the surface.
+
+    Example:
+        >>> import torch
+        >>> from torchmeshmetric import point_mesh_distance
+        >>> triangle = (torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]]))
+        >>> r = point_mesh_distance(torch.tensor([[0.25, 0.25, 1.0]]), triangle)
+        >>> r.dists.tolist(), r.face_idx.tolist(), r.bary.tolist(), r.closest.tolist()
+        ([1.0], [0], [[0.5, 0.25, 0.25]], [[0.25, 0.25, 0.0]])
     """
 
     dists: Tensor

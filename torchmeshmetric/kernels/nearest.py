@@ -45,6 +45,13 @@ class NearestVertexResult(NamedTuple):
     Attributes:
         dists: ``(P,)`` Euclidean distance (**not squared**) to the nearest reference point.
         idx: ``(P,)`` int64 row of that point in the (packed) ``ref_points``.
+
+    Example:
+        >>> import torch
+        >>> ref = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
+        >>> r = nearest_vertex_distance(torch.tensor([[0.0, 0, 2], [1.5, 0, 0]]), ref)
+        >>> r.dists.tolist(), r.idx.tolist()
+        ([2.0, 0.5], [0, 1])
     """
 
     dists: Tensor

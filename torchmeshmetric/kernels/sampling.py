@@ -31,6 +31,13 @@ class SurfaceSamples(NamedTuple):
         face_idx: ``(N,)`` int64 face of each sample (row of the packed faces).
         bary: ``(N, 3)`` barycentric coordinates of each sample in its face.
         lengths: ``(B,)`` samples per mesh (``(1,)`` for a single mesh).
+
+    Example:
+        >>> import torch
+        >>> verts, faces = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]])
+        >>> s = sample_surface(verts, faces, 4, generator=torch.Generator().manual_seed(0))
+        >>> tuple(s.points.shape), s.face_idx.tolist(), s.lengths.tolist(), bool((s.points[:, 2] == 0).all())
+        ((4, 3), [0, 0, 0, 0], [4], True)
     """
 
     points: Tensor

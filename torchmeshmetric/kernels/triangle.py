@@ -34,6 +34,13 @@ class ClosestPointOnTriangle(NamedTuple):
         closest: ``(..., 3)`` closest point on the triangle.
         bary: ``(..., 3)`` its barycentric coordinates ``(u, v, w)``, ``closest = u a + v b + w c``.
         sq_dists: ``(...)`` **squared** Euclidean distance from the query point.
+
+    Example:
+        >>> import torch
+        >>> a, b, c = torch.tensor([0.0, 0, 0]), torch.tensor([1.0, 0, 0]), torch.tensor([0.0, 1, 0])
+        >>> r = closest_point_on_triangle(torch.tensor([[0.25, 0.25, 1.0]]), a, b, c)
+        >>> r.closest.tolist(), r.bary.tolist(), r.sq_dists.tolist()
+        ([[0.25, 0.25, 0.0]], [[0.5, 0.25, 0.25]], [1.0])
     """
 
     closest: Tensor

@@ -20,6 +20,15 @@ class DirectedDistances(NamedTuple):
             ``None``).
         reverse_lengths: ``(B,)`` reference points per item (two-sided only, else ``None``).
         peak: ``(B,)`` bounding-box diagonal of each reference mesh (the default PSNR peak).
+
+    Example:
+        >>> import torch
+        >>> from torchmeshmetric import mesh_surface_distance_sets
+        >>> triangle = (torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]]))
+        >>> lifted = (triangle[0] + torch.tensor([0.0, 0.0, 0.5]), triangle[1])
+        >>> d = mesh_surface_distance_sets(lifted, triangle, two_sided=True)
+        >>> d.forward.tolist(), d.forward_lengths.tolist(), d.reverse.tolist(), round(d.peak.item(), 6)
+        ([0.5, 0.5, 0.5], [3], [0.5, 0.5, 0.5], 1.414214)
     """
 
     forward: Tensor

@@ -76,6 +76,12 @@ class DistanceStatistics(NamedTuple):
         p99: 99 % quantile.
         count: number of distances (int64).
         psnr: ``10 log10(peak^2 / mse)`` in dB (``+inf`` when ``mse == 0``), or ``None`` when no peak was given.
+
+    Example:
+        >>> import torch
+        >>> s = distance_statistics(torch.tensor([1.0, 2.0, 3.0, 4.0]), peak=10.0)
+        >>> s.ave.item(), s.var.item(), s.mse.item(), s.max.item(), s.count.item(), round(s.psnr.item(), 4)
+        (2.5, 1.25, 7.5, 4.0, 4, 11.2494)
     """
 
     ave: Tensor
