@@ -95,6 +95,15 @@ class CachedRegistration(NamedTuple):
             (then the evaluation interpolates them: :class:`~torchmeshmetric.registration.SurfaceWarp`). The cache
             keeps a :class:`~torchmeshmetric.registration.RegistrationWarp` and drops any other callable (it cannot
             be stored), so an entry is the same from memory and from disk.
+
+    Example:
+        >>> import trimesh
+        >>> from torchmeshmetric.registration import DEFAULT_SCHEDULE
+        >>> from torchmeshmetric.structures import as_mesh
+        >>> m = as_mesh(trimesh.creation.icosphere(subdivisions=1))
+        >>> reg = compute_registration(m, m, schedule=[DEFAULT_SCHEDULE[0]._replace(max_steps=5)])
+        >>> tuple(reg.verts.shape), tuple(reg.residual.shape), reg.converged, reg.registered_mesh(m).num_faces
+        ((42, 3), (42,), True, 80)
     """
 
     verts: Tensor

@@ -54,6 +54,14 @@ class Correspondences(NamedTuple):
         closest: ``(P, 3)`` the closest point on the mesh.
         bary: ``(P, 3)`` its barycentric coordinates on ``face_idx``.
         normals: ``(P, 3)`` the mesh's unit normal at the closest point (:func:`interpolated_normals`).
+
+    Example:
+        >>> import torch
+        >>> verts, faces = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]])
+        >>> corr = find_correspondences(torch.tensor([[0.25, 0.25, 0.5]]), None, verts, faces, max_distance=1.0,
+        ...                             max_normal_angle=60.0)
+        >>> corr.face_idx.tolist(), corr.bary.tolist(), corr.normals.tolist(), corr.weights.tolist()
+        ([0], [[0.5, 0.25, 0.25]], [[0.0, 0.0, 1.0]], [1.0])
     """
 
     face_idx: Tensor

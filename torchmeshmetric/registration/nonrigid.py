@@ -67,7 +67,19 @@ __all__ = [
 
 
 class RegistrationWarning(UserWarning):
-    """Emitted when a registration fails (diverged, or the fit is implausible)."""
+    """Emitted when a registration fails (diverged, or the fit is implausible).
+
+    Example:
+        >>> import torch, trimesh, warnings
+        >>> from torchmeshmetric import Mesh, as_mesh
+        >>> source = as_mesh(trimesh.creation.icosphere(subdivisions=2))
+        >>> three_times = Mesh(source.verts * 3, source.faces)  # no rigid motion and a short schedule cannot reach it
+        >>> with warnings.catch_warnings(record=True) as caught:
+        ...     warnings.simplefilter("always")
+        ...     r = register_nonrigid(source, three_times, schedule=[DEFAULT_SCHEDULE[0]._replace(max_steps=5)])
+        >>> [w.category.__name__ for w in caught], r.converged, r.reason.split(":")[0]
+        (['RegistrationWarning'], False, 'implausible fit')
+    """
 
 
 class NonRigidRegistration(NamedTuple):
@@ -83,6 +95,17 @@ class NonRigidRegistration(NamedTuple):
         timings: seconds spent in ``rigid``, ``graph``, ``correspondences``, ``optimisation``, ``residual``, ``total``.
         graph: the fitted :class:`DeformationGraph` (in the normalised frame: centre/diagonal of the target).
         rigid: the :class:`RigidRegistration` used (identity when ``rigid_init=False``).
+
+    Example:
+        >>> import torch, trimesh
+        >>> from torchmeshmetric import Mesh, as_mesh
+        >>> source = as_mesh(trimesh.creation.icosphere(subdivisions=2))
+        >>> target = Mesh(source.verts + torch.tensor([0.1, 0.0, 0.0], dtype=source.dtype), source.faces)
+        >>> r = register_nonrigid(source, target, schedule=[DEFAULT_SCHEDULE[0]._replace(max_steps=5)])
+        >>> r.converged, r.reason, tuple(r.verts.shape), bool(r.residual.max() < 1e-9), r.mesh.num_faces
+        (True, '', (162, 3), True, 320)
+        >>> sorted(r.timings)
+        ['correspondences', 'graph', 'optimisation', 'residual', 'rigid', 'total']
     """
 
     verts: Tensor

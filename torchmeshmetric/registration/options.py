@@ -47,6 +47,13 @@ class Stage(NamedTuple):
         max_steps: Adam steps (>= 0; fewer only at a stationary point).
         lr_decay: the last step's learning rate as a fraction of ``lr`` (in ``(0, 1]``); the rate decays
             geometrically in between, so the stage ends converged instead of at Adam's noise floor of ~``lr``.
+
+    Example:
+        >>> first = DEFAULT_SCHEDULE[0]
+        >>> first.max_steps, first.max_distance
+        (120, 0.3)
+        >>> NonRigidOptions(schedule=[first._replace(max_steps=5)]).schedule[0].max_steps  # a shorter stage
+        5
     """
 
     regularization: float

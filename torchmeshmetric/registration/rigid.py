@@ -51,6 +51,13 @@ class SimilarityTransform(NamedTuple):
         rotation: ``(3, 3)`` rotation matrix (``det = +1``).
         translation: ``(3,)`` translation.
         scale: 0-dim scale (1 for a rigid transform).
+
+    Example:
+        >>> import torch
+        >>> src = torch.eye(3, dtype=torch.float64)
+        >>> t = kabsch_umeyama(src, 2 * src + 1, scale=True)  # scaled by 2, moved by (1, 1, 1)
+        >>> round(t.scale.item(), 9), [round(x, 9) for x in t.translation.tolist()]
+        (2.0, [1.0, 1.0, 1.0])
     """
 
     rotation: Tensor
@@ -71,6 +78,15 @@ class RigidRegistration(NamedTuple):
         inlier_fraction: 0-dim fraction of source samples kept as inliers in the last iteration.
         converged: whether the transform stopped changing (relative to ``tolerance``) before ``max_iterations``.
         iterations: number of ICP iterations run.
+
+    Example:
+        >>> import torch, trimesh
+        >>> from torchmeshmetric import Mesh, as_mesh
+        >>> source = as_mesh(trimesh.creation.icosphere(subdivisions=2))
+        >>> target = Mesh(source.verts + torch.tensor([0.1, 0.0, 0.0], dtype=source.dtype), source.faces)
+        >>> r = register_rigid(source, target)
+        >>> r.converged, r.scale.item(), tuple(r.transform.shape), bool(torch.allclose(r.verts, target.verts, atol=1e-9))
+        (True, 1.0, (4, 4), True)
     """
 
     rotation: Tensor
