@@ -85,7 +85,8 @@ class RigidRegistration(NamedTuple):
         >>> source = as_mesh(trimesh.creation.icosphere(subdivisions=2))
         >>> target = Mesh(source.verts + torch.tensor([0.1, 0.0, 0.0], dtype=source.dtype), source.faces)
         >>> r = register_rigid(source, target)
-        >>> r.converged, r.scale.item(), tuple(r.transform.shape), bool(torch.allclose(r.verts, target.verts, atol=1e-9))
+        >>> moved_onto = bool(torch.allclose(r.verts, target.verts, atol=1e-9))
+        >>> r.converged, r.scale.item(), tuple(r.transform.shape), moved_onto
         (True, 1.0, (4, 4), True)
     """
 
