@@ -45,6 +45,15 @@ class Moments(NamedTuple):
             distances).
         min: smallest value (``+inf`` when empty).
         max: largest value (``-inf`` when empty).
+
+    Example:
+        >>> import torch
+        >>> m = moments_of(torch.tensor([1.0, 2.0, 3.0, 4.0]))
+        >>> m.count.item(), m.mean.item(), m.m2.item(), m.sumsq.item(), m.min.item(), m.max.item()
+        (4.0, 2.5, 5.0, 30.0, 1.0, 4.0)
+        >>> halves = moments_of(torch.tensor([1.0, 2.0, 3.0, 4.0]), torch.tensor([2, 2]))  # (B,) per item, merged
+        >>> merge_moments(halves).m2.item()
+        5.0
     """
 
     count: Tensor  # type: ignore[assignment]  # shadows tuple.count on purpose (the statistic's name)

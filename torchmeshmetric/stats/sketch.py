@@ -36,7 +36,18 @@ __all__ = ["QuantileSketch", "SketchRangeWarning"]
 
 
 class SketchRangeWarning(UserWarning):
-    """A sketched quantile lies outside the sketch's window ``[min_value, max_value]``: no relative-error bound."""
+    """A sketched quantile lies outside the sketch's window ``[min_value, max_value]``: no relative-error bound.
+
+    Example:
+        >>> import torch, warnings
+        >>> sketch = QuantileSketch(relative_accuracy=0.01, min_value=1e-3, max_value=10.0)
+        >>> x = torch.tensor([100.0, 200.0, 300.0], dtype=torch.float64)  # above the window
+        >>> with warnings.catch_warnings(record=True) as caught:
+        ...     warnings.simplefilter("always")
+        ...     _ = sketch.quantile(sketch.counts(x), torch.tensor([0.5]), x.min(), x.max())
+        >>> [w.category.__name__ for w in caught]
+        ['SketchRangeWarning']
+    """
 
 
 class QuantileSketch:
