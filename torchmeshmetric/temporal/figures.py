@@ -42,6 +42,14 @@ class TemporalFigures(NamedTuple):
             take no part), or the tracked frame 0's.
         unconverged: frames ``k`` of the original whose registration of ``k-1`` onto ``k`` (the registered forms'
             tracking) says ``converged=False``; empty for the exact forms.
+
+    Example:
+        >>> import trimesh
+        >>> sphere = trimesh.creation.icosphere(subdivisions=2)
+        >>> frames = [trimesh.Trimesh(sphere.vertices * (1 + 0.1 * k), sphere.faces) for k in range(3)]
+        >>> f = temporal_figures(frames, frames)
+        >>> f.num_frames, f.num_verts, f.registered, f.kg, f.unconverged
+        (3, 162, False, 0.0, ())
     """
 
     kg: float

@@ -74,6 +74,15 @@ class TrackedSequence(NamedTuple):
         projection: ``(F, V_0)`` how far each warped position was from the surface of its frame before it was put
             back on it (zero in frame 0): the registration's residual where the tracking runs.
         registrations: the ``F - 1`` registrations used (entry ``k-1``: frame ``k-1`` onto frame ``k``).
+
+    Example:
+        >>> import torch, trimesh
+        >>> sphere = trimesh.creation.icosphere(subdivisions=2)
+        >>> moved = trimesh.Trimesh(sphere.vertices + [0.1, 0.0, 0.0], sphere.faces)
+        >>> shift = lambda source, target: (source.verts + torch.tensor([0.1, 0.0, 0.0]), source.faces)
+        >>> t = track_original([sphere, moved], registration_fn=shift)
+        >>> tuple(t.verts.shape), t.verts.dtype, tuple(t.faces.shape), len(t.registrations)
+        ((2, 162, 3), torch.float64, (320, 3), 1)
     """
 
     verts: Tensor
@@ -90,6 +99,14 @@ class RegisteredPair(NamedTuple):
         distorted: ``(F, V_0, 3)`` the distorted frames carried onto it (differentiable in the distorted vertices).
         faces: ``(T_0, 3)`` the faces of both.
         tracking: the :class:`TrackedSequence`.
+
+    Example:
+        >>> import trimesh
+        >>> sphere = trimesh.creation.icosphere(subdivisions=2)
+        >>> finer = trimesh.creation.icosphere(subdivisions=3)  # the same surface, another connectivity
+        >>> p = registered_pair([sphere, sphere], [finer, finer], registration_fn=lambda s, t: s)
+        >>> tuple(p.original.shape), tuple(p.distorted.shape), tuple(p.faces.shape)  # on the original's 162 vertices
+        ((2, 162, 3), (2, 162, 3), (320, 3))
     """
 
     original: Tensor

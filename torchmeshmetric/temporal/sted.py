@@ -67,6 +67,15 @@ class StedResult(NamedTuple):
         spatial: :math:`\mathrm{STED}_s`.
         temporal: :math:`\mathrm{STED}_t`.
         sted: :math:`\sqrt{\mathrm{STED}_s^2 + c^2 \mathrm{STED}_t^2}`.
+
+    Example:
+        >>> import torch, trimesh
+        >>> sphere = trimesh.creation.icosphere(subdivisions=1)
+        >>> verts, faces = torch.as_tensor(sphere.vertices), torch.as_tensor(sphere.faces)
+        >>> drifting = torch.stack([verts + 0.01 * k for k in range(4)])
+        >>> r = sted(drifting, drifting, faces)  # a sequence against itself
+        >>> r.spatial.item(), r.temporal.item(), r.sted.item()
+        (0.0, 0.0, 0.0)
     """
 
     spatial: Tensor

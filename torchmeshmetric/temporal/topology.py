@@ -68,6 +68,12 @@ class Neighbourhoods(NamedTuple):
         vertex: ``(P,)`` int64 the vertex of each pair.
         edge: ``(P,)`` int64 the edge (a row of ``edges``) of each pair.
         num_verts: the mesh's vertex count.
+
+    Example:
+        >>> import torch
+        >>> n = neighbourhoods(torch.tensor([[0, 1, 2], [0, 2, 3]]), 4)  # two triangles sharing edge (0, 2)
+        >>> n.edges.tolist(), n.num_verts, sorted(n.edge[n.vertex == 3].tolist())  # vertex 3 sees 0, 2, 3
+        ([[0, 1], [0, 2], [0, 3], [1, 2], [2, 3]], 4, [1, 2, 4])
     """
 
     edges: Tensor
