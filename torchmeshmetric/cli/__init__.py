@@ -57,6 +57,11 @@ class CommandInfo(NamedTuple):
             calls ``sub.add_parser(name, help=summary, ...)``, declares the options and sets ``func`` (called with
             the parsed arguments, it runs the command and returns the exit code).
         summary: the command's one-line help (equal to the ``help`` its ``add_function`` gives, which a test checks).
+
+    Example:
+        >>> info = COMMANDS["bdrate"]
+        >>> info.module_path, info.add_function
+        ('torchmeshmetric.cli.bdrate', 'add_bdrate_command')
     """
 
     module_path: str

@@ -50,6 +50,11 @@ class NativeExtension:
         headers: the headers they include (part of the build's hash: an edited header rebuilds).
         cflags: compiler flags.
         ldflags: linker flags.
+
+    Example:
+        >>> bvh = EXTENSIONS["bvh"]
+        >>> bvh.sources, "-ffp-contract=off" in bvh.cflags  # exact arithmetic: no fused multiply-add
+        (('bvh.cpp', 'deformation_energy.cpp'), True)
     """
 
     sources: tuple[str, ...]
@@ -95,7 +100,16 @@ EXTENSIONS: dict[str, NativeExtension] = {
 
 
 class NativeBuildError(RuntimeError):
-    """A C++ extension could not be built or imported here (no compiler, no ninja, a read-only cache, ...)."""
+    """A C++ extension could not be built or imported here (no compiler, no ninja, a read-only cache, ...).
+
+    Example:
+        >>> try:
+        ...     module = load("bvh")
+        ... except NativeBuildError:  # a RuntimeError too: no compiler here, take the pure-torch path
+        ...     module = None
+        >>> module is None or callable(module.closest_points)
+        True
+    """
 
 
 _LOCK = threading.Lock()

@@ -37,6 +37,13 @@ class ErrorMesh(NamedTuple):
         vmax: the distance of the brightest colour (larger ones are clamped).
         unit: the unit of the distances (e.g. ``"mesh units"``).
         decimated_from: the face count before decimation for display, or ``None`` when shown whole.
+
+    Example:
+        >>> import torch, trimesh
+        >>> sphere = trimesh.creation.icosphere(subdivisions=1)
+        >>> layer = error_mesh("sphere", sphere, torch.linspace(0, 1, 42), what="test", vmax=1.0)
+        >>> layer.name, tuple(layer.verts.shape), str(layer.colors.dtype), layer.vmax, layer.decimated_from
+        ('sphere', (42, 3), 'uint8', 1.0, None)
     """
 
     name: str
