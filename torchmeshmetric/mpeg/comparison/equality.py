@@ -402,6 +402,16 @@ class MeshEquality:
             ``model vertices are equals``); ``different_triangles`` and ``first_unmatched`` are then ``None``.
         point_differences: point clouds compared with ``epsilon`` > 0 and as many points on both sides: the sorted
             points at distance ``>= epsilon`` ("found N differences"); ``None`` otherwise.
+
+    Example:
+        >>> import torch
+        >>> from torchmeshmetric.structures import Mesh
+        >>> v = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]])
+        >>> a = TexturedMesh(Mesh(v, torch.tensor([[0, 1, 2], [1, 3, 2]])))
+        >>> b = TexturedMesh(Mesh(v, torch.tensor([[3, 2, 1], [2, 0, 1]])))  # the same triangles, other order
+        >>> e = mesh_equality(a, b)
+        >>> e.equal, e.triangles_a, e.different_triangles, e.first_unmatched
+        (True, 2, 0, None)
     """
 
     equal: bool

@@ -29,7 +29,20 @@ __all__ = ["IbsmNoOverlapWarning", "IbsmResult", "ibsm", "ibsm_render"]
 
 
 class IbsmNoOverlapWarning(UserWarning):
-    """IBSM of two meshes with no pixel covered in both renderings: the 99.99 dB figures measure nothing."""
+    """IBSM of two meshes with no pixel covered in both renderings: the 99.99 dB figures measure nothing.
+
+    Example:
+        >>> import torch, trimesh, warnings
+        >>> from torchmeshmetric.structures import Mesh
+        >>> s = trimesh.creation.icosphere(2)
+        >>> m = TexturedMesh(Mesh(torch.tensor(s.vertices, dtype=torch.float32), torch.tensor(s.faces)))
+        >>> far = TexturedMesh(Mesh(m.mesh.verts + torch.tensor([5.0, 0.0, 0.0]), m.mesh.faces))  # disjoint
+        >>> with warnings.catch_warnings(record=True) as caught:
+        ...     warnings.simplefilter("always")
+        ...     r = ibsm(m, far, resolution=32, cameras=4)
+        >>> [w.category.__name__ for w in caught], r.pixels
+        (['IbsmNoOverlapWarning'], 0)
+    """
 
 
 def _rasterizer() -> ModuleType:
@@ -54,6 +67,15 @@ class IbsmResult:
         unmatched_percent: pixels covered in one rendering only, in percent of those covered in both.
         box_ratio: 100 x the distorted mesh's box diagonal over the reference's.
         pixels: pixels covered in both renderings, over all cameras.
+
+    Example:
+        >>> import torch, trimesh
+        >>> from torchmeshmetric.structures import Mesh
+        >>> s = trimesh.creation.icosphere(2)
+        >>> m = TexturedMesh(Mesh(torch.tensor(s.vertices, dtype=torch.float32), torch.tensor(s.faces)))
+        >>> r = ibsm(m, m, resolution=64, cameras=4)
+        >>> r.geo_psnr, r.rgb_psnr[3], r.unmatched_percent, r.box_ratio, r.pixels > 0
+        (99.99, 99.99, 0.0, 100.0, True)
     """
 
     rgb_mse: tuple[float, float, float, float]

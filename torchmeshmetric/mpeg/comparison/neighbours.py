@@ -67,6 +67,12 @@ class NeighbourTies:
         cand: ``(S, K)`` their candidates sorted by distance (``-1`` padding).
         chain: ``(S, K)`` candidates in dmetric's tie chain (consecutive distances within ``1e-20``).
         equal: ``(S, K)`` candidates exactly as far as the nearest (the rule of dmetric's normal transfer).
+
+    Example:
+        >>> targets = np.array([[1, 0, 0], [-1, 0, 0], [0, 2, 0]], np.float32)
+        >>> t = nearest_with_ties(np.array([[0, 0, 0], [0, 1.9, 0]], np.float32), targets)
+        >>> t.nearest.tolist(), t.rows.tolist(), t.equal.tolist()  # query 0: targets 0 and 1 tie at distance 1
+        ([0, 2], [0], [[True, True, False]])
     """
 
     nearest: np.ndarray

@@ -51,6 +51,14 @@ class MpegDirection:
         color_rgb_hausdorff: ``(R, G, B)`` largest squared difference (in 0..255 units) between a point's colour and
             its neighbours' averaged colour, or ``None`` without colours (dmetric's ``h.c[k]``).
         color_rgb_hausdorff_psnr: their PSNR (peak 255, factor 1).
+
+    Example:
+        >>> import torch
+        >>> ref = PointCloud(torch.tensor([[0.0, 0, 0], [1, 0, 0]]), normals=torch.tensor([[0.0, 1, 0]] * 2))
+        >>> dis = PointCloud(torch.tensor([[0.0, 0.1, 0], [1, 0, 0]]))  # one point 0.1 off the reference
+        >>> d = mpeg_compare(ref, dis, peak=1.0).dis_to_ref  # each distorted point to its nearest reference point
+        >>> round(d.d1_mse, 6), round(d.d1_hausdorff, 6), round(d.d1_psnr, 4), d.color_mse
+        (0.005, 0.01, 27.7815, None)
     """
 
     d1_mse: float
@@ -75,6 +83,14 @@ class MpegResult:
         peak: the PSNR peak (the reference's bounding-box diagonal unless given), rounded to float32 as mmetric.
         points_ref, points_dis: cloud sizes after duplicate merging.
         ref_to_dis, dis_to_ref: the two directions.
+
+    Example:
+        >>> import torch
+        >>> ref = PointCloud(torch.tensor([[0.0, 0, 0], [1, 0, 0]]), normals=torch.tensor([[0.0, 1, 0]] * 2))
+        >>> dis = PointCloud(torch.tensor([[0.0, 0.1, 0], [1, 0, 0]]))  # one point 0.1 off the reference
+        >>> r = mpeg_compare(ref, dis, peak=1.0)
+        >>> r.peak, r.points_ref, r.points_dis, round(r.symmetric.d1_mse, 6)
+        (1.0, 2, 2, 0.005)
     """
 
     peak: float
@@ -220,6 +236,14 @@ class PointErrors(NamedTuple):
             target normals.
         color: ``(N, 3)`` squared Y, Cb, Cr error (colours in ``[0, 1]``), or ``None`` without colours.
         rgb: ``(N, 3)`` squared R, G, B difference (0..255 units) to the neighbours' averaged colour, or ``None``.
+
+    Example:
+        >>> import torch
+        >>> ref = PointCloud(torch.tensor([[0.0, 0, 0], [1, 0, 0]]), normals=torch.tensor([[0.0, 1, 0]] * 2))
+        >>> dis = PointCloud(torch.tensor([[0.0, 0.1, 0], [1, 0, 0]]))  # one point 0.1 off the reference
+        >>> e = mpeg_point_errors(ref, dis).dis_to_ref
+        >>> e.d1.round(6).tolist(), e.d2.round(6).tolist(), e.color, e.rgb
+        ([0.01, 0.0], [0.01, 0.0], None, None)
     """
 
     d1: np.ndarray
@@ -396,6 +420,14 @@ class MpegPointErrors(NamedTuple):
         dis: the distorted cloud after merging: the points of ``dis_to_ref``.
         ref_to_dis: each reference point's errors against the distorted cloud.
         dis_to_ref: each distorted point's errors against the reference.
+
+    Example:
+        >>> import torch
+        >>> ref = PointCloud(torch.tensor([[0.0, 0, 0], [1, 0, 0]]), normals=torch.tensor([[0.0, 1, 0]] * 2))
+        >>> dis = PointCloud(torch.tensor([[0.0, 0.1, 0], [1, 0, 0]]))  # one point 0.1 off the reference
+        >>> e = mpeg_point_errors(ref, dis)
+        >>> e.ref.num_points, e.ref_to_dis.d1.round(6).tolist(), e.dis_to_ref.d1.round(6).tolist()
+        (2, [0.01, 0.0], [0.01, 0.0])
     """
 
     ref: PointCloud

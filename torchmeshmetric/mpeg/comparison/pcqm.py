@@ -77,6 +77,14 @@ class PcqmResult:
         features: the means of the three weighted features (curvature structure, lightness, lightness structure).
         points_ref, points_dis: the sizes of the two clouds (A and B).
         radius: the curvature radius ``radius_curvature * max_dim``.
+
+    Example:
+        >>> import torch
+        >>> from torchmeshmetric.mpeg import PointCloud
+        >>> pts = torch.rand(200, 3, generator=torch.Generator().manual_seed(0)) * torch.tensor([1.0, 1.0, 0.0])
+        >>> r = mpeg_pcqm(PointCloud(pts), PointCloud(pts), radius_curvature=0.1)  # flat, same colour: no distortion
+        >>> r.pcqm, r.psnr, r.points_ref, r.features
+        (0.0, inf, 200, (0.0, 1.0, 1.0))
     """
 
     pcqm: float

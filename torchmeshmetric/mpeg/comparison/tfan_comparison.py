@@ -582,6 +582,16 @@ class TfanEquality:
             as ``equ``'s); ``geometry``, ``texture`` and their differences are then ``None``.
         point_differences: point clouds compared with ``epsilon`` > 0 and as many points on both sides: the sorted
             points at distance ``>= epsilon``; ``None`` otherwise.
+
+    Example:
+        >>> import torch
+        >>> from torchmeshmetric.structures import Mesh
+        >>> v = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]])
+        >>> a = TexturedMesh(Mesh(v, torch.tensor([[0, 1, 2], [1, 3, 2]])))
+        >>> b = TexturedMesh(Mesh(v, torch.tensor([[3, 2, 1], [2, 0, 1]])))
+        >>> e = tfan_equality(a, b)
+        >>> e.equal, e.geometry, e.texture, e.triangles_b
+        (True, 'equal', 'equal', 2)
     """
 
     equal: bool

@@ -46,7 +46,20 @@ _NUMBER = re.compile(rb"[ \t\n\v\f\r]*([+-]?)([0-9]+)")
 
 
 class TopologyMapError(ValueError):
-    """A topology map file is missing or malformed, or does not fit the meshes (the message names file and line)."""
+    """A topology map file is missing or malformed, or does not fit the meshes (the message names file and line).
+
+    Example:
+        >>> import os, tempfile
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     path = os.path.join(folder, "faces.txt")
+        ...     with open(path, "w") as f:
+        ...         _ = f.write("0 1" + chr(10) + "0 2" + chr(10))  # face 0 of B given twice
+        ...     try:
+        ...         read_topology_map(path, 3)
+        ...     except TopologyMapError as error:  # a ValueError too
+        ...         print(str(error).replace(folder, "FOLDER"))
+        FOLDER/faces.txt:2: face 0 of mesh B is already mapped to face 1 of mesh A
+    """
 
 
 @dataclass(frozen=True)
@@ -64,6 +77,15 @@ class TopologyComparison:
         face_a: the face of A the face map gives it.
         corners_a: that face's vertex indices in A.
         corners_b: the corners of ``face_b`` mapped to A's vertex indices.
+
+    Example:
+        >>> import torch
+        >>> v = torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]])
+        >>> a = (v, torch.tensor([[0, 1, 2], [1, 3, 2]]))
+        >>> b = (v, torch.tensor([[0, 2, 1], [1, 3, 2]]))  # face 0 turned over
+        >>> t = topology_equivalence(a, b, torch.tensor([0, 1]), torch.tensor([0, 1, 2, 3]))
+        >>> t.matching, t.reason, t.face_b, t.corners_a, t.corners_b
+        (False, 'orientation', 0, (0, 1, 2), (0, 2, 1))
     """
 
     matching: bool

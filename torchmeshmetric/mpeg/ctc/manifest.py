@@ -90,7 +90,20 @@ DEFAULT_CACHE_DIR = "ctc-cache"
 
 
 class CtcManifestError(ValueError):
-    """A CTC campaign manifest that cannot be read or used; names the file and the key."""
+    """A CTC campaign manifest that cannot be read or used; names the file and the key.
+
+    Example:
+        >>> import os, tempfile
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     path = os.path.join(folder, "c.toml")
+        ...     with open(path, "w") as f:
+        ...         _ = f.write("[[sequences]]" + chr(10) + "name = 1" + chr(10))
+        ...     try:
+        ...         load_ctc_campaign(path)
+        ...     except CtcManifestError as error:  # a ValueError too
+        ...         print(str(error).split(": ", 1)[1])
+        sequences[0]: 'name' must be a string, found 1
+    """
 
 
 @dataclass(frozen=True)
@@ -179,6 +192,21 @@ class CtcCampaign:
             the manifest's ``cache_dir = ""``).
         grid_size, ibsm_resolution, ibsm_cameras: the chain's settings (``ibsm_resolution`` ``None``: no IBSM).
         path: the manifest file.
+
+    Example:
+        >>> import os, tempfile
+        >>> lines = ["[[sequences]]", 'name = "a"', "id = 1", 'source = "a/src_%04d.obj"', "first_frame = 0",
+        ...          "frame_count = 2", "fps = 30", "qp = 10", "qt = 0", "min_pos = [0, 0, 0]",
+        ...          "max_pos = [1023, 1023, 511]", "[[conditions]]", "id = 1", "rates = [1, 2]", "[anchor]",
+        ...          'decoded = "anchor/r{rate_id}_%04d.obj"', "[test]", 'decoded = "test/r{rate_id}_%04d.obj"',
+        ...          "[options]", 'cache_dir = ""']
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     path = os.path.join(folder, "c.toml")
+        ...     with open(path, "w") as f:
+        ...         _ = f.write(chr(10).join(lines))
+        ...     c = load_ctc_campaign(path)
+        >>> [s.name for s in c.sequences], c.conditions[0].rates, c.test.name, c.cache_dir, c.grid_size
+        (['a'], (1, 2), 'test', None, 1024)
     """
 
     sequences: list[CtcCampaignSequence]

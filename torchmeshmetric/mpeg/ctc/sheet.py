@@ -94,6 +94,16 @@ class RatePoint:
         encoder_seconds, decoder_seconds: ``UserEncoderRuntime``, ``UserDecoderRuntime``.
         encoder_memory, decoder_memory: ``PeakEncoderMemory``, ``PeakDecoderMemory`` (MB).
         components: component name (:data:`COMPONENTS`) -> bits; empty when the split is unknown.
+
+    Example:
+        >>> import os, tempfile
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     path = os.path.join(folder, "anchor.csv")
+        ...     with open(path, "w") as f:
+        ...         _ = f.write(format_test_model_csv([RatePoint(1, 1, 2, 8000, {"GridD1": 70.5})]))
+        ...     point = read_test_model_csv(path)[1, 1, 2]
+        >>> point.total_bits, point.figures, point.output_faces
+        (8000.0, {'GridD1': 70.5}, None)
     """
 
     seq_id: int

@@ -40,7 +40,18 @@ _CHUNK = 1 << 21  # ray-triangle pairs per vectorised step (a few tens of MB of 
 
 
 class BoxError(ValueError):
-    """A sampling box that is malformed or does not contain the mesh."""
+    """A sampling box that is malformed or does not contain the mesh.
+
+    Example:
+        >>> import torch
+        >>> tri = (torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]]))
+        >>> from torchmeshmetric.mpeg import mpeg_metrics
+        >>> try:
+        ...     mpeg_metrics(tri, tri, box=([0.5, 0, 0], [1, 1, 1]), grid_size=8)
+        ... except BoxError as error:  # a ValueError too
+        ...     print(str(error).split(" (")[0])
+        box: [[0.5, 0.0, 0.0], [1.0, 1.0, 1.0]] does not contain the reference mesh
+    """
 
 
 def mesh_box(verts: np.ndarray | Tensor) -> tuple[np.ndarray, np.ndarray]:
@@ -193,6 +204,13 @@ class GridSamples(NamedTuple):
         cloud: what :func:`grid_sample` returns.
         face_idx: ``(N,)`` the face of every point of ``cloud`` (index into the mesh's faces; a point that several
             faces produced keeps the first, in mmetric's push order).
+
+    Example:
+        >>> import torch
+        >>> tri = (torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]]))
+        >>> g = grid_sample_faces(tri, 3, box=([0, 0, 0], [1, 1, 1]))
+        >>> g.cloud.num_points, g.face_idx.tolist()
+        (6, [0, 0, 0, 0, 0, 0])
     """
 
     cloud: PointCloud
@@ -291,6 +309,13 @@ class GridHits(NamedTuple):
         origin: ``(H, 3)`` float32 ray origins.
         bary: ``(H, 2)`` float32 barycentric ``(u, v)`` of the hit on its face (weights of corners 1 and 2).
         faces: ``(F, 3)`` the mesh's faces (numpy).
+
+    Example:
+        >>> import torch
+        >>> tri = (torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]]))
+        >>> h = grid_hits(tri, 3, box=([0, 0, 0], [1, 1, 1]))  # a flat triangle: only the z rays hit it
+        >>> h.points.shape, h.axis.tolist(), h.face_idx.tolist(), bool((h.points[:, 2] == 0).all())
+        ((6, 3), [2, 2, 2, 2, 2, 2], [0, 0, 0, 0, 0, 0], True)
     """
 
     points: np.ndarray
@@ -415,7 +440,17 @@ def _cast_rays(en: _Entries, ent: np.ndarray, first: np.ndarray, cnt: np.ndarray
 
 
 class GridTooLargeError(ValueError):
-    """A grid so fine that its samples cannot fit in memory (refused before any ray is cast)."""
+    """A grid so fine that its samples cannot fit in memory (refused before any ray is cast).
+
+    Example:
+        >>> import torch
+        >>> tri = (torch.tensor([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]), torch.tensor([[0, 1, 2]]))
+        >>> try:
+        ...     grid_sample(tri, 1 << 20)  # about 5e11 points: refused before any ray is cast
+        ... except GridTooLargeError as error:  # a ValueError too
+        ...     print(str(error).split(":")[0])
+        grid_size (--grid-size) 1048576
+    """
 
 
 # Peak bytes per sample of grid_sample (tracemalloc, torus of tests/mpeg: 157 at grid 1024 = 1.7 M points, 128 at
