@@ -42,7 +42,16 @@ __all__ = ["RegistrationWarp", "SurfaceWarp", "Warp", "as_warp", "deformation_of
 
 
 class Warp(Protocol):
-    """A map of ``(P, 3)`` points of frame ``k-1`` to their ``(P, 3)`` positions in frame ``k`` (any callable)."""
+    """A map of ``(P, 3)`` points of frame ``k-1`` to their ``(P, 3)`` positions in frame ``k`` (any callable).
+
+    Example:
+        >>> import torch
+        >>> shift: Warp = lambda points: points + torch.tensor([0.5, 0.0, 0.0])  # any callable (P, 3) -> (P, 3)
+        >>> shift(torch.zeros(2, 3)).tolist()
+        [[0.5, 0.0, 0.0], [0.5, 0.0, 0.0]]
+        >>> as_warp(shift, None, None, name="registration") is shift  # taken as it is wherever a registration goes
+        True
+    """
 
     def __call__(self, points: Tensor, /) -> Tensor:
         """Positions in frame ``k`` of ``points``."""

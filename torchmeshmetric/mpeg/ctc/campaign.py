@@ -91,6 +91,27 @@ class CampaignResult:
             or read: the campaign's frames less these two counts).
         chain_seconds: the wall seconds of the frames computed by this run, summed (each frame's read and chain).
         names: the two codecs' names.
+
+    Example:
+        >>> import os, tempfile
+        >>> from torchmeshmetric.mpeg import load_ctc_campaign
+        >>> tetrahedron = ["v 0 0 0", "v 1023 0 0", "v 0 1023 0", "v 0 0 511",
+        ...                "f 1 3 2", "f 1 2 4", "f 1 4 3", "f 2 3 4"]
+        >>> manifest = ["[options]", 'cache_dir = ""', "grid_size = 64", "ibsm_resolution = 0", "[[sequences]]",
+        ...             'name = "tet"', "id = 1", 'source = "src_%04d.obj"', "first_frame = 0", "frame_count = 1",
+        ...             "fps = 30", "qp = 10", "qt = 0", "min_pos = [0, 0, 0]", "max_pos = [1023, 1023, 511]",
+        ...             "[[conditions]]", "id = 1", "rates = [1]"]
+        >>> for codec in ("anchor", "test"):  # both "decode" the source losslessly, 8000 bits
+        ...     manifest += [f"[{codec}]", 'decoded = "src_%04d.obj"', f"[[{codec}.points]]", 'sequence = "tet"',
+        ...                  "condition = 1", "rate = 1", "total_bits = 8000"]
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     for name, lines in (("src_0000.obj", tetrahedron), ("campaign.toml", manifest)):
+        ...         with open(os.path.join(folder, name), "w") as f:
+        ...             _ = f.write(chr(10).join(lines) + chr(10))
+        ...     result = run_ctc_campaign(load_ctc_campaign(os.path.join(folder, "campaign.toml")))
+        >>> point = result.points["test"][1, 1, 1]  # (seq_id, cond_id, rate_id)
+        >>> point.total_bits, point.figures, result.names
+        (8000.0, {'GridD1': 99.99, 'GridD2': 99.99}, ('anchor', 'test'))
     """
 
     points: dict[str, dict[tuple[int, int, int], RatePoint]]
@@ -581,6 +602,26 @@ def run_ctc_campaign(
             read, a metric present on some frames of a point only; all but the last found before any frame is
             computed.
         RankFailedError: under torchrun, a frame failed on some rank (naming the rank and the frame).
+
+    Example:
+        >>> import os, tempfile
+        >>> from torchmeshmetric.mpeg import load_ctc_campaign
+        >>> tetrahedron = ["v 0 0 0", "v 1023 0 0", "v 0 1023 0", "v 0 0 511",
+        ...                "f 1 3 2", "f 1 2 4", "f 1 4 3", "f 2 3 4"]
+        >>> manifest = ["[options]", 'cache_dir = ""', "grid_size = 64", "ibsm_resolution = 0", "[[sequences]]",
+        ...             'name = "tet"', "id = 1", 'source = "src_%04d.obj"', "first_frame = 0", "frame_count = 1",
+        ...             "fps = 30", "qp = 10", "qt = 0", "min_pos = [0, 0, 0]", "max_pos = [1023, 1023, 511]",
+        ...             "[[conditions]]", "id = 1", "rates = [1]"]
+        >>> for codec in ("anchor", "test"):  # both "decode" the source losslessly, 8000 bits
+        ...     manifest += [f"[{codec}]", 'decoded = "src_%04d.obj"', f"[[{codec}.points]]", 'sequence = "tet"',
+        ...                  "condition = 1", "rate = 1", "total_bits = 8000"]
+        >>> with tempfile.TemporaryDirectory() as folder:
+        ...     for name, lines in (("src_0000.obj", tetrahedron), ("campaign.toml", manifest)):
+        ...         with open(os.path.join(folder, name), "w") as f:
+        ...             _ = f.write(chr(10).join(lines) + chr(10))
+        ...     result = run_ctc_campaign(load_ctc_campaign(os.path.join(folder, "campaign.toml")))
+        >>> result.computed, result.from_cache, [f["figures"] for f in result.frames]  # equal inputs: computed once
+        (1, 0, [{'GridD1': inf, 'GridD2': inf}, {'GridD1': inf, 'GridD2': inf}])
     """
     from torchmeshmetric.tasks import exchange, rank_and_world_size, run_tasks, shard
 
