@@ -341,7 +341,9 @@ class Determinacy:
         >>> moved = [f.copy().apply_translation([0.01, 0, 0]) for f in frames]  # every vertex 0.01 away
         >>> seq = evaluate_sequence(frames, moved, registration_fn=lambda s, t: s)
         >>> d = measure_determinacy({"moved": seq}, {"moved": seq}, "float32")  # the same run twice: nothing moved
-        >>> d.rounding, list(d.changes)[:2], d.changes["I"][0]["ave"]
+        >>> table_1 = d.changes["I"]
+        >>> first_row = table_1[0]
+        >>> d.rounding, list(d.changes)[:2], first_row["ave"]
         ('float32', ['I', 'II'], 0.0)
     """
 

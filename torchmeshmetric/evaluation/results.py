@@ -197,7 +197,7 @@ class SequenceEvaluation(NamedTuple):
         >>> seq = evaluate_sequence(frames, moved, registration_fn=lambda s, t: s)
         >>> [p.frame for p in seq.pairs], seq.best_pair_index()
         ([1, 2], 0)
-        >>> round(seq.aggregate()["vertex_k"]["ave"], 12)  # mean over the pairs
+        >>> round(seq.aggregate().get("vertex_k").get("ave"), 12)  # mean over the pairs
         0.01
     """
 

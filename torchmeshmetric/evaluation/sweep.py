@@ -56,8 +56,8 @@ class WeightSweep(NamedTuple):
         >>> moved = [f.copy().apply_translation([0.01, 0, 0]) for f in frames]  # every vertex 0.01 away
         >>> seq = evaluate_sequence(frames, moved, registration_fn=lambda s, t: s)
         >>> sweep = WeightSweep(weights=[0.5], results=[seq], baseline=None)  # as registered_qem_sweep returns it
-        >>> row = sweep.rows("ave")[0]
-        >>> row["weight"], round(row["surface_k"], 6) == round(seq.aggregate()["surface_k"]["ave"], 6)
+        >>> row = next(iter(sweep.rows("ave")))
+        >>> row["weight"], round(row["surface_k"], 6) == round(seq.aggregate().get("surface_k").get("ave"), 6)
         (0.5, True)
     """
 

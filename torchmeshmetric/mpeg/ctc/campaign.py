@@ -109,7 +109,7 @@ class CampaignResult:
         ...         with open(os.path.join(folder, name), "w") as f:
         ...             _ = f.write(chr(10).join(lines) + chr(10))
         ...     result = run_ctc_campaign(load_ctc_campaign(os.path.join(folder, "campaign.toml")))
-        >>> point = result.points["test"][1, 1, 1]  # (seq_id, cond_id, rate_id)
+        >>> point = result.points["test"].get((1, 1, 1))  # (seq_id, cond_id, rate_id)
         >>> point.total_bits, point.figures, result.names
         (8000.0, {'GridD1': 99.99, 'GridD2': 99.99}, ('anchor', 'test'))
     """
