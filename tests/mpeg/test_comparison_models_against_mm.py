@@ -86,6 +86,30 @@ def test_point_clouds(tmp_path: Path, mode: str, capsys: pytest.CaptureFixture[s
     capsys.readouterr()
 
 
+def test_clouds_past_one_block(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Clouds longer than a block of the row formatter (65,536 rows): the blocks join to mm's file, PLY and OBJ.
+
+    Random float32 coordinates of every magnitude from 1e-7 to 1e7 (nine digits each), signed zeros among them.
+    """
+    import numpy as np
+
+    from torchmeshmetric.mpeg.core._text_rows import BLOCK_ROWS
+
+    rng = np.random.default_rng(12)
+    n = BLOCK_ROWS + 1000
+    p = (rng.normal(size=(n, 3)) * 10.0 ** rng.integers(-7, 8, (n, 3))).astype(np.float32)
+    p[rng.random((n, 3)) < 0.01] = np.float32(-0.0)
+    head = f"ply\nformat ascii 1.0\nelement vertex {n}\n" + "".join(f"property float {c}\n" for c in "xyz")
+    q = p[::-1].copy()
+    q[::5] *= np.float32(1.5)  # an unequal pair: each file is its own cloud sorted
+    for name, cloud in (("a.ply", p), ("b.ply", q)):
+        with open(tmp_path / name, "w") as fh:
+            fh.write(head + "end_header\n")
+            np.savetxt(fh, cloud, fmt="%.9g")
+    _both(tmp_path, "equ", tmp_path / "a.ply", tmp_path / "b.ply", (".ply", ".obj"), [], [])
+    capsys.readouterr()
+
+
 @pytest.mark.parametrize("mode", ["pcc", "pcqm"])
 def test_sampled_clouds(tmp_path: Path, mode: str, capsys: pytest.CaptureFixture[str]) -> None:
     """pcc (mesh sampling) and pcqm: the clouds of meshes (textured: colours; not: normals only) as OBJ and PLY.

@@ -76,7 +76,7 @@ _PCQM_OPTIONS = {
 
 def _run_pcqm(args: argparse.Namespace) -> int:
     """``--mode pcqm``: mm compare --mode pcqm's printed figures (or JSON)."""
-    from torchmeshmetric.cli.mpeg_outputs import cloud_texts, load_pair, write_models
+    from torchmeshmetric.cli.mpeg_outputs import cloud_blocks, load_pair, write_models
     from torchmeshmetric.mpeg.comparison.csv_rows import mmetric_texture_url, pcqm_csv_row
     from torchmeshmetric.mpeg.comparison.pcqm import mpeg_pcqm
     from torchmeshmetric.mpeg.sampling.model_cloud import load_model_cloud
@@ -104,7 +104,7 @@ def _run_pcqm(args: argparse.Namespace) -> int:
             knn=args.threshold_knn_search,
             radius_factor=args.radius_factor,
         )
-    write_models(args, cloud_texts(args, ref, dis), row)  # the files first: see _run_equality
+    write_models(args, cloud_blocks(args, ref, dis), row)  # the files first: see _run_equality
     print(json.dumps(json_safe(result.to_dict()), indent=1) if args.json else result.report())
     return 0
 

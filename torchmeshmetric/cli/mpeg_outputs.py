@@ -15,17 +15,18 @@ import argparse
 import contextlib
 import json
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
+from functools import partial
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
-from torchmeshmetric._atomic import atomic_write
+from torchmeshmetric._atomic import atomic_write_with
 from torchmeshmetric.cli.options import path_argument
 
 __all__ = [
     "add_output_options",
     "check_outputs",
-    "cloud_texts",
+    "cloud_blocks",
     "csv_header",
     "load_pair",
     "run_ibsm",
@@ -112,15 +113,23 @@ def csv_header(mode: str) -> str:
     return {"pcc": csv_rows.PCC_CSV_HEADER, "ibsm": csv_rows.IBSM_CSV_HEADER, "pcqm": csv_rows.PCQM_CSV_HEADER}[mode]
 
 
-def _write(args: argparse.Namespace, texts: tuple[str, str], header: str, row: str) -> None:
+Blocks = Iterable[bytes]
+"""A file's UTF-8 text in blocks (``model_files``' ``*_blocks``), formatted as the file is written."""
+
+
+def _put(blocks: Blocks, fh: BinaryIO) -> None:
+    fh.writelines(blocks)
+
+
+def _write(args: argparse.Namespace, files: tuple[Blocks, Blocks], header: str, row: str) -> None:
     """The models and the CSV row as one set: the models appear only once the row is appended."""
     from torchmeshmetric.cli._outputs import output_set
     from torchmeshmetric.mpeg.comparison.csv_rows import append_csv_row
 
     with output_set("the output models and CSV row"):
-        for path, text in zip((args.output_model_ref, args.output_model_dis), texts, strict=True):
-            if path is not None:
-                atomic_write(path, text, overwrite=args.overwrite)
+        for path, blocks in zip((args.output_model_ref, args.output_model_dis), files, strict=True):
+            if path is not None:  # block by block: a model of millions of points never sits in memory as one text
+                atomic_write_with(path, partial(_put, blocks), overwrite=args.overwrite)
         if args.output_csv is not None:
             append_csv_row(args.output_csv, header, [row])  # last: a failure before it keeps no model
 
@@ -138,48 +147,48 @@ def write_comparison_models(args: argparse.Namespace, models: tuple[Any, Any] | 
     import torch
 
     from torchmeshmetric.mpeg.comparison.point_order import mmetric_point_order
-    from torchmeshmetric.mpeg.core.model_files import empty_model_text, obj_header, point_cloud_text
+    from torchmeshmetric.mpeg.core.model_files import empty_model_text, obj_header, point_cloud_blocks
     from torchmeshmetric.mpeg.core.point_cloud import PointCloud
 
-    texts = []
+    files: list[Blocks] = []
     for k, (path, name) in enumerate(((args.output_model_ref, args.ref), (args.output_model_dis, args.dis))):
         if path is None:
-            texts.append("")
+            files.append(())
         elif models is None:
-            texts.append(empty_model_text(Path(path).suffix, obj_header(name)))
+            files.append([empty_model_text(Path(path).suffix, obj_header(name)).encode("utf-8")])
         else:  # the positions only, in mmetric's sorted order
             positions = models[k].positions
             cloud = PointCloud(torch.from_numpy(np.ascontiguousarray(positions[mmetric_point_order(positions)])))
-            texts.append(point_cloud_text(cloud, Path(path).suffix, obj_header(name)))
-    write_models(args, (texts[0], texts[1]))
+            files.append(point_cloud_blocks(cloud, Path(path).suffix, obj_header(name)))
+    write_models(args, (files[0], files[1]))
 
 
-def write_models(args: argparse.Namespace, texts: tuple[str, str], row: str = "") -> None:
-    """The two model files (``""``: a file not asked for) and the mode's ``--output-csv`` row, as one set."""
-    _write(args, texts, csv_header(args.mode) if args.output_csv is not None else "", row)
+def write_models(args: argparse.Namespace, files: tuple[Blocks, Blocks], row: str = "") -> None:
+    """The two model files (empty: a file not asked for) and the mode's ``--output-csv`` row, as one set."""
+    _write(args, files, csv_header(args.mode) if args.output_csv is not None else "", row)
 
 
-def cloud_texts(args: argparse.Namespace, ref: Any, dis: Any) -> tuple[str, str]:
-    """The two clouds compared, as the files ``--output-model-ref/dis`` name (PLY or OBJ).
+def cloud_blocks(args: argparse.Namespace, ref: Any, dis: Any) -> tuple[Blocks, Blocks]:
+    """The two clouds compared, as the files ``--output-model-ref/dis`` name (PLY or OBJ), in blocks.
 
     The OBJ starts with the input's ``mtllib`` lines, as ``mm compare`` keeps them, except in grid mode, whose
-    clouds are ``mm sample``'s files: it keeps no header (an empty first line). ``""`` for a file not asked for.
+    clouds are ``mm sample``'s files: it keeps no header (an empty first line). Empty for a file not asked for.
     """
-    from torchmeshmetric.mpeg.core.model_files import obj_header, point_cloud_text
+    from torchmeshmetric.mpeg.core.model_files import obj_header, point_cloud_blocks
 
     grid = args.mode == "pcc" and args.sampling == "grid"
-    texts = []
+    files: list[Blocks] = []
     for path, cloud, name in ((args.output_model_ref, ref, args.ref), (args.output_model_dis, dis, args.dis)):
         header = "" if grid or path is None else obj_header(name)
-        texts.append("" if path is None else point_cloud_text(cloud, Path(path).suffix, header))
-    return texts[0], texts[1]
+        files.append(() if path is None else point_cloud_blocks(cloud, Path(path).suffix, header))
+    return files[0], files[1]
 
 
 def write_pcc_outputs(args: argparse.Namespace, clouds: Any, result: Any) -> None:
     """The pcc mode's output models and CSV row."""
     from torchmeshmetric.mpeg.comparison.csv_rows import PCC_CSV_HEADER, mmetric_texture_url, pcc_csv_row
 
-    ref, dis = cloud_texts(args, clouds.ref, clouds.dis)
+    ref, dis = cloud_blocks(args, clouds.ref, clouds.dis)
     row = ""
     if args.output_csv is not None:
         given = args.peak if args.sampling == "mesh" else result.peak  # the grid chain passes the peak to mm
@@ -231,7 +240,7 @@ def run_ibsm(args: argparse.Namespace) -> int:
     from torchmeshmetric.cli.options import as_option_error
     from torchmeshmetric.mpeg.comparison.csv_rows import IBSM_CSV_HEADER, ibsm_csv_row, mmetric_texture_url
     from torchmeshmetric.mpeg.comparison.ibsm import ibsm
-    from torchmeshmetric.mpeg.core.model_files import obj_header, textured_mesh_text
+    from torchmeshmetric.mpeg.core.model_files import obj_header, textured_mesh_blocks
     from torchmeshmetric.mpeg.core.reindex import oriented_reindex
 
     check_outputs(args)
@@ -242,10 +251,10 @@ def run_ibsm(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise as_option_error(exc, {"resolution": "--ibsm-resolution", "cameras": "--ibsm-cameras"}) from exc
     seconds = time.process_time() - start
-    texts = []
+    files: list[Blocks] = []
     for path, mesh, name in ((args.output_model_ref, ref, args.ref), (args.output_model_dis, dis, args.dis)):
-        text = "" if path is None else textured_mesh_text(oriented_reindex(mesh), Path(path).suffix, obj_header(name))
-        texts.append(text)
+        header = "" if path is None else obj_header(name)
+        files.append(() if path is None else textured_mesh_blocks(oriented_reindex(mesh), Path(path).suffix, header))
     row = ""
     if args.output_csv is not None:
         row = ibsm_csv_row(
@@ -258,6 +267,6 @@ def run_ibsm(args: argparse.Namespace) -> int:
             resolution=args.ibsm_resolution,
             seconds=seconds,
         )
-    _write(args, (texts[0], texts[1]), IBSM_CSV_HEADER, row)  # the files first, as every mode: see _run_equality
+    _write(args, (files[0], files[1]), IBSM_CSV_HEADER, row)  # the files first, as every mode: see _run_equality
     print(json.dumps(json_safe(asdict(result)), indent=1) if args.json else _ibsm_lines(result))
     return 0

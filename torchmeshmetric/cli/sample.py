@@ -112,14 +112,16 @@ def _run(args: argparse.Namespace) -> int:
 
 def _write(args: argparse.Namespace, out: Path, texture: str, pc: Any, computed: float) -> None:
     """OUT and the ``--output-csv`` row as one set: OUT appears only once the row is appended."""
-    from torchmeshmetric._atomic import atomic_write
+    from torchmeshmetric._atomic import atomic_write_with
     from torchmeshmetric.cli._outputs import output_set
     from torchmeshmetric.mpeg.comparison.csv_rows import SAMPLE_CSV_HEADERS, append_csv_row, sample_csv_row
-    from torchmeshmetric.mpeg.core.model_files import point_cloud_text
+    from torchmeshmetric.mpeg.core.model_files import point_cloud_blocks
 
     with output_set("OUT and the CSV row"):
-        # mm sample keeps no header of the input: an OBJ starts with an empty line, never the mesh's mtllib
-        atomic_write(out, point_cloud_text(pc, out.suffix), overwrite=args.overwrite)
+        # mm sample keeps no header of the input: an OBJ starts with an empty line, never the mesh's mtllib; the
+        # text is formatted block by block as it is written (a cloud of millions of points is never one string)
+        blocks = point_cloud_blocks(pc, out.suffix)
+        atomic_write_with(out, lambda fh: fh.writelines(blocks), overwrite=args.overwrite)
         if args.output_csv is not None:
             row = sample_csv_row(
                 args.mode,

@@ -84,9 +84,10 @@ EXTENSIONS: dict[str, NativeExtension] = {
         sources=("ibsm_raster.cpp",), headers=("parallel.h",), cflags=(*_EXACT, "-fopenmp"), ldflags=("-fopenmp",)
     ),
     # mmetric's pcc comparison: the duplicate merge and the neighbour search with ties (mpeg.point_cloud, neighbours).
-    # Also the replay of mmetric's std::sort of a cloud's positions (mpeg.comparison.point_order).
+    # Also the replay of mmetric's std::sort of a cloud's positions (mpeg.comparison.point_order) and the text of the
+    # model files mmetric writes (mpeg.core.text_rows).
     "pcc": NativeExtension(
-        sources=("mpeg_pcc.cpp", "point_order.cpp"),
+        sources=("mpeg_pcc.cpp", "point_order.cpp", "model_text.cpp"),
         headers=("parallel.h",),
         cflags=(*_EXACT, "-fopenmp"),
         ldflags=("-fopenmp",),

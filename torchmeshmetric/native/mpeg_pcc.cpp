@@ -664,8 +664,12 @@ torch::Tensor mpeg_plane_errors(torch::Tensor query, torch::Tensor target, torch
 
 // point_order.cpp (compiled into the same extension).
 torch::Tensor introsort_permutation(const torch::Tensor& rank);
+// model_text.cpp (compiled into the same extension).
+pybind11::bytes format_model_rows(const torch::Tensor& floats, const torch::Tensor& ints, const std::string& prefix,
+                                  const std::vector<std::string>& seps);
 
 PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
+  m.def("format_model_rows", &format_model_rows, "rows of mmetric's model files: %.9g floats, integers, separators");
   m.def("introsort_permutation", &introsort_permutation, "the permutation libstdc++'s std::sort leaves, by rank");
   m.def("mpeg_plane_errors", &mpeg_plane_errors, "dmetric's squared point-to-plane error per (query, target) pair");
   m.def("mpeg_merge", &mpeg_merge, "dmetric's duplicate merge (dropDuplicates = 2): sorted, runs averaged");
