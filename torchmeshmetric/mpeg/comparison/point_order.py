@@ -28,10 +28,11 @@ _THRESHOLD = 16  # libstdc++'s _S_threshold: runs at most this long are left to 
 def lexicographic_order(positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The positions as mmetric's ``<`` compares them and a stable lexicographic order of them.
 
-    Enough to compare sorted clouds (ties are equal points); :func:`mmetric_point_order` places ties as mmetric does.
+    Enough to compare sorted clouds (ties are equal points, kept in input order); :func:`mmetric_point_order` places
+    ties as mmetric does.
 
     Args:
-        positions: ``(N, 3)`` float32 positions.
+        positions: ``(N, 3)`` float32 positions, not NaN (``<`` orders no NaN).
 
     Returns:
         ``(keys, order)``: ``(N, 3)`` float32 keys (-0.0 made 0.0) and ``(N,)`` indices sorting them on (x, y, z).
@@ -42,7 +43,13 @@ def lexicographic_order(positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         [[0.0, 2.0, 0.0], [1.0, 0.0, 0.0]]
     """
     keys = np.asarray(positions, np.float32).reshape(-1, 3) + np.float32(0.0)  # -0.0 + 0.0 is 0.0, as C's < sees it
-    return keys, np.lexsort((keys[:, 2], keys[:, 1], keys[:, 0]))
+    # np.lexsort((z, y, x))'s order, as two stable sorts of unsigned integers that order as the floats do: (x, y)
+    # packed in 64 bits after z (lexsort's three float passes took 0.6 s at 1M points, these 0.3 s)
+    bits = keys.view(np.uint32)
+    ordered = np.where(bits >> 31 != 0, ~bits, bits | np.uint32(0x80000000))  # negatives reversed, below positives
+    by_z = np.argsort(ordered[:, 2], kind="stable")
+    xy = (ordered[by_z, 0].astype(np.uint64) << np.uint64(32)) | ordered[by_z, 1]
+    return keys, by_z[np.argsort(xy, kind="stable")]
 
 
 def mmetric_point_order(positions: np.ndarray) -> np.ndarray:
