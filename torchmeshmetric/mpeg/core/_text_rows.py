@@ -3,9 +3,9 @@ r"""The rows of mmetric's model files as text, in blocks: float32 values as C's 
 mmetric streams its floats at ``max_digits10`` (9) significant digits, which glibc prints as ``%.9g`` of the value
 promoted to double. A row is a prefix (``"v "``, ``"3 "``, ``""``) and each value followed by its column's separator
 (``" "``, ``"/"``, the row's ``"\n"``). The C++ ``"pcc"`` extension formats them (``native/model_text.cpp``,
-``std::to_chars``, 10x and more faster than Python's formatting); where it cannot be built, Python's ``%`` formatting
-gives the same bytes. Both print glibc's ``-nan`` for a NaN whose sign bit is set (Python alone prints ``nan``).
-The rows come in blocks of :data:`BLOCK_ROWS`, so a file is written without its whole text in memory.
+``std::to_chars``, 6-8x faster than Python's formatting at 1M points); where it cannot be built, Python's ``%``
+formatting gives the same bytes. Both print glibc's ``-nan`` for a NaN whose sign bit is set (Python alone prints
+``nan``). The rows come in blocks of :data:`BLOCK_ROWS`, so a file is written without its whole text in memory.
 """
 
 from __future__ import annotations
