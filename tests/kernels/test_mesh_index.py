@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import math
+import sys
+
 import pytest
 import torch
 import trimesh
 
 from torchmeshmetric import MeshIndex, nearest_vertex_distance, point_mesh_distance, vertex_set
 from torchmeshmetric._checks import DeviceError, DTypeError, NonFiniteError, ShapeError
+from torchmeshmetric.kernels import select
 from torchmeshmetric.kernels.triangle import closest_point_on_triangle
 from torchmeshmetric.native import try_load
 
@@ -80,7 +84,10 @@ def test_index_gradients_equal_the_functions() -> None:
 
 
 @pytest.mark.parametrize("backend", ["bvh", "bruteforce"])
-def test_refit_is_exact_and_keeps_the_tree(backend: str) -> None:
+def test_refit_is_exact_and_keeps_the_tree(backend: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    # The refitted tree itself: a worn one is otherwise rebuilt (tests/kernels/test_index_rebuild.py).
+    monkeypatch.setattr(select, "REBUILD_AREA_GROWTH", math.inf)
+    monkeypatch.setattr(select, "REBUILD_EVERY", sys.maxsize)
     verts, faces = _mesh(torch.float32)
     index = MeshIndex(verts, faces, backend=backend)
     points = _points(verts, 400, 2)

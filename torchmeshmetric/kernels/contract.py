@@ -60,6 +60,11 @@ class SelectionBackend(NamedTuple):
         query_faces_closest: optional, ``(structure, faces, points, point_batch) -> (face_idx, sq_dists, bary,
             closest)``: the selection and the closest point on the selected face in one pass, bit-identical to
             ``query_faces`` followed by :func:`~torchmeshmetric.closest_point_on_triangle` without autograd.
+        faces_area: optional, ``(structure) -> float``: the quality of a face structure, read on the host without
+            waiting for a device (the summed surface areas of its node boxes over its roots', the surface-area
+            heuristic's cost); :class:`~torchmeshmetric.kernels.select.Selector` rebuilds a refitted structure whose
+            area has grown (a refit keeps the topology of its build: after large deformations its queries slow down).
+        points_area: optional, ``(structure) -> float``: the same for a point structure.
     """
 
     name: str
@@ -70,3 +75,5 @@ class SelectionBackend(NamedTuple):
     refit_points: Callable[[Any, PointSet], Any]
     query_points: Callable[[Any, PointSet, Tensor, Tensor, int], Tensor]
     query_faces_closest: Callable[[Any, FaceSet, Tensor, Tensor], tuple[Tensor, Tensor, Tensor, Tensor]] | None = None
+    faces_area: Callable[[Any], float] | None = None
+    points_area: Callable[[Any], float] | None = None

@@ -925,6 +925,40 @@ void face_bvh_refit_impl(const std::vector<torch::Tensor>& h, const torch::Tenso
   fill_face_hierarchy<T>(h, verts.data_ptr<T>(), faces.data_ptr<int64_t>());
 }
 
+// Tree quality of a kept face hierarchy: the summed half surface areas of every node's child boxes (the traversal
+// cost the surface-area heuristic estimates) over those of the item roots' boxes (so that a uniform scaling or a rigid
+// motion leaves it unchanged). A refit keeps the topology it was built with: after large deformations its boxes
+// overlap and the ratio grows with the query time (docs/kernels.md), which is how MeshIndex decides to rebuild.
+template <typename T>
+double face_bvh_area_impl(const std::vector<torch::Tensor>& h) {
+  const WideNode<T>* nd = wide_nodes_of<T>(h[0]);
+  const int64_t num_nodes = h[0].numel() / static_cast<int64_t>(sizeof(WideNode<T>));
+  const int64_t* roots = h[1].data_ptr<int64_t>();
+  double total = 0, root_total = 0;
+  auto lane_area = [](const WideNode<T>& w, int l) {
+    const double lo[3] = {double(w.lo[0][l]), double(w.lo[1][l]), double(w.lo[2][l])};
+    const double hi[3] = {double(w.hi[0][l]), double(w.hi[1][l]), double(w.hi[2][l])};
+    return half_area(lo, hi);
+  };
+  for (int64_t i = 0; i < num_nodes; ++i)
+    for (int l = 0; l < nd[i].lanes; ++l) total += lane_area(nd[i], l);
+  for (int64_t b = 0; b < h[1].numel(); ++b) {
+    if (roots[b] < 0) continue;
+    const WideNode<T>& w = nd[roots[b]];
+    double lo[3], hi[3];
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = double(w.lo[k][0]);
+      hi[k] = double(w.hi[k][0]);
+      for (int l = 1; l < w.lanes; ++l) {
+        lo[k] = std::min(lo[k], double(w.lo[k][l]));
+        hi[k] = std::max(hi[k], double(w.hi[k][l]));
+      }
+    }
+    root_total += half_area(lo, hi);
+  }
+  return root_total > 0 ? total / root_total : 0.0;
+}
+
 // Closest face to p in one item's wide hierarchy: nearest child first (the children within the bound are stacked
 // farthest first), a stacked entry re-tested against the bound when popped since the bound shrinks meanwhile.
 template <typename T>
@@ -1092,6 +1126,25 @@ void point_bvh_refit_impl(const std::vector<torch::Tensor>& h, const torch::Tens
               sorted.data());
   const std::vector<T> slack = item_slack<T>(Rp, Rp, ref_offsets.data_ptr<int64_t>(), B);
   std::memcpy(h[4].data_ptr<T>(), slack.data(), B * sizeof(T));
+}
+
+// Tree quality of a kept point hierarchy, as face_bvh_area_impl: the summed half areas of all its nodes' boxes over
+// those of the item roots.
+template <typename T>
+double point_bvh_area_impl(const std::vector<torch::Tensor>& h) {
+  const Node<T>* nd = nodes_of<T>(h[0]);
+  const int64_t num_nodes = h[0].numel() / static_cast<int64_t>(sizeof(Node<T>));
+  const int64_t* roots = h[1].data_ptr<int64_t>();
+  auto area = [](const Node<T>& n) {
+    const double lo[3] = {double(n.lo[0]), double(n.lo[1]), double(n.lo[2])};
+    const double hi[3] = {double(n.hi[0]), double(n.hi[1]), double(n.hi[2])};
+    return half_area(lo, hi);
+  };
+  double total = 0, root_total = 0;
+  for (int64_t i = 0; i < num_nodes; ++i) total += area(nd[i]);
+  for (int64_t b = 0; b < h[1].numel(); ++b)
+    if (roots[b] >= 0) root_total += area(nd[roots[b]]);
+  return root_total > 0 ? total / root_total : 0.0;
 }
 
 // Nearest reference point per centred query point through a kept point hierarchy, see nearest_query.
@@ -1424,6 +1477,16 @@ std::vector<torch::Tensor> face_bvh_query(std::vector<torch::Tensor> h, torch::T
   TMM_DISPATCH(points.scalar_type(), return face_bvh_query_impl<T>(h, points, point_batch, face_offsets, closest));
 }
 
+double face_bvh_area(std::vector<torch::Tensor> h) {
+  TORCH_CHECK(h.size() == 5, "bvh: a face hierarchy expected");
+  TMM_DISPATCH(h[3].scalar_type(), return face_bvh_area_impl<T>(h));
+}
+
+double point_bvh_area(std::vector<torch::Tensor> h) {
+  TORCH_CHECK(h.size() == 5, "bvh: a point hierarchy expected");
+  TMM_DISPATCH(h[3].scalar_type(), return point_bvh_area_impl<T>(h));
+}
+
 std::vector<torch::Tensor> point_bvh_build(torch::Tensor ref, torch::Tensor ref_offsets) {
   check_inputs(ref, ref_offsets, ref, ref_offsets);
   TMM_DISPATCH(ref.scalar_type(), return point_bvh_build_impl<T>(ref, ref_offsets));
@@ -1489,6 +1552,10 @@ PYBIND11_MODULE(TORCH_EXTENSION_NAME, m) {
   m.def("face_bvh_query", &face_bvh_query,
         "Closest face per point (kept hierarchy, exact, lowest index on ties): {face_idx}, or with closest=True "
         "{face_idx, sq_dists, bary, closest} as closest_points, in the same pass");
+  m.def("face_bvh_area", &face_bvh_area,
+        "Tree quality of a kept face hierarchy: summed half areas of the node boxes over the roots' (SAH cost)");
+  m.def("point_bvh_area", &point_bvh_area,
+        "Tree quality of a kept point hierarchy: summed half areas of the node boxes over the roots' (SAH cost)");
   m.def("point_bvh_build", &point_bvh_build, "Kept point hierarchy: [nodes, roots, perm, points, slack]");
   m.def("point_bvh_refit", &point_bvh_refit, "Refit a kept point hierarchy to moved points (in place)");
   m.def("point_bvh_query", &point_bvh_query, "Nearest reference point per point (kept hierarchy, exact)");

@@ -21,6 +21,8 @@ if TYPE_CHECKING:
 __all__ = [
     "build_faces",
     "build_points",
+    "faces_area",
+    "points_area",
     "bvh_closest_points",
     "bvh_nearest_single",
     "query_faces",
@@ -54,6 +56,11 @@ def refit_faces(structure: list[Tensor], faces: FaceSet) -> list[Tensor]:
     return structure
 
 
+def faces_area(structure: list[Tensor]) -> float:
+    """Summed half surface areas of the node boxes over the roots' (the SAH cost of the tree; a few microseconds)."""
+    return float(_ext().face_bvh_area(structure))
+
+
 def query_faces(
     structure: list[Tensor], faces: FaceSet, points: Tensor, point_batch: Tensor, _max_memory: int = 0
 ) -> Tensor:
@@ -85,6 +92,11 @@ def refit_points(structure: list[Tensor], ref: PointSet) -> list[Tensor]:
     """Bounds, sorted points and slack of ``structure`` rewritten in place for moved points (same tree)."""
     _ext().point_bvh_refit(structure, ref.points.contiguous(), ref.offsets.contiguous())
     return structure
+
+
+def points_area(structure: list[Tensor]) -> float:
+    """Summed half surface areas of the node boxes over the roots' (as :func:`faces_area`)."""
+    return float(_ext().point_bvh_area(structure))
 
 
 def query_points(
