@@ -173,7 +173,8 @@ class MeshIndex:
     scaled for them too (a single nearest-vertex set: unscaled where its squares are in range), so for point sets of
     size ~1e-15 (float32) the last bits may differ, and a point whose squared distance overflows the index's frame
     raises :class:`~torchmeshmetric.NonFiniteError` where the function measures it.
-    :meth:`refit` moves the vertices (same faces): bounds are refitted, not rebuilt, and answers stay exact.
+    :meth:`refit` moves the vertices (same faces): bounds are refitted, not rebuilt (a tree worn by large
+    deformations is rebuilt: :data:`~torchmeshmetric.kernels.select.REBUILD_AREA_GROWTH`), and answers stay exact.
 
     The index keeps the tensors it was built from (no copy: gradients reach them, e.g. an ``nn.Parameter``) and
     their in-place version counters. Once one of them changes in place (``verts.add_(...)``, ``optimizer.step()``)
@@ -651,6 +652,9 @@ class MeshIndex:
 
     def refit(self, verts: Tensor) -> None:
         """Move the vertices (same faces, same order): bounds are refitted, not rebuilt; answers stay exact.
+
+        A tree the refits have worn (its node area grown 1.2x since its build, or 256 refits: ``"bvh"``) is rebuilt
+        instead, for speed only: the answers are the same bits.
 
         ``verts`` (often the same tensor, moved in place by an optimizer) is watched from now on instead of the
         vertices the index was built from.

@@ -209,7 +209,7 @@ class Selector:
             return backend.query_faces_closest(self.structure, prims, points.detach(), point_batch)
 
     def refit(self, prims: FaceSet | PointSet) -> None:
-        """Moved coordinates of the same primitives: the kept structure is refitted (exact for them), not rebuilt.
+        """Moved coordinates of the same primitives: the kept structure is refitted (exact for them).
 
         Where the backend measures its structures' area, a refitted structure that has worn (area grown by
         :data:`REBUILD_AREA_GROWTH` since its build, or :data:`REBUILD_EVERY` refits) is rebuilt: the queries regain
