@@ -204,3 +204,23 @@ def test_a_missed_target_counts_the_fixed_vertices():
         simplify_registered_qem(noisy, None, 0.03)
     with pytest.warns(UserWarning, match="simplify_anchored_qem: " + tail):
         simplify_anchored_qem(noisy, torch.zeros(0, 3), 0.03)
+
+
+def test_the_unit_of_the_coordinates_changes_nothing_but_rounding():
+    # Unlike fast-simplification (an absolute stopping threshold, so simplify_qem works on a canonical copy), this
+    # queue has only thresholds relative to the mesh (1e-9 * scale**3, 1e-12 * edge length): it needs no canonical
+    # scale. Measured (review of the canonical extent, 2026-12-07): x1000, x0.0254 and x3.7 gave the same faces as x1
+    # at 774, 387 and 155 of 1548 faces (Registered and Anchored QEM), vertices within 1.5e-14 units; x1024 the bits.
+    from torchmeshmetric.simplification import simplify_anchored_qem
+
+    a, b = (f.to(dtype=torch.float64) for f in demo_sequence(2, resolution=32).frames)
+    for target in (774, 155):
+        base = simplify_registered_qem(b, a, target)
+        anchored = simplify_anchored_qem(b, base.verts[:50], target)
+        for unit in (1000.0, 0.0254, 1024.0):
+            reg = simplify_registered_qem(Mesh(b.verts * unit, b.faces), Mesh(a.verts * unit, a.faces), target)
+            anc = simplify_anchored_qem(Mesh(b.verts * unit, b.faces), base.verts[:50] * unit, target)
+            assert torch.equal(reg.faces, base.faces) and torch.equal(anc.faces, anchored.faces)
+            bound = 0.0 if unit == 1024.0 else 1e-13  # measured 1.5e-14 at most
+            assert float((reg.verts / unit - base.verts).abs().max()) <= bound
+            assert float((anc.verts / unit - anchored.verts).abs().max()) <= bound

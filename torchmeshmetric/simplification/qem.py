@@ -6,22 +6,30 @@ SIGGRAPH 1997. We keep it as the baseline rather than rewriting it.
 
 fast-simplification stops collapsing at an *absolute* error threshold (``1e-9 * (iteration + 3) ** agg``, squared
 distance units), so its result depends on the unit of the coordinates: the same frame in 16-bit integer coordinates
-stopped at 1864 faces of a 632-face target. :func:`simplify_qem` therefore simplifies a copy scaled by a power of two
-that brings the largest side of the bounding box of the used vertices into ``[1.5, 3)`` and scales the result back.
-A power of two only changes exponents: every normal, quadric coefficient, error and position that fast-simplification
-computes is the canonical one times an exact power of two (errors by an exact power of four), so its decisions are
-those at the canonical scale, and mapping back is exact (short of overflow and subnormal numbers): the same mesh
-scaled by any power of two (a unit change by 2**k) gives the same faces and the same vertices in its own unit. Any
-other unit change (metres to millimetres: x1000 = x1024 * 0.977) reaches a canonical copy of another size in the
-range (up to a factor of 2 apart), where that absolute threshold takes other decisions: other faces of comparable,
-not identical, quality. Measured (review V; two-sided mean surface error, in the x1 frame's unit): demo frame 0
-(39806 faces) at 9951 faces, x1000 shares 53 % of the x1 result's faces at -0.14 % error, x0.001 45 % at -0.42 %,
-and inches (x0.0254, a copy near the range's top) 1.5 % at -13 %; at 3980 faces 0-13 % shared, -0.5 % to -14 %;
-the 1548-face frame at 154 to 774 faces: -9 % to +5 % for x1000, x0.001, x0.0254, x0.3048 and x3.7. The range holds the
-sizes this library meets most (the built-in frames, about 1.84 units; a mesh in ``[-1, 1]^3``, 2), which it leaves
-untouched. Small units had the opposite effect: the target was met, but every error under the first threshold, so
-fast-simplification collapsed in mesh order instead of by cost (twice the error of the canonical scale on a demo
-frame in kilometres).
+stopped at 1864 faces of a 632-face target. :func:`simplify_qem` therefore simplifies a copy scaled to one canonical
+size, the largest side of the bounding box of the used vertices brought to 2.0 (a mesh normalised to ``[-1, 1]^3`` is
+simplified as given) by ``s = 2.0 / extent``, and maps the result back
+(:mod:`~torchmeshmetric.simplification._canonical_scale`; only correctly rounded IEEE operations, the same bits on
+every CPU). Every unit reaches the same canonical copy up to rounding:
+
+* a unit change by a power of two scales the extent and ``s`` exactly: the copy is the same to the bit, and so are the
+  faces; the vertices are exactly ``2**k`` times (short of overflow and subnormal numbers);
+* any other unit change (metres to millimetres, inches) gives a copy a few ulps away, and fast-simplification takes
+  the same decisions except at near-ties. Measured (two-sided mean surface error, in the x1 frame's unit): with
+  x1000, x0.001, x0.0254, x0.3048 and x3.7 applied in float64, demo frames 0 and 5 (about 40k faces) at 25 %, 10 %
+  and 3 % of their faces and the 1548-face frame at 50 %, 25 % and 10 % gave the same faces as x1, every one, at the
+  same error, vertices within 5.8e6 eps * extent (1.3e-9 of the extent: collapse positions solved from quadrics an ulp
+  apart; 58 on the small frame); the same unit changes applied in float32 (a rescaled float32 file: a different
+  input, rounded there) shared 59 % to 100 % of the faces, at -0.33 % to +0.86 % error. Before (a power of two into
+  ``[1.5, 3)``, so x1000 = x1024 * 0.977 met a copy of another size and the absolute threshold other decisions),
+  review V measured 1.5 % to 53 % of the faces shared on demo frame 0 at 9951 faces, down to -13 % error, 0-13 % at
+  3980.
+
+Every output vertex at exactly the canonical position of an input vertex (one fast-simplification did not move, or
+a collapse placed at an end) comes back with that input vertex's own bits; the others are the canonical positions
+divided by ``s``, correctly rounded. Small units had the opposite effect of large ones before any scaling: the target
+was met, but every error under the first threshold, so fast-simplification collapsed in mesh order instead of by
+cost (twice the error of the canonical scale on a demo frame in kilometres).
 """
 
 from __future__ import annotations
@@ -34,35 +42,12 @@ import numpy as np
 import torch
 
 from torchmeshmetric._checks import EmptyInputError, as_real, check_finite, check_flag, check_float
+from torchmeshmetric.simplification._canonical_scale import canonical_factor, original_rows
 from torchmeshmetric.simplification._input import mesh_arrays
 from torchmeshmetric.simplification._target import resolve_target
 from torchmeshmetric.structures import Mesh, MeshLike, as_mesh
 
 __all__ = ["simplify_qem"]
-
-# The range [low, 2 * low) into which simplify_qem scales the largest bounding-box side, by a power of two, before
-# fast-simplification (whose stopping threshold is an absolute squared distance). low must lie in [1, 2) for
-# _canonical_exponent's two cases.
-_CANONICAL_EXTENT = (1.5, 3.0)
-
-
-def _canonical_exponent(verts: np.ndarray, faces: np.ndarray) -> int:
-    """The ``k`` for which ``2**k`` times the largest bounding-box side of the used vertices is in the canonical range.
-
-    0 when every used vertex is at one point (nothing to scale) or when the scaled coordinates would overflow (a
-    surface tiny next to its distance from the origin: it is simplified as given).
-    """
-    used = verts[np.unique(faces)]
-    extent = float((used.max(0) - used.min(0)).max())
-    if extent == 0.0:
-        return 0
-    mantissa, exponent = math.frexp(extent)  # extent = mantissa * 2**exponent, mantissa in [0.5, 1)
-    # 2 * mantissa is in [1, 2): keep it when it is at least the range's low end (1.5), else double it (into [2, 3)).
-    k = 1 - exponent if 2.0 * mantissa >= _CANONICAL_EXTENT[0] else 2 - exponent
-    if not math.isfinite(math.ldexp(float(np.abs(verts).max()), k)):
-        return 0
-    return k
-
 
 _DEFAULT_AGG = 7.0
 
@@ -93,11 +78,12 @@ def simplify_qem(
         preserve_border: forbid collapses of edges touching an open boundary.
         agg: fast-simplification's aggressiveness (its threshold growth exponent), a finite number > 0. Below the
             default it may stop short of the target (a warning says so): on a 1548-face frame asked for 774, 2.0
-            stopped at 1222.
+            stopped at 1242.
 
     Returns:
-        The simplified mesh (same dtype and device as the input, detached), the same for the mesh scaled by any
-        power of two; another unit change gives other faces of comparable quality (see the module docstring).
+        The simplified mesh (same dtype and device as the input, detached), the same faces and the vertices in its
+        own unit for the mesh in any unit: exactly for a power of two, up to near-ties of the collapse (none met on
+        the demo frames, see the module docstring) for any other factor.
         fast-simplification reaches the count to within about one face (each collapse removes two faces); it stops
         above it (with a warning naming the cause) with an ``agg`` below the default, or when no edge is left that
         it may collapse (it never joins a border vertex to an interior one, nor, with ``preserve_border``, moves a
@@ -154,12 +140,16 @@ def simplify_qem(
         )
     if faces.shape[0] == 0:
         raise EmptyInputError(f"mesh: every one of its {m.num_faces} faces repeats a corner (zero area)")
-    # fast-simplification's threshold is absolute: simplify at the canonical scale (exact, see the module docstring).
-    k = _canonical_exponent(verts, faces)
-    out_v, out_f = fast_simplification.simplify(
-        np.ldexp(verts, k), faces, target_count=count, agg=agg, preserve_border=preserve_border
+    # fast-simplification's threshold is absolute: simplify at the canonical scale (see the module docstring).
+    s = canonical_factor(verts, faces)
+    scaled = verts * s
+    out_v, out_f, collapses = fast_simplification.simplify(
+        scaled, faces, target_count=count, agg=agg, preserve_border=preserve_border, return_collapses=True
     )
-    out_v = np.ldexp(out_v, -k)
+    # It keeps the order of the vertices it keeps (the used ones less those collapsed away): each output row's input
+    # vertex, unless a vertex lost its last face without being collapsed away (then the counts differ).
+    survivors = np.setdiff1d(np.unique(faces), collapses[:, 1])
+    out_v = original_rows(out_v, scaled, verts, s, survivors if survivors.size == len(out_v) else None)
     if len(out_f) == 0:  # a closed mesh asked for 1 or 2 faces collapses whole: never return an empty "simplification"
         raise EmptyInputError(
             f"target: {target!r} ({count} of {m.num_faces} faces) left no face: every face collapsed; ask for more "
@@ -168,7 +158,7 @@ def simplify_qem(
     if len(out_f) > count + 1:  # as simplify_registered_qem says it (each collapse removes two faces)
         warnings.warn(
             f"simplify_qem: stopped at {len(out_f)} faces, above the target {count} "
-            f"({_miss_cause(np.ldexp(verts, k), faces, count, len(out_f), agg, preserve_border)})",
+            f"({_miss_cause(scaled, faces, count, len(out_f), agg, preserve_border)})",
             UserWarning,
             stacklevel=2,
         )
