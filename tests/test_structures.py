@@ -202,6 +202,19 @@ def test_mesh_derived_values_keep_autograd_fresh() -> None:
         torch.testing.assert_close(frozen.face_areas(), m.face_areas().detach(), rtol=0, atol=0)
 
 
+def test_detach_keeps_a_mesh_without_a_graph() -> None:
+    # A detached alias is a new tensor object at every call: the losses detach their references at every step, and
+    # their IndexCache could then never recognise the reference without hashing it (the mesh itself is kept now).
+    tm = trimesh.creation.icosphere(subdivisions=1)
+    m = Mesh(torch.tensor(tm.vertices), torch.tensor(tm.faces))
+    assert m.detach() is m
+    v = torch.tensor(tm.vertices, requires_grad=True)
+    graph = Mesh(v * 2, m.faces)
+    cut = graph.detach()
+    assert cut is not graph and not cut.verts.requires_grad and cut.faces is graph.faces
+    assert torch.equal(cut.verts, graph.verts.detach()) and cut.detach() is cut
+
+
 @pytest.mark.parametrize("exponent", [-70, -40, 40, 70])
 def test_normals_of_float32_meshes_at_any_scale(exponent: int) -> None:
     # float32 squared areas overflowed beyond ~1e9 units and underflowed below ~1e-9: every normal came out 0 (found

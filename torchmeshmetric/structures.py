@@ -240,8 +240,13 @@ class Mesh:
         return Mesh(self.verts.to(device=device, dtype=dtype), self.faces.to(device=device), validate=False)
 
     def detach(self) -> Mesh:
-        """Return the mesh with vertices detached from the autograd graph."""
-        return Mesh(self.verts.detach(), self.faces, validate=False)
+        """Return the mesh with vertices detached from the autograd graph (the mesh itself when there is no graph).
+
+        Vertices that do not require grad are kept, the very tensor: a detached alias would be a new tensor object at
+        every call, which an :class:`~torchmeshmetric.IndexCache` cannot recognise without hashing the mesh again
+        (the losses detach their references at every step).
+        """
+        return Mesh(self.verts.detach(), self.faces, validate=False) if self.verts.requires_grad else self
 
     def bbox_diagonal(self) -> Tensor:
         """Length of the diagonal of the axis-aligned bounding box of the referenced vertices (0-dim tensor)."""

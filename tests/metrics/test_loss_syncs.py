@@ -32,8 +32,13 @@ import torch
 import trimesh
 from torch.utils._python_dispatch import TorchDispatchMode
 
-from torchmeshmetric import Mesh, NonFiniteError
-from torchmeshmetric.metrics import TemporalConsistencyLoss, temporal_consistency_loss
+from torchmeshmetric import IndexCache, Mesh, NonFiniteError
+from torchmeshmetric.metrics import (
+    MeshSurfaceDistanceLoss,
+    NearestVertexDistanceLoss,
+    TemporalConsistencyLoss,
+    temporal_consistency_loss,
+)
 
 SYNCING = {"_local_scalar_dense", "equal", "nonzero", "is_nonzero", "masked_select", "_unique2", "unique_dim"}
 
@@ -188,3 +193,48 @@ def test_the_triton_trees_refit_reads_nothing_back() -> None:
         else:
             assert torch.equal(root[:3], (moved[lo:hi] - 0.01).amin(0))
             assert torch.equal(root[3:], (moved[lo:hi] + 0.01).amax(0))
+
+
+@pytest.mark.parametrize("loss_type", [NearestVertexDistanceLoss, MeshSurfaceDistanceLoss])
+@pytest.mark.parametrize("two_sided", [False, True])
+def test_the_reference_s_index_is_found_without_reading_it(loss_type, two_sided, monkeypatch):
+    # IndexCache.get hashed the reference at every step: on CUDA a device-to-host copy of the whole mesh (`.cpu()`)
+    # and a sync; here 2 `.cpu()` and 2 `.numpy()` per reference and step (the read is no aten op on the CPU, so
+    # the calls are counted). The same tensors, unchanged, are now found by their version counters: no read.
+    simplified, originals = _frames(1)
+    reference, moving = originals[0], simplified[0]  # a Mesh; a (verts, faces) tuple, vertices requiring grad
+    loss = loss_type(two_sided=two_sided)
+
+    def step() -> None:
+        loss(moving, reference).backward()
+
+    step()
+    reads = Counter[str]()
+    real_get = IndexCache.get
+
+    def counted_get(self: IndexCache, *args: Any, **kwargs: Any) -> Any:
+        originals = {name: getattr(torch.Tensor, name) for name in ("cpu", "numpy", "item", "tolist")}
+
+        def counted(name: str) -> Any:
+            def read(t: torch.Tensor, *a: Any, **k: Any) -> Any:
+                reads[name] += 1
+                return originals[name](t, *a, **k)
+
+            return read
+
+        for name in originals:
+            monkeypatch.setattr(torch.Tensor, name, counted(name))
+        try:
+            with CountSyncs() as counter:
+                index = real_get(self, *args, **kwargs)
+        finally:
+            for name, fn in originals.items():
+                monkeypatch.setattr(torch.Tensor, name, fn)
+        reads.update(counter.ops)
+        reads["get"] += 1
+        return index
+
+    monkeypatch.setattr(IndexCache, "get", counted_get)
+    step()
+    step()
+    assert reads == Counter({"get": 2})  # was 2 `.cpu()` and 2 `.numpy()` per call
