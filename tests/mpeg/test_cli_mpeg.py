@@ -109,7 +109,21 @@ def test_identical_meshes_json_inf_and_table(tmp_path: Path, capsys: pytest.Capt
             TRI,
             TRI,
             ["--mode", "ibsm", "--ibsm-resolution", "0"],
-            "error: --ibsm-resolution: expected an int >= 1, found 0",
+            "error: --ibsm-resolution: expected an integer in 1..32768, found 0",
+        ),
+        # 2**32 + 64 was narrowed to an int in the rasterizer: computed at 64, exit 0, the CSV row said 4294967360
+        # (review X F20); 99999999 was an OOM kill (F5)
+        (
+            TRI,
+            TRI,
+            ["--mode", "ibsm", "--ibsm-resolution", "4294967360"],
+            "error: --ibsm-resolution: expected an integer in 1..32768, found 4294967360",
+        ),
+        (
+            TRI,
+            TRI,
+            ["--mode", "ibsm", "--ibsm-resolution", "99999999"],
+            "error: --ibsm-resolution: expected an integer in 1..32768, found 99999999",
         ),
         (TRI, TRI, ["--mode", "ibsm", "--ibsm-cameras", "1"], "error: --ibsm-cameras: expected an int >= 2, found 1"),
         (TRI.replace("f 1 2 3", "f 1 2 4"), TRI, ["--mode", "pcqm"], "error: REF: '"),

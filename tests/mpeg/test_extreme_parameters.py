@@ -118,3 +118,21 @@ def test_an_allocation_that_fails_below_the_physical_memory_names_the_option(tmp
     assert main(["sample", str(mesh), str(tmp_path / "o.ply"), "--resolution", "100000"]) == 1
     line = capsys.readouterr().err.splitlines()[-1]
     assert "error: --resolution: the face sampling needs more memory than is free here (Unable to allocate" in line
+
+
+def test_sample_sizes_are_checked_against_the_available_memory_and_working_set(tmp_path: Path, capsys, monkeypatch):
+    """Review X: the check compared the points' least bytes (24 each) with the *physical* memory, so `sample
+    --resolution 10000` (at least 9.4 GB) passed on a 23 GB machine with far less free, and its arrays would then
+    meet the OOM killer. It now compares the measured working set (96 bytes a point in face mode) with the memory
+    available; here a 50 MB machine, so the 1.2e6 points of a unit square at resolution 1000 (29 MB by the old count,
+    about 116 MB really) are refused. Nothing is allocated for real: the figure is replaced."""
+    monkeypatch.setattr("torchmeshmetric._checks.available_memory", lambda: 50 * 2**20)
+    mesh = tmp_path / "q.obj"
+    mesh.write_text(QUAD)
+    out = tmp_path / "o.ply"
+    assert main(["sample", str(mesh), str(out), "--resolution", "1000"]) == 1
+    line = capsys.readouterr().err.splitlines()[-1]
+    want = "error: --resolution: 1000 asks for about 1.21e+06 points of mesh, about 0.108 GiB, more than the 0.0488 GiB"
+    assert line == f"torchmeshmetric sample: {want} of memory available; choose a smaller value", line
+    assert not out.exists()
+    assert main(["sample", str(mesh), str(out), "--resolution", "100"]) == 0  # 1e4 points: about 1 MB

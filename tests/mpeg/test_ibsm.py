@@ -149,3 +149,25 @@ def test_read_only_texture_gives_no_torch_warning() -> None:
     )
     out = subprocess.run([sys.executable, "-W", "error", "-c", code], capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr[-2000:]
+
+
+def test_resolution_beyond_the_bound_is_refused_not_wrapped(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Review X F20/F5: 2**32 + 64 was narrowed to an int by the rasterizer (computed at 64, reported as given) and
+    99999999 allocated until the OOM killer came. The library refuses above ctc's bound, and the C++ refuses a side it
+    would otherwise narrow; a whole-image rendering is checked against the memory available before it is made."""
+    from torchmeshmetric._checks import SizeLimitError
+    from torchmeshmetric.mpeg.comparison.ibsm import _arrays, _rasterizer
+
+    for bad in (2**32 + 64, 99999999, 32769):
+        with pytest.raises(SizeLimitError, match=rf"^resolution: expected an integer in 1\.\.32768, found {bad}$"):
+            ibsm(_square(), _square(), resolution=bad, cameras=4)
+        with pytest.raises(SizeLimitError, match=r"^resolution: expected an integer in 1\.\.32768"):
+            ibsm_render(_square(), (0, 0, 1), ((-1, -1, -1), (1, 1, 1)), resolution=bad)
+    box, d = torch.tensor([-1.0, -1, -1, 1, 1, 1]), torch.tensor([0.0, 0, 1])
+    with pytest.raises(RuntimeError, match=r"resolution: expected an integer in 1\.\.32768, found 4294967360"):
+        _rasterizer().ibsm_render(*_arrays(_square()), box, d, 2**32 + 64, True)
+    with pytest.raises(RuntimeError, match=r"resolution: expected an integer in 1\.\.32768, found 4294967360"):
+        _rasterizer().ibsm_sums(*_arrays(_square()), *_arrays(_square()), box, 4, 2**32 + 64, True)
+    monkeypatch.setattr("torchmeshmetric._checks.available_memory", lambda: 2**20)  # nothing allocated for real
+    with pytest.raises(SizeLimitError, match=r"^resolution: 1024 asks for about 2\.1e\+06 pixels"):
+        ibsm_render(_square(), (0, 0, 1), ((-1, -1, -1), (1, 1, 1)), resolution=1024)

@@ -57,7 +57,9 @@ def add_output_options(p: Any) -> None:
         "--output-model-dis", type=path_argument, default=None, metavar="FILE", help="the same for DIS (--outputModelB)"
     )
     p.add_argument("--overwrite", action="store_true", help="replace existing --output-model-* files")
-    p.add_argument("--ibsm-resolution", type=int, default=2048, metavar="N", help="ibsm mode: buffer side (2048)")
+    p.add_argument(
+        "--ibsm-resolution", type=int, default=2048, metavar="N", help="ibsm mode: buffer side, 1..32768 (2048)"
+    )
     p.add_argument("--ibsm-cameras", type=int, default=16, metavar="N", help="ibsm mode: camera count (16)")
 
 

@@ -436,6 +436,15 @@ V3 up_for(V3 d) {
 // Rows of a band: 16 rows of 2048 pixels are 256 kB of depth and colour per rendering, so that both renderings of a
 // band stay in cache from the first face drawn to the comparison.
 constexpr int BAND_ROWS = 16;
+// The largest buffer side (ibsm.py's MAX_IBSM_RESOLUTION, checked there first): pixel coordinates are int and
+// float32, so a side is refused here rather than narrowed (2**32 + 64 would otherwise render at 64).
+constexpr int64_t MAX_RESOLUTION = int64_t(1) << 15;
+
+int checked_side(int64_t resolution) {
+  TORCH_CHECK(resolution >= 1 && resolution <= MAX_RESOLUTION, "resolution: expected an integer in 1..",
+              MAX_RESOLUTION, ", found ", resolution);
+  return static_cast<int>(resolution);
+}
 
 // Per-camera sums of the IBSM comparison of meshes A and B: a (cameras, 11) float64 tensor with columns
 // [both covered, one covered, R, G, B, Y, U, V squared-error sums, depth squared-error sum (rescaled to 255 by the
@@ -449,7 +458,7 @@ torch::Tensor ibsm_sums(torch::Tensor va, torch::Tensor fa, torch::Tensor uva, t
   const MeshView B = view_of(vb, fb, uvb, texb, colb);
   const float* bx = box.data_ptr<float>();
   const V3 bmin = {bx[0], bx[1], bx[2]}, bmax = {bx[3], bx[4], bx[5]};
-  const int w = static_cast<int>(resolution), h = static_cast<int>(resolution);
+  const int w = checked_side(resolution), h = w;
   const std::vector<V3> dirs = fibonacci(cameras);
   auto out = torch::zeros({cameras, 11}, torch::kFloat64);
   double* o = out.data_ptr<double>();
@@ -538,7 +547,7 @@ std::vector<torch::Tensor> ibsm_render(torch::Tensor v, torch::Tensor f, torch::
   const MeshView M = view_of(v, f, uv, tex, col);
   const float* bx = box.data_ptr<float>();
   const float* d = dir.data_ptr<float>();
-  const int w = static_cast<int>(resolution);
+  const int w = checked_side(resolution);
   const V3 vd = {d[0], d[1], d[2]};
   const Camera cam = make_camera(vd, up_for(vd), {bx[0], bx[1], bx[2]}, {bx[3], bx[4], bx[5]}, w, w);
   Raster r;

@@ -21,11 +21,22 @@ import numpy as np
 import torch
 
 from torchmeshmetric import native
-from torchmeshmetric._checks import check_flag, check_int
+from torchmeshmetric._checks import SizeLimitError, check_allocation, check_flag, check_int
 from torchmeshmetric.mpeg.core.reindex import oriented_reindex
 from torchmeshmetric.mpeg.core.textured_mesh import TexturedMesh
 
-__all__ = ["IbsmNoOverlapWarning", "IbsmResult", "ibsm", "ibsm_render"]
+__all__ = ["MAX_IBSM_RESOLUTION", "IbsmNoOverlapWarning", "IbsmResult", "ibsm", "ibsm_render"]
+
+#: The largest buffer side: ``ctc --ibsm-resolution`` and the campaign manifest's ``ibsm_resolution`` bound. A 32768²
+#: rendering is 2**30 pixels, 8 GiB of depth and colour in mmetric's whole-image buffers (each rendering of
+#: :func:`ibsm_render` too); the rasterizer's pixel coordinates are C ``int`` and float32, which a larger side would
+#: first make inexact, then wrap (4294967360 = 2**32 + 64 rendered at 64 before review X).
+MAX_IBSM_RESOLUTION = 1 << 15
+
+# Bytes per pixel of a rendering: a float32 depth and 4 uint8 colour channels.
+_PIXEL_BYTES = 8
+# Rows of a band (ibsm_raster.cpp's BAND_ROWS): ibsm() holds two bands per thread, never a whole image.
+_BAND_ROWS = 16
 
 
 class IbsmNoOverlapWarning(UserWarning):
@@ -115,7 +126,10 @@ def _arrays(m: TexturedMesh) -> tuple[torch.Tensor, ...]:
 
 
 def _check(resolution: int, cameras: int) -> None:
-    check_int(resolution, "resolution", 1)
+    check_int(resolution, "resolution")
+    if not 1 <= resolution <= MAX_IBSM_RESOLUTION:  # before the rasterizer sees it (its C++ refuses it too)
+        error = SizeLimitError if resolution > MAX_IBSM_RESOLUTION else ValueError
+        raise error(f"resolution: expected an integer in 1..{MAX_IBSM_RESOLUTION}, found {resolution!r}")
     check_int(cameras, "cameras", 2)  # mmetric's Fibonacci sphere needs 2 cameras
 
 
@@ -151,6 +165,7 @@ def ibsm(
 
     Raises:
         ValueError: a mesh without faces or with non-finite vertices, a bad resolution or camera count.
+        SizeLimitError: ``resolution`` above :data:`MAX_IBSM_RESOLUTION` (a ``ValueError`` too).
         RuntimeError: the C++ rasterizer cannot be built.
 
     Example:
@@ -165,6 +180,10 @@ def ibsm(
     cull = check_flag(cull, "cull")
     reorder = check_flag(reorder, "reorder")
     _check(resolution, cameras)
+    # each thread's two bands of rows (the rasterizer's Target), before any is allocated
+    bands = 2.0 * _BAND_ROWS * resolution * min(cameras, torch.get_num_threads())
+    check_allocation(bands, _PIXEL_BYTES, "resolution", resolution, "pixels")
+    check_allocation(float(cameras), 100, "cameras", cameras, "cameras")  # a direction and 11 sums each
     a, b = _prepared(ref, "ref", reorder), _prepared(dis, "dis", reorder)
     va, vb = a.mesh.verts.to(torch.float32), b.mesh.verts.to(torch.float32)
     amin, amax = va.min(0).values, va.max(0).values
@@ -225,6 +244,8 @@ def ibsm_render(
     """
     cull = check_flag(cull, "cull")
     _check(resolution, 2)
+    # the whole image, twice (the rasterizer's buffers, then the tensors returned), before any of it is allocated
+    check_allocation(2.0 * resolution * resolution, _PIXEL_BYTES, "resolution", resolution, "pixels")
     b = torch.tensor([*box[0], *box[1]], dtype=torch.float32)
     d = torch.tensor(direction, dtype=torch.float32)
     z, c, rng = _rasterizer().ibsm_render(*_arrays(mesh), b, d, resolution, cull)
