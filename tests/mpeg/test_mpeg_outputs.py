@@ -3,6 +3,7 @@ and the depth-first subdivision order against a slow recursive reference (mmetri
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -74,7 +75,9 @@ def test_cli_refusals(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> Non
     assert main(["mpeg", str(a), str(a), "--sampling", "mesh", "--output-model-ref", str(out)]) == 1
     assert "already exists" in capsys.readouterr().err and out.read_text() == "mine"
     assert main(["mpeg", str(a), str(a), "--mode", "equ", "--output-csv", str(tmp_path / "s.csv")]) == 2
-    assert "not in equ mode" in capsys.readouterr().err and not (tmp_path / "s.csv").exists()
+    err = capsys.readouterr().err
+    assert "--output-csv: used in --mode pcc, ibsm and pcqm only, not in --mode equ" in err
+    assert not (tmp_path / "s.csv").exists()
     assert main(["mpeg", str(a), str(a), "--output-model-ref", str(tmp_path / "x.txt")]) == 1
     assert "must end with .ply or .obj" in capsys.readouterr().err
     assert main(["mpeg", str(a), str(a), "--sampling", "mesh", "--output-model-ref", str(out), "--overwrite"]) == 0
@@ -129,3 +132,54 @@ def test_merged_normals_summed_in_order() -> None:
     merged = merge_duplicate_points(PointCloud(torch.zeros(4, 3), normals))
     assert merged.normals is not None
     assert merged.normals[0, 0].item() == 0.25  # (1.0 in float32, added in order) / 4
+
+
+def test_a_file_name_that_is_not_utf8_is_written_as_its_bytes(tmp_path: Path, capsys) -> None:
+    """Review X F16: a mesh named b'bad\\xff.obj' with --output-csv failed after the comparison ("'utf-8' codec
+    can't encode character '\\udcff' ... surrogates not allowed", exit 1) and left a 0-byte CSV. The row now holds
+    the name's bytes, as mmetric writes the name it was given; the library refuses an unencodable row before it
+    creates the file."""
+    import os
+
+    from torchmeshmetric.mpeg.comparison.csv_rows import append_csv_row
+
+    name = os.fsdecode(bytes(tmp_path) + b"/bad\xff.obj")
+    Path(name).write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    csv = tmp_path / "s.csv"
+    assert main(["mpeg", name, name, "--grid-size", "16", "--output-csv", str(csv)]) == 0
+    assert b";" + os.fsencode(name) + b";" in csv.read_bytes().splitlines()[1]
+    capsys.readouterr()
+    fresh = tmp_path / "fresh.csv"
+    with pytest.raises(ValueError, match=r"^rows: '\\ud800' cannot be written to "):
+        append_csv_row(fresh, "a;b", ["x\ud800;1"])
+    assert not fresh.exists()
+
+
+@pytest.mark.parametrize("command", ["mpeg", "sample"])
+def test_a_read_only_csv_is_refused_before_the_work(tmp_path: Path, command: str) -> None:
+    """Review X F15: a read-only existing --output-csv was found after the comparison ("could not write the output
+    models and CSV row: Permission denied"). It is now refused with the other output checks, before any work; run
+    without root's DAC override (root would append to it regardless of its mode)."""
+    import shutil
+    import subprocess
+    import sys
+
+    mesh = tmp_path / "t.obj"
+    mesh.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    csv = tmp_path / "ro.csv"
+    csv.write_text("")
+    csv.chmod(0o444)
+    argv = [str(mesh), str(mesh), "--grid-size", "16"] if command == "mpeg" else [str(mesh), str(tmp_path / "o.ply")]
+    prefix: list[str] = []
+    if os.geteuid() == 0:
+        if shutil.which("setpriv") is None:
+            pytest.skip("root without setpriv: a read-only file is writable")
+        prefix = ["setpriv", "--bounding-set=-dac_override,-dac_read_search"]
+    code = "import sys; from torchmeshmetric.cli import main; sys.exit(main(sys.argv[1:]))"
+    run = [*prefix, sys.executable, "-c", code, command, *argv, "--output-csv", str(csv)]
+    out = subprocess.run(run, capture_output=True, text=True, timeout=300, env={**os.environ})
+    assert out.returncode == 1, out.stderr
+    want = f"torchmeshmetric {command}: error: --output-csv {str(csv)!r}: cannot append to it (Permission denied)"
+    assert out.stderr.strip().splitlines()[-1] == want
+    assert out.stdout == ""  # nothing computed: neither figures nor 'Generated ... points'
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ro.csv", "t.obj"]

@@ -58,9 +58,9 @@ def add_output_options(p: Any) -> None:
     )
     p.add_argument("--overwrite", action="store_true", help="replace existing --output-model-* files")
     p.add_argument(
-        "--ibsm-resolution", type=int, default=2048, metavar="N", help="ibsm mode: buffer side, 1..32768 (2048)"
+        "--ibsm-resolution", type=int, default=None, metavar="N", help="ibsm mode: buffer side, 1..32768 (2048)"
     )
-    p.add_argument("--ibsm-cameras", type=int, default=16, metavar="N", help="ibsm mode: camera count (16)")
+    p.add_argument("--ibsm-cameras", type=int, default=None, metavar="N", help="ibsm mode: camera count (16)")
 
 
 def _inputs(args: argparse.Namespace) -> list[tuple[str, Any]]:
@@ -76,7 +76,7 @@ def _inputs(args: argparse.Namespace) -> list[tuple[str, Any]]:
 
 
 def check_outputs(args: argparse.Namespace) -> None:
-    """Refuse, before any computation, output options the mode does not write or files that cannot be written.
+    """Refuse, before any computation, output files that cannot be written (mode checks: cli/mpeg.py, _SCOPES).
 
     The models and the CSV are the output set of :func:`torchmeshmetric.cli._outputs.check_writable` (never an input,
     distinct, writable), and a CSV that starts with another header is refused here, before the comparison.
@@ -85,11 +85,7 @@ def check_outputs(args: argparse.Namespace) -> None:
 
     named = [(o, Path(m)) for o, m in (("--output-model-ref", args.output_model_ref),
                                          ("--output-model-dis", args.output_model_dis)) if m is not None]  # fmt: skip
-    if args.output_csv is not None and args.mode not in ("pcc", "ibsm", "pcqm"):
-        raise CLIError(
-            f"--output-csv: written in pcc, ibsm and pcqm modes, not in {args.mode} mode (mmetric v1.1.7 writes the "
-            "text TODO where its verdict would be; the exit status and --json give it)"
-        )
+    # an --output-csv of a mode that writes none is refused with the other options of another mode (cli/mpeg.py)
     for option, m in named:
         if m.suffix.lower() not in (".ply", ".obj"):  # mmetric writes by the name's last three letters, no other
             raise CLIError(f"{option}: {str(m)!r} must end with .ply or .obj")
@@ -106,6 +102,8 @@ def check_outputs(args: argparse.Namespace) -> None:
             check_csv_header(csv[0][1], csv_header(args.mode))
         except CsvHeaderError as exc:
             raise CLIError(f"--output-csv: {exc}") from exc
+        except OSError as exc:  # found before the work, not when the row is appended
+            raise CLIError(f"--output-csv {str(csv[0][1])!r}: cannot append to it ({exc.strerror})") from exc
 
 
 def csv_header(mode: str) -> str:

@@ -53,6 +53,8 @@ def _run(args: argparse.Namespace) -> int:
             check_csv_header(csv[0][1], SAMPLE_CSV_HEADERS[args.mode])
         except CsvHeaderError as exc:
             raise CLIError(f"--output-csv: {exc}") from exc
+        except OSError as exc:  # found before the work, not when the row is appended
+            raise CLIError(f"--output-csv {str(csv[0][1])!r}: cannot append to it ({exc.strerror})") from exc
     # the library's errors name its arguments (mesh, texture, num_samples_min...): retold with the command's names
     options = {**_OPTIONS, "path": "MESH", "mesh": f"MESH {args.mesh!r}"}
     options["texture"] = "--texture" if args.texture else "MESH's texture"

@@ -336,6 +336,7 @@ def check_csv_header(path: str | os.PathLike, header: str) -> None:
 
     Raises:
         CsvHeaderError: the file is not empty and its first line is not ``header``.
+        OSError: the file exists and cannot be opened for appending (``PermissionError`` for a read-only file).
 
     Example:
         >>> import tempfile, pathlib
@@ -349,6 +350,11 @@ def check_csv_header(path: str | os.PathLike, header: str) -> None:
         refused
     """
     p = Path(path)
+    if p.is_file():
+        # opened for appending (nothing written, the file unchanged): a read-only file was found only after the
+        # comparison (review X F15); a missing file is not created here
+        with open(p, "ab"):
+            pass
     if p.is_file() and p.stat().st_size:
         with open(p, "rb") as fh:
             _check_first_line(p, fh.readline(), header)
@@ -385,6 +391,7 @@ def append_csv_row(path: str | os.PathLike, header: str, rows: Sequence[str]) ->
 
     Raises:
         CsvHeaderError: the file is not empty and its first line is not ``header``.
+        ValueError: a row holds a lone surrogate that no file name gave (nothing written, no file created).
 
     Example:
         >>> import tempfile, pathlib
@@ -394,21 +401,29 @@ def append_csv_row(path: str | os.PathLike, header: str, rows: Sequence[str]) ->
         'a;b\n1;2\n3;4\n'
     """
     p = Path(path)
+    # Encoded before the file is opened (which creates it): a failure leaves no empty file behind (review X F16). A
+    # file name's bytes that are not UTF-8 reach Python as surrogate escapes (os.fsdecode) and are written back as the
+    # bytes they were, as mmetric writes the name it was given.
+    text = "".join(r + "\n" for r in rows)
+    try:
+        data, head = text.encode("utf-8", "surrogateescape"), (header + "\n").encode("utf-8", "surrogateescape")
+    except UnicodeEncodeError as exc:
+        raise ValueError(f"rows: {text[exc.start : exc.end]!r} cannot be written to {str(p)!r} ({exc.reason})") from exc
     with _locked(p) as fh:
         fh.seek(0)
         first = fh.readline()
         fh.seek(0, os.SEEK_END)
         size = fh.tell()
-        out = ""
+        out = b""
         if size == 0:
-            out = header + "\n"
+            out = head
         else:
             _check_first_line(p, first, header)
             fh.seek(size - 1)
             if fh.read(1) != b"\n":
-                out = "\n"
+                out = b"\n"
         fh.seek(0, os.SEEK_END)
-        fh.write((out + "".join(r + "\n" for r in rows)).encode("utf-8"))
+        fh.write(out + data)
         fh.flush()
         os.fsync(fh.fileno())
     return p
