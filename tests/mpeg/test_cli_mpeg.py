@@ -97,7 +97,21 @@ def test_identical_meshes_json_inf_and_table(tmp_path: Path, capsys: pytest.Capt
         (TRI, "v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", [], "dis.obj' vertex 0 (line 1) has non-finite coordinates"),
         (TRI, "v 0 0 1e39\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", [], "dis.obj' line 1: vertex 0 has coordinates up to 1e+39"),
         (TRI, TRI.replace("f 1 2 3", "vt nan nan\nf 1/1 2/1 3/1"), [], "texture coordinate 0 (line 4) is not finite"),
-        (TRI, TRI, ["--grid-size", "0"], "error: --grid-size: expected an int >= 2, found 0"),
+        (TRI, TRI, ["--grid-size", "0"], "error: --grid-size: expected an integer in 2..1048576, found 0"),
+        # review X F4: numpy's "RuntimeWarning: invalid value encountered in cast" came first, then the memory error
+        (
+            TRI,
+            TRI,
+            ["--grid-size", "99999999999999999999"],
+            "error: --grid-size: expected an integer in 2..1048576, found 99999999999999999999\n",
+        ),
+        # -1e39 is finite, but not in float32 (mm's box): "RuntimeWarning: overflow ..." then "found [-inf, ...]"
+        (
+            TRI,
+            TRI,
+            ["--box", "-1e39 -1 -1", "1 1 1"],
+            "error: --box MIN: '-1e39 -1 -1' is beyond float32's range (mmetric reads the box as float32)\n",
+        ),
         (TRI, TRI, ["--box", "0 0 0", "0.5 0.5 0.5"], "does not contain the reference mesh"),
         (TRI, TRI, ["--box", "0 0", "1 1 1"], "--box MIN: expected three finite numbers"),
         (TRI, TRI, ["--box", "1 1 1", "0 0 0"], "max corner [0.0, 0.0, 0.0] is below min corner"),
@@ -144,7 +158,7 @@ def test_bad_input_is_one_clear_line(
     comparison = any(m in extra for m in ("equ", "eqTFAN", "topo"))
     assert main(["mpeg", ref, dis, *extra]) == (2 if comparison else 1)  # diff's 2 for the comparison modes
     err = capsys.readouterr().err
-    assert err.startswith("torchmeshmetric mpeg: error: ")
+    assert err.startswith("torchmeshmetric mpeg: error: ")  # no warning line before it
     assert message in err
 
 
@@ -274,3 +288,11 @@ def test_options_of_the_mode_still_act(tmp_path: Path, capsys: pytest.CaptureFix
     assert d["grid_size"] == 16 and math.isclose(d["peak"], math.sqrt(48.0), rel_tol=1e-6)  # the box's diagonal
     assert main(["mpeg", tri, tri, "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["grid_size"] == 1024
+
+
+def test_a_number_beyond_float64_is_quoted_as_given(capsys: pytest.CaptureFixture[str]) -> None:
+    """Review X F4: --peak 1e400 said "found inf", not what the user typed; refused when parsed now (exit 2)."""
+    with pytest.raises(SystemExit) as exit_info:
+        main(["mpeg", "a.obj", "b.obj", "--peak", "1e400"])
+    assert exit_info.value.code == 2
+    assert capsys.readouterr().err.splitlines()[-1].endswith("argument --peak: expected a finite number, found '1e400'")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -163,6 +164,7 @@ def _pcc_model(side: str, path: str, texture: str | None) -> Any:
     return load_textured_mesh(path, texture)
 
 
+_MAX_GRID_SIZE = 1 << 20  # ctc --grid-size's and the campaign manifest's bound
 _PCC = frozenset({"pcc-grid", "pcc-mesh"})
 _GRID = frozenset({"pcc-grid"})
 _MESH = frozenset({"pcc-mesh"})
@@ -216,8 +218,33 @@ _SCOPES = {
 }
 
 
+def finite_number(text: str) -> float:
+    """An option's number, refused when parsed if it is not finite (``1e400`` was reported as ``found inf``)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, found {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number, found {text!r}")
+    return value
+
+
+def _box_corner(text: str, option: str) -> list[float]:
+    """A ``--box`` corner, within float32's range (mmetric reads the box as float32; -1e39 became -inf)."""
+    import numpy as np
+
+    from torchmeshmetric.cli._outputs import CLIError
+
+    values = corner(text, option)
+    if any(abs(v) > float(np.finfo(np.float32).max) for v in values):
+        raise CLIError(f"{option}: {text!r} is beyond float32's range (mmetric reads the box as float32)")
+    return values
+
+
 def _check_options(args: argparse.Namespace) -> None:
-    """Refuse an option given outside the modes it acts in (before any file is read), then fill in the defaults."""
+    """Every option, before any file is read: each given in a mode it acts in, in its range; then the defaults."""
+    from torchmeshmetric.cli._outputs import CLIError
+
     if args.mode == "pcc":
         sampling = args.sampling or "grid"
         context, text = f"pcc-{sampling}", f"--mode pcc --sampling {sampling}"
@@ -225,6 +252,11 @@ def _check_options(args: argparse.Namespace) -> None:
         context, text = args.mode, f"--mode {args.mode}"
     check_scope(args, _SCOPES, context, text)
     fill_defaults(args, _SCOPES)
+    if args.mode == "pcc" and args.sampling == "grid" and not 2 <= args.grid_size <= _MAX_GRID_SIZE:
+        # ctc's bound; a larger grid wrapped int64 ray counts (numpy's "invalid value encountered in cast")
+        raise CLIError(f"--grid-size: expected an integer in 2..{_MAX_GRID_SIZE}, found {args.grid_size}")
+    if args.box is not None:
+        args.box = (_box_corner(args.box[0], "--box MIN"), _box_corner(args.box[1], "--box MAX"))
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -245,9 +277,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.mode == "pcqm":
         return _run_pcqm(args)
 
-    box = None
-    if args.box is not None:
-        box = (corner(args.box[0], "--box MIN"), corner(args.box[1], "--box MAX"))
+    box = args.box  # parsed by _check_options
     ref, dis = load_pair(args, _pcc_model)
     try:
         clouds = mpeg_point_clouds(
@@ -318,7 +348,7 @@ def add_mpeg_command(sub: Any) -> None:
     )
     p.add_argument(
         "--peak",
-        type=float,
+        type=finite_number,
         default=None,
         help="PSNR peak, mm compare --resolution (default: the box diagonal; the V-DMC test model passes the "
         "sequence box's longest side)",
@@ -357,7 +387,7 @@ def add_mpeg_command(sub: Any) -> None:
     )
     p.add_argument(
         "--radius-curvature",
-        type=float,
+        type=finite_number,
         default=None,
         metavar="R",
         help="pcqm mode: curvature neighbourhood radius relative to REF's box (mm --radiusCurvature, default 0.001)",
@@ -371,7 +401,7 @@ def add_mpeg_command(sub: Any) -> None:
     )
     p.add_argument(
         "--radius-factor",
-        type=float,
+        type=finite_number,
         default=None,
         metavar="F",
         help="pcqm mode: pooling radius over the curvature radius (mm --radiusFactor, default 2.0)",
