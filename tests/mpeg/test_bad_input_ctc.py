@@ -35,13 +35,17 @@ def _with(args: list[str], option: str, value: str) -> list[str]:
         ("--qp", "3", "--qp: expected an integer in 7..31"),
         ("--qt", "40", "--qt: expected an integer in 0..31"),
         ("--resolution", "nan", "--resolution: expected a positive number"),
+        # review X F4: found per frame under the library's name (peak: ... (while running frame 0)), and 1e39 as
+        # "max_pos: expected 3 finite numbers" after numpy's overflow warning
+        ("--resolution", "1e-300", "error: --resolution: expected a positive number within float32's range"),
+        ("--max-pos", "1e39 1 1", "error: --max-pos: [1e+39, 1.0, 1.0] is beyond float32's range (mmetric reads"),
     ],
 )
 def test_ctc_options_checked_by_name_first(tmp_path: Path, capsys: pytest.CaptureFixture[str], option: str,
                                            value: str, message: str) -> None:  # fmt: skip
     assert main(_with(_sequence(tmp_path), option, value)) == 1
     err = capsys.readouterr().err
-    assert message in err and "ctc: frame" not in err
+    assert message in err and "ctc: frame" not in err and "Warning" not in err
 
 
 def test_ctc_decoded_qt_checked_without_uvs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -199,3 +203,22 @@ def test_ctc_frame_errors_name_ref_and_dis() -> None:
     uv = TexturedMesh(q.mesh, torch.zeros(1, 3, 2), np.zeros((2, 2, 3), np.uint8))
     with pytest.raises(ValueError, match=r"^decoded_qt: expected an integer bit depth"):  # a setting, named so
         ctc_frame(q, uv, decoded_qt=40, **kw)  # type: ignore[arg-type]
+
+
+def test_texture_errors_name_the_option_once(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Review X F10: `texture: texture file 'x.png' not found` (which of the two?) in ctc-face-errors, and `frame 0:
+    texture: cannot read texture ... (while running frame 0)` in ctc (the frame twice, the option not at all)."""
+    args = _sequence(tmp_path)
+    (tmp_path / "bad_000.png").write_text("not an image")
+    (tmp_path / "bad_001.png").write_text("not an image")
+    ctc = [*args, "--no-ibsm", "--reference-texture", str(tmp_path / "bad_%03d.png")]
+    assert main(ctc) == 1
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    want = f"torchmeshmetric ctc: error: --reference-texture: cannot read texture {str(tmp_path / 'bad_000.png')!r}"
+    assert err.startswith(want) and err.endswith("(while running frame 0)") and "frame 0: " not in err, err
+    face = ["ctc-face-errors", "--reference", str(tmp_path / "src_000.obj"), "--decoded", str(tmp_path / "dec_000.obj"),
+            "--qp", "10", "--qt", "0", "--min-pos", "-1 -1 -1", "--max-pos", "1 1 1", "--out", str(tmp_path / "fe"),
+            "--decoded-texture", str(tmp_path / "none.png")]  # fmt: skip
+    assert main(face) == 1
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert err.startswith("torchmeshmetric ctc-face-errors: error: --decoded-texture: texture file "), err

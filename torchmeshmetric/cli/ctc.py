@@ -19,6 +19,7 @@ from typing import Any
 from torchmeshmetric._console import say
 from torchmeshmetric._format import format_number, json_safe
 from torchmeshmetric.cli.options import ctc_options, path_argument
+from torchmeshmetric.mpeg.ctc.box import _FLOAT32_MAX, _float32
 from torchmeshmetric.mpeg.ctc.frame_pattern import frame_path
 
 __all__ = ["add_ctc_command", "frame_path"]
@@ -58,6 +59,12 @@ def _check_options(args: argparse.Namespace) -> tuple[list[float], list[float]]:
         raise ValueError(f"--last-frame: {args.last_frame} is before --first-frame {args.first_frame}")
     if not math.isfinite(args.resolution) or args.resolution <= 0:
         raise ValueError(f"--resolution: expected a positive number (the box's longest side), found {args.resolution}")
+    peak = _float32(args.resolution)
+    if not 0 < peak <= _FLOAT32_MAX:  # found per frame, as the library's "peak: ... (while running frame 0)"
+        raise ValueError(
+            f"--resolution: expected a positive number within float32's range (mmetric rounds the peak to float32), "
+            f"found {args.resolution!r}, which rounds to {peak if peak <= _FLOAT32_MAX else math.inf}"
+        )
     return ctc_options(args, (("--grid-size", args.grid_size, 1, 1 << 20),
                               ("--ibsm-resolution", args.ibsm_resolution, 1, 1 << 15),
                               ("--ibsm-cameras", args.ibsm_cameras, 2, 4096)))  # fmt: skip
@@ -100,6 +107,27 @@ def _check_colour(args: argparse.Namespace, k: int, ref: Any, dis: Any, first: d
                              f"the earlier frames {before}; the colour means need every frame")  # fmt: skip
 
 
+def load_ctc_mesh(path: str | Path, texture: str | Path | None, option: str) -> Any:
+    """A frame's textured mesh, a reader's error retold about the option that gave the file.
+
+    The library names its arguments (``texture: cannot read texture ...``): which of the two textures was not said
+    (review X F10). Now ``--decoded-texture: cannot read texture ...`` (or ``--decoded's texture``, from its MTL).
+
+    Args:
+        path: the mesh file.
+        texture: the texture given on the command line, or ``None`` (the MTL's).
+        option: the mesh's option, ``--reference`` or ``--decoded``.
+    """
+    from torchmeshmetric.cli.options import as_option_error
+    from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
+
+    names = {"path": option, "mesh": option, "texture": f"{option}-texture" if texture else f"{option}'s texture"}
+    try:
+        return load_textured_mesh(path, texture)
+    except ValueError as exc:
+        raise as_option_error(exc, names) from exc
+
+
 def _run_ctc(args: argparse.Namespace) -> int:
     lo, hi = _check_options(args)
     files = _frame_files(args)
@@ -130,7 +158,6 @@ def _run_ctc(args: argparse.Namespace) -> int:
 def _compute(args: argparse.Namespace, files: list[Any], lo: list[float], hi: list[float]) -> list[Any] | None:
     """Every frame's figures (on rank 0 under torchrun, ``None`` on the others); frames read one pair ahead."""
     from torchmeshmetric.data.sequence import Prefetcher
-    from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
     from torchmeshmetric.mpeg.ctc.chain import CTC_COLUMNS, CtcFrame, ctc_frame
     from torchmeshmetric.mpeg.ctc.settings import CtcSettings
     from torchmeshmetric.tasks import rank_and_world_size, run_tasks, shard
@@ -139,12 +166,12 @@ def _compute(args: argparse.Namespace, files: list[Any], lo: list[float], hi: li
     rank, world = rank_and_world_size()
 
     def load(task: tuple[int, Path, Path, Path | None, Path | None]) -> tuple[Any, Any, float]:
-        k, ref, dis, rt, dt = task
+        _, ref, dis, rt, dt = task
         t0 = time.perf_counter()
-        try:  # the reader refuses a file without faces too (both the grid sampling and IBSM need a surface)
-            return load_textured_mesh(ref, rt), load_textured_mesh(dis, dt), time.perf_counter() - t0
-        except ValueError as exc:
-            raise ValueError(f"frame {k}: {exc}") from exc
+        # the reader refuses a file without faces too (both the grid sampling and IBSM need a surface); the frame
+        # is the task's note ("while running frame k"), said once
+        r = load_ctc_mesh(ref, rt, "--reference")
+        return r, load_ctc_mesh(dis, dt, "--decoded"), time.perf_counter() - t0
 
     settings = CtcSettings(qp=args.qp, qt=args.qt, min_pos=lo, max_pos=hi, resolution=args.resolution,
                            decoded_qt=args.decoded_qt, grid_size=args.grid_size,

@@ -42,12 +42,12 @@ def run(args: argparse.Namespace) -> int:
     ]
     check_writable(outputs, args.overwrite, inputs=inputs, what="--out")
     from torchmeshmetric.cli._outputs import output_set
-    from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
+    from torchmeshmetric.cli.ctc import load_ctc_mesh
     from torchmeshmetric.mpeg.ctc.face_errors import ctc_face_errors, write_face_errors_csv, write_face_errors_ply
     from torchmeshmetric.mpeg.ctc.settings import CtcSettings
 
-    ref = load_textured_mesh(args.reference, args.reference_texture)
-    dis = load_textured_mesh(args.decoded, args.decoded_texture)
+    ref = load_ctc_mesh(args.reference, args.reference_texture, "--reference")
+    dis = load_ctc_mesh(args.decoded, args.decoded_texture, "--decoded")
     settings = CtcSettings(qp=args.qp, qt=args.qt, min_pos=lo, max_pos=hi, decoded_qt=args.decoded_qt,
                            grid_size=args.grid_size)  # fmt: skip
     errors = ctc_face_errors(ref, dis, settings, side=args.side)

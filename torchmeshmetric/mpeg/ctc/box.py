@@ -11,6 +11,8 @@ from collections.abc import Sequence
 
 __all__ = ["check_box"]
 
+_FLOAT32_MAX = 3.4028234663852886e38  # numpy's finfo(float32).max, without numpy (this module is light)
+
 
 def _float32(x: float) -> float:
     """``x`` rounded to float32 (as the grid sampler reads the box); beyond float32's range, ``x`` itself."""
@@ -36,7 +38,7 @@ def check_box(lo: Sequence[float], hi: Sequence[float], names: tuple[str, str] =
         names: how the messages name them (``"--min-pos"``, ``"'min_pos'"``...).
 
     Raises:
-        ValueError: naming both corners.
+        ValueError: naming both corners; or the corner with a coordinate beyond float32's range.
 
     Example:
         >>> check_box([-1, -1, 0], [1, 1, 0])  # flat on z: accepted
@@ -50,6 +52,11 @@ def check_box(lo: Sequence[float], hi: Sequence[float], names: tuple[str, str] =
         ValueError: --max-pos: [1.0, -1.0, 1.0] is below --min-pos [0.0, 0.0, 0.0]
     """
     low, high = [float(x) for x in lo], [float(x) for x in hi]
+    for name, values in zip(names, (low, high), strict=True):
+        if any(abs(_float32(v)) > _FLOAT32_MAX for v in values):  # _float32 keeps a value it cannot round
+            # 1e39 is finite but not a float32: it was refused later as "max_pos: expected 3 finite numbers, found
+            # [1e+39, ...]" after numpy's overflow warning (review X F4)
+            raise ValueError(f"{name}: {values} is beyond float32's range (mmetric reads the box as float32)")
     if any(h < x for x, h in zip(low, high, strict=True)):
         raise ValueError(f"{names[1]}: {high} is below {names[0]} {low}")
     flat = [a for a, x, h in zip("xyz", low, high, strict=True) if _float32(h) == _float32(x)]  # the sampler's float32
