@@ -49,3 +49,37 @@ def test_a_csv_without_a_rate_column_shows_its_header(tmp_path, capsys, text, fo
     err = capsys.readouterr().err
     expected = "expected a header with a 'rate' column and one column per metric (one row per rate point)"
     assert f"{bad}:1: {expected}, {found}" in err, err
+
+
+@pytest.mark.parametrize(
+    ("header", "rows", "column", "where"),
+    [
+        ("rate,GridD1,GridD1", ("100,30,1", "200,33,2", "400,36,3"), "GridD1", "columns 2 and 3"),
+        ("rate,GridD1,rate", ("100,30,1", "200,33,2", "400,36,3"), "rate", "columns 1 and 3"),
+    ],
+)
+def test_a_column_named_twice_is_refused(tmp_path, capsys, header, rows, column, where):
+    # Review X, F1: csv.DictReader kept the last of two equal names, so `rate,GridD1,GridD1` gave the third column's
+    # BD-rate (+100 %) and a repeated `rate` +900 %, exit 0, without a word.
+    good = tmp_path / "a.csv"
+    good.write_text("rate,GridD1\n100,30\n200,33\n400,36\n")
+    dup = tmp_path / "dup.csv"
+    dup.write_text("\n".join((header, *rows)) + "\n")
+    assert main(["bdrate", str(good), str(dup)]) == 1
+    err = capsys.readouterr().err
+    assert f"{dup}:1: column {column!r} appears twice in the header ({where}); which of the two is meant" in err, err
+
+
+def test_a_csv_that_is_not_utf8_is_read_as_latin1_and_errors_name_file_and_line(tmp_path, capsys):
+    # Review X, F2: "'utf-8' codec can't decode byte 0xff in position 12", naming neither file nor line. Now read
+    # as the mesh readers read text (UTF-8, else Latin-1): a Latin-1 column name works, a bad cell names its line.
+    good = tmp_path / "a.csv"
+    good.write_text("rate,GridD1\n100,30\n200,33\n400,36\n")
+    latin = tmp_path / "latin.csv"
+    latin.write_bytes(b"rate,GridD1,Qualit\xe9\n100,30,1\n200,33,2\n400,36,3\n")
+    assert main(["bdrate", str(good), str(latin)]) == 0
+    assert capsys.readouterr().out.startswith("GridD1  +0.0000 %")
+    latin.write_bytes(b"rate,GridD1\n\xff100,30\n200,33\n")
+    assert main(["bdrate", str(good), str(latin)]) == 1
+    err = capsys.readouterr().err
+    assert f"{latin}:2: column 'rate': expected a number, found '\xff100'" in err, err

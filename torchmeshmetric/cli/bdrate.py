@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import io
 import json
 import math
 from collections.abc import Sequence
@@ -63,15 +64,47 @@ def _refuse_header(path: str, header: Sequence[str] | None) -> NoReturn:
     raise ValueError(f"{path}:1: {expected}, found the header {found!r}")
 
 
+def _text(data: bytes) -> str:
+    """A CSV's text: UTF-8 (a byte-order mark dropped), or Latin-1 where it is not UTF-8, as the mesh readers read.
+
+    A CSV exported by an older spreadsheet may hold a Latin-1 byte in a column name or a cell; read as Latin-1, such
+    a byte reaches the checks as a character, and the message names its file, line and column (it was the codec's
+    "'utf-8' codec can't decode byte 0xff in position 12", naming neither the file nor the line: review X, F2).
+    """
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        return data.removeprefix(b"\xef\xbb\xbf").decode("latin-1")
+
+
+def _refuse_repeated_columns(path: str, header: Sequence[str]) -> None:
+    """Refuse a header that names a column twice: which of the two is meant cannot be told.
+
+    ``csv.DictReader`` keeps the last of two equal names and drops the first without a word: ``rate,GridD1,GridD1``
+    gave the BD-rate of the third column (+100 % where the second gives 0 %: review X, F1), as the PLY reader refuses
+    a property declared twice.
+    """
+    first: dict[str, int] = {}
+    for column, name in enumerate(header, 1):
+        if name in first:
+            raise ValueError(
+                f"{path}:1: column {name!r} appears twice in the header (columns {first[name]} and {column}); which "
+                "of the two is meant cannot be told"
+            )
+        first[name] = column
+
+
 def read_curve(path: str) -> dict[str, list[float]]:
     r"""The rate points of one CSV: ``{"rate": [...], metric: [...]}``, every value checked, errors as ``file:line``.
 
-    A UTF-8 byte-order mark (spreadsheets write one) is accepted; every row must have the header's fields, positive
-    rates and finite PSNRs; a metric needs 2 rate points or more with distinct PSNRs.
+    A UTF-8 byte-order mark (spreadsheets write one) is accepted, and a file that is not UTF-8 is read as Latin-1 (as
+    the mesh readers); no column may be named twice; every row must have the header's fields, positive rates and
+    finite PSNRs; a metric needs 2 rate points or more with distinct PSNRs.
 
     Raises:
         ValueError: the first problem found, naming the file, the line and the column (a header without ``rate``:
-            the header found; the test model's CSV, ``ctc-campaign``'s ``anchor.csv``: where its BD-rates are).
+            the header found; a column named twice; a file that cannot be read; the test model's CSV,
+            ``ctc-campaign``'s ``anchor.csv``: where its BD-rates are).
 
     Example:
         >>> import tempfile, os
@@ -81,12 +114,17 @@ def read_curve(path: str) -> dict[str, list[float]]:
         {'rate': [100.0, 200.0], 'GridD1': [30.0, 33.0]}
     """
     p = Path(path)
-    if not p.is_file():
-        raise ValueError(f"{path}: file not found" if not p.exists() else f"{path}: not a file")
-    with open(p, newline="", encoding="utf-8-sig") as fh:
+    try:
+        if not p.is_file():
+            raise ValueError(f"{path}: file not found" if not p.exists() else f"{path}: not a file")
+        data = p.read_bytes()
+    except OSError as exc:  # unreadable, or in a folder that cannot be searched
+        raise ValueError(f"{path}: cannot read it ({(exc.strerror or str(exc)).lower()})") from exc
+    with io.StringIO(_text(data), newline="") as fh:
         reader = csv.DictReader(fh)
         if reader.fieldnames is None or "rate" not in reader.fieldnames:
             _refuse_header(path, reader.fieldnames)
+        _refuse_repeated_columns(path, reader.fieldnames)
         cols: dict[str, list[float]] = {k: [] for k in reader.fieldnames if k}
         lines: list[int] = []
         for row in reader:
