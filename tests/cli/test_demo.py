@@ -143,6 +143,19 @@ TINY = ["--resolution", "24"]
         ("validate", ["--resolution", "15"], "argument --resolution: expected an integer >= 16, found '15'"),
         ("validate", ["--keep", "0"], "argument --keep: expected a ratio in (0, 1], found '0'"),
         ("validate", ["--keep", "nan"], "argument --keep: expected a ratio in (0, 1], found 'nan'"),
+        # review X, F12: numpy's "expected non-negative integer" (demo), "Overflow when unpacking long long" (validate)
+        ("demo", ["--seed", "-1"], "argument --seed: expected an integer from 0 to 9223372036854775807, found '-1'"),
+        ("validate", ["--seed", "-1"], "argument --seed: expected an integer from 0 to 9223372036854775807"),
+        (
+            "demo",
+            ["--seed", str(2**64)],
+            f"argument --seed: expected an integer from 0 to 9223372036854775807, found '{2**64}'",
+        ),
+        (
+            "validate",
+            ["--seed", str(2**63)],
+            f"argument --seed: expected an integer from 0 to 9223372036854775807, found '{2**63}'",
+        ),
     ],
 )
 def test_out_of_range_options_are_usage_errors_exit_2(capsys, tmp_path, command, argv, message):
@@ -232,3 +245,32 @@ def test_demo_refuses_bad_options_and_leaves_no_folder(capsys, tmp_path, known_r
     assert f"torchmeshmetric demo: error: {message}" in capsys.readouterr().err
     assert not out.exists()
     assert (known_registration.calls > 0) == registered
+
+
+@pytest.mark.parametrize(
+    ("command", "argv", "message"),
+    [
+        ("demo", ["--frames", str(10**20)], f"--frames: {10**20} asks for about "),
+        ("demo", ["--resolution", "99999"], "--resolution: 99999 asks for about "),
+        ("validate", ["--resolution", "99999", "--frames", "3", "--distortions", "noise"], "--resolution: 99999 asks"),
+    ],
+)
+def test_sizes_beyond_memory_are_refused_before_any_frame_is_made(capsys, tmp_path, command, argv, message):
+    # Review X, F11: `demo --frames 99999999999999999999` grew to 21.7 GB and was killed by the kernel (exit 137, no
+    # line); `demo --resolution 99999` failed in numpy ("Unable to allocate 693. TiB", no option named). Both are
+    # refused by demo_sequence's size check (a frame's grid is exact, the faces a least count) in milliseconds.
+    out = tmp_path / "dm"
+    assert main([command, *argv, "--out-dir", str(out), "--no-plots"]) == 1
+    err = capsys.readouterr().err
+    assert f"torchmeshmetric {command}: error: {message}" in err and "GiB of memory; choose a smaller value" in err, err
+    assert not out.exists()
+
+
+def test_demo_sequence_refuses_a_size_beyond_memory_naming_its_argument():
+    from torchmeshmetric._checks import SizeLimitError
+    from torchmeshmetric.data.demo import demo_sequence
+
+    with pytest.raises(SizeLimitError, match=r"^resolution: 99999 asks for about .* grid points per frame"):
+        demo_sequence(2, resolution=99999)
+    with pytest.raises(SizeLimitError, match=r"^num_frames: 100000000000000000000 asks for about .* faces"):
+        demo_sequence(10**20, resolution=16)

@@ -12,6 +12,7 @@ from torchmeshmetric._console import say
 from torchmeshmetric.cli.options import (
     add_command,
     add_html,
+    add_seed,
     add_target,
     add_weight,
     as_option_error,
@@ -67,8 +68,11 @@ def run(args: argparse.Namespace) -> int:
     out_dir = _demo_out_dir(args)
     t0 = time.perf_counter()
     # --frames (>= 2: one frame pair) and --resolution (>= 16, demo_sequence's least) were refused when parsed
-    # (exit 2), so demo_sequence's own checks, which name its arguments, cannot fail here
-    seq = demo_sequence(args.frames, resolution=args.resolution, seed=args.seed)
+    # (exit 2); demo_sequence refuses sizes beyond this machine's memory before it makes a frame, naming its argument
+    try:
+        seq = demo_sequence(args.frames, resolution=args.resolution, seed=args.seed)
+    except ValueError as exc:
+        raise as_option_error(exc, {"num_frames": "--frames", "resolution": "--resolution"}) from None
     frames = [f.to(dtype=dtype_of(args)) for f in seq.frames]
     for f in frames:  # a face count above a frame's faces: refused before the registration, not after it
         try:
@@ -305,7 +309,7 @@ def add_demo_command(sub: Any) -> None:
         help=f"mesh resolution of the built-in sequence (default {DEMO_RESOLUTION}: the paper's ~20k vertices / "
         "40k faces per frame; 80 gives about 5k vertices / 10k faces)",
     )
-    p.add_argument("--seed", type=int, default=0, help="seed of the built-in sequence (default 0)")
+    add_seed(p, "seed of the built-in sequence (default 0; 0 to 2**63-1)")
     add_target(
         p,
         DEMO_TARGET,

@@ -21,6 +21,7 @@ __all__ = [
     "corner",
     "add_command",
     "add_determinacy",
+    "add_seed",
     "add_target",
     "add_weight",
     "common_options",
@@ -31,6 +32,7 @@ __all__ = [
     "parse_weights",
     "positive_int",
     "report_options",
+    "seed_int",
 ]
 
 
@@ -70,7 +72,20 @@ def int_in_range(low: int, high: int | None = None) -> Callable[[str], int]:
 
 
 positive_int = int_in_range(1)
-"""An argument that is an integer >= 1 (``--threads``)."""
+"""An argument that is an integer >= 1."""
+
+SEED_MAX = 2**63 - 1
+"""The largest ``--seed``: numpy's generators take any integer >= 0, torch's ``manual_seed`` a signed 64-bit one."""
+
+seed_int = int_in_range(0, SEED_MAX)
+"""A ``--seed`` (every command that takes one): ``-1`` gave numpy's "expected non-negative integer" without the
+option, and 2**64 ran in ``demo`` but failed in ``validate`` with "Overflow when unpacking long long" (review X, F12).
+"""
+
+
+def add_seed(p: argparse.ArgumentParser, help_text: str) -> None:
+    """Add ``--seed`` (default 0; an integer from 0 to :data:`SEED_MAX`, checked when parsed) with its help."""
+    p.add_argument("--seed", type=seed_int, default=0, help=help_text)
 
 
 def parse_ratio(text: str) -> float:

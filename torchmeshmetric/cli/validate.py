@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from torchmeshmetric._console import say
-from torchmeshmetric.cli.options import add_command, int_in_range, parse_ratio, path_argument
+from torchmeshmetric.cli.options import add_command, add_seed, as_option_error, int_in_range, parse_ratio, path_argument
 from torchmeshmetric.evaluation._validation_names import DISTORTIONS
 
 __all__ = ["add_validate_command", "distortion_names", "run"]
@@ -46,6 +46,7 @@ def run(args: argparse.Namespace) -> int:
     frame size (docs/validation.md).
     """
     from torchmeshmetric._atomic import atomic_write
+    from torchmeshmetric._checks import SizeLimitError
     from torchmeshmetric._format import json_safe
     from torchmeshmetric.cli._outputs import check_folder, check_writable, make_folder, output_set
     from torchmeshmetric.evaluation.validation import (
@@ -79,12 +80,15 @@ def run(args: argparse.Namespace) -> int:
         f"frame pairs at resolution {preset['resolution']}"
     )
     start = time.perf_counter()
-    result = run_validation(
-        seed=args.seed,
-        distortions=names,
-        progress=lambda n: say(f"validate: {n} done ({time.perf_counter() - start:.1f} s)"),
-        **preset,
-    )
+    try:
+        result = run_validation(
+            seed=args.seed,
+            distortions=names,
+            progress=lambda n: say(f"validate: {n} done ({time.perf_counter() - start:.1f} s)"),
+            **preset,
+        )
+    except SizeLimitError as exc:  # the built-in sequence's size check (before any frame is made)
+        raise as_option_error(exc, {"num_frames": "--frames", "resolution": "--resolution"}) from None
     settings = result.settings
     title = (
         f"# torchmeshmetric validation study\n\nBuilt-in sequence, {settings['frames']} frames at resolution "
@@ -124,7 +128,7 @@ def add_validate_command(sub: Any) -> None:
         default=None,
         help="fraction of faces the tracked simplification keeps, in (0, 1] (default 0.5)",
     )
-    p.add_argument("--seed", type=int, default=0, help="seed of the sequence and the distortions (default 0)")
+    add_seed(p, "seed of the sequence and the distortions (default 0; 0 to 2**63-1)")
     p.add_argument(
         "--distortions",
         type=distortion_names,

@@ -32,6 +32,7 @@ from torch import Tensor
 
 from torchmeshmetric._checks import (
     IndexRangeError,
+    check_allocation,
     check_finite,
     check_float,
     check_float_dtype,
@@ -350,6 +351,46 @@ class DemoSequence:
         return torch.from_numpy(out).to(points)
 
 
+_TOP_BLOCK = 8  # voxels per side of the coarsest blocks of the narrow band (the grid is a whole number of them)
+_BYTES_PER_GRID_POINT = 6  # live at once while a frame is meshed: its float32 field and two boolean masks
+
+
+def _frame_grid(
+    rot: np.ndarray,
+    trans: np.ndarray,
+    prims: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    h: float,
+    offset: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A posed frame's capsule ends ``a``, ``b`` ``(P, 3)``, its grid's corner ``lo`` ``(3,)`` and blocks per axis."""
+    bone, pa, pb, rad = prims
+    a = matvec3(rot[bone], pa) + trans[bone]
+    b = matvec3(rot[bone], pb) + trans[bone]
+    lo = np.minimum(a, b).min(0) - rad.max() - 3 * h - offset
+    hi = np.maximum(a, b).max(0) + rad.max() + 3 * h
+    return a, b, lo, np.ceil((hi - lo) / (h * _TOP_BLOCK)).astype(int)
+
+
+def _check_sizes(num_frames: int, resolution: int, phases: list[float], joints: np.ndarray, prims: tuple) -> None:
+    """Refuse, before any frame is meshed, sizes that cannot fit in memory (naming ``resolution`` or ``num_frames``).
+
+    ``phases``: the distinct poses' phases (the motion repeats every ``frames_per_cycle`` frames). The largest
+    frame's grid is exact (the sub-voxel offset, ``< h``, left out can only enlarge it); the frames' faces are
+    counted at least ``resolution ** 2`` per frame (the least over a motion cycle, measured: 1.08 r**2 at r = 16,
+    1.5 r**2 at r = 40, about 1.56 r**2 at 160), 24 bytes each (three int64 indices). ``demo --resolution 99999``
+    failed in numpy ("Unable to allocate 693. TiB"), and ``demo --frames 99999999999999999999`` grew to 21.7 GB
+    and was killed by the kernel (review X, F11).
+    """
+    h = 2.0 / resolution
+    zero = np.zeros(3)
+    points = max(
+        float(np.prod((_frame_grid(*_pose_at(ph, joints), prims, h, zero)[3] * _TOP_BLOCK + 1).astype(float)))
+        for ph in phases
+    )
+    check_allocation(points, _BYTES_PER_GRID_POINT, "resolution", resolution, "grid points per frame")
+    check_allocation(float(num_frames) * resolution**2, 24, "num_frames", num_frames, "faces")
+
+
 def _mesh_frame(
     rot: np.ndarray,
     trans: np.ndarray,
@@ -366,17 +407,13 @@ def _mesh_frame(
     crosses has a corner in it. Only the voxels of the finest active blocks are evaluated exactly; the rest of the
     grid takes the (correctly signed) value of its smallest evaluated enclosing block.
     """
-    bone, pa, pb, rad = prims
-    a = matvec3(rot[bone], pa) + trans[bone]
-    b = matvec3(rot[bone], pb) + trans[bone]
-    lo = np.minimum(a, b).min(0) - rad.max() - 3 * h - offset
-    hi = np.maximum(a, b).max(0) + rad.max() + 3 * h
+    rad = prims[3]
+    a, b, lo, nb = _frame_grid(rot, trans, prims, h, offset)
 
     def field(idx: np.ndarray, size: int) -> np.ndarray:
         return _smooth_union(_capsule_dists(lo + (idx + 0.5 * size) * h, a, b, rad), blend)
 
-    top = 8
-    nb = np.ceil((hi - lo) / (h * top)).astype(int)
+    top = _TOP_BLOCK
     n = nb * top + 1  # grid points per axis
     vol = np.empty(n, dtype=np.float32)
     blocks = np.stack(np.meshgrid(*[np.arange(m) for m in nb], indexing="ij"), -1).reshape(-1, 3) * top
@@ -453,6 +490,8 @@ def demo_sequence(
 
     Raises:
         ValueError: an argument is out of range.
+        SizeLimitError: ``resolution`` or ``num_frames`` asks for more memory than this machine has (a frame's
+            marching-cubes grid, the frames' faces), refused before any frame is made.
         TypeError: a count (``num_frames``, ``resolution``, ``frames_per_cycle``) is not an int.
 
     Example:
@@ -484,13 +523,17 @@ def demo_sequence(
     pa = joints[bone] + scale[bone, None] * pa
     pb = joints[bone] + scale[bone, None] * pb
     rad = np.array([p[3] for p in _PRIMS]) * rscale
+    prims = (bone, pa, pb, rad)
+    cycle = min(num_frames, frames_per_cycle)  # the poses repeat after one cycle
+    _check_sizes(num_frames, resolution, [(start_phase + i / frames_per_cycle) % 1.0 for i in range(cycle)], joints,
+                 prims)  # fmt: skip
     h = 2.0 / resolution
     phases = np.array([(start_phase + i / frames_per_cycle) % 1.0 for i in range(num_frames)])
     rots, trs, frames = [], [], []
     for i in range(num_frames):
         rot, tr = _pose_at(float(phases[i]), joints)
         offset = rng.random(3) * h
-        frames.append(_mesh_frame(rot, tr, (bone, pa, pb, rad), h, blend, offset, dtype))
+        frames.append(_mesh_frame(rot, tr, prims, h, blend, offset, dtype))
         rots.append(rot)
         trs.append(tr)
     return DemoSequence(
