@@ -33,6 +33,7 @@ __all__ = [
     "positive_int",
     "report_options",
     "seed_int",
+    "thread_count",
 ]
 
 
@@ -73,6 +74,35 @@ def int_in_range(low: int, high: int | None = None) -> Callable[[str], int]:
 
 positive_int = int_in_range(1)
 """An argument that is an integer >= 1."""
+
+
+def max_threads() -> int:
+    """The most ``--threads`` this machine takes: 4 per CPU core, at least 64.
+
+    More threads than cores never speeds torch's CPU work up (5000 threads on 2 cores ran 4.7x slower), and far more
+    cannot be started: ``--threads 100000`` failed with "can't start new thread", blamed on an input option, and then
+    segfaulted (exit 139); ``--threads 99999999999999999999`` said "Overflow when unpacking long long" (review X, F6).
+    The floor keeps a script that asks for a few dozen threads working on a small machine.
+    """
+    import os
+
+    return max(64, 4 * (os.cpu_count() or 1))
+
+
+def thread_count(text: str) -> int:
+    """A ``--threads``: an integer from 1 to :func:`max_threads`, refused when parsed (exit 2) with the reason."""
+    high = max_threads()
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if not 1 <= value <= high:
+        raise argparse.ArgumentTypeError(
+            f"expected an integer from 1 to {high} (4 per CPU core of this machine, at least 64: more threads than "
+            f"cores only slow torch down), found {text!r}"
+        )
+    return value
+
 
 SEED_MAX = 2**63 - 1
 """The largest ``--seed``: numpy's generators take any integer >= 0, torch's ``manual_seed`` a signed 64-bit one."""
@@ -184,7 +214,7 @@ def common_options(dtype_help: str | None = None) -> argparse.ArgumentParser:
     )
     common.add_argument(
         "--threads",
-        type=positive_int,
+        type=thread_count,
         default=None,
         metavar="N",
         help="torch CPU threads of this process (default: torch's choice; under torchrun: the cores divided by the "
