@@ -40,3 +40,51 @@ def test_threads_within_the_bound_parse():
 
     args = build_parser().parse_args(["evaluate", "--original", "o", "--simplified", "s", "--threads", "64"])
     assert args.threads == 64
+
+
+@pytest.mark.parametrize("command", ["evaluate", "compare", "demo"])
+@pytest.mark.parametrize("value", ["0", "-5", str((1 << 20) + 1)])
+def test_mpeg_grid_size_is_checked_when_parsed(capsys, command, value):
+    # Review X, F7: `--mpeg-grid-size 0` ran every registration and the whole evaluation, then failed naming the
+    # library's `grid_size`.
+    argv = {"evaluate": ["--original", "o", "--simplified", "s"], "compare": ["--original", "o"], "demo": []}[command]
+    line = _usage_error(capsys, [command, *argv, "--mpeg", "--mpeg-grid-size", value])
+    assert f"argument --mpeg-grid-size: expected an integer from 2 to 1048576, found {value!r}" in line, line
+
+
+def _unprivileged(argv, cwd):
+    """Run the CLI as an ordinary user would (root ignores a folder's mode): its exit code and stderr."""
+    import shutil
+    import subprocess
+    import sys
+
+    prefix = []
+    if os.geteuid() == 0:
+        if shutil.which("setpriv") is None:
+            pytest.skip("root without setpriv: permissions are not enforced")
+        prefix = ["setpriv", "--bounding-set=-dac_override,-dac_read_search"]
+    done = subprocess.run(
+        [*prefix, sys.executable, "-m", "torchmeshmetric", *argv], cwd=cwd, capture_output=True, text=True, timeout=120
+    )
+    return done.returncode, done.stderr
+
+
+@pytest.fixture
+def unsearchable(tmp_path):
+    folder = tmp_path / "noexec"
+    folder.mkdir()
+    folder.chmod(0)
+    yield folder
+    folder.chmod(0o700)
+
+
+@pytest.mark.parametrize("command", [["evaluate", "--original", "o", "--simplified", "s"], ["demo"]])
+def test_a_cache_dir_below_an_unsearchable_folder_is_one_usage_line(tmp_path, unsearchable, command):
+    # Review X, F13: Path.is_file raised PermissionError inside argparse: a whole Python traceback, exit 1.
+    code, err = _unprivileged([*command, "--cache-dir", "noexec/c"], tmp_path)
+    assert code == 2 and "Traceback" not in err, err
+    assert (
+        err.strip()
+        .splitlines()[-1]
+        .endswith("error: argument --cache-dir: cannot look into 'noexec' to find 'noexec/c' (Permission denied)")
+    ), err

@@ -187,6 +187,10 @@ def parse_weights(text: str) -> tuple[float, ...]:
     return weights
 
 
+MPEG_GRID_SIZE_MAX = 1 << 20
+"""The largest ``--mpeg-grid-size`` (``ctc --grid-size``'s bound): the grid's steps per side of the box."""
+
+
 def common_options(dtype_help: str | None = None) -> argparse.ArgumentParser:
     """Options of every command that computes: device, precision, kernel backend, threads.
 
@@ -246,7 +250,15 @@ def evaluation_options() -> argparse.ArgumentParser:
     evaluation.add_argument(
         "--mpeg-sampling", choices=("grid", "mesh"), default="grid", help="MPEG sampling (default grid, the CTC's)"
     )
-    evaluation.add_argument("--mpeg-grid-size", type=int, default=1024, metavar="N", help="MPEG grid size (1024)")
+    evaluation.add_argument(
+        "--mpeg-grid-size",
+        # checked when parsed: the library's check (grid_size >= 2) came after the whole evaluation, naming
+        # "grid_size" (review X, F7); the upper bound is ctc --grid-size's
+        type=int_in_range(2, MPEG_GRID_SIZE_MAX),
+        default=1024,
+        metavar="N",
+        help=f"MPEG grid size, 2 to {MPEG_GRID_SIZE_MAX} (default 1024)",
+    )
     add_temporal(evaluation)
     return evaluation
 
@@ -319,14 +331,32 @@ NUDGED_CACHE = "determinacy"
 def cache_folder(text: str) -> str:
     """A ``--cache-dir``: a path (:func:`path_argument`) that is not an existing file, nor its :data:`NUDGED_CACHE`.
 
-    Checked when the command line is read: the cache stores an entry only after its registration ran.
+    Checked when the command line is read: the cache stores an entry only after its registration ran. A folder on
+    the way that cannot be searched is refused too: ``Path.is_file`` raised ``PermissionError`` from inside argparse,
+    which printed a Python traceback (review X, F13).
     """
     from pathlib import Path
 
     for folder in (Path(path_argument(text)), Path(text) / NUDGED_CACHE):
-        if folder.is_file():
+        try:
+            is_file = folder.is_file()
+        except OSError as exc:
+            raise argparse.ArgumentTypeError(
+                f"cannot look into {str(_unsearchable(folder))!r} to find {text!r} ({exc.strerror or exc})"
+            ) from None
+        if is_file:
             raise argparse.ArgumentTypeError(f"expected a folder (created when needed), found the file {str(folder)!r}")
     return text
+
+
+def _unsearchable(path: Any) -> Any:
+    """The first folder above ``path`` (a ``Path``) that cannot be searched, else ``path``'s parent."""
+    import os
+
+    for folder in reversed(path.parents):
+        if str(folder) not in ("", ".") and folder.is_dir() and not os.access(folder, os.X_OK):
+            return folder
+    return path.parent
 
 
 def add_cache_dir(p: argparse.ArgumentParser, help_text: str) -> None:
