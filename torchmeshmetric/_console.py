@@ -7,7 +7,7 @@ import sys
 import warnings
 from collections.abc import Iterator
 
-__all__ = ["say", "warnings_as_lines"]
+__all__ = ["error_message", "say", "warnings_as_lines"]
 
 
 def say(line: str) -> None:
@@ -62,3 +62,21 @@ def warnings_as_lines(command: str) -> Iterator[None]:
         yield
     finally:
         warnings.formatwarning = previous
+
+
+def error_message(exc: BaseException) -> str:
+    r"""The first line of an error as the command line prints it (``torchmeshmetric CMD: error: <this>``).
+
+    An ``OSError`` that no check caught names its file and says what the system said in words:
+    ``'x.obj': permission denied`` rather than ``[Errno 13] Permission denied: 'x.obj'`` (review X, F14).
+
+    Example:
+        >>> error_message(PermissionError(13, "Permission denied", "x.obj"))
+        "'x.obj': permission denied"
+        >>> error_message(ValueError("bad\nmore"))
+        'bad'
+    """
+    if isinstance(exc, OSError) and exc.strerror and exc.filename is not None:
+        return f"{str(exc.filename)!r}: {exc.strerror.lower()}"
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__

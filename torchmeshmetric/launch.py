@@ -24,7 +24,7 @@ from typing import Any, NamedTuple
 import torch
 import torch.distributed as dist
 
-from torchmeshmetric._console import say
+from torchmeshmetric._console import error_message, say
 from torchmeshmetric.tasks import RankFailedError, default_store, in_flight
 
 __all__ = [
@@ -68,8 +68,7 @@ def error_line(command: str, exc: BaseException, rank: int | None = None) -> str
         >>> error_line("compare", err)
         'torchmeshmetric compare: error: bad (while running frame pair 1 -> 2)'
     """
-    text = str(exc).strip()
-    message = text.splitlines()[0] if text else type(exc).__name__
+    message = error_message(exc)
     notes = [n for n in getattr(exc, "__notes__", ()) if isinstance(n, str)]  # e.g. the task (tasks.name_task)
     if notes:
         message += f" ({'; '.join(notes)})"

@@ -317,10 +317,17 @@ def test_a_mesh_the_viewer_cannot_show_is_named_by_its_option(capsys, tmp_path):
     (tmp_path / "r.md").write_text("# r\n")
     plain = tmp_path / "plain.ply"
     trimesh.creation.icosphere(subdivisions=1).export(plain)  # no vertex colours
-    for mesh, message in ((tmp_path / "r.md", "has unsupported suffix '.md'"), (plain, "one colour per vertex")):
+    # review X, F10: the reader's parameter leaked (`--mesh 'x': path: ... 'x' ...`, the file named twice); the file
+    # is named once, by the reader's message where it names it
+    md = tmp_path / "r.md"
+    for mesh, start, message in (
+        (md, f"--mesh: '{md}' has unsupported suffix '.md'", ""),
+        (plain, f"--mesh: {plain}: ", "one colour per vertex"),
+    ):
         assert main(["report", str(tmp_path / "r.json"), "--mesh", str(mesh)]) == 1
         err = capsys.readouterr().err
-        assert err.startswith(f"torchmeshmetric report: error: --mesh {str(mesh)!r}: ") and message in err, err
+        assert err.startswith(f"torchmeshmetric report: error: {start}") and message in err, err
+        assert "path:" not in err and err.count(str(mesh)) == 1, err
 
 
 def test_markdown_backslash_escapes_are_shown_as_the_character():
@@ -415,3 +422,19 @@ def test_report_rerun_names_the_default_page_not_out(capsys, tmp_path):
     assert page.read_text() == "keep me"
     assert main(["report", str(tmp_path / "r.json"), "--overwrite"]) == 0
     assert page.read_text() != "keep me"
+
+
+@pytest.mark.parametrize("name", ["frame_000.ply", "x.txt", "page", "r.htm"])
+def test_report_out_must_be_an_html_page(capsys, tmp_path, name):
+    # Review X, F9: `report r.json --out orig/frame_000.ply --overwrite` replaced a frame of the evaluated sequence
+    # with the page (any suffix was taken); every other writer checks its suffix before any work
+    (tmp_path / "r.json").write_text(json.dumps({"frames": [{"frame": 0, "GridD1": 60.0}]}))
+    (tmp_path / "r.md").write_text("# r\n")
+    out = tmp_path / name
+    out.write_text("a frame")
+    assert main(["report", str(tmp_path / "r.json"), "--out", str(out), "--overwrite"]) == 1
+    found = f"the suffix {out.suffix!r}" if out.suffix else "no suffix"
+    err = capsys.readouterr().err.strip()
+    assert err == f"torchmeshmetric report: error: --out {str(out)!r}: expected a PAGE.html file name, found {found}"
+    assert out.read_text() == "a frame"
+    assert main(["report", str(tmp_path / "r.json"), "--out", str(tmp_path / "P.HTML")]) == 0

@@ -1,4 +1,4 @@
-"""Options whose values are bounded when parsed (exit 2, the option named), found by review X's fuzzing of the CLI."""
+"""Options checked when parsed and inputs/outputs the system refuses, found by review X's fuzzing of the CLI."""
 
 from __future__ import annotations
 
@@ -88,3 +88,64 @@ def test_a_cache_dir_below_an_unsearchable_folder_is_one_usage_line(tmp_path, un
         .splitlines()[-1]
         .endswith("error: argument --cache-dir: cannot look into 'noexec' to find 'noexec/c' (Permission denied)")
     ), err
+
+
+@pytest.fixture
+def meshes(tmp_path):
+    import trimesh
+
+    for name in ("a.obj", "unread.obj"):
+        trimesh.creation.icosphere(subdivisions=1).export(tmp_path / name)
+    for folder in ("o", "s"):
+        (tmp_path / folder).mkdir()
+        for k in range(2):
+            trimesh.creation.icosphere(subdivisions=1).export(tmp_path / folder / f"f{k}.obj")
+    (tmp_path / "unread.obj").chmod(0)
+    return tmp_path
+
+
+@pytest.mark.parametrize(
+    ("argv", "line"),
+    [
+        (["mpeg", "a.obj", "unread.obj"], "error: DIS: mesh file 'unread.obj' cannot be read (permission denied)"),
+        (["sample", "unread.obj", "x.ply"], "error: MESH: mesh file 'unread.obj' cannot be read (permission denied)"),
+        (
+            ["register", "--source", "unread.obj", "--target", "a.obj", "--out", "r.ply"],
+            "error: --source: mesh file 'unread.obj' cannot be read (permission denied)",
+        ),
+        (
+            ["evaluate", "--original", "o", "--simplified", "noexec"],
+            "error: --simplified 'noexec': directory 'noexec' cannot be read (permission denied)",
+        ),
+        (
+            ["evaluate", "--original", "o", "--simplified", "s", "--out", "noexec/r.json"],
+            "error: --out 'noexec/r.json': output folder 'noexec' cannot be searched (permission denied)",
+        ),
+        (
+            ["evaluate", "--original", "o", "--simplified", "s", "--out", "noexec/sub/r.json"],
+            "error: --out 'noexec/sub/r.json': output folder 'noexec/sub': a folder above it cannot be searched "
+            "(permission denied)",
+        ),
+    ],
+)
+def test_unreadable_inputs_and_unsearchable_outputs_name_the_option_and_say_permission_denied(
+    meshes, unsearchable, argv, line
+):
+    # Review X, F14: a bare "[Errno 13] Permission denied: 'unread.obj'", mostly without REF/DIS or the option
+    code, err = _unprivileged(argv, meshes)
+    assert code == 1 and "Errno" not in err, err
+    assert err.strip().splitlines()[-1].endswith(line), err
+
+
+def test_a_mesh_reader_error_names_the_option_and_the_file_once(capsys, meshes):
+    # Review X, F10: `--target 'half.ply': path: could not read mesh file 'half.ply' ...` (the reader's parameter)
+    half = meshes / "half.ply"
+    import trimesh
+
+    trimesh.creation.icosphere(subdivisions=1).export(half)
+    half.write_bytes(half.read_bytes()[: half.stat().st_size // 2])
+    argv = ["register", "--source", str(meshes / "a.obj"), "--target", str(half), "--out", str(meshes / "r.ply")]
+    assert main(argv) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("torchmeshmetric register: error: --target: ") and "path:" not in err, err
+    assert err.count(str(half)) == 1, err

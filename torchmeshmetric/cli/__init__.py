@@ -42,7 +42,7 @@ import sys
 from collections.abc import Collection, Iterator, Sequence
 from typing import NamedTuple
 
-from torchmeshmetric._console import say, warnings_as_lines
+from torchmeshmetric._console import error_message, say, warnings_as_lines
 from torchmeshmetric.cli import _interrupts
 
 __all__ = ["COMMANDS", "CommandInfo", "build_parser", "main"]
@@ -209,8 +209,7 @@ def _error(command: str, exc: Exception, code: int = 1) -> int:
     if os.environ.get("TORCHMESHMETRIC_DEBUG"):
         raise exc
     if "torchmeshmetric.launch" not in sys.modules:  # the command ran without torch: the same line, torch not loaded
-        text = str(exc).strip()
-        say(f"torchmeshmetric {command}: error: {text.splitlines()[0] if text else type(exc).__name__}")
+        say(f"torchmeshmetric {command}: error: {error_message(exc)}")
         return code
     from torchmeshmetric.launch import error_line  # under torchrun: once, by rank 0 (or by the rank that failed)
 

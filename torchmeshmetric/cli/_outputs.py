@@ -31,7 +31,11 @@ class CLIError(Exception):
 
 def check_folder(folder: Path, what: str, *, may_create: bool = False) -> None:
     """An output folder: existing (or, with ``may_create``, missing), never a file nor below a file."""
-    if not folder.is_dir():
+    try:
+        exists = folder.is_dir()
+    except PermissionError:  # a folder above it cannot be searched (review X, F14: a bare "[Errno 13]")
+        raise CLIError(f"{what} {str(folder)!r}: a folder above it cannot be searched (permission denied)") from None
+    if not exists:
         blocker = blocking_file(folder)
         if blocker is not None:
             raise CLIError(f"{what} {str(folder)!r}: {str(blocker)!r} is a file, not a folder")
@@ -172,6 +176,10 @@ def check_writable(
     for (option, path), replace in zip(labelled, [overwrite] * len(paths) + [True] * len(appended), strict=True):
         folder = path.parent if str(path.parent) else Path(".")
         check_folder(folder, f"{option} {str(path)!r}: output folder")  # the option named, as in every message here
+        if not os.access(folder, os.X_OK):  # else is_dir() below raised a bare "[Errno 13]" (review X, F14)
+            raise CLIError(
+                f"{option} {str(path)!r}: output folder {str(folder)!r} cannot be searched (permission denied)"
+            )
         if path.is_dir():
             raise CLIError(f"{option} {str(path)!r} is a directory, expected a file")
         # A symbolic link is an existing output even when it dangles (exists() follows it and says False).

@@ -26,6 +26,7 @@ __all__ = [
     "add_weight",
     "common_options",
     "evaluation_options",
+    "input_file_error",
     "parse_target",
     "path_argument",
     "parse_weight",
@@ -476,5 +477,39 @@ def as_option_error(exc: ValueError, options: dict[str, str]) -> Exception:
     if not sep or not all(n in options for n in names):
         return exc
     err = CLIError(f"{', '.join(options[n] for n in names)}: {rest}")
+    err.__cause__ = exc
+    return err
+
+
+def input_file_error(option: str, path: object, exc: Exception) -> Exception:
+    """A reader's error about the file an option gave, retold naming the option and the file once.
+
+    The readers name their own parameter (``path: could not read mesh file 'x.ply' ...``): the CLI said
+    ``--target 'x.ply': path: could not read mesh file 'x.ply' ...`` (review X, F10). The parameter is dropped, and
+    the file is named only where the message does not name it already; an ``OSError`` says what the system said
+    (``permission denied``), not ``[Errno 13] Permission denied: 'x'``.
+
+    Returns:
+        A ``CLIError`` (chained to ``exc``).
+
+    Example:
+        >>> str(input_file_error("--mesh", "x.ply", ValueError("path: mesh file 'x.ply' does not exist")))
+        "--mesh: mesh file 'x.ply' does not exist"
+        >>> str(input_file_error("--mesh", "x.ply", ValueError("expected one colour per vertex")))
+        "--mesh 'x.ply': expected one colour per vertex"
+        >>> str(input_file_error("--mesh", "x.ply", PermissionError(13, "Permission denied", "x.ply")))
+        "--mesh 'x.ply': cannot read it (permission denied)"
+    """
+    from torchmeshmetric.cli._outputs import CLIError
+
+    if isinstance(exc, OSError) and exc.strerror:
+        text = f"cannot read it ({exc.strerror.lower()})"
+    else:
+        text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        head, sep, rest = text.partition(": ")
+        if sep and head == "path":
+            text = rest
+    named = str(path) in text
+    err = CLIError(f"{option}: {text}" if named else f"{option} {str(path)!r}: {text}")
     err.__cause__ = exc
     return err

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from torchmeshmetric.cli.options import add_command, common_options, path_argument
+from torchmeshmetric.cli.options import add_command, common_options, input_file_error, path_argument
 
 __all__ = ["add_register_command", "run"]
 
@@ -38,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             meshes.append(load_mesh(path, dtype=dtype))
         except Exception as exc:
-            raise CLIError(f"{flag} {path!r}: {exc}") from exc
+            raise input_file_error(flag, path, exc) from None
     source, target = meshes
     (reg,) = register_pairs([source, target], device=device, backend=args.backend)
     save_mesh(reg.registered_mesh(source), args.out, overwrite=args.overwrite)

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from torchmeshmetric._console import say
-from torchmeshmetric.cli.options import add_command, path_argument
+from torchmeshmetric.cli.options import add_command, input_file_error, path_argument
 
 __all__ = ["add_report_command", "run"]
 
@@ -27,6 +27,11 @@ def run(args: argparse.Namespace) -> int:
     source = Path(args.report)
     markdown_path = source.with_suffix(".md")
     out = Path(args.out) if args.out else source.with_suffix(".html")
+    if args.out and out.suffix.lower() != ".html":
+        # as every writer checks its suffix: with --overwrite, `--out orig/frame_000.ply` replaced a frame of the
+        # evaluated sequence with the page (review X, F9); an .html name is never a frame nor a report
+        found = f"the suffix {out.suffix!r}" if out.suffix else "no suffix"
+        raise CLIError(f"--out {args.out!r}: expected a PAGE.html file name, found {found}")
     if not source.is_file():
         raise CLIError(f"REPORT {str(source)!r}: no such file")
     # REPORT itself first: a JSON that is no report was said to lack "its Markdown" (found by review)
@@ -56,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             layers.append(file_layer(m))
         except (ValueError, OSError) as exc:  # the reader names its own argument ("path: ..."): name the option
-            raise CLIError(f"--mesh {str(m)!r}: {exc}") from exc
+            raise input_file_error("--mesh", m, exc) from None
     page = report_page(
         report, markdown_path.read_text(encoding="utf-8"), title=f"torchmeshmetric report: {source.stem}", meshes=layers
     )
@@ -79,7 +84,7 @@ def add_report_command(sub: Any) -> None:
         type=path_argument,
         default=None,
         metavar="PAGE.html",
-        help="the page (default: REPORT.html beside REPORT)",
+        help="the page, a name ending in .html (default: REPORT.html beside REPORT)",
     )
     p.add_argument(
         "--mesh",

@@ -98,8 +98,13 @@ def list_frames(paths: PathsLike) -> list[Path]:
         if not os.fspath(paths).strip():  # Path("") is the current folder: never read it for an unset name
             raise MeshFileError(f"paths: expected a directory, a glob pattern or a mesh file, found {paths!r}")
         p = Path(paths)
-        if p.is_dir():
-            named = [q for q in p.iterdir() if q.suffix.lower() in MESH_SUFFIXES and not q.name.startswith(".")]
+        try:
+            is_dir = p.is_dir()
+            listed = list(p.iterdir()) if is_dir else []
+        except PermissionError as exc:  # said a bare "[Errno 13] Permission denied: 'd'" (review X, F14)
+            raise MeshFileError(f"paths: directory '{p}' cannot be read (permission denied)") from exc
+        if is_dir:
+            named = [q for q in listed if q.suffix.lower() in MESH_SUFFIXES and not q.name.startswith(".")]
             _refuse_broken_links(named)
             found = [q for q in named if q.is_file()]
             if not found:

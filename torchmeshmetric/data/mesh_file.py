@@ -127,7 +127,8 @@ def existing_mesh_file(path: str | os.PathLike) -> Path:
     """``path`` as a ``Path`` when it is a non-empty file with a mesh suffix; else the error saying what it is.
 
     Raises:
-        MeshFileError: a directory, a missing file, an unsupported suffix or an empty file.
+        MeshFileError: a directory, a missing file, an unsupported suffix, an empty file, or a file that cannot be
+            read (permission denied, on the file or a folder above it).
 
     Example:
         >>> import tempfile
@@ -137,14 +138,19 @@ def existing_mesh_file(path: str | os.PathLike) -> Path:
         torchmeshmetric.data.mesh_file.MeshFileError: path: '...' is a directory, not a mesh file
     """
     p = Path(path)
-    if p.is_dir():
-        raise MeshFileError(f"path: '{p}' is a directory, not a mesh file")
-    if not p.is_file():
-        raise MeshFileError(f"path: mesh file '{p}' does not exist")
-    if p.suffix.lower() not in MESH_SUFFIXES:
-        raise MeshFileError(f"path: '{p}' has unsupported suffix '{p.suffix}' (expected one of {MESH_SUFFIXES})")
-    if p.stat().st_size == 0:
-        raise MeshFileError(f"path: mesh file '{p}' is empty (0 bytes)")
+    try:
+        if p.is_dir():
+            raise MeshFileError(f"path: '{p}' is a directory, not a mesh file")
+        if not p.is_file():
+            raise MeshFileError(f"path: mesh file '{p}' does not exist")
+        if p.suffix.lower() not in MESH_SUFFIXES:
+            raise MeshFileError(f"path: '{p}' has unsupported suffix '{p.suffix}' (expected one of {MESH_SUFFIXES})")
+        if p.stat().st_size == 0:
+            raise MeshFileError(f"path: mesh file '{p}' is empty (0 bytes)")
+        with open(p, "rb"):  # readable: the readers' own open said a bare "[Errno 13] Permission denied: 'x'"
+            pass
+    except PermissionError as exc:  # the file, or a folder above it that cannot be searched (review X, F14)
+        raise MeshFileError(f"path: mesh file '{p}' cannot be read (permission denied)") from exc
     return p
 
 
