@@ -182,3 +182,16 @@ def test_ctc_html_page_says_no_word_of_meshes_has_integer_frame_ticks_and_names_
             lo, hi = ax.get_xlim()
             ticks = [t for t in ax.get_xticks() if lo <= t <= hi]
             assert ticks and all(float(t).is_integer() for t in ticks), ticks
+
+
+def test_ctc_out_takes_the_json_name_as_evaluate_does(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Review X, F8: `--out r.json` wrote r.json.json, r.json.csv, r.json.md; `--out r.md` r.md.json and r.md.md."""
+    args = _sequence(tmp_path)
+    assert main([*args, "--no-ibsm", "--out", str(tmp_path / "r.json")]) == 0
+    capsys.readouterr()
+    assert sorted(p.name for p in tmp_path.glob("r.*")) == ["r.csv", "r.json", "r.md"]
+    bad = str(tmp_path / "s.md")
+    assert main([*args, "--no-ibsm", "--out", bad]) == 1
+    err = capsys.readouterr().err
+    assert f"--out {bad!r}: expected the outputs' stem or the .json file's name, found the suffix '.md'" in err, err
+    assert not list(tmp_path.glob("s.*"))

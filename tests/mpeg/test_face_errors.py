@@ -136,3 +136,7 @@ def test_writers_and_command(tmp_path: Path, capsys: pytest.CaptureFixture[str])
     assert "--color-by y_mean: the frames have no colour" in capsys.readouterr().err
     assert main([*args[:-1], str(tmp_path / "x"), "--qp", "3"]) == 1
     assert "--qp: expected an integer in 7..31, found 3" in capsys.readouterr().err
+    # review X, F8: --out OUT.ply wrote OUT.ply.ply and OUT.ply.csv; it names the PLY now (OUT the stem, as before)
+    assert main([*args[:-1], str(tmp_path / "named.ply")]) == 0
+    assert (tmp_path / "named.ply").read_bytes() == data and (tmp_path / "named.csv").is_file()
+    assert not (tmp_path / "named.ply.ply").exists()

@@ -18,7 +18,7 @@ from typing import Any
 
 from torchmeshmetric._console import say
 from torchmeshmetric._format import format_number, json_safe
-from torchmeshmetric.cli.options import ctc_options, path_argument
+from torchmeshmetric.cli.options import ctc_options, output_stem, path_argument
 from torchmeshmetric.mpeg.ctc.box import _FLOAT32_MAX, _float32
 from torchmeshmetric.mpeg.ctc.frame_pattern import frame_path
 
@@ -134,6 +134,8 @@ def _run_ctc(args: argparse.Namespace) -> int:
     if args.html and args.out is None:
         raise ValueError("--html: the page is written beside the report, so it needs --out REPORT")
     exts = ("json", "csv", "md", "html") if args.html else ("json", "csv", "md")
+    if args.out is not None:  # REPORT or REPORT.json (as evaluate --out): never REPORT.json.json
+        args.out = output_stem(args.out, "--out", (".json", ".csv", ".md", ".html"))
     outputs = [] if args.out is None else [Path(f"{args.out}.{ext}") for ext in exts]
     from torchmeshmetric.cli._outputs import check_writable
 
@@ -301,7 +303,11 @@ def add_ctc_command(sub: Any) -> None:
     p.add_argument("--no-ibsm", action="store_true", help="leave IBSM (IbsmGeom, IbsmLuma) out")
     p.add_argument("--json", action="store_true", help='print {"frames": [...], "mean": {...}} (non-finite: "inf")')
     p.add_argument(
-        "--out", type=path_argument, default=None, metavar="REPORT", help="write REPORT.json, REPORT.csv, REPORT.md"
+        "--out",
+        type=path_argument,
+        default=None,
+        metavar="REPORT",
+        help="write REPORT.json, REPORT.csv, REPORT.md (REPORT or REPORT.json)",
     )
     p.add_argument("--overwrite", action="store_true", help="replace existing --out files")
     p.add_argument("--html", action="store_true", help="also write REPORT.html: the report as one offline page")

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 from torchmeshmetric._console import say
-from torchmeshmetric.cli.options import add_command, ctc_options, path_argument
+from torchmeshmetric.cli.options import add_command, ctc_options, output_stem, path_argument
 
 __all__ = ["add_ctc_face_errors_command", "run"]
 
@@ -33,6 +33,7 @@ def run(args: argparse.Namespace) -> int:
     lo, hi = ctc_options(args, [("--grid-size", args.grid_size, 2, 1 << 20)])
     if args.color_by not in _COLOR_BY:
         raise CLIError(f"--color-by: expected one of {', '.join(_COLOR_BY)}, found {args.color_by!r}")
+    args.out = output_stem(args.out, "--out", (".ply", ".csv"))  # OUT or OUT.ply: never OUT.ply.ply
     outputs = [Path(f"{args.out}.ply"), Path(f"{args.out}.csv")]
     inputs = [
         ("--reference", args.reference),
@@ -93,5 +94,7 @@ def add_ctc_face_errors_command(sub: Any) -> None:
         metavar="ERROR",
         help=f"the PLY's face colour: one of {', '.join(_COLOR_BY)} (default d1_mean)",
     )
-    p.add_argument("--out", type=path_argument, required=True, metavar="OUT", help="write OUT.ply and OUT.csv")
+    p.add_argument(
+        "--out", type=path_argument, required=True, metavar="OUT", help="write OUT.ply and OUT.csv (OUT or OUT.ply)"
+    )
     p.add_argument("--overwrite", action="store_true", help="replace existing OUT.ply / OUT.csv")

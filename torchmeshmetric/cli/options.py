@@ -11,6 +11,7 @@ import argparse
 import math
 import re
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any
 
 __all__ = [
@@ -27,6 +28,7 @@ __all__ = [
     "common_options",
     "evaluation_options",
     "input_file_error",
+    "output_stem",
     "parse_target",
     "path_argument",
     "parse_weight",
@@ -513,3 +515,30 @@ def input_file_error(option: str, path: object, exc: Exception) -> Exception:
     err = CLIError(f"{option}: {text}" if named else f"{option} {str(path)!r}: {text}")
     err.__cause__ = exc
     return err
+
+
+def output_stem(out: str, option: str, suffixes: Sequence[str]) -> str:
+    """The stem of a command's output files (``OUT`` of ``OUT.json``, ``OUT.csv``, ...), given as the stem or a name.
+
+    ``--out`` of ``ctc`` and ``ctc-face-errors`` is a stem, while ``evaluate --out`` is the JSON's name:
+    ``ctc --out r.json`` wrote ``r.json.json``, ``r.json.csv``, ``r.json.md`` (review X, F8). A name ending in the
+    first of ``suffixes`` (the main output's, ``.json``; ``ctc-face-errors``: ``.ply``) stands for its stem, as
+    ``evaluate --out r.json`` does; one ending in another output's suffix is refused (which file was meant is not
+    clear); any other text is the stem as before (``seq.r1`` writes ``seq.r1.json``).
+
+    Raises:
+        ValueError: a name ending in another output's suffix, naming the option.
+
+    Example:
+        >>> output_stem("r.json", "--out", (".json", ".csv", ".md")), output_stem("seq.r1", "--out", (".json",))
+        ('r', 'seq.r1')
+    """
+    suffix = Path(out).suffix.lower()
+    if suffix == suffixes[0]:
+        return out[: -len(suffix)]
+    if suffix in suffixes[1:]:
+        raise ValueError(
+            f"{option} {out!r}: expected the outputs' stem or the {suffixes[0]} file's name, found the suffix "
+            f"{Path(out).suffix!r} (the {', '.join(suffixes)} files are written with one stem)"
+        )
+    return out
