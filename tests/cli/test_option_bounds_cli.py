@@ -149,3 +149,19 @@ def test_a_mesh_reader_error_names_the_option_and_the_file_once(capsys, meshes):
     err = capsys.readouterr().err.strip()
     assert err.startswith("torchmeshmetric register: error: --target: ") and "path:" not in err, err
     assert err.count(str(half)) == 1, err
+
+
+@pytest.mark.parametrize("command", [["demo", "--frames", "2", "--resolution", "16"], ["validate", "--frames", "3"]])
+def test_an_out_dir_that_cannot_be_created_is_refused_before_any_work(tmp_path, command):
+    # Review X, F15: `demo --out-dir ro/d` made and simplified the sequence, then said "cannot create it"
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o555)
+    try:
+        code, err = _unprivileged([*command, "--out-dir", "ro/d", "--no-plots"], tmp_path)
+    finally:
+        ro.chmod(0o755)
+    assert code == 1 and err.strip().endswith(
+        "error: --out-dir 'ro/d': cannot create it (folder 'ro' is not writable)"
+    ), err
+    assert len(err.strip().splitlines()) == 1, err  # no progress line: nothing was made

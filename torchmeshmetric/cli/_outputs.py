@@ -16,6 +16,7 @@ from torchmeshmetric._atomic import atomic_file_set, blocking_file, resolve_dest
 
 __all__ = [
     "CLIError",
+    "check_creatable",
     "check_folder",
     "check_mesh_suffixes",
     "check_writable",
@@ -41,6 +42,20 @@ def check_folder(folder: Path, what: str, *, may_create: bool = False) -> None:
             raise CLIError(f"{what} {str(folder)!r}: {str(blocker)!r} is a file, not a folder")
         if not may_create:
             raise CLIError(f"{what} {str(folder)!r} does not exist")
+
+
+def check_creatable(folder: Path, what: str) -> None:
+    """A missing output folder that this user can create: its nearest existing folder writable and searchable.
+
+    :func:`check_folder` with ``may_create`` checks that nothing is in the way, not that the folder can be made:
+    ``demo --out-dir ro/d`` made and simplified the sequence first, then said "cannot create it (Permission
+    denied)" (review X, F15). An existing folder is left to the writes' own checks.
+    """
+    if folder.is_dir():
+        return
+    above = next((p for p in folder.parents if p.is_dir()), Path("."))  # "." exists (the current folder)
+    if not os.access(above, os.W_OK | os.X_OK):
+        raise CLIError(f"{what} {str(folder)!r}: cannot create it (folder {str(above)!r} is not writable)")
 
 
 def make_folder(folder: Path, what: str, files: Any) -> None:

@@ -131,10 +131,11 @@ def _demo_out_dir(args: argparse.Namespace) -> Path:
     """The demo's output folder, checked (created with the outputs; another tool's non-empty one: --overwrite)."""
     import os
 
-    from torchmeshmetric.cli._outputs import CLIError, check_folder
+    from torchmeshmetric.cli._outputs import CLIError, check_creatable, check_folder
 
     out_dir = Path(args.out_dir)
     check_folder(out_dir, "--out-dir", may_create=True)
+    check_creatable(out_dir, "--out-dir")  # before the sequence is made and simplified, not after
     if out_dir.exists() and not (out_dir / _DEMO_MARKER).exists() and any(out_dir.iterdir()) and not args.overwrite:
         raise CLIError(f"--out-dir {str(out_dir)!r} exists and was not written by the demo (pass --overwrite)")
     if out_dir.is_dir() and not os.access(out_dir, os.W_OK):

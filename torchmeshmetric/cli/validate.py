@@ -48,7 +48,7 @@ def run(args: argparse.Namespace) -> int:
     from torchmeshmetric._atomic import atomic_write
     from torchmeshmetric._checks import SizeLimitError
     from torchmeshmetric._format import json_safe
-    from torchmeshmetric.cli._outputs import check_folder, check_writable, make_folder, output_set
+    from torchmeshmetric.cli._outputs import check_creatable, check_folder, check_writable, make_folder, output_set
     from torchmeshmetric.evaluation.validation import (
         FULL,
         REDUCED,
@@ -72,6 +72,7 @@ def run(args: argparse.Namespace) -> int:
         [] if args.no_plots else [out_dir / "validation.png"]
     )
     check_folder(out_dir, "--out-dir", may_create=True)  # created with the files, so a failed run leaves none
+    check_creatable(out_dir, "--out-dir")
     if out_dir.is_dir():
         check_writable(paths, args.overwrite, inputs=[], what="--out-dir")
     # The time is linear in both: say what was asked for before minutes of work
