@@ -125,7 +125,13 @@ _KIND = {
 
 
 def _best_index(methods: Mapping[str, SequenceEvaluation]) -> int:
-    """One best pair for all methods (the rule depends only on the original frames)."""
+    """One best pair for all methods (the rule depends only on the original frames).
+
+    Raises:
+        ValueError: no method (``write_csv(path, {})`` raised a bare ``StopIteration`` from here).
+    """
+    if not methods:
+        raise ValueError("methods: expected at least one method, found none")
     first = next(iter(methods.values()))
     return first.best_pair_index()
 
@@ -261,9 +267,7 @@ def paper_tables(
         '0.010'
     """
     reverse = check_flag(reverse, "reverse")
-    if not methods:
-        raise ValueError("methods: expected at least one method, found none")
-    best = _best_index(methods)
+    best = _best_index(methods)  # refuses no method
     frame = next(iter(methods.values())).pairs[best].frame
     header = "| Algorithm | Mesh | " + " | ".join(h for _, h in COLUMNS) + " |"
     rule = "|" + "---|" * (len(COLUMNS) + 2)
@@ -511,6 +515,7 @@ def write_csv(
     Raises:
         FileExistsError: ``path`` exists and ``overwrite`` is ``False``.
         TypeError: ``overwrite`` is not a bool.
+        ValueError: ``methods`` is empty.
 
     Example:
         >>> import csv, os, tempfile, trimesh

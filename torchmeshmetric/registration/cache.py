@@ -27,6 +27,7 @@ import hashlib
 import inspect
 import json
 import os
+import re
 import sys
 import time
 import uuid
@@ -155,6 +156,30 @@ def _settings_json(value: object) -> object:
     return str(value)
 
 
+_ADDRESS = re.compile(r" at 0x[0-9a-fA-F]+")  # the default repr of an object, a function or a method
+
+
+def _settings_text(settings: Mapping[str, object] | NonRigidOptions) -> tuple[str, str | None]:
+    """The settings' JSON text (their part of the key) and the ``str`` of the first one keyed by a memory address.
+
+    A setting that JSON cannot write counts by its ``str``; the default one (``<Loss object at 0x7f...>``, a
+    function) holds the object's address, which no other process shares, so such a key is found in this process
+    only: an on-disk cache keyed so missed in every new process, without a word (found by the docstrings' review).
+    """
+    if isinstance(settings, NonRigidOptions):
+        return json.dumps(_settings_json(settings), sort_keys=True), None
+    fleeting: list[str] = []
+
+    def fallback(value: object) -> object:
+        text = _settings_json(value)
+        if isinstance(text, str) and _ADDRESS.search(text):
+            fleeting.append(text)
+        return text
+
+    text = json.dumps(dict(settings), sort_keys=True, default=fallback)
+    return text, (fleeting[0] if fleeting else None)
+
+
 def registration_key(source: Mesh, target: Mesh, settings: Mapping[str, object] | NonRigidOptions) -> str:
     """SHA-256 hex digest identifying the registration of ``source`` onto ``target`` with ``settings``.
 
@@ -176,7 +201,9 @@ def registration_key(source: Mesh, target: Mesh, settings: Mapping[str, object] 
 
     Returns:
         The key: 64 lowercase hexadecimal characters. A setting JSON cannot write (nor a ``NonRigidOptions``)
-        counts by its ``str``.
+        counts by its ``str``; where that ``str`` holds a memory address (an object without its own ``__str__``, a
+        function), the key lasts only as long as this process, and :meth:`RegistrationCache.get_or_compute` keeps
+        such entries in memory, with a warning, never in its folder.
 
     Example:
         >>> import torch
@@ -194,11 +221,8 @@ def registration_key(source: Mesh, target: Mesh, settings: Mapping[str, object] 
     _hash_mesh(h, source)
     _hash_mesh(h, target)
     h.update(str(registration_dtype(source, target)).encode())
-    if isinstance(settings, NonRigidOptions):
-        text = json.dumps(_settings_json(settings), sort_keys=True)
-    else:  # plain settings by their JSON text (a NonRigidOptions inside by its canonical form)
-        text = json.dumps(dict(settings), sort_keys=True, default=_settings_json)
-    h.update(text.encode())
+    # plain settings by their JSON text (a NonRigidOptions, alone or inside, by its canonical form)
+    h.update(_settings_text(settings)[0].encode())
     return h.hexdigest()
 
 
@@ -503,6 +527,7 @@ class RegistrationCache:
         # captured in a partial outlived its last user; found by review J). The entry goes with its function, so an
         # id reused by a later object never finds the name (the reference is checked too).
         self._sessions: dict[int, tuple[Callable[[], object], str]] = {}
+        self._warned: set[str] = set()  # settings keyed by a memory address already warned about
 
     def session_name(self, register: object) -> str:
         """The name of a registration function without a lasting one (:func:`registration_fn_name`) in this cache.
@@ -610,13 +635,27 @@ class RegistrationCache:
             settings: registration settings that are part of the key.
             compute: called on a miss; its result is stored (detached, on the CPU).
             on_disk: read and write the folder (when the cache has one); ``False`` for settings that name nothing
-                beyond this process (:meth:`session_name`).
+                beyond this process (:meth:`session_name`). Settings with a value keyed by a memory address
+                (:func:`registration_key`) are kept in memory whatever this says, with a warning.
 
         Returns:
             ``(entry, hit)``; the entry's tensors are the caller's own (copies of the cache's), so editing them in
             place changes no later lookup.
         """
         on_disk = check_flag(on_disk, "on_disk")
+        fleeting = _settings_text(settings)[1]
+        if on_disk and fleeting is not None:
+            on_disk = False  # its key is found in this process only: a stored entry would never be read again
+            warned = self.__dict__.setdefault("_warned", set())  # (a cache pickled before it had the set)
+            if self.directory is not None and fleeting not in warned:
+                warned.add(fleeting)
+                warnings.warn(
+                    f"registration cache: a registration setting, {fleeting}, is keyed by its str, which holds a "
+                    "memory address that no later process shares; its registrations are kept in memory only, not in "
+                    f"{self.directory} (give the setting as a JSON value: a name, a number, a list)",
+                    UserWarning,
+                    stacklevel=2,
+                )
         key = registration_key(source, target, settings)
         entry, hit = self._lookup_or_compute(key, source, compute, on_disk)
         if self.journal is not None:

@@ -26,6 +26,7 @@ import numpy as np
 import torch
 
 from torchmeshmetric import native
+from torchmeshmetric._checks import EmptyInputError, ShapeError
 from torchmeshmetric.mpeg.comparison.colour import rgb_to_ycbcr
 from torchmeshmetric.mpeg.comparison.neighbours import NeighbourTies, nearest_with_ties_both
 from torchmeshmetric.mpeg.comparison.psnr import check_mpeg_peak, mpeg_psnr
@@ -338,10 +339,20 @@ def bbox_diagonal(points: np.ndarray) -> float:
     Returns:
         The diagonal of the axis-aligned bounding box, a float32 value as a Python float.
 
+    Raises:
+        EmptyInputError: no point (numpy said "zero-size array to reduction operation maximum which has no
+            identity", naming no argument).
+        ShapeError: ``points`` is not ``(N, 3)``.
+
     Example:
         >>> bbox_diagonal(np.array([[0, 0, 0], [3, 4, 0]], np.float32))
         5.0
     """
+    points = np.asarray(points)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise ShapeError(f"points: expected shape (N, 3), found {tuple(points.shape)}")
+    if points.shape[0] == 0:
+        raise EmptyInputError("points: expected at least one point, found an empty point set")
     d = (points.max(axis=0) - points.min(axis=0)).astype(np.float32)
     return float(np.sqrt((d[0] * d[0] + d[1] * d[1]) + d[2] * d[2], dtype=np.float32))
 
