@@ -36,7 +36,7 @@ from typing import NoReturn
 from torchmeshmetric import _atomic
 from torchmeshmetric._console import say
 
-__all__ = ["EXIT_CODE", "MESSAGE", "exit_now", "handled", "interrupted", "pending", "raise_pending"]
+__all__ = ["EXIT_CODE", "MESSAGE", "TERMINATING", "exit_now", "handled", "interrupted", "pending", "raise_pending"]
 
 MESSAGE = "torchmeshmetric: interrupted"
 EXIT_CODE = 130  # 128 + SIGINT, what shells report for a command ended by Ctrl-C
@@ -96,6 +96,23 @@ def exit_now() -> NoReturn:
     os._exit(interrupted(raw=True))
 
 
+#: The signals that end a command as Ctrl-C does, but without unwinding (a ``timeout``, a scheduler, a closed
+#: terminal): the staged files removed, one line, exit code 128 + the signal. They left the hidden
+#: ``.NAME.RANDOM.tmp`` of the output being written behind (tens of MB; review X, F17).
+TERMINATING = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
+def _terminated(signum: int, frame: FrameType | None) -> None:
+    """SIGTERM / SIGHUP: the files staged by the atomic writers removed, one line, exit code 128 + ``signum``."""
+    atomic = sys.modules.get("torchmeshmetric._atomic")
+    if atomic is not None:
+        with contextlib.suppress(Exception):
+            atomic.discard_pending()
+    with contextlib.suppress(OSError):
+        os.write(2, f"torchmeshmetric: terminated ({signal.Signals(signum).name})\n".encode())
+    os._exit(128 + signum)
+
+
 class _Handler:
     """The SIGINT handler: raise ``KeyboardInterrupt`` where that unwinds safely, else :func:`exit_now`."""
 
@@ -114,6 +131,10 @@ class _Handler:
 def handled(*, own_process: bool) -> Iterator[None]:
     """Install the SIGINT handler for the block (main thread only; a SIGINT that is ignored stays ignored).
 
+    SIGTERM and SIGHUP at their default (which kills the process without a word) end it through
+    :func:`_terminated` instead: the staged files removed, ``torchmeshmetric: terminated (SIGTERM)``, exit 143
+    (SIGHUP: 129).
+
     Args:
         own_process: the block is the whole program (the console script, ``python -m torchmeshmetric``): when it
             ends, standard output is flushed and a later SIGINT (during the interpreter's shutdown) exits at once
@@ -127,6 +148,13 @@ def handled(*, own_process: bool) -> Iterator[None]:
         return
     _SAID.clear()
     _PENDING.clear()
+    # not under torchrun: it stops the other ranks with SIGTERM when one fails, and launch.run_command keeps that
+    # silent (one line for the job); a line from each stopped rank would be noise
+    alone = os.environ.get("WORLD_SIZE", "1") == "1"
+    ended = {sig: signal.getsignal(sig) for sig in TERMINATING} if alone else {}
+    for sig, handler in ended.items():
+        if handler is signal.SIG_DFL:  # one ignored (nohup) or set by the caller stays as it is
+            signal.signal(sig, _terminated)
     previous = signal.signal(signal.SIGINT, _Handler())
     _atomic.before_commit = raise_pending
     try:
@@ -140,3 +168,5 @@ def handled(*, own_process: bool) -> Iterator[None]:
             signal.signal(signal.SIGINT, lambda signum, frame: exit_now())
         else:
             signal.signal(signal.SIGINT, previous)
+            for sig, handler in ended.items():
+                signal.signal(sig, handler)
