@@ -165,3 +165,25 @@ def test_an_out_dir_that_cannot_be_created_is_refused_before_any_work(tmp_path, 
         "error: --out-dir 'ro/d': cannot create it (folder 'ro' is not writable)"
     ), err
     assert len(err.strip().splitlines()) == 1, err  # no progress line: nothing was made
+
+
+def test_version_and_polish(capsys):
+    # Review X, F19: no --version (a usage error); two --method names alike but for a trailing space were accepted
+    from torchmeshmetric import __version__
+
+    with pytest.raises(SystemExit) as info:
+        main(["--version"])
+    assert info.value.code == 0 and capsys.readouterr().out == f"torchmeshmetric {__version__}\n"
+    assert main(["compare", "--original", "o", "--method", "A=qem", "--method", "A =rqem"]) == 1
+    err = capsys.readouterr().err
+    assert "--method 'A =rqem': method name 'A ' differs from 'A' only by spaces around it" in err, err
+
+
+def test_a_topology_map_index_out_of_range_says_vertices(tmp_path):
+    # "mesh A has 482 vertexs"
+    from torchmeshmetric.mpeg.comparison import topology
+
+    mapping = tmp_path / "map.txt"
+    mapping.write_text("0 9\n")
+    with pytest.raises(ValueError, match=r"mesh A has 3 vertices$"):
+        topology.read_topology_map(mapping, 3, "vertex")

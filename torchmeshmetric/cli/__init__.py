@@ -159,6 +159,9 @@ def _parser(full: Collection[str]) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="torchmeshmetric", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
+    from torchmeshmetric._version import __version__
+
+    parser.add_argument("--version", action="version", version=f"torchmeshmetric {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, info in COMMANDS.items():
         if name in full:

@@ -573,6 +573,10 @@ def parse_methods(specs: Sequence[str]) -> dict[str, str]:
             raise CLIError(f"--method {spec!r}: expected NAME=DIR")
         if name in methods:
             raise CLIError(f"--method {spec!r}: method name {name!r} given twice")
+        alike = next((m for m in methods if m.strip() == name.strip()), None)
+        if alike is not None:  # "A" and "A ": one name in every table (review X, F19)
+            raise CLIError(f"--method {spec!r}: method name {name!r} differs from {alike!r} only by spaces around it, "
+                           "and the tables would show both alike")  # fmt: skip
         methods[name] = directory
     return methods
 

@@ -45,9 +45,10 @@ def run(args: argparse.Namespace) -> int:
     Generate the built-in volumetric-video-like sequence, register each original frame k-1 onto frame k, simplify
     every frame with QEM and with Registered QEM (which uses the registered previous frame), evaluate both, print
     the paper's four tables and write report.json/.md/.csv, plots and coloured PLYs. The defaults are the paper's
-    sizes (6 frames of ~20k vertices / 40k faces, keep 97% of the faces, full registration): about 40 s on 2 CPU
-    cores; the first run on a machine first builds the C++ extension once, with a progress line (minutes on 2
-    cores; `torchmeshmetric build` does it ahead). --resolution 80 --registration fast is a ~15 s preview.
+    sizes (6 frames of ~20k vertices / 40k faces, keep 97% of the faces, full registration): about 30 s on 2 CPU
+    cores (more on a busy machine); the first run on a machine first builds the C++ extension once, with a progress
+    line (minutes on 2 cores; `torchmeshmetric build` does it ahead). --frames 4 --resolution 80 --registration fast
+    is a ~20 s preview.
     """
     from torchmeshmetric.cli._outputs import CLIError
     from torchmeshmetric.cli._shared import (

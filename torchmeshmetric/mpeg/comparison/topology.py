@@ -177,7 +177,8 @@ def read_topology_map(path: str | os.PathLike, count: int, kind: Literal["face",
             if v >= count:
                 col = "B" if k == 0 else "A"
                 raise TopologyMapError(
-                    f"{where}: {kind} index {v} (column {k + 1}, mesh {col}) out of range: mesh A has {count} {kind}s"
+                    f"{where}: {kind} index {v} (column {k + 1}, mesh {col}) out of range: mesh A has {count} "
+                    f"{'vertices' if kind == 'vertex' else kind + 's'}"
                 )
         if failed is not None:
             raise TopologyMapError(
