@@ -262,7 +262,8 @@ def test_sizes_beyond_memory_are_refused_before_any_frame_is_made(capsys, tmp_pa
     out = tmp_path / "dm"
     assert main([command, *argv, "--out-dir", str(out), "--no-plots"]) == 1
     err = capsys.readouterr().err
-    assert f"torchmeshmetric {command}: error: {message}" in err and "GiB of memory available; choose a smaller value" in err, err
+    assert f"torchmeshmetric {command}: error: {message}" in err, err
+    assert "GiB of memory available; choose a smaller value" in err, err
     assert not out.exists()
 
 
