@@ -16,6 +16,7 @@ from torchmeshmetric._atomic import atomic_file_set, blocking_file, resolve_dest
 
 __all__ = [
     "CLIError",
+    "check_appended_csv",
     "check_creatable",
     "check_folder",
     "check_mesh_suffixes",
@@ -56,6 +57,25 @@ def check_creatable(folder: Path, what: str) -> None:
     above = next((p for p in folder.parents if p.is_dir()), Path("."))  # "." exists (the current folder)
     if not os.access(above, os.W_OK | os.X_OK):
         raise CLIError(f"{what} {str(folder)!r}: cannot create it (folder {str(above)!r} is not writable)")
+
+
+def check_appended_csv(path: Path, header: str) -> None:
+    """An ``--output-csv`` the run will append a row to: its first line ``header`` (or none) and appendable, now.
+
+    Both are found before the work (``mpeg``, ``sample``): a file of another header, or one that cannot be opened
+    for appending (review X, F15: a read-only file was found after the comparison).
+
+    Raises:
+        CLIError: ``--output-csv: ...`` (another header) or ``--output-csv 'PATH': cannot append to it (...)``.
+    """
+    from torchmeshmetric.mpeg.comparison.csv_rows import CsvHeaderError, check_csv_header
+
+    try:
+        check_csv_header(path, header)
+    except CsvHeaderError as exc:
+        raise CLIError(f"--output-csv: {exc}") from exc
+    except OSError as exc:
+        raise CLIError(f"--output-csv {str(path)!r}: cannot append to it ({exc.strerror})") from exc
 
 
 def make_folder(folder: Path, what: str, files: Any) -> None:

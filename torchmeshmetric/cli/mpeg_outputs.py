@@ -81,7 +81,7 @@ def check_outputs(args: argparse.Namespace) -> None:
     The models and the CSV are the output set of :func:`torchmeshmetric.cli._outputs.check_writable` (never an input,
     distinct, writable), and a CSV that starts with another header is refused here, before the comparison.
     """
-    from torchmeshmetric.cli._outputs import CLIError, check_writable
+    from torchmeshmetric.cli._outputs import CLIError, check_appended_csv, check_writable
 
     named = [(o, Path(m)) for o, m in (("--output-model-ref", args.output_model_ref),
                                          ("--output-model-dis", args.output_model_dis)) if m is not None]  # fmt: skip
@@ -96,14 +96,7 @@ def check_outputs(args: argparse.Namespace) -> None:
         [m for _, m in named], args.overwrite, inputs=_inputs(args), what=[o for o, _ in named], appended=csv
     )
     if csv:
-        from torchmeshmetric.mpeg.comparison.csv_rows import CsvHeaderError, check_csv_header
-
-        try:
-            check_csv_header(csv[0][1], csv_header(args.mode))
-        except CsvHeaderError as exc:
-            raise CLIError(f"--output-csv: {exc}") from exc
-        except OSError as exc:  # found before the work, not when the row is appended
-            raise CLIError(f"--output-csv {str(csv[0][1])!r}: cannot append to it ({exc.strerror})") from exc
+        check_appended_csv(csv[0][1], csv_header(args.mode))
 
 
 def csv_header(mode: str) -> str:

@@ -25,7 +25,7 @@ _OPTIONS = {
 
 
 def _run(args: argparse.Namespace) -> int:
-    from torchmeshmetric.cli._outputs import CLIError, check_writable
+    from torchmeshmetric.cli._outputs import CLIError, check_appended_csv, check_writable
     from torchmeshmetric.cli.options import as_option_error
     from torchmeshmetric.mpeg.core.textured_mesh import load_textured_mesh
     from torchmeshmetric.mpeg.sampling.edge_sampling import edge_sample
@@ -47,14 +47,9 @@ def _run(args: argparse.Namespace) -> int:
     csv = [] if args.output_csv is None else [("--output-csv", Path(args.output_csv))]
     check_writable([out], args.overwrite, inputs=inputs, what="OUT", appended=csv)
     if csv:
-        from torchmeshmetric.mpeg.comparison.csv_rows import SAMPLE_CSV_HEADERS, CsvHeaderError, check_csv_header
+        from torchmeshmetric.mpeg.comparison.csv_rows import SAMPLE_CSV_HEADERS
 
-        try:
-            check_csv_header(csv[0][1], SAMPLE_CSV_HEADERS[args.mode])
-        except CsvHeaderError as exc:
-            raise CLIError(f"--output-csv: {exc}") from exc
-        except OSError as exc:  # found before the work, not when the row is appended
-            raise CLIError(f"--output-csv {str(csv[0][1])!r}: cannot append to it ({exc.strerror})") from exc
+        check_appended_csv(csv[0][1], SAMPLE_CSV_HEADERS[args.mode])
     # the library's errors name its arguments (mesh, texture, num_samples_min...): retold with the command's names
     options = {**_OPTIONS, "path": "MESH", "mesh": f"MESH {args.mesh!r}"}
     options["texture"] = "--texture" if args.texture else "MESH's texture"
